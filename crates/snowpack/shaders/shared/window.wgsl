@@ -1,0 +1,16 @@
+// Shared by every pass that maps window-local texels to the toroidal storage.
+//
+// The window's local texel (i, j) (row i = +z, column j = +x) is the global
+// texel (origin.y + i, origin.x + j); it is stored at the global index modulo
+// the resolution, so sliding the window never moves stored texels.
+
+fn wrap_index(g: i32, res: i32) -> i32 {
+    return ((g % res) + res) % res;
+}
+
+fn storage_index(origin: vec2<i32>, res: u32, i: u32, j: u32) -> u32 {
+    let r = i32(res);
+    let si = wrap_index(origin.y + i32(i), r);
+    let sj = wrap_index(origin.x + i32(j), r);
+    return u32(si) * res + u32(sj);
+}

@@ -1,0 +1,47 @@
+// Window pass: writes terrain height and fresh snow into the texels that the
+// sliding window has just exposed (at most two rectangles: new rows, new
+// columns), and nothing else. CPU twin: src/cpu/window.rs.
+
+struct WindowParams {
+    origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
+    resolution: u32,
+    texel_m: f32,
+    depth_m: f32,
+    rect_count: u32,
+    _pad: vec2<u32>,
+    rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
+}
+
+@group(0) @binding(0) var<uniform> params: WindowParams;
+@group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(3) var<storage, read_write> terrain: array<f32>;
+@group(0) @binding(4) var<storage, read_write> snow: array<f32>;
+
+const WORKGROUP: u32 = 256u;
+
+@compute @workgroup_size(256)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    var k = gid.x + gid.y * groups.x * WORKGROUP;
+    let r0 = params.rects[0];
+    let area0 = r0.z * r0.w;
+    var rect = r0;
+    if k >= area0 {
+        if params.rect_count < 2u {
+            return;
+        }
+        k -= area0;
+        rect = params.rects[1];
+        if k >= rect.z * rect.w {
+            return;
+        }
+    }
+    let i = rect.x + k / rect.w;
+    let j = rect.y + k % rect.w;
+    let s = storage_index(params.origin, params.resolution, i, j);
+    let x = (f32(params.origin.x + i32(j)) + 0.5) * params.texel_m;
+    let z = (f32(params.origin.y + i32(i)) + 0.5) * params.texel_m;
+    let ground = terrain_height(terrain_params, x, z);
+    terrain[s] = ground;
+    snow[s] = ground + params.depth_m;
+}

@@ -1,0 +1,66 @@
+//! CPU twin of the capture pass (`capture_sphere.wgsl`, `capture_mesh.wgsl`):
+//! the depth each window texel's centre sees looking up from below, by ray
+//! casting the same shapes analytically.
+
+use glam::{Mat4, Vec3};
+
+use crate::deform::capture::{CaptureInstances, CaptureParams};
+
+/// Depth per window-local texel (row-major), 1.0 where nothing was captured.
+#[must_use]
+pub fn capture_depths(inst: &CaptureInstances, p: &CaptureParams, resolution: u32) -> Vec<f32> {
+    let r = resolution as usize;
+    let mut depth = vec![1.0_f32; r * r];
+    let range = p.high_m - p.low_m;
+    let inverses: Vec<Mat4> = inst.boxes.iter().map(|m| Mat4::from_cols_array(m).inverse()).collect();
+    for i in 0..r {
+        for j in 0..r {
+            let x = (j as f32 + 0.5) * p.texel_m;
+            let z = (i as f32 + 0.5) * p.texel_m;
+            let mut best = 1.0_f32;
+            for s in &inst.spheres {
+                let (dx, dz) = (x - s[0], z - s[2]);
+                let d2 = dx * dx + dz * dz;
+                let r2 = s[3] * s[3];
+                if d2 > r2 {
+                    continue;
+                }
+                let d = (s[1] - (r2 - d2).sqrt() - p.low_m) / range;
+                if d <= 1.0 {
+                    best = best.min(d.clamp(0.0, 1.0));
+                }
+            }
+            for inv in &inverses {
+                if let Some(y) = lowest_box_hit(inv, x, z, p.low_m) {
+                    let d = (y - p.low_m) / range;
+                    if d < 1.0 {
+                        best = best.min(d.max(0.0));
+                    }
+                }
+            }
+            depth[i * r + j] = best;
+        }
+    }
+    depth
+}
+
+/// Lowest world height where the vertical line through (x, z) meets the unit
+/// cube mapped by the inverse model matrix `inv`.
+fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
+    let o = inv.transform_point3(Vec3::new(x, low, z));
+    let d = inv.transform_vector3(Vec3::Y);
+    let (mut t0, mut t1) = (f32::NEG_INFINITY, f32::INFINITY);
+    for axis in 0..3 {
+        let (oa, da) = (o[axis], d[axis]);
+        if da.abs() < 1e-12 {
+            if oa.abs() > 1.0 {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = ((-1.0 - oa) / da, (1.0 - oa) / da);
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t0 <= t1 && t1 >= 0.0).then_some(low + t0)
+}

@@ -1,0 +1,10 @@
+//! CPU references of every GPU pass, one file per WGSL file. They mirror the
+//! shaders' arithmetic (same operations, same order) so tests can compare the
+//! GPU's output with them on random inputs.
+
+pub mod blur;
+pub mod capture;
+pub mod normals;
+pub mod rim;
+pub mod update;
+pub mod window;

@@ -1,0 +1,70 @@
+//! Blur pass: the separable 5x5 Gaussian in workgroup memory (`blur.wgsl`),
+//! `shown` -> `scratch` along x, then `scratch` -> `shown` along z.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// Uniforms of `blur.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BlurParams {
+    /// Texels per side.
+    pub resolution: u32,
+    /// 0: along x (rows), 1: along z (columns).
+    pub axis: u32,
+    /// Padding.
+    pub _pad: [u32; 2],
+}
+
+/// Both axes of the blur; each axis has its own uniforms and bind group, so
+/// both can be recorded into one encoder.
+pub struct BlurPass {
+    pipeline: wgpu::ComputePipeline,
+    axes: [wgpu::BindGroup; 2],
+    resolution: u32,
+}
+
+impl BlurPass {
+    /// Builds the pipeline and binds both axes to `res`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "blur",
+            shaders::BLUR,
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+        );
+        let make = |axis: u32, src: &wgpu::Buffer, dst: &wgpu::Buffer| {
+            let params = layout::uniform_buffer::<BlurParams>(device, "blur params");
+            let p = BlurParams { resolution: res.resolution, axis, _pad: [0; 2] };
+            queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
+            layout::bind_group(
+                device,
+                "blur",
+                &bgl,
+                &[params.as_entire_binding(), src.as_entire_binding(), dst.as_entire_binding()],
+            )
+        };
+        let axes = [make(0, &res.shown, &res.scratch), make(1, &res.scratch, &res.shown)];
+        Self { pipeline, axes, resolution: res.resolution }
+    }
+
+    /// Records both axes.
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+        for (axis, label) in [(0, "blur_x"), (1, "blur_z")] {
+            let slot = timer.reserve(label);
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: timer.compute_writes(slot),
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.axes[axis], &[]);
+            let g = layout::groups(self.resolution, 16);
+            pass.dispatch_workgroups(g, g, 1);
+        }
+    }
+}

@@ -1,0 +1,17 @@
+//! The deformation pipeline: sliding window, capture, update, rims, blur,
+//! normals and readback, one module (and one WGSL file) per pass.
+
+pub mod blur;
+pub mod capture;
+pub mod normals;
+pub mod params;
+pub mod pipeline;
+pub mod query;
+pub mod resources;
+pub mod rim;
+pub mod shape;
+pub mod update;
+pub mod window;
+
+pub use pipeline::SnowDeformation;
+pub use query::SnowSnapshot;

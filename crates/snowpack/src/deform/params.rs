@@ -1,0 +1,81 @@
+//! Parameters of the snow surface, shared by every deformation pass.
+
+use crate::error::SnowError;
+
+/// How the deformation window is sized and how the snow behaves.
+///
+/// Field names follow the `[snow]` table of scene files (see `docs/scene.md`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SnowParams {
+    /// Side of the square deformation window (m).
+    pub extent_m: f32,
+    /// Texels per side of the window.
+    pub resolution: u32,
+    /// Rest depth of fresh snow above the terrain (m).
+    pub depth_m: f32,
+    /// Linear refill of trails while it snows (m/s).
+    pub refill_m_per_s: f32,
+    /// Rim strength in the displayed surface (Hanák's cubic remap); 0 = no rims.
+    pub elevation: f32,
+    /// Whether the displayed surface gets the 5x5 Gaussian blur.
+    pub blur: bool,
+}
+
+impl Default for SnowParams {
+    fn default() -> Self {
+        Self {
+            extent_m: 64.0,
+            resolution: 1024,
+            depth_m: 0.5,
+            refill_m_per_s: 0.0,
+            elevation: 1.0,
+            blur: true,
+        }
+    }
+}
+
+/// Smallest and largest window resolution snowpack accepts.
+pub const RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 16..=8192;
+
+impl SnowParams {
+    /// Size of one texel (m).
+    #[must_use]
+    pub fn texel_m(&self) -> f32 {
+        self.extent_m / self.resolution as f32
+    }
+
+    /// Number of texels in the window.
+    #[must_use]
+    pub fn texel_count(&self) -> usize {
+        self.resolution as usize * self.resolution as usize
+    }
+
+    /// Checks every value; the error names the offending field.
+    pub fn validate(&self) -> Result<(), SnowError> {
+        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+        if !RESOLUTION_RANGE.contains(&self.resolution) || self.resolution % 16 != 0 {
+            return bad(
+                "resolution",
+                format!(
+                    "{} is not a multiple of 16 in {}..={}",
+                    self.resolution,
+                    RESOLUTION_RANGE.start(),
+                    RESOLUTION_RANGE.end()
+                ),
+            );
+        }
+        if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
+            return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
+        }
+        if !(self.depth_m.is_finite() && self.depth_m > 0.0) {
+            return bad("depth_m", format!("{} must be a positive number of metres", self.depth_m));
+        }
+        if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
+            return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));
+        }
+        if !(self.elevation.is_finite() && self.elevation >= 0.0) {
+            return bad("elevation", format!("{} must be zero or positive", self.elevation));
+        }
+        Ok(())
+    }
+}

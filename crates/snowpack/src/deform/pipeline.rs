@@ -1,0 +1,361 @@
+//! One frame of deformation, as an explicit list of passes.
+
+use glam::DVec2;
+
+use crate::error::SnowError;
+use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
+use crate::{Deformer, SnowParams, TerrainSource};
+
+use super::blur::BlurPass;
+use super::capture::{CaptureInstances, CaptureParams, CapturePass};
+use super::normals::{unpack_surface, NormalPass};
+use super::query::SnowSnapshot;
+use super::resources::DeformResources;
+use super::rim::{RimParams, RimPass};
+use super::update::{UpdateParams, UpdatePass};
+use super::window::{SlidingWindow, WindowParams, WindowPass};
+
+/// Staging buffers in the query readback ring.
+const READBACK_SLOTS: usize = 3;
+
+/// Margin of the capture depth range beyond the terrain and the snow (m).
+const CAPTURE_MARGIN_M: f32 = 1.0;
+
+/// A deformation window and the passes that update it.
+///
+/// Per frame: [`WindowPass`] (newly exposed texels), [`CapturePass`] (actors
+/// from below), [`UpdatePass`] (persistent height with refill), [`RimPass`]
+/// (Hanák's remap), [`BlurPass`] (x then z, optional), [`NormalPass`] (packed
+/// surface), then a readback copy for CPU queries.
+pub struct SnowDeformation {
+    params: SnowParams,
+    terrain: TerrainSource,
+    res: DeformResources,
+    window: SlidingWindow,
+    center: DVec2,
+    capture_params: CaptureParams,
+    window_pass: WindowPass,
+    capture_pass: CapturePass,
+    update_pass: UpdatePass,
+    rim_pass: RimPass,
+    blur_pass: BlurPass,
+    normal_pass: NormalPass,
+    timer: GpuTimer,
+    readback: ReadbackRing<(u64, [i64; 2])>,
+    latest: Option<SnowSnapshot>,
+    frame: u64,
+    exposed_texels: u64,
+}
+
+impl SnowDeformation {
+    /// Allocates a window of `params` over `terrain`, centred on world (x, z).
+    pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
+        params.validate()?;
+        let limits = ctx.device.limits();
+        if params.resolution > limits.max_texture_dimension_2d {
+            return Err(SnowError::InvalidParameter {
+                field: "resolution",
+                why: format!("{} exceeds this adapter's texture limit {}", params.resolution, limits.max_texture_dimension_2d),
+            });
+        }
+        let surface_bytes = params.texel_count() as u64 * 8;
+        if surface_bytes > u64::from(limits.max_storage_buffer_binding_size) {
+            return Err(SnowError::InvalidParameter {
+                field: "resolution",
+                why: format!("{} needs {surface_bytes} byte buffers, above this adapter's limit", params.resolution),
+            });
+        }
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        let res = DeformResources::new(device, queue, &params, &terrain);
+        let (tmin, tmax) = terrain.height_bounds();
+        let capture_params = CaptureParams {
+            extent_m: params.extent_m,
+            texel_m: params.texel_m(),
+            low_m: tmin - CAPTURE_MARGIN_M,
+            high_m: tmax + params.depth_m + CAPTURE_MARGIN_M,
+        };
+        let this = Self {
+            window_pass: WindowPass::new(device, &res),
+            capture_pass: CapturePass::new(device),
+            update_pass: UpdatePass::new(device, &res),
+            rim_pass: RimPass::new(device, &res),
+            blur_pass: BlurPass::new(device, queue, &res),
+            normal_pass: NormalPass::new(device, queue, &res, params.texel_m()),
+            timer: GpuTimer::new(device, queue),
+            readback: ReadbackRing::new(device, "snow", res.snow.size(), READBACK_SLOTS),
+            window: SlidingWindow::new(params.resolution),
+            center,
+            capture_params,
+            params,
+            terrain,
+            res,
+            latest: None,
+            frame: 0,
+            exposed_texels: 0,
+        };
+        ctx.check("creating the deformation passes")?;
+        Ok(this)
+    }
+
+    /// The parameters in use.
+    #[must_use]
+    pub fn params(&self) -> &SnowParams {
+        &self.params
+    }
+
+    /// The terrain under the snow.
+    #[must_use]
+    pub fn terrain(&self) -> &TerrainSource {
+        &self.terrain
+    }
+
+    /// The GPU resources, for renderers (`surface`) and tools.
+    #[must_use]
+    pub fn resources(&self) -> &DeformResources {
+        &self.res
+    }
+
+    /// Sets the refill rate (m/s); takes effect next frame.
+    pub fn set_refill(&mut self, refill_m_per_s: f32) {
+        self.params.refill_m_per_s = refill_m_per_s.max(0.0);
+    }
+
+    /// Sets the rim strength; takes effect next frame.
+    pub fn set_elevation(&mut self, elevation: f32) {
+        self.params.elevation = elevation.max(0.0);
+    }
+
+    /// Turns the displayed-surface blur on or off.
+    pub fn set_blur(&mut self, blur: bool) {
+        self.params.blur = blur;
+    }
+
+    /// Moves the window's centre; the move (snapped to texels) happens at the next frame.
+    pub fn set_center(&mut self, center: DVec2) {
+        self.center = center;
+    }
+
+    /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
+    #[must_use]
+    pub fn origin_m(&self) -> Option<DVec2> {
+        let texel = f64::from(self.params.texel_m());
+        self.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+    }
+
+    /// Global texel index `[column, row]` of local (0, 0), once placed.
+    #[must_use]
+    pub fn origin_texel(&self) -> Option<[i64; 2]> {
+        self.window.origin()
+    }
+
+    /// Frames recorded so far.
+    #[must_use]
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Texels rewritten by window moves so far (the whole window once, then only new strips).
+    #[must_use]
+    pub fn exposed_texels(&self) -> u64 {
+        self.exposed_texels
+    }
+
+    /// Records one frame of deformation into `encoder`. Call
+    /// [`Self::after_submit`] once the encoder has been submitted.
+    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], dt_s: f32) {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        let p = &self.params;
+        let texel = f64::from(p.texel_m());
+        let origin = self.window.snapped_origin(self.center.x, self.center.y, texel);
+        let rects = self.window.move_to(origin);
+        self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
+        // Window and tile coordinates stay in i64 on the CPU; the GPU needs only
+        // i32 (about 134,000 km of texels at 6.25 cm).
+        let origin_i32 = [origin[0] as i32, origin[1] as i32];
+        let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel);
+
+        self.timer.begin_frame();
+        self.window_pass.record(
+            queue,
+            encoder,
+            &mut self.timer,
+            WindowParams {
+                origin: origin_i32,
+                resolution: p.resolution,
+                texel_m: p.texel_m(),
+                depth_m: p.depth_m,
+                ..WindowParams::default()
+            },
+            &rects,
+        );
+        let instances = CaptureInstances::new(deformers, corner, &self.capture_params);
+        self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
+        self.capture_pass.record(encoder, &mut self.timer, &self.res);
+        self.update_pass.record(
+            queue,
+            encoder,
+            &mut self.timer,
+            &UpdateParams {
+                origin: origin_i32,
+                resolution: p.resolution,
+                depth_m: p.depth_m,
+                refill_m: p.refill_m_per_s * dt_s.max(0.0),
+                low_m: self.capture_params.low_m,
+                high_m: self.capture_params.high_m,
+                _pad: 0,
+            },
+        );
+        self.rim_pass.record(
+            queue,
+            encoder,
+            &mut self.timer,
+            &RimParams {
+                origin: origin_i32,
+                resolution: p.resolution,
+                depth_m: p.depth_m,
+                elevation: p.elevation,
+                _pad: [0; 3],
+            },
+        );
+        if p.blur {
+            self.blur_pass.record(encoder, &mut self.timer);
+        }
+        self.normal_pass.record(encoder, &mut self.timer);
+        self.readback.record_copy(encoder, &self.res.snow, (self.frame, origin));
+        self.timer.end_frame(encoder);
+        self.frame += 1;
+    }
+
+    /// Starts the readbacks of the submitted frame and collects any that have
+    /// arrived (snapshots and timings), without waiting.
+    pub fn after_submit(&mut self, ctx: &GpuContext) {
+        self.readback.after_submit();
+        self.timer.after_submit();
+        // A non-blocking poll runs mapping callbacks that are due; an error
+        // here surfaces through `ctx.check` as well.
+        let _ = ctx.device.poll(wgpu::PollType::Poll);
+        self.collect();
+    }
+
+    fn collect(&mut self) {
+        if let Some(((frame, origin), bytes)) = self.readback.take_latest() {
+            self.latest = Some(SnowSnapshot {
+                origin,
+                resolution: self.params.resolution,
+                texel_m: f64::from(self.params.texel_m()),
+                frame,
+                heights: bytemuck::pod_collect_to_vec(&bytes),
+            });
+        }
+        self.timer.collect();
+    }
+
+    /// Records, submits and follows up one frame; fails on GPU errors.
+    pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
+        self.encode(ctx, &mut encoder, deformers, dt_s);
+        ctx.queue.submit([encoder.finish()]);
+        self.after_submit(ctx);
+        ctx.check("deformation frame")
+    }
+
+    /// Waits for every outstanding readback (snapshot and timings); for the
+    /// end of a headless run or a test, never in a frame loop.
+    pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
+        ctx.wait_idle("finishing readbacks")?;
+        self.collect();
+        Ok(())
+    }
+
+    /// The newest snow snapshot that has come back from the GPU.
+    #[must_use]
+    pub fn snapshot(&self) -> Option<&SnowSnapshot> {
+        self.latest.as_ref()
+    }
+
+    /// Median GPU time per pass so far (empty without timestamp support).
+    #[must_use]
+    pub fn timings(&self) -> PassTimings {
+        self.timer.medians()
+    }
+
+    /// Forgets timing samples (call after warm-up).
+    pub fn clear_timings(&mut self) {
+        self.timer.clear();
+    }
+
+    /// Whether per-pass timings are being recorded.
+    #[must_use]
+    pub fn timing_enabled(&self) -> bool {
+        self.timer.enabled()
+    }
+
+    /// GPU memory held, by resource (bytes), including the readback ring.
+    #[must_use]
+    pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
+        let mut list = self.res.memory_bytes();
+        list.push(("readback ring", self.readback.memory_bytes()));
+        list
+    }
+
+    fn untorus(&self, toroidal: &[f32]) -> Vec<f32> {
+        let r = self.params.resolution as usize;
+        let origin = self.window.origin().unwrap_or([0, 0]);
+        let ri = r as i64;
+        let (oc, or) = (origin[0].rem_euclid(ri) as usize, origin[1].rem_euclid(ri) as usize);
+        let mut out = vec![0.0; r * r];
+        for i in 0..r {
+            let si = (or + i) % r;
+            for j in 0..r {
+                out[i * r + j] = toroidal[si * r + (oc + j) % r];
+            }
+        }
+        out
+    }
+
+    /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
+    pub fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let raw = read_buffer(ctx, &self.res.snow)?;
+        Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
+    }
+
+    /// Terrain height (m), window-local row-major; blocking.
+    pub fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let raw = read_buffer(ctx, &self.res.terrain)?;
+        Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
+    }
+
+    /// Displayed height (m) and unit normal per texel, window-local; blocking.
+    pub fn read_surface(&self, ctx: &GpuContext) -> Result<(Vec<f32>, Vec<[f32; 3]>), SnowError> {
+        let raw: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.surface)?);
+        Ok(raw.into_iter().map(unpack_surface).unzip())
+    }
+}
+
+/// Copies a whole buffer into a staging buffer and waits for it (blocking).
+pub fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, SnowError> {
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("blocking readback"),
+        size: buffer.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+    ctx.queue.submit([encoder.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.wait_idle("reading back a buffer")?;
+    rx.recv_timeout(std::time::Duration::from_secs(5))
+        .map_err(|_| SnowError::Readback("the map callback never ran".to_owned()))?
+        .map_err(|e| SnowError::Readback(e.to_string()))?;
+    let bytes = staging
+        .slice(..)
+        .get_mapped_range()
+        .map_err(|e| SnowError::Readback(e.to_string()))?
+        .to_vec();
+    staging.unmap();
+    Ok(bytes)
+}

@@ -1,0 +1,116 @@
+//! The GPU buffers and textures the deformation passes share.
+//!
+//! | resource | format | order | meaning |
+//! |---|---|---|---|
+//! | `terrain` | f32 per texel | toroidal | terrain height (m) |
+//! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
+//! | `capture` | Depth32Float texture | window-local | lowest actor surface, linear in height |
+//! | `shown` | f32 per texel | window-local | displayed height (rims, then blurred in place via `scratch`) |
+//! | `scratch` | f32 per texel | window-local | blur's intermediate |
+//! | `surface` | (f32 bits, snorm16x2) per texel | window-local | displayed height and normal for the renderer |
+
+use crate::gpu::layout;
+use crate::{SnowParams, TerrainSource};
+
+use super::window::TerrainParams;
+
+/// Format of the capture depth target.
+pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Every buffer and texture of one deformation window.
+pub struct DeformResources {
+    /// Texels per side.
+    pub resolution: u32,
+    /// Terrain height per texel, toroidal.
+    pub terrain: wgpu::Buffer,
+    /// Persistent snow height per texel, toroidal.
+    pub snow: wgpu::Buffer,
+    /// Heightmap samples for heightmap terrain (one zero otherwise).
+    pub heightmap: wgpu::Buffer,
+    /// [`TerrainParams`] uniform.
+    pub terrain_params: wgpu::Buffer,
+    /// Capture depth target.
+    pub capture: wgpu::Texture,
+    /// View of `capture`.
+    pub capture_view: wgpu::TextureView,
+    /// Displayed height, window-local.
+    pub shown: wgpu::Buffer,
+    /// Blur intermediate, window-local.
+    pub scratch: wgpu::Buffer,
+    /// Packed height and normal, window-local; what a renderer samples.
+    pub surface: wgpu::Buffer,
+}
+
+fn height_buffer(device: &wgpu::Device, label: &str, texels: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: texels * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl DeformResources {
+    /// Allocates everything for `params` and uploads the terrain description.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, params: &SnowParams, terrain: &TerrainSource) -> Self {
+        let res = params.resolution;
+        let texels = u64::from(res) * u64::from(res);
+        let samples: &[f32] = match terrain {
+            TerrainSource::Heightmap(h) => &h.heights_m,
+            _ => &[0.0],
+        };
+        let heightmap = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("heightmap"),
+            size: (samples.len() as u64 * 4).max(4),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        queue.write_buffer(&heightmap, 0, bytemuck::cast_slice(samples));
+        let terrain_params = layout::uniform_buffer::<TerrainParams>(device, "terrain params");
+        queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&TerrainParams::new(terrain)));
+        let capture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("capture depth"),
+            size: wgpu::Extent3d { width: res, height: res, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: CAPTURE_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
+        Self {
+            resolution: res,
+            terrain: height_buffer(device, "terrain", texels),
+            snow: height_buffer(device, "snow", texels),
+            heightmap,
+            terrain_params,
+            capture,
+            capture_view,
+            shown: height_buffer(device, "shown", texels),
+            scratch: height_buffer(device, "blur scratch", texels),
+            surface: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("surface"),
+                size: texels * 8,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// Bytes of GPU memory held, by resource.
+    #[must_use]
+    pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
+        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 4;
+        vec![
+            ("terrain", self.terrain.size()),
+            ("snow", self.snow.size()),
+            ("heightmap", self.heightmap.size()),
+            ("capture", depth),
+            ("shown", self.shown.size()),
+            ("scratch", self.scratch.size()),
+            ("surface", self.surface.size()),
+        ]
+    }
+}

@@ -1,0 +1,48 @@
+//! Shapes that press into the snow (the "deformers" drawn by the capture pass).
+
+use glam::{Mat4, Quat, Vec3};
+
+/// One object that deforms the snow this frame, in world coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Deformer {
+    /// A sphere; captured exactly (an impostor writes the analytic lower surface).
+    Sphere {
+        /// Centre in world space (m).
+        center: Vec3,
+        /// Radius (m).
+        radius: f32,
+    },
+    /// An oriented box, captured as a triangle mesh.
+    Box {
+        /// Centre in world space (m).
+        center: Vec3,
+        /// Half the box's size along its local axes (m).
+        half_extents: Vec3,
+        /// Orientation of the box's local axes.
+        rotation: Quat,
+    },
+}
+
+impl Deformer {
+    /// World-space model matrix of a box (unit cube from -1 to 1 scaled by the half extents).
+    #[must_use]
+    pub fn box_matrix(center: Vec3, half_extents: Vec3, rotation: Quat) -> Mat4 {
+        Mat4::from_scale_rotation_translation(half_extents, rotation, center)
+    }
+
+    /// Lowest world height of the shape (m).
+    #[must_use]
+    pub fn lowest_point(&self) -> f32 {
+        match *self {
+            Self::Sphere { center, radius } => center.y - radius,
+            Self::Box { center, half_extents, rotation } => {
+                let m = glam::Mat3::from_quat(rotation);
+                // Support function of the box in the -Y direction.
+                let extent = (m.x_axis.y.abs() * half_extents.x)
+                    + (m.y_axis.y.abs() * half_extents.y)
+                    + (m.z_axis.y.abs() * half_extents.z);
+                center.y - extent
+            }
+        }
+    }
+}

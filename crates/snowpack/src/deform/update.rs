@@ -1,0 +1,80 @@
+//! Update pass: the persistent snow height with linear refill (`update.wgsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// Uniforms of `update.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct UpdateParams {
+    /// Global texel index of local (0, 0): `[column, row]`.
+    pub origin: [i32; 2],
+    /// Texels per side.
+    pub resolution: u32,
+    /// Rest depth of snow (m).
+    pub depth_m: f32,
+    /// Refill this frame: `refill_m_per_s * dt` (m).
+    pub refill_m: f32,
+    /// Capture depth 0 height (m).
+    pub low_m: f32,
+    /// Capture depth 1 height (m).
+    pub high_m: f32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// Applies refill and the captured actors to the persistent snow.
+pub struct UpdatePass {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl UpdatePass {
+    /// Builds the pipeline and binds it to `res`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "update",
+            shaders::UPDATE,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::depth_texture(1),
+                layout::storage(2, true),
+                layout::storage(3, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
+        let bind_group = layout::bind_group(
+            device,
+            "update",
+            &bgl,
+            &[
+                params.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&res.capture_view),
+                res.terrain.as_entire_binding(),
+                res.snow.as_entire_binding(),
+            ],
+        );
+        Self { pipeline, params, bind_group }
+    }
+
+    /// Records the update for this frame.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let slot = timer.reserve("update");
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("update"),
+            timestamp_writes: timer.compute_writes(slot),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        let g = layout::groups(params.resolution, 16);
+        pass.dispatch_workgroups(g, g, 1);
+    }
+}

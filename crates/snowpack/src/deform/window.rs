@@ -1,0 +1,263 @@
+//! The sliding window: where the deformation region is, snapped to whole
+//! texels, and which texels a move exposes.
+//!
+//! Texel (i, j) of the window is the global texel (origin_row + i,
+//! origin_col + j), covering world x in `(origin_col + j) * texel ..` and z in
+//! `(origin_row + i) * texel ..`. Storage is toroidal: the global texel g lives
+//! at `g mod resolution`, so a move rewrites only the texels it exposes.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::layout;
+use crate::gpu::GpuTimer;
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// A rectangle of window-local texels: `[row0, col0, rows, cols]`.
+pub type TexelRect = [u32; 4];
+
+/// The window's position on the global texel grid.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SlidingWindow {
+    resolution: u32,
+    origin: Option<[i64; 2]>,
+}
+
+impl SlidingWindow {
+    /// A window that has not been placed yet (the first placement exposes everything).
+    #[must_use]
+    pub fn new(resolution: u32) -> Self {
+        Self { resolution, origin: None }
+    }
+
+    /// Global texel index `[column, row]` of local texel (0, 0), once placed.
+    #[must_use]
+    pub fn origin(&self) -> Option<[i64; 2]> {
+        self.origin
+    }
+
+    /// The origin a window centred on world (x, z) snaps to.
+    #[must_use]
+    pub fn snapped_origin(&self, center_x: f64, center_z: f64, texel_m: f64) -> [i64; 2] {
+        let half = i64::from(self.resolution / 2);
+        [(center_x / texel_m).floor() as i64 - half, (center_z / texel_m).floor() as i64 - half]
+    }
+
+    /// Moves the window to `origin` and returns the local rectangles that are
+    /// newly exposed there (empty when it did not move; at most two).
+    pub fn move_to(&mut self, origin: [i64; 2]) -> Vec<TexelRect> {
+        let res = self.resolution;
+        let full = vec![[0, 0, res, res]];
+        let Some(old) = self.origin.replace(origin) else { return full };
+        let (dx, dz) = (origin[0] - old[0], origin[1] - old[1]);
+        let r = i64::from(res);
+        if dx.abs() >= r || dz.abs() >= r {
+            return full;
+        }
+        let mut rects = Vec::new();
+        // New columns, all rows.
+        let (col0, cols) = if dx > 0 { ((r - dx) as u32, dx as u32) } else { (0, (-dx) as u32) };
+        if cols > 0 {
+            rects.push([0, col0, res, cols]);
+        }
+        // New rows, in the columns not already covered.
+        let (rest0, rest) = if dx > 0 { (0, res - cols) } else { (cols, res - cols) };
+        let (row0, rows) = if dz > 0 { ((r - dz) as u32, dz as u32) } else { (0, (-dz) as u32) };
+        if rows > 0 && rest > 0 {
+            rects.push([row0, rest0, rows, rest]);
+        }
+        rects
+    }
+}
+
+/// Uniforms of `window.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct WindowParams {
+    /// Global texel index of local (0, 0): `[column, row]`.
+    pub origin: [i32; 2],
+    /// Texels per side.
+    pub resolution: u32,
+    /// Texel size (m).
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// How many of `rects` are used.
+    pub rect_count: u32,
+    /// Padding to the 16-byte alignment of `rects`.
+    pub _pad: [u32; 2],
+    /// Exposed local rectangles `[row0, col0, rows, cols]`.
+    pub rects: [TexelRect; 2],
+}
+
+/// Uniforms of `shared/terrain.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct TerrainParams {
+    /// 0 flat, 1 noise, 2 heightmap.
+    pub kind: u32,
+    /// Noise seed.
+    pub seed: u32,
+    /// Flat height or noise base (m).
+    pub base_m: f32,
+    /// Noise amplitude (m).
+    pub amplitude_m: f32,
+    /// Noise wavelength (m).
+    pub wavelength_m: f32,
+    /// Heightmap pixels per row.
+    pub hm_width: u32,
+    /// Heightmap rows.
+    pub hm_height: u32,
+    /// Padding.
+    pub _pad: u32,
+    /// Heightmap centre (x, z) in world metres.
+    pub hm_center_m: [f32; 2],
+    /// Heightmap size (x, z) in metres.
+    pub hm_size_m: [f32; 2],
+}
+
+impl TerrainParams {
+    /// Uniforms describing `terrain` (heightmap samples go in a separate buffer).
+    #[must_use]
+    pub fn new(terrain: &crate::TerrainSource) -> Self {
+        use crate::TerrainSource as T;
+        match terrain {
+            T::Flat { height_m } => Self { kind: 0, base_m: *height_m, ..Self::default() },
+            T::Noise(n) => Self {
+                kind: 1,
+                seed: n.seed,
+                base_m: n.base_m,
+                amplitude_m: n.amplitude_m,
+                wavelength_m: n.wavelength_m,
+                ..Self::default()
+            },
+            T::Heightmap(h) => Self {
+                kind: 2,
+                hm_width: h.width,
+                hm_height: h.height,
+                hm_center_m: h.center_m,
+                hm_size_m: h.size_m,
+                ..Self::default()
+            },
+        }
+    }
+}
+
+/// Writes terrain and fresh snow into newly exposed texels (`window.wgsl`).
+pub struct WindowPass {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl WindowPass {
+    /// Builds the pipeline and binds it to `res`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "window",
+            shaders::WINDOW,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
+                layout::storage(2, true),
+                layout::storage(3, false),
+                layout::storage(4, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<WindowParams>(device, "window params");
+        let bind_group = layout::bind_group(
+            device,
+            "window",
+            &bgl,
+            &[
+                params.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
+                res.terrain.as_entire_binding(),
+                res.snow.as_entire_binding(),
+            ],
+        );
+        Self { pipeline, params, bind_group }
+    }
+
+    /// Records the exposure of `rects` (nothing when empty).
+    pub fn record(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        mut params: WindowParams,
+        rects: &[TexelRect],
+    ) {
+        if rects.is_empty() {
+            return;
+        }
+        params.rect_count = rects.len().min(2) as u32;
+        for (slot, rect) in params.rects.iter_mut().zip(rects) {
+            *slot = *rect;
+        }
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let texels: u32 = rects.iter().take(2).map(|r| r[2] * r[3]).sum();
+        let groups = layout::groups(texels, 256);
+        // Stay under the 65535 per-dimension limit with a 2D grid.
+        let (gx, gy) = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
+        let slot = timer.reserve("window");
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("window"),
+            timestamp_writes: timer.compute_writes(slot),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn count(rects: &[TexelRect]) -> u32 {
+        rects.iter().map(|r| r[2] * r[3]).sum()
+    }
+
+    #[test]
+    fn first_placement_and_long_jumps_expose_everything() {
+        let mut w = SlidingWindow::new(64);
+        assert_eq!(w.move_to([10, 20]), vec![[0, 0, 64, 64]]);
+        assert_eq!(w.move_to([10 + 64, 20]), vec![[0, 0, 64, 64]]);
+    }
+
+    #[test]
+    fn moves_expose_exactly_the_new_texels() {
+        for (dx, dz) in [(3i64, 0i64), (-3, 0), (0, 5), (0, -5), (2, 7), (-9, 4), (5, -1), (-2, -2), (0, 0)] {
+            let mut w = SlidingWindow::new(32);
+            w.move_to([100, -50]);
+            let rects = w.move_to([100 + dx, -50 + dz]);
+            let expected = 32 * 32 - (32 - dx.unsigned_abs() as u32) * (32 - dz.unsigned_abs() as u32);
+            assert_eq!(count(&rects), expected, "move ({dx}, {dz}): {rects:?}");
+            // Every exposed texel is outside the old window; none is counted twice.
+            let mut seen = std::collections::HashSet::new();
+            for r in &rects {
+                for i in r[0]..r[0] + r[2] {
+                    for j in r[1]..r[1] + r[3] {
+                        let (gc, gr) = (100 + dx + i64::from(j), -50 + dz + i64::from(i));
+                        let inside_old = (100..132).contains(&gc) && (-50..-18).contains(&gr);
+                        assert!(!inside_old, "({i}, {j}) was already in the window");
+                        assert!(seen.insert((i, j)));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn snapping_is_to_whole_texels() {
+        let w = SlidingWindow::new(16);
+        assert_eq!(w.snapped_origin(0.0, 0.0, 0.5), [-8, -8]);
+        assert_eq!(w.snapped_origin(0.49, -0.01, 0.5), [-8, -9]);
+        assert_eq!(w.snapped_origin(1.0, 0.0, 0.5), [-6, -8]);
+    }
+}

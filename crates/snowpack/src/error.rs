@@ -1,0 +1,47 @@
+//! The library's error type.
+
+/// Everything that can go wrong in snowpack's library calls.
+#[derive(Debug, thiserror::Error)]
+pub enum SnowError {
+    /// No adapter matched; the message says what to install or set.
+    #[error("no GPU adapter found{filter}: {hint}")]
+    NoAdapter {
+        /// The filter that was applied, for example ` with SNOWPACK_BACKEND=vulkan`.
+        filter: String,
+        /// What a person can do about it.
+        hint: String,
+    },
+    /// `SNOWPACK_BACKEND` named no known backend.
+    #[error("SNOWPACK_BACKEND={0:?} is not a backend; use vulkan, gl, metal, dx12 or webgpu")]
+    UnknownBackend(String),
+    /// The adapter refused the device.
+    #[error("the adapter {adapter:?} refused to create a device: {source}")]
+    RequestDevice {
+        /// The adapter's name.
+        adapter: String,
+        /// wgpu's reason.
+        source: wgpu::RequestDeviceError,
+    },
+    /// The device was lost (driver reset, GPU removed); it cannot be used again.
+    #[error("the GPU device was lost: {0}")]
+    DeviceLost(String),
+    /// wgpu reported a validation or out-of-memory error.
+    #[error("GPU error in {context}: {message}")]
+    Gpu {
+        /// What snowpack was doing.
+        context: &'static str,
+        /// wgpu's message.
+        message: String,
+    },
+    /// Mapping a buffer for reading failed.
+    #[error("reading back from the GPU failed: {0}")]
+    Readback(String),
+    /// A parameter is out of range.
+    #[error("invalid snow parameter `{field}`: {why}")]
+    InvalidParameter {
+        /// The field's name as in the `[snow]` table.
+        field: &'static str,
+        /// Why it is rejected.
+        why: String,
+    },
+}

@@ -1,0 +1,10 @@
+//! GPU plumbing: adapter and device selection, readback rings, per-pass timing.
+
+pub mod context;
+pub mod layout;
+pub mod readback;
+pub mod timing;
+
+pub use context::{AdapterSummary, GpuContext};
+pub use readback::ReadbackRing;
+pub use timing::{GpuTimer, PassTimings};

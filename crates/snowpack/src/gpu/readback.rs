@@ -1,0 +1,141 @@
+//! A ring of staging buffers that brings GPU data back a few frames late
+//! without ever stalling: a frame whose slots are all in flight skips its copy.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+
+const MAPPING: u8 = 0;
+const MAPPED: u8 = 1;
+const FAILED: u8 = 2;
+
+enum SlotState<M> {
+    Free,
+    /// Copy recorded into an encoder, not yet submitted.
+    Recorded { meta: M, seq: u64 },
+    /// `map_async` requested; the flag turns MAPPED or FAILED in wgpu's callback.
+    Mapping { meta: M, seq: u64, flag: Arc<AtomicU8> },
+}
+
+struct Slot<M> {
+    buffer: wgpu::Buffer,
+    state: SlotState<M>,
+}
+
+/// Staging buffers of one size, each carrying metadata `M` (for example the
+/// window origin the copied data belongs to).
+pub struct ReadbackRing<M> {
+    slots: Vec<Slot<M>>,
+    size: u64,
+    next_seq: u64,
+    delivered_seq: Option<u64>,
+}
+
+impl<M> ReadbackRing<M> {
+    /// `count` staging buffers of `size` bytes.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, label: &str, size: u64, count: usize) -> Self {
+        let slots = (0..count)
+            .map(|k| Slot {
+                buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(&format!("{label} readback {k}")),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                state: SlotState::Free,
+            })
+            .collect();
+        Self { slots, size, next_seq: 0, delivered_seq: None }
+    }
+
+    /// Size of each staging buffer in bytes.
+    #[must_use]
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    /// Bytes of GPU memory the ring holds.
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.size * self.slots.len() as u64
+    }
+
+    /// Records a copy of `size` bytes of `src` into a free slot; returns false
+    /// (and records nothing) when every slot is still in flight.
+    pub fn record_copy(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, meta: M) -> bool {
+        let Some(slot) = self.slots.iter_mut().find(|s| matches!(s.state, SlotState::Free)) else {
+            return false;
+        };
+        encoder.copy_buffer_to_buffer(src, 0, &slot.buffer, 0, self.size);
+        slot.state = SlotState::Recorded { meta, seq: self.next_seq };
+        self.next_seq += 1;
+        true
+    }
+
+    /// Requests mapping of the slots recorded since the last call; call it
+    /// right after the encoder holding the copies was submitted.
+    pub fn after_submit(&mut self) {
+        for slot in &mut self.slots {
+            if !matches!(slot.state, SlotState::Recorded { .. }) {
+                continue;
+            }
+            let SlotState::Recorded { meta, seq } = std::mem::replace(&mut slot.state, SlotState::Free) else {
+                continue;
+            };
+            let flag = Arc::new(AtomicU8::new(MAPPING));
+            let done = Arc::clone(&flag);
+            slot.buffer.slice(..).map_async(wgpu::MapMode::Read, move |result| {
+                done.store(if result.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+            });
+            slot.state = SlotState::Mapping { meta, seq, flag };
+        }
+    }
+
+    /// Whether any slot is waiting for the GPU.
+    #[must_use]
+    pub fn in_flight(&self) -> bool {
+        self.slots.iter().any(|s| !matches!(s.state, SlotState::Free))
+    }
+
+    /// Returns the newest data that has arrived (older arrivals are dropped),
+    /// without waiting; call `device.poll(PollType::Poll)` before it.
+    pub fn take_latest(&mut self) -> Option<(M, Vec<u8>)> {
+        let mut best: Option<(usize, u64)> = None;
+        for (k, slot) in self.slots.iter_mut().enumerate() {
+            let SlotState::Mapping { seq, flag, .. } = &slot.state else { continue };
+            match flag.load(Ordering::Acquire) {
+                MAPPED => {
+                    if best.is_none_or(|(_, s)| *seq > s) {
+                        best = Some((k, *seq));
+                    }
+                }
+                FAILED => slot.state = SlotState::Free,
+                _ => {}
+            }
+        }
+        let (index, seq) = best?;
+        // Free every arrived slot; deliver only the newest, and only if it is
+        // newer than what was delivered before.
+        let mut result = None;
+        for (k, slot) in self.slots.iter_mut().enumerate() {
+            let arrived = matches!(&slot.state, SlotState::Mapping { flag, .. } if flag.load(Ordering::Acquire) == MAPPED);
+            if !arrived {
+                continue;
+            }
+            let SlotState::Mapping { meta, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
+                continue;
+            };
+            if k == index && self.delivered_seq.is_none_or(|d| seq > d) {
+                let bytes = slot.buffer.slice(..).get_mapped_range().map(|view| view.to_vec());
+                if let Ok(bytes) = bytes {
+                    result = Some((meta, bytes));
+                }
+            }
+            slot.buffer.unmap();
+        }
+        if result.is_some() {
+            self.delivered_seq = Some(seq);
+        }
+        result
+    }
+}
