@@ -14,7 +14,9 @@ struct UpdateParams {
 }
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
-@group(0) @binding(1) var capture: texture_depth_2d;
+// The depth target is bound as an unfilterable float texture: GLSL has no
+// texelFetch for depth textures, and this binding works on every backend.
+@group(0) @binding(1) var capture: texture_2d<f32>;
 @group(0) @binding(2) var<storage, read> terrain: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 
@@ -29,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ground = terrain[s];
     let rest = ground + params.depth_m;
     var h = min(snow[s] + params.refill_m, rest);
-    let d = textureLoad(capture, vec2<u32>(j, i), 0);
+    let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
     if d < 1.0 {
         let actor = params.low_m + d * (params.high_m - params.low_m);
         h = min(h, max(ground, actor));

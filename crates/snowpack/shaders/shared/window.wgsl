@@ -4,8 +4,13 @@
 // texel (origin.y + i, origin.x + j); it is stored at the global index modulo
 // the resolution, so sliding the window never moves stored texels.
 
+// Euclidean remainder with only non-negative operands: GLSL leaves `%` of
+// negative integers undefined, and naga's GL output inherits that.
 fn wrap_index(g: i32, res: i32) -> i32 {
-    return ((g % res) + res) % res;
+    if g >= 0 {
+        return g % res;
+    }
+    return (res - 1) - ((-1 - g) % res);
 }
 
 fn storage_index(origin: vec2<i32>, res: u32, i: u32, j: u32) -> u32 {

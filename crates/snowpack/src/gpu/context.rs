@@ -111,8 +111,15 @@ impl GpuContext {
     /// Picks an adapter (honouring `SNOWPACK_BACKEND` and `SNOWPACK_ADAPTER`) and
     /// creates a device without a surface, for headless runs, tests and the bench.
     pub fn new_headless() -> Result<Self, SnowError> {
-        let backend_env = std::env::var("SNOWPACK_BACKEND").ok().filter(|s| !s.trim().is_empty());
-        let adapter_env = std::env::var("SNOWPACK_ADAPTER").ok().filter(|s| !s.trim().is_empty());
+        Self::new_headless_with(None, None)
+    }
+
+    /// Like [`Self::new_headless`], with explicit backend list and adapter-name
+    /// filter taking precedence over the environment (for `--backend`).
+    pub fn new_headless_with(backend: Option<&str>, adapter: Option<&str>) -> Result<Self, SnowError> {
+        let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
+        let backend_env = backend.map(str::to_owned).or_else(|| env("SNOWPACK_BACKEND"));
+        let adapter_env = adapter.map(str::to_owned).or_else(|| env("SNOWPACK_ADAPTER"));
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if let Some(list) = &backend_env {
             desc.backends = parse_backends(list)?;

@@ -1,0 +1,223 @@
+//! Every GPU pass against its CPU twin on fresh random inputs.
+//!
+//! Tolerances: heights agree to 1e-4 m (the twins use the same f32 operations;
+//! the GPU may fuse multiply-adds); packed normals to 2 snorm16 steps; the
+//! capture of boxes may differ at silhouette texels (rasteriser coverage of
+//! a texel centre exactly on an edge), so a few such texels are allowed.
+
+use glam::{DVec2, Quat, Vec3};
+use snowpack::cpu;
+use snowpack::deform::blur::BlurPass;
+use snowpack::deform::capture::{CaptureInstances, CaptureParams, CapturePass};
+use snowpack::deform::normals::NormalPass;
+use snowpack::deform::pipeline::read_buffer;
+use snowpack::deform::resources::DeformResources;
+use snowpack::deform::rim::{RimParams, RimPass};
+use snowpack::deform::update::{UpdateParams, UpdatePass};
+use snowpack::deform::window::{SlidingWindow, WindowParams, WindowPass};
+use snowpack::gpu::GpuTimer;
+use snowpack::testing::{self, Rng};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
+
+fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+fn random_field(rng: &mut Rng, n: usize, lo: f32, hi: f32) -> Vec<f32> {
+    (0..n).map(|_| rng.range(lo, hi)).collect()
+}
+
+fn setup(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, TerrainSource, DeformResources) {
+    let params = SnowParams {
+        extent_m: rng.range(8.0, 40.0),
+        resolution,
+        depth_m: rng.range(0.2, 1.0),
+        refill_m_per_s: rng.range(0.0, 0.05),
+        elevation: rng.range(0.0, 1.5),
+        blur: true,
+    };
+    let terrain = TerrainSource::Noise(NoiseTerrain {
+        seed: rng.next_u64() as u32,
+        base_m: rng.range(-2.0, 2.0),
+        amplitude_m: rng.range(0.1, 3.0),
+        wavelength_m: rng.range(4.0, 30.0),
+    });
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain);
+    (params, terrain, res)
+}
+
+fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) {
+    ctx.queue.submit([encoder.finish()]);
+    ctx.wait_idle("test").expect("GPU error");
+}
+
+fn encoder(ctx: &GpuContext) -> wgpu::CommandEncoder {
+    ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test") })
+}
+
+fn assert_close(gpu: &[f32], cpu: &[f32], tol: f32, what: &str, seed: u64) {
+    assert_eq!(gpu.len(), cpu.len());
+    let (k, worst) = gpu
+        .iter()
+        .zip(cpu)
+        .map(|(a, b)| (a - b).abs())
+        .enumerate()
+        .fold((0, 0.0_f32), |acc, (k, d)| if d > acc.1 || d.is_nan() { (k, d) } else { acc });
+    assert!(
+        worst <= tol,
+        "{what}: GPU and CPU differ by {worst} at {k} (gpu {}, cpu {}); seed {seed}",
+        gpu[k],
+        cpu[k]
+    );
+}
+
+#[test]
+fn window_pass_matches_cpu_on_first_placement_and_moves() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("window");
+    let mut rng = Rng::new(seed);
+    let (params, terrain, res) = setup(ctx, &mut rng, 80);
+    let n = params.texel_count();
+    let mut cpu_terrain = random_field(&mut rng, n, -5.0, 5.0);
+    let mut cpu_snow = random_field(&mut rng, n, -5.0, 5.0);
+    ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&cpu_terrain));
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&cpu_snow));
+    let pass = WindowPass::new(&ctx.device, &res);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut window = SlidingWindow::new(params.resolution);
+    let mut origin = [(rng.range(-500.0, 500.0)) as i64, (rng.range(-500.0, 500.0)) as i64];
+    for step in 0..4 {
+        if step > 0 {
+            origin[0] += rng.range(-20.0, 20.0) as i64;
+            origin[1] += rng.range(-20.0, 20.0) as i64;
+        }
+        let rects = window.move_to(origin);
+        let p = WindowParams {
+            origin: [origin[0] as i32, origin[1] as i32],
+            resolution: params.resolution,
+            texel_m: params.texel_m(),
+            depth_m: params.depth_m,
+            ..WindowParams::default()
+        };
+        let mut enc = encoder(ctx);
+        pass.record(&ctx.queue, &mut enc, &mut timer, p, &rects);
+        submit(ctx, enc);
+        let mut cp = p;
+        cp.rect_count = rects.len() as u32;
+        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_terrain, &mut cpu_snow);
+        assert_close(&read_f32(ctx, &res.terrain), &cpu_terrain, 1e-4, "window terrain", seed);
+        assert_close(&read_f32(ctx, &res.snow), &cpu_snow, 1e-4, "window snow", seed);
+    }
+}
+
+#[test]
+fn capture_and_update_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("capture+update");
+    let mut rng = Rng::new(seed);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 112);
+    let n = params.texel_count();
+    let terrain: Vec<f32> = random_field(&mut rng, n, -0.5, 0.5);
+    let mut snow: Vec<f32> =
+        terrain.iter().map(|t| t + rng.range(0.0, params.depth_m * 1.1)).collect();
+    ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    let e = params.extent_m;
+    let mut deformers = Vec::new();
+    for _ in 0..12 {
+        deformers.push(Deformer::Sphere {
+            center: Vec3::new(rng.range(-0.2 * e, 1.2 * e), rng.range(-0.5, 2.0), rng.range(-0.2 * e, 1.2 * e)),
+            radius: rng.range(0.1, 0.15 * e),
+        });
+    }
+    for _ in 0..4 {
+        deformers.push(Deformer::Box {
+            center: Vec3::new(rng.range(0.0, e), rng.range(-0.5, 1.5), rng.range(0.0, e)),
+            half_extents: Vec3::new(rng.range(0.2, 0.1 * e), rng.range(0.2, 1.0), rng.range(0.2, 0.1 * e)),
+            rotation: Quat::from_euler(glam::EulerRot::XYZ, rng.range(-0.5, 0.5), rng.range(-3.0, 3.0), rng.range(-0.5, 0.5)),
+        });
+    }
+    let cparams = CaptureParams { extent_m: e, texel_m: params.texel_m(), low_m: -2.0, high_m: 3.0 };
+    let instances = CaptureInstances::new(&deformers, DVec2::ZERO, &cparams);
+    let mut capture = CapturePass::new(&ctx.device);
+    capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
+    let update = UpdatePass::new(&ctx.device, &res);
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    let up = UpdateParams {
+        origin,
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        refill_m: rng.range(0.0, 0.1),
+        low_m: cparams.low_m,
+        high_m: cparams.high_m,
+        _pad: 0,
+    };
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    capture.record(&mut enc, &mut timer, &res);
+    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    submit(ctx, enc);
+
+    let depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
+    cpu::update::update(&up, &depth, &terrain, &mut snow);
+    let gpu = read_f32(ctx, &res.snow);
+    let bad = gpu.iter().zip(&snow).filter(|(a, b)| (*a - *b).abs() > 1e-3).count();
+    // Silhouette texels of rotated boxes may be covered on one side and not the other.
+    assert!(bad <= n / 200, "{bad} of {n} texels differ by more than 1 mm; seed {seed}");
+    let interior_bad = gpu.iter().zip(&snow).filter(|(a, b)| (*a - *b).abs() > 0.25).count();
+    assert!(interior_bad <= n / 400, "{interior_bad} texels differ grossly; seed {seed}");
+    // The deformation did something, so the comparison is not vacuous.
+    let pressed = depth.iter().filter(|d| **d < 1.0).count();
+    assert!(pressed > n / 50, "only {pressed} texels captured; seed {seed}");
+}
+
+#[test]
+fn rim_blur_and_normals_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("rim+blur+normals");
+    let mut rng = Rng::new(seed);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 96);
+    let n = params.texel_count();
+    let terrain = random_field(&mut rng, n, -1.0, 1.0);
+    let snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m)).collect();
+    ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    let rp = RimParams {
+        origin: [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32],
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        elevation: params.elevation,
+        _pad: [0; 3],
+    };
+    let rim = RimPass::new(&ctx.device, &res);
+    let blur = BlurPass::new(&ctx.device, &ctx.queue, &res);
+    let normals = NormalPass::new(&ctx.device, &ctx.queue, &res, params.texel_m());
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+
+    let mut enc = encoder(ctx);
+    rim.record(&ctx.queue, &mut enc, &mut timer, &rp);
+    submit(ctx, enc);
+    let cpu_shown = cpu::rim::rim(&rp, &terrain, &snow);
+    assert_close(&read_f32(ctx, &res.shown), &cpu_shown, 1e-4, "rim", seed);
+
+    let mut enc = encoder(ctx);
+    blur.record(&mut enc, &mut timer);
+    submit(ctx, enc);
+    let cpu_blurred = cpu::blur::blur(&cpu_shown, params.resolution);
+    let gpu_blurred = read_f32(ctx, &res.shown);
+    assert_close(&gpu_blurred, &cpu_blurred, 1e-4, "blur", seed);
+
+    let mut enc = encoder(ctx);
+    normals.record(&mut enc, &mut timer);
+    submit(ctx, enc);
+    // Compare from the GPU's own blurred input so only the normals pass is tested.
+    let cpu_surface = cpu::normals::normals(&gpu_blurred, params.resolution, params.texel_m());
+    let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("readback"));
+    for (k, (g, c)) in gpu_surface.iter().zip(&cpu_surface).enumerate() {
+        assert_eq!(g[0], c[0], "height bits at {k}; seed {seed}");
+        for shift in [0, 16] {
+            let (a, b) = (((g[1] >> shift) & 0xffff) as u16 as i16, ((c[1] >> shift) & 0xffff) as u16 as i16);
+            assert!((i32::from(a) - i32::from(b)).abs() <= 2, "normal at {k}: {a} vs {b}; seed {seed}");
+        }
+    }
+}

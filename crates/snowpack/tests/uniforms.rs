@@ -1,0 +1,48 @@
+//! Each `#[repr(C)]` uniform struct has exactly the size naga computes for its WGSL twin.
+
+use snowpack::deform::blur::BlurParams;
+use snowpack::deform::capture::CaptureParams;
+use snowpack::deform::normals::NormalParams;
+use snowpack::deform::rim::RimParams;
+use snowpack::deform::update::UpdateParams;
+use snowpack::deform::window::{TerrainParams, WindowParams};
+use snowpack::shaders;
+
+/// Size naga gives the uniform global `name` in `source`.
+fn wgsl_uniform_size(source: &str, name: &str) -> u32 {
+    let module = naga::front::wgsl::parse_str(source).expect("shader parses");
+    let (_, var) = module
+        .global_variables
+        .iter()
+        .find(|(_, v)| v.name.as_deref() == Some(name) && v.space == naga::AddressSpace::Uniform)
+        .unwrap_or_else(|| panic!("no uniform `{name}`"));
+    module.types[var.ty].inner.size(module.to_ctx())
+}
+
+#[test]
+fn uniform_sizes_match_naga() {
+    let cases: &[(&str, &str, usize)] = &[
+        (shaders::WINDOW, "params", size_of::<WindowParams>()),
+        (shaders::WINDOW, "terrain_params", size_of::<TerrainParams>()),
+        (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
+        (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
+        (shaders::UPDATE, "params", size_of::<UpdateParams>()),
+        (shaders::RIM, "params", size_of::<RimParams>()),
+        (shaders::BLUR, "params", size_of::<BlurParams>()),
+        (shaders::NORMALS, "params", size_of::<NormalParams>()),
+    ];
+    for (source, name, rust) in cases {
+        assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
+    }
+}
+
+#[test]
+fn every_shader_is_listed_and_valid() {
+    assert_eq!(shaders::ALL.len(), 7);
+    for (name, source) in shaders::ALL {
+        let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
