@@ -1,1 +1,145 @@
-fn main() {}
+//! The `snowpack` binary: headless scene runs, scene checks and the benchmark.
+//!
+//! Exit codes: 0 success, 2 bad input (scene file, command line), 1 anything
+//! else (no GPU, a GPU error, an I/O failure).
+
+mod bench;
+mod hillshade;
+mod npy;
+mod output;
+mod run;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use snowpack_scene::{Scene, SceneError};
+
+/// A problem with what the user gave us (exit code 2).
+#[derive(Debug)]
+pub struct BadInput(pub String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
+
+/// Real-time deformable snow on wgpu.
+#[derive(Parser, Debug)]
+#[command(name = "snowpack", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scene and write snow.npy, surface.npy, terrain.npy, frame.png and meta.json.
+    Run {
+        /// The scene file (TOML; see docs/scene.md).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Frames to simulate (default: the scene's [sim] frames).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Output directory.
+        #[arg(long, default_value = "snowpack-out")]
+        out: PathBuf,
+        /// Run without a window (the only mode in this build).
+        #[arg(long)]
+        headless: bool,
+        /// Size of frame.png, WxH.
+        #[arg(long, value_parser = parse_size)]
+        size: Option<(u32, u32)>,
+        /// Deformation technique: depth, points, decals or combined.
+        #[arg(long)]
+        technique: Option<String>,
+        /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
+        #[arg(long)]
+        backend: Option<String>,
+    },
+    /// Measure per-pass GPU time and write a report.
+    Bench {
+        /// Fewer sizes and frames (minutes on a software adapter).
+        #[arg(long)]
+        quick: bool,
+        /// Output directory for report.md and passes.csv.
+        #[arg(long, default_value = "snowpack-bench")]
+        out: PathBuf,
+        /// Only configurations whose name contains this (e.g. passes-1024).
+        #[arg(long)]
+        only: Option<String>,
+        /// GPU backend(s).
+        #[arg(long)]
+        backend: Option<String>,
+    },
+    /// Parse and validate a scene file and print what was understood.
+    CheckScene {
+        /// The scene file.
+        file: PathBuf,
+    },
+}
+
+fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("{text:?} is not WxH"))?;
+    let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|v| (1..=16384).contains(v));
+    match (parse(w), parse(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(format!("{text:?} is not WxH with sides in 1..=16384")),
+    }
+}
+
+fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
+    Ok(Scene::load(path)?)
+}
+
+fn main_inner(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        None => {
+            // The interactive demo is not part of this build; without it the
+            // main job is the default scene, headless.
+            let out = PathBuf::from("snowpack-out");
+            println!("snowpack: running the default scene headless (no interactive demo in this build)");
+            let scene = Scene::default_scene()?;
+            let report = run::run_scene(&scene, &run::RunOptions { out: out.clone(), ..Default::default() })?;
+            run::print_report(&report, &out);
+        }
+        Some(Command::Run { scene, frames, out, headless: _, size, technique, backend }) => {
+            let scene = load_scene(&scene)?;
+            let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend };
+            let report = run::run_scene(&scene, &opts)?;
+            run::print_report(&report, &out);
+        }
+        Some(Command::Bench { quick, out, only, backend }) => {
+            bench::run(quick, &out, only.as_deref(), backend.as_deref())?;
+        }
+        Some(Command::CheckScene { file }) => {
+            let scene = load_scene(&file)?;
+            println!("{}", scene.describe());
+            println!("{}: ok", file.display());
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("SNOWPACK_LOG")
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,snowpack=info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match main_inner(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            let bad_input = err.chain().any(|e| e.is::<SceneError>() || e.is::<BadInput>());
+            eprintln!("error: {err:#}");
+            ExitCode::from(if bad_input { 2 } else { 1 })
+        }
+    }
+}

@@ -1,1 +1,17 @@
-//! x
+//! Scene files, procedural terrain and the sphere test bed for snowpack.
+//!
+//! [`Scene`] parses and validates a TOML scene (schema in `docs/scene.md`);
+//! [`World`] moves its actors: still, kinematic, keyframed, and physics
+//! spheres that bounce and slide on the terrain.
+
+mod error;
+mod fields;
+mod scene;
+mod world;
+
+pub use error::SceneError;
+pub use scene::{
+    ActorSpec, CameraSpec, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, Technique,
+    WindowSpec, DEFAULT_SCENE,
+};
+pub use world::{World, FRICTION, GRAVITY, RESTITUTION};

@@ -1,0 +1,178 @@
+//! `snowpack bench`: per-pass GPU medians of the deformation pipeline at
+//! several window sizes, written as a Markdown report and CSV.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context as _;
+use glam::{DVec2, Vec3};
+use snowpack::gpu::timing::median;
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+
+use crate::output::OutputSet;
+
+/// One measured configuration.
+pub struct BenchRow {
+    /// Window resolution (texels per side).
+    pub resolution: u32,
+    /// Spheres pressing the snow.
+    pub spheres: usize,
+    /// (pass, median ms).
+    pub passes: Vec<(String, f64)>,
+    /// Median CPU time to record and submit one frame (ms).
+    pub cpu_record_ms: f64,
+    /// GPU memory held by the window (bytes).
+    pub memory_bytes: u64,
+}
+
+fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
+    (0..count)
+        .map(|k| {
+            let a = k as f32 * 2.399_963 + t * 0.3;
+            let r = extent * 0.4 * ((k as f32 + 0.5) / count as f32).sqrt();
+            Deformer::Sphere { center: Vec3::new(r * a.cos(), 0.45, r * a.sin()), radius: 0.5 }
+        })
+        .collect()
+}
+
+/// Measures one configuration.
+pub fn measure(ctx: &GpuContext, resolution: u32, spheres: usize, warmup: u32, frames: u32) -> anyhow::Result<BenchRow> {
+    let params = SnowParams { extent_m: 64.0 * resolution as f32 / 1024.0, resolution, ..SnowParams::default() };
+    let terrain = TerrainSource::Noise(NoiseTerrain { seed: 1, base_m: 0.0, amplitude_m: 0.3, wavelength_m: 30.0 });
+    let extent = params.extent_m;
+    let mut snow = SnowDeformation::new(ctx, params, terrain, DVec2::ZERO)?;
+    let mut cpu_ms = Vec::new();
+    for frame in 0..warmup + frames {
+        let t = frame as f32 / 60.0;
+        let deformers = spheres_at(t, spheres, extent);
+        // Slide the window slowly so exposure is part of the measured frame.
+        snow.set_center(DVec2::new(f64::from(t), 0.0));
+        let start = Instant::now();
+        snow.step(ctx, &deformers, 1.0 / 60.0)?;
+        if frame >= warmup {
+            cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        if frame + 1 == warmup {
+            ctx.wait_idle("bench warm-up")?;
+            snow.finish(ctx)?;
+            snow.clear_timings();
+        }
+    }
+    snow.finish(ctx)?;
+    Ok(BenchRow {
+        resolution,
+        spheres,
+        passes: snow.timings().passes.into_iter().map(|(n, ms, _)| (n, ms)).collect(),
+        cpu_record_ms: median(&cpu_ms).unwrap_or(0.0),
+        memory_bytes: snow.memory_bytes().iter().map(|m| m.1).sum(),
+    })
+}
+
+/// The report as Markdown (also what `docs/PERFORMANCE.md` holds).
+#[must_use]
+pub fn markdown(rows: &[BenchRow], adapter: &str, backend: &str, software: bool, frames: u32) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "## Deformation passes, GPU time per frame (median of {frames} frames after warm-up)\n");
+    let _ = writeln!(md, "Adapter: **{adapter}** ({backend}).");
+    if software {
+        let _ = writeln!(md, "This is a software rasteriser: use these figures for ratios only (pass vs pass, size vs size), not as absolute cost.");
+    }
+    let mut names: Vec<String> = Vec::new();
+    for row in rows {
+        for (n, _) in &row.passes {
+            if !names.contains(n) {
+                names.push(n.clone());
+            }
+        }
+    }
+    let _ = write!(md, "\n| window | spheres |");
+    for n in &names {
+        let _ = write!(md, " {n} ms |");
+    }
+    let _ = writeln!(md, " total ms | CPU record ms | GPU memory MiB |");
+    let _ = write!(md, "|---|---|");
+    for _ in &names {
+        let _ = write!(md, "---|");
+    }
+    let _ = writeln!(md, "---|---|---|");
+    for row in rows {
+        let _ = write!(md, "| {0}² | {1} |", row.resolution, row.spheres);
+        for n in &names {
+            match row.passes.iter().find(|p| &p.0 == n) {
+                Some((_, ms)) => {
+                    let _ = write!(md, " {ms:.4} |");
+                }
+                None => {
+                    let _ = write!(md, " n/a |");
+                }
+            }
+        }
+        let total: f64 = row.passes.iter().map(|p| p.1).sum();
+        let _ = writeln!(
+            md,
+            " {total:.4} | {:.3} | {:.1} |",
+            row.cpu_record_ms,
+            row.memory_bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    md
+}
+
+/// Runs the benchmark and writes `report.md` and `passes.csv` into `out`.
+pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
+    let ctx = GpuContext::new_headless_with(backend, None).context("choosing a GPU adapter")?;
+    let (warmup, frames) = if quick { (10, 30) } else { (60, 300) };
+    let sizes: &[u32] = if quick { &[1024, 2048] } else { &[512, 1024, 2048, 4096] };
+    let spheres = 256;
+    println!("snowpack bench on {} ({}){}", ctx.summary.name, ctx.summary.backend, if quick { ", quick" } else { "" });
+    if !ctx.has_timestamps() {
+        println!("this adapter has no timestamp queries: per-pass GPU times are unavailable");
+    }
+    let mut rows = Vec::new();
+    for &res in sizes {
+        let name = format!("passes-{res}");
+        if only.is_some_and(|o| !name.contains(o)) {
+            continue;
+        }
+        let row = measure(&ctx, res, spheres, warmup, frames).with_context(|| format!("measuring {res}²"))?;
+        let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
+        println!("  {res:>5}²  {}  | CPU record {:.3} ms", line.join("  "), row.cpu_record_ms);
+        rows.push(row);
+    }
+    let md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
+    let mut csv = String::from("resolution,spheres,pass,median_ms\n");
+    for row in &rows {
+        for (n, ms) in &row.passes {
+            let _ = writeln!(csv, "{},{},{n},{ms}", row.resolution, row.spheres);
+        }
+        let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
+    }
+    let mut files = OutputSet::new(out)?;
+    files.stage("report.md", md.as_bytes())?;
+    files.stage("passes.csv", csv.as_bytes())?;
+    for f in files.commit()? {
+        println!("wrote {}", f.display());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn markdown_has_a_column_per_pass_and_flags_software() {
+        let rows = vec![BenchRow {
+            resolution: 1024,
+            spheres: 8,
+            passes: vec![("update".into(), 0.5), ("normals".into(), 0.25)],
+            cpu_record_ms: 0.1,
+            memory_bytes: 1 << 20,
+        }];
+        let md = markdown(&rows, "llvmpipe", "vulkan", true, 30);
+        assert!(md.contains("| update ms | normals ms |"));
+        assert!(md.contains("| 1024² | 8 | 0.5000 | 0.2500 | 0.7500 | 0.100 | 1.0 |"));
+        assert!(md.contains("ratios only"));
+    }
+}

@@ -1,0 +1,156 @@
+//! The headless runner: a scene file in, `snow.npy`, `surface.npy`,
+//! `terrain.npy`, `frame.png` and `meta.json` out (see DESIGN.md).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context as _;
+use glam::DVec2;
+use snowpack::gpu::PassTimings;
+use snowpack::{GpuContext, SnowDeformation};
+use snowpack_scene::{Scene, Technique, WindowSpec, World};
+
+use crate::output::OutputSet;
+use crate::{hillshade, npy, BadInput};
+
+/// What the command line asked for beyond the scene file.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// Frames to simulate (overrides `[sim] frames`).
+    pub frames: Option<u32>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Size of `frame.png` (width, height).
+    pub size: Option<(u32, u32)>,
+    /// Technique override.
+    pub technique: Option<String>,
+    /// Backend override (`SNOWPACK_BACKEND` syntax).
+    pub backend: Option<String>,
+}
+
+/// What a run produced, for the caller to print or test.
+pub struct RunReport {
+    /// Files written.
+    pub files: Vec<PathBuf>,
+    /// Median GPU time per pass.
+    pub timings: PassTimings,
+    /// Adapter name and backend.
+    pub adapter: (String, String),
+    /// Frames simulated.
+    pub frames: u32,
+    /// Wall time of the simulation loop (s).
+    pub wall_s: f64,
+}
+
+fn window_center(scene: &Scene, world: &World) -> DVec2 {
+    match &scene.window {
+        WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
+        WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
+        WindowSpec::FollowActor(i) => world
+            .actor_position(*i)
+            .map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
+    }
+}
+
+/// Runs `scene` headless and writes its outputs.
+pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> {
+    let technique = match &opts.technique {
+        Some(name) => name
+            .parse::<Technique>()
+            .map_err(|e| BadInput(format!("--technique: {e}")))?,
+        None => scene.technique,
+    };
+    if technique != Technique::Depth {
+        return Err(BadInput(format!(
+            "technique \"{}\" is not available in this build yet; use \"depth\"",
+            technique.as_str()
+        ))
+        .into());
+    }
+    let frames = opts.frames.unwrap_or(scene.sim.frames);
+    let (width, height) = opts.size.unwrap_or_else(|| {
+        let side = scene.snow.resolution.min(1024);
+        (side, side)
+    });
+
+    let ctx = GpuContext::new_headless_with(opts.backend.as_deref(), None).context("choosing a GPU adapter")?;
+    let mut world = World::new(scene);
+    let mut snow = SnowDeformation::new(&ctx, scene.snow.clone(), scene.terrain.clone(), window_center(scene, &world))
+        .context("creating the deformation window")?;
+    let warmup = frames.min(10) as u64;
+    let start = Instant::now();
+    for frame in 0..frames {
+        snow.set_center(window_center(scene, &world));
+        snow.step(&ctx, &world.deformers(), scene.sim.dt_s)
+            .with_context(|| format!("GPU frame {frame}"))?;
+        if u64::from(frame) + 1 == warmup {
+            snow.clear_timings();
+        }
+        world.step(scene.sim.dt_s);
+    }
+    snow.finish(&ctx)?;
+    let wall_s = start.elapsed().as_secs_f64();
+
+    let res = scene.snow.resolution as usize;
+    let snow_h = snow.read_snow(&ctx)?;
+    let terrain_h = snow.read_terrain(&ctx)?;
+    let (surface_h, normals) = snow.read_surface(&ctx)?;
+    let image = hillshade::render(&normals, &snow_h, &terrain_h, scene.snow.depth_m, scene.snow.resolution, width, height);
+    let mut png = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("encoding frame.png")?;
+
+    let timings = snow.timings();
+    let origin = snow.origin_m().unwrap_or_default();
+    let meta = serde_json::json!({
+        "origin_m": [origin.x, origin.y],
+        "texel_m": scene.snow.texel_m(),
+        "resolution": scene.snow.resolution,
+        "extent_m": scene.snow.extent_m,
+        "technique": technique.as_str(),
+        "frames": frames,
+        "dt_s": scene.sim.dt_s,
+        "scene": scene.path.display().to_string(),
+        "adapter": {"name": ctx.summary.name, "backend": ctx.summary.backend, "software": ctx.summary.is_software()},
+        "timings_ms": timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+        "objects": {},
+        "gpu_memory_bytes": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+    });
+
+    let mut out = OutputSet::new(&opts.out)?;
+    out.stage("snow.npy", &npy::encode_f32(&snow_h, &[res, res]))?;
+    out.stage("surface.npy", &npy::encode_f32(&surface_h, &[res, res]))?;
+    out.stage("terrain.npy", &npy::encode_f32(&terrain_h, &[res, res]))?;
+    out.stage("frame.png", &png)?;
+    out.stage("meta.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
+    let files = out.commit()?;
+    Ok(RunReport {
+        files,
+        timings,
+        adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()),
+        frames,
+        wall_s,
+    })
+}
+
+/// Prints what a run wrote and how long each pass took.
+pub fn print_report(report: &RunReport, out: &Path) {
+    println!(
+        "ran {} frames in {:.2} s on {} ({})",
+        report.frames, report.wall_s, report.adapter.0, report.adapter.1
+    );
+    println!("wrote into {}:", out.display());
+    for f in &report.files {
+        println!("  {}", f.display());
+    }
+    if report.timings.passes.is_empty() {
+        println!("GPU timings: not available on this adapter (no timestamp queries)");
+    } else {
+        println!("GPU time per pass (median over frames after warm-up):");
+        for (name, ms, n) in &report.timings.passes {
+            println!("  {name:<10} {ms:>9.4} ms  ({n} samples)");
+        }
+        println!("  {:<10} {:>9.4} ms", "total", report.timings.total_ms());
+    }
+}

@@ -1,0 +1,371 @@
+//! Scene-level tests: the `snowpack` binary runs scenes headless and the
+//! physics is checked on its `.npy` outputs.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
+    c.env("SNOWPACK_LOG", "error");
+    c
+}
+
+fn gpu_available() -> bool {
+    snowpack::testing::gpu().is_some()
+}
+
+struct Temp(PathBuf);
+
+impl Temp {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("snowpack-test-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        Self(dir)
+    }
+}
+
+impl Drop for Temp {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+struct Grid {
+    res: usize,
+    data: Vec<f32>,
+}
+
+impl Grid {
+    fn load(path: &Path) -> Self {
+        let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert_eq!(&bytes[..6], b"\x93NUMPY");
+        let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        let header = std::str::from_utf8(&bytes[10..10 + len]).expect("ascii header");
+        assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"), "{header}");
+        let data: Vec<f32> =
+            bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        let res = (data.len() as f64).sqrt() as usize;
+        assert_eq!(res * res, data.len());
+        assert!(header.contains(&format!("'shape': ({res}, {res})")), "{header}");
+        Self { res, data }
+    }
+
+    fn at(&self, i: usize, j: usize) -> f32 {
+        self.data[i * self.res + j]
+    }
+}
+
+struct Run {
+    _dir: Temp,
+    out: PathBuf,
+    meta: serde_json::Value,
+}
+
+impl Run {
+    fn grid(&self, name: &str) -> Grid {
+        Grid::load(&self.out.join(name))
+    }
+
+    /// World (x, z) of texel (i, j)'s centre.
+    fn world(&self, i: usize, j: usize) -> (f64, f64) {
+        let o = &self.meta["origin_m"];
+        let t = self.meta["texel_m"].as_f64().expect("texel_m");
+        (o[0].as_f64().expect("x") + (j as f64 + 0.5) * t, o[1].as_f64().expect("z") + (i as f64 + 0.5) * t)
+    }
+}
+
+fn run_scene(name: &str, toml: &str, extra: &[&str]) -> Run {
+    let dir = Temp::new(name);
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, toml).expect("write scene");
+    let out = dir.0.join("out");
+    let output = bin()
+        .args(["run", "--headless", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(extra)
+        .output()
+        .expect("run snowpack");
+    assert!(
+        output.status.success(),
+        "snowpack run failed: {}\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("meta.json")).expect("meta.json")).expect("valid JSON");
+    Run { _dir: dir, out, meta }
+}
+
+#[test]
+fn still_sphere_leaves_exactly_its_lower_surface() {
+    if !gpu_available() {
+        return;
+    }
+    // Sphere of radius 0.5 m whose bottom is 0.3 m below the 0.5 m snow surface (terrain at 0).
+    let run = run_scene(
+        "still",
+        r#"
+[snow]
+extent_m = 8.0
+resolution = 256
+depth_m = 0.5
+blur = true
+[terrain]
+kind = "flat"
+height_m = 0.0
+[window]
+center = [0.3, -0.2]
+[[actor]]
+kind = "sphere"
+radius_m = 0.5
+position = [0.3, 0.7, -0.2]
+[sim]
+frames = 5
+"#,
+        &[],
+    );
+    let snow = run.grid("snow.npy");
+    let terrain = run.grid("terrain.npy");
+    let (mut inside, mut outside) = (0, 0);
+    for i in 0..snow.res {
+        for j in 0..snow.res {
+            let (x, z) = run.world(i, j);
+            let d2 = (x - 0.3).powi(2) + (z + 0.2).powi(2);
+            let h = snow.at(i, j);
+            assert!(terrain.at(i, j).abs() < 1e-6);
+            if d2 < 0.25 {
+                let bottom = (0.7 - (0.25 - d2).sqrt()) as f32;
+                let expected = bottom.min(0.5);
+                assert!((h - expected).abs() < 0.02, "inside footprint at ({x:.3}, {z:.3}): {h} vs {expected}");
+                inside += 1;
+            } else {
+                assert!((h - 0.5).abs() < 0.002, "outside footprint at ({x:.3}, {z:.3}): {h}");
+                outside += 1;
+            }
+        }
+    }
+    // The footprint is where the sphere dips below 0.5 m: radius sqrt(0.25 - 0.04) = 0.458 m.
+    let deepest = snow.data.iter().copied().fold(f32::INFINITY, f32::min);
+    assert!((deepest - 0.2).abs() < 0.005, "deepest point {deepest}, expected 0.2");
+    assert!(inside > 1000 && outside > 1000);
+    let surface = run.grid("surface.npy");
+    assert!(surface.data.iter().all(|v| v.is_finite()));
+    assert_eq!(run.meta["resolution"], 256);
+    assert_eq!(run.meta["technique"], "depth");
+    assert!(run.out.join("frame.png").exists());
+}
+
+#[test]
+fn dragged_sphere_leaves_a_groove_at_its_world_position_while_the_window_follows() {
+    if !gpu_available() {
+        return;
+    }
+    // The sphere moves 12 m along +x in a 16 m window that follows it, so the
+    // window slides and exposes fresh snow ahead.
+    let run = run_scene(
+        "drag",
+        r#"
+[snow]
+extent_m = 16.0
+resolution = 256
+depth_m = 0.5
+elevation = 0.0
+[terrain]
+kind = "flat"
+height_m = 1.0
+[window]
+follow = "actor:0"
+[[actor]]
+kind = "sphere"
+radius_m = 0.4
+path = [[-6.0, 1.6, 2.0, 0.0], [6.0, 1.6, 2.0, 2.0]]
+[sim]
+frames = 150
+dt_s = 0.016666667
+"#,
+        &[],
+    );
+    let snow = run.grid("snow.npy");
+    let origin_x = run.meta["origin_m"][0].as_f64().expect("origin");
+    // The window followed the sphere: at the end it is centred near x = 6.
+    assert!((origin_x + 8.0 - 6.0).abs() < 0.2, "window origin x {origin_x}");
+    // Sphere bottom is at 1.2; snow rest height 1.5; the groove along z = 2
+    // from x = -2 (window's left edge) to x = 6 is 0.3 m deep at its centre.
+    for i in 0..snow.res {
+        for j in 0..snow.res {
+            let (x, z) = run.world(i, j);
+            let h = snow.at(i, j);
+            assert!((1.0..=1.5 + 1e-6).contains(&h), "({x}, {z}): {h} outside terrain..rest");
+            let dz = (z - 2.0).abs();
+            if x < 5.5 && dz < 0.05 {
+                assert!((h - 1.2).abs() < 0.02, "groove centre at ({x:.2}, {z:.2}) is {h}");
+            }
+            if dz > 0.45 {
+                // Everything away from the groove, including the newly exposed strips, is fresh.
+                assert!((h - 1.5).abs() < 1e-5, "fresh snow expected at ({x:.2}, {z:.2}), got {h}");
+            }
+        }
+    }
+}
+
+#[test]
+fn refill_raises_a_trail_at_the_rate_and_never_above_rest() {
+    if !gpu_available() {
+        return;
+    }
+    // A box presses a trench to the terrain for 0.5 s and is lifted away; the
+    // trench then refills at 0.1 m/s. After 120 frames at 1/60 s (2 s): the
+    // pressed snow (at terrain, 0.0) has refilled for 1.5 s - one frame ->
+    // 0.15 m - 0.1/60; snow elsewhere stays at rest (0.4).
+    let run = run_scene(
+        "refill",
+        r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.4
+refill_m_per_s = 0.1
+[terrain]
+kind = "flat"
+[window]
+center = [0.0, 0.0]
+[[actor]]
+kind = "box"
+size_m = [2.0, 1.0, 2.0]
+path = [[0.0, 0.4, 0.0, 0.0], [0.0, 0.4, 0.0, 0.5], [0.0, 5.0, 0.0, 0.51]]
+[sim]
+frames = 120
+dt_s = 0.016666667
+"#,
+        &[],
+    );
+    let snow = run.grid("snow.npy");
+    let c = snow.res / 2;
+    let trail = snow.at(c, c);
+    // Frames 0..=30 have the box at t <= 0.5 s (pressing to 0); frames 31..119
+    // refill: 89 frames of 0.1/60 m.
+    let expected = 89.0 * 0.1 / 60.0;
+    assert!((trail - expected).abs() < 2e-3, "trail {trail}, expected {expected}");
+    let max = snow.data.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    assert!(max <= 0.4 + 1e-6, "snow above rest height: {max}");
+    assert!((snow.at(2, 2) - 0.4).abs() < 1e-6);
+
+    // Refill for long enough and the trail is back at (not above) rest height.
+    let run = run_scene(
+        "refill-long",
+        r#"
+[snow]
+extent_m = 8.0
+resolution = 64
+depth_m = 0.4
+refill_m_per_s = 0.5
+[terrain]
+kind = "flat"
+[[actor]]
+kind = "box"
+size_m = [2.0, 1.0, 2.0]
+path = [[0.0, 0.4, 0.0, 0.0], [0.0, 0.4, 0.0, 0.1], [0.0, 5.0, 0.0, 0.11]]
+[sim]
+frames = 120
+"#,
+        &[],
+    );
+    let snow = run.grid("snow.npy");
+    assert!(snow.data.iter().all(|h| (h - 0.4).abs() < 1e-6), "trail did not refill exactly to rest");
+}
+
+#[test]
+fn two_thousand_bouncing_spheres_keep_snow_between_terrain_and_rest() {
+    if !gpu_available() {
+        return;
+    }
+    let run = run_scene(
+        "testbed",
+        r#"
+[snow]
+extent_m = 64.0
+resolution = 256
+depth_m = 0.5
+refill_m_per_s = 0.01
+[terrain]
+kind = "noise"
+seed = 11
+amplitude_m = 3.0
+wavelength_m = 24.0
+[[spawn]]
+kind = "sphere"
+count = 2000
+radius_m = 0.4
+seed = 7
+[sim]
+frames = 400
+"#,
+        &[],
+    );
+    let snow = run.grid("snow.npy");
+    let terrain = run.grid("terrain.npy");
+    let surface = run.grid("surface.npy");
+    let mut pressed = 0;
+    for k in 0..snow.data.len() {
+        let (h, t) = (snow.data[k], terrain.data[k]);
+        assert!(h.is_finite() && t.is_finite() && surface.data[k].is_finite());
+        assert!(h >= t - 1e-5, "snow {h} below terrain {t} at {k}");
+        assert!(h <= t + 0.5 + 1e-4, "snow {h} above rest {} at {k}", t + 0.5);
+        if h < t + 0.45 {
+            pressed += 1;
+        }
+    }
+    // The spheres did deform the snow (the test would pass vacuously otherwise).
+    assert!(pressed > snow.data.len() / 100, "only {pressed} texels pressed");
+}
+
+fn expect_bad_input(name: &str, toml: &str, must_mention: &str) {
+    let dir = Temp::new(name);
+    let scene = dir.0.join(format!("{name}.toml"));
+    std::fs::write(&scene, toml).expect("write scene");
+    let out = dir.0.join("out");
+    let output = bin().args(["run", "--headless", "--scene"]).arg(&scene).arg("--out").arg(&out).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{name}: expected exit 2, got {:?}: {stderr}", output.status);
+    assert!(stderr.contains(&format!("{name}.toml")), "{name}: message does not name the file: {stderr}");
+    assert!(stderr.contains(must_mention), "{name}: message does not mention {must_mention:?}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{name}: panic: {stderr}");
+    assert!(!out.join("snow.npy").exists(), "{name}: output written despite the error");
+}
+
+#[test]
+fn bad_scene_values_exit_2_naming_file_and_key() {
+    let cases: &[(&str, &str, &str)] = &[
+        ("zero-resolution", "[snow]\nresolution = 0\n", "resolution"),
+        ("huge-resolution", "[snow]\nresolution = 1000000\n", "resolution"),
+        ("negative-radius", "[[actor]]\nkind = \"sphere\"\nradius_m = -1.0\n", "radius_m"),
+        ("unknown-key", "[snow]\nbogus_key = 1\n", "bogus_key"),
+        ("wrong-type", "[snow]\ndepth_m = \"deep\"\n", "depth_m"),
+        ("unknown-technique", "[snow]\ntechnique = \"magic\"\n", "technique"),
+        ("missing-heightmap", "[terrain]\nkind = \"heightmap\"\npath = \"nowhere.png\"\n", "nowhere.png"),
+        ("nan-depth", "[snow]\ndepth_m = nan\n", "depth_m"),
+        ("malformed", "[snow\nresolution = 64\n", "malformed"),
+    ];
+    for (name, toml, key) in cases {
+        expect_bad_input(name, toml, key);
+    }
+    // A scene file that does not exist.
+    let output = bin().args(["check-scene", "/nonexistent/scene.toml"]).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("/nonexistent/scene.toml"), "{stderr}");
+}
+
+#[test]
+fn check_scene_prints_what_it_understood() {
+    let dir = Temp::new("check");
+    let scene = dir.0.join("ok.toml");
+    std::fs::write(&scene, "[snow]\nresolution = 512\ndepth_m = 0.3\n[[actor]]\nkind = \"sphere\"\nradius_m = 0.7\n").expect("write");
+    let output = bin().arg("check-scene").arg(&scene).output().expect("run");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}{}", String::from_utf8_lossy(&output.stderr));
+    assert!(stdout.contains("512") && stdout.contains("0.3") && stdout.contains("0.7"), "{stdout}");
+}

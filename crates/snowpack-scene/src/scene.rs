@@ -1,0 +1,550 @@
+//! The scene file: TOML with the schema of DESIGN.md, documented key by key
+//! in `docs/scene.md`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use glam::{Quat, Vec3};
+use snowpack::{HeightmapTerrain, NoiseTerrain, SnowParams, TerrainSource};
+
+use crate::error::SceneError;
+use crate::fields::Fields;
+
+/// How actors deform the snow (Wasmut 2019 compares the four).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Technique {
+    /// Actors' depth captured from below (Horizon Zero Dawn, Hanák).
+    Depth,
+    /// Deferred point deformation (Rise of the Tomb Raider).
+    Points,
+    /// Decals that never change the height field.
+    Decals,
+    /// Depth and points, the lower of the two.
+    Combined,
+}
+
+impl Technique {
+    /// Every technique, in scene-file spelling.
+    pub const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
+
+    /// The scene-file spelling.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Points => "points",
+            Self::Decals => "decals",
+            Self::Combined => "combined",
+        }
+    }
+}
+
+impl FromStr for Technique {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|t| t.as_str() == s)
+            .ok_or_else(|| format!("{s:?} is not one of depth, points, decals, combined"))
+    }
+}
+
+/// Where the deformation window is centred.
+#[derive(Clone, Debug, PartialEq)]
+pub enum WindowSpec {
+    /// A fixed centre (x, z) in metres.
+    Center([f32; 2]),
+    /// The camera's position.
+    FollowCamera,
+    /// The actor with this index (order of `[[actor]]` tables).
+    FollowActor(usize),
+}
+
+/// The shape of an actor or object.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ShapeSpec {
+    /// A sphere of this radius (m).
+    Sphere {
+        /// Radius (m).
+        radius_m: f32,
+    },
+    /// A box of this size (m) and orientation.
+    Box {
+        /// Full size along the box's axes (m).
+        size_m: Vec3,
+        /// Orientation (from `rotation_deg`, Euler XYZ).
+        rotation: Quat,
+    },
+}
+
+/// How an actor moves.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Motion {
+    /// Fixed position plus constant velocity (m/s).
+    Kinematic {
+        /// Position at t = 0 (m).
+        position: Vec3,
+        /// Velocity (m/s).
+        velocity: Vec3,
+    },
+    /// Keyframes `[x, y, z, t]`, linear in between, held at the ends.
+    Path(Vec<[f32; 4]>),
+    /// Test-bed physics: falls, bounces and slides on the terrain.
+    Physics {
+        /// Position at t = 0 (m).
+        position: Vec3,
+        /// Velocity at t = 0 (m/s).
+        velocity: Vec3,
+    },
+}
+
+/// One `[[actor]]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActorSpec {
+    /// Its shape.
+    pub shape: ShapeSpec,
+    /// Its motion.
+    pub motion: Motion,
+}
+
+/// One `[[spawn]]`: random physics spheres (Wasmut's test bed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpawnSpec {
+    /// How many.
+    pub count: u32,
+    /// Radius of each (m).
+    pub radius_m: f32,
+    /// Seed of their positions and velocities.
+    pub seed: u64,
+}
+
+/// One `[[object]]` that snow settles on (accumulation arrives with its issue).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectSpec {
+    /// Unique name.
+    pub name: String,
+    /// Shape: box or sphere (`size_m.x / 2` is the radius).
+    pub kind: String,
+    /// Centre (m).
+    pub position: Vec3,
+    /// Size (m).
+    pub size_m: Vec3,
+    /// Euler XYZ rotation (degrees).
+    pub rotation_deg: Vec3,
+}
+
+/// `[snowfall]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SnowfallSpec {
+    /// Direction snow falls in (unit vector).
+    pub direction: Vec3,
+    /// Accumulation rate (m/s).
+    pub rate_m_per_s: f32,
+    /// Per-frame jitter of the direction (degrees).
+    pub flutter_deg: f32,
+}
+
+/// `[sim]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimSpec {
+    /// Frames a headless run simulates.
+    pub frames: u32,
+    /// Seconds per frame.
+    pub dt_s: f32,
+}
+
+/// `[camera]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraSpec {
+    /// Eye position (m).
+    pub position: Vec3,
+    /// Point looked at (m).
+    pub target: Vec3,
+    /// Vertical field of view (degrees).
+    pub fov_deg: f32,
+}
+
+/// A parsed, validated scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// The file it came from (relative paths in it resolve against its folder).
+    pub path: PathBuf,
+    /// `[snow]`.
+    pub snow: SnowParams,
+    /// `[snow] technique`.
+    pub technique: Technique,
+    /// `[snow] range_texels`: footprint size of one point.
+    pub range_texels: u32,
+    /// `[terrain]`, loaded.
+    pub terrain: TerrainSource,
+    /// `[window]`.
+    pub window: WindowSpec,
+    /// `[[actor]]`.
+    pub actors: Vec<ActorSpec>,
+    /// `[[spawn]]`.
+    pub spawns: Vec<SpawnSpec>,
+    /// `[[object]]`.
+    pub objects: Vec<ObjectSpec>,
+    /// `[snowfall]`, if present.
+    pub snowfall: Option<SnowfallSpec>,
+    /// `[sim]`.
+    pub sim: SimSpec,
+    /// `[camera]`.
+    pub camera: CameraSpec,
+}
+
+/// The scene `snowpack` runs with no arguments.
+pub const DEFAULT_SCENE: &str = include_str!("../../../scenes/default.toml");
+
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |p| p + 1) + 1;
+    (line, col)
+}
+
+fn rotation_from_deg(deg: Vec3) -> Quat {
+    Quat::from_euler(glam::EulerRot::XYZ, deg.x.to_radians(), deg.y.to_radians(), deg.z.to_radians())
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new(path, "", format!("cannot read the scene file: {e}")))?;
+        Self::parse(&text, path)
+    }
+
+    /// The built-in default scene.
+    pub fn default_scene() -> Result<Self, SceneError> {
+        Self::parse(DEFAULT_SCENE, Path::new("scenes/default.toml"))
+    }
+
+    /// Parses and validates scene text; `path` names it in errors and anchors relative files.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, SceneError> {
+        let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            let at = e.span().map(|s| line_col(text, s.start));
+            let place = at.map_or(String::new(), |(l, c)| format!(" at line {l}, column {c}"));
+            SceneError::new(path, "", format!("malformed TOML{place}: {}", e.message()))
+        })?;
+        let mut root = Fields::new(path, "", table);
+        let base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
+
+        // [snow]
+        let defaults = SnowParams::default();
+        let (snow, technique, range_texels) = match root.table("snow")? {
+            None => (defaults, Technique::Depth, 64),
+            Some(mut t) => {
+                let snow = SnowParams {
+                    extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
+                    resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
+                    depth_m: t.positive("depth_m", defaults.depth_m, " of metres")?,
+                    refill_m_per_s: t.non_negative("refill_m_per_s", defaults.refill_m_per_s, " (m/s)")?,
+                    elevation: t.non_negative("elevation", defaults.elevation, "")?,
+                    blur: t.bool("blur", defaults.blur)?,
+                };
+                if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
+                    return Err(t.err(field, why));
+                }
+                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| {
+                    s.parse::<Technique>().map_err(|why| t.err("technique", why))
+                })?;
+                let range = t.u32_in("range_texels", 64, 32..=128)?;
+                t.finish()?;
+                (snow, technique, range)
+            }
+        };
+
+        // [terrain]
+        let terrain = match root.table("terrain")? {
+            None => TerrainSource::Flat { height_m: 0.0 },
+            Some(mut t) => {
+                let kind = t.choice("kind", "flat", &["flat", "noise", "heightmap", "mesh"])?;
+                let terrain = match kind.as_str() {
+                    "flat" => TerrainSource::Flat { height_m: t.f32("height_m", 0.0)? },
+                    "noise" => TerrainSource::Noise(NoiseTerrain {
+                        seed: t.u32_in("seed", 1, 0..=u64::from(u32::MAX))?,
+                        base_m: t.f32("height_m", 0.0)?,
+                        amplitude_m: t.non_negative("amplitude_m", 4.0, " of metres")?,
+                        wavelength_m: t.positive("wavelength_m", 32.0, " of metres")?,
+                    }),
+                    "heightmap" => load_heightmap(&mut t, &base_dir, snow.extent_m)?,
+                    _ => {
+                        return Err(t.err(
+                            "kind",
+                            "\"mesh\" terrain (drawing a glTF terrain into the capture) is not supported yet; \
+                             use flat, noise or heightmap",
+                        ));
+                    }
+                };
+                t.finish()?;
+                terrain
+            }
+        };
+
+        // [[actor]]
+        let mut actors = Vec::new();
+        for mut a in root.tables("actor")? {
+            actors.push(parse_actor(&mut a, &base_dir)?);
+            a.finish()?;
+        }
+
+        // [window]
+        let window = match root.table("window")? {
+            None => WindowSpec::Center([0.0, 0.0]),
+            Some(mut w) => {
+                let center = w.vec2_opt("center")?;
+                let follow = w.string_opt("follow")?;
+                let spec = match (center, follow) {
+                    (Some(_), Some(_)) => return Err(w.err("follow", "give either center or follow, not both")),
+                    (Some(c), None) => WindowSpec::Center(c),
+                    (None, None) => WindowSpec::Center([0.0, 0.0]),
+                    (None, Some(f)) if f == "camera" => WindowSpec::FollowCamera,
+                    (None, Some(f)) => {
+                        let index = f.strip_prefix("actor:").and_then(|n| n.parse::<usize>().ok()).ok_or_else(|| {
+                            w.err("follow", format!("{f:?} is neither \"camera\" nor \"actor:N\""))
+                        })?;
+                        if index >= actors.len() {
+                            return Err(w.err(
+                                "follow",
+                                format!("actor:{index} does not exist (the scene has {} [[actor]] tables)", actors.len()),
+                            ));
+                        }
+                        WindowSpec::FollowActor(index)
+                    }
+                };
+                w.finish()?;
+                spec
+            }
+        };
+
+        // [[spawn]]
+        let mut spawns = Vec::new();
+        for mut s in root.tables("spawn")? {
+            s.choice("kind", "sphere", &["sphere"])?;
+            spawns.push(SpawnSpec {
+                count: s.u32_in("count", 256, 0..=100_000)?,
+                radius_m: s.positive("radius_m", 1.0, " of metres")?,
+                seed: u64::from(s.u32_in("seed", 7, 0..=u64::from(u32::MAX))?),
+            });
+            s.finish()?;
+        }
+
+        // [[object]]
+        let mut objects: Vec<ObjectSpec> = Vec::new();
+        for mut o in root.tables("object")? {
+            let name = o.string_opt("name")?.ok_or_else(|| o.err("name", "every [[object]] needs a name"))?;
+            if objects.iter().any(|x| x.name == name) {
+                return Err(o.err("name", format!("{name:?} is used by another [[object]]")));
+            }
+            let kind = o.choice("kind", "box", &["box", "sphere", "gltf"])?;
+            if kind == "gltf" {
+                return Err(o.err("kind", "glTF objects are not supported yet; use box or sphere"));
+            }
+            let position = o.vec3("position", Vec3::ZERO)?;
+            let size_m = o.vec3("size_m", Vec3::ONE)?;
+            if size_m.min_element() <= 0.0 {
+                return Err(o.err("size_m", format!("every side must be positive, got {size_m}")));
+            }
+            let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
+            o.finish()?;
+            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg });
+        }
+
+        // [snowfall]
+        let snowfall = match root.table("snowfall")? {
+            None => None,
+            Some(mut s) => {
+                let direction = s.vec3("direction", Vec3::NEG_Y)?;
+                if direction.length() < 1e-6 {
+                    return Err(s.err("direction", "must not be the zero vector"));
+                }
+                let spec = SnowfallSpec {
+                    direction: direction.normalize(),
+                    rate_m_per_s: s.non_negative("rate_m_per_s", 0.001, " (m/s)")?,
+                    flutter_deg: s.non_negative("flutter_deg", 5.0, " degrees")?,
+                };
+                s.finish()?;
+                Some(spec)
+            }
+        };
+
+        // [sim]
+        let sim = match root.table("sim")? {
+            None => SimSpec { frames: 120, dt_s: 1.0 / 60.0 },
+            Some(mut s) => {
+                let sim = SimSpec {
+                    frames: s.u32_in("frames", 120, 1..=1_000_000)?,
+                    dt_s: s.positive("dt_s", 1.0 / 60.0, " of seconds")?,
+                };
+                if sim.dt_s > 1.0 {
+                    return Err(s.err("dt_s", format!("{} s per frame is more than 1 s", sim.dt_s)));
+                }
+                s.finish()?;
+                sim
+            }
+        };
+
+        // [camera]
+        let camera = match root.table("camera")? {
+            None => CameraSpec { position: Vec3::new(0.0, 10.0, -20.0), target: Vec3::ZERO, fov_deg: 60.0 },
+            Some(mut c) => {
+                let cam = CameraSpec {
+                    position: c.vec3("position", Vec3::new(0.0, 10.0, -20.0))?,
+                    target: c.vec3("target", Vec3::ZERO)?,
+                    fov_deg: c.positive("fov_deg", 60.0, " degrees")?,
+                };
+                if cam.fov_deg >= 180.0 {
+                    return Err(c.err("fov_deg", format!("{} must be below 180 degrees", cam.fov_deg)));
+                }
+                c.finish()?;
+                cam
+            }
+        };
+        root.finish()?;
+        Ok(Self {
+            path: path.to_owned(),
+            snow,
+            technique,
+            range_texels,
+            terrain,
+            window,
+            actors,
+            spawns,
+            objects,
+            snowfall,
+            sim,
+            camera,
+        })
+    }
+
+    /// Everything that was understood, for `snowpack check-scene`.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        let p = &self.snow;
+        let _ = writeln!(s, "scene {}", self.path.display());
+        let _ = writeln!(
+            s,
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels",
+            p.extent_m,
+            p.resolution,
+            p.texel_m(),
+            p.depth_m,
+            p.refill_m_per_s,
+            p.elevation,
+            p.blur,
+            self.technique.as_str(),
+            self.range_texels
+        );
+        let terrain = match &self.terrain {
+            TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
+            TerrainSource::Noise(n) => format!(
+                "noise, seed {}, height {} m, amplitude {} m, wavelength {} m",
+                n.seed, n.base_m, n.amplitude_m, n.wavelength_m
+            ),
+            TerrainSource::Heightmap(h) => format!(
+                "heightmap {}x{} px over {:?} m centred at {:?}, heights {:?} m",
+                h.width,
+                h.height,
+                h.size_m,
+                h.center_m,
+                self.terrain.height_bounds()
+            ),
+        };
+        let _ = writeln!(s, "terrain: {terrain}");
+        let _ = writeln!(s, "window: {:?}", self.window);
+        let _ = writeln!(s, "actors: {}", self.actors.len());
+        for (k, a) in self.actors.iter().enumerate() {
+            let _ = writeln!(s, "  [{k}] {:?}, {:?}", a.shape, a.motion);
+        }
+        for sp in &self.spawns {
+            let _ = writeln!(s, "spawn: {} spheres of radius {} m, seed {}", sp.count, sp.radius_m, sp.seed);
+        }
+        for o in &self.objects {
+            let _ = writeln!(s, "object {:?}: {} at {} size {} m (accumulation: not in this build)", o.name, o.kind, o.position, o.size_m);
+        }
+        if let Some(f) = &self.snowfall {
+            let _ = writeln!(s, "snowfall: direction {}, {} m/s, flutter {} deg (accumulation: not in this build)", f.direction, f.rate_m_per_s, f.flutter_deg);
+        }
+        let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
+        let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);
+        s
+    }
+}
+
+fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> Result<TerrainSource, SceneError> {
+    let rel = t.string_opt("path")?.ok_or_else(|| t.err("path", "heightmap terrain needs a path to a 16-bit PNG"))?;
+    let scale = t.f32("height_scale_m", 10.0)?;
+    let size = t.vec2_opt("size_m")?.unwrap_or([default_extent, default_extent]);
+    if size[0] <= 0.0 || size[1] <= 0.0 {
+        return Err(t.err("size_m", format!("both sides must be positive, got {size:?}")));
+    }
+    let center = t.vec2_opt("center")?.unwrap_or([0.0, 0.0]);
+    let file = base_dir.join(&rel);
+    let img = image::open(&file).map_err(|e| {
+        SceneError::new(t.file(), t.key("path"), format!("cannot load heightmap {}: {e}", file.display()))
+    })?;
+    let gray = img.to_luma16();
+    let (width, height) = gray.dimensions();
+    if width < 2 || height < 2 {
+        return Err(t.err("path", format!("heightmap {} is {width}x{height}; it needs at least 2x2 pixels", file.display())));
+    }
+    // Image row 0 is the top of the picture; put it at the far (+z) edge so the
+    // map reads like a map seen from above with +z up.
+    let mut heights_m = Vec::with_capacity((width * height) as usize);
+    for row in (0..height).rev() {
+        for col in 0..width {
+            heights_m.push(f32::from(gray.get_pixel(col, row)[0]) / 65535.0 * scale);
+        }
+    }
+    Ok(TerrainSource::Heightmap(HeightmapTerrain { width, height, heights_m, center_m: center, size_m: size }))
+}
+
+fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneError> {
+    let kind = a.choice("kind", "sphere", &["sphere", "box", "gltf"])?;
+    let shape = match kind.as_str() {
+        "sphere" => ShapeSpec::Sphere { radius_m: a.positive("radius_m", 0.5, " of metres")? },
+        "box" => {
+            let size_m = a.vec3("size_m", Vec3::ONE)?;
+            if size_m.min_element() <= 0.0 {
+                return Err(a.err("size_m", format!("every side must be a positive number of metres, got {size_m}")));
+            }
+            ShapeSpec::Box { size_m, rotation: rotation_from_deg(a.vec3("rotation_deg", Vec3::ZERO)?) }
+        }
+        _ => {
+            let file = a.string_opt("file")?.ok_or_else(|| a.err("file", "a gltf actor needs a file"))?;
+            let full = base_dir.join(&file);
+            if !full.is_file() {
+                return Err(a.err("file", format!("{} does not exist", full.display())));
+            }
+            return Err(a.err("kind", "glTF actors are not supported yet in this build; use sphere or box"));
+        }
+    };
+    let position = a.vec3("position", Vec3::new(0.0, 1.0, 0.0))?;
+    let velocity = a.vec3("velocity", Vec3::ZERO)?;
+    let physics = a.bool("physics", false)?;
+    let path = a.rows4_opt("path")?;
+    let motion = match (path, physics) {
+        (Some(_), true) => return Err(a.err("path", "an actor cannot have both a path and physics = true")),
+        (Some(keys), false) => {
+            if keys.is_empty() {
+                return Err(a.err("path", "needs at least one [x, y, z, t] keyframe"));
+            }
+            if keys.windows(2).any(|w| w[1][3] <= w[0][3]) {
+                return Err(a.err("path", "keyframe times must increase strictly"));
+            }
+            Motion::Path(keys)
+        }
+        (None, true) => {
+            if !matches!(shape, ShapeSpec::Sphere { .. }) {
+                return Err(a.err("physics", "physics is available for spheres only"));
+            }
+            Motion::Physics { position, velocity }
+        }
+        (None, false) => Motion::Kinematic { position, velocity },
+    };
+    Ok(ActorSpec { shape, motion })
+}

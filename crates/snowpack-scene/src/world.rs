@@ -1,0 +1,286 @@
+//! The scene in motion: still, kinematic and keyframed actors, and the test
+//! bed's physics spheres (Wasmut 2019, section 3) on the CPU.
+//!
+//! Spheres collide with the terrain under the snow (so they plough through
+//! it), with each other (a uniform grid keeps that linear in their number),
+//! and with the walls of the window area, which keeps them in bounds.
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+use snowpack::testing::Rng;
+use snowpack::{Deformer, TerrainSource};
+
+use crate::scene::{Motion, Scene, ShapeSpec, WindowSpec};
+
+/// Gravity (m/s²).
+pub const GRAVITY: f32 = 9.81;
+/// Fraction of normal speed kept in a bounce.
+pub const RESTITUTION: f32 = 0.4;
+/// Coulomb friction coefficient against the ground and between spheres.
+pub const FRICTION: f32 = 0.3;
+/// Substeps per frame: keeps fast spheres from tunnelling into the terrain.
+const SUBSTEPS: u32 = 4;
+/// Below this normal speed (m/s) a contact does not bounce (no resting jitter).
+const BOUNCE_THRESHOLD: f32 = 0.6;
+
+#[derive(Clone, Debug)]
+struct Body {
+    pos: Vec3,
+    vel: Vec3,
+    radius: f32,
+}
+
+#[derive(Clone, Debug)]
+struct Actor {
+    shape: ShapeSpec,
+    motion: Motion,
+    body: Option<usize>,
+}
+
+/// Runtime state of a scene's actors.
+#[derive(Clone, Debug)]
+pub struct World {
+    time: f32,
+    terrain: TerrainSource,
+    actors: Vec<Actor>,
+    bodies: Vec<Body>,
+    min: Vec2,
+    max: Vec2,
+}
+
+fn path_at(keys: &[[f32; 4]], t: f32) -> Vec3 {
+    let v = |k: &[f32; 4]| Vec3::new(k[0], k[1], k[2]);
+    let first = &keys[0];
+    if t <= first[3] {
+        return v(first);
+    }
+    for w in keys.windows(2) {
+        if t <= w[1][3] {
+            let f = (t - w[0][3]) / (w[1][3] - w[0][3]);
+            return v(&w[0]).lerp(v(&w[1]), f);
+        }
+    }
+    v(&keys[keys.len() - 1])
+}
+
+impl World {
+    /// The scene's actors at t = 0, with `[[spawn]]` spheres placed at random (seeded).
+    #[must_use]
+    pub fn new(scene: &Scene) -> Self {
+        let half = scene.snow.extent_m * 0.5;
+        let center = match &scene.window {
+            WindowSpec::Center(c) => Vec2::from(*c),
+            WindowSpec::FollowCamera => Vec2::new(scene.camera.position.x, scene.camera.position.z),
+            WindowSpec::FollowActor(i) => {
+                let a = &scene.actors[*i];
+                let p = match &a.motion {
+                    Motion::Kinematic { position, .. } | Motion::Physics { position, .. } => *position,
+                    Motion::Path(keys) => path_at(keys, 0.0),
+                };
+                Vec2::new(p.x, p.z)
+            }
+        };
+        let mut world = Self {
+            time: 0.0,
+            terrain: scene.terrain.clone(),
+            actors: Vec::new(),
+            bodies: Vec::new(),
+            min: center - Vec2::splat(half),
+            max: center + Vec2::splat(half),
+        };
+        for spec in &scene.actors {
+            let body = match (&spec.motion, &spec.shape) {
+                (Motion::Physics { position, velocity }, ShapeSpec::Sphere { radius_m }) => {
+                    world.bodies.push(Body { pos: *position, vel: *velocity, radius: *radius_m });
+                    Some(world.bodies.len() - 1)
+                }
+                _ => None,
+            };
+            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body });
+        }
+        for spawn in &scene.spawns {
+            let mut rng = Rng::new(spawn.seed);
+            let r = spawn.radius_m;
+            for _ in 0..spawn.count {
+                let x = rng.range(world.min.x + r, (world.max.x - r).max(world.min.x + r));
+                let z = rng.range(world.min.y + r, (world.max.y - r).max(world.min.y + r));
+                let y = world.terrain.height_at(x, z) + r + rng.range(2.0, 8.0);
+                let vel = Vec3::new(rng.range(-2.0, 2.0), 0.0, rng.range(-2.0, 2.0));
+                world.bodies.push(Body { pos: Vec3::new(x, y, z), vel, radius: r });
+            }
+        }
+        world
+    }
+
+    /// Simulated time (s).
+    #[must_use]
+    pub fn time(&self) -> f32 {
+        self.time
+    }
+
+    /// Number of `[[actor]]` entries (spawned spheres not included).
+    #[must_use]
+    pub fn actor_count(&self) -> usize {
+        self.actors.len()
+    }
+
+    /// Number of physics spheres (physics actors and spawned spheres).
+    #[must_use]
+    pub fn body_count(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Centre of actor `i` now.
+    #[must_use]
+    pub fn actor_position(&self, i: usize) -> Option<Vec3> {
+        let a = self.actors.get(i)?;
+        Some(match (&a.motion, a.body) {
+            (_, Some(b)) => self.bodies[b].pos,
+            (Motion::Path(keys), None) => path_at(keys, self.time),
+            (Motion::Kinematic { position, velocity } | Motion::Physics { position, velocity }, None) => {
+                *position + *velocity * self.time
+            }
+        })
+    }
+
+    /// Centres of all physics spheres now.
+    pub fn body_positions(&self) -> impl Iterator<Item = (Vec3, f32)> + '_ {
+        self.bodies.iter().map(|b| (b.pos, b.radius))
+    }
+
+    /// Everything that deforms the snow now.
+    #[must_use]
+    pub fn deformers(&self) -> Vec<Deformer> {
+        let mut out = Vec::with_capacity(self.actors.len() + self.bodies.len());
+        for (i, a) in self.actors.iter().enumerate() {
+            if a.body.is_some() {
+                continue; // drawn with the bodies below
+            }
+            let Some(center) = self.actor_position(i) else { continue };
+            out.push(match &a.shape {
+                ShapeSpec::Sphere { radius_m } => Deformer::Sphere { center, radius: *radius_m },
+                ShapeSpec::Box { size_m, rotation } => {
+                    Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation }
+                }
+            });
+        }
+        out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));
+        out
+    }
+
+    /// Advances time by `dt` seconds.
+    pub fn step(&mut self, dt: f32) {
+        let h = dt / SUBSTEPS as f32;
+        for _ in 0..SUBSTEPS {
+            self.substep(h);
+        }
+        self.time += dt;
+    }
+
+    fn substep(&mut self, h: f32) {
+        for b in &mut self.bodies {
+            b.vel.y -= GRAVITY * h;
+            b.pos += b.vel * h;
+        }
+        self.collide_spheres();
+        let terrain = &self.terrain;
+        for b in &mut self.bodies {
+            ground_contact(terrain, b, h);
+            wall_contact(b, self.min, self.max);
+            if !(b.pos.is_finite() && b.vel.is_finite()) {
+                // Never propagate NaN: put the sphere back on the ground at rest.
+                let c = (self.min + self.max) * 0.5;
+                b.pos = Vec3::new(c.x, terrain.height_at(c.x, c.y) + b.radius, c.y);
+                b.vel = Vec3::ZERO;
+            }
+        }
+    }
+
+    fn collide_spheres(&mut self) {
+        let Some(max_r) = self.bodies.iter().map(|b| b.radius).reduce(f32::max) else { return };
+        let cell = 2.0 * max_r;
+        let key = |p: Vec3| ((p.x / cell).floor() as i32, (p.y / cell).floor() as i32, (p.z / cell).floor() as i32);
+        let mut grid: HashMap<(i32, i32, i32), Vec<usize>> = HashMap::with_capacity(self.bodies.len());
+        for (k, b) in self.bodies.iter().enumerate() {
+            grid.entry(key(b.pos)).or_default().push(k);
+        }
+        for a in 0..self.bodies.len() {
+            let (cx, cy, cz) = key(self.bodies[a].pos);
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(list) = grid.get(&(cx + dx, cy + dy, cz + dz)) else { continue };
+                        for &b in list {
+                            if b > a {
+                                self.resolve_pair(a, b);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn resolve_pair(&mut self, a: usize, b: usize) {
+        let (pa, pb) = (self.bodies[a].pos, self.bodies[b].pos);
+        let reach = self.bodies[a].radius + self.bodies[b].radius;
+        let d = pb - pa;
+        let dist = d.length();
+        if dist >= reach || dist < 1e-6 {
+            return;
+        }
+        let n = d / dist;
+        let push = n * ((reach - dist) * 0.5);
+        self.bodies[a].pos -= push;
+        self.bodies[b].pos += push;
+        let rel = (self.bodies[b].vel - self.bodies[a].vel).dot(n);
+        if rel < 0.0 {
+            // Equal masses: each gets half of the exchanged impulse.
+            let j = -(1.0 + RESTITUTION) * rel * 0.5;
+            self.bodies[a].vel -= n * j;
+            self.bodies[b].vel += n * j;
+        }
+    }
+}
+
+fn ground_contact(terrain: &TerrainSource, b: &mut Body, h: f32) {
+    let ground = terrain.height_at(b.pos.x, b.pos.z);
+    let n = terrain.normal_at(b.pos.x, b.pos.z, 0.05);
+    // Distance from the centre to the local tangent plane of the terrain.
+    let gap = (b.pos.y - ground) * n.y - b.radius;
+    if gap >= 0.0 {
+        return;
+    }
+    b.pos += n * -gap;
+    let vn = b.vel.dot(n);
+    if vn < 0.0 {
+        let e = if -vn > BOUNCE_THRESHOLD { RESTITUTION } else { 0.0 };
+        let normal_impulse = -(1.0 + e) * vn;
+        b.vel += n * normal_impulse;
+        // Coulomb friction on the tangential velocity, bounded by the normal impulse
+        // (plus gravity's share this substep, so resting spheres decelerate at mu*g).
+        let vt = b.vel - n * b.vel.dot(n);
+        let speed = vt.length();
+        if speed > 0.0 {
+            let drop = FRICTION * (normal_impulse + GRAVITY * h * n.y);
+            b.vel -= vt * (drop.min(speed) / speed);
+        }
+    }
+}
+
+fn wall_contact(b: &mut Body, min: Vec2, max: Vec2) {
+    let r = b.radius;
+    let bounce = |p: &mut f32, v: &mut f32, lo: f32, hi: f32| {
+        let (lo, hi) = if lo <= hi { (lo, hi) } else { let m = 0.5 * (lo + hi); (m, m) };
+        if *p < lo {
+            *p = lo;
+            *v = v.abs() * RESTITUTION;
+        } else if *p > hi {
+            *p = hi;
+            *v = -v.abs() * RESTITUTION;
+        }
+    };
+    bounce(&mut b.pos.x, &mut b.vel.x, min.x + r, max.x - r);
+    bounce(&mut b.pos.z, &mut b.vel.z, min.y + r, max.y - r);
+}
