@@ -1,0 +1,150 @@
+//! Scene parsing: defaults, every key understood, every bad value rejected
+//! with the file and the key in the message.
+
+use std::path::Path;
+
+use snowpack::TerrainSource;
+use snowpack_scene::{Motion, Scene, ShapeSpec, Technique, WindowSpec};
+
+fn parse(text: &str) -> Result<Scene, snowpack_scene::SceneError> {
+    Scene::parse(text, Path::new("dir/test-scene.toml"))
+}
+
+#[test]
+fn empty_scene_gets_the_documented_defaults() {
+    let s = parse("").expect("empty scene is valid");
+    assert_eq!(s.snow.extent_m, 64.0);
+    assert_eq!(s.snow.resolution, 1024);
+    assert_eq!(s.snow.depth_m, 0.5);
+    assert_eq!(s.snow.refill_m_per_s, 0.0);
+    assert_eq!(s.snow.elevation, 1.0);
+    assert!(s.snow.blur);
+    assert_eq!(s.technique, Technique::Depth);
+    assert_eq!(s.range_texels, 64);
+    assert_eq!(s.terrain, TerrainSource::Flat { height_m: 0.0 });
+    assert_eq!(s.window, WindowSpec::Center([0.0, 0.0]));
+    assert_eq!(s.sim.frames, 120);
+    assert!((s.sim.dt_s - 1.0 / 60.0).abs() < 1e-7);
+    assert_eq!(s.camera.fov_deg, 60.0);
+}
+
+#[test]
+fn the_bundled_scenes_parse() {
+    Scene::default_scene().expect("default scene");
+    for name in ["testbed.toml", "drag.toml"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name);
+        Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
+
+#[test]
+fn actors_windows_and_keyframes_are_understood() {
+    let s = parse(
+        r#"
+[snow]
+technique = "points"
+range_texels = 96
+[window]
+follow = "actor:1"
+[[actor]]
+kind = "sphere"
+radius_m = 0.7
+position = [1, 2, 3]
+physics = true
+[[actor]]
+kind = "box"
+size_m = [1.0, 2.0, 3.0]
+rotation_deg = [0.0, 90.0, 0.0]
+path = [[0, 1, 0, 0], [4, 1, 0, 2.0]]
+[[spawn]]
+count = 10
+radius_m = 0.25
+seed = 3
+[[object]]
+name = "bench"
+position = [0.0, 1.0, 0.0]
+size_m = [2.0, 0.1, 1.0]
+[snowfall]
+direction = [0.0, -2.0, 0.0]
+"#,
+    )
+    .expect("valid");
+    assert_eq!(s.technique, Technique::Points);
+    assert_eq!(s.range_texels, 96);
+    assert_eq!(s.window, WindowSpec::FollowActor(1));
+    assert_eq!(s.actors[0].shape, ShapeSpec::Sphere { radius_m: 0.7 });
+    assert!(matches!(s.actors[0].motion, Motion::Physics { .. }));
+    assert!(matches!(&s.actors[1].motion, Motion::Path(k) if k.len() == 2));
+    assert_eq!(s.spawns[0].count, 10);
+    assert_eq!(s.objects[0].name, "bench");
+    assert_eq!(s.snowfall.as_ref().map(|f| f.direction), Some(glam::Vec3::NEG_Y));
+}
+
+#[test]
+fn every_bad_value_names_the_file_and_the_key() {
+    let cases: &[(&str, &str)] = &[
+        ("[snow]\nresolution = 0\n", "[snow].resolution"),
+        ("[snow]\nresolution = 100000\n", "[snow].resolution"),
+        ("[snow]\nresolution = 1000\n", "[snow].resolution"),
+        ("[snow]\nextent_m = -4.0\n", "[snow].extent_m"),
+        ("[snow]\ndepth_m = nan\n", "[snow].depth_m"),
+        ("[snow]\ndepth_m = inf\n", "[snow].depth_m"),
+        ("[snow]\ndepth_m = \"deep\"\n", "[snow].depth_m"),
+        ("[snow]\nblur = 1\n", "[snow].blur"),
+        ("[snow]\ntechnique = \"magic\"\n", "[snow].technique"),
+        ("[snow]\nrange_texels = 8\n", "[snow].range_texels"),
+        ("[snow]\nbogus_key = 1\n", "[snow].bogus_key"),
+        ("bogus_table = 1\n", "bogus_table"),
+        ("[terrain]\nkind = \"lava\"\n", "[terrain].kind"),
+        ("[terrain]\nkind = \"heightmap\"\npath = \"nowhere.png\"\n", "[terrain].path"),
+        ("[terrain]\nkind = \"noise\"\nwavelength_m = 0\n", "[terrain].wavelength_m"),
+        ("[[actor]]\nkind = \"sphere\"\nradius_m = -1.0\n", "[[actor]][0].radius_m"),
+        ("[[actor]]\nkind = \"box\"\nsize_m = [1.0, 0.0, 1.0]\n", "[[actor]][0].size_m"),
+        ("[[actor]]\nkind = \"box\"\nsize_m = [1.0, 1.0]\n", "[[actor]][0].size_m"),
+        ("[[actor]]\nkind = \"blob\"\n", "[[actor]][0].kind"),
+        ("[[actor]]\nposition = [0, nan, 0]\n", "[[actor]][0].position"),
+        ("[[actor]]\npath = [[0, 0, 0, 1], [1, 0, 0, 1]]\n", "[[actor]][0].path"),
+        ("[[actor]]\nkind = \"gltf\"\nfile = \"missing.glb\"\n", "[[actor]][0].file"),
+        ("[[actor]]\nradius = 1\n", "[[actor]][0].radius"),
+        ("[window]\nfollow = \"actor:3\"\n", "[window].follow"),
+        ("[window]\nfollow = \"dog\"\n", "[window].follow"),
+        ("[[spawn]]\ncount = -5\n", "[[spawn]][0].count"),
+        ("[[object]]\nname = \"a\"\n[[object]]\nname = \"a\"\n", "[[object]][1].name"),
+        ("[snowfall]\ndirection = [0, 0, 0]\n", "[snowfall].direction"),
+        ("[sim]\nframes = 0\n", "[sim].frames"),
+        ("[sim]\ndt_s = -0.1\n", "[sim].dt_s"),
+        ("[camera]\nfov_deg = 200\n", "[camera].fov_deg"),
+    ];
+    for (text, key) in cases {
+        let err = parse(text).expect_err(text);
+        let msg = err.to_string();
+        assert!(msg.starts_with("dir/test-scene.toml: "), "{text:?}: {msg}");
+        assert_eq!(&err.key, key, "{text:?}: {msg}");
+        assert!(msg.contains(key), "{text:?}: {msg}");
+    }
+}
+
+#[test]
+fn malformed_toml_reports_line_and_column() {
+    let err = parse("[snow]\nresolution = = 3\n").expect_err("malformed");
+    let msg = err.to_string();
+    assert!(msg.contains("malformed TOML at line 2"), "{msg}");
+}
+
+#[test]
+fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
+    let dir = std::env::temp_dir().join(format!("snowpack-hm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(4, 2, |x, y| image::Luma([(x * 1000 + y * 20000) as u16]));
+    img.save(dir.join("ground.png")).expect("png");
+    let scene_path = dir.join("s.toml");
+    std::fs::write(&scene_path, "[terrain]\nkind = \"heightmap\"\npath = \"ground.png\"\nheight_scale_m = 65.535\nsize_m = [4.0, 2.0]\n")
+        .expect("write");
+    let s = Scene::load(&scene_path).expect("loads");
+    let TerrainSource::Heightmap(h) = &s.terrain else { panic!("not a heightmap") };
+    assert_eq!((h.width, h.height), (4, 2));
+    // Image row 0 (y = 0) is the far edge (+z): terrain row 1.
+    assert!((h.heights_m[4 + 3] - 3.0).abs() < 1e-4, "{:?}", h.heights_m);
+    assert!((h.heights_m[3] - 23.0).abs() < 1e-4, "{:?}", h.heights_m);
+    let _ = std::fs::remove_dir_all(&dir);
+}
