@@ -32,7 +32,7 @@ pub fn render(
         let albedo = if fraction < 0.02 { ground } else { packed.lerp(fresh, fraction.powf(0.7)) };
         let lit = albedo * (n.dot(sun).max(0.0) * 0.85) + albedo * sky * (0.35 + 0.25 * n.y);
         // Simple filmic-ish curve, then sRGB.
-        let mapped = lit / (lit + Vec3::splat(0.25)) * 1.25;
+        let mapped = lit / (lit + Vec3::splat(0.6)) * 1.35;
         let to8 = |c: f32| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8;
         image::Rgb([to8(mapped.x), to8(mapped.y), to8(mapped.z)])
     })
