@@ -55,16 +55,9 @@ impl BlurPass {
 
     /// Records both axes.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+        let g = layout::groups(self.resolution, 16);
         for (axis, label) in [(0, "blur_x"), (1, "blur_z")] {
-            let slot = timer.reserve(label);
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: timer.compute_writes(slot),
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.axes[axis], &[]);
-            let g = layout::groups(self.resolution, 16);
-            pass.dispatch_workgroups(g, g, 1);
+            layout::dispatch(encoder, timer, label, &self.pipeline, &self.axes[axis], (g, g));
         }
     }
 }

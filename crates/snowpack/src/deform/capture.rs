@@ -32,7 +32,7 @@ impl CaptureParams {
     /// World height of a captured depth value; `None` for the cleared value 1.
     #[must_use]
     pub fn height_of_depth(&self, depth: f32) -> Option<f32> {
-        (depth < 1.0).then(|| self.low_m + depth * (self.high_m - self.low_m))
+        (depth < 1.0).then_some(self.low_m + depth * (self.high_m - self.low_m))
     }
 }
 

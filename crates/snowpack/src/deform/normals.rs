@@ -51,15 +51,8 @@ impl NormalPass {
 
     /// Records the pass.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
-        let slot = timer.reserve("normals");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("normals"),
-            timestamp_writes: timer.compute_writes(slot),
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
         let g = layout::groups(self.resolution, 16);
-        pass.dispatch_workgroups(g, g, 1);
+        layout::dispatch(encoder, timer, "normals", &self.pipeline, &self.bind_group, (g, g));
     }
 }
 

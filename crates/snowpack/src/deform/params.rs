@@ -53,7 +53,7 @@ impl SnowParams {
     /// Checks every value; the error names the offending field.
     pub fn validate(&self) -> Result<(), SnowError> {
         let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
-        if !RESOLUTION_RANGE.contains(&self.resolution) || self.resolution % 16 != 0 {
+        if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
             return bad(
                 "resolution",
                 format!(

@@ -59,7 +59,7 @@ impl SnowDeformation {
             });
         }
         let surface_bytes = params.texel_count() as u64 * 8;
-        if surface_bytes > u64::from(limits.max_storage_buffer_binding_size) {
+        if surface_bytes > limits.max_storage_buffer_binding_size {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
                 why: format!("{} needs {surface_bytes} byte buffers, above this adapter's limit", params.resolution),

@@ -63,14 +63,7 @@ impl RimPass {
     /// Records the remap for this frame.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &RimParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        let slot = timer.reserve("rim");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("rim"),
-            timestamp_writes: timer.compute_writes(slot),
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
         let g = layout::groups(params.resolution, 16);
-        pass.dispatch_workgroups(g, g, 1);
+        layout::dispatch(encoder, timer, "rim", &self.pipeline, &self.bind_group, (g, g));
     }
 }

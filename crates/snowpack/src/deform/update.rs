@@ -67,14 +67,7 @@ impl UpdatePass {
     /// Records the update for this frame.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        let slot = timer.reserve("update");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("update"),
-            timestamp_writes: timer.compute_writes(slot),
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
         let g = layout::groups(params.resolution, 16);
-        pass.dispatch_workgroups(g, g, 1);
+        layout::dispatch(encoder, timer, "update", &self.pipeline, &self.bind_group, (g, g));
     }
 }

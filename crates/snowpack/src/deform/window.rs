@@ -204,14 +204,7 @@ impl WindowPass {
         let groups = layout::groups(texels, 256);
         // Stay under the 65535 per-dimension limit with a 2D grid.
         let (gx, gy) = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
-        let slot = timer.reserve("window");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("window"),
-            timestamp_writes: timer.compute_writes(slot),
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(gx, gy, 1);
+        layout::dispatch(encoder, timer, "window", &self.pipeline, &self.bind_group, (gx, gy));
     }
 }
 

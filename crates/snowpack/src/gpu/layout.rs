@@ -107,3 +107,22 @@ pub fn uniform_buffer<T: bytemuck::Pod>(device: &wgpu::Device, label: &str) -> w
 pub fn groups(n: u32, size: u32) -> u32 {
     n.div_ceil(size)
 }
+
+/// Records one timed compute pass: `pipeline` with `bind_group` over `groups` workgroups.
+pub fn dispatch(
+    encoder: &mut wgpu::CommandEncoder,
+    timer: &mut super::GpuTimer,
+    label: &'static str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: (u32, u32),
+) {
+    let slot = timer.reserve(label);
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: timer.compute_writes(slot),
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.dispatch_workgroups(groups.0, groups.1, 1);
+}

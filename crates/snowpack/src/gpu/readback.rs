@@ -104,11 +104,10 @@ impl<M> ReadbackRing<M> {
         for (k, slot) in self.slots.iter_mut().enumerate() {
             let SlotState::Mapping { seq, flag, .. } = &slot.state else { continue };
             match flag.load(Ordering::Acquire) {
-                MAPPED => {
-                    if best.is_none_or(|(_, s)| *seq > s) {
+                MAPPED
+                    if best.is_none_or(|(_, s)| *seq > s) => {
                         best = Some((k, *seq));
                     }
-                }
                 FAILED => slot.state = SlotState::Free,
                 _ => {}
             }
