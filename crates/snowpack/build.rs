@@ -14,6 +14,8 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("RIM", &["shared/window.wgsl", "rim.wgsl"]),
     ("BLUR", &["blur.wgsl"]),
     ("NORMALS", &["normals.wgsl"]),
+    ("TERRAIN_BAKE", &["terrain_bake.wgsl"]),
+    ("TERRAIN_RESOLVE", &["terrain_resolve.wgsl"]),
 ];
 
 fn main() {

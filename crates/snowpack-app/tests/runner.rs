@@ -349,6 +349,9 @@ fn bad_scene_values_exit_2_naming_file_and_key() {
         ("missing-heightmap", "[terrain]\nkind = \"heightmap\"\npath = \"nowhere.png\"\n", "nowhere.png"),
         ("nan-depth", "[snow]\ndepth_m = nan\n", "depth_m"),
         ("malformed", "[snow\nresolution = 64\n", "malformed"),
+        ("missing-mesh", "[terrain]\nkind = \"mesh\"\npath = \"nowhere.glb\"\n", "nowhere.glb"),
+        // The scene file itself is not glTF.
+        ("malformed-mesh", "[terrain]\nkind = \"mesh\"\npath = \"malformed-mesh.toml\"\n", "not valid glTF"),
     ];
     for (name, toml, key) in cases {
         expect_bad_input(name, toml, key);
@@ -369,4 +372,55 @@ fn check_scene_prints_what_it_understood() {
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{stdout}{}", String::from_utf8_lossy(&output.stderr));
     assert!(stdout.contains("512") && stdout.contains("0.3") && stdout.contains("0.7"), "{stdout}");
+}
+
+#[test]
+fn mesh_terrain_is_drawn_from_above_and_carries_the_snow() {
+    if !gpu_available() {
+        return;
+    }
+    // scenes/assets/mound.gltf: y = 2.5 exp(-((x-10)^2 + (z+6)^2) / 120) + 0.04 x on a
+    // 48x48-cell grid over 64 m, and a terrace whose top is at 1.5 m over
+    // x in [-20, -8], z in [4, 16] with vertical walls down to -1 m.
+    let gltf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/assets/mound.gltf");
+    let toml = format!(
+        "[snow]\nextent_m = 32.0\nresolution = 256\ndepth_m = 0.5\n\
+         [terrain]\nkind = \"mesh\"\npath = {:?}\n\
+         [window]\ncenter = [-8.0, 6.0]\n\
+         [[actor]]\nkind = \"sphere\"\nradius_m = 0.4\nposition = [-14.0, 2.1, 10.0]\n\
+         [sim]\nframes = 3\n",
+        gltf.display().to_string()
+    );
+    let run = run_scene("mesh-terrain", &toml, &[]);
+    let terrain = run.grid("terrain.npy");
+    let snow = run.grid("snow.npy");
+    let mound = |x: f64, z: f64| 2.5 * (-((x - 10.0).powi(2) + (z + 6.0).powi(2)) / 120.0).exp() + 0.04 * x;
+    let (mut on_terrace, mut on_mound) = (0, 0);
+    for i in 0..terrain.res {
+        for j in 0..terrain.res {
+            let (x, z) = run.world(i, j);
+            let t = f64::from(terrain.at(i, j));
+            if (-19.8..=-8.2).contains(&x) && (4.2..=15.8).contains(&z) {
+                assert!((t - 1.5).abs() < 1e-3, "terrace top at ({x}, {z}) is {t} m");
+                on_terrace += 1;
+            } else if !(-20.3..=-7.7).contains(&x) || !(3.7..=16.3).contains(&z) {
+                // Linear triangles over a curved mound: within 3 cm of the formula.
+                assert!((t - mound(x, z)).abs() < 0.03, "ground at ({x}, {z}) is {t} m, formula {}", mound(x, z));
+                on_mound += 1;
+            }
+            let dist = ((x + 14.0).powi(2) + (z - 10.0).powi(2)).sqrt();
+            if dist > 0.6 {
+                let s = f64::from(snow.at(i, j));
+                assert!((s - t - 0.5).abs() < 1e-4, "fresh snow at ({x}, {z}): {s} over terrain {t}");
+            }
+        }
+    }
+    assert!(on_terrace > 5000 && on_mound > 30000, "{on_terrace} terrace and {on_mound} ground texels checked");
+    // The sphere on the terrace presses to its lowest point, 1.7 m.
+    let texel = run.meta["texel_m"].as_f64().expect("texel");
+    let o = &run.meta["origin_m"];
+    let j = ((-14.0 - o[0].as_f64().expect("x")) / texel) as usize;
+    let i = ((10.0 - o[1].as_f64().expect("z")) / texel) as usize;
+    let lowest = (0..2).flat_map(|di| (0..2).map(move |dj| (i + di - 1, j + dj - 1))).map(|(a, b)| snow.at(a, b)).fold(f32::INFINITY, f32::min);
+    assert!((lowest - 1.7).abs() < 0.01, "print on the terrace at {lowest} m, want 1.7 m");
 }

@@ -6,6 +6,7 @@
 
 mod error;
 mod fields;
+pub mod gltf_file;
 mod scene;
 mod world;
 

@@ -4,12 +4,14 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::{HeightmapTerrain, NoiseTerrain, SnowParams, TerrainSource};
+use snowpack::{HeightmapTerrain, NoiseTerrain, SnowParams, TerrainMesh, TerrainSource};
 
 use crate::error::SceneError;
 use crate::fields::Fields;
+use crate::gltf_file::GltfFile;
 
 /// How actors deform the snow (Wasmut 2019 compares the four).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -271,13 +273,7 @@ impl Scene {
                         wavelength_m: t.positive("wavelength_m", 32.0, " of metres")?,
                     }),
                     "heightmap" => load_heightmap(&mut t, &base_dir, snow.extent_m)?,
-                    _ => {
-                        return Err(t.err(
-                            "kind",
-                            "\"mesh\" terrain (drawing a glTF terrain into the capture) is not supported yet; \
-                             use flat, noise or heightmap",
-                        ));
-                    }
+                    _ => load_terrain_mesh(&mut t, &base_dir, snow.texel_m())?,
                 };
                 t.finish()?;
                 terrain
@@ -453,6 +449,15 @@ impl Scene {
                 h.center_m,
                 self.terrain.height_bounds()
             ),
+            TerrainSource::Mesh(m) => format!(
+                "mesh of {} triangles drawn into {}x{} texels over {:?} m centred at {:?}, heights {:?} m",
+                m.triangles.len(),
+                m.grid.width,
+                m.grid.height,
+                m.grid.size_m,
+                m.grid.center_m,
+                self.terrain.height_bounds()
+            ),
         };
         let _ = writeln!(s, "terrain: {terrain}");
         let _ = writeln!(s, "window: {:?}", self.window);
@@ -473,6 +478,17 @@ impl Scene {
         let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);
         s
     }
+}
+
+fn load_terrain_mesh(t: &mut Fields<'_>, base_dir: &Path, default_texel: f32) -> Result<TerrainSource, SceneError> {
+    let rel = t.string_opt("path")?.ok_or_else(|| t.err("path", "mesh terrain needs a path to a glTF file (.glb or .gltf)"))?;
+    let scale = t.positive("scale", 1.0, "")?;
+    let texel = t.positive("texel_m", default_texel, " of metres")?;
+    let file = base_dir.join(&rel);
+    let gltf = GltfFile::open(&file).map_err(|why| t.err("path", why))?;
+    let triangles = gltf.world_triangles(scale).map_err(|why| t.err("path", format!("{}: {why}", file.display())))?;
+    let mesh = TerrainMesh::new(triangles, texel).map_err(|e| t.err("path", format!("{}: {e}", file.display())))?;
+    Ok(TerrainSource::Mesh(Arc::new(mesh)))
 }
 
 fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> Result<TerrainSource, SceneError> {

@@ -18,4 +18,4 @@ pub use deform::shape::Deformer;
 pub use deform::{SnowDeformation, SnowSnapshot};
 pub use error::SnowError;
 pub use gpu::GpuContext;
-pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainSource};
+pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};

@@ -1,11 +1,15 @@
-//! The ground under the snow: flat, procedural noise or a heightmap.
+//! The ground under the snow: flat, procedural noise, a heightmap or any triangle mesh.
 //!
 //! The same description is evaluated on the GPU (by the window pass, for newly
 //! exposed texels; see `shaders/shared/terrain.wgsl`) and on the CPU (physics,
 //! queries and the CPU twins). The two evaluations use the same `f32` operations
 //! in the same order, so they agree to within rounding (tests use 1e-4 m).
 
+use std::sync::Arc;
+
 use glam::Vec3;
+
+use crate::error::SnowError;
 
 /// Value-noise terrain: `base_m + amplitude_m * fbm(x / wavelength_m, z / wavelength_m)`,
 /// with a four-octave fractal sum normalised to `[-1, 1]`.
@@ -49,6 +53,93 @@ pub enum TerrainSource {
     Noise(NoiseTerrain),
     /// A sampled heightmap (for example a 16-bit PNG).
     Heightmap(HeightmapTerrain),
+    /// A triangle mesh (for example a glTF terrain), drawn from above into a grid.
+    Mesh(Arc<TerrainMesh>),
+}
+
+/// Largest side of the grid a terrain mesh is drawn into (texels). 2048 is
+/// the texture limit every wgpu adapter has, GL ES included.
+pub const MESH_GRID_MAX_SIDE: u32 = 2048;
+
+/// Columns of the mesh grid are a multiple of this, so a row is a multiple of
+/// 256 bytes and the GPU can copy the drawn texture into a tight buffer.
+const MESH_GRID_COLUMN_ALIGN: u32 = 64;
+
+/// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
+/// so cliffs, bridges' decks, roads and sculpted ground all work.
+///
+/// The mesh is drawn from above into a grid (the highest surface per texel
+/// centre wins, as a depth test would choose): on the GPU by
+/// [`crate::deform::terrain_bake::TerrainBakePass`] for the snow window, and on
+/// the CPU by [`crate::cpu::terrain_bake::draw`] for physics and queries (the
+/// tests hold the two to 1e-4 m). Overhangs are invisible from above, which is
+/// right for snow: it lies on the top surface.
+#[derive(Clone, PartialEq)]
+pub struct TerrainMesh {
+    /// World-space triangles, three corners each.
+    pub triangles: Vec<[[f32; 3]; 3]>,
+    /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
+    pub grid: HeightmapTerrain,
+}
+
+impl std::fmt::Debug for TerrainMesh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TerrainMesh")
+            .field("triangles", &self.triangles.len())
+            .field("grid", &(self.grid.width, self.grid.height))
+            .field("center_m", &self.grid.center_m)
+            .field("size_m", &self.grid.size_m)
+            .finish()
+    }
+}
+
+impl TerrainMesh {
+    /// Places a grid of about `texel_m` texels over the triangles' extent and
+    /// draws them into it on the CPU. The texel grows when the mesh would need
+    /// more than [`MESH_GRID_MAX_SIDE`] texels on a side.
+    pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, SnowError> {
+        let bad = |why: String| SnowError::InvalidParameter { field: "terrain mesh", why };
+        if triangles.is_empty() {
+            return Err(bad("the mesh has no triangles".into()));
+        }
+        if !(texel_m.is_finite() && texel_m > 0.0) {
+            return Err(bad(format!("texel size must be a positive number of metres, got {texel_m}")));
+        }
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in triangles.iter().flatten() {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(bad(format!("a vertex is not finite: {p:?}")));
+            }
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let extent = [hi[0] - lo[0], hi[2] - lo[2]];
+        if extent[0] <= 0.0 || extent[1] <= 0.0 {
+            return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()));
+        }
+        let max_side = (MESH_GRID_MAX_SIDE - MESH_GRID_COLUMN_ALIGN) as f32;
+        let texel = texel_m.max(extent[0] / max_side).max(extent[1] / max_side);
+        let cols = ((extent[0] / texel).ceil() as u32 + 1).next_multiple_of(MESH_GRID_COLUMN_ALIGN);
+        let rows = (extent[1] / texel).ceil() as u32 + 1;
+        let size_m = [cols as f32 * texel, rows as f32 * texel];
+        let center_m = [(lo[0] + hi[0]) * 0.5, (lo[2] + hi[2]) * 0.5];
+        let origin = [center_m[0] - size_m[0] * 0.5, center_m[1] - size_m[1] * 0.5];
+        let heights_m = crate::cpu::terrain_bake::draw(&triangles, cols, rows, origin, size_m, lo[1]);
+        let grid = HeightmapTerrain { width: cols, height: rows, heights_m, center_m, size_m };
+        Ok(Self { triangles, grid })
+    }
+
+    /// Lowest and highest vertex height (m).
+    #[must_use]
+    pub fn height_range(&self) -> (f32, f32) {
+        self.triangles
+            .iter()
+            .flatten()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
+    }
 }
 
 /// Number of octaves of the fractal noise; must match `shared/terrain.wgsl`.
@@ -108,6 +199,14 @@ pub fn fbm(x: f32, z: f32, seed: u32) -> f32 {
 }
 
 impl HeightmapTerrain {
+    /// Lowest and highest sample (m).
+    #[must_use]
+    pub fn height_range(&self) -> (f32, f32) {
+        self.heights_m
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    }
+
     /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
     #[must_use]
     pub fn height_at(&self, x: f32, z: f32) -> f32 {
@@ -142,6 +241,7 @@ impl TerrainSource {
                 n.base_m + n.amplitude_m * fbm(x / n.wavelength_m, z / n.wavelength_m, n.seed)
             }
             Self::Heightmap(hm) => hm.height_at(x, z),
+            Self::Mesh(m) => m.grid.height_at(x, z),
         }
     }
 
@@ -159,10 +259,8 @@ impl TerrainSource {
         match self {
             Self::Flat { height_m } => (*height_m, *height_m),
             Self::Noise(n) => (n.base_m - n.amplitude_m.abs(), n.base_m + n.amplitude_m.abs()),
-            Self::Heightmap(hm) => hm
-                .heights_m
-                .iter()
-                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h))),
+            Self::Heightmap(hm) => hm.height_range(),
+            Self::Mesh(m) => m.height_range(),
         }
     }
 }
@@ -200,5 +298,35 @@ mod tests {
         assert!((hm.height_at(0.0, 0.0) - 1.0).abs() < 1e-6);
         assert!((hm.height_at(0.5, 0.0) - 2.0).abs() < 1e-6);
         assert!((hm.height_at(5.0, 0.0) - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn mesh_grid_holds_the_top_surface() {
+        // A tilted square (y = 0.5 x + 0.25 z) with a flat "table" at y = 3
+        // over part of it: the grid holds the plane outside the table, the
+        // table inside it, and the plane's floor nowhere else.
+        let p = |x: f32, z: f32| [x, 0.5 * x + 0.25 * z, z];
+        let mut tris = vec![[p(-4.0, -4.0), p(4.0, -4.0), p(4.0, 4.0)], [p(-4.0, -4.0), p(4.0, 4.0), p(-4.0, 4.0)]];
+        let t = |x: f32, z: f32| [x, 3.0, z];
+        tris.push([t(0.0, 0.0), t(2.0, 0.0), t(2.0, 2.0)]);
+        tris.push([t(0.0, 0.0), t(2.0, 2.0), t(0.0, 2.0)]);
+        let mesh = TerrainMesh::new(tris, 0.1).unwrap();
+        assert_eq!(mesh.grid.width % 64, 0);
+        let terrain = TerrainSource::Mesh(Arc::new(mesh));
+        for &(x, z) in &[(-3.0, -3.0), (3.1, -2.0), (-1.0, 3.5), (2.6, 2.6)] {
+            let want = 0.5 * x + 0.25 * z;
+            assert!((terrain.height_at(x, z) - want).abs() < 1e-3, "plane at ({x}, {z})");
+        }
+        assert!((terrain.height_at(1.0, 1.0) - 3.0).abs() < 1e-4, "table");
+        assert_eq!(terrain.height_bounds(), (-3.0, 3.0));
+    }
+
+    #[test]
+    fn mesh_without_area_is_rejected() {
+        let wall = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]];
+        assert!(TerrainMesh::new(vec![wall], 0.1).is_err());
+        assert!(TerrainMesh::new(vec![], 0.1).is_err());
+        let nan = [[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 1.0]];
+        assert!(TerrainMesh::new(vec![nan], 0.1).is_err());
     }
 }

@@ -221,3 +221,95 @@ fn rim_blur_and_normals_match_cpu() {
         }
     }
 }
+
+/// A random terrain mesh: a jittered grid of random heights, with a few
+/// floating platforms when asked (overlaps the bake must resolve to the top surface).
+fn random_terrain_mesh(rng: &mut Rng, platforms: usize) -> Vec<[[f32; 3]; 3]> {
+    let n = 12;
+    let cell = rng.range(1.0, 4.0);
+    let x0 = rng.range(-300.0, 300.0);
+    let z0 = rng.range(-300.0, 300.0);
+    let mut points = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let jitter = |rng: &mut Rng| if i == 0 || i == n || j == 0 || j == n { 0.0 } else { rng.range(-0.3, 0.3) * cell };
+            let x = x0 + j as f32 * cell + jitter(rng);
+            let z = z0 + i as f32 * cell + jitter(rng);
+            points.push([x, rng.range(-3.0, 3.0), z]);
+        }
+    }
+    let at = |i: usize, j: usize| points[i * (n + 1) + j];
+    let mut tris = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            tris.push([at(i, j), at(i, j + 1), at(i + 1, j + 1)]);
+            tris.push([at(i, j), at(i + 1, j + 1), at(i + 1, j)]);
+        }
+    }
+    let side = n as f32 * cell;
+    for _ in 0..platforms {
+        let c = [x0 + rng.range(0.1, 0.9) * side, z0 + rng.range(0.1, 0.9) * side];
+        let y = rng.range(-1.0, 5.0);
+        let corner = |rng: &mut Rng| [c[0] + rng.range(-3.0, 3.0) * cell, y + rng.range(-0.5, 0.5), c[1] + rng.range(-3.0, 3.0) * cell];
+        tris.push([corner(rng), corner(rng), corner(rng)]);
+    }
+    tris
+}
+
+#[test]
+fn terrain_bake_matches_cpu() {
+    use snowpack::deform::terrain_bake::TerrainBakePass;
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("terrain bake");
+    let mut rng = Rng::new(seed);
+    let mesh = snowpack::TerrainMesh::new(random_terrain_mesh(&mut rng, 4), rng.range(0.05, 0.3)).expect("valid mesh");
+    let mut enc = encoder(ctx);
+    let buffer = TerrainBakePass::new(&ctx.device).record(&ctx.device, &mut enc, &mesh);
+    submit(ctx, enc);
+    let gpu = read_f32(ctx, &buffer);
+    let cpu = &mesh.grid.heights_m;
+    assert_eq!(gpu.len(), cpu.len());
+    // The rasteriser snaps vertices to 1/256 of a texel (the CPU does not):
+    // heights on steep triangles move by slope x texel / 256 (a few mm here),
+    // and a texel centre within that distance of a platform's edge may be
+    // covered on one side and not the other. So: almost every texel within
+    // 2 mm, and the mean error far below that.
+    let off: Vec<usize> = (0..cpu.len()).filter(|&k| (gpu[k] - cpu[k]).abs() > 2e-3).collect();
+    let mean = gpu.iter().zip(cpu).map(|(a, b)| f64::from((a - b).abs())).sum::<f64>() / cpu.len() as f64;
+    assert!(mean < 1e-4, "mean difference {mean} m; seed {seed}");
+    assert!(
+        off.len() <= cpu.len() / 2000,
+        "{} of {} texels differ (first at {}: gpu {}, cpu {}); seed {seed}",
+        off.len(),
+        cpu.len(),
+        off[0],
+        gpu[off[0]],
+        cpu[off[0]]
+    );
+}
+
+#[test]
+fn window_over_mesh_terrain_samples_the_drawn_mesh() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("mesh window");
+    let mut rng = Rng::new(seed);
+    // A continuous surface: no coverage ties at platform edges (see the bake test).
+    let tris = random_terrain_mesh(&mut rng, 0);
+    let centre = [(tris[0][0][0] + tris[287][1][0]) * 0.5, (tris[0][0][2] + tris[287][1][2]) * 0.5];
+    let mesh = snowpack::TerrainMesh::new(tris, 0.1).expect("valid mesh");
+    let terrain = TerrainSource::Mesh(std::sync::Arc::new(mesh));
+    let params = SnowParams { extent_m: 16.0, resolution: 64, ..SnowParams::default() };
+    let mut snow = snowpack::SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::new(f64::from(centre[0]), f64::from(centre[1])))
+        .expect("window");
+    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    let gpu = snow.read_terrain(ctx).expect("readback");
+    let origin = snow.origin_m().expect("placed");
+    let t = params.texel_m();
+    let cpu: Vec<f32> = (0..64 * 64)
+        .map(|k| {
+            let (i, j) = (k / 64, k % 64);
+            terrain.height_at((origin.x + (f64::from(j as u32) + 0.5) * f64::from(t)) as f32, (origin.y + (f64::from(i as u32) + 0.5) * f64::from(t)) as f32)
+        })
+        .collect();
+    assert_close(&gpu, &cpu, 2e-3, "terrain under the window", seed);
+}

@@ -4,6 +4,7 @@ use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::normals::NormalParams;
 use snowpack::deform::rim::RimParams;
+use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::shaders;
@@ -30,6 +31,8 @@ fn uniform_sizes_match_naga() {
         (shaders::RIM, "params", size_of::<RimParams>()),
         (shaders::BLUR, "params", size_of::<BlurParams>()),
         (shaders::NORMALS, "params", size_of::<NormalParams>()),
+        (shaders::TERRAIN_BAKE, "params", size_of::<TerrainBakeParams>()),
+        (shaders::TERRAIN_RESOLVE, "params", size_of::<ResolveParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -38,7 +41,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 7);
+    assert_eq!(shaders::ALL.len(), 9);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -6,5 +6,6 @@ pub mod blur;
 pub mod capture;
 pub mod normals;
 pub mod rim;
+pub mod terrain_bake;
 pub mod update;
 pub mod window;

@@ -10,6 +10,7 @@ pub mod query;
 pub mod resources;
 pub mod rim;
 pub mod shape;
+pub mod terrain_bake;
 pub mod update;
 pub mod window;
 

@@ -12,6 +12,7 @@
 use crate::gpu::layout;
 use crate::{SnowParams, TerrainSource};
 
+use super::terrain_bake::TerrainBakePass;
 use super::window::TerrainParams;
 
 /// Format of the capture depth target.
@@ -25,7 +26,7 @@ pub struct DeformResources {
     pub terrain: wgpu::Buffer,
     /// Persistent snow height per texel, toroidal.
     pub snow: wgpu::Buffer,
-    /// Heightmap samples for heightmap terrain (one zero otherwise).
+    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one zero otherwise).
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
@@ -56,17 +57,26 @@ impl DeformResources {
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, params: &SnowParams, terrain: &TerrainSource) -> Self {
         let res = params.resolution;
         let texels = u64::from(res) * u64::from(res);
-        let samples: &[f32] = match terrain {
-            TerrainSource::Heightmap(h) => &h.heights_m,
-            _ => &[0.0],
+        let heightmap = if let TerrainSource::Mesh(mesh) = terrain {
+            // Any terrain mesh: drawn from above on the GPU into its grid.
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("terrain bake") });
+            let buffer = TerrainBakePass::new(device).record(device, &mut encoder, mesh);
+            queue.submit([encoder.finish()]);
+            buffer
+        } else {
+            let samples: &[f32] = match terrain {
+                TerrainSource::Heightmap(h) => &h.heights_m,
+                _ => &[0.0],
+            };
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("heightmap"),
+                size: (samples.len() as u64 * 4).max(4),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buffer, 0, bytemuck::cast_slice(samples));
+            buffer
         };
-        let heightmap = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("heightmap"),
-            size: (samples.len() as u64 * 4).max(4),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        queue.write_buffer(&heightmap, 0, bytemuck::cast_slice(samples));
         let terrain_params = layout::uniform_buffer::<TerrainParams>(device, "terrain params");
         queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&TerrainParams::new(terrain)));
         let capture = device.create_texture(&wgpu::TextureDescriptor {

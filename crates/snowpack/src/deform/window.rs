@@ -132,14 +132,20 @@ impl TerrainParams {
                 wavelength_m: n.wavelength_m,
                 ..Self::default()
             },
-            T::Heightmap(h) => Self {
-                kind: 2,
-                hm_width: h.width,
-                hm_height: h.height,
-                hm_center_m: h.center_m,
-                hm_size_m: h.size_m,
-                ..Self::default()
-            },
+            T::Heightmap(h) => Self::heightmap(h),
+            // The mesh is drawn into a grid on the GPU and sampled like a heightmap.
+            T::Mesh(m) => Self::heightmap(&m.grid),
+        }
+    }
+
+    fn heightmap(h: &crate::HeightmapTerrain) -> Self {
+        Self {
+            kind: 2,
+            hm_width: h.width,
+            hm_height: h.height,
+            hm_center_m: h.center_m,
+            hm_size_m: h.size_m,
+            ..Self::default()
         }
     }
 }
