@@ -58,15 +58,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         Some(name) => name
             .parse::<Technique>()
             .map_err(|e| BadInput(format!("--technique: {e}")))?,
-        None => scene.technique,
+        None => scene.snow.technique,
     };
-    if technique != Technique::Depth {
-        return Err(BadInput(format!(
-            "technique \"{}\" is not available in this build yet; use \"depth\"",
-            technique.as_str()
-        ))
-        .into());
-    }
     let frames = opts.frames.unwrap_or(scene.sim.frames);
     let (width, height) = opts.size.unwrap_or_else(|| {
         let side = scene.snow.resolution.min(1024);
@@ -75,7 +68,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
 
     let ctx = GpuContext::new_headless_with(opts.backend.as_deref(), None).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
-    let mut snow = SnowDeformation::new(&ctx, scene.snow.clone(), scene.terrain.clone(), window_center(scene, &world))
+    let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
+    let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
         .context("creating the deformation window")?;
     let warmup = frames.min(10) as u64;
     let start = Instant::now();

@@ -12,7 +12,8 @@ mod world;
 
 pub use error::SceneError;
 pub use scene::{
-    ActorSpec, CameraSpec, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, Technique,
+    ActorSpec, CameraSpec, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec,
     WindowSpec, DEFAULT_SCENE,
 };
+pub use snowpack::{RimStyle, Technique};
 pub use world::{World, FRICTION, GRAVITY, RESTITUTION};

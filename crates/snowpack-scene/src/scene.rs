@@ -3,55 +3,14 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::{HeightmapTerrain, NoiseTerrain, SnowParams, TerrainMesh, TerrainSource};
+use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::GltfFile;
-
-/// How actors deform the snow (Wasmut 2019 compares the four).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Technique {
-    /// Actors' depth captured from below (Horizon Zero Dawn, Hanák).
-    Depth,
-    /// Deferred point deformation (Rise of the Tomb Raider).
-    Points,
-    /// Decals that never change the height field.
-    Decals,
-    /// Depth and points, the lower of the two.
-    Combined,
-}
-
-impl Technique {
-    /// Every technique, in scene-file spelling.
-    pub const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
-
-    /// The scene-file spelling.
-    #[must_use]
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Depth => "depth",
-            Self::Points => "points",
-            Self::Decals => "decals",
-            Self::Combined => "combined",
-        }
-    }
-}
-
-impl FromStr for Technique {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|t| t.as_str() == s)
-            .ok_or_else(|| format!("{s:?} is not one of depth, points, decals, combined"))
-    }
-}
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,6 +37,11 @@ pub enum ShapeSpec {
         size_m: Vec3,
         /// Orientation (from `rotation_deg`, Euler XYZ).
         rotation: Quat,
+    },
+    /// A contact point for the points technique (`position` is the foot's lowest point).
+    Point {
+        /// Footprint curvature (1/m): `h = foot + d^2 * scale_per_m`.
+        scale_per_m: f32,
     },
 }
 
@@ -173,12 +137,8 @@ pub struct CameraSpec {
 pub struct Scene {
     /// The file it came from (relative paths in it resolve against its folder).
     pub path: PathBuf,
-    /// `[snow]`.
+    /// `[snow]` (technique, footprint range and rim style included).
     pub snow: SnowParams,
-    /// `[snow] technique`.
-    pub technique: Technique,
-    /// `[snow] range_texels`: footprint size of one point.
-    pub range_texels: u32,
     /// `[terrain]`, loaded.
     pub terrain: TerrainSource,
     /// `[window]`.
@@ -236,9 +196,15 @@ impl Scene {
 
         // [snow]
         let defaults = SnowParams::default();
-        let (snow, technique, range_texels) = match root.table("snow")? {
-            None => (defaults, Technique::Depth, 64),
+        let snow = match root.table("snow")? {
+            None => defaults,
             Some(mut t) => {
+                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| {
+                    s.parse::<Technique>().map_err(|why| t.err("technique", why))
+                })?;
+                let rim = t.string_opt("rim")?.map_or(Ok(RimStyle::Rounded), |s| {
+                    s.parse::<RimStyle>().map_err(|why| t.err("rim", why))
+                })?;
                 let snow = SnowParams {
                     extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
                     resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
@@ -246,16 +212,15 @@ impl Scene {
                     refill_m_per_s: t.non_negative("refill_m_per_s", defaults.refill_m_per_s, " (m/s)")?,
                     elevation: t.non_negative("elevation", defaults.elevation, "")?,
                     blur: t.bool("blur", defaults.blur)?,
+                    technique,
+                    range_texels: t.u32_in("range_texels", 64, 32..=128)?,
+                    rim,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
                 }
-                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| {
-                    s.parse::<Technique>().map_err(|why| t.err("technique", why))
-                })?;
-                let range = t.u32_in("range_texels", 64, 32..=128)?;
                 t.finish()?;
-                (snow, technique, range)
+                snow
             }
         };
 
@@ -403,8 +368,6 @@ impl Scene {
         Ok(Self {
             path: path.to_owned(),
             snow,
-            technique,
-            range_texels,
             terrain,
             window,
             actors,
@@ -424,7 +387,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -432,8 +395,9 @@ impl Scene {
             p.refill_m_per_s,
             p.elevation,
             p.blur,
-            self.technique.as_str(),
-            self.range_texels
+            p.technique.as_str(),
+            p.range_texels,
+            p.rim.as_str()
         );
         let terrain = match &self.terrain {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
@@ -520,7 +484,7 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
 }
 
 fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneError> {
-    let kind = a.choice("kind", "sphere", &["sphere", "box", "gltf"])?;
+    let kind = a.choice("kind", "sphere", &["sphere", "box", "point", "gltf"])?;
     let shape = match kind.as_str() {
         "sphere" => ShapeSpec::Sphere { radius_m: a.positive("radius_m", 0.5, " of metres")? },
         "box" => {
@@ -530,6 +494,7 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
             }
             ShapeSpec::Box { size_m, rotation: rotation_from_deg(a.vec3("rotation_deg", Vec3::ZERO)?) }
         }
+        "point" => ShapeSpec::Point { scale_per_m: a.positive("scale_per_m", 1.0, " (1/m)")? },
         _ => {
             let file = a.string_opt("file")?.ok_or_else(|| a.err("file", "a gltf actor needs a file"))?;
             let full = base_dir.join(&file);

@@ -163,6 +163,7 @@ impl World {
                 ShapeSpec::Box { size_m, rotation } => {
                     Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation }
                 }
+                ShapeSpec::Point { scale_per_m } => Deformer::Point { position: center, scale_per_m: *scale_per_m },
             });
         }
         out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));

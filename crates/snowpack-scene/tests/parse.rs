@@ -19,8 +19,8 @@ fn empty_scene_gets_the_documented_defaults() {
     assert_eq!(s.snow.refill_m_per_s, 0.0);
     assert_eq!(s.snow.elevation, 1.0);
     assert!(s.snow.blur);
-    assert_eq!(s.technique, Technique::Depth);
-    assert_eq!(s.range_texels, 64);
+    assert_eq!(s.snow.technique, Technique::Depth);
+    assert_eq!(s.snow.range_texels, 64);
     assert_eq!(s.terrain, TerrainSource::Flat { height_m: 0.0 });
     assert_eq!(s.window, WindowSpec::Center([0.0, 0.0]));
     assert_eq!(s.sim.frames, 120);
@@ -69,8 +69,8 @@ direction = [0.0, -2.0, 0.0]
 "#,
     )
     .expect("valid");
-    assert_eq!(s.technique, Technique::Points);
-    assert_eq!(s.range_texels, 96);
+    assert_eq!(s.snow.technique, Technique::Points);
+    assert_eq!(s.snow.range_texels, 96);
     assert_eq!(s.window, WindowSpec::FollowActor(1));
     assert_eq!(s.actors[0].shape, ShapeSpec::Sphere { radius_m: 0.7 });
     assert!(matches!(s.actors[0].motion, Motion::Physics { .. }));

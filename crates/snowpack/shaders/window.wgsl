@@ -1,6 +1,6 @@
 // Window pass: writes terrain height and fresh snow into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
-// columns), and nothing else. CPU twin: src/cpu/window.rs.
+// columns), and nothing else; their footprints are cleared. CPU twin: src/cpu/window.rs.
 
 struct WindowParams {
     origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
@@ -17,6 +17,7 @@ struct WindowParams {
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read_write> terrain: array<f32>;
 @group(0) @binding(4) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(5) var<storage, read_write> stamps: array<u32>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -44,4 +45,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let ground = terrain_height(terrain_params, x, z);
     terrain[s] = ground;
     snow[s] = ground + params.depth_m;
+    stamps[s] = 0xffffffffu; // no footprint yet
 }

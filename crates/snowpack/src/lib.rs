@@ -15,6 +15,7 @@ pub mod testing;
 
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
+pub use deform::technique::{RimStyle, Technique};
 pub use deform::{SnowDeformation, SnowSnapshot};
 pub use error::SnowError;
 pub use gpu::GpuContext;

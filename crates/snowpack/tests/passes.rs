@@ -13,6 +13,7 @@ use snowpack::deform::normals::NormalPass;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::rim::{RimParams, RimPass};
+use snowpack::deform::stamp::{StampParams, StampPass};
 use snowpack::deform::update::{UpdateParams, UpdatePass};
 use snowpack::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use snowpack::gpu::GpuTimer;
@@ -20,6 +21,10 @@ use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
 
 fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
 }
 
@@ -35,6 +40,7 @@ fn setup(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, Terra
         refill_m_per_s: rng.range(0.0, 0.05),
         elevation: rng.range(0.0, 1.5),
         blur: true,
+        ..SnowParams::default()
     };
     let terrain = TerrainSource::Noise(NoiseTerrain {
         seed: rng.next_u64() as u32,
@@ -80,6 +86,8 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
     let n = params.texel_count();
     let mut cpu_terrain = random_field(&mut rng, n, -5.0, 5.0);
     let mut cpu_snow = random_field(&mut rng, n, -5.0, 5.0);
+    let mut cpu_stamps: Vec<u32> = (0..n).map(|_| rng.next_u64() as u32).collect();
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&cpu_stamps));
     ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&cpu_terrain));
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&cpu_snow));
     let pass = WindowPass::new(&ctx.device, &res);
@@ -104,9 +112,10 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
-        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_terrain, &mut cpu_snow);
+        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_terrain, &mut cpu_snow, &mut cpu_stamps);
         assert_close(&read_f32(ctx, &res.terrain), &cpu_terrain, 1e-4, "window terrain", seed);
         assert_close(&read_f32(ctx, &res.snow), &cpu_snow, 1e-4, "window snow", seed);
+        assert_eq!(read_u32(ctx, &res.stamps), cpu_stamps, "window stamps; seed {seed}");
     }
 }
 
@@ -150,8 +159,21 @@ fn capture_and_update_match_cpu() {
         refill_m: rng.range(0.0, 0.1),
         low_m: cparams.low_m,
         high_m: cparams.high_m,
-        _pad: 0,
+        flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_STAMPS,
+        refill_quanta: rng.range(0.0, 40.0) as u32,
+        _pad: [0; 3],
     };
+    // Random footprints over part of the window (foot at or below the stamp height).
+    let mut stamps: Vec<u32> = (0..n)
+        .map(|_| {
+            if rng.range(0.0, 1.0) < 0.5 {
+                return cpu::stamp::STAMP_EMPTY;
+            }
+            let foot = rng.range(0.0, 40000.0) as u32;
+            ((foot + rng.range(0.0, 20000.0) as u32) << 16) | foot
+        })
+        .collect();
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut enc, &mut timer, &res);
@@ -159,7 +181,8 @@ fn capture_and_update_match_cpu() {
     submit(ctx, enc);
 
     let depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
-    cpu::update::update(&up, &depth, &terrain, &mut snow);
+    cpu::update::update(&up, &depth, &terrain, &mut snow, &mut stamps);
+    assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
     let gpu = read_f32(ctx, &res.snow);
     let bad = gpu.iter().zip(&snow).filter(|(a, b)| (*a - *b).abs() > 1e-3).count();
     // Silhouette texels of rotated boxes may be covered on one side and not the other.
@@ -179,26 +202,54 @@ fn rim_blur_and_normals_match_cpu() {
     let (params, _terrain, res) = setup(ctx, &mut rng, 96);
     let n = params.texel_count();
     let terrain = random_field(&mut rng, n, -1.0, 1.0);
-    let snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m)).collect();
+    // Half the texels undisturbed (at rest: point rims may grow there), half pressed.
+    let snow: Vec<f32> =
+        terrain.iter().map(|t| if rng.range(0.0, 1.0) < 0.5 { t + params.depth_m } else { t + rng.range(0.0, params.depth_m) }).collect();
     ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
-    let rp = RimParams {
+    // Footprints around the rest height so every branch of the point rims runs.
+    let (low_m, high_m) = (-3.0_f32, 3.0_f32);
+    let stamps: Vec<u32> = (0..n)
+        .map(|k| {
+            let s = k; // toroidal index; terrain and snow are indexed the same way
+            if rng.range(0.0, 1.0) < 0.2 {
+                return cpu::stamp::STAMP_EMPTY;
+            }
+            let rest = terrain[s] + params.depth_m;
+            let foot = cpu::stamp::quantise(rest - rng.range(-0.1, 0.6), low_m, high_m);
+            let h = cpu::stamp::quantise(rest + rng.range(-0.3, 0.8), low_m, high_m).max(foot);
+            (h << 16) | foot
+        })
+        .collect();
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+    let mut rp = RimParams {
         origin: [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32],
         resolution: params.resolution,
         depth_m: params.depth_m,
         elevation: params.elevation,
-        _pad: [0; 3],
+        mode: 0,
+        low_m,
+        high_m,
     };
     let rim = RimPass::new(&ctx.device, &res);
     let blur = BlurPass::new(&ctx.device, &ctx.queue, &res);
     let normals = NormalPass::new(&ctx.device, &ctx.queue, &res, params.texel_m());
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
 
-    let mut enc = encoder(ctx);
-    rim.record(&ctx.queue, &mut enc, &mut timer, &rp);
-    submit(ctx, enc);
-    let cpu_shown = cpu::rim::rim(&rp, &terrain, &snow);
-    assert_close(&read_f32(ctx, &res.shown), &cpu_shown, 1e-4, "rim", seed);
+    // Modes 1 and 2 (point rims), then 0 (Hanák), whose output the blur test uses.
+    let mut cpu_shown = Vec::new();
+    for mode in [1, 2, 0] {
+        rp.mode = mode;
+        let mut enc = encoder(ctx);
+        rim.record(&ctx.queue, &mut enc, &mut timer, &rp);
+        submit(ctx, enc);
+        cpu_shown = cpu::rim::rim(&rp, &terrain, &snow, &stamps);
+        assert_close(&read_f32(ctx, &res.shown), &cpu_shown, 1e-4, &format!("rim (mode {mode})"), seed);
+        if mode != 0 {
+            let raised = cpu_shown.iter().zip(&terrain).filter(|(s, t)| **s > **t + params.depth_m + 1e-3).count();
+            assert!(raised > n / 50 || params.elevation < 0.05, "mode {mode}: only {raised} rim texels; seed {seed}");
+        }
+    }
 
     let mut enc = encoder(ctx);
     blur.record(&mut enc, &mut timer);
@@ -312,4 +363,109 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
         })
         .collect();
     assert_close(&gpu, &cpu, 2e-3, "terrain under the window", seed);
+}
+
+fn random_points(rng: &mut Rng, count: usize, extent: f32) -> Vec<[f32; 4]> {
+    (0..count)
+        .map(|_| [rng.range(-0.1 * extent, 1.1 * extent), rng.range(-1.0, 2.0), rng.range(-0.1 * extent, 1.1 * extent), rng.range(0.2, 8.0)])
+        .collect()
+}
+
+fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points: &[[f32; 4]]) -> Vec<u32> {
+    let n = (res.resolution * res.resolution) as usize;
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&vec![cpu::stamp::STAMP_EMPTY; n]));
+    let mut pass = StampPass::new(&ctx.device, res);
+    pass.prepare(&ctx.device, &ctx.queue, res, sp, points);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    pass.record(&mut enc, &mut timer);
+    submit(ctx, enc);
+    read_u32(ctx, &res.stamps)
+}
+
+#[test]
+fn stamp_pass_matches_cpu_packing_and_rounding() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("stamp");
+    let mut rng = Rng::new(seed);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 128);
+    let n = params.texel_count();
+    let sp = StampParams {
+        origin: [rng.range(-500.0, 500.0) as i32, rng.range(-500.0, 500.0) as i32],
+        resolution: params.resolution,
+        range_texels: 32 + (rng.next_u64() % 97) as u32,
+        texel_m: params.texel_m(),
+        low_m: -1.5,
+        high_m: 3.0,
+        count: 0,
+    };
+    let points = random_points(&mut rng, 60, params.extent_m);
+    let gpu = run_stamps(ctx, &res, &StampParams { count: points.len() as u32, ..sp }, &points);
+    let mut cpu = vec![cpu::stamp::STAMP_EMPTY; n];
+    cpu::stamp::stamp(&StampParams { count: points.len() as u32, ..sp }, &points, &mut cpu);
+    // The GPU may fuse the footprint's multiply-adds; a result on a rounding
+    // boundary can then land one code away. Allow that, rarely, and nothing more.
+    let mut off_by_one = 0;
+    for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+        if g == c {
+            continue;
+        }
+        let (gh, ch) = (g >> 16, c >> 16);
+        assert!(g & 0xffff == c & 0xffff || gh != ch, "foot differs at {k}: {g:#x} vs {c:#x}; seed {seed}");
+        assert!(gh.abs_diff(ch) <= 1 && *g != cpu::stamp::STAMP_EMPTY && *c != cpu::stamp::STAMP_EMPTY, "texel {k}: gpu {g:#x}, cpu {c:#x}; seed {seed}");
+        off_by_one += 1;
+    }
+    let touched = cpu.iter().filter(|s| **s != cpu::stamp::STAMP_EMPTY).count();
+    assert!(touched > n / 10, "only {touched} texels stamped; seed {seed}");
+    assert!(off_by_one <= touched / 1000, "{off_by_one} of {touched} texels one code apart; seed {seed}");
+}
+
+#[test]
+fn overlapping_footprints_resolve_to_the_minimum_in_any_order() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("stamp order");
+    let mut rng = Rng::new(seed);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 64);
+    let sp = StampParams {
+        origin: [3, -7],
+        resolution: params.resolution,
+        range_texels: 64,
+        texel_m: params.texel_m(),
+        low_m: -1.5,
+        high_m: 3.0,
+        count: 0,
+    };
+    // Many points crowded into the middle so every texel sees many footprints.
+    let e = params.extent_m;
+    let mut points: Vec<[f32; 4]> = (0..400)
+        .map(|_| [rng.range(0.3 * e, 0.7 * e), rng.range(-1.0, 2.0), rng.range(0.3 * e, 0.7 * e), rng.range(0.2, 8.0)])
+        .collect();
+    let first = run_stamps(ctx, &res, &sp, &points);
+    // Fisher-Yates shuffle.
+    for k in (1..points.len()).rev() {
+        let j = (rng.next_u64() % (k as u64 + 1)) as usize;
+        points.swap(k, j);
+    }
+    let second = run_stamps(ctx, &res, &sp, &points);
+    assert!(first == second, "stamps depend on dispatch order; seed {seed}");
+    // And the result is the per-texel minimum over all points (CPU, any order).
+    let mut cpu = vec![cpu::stamp::STAMP_EMPTY; first.len()];
+    cpu::stamp::stamp(&StampParams { count: points.len() as u32, ..sp }, &points, &mut cpu);
+    let differ = first.iter().zip(&cpu).filter(|(a, b)| (*a >> 16).abs_diff(*b >> 16) > 1).count();
+    assert_eq!(differ, 0, "GPU minimum differs from the CPU minimum; seed {seed}");
+}
+
+#[test]
+fn stamp_quantisation_error_is_at_most_half_a_quantum() {
+    let mut rng = Rng::new(testing::seed("quantise"));
+    let (low, high) = (-2.0_f32, 5.5_f32);
+    let quantum = (high - low) / 65535.0;
+    for _ in 0..100_000 {
+        let h = rng.range(low, high);
+        let back = cpu::stamp::height(cpu::stamp::quantise(h, low, high), low, high);
+        // Half a quantum plus f32 rounding of the two conversions.
+        assert!((back - h).abs() <= 0.5 * quantum + 4.0 * f32::EPSILON * high.abs().max(low.abs()), "{h} -> {back}");
+    }
+    assert_eq!(cpu::stamp::quantise(low - 1.0, low, high), 0);
+    assert_eq!(cpu::stamp::quantise(high + 1.0, low, high), 65535);
 }

@@ -4,6 +4,7 @@ use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::normals::NormalParams;
 use snowpack::deform::rim::RimParams;
+use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
@@ -27,6 +28,7 @@ fn uniform_sizes_match_naga() {
         (shaders::WINDOW, "terrain_params", size_of::<TerrainParams>()),
         (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
         (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
+        (shaders::STAMP, "params", size_of::<StampParams>()),
         (shaders::UPDATE, "params", size_of::<UpdateParams>()),
         (shaders::RIM, "params", size_of::<RimParams>()),
         (shaders::BLUR, "params", size_of::<BlurParams>()),
@@ -41,7 +43,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 9);
+    assert_eq!(shaders::ALL.len(), 10);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -6,6 +6,7 @@ pub mod blur;
 pub mod capture;
 pub mod normals;
 pub mod rim;
+pub mod stamp;
 pub mod terrain_bake;
 pub mod update;
 pub mod window;

@@ -12,8 +12,15 @@ pub fn storage_index(origin: [i32; 2], res: u32, i: u32, j: u32) -> usize {
     si * res as usize + sj
 }
 
-/// Writes terrain and fresh snow into the texels of `rects`.
-pub fn expose(p: &WindowParams, rects: &[TexelRect], terrain_src: &TerrainSource, terrain: &mut [f32], snow: &mut [f32]) {
+/// Writes terrain and fresh snow into the texels of `rects` and clears their footprints.
+pub fn expose(
+    p: &WindowParams,
+    rects: &[TexelRect],
+    terrain_src: &TerrainSource,
+    terrain: &mut [f32],
+    snow: &mut [f32],
+    stamps: &mut [u32],
+) {
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
@@ -23,6 +30,7 @@ pub fn expose(p: &WindowParams, rects: &[TexelRect], terrain_src: &TerrainSource
                 let ground = terrain_src.height_at(x, z);
                 terrain[s] = ground;
                 snow[s] = ground + p.depth_m;
+                stamps[s] = super::stamp::STAMP_EMPTY;
             }
         }
     }

@@ -101,6 +101,8 @@ impl CaptureInstances {
                         out.boxes.push(Mat4::from_scale_rotation_translation(half_extents, rotation, c).to_cols_array());
                     }
                 }
+                // Points have no surface to draw; only the stamp pass uses them.
+                Deformer::Point { .. } => {}
             }
         }
         out

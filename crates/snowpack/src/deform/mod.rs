@@ -10,6 +10,8 @@ pub mod query;
 pub mod resources;
 pub mod rim;
 pub mod shape;
+pub mod stamp;
+pub mod technique;
 pub mod terrain_bake;
 pub mod update;
 pub mod window;

@@ -1,6 +1,7 @@
 //! Parameters of the snow surface, shared by every deformation pass.
 
 use crate::error::SnowError;
+use crate::{RimStyle, Technique};
 
 /// How the deformation window is sized and how the snow behaves.
 ///
@@ -19,6 +20,12 @@ pub struct SnowParams {
     pub elevation: f32,
     /// Whether the displayed surface gets the 5x5 Gaussian blur.
     pub blur: bool,
+    /// How actors deform the snow; switchable at runtime.
+    pub technique: Technique,
+    /// Side of one point's footprint square (texels), 32..=128 ("points", "combined").
+    pub range_texels: u32,
+    /// Rim formula of the points technique.
+    pub rim: RimStyle,
 }
 
 impl Default for SnowParams {
@@ -30,6 +37,9 @@ impl Default for SnowParams {
             refill_m_per_s: 0.0,
             elevation: 1.0,
             blur: true,
+            technique: Technique::Depth,
+            range_texels: 64,
+            rim: RimStyle::Rounded,
         }
     }
 }
@@ -76,6 +86,12 @@ impl SnowParams {
         if !(self.elevation.is_finite() && self.elevation >= 0.0) {
             return bad("elevation", format!("{} must be zero or positive", self.elevation));
         }
+        if !RANGE_TEXELS.contains(&self.range_texels) {
+            return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));
+        }
         Ok(())
     }
 }
+
+/// Footprint sizes the points technique accepts (texels per side).
+pub const RANGE_TEXELS: std::ops::RangeInclusive<u32> = 32..=128;

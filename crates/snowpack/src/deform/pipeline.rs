@@ -4,7 +4,7 @@ use glam::DVec2;
 
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
-use crate::{Deformer, SnowParams, TerrainSource};
+use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
 use super::capture::{CaptureInstances, CaptureParams, CapturePass};
@@ -12,6 +12,7 @@ use super::normals::{unpack_surface, NormalPass};
 use super::query::SnowSnapshot;
 use super::resources::DeformResources;
 use super::rim::{RimParams, RimPass};
+use super::stamp::{contact_points, StampParams, StampPass};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
 
@@ -24,9 +25,17 @@ const CAPTURE_MARGIN_M: f32 = 1.0;
 /// A deformation window and the passes that update it.
 ///
 /// Per frame: [`WindowPass`] (newly exposed texels), [`CapturePass`] (actors
-/// from below), [`UpdatePass`] (persistent height with refill), [`RimPass`]
-/// (Hanák's remap), [`BlurPass`] (x then z, optional), [`NormalPass`] (packed
-/// surface), then a readback copy for CPU queries.
+/// from below; techniques depth and combined), [`StampPass`] (contact points'
+/// footprints; points and combined), [`UpdatePass`] (persistent height with
+/// refill), [`RimPass`] (Hanák's remap or point rims), [`BlurPass`] (x then
+/// z, optional), [`NormalPass`] (packed surface), then a readback copy for
+/// CPU queries.
+///
+/// Switching technique ([`Self::set_technique`]) reallocates nothing: every
+/// buffer exists for every technique. A switch keeps the persistent snow (so
+/// trails made by any technique stay) and the stored footprints (rims come
+/// back when points do); it changes only which deformers write from the next
+/// frame on and how rims are shown.
 pub struct SnowDeformation {
     params: SnowParams,
     terrain: TerrainSource,
@@ -36,6 +45,7 @@ pub struct SnowDeformation {
     capture_params: CaptureParams,
     window_pass: WindowPass,
     capture_pass: CapturePass,
+    stamp_pass: StampPass,
     update_pass: UpdatePass,
     rim_pass: RimPass,
     blur_pass: BlurPass,
@@ -45,6 +55,9 @@ pub struct SnowDeformation {
     latest: Option<SnowSnapshot>,
     frame: u64,
     exposed_texels: u64,
+    /// Footprint refill not yet applied, below one stamp quantum (m).
+    stamp_refill_carry_m: f32,
+    points_last_frame: usize,
 }
 
 impl SnowDeformation {
@@ -77,6 +90,7 @@ impl SnowDeformation {
         let this = Self {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
+            stamp_pass: StampPass::new(device, &res),
             update_pass: UpdatePass::new(device, &res),
             rim_pass: RimPass::new(device, &res),
             blur_pass: BlurPass::new(device, queue, &res),
@@ -92,6 +106,8 @@ impl SnowDeformation {
             latest: None,
             frame: 0,
             exposed_texels: 0,
+            stamp_refill_carry_m: 0.0,
+            points_last_frame: 0,
         };
         ctx.check("creating the deformation passes")?;
         Ok(this)
@@ -123,6 +139,37 @@ impl SnowDeformation {
     /// Sets the rim strength; takes effect next frame.
     pub fn set_elevation(&mut self, elevation: f32) {
         self.params.elevation = elevation.max(0.0);
+    }
+
+    /// Switches the deformation technique from the next frame on; keeps the
+    /// snow and the stored footprints, allocates nothing.
+    pub fn set_technique(&mut self, technique: Technique) {
+        self.params.technique = technique;
+    }
+
+    /// The technique in use.
+    #[must_use]
+    pub fn technique(&self) -> Technique {
+        self.params.technique
+    }
+
+    /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
+    pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
+        self.params.range_texels = range_texels.clamp(*super::params::RANGE_TEXELS.start(), *super::params::RANGE_TEXELS.end());
+        self.params.rim = rim;
+    }
+
+    /// Contact points stamped in the last frame.
+    #[must_use]
+    pub fn points_last_frame(&self) -> usize {
+        self.points_last_frame
+    }
+
+    /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
+    #[must_use]
+    pub fn stamp_range(&self) -> (f32, f32, f32) {
+        let (low, high) = (self.capture_params.low_m, self.capture_params.high_m);
+        (low, high, (high - low) / 65535.0)
     }
 
     /// Turns the displayed-surface blur on or off.
@@ -188,9 +235,35 @@ impl SnowDeformation {
             },
             &rects,
         );
-        let instances = CaptureInstances::new(deformers, corner, &self.capture_params);
-        self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
-        self.capture_pass.record(encoder, &mut self.timer, &self.res);
+        let technique = p.technique;
+        let captures = matches!(technique, Technique::Depth | Technique::Combined);
+        let stamps = matches!(technique, Technique::Points | Technique::Combined);
+        if captures {
+            let instances = CaptureInstances::new(deformers, corner, &self.capture_params);
+            self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
+            self.capture_pass.record(encoder, &mut self.timer, &self.res);
+        }
+        let stamp_params = StampParams {
+            origin: origin_i32,
+            resolution: p.resolution,
+            range_texels: p.range_texels,
+            texel_m: p.texel_m(),
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            count: 0,
+        };
+        self.points_last_frame = 0;
+        if stamps {
+            let points = contact_points(deformers, corner, &stamp_params);
+            self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
+            self.stamp_pass.record(encoder, &mut self.timer);
+            self.points_last_frame = points.len();
+        }
+        // Footprints refill by whole quanta; the remainder carries to the next frame.
+        let quantum = stamp_params.quantum_m();
+        self.stamp_refill_carry_m += p.refill_m_per_s * dt_s.max(0.0);
+        let refill_quanta = (self.stamp_refill_carry_m / quantum).floor().min(65535.0);
+        self.stamp_refill_carry_m -= refill_quanta * quantum;
         self.update_pass.record(
             queue,
             encoder,
@@ -202,7 +275,9 @@ impl SnowDeformation {
                 refill_m: p.refill_m_per_s * dt_s.max(0.0),
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
-                _pad: 0,
+                flags: if captures { UpdateParams::USE_CAPTURE } else { 0 } | if stamps { UpdateParams::USE_STAMPS } else { 0 },
+                refill_quanta: refill_quanta as u32,
+                _pad: [0; 3],
             },
         );
         self.rim_pass.record(
@@ -214,7 +289,9 @@ impl SnowDeformation {
                 resolution: p.resolution,
                 depth_m: p.depth_m,
                 elevation: p.elevation,
-                _pad: [0; 3],
+                mode: RimParams::mode_for(technique, p.rim),
+                low_m: self.capture_params.low_m,
+                high_m: self.capture_params.high_m,
             },
         );
         if p.blur {

@@ -4,6 +4,7 @@
 //! |---|---|---|---|
 //! | `terrain` | f32 per texel | toroidal | terrain height (m) |
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
+//! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`) |
 //! | `capture` | Depth32Float texture | window-local | lowest actor surface, linear in height |
 //! | `shown` | f32 per texel | window-local | displayed height (rims, then blurred in place via `scratch`) |
 //! | `scratch` | f32 per texel | window-local | blur's intermediate |
@@ -26,6 +27,8 @@ pub struct DeformResources {
     pub terrain: wgpu::Buffer,
     /// Persistent snow height per texel, toroidal.
     pub snow: wgpu::Buffer,
+    /// Packed footprints (height16 << 16 | foot16) per texel, toroidal; persistent.
+    pub stamps: wgpu::Buffer,
     /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one zero otherwise).
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
@@ -94,6 +97,8 @@ impl DeformResources {
             resolution: res,
             terrain: height_buffer(device, "terrain", texels),
             snow: height_buffer(device, "snow", texels),
+            // Every texel is written by the window pass on first placement.
+            stamps: height_buffer(device, "stamps", texels),
             heightmap,
             terrain_params,
             capture,
@@ -116,6 +121,7 @@ impl DeformResources {
         vec![
             ("terrain", self.terrain.size()),
             ("snow", self.snow.size()),
+            ("stamps", self.stamps.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
             ("shown", self.shown.size()),

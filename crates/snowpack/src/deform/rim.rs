@@ -1,4 +1,5 @@
-//! Rim pass: Hanák's cubic remap into the displayed height (`rim.wgsl`).
+//! Rim pass: Hanák's cubic remap, or rims from the points' stored foot
+//! heights, into the displayed height (`rim.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 
@@ -17,10 +18,27 @@ pub struct RimParams {
     pub resolution: u32,
     /// Rest depth of snow (m).
     pub depth_m: f32,
-    /// Blend of the cubic remap: 0 = none, 1 = Hanák's curve.
+    /// Rim strength: blend of the cubic remap (mode 0), or rim height scale (modes 1, 2).
     pub elevation: f32,
-    /// Padding.
-    pub _pad: [u32; 3],
+    /// 0 Hanák's remap, 1 MS16 point rims, 2 rounded point rims ([`RimParams::mode_for`]).
+    pub mode: u32,
+    /// Height of stamp code 0 (m).
+    pub low_m: f32,
+    /// Height of stamp code 65535 (m).
+    pub high_m: f32,
+}
+
+impl RimParams {
+    /// The rim mode of a technique: rims from points where points are stamped.
+    #[must_use]
+    pub fn mode_for(technique: crate::Technique, style: crate::RimStyle) -> u32 {
+        use crate::{RimStyle, Technique};
+        match (technique, style) {
+            (Technique::Depth | Technique::Decals, _) => 0,
+            (Technique::Points | Technique::Combined, RimStyle::Ms16) => 1,
+            (Technique::Points | Technique::Combined, RimStyle::Rounded) => 2,
+        }
+    }
 }
 
 /// Writes the displayed height (before blur) in window-local order.
@@ -43,6 +61,7 @@ impl RimPass {
                 layout::storage(1, true),
                 layout::storage(2, true),
                 layout::storage(3, false),
+                layout::storage(4, true),
             ],
         );
         let params = layout::uniform_buffer::<RimParams>(device, "rim params");
@@ -55,6 +74,7 @@ impl RimPass {
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.shown.as_entire_binding(),
+                res.stamps.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

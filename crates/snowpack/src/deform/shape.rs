@@ -21,6 +21,14 @@ pub enum Deformer {
         /// Orientation of the box's local axes.
         rotation: Quat,
     },
+    /// A contact point of the points technique (a foot, a paw): its footprint
+    /// is `h = position.y + d^2 * scale_per_m`. The depth technique ignores it.
+    Point {
+        /// The foot's lowest point in world space (m).
+        position: Vec3,
+        /// Curvature of the footprint (1/m): `1 / 2r` matches a sphere of radius r.
+        scale_per_m: f32,
+    },
 }
 
 impl Deformer {
@@ -43,6 +51,7 @@ impl Deformer {
                     + (m.z_axis.y.abs() * half_extents.z);
                 center.y - extent
             }
+            Self::Point { position, .. } => position.y,
         }
     }
 }

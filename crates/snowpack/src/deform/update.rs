@@ -1,4 +1,5 @@
-//! Update pass: the persistent snow height with linear refill (`update.wgsl`).
+//! Update pass: the persistent snow height with linear refill, lowered by the
+//! captured actors and the stamped footprints (`update.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 
@@ -23,8 +24,19 @@ pub struct UpdateParams {
     pub low_m: f32,
     /// Capture depth 1 height (m).
     pub high_m: f32,
-    /// Padding.
-    pub _pad: u32,
+    /// [`UpdateParams::USE_CAPTURE`] | [`UpdateParams::USE_STAMPS`].
+    pub flags: u32,
+    /// Footprint refill this frame, in whole stamp quanta.
+    pub refill_quanta: u32,
+    /// Padding to 48 bytes (the WGSL struct aligns to its `vec2<i32>`).
+    pub _pad: [u32; 3],
+}
+
+impl UpdateParams {
+    /// Apply the captured actors.
+    pub const USE_CAPTURE: u32 = 1;
+    /// Apply the stamped footprints.
+    pub const USE_STAMPS: u32 = 2;
 }
 
 /// Applies refill and the captured actors to the persistent snow.
@@ -47,6 +59,7 @@ impl UpdatePass {
                 layout::depth_texture(1),
                 layout::storage(2, true),
                 layout::storage(3, false),
+                layout::storage(4, false),
             ],
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
@@ -59,6 +72,7 @@ impl UpdatePass {
                 wgpu::BindingResource::TextureView(&res.capture_view),
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
+                res.stamps.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

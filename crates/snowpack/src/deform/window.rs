@@ -171,6 +171,7 @@ impl WindowPass {
                 layout::storage(2, true),
                 layout::storage(3, false),
                 layout::storage(4, false),
+                layout::storage(5, false),
             ],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
@@ -184,6 +185,7 @@ impl WindowPass {
                 res.heightmap.as_entire_binding(),
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
+                res.stamps.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

@@ -1,0 +1,149 @@
+//! Stamp pass: deferred point deformation (`stamp.wgsl`), Rise of the Tomb
+//! Raider's technique as Wasmut 2019 (section 4.2.2) describes it.
+//!
+//! Contact points come from deformers: a sphere's lowest point with the
+//! paraboloid that osculates it (`scale = 1 / 2r`), a box's lowest point with
+//! its narrower half-width, or an explicit [`Deformer::Point`]. Each writes
+//! `h = foot + d^2 * scale` over a `range_texels` square into the packed
+//! toroidal stamp buffer (see `shared/stamp.wgsl` for the format).
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec2;
+
+use crate::gpu::{layout, GpuTimer};
+use crate::{shaders, Deformer};
+
+use super::resources::DeformResources;
+
+/// Uniforms of `stamp.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct StampParams {
+    /// Global texel index of local (0, 0): `[column, row]`.
+    pub origin: [i32; 2],
+    /// Texels per side.
+    pub resolution: u32,
+    /// Side of each footprint square (texels).
+    pub range_texels: u32,
+    /// Texel size (m).
+    pub texel_m: f32,
+    /// Height of code 0 (m).
+    pub low_m: f32,
+    /// Height of code 65535 (m).
+    pub high_m: f32,
+    /// Points to stamp.
+    pub count: u32,
+}
+
+impl StampParams {
+    /// Size of one quantisation step (m); rounding errs by at most half of it.
+    #[must_use]
+    pub fn quantum_m(&self) -> f32 {
+        (self.high_m - self.low_m) / 65535.0
+    }
+}
+
+/// Contact points of `deformers` whose footprint can touch the window, as
+/// (window-local x, foot height, window-local z, scale). Points whose foot is
+/// above `high_m` (above any snow) are dropped.
+#[must_use]
+pub fn contact_points(deformers: &[Deformer], window_corner_m: DVec2, params: &StampParams) -> Vec<[f32; 4]> {
+    let extent = f64::from(params.texel_m) * f64::from(params.resolution);
+    let reach = f64::from(params.texel_m) * f64::from(params.range_texels);
+    deformers
+        .iter()
+        .filter_map(|d| {
+            let (at, foot, scale) = match *d {
+                Deformer::Sphere { center, radius } if radius > 0.0 => (center, center.y - radius, 0.5 / radius),
+                Deformer::Box { center, half_extents, .. } => {
+                    let half = half_extents.x.min(half_extents.z).max(1e-3);
+                    (center, d.lowest_point(), 0.5 / half)
+                }
+                Deformer::Point { position, scale_per_m } => (position, position.y, scale_per_m),
+                Deformer::Sphere { .. } => return None,
+            };
+            let x = f64::from(at.x) - window_corner_m.x;
+            let z = f64::from(at.z) - window_corner_m.y;
+            let outside = x + reach < 0.0 || x - reach > extent || z + reach < 0.0 || z - reach > extent;
+            (!outside && foot < params.high_m && scale.is_finite() && scale >= 0.0)
+                .then_some([x as f32, foot, z as f32, scale])
+        })
+        .collect()
+}
+
+/// Largest number of points one frame stamps (65535 x 65535 workgroups would
+/// allow more; this bounds the instance buffer).
+pub const MAX_POINTS: usize = 1 << 20;
+
+/// Writes this frame's footprints into the stamp buffer.
+pub struct StampPass {
+    pipeline: wgpu::ComputePipeline,
+    bgl: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    points: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    count: u32,
+}
+
+fn points_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("stamp points"),
+        size: bytes.max(256),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl StampPass {
+    /// Builds the pipeline and binds it to `res`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "stamp",
+            shaders::STAMP,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
+        let points = points_buffer(device, 16 * 256);
+        let bind_group = Self::bind(device, &bgl, &params, &points, res);
+        Self { pipeline, bgl, params, points, bind_group, count: 0 }
+    }
+
+    fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
+        layout::bind_group(
+            device,
+            "stamp",
+            bgl,
+            &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding()],
+        )
+    }
+
+    /// Uploads this frame's points (at most [`MAX_POINTS`]), growing the buffer when needed.
+    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 4]]) {
+        let points = &points[..points.len().min(MAX_POINTS)];
+        let bytes: &[u8] = bytemuck::cast_slice(points);
+        if bytes.len() as u64 > self.points.size() {
+            self.points = points_buffer(device, (bytes.len() as u64).next_power_of_two());
+            self.bind_group = Self::bind(device, &self.bgl, &self.params, &self.points, res);
+        }
+        queue.write_buffer(&self.points, 0, bytes);
+        self.count = points.len() as u32;
+        let mut p = *params;
+        p.count = self.count;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
+    /// Records the stamping of the prepared points (nothing when there are none).
+    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+        if self.count == 0 {
+            return;
+        }
+        let groups = if self.count <= 65535 { (self.count, 1) } else { (65535, self.count.div_ceil(65535)) };
+        layout::dispatch(encoder, timer, "stamp", &self.pipeline, &self.bind_group, groups);
+    }
+}

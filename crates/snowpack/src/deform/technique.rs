@@ -1,0 +1,89 @@
+//! The deformation techniques Wasmut 2019 compares, behind one switch, and
+//! the rim formulas of the points technique.
+
+use std::str::FromStr;
+
+/// How actors deform the snow (Wasmut 2019 compares the four).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Technique {
+    /// Actors' depth captured from below (Horizon Zero Dawn, Hanák).
+    #[default]
+    Depth,
+    /// Deferred point deformation (Rise of the Tomb Raider).
+    Points,
+    /// Decals that never change the height field.
+    Decals,
+    /// Depth and points, the lower of the two.
+    Combined,
+}
+
+impl Technique {
+    /// Every technique, in scene-file spelling.
+    pub const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
+
+    /// The scene-file spelling.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Points => "points",
+            Self::Decals => "decals",
+            Self::Combined => "combined",
+        }
+    }
+}
+
+impl FromStr for Technique {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|t| t.as_str() == s)
+            .ok_or_else(|| format!("{s:?} is not one of depth, points, decals, combined"))
+    }
+}
+
+
+/// How the points technique raises rims from the stored foot height
+/// (Wasmut 2019, sections 2.2.2 and 4.2.2). Both use the elevation distance
+/// `e = sqrt(h - foot) - sqrt(rest - foot)` over its maximum
+/// `M = sqrt(rest - foot)`, `ratio = e / M`, and a peak of
+/// `elevation * RIM_PEAK * (rest - foot)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum RimStyle {
+    /// Michels and Sikachev (GPU Pro 7): `1 - (0.5 - 2 ratio)^2` times the
+    /// peak. It starts at 0.75 of the peak at the depression's edge (a step),
+    /// peaks at ratio 0.25 and is gone at 0.75.
+    Ms16,
+    /// Wasmut's rounded variant: `1 - (2 ratio - 1)^2` times the peak; zero at
+    /// the depression's edge and at `M`, highest half way: a rounded rim.
+    #[default]
+    Rounded,
+}
+
+impl RimStyle {
+    /// The scene-file spelling.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Ms16 => "ms16",
+            Self::Rounded => "rounded",
+        }
+    }
+}
+
+impl FromStr for RimStyle {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "ms16" => Ok(Self::Ms16),
+            "rounded" => Ok(Self::Rounded),
+            _ => Err(format!("{s:?} is not one of ms16, rounded")),
+        }
+    }
+}
+
+/// Peak rim height as a fraction of the depression's depth at `elevation = 1`.
+pub const RIM_PEAK: f32 = 0.25;
