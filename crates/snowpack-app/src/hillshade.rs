@@ -5,10 +5,13 @@
 use glam::Vec3;
 
 /// Shades the window-local surface (its normals; snow and terrain heights
-/// give the compaction tint) into an sRGB image of `width` x `height`.
+/// give the compaction tint; decals, when given, their normal map and tint)
+/// into an sRGB image of `width` x `height`.
 #[must_use]
+#[expect(clippy::too_many_arguments, reason = "one plain function until the renderer replaces it")]
 pub fn render(
     normals: &[[f32; 3]],
+    decals: Option<&[[u8; 4]]>,
     snow: &[f32],
     terrain: &[f32],
     depth_m: f32,
@@ -27,9 +30,19 @@ pub fn render(
         let j = ((px as f32 + 0.5) / width as f32 * r as f32) as usize;
         let i = r - 1 - ((py as f32 + 0.5) / height as f32 * r as f32) as usize;
         let k = i.min(r - 1) * r + j.min(r - 1);
-        let n = Vec3::from(normals[k]);
+        let mut n = Vec3::from(normals[k]);
         let fraction = ((snow[k] - terrain[k]) / depth_m).clamp(0.0, 1.0);
-        let albedo = if fraction < 0.02 { ground } else { packed.lerp(fresh, fraction.powf(0.7)) };
+        let mut albedo = if fraction < 0.02 { ground } else { packed.lerp(fresh, fraction.powf(0.7)) };
+        if let Some(layer) = decals {
+            // Premultiplied normal x, z and tint over coverage.
+            let [nx, nz, tint, a] = layer[k].map(|c| f32::from(c) / 255.0);
+            if a > 0.0 {
+                let dn = Vec3::new(nx / a * 2.0 - 1.0, 0.0, nz / a * 2.0 - 1.0);
+                let dn = Vec3::new(dn.x, (1.0 - dn.x * dn.x - dn.z * dn.z).max(0.0).sqrt(), dn.z);
+                n = n.lerp(dn, a).normalize();
+                albedo *= 1.0 - a + a * (0.6 + 0.4 * tint / a);
+            }
+        }
         let lit = albedo * (n.dot(sun).max(0.0) * 0.85) + albedo * sky * (0.35 + 0.25 * n.y);
         // Simple filmic-ish curve, then sRGB.
         let mapped = lit / (lit + Vec3::splat(0.6)) * 1.35;

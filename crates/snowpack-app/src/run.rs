@@ -89,7 +89,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let snow_h = snow.read_snow(&ctx)?;
     let terrain_h = snow.read_terrain(&ctx)?;
     let (surface_h, normals) = snow.read_surface(&ctx)?;
-    let image = hillshade::render(&normals, &snow_h, &terrain_h, scene.snow.depth_m, scene.snow.resolution, width, height);
+    let decals = if technique == Technique::Decals { Some(snow.read_decals(&ctx)?) } else { None };
+    let image = hillshade::render(&normals, decals.as_deref(), &snow_h, &terrain_h, scene.snow.depth_m, scene.snow.resolution, width, height);
     let mut png = Vec::new();
     image
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)

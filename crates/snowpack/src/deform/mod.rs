@@ -3,6 +3,7 @@
 
 pub mod blur;
 pub mod capture;
+pub mod decal;
 pub mod normals;
 pub mod params;
 pub mod pipeline;

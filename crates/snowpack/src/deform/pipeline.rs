@@ -8,6 +8,7 @@ use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
 use super::capture::{CaptureInstances, CaptureParams, CapturePass};
+use super::decal::{DecalPass, DecalRing, DEFAULT_PER_ACTOR};
 use super::normals::{unpack_surface, NormalPass};
 use super::query::SnowSnapshot;
 use super::resources::DeformResources;
@@ -46,6 +47,8 @@ pub struct SnowDeformation {
     window_pass: WindowPass,
     capture_pass: CapturePass,
     stamp_pass: StampPass,
+    decal_pass: DecalPass,
+    decals: DecalRing,
     update_pass: UpdatePass,
     rim_pass: RimPass,
     blur_pass: BlurPass,
@@ -91,6 +94,8 @@ impl SnowDeformation {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
             stamp_pass: StampPass::new(device, &res),
+            decal_pass: DecalPass::new(device, queue, params.resolution),
+            decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
             update_pass: UpdatePass::new(device, &res),
             rim_pass: RimPass::new(device, &res),
             blur_pass: BlurPass::new(device, queue, &res),
@@ -170,6 +175,46 @@ impl SnowDeformation {
     pub fn stamp_range(&self) -> (f32, f32, f32) {
         let (low, high) = (self.capture_params.low_m, self.capture_params.high_m);
         (low, high, (high - low) / 65535.0)
+    }
+
+    /// The decal ring (each actor's last contacts).
+    #[must_use]
+    pub fn decals(&self) -> &DecalRing {
+        &self.decals
+    }
+
+    /// The decal layer (window-local RGBA8: normal x, z, tint, coverage), drawn
+    /// with the decals technique; transparent otherwise.
+    #[must_use]
+    pub fn decal_layer(&self) -> &wgpu::Texture {
+        &self.decal_pass.layer
+    }
+
+    /// The decal layer read back, window-local row-major; blocking.
+    pub fn read_decals(&self, ctx: &GpuContext) -> Result<Vec<[u8; 4]>, SnowError> {
+        let r = self.params.resolution;
+        let row = (r * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("decal layer copy"),
+            size: u64::from(row) * u64::from(r),
+            usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("decal layer copy") });
+        encoder.copy_texture_to_buffer(
+            self.decal_pass.layer.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(r) },
+            },
+            wgpu::Extent3d { width: r, height: r, depth_or_array_layers: 1 },
+        );
+        ctx.queue.submit([encoder.finish()]);
+        let raw = read_buffer(ctx, &staging)?;
+        Ok(raw
+            .chunks_exact(row as usize)
+            .flat_map(|line| line[..(r * 4) as usize].chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]))
+            .collect())
     }
 
     /// Turns the displayed-surface blur on or off.
@@ -298,6 +343,13 @@ impl SnowDeformation {
             self.blur_pass.record(encoder, &mut self.timer);
         }
         self.normal_pass.record(encoder, &mut self.timer);
+        // Contacts are recorded whatever the technique, so switching to decals
+        // shows the recent ones; they are drawn only with the decals technique.
+        self.decals.observe(deformers, &self.terrain, p.depth_m);
+        if technique == Technique::Decals {
+            self.decal_pass.prepare(device, queue, &mut self.decals, corner, p.extent_m);
+            self.decal_pass.record(encoder, &mut self.timer);
+        }
         self.readback.record_copy(encoder, &self.res.snow, (self.frame, origin));
         self.timer.end_frame(encoder);
         self.frame += 1;
@@ -372,6 +424,7 @@ impl SnowDeformation {
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
         let mut list = self.res.memory_bytes();
         list.push(("readback ring", self.readback.memory_bytes()));
+        list.push(("decal layer", u64::from(self.params.resolution).pow(2) * 4));
         list
     }
 
