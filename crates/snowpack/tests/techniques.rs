@@ -1,0 +1,50 @@
+//! Switching technique at runtime keeps the trails, reallocates nothing and
+//! leaves no stale footprints behind.
+
+use glam::{DVec2, Vec3};
+use snowpack::testing;
+use snowpack::{Deformer, SnowDeformation, SnowParams, Technique, TerrainSource};
+
+#[test]
+fn switching_keeps_trails_and_allocates_nothing() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let memory = snow.memory_bytes();
+    let at = |x: f32| Deformer::Sphere { center: Vec3::new(x, 0.6, 0.0), radius: 0.4 };
+    // Depth presses a print at x = -2, points one at x = 0, combined one at x = 2.
+    for (technique, x) in [(Technique::Depth, -2.0), (Technique::Points, 0.0), (Technique::Combined, 2.0)] {
+        snow.set_technique(technique);
+        for _ in 0..3 {
+            snow.step(ctx, &[at(x)], 1.0 / 60.0).expect("frame");
+        }
+        assert_eq!(snow.technique(), technique);
+    }
+    // Decals: the sphere moves on and the height field must not change.
+    snow.set_technique(Technique::Decals);
+    let before = snow.read_snow(ctx).expect("read");
+    for k in 0..10 {
+        snow.step(ctx, &[at(-3.0 + k as f32 * 0.3)], 1.0 / 60.0).expect("frame");
+    }
+    let after = snow.read_snow(ctx).expect("read");
+    assert_eq!(before, after, "decals changed the snow");
+    assert!(!snow.decals().is_empty(), "the moving sphere left no decal");
+    let layer = snow.read_decals(ctx).expect("decal layer");
+    assert!(layer.iter().filter(|p| p[3] > 0).count() > 50, "decals not drawn into the layer");
+    // All three prints are still there: 0.2 m deep at their centres.
+    let r = 128;
+    let texel = 8.0 / 128.0;
+    let origin = snow.origin_m().expect("placed");
+    for x in [-2.0, 0.0, 2.0] {
+        let j = ((x - origin.x) / texel) as usize;
+        let i = ((0.0 - origin.y) / texel) as usize;
+        let h = after[i * r + j];
+        assert!((h - 0.2).abs() < 0.01, "print at x = {x} is {h} m, want 0.2 m");
+    }
+    // Back to depth: nothing stale from the points (their stored footprints do
+    // not lower the snow under the depth technique) and no new allocation.
+    snow.set_technique(Technique::Depth);
+    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    assert_eq!(snow.read_snow(ctx).expect("read"), after);
+    assert_eq!(snow.memory_bytes(), memory, "a switch changed GPU memory");
+}
