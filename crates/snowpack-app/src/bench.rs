@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
 use snowpack::gpu::timing::median;
-use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 use crate::output::OutputSet;
 
@@ -36,9 +36,29 @@ fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
         .collect()
 }
 
+/// What one measurement runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Config {
+    /// Window resolution (texels per side).
+    pub resolution: u32,
+    /// Spheres pressing the snow.
+    pub spheres: usize,
+    /// Deformation technique.
+    pub technique: Technique,
+    /// Footprint side of the points technique (texels).
+    pub range_texels: u32,
+}
+
 /// Measures one configuration.
-pub fn measure(ctx: &GpuContext, resolution: u32, spheres: usize, warmup: u32, frames: u32) -> anyhow::Result<BenchRow> {
-    let params = SnowParams { extent_m: 64.0 * resolution as f32 / 1024.0, resolution, ..SnowParams::default() };
+pub fn measure(ctx: &GpuContext, config: Config, warmup: u32, frames: u32) -> anyhow::Result<BenchRow> {
+    let Config { resolution, spheres, technique, range_texels } = config;
+    let params = SnowParams {
+        extent_m: 64.0 * resolution as f32 / 1024.0,
+        resolution,
+        technique,
+        range_texels,
+        ..SnowParams::default()
+    };
     let terrain = TerrainSource::Noise(NoiseTerrain { seed: 1, base_m: 0.0, amplitude_m: 0.3, wavelength_m: 30.0 });
     let extent = params.extent_m;
     let mut snow = SnowDeformation::new(ctx, params, terrain, DVec2::ZERO)?;
@@ -119,6 +139,30 @@ pub fn markdown(rows: &[BenchRow], adapter: &str, backend: &str, software: bool,
     md
 }
 
+/// Techniques against actor count and points against range, as Markdown.
+#[must_use]
+pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], ranges: &[(u32, f64, f64)]) -> String {
+    let mut md = String::from("\n## Techniques: total GPU ms per frame at 1024² against sphere count\n\n| technique |");
+    for n in counts {
+        let _ = write!(md, " {n} |");
+    }
+    md.push_str("\n|---|");
+    md.push_str(&"---|".repeat(counts.len()));
+    md.push('\n');
+    for (name, cells) in rows {
+        let _ = write!(md, "| {name} |");
+        for c in cells {
+            let _ = write!(md, " {c:.3} |");
+        }
+        md.push('\n');
+    }
+    md.push_str("\n## Points: GPU ms at 1024² with 1024 spheres against footprint range\n\n| range | stamp ms | total ms |\n|---|---|---|\n");
+    for (range, stamp, total) in ranges {
+        let _ = writeln!(md, "| {range}² | {stamp:.4} | {total:.4} |");
+    }
+    md
+}
+
 /// Runs the benchmark and writes `report.md` and `passes.csv` into `out`.
 pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
     let ctx = GpuContext::new_headless_with(backend, None).context("choosing a GPU adapter")?;
@@ -135,12 +179,37 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         if only.is_some_and(|o| !name.contains(o)) {
             continue;
         }
-        let row = measure(&ctx, res, spheres, warmup, frames).with_context(|| format!("measuring {res}²"))?;
+        let config = Config { resolution: res, spheres, technique: Technique::Depth, range_texels: 64 };
+        let row = measure(&ctx, config, warmup, frames).with_context(|| format!("measuring {res}²"))?;
         let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
         println!("  {res:>5}²  {}  | CPU record {:.3} ms", line.join("  "), row.cpu_record_ms);
         rows.push(row);
     }
-    let md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
+    let mut md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
+    // Techniques against actor count (Wasmut Tables 1-2) and points against
+    // range (Table 4), at 1024².
+    let counts: &[usize] = if quick { &[128, 1024, 4096] } else { &[128, 256, 512, 1024, 4096, 16384] };
+    let mut technique_rows = Vec::new();
+    if only.is_none_or(|o| "techniques".contains(o)) {
+        for technique in Technique::ALL {
+            let mut cells = Vec::new();
+            for &n in counts {
+                let config = Config { resolution: 1024, spheres: n, technique, range_texels: 64 };
+                let row = measure(&ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
+                cells.push(row.passes.iter().map(|p| p.1).sum::<f64>());
+            }
+            println!("  {:<9} {}", technique.as_str(), cells.iter().map(|c| format!("{c:.3}")).collect::<Vec<_>>().join("  "));
+            technique_rows.push((technique.as_str().to_owned(), cells));
+        }
+        let mut ranges = Vec::new();
+        for range in [32, 64, 96, 128] {
+            let config = Config { resolution: 1024, spheres: 1024, technique: Technique::Points, range_texels: range };
+            let row = measure(&ctx, config, warmup, frames / 2).with_context(|| format!("points at range {range}"))?;
+            let stamp = row.passes.iter().find(|p| p.0 == "stamp").map_or(0.0, |p| p.1);
+            ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
+        }
+        md.push_str(&technique_markdown(counts, &technique_rows, &ranges));
+    }
     let mut csv = String::from("resolution,spheres,pass,median_ms\n");
     for row in &rows {
         for (n, ms) in &row.passes {
