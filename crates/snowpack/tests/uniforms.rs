@@ -2,6 +2,7 @@
 
 use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
+use snowpack::deform::decal::DecalParams;
 use snowpack::deform::normals::NormalParams;
 use snowpack::deform::rim::RimParams;
 use snowpack::deform::stamp::StampParams;
@@ -29,6 +30,7 @@ fn uniform_sizes_match_naga() {
         (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
         (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
         (shaders::STAMP, "params", size_of::<StampParams>()),
+        (shaders::DECAL, "params", size_of::<DecalParams>()),
         (shaders::UPDATE, "params", size_of::<UpdateParams>()),
         (shaders::RIM, "params", size_of::<RimParams>()),
         (shaders::BLUR, "params", size_of::<BlurParams>()),
@@ -43,7 +45,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 10);
+    assert_eq!(shaders::ALL.len(), 11);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
