@@ -18,6 +18,13 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("DECAL", &["decal.wgsl"]),
     ("TERRAIN_BAKE", &["terrain_bake.wgsl"]),
     ("TERRAIN_RESOLVE", &["terrain_resolve.wgsl"]),
+    ("TERRAIN_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/terrain.wgsl", "terrain_draw.wgsl"]),
+    ("ACTOR_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "actor_draw.wgsl"]),
+    ("SKY", &["shared/frame.wgsl", "sky.wgsl"]),
+    ("TONEMAP", &["shared/frame.wgsl", "tonemap.wgsl"]),
+    ("AO", &["ao.wgsl"]),
+    ("ENV_DOWNSAMPLE", &["env_downsample.wgsl"]),
+    ("ENV_PREFILTER", &["shared/frame.wgsl", "env_prefilter.wgsl"]),
 ];
 
 fn main() {

@@ -4,7 +4,6 @@
 //! else (no GPU, a GPU error, an I/O failure).
 
 mod bench;
-mod hillshade;
 mod npy;
 mod output;
 mod run;

@@ -7,11 +7,15 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::DVec2;
 use snowpack::gpu::PassTimings;
-use snowpack::{GpuContext, SnowDeformation};
+use snowpack::render::IMAGE_FORMAT;
+use snowpack::{Camera, GpuContext, Renderer, SnowDeformation};
 use snowpack_scene::{Scene, Technique, WindowSpec, World};
 
 use crate::output::OutputSet;
-use crate::{hillshade, npy, BadInput};
+use crate::{npy, BadInput};
+
+/// Size of `frame.png` without `--size`.
+pub const DEFAULT_FRAME_SIZE: (u32, u32) = (1280, 720);
 
 /// What the command line asked for beyond the scene file.
 #[derive(Clone, Debug, Default)]
@@ -61,10 +65,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         None => scene.snow.technique,
     };
     let frames = opts.frames.unwrap_or(scene.sim.frames);
-    let (width, height) = opts.size.unwrap_or_else(|| {
-        let side = scene.snow.resolution.min(1024);
-        (side, side)
-    });
+    let (width, height) = opts.size.unwrap_or(DEFAULT_FRAME_SIZE);
 
     let ctx = GpuContext::new_headless_with(opts.backend.as_deref(), None).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
@@ -89,12 +90,22 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let snow_h = snow.read_snow(&ctx)?;
     let terrain_h = snow.read_terrain(&ctx)?;
     let (surface_h, normals) = snow.read_surface(&ctx)?;
-    let decals = if technique == Technique::Decals { Some(snow.read_decals(&ctx)?) } else { None };
-    let image = hillshade::render(&normals, decals.as_deref(), &snow_h, &terrain_h, scene.snow.depth_m, scene.snow.resolution, width, height);
+    drop(normals);
+    let env = scene.render.environment_map();
+    let mut renderer = Renderer::new(&ctx, &snow, &env, scene.render.params, IMAGE_FORMAT).context("creating the renderer")?;
+    let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
+    let rgba = renderer
+        .render_image(&ctx, &snow, &world.deformers(), &camera, (width, height))
+        .context("rendering frame.png")?;
+    renderer.finish(&ctx)?;
+    let image = image::RgbaImage::from_raw(width, height, rgba).context("frame size")?;
     let mut png = Vec::new();
-    image
+    image::DynamicImage::ImageRgba8(image)
+        .to_rgb8()
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .context("encoding frame.png")?;
+    let stats = renderer.stats();
+    let render_timings = renderer.timings();
 
     let timings = snow.timings();
     let origin = snow.origin_m().unwrap_or_default();
@@ -110,6 +121,15 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "adapter": {"name": ctx.summary.name, "backend": ctx.summary.backend, "software": ctx.summary.is_software()},
         "timings_ms": timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
         "objects": {},
+        "render": {
+            "size": [width, height],
+            "patches": stats.patches,
+            "terrain_triangles": stats.terrain_triangles,
+            "shadow_patches": stats.shadow_patches,
+            "actors": stats.actors,
+            "timings_ms": render_timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+            "gpu_memory_bytes": renderer.memory_bytes(),
+        },
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });
 

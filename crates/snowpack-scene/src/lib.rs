@@ -12,7 +12,7 @@ mod world;
 
 pub use error::SceneError;
 pub use scene::{
-    ActorSpec, CameraSpec, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec,
+    ActorSpec, CameraSpec, EnvironmentSpec, RenderSpec, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec,
     WindowSpec, DEFAULT_SCENE,
 };
 pub use snowpack::{RimStyle, Technique};

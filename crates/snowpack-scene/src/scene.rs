@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
+use snowpack::render::params::{sun_from_angles, DebugView, LightParams, MaterialPreset};
+use snowpack::render::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
 use crate::error::SceneError;
@@ -132,6 +134,48 @@ pub struct CameraSpec {
     pub fov_deg: f32,
 }
 
+/// Where the sky light comes from (`[light] environment`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentSpec {
+    /// The built-in HDR sky (`assets/spiaggia_di_mondello_1k.hdr`).
+    Builtin,
+    /// A procedural clear sky around the sun.
+    Procedural,
+    /// An equirectangular Radiance `.hdr` file, decoded.
+    File(PathBuf, Arc<EnvironmentMap>),
+}
+
+/// The built-in sky: Poly Haven's "Spiaggia di Mondello" (CC0), 1024x512 RGBE.
+pub const BUILTIN_SKY_HDR: &[u8] = include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr");
+
+/// `[light]` and `[render]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSpec {
+    /// Renderer parameters (material, light, debug view, distances).
+    pub params: RenderParams,
+    /// The environment.
+    pub environment: EnvironmentSpec,
+}
+
+impl RenderSpec {
+    /// The environment map to light with.
+    #[must_use]
+    pub fn environment_map(&self) -> Arc<EnvironmentMap> {
+        match &self.environment {
+            EnvironmentSpec::Builtin => Arc::new(EnvironmentMap::from_hdr(BUILTIN_SKY_HDR).unwrap_or_else(|_| {
+                // The embedded file is checked by a test; never reached.
+                EnvironmentMap::procedural(self.sun_or_default())
+            })),
+            EnvironmentSpec::Procedural => Arc::new(EnvironmentMap::procedural(self.sun_or_default())),
+            EnvironmentSpec::File(_, map) => Arc::clone(map),
+        }
+    }
+
+    fn sun_or_default(&self) -> Vec3 {
+        self.params.light.sun_direction.unwrap_or_else(|| sun_from_angles(35.0, 135.0))
+    }
+}
+
 /// A parsed, validated scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -155,6 +199,8 @@ pub struct Scene {
     pub sim: SimSpec,
     /// `[camera]`.
     pub camera: CameraSpec,
+    /// `[light]` and `[render]`.
+    pub render: RenderSpec,
 }
 
 /// The scene `snowpack` runs with no arguments.
@@ -364,6 +410,7 @@ impl Scene {
                 cam
             }
         };
+        let render = parse_render(&mut root, &base_dir)?;
         root.finish()?;
         Ok(Self {
             path: path.to_owned(),
@@ -376,6 +423,7 @@ impl Scene {
             snowfall,
             sim,
             camera,
+            render,
         })
     }
 
@@ -528,4 +576,69 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
         (None, false) => Motion::Kinematic { position, velocity },
     };
     Ok(ActorSpec { shape, motion })
+}
+
+fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, SceneError> {
+    let defaults = RenderParams::default();
+    let mut light = LightParams::default();
+    let mut environment = EnvironmentSpec::Builtin;
+    if let Some(mut l) = root.table("light")? {
+        let elevation = l.f32_opt("sun_elevation_deg")?;
+        let azimuth = l.f32_opt("sun_azimuth_deg")?;
+        light.sun_direction = match (elevation, azimuth) {
+            (None, None) => None,
+            (Some(e), Some(a)) => {
+                if !(0.5..=90.0).contains(&e) {
+                    return Err(l.err("sun_elevation_deg", format!("{e} must be between 0.5 and 90 degrees")));
+                }
+                Some(sun_from_angles(e, a))
+            }
+            (Some(_), None) => return Err(l.err("sun_azimuth_deg", "is needed with sun_elevation_deg")),
+            (None, Some(_)) => return Err(l.err("sun_elevation_deg", "is needed with sun_azimuth_deg")),
+        };
+        light.sun_intensity = l.non_negative("sun_intensity", light.sun_intensity, "")?;
+        light.sky_intensity = l.non_negative("sky_intensity", light.sky_intensity, "")?;
+        light.exposure_ev = l.f32("exposure_ev", light.exposure_ev)?;
+        if light.exposure_ev.abs() > 20.0 {
+            return Err(l.err("exposure_ev", format!("{} stops is beyond +-20", light.exposure_ev)));
+        }
+        if let Some(env) = l.string_opt("environment")? {
+            environment = match env.as_str() {
+                "builtin" => EnvironmentSpec::Builtin,
+                "procedural" => EnvironmentSpec::Procedural,
+                file => {
+                    let path = base_dir.join(file);
+                    let bytes = std::fs::read(&path)
+                        .map_err(|e| l.err("environment", format!("cannot read {}: {e}", path.display())))?;
+                    let map = EnvironmentMap::from_hdr(&bytes)
+                        .map_err(|e| l.err("environment", format!("{}: {e}", path.display())))?;
+                    EnvironmentSpec::File(path, Arc::new(map))
+                }
+            };
+        }
+        l.finish()?;
+    }
+    let mut params = RenderParams { light, ..defaults };
+    if let Some(mut r) = root.table("render")? {
+        let names: Vec<&str> = MaterialPreset::ALL.iter().map(|(_, n)| *n).collect();
+        let material = r.choice("material", defaults.material.as_str(), &names)?;
+        params.material = MaterialPreset::from_name(&material).unwrap_or_default();
+        let names: Vec<&str> = DebugView::ALL.iter().map(|(_, n)| *n).collect();
+        let view = r.choice("debug_view", defaults.debug_view.as_str(), &names)?;
+        params.debug_view = DebugView::from_name(&view).unwrap_or_default();
+        params.view_distance_m = r.positive("view_distance_m", defaults.view_distance_m, " of metres")?;
+        params.shadow_distance_m = r.positive("shadow_distance_m", defaults.shadow_distance_m, " of metres")?;
+        params.shadow_map_size = r.u32_in("shadow_map_size", defaults.shadow_map_size, 256..=8192)?;
+        params.finest_patch_m = r.positive("finest_patch_m", defaults.finest_patch_m, " of metres")?;
+        params.patch_quads = r.u32_in("patch_quads", defaults.patch_quads, 4..=64)?;
+        if params.patch_quads % 4 != 0 {
+            return Err(r.err("patch_quads", format!("{} is not a multiple of 4", params.patch_quads)));
+        }
+        params.ao_strength = r.non_negative("ao_strength", defaults.ao_strength, "")?;
+        if params.view_distance_m / params.finest_patch_m > 1e6 {
+            return Err(r.err("finest_patch_m", "is too small for the view distance (over 20 levels)"));
+        }
+        r.finish()?;
+    }
+    Ok(RenderSpec { params, environment })
 }

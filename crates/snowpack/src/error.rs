@@ -44,4 +44,10 @@ pub enum SnowError {
         /// Why it is rejected.
         why: String,
     },
+    /// An environment image could not be decoded.
+    #[error("cannot read the environment image: {0}")]
+    Environment(String),
+    /// The adapter lacks something the renderer needs.
+    #[error("the adapter cannot run the renderer: {0}")]
+    Unsupported(String),
 }

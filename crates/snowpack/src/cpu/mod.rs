@@ -2,8 +2,10 @@
 //! shaders' arithmetic (same operations, same order) so tests can compare the
 //! GPU's output with them on random inputs.
 
+pub mod ao;
 pub mod blur;
 pub mod capture;
+pub mod environment;
 pub mod normals;
 pub mod rim;
 pub mod stamp;

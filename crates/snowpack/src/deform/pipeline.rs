@@ -473,19 +473,5 @@ pub fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, S
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
     encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
     ctx.queue.submit([encoder.finish()]);
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.wait_idle("reading back a buffer")?;
-    rx.recv_timeout(std::time::Duration::from_secs(5))
-        .map_err(|_| SnowError::Readback("the map callback never ran".to_owned()))?
-        .map_err(|e| SnowError::Readback(e.to_string()))?;
-    let bytes = staging
-        .slice(..)
-        .get_mapped_range()
-        .map_err(|e| SnowError::Readback(e.to_string()))?
-        .to_vec();
-    staging.unmap();
-    Ok(bytes)
+    crate::gpu::readback::map_blocking(ctx, &staging)
 }

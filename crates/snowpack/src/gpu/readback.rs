@@ -138,3 +138,24 @@ impl<M> ReadbackRing<M> {
         result
     }
 }
+
+/// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it and
+/// returns its bytes (blocking; for tests, headless frames and tools).
+pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
+    use crate::SnowError;
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.wait_idle("reading back a buffer")?;
+    rx.recv_timeout(std::time::Duration::from_secs(5))
+        .map_err(|_| SnowError::Readback("the map callback never ran".to_owned()))?
+        .map_err(|e| SnowError::Readback(e.to_string()))?;
+    let bytes = staging
+        .slice(..)
+        .get_mapped_range()
+        .map_err(|e| SnowError::Readback(e.to_string()))?
+        .to_vec();
+    staging.unmap();
+    Ok(bytes)
+}

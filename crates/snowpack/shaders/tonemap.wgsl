@@ -1,0 +1,30 @@
+// Exposure and a filmic tone map (ACES, Narkowicz's fit) from the HDR target
+// to the output, which stores sRGB. Debug views pass through unmapped.
+// Prepended: shared/frame.wgsl.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var hdr: texture_2d<f32>;
+
+@vertex
+fn vs_main(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
+    let xy = vec2<f32>(f32((vi << 1u) & 2u), f32(vi & 2u)) * 2.0 - 1.0;
+    return vec4<f32>(xy, 0.0, 1.0);
+}
+
+fn aces(x: vec3<f32>) -> vec3<f32> {
+    let a = 2.51;
+    let b = 0.03;
+    let c = 2.43;
+    let d = 0.59;
+    let e = 0.14;
+    return clamp((x * (a * x + b)) / (x * (c * x + d) + e), vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+@fragment
+fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let c = textureLoad(hdr, vec2<i32>(pos.xy), 0).rgb;
+    if frame.window_info.z != VIEW_LIT && frame.window_info.z != VIEW_WIREFRAME {
+        return vec4<f32>(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+    }
+    return vec4<f32>(aces(c * frame.snow.w), 1.0);
+}

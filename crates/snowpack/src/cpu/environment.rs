@@ -1,0 +1,87 @@
+//! CPU twins of `shaders/env_downsample.wgsl` and `shaders/env_prefilter.wgsl`.
+
+use glam::Vec3;
+
+/// Direction of equirect coordinates (u, v) (same as `equirect_dir` in `shared/frame.wgsl`).
+#[must_use]
+pub fn equirect_dir(u: f32, v: f32) -> Vec3 {
+    let phi = (u - 0.5) * 2.0 * std::f32::consts::PI;
+    let theta = v * std::f32::consts::PI;
+    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
+}
+
+/// Equirect coordinates (u, v) of a unit direction (same as `dir_equirect`).
+#[must_use]
+pub fn dir_equirect(d: Vec3) -> (f32, f32) {
+    let u = d.x.atan2(-d.z) / (2.0 * std::f32::consts::PI) + 0.5;
+    let v = d.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+    (u, v)
+}
+
+/// Box-averages `src` (`sw` x `sh`) into `dw` x `dh`, each texel's luminance clamped to `clamp_luminance`.
+#[must_use]
+pub fn downsample(src: &[[f32; 4]], sw: u32, sh: u32, dw: u32, dh: u32, clamp_luminance: f32) -> Vec<[f32; 4]> {
+    let mut out = Vec::with_capacity((dw * dh) as usize);
+    for y in 0..dh {
+        for x in 0..dw {
+            let (x0, x1) = (x * sw / dw, (x + 1) * sw / dw);
+            let (y0, y1) = (y * sh / dh, (y + 1) * sh / dh);
+            let mut sum = Vec3::ZERO;
+            for sy in y0..y1 {
+                for sx in x0..x1 {
+                    let t = src[(sy * sw + sx) as usize];
+                    let c = Vec3::new(t[0], t[1], t[2]);
+                    let lum = c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+                    sum += c * (clamp_luminance / lum.max(1e-6)).min(1.0);
+                }
+            }
+            let n = ((x1 - x0) * (y1 - y0)) as f32;
+            let c = sum / n;
+            out.push([c.x, c.y, c.z, 1.0]);
+        }
+    }
+    out
+}
+
+/// Level 0: irradiance / pi; level k: GGX-prefiltered radiance for roughness
+/// k / (levels - 1); each `dw` x `dh`, level-major.
+#[must_use]
+pub fn prefilter(src: &[[f32; 4]], sw: u32, sh: u32, dw: u32, dh: u32, levels: u32) -> Vec<[f32; 4]> {
+    use std::f32::consts::PI;
+    let mut out = Vec::with_capacity((dw * dh * levels) as usize);
+    let texel_angle = (2.0 * PI / sw as f32) * (PI / sh as f32);
+    for level in 0..levels {
+        let roughness = level as f32 / (levels - 1) as f32;
+        let a = roughness * roughness;
+        let a2 = a * a;
+        for y in 0..dh {
+            for x in 0..dw {
+                let n = equirect_dir((x as f32 + 0.5) / dw as f32, (y as f32 + 0.5) / dh as f32);
+                let mut sum = Vec3::ZERO;
+                let mut weight = 0.0f32;
+                for sy in 0..sh {
+                    let v = (sy as f32 + 0.5) / sh as f32;
+                    let solid_angle = texel_angle * (v * PI).sin();
+                    for sx in 0..sw {
+                        let l = equirect_dir((sx as f32 + 0.5) / sw as f32, v);
+                        let n_l = n.dot(l);
+                        if n_l <= 0.0 {
+                            continue;
+                        }
+                        let mut w = n_l * solid_angle;
+                        if level > 0 {
+                            let dd = n_l * n_l * (a2 - 1.0) + 1.0;
+                            w *= a2 / (PI * dd * dd);
+                        }
+                        let t = src[(sy * sw + sx) as usize];
+                        sum += Vec3::new(t[0], t[1], t[2]) * w;
+                        weight += w;
+                    }
+                }
+                let c = if level > 0 { sum / weight.max(1e-12) } else { sum / PI };
+                out.push([c.x, c.y, c.z, 1.0]);
+            }
+        }
+    }
+    out
+}
