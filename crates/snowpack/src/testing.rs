@@ -71,3 +71,77 @@ impl Rng {
         lo + (hi - lo) * unit
     }
 }
+
+/// Luma (Rec. 709, on the stored sRGB values) of each pixel of an RGBA8 image.
+fn luma(rgba: &[u8]) -> Vec<f64> {
+    rgba.chunks_exact(4)
+        .map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2]))
+        .collect()
+}
+
+/// Structural similarity (Wang et al. 2004) of two RGBA8 images of
+/// `width` x `height`: the mean over 8x8 luma windows (stride 4) of SSIM with
+/// the standard constants. 1 is identical; perceptually close images score
+/// above about 0.95.
+#[must_use]
+pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> f64 {
+    assert_eq!(a.len(), b.len(), "images differ in size");
+    let (la, lb) = (luma(a), luma(b));
+    let (w, h) = (width as usize, height as usize);
+    let (c1, c2) = ((0.01f64 * 255.0).powi(2), (0.03f64 * 255.0).powi(2));
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    let mut y = 0;
+    while y + 8 <= h {
+        let mut x = 0;
+        while x + 8 <= w {
+            let (mut ma, mut mb) = (0.0, 0.0);
+            for yy in y..y + 8 {
+                for xx in x..x + 8 {
+                    ma += la[yy * w + xx];
+                    mb += lb[yy * w + xx];
+                }
+            }
+            ma /= 64.0;
+            mb /= 64.0;
+            let (mut va, mut vb, mut cov) = (0.0, 0.0, 0.0);
+            for yy in y..y + 8 {
+                for xx in x..x + 8 {
+                    let (da, db) = (la[yy * w + xx] - ma, lb[yy * w + xx] - mb);
+                    va += da * da;
+                    vb += db * db;
+                    cov += da * db;
+                }
+            }
+            va /= 63.0;
+            vb /= 63.0;
+            cov /= 63.0;
+            sum += ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
+            count += 1;
+            x += 4;
+        }
+        y += 4;
+    }
+    if count == 0 { 1.0 } else { sum / count as f64 }
+}
+
+/// Mean absolute difference per channel (0..255) of two RGBA8 images, alpha ignored.
+#[must_use]
+pub fn mean_abs_difference(a: &[u8], b: &[u8]) -> f64 {
+    assert_eq!(a.len(), b.len(), "images differ in size");
+    let total: u64 = a
+        .chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .map(|(p, q)| (0..3).map(|k| u64::from(p[k].abs_diff(q[k]))).sum::<u64>())
+        .sum();
+    total as f64 / (a.len() / 4 * 3).max(1) as f64
+}
+
+/// A difference image for a person to look at: |a - b| per channel, times 4, opaque.
+#[must_use]
+pub fn difference_image(a: &[u8], b: &[u8]) -> Vec<u8> {
+    a.chunks_exact(4)
+        .zip(b.chunks_exact(4))
+        .flat_map(|(p, q)| [p[0].abs_diff(q[0]).saturating_mul(4), p[1].abs_diff(q[1]).saturating_mul(4), p[2].abs_diff(q[2]).saturating_mul(4), 255])
+        .collect()
+}

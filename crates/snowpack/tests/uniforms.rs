@@ -9,6 +9,9 @@ use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
+use snowpack::render::ao::AoParams;
+use snowpack::render::environment::EnvParams;
+use snowpack::render::frame::FrameUniforms;
 use snowpack::shaders;
 
 /// Size naga gives the uniform global `name` in `source`.
@@ -37,6 +40,14 @@ fn uniform_sizes_match_naga() {
         (shaders::NORMALS, "params", size_of::<NormalParams>()),
         (shaders::TERRAIN_BAKE, "params", size_of::<TerrainBakeParams>()),
         (shaders::TERRAIN_RESOLVE, "params", size_of::<ResolveParams>()),
+        (shaders::TERRAIN_DRAW, "frame", size_of::<FrameUniforms>()),
+        (shaders::TERRAIN_DRAW, "terrain_params", size_of::<TerrainParams>()),
+        (shaders::ACTOR_DRAW, "frame", size_of::<FrameUniforms>()),
+        (shaders::SKY, "frame", size_of::<FrameUniforms>()),
+        (shaders::TONEMAP, "frame", size_of::<FrameUniforms>()),
+        (shaders::AO, "params", size_of::<AoParams>()),
+        (shaders::ENV_DOWNSAMPLE, "params", size_of::<EnvParams>()),
+        (shaders::ENV_PREFILTER, "params", size_of::<EnvParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -45,7 +56,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 11);
+    assert_eq!(shaders::ALL.len(), 18);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -61,6 +61,8 @@ pub struct RenderStats {
     pub actors: u32,
     /// Actor triangles drawn in the view.
     pub actor_triangles: u64,
+    /// Finest and coarsest level of detail drawn in the view.
+    pub levels: (u32, u32),
 }
 
 struct Targets {
@@ -360,6 +362,10 @@ impl Renderer {
             shadow_patches: casters.len() as u32,
             actors: self.actors.count(),
             actor_triangles: self.actors.triangles(),
+            levels: (
+                visible.iter().map(lod::PatchInstance::level).min().unwrap_or(0),
+                visible.iter().map(lod::PatchInstance::level).max().unwrap_or(0),
+            ),
         };
 
         self.timer.begin_frame();
