@@ -185,7 +185,15 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         println!("  {res:>5}²  {}  | CPU record {:.3} ms", line.join("  "), row.cpu_record_ms);
         rows.push(row);
     }
-    let mut md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
+    let mut md = if rows.is_empty() {
+        let mut md = format!("Adapter: **{}** ({}).\n", ctx.summary.name, ctx.summary.backend);
+        if ctx.summary.is_software() {
+            md.push_str("This is a software rasteriser: use these figures for ratios only, not as absolute cost.\n");
+        }
+        md
+    } else {
+        markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames)
+    };
     // Techniques against actor count (Wasmut Tables 1-2) and points against
     // range (Table 4), at 1024².
     let counts: &[usize] = if quick { &[128, 1024, 4096] } else { &[128, 256, 512, 1024, 4096, 16384] };
@@ -210,6 +218,17 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         }
         md.push_str(&technique_markdown(counts, &technique_rows, &ranges));
     }
+    // The renderer at 1920x1080 against camera distance (issue: rendering performance).
+    let mut render_rows = Vec::new();
+    if only.is_none_or(|o| "render".contains(o)) {
+        let (render_warmup, render_frames) = if quick { (3, 10) } else { (20, 100) };
+        render_rows = crate::bench_render::measure(&ctx, render_warmup, render_frames).context("measuring the renderer")?;
+        for row in &render_rows {
+            let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
+            println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
+        }
+        md.push_str(&crate::bench_render::markdown(&render_rows, render_frames));
+    }
     let mut csv = String::from("resolution,spheres,pass,median_ms\n");
     for row in &rows {
         for (n, ms) in &row.passes {
@@ -217,9 +236,18 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         }
         let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
     }
+    let mut render_csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
+    for row in &render_rows {
+        for (n, ms) in &row.passes {
+            let _ = writeln!(render_csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
+        }
+    }
     let mut files = OutputSet::new(out)?;
     files.stage("report.md", md.as_bytes())?;
     files.stage("passes.csv", csv.as_bytes())?;
+    if !render_rows.is_empty() {
+        files.stage("render.csv", render_csv.as_bytes())?;
+    }
     for f in files.commit()? {
         println!("wrote {}", f.display());
     }

@@ -4,6 +4,7 @@
 //! else (no GPU, a GPU error, an I/O failure).
 
 mod bench;
+mod bench_render;
 mod npy;
 mod output;
 mod run;
@@ -59,6 +60,12 @@ enum Command {
         /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
         #[arg(long)]
         backend: Option<String>,
+        /// What frame.png shows: lit, normals, ao, lod, wireframe or deformation.
+        #[arg(long)]
+        view: Option<String>,
+        /// Surface material preset: snow, mud or sand.
+        #[arg(long)]
+        material: Option<String>,
     },
     /// Measure per-pass GPU time and write a report.
     Bench {
@@ -106,9 +113,9 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
             let report = run::run_scene(&scene, &run::RunOptions { out: out.clone(), ..Default::default() })?;
             run::print_report(&report, &out);
         }
-        Some(Command::Run { scene, frames, out, headless: _, size, technique, backend }) => {
+        Some(Command::Run { scene, frames, out, headless: _, size, technique, backend, view, material }) => {
             let scene = load_scene(&scene)?;
-            let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend };
+            let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend, view, material };
             let report = run::run_scene(&scene, &opts)?;
             run::print_report(&report, &out);
         }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::DVec2;
 use snowpack::gpu::PassTimings;
-use snowpack::render::IMAGE_FORMAT;
+use snowpack::render::{DebugView, MaterialPreset, IMAGE_FORMAT};
 use snowpack::{Camera, GpuContext, Renderer, SnowDeformation};
 use snowpack_scene::{Scene, Technique, WindowSpec, World};
 
@@ -30,6 +30,28 @@ pub struct RunOptions {
     pub technique: Option<String>,
     /// Backend override (`SNOWPACK_BACKEND` syntax).
     pub backend: Option<String>,
+    /// Debug view override for `frame.png` (`[render] debug_view` names).
+    pub view: Option<String>,
+    /// Material preset override (`[render] material` names).
+    pub material: Option<String>,
+}
+
+/// The scene's render parameters with the command line's view and material applied.
+fn render_params(scene: &Scene, opts: &RunOptions) -> anyhow::Result<snowpack::RenderParams> {
+    let mut params = scene.render.params;
+    if let Some(name) = &opts.view {
+        params.debug_view = DebugView::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = DebugView::ALL.iter().map(|(_, n)| *n).collect();
+            BadInput(format!("--view: {name:?} is not one of {}", names.join(", ")))
+        })?;
+    }
+    if let Some(name) = &opts.material {
+        params.material = MaterialPreset::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = MaterialPreset::ALL.iter().map(|(_, n)| *n).collect();
+            BadInput(format!("--material: {name:?} is not one of {}", names.join(", ")))
+        })?;
+    }
+    Ok(params)
 }
 
 /// What a run produced, for the caller to print or test.
@@ -64,6 +86,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             .map_err(|e| BadInput(format!("--technique: {e}")))?,
         None => scene.snow.technique,
     };
+    let render_params = render_params(scene, opts)?;
     let frames = opts.frames.unwrap_or(scene.sim.frames);
     let (width, height) = opts.size.unwrap_or(DEFAULT_FRAME_SIZE);
 
@@ -92,7 +115,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let (surface_h, normals) = snow.read_surface(&ctx)?;
     drop(normals);
     let env = scene.render.environment_map();
-    let mut renderer = Renderer::new(&ctx, &snow, &env, scene.render.params, IMAGE_FORMAT).context("creating the renderer")?;
+    let mut renderer = Renderer::new(&ctx, &snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
     let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
     let rgba = renderer
         .render_image(&ctx, &snow, &world.deformers(), &camera, (width, height))

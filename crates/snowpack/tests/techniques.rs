@@ -48,3 +48,38 @@ fn switching_keeps_trails_and_allocates_nothing() {
     assert_eq!(snow.read_snow(ctx).expect("read"), after);
     assert_eq!(snow.memory_bytes(), memory, "a switch changed GPU memory");
 }
+
+/// A footprint's rim ends inside its range: beyond the rim's reach the
+/// displayed surface is rest snow, with no ridge where the stamp square ends.
+/// (Footprints whose height was clipped at the top of the quantisation range
+/// once kept a rim out to the square's edge.)
+#[test]
+fn point_rims_end_before_the_footprint_range() {
+    let Some(ctx) = testing::gpu() else { return };
+    let (extent, res, depth) = (16.0f32, 256u32, 0.6f32);
+    let params = SnowParams { extent_m: extent, resolution: res, depth_m: depth, technique: Technique::Points, range_texels: 128, elevation: 1.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let radius = 0.45;
+    // Dragged along x at z = 0, its lowest point 0.1 m above the ground.
+    for k in 0..=80 {
+        let x = -5.0 + 10.0 * k as f32 / 80.0;
+        snow.step(ctx, &[Deformer::Sphere { center: Vec3::new(x, 0.1 + radius, 0.0), radius }], 1.0 / 60.0).expect("frame");
+    }
+    let (shown, _) = snow.read_surface(ctx).expect("surface");
+    let texel = extent / res as f32;
+    let origin = snow.origin_m().expect("placed");
+    // The rounded rim ends where h - foot = 4 (rest - foot): d = sqrt(8 r (rest - foot)) = 1.34 m.
+    let reach = (8.0 * radius * (depth - 0.1)).sqrt();
+    let j = ((0.0 - origin.x as f32) / texel) as usize;
+    let mut peak = 0.0f32;
+    for i in 0..res as usize {
+        let z = origin.y as f32 + (i as f32 + 0.5) * texel;
+        let h = shown[i * res as usize + j];
+        if z.abs() > reach + 3.0 * texel {
+            assert!((h - depth).abs() < 2e-3, "z = {z:.2}: displayed {h:.4} m beyond the rim's reach ({reach:.2} m), want rest {depth}");
+        } else {
+            peak = peak.max(h - depth);
+        }
+    }
+    assert!(peak > 0.05, "no rim beside the trail (peak {peak:.3} m above rest)");
+}

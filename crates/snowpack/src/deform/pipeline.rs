@@ -23,6 +23,17 @@ const READBACK_SLOTS: usize = 3;
 /// Margin of the capture depth range beyond the terrain and the snow (m).
 const CAPTURE_MARGIN_M: f32 = 1.0;
 
+/// Top of the capture and footprint height range. Above the snow by the
+/// margin, and high enough that a stored footprint's rim has fallen to zero
+/// below it: the rounded rim ends where `h = foot + 4 (rest - foot)`, at most
+/// `4 rest - 3 low`. A footprint clipped at a lower top would keep a
+/// non-zero rim out to the edge of its range and leave a ridge there.
+fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
+    let low = tmin - CAPTURE_MARGIN_M;
+    let rest = tmax + depth_m;
+    (rest + CAPTURE_MARGIN_M).max(4.0 * rest - 3.0 * low)
+}
+
 /// A deformation window and the passes that update it.
 ///
 /// Per frame: [`WindowPass`] (newly exposed texels), [`CapturePass`] (actors
@@ -88,7 +99,7 @@ impl SnowDeformation {
             extent_m: params.extent_m,
             texel_m: params.texel_m(),
             low_m: tmin - CAPTURE_MARGIN_M,
-            high_m: tmax + params.depth_m + CAPTURE_MARGIN_M,
+            high_m: capture_top(tmin, tmax, params.depth_m),
         };
         let this = Self {
             window_pass: WindowPass::new(device, &res),

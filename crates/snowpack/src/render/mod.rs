@@ -45,8 +45,9 @@ use crate::Deformer;
 /// Output format of [`Renderer::render_image`].
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-/// Exposure multiplier at 0 EV: maps sunlit fresh snow to about 85% display white.
-const BASE_EXPOSURE: f32 = 0.55;
+/// Exposure multiplier at 0 EV: sunlit flat fresh snow under a 35° sun comes out
+/// at about 80% display white, leaving the tone curve room to show relief.
+const BASE_EXPOSURE: f32 = 0.42;
 
 /// What the last frame drew.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
