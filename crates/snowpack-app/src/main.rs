@@ -1,10 +1,12 @@
-//! The `snowpack` binary: headless scene runs, scene checks and the benchmark.
+//! The `snowpack` binary: the interactive demo, headless scene runs, scene
+//! checks and the benchmark.
 //!
 //! Exit codes: 0 success, 2 bad input (scene file, command line), 1 anything
 //! else (no GPU, a GPU error, an I/O failure).
 
 mod bench;
 mod bench_render;
+mod demo;
 mod npy;
 mod output;
 mod run;
@@ -28,15 +30,63 @@ impl std::fmt::Display for BadInput {
 impl std::error::Error for BadInput {}
 
 /// Real-time deformable snow on wgpu.
+///
+/// With no command: the interactive demo when a display is available,
+/// otherwise the default scene headless into snowpack-out/.
 #[derive(Parser, Debug)]
-#[command(name = "snowpack", version, about)]
+#[command(name = "snowpack", version, about, args_conflicts_with_subcommands = true)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// The demo's options (when no command is given).
+    #[command(flatten)]
+    demo: DemoArgs,
+}
+
+/// Options of the interactive demo.
+#[derive(clap::Args, Clone, Debug, Default)]
+struct DemoArgs {
+    /// Scene file to open (default: the built-in default scene).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Exit with code 0 after this many frames (tests).
+    #[arg(long)]
+    exit_after_frames: Option<u64>,
+    /// Write the window's image to this PNG after the last frame (needs --exit-after-frames).
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// Scripted input: a file of timed key and mouse events (see docs/demo.md).
+    #[arg(long)]
+    script: Option<PathBuf>,
+    /// Present without waiting for vertical sync.
+    #[arg(long)]
+    no_vsync: bool,
+    /// Window size in logical pixels, WxH.
+    #[arg(long, value_parser = parse_size)]
+    window_size: Option<(u32, u32)>,
+    /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
+    #[arg(long)]
+    backend: Option<String>,
+}
+
+impl DemoArgs {
+    fn options(self) -> demo::DemoOptions {
+        demo::DemoOptions {
+            scene: self.scene,
+            exit_after_frames: self.exit_after_frames,
+            screenshot: self.screenshot,
+            script: self.script,
+            vsync: !self.no_vsync,
+            backend: self.backend,
+            size: self.window_size.unwrap_or((1600, 900)),
+        }
+    }
 }
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Open the interactive demo (a window with a control panel).
+    Demo(DemoArgs),
     /// Run a scene and write snow.npy, surface.npy, terrain.npy, frame.png and meta.json.
     Run {
         /// The scene file (TOML; see docs/scene.md).
@@ -48,7 +98,7 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "snowpack-out")]
         out: PathBuf,
-        /// Run without a window (the only mode in this build).
+        /// Run without a window (runs are always headless; the window is `snowpack demo`).
         #[arg(long)]
         headless: bool,
         /// Size of frame.png, WxH.
@@ -105,14 +155,27 @@ fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
 fn main_inner(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         None => {
-            // The interactive demo is not part of this build; without it the
-            // main job is the default scene, headless.
+            if demo::display_available() {
+                match demo::run(cli.demo.clone().options()) {
+                    Err(e) if e.is::<demo::DisplayUnavailable>() => {
+                        eprintln!("snowpack: {e}; running the default scene headless instead");
+                    }
+                    other => return other,
+                }
+            } else if cli.demo.exit_after_frames.is_some() || cli.demo.screenshot.is_some() || cli.demo.script.is_some() {
+                return Err(BadInput("the demo's options need a display (DISPLAY or WAYLAND_DISPLAY); none is set".into()).into());
+            } else {
+                println!("snowpack: no display, so running the default scene headless (the demo opens where there is one)");
+            }
             let out = PathBuf::from("snowpack-out");
-            println!("snowpack: running the default scene headless (no interactive demo in this build)");
-            let scene = Scene::default_scene()?;
-            let report = run::run_scene(&scene, &run::RunOptions { out: out.clone(), ..Default::default() })?;
+            let scene = match &cli.demo.scene {
+                Some(path) => load_scene(path)?,
+                None => Scene::default_scene()?,
+            };
+            let report = run::run_scene(&scene, &run::RunOptions { out: out.clone(), backend: cli.demo.backend, ..Default::default() })?;
             run::print_report(&report, &out);
         }
+        Some(Command::Demo(args)) => demo::run(args.options())?,
         Some(Command::Run { scene, frames, out, headless: _, size, technique, backend, view, material }) => {
             let scene = load_scene(&scene)?;
             let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend, view, material };

@@ -46,10 +46,12 @@ fn render_params(scene: &Scene, opts: &RunOptions) -> anyhow::Result<snowpack::R
         })?;
     }
     if let Some(name) = &opts.material {
-        params.material = MaterialPreset::from_name(name).ok_or_else(|| {
-            let names: Vec<&str> = MaterialPreset::ALL.iter().map(|(_, n)| *n).collect();
-            BadInput(format!("--material: {name:?} is not one of {}", names.join(", ")))
-        })?;
+        params.material = MaterialPreset::from_name(name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = MaterialPreset::ALL.iter().map(|(_, n)| *n).collect();
+                BadInput(format!("--material: {name:?} is not one of {}", names.join(", ")))
+            })?
+            .material();
     }
     Ok(params)
 }

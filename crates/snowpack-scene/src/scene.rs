@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::render::params::{sun_from_angles, DebugView, LightParams, MaterialPreset};
+use snowpack::render::params::{sun_from_angles, DebugView, LightParams, Material, MaterialPreset};
 use snowpack::render::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
@@ -201,6 +201,8 @@ pub struct Scene {
     pub camera: CameraSpec,
     /// `[light]` and `[render]`.
     pub render: RenderSpec,
+    /// The parsed TOML it came from (kept so a save rewrites only what changed).
+    pub source: toml::Table,
 }
 
 /// The scene `snowpack` runs with no arguments.
@@ -237,6 +239,7 @@ impl Scene {
             let place = at.map_or(String::new(), |(l, c)| format!(" at line {l}, column {c}"));
             SceneError::new(path, "", format!("malformed TOML{place}: {}", e.message()))
         })?;
+        let source = table.clone();
         let mut root = Fields::new(path, "", table);
         let base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
 
@@ -424,6 +427,7 @@ impl Scene {
             sim,
             camera,
             render,
+            source,
         })
     }
 
@@ -621,8 +625,8 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
     let mut params = RenderParams { light, ..defaults };
     if let Some(mut r) = root.table("render")? {
         let names: Vec<&str> = MaterialPreset::ALL.iter().map(|(_, n)| *n).collect();
-        let material = r.choice("material", defaults.material.as_str(), &names)?;
-        params.material = MaterialPreset::from_name(&material).unwrap_or_default();
+        let material = r.choice("material", defaults.material.preset.as_str(), &names)?;
+        params.material = MaterialPreset::from_name(&material).unwrap_or_default().material();
         let names: Vec<&str> = DebugView::ALL.iter().map(|(_, n)| *n).collect();
         let view = r.choice("debug_view", defaults.debug_view.as_str(), &names)?;
         params.debug_view = DebugView::from_name(&view).unwrap_or_default();
@@ -640,5 +644,42 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
         }
         r.finish()?;
     }
+    if let Some(mut m) = root.table("material")? {
+        params.material = parse_material(&mut m, params.material)?;
+        m.finish()?;
+    }
     Ok(RenderSpec { params, environment })
+}
+
+/// `[material]`: per-field overrides of the `[render] material` preset.
+fn parse_material(m: &mut Fields<'_>, base: Material) -> Result<Material, SceneError> {
+    let colour = |m: &mut Fields<'_>, key: &str, default: Vec3, max: f32| -> Result<Vec3, SceneError> {
+        let c = m.vec3(key, default)?;
+        if c.min_element() < 0.0 || c.max_element() > max {
+            return Err(m.err(key, format!("components must be in 0..={max}, got {c}")));
+        }
+        Ok(c)
+    };
+    let unit = |m: &mut Fields<'_>, key: &str, default: f32| -> Result<f32, SceneError> {
+        let x = m.f32(key, default)?;
+        if !(0.0..=1.0).contains(&x) {
+            return Err(m.err(key, format!("must be in 0..=1, got {x}")));
+        }
+        Ok(x)
+    };
+    Ok(Material {
+        preset: base.preset,
+        fresh_albedo: colour(m, "fresh_albedo", base.fresh_albedo, 1.0)?,
+        fresh_roughness: unit(m, "fresh_roughness", base.fresh_roughness)?,
+        packed_albedo: colour(m, "packed_albedo", base.packed_albedo, 1.0)?,
+        packed_roughness: unit(m, "packed_roughness", base.packed_roughness)?,
+        ground_albedo: colour(m, "ground_albedo", base.ground_albedo, 1.0)?,
+        ground_roughness: unit(m, "ground_roughness", base.ground_roughness)?,
+        scatter: colour(m, "scatter", base.scatter, 4.0)?,
+        wrap: unit(m, "wrap", base.wrap)?,
+        sparkle: m.non_negative("sparkle", base.sparkle, "")?,
+        detail_strength: m.non_negative("detail_strength", base.detail_strength, "")?,
+        detail_frequency: m.positive("detail_frequency", base.detail_frequency, " of repeats per metre")?,
+        macro_variation: unit(m, "macro_variation", base.macro_variation)?,
+    })
 }

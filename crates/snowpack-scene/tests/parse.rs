@@ -31,7 +31,7 @@ fn empty_scene_gets_the_documented_defaults() {
 #[test]
 fn the_bundled_scenes_parse() {
     Scene::default_scene().expect("default scene");
-    for name in ["testbed.toml", "drag.toml"] {
+    for name in ["testbed.toml", "drag.toml", "low_sun.toml", "hills.toml", "mound.toml"] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name);
         Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     }
@@ -114,6 +114,16 @@ fn every_bad_value_names_the_file_and_the_key() {
         ("[sim]\nframes = 0\n", "[sim].frames"),
         ("[sim]\ndt_s = -0.1\n", "[sim].dt_s"),
         ("[camera]\nfov_deg = 200\n", "[camera].fov_deg"),
+        ("[light]\nsun_elevation_deg = 30\n", "[light].sun_azimuth_deg"),
+        ("[light]\nsun_elevation_deg = 95\nsun_azimuth_deg = 0\n", "[light].sun_elevation_deg"),
+        ("[light]\nsun_intensity = -1\n", "[light].sun_intensity"),
+        ("[light]\nexposure_ev = 40\n", "[light].exposure_ev"),
+        ("[light]\nenvironment = \"missing.hdr\"\n", "[light].environment"),
+        ("[render]\nmaterial = \"lava\"\n", "[render].material"),
+        ("[render]\ndebug_view = \"xray\"\n", "[render].debug_view"),
+        ("[render]\npatch_quads = 18\n", "[render].patch_quads"),
+        ("[render]\nshadow_map_size = 100\n", "[render].shadow_map_size"),
+        ("[render]\nview_distance_m = 0\n", "[render].view_distance_m"),
     ];
     for (text, key) in cases {
         let err = parse(text).expect_err(text);
@@ -122,6 +132,35 @@ fn every_bad_value_names_the_file_and_the_key() {
         assert_eq!(&err.key, key, "{text:?}: {msg}");
         assert!(msg.contains(key), "{text:?}: {msg}");
     }
+}
+
+#[test]
+fn light_and_render_keys_are_understood() {
+    use snowpack::render::{DebugView, MaterialPreset};
+    let s = parse(
+        r#"
+[light]
+sun_elevation_deg = 90.0
+sun_azimuth_deg = 0.0
+sun_intensity = 2.0
+exposure_ev = -1.0
+environment = "procedural"
+[render]
+material = "sand"
+debug_view = "wireframe"
+patch_quads = 32
+ao_strength = 0.5
+"#,
+    )
+    .expect("valid");
+    let p = s.render.params;
+    let sun = p.light.sun_direction.expect("sun given");
+    assert!((sun - glam::Vec3::Y).length() < 1e-5, "{sun}");
+    assert_eq!((p.light.sun_intensity, p.light.exposure_ev), (2.0, -1.0));
+    assert_eq!(p.material.preset, MaterialPreset::Sand);
+    assert_eq!(p.debug_view, DebugView::Wireframe);
+    assert_eq!((p.patch_quads, p.ao_strength), (32, 0.5));
+    assert_eq!(s.render.environment, snowpack_scene::EnvironmentSpec::Procedural);
 }
 
 #[test]
@@ -147,4 +186,36 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
     assert!((h.heights_m[4 + 3] - 3.0).abs() < 1e-4, "{:?}", h.heights_m);
     assert!((h.heights_m[3] - 23.0).abs() < 1e-4, "{:?}", h.heights_m);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn saved_scenes_load_back_the_same() {
+    use snowpack::render::params::{sun_from_angles, MaterialPreset};
+    let dir = std::env::temp_dir().join(format!("snowpack-save-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mut scene = Scene::default_scene().expect("default");
+    scene.snow.technique = Technique::Combined;
+    scene.snow.refill_m_per_s = 0.003;
+    scene.snow.blur = false;
+    scene.spawns[0].count = 17;
+    scene.camera.position = glam::Vec3::new(1.5, 2.25, -3.0);
+    scene.render.params.material = MaterialPreset::Mud.material();
+    scene.render.params.material.wrap = 0.3;
+    scene.render.params.light.sun_direction = Some(sun_from_angles(12.0, 250.0));
+    scene.render.params.light.exposure_ev = -0.5;
+    let dest = dir.join("saved.toml");
+    scene.save(&dest).expect("save");
+    let back = Scene::load(&dest).unwrap_or_else(|e| panic!("{e}\n{}", std::fs::read_to_string(&dest).unwrap_or_default()));
+    assert_eq!(back.snow, scene.snow);
+    assert_eq!(back.terrain, scene.terrain);
+    assert_eq!(back.actors, scene.actors);
+    assert_eq!(back.spawns, scene.spawns);
+    assert_eq!(back.camera, scene.camera);
+    assert_eq!(back.sim, scene.sim);
+    assert_eq!(back.render.params.material, scene.render.params.material);
+    assert_eq!(back.render.params.light.exposure_ev, -0.5);
+    let (a, b) = (back.render.params.light.sun_direction.expect("sun"), sun_from_angles(12.0, 250.0));
+    assert!((a - b).length() < 1e-5, "sun {a} vs {b}");
+    assert!(!dir.join("saved.toml.tmp").exists(), "temporary file left behind");
+    std::fs::remove_dir_all(&dir).ok();
 }

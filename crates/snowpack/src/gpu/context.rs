@@ -117,19 +117,43 @@ impl GpuContext {
     /// Like [`Self::new_headless`], with explicit backend list and adapter-name
     /// filter taking precedence over the environment (for `--backend`).
     pub fn new_headless_with(backend: Option<&str>, adapter: Option<&str>) -> Result<Self, SnowError> {
+        let desc = Self::instance_descriptor(wgpu::InstanceDescriptor::new_without_display_handle_from_env(), backend)?;
+        let instance = wgpu::Instance::new(desc);
+        Self::choose(instance, None, backend, adapter)
+    }
+
+    /// `desc` with its backends narrowed by `backend` or `SNOWPACK_BACKEND`
+    /// (for a windowed instance, start from
+    /// `wgpu::InstanceDescriptor::new_with_display_handle_from_env`).
+    pub fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, backend: Option<&str>) -> Result<wgpu::InstanceDescriptor, SnowError> {
+        let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
+        if let Some(list) = backend.map(str::to_owned).or_else(|| env("SNOWPACK_BACKEND")) {
+            desc.backends = parse_backends(&list)?;
+        }
+        Ok(desc)
+    }
+
+    /// Picks the best adapter of `instance` that can present to `surface`
+    /// (when given), honouring `backend`/`SNOWPACK_BACKEND` and
+    /// `adapter`/`SNOWPACK_ADAPTER`, and creates the device.
+    pub fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, backend: Option<&str>, adapter: Option<&str>) -> Result<Self, SnowError> {
         let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
         let backend_env = backend.map(str::to_owned).or_else(|| env("SNOWPACK_BACKEND"));
         let adapter_env = adapter.map(str::to_owned).or_else(|| env("SNOWPACK_ADAPTER"));
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        if let Some(list) = &backend_env {
-            desc.backends = parse_backends(list)?;
-        }
-        let backends = desc.backends;
-        let instance = wgpu::Instance::new(desc);
+        let backends = match &backend_env {
+            Some(list) => parse_backends(list)?,
+            None => wgpu::Backends::all(),
+        };
         let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        if let Some(surface) = surface {
+            adapters.retain(|a| a.is_surface_supported(surface));
+        }
         let mut filter = String::new();
         if let Some(list) = &backend_env {
             filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
+        }
+        if surface.is_some() {
+            filter.push_str(" that can present to the window");
         }
         if let Some(name) = &adapter_env {
             let needle = name.to_ascii_lowercase();

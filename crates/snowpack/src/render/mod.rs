@@ -306,7 +306,7 @@ impl Renderer {
             window,
             vertical_m: eye_height,
         };
-        let m = p.material.material();
+        let m = p.material;
         let (corner, placed) = window.map_or((Vec2::ZERO, 0), |(c, _)| (c, 1));
         let u = FrameUniforms {
             view_proj: view_proj.to_cols_array_2d(),

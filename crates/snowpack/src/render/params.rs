@@ -36,6 +36,7 @@ impl MaterialPreset {
     pub fn material(self) -> Material {
         match self {
             Self::Snow => Material {
+                preset: self,
                 fresh_albedo: Vec3::new(0.92, 0.94, 0.98),
                 fresh_roughness: 0.8,
                 packed_albedo: Vec3::new(0.6, 0.66, 0.76),
@@ -50,6 +51,7 @@ impl MaterialPreset {
                 macro_variation: 0.05,
             },
             Self::Mud => Material {
+                preset: self,
                 fresh_albedo: Vec3::new(0.26, 0.19, 0.13),
                 fresh_roughness: 0.6,
                 packed_albedo: Vec3::new(0.15, 0.11, 0.075),
@@ -64,6 +66,7 @@ impl MaterialPreset {
                 macro_variation: 0.15,
             },
             Self::Sand => Material {
+                preset: self,
                 fresh_albedo: Vec3::new(0.74, 0.62, 0.44),
                 fresh_roughness: 0.9,
                 packed_albedo: Vec3::new(0.6, 0.49, 0.33),
@@ -84,6 +87,8 @@ impl MaterialPreset {
 /// A surface material: fresh and compacted looks, bare ground, scattering and detail.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
+    /// The preset it started from (what `[render] material` names).
+    pub preset: MaterialPreset,
     /// Albedo of undisturbed snow (linear RGB).
     pub fresh_albedo: Vec3,
     /// Roughness of undisturbed snow (GGX, perceptual).
@@ -185,11 +190,17 @@ pub fn sun_from_angles(elevation_deg: f32, azimuth_deg: f32) -> Vec3 {
     Vec3::new(e.cos() * a.sin(), e.sin(), e.cos() * a.cos())
 }
 
+impl Default for Material {
+    fn default() -> Self {
+        MaterialPreset::Snow.material()
+    }
+}
+
 /// Everything the renderer is told besides the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderParams {
-    /// Surface material.
-    pub material: MaterialPreset,
+    /// Surface material: a preset's parameters, possibly tuned.
+    pub material: Material,
     /// Sun and sky.
     pub light: LightParams,
     /// What to show.
@@ -213,7 +224,7 @@ pub struct RenderParams {
 impl Default for RenderParams {
     fn default() -> Self {
         Self {
-            material: MaterialPreset::Snow,
+            material: MaterialPreset::Snow.material(),
             light: LightParams::default(),
             debug_view: DebugView::Lit,
             view_distance_m: 1000.0,

@@ -1,0 +1,734 @@
+//! The interactive demo: a winit window with an egui panel over the snow.
+//! Wasmut's system model (section 3): spheres bounce and slide over a snow
+//! landscape, every deformation property and the technique change while it
+//! runs, and the scene resets with a new sphere count. Test hooks
+//! (`--exit-after-frames`, `--screenshot`, `--script`) drive it end to end.
+//!
+//! One frame, in order: scripted events → input → simulation step
+//! (deformation encoded) → panel (egui) → snow rendered into the window →
+//! panel drawn over it → submit, present → readbacks and error check.
+
+pub mod camera;
+pub mod panel;
+pub mod script;
+pub mod session;
+
+use std::collections::HashSet;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use glam::{Vec2, Vec3};
+use snowpack::render::DebugView;
+use snowpack::{GpuContext, Technique};
+use snowpack_scene::Scene;
+use winit::application::ApplicationHandler;
+use winit::dpi::{LogicalSize, PhysicalSize};
+use winit::event::{DeviceEvent, DeviceId, ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+use self::camera::{CameraMode, CameraRig, MoveInput};
+use self::panel::{Action, PanelState};
+use self::script::{Script, ScriptEvent};
+use self::session::{Session, WindowFollow};
+use crate::BadInput;
+
+/// What the command line asked of the demo.
+#[derive(Clone, Debug, Default)]
+pub struct DemoOptions {
+    /// Scene file (default: the built-in default scene).
+    pub scene: Option<PathBuf>,
+    /// Exit (code 0) after this many frames.
+    pub exit_after_frames: Option<u64>,
+    /// Write the window's image here after the last frame (needs `exit_after_frames`).
+    pub screenshot: Option<PathBuf>,
+    /// Scripted input file (see [`script`]).
+    pub script: Option<PathBuf>,
+    /// Wait for vertical sync.
+    pub vsync: bool,
+    /// GPU backend(s).
+    pub backend: Option<String>,
+    /// Initial window size (logical pixels).
+    pub size: (u32, u32),
+}
+
+/// Whether a window can be opened here (a display server is named, or the
+/// platform always has one).
+#[must_use]
+pub fn display_available() -> bool {
+    if cfg!(any(target_os = "windows", target_os = "macos")) {
+        return true;
+    }
+    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|k| std::env::var_os(k).is_some_and(|v| !v.is_empty()))
+}
+
+/// Opens the window and runs until it is closed (or `exit_after_frames`).
+pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
+    if opts.screenshot.is_some() && opts.exit_after_frames.is_none() {
+        return Err(BadInput("--screenshot needs --exit-after-frames (the frame to capture)".into()).into());
+    }
+    let scene = match &opts.scene {
+        Some(path) => Scene::load(path)?,
+        None => Scene::default_scene()?,
+    };
+    let script = match &opts.script {
+        Some(path) => Script::load(path).map_err(BadInput)?,
+        None => Script::default(),
+    };
+    if let Some(n) = opts.exit_after_frames
+        && script.last_frame() >= n
+    {
+        tracing::warn!("the script has events at frame {} and later, after the last frame ({n}); they will not run", n);
+    }
+    let event_loop = EventLoop::new().map_err(|e| DisplayUnavailable(e.to_string()))?;
+    let mut app = App { opts, pending_scene: Some(scene), script, gfx: None, frame: 0, result: Ok(()) };
+    event_loop.run_app(&mut app).context("running the window's event loop")?;
+    if let (Ok(()), Some(gfx)) = (&app.result, &app.gfx) {
+        // A summary for people and for the end-to-end tests.
+        println!(
+            "demo: {} frames, {} spheres, {} simulated frames since the last reset, technique {}, adapter {} ({})",
+            app.frame,
+            gfx.session.sphere_count(),
+            gfx.session.frames,
+            gfx.session.snow_params.technique.as_str(),
+            gfx.ctx.summary.name,
+            gfx.ctx.summary.backend
+        );
+    }
+    app.result
+}
+
+/// No window could be opened (no display server, or it refused the connection).
+#[derive(Debug)]
+pub struct DisplayUnavailable(pub String);
+
+impl std::fmt::Display for DisplayUnavailable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cannot connect to a display: {}", self.0)
+    }
+}
+
+impl std::error::Error for DisplayUnavailable {}
+
+/// Buttons and keys held.
+#[derive(Default)]
+struct InputState {
+    keys: HashSet<KeyCode>,
+    left: bool,
+    right: bool,
+    cursor: Option<Vec2>,
+}
+
+impl InputState {
+    fn axis(&self, plus: KeyCode, minus: KeyCode) -> f32 {
+        f32::from(u8::from(self.keys.contains(&plus))) - f32::from(u8::from(self.keys.contains(&minus)))
+    }
+
+    fn movement(&self) -> MoveInput {
+        MoveInput {
+            forward: self.axis(KeyCode::KeyW, KeyCode::KeyS),
+            right: self.axis(KeyCode::KeyD, KeyCode::KeyA),
+            up: self.axis(KeyCode::KeyE, KeyCode::KeyQ),
+            fast: self.keys.contains(&KeyCode::ShiftLeft) || self.keys.contains(&KeyCode::ShiftRight),
+        }
+    }
+}
+
+/// Everything that exists once the window does.
+struct Gfx {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    copy_src: bool,
+    ctx: GpuContext,
+    session: Session,
+    rig: CameraRig,
+    panel: PanelState,
+    input: InputState,
+    egui_ctx: egui::Context,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+    /// The surface is zero-sized (minimised): simulate, draw nothing.
+    hidden: bool,
+    /// The size to go back to on `restore`.
+    restore_size: Option<PhysicalSize<u32>>,
+    /// The device was lost: shown in the window title and the log; nothing more is drawn.
+    lost: Option<String>,
+    last: Instant,
+    screenshot: Option<PathBuf>,
+}
+
+struct App {
+    opts: DemoOptions,
+    pending_scene: Option<Scene>,
+    script: Script,
+    gfx: Option<Gfx>,
+    frame: u64,
+    result: anyhow::Result<()>,
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, err: anyhow::Error) {
+        tracing::error!("{err:#}");
+        self.result = Err(err);
+        event_loop.exit();
+    }
+
+    fn create(&mut self, event_loop: &ActiveEventLoop) -> anyhow::Result<Gfx> {
+        let scene = self.pending_scene.take().context("the scene was already used")?;
+        let (w, h) = self.opts.size;
+        let attrs = Window::default_attributes().with_title("snowpack").with_inner_size(LogicalSize::new(w, h));
+        let window = Arc::new(event_loop.create_window(attrs).context("opening the window")?);
+        let backend = self.opts.backend.as_deref();
+        let desc = GpuContext::instance_descriptor(
+            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(event_loop.owned_display_handle())),
+            backend,
+        )?;
+        let instance = wgpu::Instance::new(desc);
+        let surface = instance.create_surface(Arc::clone(&window)).context("creating the window's surface")?;
+        let ctx = GpuContext::choose(instance, Some(&surface), backend, None).context("choosing a GPU adapter for the window")?;
+        let caps = surface.get_capabilities(&ctx.adapter);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(wgpu::TextureFormat::is_srgb)
+            .or_else(|| caps.formats.first().copied())
+            .context("the surface offers no formats")?;
+        let copy_src = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
+        let size = window.inner_size();
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | if copy_src { wgpu::TextureUsages::COPY_SRC } else { wgpu::TextureUsages::empty() },
+            format,
+            width: size.width.max(1),
+            height: size.height.max(1),
+            present_mode: if self.opts.vsync { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync },
+            alpha_mode: caps.alpha_modes.first().copied().unwrap_or(wgpu::CompositeAlphaMode::Auto),
+            view_formats: vec![],
+            desired_maximum_frame_latency: 2,
+            color_space: wgpu::SurfaceColorSpace::Auto,
+        };
+        let hidden = size.width == 0 || size.height == 0;
+        if !hidden {
+            surface.configure(&ctx.device, &config);
+        }
+        tracing::info!("window {}x{} ({format:?}), {}", size.width, size.height, ctx.summary.name);
+        let mut session = Session::new(&ctx, scene, format)?;
+        if session.scene.window == snowpack_scene::WindowSpec::FollowCamera {
+            session.follow = WindowFollow::Camera;
+        }
+        let scene_camera = snowpack::Camera {
+            position: session.scene.camera.position,
+            target: session.scene.camera.target,
+            fov_deg: session.scene.camera.fov_deg,
+        };
+        let rig = CameraRig::from_camera(&scene_camera);
+        let egui_ctx = egui::Context::default();
+        let max_side = ctx.device.limits().max_texture_dimension_2d as usize;
+        let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, Some(max_side));
+        let egui_renderer = egui_wgpu::Renderer::new(&ctx.device, format, egui_wgpu::RendererOptions::default());
+        let panel = PanelState {
+            visible: true,
+            sphere_count: session.sphere_count() as u32,
+            scene_path: session.scene.path.display().to_string(),
+            status: None,
+            frame_ms: std::collections::VecDeque::new(),
+            adapter: format!("{} ({})", ctx.summary.name, ctx.summary.backend),
+            timestamps: ctx.has_timestamps(),
+            surface: (size.width, size.height),
+            vsync: self.opts.vsync,
+        };
+        Ok(Gfx {
+            window,
+            surface,
+            config,
+            copy_src,
+            ctx,
+            session,
+            rig,
+            panel,
+            input: InputState::default(),
+            egui_ctx,
+            egui_state,
+            egui_renderer,
+            hidden,
+            restore_size: None,
+            lost: None,
+            last: Instant::now(),
+            screenshot: None,
+        })
+    }
+}
+
+impl Gfx {
+    fn resize(&mut self, size: PhysicalSize<u32>) {
+        self.panel.surface = (size.width, size.height);
+        // A minimised window reports 0x0: configuring a zero-sized surface is
+        // an error, so stop drawing until it has an area again.
+        self.hidden = size.width == 0 || size.height == 0;
+        if !self.hidden {
+            self.config.width = size.width;
+            self.config.height = size.height;
+            self.surface.configure(&self.ctx.device, &self.config);
+        }
+    }
+
+    fn player(&self) -> Vec3 {
+        self.session.player.position
+    }
+
+    fn key(&mut self, code: KeyCode, pressed: bool) {
+        if pressed {
+            self.input.keys.insert(code);
+        } else {
+            self.input.keys.remove(&code);
+            return;
+        }
+        let technique = |k: usize| Technique::ALL[k];
+        match code {
+            KeyCode::Digit1 => self.session.snow_params.technique = technique(0),
+            KeyCode::Digit2 => self.session.snow_params.technique = technique(1),
+            KeyCode::Digit3 => self.session.snow_params.technique = technique(2),
+            KeyCode::Digit4 => self.session.snow_params.technique = technique(3),
+            KeyCode::KeyR => self.act(Action::Reset(self.panel.sphere_count)),
+            KeyCode::KeyP | KeyCode::Space => self.session.paused = !self.session.paused,
+            KeyCode::KeyN => self.session.single_step(),
+            KeyCode::KeyH => self.panel.visible = !self.panel.visible,
+            KeyCode::Tab => {
+                let next = self.rig.mode.next();
+                self.act(Action::CameraMode(next));
+            }
+            KeyCode::KeyV => {
+                let views = DebugView::ALL;
+                let k = views.iter().position(|v| v.0 == self.session.render_params.debug_view).unwrap_or(0);
+                self.session.render_params.debug_view = views[(k + 1) % views.len()].0;
+            }
+            _ => {}
+        }
+    }
+
+    fn act(&mut self, action: Action) {
+        let ctx = &self.ctx;
+        let result = match action {
+            Action::Reset(count) => self.session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),
+            Action::Rebuild => self.session.rebuild(ctx).map(|()| "rebuilt the window (fresh snow)".to_owned()),
+            Action::CameraMode(mode) => {
+                self.rig.set_mode(mode, self.session.player.position);
+                if mode == CameraMode::Follow {
+                    self.session.follow = WindowFollow::Player;
+                }
+                Ok(format!("camera: {}", CameraMode::ALL.iter().find(|m| m.0 == mode).map_or("", |m| m.1)))
+            }
+            Action::Load(path) => Scene::load(std::path::Path::new(&path))
+                .map_err(anyhow::Error::from)
+                .and_then(|scene| {
+                    let camera = snowpack::Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
+                    self.session.load(ctx, scene)?;
+                    self.rig = CameraRig::from_camera(&camera);
+                    self.panel.sphere_count = self.session.sphere_count() as u32;
+                    Ok(format!("loaded {path}"))
+                }),
+            Action::Save(path) => {
+                let camera = self.rig.camera(self.player());
+                let dest = PathBuf::from(&path);
+                self.session.scene_to_save(&camera).save(&dest).map(|()| format!("saved {path}")).map_err(|e| anyhow::anyhow!("saving {path}: {e}"))
+            }
+        };
+        match result {
+            Ok(msg) => {
+                tracing::info!("{msg}");
+                self.panel.status = Some((msg, false));
+            }
+            Err(e) => {
+                tracing::error!("{e:#}");
+                self.panel.status = Some((format!("{e:#}"), true));
+            }
+        }
+    }
+
+    fn script_event(&mut self, event: ScriptEvent) {
+        match event {
+            ScriptEvent::Key(k) => {
+                self.key(k, true);
+                self.key(k, false);
+            }
+            ScriptEvent::KeyDown(k) => self.key(k, true),
+            ScriptEvent::KeyUp(k) => self.key(k, false),
+            ScriptEvent::Drag { dx, dy, primary } => self.rig.drag(Vec2::new(dx, dy), primary),
+            ScriptEvent::Wheel(lines) => self.rig.wheel(lines),
+            ScriptEvent::Resize(w, h) => {
+                let size = PhysicalSize::new(w, h);
+                if let Some(actual) = self.window.request_inner_size(size) {
+                    self.resize(actual);
+                }
+            }
+            ScriptEvent::Minimize => {
+                self.restore_size = Some(self.window.inner_size());
+                self.window.set_minimized(true);
+                // Without a window manager (Xvfb) nothing iconifies; feed the
+                // zero size a minimised window reports so that path runs too.
+                self.resize(PhysicalSize::new(0, 0));
+            }
+            ScriptEvent::Restore => {
+                self.window.set_minimized(false);
+                let size = self.restore_size.take().unwrap_or_else(|| self.window.inner_size());
+                self.resize(size);
+            }
+            ScriptEvent::Screenshot(path) => self.screenshot = Some(path),
+        }
+    }
+
+    fn window_event(&mut self, event: &WindowEvent) {
+        let response = self.egui_state.on_window_event(&self.window, event);
+        match event {
+            WindowEvent::Resized(size) => self.resize(*size),
+            WindowEvent::ScaleFactorChanged { .. } => self.resize(self.window.inner_size()),
+            WindowEvent::KeyboardInput { event, .. } => {
+                if let PhysicalKey::Code(code) = event.physical_key {
+                    let pressed = event.state == ElementState::Pressed;
+                    // Releases always count, so a key pressed before focus moved to a text field does not stick.
+                    if !pressed || (!self.egui_ctx.egui_wants_keyboard_input() && !event.repeat) {
+                        self.key(code, pressed);
+                    }
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                let pressed = *state == ElementState::Pressed;
+                if pressed && response.consumed {
+                    return;
+                }
+                match button {
+                    MouseButton::Left => self.input.left = pressed && !self.egui_ctx.egui_wants_pointer_input(),
+                    MouseButton::Right => self.input.right = pressed && !self.egui_ctx.egui_wants_pointer_input(),
+                    _ => {}
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let p = Vec2::new(position.x as f32, position.y as f32);
+                if let Some(last) = self.input.cursor
+                    && (self.input.left || self.input.right)
+                {
+                    self.rig.drag(p - last, self.input.left);
+                }
+                self.input.cursor = Some(p);
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                if response.consumed || self.egui_ctx.egui_wants_pointer_input() {
+                    return;
+                }
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => *y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.rig.wheel(lines);
+            }
+            _ => {}
+        }
+    }
+
+    /// Simulates, draws and presents one frame.
+    fn frame(&mut self) -> anyhow::Result<()> {
+        let now = Instant::now();
+        let dt = (now - self.last).as_secs_f32().min(0.1);
+        self.last = now;
+        self.panel.push_frame_time(dt * 1000.0);
+        if let Some(reason) = &self.lost {
+            anyhow::bail!("the GPU device was lost: {reason}");
+        }
+
+        // Input: the camera, and the player in follow mode.
+        let movement = self.input.movement();
+        self.rig.fly(movement, dt);
+        if self.rig.mode == CameraMode::Follow {
+            let (f, r) = self.rig.ground_axes();
+            let dir = f * movement.forward + r * movement.right;
+            self.session.drive_player(dir, movement.fast, dt);
+        }
+
+        let device = &self.ctx.device;
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
+        let camera_now = self.rig.camera(self.player());
+        let stepped = self.session.encode_step(&self.ctx, &mut encoder, camera_now.position);
+
+        // The panel (it may change parameters, which apply next frame).
+        let raw = self.egui_state.take_egui_input(&self.window);
+        let mut actions = Vec::new();
+        let (session, rig, panel) = (&mut self.session, &mut self.rig, &mut self.panel);
+        let mut output = self.egui_ctx.run_ui(raw, |ui| actions = panel::show(ui, session, rig, panel));
+        self.egui_state.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
+        // Texture uploads apply even when nothing is drawn (the font atlas must not be lost);
+        // frees wait until the frame that last used them is submitted.
+        for (id, deltas) in &output.textures_delta.set {
+            for delta in deltas {
+                self.egui_renderer.update_texture(device, &self.ctx.queue, *id, delta);
+            }
+        }
+        let freed = std::mem::take(&mut output.textures_delta.free);
+        output.textures_delta.clear();
+
+        if self.hidden {
+            // Minimised: the simulation goes on, nothing is drawn.
+            self.ctx.queue.submit([encoder.finish()]);
+            if stepped {
+                self.session.snow.after_submit(&self.ctx);
+            }
+            for id in &freed {
+                self.egui_renderer.free_texture(id);
+            }
+            for action in actions {
+                self.act(action);
+            }
+            return Ok(());
+        }
+
+        let frame = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                self.ctx.queue.submit([encoder.finish()]);
+                if stepped {
+                    self.session.snow.after_submit(&self.ctx);
+                }
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Validation => {
+                self.surface.configure(&self.ctx.device, &self.config);
+                self.ctx.queue.submit([encoder.finish()]);
+                if stepped {
+                    self.session.snow.after_submit(&self.ctx);
+                }
+                return Ok(());
+            }
+        };
+        let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let size = (self.config.width, self.config.height);
+        let camera = self.rig.camera(self.player());
+        let deformers = self.session.deformers();
+        self.session.renderer.encode(&self.ctx, &mut encoder, &self.session.snow, &deformers, &camera, &view, size);
+
+        let ppp = output.pixels_per_point;
+        let jobs = self.egui_ctx.tessellate(output.shapes, ppp);
+        let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: [size.0, size.1], pixels_per_point: ppp };
+        let extra = self.egui_renderer.update_buffers(device, &self.ctx.queue, &mut encoder, &jobs, &screen);
+        {
+            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("panel"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            self.egui_renderer.render(&mut pass.forget_lifetime(), &jobs, &screen);
+        }
+        let capture = self.screenshot.take().map(|path| (path, ScreenCapture::record(device, &mut encoder, &frame.texture, self.copy_src)));
+        self.ctx.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        if let Some((path, capture)) = capture {
+            let capture = match capture {
+                Some(c) => c,
+                // No COPY_SRC on this surface: draw the same frame again into an image.
+                None => self.offscreen_capture(&camera, &deformers, &jobs, &screen)?,
+            };
+            capture.save(&self.ctx, &path, self.config.format)?;
+            tracing::info!("screenshot written to {}", path.display());
+        }
+        self.window.pre_present_notify();
+        self.ctx.queue.present(frame);
+        for id in &freed {
+            self.egui_renderer.free_texture(id);
+        }
+        if stepped {
+            self.session.snow.after_submit(&self.ctx);
+        }
+        self.session.renderer.after_submit(&self.ctx);
+        match self.ctx.check("demo frame") {
+            Ok(()) => {}
+            Err(snowpack::SnowError::DeviceLost(reason)) => {
+                tracing::error!("GPU device lost: {reason}");
+                self.window.set_title(&format!("snowpack — GPU device lost: {reason}"));
+                self.lost = Some(reason);
+            }
+            Err(e) => {
+                tracing::error!("{e}");
+                self.panel.status = Some((e.to_string(), true));
+            }
+        }
+        for action in actions {
+            self.act(action);
+        }
+        Ok(())
+    }
+
+    fn offscreen_capture(
+        &mut self,
+        camera: &snowpack::Camera,
+        deformers: &[snowpack::Deformer],
+        jobs: &[egui::ClippedPrimitive],
+        screen: &egui_wgpu::ScreenDescriptor,
+    ) -> anyhow::Result<ScreenCapture> {
+        let device = &self.ctx.device;
+        let size = (self.config.width, self.config.height);
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("screenshot"),
+            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.config.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("screenshot") });
+        self.session.renderer.encode(&self.ctx, &mut encoder, &self.session.snow, deformers, camera, &view, size);
+        let extra = self.egui_renderer.update_buffers(device, &self.ctx.queue, &mut encoder, jobs, screen);
+        {
+            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("panel (screenshot)"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            self.egui_renderer.render(&mut pass.forget_lifetime(), jobs, screen);
+        }
+        let capture = ScreenCapture::record(device, &mut encoder, &texture, true).context("recording the screenshot copy")?;
+        self.ctx.queue.submit(extra.into_iter().chain([encoder.finish()]));
+        self.session.renderer.after_submit(&self.ctx);
+        Ok(capture)
+    }
+}
+
+/// A frame copied out of a texture for `--screenshot`.
+struct ScreenCapture {
+    buffer: wgpu::Buffer,
+    size: (u32, u32),
+    padded_row: u32,
+}
+
+impl ScreenCapture {
+    /// Records the copy when the texture allows it.
+    fn record(device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, texture: &wgpu::Texture, copy_src: bool) -> Option<Self> {
+        if !copy_src {
+            return None;
+        }
+        let size = (texture.width(), texture.height());
+        let padded_row = (size.0 * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("screenshot readback"),
+            size: u64::from(padded_row) * u64::from(size.1),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row), rows_per_image: None },
+            },
+            wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+        );
+        Some(Self { buffer, size, padded_row })
+    }
+
+    /// Waits for the copy and writes an RGB PNG (BGRA surfaces swizzled), atomically.
+    fn save(&self, ctx: &GpuContext, path: &std::path::Path, format: wgpu::TextureFormat) -> anyhow::Result<()> {
+        let bytes = snowpack::gpu::readback::map_blocking(ctx, &self.buffer)?;
+        let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+        let mut rgb = Vec::with_capacity((self.size.0 * self.size.1 * 3) as usize);
+        for y in 0..self.size.1 as usize {
+            let row = &bytes[y * self.padded_row as usize..][..self.size.0 as usize * 4];
+            for p in row.chunks_exact(4) {
+                if bgra {
+                    rgb.extend_from_slice(&[p[2], p[1], p[0]]);
+                } else {
+                    rgb.extend_from_slice(&p[..3]);
+                }
+            }
+        }
+        let image = image::RgbImage::from_raw(self.size.0, self.size.1, rgb).context("screenshot size")?;
+        let tmp = path.with_extension("png.tmp");
+        image.save_with_format(&tmp, image::ImageFormat::Png).with_context(|| format!("writing {}", tmp.display()))?;
+        std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_some() {
+            return;
+        }
+        match self.create(event_loop) {
+            Ok(gfx) => {
+                gfx.window.request_redraw();
+                self.gfx = Some(gfx);
+            }
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(gfx) = self.gfx.as_mut() else { return };
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::RedrawRequested => {
+                for e in self.script.due(self.frame) {
+                    gfx.script_event(e);
+                }
+                let last = self.opts.exit_after_frames.is_some_and(|n| self.frame + 1 >= n);
+                if last && let Some(path) = &self.opts.screenshot {
+                    gfx.screenshot = Some(path.clone());
+                }
+                if let Err(e) = gfx.frame() {
+                    self.fail(event_loop, e);
+                    return;
+                }
+                self.frame += 1;
+                if last {
+                    event_loop.exit();
+                }
+            }
+            other => gfx.window_event(&other),
+        }
+    }
+
+    fn device_event(&mut self, _event_loop: &ActiveEventLoop, _id: DeviceId, _event: DeviceEvent) {}
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(gfx) = self.gfx.as_ref() else { return };
+        if gfx.hidden {
+            // Minimised: tick the simulation from a timer at its own rate
+            // (see `new_events`) instead of spinning on redraws.
+            let dt = Duration::from_secs_f32(gfx.session.scene.sim.dt_s);
+            event_loop.set_control_flow(ControlFlow::WaitUntil(Instant::now() + dt));
+        } else {
+            event_loop.set_control_flow(ControlFlow::Poll);
+            gfx.window.request_redraw();
+        }
+    }
+
+    fn new_events(&mut self, event_loop: &ActiveEventLoop, cause: winit::event::StartCause) {
+        // While minimised, frames run from the timer (RedrawRequested may never come).
+        if let winit::event::StartCause::ResumeTimeReached { .. } = cause
+            && let Some(gfx) = self.gfx.as_ref()
+            && gfx.hidden
+        {
+            let id = gfx.window.id();
+            self.window_event(event_loop, id, WindowEvent::RedrawRequested);
+        }
+    }
+}

@@ -1,0 +1,309 @@
+//! The demo's control panel (egui): every deformation, refill, rim, blur,
+//! material and light parameter with its unit, the technique, the test bed,
+//! debug views, scene load/save, and live GPU timings.
+
+use std::collections::VecDeque;
+
+use egui::{Color32, ComboBox, RichText, Slider, Stroke};
+use glam::Vec3;
+use snowpack::render::params::{sun_from_angles, DebugView, Material, MaterialPreset};
+use snowpack::{RimStyle, Technique};
+
+use super::camera::{CameraMode, CameraRig};
+use super::session::{Session, WindowFollow};
+
+/// What the panel asks the app to do after this frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// Fresh snow and this many test-bed spheres at new random places.
+    Reset(u32),
+    /// Rebuild the window and renderer with the edited sizes.
+    Rebuild,
+    /// Load a scene file.
+    Load(String),
+    /// Save the scene (edits and camera included) to a file.
+    Save(String),
+    /// Change the camera mode.
+    CameraMode(CameraMode),
+}
+
+/// State the panel keeps between frames.
+pub struct PanelState {
+    /// Shown at all (H toggles).
+    pub visible: bool,
+    /// Spheres for the next reset.
+    pub sphere_count: u32,
+    /// Scene file path for load/save.
+    pub scene_path: String,
+    /// Last message (load/save result, errors), with whether it is an error.
+    pub status: Option<(String, bool)>,
+    /// Recent frame times (ms), newest last.
+    pub frame_ms: VecDeque<f32>,
+    /// Adapter in words.
+    pub adapter: String,
+    /// Whether timestamps are available.
+    pub timestamps: bool,
+    /// Surface size in pixels.
+    pub surface: (u32, u32),
+    /// Vsync on.
+    pub vsync: bool,
+}
+
+impl PanelState {
+    /// Frame times kept for the graph.
+    pub const HISTORY: usize = 240;
+
+    /// Records one frame's time.
+    pub fn push_frame_time(&mut self, ms: f32) {
+        if self.frame_ms.len() == Self::HISTORY {
+            self.frame_ms.pop_front();
+        }
+        self.frame_ms.push_back(ms);
+    }
+}
+
+fn sun_angles(sun: Vec3) -> (f32, f32) {
+    let sun = sun.normalize();
+    (sun.y.clamp(-1.0, 1.0).asin().to_degrees(), sun.x.atan2(sun.z).to_degrees().rem_euclid(360.0))
+}
+
+fn colour(ui: &mut egui::Ui, label: &str, c: &mut Vec3) {
+    ui.horizontal(|ui| {
+        let mut rgb = c.to_array();
+        ui.color_edit_button_rgb(&mut rgb);
+        ui.label(label);
+        *c = Vec3::from_array(rgb);
+    });
+}
+
+fn material_ui(ui: &mut egui::Ui, m: &mut Material) {
+    let mut preset = m.preset;
+    ComboBox::from_label("preset").selected_text(preset.as_str()).show_ui(ui, |ui| {
+        for (p, name) in MaterialPreset::ALL {
+            ui.selectable_value(&mut preset, p, name);
+        }
+    });
+    if preset != m.preset {
+        *m = preset.material();
+    }
+    colour(ui, "fresh albedo (linear)", &mut m.fresh_albedo);
+    ui.add(Slider::new(&mut m.fresh_roughness, 0.05..=1.0).text("fresh roughness"));
+    colour(ui, "packed albedo (trails)", &mut m.packed_albedo);
+    ui.add(Slider::new(&mut m.packed_roughness, 0.05..=1.0).text("packed roughness"));
+    colour(ui, "ground albedo", &mut m.ground_albedo);
+    ui.add(Slider::new(&mut m.ground_roughness, 0.05..=1.0).text("ground roughness"));
+    colour(ui, "scatter tint", &mut m.scatter);
+    ui.add(Slider::new(&mut m.wrap, 0.0..=1.0).text("wrap (subsurface)"));
+    ui.add(Slider::new(&mut m.sparkle, 0.0..=4.0).text("sparkle"));
+    ui.add(Slider::new(&mut m.detail_strength, 0.0..=1.0).text("detail normal strength"));
+    ui.add(Slider::new(&mut m.detail_frequency, 0.05..=4.0).logarithmic(true).text("detail frequency").suffix(" /m"));
+    ui.add(Slider::new(&mut m.macro_variation, 0.0..=0.5).text("macro variation"));
+}
+
+fn timing_table(ui: &mut egui::Ui, title: &str, rows: &[(String, f64)]) {
+    ui.label(RichText::new(title).strong());
+    if rows.is_empty() {
+        ui.label("(collecting…)");
+        return;
+    }
+    egui::Grid::new(title).striped(true).show(ui, |ui| {
+        for (name, ms) in rows {
+            ui.label(name);
+            ui.label(format!("{ms:.3} ms"));
+            ui.end_row();
+        }
+        ui.label(RichText::new("total").strong());
+        ui.label(RichText::new(format!("{:.3} ms", rows.iter().map(|r| r.1).sum::<f64>())).strong());
+        ui.end_row();
+    });
+}
+
+fn frame_graph(ui: &mut egui::Ui, frames: &VecDeque<f32>) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, Color32::from_black_alpha(80));
+    let top = frames.iter().copied().fold(1.0f32, f32::max) * 1.1;
+    for ms in [16.7f32, 33.3] {
+        if ms < top {
+            let y = rect.bottom() - rect.height() * ms / top;
+            painter.line_segment([egui::pos2(rect.left(), y), egui::pos2(rect.right(), y)], Stroke::new(1.0, Color32::from_gray(90)));
+        }
+    }
+    let n = PanelState::HISTORY as f32;
+    let points: Vec<egui::Pos2> = frames
+        .iter()
+        .enumerate()
+        .map(|(k, ms)| egui::pos2(rect.left() + rect.width() * k as f32 / n, rect.bottom() - rect.height() * ms / top))
+        .collect();
+    painter.add(egui::Shape::line(points, Stroke::new(1.5, Color32::LIGHT_GREEN)));
+    painter.text(rect.left_top() + egui::vec2(4.0, 2.0), egui::Align2::LEFT_TOP, format!("max {top:.1} ms"), egui::FontId::monospace(10.0), Color32::GRAY);
+}
+
+/// Draws the panel; returns what to do after the frame.
+pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state: &mut PanelState) -> Vec<Action> {
+    let mut actions = Vec::new();
+    if !state.visible {
+        return actions;
+    }
+    egui::Panel::left("controls").resizable(true).default_size(330.0).show(ui, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("snowpack");
+            let last = state.frame_ms.back().copied().unwrap_or(0.0);
+            ui.label(format!("{} · {:.1} ms/frame · {:.0} fps", state.adapter, last, 1000.0 / last.max(0.01)));
+            if let Some((msg, error)) = &state.status {
+                ui.colored_label(if *error { Color32::LIGHT_RED } else { Color32::LIGHT_GREEN }, msg);
+            }
+
+            egui::CollapsingHeader::new("Simulation").default_open(true).show(ui, |ui| {
+                ui.horizontal(|ui| {
+                    if ui.button(if session.paused { "▶ run (P)" } else { "⏸ pause (P)" }).clicked() {
+                        session.paused = !session.paused;
+                    }
+                    if ui.button("step (N)").clicked() {
+                        session.single_step();
+                    }
+                    ui.checkbox(&mut session.physics, "physics");
+                });
+                ui.horizontal(|ui| {
+                    ui.add(Slider::new(&mut state.sphere_count, 0..=4096).logarithmic(true).text("spheres"));
+                    if ui.button("reset (R)").on_hover_text("fresh snow, spheres at new random places").clicked() {
+                        actions.push(Action::Reset(state.sphere_count));
+                    }
+                });
+                ui.checkbox(&mut session.player.enabled, "player sphere (WASD in follow mode)");
+                ui.add(Slider::new(&mut session.player.radius, 0.1..=2.0).text("player radius").suffix(" m"));
+                ui.add(Slider::new(&mut session.player.sink, 0.0..=1.0).text("player sinks").suffix(" × depth"));
+                ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("player speed").suffix(" m/s"));
+                ComboBox::from_label("window follows").selected_text(WindowFollow::ALL.iter().find(|f| f.0 == session.follow).map_or("", |f| f.1)).show_ui(ui, |ui| {
+                    for (f, name) in WindowFollow::ALL {
+                        ui.selectable_value(&mut session.follow, f, name);
+                    }
+                });
+            });
+
+            egui::CollapsingHeader::new("Technique").default_open(true).show(ui, |ui| {
+                ui.horizontal(|ui| {
+                    for (k, t) in Technique::ALL.iter().enumerate() {
+                        ui.radio_value(&mut session.snow_params.technique, *t, format!("{} ({})", t.as_str(), k + 1));
+                    }
+                });
+            });
+
+            egui::CollapsingHeader::new("Deformation").default_open(true).show(ui, |ui| {
+                let p = &mut session.snow_params;
+                ui.add(Slider::new(&mut p.refill_m_per_s, 0.0..=0.1).logarithmic(true).smallest_positive(1e-4).max_decimals(4).text("refill").suffix(" m/s"));
+                ui.add(Slider::new(&mut p.elevation, 0.0..=4.0).text("rim elevation"));
+                ui.checkbox(&mut p.blur, "5x5 Gaussian blur");
+                ui.add(Slider::new(&mut p.range_texels, 32..=128).text("point range").suffix(" texels"));
+                ComboBox::from_label("point rim").selected_text(p.rim.as_str()).show_ui(ui, |ui| {
+                    ui.selectable_value(&mut p.rim, RimStyle::Rounded, RimStyle::Rounded.as_str());
+                    ui.selectable_value(&mut p.rim, RimStyle::Ms16, RimStyle::Ms16.as_str());
+                });
+                ui.separator();
+                ui.label("These rebuild the window (fresh snow):");
+                ui.add(Slider::new(&mut p.depth_m, 0.05..=3.0).text("snow depth").suffix(" m"));
+                ui.add(Slider::new(&mut p.extent_m, 4.0..=256.0).logarithmic(true).text("window").suffix(" m"));
+                let mut log2 = p.resolution.ilog2();
+                ui.add(Slider::new(&mut log2, 6..=12).text("resolution").custom_formatter(|v, _| format!("{}²", 1u32 << v as u32)));
+                p.resolution = 1 << log2;
+                ui.label(format!("{:.1} cm per texel", p.extent_m / p.resolution as f32 * 100.0));
+                let rp = &mut session.render_params;
+                ui.add(Slider::new(&mut rp.shadow_map_size, 512..=8192).logarithmic(true).text("shadow map").suffix(" texels"));
+                if ui.add_enabled(session.needs_rebuild(), egui::Button::new("apply (fresh snow)")).clicked() {
+                    actions.push(Action::Rebuild);
+                }
+            });
+
+            egui::CollapsingHeader::new("Material").default_open(false).show(ui, |ui| material_ui(ui, &mut session.render_params.material));
+
+            egui::CollapsingHeader::new("Light").default_open(false).show(ui, |ui| {
+                let light = &mut session.render_params.light;
+                let mut from_sky = light.sun_direction.is_none();
+                ui.checkbox(&mut from_sky, "sun from the sky's brightest point");
+                if from_sky {
+                    light.sun_direction = None;
+                } else {
+                    let (mut elevation, mut azimuth) = sun_angles(light.sun_direction.unwrap_or_else(|| session.renderer.sun_direction()));
+                    ui.add(Slider::new(&mut elevation, 0.5..=90.0).text("sun elevation").suffix("°"));
+                    ui.add(Slider::new(&mut azimuth, 0.0..=360.0).text("sun azimuth").suffix("°"));
+                    light.sun_direction = Some(sun_from_angles(elevation, azimuth));
+                }
+                ui.add(Slider::new(&mut light.sun_intensity, 0.0..=10.0).text("sun intensity"));
+                ui.add(Slider::new(&mut light.sky_intensity, 0.0..=4.0).text("sky intensity"));
+                ui.add(Slider::new(&mut light.exposure_ev, -6.0..=6.0).text("exposure").suffix(" EV"));
+                let rp = &mut session.render_params;
+                ui.add(Slider::new(&mut rp.ao_strength, 0.0..=2.0).text("ambient occlusion"));
+                ui.add(Slider::new(&mut rp.shadow_distance_m, 10.0..=500.0).logarithmic(true).text("shadow distance").suffix(" m"));
+                ui.add(Slider::new(&mut rp.view_distance_m, 50.0..=5000.0).logarithmic(true).text("view distance").suffix(" m"));
+            });
+
+            egui::CollapsingHeader::new("Debug view (V)").default_open(false).show(ui, |ui| {
+                for (v, name) in DebugView::ALL {
+                    ui.radio_value(&mut session.render_params.debug_view, v, name);
+                }
+            });
+
+            egui::CollapsingHeader::new("Camera (Tab)").default_open(false).show(ui, |ui| {
+                let mut mode = rig.mode;
+                for (m, name) in CameraMode::ALL {
+                    ui.radio_value(&mut mode, m, name);
+                }
+                if mode != rig.mode {
+                    actions.push(Action::CameraMode(mode));
+                }
+                ui.add(Slider::new(&mut rig.fov_deg, 20.0..=110.0).text("field of view").suffix("°"));
+                ui.add(Slider::new(&mut rig.speed, 0.5..=500.0).logarithmic(true).text("fly speed").suffix(" m/s"));
+            });
+
+            egui::CollapsingHeader::new("Scene file").default_open(false).show(ui, |ui| {
+                ui.text_edit_singleline(&mut state.scene_path);
+                ui.horizontal(|ui| {
+                    if ui.button("load").clicked() {
+                        actions.push(Action::Load(state.scene_path.clone()));
+                    }
+                    if ui.button("save").clicked() {
+                        actions.push(Action::Save(state.scene_path.clone()));
+                    }
+                });
+            });
+
+            egui::CollapsingHeader::new("Timings").default_open(true).show(ui, |ui| {
+                frame_graph(ui, &state.frame_ms);
+                if state.timestamps {
+                    timing_table(ui, "deformation (GPU)", &session.timings.deform);
+                    timing_table(ui, "rendering (GPU)", &session.timings.render);
+                } else {
+                    ui.label("GPU timings: this adapter has no timestamp queries");
+                }
+                let stats = session.renderer.stats();
+                let p = session.snow.params();
+                ui.label(format!(
+                    "actors {} (spheres {}) · window {}² over {} m · surface {}x{} · vsync {}",
+                    session.deformers().len(),
+                    session.sphere_count(),
+                    p.resolution,
+                    p.extent_m,
+                    state.surface.0,
+                    state.surface.1,
+                    if state.vsync { "on" } else { "off" }
+                ));
+                ui.label(format!(
+                    "terrain {} patches, {} triangles, levels {}–{} · GPU memory {:.1} MiB",
+                    stats.patches,
+                    stats.terrain_triangles,
+                    stats.levels.0,
+                    stats.levels.1,
+                    session.memory_bytes() as f64 / (1024.0 * 1024.0)
+                ));
+            });
+
+            egui::CollapsingHeader::new("Keys").default_open(false).show(ui, |ui| {
+                ui.label("1–4 technique · R reset · P pause · N step · Tab camera · V view · H panel");
+                ui.label("orbit: left drag turn, right drag pan, wheel zoom");
+                ui.label("fly: right drag look, WASD move, Q/E down/up, wheel speed, Shift fast");
+                ui.label("follow: WASD drives the player, right drag turns, wheel zoom");
+            });
+        });
+    });
+    actions
+}

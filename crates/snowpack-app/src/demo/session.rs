@@ -1,0 +1,285 @@
+//! What the demo simulates and draws, apart from the window: the scene, the
+//! test-bed world, the player's sphere, the deformation window and the
+//! renderer, with the operations the panel and the keys ask for.
+
+use std::sync::Arc;
+
+use anyhow::Context as _;
+use glam::{DVec2, Vec2, Vec3};
+use snowpack::gpu::PassTimings;
+use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams};
+use snowpack_scene::{Scene, SpawnSpec, WindowSpec, World};
+
+/// The sphere the player drives.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Player {
+    /// Whether it is in the world (pressing snow).
+    pub enabled: bool,
+    /// Centre (m).
+    pub position: Vec3,
+    /// Radius (m).
+    pub radius: f32,
+    /// How far its lowest point sinks below the rest snow, as a fraction of the depth.
+    pub sink: f32,
+    /// Walking speed (m/s).
+    pub speed: f32,
+}
+
+/// Where the deformation window is centred.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WindowFollow {
+    /// As the scene file says.
+    Scene,
+    /// The player's sphere.
+    Player,
+    /// The camera.
+    Camera,
+}
+
+impl WindowFollow {
+    /// Every option with its label.
+    pub const ALL: [(Self, &'static str); 3] = [(Self::Scene, "as the scene says"), (Self::Player, "the player"), (Self::Camera, "the camera")];
+}
+
+/// Per-pass GPU medians over the last timing period.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TimingReport {
+    /// Deformation passes (name, ms).
+    pub deform: Vec<(String, f64)>,
+    /// Render passes (name, ms).
+    pub render: Vec<(String, f64)>,
+}
+
+fn passes(t: PassTimings) -> Vec<(String, f64)> {
+    t.passes.into_iter().map(|(n, ms, _)| (n, ms)).collect()
+}
+
+/// The simulation and its renderer.
+pub struct Session {
+    /// The scene as loaded, with the panel's edits applied to its fields.
+    pub scene: Scene,
+    /// Actors and test-bed spheres.
+    pub world: World,
+    /// The deformation window.
+    pub snow: SnowDeformation,
+    /// The renderer, drawing into the window's format.
+    pub renderer: Renderer,
+    /// The player's sphere.
+    pub player: Player,
+    /// What the window follows.
+    pub follow: WindowFollow,
+    /// Simulation paused.
+    pub paused: bool,
+    /// Test-bed physics on.
+    pub physics: bool,
+    /// Frames simulated since the last reset.
+    pub frames: u64,
+    /// Deformation parameters as the panel edits them (applied each frame).
+    pub snow_params: SnowParams,
+    /// Render parameters as the panel edits them.
+    pub render_params: RenderParams,
+    /// Latest timing medians.
+    pub timings: TimingReport,
+    env: Arc<EnvironmentMap>,
+    format: wgpu::TextureFormat,
+    step_once: bool,
+    reset_seed: u64,
+}
+
+impl Session {
+    /// Builds everything for `scene`, drawing into `format`.
+    pub fn new(ctx: &GpuContext, scene: Scene, format: wgpu::TextureFormat) -> anyhow::Result<Self> {
+        let env = scene.render.environment_map();
+        let world = World::new(&scene);
+        let snow_params = scene.snow.clone();
+        let render_params = scene.render.params;
+        let center = scene_center(&scene, &world);
+        let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
+        let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
+        let start = Vec2::new(center.x as f32, center.y as f32);
+        let radius = 0.5;
+        let mut player = Player { enabled: true, position: Vec3::ZERO, radius, sink: 0.6, speed: 4.0 };
+        player.position = player_height(&scene, &snow_params, start, &player);
+        Ok(Self {
+            follow: WindowFollow::Scene,
+            world,
+            snow,
+            renderer,
+            player,
+            paused: false,
+            physics: true,
+            frames: 0,
+            snow_params,
+            render_params,
+            timings: TimingReport::default(),
+            env,
+            format,
+            step_once: false,
+            reset_seed: scene.spawns.first().map_or(7, |s| s.seed),
+            scene,
+        })
+    }
+
+    /// Spheres of the test bed now.
+    #[must_use]
+    pub fn sphere_count(&self) -> usize {
+        self.world.body_count()
+    }
+
+    /// Advances one frame even while paused.
+    pub fn single_step(&mut self) {
+        self.step_once = true;
+    }
+
+    /// Everything pressing the snow this frame.
+    #[must_use]
+    pub fn deformers(&self) -> Vec<Deformer> {
+        let mut d = self.world.deformers();
+        if self.player.enabled {
+            d.push(Deformer::Sphere { center: self.player.position, radius: self.player.radius });
+        }
+        d
+    }
+
+    /// Moves the player by `dir` (ground plane, length up to 1) for `dt` seconds.
+    pub fn drive_player(&mut self, dir: Vec2, fast: bool, dt: f32) {
+        let step = dir.clamp_length_max(1.0) * self.player.speed * if fast { 2.5 } else { 1.0 } * dt;
+        let xz = Vec2::new(self.player.position.x, self.player.position.z) + step;
+        self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
+    }
+
+    /// Centre of the deformation window this frame.
+    fn window_center(&self, camera: Vec3) -> DVec2 {
+        match self.follow {
+            WindowFollow::Scene => match self.scene.window {
+                WindowSpec::FollowCamera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
+                _ => scene_center(&self.scene, &self.world),
+            },
+            WindowFollow::Player => DVec2::new(f64::from(self.player.position.x), f64::from(self.player.position.z)),
+            WindowFollow::Camera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
+        }
+    }
+
+    /// Applies the panel's parameters that change without rebuilding.
+    fn apply_live_params(&mut self) {
+        let p = &self.snow_params;
+        let live = self.snow.params().clone();
+        if live.technique != p.technique {
+            self.snow.set_technique(p.technique);
+        }
+        if live.refill_m_per_s != p.refill_m_per_s {
+            self.snow.set_refill(p.refill_m_per_s);
+        }
+        if live.elevation != p.elevation {
+            self.snow.set_elevation(p.elevation);
+        }
+        if live.blur != p.blur {
+            self.snow.set_blur(p.blur);
+        }
+        if live.range_texels != p.range_texels || live.rim != p.rim {
+            self.snow.set_points(p.range_texels, p.rim);
+        }
+        if *self.renderer.params() != self.render_params {
+            self.renderer.set_params(self.render_params);
+        }
+    }
+
+    /// Whether the panel changed a parameter that needs [`Self::rebuild`].
+    #[must_use]
+    pub fn needs_rebuild(&self) -> bool {
+        let live = self.snow.params();
+        live.extent_m != self.snow_params.extent_m
+            || live.resolution != self.snow_params.resolution
+            || live.depth_m != self.snow_params.depth_m
+            || self.renderer.params().shadow_map_size != self.render_params.shadow_map_size
+            || self.renderer.params().patch_quads != self.render_params.patch_quads
+    }
+
+    /// Records one simulation frame (when running) into `encoder`; the
+    /// deformation's [`SnowDeformation::after_submit`] follows the submit.
+    pub fn encode_step(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, camera: Vec3) -> bool {
+        self.apply_live_params();
+        if self.paused && !self.step_once {
+            return false;
+        }
+        self.step_once = false;
+        let dt = self.scene.sim.dt_s;
+        if self.physics {
+            self.world.step(dt);
+        }
+        self.snow.set_center(self.window_center(camera));
+        let deformers = self.deformers();
+        self.snow.encode(ctx, encoder, &deformers, dt);
+        self.frames += 1;
+        if self.frames.is_multiple_of(30) {
+            self.timings = TimingReport { deform: passes(self.snow.timings()), render: passes(self.renderer.timings()) };
+            self.snow.clear_timings();
+            self.renderer.clear_timings();
+        }
+        true
+    }
+
+    /// Restores fresh snow and places `count` test-bed spheres anew (a new seed
+    /// each time), keeping every parameter.
+    pub fn reset(&mut self, ctx: &GpuContext, count: u32) -> anyhow::Result<()> {
+        self.reset_seed = self.reset_seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407) >> 1;
+        let radius = self.scene.spawns.first().map_or(0.5, |s| s.radius_m);
+        self.scene.spawns = vec![SpawnSpec { count, radius_m: radius, seed: self.reset_seed & 0xffff_ffff }];
+        self.rebuild(ctx)
+    }
+
+    /// Rebuilds the window and renderer with the panel's parameters (fresh snow).
+    pub fn rebuild(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
+        self.scene.snow = self.snow_params.clone();
+        self.scene.render.params = self.render_params;
+        self.world = World::new(&self.scene);
+        let center = scene_center(&self.scene, &self.world);
+        let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
+        let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
+        self.snow = snow;
+        self.renderer = renderer;
+        self.frames = 0;
+        let xz = Vec2::new(center.x as f32, center.y as f32);
+        self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
+        Ok(())
+    }
+
+    /// Replaces the scene (a loaded file) and rebuilds everything.
+    pub fn load(&mut self, ctx: &GpuContext, scene: Scene) -> anyhow::Result<()> {
+        let fresh = Self::new(ctx, scene, self.format)?;
+        *self = Self { follow: self.follow, paused: self.paused, ..fresh };
+        Ok(())
+    }
+
+    /// The scene with the panel's edits, for saving; `camera` is the view now.
+    #[must_use]
+    pub fn scene_to_save(&self, camera: &snowpack::Camera) -> Scene {
+        let mut scene = self.scene.clone();
+        scene.snow = self.snow_params.clone();
+        scene.render.params = self.render_params;
+        scene.camera.position = camera.position;
+        scene.camera.target = camera.target;
+        scene.camera.fov_deg = camera.fov_deg;
+        scene
+    }
+
+    /// GPU memory held by snowpack's resources (deformation and renderer).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.snow.memory_bytes().iter().map(|m| m.1).sum::<u64>() + self.renderer.memory_bytes()
+    }
+}
+
+fn scene_center(scene: &Scene, world: &World) -> DVec2 {
+    match &scene.window {
+        WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
+        WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
+        WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
+    }
+}
+
+/// The player's centre at `xz`: its lowest point `sink` of the depth below the rest snow.
+fn player_height(scene: &Scene, snow: &SnowParams, xz: Vec2, player: &Player) -> Vec3 {
+    let rest = scene.terrain.height_at(xz.x, xz.y) + snow.depth_m;
+    Vec3::new(xz.x, rest - player.sink * snow.depth_m + player.radius, xz.y)
+}

@@ -1,0 +1,201 @@
+//! End-to-end tests of the interactive demo: the real binary opens a real
+//! window on an X server (Xvfb, which `.ci/run` installs), renders with the
+//! software adapter, follows a script of key and window events, and writes
+//! screenshots of the window's own image.
+//!
+//! Without Xvfb these tests skip, unless `SNOWPACK_REQUIRE_GPU` is set (CI),
+//! where a missing X server is a failure.
+
+use std::io::{BufRead as _, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+/// A private X server for one test, stopped on drop.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start() -> Option<Self> {
+        let spawned = Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn();
+        let mut child = match spawned {
+            Ok(c) => c,
+            Err(e) => {
+                assert!(
+                    !snowpack::testing::gpu_required(),
+                    "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb"
+                );
+                eprintln!("skipping the demo test: no Xvfb ({e})");
+                return None;
+            }
+        };
+        // Xvfb writes the display number it chose once it accepts connections.
+        let mut line = String::new();
+        let stdout = child.stdout.take().expect("piped stdout");
+        BufReader::new(stdout).read_line(&mut line).expect("reading Xvfb's display number");
+        let number = line.trim();
+        assert!(!number.is_empty() && number.chars().all(|c| c.is_ascii_digit()), "Xvfb printed {line:?}");
+        Some(Self { child, display: format!(":{number}") })
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+struct Temp(PathBuf);
+
+impl Temp {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("snowpack-demo-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        Self(dir)
+    }
+}
+
+impl Drop for Temp {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A small scene so a software rasteriser runs it quickly: 24 spheres dropped
+/// on gentle hills, a 16 m window at 256².
+const SCENE: &str = r#"
+[snow]
+extent_m = 16.0
+resolution = 256
+depth_m = 0.5
+
+[terrain]
+kind = "noise"
+seed = 5
+amplitude_m = 0.5
+wavelength_m = 12.0
+
+[[spawn]]
+kind = "sphere"
+count = 24
+radius_m = 0.4
+seed = 9
+
+[render]
+shadow_map_size = 1024
+
+[camera]
+position = [0.0, 7.0, -11.0]
+target = [0.0, 0.0, 0.0]
+"#;
+
+struct DemoRun {
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs the demo on a fresh X server with a script; fails the test on a non-zero exit.
+fn run_demo(dir: &Path, frames: u32, script: &str, screenshot: Option<&str>) -> Option<DemoRun> {
+    let x = Xvfb::start()?;
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let script_path = dir.join("script.txt");
+    std::fs::write(&script_path, script).expect("script");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_snowpack"));
+    cmd.env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("SNOWPACK_LOG", "warn,snowpack=info")
+        .args(["--scene".as_ref(), scene.as_os_str()])
+        .args(["--script".as_ref(), script_path.as_os_str()])
+        .args(["--exit-after-frames", &frames.to_string(), "--window-size", "480x300", "--no-vsync"]);
+    if let Some(name) = screenshot {
+        cmd.args(["--screenshot".as_ref(), dir.join(name).as_os_str()]);
+    }
+    let out = cmd.output().expect("running snowpack");
+    let run = DemoRun { stdout: String::from_utf8_lossy(&out.stdout).into_owned(), stderr: String::from_utf8_lossy(&out.stderr).into_owned() };
+    assert!(out.status.success(), "demo exited with {:?}\nstdout:\n{}\nstderr:\n{}", out.status.code(), run.stdout, run.stderr);
+    assert!(!run.stderr.contains("panicked"), "a panic was reported:\n{}", run.stderr);
+    Some(run)
+}
+
+fn load_rgb(path: &Path) -> (Vec<u8>, u32, u32) {
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
+    let (w, h) = img.dimensions();
+    (img.into_raw(), w, h)
+}
+
+/// Standard deviation of luma: a blank (one-colour) image scores 0.
+fn luma_spread(rgb: &[u8]) -> f64 {
+    let luma: Vec<f64> = rgb.chunks_exact(3).map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])).collect();
+    let mean = luma.iter().sum::<f64>() / luma.len() as f64;
+    (luma.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / luma.len() as f64).sqrt()
+}
+
+fn mean_abs_difference(a: &[u8], b: &[u8]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| f64::from(x.abs_diff(*y))).sum::<f64>() / a.len() as f64
+}
+
+/// The summary line the demo prints at exit: `demo: F frames, S spheres, N simulated ...`.
+fn summary_number(stdout: &str, after: &str) -> u64 {
+    let line = stdout.lines().find(|l| l.starts_with("demo: ")).unwrap_or_else(|| panic!("no summary in:\n{stdout}"));
+    let words: Vec<&str> = line.split([' ', ',']).filter(|w| !w.is_empty()).collect();
+    let k = words.iter().position(|w| *w == after).unwrap_or_else(|| panic!("no {after:?} in {line:?}"));
+    words[k - 1].parse().unwrap_or_else(|_| panic!("no number before {after:?} in {line:?}"))
+}
+
+#[test]
+fn the_demo_opens_a_window_runs_90_frames_and_screenshots_it() {
+    let dir = Temp::new("open");
+    let Some(run) = run_demo(&dir.0, 90, "# no input\n", Some("shot.png")) else { return };
+    assert_eq!(summary_number(&run.stdout, "frames"), 90, "{}", run.stdout);
+    assert_eq!(summary_number(&run.stdout, "spheres"), 24, "{}", run.stdout);
+    assert_eq!(summary_number(&run.stdout, "simulated"), 90, "{}", run.stdout);
+    let (rgb, w, h) = load_rgb(&dir.0.join("shot.png"));
+    // The window's physical size (480x300 logical at the X server's scale of 1).
+    assert_eq!((w, h), (480, 300));
+    let spread = luma_spread(&rgb);
+    assert!(spread > 20.0, "the screenshot is nearly blank (luma spread {spread:.1})");
+    // Snow: many bright pixels right of the panel; the panel: dark pixels on the left.
+    let bright = rgb.chunks_exact(3).filter(|p| p.iter().all(|&c| c > 170)).count();
+    assert!(bright > (w * h / 20) as usize, "only {bright} bright (snow) pixels");
+    let dark_left = (0..h as usize).filter(|&y| rgb[(y * w as usize + 20) * 3] < 60).count();
+    assert!(dark_left > h as usize / 2, "no panel on the left ({dark_left} dark rows)");
+}
+
+#[test]
+fn a_scripted_technique_switch_and_reset_change_the_picture() {
+    let dir = Temp::new("switch");
+    // Hide the panel so the comparison is of the snow; spheres settle, then
+    // the technique switches to decals and the scene resets.
+    let script = "0 key H\n40 screenshot before.png\n41 key Digit3\n42 key R\n";
+    let Some(run) = run_demo(&dir.0, 70, script, Some("after.png")) else { return };
+    assert!(run.stdout.contains("technique decals"), "the switch did not happen:\n{}", run.stdout);
+    // The reset at the start of frame 42 restarted the simulation: frames 42..=69 since.
+    assert_eq!(summary_number(&run.stdout, "simulated"), 28, "{}", run.stdout);
+    assert!(run.stderr.contains("reset: fresh snow, 24 spheres"), "{}", run.stderr);
+    let (before, ..) = load_rgb(&dir.0.join("before.png"));
+    let (after, ..) = load_rgb(&dir.0.join("after.png"));
+    assert!(luma_spread(&before) > 10.0 && luma_spread(&after) > 10.0, "a blank screenshot");
+    let diff = mean_abs_difference(&before, &after);
+    assert!(diff > 2.0, "the picture barely changed after the switch and reset ({diff:.2}/255)");
+}
+
+#[test]
+fn minimise_restore_and_a_1x1_window_do_not_crash() {
+    let dir = Temp::new("resize");
+    let script = "10 resize 1 1\n20 resize 480 300\n25 minimize\n40 restore\n";
+    let Some(run) = run_demo(&dir.0, 60, script, Some("shot.png")) else { return };
+    // Every frame ran, minimised ones included (the simulation does not stop).
+    assert_eq!(summary_number(&run.stdout, "frames"), 60, "{}", run.stdout);
+    assert_eq!(summary_number(&run.stdout, "simulated"), 60, "{}", run.stdout);
+    let (rgb, w, h) = load_rgb(&dir.0.join("shot.png"));
+    assert_eq!((w, h), (480, 300), "the window did not come back to its size");
+    assert!(luma_spread(&rgb) > 20.0, "blank after restore");
+}
