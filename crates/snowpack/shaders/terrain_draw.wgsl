@@ -19,6 +19,7 @@ struct VsOut {
     @location(0) world: vec3<f32>,
     @location(1) grid: vec2<f32>,
     @location(2) @interpolate(flat) level: u32,
+    @location(3) @interpolate(flat) quads: f32,
 }
 
 // Same as `lod_bonus` in src/render/lod.rs: detail is shifted closer by up
@@ -136,6 +137,7 @@ fn node_vertex(vi: u32, node: Node) -> VsOut {
     out.world = world;
     out.grid = morphed;
     out.level = u32(node.morph.z);
+    out.quads = node.node.w;
     return out;
 }
 
@@ -239,8 +241,15 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         }
         case VIEW_WIREFRAME: {
             let f = abs(fract(in.grid - 0.5) - 0.5) / max(grid_w, vec2<f32>(1e-5));
-            let line = 1.0 - clamp(min(f.x, f.y), 0.0, 1.0);
-            colour = mix(colour, lod_colour(in.level) * 2.0, line);
+            // Fade the lines where quads shrink below ~5 pixels, so distant
+            // levels show their colour instead of a moire of lines.
+            let density = max(grid_w.x, grid_w.y);
+            let line = (1.0 - clamp(min(f.x, f.y), 0.0, 1.0)) * clamp(1.0 - (density - 0.2) / 0.15, 0.15, 1.0);
+            // Patch borders stay visible at any distance: the quadtree's layout.
+            let in_patch = in.grid / in.quads;
+            let pf = abs(fract(in_patch - 0.5) - 0.5) / max(grid_w / in.quads, vec2<f32>(1e-6));
+            let border = 1.0 - clamp(min(pf.x, pf.y) - 0.5, 0.0, 1.0);
+            colour = mix(colour, lod_colour(in.level) * 2.0, max(line, border));
         }
         case VIEW_DEFORMATION: {
             // Red: pressed below rest (fraction of the depth); blue: raised (rims).

@@ -117,7 +117,11 @@ impl CameraRig {
         match mode {
             CameraMode::Fly => self.eye = camera.position,
             CameraMode::Orbit => self.target = camera.position + self.forward() * self.distance,
-            CameraMode::Follow => self.distance = self.distance.clamp(2.0, 40.0),
+            CameraMode::Follow => {
+                // Third person: a few metres behind and above, looking a little down.
+                self.distance = 8.0;
+                self.pitch = -0.4;
+            }
         }
     }
 

@@ -331,6 +331,14 @@ impl Gfx {
                     self.panel.sphere_count = self.session.sphere_count() as u32;
                     Ok(format!("loaded {path}"))
                 }),
+            Action::Vsync(on) => {
+                self.panel.vsync = on;
+                self.config.present_mode = if on { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync };
+                if !self.hidden {
+                    self.surface.configure(&self.ctx.device, &self.config);
+                }
+                Ok(format!("vsync {}", if on { "on" } else { "off" }))
+            }
             Action::Save(path) => {
                 let camera = self.rig.camera(self.player());
                 let dest = PathBuf::from(&path);
@@ -432,9 +440,11 @@ impl Gfx {
     /// Simulates, draws and presents one frame.
     fn frame(&mut self) -> anyhow::Result<()> {
         let now = Instant::now();
-        let dt = (now - self.last).as_secs_f32().min(0.1);
+        let elapsed = (now - self.last).as_secs_f32();
         self.last = now;
-        self.panel.push_frame_time(dt * 1000.0);
+        self.panel.push_frame_time(elapsed * 1000.0);
+        // Camera and player move by wall time, capped so a stall does not teleport them.
+        let dt = elapsed.min(0.1);
         if let Some(reason) = &self.lost {
             anyhow::bail!("the GPU device was lost: {reason}");
         }

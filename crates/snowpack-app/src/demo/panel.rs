@@ -25,6 +25,8 @@ pub enum Action {
     Save(String),
     /// Change the camera mode.
     CameraMode(CameraMode),
+    /// Turn waiting for vertical sync on or off.
+    Vsync(bool),
 }
 
 /// State the panel keeps between frames.
@@ -253,6 +255,10 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 }
                 ui.add(Slider::new(&mut rig.fov_deg, 20.0..=110.0).text("field of view").suffix("°"));
                 ui.add(Slider::new(&mut rig.speed, 0.5..=500.0).logarithmic(true).text("fly speed").suffix(" m/s"));
+                let mut vsync = state.vsync;
+                if ui.checkbox(&mut vsync, "vsync").changed() {
+                    actions.push(Action::Vsync(vsync));
+                }
             });
 
             egui::CollapsingHeader::new("Scene file").default_open(false).show(ui, |ui| {
