@@ -7,8 +7,11 @@
 //! where a missing X server is a failure.
 
 use std::io::{BufRead as _, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
+
+mod common;
+use common::Temp;
 
 /// A private X server for one test, stopped on drop.
 struct Xvfb {
@@ -51,22 +54,6 @@ impl Drop for Xvfb {
     }
 }
 
-struct Temp(PathBuf);
-
-impl Temp {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("snowpack-demo-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        Self(dir)
-    }
-}
-
-impl Drop for Temp {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// A small scene so a software rasteriser runs it quickly: 24 spheres dropped
 /// on gentle hills, a 16 m window at 256².
@@ -152,7 +139,7 @@ fn summary_number(stdout: &str, after: &str) -> u64 {
 
 #[test]
 fn the_demo_opens_a_window_runs_90_frames_and_screenshots_it() {
-    let dir = Temp::new("open");
+    let dir = Temp::new("demo-open");
     let Some(run) = run_demo(&dir.0, 90, "# no input\n", Some("shot.png")) else { return };
     assert_eq!(summary_number(&run.stdout, "frames"), 90, "{}", run.stdout);
     assert_eq!(summary_number(&run.stdout, "spheres"), 24, "{}", run.stdout);
@@ -171,7 +158,7 @@ fn the_demo_opens_a_window_runs_90_frames_and_screenshots_it() {
 
 #[test]
 fn a_scripted_technique_switch_and_reset_change_the_picture() {
-    let dir = Temp::new("switch");
+    let dir = Temp::new("demo-switch");
     // Hide the panel so the comparison is of the snow; spheres settle, then
     // the technique switches to decals and the scene resets.
     let script = "0 key H\n40 screenshot before.png\n41 key Digit3\n42 key R\n";
@@ -189,7 +176,7 @@ fn a_scripted_technique_switch_and_reset_change_the_picture() {
 
 #[test]
 fn minimise_restore_and_a_1x1_window_do_not_crash() {
-    let dir = Temp::new("resize");
+    let dir = Temp::new("demo-resize");
     let script = "10 resize 1 1\n20 resize 480 300\n25 minimize\n40 restore\n";
     let Some(run) = run_demo(&dir.0, 60, script, Some("shot.png")) else { return };
     // Every frame ran, minimised ones included (the simulation does not stop).
@@ -198,4 +185,32 @@ fn minimise_restore_and_a_1x1_window_do_not_crash() {
     let (rgb, w, h) = load_rgb(&dir.0.join("shot.png"));
     assert_eq!((w, h), (480, 300), "the window did not come back to its size");
     assert!(luma_spread(&rgb) > 20.0, "blank after restore");
+}
+
+/// Bad demo options are bad input (exit code 2, a message naming the problem),
+/// found before any window or GPU is touched.
+#[test]
+fn bad_demo_options_exit_2_before_opening_anything() {
+    let dir = Temp::new("demo-bad");
+    let script = dir.0.join("bad.txt");
+    std::fs::write(&script, "5 key R\n7 jump 3\n").expect("script");
+    let run = |args: &[&std::ffi::OsStr], display: Option<&str>| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_snowpack"));
+        cmd.env_remove("WAYLAND_DISPLAY").env_remove("DISPLAY").args(args);
+        if let Some(d) = display {
+            // A display nobody serves: the checks must come before connecting.
+            cmd.env("DISPLAY", d);
+        }
+        let out = cmd.output().expect("running snowpack");
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (code, err) = run(&["demo".as_ref(), "--script".as_ref(), script.as_os_str()], Some(":9999"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("bad.txt: line 2") && err.contains("jump"), "{err}");
+    let (code, err) = run(&["demo".as_ref(), "--screenshot".as_ref(), "x.png".as_ref()], Some(":9999"));
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--exit-after-frames"), "{err}");
+    let (code, err) = run(&["--exit-after-frames".as_ref(), "5".as_ref()], None);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("display"), "{err}");
 }

@@ -4,6 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::Temp;
+
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
     c.env("SNOWPACK_LOG", "error");
@@ -14,22 +17,6 @@ fn gpu_available() -> bool {
     snowpack::testing::gpu().is_some()
 }
 
-struct Temp(PathBuf);
-
-impl Temp {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("snowpack-test-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("temp dir");
-        Self(dir)
-    }
-}
-
-impl Drop for Temp {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 struct Grid {
     res: usize,

@@ -635,7 +635,7 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
         params.shadow_map_size = r.u32_in("shadow_map_size", defaults.shadow_map_size, 256..=8192)?;
         params.finest_patch_m = r.positive("finest_patch_m", defaults.finest_patch_m, " of metres")?;
         params.patch_quads = r.u32_in("patch_quads", defaults.patch_quads, 4..=64)?;
-        if params.patch_quads % 4 != 0 {
+        if !params.patch_quads.is_multiple_of(4) {
             return Err(r.err("patch_quads", format!("{} is not a multiple of 4", params.patch_quads)));
         }
         params.ao_strength = r.non_negative("ao_strength", defaults.ao_strength, "")?;

@@ -21,6 +21,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use glam::{Vec2, Vec3};
 use snowpack::render::DebugView;
+use snowpack::gpu::readback::TextureReadback;
 use snowpack::{GpuContext, Technique};
 use snowpack_scene::Scene;
 use winit::application::ApplicationHandler;
@@ -522,23 +523,11 @@ impl Gfx {
         let jobs = self.egui_ctx.tessellate(output.shapes, ppp);
         let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: [size.0, size.1], pixels_per_point: ppp };
         let extra = self.egui_renderer.update_buffers(device, &self.ctx.queue, &mut encoder, &jobs, &screen);
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("panel"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.egui_renderer.render(&mut pass.forget_lifetime(), &jobs, &screen);
-        }
-        let capture = self.screenshot.take().map(|path| (path, ScreenCapture::record(device, &mut encoder, &frame.texture, self.copy_src)));
+        draw_panel(&self.egui_renderer, &mut encoder, &view, &jobs, &screen);
+        let capture = self.screenshot.take().map(|path| {
+            let copy = self.copy_src.then(|| TextureReadback::record(device, &mut encoder, &frame.texture));
+            (path, copy)
+        });
         self.ctx.queue.submit(extra.into_iter().chain([encoder.finish()]));
         if let Some((path, capture)) = capture {
             let capture = match capture {
@@ -546,7 +535,7 @@ impl Gfx {
                 // No COPY_SRC on this surface: draw the same frame again into an image.
                 None => self.offscreen_capture(&camera, &deformers, &jobs, &screen)?,
             };
-            capture.save(&self.ctx, &path, self.config.format)?;
+            save_screenshot(&self.ctx, &capture, &path, self.config.format)?;
             tracing::info!("screenshot written to {}", path.display());
         }
         self.window.pre_present_notify();
@@ -582,7 +571,7 @@ impl Gfx {
         deformers: &[snowpack::Deformer],
         jobs: &[egui::ClippedPrimitive],
         screen: &egui_wgpu::ScreenDescriptor,
-    ) -> anyhow::Result<ScreenCapture> {
+    ) -> anyhow::Result<TextureReadback> {
         let device = &self.ctx.device;
         let size = (self.config.width, self.config.height);
         let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -599,82 +588,50 @@ impl Gfx {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("screenshot") });
         self.session.renderer.encode(&self.ctx, &mut encoder, &self.session.snow, deformers, camera, &view, size);
         let extra = self.egui_renderer.update_buffers(device, &self.ctx.queue, &mut encoder, jobs, screen);
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("panel (screenshot)"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.egui_renderer.render(&mut pass.forget_lifetime(), jobs, screen);
-        }
-        let capture = ScreenCapture::record(device, &mut encoder, &texture, true).context("recording the screenshot copy")?;
+        draw_panel(&self.egui_renderer, &mut encoder, &view, jobs, screen);
+        let capture = TextureReadback::record(device, &mut encoder, &texture);
         self.ctx.queue.submit(extra.into_iter().chain([encoder.finish()]));
         self.session.renderer.after_submit(&self.ctx);
         Ok(capture)
     }
 }
 
-/// A frame copied out of a texture for `--screenshot`.
-struct ScreenCapture {
-    buffer: wgpu::Buffer,
-    size: (u32, u32),
-    padded_row: u32,
+/// Draws the panel over what `view` holds.
+fn draw_panel(
+    renderer: &egui_wgpu::Renderer,
+    encoder: &mut wgpu::CommandEncoder,
+    view: &wgpu::TextureView,
+    jobs: &[egui::ClippedPrimitive],
+    screen: &egui_wgpu::ScreenDescriptor,
+) {
+    let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("panel"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    renderer.render(&mut pass.forget_lifetime(), jobs, screen);
 }
 
-impl ScreenCapture {
-    /// Records the copy when the texture allows it.
-    fn record(device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, texture: &wgpu::Texture, copy_src: bool) -> Option<Self> {
-        if !copy_src {
-            return None;
-        }
-        let size = (texture.width(), texture.height());
-        let padded_row = (size.0 * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("screenshot readback"),
-            size: u64::from(padded_row) * u64::from(size.1),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        encoder.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row), rows_per_image: None },
-            },
-            wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-        );
-        Some(Self { buffer, size, padded_row })
-    }
-
-    /// Waits for the copy and writes an RGB PNG (BGRA surfaces swizzled), atomically.
-    fn save(&self, ctx: &GpuContext, path: &std::path::Path, format: wgpu::TextureFormat) -> anyhow::Result<()> {
-        let bytes = snowpack::gpu::readback::map_blocking(ctx, &self.buffer)?;
-        let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
-        let mut rgb = Vec::with_capacity((self.size.0 * self.size.1 * 3) as usize);
-        for y in 0..self.size.1 as usize {
-            let row = &bytes[y * self.padded_row as usize..][..self.size.0 as usize * 4];
-            for p in row.chunks_exact(4) {
-                if bgra {
-                    rgb.extend_from_slice(&[p[2], p[1], p[0]]);
-                } else {
-                    rgb.extend_from_slice(&p[..3]);
-                }
-            }
-        }
-        let image = image::RgbImage::from_raw(self.size.0, self.size.1, rgb).context("screenshot size")?;
-        let tmp = path.with_extension("png.tmp");
-        image.save_with_format(&tmp, image::ImageFormat::Png).with_context(|| format!("writing {}", tmp.display()))?;
-        std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
-        Ok(())
-    }
+/// Waits for a recorded copy of the window's image and writes it as an RGB
+/// PNG (BGRA surfaces swizzled), atomically.
+fn save_screenshot(ctx: &GpuContext, capture: &TextureReadback, path: &std::path::Path, format: wgpu::TextureFormat) -> anyhow::Result<()> {
+    let texels = capture.read(ctx)?;
+    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+    let rgb: Vec<u8> = texels.chunks_exact(4).flat_map(|p| if bgra { [p[2], p[1], p[0]] } else { [p[0], p[1], p[2]] }).collect();
+    let (w, h) = capture.size();
+    let image = image::RgbImage::from_raw(w, h, rgb).context("screenshot size")?;
+    let tmp = path.with_extension("png.tmp");
+    image.save_with_format(&tmp, image::ImageFormat::Png).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
 }
 
 impl ApplicationHandler for App {

@@ -15,7 +15,7 @@ pub fn ambient_occlusion(heights: &[f32], res: u32, steps: u32, texel_m: f32, st
             let h0 = at(i, j);
             let mut occluded = 0.0f32;
             for &(dx, dy) in &DIRS {
-                let unit = if dx != 0 && dy != 0 { 1.414_213_56 } else { 1.0 } * texel_m;
+                let unit = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 } * texel_m;
                 let mut slope = 0.0f32;
                 for k in 0..steps {
                     let step = 1i32 << k;

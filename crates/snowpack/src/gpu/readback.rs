@@ -159,3 +159,52 @@ pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<V
     staging.unmap();
     Ok(bytes)
 }
+
+/// A blocking copy of a 4-byte-per-texel 2D texture (a frame, a screenshot)
+/// into CPU memory: [`Self::record`] into an encoder, submit, then [`Self::read`].
+pub struct TextureReadback {
+    staging: wgpu::Buffer,
+    size: (u32, u32),
+    padded_row: u32,
+}
+
+impl TextureReadback {
+    /// Records a copy of mip 0 of `texture` (which needs `COPY_SRC`).
+    pub fn record(device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, texture: &wgpu::Texture) -> Self {
+        let size = (texture.width(), texture.height());
+        let padded_row = (size.0 * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("texture readback"),
+            size: u64::from(padded_row) * u64::from(size.1),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row), rows_per_image: None },
+            },
+            wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+        );
+        Self { staging, size, padded_row }
+    }
+
+    /// Width and height of the copied texture.
+    #[must_use]
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    /// Waits for the copy (submitted by the caller) and returns the texels row
+    /// by row without padding, 4 bytes each, in the texture's own channel order.
+    pub fn read(&self, ctx: &crate::GpuContext) -> Result<Vec<u8>, crate::SnowError> {
+        let bytes = map_blocking(ctx, &self.staging)?;
+        let row = self.size.0 as usize * 4;
+        let mut out = Vec::with_capacity(row * self.size.1 as usize);
+        for y in 0..self.size.1 as usize {
+            out.extend_from_slice(&bytes[y * self.padded_row as usize..][..row]);
+        }
+        Ok(out)
+    }
+}

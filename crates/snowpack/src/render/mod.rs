@@ -110,7 +110,7 @@ impl Renderer {
         if !flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
             return Err(SnowError::Unsupported("storage buffers in vertex shaders (the terrain reads the snow surface)".into()));
         }
-        if params.patch_quads < 4 || params.patch_quads % 4 != 0 {
+        if params.patch_quads < 4 || !params.patch_quads.is_multiple_of(4) {
             return Err(SnowError::InvalidParameter { field: "patch_quads", why: format!("{} is not a positive multiple of 4", params.patch_quads) });
         }
         let fragment = wgpu::ShaderStages::FRAGMENT;
@@ -332,6 +332,7 @@ impl Renderer {
 
     /// Records one frame into `encoder`, drawing into `target` (of the output
     /// format, `size` pixels). Call [`Self::after_submit`] after submitting.
+    #[expect(clippy::too_many_arguments, reason = "each is a separate thing the caller holds (device, encoder, snow, actors, camera, target); a bundle would be built only to be unpacked")]
     pub fn encode(
         &mut self,
         ctx: &GpuContext,
@@ -459,33 +460,13 @@ impl Renderer {
         let Some((texture, _)) = &self.image else { unreachable!("image target made above") };
         let texture = texture.clone();
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
-        let row = size.0 * 4;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("frame readback"),
-            size: u64::from(padded) * u64::from(size.1),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("render frame") });
         self.encode(ctx, &mut encoder, snow, actors, camera, &view, size);
-        encoder.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &staging,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: None },
-            },
-            wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-        );
+        let readback = crate::gpu::readback::TextureReadback::record(device, &mut encoder, &texture);
         ctx.queue.submit([encoder.finish()]);
         self.after_submit(ctx);
         ctx.check("render frame")?;
-        let bytes = crate::gpu::readback::map_blocking(ctx, &staging)?;
-        let mut out = Vec::with_capacity((row * size.1) as usize);
-        for y in 0..size.1 as usize {
-            out.extend_from_slice(&bytes[y * padded as usize..y * padded as usize + row as usize]);
-        }
-        Ok(out)
+        readback.read(ctx)
     }
 
     /// Waits for outstanding timestamp readbacks and collects them.
