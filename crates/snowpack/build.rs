@@ -25,6 +25,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("AO", &["ao.wgsl"]),
     ("ENV_DOWNSAMPLE", &["env_downsample.wgsl"]),
     ("ENV_PREFILTER", &["shared/frame.wgsl", "env_prefilter.wgsl"]),
+    ("SKINNING", &["skinning.wgsl"]),
 ];
 
 fn main() {

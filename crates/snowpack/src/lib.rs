@@ -11,6 +11,7 @@ pub mod error;
 pub mod gpu;
 pub mod render;
 pub mod shaders;
+pub mod skin;
 pub mod terrain;
 pub mod testing;
 

@@ -13,6 +13,7 @@ use snowpack::render::ao::AoParams;
 use snowpack::render::environment::EnvParams;
 use snowpack::render::frame::FrameUniforms;
 use snowpack::shaders;
+use snowpack::skin::skinning::SkinningParams;
 
 /// Size naga gives the uniform global `name` in `source`.
 fn wgsl_uniform_size(source: &str, name: &str) -> u32 {
@@ -48,6 +49,7 @@ fn uniform_sizes_match_naga() {
         (shaders::AO, "params", size_of::<AoParams>()),
         (shaders::ENV_DOWNSAMPLE, "params", size_of::<EnvParams>()),
         (shaders::ENV_PREFILTER, "params", size_of::<EnvParams>()),
+        (shaders::SKINNING, "params", size_of::<SkinningParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -56,7 +58,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 18);
+    assert_eq!(shaders::ALL.len(), 19);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

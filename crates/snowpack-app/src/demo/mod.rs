@@ -87,6 +87,9 @@ pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
     let event_loop = EventLoop::new().map_err(|e| DisplayUnavailable(e.to_string()))?;
     let mut app = App { opts, pending_scene: Some(scene), script, gfx: None, frame: 0, result: Ok(()) };
     event_loop.run_app(&mut app).context("running the window's event loop")?;
+    if let Some(reason) = app.gfx.as_ref().and_then(|g| g.lost.clone()) {
+        anyhow::bail!("the GPU device was lost: {reason}");
+    }
     if let (Ok(()), Some(gfx)) = (&app.result, &app.gfx) {
         // A summary for people and for the end-to-end tests.
         println!(
@@ -446,8 +449,9 @@ impl Gfx {
         self.panel.push_frame_time(elapsed * 1000.0);
         // Camera and player move by wall time, capped so a stall does not teleport them.
         let dt = elapsed.min(0.1);
-        if let Some(reason) = &self.lost {
-            anyhow::bail!("the GPU device was lost: {reason}");
+        if self.lost.is_some() {
+            // Nothing can be drawn without a device; the title says why until the window is closed.
+            return Ok(());
         }
 
         // Input: the camera, and the player in follow mode.
@@ -550,8 +554,8 @@ impl Gfx {
         match self.ctx.check("demo frame") {
             Ok(()) => {}
             Err(snowpack::SnowError::DeviceLost(reason)) => {
-                tracing::error!("GPU device lost: {reason}");
-                self.window.set_title(&format!("snowpack — GPU device lost: {reason}"));
+                tracing::error!("GPU device lost: {reason}; close the window and start again");
+                self.window.set_title(&format!("snowpack — the GPU device was lost ({reason}); close and restart"));
                 self.lost = Some(reason);
             }
             Err(e) => {
@@ -677,7 +681,10 @@ impl ApplicationHandler for App {
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
         let Some(gfx) = self.gfx.as_ref() else { return };
-        if gfx.hidden {
+        if gfx.lost.is_some() && self.opts.exit_after_frames.is_none() {
+            // The device is gone: wait for the user to close the window, without spinning.
+            event_loop.set_control_flow(ControlFlow::Wait);
+        } else if gfx.hidden {
             // Minimised: tick the simulation from a timer at its own rate
             // (see `new_events`) instead of spinning on redraws.
             let dt = Duration::from_secs_f32(gfx.session.scene.sim.dt_s);

@@ -8,6 +8,7 @@ pub mod capture;
 pub mod environment;
 pub mod normals;
 pub mod rim;
+pub mod skinning;
 pub mod stamp;
 pub mod terrain_bake;
 pub mod update;

@@ -1,0 +1,21 @@
+//! CPU twin of `skinning.wgsl`: linear blend skinning of a mesh by up to four
+//! joints per vertex, then the actor's placement.
+
+use glam::{Mat4, Vec3};
+
+use crate::skin::skinning::SkinnedMesh;
+
+/// World positions of `mesh`'s vertices for joint matrices `joints` and placement `model`.
+#[must_use]
+pub fn skin(mesh: &SkinnedMesh, joints: &[Mat4], model: Mat4) -> Vec<Vec3> {
+    let last = joints.len().saturating_sub(1);
+    mesh.positions
+        .iter()
+        .zip(&mesh.joints)
+        .zip(&mesh.weights)
+        .map(|((p, j), w)| {
+            let m = (0..4).fold(Mat4::ZERO, |acc, k| acc + joints[(j[k] as usize).min(last)] * w[k]);
+            model.transform_point3(m.transform_point3(*p))
+        })
+        .collect()
+}

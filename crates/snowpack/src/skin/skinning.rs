@@ -1,0 +1,167 @@
+//! Skinning pass (`shaders/skinning.wgsl`): a skinned mesh posed by its joint
+//! matrices and placed in the world, into a vertex buffer the capture and the
+//! renderer draw from. One [`SkinnedInstance`] per actor holds its buffers.
+
+use glam::{Mat4, Vec3};
+
+use crate::error::SnowError;
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+/// Uniforms of the skinning pass (`SkinningParams` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SkinningParams {
+    /// The actor's placement (column-major).
+    pub model: [[f32; 4]; 4],
+    /// Vertices to skin.
+    pub vertex_count: u32,
+    /// Joint matrices bound.
+    pub joint_count: u32,
+    /// Padding to 16 bytes.
+    pub _pad: [u32; 2],
+}
+
+/// A mesh bound to a skin, in its bind pose: triangle list, up to four joints a vertex.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SkinnedMesh {
+    /// Vertex positions (mesh space).
+    pub positions: Vec<Vec3>,
+    /// Joint indices (into the skin's joint list) per vertex.
+    pub joints: Vec<[u16; 4]>,
+    /// Weights per vertex (summing to 1).
+    pub weights: Vec<[f32; 4]>,
+    /// Triangle list indices.
+    pub indices: Vec<u32>,
+}
+
+impl SkinnedMesh {
+    /// Checks that the arrays agree, weights are finite and sum to about 1,
+    /// and every index and joint is in range for `joint_count` joints.
+    pub fn validate(&self, joint_count: usize) -> Result<(), String> {
+        let n = self.positions.len();
+        if n == 0 {
+            return Err("the mesh has no vertices".into());
+        }
+        if self.joints.len() != n || self.weights.len() != n {
+            return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
+        }
+        if self.indices.len() % 3 != 0 || self.indices.iter().any(|&i| i as usize >= n) {
+            return Err("triangle indices are not a list of in-range triples".into());
+        }
+        if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
+            return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
+        }
+        if let Some((k, w)) = self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01) {
+            return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
+        }
+        Ok(())
+    }
+}
+
+/// The pass: one pipeline for every skinned instance.
+pub struct SkinningPass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+/// One actor's skinning buffers: the bind pose, its joint matrices this frame
+/// and the skinned world positions (`STORAGE | VERTEX`, 12 bytes a vertex).
+pub struct SkinnedInstance {
+    /// Skinned positions, world space, packed xyz.
+    pub skinned: wgpu::Buffer,
+    /// Triangle list indices (u32).
+    pub indices: wgpu::Buffer,
+    /// Number of indices.
+    pub index_count: u32,
+    /// Number of vertices.
+    pub vertex_count: u32,
+    params: wgpu::Buffer,
+    joints: wgpu::Buffer,
+    joint_count: u32,
+    bind_group: wgpu::BindGroup,
+}
+
+impl SkinningPass {
+    /// Builds the pipeline.
+    #[must_use]
+    pub fn new(device: &wgpu::Device) -> Self {
+        let (pipeline, layout) = layout::compute_pipeline(
+            device,
+            "skinning",
+            shaders::SKINNING,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, true),
+                layout::storage(3, true),
+                layout::storage(4, true),
+                layout::storage(5, false),
+            ],
+        );
+        Self { pipeline, layout }
+    }
+
+    /// Uploads `mesh` for a skin of `joint_count` joints.
+    pub fn instance(&self, device: &wgpu::Device, queue: &wgpu::Queue, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedInstance, SnowError> {
+        mesh.validate(joint_count).map_err(|why| SnowError::InvalidParameter { field: "skinned mesh", why })?;
+        let storage = |label: &str, bytes: &[u8], extra: wgpu::BufferUsages| {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (bytes.len() as u64).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+                mapped_at_creation: false,
+            });
+            queue.write_buffer(&buffer, 0, bytes);
+            buffer
+        };
+        let rest: Vec<[f32; 4]> = mesh.positions.iter().map(|p| p.extend(1.0).to_array()).collect();
+        let ids: Vec<[u32; 4]> = mesh.joints.iter().map(|j| j.map(u32::from)).collect();
+        let n = mesh.positions.len() as u64;
+        let rest = storage("skin rest", bytemuck::cast_slice(&rest), wgpu::BufferUsages::empty());
+        let ids = storage("skin joint ids", bytemuck::cast_slice(&ids), wgpu::BufferUsages::empty());
+        let weights = storage("skin weights", bytemuck::cast_slice(&mesh.weights), wgpu::BufferUsages::empty());
+        let joints = storage("skin joints", &vec![0u8; joint_count.max(1) * 64], wgpu::BufferUsages::empty());
+        let indices = storage("skin indices", bytemuck::cast_slice(&mesh.indices), wgpu::BufferUsages::INDEX);
+        let skinned = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("skinned positions"),
+            size: n * 12,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let params = layout::uniform_buffer::<SkinningParams>(device, "skinning params");
+        let bind_group = layout::bind_group(
+            device,
+            "skinning",
+            &self.layout,
+            &[
+                params.as_entire_binding(),
+                rest.as_entire_binding(),
+                ids.as_entire_binding(),
+                weights.as_entire_binding(),
+                joints.as_entire_binding(),
+                skinned.as_entire_binding(),
+            ],
+        );
+        Ok(SkinnedInstance {
+            skinned,
+            indices,
+            index_count: mesh.indices.len() as u32,
+            vertex_count: n as u32,
+            params,
+            joints,
+            joint_count: joint_count.max(1) as u32,
+            bind_group,
+        })
+    }
+
+    /// Records skinning of `instance` with `joints` (one matrix per skin joint) placed by `model`.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
+        let count = joints.len().min(instance.joint_count as usize);
+        let matrices: Vec<[[f32; 4]; 4]> = joints[..count].iter().map(Mat4::to_cols_array_2d).collect();
+        queue.write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));
+        let params = SkinningParams { model: model.to_cols_array_2d(), vertex_count: instance.vertex_count, joint_count: count.max(1) as u32, _pad: [0; 2] };
+        queue.write_buffer(&instance.params, 0, bytemuck::bytes_of(&params));
+        layout::dispatch(encoder, timer, "skinning", &self.pipeline, &instance.bind_group, (layout::groups(instance.vertex_count, 64), 1));
+    }
+}
