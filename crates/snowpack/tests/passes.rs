@@ -8,7 +8,7 @@
 use glam::{DVec2, Quat, Vec3};
 use snowpack::cpu;
 use snowpack::deform::blur::BlurPass;
-use snowpack::deform::capture::{CaptureInstances, CaptureParams, CapturePass};
+use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
 use snowpack::deform::normals::NormalPass;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
@@ -174,13 +174,38 @@ fn capture_and_update_match_cpu() {
         })
         .collect();
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+    // A world-space triangle mesh (a skinned character in pose, as the capture sees it).
+    let mut triangles: Vec<[[f32; 3]; 3]> = Vec::new();
+    for _ in 0..40 {
+        let c = [rng.range(0.0, e), rng.range(-0.5, 1.5), rng.range(0.0, e)];
+        let corner = |rng: &mut Rng| [c[0] + rng.range(-0.1, 0.1) * e, c[1] + rng.range(-0.3, 0.3), c[2] + rng.range(-0.1, 0.1) * e];
+        triangles.push([corner(&mut rng), corner(&mut rng), corner(&mut rng)]);
+    }
+    let flat: Vec<f32> = triangles.iter().flatten().flatten().copied().collect();
+    let mesh_vertices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test mesh"),
+        size: flat.len() as u64 * 4,
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(&mesh_vertices, 0, bytemuck::cast_slice(&flat));
+    let mesh_indices_cpu: Vec<u32> = (0..triangles.len() as u32 * 3).collect();
+    let mesh_indices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test mesh indices"),
+        size: mesh_indices_cpu.len() as u64 * 4,
+        usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(&mesh_indices, 0, bytemuck::cast_slice(&mesh_indices_cpu));
+    let meshes = [CaptureMesh { vertices: &mesh_vertices, indices: &mesh_indices, index_count: mesh_indices_cpu.len() as u32 }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record(&mut enc, &mut timer, &res);
+    capture.record_with_meshes(&mut enc, &mut timer, &res, &meshes);
     update.record(&ctx.queue, &mut enc, &mut timer, &up);
     submit(ctx, enc);
 
-    let depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
+    let mut depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture::capture_triangles(&mut depth, &triangles, DVec2::ZERO, &cparams, params.resolution);
     cpu::update::update(&up, &depth, &terrain, &mut snow, &mut stamps);
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
     let gpu = read_f32(ctx, &res.snow);

@@ -64,3 +64,26 @@ fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
     }
     (t0 <= t1 && t1 >= 0.0).then_some(low + t0)
 }
+
+/// Adds world-space triangles to `depth` (window-local texels, as
+/// [`capture_depths`] returns): the lowest surface per texel centre, as the
+/// GPU draws [`crate::deform::capture::CaptureMesh`]es.
+pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner: glam::DVec2, p: &CaptureParams, resolution: u32) {
+    // The terrain bake's rasteriser keeps the highest surface; mirror heights to keep the lowest.
+    let mirrored: Vec<[[f32; 3]; 3]> = triangles
+        .iter()
+        .map(|t| t.map(|v| [(f64::from(v[0]) - corner.x) as f32, -v[1], (f64::from(v[2]) - corner.y) as f32]))
+        .collect();
+    let extent = p.texel_m * resolution as f32;
+    let lowest = super::terrain_bake::draw(&mirrored, resolution, resolution, [0.0, 0.0], [extent, extent], f32::NEG_INFINITY);
+    let range = p.high_m - p.low_m;
+    for (d, y) in depth.iter_mut().zip(lowest) {
+        if y.is_finite() {
+            let v = (-y - p.low_m) / range;
+            // Outside [0, 1] the GPU clips the fragment: no mark.
+            if (0.0..=1.0).contains(&v) {
+                *d = d.min(v);
+            }
+        }
+    }
+}

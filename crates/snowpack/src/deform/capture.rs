@@ -58,6 +58,20 @@ pub struct CaptureInstances {
     pub spheres: Vec<[f32; 4]>,
     /// Column-major model matrix per box, mapping the unit cube to window-local space.
     pub boxes: Vec<[f32; 16]>,
+    /// World to window-local space (a translation by minus the corner), for meshes given in world space.
+    pub window_offset: [f32; 16],
+}
+
+/// A triangle mesh already in world space this frame (a skinned character in
+/// pose, from [`crate::skin::skinning::SkinningPass`]), drawn into the capture.
+#[derive(Clone, Copy, Debug)]
+pub struct CaptureMesh<'a> {
+    /// World positions, packed xyz f32 (12 bytes a vertex), with `VERTEX` usage.
+    pub vertices: &'a wgpu::Buffer,
+    /// Triangle list, u32 indices, with `INDEX` usage.
+    pub indices: &'a wgpu::Buffer,
+    /// Number of indices to draw.
+    pub index_count: u32,
 }
 
 impl CaptureInstances {
@@ -65,7 +79,8 @@ impl CaptureInstances {
     /// footprint overlapping it and lowest point below `high_m`.
     #[must_use]
     pub fn new(deformers: &[Deformer], window_corner_m: DVec2, params: &CaptureParams) -> Self {
-        let mut out = Self::default();
+        let offset = Vec3::new(-window_corner_m.x as f32, 0.0, -window_corner_m.y as f32);
+        let mut out = Self { window_offset: Mat4::from_translation(offset).to_cols_array(), ..Self::default() };
         let extent = f64::from(params.extent_m);
         let local = |c: Vec3| {
             Vec3::new(
@@ -246,7 +261,10 @@ impl CapturePass {
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let sphere_bytes: &[u8] = bytemuck::cast_slice(&inst.spheres);
-        let box_bytes: &[u8] = bytemuck::cast_slice(&inst.boxes);
+        // The boxes' model matrices, then the window offset that world-space meshes use.
+        let mut matrices = inst.boxes.clone();
+        matrices.push(inst.window_offset);
+        let box_bytes: &[u8] = bytemuck::cast_slice(&matrices);
         if sphere_bytes.len() as u64 > self.sphere_instances.size() {
             self.sphere_instances = growable(device, "sphere instances", (sphere_bytes.len() as u64).next_power_of_two());
         }
@@ -260,6 +278,11 @@ impl CapturePass {
 
     /// Clears the capture target and draws the prepared instances.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources) {
+        self.record_with_meshes(encoder, timer, res, &[]);
+    }
+
+    /// Like [`Self::record`], also drawing world-space `meshes`.
+    pub fn record_with_meshes(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
         let slot = timer.reserve("capture");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("capture"),
@@ -285,6 +308,16 @@ impl CapturePass {
             pass.set_vertex_buffer(1, self.box_instances.slice(..));
             pass.set_index_buffer(self.cube_indices.slice(..), wgpu::IndexFormat::Uint16);
             pass.draw_indexed(0..CUBE_INDICES.len() as u32, 0, 0..self.counts.1);
+        }
+        if !meshes.is_empty() {
+            pass.set_pipeline(&self.mesh_pipeline);
+            pass.set_vertex_buffer(1, self.box_instances.slice(..));
+            let offset = self.counts.1;
+            for mesh in meshes {
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, offset..offset + 1);
+            }
         }
     }
 }

@@ -7,7 +7,7 @@ use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
-use super::capture::{CaptureInstances, CaptureParams, CapturePass};
+use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
 use super::decal::{DecalPass, DecalRing, DEFAULT_PER_ACTOR};
 use super::normals::{unpack_surface, NormalPass};
 use super::query::SnowSnapshot;
@@ -266,6 +266,13 @@ impl SnowDeformation {
     /// Records one frame of deformation into `encoder`. Call
     /// [`Self::after_submit`] once the encoder has been submitted.
     pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], dt_s: f32) {
+        self.encode_with_meshes(ctx, encoder, deformers, &[], dt_s);
+    }
+
+    /// Like [`Self::encode`], with world-space triangle meshes (skinned
+    /// characters in pose, recorded into `encoder` before this) pressing the
+    /// snow too, under the depth and combined techniques.
+    pub fn encode_with_meshes(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
         let texel = f64::from(p.texel_m());
@@ -297,7 +304,7 @@ impl SnowDeformation {
         if captures {
             let instances = CaptureInstances::new(deformers, corner, &self.capture_params);
             self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
-            self.capture_pass.record(encoder, &mut self.timer, &self.res);
+            self.capture_pass.record_with_meshes(encoder, &mut self.timer, &self.res, meshes);
         }
         let stamp_params = StampParams {
             origin: origin_i32,
