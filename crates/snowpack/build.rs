@@ -26,6 +26,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("ENV_DOWNSAMPLE", &["env_downsample.wgsl"]),
     ("ENV_PREFILTER", &["shared/frame.wgsl", "env_prefilter.wgsl"]),
     ("SKINNING", &["skinning.wgsl"]),
+    ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
 ];
 
 fn main() {

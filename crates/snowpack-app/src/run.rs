@@ -8,8 +8,8 @@ use anyhow::Context as _;
 use glam::DVec2;
 use snowpack::gpu::PassTimings;
 use snowpack::render::{DebugView, MaterialPreset, IMAGE_FORMAT};
-use snowpack::{Camera, GpuContext, Renderer, SnowDeformation};
-use snowpack_scene::{Scene, Technique, WindowSpec, World};
+use snowpack::{Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
+use snowpack_scene::{CharacterPose, Scene, ShapeSpec, Technique, WindowSpec, World};
 
 use crate::output::OutputSet;
 use crate::{npy, BadInput};
@@ -80,6 +80,28 @@ fn window_center(scene: &Scene, world: &World) -> DVec2 {
     }
 }
 
+/// Uploads each glTF actor's skinned mesh; the result maps actor index to its mesh.
+pub fn register_characters(ctx: &GpuContext, scene: &Scene, snow: &mut SnowDeformation) -> anyhow::Result<Vec<(usize, SkinnedId)>> {
+    let mut out = Vec::new();
+    for (k, actor) in scene.actors.iter().enumerate() {
+        if let ShapeSpec::Gltf(g) = &actor.shape {
+            let id = snow
+                .add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len())
+                .with_context(|| format!("uploading {}", g.file.display()))?;
+            out.push((k, id));
+        }
+    }
+    Ok(out)
+}
+
+/// This frame's poses for the registered characters.
+pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) -> Vec<SkinnedPose<'a>> {
+    characters
+        .iter()
+        .filter_map(|c| skins.iter().find(|(k, _)| *k == c.actor).map(|(_, id)| SkinnedPose { mesh: *id, joints: &c.joints, model: c.model }))
+        .collect()
+}
+
 /// Runs `scene` headless and writes its outputs.
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> {
     let technique = match &opts.technique {
@@ -97,11 +119,13 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
     let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
         .context("creating the deformation window")?;
+    let skins = register_characters(&ctx, scene, &mut snow)?;
     let warmup = frames.min(10) as u64;
     let start = Instant::now();
     for frame in 0..frames {
         snow.set_center(window_center(scene, &world));
-        snow.step(&ctx, &world.deformers(), scene.sim.dt_s)
+        let characters = world.characters();
+        snow.step_posed(&ctx, &world.deformers(), &poses(&skins, &characters), scene.sim.dt_s)
             .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();

@@ -13,8 +13,8 @@ mod world;
 
 pub use error::SceneError;
 pub use scene::{
-    ActorSpec, CameraSpec, EnvironmentSpec, RenderSpec, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec,
+    ActorSpec, CameraSpec, EnvironmentSpec, GltfActor, RenderSpec, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec,
     WindowSpec, DEFAULT_SCENE,
 };
 pub use snowpack::{RimStyle, Technique};
-pub use world::{World, FRICTION, GRAVITY, RESTITUTION};
+pub use world::{CharacterPose, World, FRICTION, GRAVITY, RESTITUTION};

@@ -12,7 +12,7 @@ use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, 
 
 use crate::error::SceneError;
 use crate::fields::Fields;
-use crate::gltf_file::GltfFile;
+use crate::gltf_file::{GltfFile, SkinnedModel};
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,6 +45,39 @@ pub enum ShapeSpec {
         /// Footprint curvature (1/m): `h = foot + d^2 * scale_per_m`.
         scale_per_m: f32,
     },
+    /// A skinned, animated glTF character (its root at `position`, facing its direction of travel).
+    Gltf(GltfActor),
+}
+
+/// A `kind = "gltf"` actor: the model, the clip it plays and how.
+#[derive(Clone, PartialEq)]
+pub struct GltfActor {
+    /// The file it came from.
+    pub file: PathBuf,
+    /// Mesh, skeleton and clips.
+    pub model: Arc<SkinnedModel>,
+    /// Index of the clip played (`animation`).
+    pub clip: usize,
+    /// Uniform scale from file units to metres (`scale`).
+    pub scale: f32,
+    /// Playback speed of the clip (`animation_speed`).
+    pub speed: f32,
+}
+
+impl std::fmt::Debug for GltfActor {
+    // The model is large; say what it is instead of printing it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "glTF {} ({} vertices, {} joints), clip {:?} at speed {}, scale {}",
+            self.file.display(),
+            self.model.mesh.positions.len(),
+            self.model.skeleton.joints.len(),
+            self.model.clips.get(self.clip).map_or("", |c| c.name.as_str()),
+            self.speed,
+            self.scale
+        )
+    }
 }
 
 /// How an actor moves.
@@ -553,7 +586,22 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
             if !full.is_file() {
                 return Err(a.err("file", format!("{} does not exist", full.display())));
             }
-            return Err(a.err("kind", "glTF actors are not supported yet in this build; use sphere or box"));
+            let model = GltfFile::open(&full)
+                .and_then(|g| g.skinned_model())
+                .map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
+            let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();
+            if names.is_empty() {
+                return Err(a.err("file", format!("{} has no animations; a gltf actor plays one", full.display())));
+            }
+            let clip = match a.string_opt("animation")? {
+                None => 0,
+                Some(name) => model.clip(&name).ok_or_else(|| {
+                    a.err("animation", format!("{name:?} is not an animation of {} (it has {})", full.display(), names.join(", ")))
+                })?,
+            };
+            let scale = a.positive("scale", 1.0, "")?;
+            let speed = a.non_negative("animation_speed", 1.0, "")?;
+            ShapeSpec::Gltf(GltfActor { file: full, model: Arc::new(model), clip, scale, speed })
         }
     };
     let position = a.vec3("position", Vec3::new(0.0, 1.0, 0.0))?;

@@ -7,7 +7,8 @@
 
 use std::collections::HashMap;
 
-use glam::{Vec2, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
+use snowpack::skin::AnimationPlayer;
 use snowpack::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
@@ -36,6 +37,23 @@ struct Actor {
     shape: ShapeSpec,
     motion: Motion,
     body: Option<usize>,
+    /// Characters: the clip playing.
+    anim: Option<AnimationPlayer>,
+    /// Heading (radians about +y, 0 facing +z), kept while standing still.
+    heading: f32,
+}
+
+/// A character's pose this frame: what the skinning pass needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CharacterPose {
+    /// Index of the `[[actor]]`.
+    pub actor: usize,
+    /// Placement: position, heading, scale.
+    pub model: Mat4,
+    /// Skinning matrix of each joint.
+    pub joints: Vec<Mat4>,
+    /// Global matrix of every skeleton node in world space (model applied), for feet.
+    pub nodes: Vec<Mat4>,
 }
 
 /// Runtime state of a scene's actors.
@@ -97,7 +115,15 @@ impl World {
                 }
                 _ => None,
             };
-            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body });
+            let anim = match &spec.shape {
+                ShapeSpec::Gltf(g) => {
+                    let mut player = AnimationPlayer::new(g.clip);
+                    player.speed = g.speed;
+                    Some(player)
+                }
+                _ => None,
+            };
+            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body, anim, heading: 0.0 });
         }
         for spawn in &scene.spawns {
             let mut rng = Rng::new(spawn.seed);
@@ -164,6 +190,8 @@ impl World {
                     Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation }
                 }
                 ShapeSpec::Point { scale_per_m } => Deformer::Point { position: center, scale_per_m: *scale_per_m },
+                // Characters press the snow with their skinned mesh (see `characters`).
+                ShapeSpec::Gltf(_) => continue,
             });
         }
         out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));
@@ -177,6 +205,45 @@ impl World {
             self.substep(h);
         }
         self.time += dt;
+        for k in 0..self.actors.len() {
+            let v = self.actor_velocity(k);
+            let a = &mut self.actors[k];
+            if let Some(player) = &mut a.anim {
+                player.advance(dt);
+            }
+            if Vec2::new(v.x, v.z).length() > 1e-3 {
+                a.heading = v.x.atan2(v.z);
+            }
+        }
+    }
+
+    /// Velocity of actor `i` now (m/s).
+    fn actor_velocity(&self, i: usize) -> Vec3 {
+        let Some(a) = self.actors.get(i) else { return Vec3::ZERO };
+        match (&a.motion, a.body) {
+            (_, Some(b)) => self.bodies[b].vel,
+            (Motion::Path(keys), None) => {
+                let h = 0.02;
+                (path_at(keys, self.time + h) - path_at(keys, self.time - h)) / (2.0 * h)
+            }
+            (Motion::Kinematic { velocity, .. } | Motion::Physics { velocity, .. }, None) => *velocity,
+        }
+    }
+
+    /// The pose of every glTF character now.
+    #[must_use]
+    pub fn characters(&self) -> Vec<CharacterPose> {
+        let mut out = Vec::new();
+        for (k, a) in self.actors.iter().enumerate() {
+            let (ShapeSpec::Gltf(g), Some(player)) = (&a.shape, &a.anim) else { continue };
+            let Some(position) = self.actor_position(k) else { continue };
+            let model = Mat4::from_scale_rotation_translation(Vec3::splat(g.scale), Quat::from_rotation_y(a.heading), position);
+            let s = &g.model.skeleton;
+            let globals = s.globals(&player.locals(s, &g.model.clips));
+            let joints = s.joint_matrices(&globals);
+            out.push(CharacterPose { actor: k, model, joints, nodes: globals.iter().map(|m| model * *m).collect() });
+        }
+        out
     }
 
     fn substep(&mut self, h: f32) {

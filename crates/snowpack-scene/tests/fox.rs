@@ -41,7 +41,6 @@ fn walking_lifts_and_plants_each_foot() {
             })
             .collect();
         let (lo, hi) = heights.iter().fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
-        eprintln!("{foot}: {lo:.3}..{hi:.3} m over {} s", walk.duration);
         assert!(hi - lo > 0.02, "{foot} barely lifts over a walk cycle: {lo:.3}..{hi:.3} m");
         assert!(lo > -0.05 && lo < 0.15, "{foot} is not near the ground at its lowest: {lo:.3} m");
     }

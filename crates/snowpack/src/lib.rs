@@ -18,7 +18,7 @@ pub mod testing;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
-pub use deform::{SnowDeformation, SnowSnapshot};
+pub use deform::{SkinnedId, SkinnedPose, SnowDeformation, SnowSnapshot};
 pub use error::SnowError;
 pub use gpu::GpuContext;
 pub use render::{Camera, EnvironmentMap, RenderParams, Renderer};

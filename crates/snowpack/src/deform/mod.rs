@@ -17,5 +17,5 @@ pub mod terrain_bake;
 pub mod update;
 pub mod window;
 
-pub use pipeline::SnowDeformation;
+pub use pipeline::{SkinnedId, SkinnedPose, SnowDeformation};
 pub use query::SnowSnapshot;

@@ -8,6 +8,7 @@ use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
 use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
+use crate::skin::skinning::{SkinnedInstance, SkinningPass};
 use super::decal::{DecalPass, DecalRing, DEFAULT_PER_ACTOR};
 use super::normals::{unpack_surface, NormalPass};
 use super::query::SnowSnapshot;
@@ -72,6 +73,25 @@ pub struct SnowDeformation {
     /// Footprint refill not yet applied, below one stamp quantum (m).
     stamp_refill_carry_m: f32,
     points_last_frame: usize,
+    skinning: SkinningPass,
+    skinned: Vec<SkinnedInstance>,
+    /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
+    posed: Vec<usize>,
+}
+
+/// A skinned mesh registered with [`SnowDeformation::add_skinned_mesh`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SkinnedId(usize);
+
+/// One character's pose for a frame: which mesh, its joint matrices and its placement.
+#[derive(Clone, Copy, Debug)]
+pub struct SkinnedPose<'a> {
+    /// The registered mesh.
+    pub mesh: SkinnedId,
+    /// Skinning matrix of each joint ([`crate::skin::Skeleton::joint_matrices`]).
+    pub joints: &'a [glam::Mat4],
+    /// Position, heading and scale in the world.
+    pub model: glam::Mat4,
 }
 
 impl SnowDeformation {
@@ -124,6 +144,9 @@ impl SnowDeformation {
             exposed_texels: 0,
             stamp_refill_carry_m: 0.0,
             points_last_frame: 0,
+            skinning: SkinningPass::new(device),
+            skinned: Vec::new(),
+            posed: Vec::new(),
         };
         ctx.check("creating the deformation passes")?;
         Ok(this)
@@ -269,10 +292,60 @@ impl SnowDeformation {
         self.encode_with_meshes(ctx, encoder, deformers, &[], dt_s);
     }
 
+    /// Uploads a skinned mesh (a character's) for [`Self::encode_posed`];
+    /// `joint_count` is its skin's.
+    pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &crate::skin::skinning::SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
+        let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
+        self.skinned.push(instance);
+        Ok(SkinnedId(self.skinned.len() - 1))
+    }
+
+    /// The skinned meshes posed in the last encoded frame, in world space
+    /// (what a renderer draws for the characters).
+    pub fn posed_meshes(&self) -> impl Iterator<Item = &SkinnedInstance> + '_ {
+        self.posed.iter().filter_map(|&k| self.skinned.get(k))
+    }
+
+    /// Like [`Self::encode`], with characters: each pose skins its mesh on the
+    /// GPU (the `skinning` pass) and the posed mesh presses the snow where it
+    /// reaches below it (depth and combined techniques).
+    pub fn encode_posed(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], poses: &[SkinnedPose<'_>], dt_s: f32) {
+        self.posed.clear();
+        self.timer.begin_frame();
+        for pose in poses {
+            let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
+            self.skinning.record(&ctx.queue, encoder, &mut self.timer, instance, pose.joints, pose.model);
+            self.posed.push(pose.mesh.0);
+        }
+        let skinned = std::mem::take(&mut self.skinned);
+        let meshes: Vec<CaptureMesh<'_>> = self
+            .posed
+            .iter()
+            .map(|&k| CaptureMesh { vertices: &skinned[k].skinned, indices: &skinned[k].indices, index_count: skinned[k].index_count })
+            .collect();
+        self.encode_frame(ctx, encoder, deformers, &meshes, dt_s, false);
+        drop(meshes);
+        self.skinned = skinned;
+    }
+
+    /// Records, submits and follows up one frame with characters; fails on GPU errors.
+    pub fn step_posed(&mut self, ctx: &GpuContext, deformers: &[Deformer], poses: &[SkinnedPose<'_>], dt_s: f32) -> Result<(), SnowError> {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
+        self.encode_posed(ctx, &mut encoder, deformers, poses, dt_s);
+        ctx.queue.submit([encoder.finish()]);
+        self.after_submit(ctx);
+        ctx.check("deformation frame")
+    }
+
     /// Like [`Self::encode`], with world-space triangle meshes (skinned
     /// characters in pose, recorded into `encoder` before this) pressing the
     /// snow too, under the depth and combined techniques.
     pub fn encode_with_meshes(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32) {
+        self.posed.clear();
+        self.encode_frame(ctx, encoder, deformers, meshes, dt_s, true);
+    }
+
+    fn encode_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32, begin_timer: bool) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
         let texel = f64::from(p.texel_m());
@@ -284,7 +357,9 @@ impl SnowDeformation {
         let origin_i32 = [origin[0] as i32, origin[1] as i32];
         let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel);
 
-        self.timer.begin_frame();
+        if begin_timer {
+            self.timer.begin_frame();
+        }
         self.window_pass.record(
             queue,
             encoder,

@@ -4,8 +4,9 @@
 //! prefiltered image-based sky light and a filmic tone map; headless or into
 //! any colour target. `docs/rendering.md` describes the design.
 //!
-//! One frame, in order: `ao` (compute) → `shadow` (terrain and actors into
-//! the shadow map) → `sky` → `terrain` → `actors` → `tonemap`.
+//! One frame, in order: `ao` (compute) → `shadow` (terrain, actors and posed
+//! characters into the shadow map) → `sky` → `terrain` → `actors` (spheres,
+//! boxes, characters) → `tonemap`.
 
 pub mod actors;
 pub mod ao;
@@ -17,6 +18,7 @@ pub mod lod;
 pub mod params;
 pub mod pipeline;
 pub mod shadow;
+pub mod skinned;
 pub mod sky;
 pub mod terrain;
 pub mod tonemap;
@@ -34,6 +36,7 @@ use self::frame::FrameUniforms;
 use self::lod::LodSettings;
 use self::pipeline::{entry, storage_ro, texture, DEPTH_FORMAT, HDR_FORMAT};
 use self::shadow::ShadowMap;
+use self::skinned::SkinnedDrawPass;
 use self::sky::SkyPass;
 use self::terrain::TerrainPass;
 use self::tonemap::TonemapPass;
@@ -86,6 +89,7 @@ pub struct Renderer {
     ao: AoPass,
     terrain: TerrainPass,
     actors: ActorPass,
+    skinned: SkinnedDrawPass,
     sky: SkyPass,
     tonemap: TonemapPass,
     targets: Option<Targets>,
@@ -182,6 +186,7 @@ impl Renderer {
             ],
         );
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout);
+        let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
         let sky = SkyPass::new(device, &frame, &env_pass.full);
         let tonemap = TonemapPass::new(device, output_format);
         let mut timer = GpuTimer::new(device, queue);
@@ -208,6 +213,7 @@ impl Renderer {
             ao,
             terrain,
             actors,
+            skinned,
             sky,
             tonemap,
             targets: None,
@@ -392,6 +398,7 @@ impl Renderer {
             });
             self.terrain.draw_shadow(&mut pass, &self.shadow_group, &self.snow_group);
             self.actors.draw_shadow(&mut pass, &self.shadow_group);
+            self.skinned.draw_shadow(&mut pass, &self.shadow_group, snow.posed_meshes());
         }
         let Some(targets) = &self.targets else { return };
         {
@@ -402,9 +409,10 @@ impl Renderer {
             let mut pass = scene_pass(encoder, &mut self.timer, targets, "terrain", false);
             self.terrain.draw_lit(&mut pass, &self.lit_group, &self.snow_group);
         }
-        if self.actors.count() > 0 {
+        if self.actors.count() > 0 || snow.posed_meshes().next().is_some() {
             let mut pass = scene_pass(encoder, &mut self.timer, targets, "actors", false);
             self.actors.draw_lit(&mut pass, &self.lit_group);
+            self.skinned.draw_lit(&mut pass, &self.lit_group, snow.posed_meshes());
         }
         {
             let slot = self.timer.reserve("tonemap");

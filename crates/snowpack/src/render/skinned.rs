@@ -1,0 +1,74 @@
+//! Skinned characters (`shaders/skinned_draw.wgsl`): the meshes the
+//! deformation posed this frame ([`crate::SnowDeformation::posed_meshes`]),
+//! drawn lit and into the shadow map.
+
+use super::pipeline::{render_pipeline, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
+use super::shadow::SHADOW_FORMAT;
+use crate::shaders;
+use crate::skin::skinning::SkinnedInstance;
+
+/// Pipelines for drawing posed skinned meshes.
+pub struct SkinnedDrawPass {
+    lit: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+}
+
+const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+
+impl SkinnedDrawPass {
+    /// Builds both pipelines.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout) -> Self {
+        let buffers = [Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES })];
+        // Exporters wind triangles either way; cull nothing (the shader faces normals to the eye).
+        let lit = render_pipeline(
+            device,
+            &PipelineSpec {
+                label: "skinned",
+                source: shaders::SKINNED_DRAW,
+                vertex: "vs_main",
+                fragment: Some(("fs_main", HDR_FORMAT)),
+                buffers: &buffers,
+                layouts: &[lit_layout],
+                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
+                bias: wgpu::DepthBiasState::default(),
+                cull: false,
+            },
+        );
+        let shadow = render_pipeline(
+            device,
+            &PipelineSpec {
+                label: "skinned shadow",
+                source: shaders::SKINNED_DRAW,
+                vertex: "vs_shadow",
+                fragment: None,
+                buffers: &buffers,
+                layouts: &[shadow_layout],
+                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
+                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
+                cull: false,
+            },
+        );
+        Self { lit, shadow }
+    }
+
+    fn draw<'m>(pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline, group: &wgpu::BindGroup, meshes: impl Iterator<Item = &'m SkinnedInstance>) {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        for m in meshes {
+            pass.set_vertex_buffer(0, m.skinned.slice(..));
+            pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..m.index_count, 0, 0..1);
+        }
+    }
+
+    /// Draws `meshes` lit.
+    pub fn draw_lit<'m>(&self, pass: &mut wgpu::RenderPass<'_>, lit_group: &wgpu::BindGroup, meshes: impl Iterator<Item = &'m SkinnedInstance>) {
+        Self::draw(pass, &self.lit, lit_group, meshes);
+    }
+
+    /// Draws `meshes` into the shadow map.
+    pub fn draw_shadow<'m>(&self, pass: &mut wgpu::RenderPass<'_>, shadow_group: &wgpu::BindGroup, meshes: impl Iterator<Item = &'m SkinnedInstance>) {
+        Self::draw(pass, &self.shadow, shadow_group, meshes);
+    }
+}
