@@ -121,6 +121,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         .context("creating the deformation window")?;
     let skins = register_characters(&ctx, scene, &mut snow)?;
     let warmup = frames.min(10) as u64;
+    let mut footsteps = Vec::new();
     let start = Instant::now();
     for frame in 0..frames {
         snow.set_center(window_center(scene, &world));
@@ -131,6 +132,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             snow.clear_timings();
         }
         world.step(scene.sim.dt_s);
+        for mut step in world.take_footsteps() {
+            // The CPU query answers from a snapshot a few frames old: the snow the foot stepped into.
+            step.snow_depth_m = snow.snapshot().and_then(|s| s.depth_at(snow.terrain(), f64::from(step.position.x), f64::from(step.position.z)));
+            footsteps.push(step);
+        }
     }
     snow.finish(&ctx)?;
     let wall_s = start.elapsed().as_secs_f64();
@@ -188,6 +194,19 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     out.stage("terrain.npy", &npy::encode_f32(&terrain_h, &[res, res]))?;
     out.stage("frame.png", &png)?;
     out.stage("meta.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
+    if !footsteps.is_empty() {
+        let steps: Vec<serde_json::Value> = footsteps
+            .iter()
+            .map(|e| {
+                serde_json::json!({
+                    "actor": e.actor, "foot": e.foot, "name": e.name,
+                    "position": [e.position.x, e.position.y, e.position.z],
+                    "speed_m_per_s": e.speed_m_per_s, "time_s": e.time_s, "snow_depth_m": e.snow_depth_m,
+                })
+            })
+            .collect();
+        out.stage("footsteps.json", serde_json::to_string_pretty(&steps)?.as_bytes())?;
+    }
     let files = out.commit()?;
     Ok(RunReport {
         files,

@@ -501,3 +501,140 @@ fn combined_is_the_lower_of_depth_and_points() {
     // The two techniques disagree somewhere (the box, the sphere's flanks), so the min is a real test.
     assert!(differs > 100, "depth and points agree almost everywhere ({differs} texels differ)");
 }
+
+/// Prints of one side of a character's trail: 4-connected groups of pressed
+/// texels, merged along x when closer than `merge_m` (a front and a hind paw
+/// landing together), as (x_min, x_max) in metres.
+fn prints_along_x(run: &Run, pressed: &[bool], side: impl Fn(f64) -> bool, merge_m: f64) -> Vec<(f64, f64)> {
+    let res = run.meta["resolution"].as_u64().expect("resolution") as usize;
+    let mut seen = vec![false; pressed.len()];
+    let mut spans = Vec::new();
+    for start in 0..pressed.len() {
+        if !pressed[start] || seen[start] || !side(run.world(start / res, start % res).1) {
+            continue;
+        }
+        let (mut lo, mut hi, mut stack) = (f64::MAX, f64::MIN, vec![start]);
+        seen[start] = true;
+        while let Some(k) = stack.pop() {
+            let (x, _) = run.world(k / res, k % res);
+            (lo, hi) = (lo.min(x), hi.max(x));
+            let (i, j) = (k / res, k % res);
+            for (di, dj) in [(0i64, 1i64), (0, -1), (1, 0), (-1, 0)] {
+                let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                if ni < 0 || nj < 0 || ni >= res as i64 || nj >= res as i64 {
+                    continue;
+                }
+                let n = ni as usize * res + nj as usize;
+                if pressed[n] && !seen[n] {
+                    seen[n] = true;
+                    stack.push(n);
+                }
+            }
+        }
+        spans.push((lo, hi));
+    }
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    for s in spans {
+        match merged.last_mut() {
+            Some(last) if s.0 - last.1 < merge_m => last.1 = last.1.max(s.1),
+            _ => merged.push(s),
+        }
+    }
+    merged
+}
+
+#[test]
+fn the_fox_leaves_separate_paw_prints_along_its_whole_path() {
+    if !gpu_available() {
+        return;
+    }
+    let fox = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb");
+    // 8 m at the walk's own pace (1 m/s) over 4 cm of snow: paws lift ~11 cm, so they print, not plough.
+    let scene = format!(
+        r#"
+[snow]
+extent_m = 12.0
+resolution = 512
+depth_m = 0.04
+[[actor]]
+kind = "gltf"
+file = "{}"
+animation = "Walk"
+scale = 0.01
+path = [[-4.0, 0.0, 0.0, 0.0], [4.0, 0.0, 0.0, 8.0]]
+[sim]
+frames = 470
+"#,
+        fox.display()
+    );
+    let run = run_scene("fox-walk", &scene, &["--size", "64x36"]);
+    let snow = run.grid("snow.npy");
+    let pressed: Vec<bool> = snow.data.iter().map(|h| 0.04 - h > 0.005).collect();
+    let res = snow.res;
+    let mut count = 0;
+    for (k, _) in pressed.iter().enumerate().filter(|(_, p)| **p) {
+        let (x, z) = run.world(k / res, k % res);
+        assert!(z.abs() < 0.25 && (-4.6..4.6).contains(&x), "a print at ({x:.2}, {z:.2}), away from the path along z = 0");
+        count += 1;
+    }
+    assert!(count > 100, "only {count} pressed texels");
+    // Walking time over the clip's length: the steps each foot took (the first stance included).
+    let walked_s = 470.0 / 60.0;
+    let steps = (walked_s / 0.708_333_f64).ceil() as usize;
+    for (name, side) in [("left", -1.0), ("right", 1.0)] {
+        let prints = prints_along_x(&run, &pressed, |z| z * side > 0.0, 0.12);
+        let summary: Vec<String> = prints.iter().map(|p| format!("{:.2}..{:.2}", p.0, p.1)).collect();
+        assert!(prints.len().abs_diff(steps) <= 1, "{name} side: {} prints for {steps} steps: {summary:?}", prints.len());
+        assert!(prints.iter().all(|p| p.1 - p.0 < 0.6), "{name} side: a print longer than 0.6 m (a groove, not prints): {summary:?}");
+        // Along the whole path: every metre from the start to the end has a print.
+        for m in -4..3 {
+            let (a, b) = (f64::from(m), f64::from(m) + 1.0);
+            assert!(prints.iter().any(|p| p.1 > a && p.0 < b), "{name} side: no print between x = {a} and {b}: {summary:?}");
+        }
+    }
+
+    // Footstep events: once per touchdown per foot (no event for the first
+    // stance), each where a print is.
+    let events: serde_json::Value = serde_json::from_slice(&std::fs::read(run.out.join("footsteps.json")).expect("footsteps.json")).expect("JSON");
+    let events = events.as_array().expect("a list");
+    let mut per_foot: std::collections::BTreeMap<String, usize> = std::collections::BTreeMap::new();
+    for e in events {
+        *per_foot.entry(e["name"].as_str().expect("name").to_owned()).or_default() += 1;
+        let p = &e["position"];
+        let (x, z) = (p[0].as_f64().expect("x"), p[2].as_f64().expect("z"));
+        let near = pressed.iter().enumerate().any(|(k, &on)| {
+            let (px, pz) = run.world(k / res, k % res);
+            on && (px - x).hypot(pz - z) < 0.06
+        });
+        assert!(near, "footstep of {} at ({x:.2}, {z:.2}) has no print within 6 cm", e["name"]);
+        let depth = e["snow_depth_m"].as_f64().expect("a snow depth from the CPU query");
+        assert!((0.0..=0.0401).contains(&depth), "snow depth {depth} at a footstep");
+    }
+    let touchdowns = (walked_s / 0.708_333_f64) as usize;
+    assert_eq!(per_foot.len(), 4, "feet: {per_foot:?}");
+    for (foot, n) in &per_foot {
+        assert!(n.abs_diff(touchdowns) <= 1, "{foot}: {n} footsteps for {touchdowns} touchdowns");
+    }
+}
+
+#[test]
+fn bad_gltf_actors_name_the_file_and_key() {
+    let dir = Temp::new("fox-bad");
+    let fox = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb")).expect("fox");
+    std::fs::write(dir.0.join("cut.glb"), &fox[..fox.len() / 2]).expect("write");
+    std::fs::write(dir.0.join("fox.glb"), &fox).expect("write");
+    for (actor, key, words) in [
+        ("file = \"cut.glb\"", "[[actor]][0].file", "cut.glb"),
+        ("file = \"fox.glb\"\nanimation = \"Dance\"", "[[actor]][0].animation", "Dance"),
+        ("file = \"missing.glb\"", "[[actor]][0].file", "missing.glb"),
+    ] {
+        let scene = dir.0.join("scene.toml");
+        std::fs::write(&scene, format!("[[actor]]\nkind = \"gltf\"\n{actor}\n")).expect("scene");
+        let out = bin().args(["run", "--scene"]).arg(&scene).arg("--out").arg(dir.0.join("out")).output().expect("run");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{actor}: {err}");
+        assert!(err.contains(key) && err.contains(words), "{actor}: {err}");
+        assert!(!dir.0.join("out").exists(), "{actor}: output written for a bad scene");
+    }
+}

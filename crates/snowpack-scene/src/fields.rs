@@ -146,6 +146,22 @@ impl<'f> Fields<'f> {
         Ok(Vec3::new(n[0], n[1], n[2]))
     }
 
+    /// An array of strings.
+    pub(crate) fn strings_opt(&mut self, key: &str) -> Result<Option<Vec<String>>, SceneError> {
+        let Some(v) = self.table.remove(key) else { return Ok(None) };
+        let Value::Array(items) = &v else {
+            return Err(self.err(key, format!("expected an array of strings, got {}", type_name(&v))));
+        };
+        items
+            .iter()
+            .map(|x| match x {
+                Value::String(s) => Ok(s.clone()),
+                other => Err(self.err(key, format!("expected strings, got {}", type_name(other)))),
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+    }
+
     /// An array of `[a, b, c, d]` rows.
     pub(crate) fn rows4_opt(&mut self, key: &str) -> Result<Option<Vec<[f32; 4]>>, SceneError> {
         let Some(v) = self.table.remove(key) else { return Ok(None) };

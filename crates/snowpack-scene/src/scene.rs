@@ -13,6 +13,7 @@ use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::{GltfFile, SkinnedModel};
+use snowpack::skin::feet::{find_feet, Foot, DEFAULT_FOOT_PATTERNS};
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
@@ -62,6 +63,8 @@ pub struct GltfActor {
     pub scale: f32,
     /// Playback speed of the clip (`animation_speed`).
     pub speed: f32,
+    /// The feet, found by `feet` name patterns (footstep events).
+    pub feet: Vec<Foot>,
 }
 
 impl std::fmt::Debug for GltfActor {
@@ -69,10 +72,11 @@ impl std::fmt::Debug for GltfActor {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "glTF {} ({} vertices, {} joints), clip {:?} at speed {}, scale {}",
+            "glTF {} ({} vertices, {} joints, feet {:?}), clip {:?} at speed {}, scale {}",
             self.file.display(),
             self.model.mesh.positions.len(),
             self.model.skeleton.joints.len(),
+            self.feet.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
             self.model.clips.get(self.clip).map_or("", |c| c.name.as_str()),
             self.speed,
             self.scale
@@ -601,7 +605,13 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
             };
             let scale = a.positive("scale", 1.0, "")?;
             let speed = a.non_negative("animation_speed", 1.0, "")?;
-            ShapeSpec::Gltf(GltfActor { file: full, model: Arc::new(model), clip, scale, speed })
+            let patterns = a.strings_opt("feet")?.unwrap_or_else(|| DEFAULT_FOOT_PATTERNS.iter().map(|p| (*p).to_owned()).collect());
+            let pattern_refs: Vec<&str> = patterns.iter().map(String::as_str).collect();
+            let feet = find_feet(&model.skeleton, &model.clips, &pattern_refs);
+            if feet.is_empty() {
+                return Err(a.err("feet", format!("no joint of {} matches {patterns:?}", full.display())));
+            }
+            ShapeSpec::Gltf(GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet })
         }
     };
     let position = a.vec3("position", Vec3::new(0.0, 1.0, 0.0))?;

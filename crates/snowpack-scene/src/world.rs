@@ -8,6 +8,7 @@
 use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
+use snowpack::skin::feet::{FootTracker, FootstepEvent};
 use snowpack::skin::AnimationPlayer;
 use snowpack::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
@@ -41,7 +42,14 @@ struct Actor {
     anim: Option<AnimationPlayer>,
     /// Heading (radians about +y, 0 facing +z), kept while standing still.
     heading: f32,
+    /// Characters: touchdown detection per foot.
+    feet: Option<FootTracker>,
 }
+
+/// A sole within this of the ground is planted (m).
+pub const FOOT_PLANT_M: f32 = 0.015;
+/// A sole above this is lifted (m).
+pub const FOOT_LIFT_M: f32 = 0.04;
 
 /// A character's pose this frame: what the skinning pass needs.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +73,7 @@ pub struct World {
     bodies: Vec<Body>,
     min: Vec2,
     max: Vec2,
+    footsteps: Vec<FootstepEvent>,
 }
 
 fn path_at(keys: &[[f32; 4]], t: f32) -> Vec3 {
@@ -106,6 +115,7 @@ impl World {
             bodies: Vec::new(),
             min: center - Vec2::splat(half),
             max: center + Vec2::splat(half),
+            footsteps: Vec::new(),
         };
         for spec in &scene.actors {
             let body = match (&spec.motion, &spec.shape) {
@@ -115,15 +125,15 @@ impl World {
                 }
                 _ => None,
             };
-            let anim = match &spec.shape {
+            let (anim, feet) = match &spec.shape {
                 ShapeSpec::Gltf(g) => {
                     let mut player = AnimationPlayer::new(g.clip);
                     player.speed = g.speed;
-                    Some(player)
+                    (Some(player), Some(FootTracker::new(g.feet.len(), FOOT_PLANT_M, FOOT_LIFT_M)))
                 }
-                _ => None,
+                _ => (None, None),
             };
-            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body, anim, heading: 0.0 });
+            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body, anim, heading: 0.0, feet });
         }
         for spawn in &scene.spawns {
             let mut rng = Rng::new(spawn.seed);
@@ -136,7 +146,18 @@ impl World {
                 world.bodies.push(Body { pos: Vec3::new(x, y, z), vel, radius: r });
             }
         }
+        // Face the direction of travel from the first frame on.
+        world.update_headings();
         world
+    }
+
+    fn update_headings(&mut self) {
+        for k in 0..self.actors.len() {
+            let v = self.actor_velocity(k);
+            if Vec2::new(v.x, v.z).length() > 1e-3 {
+                self.actors[k].heading = v.x.atan2(v.z);
+            }
+        }
     }
 
     /// Simulated time (s).
@@ -205,14 +226,56 @@ impl World {
             self.substep(h);
         }
         self.time += dt;
-        for k in 0..self.actors.len() {
-            let v = self.actor_velocity(k);
-            let a = &mut self.actors[k];
+        for a in &mut self.actors {
             if let Some(player) = &mut a.anim {
                 player.advance(dt);
             }
-            if Vec2::new(v.x, v.z).length() > 1e-3 {
-                a.heading = v.x.atan2(v.z);
+        }
+        self.update_headings();
+        self.detect_footsteps();
+    }
+
+    /// Footstep events since the last call, oldest first.
+    pub fn take_footsteps(&mut self) -> Vec<FootstepEvent> {
+        std::mem::take(&mut self.footsteps)
+    }
+
+    /// Where each foot's sole is now (world), for every character: (actor, soles).
+    #[must_use]
+    pub fn soles(&self) -> Vec<(usize, Vec<Vec3>)> {
+        self.characters()
+            .into_iter()
+            .filter_map(|c| {
+                let a = &self.actors[c.actor];
+                let ShapeSpec::Gltf(g) = &a.shape else { return None };
+                let clip = a.anim.as_ref().map_or(g.clip, |p| p.clip);
+                let soles = g.feet.iter().map(|f| c.nodes[f.node].w_axis.truncate() - Vec3::Y * f.planted(clip) * g.scale).collect();
+                Some((c.actor, soles))
+            })
+            .collect()
+    }
+
+    fn detect_footsteps(&mut self) {
+        for (actor, soles) in self.soles() {
+            let Some(root) = self.actor_position(actor) else { continue };
+            let v = self.actor_velocity(actor);
+            let base = self.terrain.height_at(root.x, root.z);
+            // The sole's height over the ground the root walks on, following the terrain under each foot.
+            let heights: Vec<f32> = soles.iter().map(|p| p.y - (root.y + self.terrain.height_at(p.x, p.z) - base)).collect();
+            let Some(tracker) = self.actors[actor].feet.as_mut() else { continue };
+            let down = tracker.update(&heights);
+            let ShapeSpec::Gltf(g) = &self.actors[actor].shape else { continue };
+            for foot in down {
+                let p = soles[foot];
+                self.footsteps.push(FootstepEvent {
+                    actor,
+                    foot,
+                    name: g.feet[foot].name.clone(),
+                    position: Vec3::new(p.x, p.y - heights[foot], p.z),
+                    speed_m_per_s: Vec2::new(v.x, v.z).length(),
+                    time_s: self.time,
+                    snow_depth_m: None,
+                });
             }
         }
     }

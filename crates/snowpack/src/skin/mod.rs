@@ -4,6 +4,7 @@
 //! CPU twin [`crate::cpu::skinning`]). Reading files is the scene crate's job;
 //! this module takes decoded data.
 
+pub mod feet;
 pub mod skinning;
 
 use glam::{Mat4, Quat, Vec3, Vec4};
