@@ -46,7 +46,7 @@ impl SkinnedMesh {
         if self.joints.len() != n || self.weights.len() != n {
             return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
         }
-        if self.indices.len() % 3 != 0 || self.indices.iter().any(|&i| i as usize >= n) {
+        if !self.indices.len().is_multiple_of(3) || self.indices.iter().any(|&i| i as usize >= n) {
             return Err("triangle indices are not a list of in-range triples".into());
         }
         if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
