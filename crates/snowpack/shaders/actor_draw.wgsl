@@ -49,15 +49,5 @@ fn vs_shadow(v: Vertex, i: Instance) -> @builtin(position) vec4<f32> {
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let n = normalize(in.normal);
     let s = Surface(in.world, n, in.colour.rgb, in.colour.a, 1.0, vec3<f32>(1.0), 0.0, 0.0);
-    var colour = shade(s);
-    switch frame.window_info.z {
-        case VIEW_NORMALS: {
-            colour = n * 0.5 + 0.5;
-        }
-        case VIEW_AO, VIEW_DEFORMATION: {
-            colour = vec3<f32>(0.5);
-        }
-        default: {}
-    }
-    return vec4<f32>(colour, 1.0);
+    return vec4<f32>(actor_debug_colour(shade(s), n), 1.0);
 }

@@ -33,15 +33,5 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         n = -n;
     }
     let s = Surface(in.world, n, FUR_ALBEDO, FUR_ROUGHNESS, 1.0, vec3<f32>(1.0, 0.6, 0.4), 0.2, 0.0);
-    var colour = shade(s);
-    switch frame.window_info.z {
-        case VIEW_NORMALS: {
-            colour = n * 0.5 + 0.5;
-        }
-        case VIEW_AO, VIEW_DEFORMATION: {
-            colour = vec3<f32>(0.5);
-        }
-        default: {}
-    }
-    return vec4<f32>(colour, 1.0);
+    return vec4<f32>(actor_debug_colour(shade(s), n), 1.0);
 }

@@ -58,7 +58,7 @@ fn uniform_sizes_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 19);
+    assert_eq!(shaders::ALL.len(), 20);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -131,3 +131,19 @@ fn shade(s: Surface) -> vec3<f32> {
     let ambient_specular = env_specular(r, s.roughness) * env_f;
     return sun * (diffuse + vec3<f32>(specular + glint) * lambert) + (ambient_diffuse + ambient_specular) * s.ao;
 }
+
+// What an actor (sphere, box, character) shows in the debug views: its
+// normal, or a neutral grey where the view is about the snow.
+fn actor_debug_colour(lit: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    switch frame.window_info.z {
+        case VIEW_NORMALS: {
+            return n * 0.5 + 0.5;
+        }
+        case VIEW_AO, VIEW_DEFORMATION: {
+            return vec3<f32>(0.5);
+        }
+        default: {
+            return lit;
+        }
+    }
+}
