@@ -131,7 +131,9 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();
         }
-        world.step(scene.sim.dt_s);
+        // Characters on the snow stand in it as the latest snapshot shows it (older trails).
+        let snapshot = snow.snapshot();
+        world.step_on(scene.sim.dt_s, &|x, z| snapshot.and_then(|s| s.height_at(f64::from(x), f64::from(z))));
         for mut step in world.take_footsteps() {
             // The CPU query answers from a snapshot a few frames old: the snow the foot stepped into.
             step.snow_depth_m = snow.snapshot().and_then(|s| s.depth_at(snow.terrain(), f64::from(step.position.x), f64::from(step.position.z)));
@@ -201,7 +203,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
                 serde_json::json!({
                     "actor": e.actor, "foot": e.foot, "name": e.name,
                     "position": [e.position.x, e.position.y, e.position.z],
-                    "speed_m_per_s": e.speed_m_per_s, "time_s": e.time_s, "snow_depth_m": e.snow_depth_m,
+                    "speed_m_per_s": e.speed_m_per_s, "time_s": e.time_s, "snow_depth_m": e.snow_depth_m, "sink_m": e.sink_m,
                 })
             })
             .collect();

@@ -85,6 +85,7 @@ impl Scene {
         snow.insert("blur".into(), Value::Boolean(p.blur));
         snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
         snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
+        snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
         root.insert("snow".into(), Value::Table(snow));
 
         if self.spawns.is_empty() {

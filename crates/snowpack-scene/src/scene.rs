@@ -13,7 +13,8 @@ use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::{GltfFile, SkinnedModel};
-use snowpack::skin::feet::{find_feet, Foot, DEFAULT_FOOT_PATTERNS};
+use snowpack::skin::feet::{attach_paws, find_feet, stride_speed, Foot, DEFAULT_FOOT_PATTERNS};
+use snowpack::skin::sinking::FootLoad;
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +66,90 @@ pub struct GltfActor {
     pub speed: f32,
     /// The feet, found by `feet` name patterns (footstep events).
     pub feet: Vec<Foot>,
+    /// Locomotion clips chosen by travel speed (`gaits`); empty: `clip` always.
+    pub gaits: Vec<Gait>,
+    /// Cross-fade between clips (s) (`fade_s`).
+    pub fade_s: f32,
+    /// Where the root is put each frame (`placement`).
+    pub placement: Placement,
+    /// Weight and sole area for the sinking load model (`mass_kg`, `foot_area_m2`).
+    pub load: FootLoad,
+}
+
+/// A locomotion clip and the speed it is made for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gait {
+    /// Index of the clip.
+    pub clip: usize,
+    /// Travel speed (m/s, at the actor's scale) at which its planted feet do
+    /// not slide; it plays at `speed / stride_m_per_s`.
+    pub stride_m_per_s: f32,
+}
+
+/// Where a character's root is put each frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Placement {
+    /// At the path's (or position's) height, as written.
+    #[default]
+    Path,
+    /// Feet on the terrain under the snow (the path's y is an offset).
+    Ground,
+    /// Feet on the snow, sunk to the depth the load model gives (the path's y is an offset).
+    Snow,
+}
+
+impl Placement {
+    /// Every placement in scene-file spelling.
+    pub const ALL: [(Self, &'static str); 3] = [(Self::Path, "path"), (Self::Ground, "ground"), (Self::Snow, "snow")];
+
+    /// The scene-file spelling.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        Self::ALL.iter().find(|(p, _)| *p == self).map_or("path", |(_, s)| s)
+    }
+}
+
+impl GltfActor {
+    /// A character from a loaded model with the defaults of a scene file:
+    /// clip 0, scale 1, feet found by [`DEFAULT_FOOT_PATTERNS`], no gaits,
+    /// placed at the path's height, a fox's load. `None` without any foot.
+    #[must_use]
+    pub fn new(file: PathBuf, model: Arc<SkinnedModel>) -> Option<Self> {
+        let mut feet = find_feet(&model.skeleton, &model.clips, &DEFAULT_FOOT_PATTERNS);
+        attach_paws(&mut feet, &model.skeleton, &model.clips, &model.mesh);
+        (!feet.is_empty()).then(|| Self {
+            file,
+            model,
+            clip: 0,
+            scale: 1.0,
+            speed: 1.0,
+            feet,
+            gaits: Vec::new(),
+            fade_s: 0.25,
+            placement: Placement::Path,
+            load: FootLoad::default(),
+        })
+    }
+
+    /// Uses the clips `names` as gaits, each with its stride speed measured at
+    /// the current scale; the error names the first clip that is missing.
+    pub fn set_gaits(&mut self, names: &[String]) -> Result<(), String> {
+        let mut gaits = Vec::with_capacity(names.len());
+        for name in names {
+            let clip = self.model.clip(name).ok_or_else(|| {
+                let all: Vec<&str> = self.model.clips.iter().map(|c| c.name.as_str()).collect();
+                format!("{name:?} is not an animation of {} (it has {})", self.file.display(), all.join(", "))
+            })?;
+            let stride = stride_speed(&self.model.skeleton, &self.model.clips[clip], &self.feet) * self.scale;
+            if stride.is_nan() || stride <= 1e-3 {
+                return Err(format!("{name:?} does not move its feet backwards while they are down, so it is not a gait"));
+            }
+            gaits.push(Gait { clip, stride_m_per_s: stride });
+        }
+        gaits.sort_by(|a, b| a.stride_m_per_s.total_cmp(&b.stride_m_per_s));
+        self.gaits = gaits;
+        Ok(())
+    }
 }
 
 impl std::fmt::Debug for GltfActor {
@@ -80,7 +165,11 @@ impl std::fmt::Debug for GltfActor {
             self.model.clips.get(self.clip).map_or("", |c| c.name.as_str()),
             self.speed,
             self.scale
-        )
+        )?;
+        for g in &self.gaits {
+            write!(f, ", gait {:?} at {:.2} m/s", self.model.clips.get(g.clip).map_or("", |c| c.name.as_str()), g.stride_m_per_s)?;
+        }
+        write!(f, ", placed on the {}", self.placement.as_str())
     }
 }
 
@@ -301,6 +390,7 @@ impl Scene {
                     technique,
                     range_texels: t.u32_in("range_texels", 64, 32..=128)?,
                     rim,
+                    hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
@@ -476,7 +566,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -486,7 +576,8 @@ impl Scene {
             p.blur,
             p.technique.as_str(),
             p.range_texels,
-            p.rim.as_str()
+            p.rim.as_str(),
+            p.hardness_kpa
         );
         let terrain = match &self.terrain {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
@@ -607,11 +698,24 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
             let speed = a.non_negative("animation_speed", 1.0, "")?;
             let patterns = a.strings_opt("feet")?.unwrap_or_else(|| DEFAULT_FOOT_PATTERNS.iter().map(|p| (*p).to_owned()).collect());
             let pattern_refs: Vec<&str> = patterns.iter().map(String::as_str).collect();
-            let feet = find_feet(&model.skeleton, &model.clips, &pattern_refs);
+            let mut feet = find_feet(&model.skeleton, &model.clips, &pattern_refs);
+            attach_paws(&mut feet, &model.skeleton, &model.clips, &model.mesh);
             if feet.is_empty() {
                 return Err(a.err("feet", format!("no joint of {} matches {patterns:?}", full.display())));
             }
-            ShapeSpec::Gltf(GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet })
+            let placement_name = a.choice("placement", "path", &Placement::ALL.map(|(_, s)| s))?;
+            let placement = Placement::ALL.iter().find(|(_, s)| *s == placement_name).map_or(Placement::Path, |(p, _)| *p);
+            let defaults = FootLoad::default();
+            let load = FootLoad {
+                mass_kg: a.positive("mass_kg", defaults.mass_kg, " of kg")?,
+                foot_area_m2: a.positive("foot_area_m2", defaults.foot_area_m2, " of m²")?,
+            };
+            let fade_s = a.non_negative("fade_s", 0.25, " of seconds")?;
+            let mut actor = GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet, gaits: Vec::new(), fade_s, placement, load };
+            if let Some(names) = a.strings_opt("gaits")? {
+                actor.set_gaits(&names).map_err(|why| a.err("gaits", why))?;
+            }
+            ShapeSpec::Gltf(actor)
         }
     };
     let position = a.vec3("position", Vec3::new(0.0, 1.0, 0.0))?;

@@ -13,7 +13,7 @@ use snowpack::skin::AnimationPlayer;
 use snowpack::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
-use crate::scene::{Motion, Scene, ShapeSpec, WindowSpec};
+use crate::scene::{ActorSpec, Motion, Placement, Scene, ShapeSpec, WindowSpec};
 
 /// Gravity (m/s²).
 pub const GRAVITY: f32 = 9.81;
@@ -44,7 +44,29 @@ struct Actor {
     heading: f32,
     /// Characters: touchdown detection per foot.
     feet: Option<FootTracker>,
+    /// Characters placed on the ground or the snow: the root's height (m).
+    root_y: Option<f32>,
+    /// Characters: the height each foot stands on (m), and the load model's
+    /// sinkage this frame (m).
+    supports: Vec<f32>,
+    sink_m: f32,
+    /// Characters: index into the gaits of the gait playing.
+    gait: Option<usize>,
+    /// Steered by the game ([`World::steer`]): position and velocity, which
+    /// replace the scene's motion.
+    steer: Option<(Vec3, Vec3)>,
 }
+
+/// How fast a character turns toward its direction of travel (rad/s).
+const TURN_RATE: f32 = 8.0;
+/// Time constant of a placed character's root height settling onto its feet (s) ...
+const ROOT_SETTLE_S: f32 = 0.06;
+/// ... and rising onto them (s): the snow pushes back faster than the body sinks.
+const ROOT_RISE_S: f32 = 0.015;
+/// Below this speed (m/s) a character with gaits plays its standing clip.
+const STAND_SPEED: f32 = 0.05;
+/// A gait changes only when the other fits the speed better by this much (log ratio).
+const GAIT_HYSTERESIS: f32 = 0.1;
 
 /// A sole within this of the ground is planted (m).
 pub const FOOT_PLANT_M: f32 = 0.015;
@@ -74,6 +96,9 @@ pub struct World {
     min: Vec2,
     max: Vec2,
     footsteps: Vec<FootstepEvent>,
+    /// Rest depth and hardness of the snow characters stand on.
+    snow_depth_m: f32,
+    hardness_kpa: f32,
 }
 
 fn path_at(keys: &[[f32; 4]], t: f32) -> Vec3 {
@@ -116,24 +141,11 @@ impl World {
             min: center - Vec2::splat(half),
             max: center + Vec2::splat(half),
             footsteps: Vec::new(),
+            snow_depth_m: scene.snow.depth_m,
+            hardness_kpa: scene.snow.hardness_kpa,
         };
         for spec in &scene.actors {
-            let body = match (&spec.motion, &spec.shape) {
-                (Motion::Physics { position, velocity }, ShapeSpec::Sphere { radius_m }) => {
-                    world.bodies.push(Body { pos: *position, vel: *velocity, radius: *radius_m });
-                    Some(world.bodies.len() - 1)
-                }
-                _ => None,
-            };
-            let (anim, feet) = match &spec.shape {
-                ShapeSpec::Gltf(g) => {
-                    let mut player = AnimationPlayer::new(g.clip);
-                    player.speed = g.speed;
-                    (Some(player), Some(FootTracker::new(g.feet.len(), FOOT_PLANT_M, FOOT_LIFT_M)))
-                }
-                _ => (None, None),
-            };
-            world.actors.push(Actor { shape: spec.shape.clone(), motion: spec.motion.clone(), body, anim, heading: 0.0, feet });
+            world.push_actor(spec);
         }
         for spawn in &scene.spawns {
             let mut rng = Rng::new(spawn.seed);
@@ -146,19 +158,189 @@ impl World {
                 world.bodies.push(Body { pos: Vec3::new(x, y, z), vel, radius: r });
             }
         }
-        // Face the direction of travel from the first frame on.
-        world.update_headings();
+        // Face the direction of travel, in the gait for the speed and on the
+        // snow from the first frame on.
+        world.update_headings(None);
+        world.update_gaits();
+        world.place_characters(0.0, &|_, _| None);
         world
     }
 
-    fn update_headings(&mut self) {
+    fn push_actor(&mut self, spec: &ActorSpec) -> usize {
+        let body = match (&spec.motion, &spec.shape) {
+            (Motion::Physics { position, velocity }, ShapeSpec::Sphere { radius_m }) => {
+                self.bodies.push(Body { pos: *position, vel: *velocity, radius: *radius_m });
+                Some(self.bodies.len() - 1)
+            }
+            _ => None,
+        };
+        let (anim, feet) = match &spec.shape {
+            ShapeSpec::Gltf(g) => {
+                let mut player = AnimationPlayer::new(g.clip);
+                player.speed = g.speed;
+                (Some(player), Some(FootTracker::new(g.feet.len(), FOOT_PLANT_M, FOOT_LIFT_M)))
+            }
+            _ => (None, None),
+        };
+        self.actors.push(Actor {
+            shape: spec.shape.clone(),
+            motion: spec.motion.clone(),
+            body,
+            anim,
+            heading: 0.0,
+            feet,
+            root_y: None,
+            supports: Vec::new(),
+            sink_m: 0.0,
+            gait: None,
+            steer: None,
+        });
+        self.actors.len() - 1
+    }
+
+    /// Adds an actor (a character the player steers, say) now; returns its index.
+    pub fn add_actor(&mut self, spec: &ActorSpec) -> usize {
+        let k = self.push_actor(spec);
+        self.update_headings(None);
+        self.update_gaits();
+        self.place_characters(0.0, &|_, _| None);
+        k
+    }
+
+    /// Steers actor `i` from where it is now at `velocity` (m/s, on the ground
+    /// plane) from now on, in place of its scene motion; physics spheres are
+    /// not steered. False when there is no such actor.
+    pub fn steer(&mut self, i: usize, velocity: Vec2) -> bool {
+        let Some(position) = self.actor_position(i) else { return false };
+        let a = &mut self.actors[i];
+        if a.body.is_some() {
+            return false;
+        }
+        a.steer = Some((position, Vec3::new(velocity.x, 0.0, velocity.y)));
+        true
+    }
+
+    /// Puts actor `i` at `xz` (keeping its height rule); for the game's respawns.
+    pub fn teleport(&mut self, i: usize, xz: Vec2) {
+        let Some(p) = self.actor_position(i) else { return };
+        if let Some(a) = self.actors.get_mut(i).filter(|a| a.body.is_none()) {
+            let v = a.steer.map_or(Vec3::ZERO, |s| s.1);
+            a.steer = Some((Vec3::new(xz.x, p.y, xz.y), v));
+            a.root_y = None;
+        }
+        self.place_characters(0.0, &|_, _| None);
+    }
+
+    /// Turns characters toward their direction of travel, at most
+    /// [`TURN_RATE`] over `dt` (at once when `None`).
+    fn update_headings(&mut self, dt: Option<f32>) {
         for k in 0..self.actors.len() {
             let v = self.actor_velocity(k);
             if Vec2::new(v.x, v.z).length() > 1e-3 {
-                self.actors[k].heading = v.x.atan2(v.z);
+                let want = v.x.atan2(v.z);
+                let a = &mut self.actors[k];
+                a.heading = match dt {
+                    None => want,
+                    Some(dt) => {
+                        let turn = (want - a.heading + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+                        a.heading + turn.clamp(-TURN_RATE * dt, TURN_RATE * dt)
+                    }
+                };
             }
         }
     }
+
+    /// Picks each character's clip and playback speed from its travel speed.
+    fn update_gaits(&mut self) {
+        for k in 0..self.actors.len() {
+            let v = self.actor_velocity(k);
+            let speed = Vec2::new(v.x, v.z).length();
+            let a = &mut self.actors[k];
+            let (ShapeSpec::Gltf(g), Some(player)) = (&a.shape, &mut a.anim) else { continue };
+            if g.gaits.is_empty() {
+                continue;
+            }
+            if speed < STAND_SPEED {
+                player.play_synced(g.clip, g.fade_s, &g.model.clips);
+                player.speed = g.speed;
+                a.gait = None;
+                continue;
+            }
+            let misfit = |j: usize| (speed / g.gaits[j].stride_m_per_s).ln().abs();
+            let best = (0..g.gaits.len()).min_by(|&x, &y| misfit(x).total_cmp(&misfit(y))).unwrap_or(0);
+            let gait = match a.gait {
+                Some(now) if now < g.gaits.len() && misfit(best) > misfit(now) - GAIT_HYSTERESIS => now,
+                _ => best,
+            };
+            a.gait = Some(gait);
+            player.play_synced(g.gaits[gait].clip, g.fade_s, &g.model.clips);
+            player.speed = g.speed * speed / g.gaits[gait].stride_m_per_s;
+        }
+    }
+
+    /// Puts characters placed on the ground or the snow at the height their
+    /// feet stand on: for the snow, the rest surface less the load model's
+    /// sinkage, or the snow as it is (`surface(x, z)`, when known) where that
+    /// is lower (an older trail), never below the ground. The root follows
+    /// the feet that are down: up at once, down with a short time constant.
+    fn place_characters(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<f32>) {
+        for (actor, soles) in self.soles() {
+            let a = &self.actors[actor];
+            let ShapeSpec::Gltf(g) = &a.shape else { continue };
+            let (placement, load) = (g.placement, g.load);
+            let root = a.root_y;
+            let planted: Vec<bool> = a.feet.as_ref().map_or_else(|| vec![true; soles.len()], |t| t.planted().to_vec());
+            let down = planted.iter().filter(|p| **p).count();
+            let sink = match placement {
+                Placement::Snow => load.sinkage_m(down, self.snow_depth_m, self.hardness_kpa),
+                Placement::Path | Placement::Ground => 0.0,
+            };
+            let supports: Vec<f32> = soles
+                .iter()
+                .map(|p| {
+                    let ground = self.terrain.height_at(p.x, p.z);
+                    match placement {
+                        Placement::Snow => {
+                            let pressed = ground + self.snow_depth_m - sink;
+                            surface(p.x, p.z).map_or(pressed, |s| s.min(pressed)).max(ground)
+                        }
+                        Placement::Ground => ground,
+                        // Path: the ground the root walks on, carried under each foot.
+                        Placement::Path => f32::NAN,
+                    }
+                })
+                .collect();
+            self.actors[actor].sink_m = sink;
+            if placement == Placement::Path {
+                self.actors[actor].supports.clear();
+                continue;
+            }
+            // The root that puts the planted paws on their supports, on average
+            // (a clip's paws are not all exactly level). In the air (a run's
+            // flight) the root holds its height.
+            let current = root.unwrap_or(0.0);
+            let wanted: Vec<f32> = soles
+                .iter()
+                .zip(&supports)
+                .zip(&planted)
+                .filter(|(_, down)| **down)
+                .map(|((sole, support), _)| support - sole.y + current)
+                .collect();
+            let target = (!wanted.is_empty()).then(|| wanted.iter().sum::<f32>() / wanted.len() as f32);
+            let a = &mut self.actors[actor];
+            a.root_y = match (root, target) {
+                // The snow holds a paw up quickly; the body settles into it more slowly.
+                (Some(y), Some(t)) if dt > 0.0 => {
+                    let tau = if t > y { ROOT_RISE_S } else { ROOT_SETTLE_S };
+                    Some(y + (t - y) * (1.0 - (-dt / tau).exp()))
+                }
+                (_, Some(t)) => Some(t),
+                (y, None) => y.or_else(|| supports.iter().copied().reduce(f32::max)),
+            };
+            a.supports = supports;
+        }
+    }
+
 
     /// Simulated time (s).
     #[must_use]
@@ -182,13 +364,20 @@ impl World {
     #[must_use]
     pub fn actor_position(&self, i: usize) -> Option<Vec3> {
         let a = self.actors.get(i)?;
-        Some(match (&a.motion, a.body) {
-            (_, Some(b)) => self.bodies[b].pos,
-            (Motion::Path(keys), None) => path_at(keys, self.time),
-            (Motion::Kinematic { position, velocity } | Motion::Physics { position, velocity }, None) => {
+        let mut p = match (&a.motion, a.body, a.steer) {
+            (_, Some(b), _) => self.bodies[b].pos,
+            (_, None, Some((position, _))) => position,
+            (Motion::Path(keys), None, None) => path_at(keys, self.time),
+            (Motion::Kinematic { position, velocity } | Motion::Physics { position, velocity }, None, None) => {
                 *position + *velocity * self.time
             }
-        })
+        };
+        if let Some(y) = a.root_y {
+            // Placed characters: the scene's height is an offset from their feet's support.
+            let offset = if a.steer.is_some() { 0.0 } else { p.y };
+            p.y = y + offset;
+        }
+        Some(p)
     }
 
     /// Centres of all physics spheres now.
@@ -211,28 +400,70 @@ impl World {
                     Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation }
                 }
                 ShapeSpec::Point { scale_per_m } => Deformer::Point { position: center, scale_per_m: *scale_per_m },
-                // Characters press the snow with their skinned mesh (see `characters`).
+                // Characters press the snow with their skinned mesh (see
+                // `characters`) and, for the points technique, a point under
+                // each foot that is down (added below).
                 ShapeSpec::Gltf(_) => continue,
             });
         }
+        out.extend(self.foot_points());
         out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));
         out
     }
 
-    /// Advances time by `dt` seconds.
+    /// The points technique's contacts of characters: a point under each
+    /// foot that is down, as deep as the foot stands, as wide as its sole.
+    #[must_use]
+    pub fn foot_points(&self) -> Vec<Deformer> {
+        let mut out = Vec::new();
+        for (actor, soles) in self.soles() {
+            let a = &self.actors[actor];
+            let (ShapeSpec::Gltf(g), Some(tracker)) = (&a.shape, &a.feet) else { continue };
+            // h = foot + d² / (2 r): a sphere of the sole's radius near its bottom.
+            let scale_per_m = 0.5 / g.load.foot_radius_m();
+            for (k, (p, down)) in soles.iter().zip(tracker.planted()).enumerate() {
+                if *down {
+                    let y = a.supports.get(k).copied().unwrap_or(p.y);
+                    out.push(Deformer::Point { position: Vec3::new(p.x, y, p.z), scale_per_m });
+                }
+            }
+        }
+        out
+    }
+
+    /// Advances time by `dt` seconds, with the snow undisturbed for characters
+    /// placed on it (see [`Self::step_on`]).
     pub fn step(&mut self, dt: f32) {
+        self.step_on(dt, &|_, _| None);
+    }
+
+    /// Advances time by `dt` seconds; characters placed on the snow stand in
+    /// it as `surface(x, z)` (world height of the snow there, m, `None` where
+    /// unknown) says, for example from the deformation's CPU snapshot.
+    pub fn step_on(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<f32>) {
         let h = dt / SUBSTEPS as f32;
         for _ in 0..SUBSTEPS {
             self.substep(h);
         }
         self.time += dt;
         for a in &mut self.actors {
+            if let Some((position, velocity)) = &mut a.steer {
+                *position += *velocity * dt;
+            }
             if let Some(player) = &mut a.anim {
                 player.advance(dt);
             }
         }
-        self.update_headings();
+        self.update_headings(Some(dt));
+        self.update_gaits();
+        self.place_characters(dt, surface);
         self.detect_footsteps();
+    }
+
+    /// The clip each character plays now and its playback speed: (actor, clip, speed).
+    #[must_use]
+    pub fn clips(&self) -> Vec<(usize, usize, f32)> {
+        self.actors.iter().enumerate().filter_map(|(k, a)| a.anim.as_ref().map(|p| (k, p.clip, p.speed))).collect()
     }
 
     /// Footstep events since the last call, oldest first.
@@ -241,6 +472,9 @@ impl World {
     }
 
     /// Where each foot's sole is now (world), for every character: (actor, soles).
+    /// A placed character's soles are its paws' lowest points; a character
+    /// at its path's height has its clip grounded: each sole is lifted by the
+    /// foot's lowest height over the clip, so it touches y = root when planted.
     #[must_use]
     pub fn soles(&self) -> Vec<(usize, Vec<Vec3>)> {
         self.characters()
@@ -249,7 +483,15 @@ impl World {
                 let a = &self.actors[c.actor];
                 let ShapeSpec::Gltf(g) = &a.shape else { return None };
                 let clip = a.anim.as_ref().map_or(g.clip, |p| p.clip);
-                let soles = g.feet.iter().map(|f| c.nodes[f.node].w_axis.truncate() - Vec3::Y * f.planted(clip) * g.scale).collect();
+                let soles = g
+                    .feet
+                    .iter()
+                    .map(|f| {
+                        let lowest = f.lowest_point(&g.model.mesh, &c.joints, c.model).unwrap_or_else(|| c.nodes[f.node].w_axis.truncate());
+                        let grounding = if g.placement == Placement::Path { f.planted(clip) * g.scale } else { 0.0 };
+                        lowest - Vec3::Y * grounding
+                    })
+                    .collect();
                 Some((c.actor, soles))
             })
             .collect()
@@ -260,8 +502,16 @@ impl World {
             let Some(root) = self.actor_position(actor) else { continue };
             let v = self.actor_velocity(actor);
             let base = self.terrain.height_at(root.x, root.z);
-            // The sole's height over the ground the root walks on, following the terrain under each foot.
-            let heights: Vec<f32> = soles.iter().map(|p| p.y - (root.y + self.terrain.height_at(p.x, p.z) - base)).collect();
+            let a = &self.actors[actor];
+            let sink_m = a.sink_m;
+            // The sole's height over what it stands on: the support of a placed
+            // character, or else the ground the root walks on, following the
+            // terrain under each foot.
+            let heights: Vec<f32> = soles
+                .iter()
+                .enumerate()
+                .map(|(k, p)| p.y - a.supports.get(k).copied().unwrap_or(root.y + self.terrain.height_at(p.x, p.z) - base))
+                .collect();
             let Some(tracker) = self.actors[actor].feet.as_mut() else { continue };
             let down = tracker.update(&heights);
             let ShapeSpec::Gltf(g) = &self.actors[actor].shape else { continue };
@@ -275,6 +525,7 @@ impl World {
                     speed_m_per_s: Vec2::new(v.x, v.z).length(),
                     time_s: self.time,
                     snow_depth_m: None,
+                    sink_m,
                 });
             }
         }
@@ -283,13 +534,14 @@ impl World {
     /// Velocity of actor `i` now (m/s).
     fn actor_velocity(&self, i: usize) -> Vec3 {
         let Some(a) = self.actors.get(i) else { return Vec3::ZERO };
-        match (&a.motion, a.body) {
-            (_, Some(b)) => self.bodies[b].vel,
-            (Motion::Path(keys), None) => {
+        match (&a.motion, a.body, a.steer) {
+            (_, Some(b), _) => self.bodies[b].vel,
+            (_, None, Some((_, velocity))) => velocity,
+            (Motion::Path(keys), None, None) => {
                 let h = 0.02;
                 (path_at(keys, self.time + h) - path_at(keys, self.time - h)) / (2.0 * h)
             }
-            (Motion::Kinematic { velocity, .. } | Motion::Physics { velocity, .. }, None) => *velocity,
+            (Motion::Kinematic { velocity, .. } | Motion::Physics { velocity, .. }, None, None) => *velocity,
         }
     }
 

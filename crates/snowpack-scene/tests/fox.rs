@@ -59,3 +59,80 @@ fn a_truncated_file_is_an_error_not_a_panic() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn walk_and_run_have_the_strides_of_a_fox() {
+    let model = GltfFile::open(&fox_path()).expect("open").skinned_model().expect("skinned model");
+    let s = &model.skeleton;
+    let feet = snowpack::skin::feet::find_feet(s, &model.clips, &snowpack::skin::feet::DEFAULT_FOOT_PATTERNS);
+    let speed = |name: &str| snowpack::skin::feet::stride_speed(s, &model.clips[model.clip(name).expect(name)], &feet) * 0.01;
+    let (walk, run) = (speed("Walk"), speed("Run"));
+    eprintln!("walk {walk} m/s, run {run} m/s, durations {:?}", model.clips.iter().map(|c| c.duration).collect::<Vec<_>>());
+    assert!(walk > 0.5 && walk < 2.0, "walk {walk} m/s");
+    assert!(run > 1.5 * walk && run < 8.0, "run {run} m/s vs walk {walk}");
+}
+
+fn fox_scene(extra: &str, path: &str) -> snowpack_scene::Scene {
+    let text = format!(
+        "[snow]\nextent_m = 12.0\nresolution = 256\ndepth_m = 0.2\n{extra}\n[[actor]]\nkind = \"gltf\"\nfile = \"Fox.glb\"\nanimation = \"Survey\"\n\
+         gaits = [\"Walk\", \"Run\"]\nscale = 0.01\nplacement = \"snow\"\npath = {path}\n"
+    );
+    snowpack_scene::Scene::parse(&text, &fox_path()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn the_fox_walks_then_runs_with_a_cross_fade_and_matched_playback_speed() {
+    // 0.9 m/s for 4 s, then 2.4 m/s (past the 8 s simulated).
+    let scene = fox_scene("", "[[0.0, 0.0, 0.0, 0.0], [3.6, 0.0, 0.0, 4.0], [15.6, 0.0, 0.0, 9.0]]");
+    let snowpack_scene::ShapeSpec::Gltf(g) = &scene.actors[0].shape else { panic!("not a gltf actor") };
+    let clip = |name: &str| g.model.clip(name).expect(name);
+    let stride = |c: usize| g.gaits.iter().find(|x| x.clip == c).expect("gait").stride_m_per_s;
+    let mut world = snowpack_scene::World::new(&scene);
+    let dt = 1.0 / 60.0;
+    let mut seen = Vec::new();
+    for frame in 0..480 {
+        world.step(dt);
+        let (_, c, speed) = world.clips()[0];
+        let t = (frame + 1) as f32 * dt;
+        if t > 0.5 && t < 3.9 {
+            assert_eq!(c, clip("Walk"), "t = {t}");
+            assert!((speed - 0.9 / stride(c)).abs() < 0.02, "walk plays at {speed}");
+        }
+        if t > 4.1 && t < 7.95 {
+            assert_eq!(c, clip("Run"), "t = {t}");
+            assert!((speed - 2.4 / stride(c)).abs() < 0.02, "run plays at {speed} at t = {t}, {}", stride(c));
+        }
+        if seen.last() != Some(&c) {
+            seen.push(c);
+        }
+    }
+    assert_eq!(seen, [clip("Walk"), clip("Run")], "one change of gait");
+    // Standing still: the standing clip.
+    let still = fox_scene("", "[[0.0, 0.0, 0.0, 0.0]]");
+    let mut world = snowpack_scene::World::new(&still);
+    world.step(dt);
+    assert_eq!(world.clips()[0].1, clip("Survey"));
+}
+
+#[test]
+fn a_fox_on_soft_snow_stands_lower_than_on_hard_snow_and_never_below_the_ground() {
+    let height = |hardness: f32, depth: f32| {
+        let mut scene = fox_scene(&format!("hardness_kpa = {hardness}\n"), "[[0.0, 0.0, 0.0, 0.0], [3.6, 0.0, 0.0, 4.0]]");
+        scene.snow.depth_m = depth;
+        let mut world = snowpack_scene::World::new(&scene);
+        let mut ys = Vec::new();
+        for _ in 0..180 {
+            world.step(1.0 / 60.0);
+            ys.push(world.actor_position(0).expect("fox").y);
+        }
+        ys.iter().sum::<f32>() / ys.len() as f32
+    };
+    let (soft, hard) = (height(2.0, 0.2), height(50.0, 0.2));
+    // 6 kg on two to three 35 cm² paws is 5.6 to 8.4 kPa: in 2 kPa snow the
+    // paws sink 0.15 to 0.16 m of the 0.2 m, in 50 kPa snow 0.02 to 0.03 m.
+    assert!(hard - soft > 0.1, "soft {soft:.3} m, hard {hard:.3} m");
+    assert!(hard > 0.15 && hard < 0.2, "hard {hard:.3} m");
+    assert!(soft > 0.0 && soft < 0.08, "soft {soft:.3} m");
+    // Deep powder and a heavy load: never below the terrain.
+    assert!(height(0.01, 0.2) > -0.01);
+}

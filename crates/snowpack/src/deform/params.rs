@@ -26,6 +26,10 @@ pub struct SnowParams {
     pub range_texels: u32,
     /// Rim formula of the points technique.
     pub rim: RimStyle,
+    /// Penetration hardness of the snow (kPa): the foot pressure at which a
+    /// character placed on the snow sinks half its depth (see
+    /// [`crate::skin::sinking`]). Fresh powder is a few kPa, settled snow tens.
+    pub hardness_kpa: f32,
 }
 
 impl Default for SnowParams {
@@ -40,6 +44,7 @@ impl Default for SnowParams {
             technique: Technique::Depth,
             range_texels: 64,
             rim: RimStyle::Rounded,
+            hardness_kpa: 10.0,
         }
     }
 }
@@ -85,6 +90,9 @@ impl SnowParams {
         }
         if !(self.elevation.is_finite() && self.elevation >= 0.0) {
             return bad("elevation", format!("{} must be zero or positive", self.elevation));
+        }
+        if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
+            return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
         }
         if !RANGE_TEXELS.contains(&self.range_texels) {
             return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));

@@ -1,23 +1,28 @@
 //! Feet of a character: which joints touch the ground, and footstep events
 //! when one touches down (for sounds, particles and gameplay).
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 
+use super::skinning::SkinnedMesh;
 use super::{Clip, Skeleton};
 
 /// Joint-name patterns that mark feet when none are given (case-insensitive).
 pub const DEFAULT_FOOT_PATTERNS: [&str; 4] = ["foot", "hand", "paw", "toe"];
 
-/// One foot: its joint and its height when planted.
+/// One foot: its joint, the mesh of its paw and its height when planted.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Foot {
     /// Node index of the foot joint.
     pub node: usize,
     /// The joint's name.
     pub name: String,
-    /// Height of the joint above the sole when planted (model units), per
-    /// clip: its lowest over that clip's cycle.
+    /// Height of the foot's reference point (the lowest vertex of its paw,
+    /// or the joint when it has none) above the root when planted (model
+    /// units), per clip: its lowest over that clip's cycle.
     pub planted_height: Vec<f32>,
+    /// The paw: vertices bound mostly to the foot joint or a joint below it
+    /// (see [`attach_paws`]); empty when unknown.
+    pub paw: Vec<u32>,
 }
 
 impl Foot {
@@ -25,6 +30,56 @@ impl Foot {
     #[must_use]
     pub fn planted(&self, clip: usize) -> f32 {
         self.planted_height.get(clip).or(self.planted_height.first()).copied().unwrap_or(0.0)
+    }
+
+    /// The lowest vertex of the paw skinned by `joints` and placed by
+    /// `model`; `None` without a paw (use the joint then).
+    #[must_use]
+    pub fn lowest_point(&self, mesh: &SkinnedMesh, joints: &[Mat4], model: Mat4) -> Option<Vec3> {
+        let last = joints.len().saturating_sub(1);
+        self.paw
+            .iter()
+            .filter_map(|&v| {
+                let v = v as usize;
+                let (p, j, w) = (mesh.positions.get(v)?, mesh.joints.get(v)?, mesh.weights.get(v)?);
+                let m = (0..4).fold(Mat4::ZERO, |acc, k| acc + joints[usize::from(j[k]).min(last)] * w[k]);
+                Some(model.transform_point3(m.transform_point3(*p)))
+            })
+            .min_by(|a, b| a.y.total_cmp(&b.y))
+    }
+}
+
+/// Gives each foot its paw, the vertices of `mesh` whose largest weight is on
+/// the foot joint or a joint below it, and measures the planted heights from
+/// the paws' lowest vertices instead of the joints (so a paw that points its
+/// toes down in a run still stands on the ground, not in it).
+pub fn attach_paws(feet: &mut [Foot], skeleton: &Skeleton, clips: &[Clip], mesh: &SkinnedMesh) {
+    for foot in feet.iter_mut() {
+        foot.paw = mesh
+            .weights
+            .iter()
+            .zip(&mesh.joints)
+            .enumerate()
+            .filter_map(|(v, (w, j))| {
+                let k = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b]))?;
+                let node = *skeleton.joints.get(usize::from(j[k]))?;
+                (node == foot.node || is_ancestor(skeleton, foot.node, node)).then_some(v as u32)
+            })
+            .collect();
+        if foot.paw.is_empty() {
+            continue;
+        }
+        foot.planted_height = clips
+            .iter()
+            .map(|clip| {
+                (0..48)
+                    .map(|s| {
+                        let globals = skeleton.globals(&clip.sample(skeleton, clip.duration * s as f32 / 48.0, true));
+                        foot.lowest_point(mesh, &skeleton.joint_matrices(&globals), Mat4::IDENTITY).map_or(0.0, |p| p.y)
+                    })
+                    .fold(f32::MAX, f32::min)
+            })
+            .collect();
     }
 }
 
@@ -55,9 +110,37 @@ pub fn find_feet(skeleton: &Skeleton, clips: &[Clip], patterns: &[&str]) -> Vec<
                         .fold(f32::MAX, f32::min)
                 })
                 .collect();
-            Foot { node, name: skeleton.nodes[node].name.clone(), planted_height }
+            Foot { node, name: skeleton.nodes[node].name.clone(), planted_height, paw: Vec::new() }
         })
         .collect()
+}
+
+/// The speed (model units per second, along the model's +z) at which `clip`
+/// must travel for its planted feet not to slide: the mean backward speed of
+/// each foot while it is within 15% of its lift above its lowest. Locomotion
+/// plays a clip at `travel speed / stride speed` so paws stay put in stance.
+#[must_use]
+pub fn stride_speed(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> f32 {
+    const SAMPLES: usize = 96;
+    if clip.duration <= 0.0 || feet.is_empty() {
+        return 0.0;
+    }
+    let dt = clip.duration / SAMPLES as f32;
+    let poses: Vec<Vec<glam::Mat4>> = (0..SAMPLES).map(|s| skeleton.globals(&clip.sample(skeleton, dt * s as f32, true))).collect();
+    let (mut sum, mut count) = (0.0f32, 0u32);
+    for foot in feet {
+        let track: Vec<Vec3> = poses.iter().map(|g| g[foot.node].w_axis.truncate()).collect();
+        let (lo, hi) = track.iter().fold((f32::MAX, f32::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
+        let planted = lo + 0.15 * (hi - lo);
+        for s in 0..SAMPLES {
+            let (a, b) = (track[s], track[(s + 1) % SAMPLES]);
+            if a.y <= planted && b.y <= planted {
+                sum += (a.z - b.z) / dt;
+                count += 1;
+            }
+        }
+    }
+    if count == 0 { 0.0 } else { sum / count as f32 }
 }
 
 fn is_ancestor(skeleton: &Skeleton, a: usize, mut b: usize) -> bool {
@@ -87,6 +170,9 @@ pub struct FootstepEvent {
     pub time_s: f32,
     /// Snow depth there (m) from the CPU query, when the caller has one.
     pub snow_depth_m: Option<f32>,
+    /// How far the load model sinks the foot into the snow there (m); 0 for
+    /// characters not placed on the snow.
+    pub sink_m: f32,
 }
 
 /// Touchdown detection with hysteresis: a foot is planted when its sole is
@@ -106,6 +192,12 @@ impl FootTracker {
     #[must_use]
     pub fn new(feet: usize, plant_m: f32, lift_m: f32) -> Self {
         Self { plant_m, lift_m, planted: vec![true; feet] }
+    }
+
+    /// Which feet are down now.
+    #[must_use]
+    pub fn planted(&self) -> &[bool] {
+        &self.planted
     }
 
     /// Feeds the soles' heights above the ground this frame; returns the feet that touched down.

@@ -5,6 +5,7 @@
 //! this module takes decoded data.
 
 pub mod feet;
+pub mod sinking;
 pub mod skinning;
 
 use glam::{Mat4, Quat, Vec3, Vec4};
@@ -274,6 +275,18 @@ impl AnimationPlayer {
         self.fade = (fade_s > 0.0).then_some((self.clip, self.time, 0.0, fade_s));
         self.clip = clip;
         self.time = 0.0;
+    }
+
+    /// Switches to `clip` like [`Self::play`], starting it at the phase (the
+    /// fraction of its cycle) the current clip has reached, so a walk fades
+    /// into a run with the same foot forward.
+    pub fn play_synced(&mut self, clip: usize, fade_s: f32, clips: &[Clip]) {
+        if clip == self.clip {
+            return;
+        }
+        let phase = clips.get(self.clip).filter(|c| c.duration > 0.0).map_or(0.0, |c| self.time.rem_euclid(c.duration) / c.duration);
+        self.play(clip, fade_s);
+        self.time = phase * clips.get(clip).map_or(0.0, |c| c.duration);
     }
 
     /// Advances by `dt` seconds of game time.
