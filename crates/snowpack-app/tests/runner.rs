@@ -638,3 +638,113 @@ fn bad_gltf_actors_name_the_file_and_key() {
         assert!(!dir.0.join("out").exists(), "{actor}: output written for a bad scene");
     }
 }
+
+/// A fox on 0.2 m of snow of `hardness` kPa, walking 3 m at 0.9 m/s and
+/// running 4.8 m at 2.4 m/s, placed on the snow by the load model.
+fn fox_on_snow(name: &str, hardness: f32, extra: &[&str]) -> (Run, Vec<serde_json::Value>) {
+    let fox = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb");
+    let scene = format!(
+        r#"
+[snow]
+extent_m = 12.0
+resolution = 512
+depth_m = 0.2
+hardness_kpa = {hardness}
+[[actor]]
+kind = "gltf"
+file = "{}"
+animation = "Survey"
+gaits = ["Walk", "Run"]
+scale = 0.01
+placement = "snow"
+path = [[-5.0, 0.0, 0.0, 0.0], [-2.3, 0.0, 0.0, 3.0], [2.5, 0.0, 0.0, 5.0], [5.0, 0.0, 0.0, 6.05]]
+[sim]
+frames = 355
+"#,
+        fox.display()
+    );
+    let run = run_scene(name, &scene, &[&["--size", "64x36"], extra].concat());
+    let events: serde_json::Value = serde_json::from_slice(&std::fs::read(run.out.join("footsteps.json")).expect("footsteps.json")).expect("JSON");
+    let events = events.as_array().expect("a list").clone();
+    (run, events)
+}
+
+/// Depth of the print at each footstep (rest less the lowest snow within
+/// 5 cm) beside the load model's sinkage there and whether the fox was running.
+fn prints_at_footsteps(run: &Run, events: &[serde_json::Value], depth: f32) -> Vec<(f32, f32, bool)> {
+    let snow = run.grid("snow.npy");
+    events
+        .iter()
+        .filter(|e| e["time_s"].as_f64().expect("time") < 6.0)
+        .map(|e| {
+            let p = &e["position"];
+            let (x, z) = (p[0].as_f64().expect("x"), p[2].as_f64().expect("z"));
+            let lowest = snow
+                .data
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| {
+                    let (px, pz) = run.world(k / snow.res, k % snow.res);
+                    (px - x).hypot(pz - z) < 0.05
+                })
+                .map(|(_, h)| *h)
+                .fold(f32::MAX, f32::min);
+            let running = e["speed_m_per_s"].as_f64().expect("speed") > 2.0;
+            (depth - lowest, e["sink_m"].as_f64().expect("sink_m") as f32, running)
+        })
+        .collect()
+}
+
+#[test]
+fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
+    if !gpu_available() {
+        return;
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
+    let mut by_hardness = Vec::new();
+    for hardness in [3.0f32, 30.0] {
+        let (run, events) = fox_on_snow(&format!("fox-sink-{hardness}"), hardness, &[]);
+        let prints = prints_at_footsteps(&run, &events, 0.2);
+        assert!(prints.len() >= 16, "{hardness} kPa: {} footsteps", prints.len());
+        // 6 kg on 35 cm² paws: 4.2 kPa with four paws down, 16.8 with one.
+        let load = snowpack::skin::sinking::FootLoad::default();
+        let (least, most) = (load.sinkage_m(4, 0.2, hardness), load.sinkage_m(1, 0.2, hardness));
+        for (print, sink, _) in &prints {
+            assert!((least - 0.02..most + 0.025).contains(print), "{hardness} kPa: a print {print:.3} m deep; the model allows {least:.3}..{most:.3} (sink {sink:.3} at touchdown)");
+        }
+        let error = mean(&prints.iter().map(|(p, s, _)| (p - s).abs()).collect::<Vec<_>>());
+        assert!(error < 0.02, "{hardness} kPa: prints differ from the model's sinkage by {error:.3} m on average: {prints:?}");
+        let walk = mean(&prints.iter().filter(|p| !p.2).map(|p| p.0).collect::<Vec<_>>());
+        let run_ = mean(&prints.iter().filter(|p| p.2).map(|p| p.0).collect::<Vec<_>>());
+        // Running puts the weight on fewer paws at once: deeper prints.
+        assert!(run_ > walk + 0.005, "{hardness} kPa: running prints {run_:.3} m, walking {walk:.3} m");
+        // Never through the snow to the ground.
+        let snow = run.grid("snow.npy");
+        assert!(snow.data.iter().all(|h| *h > 0.01), "{hardness} kPa: a paw reached the ground");
+        by_hardness.push(mean(&prints.iter().map(|p| p.0).collect::<Vec<_>>()));
+    }
+    assert!(by_hardness[0] > by_hardness[1] + 0.05, "soft snow prints {:.3} m, hard {:.3} m", by_hardness[0], by_hardness[1]);
+}
+
+#[test]
+fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
+    if !gpu_available() {
+        return;
+    }
+    let (run, events) = fox_on_snow("fox-points", 5.0, &["--technique", "points"]);
+    let prints = prints_at_footsteps(&run, &events, 0.2);
+    assert!(prints.len() >= 16, "{} footsteps", prints.len());
+    for (print, sink, _) in &prints {
+        assert!((print - sink).abs() < 0.03, "a point print {print:.3} m deep where the paw sank {sink:.3} m");
+    }
+    // Only paws press: nothing away from the path, no snow pressed more than the deepest sinkage.
+    let snow = run.grid("snow.npy");
+    let most = snowpack::skin::sinking::FootLoad::default().sinkage_m(1, 0.2, 5.0);
+    for (k, h) in snow.data.iter().enumerate() {
+        let (x, z) = run.world(k / snow.res, k % snow.res);
+        if 0.2 - h > 0.005 {
+            assert!(z.abs() < 0.3 && (-5.6..5.6).contains(&x), "pressed at ({x:.2}, {z:.2}), away from the path");
+        }
+        assert!(0.2 - h < most + 0.01, "pressed {:.3} m at ({x:.2}, {z:.2})", 0.2 - h);
+    }
+}
