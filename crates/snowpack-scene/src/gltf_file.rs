@@ -19,7 +19,13 @@ impl GltfFile {
     /// Reads `path`; the error says what is wrong in words.
     pub fn open(path: &Path) -> Result<Self, String> {
         let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{} is not valid glTF 2.0: {e}", path.display()))?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Parses the contents of a file; `path` names it in errors and anchors
+    /// external buffers.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, String> {
+        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("{} is not valid glTF 2.0: {e}", path.display()))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut blob = gltf.blob;
         let mut buffers = Vec::new();

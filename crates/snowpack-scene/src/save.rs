@@ -42,7 +42,8 @@ fn material_table(m: &Material) -> Table {
 fn rebase(value: &mut Value, from: &Path, to: &Path) {
     if let Value::String(s) = value {
         let p = Path::new(s.as_str());
-        if p.is_relative() && from != to {
+        // "builtin:..." names something the binary carries, not a file.
+        if p.is_relative() && from != to && !s.starts_with("builtin:") {
             let joined = from.join(p);
             let absolute = std::path::absolute(&joined).unwrap_or(joined);
             *s = absolute.display().to_string();

@@ -271,6 +271,12 @@ pub enum EnvironmentSpec {
     File(PathBuf, Arc<EnvironmentMap>),
 }
 
+/// The fox every build carries (`file = "builtin:fox"`): `assets/Fox.glb`,
+/// model by PixelMannen (CC0), rigging and animation by tomkranis (CC-BY 4.0).
+pub const BUILTIN_FOX_GLB: &[u8] = include_bytes!("../../../assets/Fox.glb");
+/// The `file` value that names [`BUILTIN_FOX_GLB`].
+pub const BUILTIN_FOX: &str = "builtin:fox";
+
 /// The built-in sky: Poly Haven's "Spiaggia di Mondello" (CC0), 1024x512 RGBE.
 pub const BUILTIN_SKY_HDR: &[u8] = include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr");
 
@@ -677,11 +683,13 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
         "point" => ShapeSpec::Point { scale_per_m: a.positive("scale_per_m", 1.0, " (1/m)")? },
         _ => {
             let file = a.string_opt("file")?.ok_or_else(|| a.err("file", "a gltf actor needs a file"))?;
-            let full = base_dir.join(&file);
-            if !full.is_file() {
+            let builtin = file == BUILTIN_FOX;
+            let full = if builtin { PathBuf::from(BUILTIN_FOX) } else { base_dir.join(&file) };
+            if !builtin && !full.is_file() {
                 return Err(a.err("file", format!("{} does not exist", full.display())));
             }
-            let model = GltfFile::open(&full)
+            let opened = if builtin { GltfFile::from_bytes(BUILTIN_FOX_GLB, &full) } else { GltfFile::open(&full) };
+            let model = opened
                 .and_then(|g| g.skinned_model())
                 .map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
             let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();

@@ -181,6 +181,13 @@ fn capture_and_update_match_cpu() {
         let corner = |rng: &mut Rng| [c[0] + rng.range(-0.1, 0.1) * e, c[1] + rng.range(-0.3, 0.3), c[2] + rng.range(-0.1, 0.1) * e];
         triangles.push([corner(&mut rng), corner(&mut rng), corner(&mut rng)]);
     }
+    // Slivers far smaller than a texel (a thin leg): only their corners, drawn as points, mark.
+    let texel = params.texel_m();
+    for _ in 0..200 {
+        let c = [rng.range(0.0, e), rng.range(-0.5, 1.5), rng.range(0.0, e)];
+        let corner = |rng: &mut Rng| [c[0] + rng.range(-0.1, 0.1) * texel, c[1] + rng.range(-0.05, 0.05), c[2] + rng.range(-0.1, 0.1) * texel];
+        triangles.push([corner(&mut rng), corner(&mut rng), corner(&mut rng)]);
+    }
     let flat: Vec<f32> = triangles.iter().flatten().flatten().copied().collect();
     let mesh_vertices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("test mesh"),
@@ -197,7 +204,7 @@ fn capture_and_update_match_cpu() {
         mapped_at_creation: false,
     });
     ctx.queue.write_buffer(&mesh_indices, 0, bytemuck::cast_slice(&mesh_indices_cpu));
-    let meshes = [CaptureMesh { vertices: &mesh_vertices, indices: &mesh_indices, index_count: mesh_indices_cpu.len() as u32 }];
+    let meshes = [CaptureMesh { vertices: &mesh_vertices, indices: &mesh_indices, index_count: mesh_indices_cpu.len() as u32, vertex_count: mesh_indices_cpu.len() as u32 }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record_with_meshes(&mut enc, &mut timer, &res, &meshes);

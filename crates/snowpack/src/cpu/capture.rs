@@ -66,8 +66,9 @@ fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
 }
 
 /// Adds world-space triangles to `depth` (window-local texels, as
-/// [`capture_depths`] returns): the lowest surface per texel centre, as the
-/// GPU draws [`crate::deform::capture::CaptureMesh`]es.
+/// [`capture_depths`] returns): the lowest surface per texel centre, and each
+/// corner as a point in the texel it lies in, as the GPU draws
+/// [`crate::deform::capture::CaptureMesh`]es.
 pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner: glam::DVec2, p: &CaptureParams, resolution: u32) {
     // The terrain bake's rasteriser keeps the highest surface; mirror heights to keep the lowest.
     let mirrored: Vec<[[f32; 3]; 3]> = triangles
@@ -84,6 +85,15 @@ pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner:
             if (0.0..=1.0).contains(&v) {
                 *d = d.min(v);
             }
+        }
+    }
+    let res = i64::from(resolution);
+    for v in mirrored.iter().flatten() {
+        let (col, row) = ((f64::from(v[0]) / f64::from(p.texel_m)).floor() as i64, (f64::from(v[2]) / f64::from(p.texel_m)).floor() as i64);
+        let depth_of = (-v[1] - p.low_m) / range;
+        if (0..res).contains(&col) && (0..res).contains(&row) && (0.0..=1.0).contains(&depth_of) {
+            let d = &mut depth[(row * res + col) as usize];
+            *d = d.min(depth_of);
         }
     }
 }

@@ -72,6 +72,8 @@ pub struct CaptureMesh<'a> {
     pub indices: &'a wgpu::Buffer,
     /// Number of indices to draw.
     pub index_count: u32,
+    /// Number of vertices, each also drawn as a point (see [`CapturePass`]).
+    pub vertex_count: u32,
 }
 
 impl CaptureInstances {
@@ -137,6 +139,10 @@ fn growable(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
 pub struct CapturePass {
     sphere_pipeline: wgpu::RenderPipeline,
     mesh_pipeline: wgpu::RenderPipeline,
+    /// The meshes' vertices again as points: a paw or a leg thinner than a
+    /// texel can fall between texel centres and leave no print at all; a
+    /// point always marks the texel it lies in, so every vertex prints.
+    mesh_point_pipeline: wgpu::RenderPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     sphere_instances: wgpu::Buffer,
@@ -205,8 +211,8 @@ impl CapturePass {
             label: Some("capture meshes"),
             source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_MESH.into()),
         });
-        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("capture meshes"),
+        let mesh_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
             layout: Some(&pipeline_layout),
             vertex: wgpu::VertexState {
                 module: &mesh_module,
@@ -232,6 +238,8 @@ impl CapturePass {
             multiview_mask: None,
             cache: None,
         });
+        let mesh_pipeline = mesh_pipeline_with("capture meshes", primitive);
+        let mesh_point_pipeline = mesh_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");
         let bind_group = layout::bind_group(device, "capture", &bgl, &[params.as_entire_binding()]);
         let cube_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -247,6 +255,7 @@ impl CapturePass {
         Self {
             sphere_pipeline,
             mesh_pipeline,
+            mesh_point_pipeline,
             params,
             bind_group,
             sphere_instances: growable(device, "sphere instances", 16 * 64),
@@ -317,6 +326,11 @@ impl CapturePass {
                 pass.set_vertex_buffer(0, mesh.vertices.slice(..));
                 pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..mesh.index_count, 0, offset..offset + 1);
+            }
+            pass.set_pipeline(&self.mesh_point_pipeline);
+            for mesh in meshes {
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.draw(0..mesh.vertex_count, offset..offset + 1);
             }
         }
     }

@@ -321,7 +321,7 @@ impl SnowDeformation {
         let meshes: Vec<CaptureMesh<'_>> = self
             .posed
             .iter()
-            .map(|&k| CaptureMesh { vertices: &skinned[k].skinned, indices: &skinned[k].indices, index_count: skinned[k].index_count })
+            .map(|&k| CaptureMesh { vertices: &skinned[k].skinned, indices: &skinned[k].indices, index_count: skinned[k].index_count, vertex_count: skinned[k].vertex_count })
             .collect();
         self.encode_frame(ctx, encoder, deformers, &meshes, dt_s, false);
         drop(meshes);
