@@ -214,3 +214,33 @@ fn bad_demo_options_exit_2_before_opening_anything() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("display"), "{err}");
 }
+
+/// The number after `at` in the summary: the player's x and z (m).
+fn summary_position(stdout: &str) -> (f64, f64) {
+    let line = stdout.lines().find(|l| l.starts_with("demo: ")).unwrap_or_else(|| panic!("no summary in:\n{stdout}"));
+    let rest = &line[line.find(" at ").unwrap_or_else(|| panic!("no position in {line:?}")) + 4..];
+    let mut words = rest.split(' ');
+    let mut number = || words.next().and_then(|w| w.parse::<f64>().ok()).unwrap_or_else(|| panic!("no position in {line:?}"));
+    (number(), number())
+}
+
+#[test]
+fn the_player_drives_the_fox_and_it_leaves_footsteps() {
+    let dir = Temp::new("demo-fox");
+    // F: the fox; Tab twice: the follow camera, where W walks the fox forward for 2 s.
+    let script = "0 key H\n1 key F\n2 key Tab\n3 key Tab\n5 screenshot before.png\n6 key_down KeyW\n126 key_up KeyW\n";
+    let Some(run) = run_demo(&dir.0, 130, script, Some("after.png")) else { return };
+    assert!(run.stderr.contains("player: fox"), "{}", run.stderr);
+    assert!(run.stdout.contains("player fox"), "{}", run.stdout);
+    // 2 s at 1 m/s: the fox walked about 2 m, from the window's centre.
+    let (x, z) = summary_position(&run.stdout);
+    let walked = x.hypot(z);
+    assert!((1.2..3.0).contains(&walked), "the fox is {walked:.2} m from the start, at ({x:.2}, {z:.2})");
+    // Three or so steps of each paw (the walk cycle is 0.71 s at 0.91 m/s).
+    let steps = summary_number(&run.stdout, "footsteps");
+    assert!((6..=16).contains(&steps), "{steps} footsteps in 2 m");
+    let (before, ..) = load_rgb(&dir.0.join("before.png"));
+    let (after, ..) = load_rgb(&dir.0.join("after.png"));
+    let diff = mean_abs_difference(&before, &after);
+    assert!(diff > 1.0, "the picture barely changed while the fox walked ({diff:.2}/255)");
+}

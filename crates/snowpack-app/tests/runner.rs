@@ -708,7 +708,7 @@ fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
         assert!(prints.len() >= 16, "{hardness} kPa: {} footsteps", prints.len());
         // 6 kg on 35 cm² paws: 4.2 kPa with four paws down, 16.8 with one.
         let load = snowpack::skin::sinking::FootLoad::default();
-        let (least, most) = (load.sinkage_m(4, 0.2, hardness), load.sinkage_m(1, 0.2, hardness));
+        let (least, most) = (load.sinkage_m(4.0, 0.2, hardness), load.sinkage_m(1.0, 0.2, hardness));
         for (print, sink, _) in &prints {
             assert!((least - 0.02..most + 0.025).contains(print), "{hardness} kPa: a print {print:.3} m deep; the model allows {least:.3}..{most:.3} (sink {sink:.3} at touchdown)");
         }
@@ -739,7 +739,7 @@ fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     }
     // Only paws press: nothing away from the path, no snow pressed more than the deepest sinkage.
     let snow = run.grid("snow.npy");
-    let most = snowpack::skin::sinking::FootLoad::default().sinkage_m(1, 0.2, 5.0);
+    let most = snowpack::skin::sinking::FootLoad::default().sinkage_m(1.0, 0.2, 5.0);
     for (k, h) in snow.data.iter().enumerate() {
         let (x, z) = run.world(k / snow.res, k % snow.res);
         if 0.2 - h > 0.005 {

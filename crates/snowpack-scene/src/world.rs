@@ -8,12 +8,12 @@
 use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
-use snowpack::skin::feet::{FootTracker, FootstepEvent};
+use snowpack::skin::feet::{mean_feet_down, FootTracker, FootstepEvent};
 use snowpack::skin::AnimationPlayer;
 use snowpack::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
-use crate::scene::{ActorSpec, Motion, Placement, Scene, ShapeSpec, WindowSpec};
+use crate::scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, WindowSpec};
 
 /// Gravity (m/s²).
 pub const GRAVITY: f32 = 9.81;
@@ -52,9 +52,13 @@ struct Actor {
     sink_m: f32,
     /// Characters: index into the gaits of the gait playing.
     gait: Option<usize>,
+    /// Characters: feet down on average over each clip (the load's share).
+    feet_down: Vec<f32>,
     /// Steered by the game ([`World::steer`]): position and velocity, which
     /// replace the scene's motion.
     steer: Option<(Vec3, Vec3)>,
+    /// Off ([`World::set_enabled`]): neither deforms nor is drawn.
+    enabled: bool,
 }
 
 /// How fast a character turns toward its direction of travel (rad/s).
@@ -63,6 +67,8 @@ const TURN_RATE: f32 = 8.0;
 const ROOT_SETTLE_S: f32 = 0.06;
 /// ... and rising onto them (s): the snow pushes back faster than the body sinks.
 const ROOT_RISE_S: f32 = 0.015;
+/// How far below its support a planted paw may go while the others average (m).
+const PAW_SINK_SLACK_M: f32 = 0.01;
 /// Below this speed (m/s) a character with gaits plays its standing clip.
 const STAND_SPEED: f32 = 0.05;
 /// A gait changes only when the other fits the speed better by this much (log ratio).
@@ -193,7 +199,12 @@ impl World {
             supports: Vec::new(),
             sink_m: 0.0,
             gait: None,
+            feet_down: match &spec.shape {
+                ShapeSpec::Gltf(g) => g.model.clips.iter().map(|c| mean_feet_down(&g.model.skeleton, c, &g.feet)).collect(),
+                _ => Vec::new(),
+            },
             steer: None,
+            enabled: true,
         });
         self.actors.len() - 1
     }
@@ -218,6 +229,28 @@ impl World {
         }
         a.steer = Some((position, Vec3::new(velocity.x, 0.0, velocity.y)));
         true
+    }
+
+    /// Changes the rest depth (m) and hardness (kPa) of the snow characters stand on.
+    pub fn set_snow(&mut self, depth_m: f32, hardness_kpa: f32) {
+        self.snow_depth_m = depth_m;
+        self.hardness_kpa = hardness_kpa;
+    }
+
+    /// Takes actor `i` out of the world (`false`: it neither presses the snow,
+    /// nor is posed, nor steps) or puts it back; it keeps its state meanwhile.
+    pub fn set_enabled(&mut self, i: usize, enabled: bool) {
+        if let Some(a) = self.actors.get_mut(i) {
+            a.enabled = enabled;
+        }
+    }
+
+    /// The glTF characters: (actor index, its model and settings).
+    pub fn gltf_actors(&self) -> impl Iterator<Item = (usize, &GltfActor)> + '_ {
+        self.actors.iter().enumerate().filter_map(|(k, a)| match &a.shape {
+            ShapeSpec::Gltf(g) => Some((k, g)),
+            _ => None,
+        })
     }
 
     /// Puts actor `i` at `xz` (keeping its height rule); for the game's respawns.
@@ -290,7 +323,10 @@ impl World {
             let (placement, load) = (g.placement, g.load);
             let root = a.root_y;
             let planted: Vec<bool> = a.feet.as_ref().map_or_else(|| vec![true; soles.len()], |t| t.planted().to_vec());
-            let down = planted.iter().filter(|p| **p).count();
+            let clip = a.anim.as_ref().map_or(g.clip, |p| p.clip);
+            // A character with gaits standing still has every foot down.
+            let standing = !g.gaits.is_empty() && !g.gaits.iter().any(|x| x.clip == clip);
+            let down = if standing { soles.len() as f32 } else { a.feet_down.get(clip).copied().unwrap_or(soles.len() as f32) };
             let sink = match placement {
                 Placement::Snow => load.sinkage_m(down, self.snow_depth_m, self.hardness_kpa),
                 Placement::Path | Placement::Ground => 0.0,
@@ -316,8 +352,7 @@ impl World {
                 continue;
             }
             // The root that puts the planted paws on their supports, on average
-            // (a clip's paws are not all exactly level). In the air (a run's
-            // flight) the root holds its height.
+            // (a clip's paws are not all exactly level).
             let current = root.unwrap_or(0.0);
             let wanted: Vec<f32> = soles
                 .iter()
@@ -326,7 +361,20 @@ impl World {
                 .filter(|(_, down)| **down)
                 .map(|((sole, support), _)| support - sole.y + current)
                 .collect();
-            let target = (!wanted.is_empty()).then(|| wanted.iter().sum::<f32>() / wanted.len() as f32);
+            // No paw down (a run's flight, or a body held too high): it falls
+            // until the first paw touches, the highest root that puts a paw on its support.
+            let falling = soles.iter().zip(&supports).map(|(sole, support)| support - sole.y + current).reduce(f32::max);
+            // The paws' average, but no planted paw deeper than PAW_SINK_SLACK_M
+            // below its support: a paw lifting off (planted until it is
+            // FOOT_LIFT_M up) must not pull the body, and the paw it stands
+            // on, deeper into the snow than the load says.
+            let target = if wanted.is_empty() {
+                falling
+            } else {
+                let mean = wanted.iter().sum::<f32>() / wanted.len() as f32;
+                let highest = wanted.iter().copied().fold(f32::MIN, f32::max);
+                Some(mean.max(highest - PAW_SINK_SLACK_M))
+            };
             let a = &mut self.actors[actor];
             a.root_y = match (root, target) {
                 // The snow holds a paw up quickly; the body settles into it more slowly.
@@ -334,8 +382,7 @@ impl World {
                     let tau = if t > y { ROOT_RISE_S } else { ROOT_SETTLE_S };
                     Some(y + (t - y) * (1.0 - (-dt / tau).exp()))
                 }
-                (_, Some(t)) => Some(t),
-                (y, None) => y.or_else(|| supports.iter().copied().reduce(f32::max)),
+                (_, t) => t,
             };
             a.supports = supports;
         }
@@ -390,8 +437,8 @@ impl World {
     pub fn deformers(&self) -> Vec<Deformer> {
         let mut out = Vec::with_capacity(self.actors.len() + self.bodies.len());
         for (i, a) in self.actors.iter().enumerate() {
-            if a.body.is_some() {
-                continue; // drawn with the bodies below
+            if a.body.is_some() || !a.enabled {
+                continue; // bodies are drawn below
             }
             let Some(center) = self.actor_position(i) else { continue };
             out.push(match &a.shape {
@@ -550,7 +597,7 @@ impl World {
     pub fn characters(&self) -> Vec<CharacterPose> {
         let mut out = Vec::new();
         for (k, a) in self.actors.iter().enumerate() {
-            let (ShapeSpec::Gltf(g), Some(player)) = (&a.shape, &a.anim) else { continue };
+            let (ShapeSpec::Gltf(g), Some(player), true) = (&a.shape, &a.anim, a.enabled) else { continue };
             let Some(position) = self.actor_position(k) else { continue };
             let model = Mat4::from_scale_rotation_translation(Vec3::splat(g.scale), Quat::from_rotation_y(a.heading), position);
             let s = &g.model.skeleton;

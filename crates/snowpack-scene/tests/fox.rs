@@ -70,6 +70,12 @@ fn walk_and_run_have_the_strides_of_a_fox() {
     eprintln!("walk {walk} m/s, run {run} m/s, durations {:?}", model.clips.iter().map(|c| c.duration).collect::<Vec<_>>());
     assert!(walk > 0.5 && walk < 2.0, "walk {walk} m/s");
     assert!(run > 1.5 * walk && run < 8.0, "run {run} m/s vs walk {walk}");
+    // Paws down on average: a walk has two or three, a run fewer, standing all four.
+    let down = |name: &str| snowpack::skin::feet::mean_feet_down(s, &model.clips[model.clip(name).expect(name)], &feet);
+    let (walk, run, stand) = (down("Walk"), down("Run"), down("Survey"));
+    eprintln!("paws down: walk {walk}, run {run}, survey {stand}");
+    assert!((2.0..3.2).contains(&walk), "walk: {walk} paws down");
+    assert!(run < walk && run > 1.0, "run: {run} paws down, walk {walk}");
 }
 
 fn fox_scene(extra: &str, path: &str) -> snowpack_scene::Scene {

@@ -34,7 +34,7 @@ use winit::window::{Window, WindowId};
 use self::camera::{CameraMode, CameraRig, MoveInput};
 use self::panel::{Action, PanelState};
 use self::script::{Script, ScriptEvent};
-use self::session::{Session, WindowFollow};
+use self::session::{PlayerBody, Session, WindowFollow};
 use crate::BadInput;
 
 /// What the command line asked of the demo.
@@ -93,11 +93,15 @@ pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
     if let (Ok(()), Some(gfx)) = (&app.result, &app.gfx) {
         // A summary for people and for the end-to-end tests.
         println!(
-            "demo: {} frames, {} spheres, {} simulated frames since the last reset, technique {}, adapter {} ({})",
+            "demo: {} frames, {} spheres, {} simulated frames since the last reset, technique {}, player {} at {:.2} {:.2} m, {} footsteps, adapter {} ({})",
             app.frame,
             gfx.session.sphere_count(),
             gfx.session.frames,
             gfx.session.snow_params.technique.as_str(),
+            PlayerBody::ALL.iter().find(|b| b.0 == gfx.session.player.body).map_or("", |b| b.1),
+            gfx.session.player.position.x,
+            gfx.session.player.position.z,
+            gfx.session.footsteps.0,
             gfx.ctx.summary.name,
             gfx.ctx.summary.backend
         );
@@ -301,6 +305,10 @@ impl Gfx {
             KeyCode::KeyP | KeyCode::Space => self.session.paused = !self.session.paused,
             KeyCode::KeyN => self.session.single_step(),
             KeyCode::KeyH => self.panel.visible = !self.panel.visible,
+            KeyCode::KeyF => {
+                let body = if self.session.player.body == PlayerBody::Fox { PlayerBody::Sphere } else { PlayerBody::Fox };
+                self.act(Action::PlayerBody(body));
+            }
             KeyCode::Tab => {
                 let next = self.rig.mode.next();
                 self.act(Action::CameraMode(next));
@@ -335,6 +343,10 @@ impl Gfx {
                     self.panel.sphere_count = self.session.sphere_count() as u32;
                     Ok(format!("loaded {path}"))
                 }),
+            Action::PlayerBody(body) => self
+                .session
+                .set_body(ctx, body)
+                .map(|()| format!("player: {}", PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1))),
             Action::Vsync(on) => {
                 self.panel.vsync = on;
                 self.config.present_mode = if on { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync };
@@ -461,6 +473,9 @@ impl Gfx {
             let (f, r) = self.rig.ground_axes();
             let dir = f * movement.forward + r * movement.right;
             self.session.drive_player(dir, movement.fast, dt);
+        } else {
+            // The keys move the camera: a steered fox stands still.
+            self.session.drive_player(Vec2::ZERO, false, dt);
         }
 
         let device = &self.ctx.device;

@@ -10,7 +10,7 @@ use snowpack::render::params::{sun_from_angles, DebugView, Material, MaterialPre
 use snowpack::{RimStyle, Technique};
 
 use super::camera::{CameraMode, CameraRig};
-use super::session::{Session, WindowFollow};
+use super::session::{PlayerBody, Session, WindowFollow, FOX_RUN_M_PER_S, FOX_WALK_M_PER_S};
 
 /// What the panel asks the app to do after this frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,6 +27,8 @@ pub enum Action {
     CameraMode(CameraMode),
     /// Turn waiting for vertical sync on or off.
     Vsync(bool),
+    /// Make the player a sphere or the fox.
+    PlayerBody(PlayerBody),
 }
 
 /// State the panel keeps between frames.
@@ -172,10 +174,39 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                         actions.push(Action::Reset(state.sphere_count));
                     }
                 });
-                ui.checkbox(&mut session.player.enabled, "player sphere (WASD in follow mode)");
-                ui.add(Slider::new(&mut session.player.radius, 0.1..=2.0).text("player radius").suffix(" m"));
-                ui.add(Slider::new(&mut session.player.sink, 0.0..=1.0).text("player sinks").suffix(" × depth"));
-                ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("player speed").suffix(" m/s"));
+                ui.horizontal(|ui| {
+                    ui.checkbox(&mut session.player.enabled, "player (WASD in follow mode)");
+                    let mut body = session.player.body;
+                    ComboBox::from_id_salt("player body").selected_text(PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1)).show_ui(ui, |ui| {
+                        for (b, name) in PlayerBody::ALL {
+                            ui.selectable_value(&mut body, b, name);
+                        }
+                    });
+                    if body != session.player.body {
+                        actions.push(Action::PlayerBody(body));
+                    }
+                });
+                if session.player.body == PlayerBody::Sphere {
+                    ui.add(Slider::new(&mut session.player.radius, 0.1..=2.0).text("player radius").suffix(" m"));
+                    ui.add(Slider::new(&mut session.player.sink, 0.0..=1.0).text("player sinks").suffix(" × depth"));
+                    ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("player speed").suffix(" m/s"));
+                } else {
+                    ui.label(format!("the fox walks at {FOX_WALK_M_PER_S} m/s, runs at {FOX_RUN_M_PER_S} m/s with Shift"));
+                }
+                ui.add(Slider::new(&mut session.snow_params.hardness_kpa, 0.5..=200.0).logarithmic(true).text("snow hardness").suffix(" kPa"))
+                    .on_hover_text("how hard the snow is to press: characters on the snow sink half its depth where their foot pressure equals it");
+                match &session.footsteps.1 {
+                    Some(f) => ui.label(format!(
+                        "footsteps: {} · last {} at ({:.1}, {:.1}) m, {} snow, sank {:.0} cm",
+                        session.footsteps.0,
+                        f.name,
+                        f.position.x,
+                        f.position.z,
+                        f.snow_depth_m.map_or("? m of".to_owned(), |d| format!("{d:.2} m of")),
+                        f.sink_m * 100.0
+                    )),
+                    None => ui.label("footsteps: none yet"),
+                };
                 ComboBox::from_label("window follows").selected_text(WindowFollow::ALL.iter().find(|f| f.0 == session.follow).map_or("", |f| f.1)).show_ui(ui, |ui| {
                     for (f, name) in WindowFollow::ALL {
                         ui.selectable_value(&mut session.follow, f, name);
@@ -307,7 +338,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 ui.label("1–4 technique · R reset · P pause · N step · Tab camera · V view · H panel");
                 ui.label("orbit: left drag turn, right drag pan, wheel zoom");
                 ui.label("fly: right drag look, WASD move, Q/E down/up, wheel speed, Shift fast");
-                ui.label("follow: WASD drives the player, right drag turns, wheel zoom");
+                ui.label("follow: WASD drives the player (Shift: the fox runs), right drag turns, wheel zoom · F sphere/fox");
             });
         });
     });

@@ -1,20 +1,43 @@
 //! What the demo simulates and draws, apart from the window: the scene, the
-//! test-bed world, the player's sphere, the deformation window and the
-//! renderer, with the operations the panel and the keys ask for.
+//! test-bed world, the player (a sphere or the fox), the deformation window
+//! and the renderer, with the operations the panel and the keys ask for.
 
 use std::sync::Arc;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::gpu::PassTimings;
-use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams};
-use snowpack_scene::{Scene, SpawnSpec, WindowSpec, World};
+use snowpack::skin::feet::FootstepEvent;
+use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
+use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, WindowSpec, World};
 
-/// The sphere the player drives.
+/// What the player drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlayerBody {
+    /// A sphere pressed into the snow to a set fraction of its depth.
+    Sphere,
+    /// The built-in fox, walking (or running with Shift), standing on the
+    /// snow as its weight and the snow's hardness say.
+    Fox,
+}
+
+impl PlayerBody {
+    /// Every body with its label.
+    pub const ALL: [(Self, &'static str); 2] = [(Self::Sphere, "sphere"), (Self::Fox, "fox")];
+}
+
+/// The fox's walking and running speeds (m/s): about its clips' strides.
+pub const FOX_WALK_M_PER_S: f32 = 1.0;
+/// See [`FOX_WALK_M_PER_S`].
+pub const FOX_RUN_M_PER_S: f32 = 2.6;
+
+/// What the player drives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Player {
     /// Whether it is in the world (pressing snow).
     pub enabled: bool,
+    /// A sphere or the fox.
+    pub body: PlayerBody,
     /// Centre (m).
     pub position: Vec3,
     /// Radius (m).
@@ -80,6 +103,12 @@ pub struct Session {
     pub render_params: RenderParams,
     /// Latest timing medians.
     pub timings: TimingReport,
+    /// Footsteps since the last reset, and the latest.
+    pub footsteps: (u64, Option<FootstepEvent>),
+    /// The player's fox in the world (actor index), once it has been chosen.
+    fox: Option<usize>,
+    /// Skinned meshes registered with the deformation, by actor.
+    skins: Vec<(usize, SkinnedId)>,
     env: Arc<EnvironmentMap>,
     format: wgpu::TextureFormat,
     step_once: bool,
@@ -98,9 +127,9 @@ impl Session {
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
         let radius = 0.5;
-        let mut player = Player { enabled: true, position: Vec3::ZERO, radius, sink: 0.6, speed: 4.0 };
+        let mut player = Player { enabled: true, body: PlayerBody::Sphere, position: Vec3::ZERO, radius, sink: 0.6, speed: 4.0 };
         player.position = player_height(&scene, &snow_params, start, &player);
-        Ok(Self {
+        let mut session = Self {
             follow: WindowFollow::Scene,
             world,
             snow,
@@ -116,8 +145,45 @@ impl Session {
             format,
             step_once: false,
             reset_seed: scene.spawns.first().map_or(7, |s| s.seed),
+            footsteps: (0, None),
+            fox: None,
+            skins: Vec::new(),
             scene,
-        })
+        };
+        session.register_skins(ctx)?;
+        Ok(session)
+    }
+
+    /// Uploads the skinned mesh of every character in the world (fresh deformation).
+    fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
+        self.skins.clear();
+        for (k, g) in self.world.gltf_actors() {
+            let id = self.snow.add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len()).with_context(|| format!("uploading {}", g.file.display()))?;
+            self.skins.push((k, id));
+        }
+        Ok(())
+    }
+
+    /// Makes the player a sphere or the fox; the fox joins the world where the
+    /// player is, the first time.
+    pub fn set_body(&mut self, ctx: &GpuContext, body: PlayerBody) -> anyhow::Result<()> {
+        self.player.body = body;
+        if body == PlayerBody::Fox && self.fox.is_none() {
+            let fox = player_fox()?;
+            let at = self.player.position;
+            let spec = ActorSpec { shape: ShapeSpec::Gltf(fox.clone()), motion: Motion::Kinematic { position: Vec3::new(at.x, 0.0, at.z), velocity: Vec3::ZERO } };
+            let k = self.world.add_actor(&spec);
+            let id = self.snow.add_skinned_mesh(ctx, &fox.model.mesh, fox.model.skeleton.joints.len()).context("uploading the fox")?;
+            self.skins.push((k, id));
+            self.fox = Some(k);
+        }
+        if let Some(k) = self.fox {
+            self.world.set_enabled(k, self.player.enabled && body == PlayerBody::Fox);
+            if let Some(p) = self.world.actor_position(k) {
+                self.player.position = p;
+            }
+        }
+        Ok(())
     }
 
     /// Spheres of the test bed now.
@@ -135,17 +201,31 @@ impl Session {
     #[must_use]
     pub fn deformers(&self) -> Vec<Deformer> {
         let mut d = self.world.deformers();
-        if self.player.enabled {
+        if self.player.enabled && self.player.body == PlayerBody::Sphere {
             d.push(Deformer::Sphere { center: self.player.position, radius: self.player.radius });
         }
         d
     }
 
-    /// Moves the player by `dir` (ground plane, length up to 1) for `dt` seconds.
+    /// Moves the player by `dir` (ground plane, length up to 1) for `dt`
+    /// seconds: the sphere at once, the fox by steering it (it walks, or
+    /// runs when `fast`, from the next simulated frame on).
     pub fn drive_player(&mut self, dir: Vec2, fast: bool, dt: f32) {
-        let step = dir.clamp_length_max(1.0) * self.player.speed * if fast { 2.5 } else { 1.0 } * dt;
-        let xz = Vec2::new(self.player.position.x, self.player.position.z) + step;
-        self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
+        let dir = dir.clamp_length_max(1.0);
+        match (self.player.body, self.fox) {
+            (PlayerBody::Fox, Some(k)) => {
+                self.world.set_enabled(k, self.player.enabled);
+                self.world.steer(k, dir * if fast { FOX_RUN_M_PER_S } else { FOX_WALK_M_PER_S });
+                if let Some(p) = self.world.actor_position(k) {
+                    self.player.position = p;
+                }
+            }
+            _ => {
+                let step = dir * self.player.speed * if fast { 2.5 } else { 1.0 } * dt;
+                let xz = Vec2::new(self.player.position.x, self.player.position.z) + step;
+                self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
+            }
+        }
     }
 
     /// Centre of the deformation window this frame.
@@ -179,6 +259,7 @@ impl Session {
         if live.range_texels != p.range_texels || live.rim != p.rim {
             self.snow.set_points(p.range_texels, p.rim);
         }
+        self.world.set_snow(live.depth_m, p.hardness_kpa);
         if *self.renderer.params() != self.render_params {
             self.renderer.set_params(self.render_params);
         }
@@ -205,11 +286,24 @@ impl Session {
         self.step_once = false;
         let dt = self.scene.sim.dt_s;
         if self.physics {
-            self.world.step(dt);
+            // Characters on the snow stand in it as the latest snapshot shows it (older trails).
+            let snapshot = self.snow.snapshot();
+            self.world.step_on(dt, &|x, z| snapshot.and_then(|s| s.height_at(f64::from(x), f64::from(z))));
+            for mut step in self.world.take_footsteps() {
+                step.snow_depth_m = snapshot.and_then(|s| s.depth_at(self.snow.terrain(), f64::from(step.position.x), f64::from(step.position.z)));
+                self.footsteps = (self.footsteps.0 + 1, Some(step));
+            }
+        }
+        if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
+            && let Some(p) = self.world.actor_position(k)
+        {
+            self.player.position = p;
         }
         self.snow.set_center(self.window_center(camera));
         let deformers = self.deformers();
-        self.snow.encode(ctx, encoder, &deformers, dt);
+        let characters = self.world.characters();
+        let poses = crate::run::poses(&self.skins, &characters);
+        self.snow.encode_posed(ctx, encoder, &deformers, &poses, dt);
         self.frames += 1;
         if self.frames.is_multiple_of(30) {
             self.timings = TimingReport { deform: passes(self.snow.timings()), render: passes(self.renderer.timings()) };
@@ -239,16 +333,20 @@ impl Session {
         self.snow = snow;
         self.renderer = renderer;
         self.frames = 0;
+        self.footsteps = (0, None);
         let xz = Vec2::new(center.x as f32, center.y as f32);
         self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
-        Ok(())
+        self.fox = None;
+        self.register_skins(ctx)?;
+        self.set_body(ctx, self.player.body)
     }
 
     /// Replaces the scene (a loaded file) and rebuilds everything.
     pub fn load(&mut self, ctx: &GpuContext, scene: Scene) -> anyhow::Result<()> {
         let fresh = Self::new(ctx, scene, self.format)?;
+        let body = self.player.body;
         *self = Self { follow: self.follow, paused: self.paused, ..fresh };
-        Ok(())
+        self.set_body(ctx, body)
     }
 
     /// The scene with the panel's edits, for saving; `camera` is the view now.
@@ -276,6 +374,20 @@ fn scene_center(scene: &Scene, world: &World) -> DVec2 {
         WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
         WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
     }
+}
+
+/// The player's fox: the built-in model, walking and running by speed, on the snow.
+fn player_fox() -> anyhow::Result<GltfActor> {
+    let file = std::path::PathBuf::from(snowpack_scene::BUILTIN_FOX);
+    let model = snowpack_scene::gltf_file::GltfFile::from_bytes(snowpack_scene::BUILTIN_FOX_GLB, &file)
+        .and_then(|g| g.skinned_model())
+        .map_err(anyhow::Error::msg)?;
+    let mut fox = GltfActor::new(file, Arc::new(model)).context("the fox has no feet")?;
+    fox.scale = 0.01;
+    fox.clip = fox.model.clip("Survey").unwrap_or(0);
+    fox.placement = Placement::Snow;
+    fox.set_gaits(&["Walk".to_owned(), "Run".to_owned()]).map_err(anyhow::Error::msg)?;
+    Ok(fox)
 }
 
 /// The player's centre at `xz`: its lowest point `sink` of the depth below the rest snow.
