@@ -624,10 +624,17 @@ fn bad_gltf_actors_name_the_file_and_key() {
     let fox = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb")).expect("fox");
     std::fs::write(dir.0.join("cut.glb"), &fox[..fox.len() / 2]).expect("write");
     std::fs::write(dir.0.join("fox.glb"), &fox).expect("write");
+    // A glTF with meshes but no skin: the mound terrain.
+    let mound = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/assets/mound.gltf");
+    let unskinned = format!("file = {:?}", mound.display().to_string());
     for (actor, key, words) in [
         ("file = \"cut.glb\"", "[[actor]][0].file", "cut.glb"),
         ("file = \"fox.glb\"\nanimation = \"Dance\"", "[[actor]][0].animation", "Dance"),
         ("file = \"missing.glb\"", "[[actor]][0].file", "missing.glb"),
+        (unskinned.as_str(), "[[actor]][0].file", "skin"),
+        ("file = \"fox.glb\"\ngaits = [\"Walk\", \"Fly\"]", "[[actor]][0].gaits", "Fly"),
+        ("file = \"builtin:fox\"\nplacement = \"air\"", "[[actor]][0].placement", "air"),
+        ("file = \"builtin:fox\"\nmass_kg = -6", "[[actor]][0].mass_kg", "-6"),
     ] {
         let scene = dir.0.join("scene.toml");
         std::fs::write(&scene, format!("[[actor]]\nkind = \"gltf\"\n{actor}\n")).expect("scene");
