@@ -649,7 +649,6 @@ fn bad_gltf_actors_name_the_file_and_key() {
 /// A fox on 0.2 m of snow of `hardness` kPa, walking 3 m at 0.9 m/s and
 /// running 4.8 m at 2.4 m/s, placed on the snow by the load model.
 fn fox_on_snow(name: &str, hardness: f32, extra: &[&str]) -> (Run, Vec<serde_json::Value>) {
-    let fox = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb");
     let scene = format!(
         r#"
 [snow]
@@ -659,7 +658,7 @@ depth_m = 0.2
 hardness_kpa = {hardness}
 [[actor]]
 kind = "gltf"
-file = "{}"
+file = "builtin:fox"
 animation = "Survey"
 gaits = ["Walk", "Run"]
 scale = 0.01
@@ -667,8 +666,7 @@ placement = "snow"
 path = [[-5.0, 0.0, 0.0, 0.0], [-2.3, 0.0, 0.0, 3.0], [2.5, 0.0, 0.0, 5.0], [5.0, 0.0, 0.0, 6.05]]
 [sim]
 frames = 355
-"#,
-        fox.display()
+"#
     );
     let run = run_scene(name, &scene, &[&["--size", "64x36"], extra].concat());
     let events: serde_json::Value = serde_json::from_slice(&std::fs::read(run.out.join("footsteps.json")).expect("footsteps.json")).expect("JSON");
