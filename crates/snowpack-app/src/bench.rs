@@ -139,6 +139,47 @@ pub fn markdown(rows: &[BenchRow], adapter: &str, backend: &str, software: bool,
     md
 }
 
+/// The physical floor of each pass beside its measured time, per window size:
+/// the bytes it must move (`snowpack::deform::traffic`) over the adapter's
+/// memory bandwidth when the adapter is a known GPU.
+#[must_use]
+pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
+    use snowpack::deform::traffic::{frame_traffic, known_bandwidth_gb_per_s};
+    let bandwidth = known_bandwidth_gb_per_s(adapter);
+    let mut md = String::from("\n## The physical floor: bytes each pass must move, against the time it took\n\n");
+    match bandwidth {
+        Some(gb) => {
+            let _ = writeln!(md, "{adapter}: {gb} GB/s of memory bandwidth (maker's data sheet). Floor = bytes / bandwidth; measured / floor says how far a pass is from streaming at full bandwidth.\n");
+        }
+        None => {
+            let _ = writeln!(md, "{adapter}: memory bandwidth unknown, so bytes only (floors need a known GPU; see `KNOWN_BANDWIDTH_GB_PER_S`).\n");
+        }
+    }
+    let _ = writeln!(md, "| window | pass | MiB moved | floor ms | measured ms | measured / floor |\n|---|---|---|---|---|---|");
+    for row in rows {
+        let params = SnowParams { resolution: row.resolution, extent_m: 64.0 * row.resolution as f32 / 1024.0, technique: Technique::Depth, ..SnowParams::default() };
+        for t in frame_traffic(&params) {
+            let measured = row.passes.iter().find(|p| p.0 == t.pass).map(|p| p.1);
+            let floor = bandwidth.map(|gb| t.floor_ms(gb));
+            let cell = |v: Option<f64>, digits: usize| v.map_or("n/a".to_owned(), |v| format!("{v:.digits$}"));
+            let ratio = match (measured, floor) {
+                (Some(m), Some(f)) if f > 0.0 => format!("{:.1}", m / f),
+                _ => "n/a".to_owned(),
+            };
+            let _ = writeln!(
+                md,
+                "| {}² | {} | {:.2} | {} | {} | {ratio} |",
+                row.resolution,
+                t.pass,
+                t.total_bytes() as f64 / (1024.0 * 1024.0),
+                cell(floor, 4),
+                cell(measured, 4)
+            );
+        }
+    }
+    md
+}
+
 /// Techniques against actor count and points against range, as Markdown.
 #[must_use]
 pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], ranges: &[(u32, f64, f64)]) -> String {
@@ -192,7 +233,9 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         }
         md
     } else {
-        markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames)
+        let mut md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
+        md.push_str(&floor_markdown(&rows, &ctx.summary.name));
+        md
     };
     // Techniques against actor count (Wasmut Tables 1-2) and points against
     // range (Table 4), at 1024².
@@ -271,5 +314,26 @@ mod tests {
         assert!(md.contains("| update ms | normals ms |"));
         assert!(md.contains("| 1024² | 8 | 0.5000 | 0.2500 | 0.7500 | 0.100 | 1.0 |"));
         assert!(md.contains("ratios only"));
+    }
+
+    #[test]
+    fn the_floor_table_divides_bytes_by_a_known_bandwidth() {
+        let rows = vec![BenchRow {
+            resolution: 1024,
+            spheres: 8,
+            passes: vec![("normals".into(), 0.02), ("update".into(), 0.05)],
+            cpu_record_ms: 0.1,
+            memory_bytes: 1 << 20,
+        }];
+        // normals at 1024²: 4 B read + 8 B written per texel = 12 MiB; at 3350 GB/s, 0.00376 ms.
+        let md = floor_markdown(&rows, "NVIDIA H100 80GB HBM3");
+        assert!(md.contains("3350 GB/s"), "{md}");
+        assert!(md.contains("| 1024² | normals | 12.00 | 0.0038 | 0.0200 | 5.3 |"), "{md}");
+        // Update: 16 B read and 4 B written per texel.
+        assert!(md.contains("| 1024² | update | 20.00 |"), "{md}");
+        // Unknown adapters get bytes and measured times, no floor.
+        let md = floor_markdown(&rows, "llvmpipe (LLVM 15.0.6, 256 bits)");
+        assert!(md.contains("bandwidth unknown"), "{md}");
+        assert!(md.contains("| 1024² | normals | 12.00 | n/a | 0.0200 | n/a |"), "{md}");
     }
 }

@@ -14,6 +14,7 @@ pub mod shape;
 pub mod stamp;
 pub mod technique;
 pub mod terrain_bake;
+pub mod traffic;
 pub mod update;
 pub mod window;
 
