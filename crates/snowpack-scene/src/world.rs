@@ -258,7 +258,9 @@ impl World {
         let Some(p) = self.actor_position(i) else { return };
         if let Some(a) = self.actors.get_mut(i).filter(|a| a.body.is_none()) {
             let v = a.steer.map_or(Vec3::ZERO, |s| s.1);
-            a.steer = Some((Vec3::new(xz.x, p.y, xz.y), v));
+            // A placed character's height comes from its feet again (a steered one has no offset).
+            let y = if a.root_y.is_some() { 0.0 } else { p.y };
+            a.steer = Some((Vec3::new(xz.x, y, xz.y), v));
             a.root_y = None;
         }
         self.place_characters(0.0, &|_, _| None);

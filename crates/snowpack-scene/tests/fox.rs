@@ -142,3 +142,23 @@ fn a_fox_on_soft_snow_stands_lower_than_on_hard_snow_and_never_below_the_ground(
     // Deep powder and a heavy load: never below the terrain.
     assert!(height(0.01, 0.2) > -0.01);
 }
+
+#[test]
+fn a_steered_fox_walks_where_it_is_steered_and_stands_on_the_snow_after_a_teleport() {
+    let scene = fox_scene("", "[[0.0, 0.0, 0.0, 0.0]]");
+    let mut world = snowpack_scene::World::new(&scene);
+    let dt = 1.0 / 60.0;
+    for _ in 0..120 {
+        assert!(world.steer(0, glam::Vec2::new(0.0, 1.0)));
+        world.step(dt);
+    }
+    let p = world.actor_position(0).expect("fox");
+    assert!((p.z - 2.0).abs() < 0.05 && p.x.abs() < 1e-4, "steered 2 s at 1 m/s along +z, at {p}");
+    let before = p.y;
+    world.teleport(0, glam::Vec2::new(3.0, -1.0));
+    let q = world.actor_position(0).expect("fox");
+    assert!((q.x - 3.0).abs() < 1e-4 && (q.z + 1.0).abs() < 1e-4, "{q}");
+    // Same flat snow, same gait: the same height within the walk's bob.
+    assert!((q.y - before).abs() < 0.03, "{} after the teleport, {before} before", q.y);
+    assert!(!world.take_footsteps().is_empty(), "no footsteps while walking");
+}
