@@ -232,7 +232,7 @@ pub fn memory_markdown(rows: &[BenchRow]) -> String {
 
 /// Techniques against actor count and points against range, as Markdown.
 #[must_use]
-pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], ranges: &[(u32, f64, f64)]) -> String {
+pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], cpu_rows: &[(String, Vec<f64>)], ranges: &[(u32, f64, f64)]) -> String {
     let mut md = String::from("\n## Techniques: total GPU ms per frame at 1024² against sphere count\n\n| technique |");
     for n in counts {
         let _ = write!(md, " {n} |");
@@ -240,13 +240,24 @@ pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], ranges:
     md.push_str("\n|---|");
     md.push_str(&"---|".repeat(counts.len()));
     md.push('\n');
-    for (name, cells) in rows {
-        let _ = write!(md, "| {name} |");
-        for c in cells {
-            let _ = write!(md, " {c:.3} |");
+    let table = |md: &mut String, rows: &[(String, Vec<f64>)]| {
+        for (name, cells) in rows {
+            let _ = write!(md, "| {name} |");
+            for c in cells {
+                let _ = write!(md, " {c:.3} |");
+            }
+            md.push('\n');
         }
-        md.push('\n');
+    };
+    table(&mut md, rows);
+    md.push_str("\n## CPU ms to record and submit a frame at 1024² against sphere count\n\n| technique |");
+    for n in counts {
+        let _ = write!(md, " {n} |");
     }
+    md.push_str("\n|---|");
+    md.push_str(&"---|".repeat(counts.len()));
+    md.push('\n');
+    table(&mut md, cpu_rows);
     md.push_str("\n## Points: GPU ms at 1024² with 1024 spheres against footprint range\n\n| range | stamp ms | total ms |\n|---|---|---|\n");
     for (range, stamp, total) in ranges {
         let _ = writeln!(md, "| {range}² | {stamp:.4} | {total:.4} |");
@@ -292,16 +303,19 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
     // range (Table 4), at 1024².
     let counts: &[usize] = if quick { &[128, 1024, 4096] } else { &[128, 256, 512, 1024, 4096, 16384] };
     let mut technique_rows = Vec::new();
+    let mut cpu_rows = Vec::new();
     if only.is_none_or(|o| "techniques".contains(o)) {
         for technique in Technique::ALL {
-            let mut cells = Vec::new();
+            let (mut cells, mut cpu) = (Vec::new(), Vec::new());
             for &n in counts {
                 let config = Config { resolution: 1024, spheres: n, technique, range_texels: 64 };
                 let row = measure(&ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
                 cells.push(row.passes.iter().map(|p| p.1).sum::<f64>());
+                cpu.push(row.cpu_record_ms);
             }
             println!("  {:<9} {}", technique.as_str(), cells.iter().map(|c| format!("{c:.3}")).collect::<Vec<_>>().join("  "));
             technique_rows.push((technique.as_str().to_owned(), cells));
+            cpu_rows.push((technique.as_str().to_owned(), cpu));
         }
         let mut ranges = Vec::new();
         for range in [32, 64, 96, 128] {
@@ -310,7 +324,7 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
             let stamp = row.passes.iter().find(|p| p.0 == "stamp").map_or(0.0, |p| p.1);
             ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
         }
-        md.push_str(&technique_markdown(counts, &technique_rows, &ranges));
+        md.push_str(&technique_markdown(counts, &technique_rows, &cpu_rows, &ranges));
     }
     // The renderer at 1920x1080 against camera distance (issue: rendering performance).
     let mut render_rows = Vec::new();
@@ -388,6 +402,17 @@ mod tests {
         let md = floor_markdown(&rows, "llvmpipe (LLVM 15.0.6, 256 bits)");
         assert!(md.contains("bandwidth unknown"), "{md}");
         assert!(md.contains("| 1024² | normals | 12.00 | n/a | 0.0200 | n/a |"), "{md}");
+    }
+
+    #[test]
+    fn the_technique_tables_give_gpu_and_cpu_time_against_sphere_count() {
+        let gpu = vec![("depth".to_owned(), vec![1.0, 2.0])];
+        let cpu = vec![("depth".to_owned(), vec![0.25, 0.5])];
+        let md = technique_markdown(&[128, 16384], &gpu, &cpu, &[(64, 0.1, 1.5)]);
+        assert!(md.contains("| technique | 128 | 16384 |"), "{md}");
+        assert!(md.contains("| depth | 1.000 | 2.000 |"), "{md}");
+        assert!(md.contains("CPU ms to record") && md.contains("| depth | 0.250 | 0.500 |"), "{md}");
+        assert!(md.contains("| 64² | 0.1000 | 1.5000 |"), "{md}");
     }
 
     #[test]
