@@ -183,6 +183,30 @@ pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
     md
 }
 
+/// Hanák 2021, Table 6.1 (deformation, blur, normals at 1024², his GPUs) with
+/// this adapter's figures from the 1024² row beside it, and the capture's
+/// cost per object against his 0.01 ms.
+#[must_use]
+pub fn hanak_markdown(row: &BenchRow, adapter: &str, software: bool) -> String {
+    let ms = |names: &[&str]| -> f64 { row.passes.iter().filter(|p| names.contains(&p.0.as_str())).map(|p| p.1).sum() };
+    let mut md = format!("\n## Hanák 2021, Table 6.1, beside this adapter ({}² window, {} spheres)\n\n", row.resolution, row.spheres);
+    md.push_str("| GPU | deformation ms | Gaussian blur ms | normals ms | capture ms per object |\n|---|---|---|---|---|\n");
+    for (gpu, d, b, n) in [("GTX 1060 (Hanák)", 0.07, 0.13, 0.14), ("GTX 1070 (Hanák)", 0.05, 0.08, 0.10), ("RTX 2070 (Hanák)", 0.04, 0.06, 0.04), ("RTX 2070S (Hanák)", 0.03, 0.05, 0.03)] {
+        let _ = writeln!(md, "| {gpu} | {d:.2} | {b:.2} | {n:.2} | 0.01 |");
+    }
+    let per_object = if row.spheres > 0 { ms(&["capture"]) / row.spheres as f64 } else { 0.0 };
+    let _ = writeln!(
+        md,
+        "| {adapter} (snowpack){} | {:.4} | {:.4} | {:.4} | {per_object:.5} |",
+        if software { ", software: ratios only" } else { "" },
+        ms(&["update", "rim"]),
+        ms(&["blur_x", "blur_z"]),
+        ms(&["normals"])
+    );
+    md.push_str("\nsnowpack's deformation is its update and rim passes; its blur is both directions; its capture draws spheres as exact ray-cast quads, so its cost per object is the capture pass over the sphere count.\n");
+    md
+}
+
 /// GPU memory per window size by resource, beside the sources' figures.
 #[must_use]
 pub fn memory_markdown(rows: &[BenchRow]) -> String {
@@ -297,6 +321,9 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
         let mut md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
         md.push_str(&floor_markdown(&rows, &ctx.summary.name));
         md.push_str(&memory_markdown(&rows));
+        if let Some(row) = rows.iter().find(|r| r.resolution == 1024) {
+            md.push_str(&hanak_markdown(row, &ctx.summary.name, ctx.summary.is_software()));
+        }
         md
     };
     // Techniques against actor count (Wasmut Tables 1-2) and points against
@@ -413,6 +440,23 @@ mod tests {
         assert!(md.contains("| depth | 1.000 | 2.000 |"), "{md}");
         assert!(md.contains("CPU ms to record") && md.contains("| depth | 0.250 | 0.500 |"), "{md}");
         assert!(md.contains("| 64² | 0.1000 | 1.5000 |"), "{md}");
+    }
+
+    #[test]
+    fn hanaks_table_is_reproduced_beside_ours() {
+        let row = BenchRow {
+            resolution: 1024,
+            spheres: 100,
+            passes: vec![("capture".into(), 0.5), ("update".into(), 0.03), ("rim".into(), 0.01), ("blur_x".into(), 0.02), ("blur_z".into(), 0.02), ("normals".into(), 0.03)],
+            cpu_record_ms: 0.1,
+            memory_bytes: 0,
+            memory_parts: vec![],
+        };
+        let md = hanak_markdown(&row, "NVIDIA H100", false);
+        assert!(md.contains("| GTX 1060 (Hanák) | 0.07 | 0.13 | 0.14 | 0.01 |"), "{md}");
+        assert!(md.contains("| RTX 2070S (Hanák) | 0.03 | 0.05 | 0.03 | 0.01 |"), "{md}");
+        assert!(md.contains("| NVIDIA H100 (snowpack) | 0.0400 | 0.0400 | 0.0300 | 0.00500 |"), "{md}");
+        assert!(hanak_markdown(&row, "llvmpipe", true).contains("software: ratios only"));
     }
 
     #[test]
