@@ -289,99 +289,169 @@ pub fn technique_markdown(counts: &[usize], rows: &[(String, Vec<f64>)], cpu_row
     md
 }
 
-/// Runs the benchmark and writes `report.md` and `passes.csv` into `out`.
-pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
-    let ctx = GpuContext::new_headless_with(backend, None).context("choosing a GPU adapter")?;
+/// Everything one benchmark run measured: what the report is made from.
+pub struct BenchResults {
+    /// Adapter name.
+    pub adapter: String,
+    /// Backend (vulkan, gl, ...).
+    pub backend: String,
+    /// Whether the adapter is a software rasteriser (figures are ratios only).
+    pub software: bool,
+    /// Frames per median of the pass table.
+    pub frames: u32,
+    /// The passes at each window size.
+    pub rows: Vec<BenchRow>,
+    /// Sphere counts of the technique tables.
+    pub counts: Vec<usize>,
+    /// Total GPU ms per technique and count.
+    pub technique_rows: Vec<(String, Vec<f64>)>,
+    /// CPU ms to record a frame per technique and count.
+    pub cpu_rows: Vec<(String, Vec<f64>)>,
+    /// Points technique: (range, stamp ms, total ms).
+    pub ranges: Vec<(u32, f64, f64)>,
+    /// The renderer against camera distance.
+    pub render_rows: Vec<crate::bench_render::RenderRow>,
+    /// Frames per median of the render table.
+    pub render_frames: u32,
+}
+
+/// Measures everything `--quick` and `--only` ask for.
+pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow::Result<BenchResults> {
     let (warmup, frames) = if quick { (10, 30) } else { (60, 300) };
     let sizes: &[u32] = if quick { &[1024, 2048] } else { &[512, 1024, 2048, 4096] };
     let spheres = 256;
-    println!("snowpack bench on {} ({}){}", ctx.summary.name, ctx.summary.backend, if quick { ", quick" } else { "" });
-    if !ctx.has_timestamps() {
-        println!("this adapter has no timestamp queries: per-pass GPU times are unavailable");
-    }
-    let mut rows = Vec::new();
+    let mut results = BenchResults {
+        adapter: ctx.summary.name.clone(),
+        backend: ctx.summary.backend.to_string(),
+        software: ctx.summary.is_software(),
+        frames,
+        rows: Vec::new(),
+        counts: Vec::new(),
+        technique_rows: Vec::new(),
+        cpu_rows: Vec::new(),
+        ranges: Vec::new(),
+        render_rows: Vec::new(),
+        render_frames: 0,
+    };
     for &res in sizes {
         let name = format!("passes-{res}");
         if only.is_some_and(|o| !name.contains(o)) {
             continue;
         }
         let config = Config { resolution: res, spheres, technique: Technique::Depth, range_texels: 64 };
-        let row = measure(&ctx, config, warmup, frames).with_context(|| format!("measuring {res}²"))?;
+        let row = measure(ctx, config, warmup, frames).with_context(|| format!("measuring {res}²"))?;
         let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
         println!("  {res:>5}²  {}  | CPU record {:.3} ms", line.join("  "), row.cpu_record_ms);
-        rows.push(row);
+        results.rows.push(row);
     }
-    let mut md = if rows.is_empty() {
-        let mut md = format!("Adapter: **{}** ({}).\n", ctx.summary.name, ctx.summary.backend);
-        if ctx.summary.is_software() {
-            md.push_str("This is a software rasteriser: use these figures for ratios only, not as absolute cost.\n");
-        }
-        md
-    } else {
-        let mut md = markdown(&rows, &ctx.summary.name, &ctx.summary.backend, ctx.summary.is_software(), frames);
-        md.push_str(&floor_markdown(&rows, &ctx.summary.name));
-        md.push_str(&memory_markdown(&rows));
-        if let Some(row) = rows.iter().find(|r| r.resolution == 1024) {
-            md.push_str(&hanak_markdown(row, &ctx.summary.name, ctx.summary.is_software()));
-        }
-        md
-    };
     // Techniques against actor count (Wasmut Tables 1-2) and points against
     // range (Table 4), at 1024².
-    let counts: &[usize] = if quick { &[128, 1024, 4096] } else { &[128, 256, 512, 1024, 4096, 16384] };
-    let mut technique_rows = Vec::new();
-    let mut cpu_rows = Vec::new();
     if only.is_none_or(|o| "techniques".contains(o)) {
+        results.counts = if quick { vec![128, 1024, 4096] } else { vec![128, 256, 512, 1024, 4096, 16384] };
         for technique in Technique::ALL {
             let (mut cells, mut cpu) = (Vec::new(), Vec::new());
-            for &n in counts {
+            for &n in &results.counts {
                 let config = Config { resolution: 1024, spheres: n, technique, range_texels: 64 };
-                let row = measure(&ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
+                let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
                 cells.push(row.passes.iter().map(|p| p.1).sum::<f64>());
                 cpu.push(row.cpu_record_ms);
             }
             println!("  {:<9} {}", technique.as_str(), cells.iter().map(|c| format!("{c:.3}")).collect::<Vec<_>>().join("  "));
-            technique_rows.push((technique.as_str().to_owned(), cells));
-            cpu_rows.push((technique.as_str().to_owned(), cpu));
+            results.technique_rows.push((technique.as_str().to_owned(), cells));
+            results.cpu_rows.push((technique.as_str().to_owned(), cpu));
         }
-        let mut ranges = Vec::new();
         for range in [32, 64, 96, 128] {
             let config = Config { resolution: 1024, spheres: 1024, technique: Technique::Points, range_texels: range };
-            let row = measure(&ctx, config, warmup, frames / 2).with_context(|| format!("points at range {range}"))?;
+            let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("points at range {range}"))?;
             let stamp = row.passes.iter().find(|p| p.0 == "stamp").map_or(0.0, |p| p.1);
-            ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
+            results.ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
         }
-        md.push_str(&technique_markdown(counts, &technique_rows, &cpu_rows, &ranges));
     }
     // The renderer at 1920x1080 against camera distance (issue: rendering performance).
-    let mut render_rows = Vec::new();
     if only.is_none_or(|o| "render".contains(o)) {
         let (render_warmup, render_frames) = if quick { (3, 10) } else { (20, 100) };
-        render_rows = crate::bench_render::measure(&ctx, render_warmup, render_frames).context("measuring the renderer")?;
-        for row in &render_rows {
+        results.render_rows = crate::bench_render::measure(ctx, render_warmup, render_frames).context("measuring the renderer")?;
+        results.render_frames = render_frames;
+        for row in &results.render_rows {
             let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
             println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
         }
-        md.push_str(&crate::bench_render::markdown(&render_rows, render_frames));
     }
-    let mut csv = String::from("resolution,spheres,pass,median_ms\n");
-    for row in &rows {
-        for (n, ms) in &row.passes {
-            let _ = writeln!(csv, "{},{},{n},{ms}", row.resolution, row.spheres);
+    Ok(results)
+}
+
+/// The report's files from `r`: `report.md`, and `passes.csv`,
+/// `techniques.csv`, `render.csv` for what was measured.
+#[must_use]
+pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
+    let mut md = if r.rows.is_empty() {
+        let mut md = format!("Adapter: **{}** ({}).\n", r.adapter, r.backend);
+        if r.software {
+            md.push_str("This is a software rasteriser: use these figures for ratios only, not as absolute cost.\n");
         }
-        let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
-    }
-    let mut render_csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
-    for row in &render_rows {
-        for (n, ms) in &row.passes {
-            let _ = writeln!(render_csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
+        md
+    } else {
+        let mut md = markdown(&r.rows, &r.adapter, &r.backend, r.software, r.frames);
+        md.push_str(&floor_markdown(&r.rows, &r.adapter));
+        md.push_str(&memory_markdown(&r.rows));
+        if let Some(row) = r.rows.iter().find(|row| row.resolution == 1024) {
+            md.push_str(&hanak_markdown(row, &r.adapter, r.software));
         }
+        md
+    };
+    if !r.technique_rows.is_empty() {
+        md.push_str(&technique_markdown(&r.counts, &r.technique_rows, &r.cpu_rows, &r.ranges));
     }
+    if !r.render_rows.is_empty() {
+        md.push_str(&crate::bench_render::markdown(&r.render_rows, r.render_frames));
+    }
+    let mut files = vec![("report.md", md)];
+    if !r.rows.is_empty() {
+        let mut csv = String::from("resolution,spheres,pass,median_ms\n");
+        for row in &r.rows {
+            for (n, ms) in &row.passes {
+                let _ = writeln!(csv, "{},{},{n},{ms}", row.resolution, row.spheres);
+            }
+            let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
+        }
+        files.push(("passes.csv", csv));
+    }
+    if !r.technique_rows.is_empty() {
+        let mut csv = String::from("technique,spheres,gpu_ms,cpu_record_ms\n");
+        for ((name, gpu), (_, cpu)) in r.technique_rows.iter().zip(&r.cpu_rows) {
+            for ((n, g), c) in r.counts.iter().zip(gpu).zip(cpu) {
+                let _ = writeln!(csv, "{name},{n},{g},{c}");
+            }
+        }
+        for (range, stamp, total) in &r.ranges {
+            let _ = writeln!(csv, "points-range-{range},1024,{total},");
+            let _ = writeln!(csv, "points-range-{range}-stamp,1024,{stamp},");
+        }
+        files.push(("techniques.csv", csv));
+    }
+    if !r.render_rows.is_empty() {
+        let mut csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
+        for row in &r.render_rows {
+            for (n, ms) in &row.passes {
+                let _ = writeln!(csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
+            }
+        }
+        files.push(("render.csv", csv));
+    }
+    files
+}
+
+/// Runs the benchmark and writes its report into `out` (all or nothing).
+pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
+    let ctx = GpuContext::new_headless_with(backend, None).context("choosing a GPU adapter")?;
+    println!("snowpack bench on {} ({}){}", ctx.summary.name, ctx.summary.backend, if quick { ", quick" } else { "" });
+    if !ctx.has_timestamps() {
+        println!("this adapter has no timestamp queries: per-pass GPU times are unavailable");
+    }
+    let results = measure_all(&ctx, quick, only)?;
     let mut files = OutputSet::new(out)?;
-    files.stage("report.md", md.as_bytes())?;
-    files.stage("passes.csv", csv.as_bytes())?;
-    if !render_rows.is_empty() {
-        files.stage("render.csv", render_csv.as_bytes())?;
+    for (name, text) in report_files(&results) {
+        files.stage(name, text.as_bytes())?;
     }
     for f in files.commit()? {
         println!("wrote {}", f.display());
@@ -457,6 +527,52 @@ mod tests {
         assert!(md.contains("| RTX 2070S (Hanák) | 0.03 | 0.05 | 0.03 | 0.01 |"), "{md}");
         assert!(md.contains("| NVIDIA H100 (snowpack) | 0.0400 | 0.0400 | 0.0300 | 0.00500 |"), "{md}");
         assert!(hanak_markdown(&row, "llvmpipe", true).contains("software: ratios only"));
+    }
+
+    #[test]
+    fn a_synthetic_result_set_gives_every_table_and_csv() {
+        let row = |resolution: u32| BenchRow {
+            resolution,
+            spheres: 256,
+            passes: vec![("capture".into(), 0.2), ("update".into(), 0.03), ("rim".into(), 0.01), ("normals".into(), 0.03)],
+            cpu_record_ms: 0.1,
+            memory_bytes: 8 << 20,
+            memory_parts: vec![("snow".into(), 4 << 20), ("terrain".into(), 4 << 20)],
+        };
+        let results = BenchResults {
+            adapter: "NVIDIA H100 80GB HBM3".into(),
+            backend: "vulkan".into(),
+            software: false,
+            frames: 300,
+            rows: vec![row(1024), row(2048)],
+            counts: vec![128, 16384],
+            technique_rows: vec![("depth".into(), vec![0.3, 0.9]), ("points".into(), vec![0.2, 1.1])],
+            cpu_rows: vec![("depth".into(), vec![0.05, 0.4]), ("points".into(), vec![0.06, 0.5])],
+            ranges: vec![(32, 0.01, 0.2), (128, 0.05, 0.3)],
+            render_rows: vec![crate::bench_render::RenderRow { distance_m: 4.0, patches: 100, triangles: 10_000, levels: (0, 3), passes: vec![("terrain".into(), 0.5)] }],
+            render_frames: 100,
+        };
+        let files = report_files(&results);
+        let names: Vec<&str> = files.iter().map(|f| f.0).collect();
+        assert_eq!(names, ["report.md", "passes.csv", "techniques.csv", "render.csv"]);
+        let md = &files[0].1;
+        for section in [
+            "## Deformation passes",
+            "## The physical floor",
+            "## GPU memory of the deformation window",
+            "## Hanák 2021, Table 6.1",
+            "## Techniques: total GPU ms",
+            "## CPU ms to record",
+            "## Points: GPU ms",
+        ] {
+            assert!(md.contains(section), "no {section:?} in:\n{md}");
+        }
+        assert!(files[2].1.contains("depth,16384,0.9,0.4"), "{}", files[2].1);
+        assert!(files[1].1.lines().count() == 1 + 2 * 5, "{}", files[1].1);
+        // Only what was measured: the render table alone gives the report and its CSV.
+        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], software: true, ..results };
+        let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
+        assert_eq!(names, ["report.md", "render.csv"]);
     }
 
     #[test]
