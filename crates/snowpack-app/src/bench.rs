@@ -380,10 +380,35 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
     Ok(results)
 }
 
-/// The report's files from `r`: `report.md`, and `passes.csv`,
-/// `techniques.csv`, `render.csv` for what was measured.
+/// The report's files from `r`: `report.md`, and for what was measured
+/// `passes.csv` with `passes.png` (GPU ms per pass against window size),
+/// `techniques.csv` with `techniques.png` and `cpu_record.png` (GPU and CPU
+/// ms against sphere count), `render.csv` with `render.png` (ms per pass
+/// against camera distance).
 #[must_use]
-pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
+pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
+    use crate::plot::{render_png, Chart, Series};
+    let by_pass = |rows: Vec<(f64, &[(String, f64)])>| -> Vec<Series> {
+        let mut names: Vec<&str> = Vec::new();
+        for (_, passes) in &rows {
+            for (n, _) in passes.iter() {
+                if !names.contains(&n.as_str()) {
+                    names.push(n);
+                }
+            }
+        }
+        names
+            .into_iter()
+            .map(|n| Series { name: n.to_owned(), points: rows.iter().filter_map(|(x, p)| p.iter().find(|q| q.0 == n).map(|q| (*x, q.1))).collect() })
+            .collect()
+    };
+    let per_count = |rows: &[(String, Vec<f64>)]| -> Vec<Series> {
+        rows.iter().map(|(name, cells)| Series { name: name.clone(), points: r.counts.iter().zip(cells).map(|(n, v)| (*n as f64, *v)).collect() }).collect()
+    };
+    let tag = if r.software { " (software: ratios only)" } else { "" };
+    let chart = |title: String, x_label: &str, y_label: &str, series: Vec<Series>| {
+        render_png(&Chart { title, x_label: x_label.into(), y_label: y_label.into(), log_x: true, series }, 960, 540)
+    };
     let mut md = if r.rows.is_empty() {
         let mut md = format!("Adapter: **{}** ({}).\n", r.adapter, r.backend);
         if r.software {
@@ -405,7 +430,7 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
     if !r.render_rows.is_empty() {
         md.push_str(&crate::bench_render::markdown(&r.render_rows, r.render_frames));
     }
-    let mut files = vec![("report.md", md)];
+    let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", md.into_bytes())];
     if !r.rows.is_empty() {
         let mut csv = String::from("resolution,spheres,pass,median_ms\n");
         for row in &r.rows {
@@ -414,7 +439,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
             }
             let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
         }
-        files.push(("passes.csv", csv));
+        files.push(("passes.csv", csv.into_bytes()));
+        let series = by_pass(r.rows.iter().map(|row| (f64::from(row.resolution), row.passes.as_slice())).collect());
+        files.push(("passes.png", chart(format!("GPU ms per pass against window side, {}{tag}", r.adapter), "texels per side", "ms", series)));
     }
     if !r.technique_rows.is_empty() {
         let mut csv = String::from("technique,spheres,gpu_ms,cpu_record_ms\n");
@@ -427,7 +454,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
             let _ = writeln!(csv, "points-range-{range},1024,{total},");
             let _ = writeln!(csv, "points-range-{range}-stamp,1024,{stamp},");
         }
-        files.push(("techniques.csv", csv));
+        files.push(("techniques.csv", csv.into_bytes()));
+        files.push(("techniques.png", chart(format!("GPU ms per frame at 1024² against spheres{tag}"), "spheres", "ms", per_count(&r.technique_rows))));
+        files.push(("cpu_record.png", chart(format!("CPU ms to record a frame against spheres{tag}"), "spheres", "ms", per_count(&r.cpu_rows))));
     }
     if !r.render_rows.is_empty() {
         let mut csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
@@ -436,7 +465,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, String)> {
                 let _ = writeln!(csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
             }
         }
-        files.push(("render.csv", csv));
+        files.push(("render.csv", csv.into_bytes()));
+        let series = by_pass(r.render_rows.iter().map(|row| (f64::from(row.distance_m), row.passes.as_slice())).collect());
+        files.push(("render.png", chart(format!("Render ms per pass at 1920x1080 against camera distance{tag}"), "camera distance (m)", "ms", series)));
     }
     files
 }
@@ -450,8 +481,8 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
     }
     let results = measure_all(&ctx, quick, only)?;
     let mut files = OutputSet::new(out)?;
-    for (name, text) in report_files(&results) {
-        files.stage(name, text.as_bytes())?;
+    for (name, bytes) in report_files(&results) {
+        files.stage(name, &bytes)?;
     }
     for f in files.commit()? {
         println!("wrote {}", f.display());
@@ -554,8 +585,13 @@ mod tests {
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "techniques.csv", "render.csv"]);
-        let md = &files[0].1;
+        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png"]);
+        for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
+            let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!((img.width(), img.height()), (960, 540), "{name}");
+        }
+        let text = |name: &str| String::from_utf8(files.iter().find(|f| f.0 == name).expect(name).1.clone()).expect("UTF-8");
+        let md = &text("report.md");
         for section in [
             "## Deformation passes",
             "## The physical floor",
@@ -567,12 +603,12 @@ mod tests {
         ] {
             assert!(md.contains(section), "no {section:?} in:\n{md}");
         }
-        assert!(files[2].1.contains("depth,16384,0.9,0.4"), "{}", files[2].1);
-        assert!(files[1].1.lines().count() == 1 + 2 * 5, "{}", files[1].1);
+        assert!(text("techniques.csv").contains("depth,16384,0.9,0.4"), "{}", text("techniques.csv"));
+        assert_eq!(text("passes.csv").lines().count(), 1 + 2 * 5, "{}", text("passes.csv"));
         // Only what was measured: the render table alone gives the report and its CSV.
         let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "render.csv"]);
+        assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }
 
     #[test]

@@ -9,6 +9,7 @@ mod bench_render;
 mod demo;
 mod npy;
 mod output;
+mod plot;
 mod run;
 
 use std::path::PathBuf;
