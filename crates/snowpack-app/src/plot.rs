@@ -162,7 +162,17 @@ pub fn render_png(chart: &Chart, width: u32, height: u32) -> Vec<u8> {
     let usable = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && (!chart.log_x || x > 0.0);
     let points: Vec<(f64, f64)> = chart.series.iter().flat_map(|s| s.points.iter().copied().filter(usable)).collect();
     let (left, right, top, bottom) = (90i64, i64::from(width) - 200, 50i64, i64::from(height) - 60);
-    cv.text(left, 12, &chart.title, INK);
+    // A title too wide for the image breaks before its last parenthesis.
+    let fits = |t: &str| left + text_width(t) <= i64::from(width) - 4;
+    match chart.title.rfind(" (").filter(|_| !fits(&chart.title)) {
+        Some(k) => {
+            cv.text(left, 4, &chart.title[..k], INK);
+            cv.text(left, 22, chart.title[k..].trim_start(), INK);
+        }
+        None => {
+            cv.text(left, 12, &chart.title, INK);
+        }
+    }
     cv.text(left - 60, top - 24, &chart.y_label, INK);
     let xl = chart.x_label.as_str();
     cv.text((left + right) / 2 - text_width(xl) / 2, bottom + 34, xl, INK);
@@ -260,6 +270,17 @@ mod tests {
         let leftmost = xs.iter().min_by_key(|p| p.0).expect("pixels");
         let rightmost = xs.iter().max_by_key(|p| p.0).expect("pixels");
         assert!(rightmost.1 < leftmost.1, "{leftmost:?} .. {rightmost:?}");
+    }
+
+    #[test]
+    fn a_long_title_breaks_into_two_lines_inside_the_image() {
+        let mut c = chart();
+        c.title = "Render ms per pass at 1920x1080 against camera distance (software: ratios only)".into();
+        let img = image::load_from_memory(&render_png(&c, 960, 540)).expect("PNG").to_rgb8();
+        // Ink in the title band on two separate text rows, none in the last columns.
+        let ink_in_rows = |y0: u32, y1: u32| (y0..y1).any(|y| (90..960).any(|x| img.get_pixel(x, y).0 == [30, 30, 30]));
+        assert!(ink_in_rows(4, 18) && ink_in_rows(22, 36), "the title is not on two lines");
+        assert!((0..40).all(|y| (950..960).all(|x| img.get_pixel(x, y).0 != [30, 30, 30])), "the title runs off the image");
     }
 
     #[test]
