@@ -313,6 +313,8 @@ pub struct BenchResults {
     pub render_rows: Vec<crate::bench_render::RenderRow>,
     /// Frames per median of the render table.
     pub render_frames: u32,
+    /// Whole frames at 1600x900 (Wasmut's tables).
+    pub frame_rows: Vec<crate::bench_frames::FrameRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -332,6 +334,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         ranges: Vec::new(),
         render_rows: Vec::new(),
         render_frames: 0,
+        frame_rows: Vec::new(),
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -375,6 +378,32 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         for row in &results.render_rows {
             let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
             println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
+        }
+    }
+    // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
+    // two counts only (a software adapter takes seconds a frame).
+    if only.is_none_or(|o| "frames".contains(o)) {
+        let (frame_warmup, frame_frames) = if quick { (2, 3) } else { (30, 100) };
+        let mut configs: Vec<(Technique, usize, u32, u32)> = Vec::new();
+        let techniques = [Technique::Points, Technique::Depth, Technique::Decals];
+        let counts: &[usize] = if quick { &[128, 1024] } else { &[128, 256, 512, 1024] };
+        for t in techniques {
+            configs.extend(counts.iter().map(|&n| (t, n, 32, 64)));
+            if !quick {
+                configs.extend(counts.iter().map(|&n| (t, n, 128, 64)));
+                configs.extend([32, 64, 128, 256].iter().map(|&n| (t, n, 512, 64)));
+            }
+        }
+        if !quick {
+            for range in [32, 96, 128] {
+                configs.extend(counts.iter().map(|&n| (Technique::Points, n, 32, range)));
+            }
+        }
+        for (technique, n, side, range) in configs {
+            let row = crate::bench_frames::measure(ctx, technique, n, side, range, frame_warmup, frame_frames)
+                .with_context(|| format!("a frame of {} with {n} spheres of {side}² vertices", technique.as_str()))?;
+            println!("  frame {:<8} {n:>5} spheres {side:>3}² range {range:>3}: {:.1} FPS", technique.as_str(), row.fps());
+            results.frame_rows.push(row);
         }
     }
     Ok(results)
@@ -430,6 +459,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.render_rows.is_empty() {
         md.push_str(&crate::bench_render::markdown(&r.render_rows, r.render_frames));
     }
+    if !r.frame_rows.is_empty() {
+        md.push_str(&crate::bench_frames::markdown(&r.frame_rows, &r.adapter, r.software));
+    }
     let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", md.into_bytes())];
     if !r.rows.is_empty() {
         let mut csv = String::from("resolution,spheres,pass,median_ms\n");
@@ -468,6 +500,13 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
         files.push(("render.csv", csv.into_bytes()));
         let series = by_pass(r.render_rows.iter().map(|row| (f64::from(row.distance_m), row.passes.as_slice())).collect());
         files.push(("render.png", chart(format!("Render ms per pass at 1920x1080 against camera distance{tag}"), "camera distance (m)", "ms", series)));
+    }
+    if !r.frame_rows.is_empty() {
+        let mut csv = String::from("technique,spheres,mesh_vertices_per_side,range_texels,deform_ms,render_ms,fps\n");
+        for f in &r.frame_rows {
+            let _ = writeln!(csv, "{},{},{},{},{},{},{}", f.technique.as_str(), f.spheres, f.mesh_side, f.range_texels, f.deform_ms, f.render_ms, f.fps());
+        }
+        files.push(("frames.csv", csv.into_bytes()));
     }
     files
 }
@@ -582,10 +621,11 @@ mod tests {
             ranges: vec![(32, 0.01, 0.2), (128, 0.05, 0.3)],
             render_rows: vec![crate::bench_render::RenderRow { distance_m: 4.0, patches: 100, triangles: 10_000, levels: (0, 3), passes: vec![("terrain".into(), 0.5)] }],
             render_frames: 100,
+            frame_rows: vec![crate::bench_frames::FrameRow { technique: Technique::Depth, spheres: 128, mesh_side: 32, range_texels: 64, deform_ms: 1.0, render_ms: 4.0 }],
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png"]);
+        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv"]);
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
             let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!((img.width(), img.height()), (960, 540), "{name}");
@@ -600,13 +640,15 @@ mod tests {
             "## Techniques: total GPU ms",
             "## CPU ms to record",
             "## Points: GPU ms",
+            "## Wasmut 2019, Tables 1–4",
         ] {
             assert!(md.contains(section), "no {section:?} in:\n{md}");
         }
         assert!(text("techniques.csv").contains("depth,16384,0.9,0.4"), "{}", text("techniques.csv"));
         assert_eq!(text("passes.csv").lines().count(), 1 + 2 * 5, "{}", text("passes.csv"));
         // Only what was measured: the render table alone gives the report and its CSV.
-        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], software: true, ..results };
+        assert!(text("frames.csv").contains("depth,128,32,64,1,4,200"), "{}", text("frames.csv"));
+        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }

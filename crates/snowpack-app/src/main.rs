@@ -5,6 +5,7 @@
 //! else (no GPU, a GPU error, an I/O failure).
 
 mod bench;
+mod bench_frames;
 mod bench_render;
 mod demo;
 mod npy;
@@ -123,10 +124,10 @@ enum Command {
         /// Fewer sizes and frames (minutes on a software adapter).
         #[arg(long)]
         quick: bool,
-        /// Output directory for report.md and passes.csv.
+        /// Output directory for report.md, the CSV files and the PNG charts.
         #[arg(long, default_value = "snowpack-bench")]
         out: PathBuf,
-        /// Only configurations whose name contains this (e.g. passes-1024).
+        /// Only one part: passes (or passes-1024 and so on), techniques, render or frames.
         #[arg(long)]
         only: Option<String>,
         /// GPU backend(s).

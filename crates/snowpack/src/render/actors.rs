@@ -127,7 +127,7 @@ const INSTANCE_ATTRIBUTES: [wgpu::VertexAttribute; 8] = wgpu::vertex_attr_array!
 impl ActorPass {
     /// Builds the pipelines and meshes.
     #[must_use]
-    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout) -> Self {
+    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout, sphere: [u32; 2]) -> Self {
         let buffers = [
             Some(wgpu::VertexBufferLayout {
                 array_stride: size_of::<MeshVertex>() as u64,
@@ -171,7 +171,7 @@ impl ActorPass {
         Self {
             lit,
             shadow,
-            sphere: mesh(device, "sphere mesh", sphere_mesh(32, 16)),
+            sphere: mesh(device, "sphere mesh", sphere_mesh(sphere[0].max(3), sphere[1].max(2))),
             cube: mesh(device, "box mesh", box_mesh()),
             instances: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("actor instances"),

@@ -185,7 +185,7 @@ impl Renderer {
                 wgpu::BindingResource::TextureView(&decal_view),
             ],
         );
-        let actors = ActorPass::new(device, &lit_layout, &shadow_layout);
+        let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
         let sky = SkyPass::new(device, &frame, &env_pass.full);
         let tonemap = TonemapPass::new(device, output_format);
@@ -231,10 +231,10 @@ impl Renderer {
         &self.params
     }
 
-    /// Changes material, light, debug view or distances (the shadow map size
-    /// and patch grid stay as built).
+    /// Changes material, light, debug view or distances (the shadow map size,
+    /// patch grid and sphere mesh stay as built).
     pub fn set_params(&mut self, params: RenderParams) {
-        self.params = RenderParams { shadow_map_size: self.params.shadow_map_size, patch_quads: self.params.patch_quads, ..params };
+        self.params = RenderParams { shadow_map_size: self.params.shadow_map_size, patch_quads: self.params.patch_quads, sphere_mesh: self.params.sphere_mesh, ..params };
     }
 
     /// Unit vector toward the sun as lit.

@@ -219,6 +219,10 @@ pub struct RenderParams {
     pub ao_strength: f32,
     /// Draw this colour instead of the sky (tests and seam checks).
     pub background: Option<Vec3>,
+    /// Drawn spheres' mesh: segments around and rings from pole to pole
+    /// (`segments+1` x `rings+1` vertices); fixed when the renderer is built.
+    /// The capture does not use it (it ray-casts spheres exactly).
+    pub sphere_mesh: [u32; 2],
 }
 
 impl Default for RenderParams {
@@ -234,6 +238,7 @@ impl Default for RenderParams {
             patch_quads: 16,
             ao_strength: 1.0,
             background: None,
+            sphere_mesh: [32, 16],
         }
     }
 }
