@@ -462,6 +462,18 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.frame_rows.is_empty() {
         md.push_str(&crate::bench_frames::markdown(&r.frame_rows, &r.adapter, r.software));
     }
+    // The adapter and backend under every table's heading, so a table copied
+    // alone still says where its figures come from.
+    let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
+    let md: String = md
+        .lines()
+        .flat_map(|line| {
+            let heading = line.starts_with("## ") || line.starts_with("### ");
+            std::iter::once(line.to_owned()).chain(heading.then(|| format!("\n{stamp}")))
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let md = format!("# snowpack bench\n\n{stamp}\n{md}\n");
     let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", md.into_bytes())];
     if !r.rows.is_empty() {
         let mut csv = String::from("resolution,spheres,pass,median_ms\n");
@@ -648,6 +660,11 @@ mod tests {
         assert_eq!(text("passes.csv").lines().count(), 1 + 2 * 5, "{}", text("passes.csv"));
         // Only what was measured: the render table alone gives the report and its CSV.
         assert!(text("frames.csv").contains("depth,128,32,64,1,4,200"), "{}", text("frames.csv"));
+        // Every table says where it was measured.
+        let lines: Vec<&str> = md.lines().collect();
+        for (k, line) in lines.iter().enumerate().filter(|(_, l)| l.starts_with("## ") || l.starts_with("### ")) {
+            assert!(lines[k + 2] == "_Measured on NVIDIA H100 80GB HBM3 (vulkan)._", "{line} is not followed by the adapter: {:?}", &lines[k..k + 3]);
+        }
         let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
