@@ -473,7 +473,7 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
         })
         .collect::<Vec<_>>()
         .join("\n");
-    let md = format!("# snowpack bench\n\n{stamp}\n{md}\n");
+    let md = format!("# snowpack bench\n\n{stamp}\n\n{md}\n");
     let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", md.into_bytes())];
     if !r.rows.is_empty() {
         let mut csv = String::from("resolution,spheres,pass,median_ms\n");
