@@ -8,11 +8,11 @@ use std::fmt::Write as _;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
+use snowpack::render::IMAGE_FORMAT;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 /// Frame size of Wasmut's measurements.
 pub const SIZE: (u32, u32) = (1600, 900);
-const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
 /// One measured configuration.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,17 +61,7 @@ pub fn measure(ctx: &GpuContext, technique: Technique, count: usize, mesh_side: 
     let side = mesh_side.max(3);
     let render_params = RenderParams { sphere_mesh: [side - 1, side - 1], ..RenderParams::default() };
     let mut renderer = Renderer::new(ctx, &snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
-    let target = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bench frame"),
-        size: wgpu::Extent3d { width: SIZE.0, height: SIZE.1, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: IMAGE_FORMAT,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-        view_formats: &[],
-    });
-    let view = target.create_view(&wgpu::TextureViewDescriptor::default());
+    let (_target, view) = crate::bench_render::frame_target(ctx, SIZE);
     let camera = Camera { position: Vec3::new(-19.0, 9.0, -19.0), target: Vec3::ZERO, fov_deg: 60.0 };
     for frame in 0..warmup + frames {
         let actors = spheres(frame as f32 / 60.0, count, &terrain, 40.96);

@@ -37,6 +37,22 @@ fn camera_at(distance: f32, ground: f32) -> Camera {
     Camera { position: target + dir * distance, target, fov_deg: 60.0 }
 }
 
+/// An offscreen colour target of `size` in the bench's image format, and its view.
+pub fn frame_target(ctx: &GpuContext, size: (u32, u32)) -> (wgpu::Texture, wgpu::TextureView) {
+    let target = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("bench frame"),
+        size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: IMAGE_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let view = target.create_view(&wgpu::TextureViewDescriptor::default());
+    (target, view)
+}
+
 /// Renders `frames` frames (after `warmup`) at each distance and returns the medians.
 pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec<RenderRow>> {
     let terrain = TerrainSource::Noise(NoiseTerrain { seed: 2, base_m: 0.0, amplitude_m: 3.0, wavelength_m: 40.0 });
@@ -58,17 +74,7 @@ pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec
     snow.finish(ctx)?;
     let env = snowpack::EnvironmentMap::from_hdr(snowpack_scene::BUILTIN_SKY_HDR)?;
     let mut renderer = Renderer::new(ctx, &snow, &env, RenderParams::default(), IMAGE_FORMAT).context("creating the renderer")?;
-    let target = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bench frame"),
-        size: wgpu::Extent3d { width: SIZE.0, height: SIZE.1, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: IMAGE_FORMAT,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-        view_formats: &[],
-    });
-    let view = target.create_view(&wgpu::TextureViewDescriptor::default());
+    let (_target, view) = frame_target(ctx, SIZE);
     let ground = terrain.height_at(0.0, 0.0);
     let mut rows = Vec::new();
     for distance in DISTANCES_M {

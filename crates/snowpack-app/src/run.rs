@@ -9,7 +9,7 @@ use glam::DVec2;
 use snowpack::gpu::PassTimings;
 use snowpack::render::{DebugView, MaterialPreset, IMAGE_FORMAT};
 use snowpack::{Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
-use snowpack_scene::{CharacterPose, Scene, ShapeSpec, Technique, WindowSpec, World};
+use snowpack_scene::{CharacterPose, Scene, Technique, WindowSpec, World};
 
 use crate::output::OutputSet;
 use crate::{npy, BadInput};
@@ -80,18 +80,18 @@ fn window_center(scene: &Scene, world: &World) -> DVec2 {
     }
 }
 
-/// Uploads each glTF actor's skinned mesh; the result maps actor index to its mesh.
-pub fn register_characters(ctx: &GpuContext, scene: &Scene, snow: &mut SnowDeformation) -> anyhow::Result<Vec<(usize, SkinnedId)>> {
-    let mut out = Vec::new();
-    for (k, actor) in scene.actors.iter().enumerate() {
-        if let ShapeSpec::Gltf(g) = &actor.shape {
+/// Uploads the skinned mesh of each glTF character in `world`; the result
+/// maps actor index to its mesh.
+pub fn register_characters(ctx: &GpuContext, world: &World, snow: &mut SnowDeformation) -> anyhow::Result<Vec<(usize, SkinnedId)>> {
+    world
+        .gltf_actors()
+        .map(|(k, g)| {
             let id = snow
                 .add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len())
                 .with_context(|| format!("uploading {}", g.file.display()))?;
-            out.push((k, id));
-        }
-    }
-    Ok(out)
+            Ok((k, id))
+        })
+        .collect()
 }
 
 /// This frame's poses for the registered characters.
@@ -119,7 +119,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
     let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
         .context("creating the deformation window")?;
-    let skins = register_characters(&ctx, scene, &mut snow)?;
+    let skins = register_characters(&ctx, &world, &mut snow)?;
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
     let start = Instant::now();

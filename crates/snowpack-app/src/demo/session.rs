@@ -156,11 +156,7 @@ impl Session {
 
     /// Uploads the skinned mesh of every character in the world (fresh deformation).
     fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
-        self.skins.clear();
-        for (k, g) in self.world.gltf_actors() {
-            let id = self.snow.add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len()).with_context(|| format!("uploading {}", g.file.display()))?;
-            self.skins.push((k, id));
-        }
+        self.skins = crate::run::register_characters(ctx, &self.world, &mut self.snow)?;
         Ok(())
     }
 

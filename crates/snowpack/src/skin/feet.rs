@@ -121,19 +121,16 @@ pub fn find_feet(skeleton: &Skeleton, clips: &[Clip], patterns: &[&str]) -> Vec<
 /// plays a clip at `travel speed / stride speed` so paws stay put in stance.
 #[must_use]
 pub fn stride_speed(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> f32 {
-    const SAMPLES: usize = 96;
     if clip.duration <= 0.0 || feet.is_empty() {
         return 0.0;
     }
-    let dt = clip.duration / SAMPLES as f32;
-    let poses: Vec<Vec<glam::Mat4>> = (0..SAMPLES).map(|s| skeleton.globals(&clip.sample(skeleton, dt * s as f32, true))).collect();
+    let dt = clip.duration / CYCLE_SAMPLES as f32;
     let (mut sum, mut count) = (0.0f32, 0u32);
-    for foot in feet {
-        let track: Vec<Vec3> = poses.iter().map(|g| g[foot.node].w_axis.truncate()).collect();
+    for track in foot_tracks(skeleton, clip, feet) {
         let (lo, hi) = track.iter().fold((f32::MAX, f32::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
         let planted = lo + 0.15 * (hi - lo);
-        for s in 0..SAMPLES {
-            let (a, b) = (track[s], track[(s + 1) % SAMPLES]);
+        for s in 0..CYCLE_SAMPLES {
+            let (a, b) = (track[s], track[(s + 1) % CYCLE_SAMPLES]);
             if a.y <= planted && b.y <= planted {
                 sum += (a.z - b.z) / dt;
                 count += 1;
@@ -143,6 +140,16 @@ pub fn stride_speed(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> f32 {
     if count == 0 { 0.0 } else { sum / count as f32 }
 }
 
+/// Samples over one cycle of a clip for the gait measures.
+const CYCLE_SAMPLES: usize = 96;
+
+/// Each foot joint's model-space position at [`CYCLE_SAMPLES`] even steps over `clip`.
+fn foot_tracks(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> Vec<Vec<Vec3>> {
+    let dt = clip.duration / CYCLE_SAMPLES as f32;
+    let poses: Vec<Vec<Mat4>> = (0..CYCLE_SAMPLES).map(|s| skeleton.globals(&clip.sample(skeleton, dt * s as f32, true))).collect();
+    feet.iter().map(|foot| poses.iter().map(|g| g[foot.node].w_axis.truncate()).collect()).collect()
+}
+
 /// How many of `feet` are down on average over `clip`'s cycle: each foot
 /// counts while it is within 35% of its lift above its lowest (a paw rolls
 /// from heel to toe while it is down). The fox's walk has 2.4 paws down (a
@@ -150,20 +157,17 @@ pub fn stride_speed(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> f32 {
 /// this many.
 #[must_use]
 pub fn mean_feet_down(skeleton: &Skeleton, clip: &Clip, feet: &[Foot]) -> f32 {
-    const SAMPLES: usize = 96;
     if clip.duration <= 0.0 || feet.is_empty() {
         return feet.len() as f32;
     }
-    let poses: Vec<Vec<Mat4>> = (0..SAMPLES).map(|s| skeleton.globals(&clip.sample(skeleton, clip.duration * s as f32 / SAMPLES as f32, true))).collect();
     let mut down = 0usize;
-    for foot in feet {
-        let heights: Vec<f32> = poses.iter().map(|g| g[foot.node].w_axis.y).collect();
-        let (lo, hi) = heights.iter().fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
+    for track in foot_tracks(skeleton, clip, feet) {
+        let (lo, hi) = track.iter().fold((f32::MAX, f32::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
         // A foot that barely moves (standing) is down all the time.
         let band = if hi - lo < 1e-3 { f32::INFINITY } else { lo + 0.35 * (hi - lo) };
-        down += heights.iter().filter(|&&h| h <= band).count();
+        down += track.iter().filter(|p| p.y <= band).count();
     }
-    down as f32 / SAMPLES as f32
+    down as f32 / CYCLE_SAMPLES as f32
 }
 
 fn is_ancestor(skeleton: &Skeleton, a: usize, mut b: usize) -> bool {
