@@ -26,6 +26,12 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("ENV_DOWNSAMPLE", &["env_downsample.wgsl"]),
     ("ENV_PREFILTER", &["shared/frame.wgsl", "env_prefilter.wgsl"]),
     ("SKINNING", &["skinning.wgsl"]),
+    ("OCCLUSION", &["shared/objects.wgsl", "occlusion.wgsl"]),
+    ("SCATTER", &["shared/objects.wgsl", "scatter.wgsl"]),
+    ("INCREMENT", &["shared/objects.wgsl", "increment.wgsl"]),
+    ("SETTLE", &["shared/objects.wgsl", "settle.wgsl"]),
+    ("ATLAS_SURFACE", &["shared/objects.wgsl", "atlas_surface.wgsl"]),
+    ("OBJECT_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/objects.wgsl", "object_draw.wgsl"]),
     ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
 ];
 

@@ -2,7 +2,8 @@
 // Mode 0 (depth, decals): Hanák's cubic remap (eq. 4.1),
 //   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
 // applied to the normalised snow depth x and blended in by `elevation`:
-//   shown = terrain + depth * (x + elevation * (f(x) - x)).
+//   shown = terrain + depth * (x + elevation * (f(x) - x)),
+// depth being the rest depth plus the snowfall so far where it snows.
 // Modes 1 (MS16) and 2 (Wasmut's rounded variant), for points and combined:
 // the persistent snow as it is, plus a rim where a stored footprint rises
 // above the rest height over undisturbed snow, from its foot height:
@@ -18,6 +19,8 @@ struct RimParams {
     mode: u32,
     low_m: f32,
     high_m: f32,
+    use_fallen: u32,  // 1: the rest depth includes `fallen` (snowfall so far)
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: RimParams;
@@ -25,6 +28,7 @@ struct RimParams {
 @group(0) @binding(2) var<storage, read> snow: array<f32>;
 @group(0) @binding(3) var<storage, read_write> shown: array<f32>;
 @group(0) @binding(4) var<storage, read> stamps: array<u32>;
+@group(0) @binding(5) var<storage, read> fallen: array<f32>;
 
 const RIM_PEAK: f32 = 0.25;
 // Snow within this of the rest height counts as undisturbed (grows rims).
@@ -63,13 +67,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let s = storage_index(params.origin, params.resolution, i, j);
     let ground = terrain[s];
+    var depth = params.depth_m;
+    if params.use_fallen != 0u {
+        depth += fallen[s];
+    }
     var out: f32;
     if params.mode == 0u {
-        let x = clamp((snow[s] - ground) / params.depth_m, 0.0, 1.0);
+        let x = clamp((snow[s] - ground) / depth, 0.0, 1.0);
         let remapped = x + params.elevation * (hanak_cubic(x) - x);
-        out = ground + params.depth_m * max(remapped, 0.0);
+        out = ground + depth * max(remapped, 0.0);
     } else {
-        let rest = ground + params.depth_m;
+        let rest = ground + depth;
         out = snow[s];
         if out >= rest - UNDISTURBED_M {
             out += point_rim(stamps[s], rest);

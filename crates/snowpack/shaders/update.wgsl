@@ -1,9 +1,15 @@
 // Update pass: the persistent snow height. Per texel,
-//   snow = max(terrain, min(snow + refill * dt capped at rest, max(terrain, actor), max(terrain, stamp)))
-// where rest = terrain + depth, actor is the captured lowest actor surface
+//   snow = max(terrain, min(snow + fall + refill * dt capped at rest, max(terrain, actor), max(terrain, stamp)))
+// where rest = terrain + depth + fallen, actor is the captured lowest actor surface
 // (when the technique captures depth) and stamp the footprint height (when it
 // stamps points). Footprints refill too: they rise by whole quanta (the CPU
 // carries the remainder), and vanish once their foot is back at rest.
+// While it snows (USE_FALLEN), `fallen` grows by fall = rate * dt (up to
+// max_fallen_m) on texels the sky reaches, and trails there get the refill;
+// texels the occlusion render shows under an object (USE_SKY) gain neither,
+// so no snow settles under a table or a roof (Dinh figure 5.1). A texel
+// reaches the sky when its surface point, projected along the snowfall onto
+// the occlusion map, is no lower (less 2 cm) than what that pixel saw.
 // In place: each texel reads and writes only itself. CPU twin: src/cpu/update.rs.
 
 struct UpdateParams {
@@ -15,13 +21,22 @@ struct UpdateParams {
     high_m: f32,
     flags: u32,          // 1: apply the capture, 2: apply the stamps
     refill_quanta: u32,  // footprint refill this frame, in stamp quanta
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    fall_m: f32,         // snowfall this frame on open ground (m)
+    max_fallen_m: f32,   // most snowfall a texel keeps above its rest depth
+    texel_m: f32,
+    sky_shear: vec2<f32>,   // the occlusion's projection (see occlusion.wgsl)
+    sky_offset_m: vec2<f32>,
+    sky_y0_m: f32,
+    sky_low_m: f32,
+    sky_high_m: f32,
+    _pad: u32,
 }
 
 const USE_CAPTURE: u32 = 1u;
 const USE_STAMPS: u32 = 2u;
+const USE_FALLEN: u32 = 4u;
+const USE_SKY: u32 = 8u;
+const SKY_BIAS_M: f32 = 0.02;
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
 // The depth target is bound as an unfilterable float texture: GLSL has no
@@ -30,6 +45,22 @@ const USE_STAMPS: u32 = 2u;
 @group(0) @binding(2) var<storage, read> terrain: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(5) var sky: texture_2d<f32>;
+@group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
+
+// 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
+fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
+    let p = vec2<f32>(f32(j) + 0.5, f32(i) + 0.5) * params.texel_m;
+    let q = p + params.sky_shear * (h - params.sky_y0_m) + params.sky_offset_m;
+    let pix = floor(q / params.texel_m);
+    let r = f32(params.resolution);
+    if pix.x < 0.0 || pix.y < 0.0 || pix.x >= r || pix.y >= r {
+        return 1.0;
+    }
+    let seen = textureLoad(sky, vec2<i32>(pix), 0).x;
+    let here = (params.sky_high_m - (h + SKY_BIAS_M)) / (params.sky_high_m - params.sky_low_m);
+    return select(0.0, 1.0, here <= seen);
+}
 
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -40,8 +71,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let s = storage_index(params.origin, params.resolution, i, j);
     let ground = terrain[s];
-    let rest = ground + params.depth_m;
-    var h = min(snow[s] + params.refill_m, rest);
+    let old = snow[s];
+    var visible = 1.0;
+    if (params.flags & USE_SKY) != 0u {
+        visible = sky_visible(i, j, old);
+    }
+    var lying = 0.0;
+    var gained = 0.0;
+    if (params.flags & USE_FALLEN) != 0u {
+        let before = fallen[s];
+        lying = max(before, min(before + params.fall_m * visible, params.max_fallen_m));
+        gained = lying - before;
+        fallen[s] = lying;
+    }
+    let rest = ground + params.depth_m + lying;
+    var h = min(old + gained + params.refill_m * visible, rest);
     if (params.flags & USE_CAPTURE) != 0u {
         let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
         if d < 1.0 {

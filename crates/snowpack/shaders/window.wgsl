@@ -1,6 +1,7 @@
 // Window pass: writes terrain height and fresh snow into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
-// columns), and nothing else; their footprints are cleared. CPU twin: src/cpu/window.rs.
+// columns), and nothing else; their footprints are cleared. New texels get
+// the snowfall so far (as if the sky reached them). CPU twin: src/cpu/window.rs.
 
 struct WindowParams {
     origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
@@ -8,7 +9,9 @@ struct WindowParams {
     texel_m: f32,
     depth_m: f32,
     rect_count: u32,
-    _pad: vec2<u32>,
+    fallen_m: f32,          // snowfall so far on open ground, given to new texels
+    flags: u32,             // 1: write `fallen`
+
     rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
 }
 
@@ -18,6 +21,7 @@ struct WindowParams {
 @group(0) @binding(3) var<storage, read_write> terrain: array<f32>;
 @group(0) @binding(4) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(5) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -44,6 +48,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let z = (f32(params.origin.y + i32(i)) + 0.5) * params.texel_m;
     let ground = terrain_height(terrain_params, x, z);
     terrain[s] = ground;
-    snow[s] = ground + params.depth_m;
+    snow[s] = ground + params.depth_m + params.fallen_m;
+    if (params.flags & 1u) != 0u {
+        fallen[s] = params.fallen_m;
+    }
     stamps[s] = 0xffffffffu; // no footprint yet
 }

@@ -5,6 +5,7 @@
 //! and a readback ring answers CPU queries of snow depth a few frames late.
 //! Every compute pass has a CPU twin in [`cpu`].
 
+pub mod accumulate;
 pub mod cpu;
 pub mod deform;
 pub mod error;

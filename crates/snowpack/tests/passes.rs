@@ -112,7 +112,7 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
-        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_terrain, &mut cpu_snow, &mut cpu_stamps);
+        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_terrain, &mut cpu_snow, &mut cpu_stamps, &mut []);
         assert_close(&read_f32(ctx, &res.terrain), &cpu_terrain, 1e-4, "window terrain", seed);
         assert_close(&read_f32(ctx, &res.snow), &cpu_snow, 1e-4, "window snow", seed);
         assert_eq!(read_u32(ctx, &res.stamps), cpu_stamps, "window stamps; seed {seed}");
@@ -161,7 +161,7 @@ fn capture_and_update_match_cpu() {
         high_m: cparams.high_m,
         flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_STAMPS,
         refill_quanta: rng.range(0.0, 40.0) as u32,
-        _pad: [0; 3],
+        ..UpdateParams::default()
     };
     // Random footprints over part of the window (foot at or below the stamp height).
     let mut stamps: Vec<u32> = (0..n)
@@ -213,7 +213,8 @@ fn capture_and_update_match_cpu() {
 
     let mut depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
     cpu::capture::capture_triangles(&mut depth, &triangles, DVec2::ZERO, &cparams, params.resolution);
-    cpu::update::update(&up, &depth, &terrain, &mut snow, &mut stamps);
+    let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
+    cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
     let gpu = read_f32(ctx, &res.snow);
     let bad = gpu.iter().zip(&snow).filter(|(a, b)| (*a - *b).abs() > 1e-3).count();
@@ -262,6 +263,7 @@ fn rim_blur_and_normals_match_cpu() {
         mode: 0,
         low_m,
         high_m,
+        ..RimParams::default()
     };
     let rim = RimPass::new(&ctx.device, &res);
     let blur = BlurPass::new(&ctx.device, &ctx.queue, &res);
@@ -275,7 +277,7 @@ fn rim_blur_and_normals_match_cpu() {
         let mut enc = encoder(ctx);
         rim.record(&ctx.queue, &mut enc, &mut timer, &rp);
         submit(ctx, enc);
-        cpu_shown = cpu::rim::rim(&rp, &terrain, &snow, &stamps);
+        cpu_shown = cpu::rim::rim(&rp, &terrain, &snow, &stamps, &[]);
         assert_close(&read_f32(ctx, &res.shown), &cpu_shown, 1e-4, &format!("rim (mode {mode})"), seed);
         if mode != 0 {
             let raised = cpu_shown.iter().zip(&terrain).filter(|(s, t)| **s > **t + params.depth_m + 1e-3).count();

@@ -1,5 +1,7 @@
 //! Each `#[repr(C)]` uniform struct has exactly the size naga computes for its WGSL twin.
 
+use snowpack::accumulate::state::ObjectGpu;
+use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
 use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
@@ -50,15 +52,43 @@ fn uniform_sizes_match_naga() {
         (shaders::ENV_DOWNSAMPLE, "params", size_of::<EnvParams>()),
         (shaders::ENV_PREFILTER, "params", size_of::<EnvParams>()),
         (shaders::SKINNING, "params", size_of::<SkinningParams>()),
+        (shaders::OCCLUSION, "params", size_of::<OcclusionParams>()),
+        (shaders::SCATTER, "params", size_of::<ScatterParams>()),
+        (shaders::INCREMENT, "params", size_of::<IncrementParams>()),
+        (shaders::SETTLE, "params", size_of::<SettleParams>()),
+        (shaders::ATLAS_SURFACE, "params", size_of::<SurfaceParams>()),
+        (shaders::OBJECT_DRAW, "frame", size_of::<FrameUniforms>()),
+        (shaders::OBJECT_DRAW, "atlas_info", size_of::<[u32; 4]>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
     }
 }
 
+/// Stride naga gives the element type of the storage array `name` in `source`.
+fn wgsl_storage_stride(source: &str, name: &str) -> u32 {
+    let module = naga::front::wgsl::parse_str(source).expect("shader parses");
+    let (_, var) = module
+        .global_variables
+        .iter()
+        .find(|(_, v)| v.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no global `{name}`"));
+    match module.types[var.ty].inner {
+        naga::TypeInner::Array { stride, .. } => stride,
+        ref other => panic!("`{name}` is not an array: {other:?}"),
+    }
+}
+
+#[test]
+fn object_struct_matches_naga() {
+    for source in [shaders::OCCLUSION, shaders::SETTLE, shaders::ATLAS_SURFACE, shaders::OBJECT_DRAW] {
+        assert_eq!(wgsl_storage_stride(source, "objects") as usize, size_of::<ObjectGpu>());
+    }
+}
+
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 20);
+    assert_eq!(shaders::ALL.len(), 26);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

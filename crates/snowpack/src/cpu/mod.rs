@@ -3,11 +3,15 @@
 //! GPU's output with them on random inputs.
 
 pub mod ao;
+pub mod atlas_surface;
 pub mod blur;
 pub mod capture;
 pub mod environment;
+pub mod increment;
 pub mod normals;
 pub mod rim;
+pub mod scatter;
+pub mod settle;
 pub mod skinning;
 pub mod stamp;
 pub mod terrain_bake;

@@ -32,21 +32,22 @@ pub fn point_rim(p: &RimParams, packed: u32, rest: f32) -> f32 {
     (1.0 - t * t).max(0.0) * p.elevation * RIM_PEAK * (rest - foot)
 }
 
-/// Displayed height (window-local) from toroidal terrain, snow and stamps.
+/// Displayed height (window-local) from toroidal terrain, snow, stamps and snowfall.
 #[must_use]
-pub fn rim(p: &RimParams, terrain: &[f32], snow: &[f32], stamps: &[u32]) -> Vec<f32> {
+pub fn rim(p: &RimParams, terrain: &[f32], snow: &[f32], stamps: &[u32], fallen: &[f32]) -> Vec<f32> {
     let r = p.resolution;
     let mut shown = vec![0.0; (r * r) as usize];
     for i in 0..r {
         for j in 0..r {
             let s = storage_index(p.origin, r, i, j);
             let ground = terrain[s];
+            let depth = if p.use_fallen != 0 { p.depth_m + fallen[s] } else { p.depth_m };
             shown[(i * r + j) as usize] = if p.mode == 0 {
-                let x = ((snow[s] - ground) / p.depth_m).clamp(0.0, 1.0);
+                let x = ((snow[s] - ground) / depth).clamp(0.0, 1.0);
                 let remapped = x + p.elevation * (hanak_cubic(x) - x);
-                ground + p.depth_m * remapped.max(0.0)
+                ground + depth * remapped.max(0.0)
             } else {
-                let rest = ground + p.depth_m;
+                let rest = ground + depth;
                 let mut out = snow[s];
                 if out >= rest - UNDISTURBED_M {
                     out += point_rim(p, stamps[s], rest);

@@ -5,18 +5,61 @@ use crate::deform::update::UpdateParams;
 use super::stamp::{height, STAMP_EMPTY};
 use super::window::storage_index;
 
-/// Updates the toroidal `snow` (and refills `stamps`) in place from
-/// window-local `capture_depth`.
-pub fn update(p: &UpdateParams, capture_depth: &[f32], terrain: &[f32], snow: &mut [f32], stamps: &mut [u32]) {
+/// Below the surface the occlusion saw by less than this, a texel still counts as seen (m).
+const SKY_BIAS_M: f32 = 0.02;
+
+/// 1 where the sky reaches window-local texel (i, j) whose surface is at `h`,
+/// by the window-local occlusion depth `sky`.
+#[must_use]
+pub fn sky_visible(p: &UpdateParams, sky: &[f32], i: u32, j: u32, h: f32) -> f32 {
+    let x = (j as f32 + 0.5) * p.texel_m + p.sky_shear[0] * (h - p.sky_y0_m) + p.sky_offset_m[0];
+    let z = (i as f32 + 0.5) * p.texel_m + p.sky_shear[1] * (h - p.sky_y0_m) + p.sky_offset_m[1];
+    let (px, pz) = ((x / p.texel_m).floor(), (z / p.texel_m).floor());
+    let r = p.resolution as f32;
+    if px < 0.0 || pz < 0.0 || px >= r || pz >= r {
+        return 1.0;
+    }
+    let seen = sky[(pz as u32 * p.resolution + px as u32) as usize];
+    let here = (p.sky_high_m - (h + SKY_BIAS_M)) / (p.sky_high_m - p.sky_low_m);
+    if here <= seen {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// The update's inputs besides its parameters: window-local capture and
+/// occlusion depths, and the toroidal terrain.
+#[derive(Clone, Copy, Debug)]
+pub struct UpdateInputs<'a> {
+    /// Capture depth, window-local.
+    pub capture_depth: &'a [f32],
+    /// Occlusion depth, window-local (read with [`UpdateParams::USE_SKY`]).
+    pub sky_depth: &'a [f32],
+    /// Terrain height, toroidal.
+    pub terrain: &'a [f32],
+}
+
+/// Updates the toroidal `snow`, `fallen` (and refills `stamps`) in place.
+pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [f32], stamps: &mut [u32], fallen: &mut [f32]) {
     let r = p.resolution;
     for i in 0..r {
         for j in 0..r {
             let s = storage_index(p.origin, r, i, j);
-            let ground = terrain[s];
-            let rest = ground + p.depth_m;
-            let mut h = (snow[s] + p.refill_m).min(rest);
+            let ground = input.terrain[s];
+            let old = snow[s];
+            let visible = if p.flags & UpdateParams::USE_SKY != 0 { sky_visible(p, input.sky_depth, i, j, old) } else { 1.0 };
+            let (mut lying, mut gained) = (0.0, 0.0);
+            if p.flags & UpdateParams::USE_FALLEN != 0 {
+                let before = fallen[s];
+                lying = before.max((before + p.fall_m * visible).min(p.max_fallen_m));
+                gained = lying - before;
+                fallen[s] = lying;
+            }
+            let rest = ground + p.depth_m + lying;
+            let mut h = (old + gained + p.refill_m * visible).min(rest);
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
-                let d = capture_depth[(i * r + j) as usize];
+                let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
                     let actor = p.low_m + d * (p.high_m - p.low_m);
                     h = h.min(ground.max(actor));

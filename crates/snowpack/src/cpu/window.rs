@@ -12,7 +12,8 @@ pub fn storage_index(origin: [i32; 2], res: u32, i: u32, j: u32) -> usize {
     si * res as usize + sj
 }
 
-/// Writes terrain and fresh snow into the texels of `rects` and clears their footprints.
+/// Writes terrain and fresh snow (with the snowfall so far) into the texels
+/// of `rects` and clears their footprints.
 pub fn expose(
     p: &WindowParams,
     rects: &[TexelRect],
@@ -20,6 +21,7 @@ pub fn expose(
     terrain: &mut [f32],
     snow: &mut [f32],
     stamps: &mut [u32],
+    fallen: &mut [f32],
 ) {
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
@@ -29,8 +31,11 @@ pub fn expose(
                 let z = ((p.origin[1] + i as i32) as f32 + 0.5) * p.texel_m;
                 let ground = terrain_src.height_at(x, z);
                 terrain[s] = ground;
-                snow[s] = ground + p.depth_m;
+                snow[s] = ground + p.depth_m + p.fallen_m;
                 stamps[s] = super::stamp::STAMP_EMPTY;
+                if p.flags & WindowParams::WRITE_FALLEN != 0 {
+                    fallen[s] = p.fallen_m;
+                }
             }
         }
     }

@@ -30,6 +30,10 @@ pub struct SnowParams {
     /// character placed on the snow sinks half its depth (see
     /// [`crate::skin::sinking`]). Fresh powder is a few kPa, settled snow tens.
     pub hardness_kpa: f32,
+    /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
+    /// reaches it and objects accumulate snow. `None`: no snow falls, and the
+    /// ground's snowfall buffer is not allocated.
+    pub snowfall: Option<crate::accumulate::Snowfall>,
 }
 
 impl Default for SnowParams {
@@ -45,6 +49,7 @@ impl Default for SnowParams {
             range_texels: 64,
             rim: RimStyle::Rounded,
             hardness_kpa: 10.0,
+            snowfall: None,
         }
     }
 }
@@ -93,6 +98,9 @@ impl SnowParams {
         }
         if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
             return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
+        }
+        if let Some(s) = &self.snowfall {
+            s.validate()?;
         }
         if !RANGE_TEXELS.contains(&self.range_texels) {
             return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));

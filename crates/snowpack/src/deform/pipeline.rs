@@ -2,6 +2,7 @@
 
 use glam::DVec2;
 
+use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
@@ -77,6 +78,10 @@ pub struct SnowDeformation {
     skinned: Vec<SkinnedInstance>,
     /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
     posed: Vec<usize>,
+    /// Objects snow settles on, with their atlas and passes.
+    accumulation: Option<SnowAccumulation>,
+    /// Snowfall so far on open ground (m), given to texels the window exposes.
+    fallen_total_m: f32,
 }
 
 /// A skinned mesh registered with [`SnowDeformation::add_skinned_mesh`].
@@ -115,11 +120,13 @@ impl SnowDeformation {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let res = DeformResources::new(device, queue, &params, &terrain);
         let (tmin, tmax) = terrain.height_bounds();
+        // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
+        let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
         let capture_params = CaptureParams {
             extent_m: params.extent_m,
             texel_m: params.texel_m(),
             low_m: tmin - CAPTURE_MARGIN_M,
-            high_m: capture_top(tmin, tmax, params.depth_m),
+            high_m: capture_top(tmin, tmax, deepest),
         };
         let this = Self {
             window_pass: WindowPass::new(device, &res),
@@ -147,6 +154,8 @@ impl SnowDeformation {
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
             posed: Vec::new(),
+            accumulation: None,
+            fallen_total_m: 0.0,
         };
         ctx.check("creating the deformation passes")?;
         Ok(this)
@@ -168,6 +177,64 @@ impl SnowDeformation {
     #[must_use]
     pub fn resources(&self) -> &DeformResources {
         &self.res
+    }
+
+    /// Places `objects` for snow to settle on (replacing any before, and their
+    /// snow): lays out their atlas and builds the accumulation passes.
+    pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), SnowError> {
+        if objects.is_empty() {
+            self.accumulation = None;
+            self.update_pass = UpdatePass::new(&ctx.device, &self.res);
+            return Ok(());
+        }
+        let atlas = self.params.snowfall.as_ref().map_or(Snowfall::default().atlas_resolution, |s| s.atlas_resolution);
+        let acc = SnowAccumulation::new(&ctx.device, objects, atlas, self.params.resolution)?;
+        self.update_pass.bind_sky(&ctx.device, &self.res, acc.sky_view());
+        self.accumulation = Some(acc);
+        ctx.check("creating the accumulation passes")
+    }
+
+    /// The objects' accumulation, when there are objects.
+    #[must_use]
+    pub fn accumulation(&self) -> Option<&SnowAccumulation> {
+        self.accumulation.as_ref()
+    }
+
+    /// Moves and turns object `k` (in [`Self::set_objects`] order); its snow goes with it.
+    pub fn set_object_pose(&mut self, k: usize, position: glam::Vec3, rotation: glam::Quat) {
+        if let Some(acc) = &mut self.accumulation {
+            acc.set_pose(k, position, rotation);
+        }
+    }
+
+    /// Changes the snowfall (rate, direction, stability) from the next frame
+    /// on; `None` stops it. A window created without snowfall has no buffer
+    /// for it, so starting snow there is an error.
+    pub fn set_snowfall(&mut self, snowfall: Option<Snowfall>) -> Result<(), SnowError> {
+        if let Some(s) = &snowfall {
+            s.validate()?;
+            if self.params.snowfall.is_none() {
+                return Err(SnowError::InvalidParameter { field: "snowfall", why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into() });
+            }
+        }
+        // The footprint quantisation was fixed at creation from `max_m`.
+        if let (Some(new), Some(old)) = (&snowfall, &self.params.snowfall) {
+            if new.max_m > old.max_m {
+                return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) });
+            }
+        }
+        if snowfall.is_some() {
+            self.params.snowfall = snowfall;
+        } else if let Some(s) = &mut self.params.snowfall {
+            s.rate_m_per_s = 0.0;
+        }
+        Ok(())
+    }
+
+    /// Snowfall so far on open ground (m).
+    #[must_use]
+    pub fn fallen_m(&self) -> f32 {
+        self.fallen_total_m
     }
 
     /// Sets the refill rate (m/s); takes effect next frame.
@@ -369,10 +436,26 @@ impl SnowDeformation {
                 resolution: p.resolution,
                 texel_m: p.texel_m(),
                 depth_m: p.depth_m,
+                fallen_m: self.fallen_total_m,
+                flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 },
                 ..WindowParams::default()
             },
             &rects,
         );
+        // Snowfall: this frame's depth on open ground, and what the sky sees.
+        let snowfall = p.snowfall.clone();
+        let fall_m = snowfall.as_ref().map_or(0.0, |s| s.rate_m_per_s * dt_s.max(0.0));
+        let (tmin, tmax) = self.terrain.height_bounds();
+        if let Some(acc) = &self.accumulation {
+            acc.upload_poses(queue, corner);
+        }
+        let sky = match (&snowfall, &mut self.accumulation) {
+            (Some(s), Some(acc)) if fall_m > 0.0 => {
+                Some(acc.record_occlusion(queue, encoder, &mut self.timer, s, p.extent_m, (tmin, tmax + p.depth_m + self.fallen_total_m)))
+            }
+            _ => None,
+        };
+        let max_fallen_m = snowfall.as_ref().map_or(0.0, |s| s.max_m);
         let technique = p.technique;
         let captures = matches!(technique, Technique::Depth | Technique::Combined);
         let stamps = matches!(technique, Technique::Points | Technique::Combined);
@@ -413,11 +496,23 @@ impl SnowDeformation {
                 refill_m: p.refill_m_per_s * dt_s.max(0.0),
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
-                flags: if captures { UpdateParams::USE_CAPTURE } else { 0 } | if stamps { UpdateParams::USE_STAMPS } else { 0 },
+                flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
+                    | if stamps { UpdateParams::USE_STAMPS } else { 0 }
+                    | if snowfall.is_some() { UpdateParams::USE_FALLEN } else { 0 }
+                    | if sky.is_some() { UpdateParams::USE_SKY } else { 0 },
                 refill_quanta: refill_quanta as u32,
-                _pad: [0; 3],
+                fall_m,
+                max_fallen_m,
+                texel_m: p.texel_m(),
+                sky_shear: sky.map_or([0.0; 2], |s| s.shear),
+                sky_offset_m: sky.map_or([0.0; 2], |s| s.offset_m),
+                sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
+                sky_low_m: sky.map_or(0.0, |s| s.low_m),
+                sky_high_m: sky.map_or(1.0, |s| s.high_m),
+                _pad: 0,
             },
         );
+        self.fallen_total_m = (self.fallen_total_m + fall_m).min(max_fallen_m);
         self.rim_pass.record(
             queue,
             encoder,
@@ -430,12 +525,21 @@ impl SnowDeformation {
                 mode: RimParams::mode_for(technique, p.rim),
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
+                use_fallen: u32::from(snowfall.is_some()),
+                _pad: 0,
             },
         );
         if p.blur {
             self.blur_pass.record(encoder, &mut self.timer);
         }
         self.normal_pass.record(encoder, &mut self.timer);
+        if let Some(acc) = &mut self.accumulation {
+            match &snowfall {
+                // One occlusion pixel is one window texel of ground.
+                Some(s) => acc.record_atlas(queue, encoder, &mut self.timer, s, if sky.is_some() { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
+                None => acc.record_surface(queue, encoder, &mut self.timer),
+            }
+        }
         // Contacts are recorded whatever the technique, so switching to decals
         // shows the recent ones; they are drawn only with the decals technique.
         self.decals.observe(deformers, &self.terrain, p.depth_m);
@@ -518,6 +622,9 @@ impl SnowDeformation {
         let mut list = self.res.memory_bytes();
         list.push(("readback ring", self.readback.memory_bytes()));
         list.push(("decal layer", u64::from(self.params.resolution).pow(2) * 4));
+        if let Some(acc) = &self.accumulation {
+            list.extend(acc.memory_bytes());
+        }
         list
     }
 

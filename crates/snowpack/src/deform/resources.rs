@@ -5,6 +5,7 @@
 //! | `terrain` | f32 per texel | toroidal | terrain height (m) |
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`) |
+//! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
 //! | `capture` | Depth32Float texture | window-local | lowest actor surface, linear in height |
 //! | `shown` | f32 per texel | window-local | displayed height (rims, then blurred in place via `scratch`) |
 //! | `scratch` | f32 per texel | window-local | blur's intermediate |
@@ -29,6 +30,8 @@ pub struct DeformResources {
     pub snow: wgpu::Buffer,
     /// Packed footprints (height16 << 16 | foot16) per texel, toroidal; persistent.
     pub stamps: wgpu::Buffer,
+    /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
+    pub fallen: wgpu::Buffer,
     /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one zero otherwise).
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
@@ -99,6 +102,8 @@ impl DeformResources {
             snow: height_buffer(device, "snow", texels),
             // Every texel is written by the window pass on first placement.
             stamps: height_buffer(device, "stamps", texels),
+            // Zeroed by wgpu; only read and written while `params.snowfall` is set.
+            fallen: height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 }),
             heightmap,
             terrain_params,
             capture,
@@ -122,6 +127,7 @@ impl DeformResources {
             ("terrain", self.terrain.size()),
             ("snow", self.snow.size()),
             ("stamps", self.stamps.size()),
+            ("fallen", self.fallen.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
             ("shown", self.shown.size()),

@@ -26,6 +26,10 @@ pub struct RimParams {
     pub low_m: f32,
     /// Height of stamp code 65535 (m).
     pub high_m: f32,
+    /// 1 when the rest depth includes the `fallen` buffer (snowfall so far).
+    pub use_fallen: u32,
+    /// Padding to the 8-byte alignment of `origin`.
+    pub _pad: u32,
 }
 
 impl RimParams {
@@ -62,6 +66,7 @@ impl RimPass {
                 layout::storage(2, true),
                 layout::storage(3, false),
                 layout::storage(4, true),
+                layout::storage(5, true),
             ],
         );
         let params = layout::uniform_buffer::<RimParams>(device, "rim params");
@@ -75,6 +80,7 @@ impl RimPass {
                 res.snow.as_entire_binding(),
                 res.shown.as_entire_binding(),
                 res.stamps.as_entire_binding(),
+                res.fallen.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

@@ -28,8 +28,24 @@ pub struct UpdateParams {
     pub flags: u32,
     /// Footprint refill this frame, in whole stamp quanta.
     pub refill_quanta: u32,
-    /// Padding to 48 bytes (the WGSL struct aligns to its `vec2<i32>`).
-    pub _pad: [u32; 3],
+    /// Snowfall this frame on open ground (m).
+    pub fall_m: f32,
+    /// Most snowfall a texel keeps above its rest depth (m).
+    pub max_fallen_m: f32,
+    /// Texel size (m), the occlusion map's too.
+    pub texel_m: f32,
+    /// The occlusion's shear, `d.xz / -d.y` ([`crate::accumulate::OcclusionParams`]).
+    pub sky_shear: [f32; 2],
+    /// The occlusion's jitter (m).
+    pub sky_offset_m: [f32; 2],
+    /// Height of the occlusion's projection plane (m).
+    pub sky_y0_m: f32,
+    /// Height at occlusion depth 1 (m).
+    pub sky_low_m: f32,
+    /// Height at occlusion depth 0 (m).
+    pub sky_high_m: f32,
+    /// Padding to the 8-byte alignment of `origin`.
+    pub _pad: u32,
 }
 
 impl UpdateParams {
@@ -37,20 +53,42 @@ impl UpdateParams {
     pub const USE_CAPTURE: u32 = 1;
     /// Apply the stamped footprints.
     pub const USE_STAMPS: u32 = 2;
+    /// Read and grow the `fallen` buffer (it snows, or has snowed).
+    pub const USE_FALLEN: u32 = 4;
+    /// Test each texel against the occlusion depth (objects hide the sky).
+    pub const USE_SKY: u32 = 8;
 }
 
-/// Applies refill and the captured actors to the persistent snow.
+/// Applies refill, snowfall and the captured actors to the persistent snow.
 pub struct UpdatePass {
     pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
+    /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
+    _no_sky: wgpu::TextureView,
+}
+
+/// A depth texture bindable where the update pass reads the occlusion depth.
+#[must_use]
+pub fn sky_depth_texture(device: &wgpu::Device, resolution: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("sky occlusion depth"),
+        size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: super::resources::CAPTURE_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    })
 }
 
 impl UpdatePass {
-    /// Builds the pipeline and binds it to `res`.
+    /// Builds the pipeline and binds it to `res` (without an occlusion depth).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, layout) = layout::compute_pipeline(
             device,
             "update",
             shaders::UPDATE,
@@ -60,22 +98,36 @@ impl UpdatePass {
                 layout::storage(2, true),
                 layout::storage(3, false),
                 layout::storage(4, false),
+                layout::depth_texture(5),
+                layout::storage(6, false),
             ],
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
-        let bind_group = layout::bind_group(
+        let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
+        let bind_group = Self::group(device, &layout, &params, res, &no_sky);
+        Self { pipeline, layout, params, bind_group, _no_sky: no_sky }
+    }
+
+    fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, res: &DeformResources, sky: &wgpu::TextureView) -> wgpu::BindGroup {
+        layout::bind_group(
             device,
             "update",
-            &bgl,
+            bgl,
             &[
                 params.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&res.capture_view),
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
+                wgpu::BindingResource::TextureView(sky),
+                res.fallen.as_entire_binding(),
             ],
-        );
-        Self { pipeline, params, bind_group }
+        )
+    }
+
+    /// Binds the occlusion depth `sky` (of the window's resolution) for `USE_SKY`.
+    pub fn bind_sky(&mut self, device: &wgpu::Device, res: &DeformResources, sky: &wgpu::TextureView) {
+        self.bind_group = Self::group(device, &self.layout, &self.params, res, sky);
     }
 
     /// Records the update for this frame.

@@ -85,10 +85,17 @@ pub struct WindowParams {
     pub depth_m: f32,
     /// How many of `rects` are used.
     pub rect_count: u32,
-    /// Padding to the 16-byte alignment of `rects`.
-    pub _pad: [u32; 2],
+    /// Snowfall so far on open ground (m), given to new texels.
+    pub fallen_m: f32,
+    /// [`WindowParams::WRITE_FALLEN`] when the `fallen` buffer is in use.
+    pub flags: u32,
     /// Exposed local rectangles `[row0, col0, rows, cols]`.
     pub rects: [TexelRect; 2],
+}
+
+impl WindowParams {
+    /// Write the snowfall so far into `fallen` of new texels.
+    pub const WRITE_FALLEN: u32 = 1;
 }
 
 /// Uniforms of `shared/terrain.wgsl`.
@@ -172,6 +179,7 @@ impl WindowPass {
                 layout::storage(3, false),
                 layout::storage(4, false),
                 layout::storage(5, false),
+                layout::storage(6, false),
             ],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
@@ -186,6 +194,7 @@ impl WindowPass {
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
+                res.fallen.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

@@ -15,6 +15,7 @@ pub mod detail;
 pub mod environment;
 pub mod frame;
 pub mod lod;
+pub mod objects;
 pub mod params;
 pub mod pipeline;
 pub mod shadow;
@@ -90,6 +91,7 @@ pub struct Renderer {
     terrain: TerrainPass,
     actors: ActorPass,
     skinned: SkinnedDrawPass,
+    objects: objects::ObjectDrawPass,
     sky: SkyPass,
     tonemap: TonemapPass,
     targets: Option<Targets>,
@@ -187,6 +189,7 @@ impl Renderer {
         );
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
+        let objects = objects::ObjectDrawPass::new(device, &lit_layout, &shadow_layout);
         let sky = SkyPass::new(device, &frame, &env_pass.full);
         let tonemap = TonemapPass::new(device, output_format);
         let mut timer = GpuTimer::new(device, queue);
@@ -214,6 +217,7 @@ impl Renderer {
             terrain,
             actors,
             skinned,
+            objects,
             sky,
             tonemap,
             targets: None,
@@ -221,7 +225,7 @@ impl Renderer {
             timer,
             stats: RenderStats::default(),
             // Rims rise above rest; leave room for them and for rounding.
-            height_bounds: (lo - 0.5, hi + p.depth_m * (1.0 + p.elevation.max(0.0)) + 1.0),
+            height_bounds: (lo - 0.5, hi + (p.depth_m + p.snowfall.as_ref().map_or(0.0, |s| s.max_m)) * (1.0 + p.elevation.max(0.0)) + 1.0),
         })
     }
 
@@ -364,12 +368,13 @@ impl Renderer {
         let casters = lod::cull(&all, &lod::side_planes(light), self.height_bounds);
         self.terrain.prepare(device, queue, &visible, &casters);
         self.actors.prepare(device, queue, actors);
+        self.objects.prepare(device, queue, snow.accumulation());
         self.stats = RenderStats {
             patches: visible.len() as u32,
             terrain_triangles: visible.iter().map(|p| u64::from(p.triangles())).sum(),
             shadow_patches: casters.len() as u32,
             actors: self.actors.count(),
-            actor_triangles: self.actors.triangles(),
+            actor_triangles: self.actors.triangles() + self.objects.triangles(),
             levels: (
                 visible.iter().map(lod::PatchInstance::level).min().unwrap_or(0),
                 visible.iter().map(lod::PatchInstance::level).max().unwrap_or(0),
@@ -399,6 +404,9 @@ impl Renderer {
             self.terrain.draw_shadow(&mut pass, &self.shadow_group, &self.snow_group);
             self.actors.draw_shadow(&mut pass, &self.shadow_group);
             self.skinned.draw_shadow(&mut pass, &self.shadow_group, snow.posed_meshes());
+            if let Some(acc) = snow.accumulation() {
+                self.objects.draw_shadow(&mut pass, &self.shadow_group, acc);
+            }
         }
         let Some(targets) = &self.targets else { return };
         {
@@ -413,6 +421,10 @@ impl Renderer {
             let mut pass = scene_pass(encoder, &mut self.timer, targets, "actors", false);
             self.actors.draw_lit(&mut pass, &self.lit_group);
             self.skinned.draw_lit(&mut pass, &self.lit_group, snow.posed_meshes());
+        }
+        if let Some(acc) = snow.accumulation() {
+            let mut pass = scene_pass(encoder, &mut self.timer, targets, "objects", false);
+            self.objects.draw_lit(&mut pass, &self.lit_group, acc);
         }
         {
             let slot = self.timer.reserve("tonemap");

@@ -1,0 +1,111 @@
+//! Accumulation objects drawn with their snow (`shaders/object_draw.wgsl`),
+//! lit like the snow and casting into the shadow map.
+
+use super::pipeline::{render_pipeline, storage_ro, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
+use super::shadow::SHADOW_FORMAT;
+use crate::accumulate::{ObjectVertex, SnowAccumulation};
+use crate::gpu::layout;
+use crate::shaders;
+
+const ATTRIBUTES: [wgpu::VertexAttribute; 8] = wgpu::vertex_attr_array![
+    0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3,
+    4 => Float32x2, 5 => Float32, 6 => Uint32, 7 => Float32x4
+];
+
+/// Pipelines for drawing accumulation objects.
+pub struct ObjectDrawPass {
+    lit: wgpu::RenderPipeline,
+    shadow: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    info: wgpu::Buffer,
+    group: Option<wgpu::BindGroup>,
+    count: u32,
+}
+
+impl ObjectDrawPass {
+    /// Builds both pipelines.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout) -> Self {
+        let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("objects"),
+            entries: &[storage_ro(0, stages), storage_ro(1, stages), layout::uniform(2, stages)],
+        });
+        let buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<ObjectVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &ATTRIBUTES,
+        })];
+        let lit = render_pipeline(
+            device,
+            &PipelineSpec {
+                label: "objects",
+                source: shaders::OBJECT_DRAW,
+                vertex: "vs_main",
+                fragment: Some(("fs_main", HDR_FORMAT)),
+                buffers: &buffers,
+                layouts: &[lit_layout, &layout],
+                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
+                bias: wgpu::DepthBiasState::default(),
+                cull: true,
+            },
+        );
+        let shadow = render_pipeline(
+            device,
+            &PipelineSpec {
+                label: "object shadow",
+                source: shaders::OBJECT_DRAW,
+                vertex: "vs_shadow",
+                fragment: None,
+                buffers: &buffers,
+                layouts: &[shadow_layout, &layout],
+                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
+                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
+                cull: true,
+            },
+        );
+        let info = layout::uniform_buffer::<[u32; 4]>(device, "atlas info");
+        Self { lit, shadow, layout, info, group: None, count: 0 }
+    }
+
+    /// Binds this frame's objects (none when `acc` is `None`).
+    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, acc: Option<&SnowAccumulation>) {
+        self.count = 0;
+        self.group = None;
+        let Some(acc) = acc else { return };
+        queue.write_buffer(&self.info, 0, bytemuck::bytes_of(&[acc.layout().resolution, 0, 0, 0]));
+        self.group = Some(layout::bind_group(
+            device,
+            "objects",
+            &self.layout,
+            &[acc.object_buffer.as_entire_binding(), acc.surface.as_entire_binding(), self.info.as_entire_binding()],
+        ));
+        self.count = acc.index_count();
+    }
+
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline, frame: &wgpu::BindGroup, acc: &SnowAccumulation) {
+        let Some(group) = &self.group else { return };
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, frame, &[]);
+        pass.set_bind_group(1, group, &[]);
+        pass.set_vertex_buffer(0, acc.vertices.slice(..));
+        pass.set_index_buffer(acc.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.count, 0, 0..1);
+    }
+
+    /// Draws the objects lit.
+    pub fn draw_lit(&self, pass: &mut wgpu::RenderPass<'_>, frame: &wgpu::BindGroup, acc: &SnowAccumulation) {
+        self.draw(pass, &self.lit, frame, acc);
+    }
+
+    /// Draws the objects into the shadow map.
+    pub fn draw_shadow(&self, pass: &mut wgpu::RenderPass<'_>, frame: &wgpu::BindGroup, acc: &SnowAccumulation) {
+        self.draw(pass, &self.shadow, frame, acc);
+    }
+
+    /// Triangles drawn this frame.
+    #[must_use]
+    pub fn triangles(&self) -> u64 {
+        u64::from(self.count / 3)
+    }
+}
