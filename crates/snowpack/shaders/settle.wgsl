@@ -1,8 +1,9 @@
 // Settle pass: the frame's increment blurred 5x5 (Dinh's Gaussian weights,
 // renormalised over the texels of the same object), added to the
 // accumulation, then Dinh's stability (eq. 4.3): a surface whose world normal
-// n makes an angle with up beyond the angle of repose holds nothing, others
-// hold up to m * n.y; snow above that capacity c falls off,
+// n makes an angle with up beyond the angle of repose holds nothing (its snow
+// slides off at once), others hold up to c = m * n.y; snow above that
+// capacity falls off gradually,
 //   a <- a - (a - c) * f,   f = 1 - exp(-falloff * dt).
 // CPU twin: src/cpu/settle.rs. Prepended: shared/objects.wgsl.
 
@@ -54,12 +55,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     var a = acc[k] + sum / weight;
     let up = (objects[own].rotation * vec4<f32>(normal_area[k].xyz, 0.0)).y;
-    var cap = 0.0;
-    if up >= params.cos_repose {
-        cap = params.max_m * up;
-    }
-    if a > cap {
-        a -= (a - cap) * params.falloff;
+    if up < params.cos_repose {
+        a = 0.0;
+    } else {
+        let cap = params.max_m * up;
+        if a > cap {
+            a -= (a - cap) * params.falloff;
+        }
     }
     acc[k] = max(a, 0.0);
 }

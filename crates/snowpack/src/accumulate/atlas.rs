@@ -5,7 +5,8 @@
 //! (no poles, and its seams lie on the lower hemisphere, where no snow lies).
 //! Charts are packed on shelves at one texel density for every object (so
 //! every object's snow has the same detail), the densest that fits, but no
-//! finer than [`MIN_TEXEL_M`]; a one-texel gutter separates them.
+//! finer than [`MIN_TEXEL_M`]. Each chart has a two-texel gutter, so the 5x5
+//! blur never reaches from one chart into another.
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
@@ -15,6 +16,9 @@ use crate::error::SnowError;
 
 /// Finest atlas texel (m): snow detail below half a centimetre is not worth texels.
 pub const MIN_TEXEL_M: f32 = 0.005;
+
+/// Gutter around each chart (texels): the settle blur's radius.
+pub const GUTTER: u32 = 2;
 
 /// Owner value of texels that belong to no chart (gutters, unused space).
 pub const NO_OWNER: u32 = u32::MAX;
@@ -218,7 +222,7 @@ impl AtlasLayout {
             maps.iter()
                 .map(|(_, m)| {
                     let e = m.extent_m() * density;
-                    [e.x.ceil().max(2.0) as u32 + 2, e.y.ceil().max(2.0) as u32 + 2]
+                    [e.x.ceil().max(2.0) as u32 + 2 * GUTTER, e.y.ceil().max(2.0) as u32 + 2 * GUTTER]
                 })
                 .collect()
         };
@@ -247,7 +251,7 @@ impl AtlasLayout {
         let charts = maps
             .iter()
             .zip(sizes.iter().zip(&places))
-            .map(|(&(object, map), (s, p))| Chart { object, rect: [p[0] + 1, p[1] + 1, s[0] - 2, s[1] - 2], map })
+            .map(|(&(object, map), (s, p))| Chart { object, rect: [p[0] + GUTTER, p[1] + GUTTER, s[0] - 2 * GUTTER, s[1] - 2 * GUTTER], map })
             .collect();
         Ok(Self { resolution, texels_per_m: density, charts, object_count: objects.len() as u32 })
     }
@@ -392,7 +396,7 @@ mod tests {
         let mut seen = vec![false; 256 * 256];
         for c in &layout.charts {
             let [x0, y0, w, h] = c.rect;
-            assert!(x0 >= 1 && y0 >= 1 && x0 + w < 256 && y0 + h < 256, "chart {:?} within the atlas with its gutter", c.rect);
+            assert!(x0 >= GUTTER && y0 >= GUTTER && x0 + w + GUTTER <= 256 && y0 + h + GUTTER <= 256, "chart {:?} within the atlas with its gutter", c.rect);
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
                     let k = (y * 256 + x) as usize;
@@ -431,7 +435,7 @@ mod tests {
     #[test]
     fn density_is_uniform_and_fills_the_atlas() {
         let layout = AtlasLayout::new(&objects(), 512).expect("fits");
-        let used: u32 = layout.charts.iter().map(|c| (c.rect[2] + 2) * (c.rect[3] + 2)).sum();
+        let used: u32 = layout.charts.iter().map(|c| (c.rect[2] + 2 * GUTTER) * (c.rect[3] + 2 * GUTTER)).sum();
         assert!(used as f32 > 0.4 * 512.0 * 512.0, "the densest packing uses a good part of the atlas ({used} texels)");
         let tiny = vec![SnowObject { name: "pebble".into(), shape: ObjectShape::Sphere { radius_m: 0.01 }, position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: false }];
         let layout = AtlasLayout::new(&tiny, 512).expect("fits");

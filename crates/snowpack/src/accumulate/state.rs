@@ -208,6 +208,12 @@ impl SnowAccumulation {
         &self.occlusion.depth_view
     }
 
+    /// The occlusion depth texture (for copies; tests and tools).
+    #[must_use]
+    pub fn sky_texture(&self) -> &wgpu::Texture {
+        &self.occlusion.depth
+    }
+
     /// Moves and turns object `k`; its snow goes with it.
     pub fn set_pose(&mut self, k: usize, position: Vec3, rotation: Quat) {
         if let Some(o) = self.objects.get_mut(k) {

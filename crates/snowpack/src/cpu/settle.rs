@@ -39,9 +39,13 @@ pub fn settle(p: &SettleParams, rotations: &[Mat4], normal_area: &[[f32; 4]], ow
             let mut a = acc[k] + sum / weight;
             let [nx, ny, nz, _] = normal_area[k];
             let up = rotations[own as usize].transform_vector3(Vec3::new(nx, ny, nz)).y;
-            let cap = if up >= p.cos_repose { p.max_m * up } else { 0.0 };
-            if a > cap {
-                a -= (a - cap) * p.falloff;
+            if up < p.cos_repose {
+                a = 0.0;
+            } else {
+                let cap = p.max_m * up;
+                if a > cap {
+                    a -= (a - cap) * p.falloff;
+                }
             }
             acc[k] = a.max(0.0);
         }

@@ -1,0 +1,439 @@
+//! Accumulation physics on the GPU: snow settles where the sky reaches, on
+//! objects and on the ground, follows slope stability, and stays on objects
+//! that move. Each test runs the whole deformation frame with snowfall.
+
+use glam::{DVec2, Quat, Vec3};
+use snowpack::accumulate::{ObjectShape, SnowObject, Snowfall};
+use snowpack::testing;
+use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
+
+const EXTENT_M: f32 = 16.0;
+const RESOLUTION: u32 = 128;
+const DEPTH_M: f32 = 0.3;
+const RATE: f32 = 0.01;
+const DT: f32 = 0.05;
+
+fn snowfall(direction: Vec3) -> Snowfall {
+    Snowfall { direction: direction.normalize(), rate_m_per_s: RATE, flutter_deg: 0.0, noise: 0.0, atlas_resolution: 256, ..Snowfall::default() }
+}
+
+fn object(name: &str, shape: ObjectShape, position: Vec3, rotation: Quat) -> SnowObject {
+    SnowObject { name: name.into(), shape, position, rotation, dilate: true }
+}
+
+fn slab(size: Vec3) -> ObjectShape {
+    ObjectShape::Box { size_m: size }
+}
+
+fn window(ctx: &GpuContext, fall: Snowfall, objects: &[SnowObject]) -> SnowDeformation {
+    let params = SnowParams { extent_m: EXTENT_M, resolution: RESOLUTION, depth_m: DEPTH_M, blur: false, snowfall: Some(fall), ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    snow.set_objects(ctx, objects).expect("objects");
+    snow
+}
+
+fn run(ctx: &GpuContext, snow: &mut SnowDeformation, frames: u32) {
+    for _ in 0..frames {
+        snow.step(ctx, &[], DT).expect("frame");
+    }
+    snow.finish(ctx).expect("finish");
+}
+
+/// Snow depth above the terrain at world (x, z), from a window-local read-back.
+fn depth_at(snow: &SnowDeformation, heights: &[f32], x: f32, z: f32) -> f32 {
+    let origin = snow.origin_m().expect("placed");
+    let texel = f64::from(EXTENT_M / RESOLUTION as f32);
+    let j = ((f64::from(x) - origin.x) / texel).floor() as usize;
+    let i = ((f64::from(z) - origin.y) / texel).floor() as usize;
+    heights[i * RESOLUTION as usize + j]
+}
+
+#[test]
+fn straight_down_snow_reaches_open_ground_and_a_table_top_but_not_under_it() {
+    let Some(ctx) = testing::gpu() else { return };
+    let table = object("table", slab(Vec3::new(2.0, 0.1, 1.0)), Vec3::new(0.0, 1.0, 0.0), Quat::IDENTITY);
+    let mut snow = window(ctx, snowfall(Vec3::NEG_Y), &[table]);
+    let frames = 100;
+    run(ctx, &mut snow, frames);
+    let fallen = RATE * DT * frames as f32;
+    assert!((snow.fallen_m() - fallen).abs() < 1e-4);
+    let h = snow.read_snow(ctx).expect("snow");
+    for (x, z) in [(5.0, 5.0), (-4.0, 2.0), (3.0, -6.0)] {
+        let d = depth_at(&snow, &h, x, z);
+        assert!((d - (DEPTH_M + fallen)).abs() < 1e-4, "open ground at ({x}, {z}): {d} m, want {}", DEPTH_M + fallen);
+    }
+    for (x, z) in [(0.0, 0.0), (-0.7, 0.3), (0.7, -0.3)] {
+        let d = depth_at(&snow, &h, x, z);
+        assert!((d - DEPTH_M).abs() < 1e-4, "under the table at ({x}, {z}): {d} m, want {DEPTH_M} (no snowfall)");
+    }
+    let acc = snow.accumulation().expect("objects");
+    let stats = acc.stats(&acc.read_atlas(ctx).expect("atlas"));
+    let top = stats[0];
+    assert!((top.mean_m - fallen).abs() < 0.1 * fallen, "table top holds {} m on average, want {fallen} m", top.mean_m);
+    assert!(top.covered_fraction > 0.95, "table top covered {}", top.covered_fraction);
+}
+
+#[test]
+fn a_roof_beyond_the_angle_of_repose_sheds_its_snow_and_a_gentle_one_keeps_it() {
+    let Some(ctx) = testing::gpu() else { return };
+    let fall = snowfall(Vec3::NEG_Y);
+    assert!(fall.repose_deg > 15.0 && fall.repose_deg < 50.0);
+    let roof = |name: &str, x: f32, deg: f32| object(name, slab(Vec3::new(2.0, 0.05, 2.0)), Vec3::new(x, 2.0, 0.0), Quat::from_rotation_z(deg.to_radians()));
+    let mut snow = window(ctx, fall, &[roof("steep", -3.0, 50.0), roof("gentle", 3.0, 15.0)]);
+    let frames = 100;
+    run(ctx, &mut snow, frames);
+    let acc = snow.accumulation().expect("objects");
+    let atlas = acc.read_atlas(ctx).expect("atlas");
+    let bake = acc.bake();
+    // The roof itself: each slab's top face (object normal +y); its thin edges are other surfaces.
+    let roof_texels = |object: u32| -> Vec<f32> {
+        (0..atlas.len()).filter(|&k| bake.owner[k] == object && bake.normal_area[k][1] > 0.99).map(|k| atlas[k]).collect()
+    };
+    let fallen = RATE * DT * frames as f32;
+    let steep = roof_texels(0);
+    assert!(steep.iter().all(|&a| a == 0.0), "the 50° roof holds up to {} m", steep.iter().fold(0.0f32, |m, &a| m.max(a)));
+    // A surface tilted by t catches cos(t) of the snow per unit area.
+    let want = fallen * 15f32.to_radians().cos();
+    let gentle = roof_texels(1);
+    let mean = gentle.iter().sum::<f32>() / gentle.len() as f32;
+    assert!((mean - want).abs() < 0.1 * want, "the 15° roof holds {mean} m, want about {want} m");
+    let covered = gentle.iter().filter(|&&a| a > 1e-3).count() as f32 / gentle.len() as f32;
+    assert!(covered > 0.95, "the 15° roof is covered {covered}");
+    let stats = acc.stats(&atlas);
+    assert!(stats[1].mean_m > 10.0 * stats[0].mean_m, "upward surfaces: gentle {:?}, steep {:?}", stats[1], stats[0]);
+}
+
+#[test]
+fn wind_from_the_side_leaves_the_lee_of_a_box_bare() {
+    let Some(ctx) = testing::gpu() else { return };
+    // Flakes travel +x at 45°: the box's shadow on the snow reaches (1.0 - 0.3) m past its lee face.
+    let cube = object("crate", slab(Vec3::ONE), Vec3::new(0.0, 0.5, 0.0), Quat::IDENTITY);
+    let mut snow = window(ctx, snowfall(Vec3::new(1.0, -1.0, 0.0)), &[cube]);
+    let frames = 100;
+    run(ctx, &mut snow, frames);
+    let fallen = RATE * DT * frames as f32;
+    let h = snow.read_snow(ctx).expect("snow");
+    for x in [0.65, 0.8, 1.0] {
+        let d = depth_at(&snow, &h, x, 0.0);
+        assert!((d - DEPTH_M).abs() < 1e-4, "lee side at x = {x}: {d} m, want {DEPTH_M} (sheltered)");
+    }
+    for (x, z) in [(-0.8, 0.0), (-2.0, 0.0), (2.0, 0.0), (0.8, 1.5)] {
+        let d = depth_at(&snow, &h, x, z);
+        assert!((d - (DEPTH_M + fallen)).abs() < 1e-4, "open ground at ({x}, {z}): {d} m");
+    }
+    let acc = snow.accumulation().expect("objects");
+    let stats = acc.stats(&acc.read_atlas(ctx).expect("atlas"));
+    assert!((stats[0].mean_m - fallen).abs() < 0.1 * fallen, "the crate's top holds {} m, want {fallen} m", stats[0].mean_m);
+}
+
+#[test]
+fn an_object_moved_after_snowing_keeps_its_snow_and_one_turned_over_sheds_it() {
+    let Some(ctx) = testing::gpu() else { return };
+    let bench = object("bench", slab(Vec3::new(2.0, 0.2, 0.6)), Vec3::new(-2.0, 1.0, 0.0), Quat::IDENTITY);
+    let ball = object("ball", ObjectShape::Sphere { radius_m: 0.6 }, Vec3::new(2.0, 1.5, 0.0), Quat::IDENTITY);
+    let mut fall = snowfall(Vec3::NEG_Y);
+    fall.noise = 0.3;
+    fall.flutter_deg = 4.0;
+    let mut snow = window(ctx, fall.clone(), &[bench, ball]);
+    run(ctx, &mut snow, 80);
+    let before = snow.accumulation().expect("objects").read_atlas(ctx).expect("atlas");
+    // Stop the snow; carry the bench 3 m and turn it a quarter about y; roll the ball over.
+    snow.set_snowfall(None).expect("stop");
+    snow.set_object_pose(0, Vec3::new(1.0, 1.5, 3.0), Quat::from_rotation_y(90f32.to_radians()));
+    snow.set_object_pose(1, Vec3::new(2.0, 1.5, 0.0), Quat::from_rotation_x(180f32.to_radians()));
+    run(ctx, &mut snow, 10);
+    let acc = snow.accumulation().expect("objects");
+    let after = acc.read_atlas(ctx).expect("atlas");
+    let bake = acc.bake();
+    let (mut kept, mut held) = (0usize, 0usize);
+    for k in 0..after.len() {
+        if bake.owner[k] == 0 && before[k] > 1e-3 {
+            held += 1;
+            if (after[k] - before[k]).abs() < 1e-6 {
+                kept += 1;
+            }
+        }
+    }
+    assert!(held > 100, "the bench held snow on {held} texels");
+    assert_eq!(kept, held, "every snowy texel of the moved bench keeps its depth");
+    // The ball's old top now faces down: beyond any angle of repose, it sheds.
+    let top = acc.layout().nearest_texel(bake, 1, Vec3::new(0.0, 0.6, 0.0)).expect("texel");
+    assert!(before[top] > 0.5 * RATE * DT * 80.0, "the ball's top held {} m", before[top]);
+    assert!(after[top] < 1e-6, "turned over, the ball's old top still holds {} m", after[top]);
+}
+
+#[test]
+fn trails_refill_only_where_snow_falls() {
+    let Some(ctx) = testing::gpu() else { return };
+    let roof = object("roof", slab(Vec3::new(3.0, 0.1, 3.0)), Vec3::new(0.0, 2.0, 0.0), Quat::IDENTITY);
+    let mut fall = snowfall(Vec3::NEG_Y);
+    fall.rate_m_per_s = 0.0;
+    let mut snow = window(ctx, fall.clone(), &[roof]);
+    // A sphere pressed along z at x = 0 (under the roof for |z| < 1.5) and beyond.
+    let press: Vec<snowpack::Deformer> = (0..9).map(|k| snowpack::Deformer::Sphere { center: Vec3::new(0.0, 0.35, -4.0 + k as f32), radius: 0.3 }).collect();
+    snow.step(ctx, &press, DT).expect("press");
+    fall.rate_m_per_s = RATE;
+    snow.set_snowfall(Some(fall)).expect("snow");
+    let mut params = snow.params().clone();
+    params.refill_m_per_s = 0.02;
+    snow.set_refill(params.refill_m_per_s);
+    run(ctx, &mut snow, 60);
+    let h = snow.read_snow(ctx).expect("snow");
+    let under = depth_at(&snow, &h, 0.0, 0.0);
+    let open = depth_at(&snow, &h, 0.0, -4.0);
+    assert!(under < 0.1, "the trail under the roof stays pressed ({under} m)");
+    let want = 0.05 + RATE * DT * 60.0 + 0.02 * DT * 60.0;
+    assert!(open > want - 0.02, "the trail in the open refills and gains snowfall ({open} m, want about {want} m)");
+}
+
+// ---------------------------------------------------------------------------
+// The accumulation's compute passes against their CPU twins on random inputs.
+
+use snowpack::accumulate::atlas::{AtlasLayout, NO_OWNER};
+use snowpack::accumulate::state::ObjectGpu;
+use snowpack::accumulate::{
+    AtlasSurfacePass, IncrementParams, IncrementPass, ScatterParams, ScatterPass, SettleParams, SettlePass, SnowAccumulation, SurfaceParams,
+};
+use snowpack::accumulate::settle::SettleBuffers;
+use snowpack::cpu;
+use snowpack::deform::pipeline::read_buffer;
+use snowpack::deform::resources::DeformResources;
+use snowpack::deform::update::{UpdateParams, UpdatePass};
+use snowpack::gpu::GpuTimer;
+use snowpack::testing::Rng;
+
+fn random_objects(rng: &mut Rng, count: usize, extent: f32) -> Vec<SnowObject> {
+    (0..count)
+        .map(|k| {
+            let shape = if rng.range(0.0, 1.0) < 0.6 {
+                slab(Vec3::new(rng.range(0.3, 3.0), rng.range(0.05, 1.0), rng.range(0.3, 3.0)))
+            } else {
+                ObjectShape::Sphere { radius_m: rng.range(0.2, 1.2) }
+            };
+            let rotation = Quat::from_euler(glam::EulerRot::XYZ, rng.range(-0.8, 0.8), rng.range(-3.0, 3.0), rng.range(-0.8, 0.8));
+            let position = Vec3::new(rng.range(0.1, 0.9) * extent, rng.range(0.5, 3.0), rng.range(0.1, 0.9) * extent);
+            SnowObject { name: format!("o{k}"), shape, position, rotation, dilate: rng.range(0.0, 1.0) < 0.5 }
+        })
+        .collect()
+}
+
+fn storage_with(ctx: &GpuContext, label: &str, contents: &[u8]) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt as _;
+    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+fn read<T: bytemuck::Pod>(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<T> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+fn submit(ctx: &GpuContext, enc: wgpu::CommandEncoder) {
+    ctx.queue.submit([enc.finish()]);
+    ctx.wait_idle("test").expect("GPU error");
+}
+
+fn encoder(ctx: &GpuContext) -> wgpu::CommandEncoder {
+    ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test") })
+}
+
+fn close(gpu: &[f32], cpu: &[f32], tol: f32, what: &str, seed: u64) {
+    assert_eq!(gpu.len(), cpu.len());
+    for (k, (a, b)) in gpu.iter().zip(cpu).enumerate() {
+        assert!((a - b).abs() <= tol * (1.0 + b.abs()), "{what}: texel {k}: GPU {a}, CPU {b}; seed {seed}");
+    }
+}
+
+#[test]
+fn scatter_increment_settle_and_surface_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("atlas passes");
+    let mut rng = Rng::new(seed);
+    let objects = random_objects(&mut rng, 6, 10.0);
+    let n = 128u32;
+    let layout = AtlasLayout::new(&objects, n).expect("layout");
+    let bake = layout.bake();
+    let texels = (n * n) as usize;
+    let owned: Vec<usize> = (0..texels).filter(|&k| bake.owner[k] != NO_OWNER).collect();
+
+    // Scatter: random footprints (a third empty) over a 48² occlusion map.
+    let occ = 48u32;
+    let footprint: Vec<[f32; 4]> = (0..occ * occ)
+        .map(|_| {
+            if rng.range(0.0, 1.0) < 0.33 {
+                return [-1.0; 4];
+            }
+            let k = owned[(rng.next_u64() % owned.len() as u64) as usize];
+            let (x, y) = ((k as u32 % n) as f32, (k as u32 / n) as f32);
+            let (w, h) = (rng.range(0.0, 4.0).floor(), rng.range(0.0, 4.0).floor());
+            [x, y, (x + w).min(n as f32 - 1.0), (y + h).min(n as f32 - 1.0)]
+        })
+        .collect();
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("footprint"),
+        size: wgpu::Extent3d { width: occ, height: occ, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    ctx.queue.write_texture(
+        texture.as_image_copy(),
+        bytemuck::cast_slice(&footprint),
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(occ * 16), rows_per_image: Some(occ) },
+        wgpu::Extent3d { width: occ, height: occ, depth_or_array_layers: 1 },
+    );
+    let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut hits: Vec<u32> = (0..texels).map(|_| rng.range(0.0, 1e6) as u32).collect();
+    let hits_buf = storage_with(ctx, "hits", bytemuck::cast_slice(&hits));
+    let sp = ScatterParams { resolution: occ, atlas_resolution: n, frame: rng.next_u64() as u32, noise: rng.range(0.0, 1.0) };
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    ScatterPass::new(&ctx.device, &view, &hits_buf).record(&ctx.queue, &mut enc, &mut timer, &sp);
+    submit(ctx, enc);
+    cpu::scatter::scatter(&sp, &footprint, &mut hits);
+    let gpu_hits: Vec<u32> = read(ctx, &hits_buf);
+    // f32 division may round a weight differently by one unit in 65536 per pixel.
+    let worst = gpu_hits.iter().zip(&hits).map(|(a, b)| a.abs_diff(*b)).max().unwrap_or(0);
+    assert!(worst <= 16, "scatter hits differ by up to {worst} units; seed {seed}");
+    assert!(hits.iter().zip(footprint.iter()).count() > 0);
+
+    // Increment: hits to depth, hits cleared.
+    let normal_area = storage_with(ctx, "normal area", bytemuck::cast_slice(&bake.normal_area));
+    let fresh_buf = storage_with(ctx, "fresh", &vec![0u8; texels * 4]);
+    let ip = IncrementParams { atlas_resolution: n, volume_m3: rng.range(1e-6, 1e-3), _pad: [0; 2] };
+    let mut enc = encoder(ctx);
+    IncrementPass::new(&ctx.device, &normal_area, &hits_buf, &fresh_buf).record(&ctx.queue, &mut enc, &mut timer, &ip);
+    submit(ctx, enc);
+    let mut cpu_hits = gpu_hits.clone();
+    let mut fresh = vec![0.0f32; texels];
+    cpu::increment::increment(&ip, &bake.normal_area, &mut cpu_hits, &mut fresh);
+    close(&read::<f32>(ctx, &fresh_buf), &fresh, 1e-5, "increment", seed);
+    assert!(read::<u32>(ctx, &hits_buf).iter().all(|&h| h == 0), "hits cleared; seed {seed}");
+
+    // Settle: random accumulation and object rotations.
+    let rotations: Vec<glam::Mat4> = objects.iter().map(|o| glam::Mat4::from_quat(o.rotation)).collect();
+    let gpu_objects: Vec<ObjectGpu> = objects
+        .iter()
+        .zip(&rotations)
+        .map(|(o, r)| ObjectGpu { rotation: r.to_cols_array_2d(), flags: [u32::from(o.dilate), 0, 0, 0], ..ObjectGpu::default() })
+        .collect();
+    let objects_buf = storage_with(ctx, "objects", bytemuck::cast_slice(&gpu_objects));
+    let owner = storage_with(ctx, "owner", bytemuck::cast_slice(&bake.owner));
+    let mut acc: Vec<f32> = (0..texels).map(|_| rng.range(0.0, 0.6)).collect();
+    let acc_buf = storage_with(ctx, "acc", bytemuck::cast_slice(&acc));
+    let stp = SettleParams { atlas_resolution: n, max_m: rng.range(0.1, 1.0), cos_repose: rng.range(0.3, 0.9), falloff: rng.range(0.0, 1.0) };
+    let mut enc = encoder(ctx);
+    SettlePass::new(&ctx.device, &SettleBuffers { objects: &objects_buf, normal_area: &normal_area, owner: &owner, fresh: &fresh_buf, acc: &acc_buf })
+        .record(&ctx.queue, &mut enc, &mut timer, &stp);
+    submit(ctx, enc);
+    cpu::settle::settle(&stp, &rotations, &bake.normal_area, &bake.owner, &fresh, &mut acc);
+    close(&read::<f32>(ctx, &acc_buf), &acc, 1e-5, "settle", seed);
+    let held = acc.iter().filter(|&&a| a > 0.0).count();
+    let shed = owned.iter().filter(|&&k| acc[k] == 0.0).count();
+    assert!(held > texels / 20 && shed > 0, "settle kept {held} texels and shed {shed}; seed {seed}");
+
+    // Surface: dilation and Scharr slopes.
+    let surface_buf = storage_with(ctx, "surface", &vec![0u8; texels * 16]);
+    let sfp = SurfaceParams { atlas_resolution: n, _pad: [0; 3] };
+    let mut enc = encoder(ctx);
+    AtlasSurfacePass::new(&ctx.device, &objects_buf, &owner, &acc_buf, &surface_buf).record(&ctx.queue, &mut enc, &mut timer, &sfp);
+    submit(ctx, enc);
+    let dilate: Vec<bool> = objects.iter().map(|o| o.dilate).collect();
+    let cpu_surface = cpu::atlas_surface::atlas_surface(&sfp, &dilate, &bake.owner, &acc);
+    let gpu_surface: Vec<[f32; 4]> = read(ctx, &surface_buf);
+    let flat = |v: &[[f32; 4]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    close(&flat(&gpu_surface), &flat(&cpu_surface), 1e-5, "atlas surface", seed);
+}
+
+#[test]
+fn update_with_snowfall_under_objects_matches_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("update with sky");
+    let mut rng = Rng::new(seed);
+    let extent = rng.range(8.0, 24.0);
+    let fall = Snowfall {
+        direction: Vec3::new(rng.range(-0.6, 0.6), -1.0, rng.range(-0.6, 0.6)),
+        rate_m_per_s: 0.01,
+        flutter_deg: rng.range(0.0, 10.0),
+        atlas_resolution: 64,
+        ..Snowfall::default()
+    };
+    let params = SnowParams { extent_m: extent, resolution: 64, depth_m: rng.range(0.2, 0.8), snowfall: Some(fall.clone()), ..SnowParams::default() };
+    let terrain_src = TerrainSource::Flat { height_m: 0.0 };
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let texels = params.texel_count();
+    let terrain: Vec<f32> = (0..texels).map(|_| rng.range(-0.3, 0.3)).collect();
+    let mut snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m)).collect();
+    let mut fallen: Vec<f32> = (0..texels).map(|_| rng.range(0.0, 0.2)).collect();
+    ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+    let mut stamps = vec![cpu::stamp::STAMP_EMPTY; texels];
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+
+    let objects = random_objects(&mut rng, 8, extent);
+    let mut acc = SnowAccumulation::new(&ctx.device, &objects, 64, params.resolution).expect("objects");
+    let mut update = UpdatePass::new(&ctx.device, &res);
+    update.bind_sky(&ctx.device, &res, acc.sky_view());
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    acc.upload_poses(&ctx.queue, DVec2::ZERO);
+    let sky = acc.record_occlusion(&ctx.queue, &mut enc, &mut timer, &fall, extent, (-0.3, 0.3 + params.depth_m));
+    let up = UpdateParams {
+        origin: [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32],
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        refill_m: rng.range(0.0, 0.05),
+        low_m: -2.0,
+        high_m: 4.0,
+        flags: UpdateParams::USE_FALLEN | UpdateParams::USE_SKY,
+        fall_m: rng.range(0.0, 0.05),
+        max_fallen_m: rng.range(0.1, 0.3),
+        texel_m: params.texel_m(),
+        sky_shear: sky.shear,
+        sky_offset_m: sky.offset_m,
+        sky_y0_m: sky.y0_m,
+        sky_low_m: sky.low_m,
+        sky_high_m: sky.high_m,
+        ..UpdateParams::default()
+    };
+    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    // The occlusion depth, for the CPU.
+    let r = params.resolution;
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("sky copy"),
+        size: u64::from(r * r * 4),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo { texture: &acc_sky_texture(&acc), mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::DepthOnly },
+        wgpu::TexelCopyBufferInfo { buffer: &staging, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(r * 4), rows_per_image: Some(r) } },
+        wgpu::Extent3d { width: r, height: r, depth_or_array_layers: 1 },
+    );
+    submit(ctx, enc);
+    let sky_depth: Vec<f32> = read(ctx, &staging);
+    let capture = vec![1.0f32; texels];
+    let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
+    let before = snow.clone();
+    cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut fallen);
+    close(&read::<f32>(ctx, &res.snow), &snow, 1e-5, "snow", seed);
+    close(&read::<f32>(ctx, &res.fallen), &fallen, 1e-5, "fallen", seed);
+    let hidden = (0..r)
+        .flat_map(|i| (0..r).map(move |j| (i, j)))
+        .filter(|&(i, j)| {
+            let s = cpu::window::storage_index(up.origin, r, i, j);
+            cpu::update::sky_visible(&up, &sky_depth, i, j, before[s]) == 0.0
+        })
+        .count();
+    assert!(hidden > texels / 50 && hidden < texels - texels / 50, "{hidden} of {texels} texels under objects; seed {seed}");
+}
+
+fn acc_sky_texture(acc: &SnowAccumulation) -> wgpu::Texture {
+    acc.sky_texture().clone()
+}
