@@ -120,6 +120,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
         .context("creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
+    let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
+    snow.set_objects(&ctx, &objects).context("placing the [[object]]s")?;
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
     let start = Instant::now();
@@ -148,6 +150,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let terrain_h = snow.read_terrain(&ctx)?;
     let (surface_h, normals) = snow.read_surface(&ctx)?;
     drop(normals);
+    let accumulation = snow.accumulation().map(|acc| acc.read_atlas(&ctx).map(|atlas| (acc.stats(&atlas), atlas))).transpose()?;
     let env = scene.render.environment_map();
     let mut renderer = Renderer::new(&ctx, &snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
     let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
@@ -177,7 +180,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "scene": scene.path.display().to_string(),
         "adapter": {"name": ctx.summary.name, "backend": ctx.summary.backend, "software": ctx.summary.is_software()},
         "timings_ms": timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
-        "objects": {},
+        "objects": object_meta(&snow, accumulation.as_ref().map(|(stats, _)| stats.as_slice())),
+        "fallen_m": snow.fallen_m(),
         "render": {
             "size": [width, height],
             "patches": stats.patches,
@@ -194,6 +198,10 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     out.stage("snow.npy", &npy::encode_f32(&snow_h, &[res, res]))?;
     out.stage("surface.npy", &npy::encode_f32(&surface_h, &[res, res]))?;
     out.stage("terrain.npy", &npy::encode_f32(&terrain_h, &[res, res]))?;
+    if let (Some(acc), Some((_, atlas))) = (snow.accumulation(), &accumulation) {
+        let n = acc.layout().resolution as usize;
+        out.stage("accumulation.npy", &npy::encode_f32(atlas, &[n, n]))?;
+    }
     out.stage("frame.png", &png)?;
     out.stage("meta.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
     if !footsteps.is_empty() {
@@ -217,6 +225,28 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         frames,
         wall_s,
     })
+}
+
+/// `meta.json`'s `objects`: per object name, the snow on its upward surfaces
+/// and where its charts lie in `accumulation.npy`.
+fn object_meta(snow: &SnowDeformation, stats: Option<&[snowpack::accumulate::ObjectStats]>) -> serde_json::Value {
+    let (Some(acc), Some(stats)) = (snow.accumulation(), stats) else { return serde_json::json!({}) };
+    acc.objects()
+        .iter()
+        .zip(stats)
+        .enumerate()
+        .map(|(k, (o, s))| {
+            let charts: Vec<[u32; 4]> = acc.layout().charts.iter().filter(|c| c.object == k as u32).map(|c| c.rect).collect();
+            (
+                o.name.clone(),
+                serde_json::json!({
+                    "mean_m": s.mean_m, "max_m": s.max_m, "covered_fraction": s.covered_fraction,
+                    "atlas_charts": charts,
+                }),
+            )
+        })
+        .collect::<serde_json::Map<_, _>>()
+        .into()
 }
 
 /// Prints what a run wrote and how long each pass took.

@@ -214,7 +214,7 @@ pub struct SpawnSpec {
     pub seed: u64,
 }
 
-/// One `[[object]]` that snow settles on (accumulation arrives with its issue).
+/// One `[[object]]` that snow settles on.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectSpec {
     /// Unique name.
@@ -227,18 +227,28 @@ pub struct ObjectSpec {
     pub size_m: Vec3,
     /// Euler XYZ rotation (degrees).
     pub rotation_deg: Vec3,
+    /// Whether its accumulation is dilated (off for thin, holey objects).
+    pub dilate: bool,
 }
 
-/// `[snowfall]`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SnowfallSpec {
-    /// Direction snow falls in (unit vector).
-    pub direction: Vec3,
-    /// Accumulation rate (m/s).
-    pub rate_m_per_s: f32,
-    /// Per-frame jitter of the direction (degrees).
-    pub flutter_deg: f32,
+impl ObjectSpec {
+    /// The library's description of this object.
+    #[must_use]
+    pub fn object(&self) -> snowpack::accumulate::SnowObject {
+        use snowpack::accumulate::ObjectShape;
+        let r = self.rotation_deg * (std::f32::consts::PI / 180.0);
+        snowpack::accumulate::SnowObject {
+            name: self.name.clone(),
+            shape: if self.kind == "sphere" { ObjectShape::Sphere { radius_m: 0.5 * self.size_m.x } } else { ObjectShape::Box { size_m: self.size_m } },
+            position: self.position,
+            rotation: glam::Quat::from_euler(glam::EulerRot::XYZ, r.x, r.y, r.z),
+            dilate: self.dilate,
+        }
+    }
 }
+
+/// `[snowfall]`: the library's snowfall parameters.
+pub type SnowfallSpec = snowpack::accumulate::Snowfall;
 
 /// `[sim]`.
 #[derive(Clone, Debug, PartialEq)]
@@ -397,6 +407,7 @@ impl Scene {
                     range_texels: t.u32_in("range_texels", 64, 32..=128)?,
                     rim,
                     hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
+                    snowfall: None,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
@@ -484,7 +495,7 @@ impl Scene {
             }
             let kind = o.choice("kind", "box", &["box", "sphere", "gltf"])?;
             if kind == "gltf" {
-                return Err(o.err("kind", "glTF objects are not supported yet; use box or sphere"));
+                return Err(o.err("kind", "glTF objects are not in this build (their atlas needs the mesh's own UVs or a per-triangle chart); use box or sphere"));
             }
             let position = o.vec3("position", Vec3::ZERO)?;
             let size_m = o.vec3("size_m", Vec3::ONE)?;
@@ -492,23 +503,33 @@ impl Scene {
                 return Err(o.err("size_m", format!("every side must be positive, got {size_m}")));
             }
             let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
+            let dilate = o.bool("dilate", true)?;
             o.finish()?;
-            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg });
+            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate });
         }
 
         // [snowfall]
         let snowfall = match root.table("snowfall")? {
             None => None,
             Some(mut s) => {
-                let direction = s.vec3("direction", Vec3::NEG_Y)?;
+                let d = SnowfallSpec::default();
+                let direction = s.vec3("direction", d.direction)?;
                 if direction.length() < 1e-6 {
                     return Err(s.err("direction", "must not be the zero vector"));
                 }
                 let spec = SnowfallSpec {
                     direction: direction.normalize(),
-                    rate_m_per_s: s.non_negative("rate_m_per_s", 0.001, " (m/s)")?,
-                    flutter_deg: s.non_negative("flutter_deg", 5.0, " degrees")?,
+                    rate_m_per_s: s.non_negative("rate_m_per_s", d.rate_m_per_s, " (m/s)")?,
+                    flutter_deg: s.non_negative("flutter_deg", d.flutter_deg, " degrees")?,
+                    noise: s.non_negative("noise", d.noise, "")?,
+                    repose_deg: s.non_negative("repose_deg", d.repose_deg, " degrees")?,
+                    falloff_per_s: s.non_negative("falloff_per_s", d.falloff_per_s, " (1/s)")?,
+                    max_m: s.positive("max_m", d.max_m, " of metres")?,
+                    atlas_resolution: s.u32_in("atlas_resolution", d.atlas_resolution, 16..=8192)?,
                 };
+                if let Err(snowpack::SnowError::InvalidParameter { field, why }) = spec.validate() {
+                    return Err(s.err(field, why));
+                }
                 s.finish()?;
                 Some(spec)
             }
@@ -548,6 +569,8 @@ impl Scene {
         };
         let render = parse_render(&mut root, &base_dir)?;
         root.finish()?;
+        // The window carries the snowfall (its ground gains snow).
+        let snow = SnowParams { snowfall: snowfall.clone(), ..snow };
         Ok(Self {
             path: path.to_owned(),
             snow,
@@ -619,10 +642,14 @@ impl Scene {
             let _ = writeln!(s, "spawn: {} spheres of radius {} m, seed {}", sp.count, sp.radius_m, sp.seed);
         }
         for o in &self.objects {
-            let _ = writeln!(s, "object {:?}: {} at {} size {} m (accumulation: not in this build)", o.name, o.kind, o.position, o.size_m);
+            let _ = writeln!(s, "object {:?}: {} at {} size {} m, rotated {} deg{}", o.name, o.kind, o.position, o.size_m, o.rotation_deg, if o.dilate { "" } else { ", not dilated" });
         }
         if let Some(f) = &self.snowfall {
-            let _ = writeln!(s, "snowfall: direction {}, {} m/s, flutter {} deg (accumulation: not in this build)", f.direction, f.rate_m_per_s, f.flutter_deg);
+            let _ = writeln!(
+                s,
+                "snowfall: direction {}, {} m/s, flutter {} deg, noise {}, repose {} deg, falloff {}/s, at most {} m, atlas {}²",
+                f.direction, f.rate_m_per_s, f.flutter_deg, f.noise, f.repose_deg, f.falloff_per_s, f.max_m, f.atlas_resolution
+            );
         }
         let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
         let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);

@@ -86,11 +86,18 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let o = objects[in.object];
     let s = sample_atlas(in.uv, in.chart);
     let n0 = normalize(in.normal);
-    // Gradient of the snow height along the atlas axes, in metres per metre.
-    let t2 = max(dot(in.tangent, in.tangent), 1e-12);
-    let b2 = max(dot(in.bitangent, in.bitangent), 1e-12);
-    let bent = normalize(n0 - in.tangent * (s.y / t2) - in.bitangent * (s.z / b2));
-    let cover = smoothstep(0.001, 0.012, s.x);
+    // The snow height's gradient on the surface from its derivatives along the
+    // atlas axes (s.y, s.z per texel): grad = [T B] G^-1 (s.y, s.z), G the
+    // Gram matrix of T and B (not orthogonal on the octahedral chart).
+    let t = in.tangent;
+    let b = in.bitangent;
+    let g11 = dot(t, t);
+    let g12 = dot(t, b);
+    let g22 = dot(b, b);
+    let det = max(g11 * g22 - g12 * g12, 1e-12);
+    let grad = t * ((g22 * s.y - g12 * s.z) / det) + b * ((g11 * s.z - g12 * s.y) / det);
+    let bent = normalize(n0 - grad);
+    let cover = smoothstep(0.0005, 0.02, s.x);
     let n = normalize(mix(n0, bent, cover));
     let albedo = mix(o.colour.rgb, frame.fresh.rgb, cover);
     let roughness = mix(o.colour.a, frame.fresh.a, cover);

@@ -2,8 +2,10 @@
 // renormalised over the texels of the same object), added to the
 // accumulation, then Dinh's stability (eq. 4.3): a surface whose world normal
 // n makes an angle with up beyond the angle of repose holds nothing (its snow
-// slides off at once), others hold up to c = m * n.y; snow above that
-// capacity falls off gradually,
+// slides off at once); of the new snow, a fraction t sticks, t ramping from 0
+// at the angle of repose to 1 ten degrees inside it (so a dome's snow cap
+// thins to its edge instead of ending in a cliff on the texel grid); a
+// surface holds up to c = m * n.y and snow above that falls off gradually,
 //   a <- a - (a - c) * f,   f = 1 - exp(-falloff * dt).
 // CPU twin: src/cpu/settle.rs. Prepended: shared/objects.wgsl.
 
@@ -12,6 +14,10 @@ struct SettleParams {
     max_m: f32,
     cos_repose: f32,
     falloff: f32,
+    cos_full: f32,   // cosine of (repose - 10 degrees): full capacity from here up
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SettleParams;
@@ -53,11 +59,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             weight += w;
         }
     }
-    var a = acc[k] + sum / weight;
     let up = (objects[own].rotation * vec4<f32>(normal_area[k].xyz, 0.0)).y;
-    if up < params.cos_repose {
-        a = 0.0;
-    } else {
+    var a = 0.0;
+    if up >= params.cos_repose {
+        let t = clamp((up - params.cos_repose) / max(params.cos_full - params.cos_repose, 1e-6), 0.0, 1.0);
+        a = acc[k] + t * sum / weight;
         let cap = params.max_m * up;
         if a > cap {
             a -= (a - cap) * params.falloff;

@@ -253,7 +253,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let mut rng = Rng::new(seed);
     let objects = random_objects(&mut rng, 6, 10.0);
     let n = 128u32;
-    let layout = AtlasLayout::new(&objects, n).expect("layout");
+    let layout = AtlasLayout::new(&objects, n, 0.01).expect("layout");
     let bake = layout.bake();
     let texels = (n * n) as usize;
     let owned: Vec<usize> = (0..texels).filter(|&k| bake.owner[k] != NO_OWNER).collect();
@@ -326,7 +326,15 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let owner = storage_with(ctx, "owner", bytemuck::cast_slice(&bake.owner));
     let mut acc: Vec<f32> = (0..texels).map(|_| rng.range(0.0, 0.6)).collect();
     let acc_buf = storage_with(ctx, "acc", bytemuck::cast_slice(&acc));
-    let stp = SettleParams { atlas_resolution: n, max_m: rng.range(0.1, 1.0), cos_repose: rng.range(0.3, 0.9), falloff: rng.range(0.0, 1.0) };
+    let repose = rng.range(20.0, 70.0);
+    let stp = SettleParams {
+        atlas_resolution: n,
+        max_m: rng.range(0.1, 1.0),
+        cos_repose: f32::to_radians(repose).cos(),
+        falloff: rng.range(0.0, 1.0),
+        cos_full: f32::to_radians(repose - 10.0).cos(),
+        _pad: [0; 3],
+    };
     let mut enc = encoder(ctx);
     SettlePass::new(&ctx.device, &SettleBuffers { objects: &objects_buf, normal_area: &normal_area, owner: &owner, fresh: &fresh_buf, acc: &acc_buf })
         .record(&ctx.queue, &mut enc, &mut timer, &stp);
@@ -377,7 +385,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
 
     let objects = random_objects(&mut rng, 8, extent);
-    let mut acc = SnowAccumulation::new(&ctx.device, &objects, 64, params.resolution).expect("objects");
+    let mut acc = SnowAccumulation::new(&ctx.device, &objects, 64, params.resolution, params.texel_m()).expect("objects");
     let mut update = UpdatePass::new(&ctx.device, &res);
     update.bind_sky(&ctx.device, &res, acc.sky_view());
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);

@@ -5,8 +5,10 @@
 //! (no poles, and its seams lie on the lower hemisphere, where no snow lies).
 //! Charts are packed on shelves at one texel density for every object (so
 //! every object's snow has the same detail), the densest that fits, but no
-//! finer than [`MIN_TEXEL_M`]. Each chart has a two-texel gutter, so the 5x5
-//! blur never reaches from one chart into another.
+//! finer than half an occlusion pixel: snow arrives one occlusion pixel at a
+//! time, so finer texels would only show that pixel grid as a waffle (seen
+//! in the first renders, at 10 texels a pixel). Each chart has a two-texel
+//! gutter, so the 5x5 blur never reaches from one chart into another.
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
@@ -14,8 +16,11 @@ use glam::{Vec2, Vec3};
 use super::{ObjectShape, SnowObject};
 use crate::error::SnowError;
 
-/// Finest atlas texel (m): snow detail below half a centimetre is not worth texels.
+/// Finest atlas texel whatever the occlusion (m): detail below half a centimetre is not worth texels.
 pub const MIN_TEXEL_M: f32 = 0.005;
+
+/// Atlas texels per occlusion pixel at most, along each axis.
+pub const TEXELS_PER_PIXEL: f32 = 2.0;
 
 /// Gutter around each chart (texels): the settle blur's radius.
 pub const GUTTER: u32 = 2;
@@ -202,8 +207,9 @@ fn shelf_pack(sizes: &[[u32; 2]], res: u32) -> Option<Vec<[u32; 2]>> {
 }
 
 impl AtlasLayout {
-    /// Lays out `objects` in an atlas of `resolution` texels per side.
-    pub fn new(objects: &[SnowObject], resolution: u32) -> Result<Self, SnowError> {
+    /// Lays out `objects` in an atlas of `resolution` texels per side, no finer
+    /// than [`TEXELS_PER_PIXEL`] texels per occlusion pixel of `pixel_m`.
+    pub fn new(objects: &[SnowObject], resolution: u32, pixel_m: f32) -> Result<Self, SnowError> {
         let maps: Vec<(u32, ChartMap)> = objects
             .iter()
             .enumerate()
@@ -227,7 +233,7 @@ impl AtlasLayout {
                 .collect()
         };
         // The densest layout that fits: bisect on texels per metre.
-        let (mut lo, mut hi) = (0.0f32, 1.0 / MIN_TEXEL_M);
+        let (mut lo, mut hi) = (0.0f32, (TEXELS_PER_PIXEL / pixel_m).min(1.0 / MIN_TEXEL_M));
         if shelf_pack(&texels(hi), resolution).is_none() {
             if shelf_pack(&texels(lo), resolution).is_none() {
                 return Err(SnowError::InvalidParameter {
@@ -289,16 +295,19 @@ impl AtlasLayout {
             })
     }
 
-    /// Every object's mesh: vertices, triangle indices, and per object its index range.
+    /// Every object's mesh: vertices, triangle indices, and per object its
+    /// index range. `dense`: about 4 cm quads, for drawing displaced; else the
+    /// fewest that follow the surface (one quad a box face, 16² on a sphere),
+    /// for the occlusion.
     #[must_use]
-    pub fn meshes(&self) -> (Vec<ObjectVertex>, Vec<u32>, Vec<std::ops::Range<u32>>) {
+    pub fn meshes(&self, dense: bool) -> (Vec<ObjectVertex>, Vec<u32>, Vec<std::ops::Range<u32>>) {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let mut ranges = vec![0..0; self.object_count as usize];
         for object in 0..self.object_count {
             let start = indices.len() as u32;
             for c in self.charts.iter().filter(|c| c.object == object) {
-                chart_grid(c, &mut vertices, &mut indices);
+                chart_grid(c, if dense { grid_quads(c) } else { coarse_quads(c) }, &mut vertices, &mut indices);
             }
             ranges[object as usize] = start..indices.len() as u32;
         }
@@ -315,9 +324,16 @@ fn grid_quads(c: &Chart) -> u32 {
     }
 }
 
-/// Appends a chart's grid of vertices and triangles.
-fn chart_grid(c: &Chart, vertices: &mut Vec<ObjectVertex>, indices: &mut Vec<u32>) {
-    let q = grid_quads(c);
+/// Quads per side of a chart's coarse grid (the occlusion's).
+fn coarse_quads(c: &Chart) -> u32 {
+    match c.map {
+        ChartMap::Face { .. } => 1,
+        ChartMap::Octahedral { .. } => 16,
+    }
+}
+
+/// Appends a chart's grid of `q`² quads.
+fn chart_grid(c: &Chart, q: u32, vertices: &mut Vec<ObjectVertex>, indices: &mut Vec<u32>) {
     let [x0, y0, w, h] = c.rect;
     let chart = [x0 as f32, y0 as f32, (x0 + w) as f32, (y0 + h) as f32];
     let base = vertices.len() as u32;
@@ -391,7 +407,7 @@ mod tests {
 
     #[test]
     fn charts_do_not_overlap_and_areas_sum_to_each_surface() {
-        let layout = AtlasLayout::new(&objects(), 256).expect("fits");
+        let layout = AtlasLayout::new(&objects(), 256, 0.001).expect("fits");
         let bake = layout.bake();
         let mut seen = vec![false; 256 * 256];
         for c in &layout.charts {
@@ -413,8 +429,8 @@ mod tests {
 
     #[test]
     fn octahedral_chart_is_the_unit_sphere_and_meshes_face_outward() {
-        let layout = AtlasLayout::new(&objects(), 256).expect("fits");
-        let (v, idx, ranges) = layout.meshes();
+        let layout = AtlasLayout::new(&objects(), 256, 0.001).expect("fits");
+        let (v, idx, ranges) = layout.meshes(true);
         assert_eq!(ranges.len(), 2);
         for t in idx.chunks(3) {
             let p = |k: usize| Vec3::from(v[t[k] as usize].position);
@@ -434,17 +450,19 @@ mod tests {
 
     #[test]
     fn density_is_uniform_and_fills_the_atlas() {
-        let layout = AtlasLayout::new(&objects(), 512).expect("fits");
+        let layout = AtlasLayout::new(&objects(), 512, 0.001).expect("fits");
         let used: u32 = layout.charts.iter().map(|c| (c.rect[2] + 2 * GUTTER) * (c.rect[3] + 2 * GUTTER)).sum();
         assert!(used as f32 > 0.4 * 512.0 * 512.0, "the densest packing uses a good part of the atlas ({used} texels)");
         let tiny = vec![SnowObject { name: "pebble".into(), shape: ObjectShape::Sphere { radius_m: 0.01 }, position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: false }];
-        let layout = AtlasLayout::new(&tiny, 512).expect("fits");
+        let layout = AtlasLayout::new(&tiny, 512, 0.001).expect("fits");
         assert!((layout.texels_per_m - 1.0 / MIN_TEXEL_M).abs() < 1e-3, "a small object stops at the finest texel");
+        let layout = AtlasLayout::new(&tiny, 512, 0.1).expect("fits");
+        assert!((layout.texels_per_m - TEXELS_PER_PIXEL / 0.1).abs() < 1e-3, "and at two texels per occlusion pixel");
     }
 
     #[test]
     fn too_many_objects_is_an_error() {
         let many: Vec<SnowObject> = (0..200).map(|k| SnowObject { name: format!("b{k}"), ..objects()[0].clone() }).collect();
-        assert!(AtlasLayout::new(&many, 16).is_err());
+        assert!(AtlasLayout::new(&many, 16, 0.001).is_err());
     }
 }

@@ -54,7 +54,8 @@ pub struct Snowfall {
     pub flutter_deg: f32,
     /// Amplitude of the per-pixel noise on the amount that lands (0..1).
     pub noise: f32,
-    /// Angle of repose: surfaces steeper than this hold no snow (degrees).
+    /// Angle of repose: surfaces steeper than this hold no snow, and those within
+    /// 10 degrees of it keep only part of what lands (degrees).
     pub repose_deg: f32,
     /// How fast snow beyond a surface's capacity slides off (1/s; Dinh's
     /// per-frame falloff `f` is `1 - exp(-falloff_per_s * dt)`).

@@ -18,6 +18,10 @@ pub struct SettleParams {
     pub cos_repose: f32,
     /// Fraction of the snow above capacity that falls off this frame (Dinh's `f`).
     pub falloff: f32,
+    /// Cosine of 10 degrees less than the angle of repose: all new snow sticks from there up.
+    pub cos_full: f32,
+    /// Padding to 32 bytes.
+    pub _pad: [u32; 3],
 }
 
 /// The atlas buffers the settle pass reads and writes.

@@ -50,6 +50,9 @@ pub const COVERED_M: f32 = 0.001;
 const BOX_COLOUR: [f32; 4] = [0.30, 0.20, 0.12, 0.75];
 const SPHERE_COLOUR: [f32; 4] = [0.38, 0.37, 0.36, 0.6];
 
+/// Slopes within this of the angle of repose keep only part of the snow that lands (degrees).
+pub const CAPACITY_RAMP_DEG: f32 = 10.0;
+
 /// Margin of the occlusion's height range beyond terrain, snow and objects (m).
 const HEIGHT_MARGIN_M: f32 = 1.0;
 
@@ -102,6 +105,10 @@ pub struct SnowAccumulation {
     pub indices: wgpu::Buffer,
     index_count: u32,
     ranges: Vec<Range<u32>>,
+    /// The coarse meshes the occlusion draws (flat faces need no more).
+    occlusion_vertices: wgpu::Buffer,
+    occlusion_indices: wgpu::Buffer,
+    occlusion_index_count: u32,
     /// `ObjectGpu` per object, rewritten each frame.
     pub object_buffer: wgpu::Buffer,
     normal_area: wgpu::Buffer,
@@ -123,16 +130,17 @@ pub struct SnowAccumulation {
 
 impl SnowAccumulation {
     /// Lays out `objects` in an atlas of `atlas_resolution`² and uploads it; the
-    /// occlusion map has `window_resolution`² pixels over the window.
-    pub fn new(device: &wgpu::Device, objects: &[SnowObject], atlas_resolution: u32, window_resolution: u32) -> Result<Self, SnowError> {
+    /// occlusion map has `window_resolution`² pixels of `pixel_m` over the window.
+    pub fn new(device: &wgpu::Device, objects: &[SnowObject], atlas_resolution: u32, window_resolution: u32, pixel_m: f32) -> Result<Self, SnowError> {
         for (k, o) in objects.iter().enumerate() {
             if objects[..k].iter().any(|x| x.name == o.name) {
                 return Err(SnowError::InvalidParameter { field: "name", why: format!("two objects are named {:?}", o.name) });
             }
         }
-        let layout = AtlasLayout::new(objects, atlas_resolution)?;
+        let layout = AtlasLayout::new(objects, atlas_resolution, pixel_m)?;
         let bake = layout.bake();
-        let (vertices, indices, ranges) = layout.meshes();
+        let (vertices, indices, ranges) = layout.meshes(true);
+        let (coarse_vertices, coarse_indices, _) = layout.meshes(false);
         let texels = u64::from(atlas_resolution) * u64::from(atlas_resolution);
         let object_buffer = storage(device, "accumulation objects", (objects.len() * size_of::<ObjectGpu>()) as u64);
         let normal_area = init(device, "atlas normal and area", wgpu::BufferUsages::STORAGE, bytemuck::cast_slice(&bake.normal_area));
@@ -154,6 +162,9 @@ impl SnowAccumulation {
             indices: init(device, "object indices", wgpu::BufferUsages::INDEX, bytemuck::cast_slice(&indices)),
             index_count: indices.len() as u32,
             ranges,
+            occlusion_vertices: init(device, "object occlusion vertices", wgpu::BufferUsages::VERTEX, bytemuck::cast_slice(&coarse_vertices)),
+            occlusion_indices: init(device, "object occlusion indices", wgpu::BufferUsages::INDEX, bytemuck::cast_slice(&coarse_indices)),
+            occlusion_index_count: coarse_indices.len() as u32,
             object_buffer,
             normal_area,
             owner,
@@ -281,7 +292,7 @@ impl SnowAccumulation {
         let low = ground_low_m - HEIGHT_MARGIN_M;
         let high = ground_high_m.max(self.top_m()) + HEIGHT_MARGIN_M;
         let params = OcclusionParams::new(extent_m, 0.5 * (ground_low_m + ground_high_m), (low, high), d, offset);
-        self.occlusion.record(queue, encoder, timer, &params, (&self.vertices, &self.indices, self.index_count));
+        self.occlusion.record(queue, encoder, timer, &params, (&self.occlusion_vertices, &self.occlusion_indices, self.occlusion_index_count));
         params
     }
 
@@ -365,7 +376,7 @@ impl SnowAccumulation {
             ("atlas increment", self.fresh.size()),
             ("accumulation", self.acc.size()),
             ("atlas surface", self.surface.size()),
-            ("object meshes", self.vertices.size() + self.indices.size()),
+            ("object meshes", self.vertices.size() + self.indices.size() + self.occlusion_vertices.size() + self.occlusion_indices.size()),
         ]
     }
 }
@@ -378,6 +389,8 @@ pub fn settle_params(snowfall: &Snowfall, atlas_resolution: u32, dt_s: f32) -> S
         max_m: snowfall.max_m,
         cos_repose: snowfall.repose_deg.to_radians().cos(),
         falloff: 1.0 - (-snowfall.falloff_per_s * dt_s.max(0.0)).exp(),
+        cos_full: (snowfall.repose_deg - CAPACITY_RAMP_DEG).max(0.0).to_radians().cos(),
+        _pad: [0; 3],
     }
 }
 

@@ -36,12 +36,12 @@ pub fn settle(p: &SettleParams, rotations: &[Mat4], normal_area: &[[f32; 4]], ow
                     weight += w;
                 }
             }
-            let mut a = acc[k] + sum / weight;
             let [nx, ny, nz, _] = normal_area[k];
             let up = rotations[own as usize].transform_vector3(Vec3::new(nx, ny, nz)).y;
-            if up < p.cos_repose {
-                a = 0.0;
-            } else {
+            let mut a = 0.0;
+            if up >= p.cos_repose {
+                let t = ((up - p.cos_repose) / (p.cos_full - p.cos_repose).max(1e-6)).clamp(0.0, 1.0);
+                a = acc[k] + t * sum / weight;
                 let cap = p.max_m * up;
                 if a > cap {
                     a -= (a - cap) * p.falloff;

@@ -188,7 +188,7 @@ impl SnowDeformation {
             return Ok(());
         }
         let atlas = self.params.snowfall.as_ref().map_or(Snowfall::default().atlas_resolution, |s| s.atlas_resolution);
-        let acc = SnowAccumulation::new(&ctx.device, objects, atlas, self.params.resolution)?;
+        let acc = SnowAccumulation::new(&ctx.device, objects, atlas, self.params.resolution, self.params.texel_m())?;
         self.update_pass.bind_sky(&ctx.device, &self.res, acc.sky_view());
         self.accumulation = Some(acc);
         ctx.check("creating the accumulation passes")
