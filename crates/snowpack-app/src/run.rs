@@ -121,7 +121,12 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         .context("creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
-    snow.set_objects(&ctx, &objects).context("placing the [[object]]s")?;
+    match snow.set_objects(&ctx, &objects) {
+        Err(snowpack::SnowError::InvalidParameter { field, why }) => {
+            return Err(BadInput(format!("{}: [[object]] / [snowfall].{field}: {why}", scene.path.display())).into());
+        }
+        other => other.context("placing the [[object]]s")?,
+    }
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
     let start = Instant::now();

@@ -753,3 +753,78 @@ fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
         assert!(0.2 - h < most + 0.01, "pressed {:.3} m at ({x:.2}, {z:.2})", 0.2 - h);
     }
 }
+
+#[test]
+fn snowfall_settles_on_a_table_top_and_the_open_ground_but_not_under_the_table() {
+    if !gpu_available() {
+        return;
+    }
+    // 2 s of straight-down snow at 1 cm/s: 2 cm in the open and on the table top.
+    let run = run_scene(
+        "snowfall",
+        r#"
+[snow]
+extent_m = 12.0
+resolution = 96
+depth_m = 0.2
+[terrain]
+kind = "flat"
+[snowfall]
+direction = [0.0, -1.0, 0.0]
+rate_m_per_s = 0.01
+flutter_deg = 0.0
+noise = 0.0
+atlas_resolution = 128
+[[object]]
+name = "table"
+kind = "box"
+position = [0.0, 1.0, 0.0]
+size_m = [2.0, 0.1, 1.2]
+[[object]]
+name = "pole"
+kind = "box"
+position = [3.0, 1.0, 3.0]
+size_m = [0.2, 2.0, 0.2]
+rotation_deg = [0.0, 0.0, 0.0]
+dilate = false
+[sim]
+frames = 40
+dt_s = 0.05
+"#,
+        &[],
+    );
+    let fallen = 0.02;
+    assert!((run.meta["fallen_m"].as_f64().expect("fallen_m") - fallen).abs() < 1e-4);
+    let table = &run.meta["objects"]["table"];
+    let mean = table["mean_m"].as_f64().expect("mean_m");
+    assert!((mean - fallen).abs() < 0.1 * fallen, "table top: {table}");
+    assert!(table["covered_fraction"].as_f64().expect("covered") > 0.95, "{table}");
+    assert!(table["max_m"].as_f64().expect("max") < 2.0 * fallen, "{table}");
+    // The pole's top is 0.2 m square; its sides are vertical and hold nothing.
+    assert!(run.meta["objects"]["pole"]["mean_m"].as_f64().expect("pole") > 0.5 * fallen);
+    let snow = run.grid("snow.npy");
+    let terrain = run.grid("terrain.npy");
+    let atlas = run.grid("accumulation.npy");
+    assert_eq!(atlas.res, 128);
+    assert!(atlas.data.iter().all(|a| a.is_finite() && *a >= 0.0));
+    let (mut open, mut under) = (0, 0);
+    for i in 0..snow.res {
+        for j in 0..snow.res {
+            let (x, z) = run.world(i, j);
+            let depth = snow.at(i, j) - terrain.at(i, j);
+            if x.abs() < 0.85 && z.abs() < 0.45 {
+                assert!((depth - 0.2).abs() < 1e-4, "under the table at ({x:.2}, {z:.2}): {depth} m");
+                under += 1;
+            } else if x.abs() > 1.3 || z.abs() > 0.9 {
+                if (x - 3.0).abs() < 0.3 && (z - 3.0).abs() < 0.3 {
+                    continue; // under the pole
+                }
+                assert!((depth - 0.22).abs() < 1e-4, "open ground at ({x:.2}, {z:.2}): {depth} m");
+                open += 1;
+            }
+        }
+    }
+    assert!(under > 100 && open > 5000, "{under} texels under the table, {open} in the open");
+    // And a direction that does not fall is bad input.
+    expect_bad_input("upward-snow", "[snowfall]\ndirection = [0.0, 1.0, 0.0]\n", "direction");
+}

@@ -78,6 +78,12 @@ direction = [0.0, -2.0, 0.0]
     assert_eq!(s.spawns[0].count, 10);
     assert_eq!(s.objects[0].name, "bench");
     assert_eq!(s.snowfall.as_ref().map(|f| f.direction), Some(glam::Vec3::NEG_Y));
+    // The window carries the snowfall, with the library's defaults for what the file leaves out.
+    assert_eq!(s.snow.snowfall, s.snowfall);
+    assert_eq!(s.snowfall.as_ref().map(|f| f.repose_deg), Some(snowpack::accumulate::Snowfall::default().repose_deg));
+    assert!(s.objects[0].dilate);
+    let o = s.objects[0].object();
+    assert_eq!(o.shape, snowpack::accumulate::ObjectShape::Box { size_m: glam::Vec3::new(2.0, 0.1, 1.0) });
 }
 
 #[test]
@@ -111,6 +117,14 @@ fn every_bad_value_names_the_file_and_the_key() {
         ("[[spawn]]\ncount = -5\n", "[[spawn]][0].count"),
         ("[[object]]\nname = \"a\"\n[[object]]\nname = \"a\"\n", "[[object]][1].name"),
         ("[snowfall]\ndirection = [0, 0, 0]\n", "[snowfall].direction"),
+        ("[snowfall]\ndirection = [1, 0.05, 0]\n", "[snowfall].direction"),
+        ("[snowfall]\nrepose_deg = 100\n", "[snowfall].repose_deg"),
+        ("[snowfall]\nnoise = 2\n", "[snowfall].noise"),
+        ("[snowfall]\nmax_m = 0\n", "[snowfall].max_m"),
+        ("[snowfall]\natlas_resolution = 8\n", "[snowfall].atlas_resolution"),
+        ("[snowfall]\nflutter_deg = 60\n", "[snowfall].flutter_deg"),
+        ("[[object]]\nname = \"g\"\nkind = \"gltf\"\n", "[[object]][0].kind"),
+        ("[[object]]\nname = \"d\"\ndilate = 1\n", "[[object]][0].dilate"),
         ("[sim]\nframes = 0\n", "[sim].frames"),
         ("[sim]\ndt_s = -0.1\n", "[sim].dt_s"),
         ("[camera]\nfov_deg = 200\n", "[camera].fov_deg"),

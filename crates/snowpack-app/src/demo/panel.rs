@@ -214,6 +214,30 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 });
             });
 
+            egui::CollapsingHeader::new("Snowfall").default_open(session.snow_params.snowfall.is_some()).show(ui, |ui| {
+                let mut on = session.snow_params.snowfall.is_some();
+                if ui.checkbox(&mut on, "it snows (toggling rebuilds the window)").changed() {
+                    session.snow_params.snowfall = on.then(snowpack::accumulate::Snowfall::default);
+                }
+                if let Some(f) = &mut session.snow_params.snowfall {
+                    ui.add(Slider::new(&mut f.rate_m_per_s, 0.0..=0.05).logarithmic(true).smallest_positive(1e-4).max_decimals(4).text("rate").suffix(" m/s"));
+                    let mut lean = glam::Vec2::new(f.direction.x, f.direction.z) / -f.direction.y;
+                    let before = lean;
+                    ui.add(Slider::new(&mut lean.x, -2.0..=2.0).text("wind x (lean)"));
+                    ui.add(Slider::new(&mut lean.y, -2.0..=2.0).text("wind z (lean)"));
+                    if lean != before {
+                        f.direction = glam::Vec3::new(lean.x, -1.0, lean.y).normalize();
+                    }
+                    ui.add(Slider::new(&mut f.flutter_deg, 0.0..=20.0).text("flutter").suffix("°"));
+                    ui.add(Slider::new(&mut f.repose_deg, 0.0..=90.0).text("angle of repose").suffix("°"));
+                    ui.add(Slider::new(&mut f.noise, 0.0..=1.0).text("noise"));
+                    ui.label(format!("fallen on open ground: {:.1} cm", session.snow_fallen_m() * 100.0));
+                    if let Some(acc) = session.accumulation_objects() {
+                        ui.label(format!("{acc} objects gathering snow"));
+                    }
+                }
+            });
+
             egui::CollapsingHeader::new("Technique").default_open(true).show(ui, |ui| {
                 ui.horizontal(|ui| {
                     for (k, t) in Technique::ALL.iter().enumerate() {

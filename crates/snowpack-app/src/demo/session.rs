@@ -154,9 +154,12 @@ impl Session {
         Ok(session)
     }
 
-    /// Uploads the skinned mesh of every character in the world (fresh deformation).
+    /// Uploads the skinned mesh of every character in the world and places the
+    /// scene's objects (fresh deformation).
     fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
         self.skins = crate::run::register_characters(ctx, &self.world, &mut self.snow)?;
+        let objects: Vec<_> = self.scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
+        self.snow.set_objects(ctx, &objects).context("placing the [[object]]s")?;
         Ok(())
     }
 
@@ -255,10 +258,26 @@ impl Session {
         if live.range_texels != p.range_texels || live.rim != p.rim {
             self.snow.set_points(p.range_texels, p.rim);
         }
+        if live.snowfall != p.snowfall && live.snowfall.is_some() && p.snowfall.is_some() {
+            // Validated by the panel's ranges; a refusal leaves the old snowfall.
+            let _ = self.snow.set_snowfall(p.snowfall.clone());
+        }
         self.world.set_snow(live.depth_m, p.hardness_kpa);
         if *self.renderer.params() != self.render_params {
             self.renderer.set_params(self.render_params);
         }
+    }
+
+    /// Snowfall so far on open ground (m).
+    #[must_use]
+    pub fn snow_fallen_m(&self) -> f32 {
+        self.snow.fallen_m()
+    }
+
+    /// How many objects gather snow, if any.
+    #[must_use]
+    pub fn accumulation_objects(&self) -> Option<usize> {
+        self.snow.accumulation().map(|a| a.objects().len())
     }
 
     /// Whether the panel changed a parameter that needs [`Self::rebuild`].
@@ -268,6 +287,7 @@ impl Session {
         live.extent_m != self.snow_params.extent_m
             || live.resolution != self.snow_params.resolution
             || live.depth_m != self.snow_params.depth_m
+            || live.snowfall.is_some() != self.snow_params.snowfall.is_some()
             || self.renderer.params().shadow_map_size != self.render_params.shadow_map_size
             || self.renderer.params().patch_quads != self.render_params.patch_quads
     }
