@@ -315,6 +315,8 @@ pub struct BenchResults {
     pub render_frames: u32,
     /// Whole frames at 1600x900 (Wasmut's tables).
     pub frame_rows: Vec<crate::bench_frames::FrameRow>,
+    /// Dinh's accumulation table.
+    pub accum_rows: Vec<crate::bench_accumulation::AccumRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -335,6 +337,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         render_rows: Vec::new(),
         render_frames: 0,
         frame_rows: Vec::new(),
+        accum_rows: Vec::new(),
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -378,6 +381,18 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         for row in &results.render_rows {
             let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
             println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
+        }
+    }
+    // Accumulation against map size (Dinh 2021, section 6.2).
+    if only.is_none_or(|o| "accumulation".contains(o)) {
+        let (acc_warmup, acc_frames) = if quick { (5, 15) } else { (60, 300) };
+        for scenario in crate::bench_accumulation::SCENARIOS {
+            for atlas in [512, 1024, 2048] {
+                let row = crate::bench_accumulation::measure(ctx, scenario, atlas, acc_warmup, acc_frames)
+                    .with_context(|| format!("accumulation: {scenario} at {atlas}²"))?;
+                println!("  accumulation {scenario:<13} {atlas:>4}²: accumulation {:.3} ms, support {:.3} ms, frame {:.3} ms", row.accumulation_ms, row.support_ms, row.frame_ms);
+                results.accum_rows.push(row);
+            }
         }
     }
     // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
@@ -462,6 +477,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.frame_rows.is_empty() {
         md.push_str(&crate::bench_frames::markdown(&r.frame_rows, &r.adapter, r.software));
     }
+    if !r.accum_rows.is_empty() {
+        md.push_str(&crate::bench_accumulation::markdown(&r.accum_rows, &r.adapter, r.software));
+    }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
     let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
@@ -519,6 +537,13 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
             let _ = writeln!(csv, "{},{},{},{},{},{},{}", f.technique.as_str(), f.spheres, f.mesh_side, f.range_texels, f.deform_ms, f.render_ms, f.fps());
         }
         files.push(("frames.csv", csv.into_bytes()));
+    }
+    if !r.accum_rows.is_empty() {
+        let mut csv = String::from("scenario,atlas,objects,occlusion_triangles,atlas_used,accumulation_ms,support_ms,frame_ms,wall_ms,memory_bytes\n");
+        for a in &r.accum_rows {
+            let _ = writeln!(csv, "{},{},{},{},{},{},{},{},{},{}", a.scenario, a.atlas, a.objects, a.occlusion_triangles, a.atlas_used, a.accumulation_ms, a.support_ms, a.frame_ms, a.wall_ms, a.memory_bytes);
+        }
+        files.push(("accumulation.csv", csv.into_bytes()));
     }
     files
 }
@@ -634,10 +659,22 @@ mod tests {
             render_rows: vec![crate::bench_render::RenderRow { distance_m: 4.0, patches: 100, triangles: 10_000, levels: (0, 3), passes: vec![("terrain".into(), 0.5)] }],
             render_frames: 100,
             frame_rows: vec![crate::bench_frames::FrameRow { technique: Technique::Depth, spheres: 128, mesh_side: 32, range_texels: 64, deform_ms: 1.0, render_ms: 4.0 }],
+            accum_rows: vec![crate::bench_accumulation::AccumRow {
+                scenario: "both".into(),
+                atlas: 2048,
+                objects: 208,
+                occlusion_triangles: 60_000,
+                atlas_used: 0.9,
+                accumulation_ms: 0.5,
+                support_ms: 0.25,
+                frame_ms: 2.0,
+                wall_ms: 2.5,
+                memory_bytes: 100 << 20,
+            }],
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv"]);
+        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv"]);
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
             let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!((img.width(), img.height()), (960, 540), "{name}");
@@ -653,6 +690,7 @@ mod tests {
             "## CPU ms to record",
             "## Points: GPU ms",
             "## Wasmut 2019, Tables 1–4",
+            "## Dinh 2021, section 6.2",
         ] {
             assert!(md.contains(section), "no {section:?} in:\n{md}");
         }
@@ -665,7 +703,8 @@ mod tests {
         for (k, line) in lines.iter().enumerate().filter(|(_, l)| l.starts_with("## ") || l.starts_with("### ")) {
             assert!(lines[k + 2] == "_Measured on NVIDIA H100 80GB HBM3 (vulkan)._", "{line} is not followed by the adapter: {:?}", &lines[k..k + 3]);
         }
-        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], software: true, ..results };
+        assert!(text("accumulation.csv").contains("both,2048,208,60000,0.9,0.5,0.25,2,2.5,104857600"), "{}", text("accumulation.csv"));
+        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }

@@ -5,6 +5,7 @@
 //! else (no GPU, a GPU error, an I/O failure).
 
 mod bench;
+mod bench_accumulation;
 mod bench_frames;
 mod bench_render;
 mod demo;
@@ -127,7 +128,7 @@ enum Command {
         /// Output directory for report.md, the CSV files and the PNG charts.
         #[arg(long, default_value = "snowpack-bench")]
         out: PathBuf,
-        /// Only one part: passes (or passes-1024 and so on), techniques, render or frames.
+        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames or accumulation.
         #[arg(long)]
         only: Option<String>,
         /// GPU backend(s).

@@ -343,7 +343,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     close(&read::<f32>(ctx, &acc_buf), &acc, 1e-5, "settle", seed);
     let held = acc.iter().filter(|&&a| a > 0.0).count();
     let shed = owned.iter().filter(|&&k| acc[k] == 0.0).count();
-    assert!(held > texels / 20 && shed > 0, "settle kept {held} texels and shed {shed}; seed {seed}");
+    assert!(held > owned.len() / 20 && shed > 0, "settle kept {held} of {} texels and shed {shed}; seed {seed}", owned.len());
 
     // Surface: dilation and Scharr slopes.
     let surface_buf = storage_with(ctx, "surface", &vec![0u8; texels * 16]);
@@ -439,7 +439,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
             cpu::update::sky_visible(&up, &sky_depth, i, j, before[s]) == 0.0
         })
         .count();
-    assert!(hidden > texels / 50 && hidden < texels - texels / 50, "{hidden} of {texels} texels under objects; seed {seed}");
+    assert!(hidden > texels / 200 && hidden < texels - texels / 200, "{hidden} of {texels} texels under objects; seed {seed}");
 }
 
 fn acc_sky_texture(acc: &SnowAccumulation) -> wgpu::Texture {

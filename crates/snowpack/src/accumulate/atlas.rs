@@ -315,39 +315,39 @@ impl AtlasLayout {
     }
 }
 
-/// Quads per side of a chart's grid: about 4 cm each, 4 to 48 (64 for spheres,
-/// whose octahedral diamond needs an even count).
-fn grid_quads(c: &Chart) -> u32 {
+/// Quads along each side of a chart's grid: about 4 cm each, 2 to 48 (16 to
+/// 64 for spheres, whose octahedral diamond needs an even count).
+fn grid_quads(c: &Chart) -> [u32; 2] {
     match c.map {
-        ChartMap::Face { size, .. } => (size.max_element() / 0.04).ceil().clamp(4.0, 48.0) as u32,
-        ChartMap::Octahedral { radius } => ((radius * 2.0 / 0.04).ceil() as u32).clamp(16, 64).next_multiple_of(2),
+        ChartMap::Face { size, .. } => [size.x, size.y].map(|s| (s / 0.04).ceil().clamp(2.0, 48.0) as u32),
+        ChartMap::Octahedral { radius } => [((radius * 2.0 / 0.04).ceil() as u32).clamp(16, 64).next_multiple_of(2); 2],
     }
 }
 
-/// Quads per side of a chart's coarse grid (the occlusion's).
-fn coarse_quads(c: &Chart) -> u32 {
+/// Quads along each side of a chart's coarse grid (the occlusion's).
+fn coarse_quads(c: &Chart) -> [u32; 2] {
     match c.map {
-        ChartMap::Face { .. } => 1,
-        ChartMap::Octahedral { .. } => 16,
+        ChartMap::Face { .. } => [1, 1],
+        ChartMap::Octahedral { .. } => [16, 16],
     }
 }
 
-/// Appends a chart's grid of `q`² quads.
-fn chart_grid(c: &Chart, q: u32, vertices: &mut Vec<ObjectVertex>, indices: &mut Vec<u32>) {
+/// Appends a chart's grid of `qa` x `qb` quads.
+fn chart_grid(c: &Chart, [qa, qb]: [u32; 2], vertices: &mut Vec<ObjectVertex>, indices: &mut Vec<u32>) {
     let [x0, y0, w, h] = c.rect;
     let chart = [x0 as f32, y0 as f32, (x0 + w) as f32, (y0 + h) as f32];
     let base = vertices.len() as u32;
     let face = matches!(c.map, ChartMap::Face { .. });
-    for b in 0..=q {
-        for a in 0..=q {
-            let (s, t) = (a as f32 / q as f32, b as f32 / q as f32);
+    for b in 0..=qb {
+        for a in 0..=qa {
+            let (s, t) = (a as f32 / qa as f32, b as f32 / qb as f32);
             let (x, y) = (x0 as f32 + s * w as f32, y0 as f32 + t * h as f32);
             let (p, n) = c.point_at_texel(x, y);
             // Metres per texel along the atlas axes, by central differences.
             let e = 0.25;
             let tangent = (c.point_at_texel(x + e, y).0 - c.point_at_texel(x - e, y).0) / (2.0 * e);
             let bitangent = (c.point_at_texel(x, y + e).0 - c.point_at_texel(x, y - e).0) / (2.0 * e);
-            let border = a == 0 || b == 0 || a == q || b == q;
+            let border = a == 0 || b == 0 || a == qa || b == qb;
             vertices.push(ObjectVertex {
                 position: p.to_array(),
                 normal: n.to_array(),
@@ -360,16 +360,16 @@ fn chart_grid(c: &Chart, q: u32, vertices: &mut Vec<ObjectVertex>, indices: &mut
             });
         }
     }
-    let row = q + 1;
-    for b in 0..q {
-        for a in 0..q {
+    let row = qa + 1;
+    for b in 0..qb {
+        for a in 0..qa {
             let i00 = base + b * row + a;
             let (i10, i01, i11) = (i00 + 1, i00 + row, i00 + row + 1);
             // On the octahedral chart, split along the diamond's edges so the
             // fold to the lower hemisphere runs along triangle edges.
             let along_main = match c.map {
                 ChartMap::Octahedral { .. } => {
-                    let (sa, sb) = (2 * a + 1 < q, 2 * b + 1 < q);
+                    let (sa, sb) = (2 * a + 1 < qa, 2 * b + 1 < qb);
                     sa == sb
                 }
                 ChartMap::Face { .. } => true,

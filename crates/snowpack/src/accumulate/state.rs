@@ -207,6 +207,12 @@ impl SnowAccumulation {
         &self.ranges
     }
 
+    /// Triangles the occlusion draws (the coarse meshes).
+    #[must_use]
+    pub fn occlusion_triangles(&self) -> u64 {
+        u64::from(self.occlusion_index_count / 3)
+    }
+
     /// Total indices of all objects.
     #[must_use]
     pub fn index_count(&self) -> u32 {
