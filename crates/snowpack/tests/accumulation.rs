@@ -307,7 +307,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let fresh_buf = storage_with(ctx, "fresh", &vec![0u8; texels * 4]);
     let ip = IncrementParams { atlas_resolution: n, volume_m3: rng.range(1e-6, 1e-3), _pad: [0; 2] };
     let mut enc = encoder(ctx);
-    IncrementPass::new(&ctx.device, &normal_area, &hits_buf, &fresh_buf).record(&ctx.queue, &mut enc, &mut timer, &ip);
+    IncrementPass::new(&ctx.device, &normal_area, &hits_buf, &fresh_buf).record(&ctx.queue, &mut enc, &mut timer, n, &ip);
     submit(ctx, enc);
     let mut cpu_hits = gpu_hits.clone();
     let mut fresh = vec![0.0f32; texels];
@@ -337,7 +337,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     };
     let mut enc = encoder(ctx);
     SettlePass::new(&ctx.device, &SettleBuffers { objects: &objects_buf, normal_area: &normal_area, owner: &owner, fresh: &fresh_buf, acc: &acc_buf })
-        .record(&ctx.queue, &mut enc, &mut timer, &stp);
+        .record(&ctx.queue, &mut enc, &mut timer, n, &stp);
     submit(ctx, enc);
     cpu::settle::settle(&stp, &rotations, &bake.normal_area, &bake.owner, &fresh, &mut acc);
     close(&read::<f32>(ctx, &acc_buf), &acc, 1e-5, "settle", seed);
@@ -349,7 +349,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let surface_buf = storage_with(ctx, "surface", &vec![0u8; texels * 16]);
     let sfp = SurfaceParams { atlas_resolution: n, _pad: [0; 3] };
     let mut enc = encoder(ctx);
-    AtlasSurfacePass::new(&ctx.device, &objects_buf, &owner, &acc_buf, &surface_buf).record(&ctx.queue, &mut enc, &mut timer, &sfp);
+    AtlasSurfacePass::new(&ctx.device, &objects_buf, &owner, &acc_buf, &surface_buf).record(&ctx.queue, &mut enc, &mut timer, n, &sfp);
     submit(ctx, enc);
     let dilate: Vec<bool> = objects.iter().map(|o| o.dilate).collect();
     let cpu_surface = cpu::atlas_surface::atlas_surface(&sfp, &dilate, &bake.owner, &acc);

@@ -262,6 +262,13 @@ impl AtlasLayout {
         Ok(Self { resolution, texels_per_m: density, charts, object_count: objects.len() as u32 })
     }
 
+    /// Atlas rows in use: charts are shelf-packed from row 0, so every texel
+    /// at or above this row is outside every chart and its gutter.
+    #[must_use]
+    pub fn used_rows(&self) -> u32 {
+        self.charts.iter().map(|c| c.rect[1] + c.rect[3] + GUTTER).max().unwrap_or(0).min(self.resolution)
+    }
+
     /// Bakes normals, areas, owners and positions per texel.
     #[must_use]
     pub fn bake(&self) -> AtlasBake {
@@ -458,6 +465,16 @@ mod tests {
         assert!((layout.texels_per_m - 1.0 / MIN_TEXEL_M).abs() < 1e-3, "a small object stops at the finest texel");
         let layout = AtlasLayout::new(&tiny, 512, 0.1).expect("fits");
         assert!((layout.texels_per_m - TEXELS_PER_PIXEL / 0.1).abs() < 1e-3, "and at two texels per occlusion pixel");
+    }
+
+    #[test]
+    fn rows_above_the_used_ones_belong_to_no_chart() {
+        let layout = AtlasLayout::new(&objects(), 512, 0.05).expect("fits");
+        let rows = layout.used_rows();
+        assert!(rows < 512, "a coarse layout leaves rows free ({rows})");
+        let bake = layout.bake();
+        assert!(bake.owner[(rows as usize - GUTTER as usize - 1) * 512..].iter().any(|&o| o != NO_OWNER));
+        assert!(bake.owner[rows as usize * 512..].iter().all(|&o| o == NO_OWNER));
     }
 
     #[test]

@@ -177,7 +177,7 @@ impl SnowAccumulation {
             increment,
             settle,
             surface_pass,
-            rng: 0x5eed_0f_5a0f,
+            rng: 0x5eed_0f5a,
             frame: 0,
             window_resolution,
         })
@@ -316,14 +316,15 @@ impl SnowAccumulation {
             self.frame = self.frame.wrapping_add(1);
         }
         // Without snow the increment is zero, and it still clears the hits once.
-        self.increment.record(queue, encoder, timer, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
-        self.settle.record(queue, encoder, timer, &settle_params(snowfall, n, dt_s));
-        self.surface_pass.record(queue, encoder, timer, &SurfaceParams { atlas_resolution: n, _pad: [0; 3] });
+        let rows = self.layout.used_rows();
+        self.increment.record(queue, encoder, timer, rows, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
+        self.settle.record(queue, encoder, timer, rows, &settle_params(snowfall, n, dt_s));
+        self.surface_pass.record(queue, encoder, timer, rows, &SurfaceParams { atlas_resolution: n, _pad: [0; 3] });
     }
 
     /// Records only the surface pass (objects without snowfall).
     pub fn record_surface(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
-        self.surface_pass.record(queue, encoder, timer, &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
+        self.surface_pass.record(queue, encoder, timer, self.layout.used_rows(), &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
     }
 
     /// The accumulation atlas read back (m per texel, row-major); blocking.

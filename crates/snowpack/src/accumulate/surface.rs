@@ -50,9 +50,12 @@ impl AtlasSurfacePass {
     }
 
     /// Records the surface.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &SurfaceParams) {
+    /// Only the first `rows` atlas rows are dispatched: charts are packed from
+    /// row 0 up ([`super::AtlasLayout::used_rows`]), and the rows above hold nothing.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, rows: u32, params: &SurfaceParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.atlas_resolution, 16);
-        layout::dispatch(encoder, timer, "atlas surface", &self.pipeline, &self.bind_group, (g, g));
+        let gy = layout::groups(rows.min(params.atlas_resolution), 16);
+        layout::dispatch(encoder, timer, "atlas surface", &self.pipeline, &self.bind_group, (g, gy));
     }
 }

@@ -218,10 +218,10 @@ impl SnowDeformation {
             }
         }
         // The footprint quantisation was fixed at creation from `max_m`.
-        if let (Some(new), Some(old)) = (&snowfall, &self.params.snowfall) {
-            if new.max_m > old.max_m {
-                return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) });
-            }
+        if let (Some(new), Some(old)) = (&snowfall, &self.params.snowfall)
+            && new.max_m > old.max_m
+        {
+            return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) });
         }
         if snowfall.is_some() {
             self.params.snowfall = snowfall;
