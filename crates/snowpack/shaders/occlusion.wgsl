@@ -5,7 +5,8 @@
 // linear in height, smallest for the highest surface, so the depth test keeps
 // what the sky sees. Colour: the rectangle of atlas texels the pixel's
 // footprint covers, [x0, y0, x1, y1] inclusive, clamped to the chart (at most
-// MAX_SPAN a side); cleared to -1 where no object is. No culling: the depth
+// MAX_SPAN a side), as 16-bit integers (a float target is not renderable on
+// GL); cleared to 0xffff where no object is. No culling: the depth
 // test alone picks the sky-facing surface, whatever the winding.
 // Prepended: shared/objects.wgsl.
 
@@ -49,10 +50,10 @@ fn vs_main(v: VertexIn) -> VsOut {
 }
 
 @fragment
-fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VsOut) -> @location(0) vec4<u32> {
     let ext = 0.5 * (abs(dpdx(in.uv)) + abs(dpdy(in.uv)));
     let last = in.chart.zw - 1.0;
     let lo = clamp(floor(in.uv - ext), in.chart.xy, last);
     let hi = clamp(floor(in.uv + ext), lo, min(last, lo + MAX_SPAN - 1.0));
-    return vec4<f32>(lo, hi);
+    return vec4<u32>(vec2<u32>(lo), vec2<u32>(hi));
 }

@@ -13,7 +13,7 @@ struct ScatterParams {
 }
 
 @group(0) @binding(0) var<uniform> params: ScatterParams;
-@group(0) @binding(1) var footprint: texture_2d<f32>;
+@group(0) @binding(1) var footprint: texture_2d<u32>;
 @group(0) @binding(2) var<storage, read_write> hits: array<atomic<u32>>;
 
 fn hash(x: u32, y: u32, frame: u32) -> f32 {
@@ -30,11 +30,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let r = textureLoad(footprint, vec2<u32>(gid.x, gid.y), 0);
-    if r.x < 0.0 {
+    if r.x == 0xffffu {
         return;
     }
-    let lo = vec2<u32>(r.xy);
-    let hi = vec2<u32>(r.zw);
+    let lo = r.xy;
+    let hi = r.zw;
     let n = (hi.x - lo.x + 1u) * (hi.y - lo.y + 1u);
     let noise = 1.0 + params.noise * (2.0 * hash(gid.x, gid.y, params.frame) - 1.0);
     let w = u32(floor(HIT_UNIT * noise / f32(n) + 0.5));

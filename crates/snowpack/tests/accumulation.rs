@@ -260,15 +260,15 @@ fn scatter_increment_settle_and_surface_match_cpu() {
 
     // Scatter: random footprints (a third empty) over a 48² occlusion map.
     let occ = 48u32;
-    let footprint: Vec<[f32; 4]> = (0..occ * occ)
+    let footprint: Vec<[u16; 4]> = (0..occ * occ)
         .map(|_| {
             if rng.range(0.0, 1.0) < 0.33 {
-                return [-1.0; 4];
+                return [u16::MAX; 4];
             }
             let k = owned[(rng.next_u64() % owned.len() as u64) as usize];
-            let (x, y) = ((k as u32 % n) as f32, (k as u32 / n) as f32);
-            let (w, h) = (rng.range(0.0, 4.0).floor(), rng.range(0.0, 4.0).floor());
-            [x, y, (x + w).min(n as f32 - 1.0), (y + h).min(n as f32 - 1.0)]
+            let (x, y) = ((k as u32 % n) as u16, (k as u32 / n) as u16);
+            let (w, h) = (rng.range(0.0, 4.0) as u16, rng.range(0.0, 4.0) as u16);
+            [x, y, (x + w).min(n as u16 - 1), (y + h).min(n as u16 - 1)]
         })
         .collect();
     let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -277,14 +277,14 @@ fn scatter_increment_settle_and_surface_match_cpu() {
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
+        format: snowpack::accumulate::occlusion::FOOTPRINT_FORMAT,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
     ctx.queue.write_texture(
         texture.as_image_copy(),
         bytemuck::cast_slice(&footprint),
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(occ * 16), rows_per_image: Some(occ) },
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(occ * 8), rows_per_image: Some(occ) },
         wgpu::Extent3d { width: occ, height: occ, depth_or_array_layers: 1 },
     );
     let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
@@ -411,19 +411,26 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         ..UpdateParams::default()
     };
     update.record(&ctx.queue, &mut enc, &mut timer, &up);
-    // The occlusion depth, for the CPU.
+    // The occlusion depth, for the CPU: copied by a compute pass, since GL
+    // cannot copy depth textures to buffers.
     let r = params.resolution;
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("sky copy"),
-        size: u64::from(r * r * 4),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    enc.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo { texture: &acc_sky_texture(&acc), mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::DepthOnly },
-        wgpu::TexelCopyBufferInfo { buffer: &staging, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(r * 4), rows_per_image: Some(r) } },
-        wgpu::Extent3d { width: r, height: r, depth_or_array_layers: 1 },
+    let staging = storage_with(ctx, "sky copy", &vec![0u8; (r * r * 4) as usize]);
+    let (pipeline, bgl) = snowpack::gpu::layout::compute_pipeline(
+        &ctx.device,
+        "depth to buffer",
+        "@group(0) @binding(0) var depth: texture_2d<f32>;
+         @group(0) @binding(1) var<storage, read_write> out: array<f32>;
+         @compute @workgroup_size(8, 8)
+         fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+             let d = textureDimensions(depth);
+             if gid.x < d.x && gid.y < d.y {
+                 out[gid.y * d.x + gid.x] = textureLoad(depth, gid.xy, 0).x;
+             }
+         }",
+        &[snowpack::gpu::layout::depth_texture(0), snowpack::gpu::layout::storage(1, false)],
     );
+    let group = snowpack::gpu::layout::bind_group(&ctx.device, "depth to buffer", &bgl, &[wgpu::BindingResource::TextureView(acc.sky_view()), staging.as_entire_binding()]);
+    snowpack::gpu::layout::dispatch(&mut enc, &mut timer, "depth to buffer", &pipeline, &group, (r.div_ceil(8), r.div_ceil(8)));
     submit(ctx, enc);
     let sky_depth: Vec<f32> = read(ctx, &staging);
     let capture = vec![1.0f32; texels];
@@ -440,8 +447,4 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         })
         .count();
     assert!(hidden > texels / 200 && hidden < texels - texels / 200, "{hidden} of {texels} texels under objects; seed {seed}");
-}
-
-fn acc_sky_texture(acc: &SnowAccumulation) -> wgpu::Texture {
-    acc.sky_texture().clone()
 }

@@ -12,8 +12,12 @@ use crate::shaders;
 
 use super::atlas::ObjectVertex;
 
-/// Format of the footprint target: `[x0, y0, x1, y1]` atlas texels, -1 where no object is.
-pub const FOOTPRINT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Format of the footprint target: `[x0, y0, x1, y1]` atlas texels, [`NO_FOOTPRINT`]
+/// where no object is (integers: float targets are not renderable on GL).
+pub const FOOTPRINT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Uint;
+
+/// The footprint target's clear value: no object seen.
+pub const NO_FOOTPRINT: u16 = u16::MAX;
 
 /// Uniforms of `occlusion.wgsl`: the sheared orthographic projection.
 #[repr(C)]
@@ -141,7 +145,7 @@ impl OcclusionPass {
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color { r: -1.0, g: -1.0, b: -1.0, a: -1.0 }),
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r: 65535.0, g: 65535.0, b: 65535.0, a: 65535.0 }),
                     store: wgpu::StoreOp::Store,
                 },
             })],

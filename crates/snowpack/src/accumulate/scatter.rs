@@ -34,7 +34,20 @@ impl ScatterPass {
             device,
             "scatter",
             shaders::SCATTER,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::depth_texture(1), layout::storage(2, false)],
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                layout::storage(2, false),
+            ],
         );
         let params = layout::uniform_buffer::<ScatterParams>(device, "scatter params");
         let bind_group = layout::bind_group(

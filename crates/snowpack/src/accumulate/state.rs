@@ -225,12 +225,6 @@ impl SnowAccumulation {
         &self.occlusion.depth_view
     }
 
-    /// The occlusion depth texture (for copies; tests and tools).
-    #[must_use]
-    pub fn sky_texture(&self) -> &wgpu::Texture {
-        &self.occlusion.depth
-    }
-
     /// Moves and turns object `k`; its snow goes with it.
     pub fn set_pose(&mut self, k: usize, position: Vec3, rotation: Quat) {
         if let Some(o) = self.objects.get_mut(k) {
@@ -376,7 +370,7 @@ impl SnowAccumulation {
         let w = u64::from(self.window_resolution) * u64::from(self.window_resolution);
         vec![
             ("occlusion depth", w * 4),
-            ("occlusion footprint", w * 16),
+            ("occlusion footprint", w * 8),
             ("atlas normal+area", self.normal_area.size()),
             ("atlas owner", self.owner.size()),
             ("atlas hits", self.hits.size()),

@@ -15,16 +15,16 @@ pub fn hash(x: u32, y: u32, frame: u32) -> f32 {
     (h >> 8) as f32 / 16_777_216.0
 }
 
-/// Adds every footprint rectangle (`[x0, y0, x1, y1]`, x0 < 0 for none; one per
-/// occlusion pixel, row-major) into `hits` (one per atlas texel).
-pub fn scatter(p: &ScatterParams, footprint: &[[f32; 4]], hits: &mut [u32]) {
+/// Adds every footprint rectangle (`[x0, y0, x1, y1]`, x0 = `u16::MAX` for
+/// none; one per occlusion pixel, row-major) into `hits` (one per atlas texel).
+pub fn scatter(p: &ScatterParams, footprint: &[[u16; 4]], hits: &mut [u32]) {
     for y in 0..p.resolution {
         for x in 0..p.resolution {
             let r = footprint[(y * p.resolution + x) as usize];
-            if r[0] < 0.0 {
+            if r[0] == u16::MAX {
                 continue;
             }
-            let (x0, y0, x1, y1) = (r[0] as u32, r[1] as u32, r[2] as u32, r[3] as u32);
+            let [x0, y0, x1, y1] = r.map(u32::from);
             let n = (x1 - x0 + 1) * (y1 - y0 + 1);
             let noise = 1.0 + p.noise * (2.0 * hash(x, y, p.frame) - 1.0);
             let w = (HIT_UNIT * noise / n as f32 + 0.5).floor() as u32;
