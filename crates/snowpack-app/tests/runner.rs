@@ -828,3 +828,44 @@ dt_s = 0.05
     // And a direction that does not fall is bad input.
     expect_bad_input("upward-snow", "[snowfall]\ndirection = [0.0, 1.0, 0.0]\n", "direction");
 }
+
+#[test]
+fn a_gltf_object_gathers_snow_on_its_back() {
+    if !gpu_available() {
+        return;
+    }
+    let fox = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/Fox.glb");
+    let run = run_scene(
+        "gltf-object",
+        &format!(
+            r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.1
+[terrain]
+kind = "flat"
+[snowfall]
+rate_m_per_s = 0.01
+flutter_deg = 2.0
+atlas_resolution = 256
+[[object]]
+name = "statue"
+kind = "gltf"
+file = {fox:?}
+scale = 0.02
+position = [0.0, 0.0, 0.0]
+[sim]
+frames = 40
+dt_s = 0.05
+"#
+        ),
+        &[],
+    );
+    let statue = &run.meta["objects"]["statue"];
+    let mean = statue["mean_m"].as_f64().expect("mean_m");
+    // Its back and head face the sky; flanks steeper than the angle of repose shed.
+    assert!(mean > 0.004 && mean < 0.025, "{statue}");
+    assert!(statue["covered_fraction"].as_f64().expect("covered") > 0.3, "{statue}");
+    expect_bad_input("gltf-object-missing", "[[object]]\nname = \"s\"\nkind = \"gltf\"\nfile = \"nowhere.glb\"\n", "nowhere.glb");
+}

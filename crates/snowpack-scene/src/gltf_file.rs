@@ -75,6 +75,62 @@ impl GltfFile {
         Ok(out)
     }
 
+    /// Every triangle primitive of the default scene (or the first) as one
+    /// mesh, node transforms and `scale` applied, with normals and, when every
+    /// primitive has them, `TEXCOORD_0` UVs (an accumulation object).
+    pub fn object_mesh(&self, scale: f32) -> Result<snowpack::accumulate::ObjectMesh, String> {
+        let scene = self
+            .document
+            .default_scene()
+            .or_else(|| self.document.scenes().next())
+            .ok_or("the file has no scene")?;
+        let mut out = snowpack::accumulate::ObjectMesh { uvs: Some(Vec::new()), ..Default::default() };
+        let root = Mat4::from_scale(Vec3::splat(scale));
+        let mut stack: Vec<(gltf::Node<'_>, Mat4)> = scene.nodes().map(|n| (n, root)).collect();
+        while let Some((node, parent)) = stack.pop() {
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            let normal_matrix = glam::Mat3::from_mat4(world).inverse().transpose();
+            if let Some(mesh) = node.mesh() {
+                for prim in mesh.primitives().filter(|p| p.mode() == gltf::mesh::Mode::Triangles) {
+                    let reader = prim.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
+                    let base = out.positions.len() as u32;
+                    let positions: Vec<Vec3> = reader
+                        .read_positions()
+                        .ok_or_else(|| format!("mesh {:?} has a primitive without positions", mesh.name().unwrap_or("")))?
+                        .map(|p| world.transform_point3(Vec3::from(p)))
+                        .collect();
+                    let count = positions.len();
+                    match reader.read_normals() {
+                        Some(n) => out.normals.extend(n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or(Vec3::Y))),
+                        None => out.normals.clear(),
+                    }
+                    match (reader.read_tex_coords(0), out.uvs.as_mut()) {
+                        (Some(uv), Some(list)) => list.extend(uv.into_f32().map(glam::Vec2::from)),
+                        _ => out.uvs = None,
+                    }
+                    let indices: Vec<u32> = match reader.read_indices() {
+                        Some(i) => i.into_u32().collect(),
+                        None => (0..count as u32).collect(),
+                    };
+                    if let Some(k) = indices.iter().find(|&&k| k as usize >= count) {
+                        return Err(format!("mesh {:?}: index {k} is past its {count} vertices", mesh.name().unwrap_or("")));
+                    }
+                    out.indices.extend(indices.iter().map(|k| base + k));
+                    out.positions.extend(positions);
+                }
+            }
+            stack.extend(node.children().map(|c| (c, world)));
+        }
+        // Normals only count when every primitive had them.
+        if out.normals.len() != out.positions.len() {
+            out.normals.clear();
+        }
+        if out.indices.is_empty() {
+            return Err("the file has no triangles".into());
+        }
+        Ok(out)
+    }
+
     fn node_triangles(&self, node: &gltf::Node<'_>, parent: Mat4, out: &mut Vec<[[f32; 3]; 3]>) -> Result<(), String> {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {

@@ -229,6 +229,8 @@ pub struct ObjectSpec {
     pub rotation_deg: Vec3,
     /// Whether its accumulation is dilated (off for thin, holey objects).
     pub dilate: bool,
+    /// The triangle mesh of a `gltf` object (its file, `scale` applied).
+    pub mesh: Option<Arc<snowpack::accumulate::ObjectMesh>>,
 }
 
 impl ObjectSpec {
@@ -239,7 +241,11 @@ impl ObjectSpec {
         let r = self.rotation_deg * (std::f32::consts::PI / 180.0);
         snowpack::accumulate::SnowObject {
             name: self.name.clone(),
-            shape: if self.kind == "sphere" { ObjectShape::Sphere { radius_m: 0.5 * self.size_m.x } } else { ObjectShape::Box { size_m: self.size_m } },
+            shape: match (&self.mesh, self.kind.as_str()) {
+                (Some(mesh), _) => ObjectShape::Mesh(Arc::clone(mesh)),
+                (None, "sphere") => ObjectShape::Sphere { radius_m: 0.5 * self.size_m.x },
+                (None, _) => ObjectShape::Box { size_m: self.size_m },
+            },
             position: self.position,
             rotation: glam::Quat::from_euler(glam::EulerRot::XYZ, r.x, r.y, r.z),
             dilate: self.dilate,
@@ -494,9 +500,20 @@ impl Scene {
                 return Err(o.err("name", format!("{name:?} is used by another [[object]]")));
             }
             let kind = o.choice("kind", "box", &["box", "sphere", "gltf"])?;
-            if kind == "gltf" {
-                return Err(o.err("kind", "glTF objects are not in this build (their atlas needs the mesh's own UVs or a per-triangle chart); use box or sphere"));
-            }
+            let mesh = if kind == "gltf" {
+                let rel = o.string_opt("file")?.ok_or_else(|| o.err("file", "a gltf object needs a file (.glb or .gltf)"))?;
+                let scale = o.positive("scale", 1.0, "")?;
+                let full = base_dir.join(&rel);
+                let mesh = GltfFile::open(&full)
+                    .and_then(|g| g.object_mesh(scale))
+                    .map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
+                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = mesh.validate() {
+                    return Err(o.err("file", format!("{}: {why}", full.display())));
+                }
+                Some(Arc::new(mesh))
+            } else {
+                None
+            };
             let position = o.vec3("position", Vec3::ZERO)?;
             let size_m = o.vec3("size_m", Vec3::ONE)?;
             if size_m.min_element() <= 0.0 {
@@ -505,7 +522,7 @@ impl Scene {
             let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
             let dilate = o.bool("dilate", true)?;
             o.finish()?;
-            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate });
+            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate, mesh });
         }
 
         // [snowfall]

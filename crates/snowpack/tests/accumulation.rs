@@ -448,3 +448,34 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         .count();
     assert!(hidden > texels / 200 && hidden < texels - texels / 200, "{hidden} of {texels} texels under objects; seed {seed}");
 }
+
+#[test]
+fn a_mesh_object_gathers_snow_and_shelters_the_ground() {
+    let Some(ctx) = testing::gpu() else { return };
+    // A 2 x 2 m sheet of eight triangles, no UVs (a chart per triangle), 1 m up.
+    let mut positions = Vec::new();
+    for z in 0..3 {
+        for x in 0..3 {
+            positions.push(Vec3::new(x as f32 - 1.0, 0.0, z as f32 - 1.0));
+        }
+    }
+    let mut indices = Vec::new();
+    for z in 0..2u32 {
+        for x in 0..2u32 {
+            let a = z * 3 + x;
+            indices.extend_from_slice(&[a, a + 3, a + 1, a + 1, a + 3, a + 4]);
+        }
+    }
+    let mesh = snowpack::accumulate::ObjectMesh { positions, normals: vec![], uvs: None, indices };
+    let sheet = object("sheet", ObjectShape::Mesh(std::sync::Arc::new(mesh)), Vec3::new(0.0, 1.0, 0.0), Quat::IDENTITY);
+    let mut snow = window(ctx, snowfall(Vec3::NEG_Y), &[sheet]);
+    let frames = 100;
+    run(ctx, &mut snow, frames);
+    let fallen = RATE * DT * frames as f32;
+    let h = snow.read_snow(ctx).expect("snow");
+    assert!((depth_at(&snow, &h, 0.0, 0.0) - DEPTH_M).abs() < 1e-4, "under the sheet");
+    assert!((depth_at(&snow, &h, 3.0, 3.0) - DEPTH_M - fallen).abs() < 1e-4, "beside it");
+    let acc = snow.accumulation().expect("objects");
+    let stats = acc.stats(&acc.read_atlas(ctx).expect("atlas"));
+    assert!((stats[0].mean_m - fallen).abs() < 0.15 * fallen, "the sheet holds {:?}, want about {fallen} m", stats[0]);
+}

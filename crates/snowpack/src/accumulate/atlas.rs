@@ -13,6 +13,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
+use super::mesh::{barycentric, ChartedMesh};
 use super::{ObjectShape, SnowObject};
 use crate::error::SnowError;
 
@@ -29,13 +30,16 @@ pub const GUTTER: u32 = 2;
 pub const NO_OWNER: u32 = u32::MAX;
 
 /// How a chart maps its unit square onto an object's surface.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum ChartMap {
     /// A box face: centre `origin`, outward normal `n`, axes `u` and `v`
     /// (unit vectors) spanning `size` metres.
     Face { origin: Vec3, n: Vec3, u: Vec3, v: Vec3, size: Vec2 },
     /// A whole sphere, octahedral.
     Octahedral { radius: f32 },
+    /// A triangle mesh through its UVs (its own, or one chart per triangle);
+    /// baked by rasterising its triangles, not through [`ChartMap::point`].
+    Mesh(std::sync::Arc<ChartedMesh>),
 }
 
 /// Octahedral square coordinate in [-1, 1]² to a unit direction.
@@ -50,14 +54,16 @@ fn octa_decode(q: Vec2) -> Vec3 {
 }
 
 impl ChartMap {
-    /// Object-space position and outward normal at chart coordinate (s, t) in [0, 1]².
-    fn point(&self, s: f32, t: f32) -> (Vec3, Vec3) {
+    /// Object-space position and outward normal at chart coordinate (s, t)
+    /// in [0, 1]², for the analytic charts (`None` for a mesh).
+    fn point(&self, s: f32, t: f32) -> Option<(Vec3, Vec3)> {
         match *self {
-            Self::Face { origin, n, u, v, size } => (origin + u * (s - 0.5) * size.x + v * (t - 0.5) * size.y, n),
+            Self::Face { origin, n, u, v, size } => Some((origin + u * (s - 0.5) * size.x + v * (t - 0.5) * size.y, n)),
             Self::Octahedral { radius } => {
                 let d = octa_decode(Vec2::new(s * 2.0 - 1.0, t * 2.0 - 1.0));
-                (d * radius, d)
+                Some((d * radius, d))
             }
+            Self::Mesh(_) => None,
         }
     }
 
@@ -67,12 +73,14 @@ impl ChartMap {
             Self::Face { size, .. } => size,
             // Same area as the sphere: side 2 r sqrt(pi).
             Self::Octahedral { radius } => Vec2::splat(2.0 * radius * std::f32::consts::PI.sqrt()),
+            // The UV square holds the surface at the coverage of its triangles.
+            Self::Mesh(ref m) => Vec2::splat((m.area / m.coverage.max(1e-6)).sqrt()),
         }
     }
 }
 
 /// One chart placed in the atlas.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Chart {
     /// Index of its object.
     pub object: u32,
@@ -82,19 +90,26 @@ pub struct Chart {
 }
 
 impl Chart {
-    /// Object-space position and normal at continuous texel coordinate (x, y).
+    /// Object-space position and normal at continuous texel coordinate (x, y)
+    /// of a box face or sphere chart (`None` for a mesh's).
     #[must_use]
-    pub fn point_at_texel(&self, x: f32, y: f32) -> (Vec3, Vec3) {
+    pub fn point_at_texel(&self, x: f32, y: f32) -> Option<(Vec3, Vec3)> {
         let [x0, y0, w, h] = self.rect;
         self.map.point((x - x0 as f32) / w as f32, (y - y0 as f32) / h as f32)
+    }
+
+    /// Atlas texel coordinate of UV `uv` in this chart.
+    fn texel_of_uv(&self, uv: Vec2) -> Vec2 {
+        let [x0, y0, w, h] = self.rect;
+        Vec2::new(x0 as f32 + uv.x * w as f32, y0 as f32 + uv.y * h as f32)
     }
 
     /// Surface area of texel (x, y) of this chart (m²): the two triangles of its corners.
     fn texel_area(&self, x: u32, y: u32) -> f32 {
         match self.map {
             ChartMap::Face { size, .. } => size.x * size.y / (self.rect[2] * self.rect[3]) as f32,
-            ChartMap::Octahedral { .. } => {
-                let p = |dx: u32, dy: u32| self.point_at_texel((x + dx) as f32, (y + dy) as f32).0;
+            ChartMap::Octahedral { .. } | ChartMap::Mesh(_) => {
+                let p = |dx: u32, dy: u32| self.point_at_texel((x + dx) as f32, (y + dy) as f32).map_or(Vec3::ZERO, |q| q.0);
                 let (a, b, c, d) = (p(0, 0), p(1, 0), p(1, 1), p(0, 1));
                 0.5 * ((b - a).cross(c - a).length() + (c - a).cross(d - a).length())
             }
@@ -173,9 +188,10 @@ fn box_faces(size: Vec3) -> Vec<ChartMap> {
 }
 
 fn object_charts(shape: &ObjectShape) -> Vec<ChartMap> {
-    match *shape {
-        ObjectShape::Box { size_m } => box_faces(size_m),
-        ObjectShape::Sphere { radius_m } => vec![ChartMap::Octahedral { radius: radius_m }],
+    match shape {
+        ObjectShape::Box { size_m } => box_faces(*size_m),
+        ObjectShape::Sphere { radius_m } => vec![ChartMap::Octahedral { radius: *radius_m }],
+        ObjectShape::Mesh(mesh) => vec![ChartMap::Mesh(std::sync::Arc::new(mesh.charted()))],
     }
 }
 
@@ -216,9 +232,13 @@ impl AtlasLayout {
             .flat_map(|(k, o)| object_charts(&o.shape).into_iter().map(move |m| (k as u32, m)))
             .collect();
         for o in objects {
-            let ok = match o.shape {
+            let ok = match &o.shape {
                 ObjectShape::Box { size_m } => size_m.is_finite() && size_m.min_element() > 0.0,
-                ObjectShape::Sphere { radius_m } => radius_m.is_finite() && radius_m > 0.0,
+                ObjectShape::Sphere { radius_m } => radius_m.is_finite() && *radius_m > 0.0,
+                ObjectShape::Mesh(mesh) => {
+                    mesh.validate().map_err(|e| SnowError::InvalidParameter { field: "mesh", why: format!("object {:?}: {e}", o.name) })?;
+                    mesh.area() > 0.0
+                }
             };
             if !ok {
                 return Err(SnowError::InvalidParameter { field: "size_m", why: format!("object {:?} has a non-positive size", o.name) });
@@ -257,7 +277,7 @@ impl AtlasLayout {
         let charts = maps
             .iter()
             .zip(sizes.iter().zip(&places))
-            .map(|(&(object, map), (s, p))| Chart { object, rect: [p[0] + GUTTER, p[1] + GUTTER, s[0] - 2 * GUTTER, s[1] - 2 * GUTTER], map })
+            .map(|((object, map), (s, p))| Chart { object: *object, rect: [p[0] + GUTTER, p[1] + GUTTER, s[0] - 2 * GUTTER, s[1] - 2 * GUTTER], map: map.clone() })
             .collect();
         Ok(Self { resolution, texels_per_m: density, charts, object_count: objects.len() as u32 })
     }
@@ -274,12 +294,17 @@ impl AtlasLayout {
     pub fn bake(&self) -> AtlasBake {
         let n = self.resolution as usize * self.resolution as usize;
         let mut bake = AtlasBake { normal_area: vec![[0.0; 4]; n], owner: vec![NO_OWNER; n], position: vec![[0.0; 3]; n] };
+        let n = self.resolution as usize;
         for c in &self.charts {
+            if let ChartMap::Mesh(mesh) = &c.map {
+                bake_mesh(c, mesh, n, &mut bake);
+                continue;
+            }
             let [x0, y0, w, h] = c.rect;
             for y in y0..y0 + h {
                 for x in x0..x0 + w {
-                    let k = y as usize * self.resolution as usize + x as usize;
-                    let (p, nrm) = c.point_at_texel(x as f32 + 0.5, y as f32 + 0.5);
+                    let k = y as usize * n + x as usize;
+                    let Some((p, nrm)) = c.point_at_texel(x as f32 + 0.5, y as f32 + 0.5) else { continue };
                     bake.normal_area[k] = nrm.extend(c.texel_area(x, y)).to_array();
                     bake.owner[k] = c.object;
                     bake.position[k] = p.to_array();
@@ -314,7 +339,12 @@ impl AtlasLayout {
         for object in 0..self.object_count {
             let start = indices.len() as u32;
             for c in self.charts.iter().filter(|c| c.object == object) {
-                chart_grid(c, if dense { grid_quads(c) } else { coarse_quads(c) }, &mut vertices, &mut indices);
+                if let ChartMap::Mesh(mesh) = &c.map {
+                    // The mesh as it is, for drawing and for the occlusion alike.
+                    mesh_vertices(c, mesh, &mut vertices, &mut indices);
+                } else {
+                    chart_grid(c, if dense { grid_quads(c) } else { coarse_quads(c) }, &mut vertices, &mut indices);
+                }
             }
             ranges[object as usize] = start..indices.len() as u32;
         }
@@ -328,13 +358,14 @@ fn grid_quads(c: &Chart) -> [u32; 2] {
     match c.map {
         ChartMap::Face { size, .. } => [size.x, size.y].map(|s| (s / 0.04).ceil().clamp(2.0, 48.0) as u32),
         ChartMap::Octahedral { radius } => [((radius * 2.0 / 0.04).ceil() as u32).clamp(16, 64).next_multiple_of(2); 2],
+        ChartMap::Mesh(_) => [1, 1],
     }
 }
 
 /// Quads along each side of a chart's coarse grid (the occlusion's).
 fn coarse_quads(c: &Chart) -> [u32; 2] {
     match c.map {
-        ChartMap::Face { .. } => [1, 1],
+        ChartMap::Face { .. } | ChartMap::Mesh(_) => [1, 1],
         ChartMap::Octahedral { .. } => [16, 16],
     }
 }
@@ -349,11 +380,12 @@ fn chart_grid(c: &Chart, [qa, qb]: [u32; 2], vertices: &mut Vec<ObjectVertex>, i
         for a in 0..=qa {
             let (s, t) = (a as f32 / qa as f32, b as f32 / qb as f32);
             let (x, y) = (x0 as f32 + s * w as f32, y0 as f32 + t * h as f32);
-            let (p, n) = c.point_at_texel(x, y);
+            let at = |x: f32, y: f32| c.point_at_texel(x, y).unwrap_or((Vec3::ZERO, Vec3::Y));
+            let (p, n) = at(x, y);
             // Metres per texel along the atlas axes, by central differences.
             let e = 0.25;
-            let tangent = (c.point_at_texel(x + e, y).0 - c.point_at_texel(x - e, y).0) / (2.0 * e);
-            let bitangent = (c.point_at_texel(x, y + e).0 - c.point_at_texel(x, y - e).0) / (2.0 * e);
+            let tangent = (at(x + e, y).0 - at(x - e, y).0) / (2.0 * e);
+            let bitangent = (at(x, y + e).0 - at(x, y - e).0) / (2.0 * e);
             let border = a == 0 || b == 0 || a == qa || b == qb;
             vertices.push(ObjectVertex {
                 position: p.to_array(),
@@ -379,7 +411,7 @@ fn chart_grid(c: &Chart, [qa, qb]: [u32; 2], vertices: &mut Vec<ObjectVertex>, i
                     let (sa, sb) = (2 * a + 1 < qa, 2 * b + 1 < qb);
                     sa == sb
                 }
-                ChartMap::Face { .. } => true,
+                ChartMap::Face { .. } | ChartMap::Mesh(_) => true,
             };
             let (t1, t2) = if along_main { ([i00, i01, i10], [i10, i01, i11]) } else { ([i00, i01, i11], [i00, i11, i10]) };
             // Outward winding (counter-clockwise seen from outside).
@@ -397,6 +429,79 @@ fn chart_grid(c: &Chart, [qa, qb]: [u32; 2], vertices: &mut Vec<ObjectVertex>, i
             }
         }
     }
+}
+
+/// Bakes a mesh chart by rasterising its UV triangles: each texel whose
+/// centre lies in a triangle gets that triangle's interpolated position and
+/// normal, and the triangle's surface area over its texel count as area.
+fn bake_mesh(c: &Chart, m: &ChartedMesh, n: usize, bake: &mut AtlasBake) {
+    for t in m.indices.chunks_exact(3) {
+        let [ia, ib, ic] = [0, 1, 2].map(|k| t[k] as usize);
+        let [a, b, cc] = [ia, ib, ic].map(|k| c.texel_of_uv(m.uvs[k]));
+        let texels = 0.5 * (b - a).perp_dot(cc - a).abs();
+        if texels <= 0.0 {
+            continue;
+        }
+        let area = 0.5 * (m.positions[ib] - m.positions[ia]).cross(m.positions[ic] - m.positions[ia]).length();
+        let lo = a.min(b).min(cc).floor().max(Vec2::ZERO);
+        let hi = a.max(b).max(cc).ceil().min(Vec2::splat(n as f32));
+        // The triangle's area over the texel centres it covers, so areas sum to the surface.
+        let mut inside = Vec::new();
+        for y in lo.y as usize..hi.y as usize {
+            for x in lo.x as usize..hi.x as usize {
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                if let Some(w) = barycentric(p, a, b, cc).filter(|w| w.min_element() >= 0.0) {
+                    inside.push((y * n + x, w));
+                }
+            }
+        }
+        let per = area / inside.len().max(1) as f32;
+        for (k, w) in inside {
+            let pos = m.positions[ia] * w.x + m.positions[ib] * w.y + m.positions[ic] * w.z;
+            let nrm = (m.normals[ia] * w.x + m.normals[ib] * w.y + m.normals[ic] * w.z).normalize_or(Vec3::Y);
+            bake.normal_area[k] = nrm.extend(per).to_array();
+            bake.owner[k] = c.object;
+            bake.position[k] = pos.to_array();
+        }
+    }
+}
+
+/// Appends a mesh chart's own vertices and triangles, with atlas UVs and the
+/// metres per texel along the atlas axes (per triangle, averaged at vertices).
+fn mesh_vertices(c: &Chart, m: &ChartedMesh, vertices: &mut Vec<ObjectVertex>, indices: &mut Vec<u32>) {
+    let base = vertices.len() as u32;
+    let [x0, y0, w, h] = c.rect;
+    let chart = [x0 as f32, y0 as f32, (x0 + w) as f32, (y0 + h) as f32];
+    let mut tangents = vec![(Vec3::ZERO, Vec3::ZERO); m.positions.len()];
+    for t in m.indices.chunks_exact(3) {
+        let [ia, ib, ic] = [0, 1, 2].map(|k| t[k] as usize);
+        let (e1, e2) = (m.positions[ib] - m.positions[ia], m.positions[ic] - m.positions[ia]);
+        let (d1, d2) = (c.texel_of_uv(m.uvs[ib]) - c.texel_of_uv(m.uvs[ia]), c.texel_of_uv(m.uvs[ic]) - c.texel_of_uv(m.uvs[ia]));
+        let det = d1.perp_dot(d2);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let tx = (e1 * d2.y - e2 * d1.y) / det;
+        let ty = (e2 * d1.x - e1 * d2.x) / det;
+        for k in [ia, ib, ic] {
+            tangents[k].0 += tx;
+            tangents[k].1 += ty;
+        }
+    }
+    for (k, p) in m.positions.iter().enumerate() {
+        let count = m.indices.iter().filter(|&&i| i as usize == k).count().max(1) as f32;
+        vertices.push(ObjectVertex {
+            position: p.to_array(),
+            normal: m.normals[k].to_array(),
+            tangent: (tangents[k].0 / count).to_array(),
+            bitangent: (tangents[k].1 / count).to_array(),
+            uv: c.texel_of_uv(m.uvs[k]).to_array(),
+            taper: 1.0,
+            object: c.object,
+            chart,
+        });
+    }
+    indices.extend(m.indices.iter().map(|i| base + i));
 }
 
 #[cfg(test)]
@@ -465,6 +570,32 @@ mod tests {
         assert!((layout.texels_per_m - 1.0 / MIN_TEXEL_M).abs() < 1e-3, "a small object stops at the finest texel");
         let layout = AtlasLayout::new(&tiny, 512, 0.1).expect("fits");
         assert!((layout.texels_per_m - TEXELS_PER_PIXEL / 0.1).abs() < 1e-3, "and at two texels per occlusion pixel");
+    }
+
+    #[test]
+    fn a_mesh_bakes_its_area_with_its_own_uvs_or_a_chart_per_triangle() {
+        use crate::accumulate::ObjectMesh;
+        // A tent: two 2 x 1 m slopes meeting at a ridge, UV-mapped side by side.
+        let p = [Vec3::new(-1.0, 0.0, -0.5), Vec3::new(1.0, 0.0, -0.5), Vec3::new(-1.0, 0.5, 0.0), Vec3::new(1.0, 0.5, 0.0), Vec3::new(-1.0, 0.0, 0.5), Vec3::new(1.0, 0.0, 0.5)];
+        let uv = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.5), Vec2::new(1.0, 0.5), Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0)];
+        let indices = vec![0, 2, 1, 1, 2, 3, 2, 4, 3, 3, 4, 5];
+        let area = 2.0 * 2.0 * (0.5f32 * 0.5 + 0.5 * 0.5).sqrt();
+        for uvs in [Some(uv.to_vec()), None] {
+            let mesh = ObjectMesh { positions: p.to_vec(), normals: vec![], uvs: uvs.clone(), indices: indices.clone() };
+            let object = SnowObject { name: "tent".into(), shape: ObjectShape::Mesh(std::sync::Arc::new(mesh)), position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: true };
+            let layout = AtlasLayout::new(&[object], 128, 0.01).expect("fits");
+            let bake = layout.bake();
+            let baked: f32 = bake.normal_area.iter().zip(&bake.owner).filter(|(_, o)| **o == 0).map(|(n, _)| n[3]).sum();
+            assert!((baked - area).abs() < 0.01 * area, "own UVs {}: baked {baked} m², surface {area} m²", uvs.is_some());
+            // Normals are the faces' (45 degrees from up) averaged at the shared
+            // ridge (straight up), interpolated between.
+            for (n, _) in bake.normal_area.iter().zip(&bake.owner).filter(|(_, o)| **o == 0) {
+                assert!(n[1] > std::f32::consts::FRAC_1_SQRT_2 - 0.01 && n[0].abs() < 1e-4, "normal {n:?}");
+            }
+            let (v, idx, _) = layout.meshes(true);
+            assert_eq!(idx.len(), 12);
+            assert!(v.iter().all(|x| x.uv[0] >= x.chart[0] && x.uv[0] <= x.chart[2] && x.uv[1] >= x.chart[1] && x.uv[1] <= x.chart[3]));
+        }
     }
 
     #[test]

@@ -25,6 +25,7 @@
 
 pub mod atlas;
 pub mod increment;
+pub mod mesh;
 pub mod occlusion;
 pub mod scatter;
 pub mod settle;
@@ -37,6 +38,7 @@ use crate::error::SnowError;
 
 pub use atlas::{AtlasBake, AtlasLayout, ObjectVertex};
 pub use increment::{IncrementParams, IncrementPass};
+pub use mesh::{ChartedMesh, ObjectMesh};
 pub use occlusion::{OcclusionParams, OcclusionPass};
 pub use scatter::{ScatterParams, ScatterPass};
 pub use settle::{SettleParams, SettlePass};
@@ -120,7 +122,7 @@ impl Snowfall {
 }
 
 /// The shape of an accumulation object.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ObjectShape {
     /// A box of these side lengths (m), centred on the object's position.
     Box {
@@ -132,6 +134,9 @@ pub enum ObjectShape {
         /// Radius (m).
         radius_m: f32,
     },
+    /// A triangle mesh (glTF in scenes), charted by its own UVs when they do
+    /// not overlap, else a chart per triangle.
+    Mesh(std::sync::Arc<ObjectMesh>),
 }
 
 /// An object snow settles on: the `[[object]]` table of scene files.

@@ -46,7 +46,7 @@ pub struct ObjectStats {
 /// Depth above which a texel counts as covered (m).
 pub const COVERED_M: f32 = 0.001;
 
-/// Albedo and roughness of boxes (weathered wood) and spheres (granite).
+/// Albedo and roughness of boxes (weathered wood) and spheres and meshes (granite).
 const BOX_COLOUR: [f32; 4] = [0.30, 0.20, 0.12, 0.75];
 const SPHERE_COLOUR: [f32; 4] = [0.38, 0.37, 0.36, 0.6];
 
@@ -138,6 +138,12 @@ impl SnowAccumulation {
             }
         }
         let layout = AtlasLayout::new(objects, atlas_resolution, pixel_m)?;
+        for o in objects {
+            if let ObjectShape::Mesh(mesh) = &o.shape {
+                let how = if mesh.uvs_usable() { "its own UVs" } else { "a chart per triangle (its UVs are missing, outside the unit square or overlapping)" };
+                tracing::info!("object {:?}: {} triangles, charted by {how}", o.name, mesh.indices.len() / 3);
+            }
+        }
         let bake = layout.bake();
         let (vertices, indices, ranges) = layout.meshes(true);
         let (coarse_vertices, coarse_indices, _) = layout.meshes(false);
@@ -239,9 +245,10 @@ impl SnowAccumulation {
         self.objects
             .iter()
             .map(|o| {
-                let r = match o.shape {
+                let r = match &o.shape {
                     ObjectShape::Box { size_m } => 0.5 * size_m.length(),
-                    ObjectShape::Sphere { radius_m } => radius_m,
+                    ObjectShape::Sphere { radius_m } => *radius_m,
+                    ObjectShape::Mesh(mesh) => mesh.radius(),
                 };
                 o.position.y + r
             })
@@ -265,7 +272,7 @@ impl SnowAccumulation {
                     rotation: Mat4::from_quat(o.rotation).to_cols_array_2d(),
                     colour: match o.shape {
                         ObjectShape::Box { .. } => BOX_COLOUR,
-                        ObjectShape::Sphere { .. } => SPHERE_COLOUR,
+                        ObjectShape::Sphere { .. } | ObjectShape::Mesh(_) => SPHERE_COLOUR,
                     },
                     flags: [u32::from(o.dilate), 0, 0, 0],
                 }
