@@ -343,7 +343,8 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     close(&read::<f32>(ctx, &acc_buf), &acc, 1e-5, "settle", seed);
     let held = acc.iter().filter(|&&a| a > 0.0).count();
     let shed = owned.iter().filter(|&&k| acc[k] == 0.0).count();
-    assert!(held > owned.len() / 20 && shed > 0, "settle kept {held} of {} texels and shed {shed}; seed {seed}", owned.len());
+    // Not vacuous: some texels hold snow and some (steeper than repose) shed it.
+    assert!(held > 50 && shed > 50, "settle kept {held} of {} texels and shed {shed}; seed {seed}", owned.len());
 
     // Surface: dilation and Scharr slopes.
     let surface_buf = storage_with(ctx, "surface", &vec![0u8; texels * 16]);

@@ -3,8 +3,7 @@
 
 use glam::{Mat3, Mat4, Quat, Vec3};
 
-use super::pipeline::{render_pipeline, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
-use super::shadow::SHADOW_FORMAT;
+use super::pipeline::{lit_and_shadow, DrawSpec};
 use crate::shaders;
 use crate::Deformer;
 
@@ -140,33 +139,9 @@ impl ActorPass {
                 attributes: &INSTANCE_ATTRIBUTES,
             }),
         ];
-        let lit = render_pipeline(
+        let (lit, shadow) = lit_and_shadow(
             device,
-            &PipelineSpec {
-                label: "actors",
-                source: shaders::ACTOR_DRAW,
-                vertex: "vs_main",
-                fragment: Some(("fs_main", HDR_FORMAT)),
-                buffers: &buffers,
-                layouts: &[lit_layout],
-                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
-                bias: wgpu::DepthBiasState::default(),
-                cull: true,
-            },
-        );
-        let shadow = render_pipeline(
-            device,
-            &PipelineSpec {
-                label: "actor shadow",
-                source: shaders::ACTOR_DRAW,
-                vertex: "vs_shadow",
-                fragment: None,
-                buffers: &buffers,
-                layouts: &[shadow_layout],
-                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
-                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
-                cull: true,
-            },
+            &DrawSpec { label: "actors", source: shaders::ACTOR_DRAW, buffers: &buffers, lit_layouts: &[lit_layout], shadow_layouts: &[shadow_layout], cull: (true, true) },
         );
         Self {
             lit,

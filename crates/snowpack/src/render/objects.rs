@@ -1,8 +1,7 @@
 //! Accumulation objects drawn with their snow (`shaders/object_draw.wgsl`),
 //! lit like the snow and casting into the shadow map.
 
-use super::pipeline::{render_pipeline, storage_ro, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
-use super::shadow::SHADOW_FORMAT;
+use super::pipeline::{lit_and_shadow, storage_ro, DrawSpec};
 use crate::accumulate::{ObjectVertex, SnowAccumulation};
 use crate::gpu::layout;
 use crate::shaders;
@@ -36,33 +35,9 @@ impl ObjectDrawPass {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &ATTRIBUTES,
         })];
-        let lit = render_pipeline(
+        let (lit, shadow) = lit_and_shadow(
             device,
-            &PipelineSpec {
-                label: "objects",
-                source: shaders::OBJECT_DRAW,
-                vertex: "vs_main",
-                fragment: Some(("fs_main", HDR_FORMAT)),
-                buffers: &buffers,
-                layouts: &[lit_layout, &layout],
-                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
-                bias: wgpu::DepthBiasState::default(),
-                cull: true,
-            },
-        );
-        let shadow = render_pipeline(
-            device,
-            &PipelineSpec {
-                label: "object shadow",
-                source: shaders::OBJECT_DRAW,
-                vertex: "vs_shadow",
-                fragment: None,
-                buffers: &buffers,
-                layouts: &[shadow_layout, &layout],
-                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
-                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
-                cull: true,
-            },
+            &DrawSpec { label: "objects", source: shaders::OBJECT_DRAW, buffers: &buffers, lit_layouts: &[lit_layout, &layout], shadow_layouts: &[shadow_layout, &layout], cull: (true, true) },
         );
         let info = layout::uniform_buffer::<[u32; 4]>(device, "atlas info");
         Self { lit, shadow, layout, info, group: None, count: 0 }

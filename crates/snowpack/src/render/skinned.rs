@@ -2,8 +2,7 @@
 //! deformation posed this frame ([`crate::SnowDeformation::posed_meshes`]),
 //! drawn lit and into the shadow map.
 
-use super::pipeline::{render_pipeline, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
-use super::shadow::SHADOW_FORMAT;
+use super::pipeline::{lit_and_shadow, DrawSpec};
 use crate::shaders;
 use crate::skin::skinning::SkinnedInstance;
 
@@ -21,33 +20,9 @@ impl SkinnedDrawPass {
     pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout) -> Self {
         let buffers = [Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES })];
         // Exporters wind triangles either way; cull nothing (the shader faces normals to the eye).
-        let lit = render_pipeline(
+        let (lit, shadow) = lit_and_shadow(
             device,
-            &PipelineSpec {
-                label: "skinned",
-                source: shaders::SKINNED_DRAW,
-                vertex: "vs_main",
-                fragment: Some(("fs_main", HDR_FORMAT)),
-                buffers: &buffers,
-                layouts: &[lit_layout],
-                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
-                bias: wgpu::DepthBiasState::default(),
-                cull: false,
-            },
-        );
-        let shadow = render_pipeline(
-            device,
-            &PipelineSpec {
-                label: "skinned shadow",
-                source: shaders::SKINNED_DRAW,
-                vertex: "vs_shadow",
-                fragment: None,
-                buffers: &buffers,
-                layouts: &[shadow_layout],
-                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
-                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
-                cull: false,
-            },
+            &DrawSpec { label: "skinned", source: shaders::SKINNED_DRAW, buffers: &buffers, lit_layouts: &[lit_layout], shadow_layouts: &[shadow_layout], cull: (false, false) },
         );
         Self { lit, shadow }
     }

@@ -3,8 +3,7 @@
 //! depth-only into the shadow map.
 
 use super::lod::PatchInstance;
-use super::pipeline::{render_pipeline, storage_ro, texture, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
-use super::shadow::SHADOW_FORMAT;
+use super::pipeline::{lit_and_shadow, storage_ro, texture, DrawSpec};
 use crate::shaders;
 
 /// Index list of a `quads`² grid of `(quads + 1)²` vertices numbered row by row.
@@ -92,33 +91,16 @@ impl TerrainPass {
             step_mode: wgpu::VertexStepMode::Instance,
             attributes: &INSTANCE_ATTRIBUTES,
         })];
-        let lit = render_pipeline(
+        // The terrain is a height field: its back faces never face the sun, so the shadow pass culls nothing.
+        let (lit, shadow) = lit_and_shadow(
             device,
-            &PipelineSpec {
+            &DrawSpec {
                 label: "terrain",
                 source: shaders::TERRAIN_DRAW,
-                vertex: "vs_main",
-                fragment: Some(("fs_main", HDR_FORMAT)),
                 buffers: &buffers,
-                layouts: &[lit_layout, &snow_layout],
-                depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
-                bias: wgpu::DepthBiasState::default(),
-                cull: true,
-            },
-        );
-        let shadow = render_pipeline(
-            device,
-            &PipelineSpec {
-                label: "terrain shadow",
-                source: shaders::TERRAIN_DRAW,
-                vertex: "vs_shadow",
-                fragment: None,
-                buffers: &buffers,
-                layouts: &[shadow_layout, &snow_layout],
-                depth: Some((SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
-                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
-                // The terrain is a height field: its back faces never face the sun.
-                cull: false,
+                lit_layouts: &[lit_layout, &snow_layout],
+                shadow_layouts: &[shadow_layout, &snow_layout],
+                cull: (true, false),
             },
         );
         let index_buffer = |label: &str, q: u32| {
