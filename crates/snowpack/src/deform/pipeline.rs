@@ -442,7 +442,9 @@ impl SnowDeformation {
             },
             &rects,
         );
-        // Snowfall: this frame's depth on open ground, and what the sky sees.
+        // Snowfall: this frame's depth on open ground, and what the sky sees
+        // (drawn while the snowfall is set, even at rate 0, so refill stays
+        // out of shelter too).
         let snowfall = p.snowfall.clone();
         let fall_m = snowfall.as_ref().map_or(0.0, |s| s.rate_m_per_s * dt_s.max(0.0));
         let (tmin, tmax) = self.terrain.height_bounds();
@@ -450,7 +452,7 @@ impl SnowDeformation {
             acc.upload_poses(queue, corner);
         }
         let sky = match (&snowfall, &mut self.accumulation) {
-            (Some(s), Some(acc)) if fall_m > 0.0 => {
+            (Some(s), Some(acc)) => {
                 Some(acc.record_occlusion(queue, encoder, &mut self.timer, s, p.extent_m, (tmin, tmax + p.depth_m + self.fallen_total_m)))
             }
             _ => None,
