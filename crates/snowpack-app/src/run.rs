@@ -132,6 +132,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let start = Instant::now();
     for frame in 0..frames {
         snow.set_center(window_center(scene, &world));
+        let t = frame as f32 * scene.sim.dt_s;
+        for (k, o) in scene.objects.iter().enumerate() {
+            let (position, rotation) = o.pose_at(t);
+            snow.set_object_pose(k, position, rotation);
+        }
         let characters = world.characters();
         snow.step_posed(&ctx, &world.deformers(), &poses(&skins, &characters), scene.sim.dt_s)
             .with_context(|| format!("GPU frame {frame}"))?;

@@ -826,7 +826,34 @@ dt_s = 0.05
     }
     assert!(under > 100 && open > 5000, "{under} texels under the table, {open} in the open");
     // And a direction that does not fall is bad input.
+    expect_bad_input("bad-spin", "[[object]]\nname = \"s\"\nspin_deg_per_s = [0, nan, 0]\n", "spin_deg_per_s");
     expect_bad_input("upward-snow", "[snowfall]\ndirection = [0.0, 1.0, 0.0]\n", "direction");
+}
+
+#[test]
+fn objects_carry_their_snow_as_they_move_and_shed_it_when_turned_over() {
+    if !gpu_available() {
+        return;
+    }
+    // 2 s of snow at 1 cm/s. One slab slides 2 m and spins about y (its top
+    // stays up, so it keeps all its snow); one rolls about x at 90 degrees a
+    // second (its first top faces down halfway through and sheds); one stays.
+    let slab = |name: &str, x: f32, extra: &str| {
+        format!("[[object]]\nname = \"{name}\"\nkind = \"box\"\nposition = [{x}, 1.5, 0.0]\nsize_m = [1.0, 0.1, 1.0]\n{extra}\n")
+    };
+    let scene = format!(
+        "[snow]\nextent_m = 12.0\nresolution = 96\ndepth_m = 0.2\n[terrain]\nkind = \"flat\"\n[snowfall]\nrate_m_per_s = 0.01\nflutter_deg = 0.0\nnoise = 0.0\natlas_resolution = 256\n{}{}{}[sim]\nframes = 40\ndt_s = 0.05\n",
+        slab("still", -3.0, ""),
+        slab("carried", 0.0, "velocity = [0.0, 0.0, 1.0]\nspin_deg_per_s = [0.0, 90.0, 0.0]"),
+        slab("rolled", 3.0, "spin_deg_per_s = [90.0, 0.0, 0.0]"),
+    );
+    let run = run_scene("moving-objects", &scene, &[]);
+    let mean = |name: &str| run.meta["objects"][name]["mean_m"].as_f64().unwrap_or_else(|| panic!("{name}: {}", run.meta["objects"]));
+    let still = mean("still");
+    assert!((still - 0.02).abs() < 0.002, "still: {still}");
+    assert!((mean("carried") - still).abs() < 0.1 * still, "carried {} against still {still}", mean("carried"));
+    // Rolled 180 degrees: what faces up now only had the last part of the snow.
+    assert!(mean("rolled") < 0.5 * still, "rolled {} against still {still}", mean("rolled"));
 }
 
 #[test]

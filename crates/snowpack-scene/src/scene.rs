@@ -231,9 +231,23 @@ pub struct ObjectSpec {
     pub dilate: bool,
     /// The triangle mesh of a `gltf` object (its file, `scale` applied).
     pub mesh: Option<Arc<snowpack::accumulate::ObjectMesh>>,
+    /// Constant velocity (m/s); its snow goes with it.
+    pub velocity: Vec3,
+    /// Constant turn about its own x, y and z axes (degrees per second).
+    pub spin_deg_per_s: Vec3,
 }
 
 impl ObjectSpec {
+    /// Where the object is and how it is turned `t_s` seconds into the run.
+    #[must_use]
+    pub fn pose_at(&self, t_s: f32) -> (Vec3, glam::Quat) {
+        let r = self.rotation_deg * (std::f32::consts::PI / 180.0);
+        let spin = self.spin_deg_per_s * (std::f32::consts::PI / 180.0) * t_s;
+        let start = glam::Quat::from_euler(glam::EulerRot::XYZ, r.x, r.y, r.z);
+        // The spin is about the object's own axes, after its starting rotation.
+        (self.position + self.velocity * t_s, start * glam::Quat::from_scaled_axis(spin))
+    }
+
     /// The library's description of this object.
     #[must_use]
     pub fn object(&self) -> snowpack::accumulate::SnowObject {
@@ -521,8 +535,10 @@ impl Scene {
             }
             let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
             let dilate = o.bool("dilate", true)?;
+            let velocity = o.vec3("velocity", Vec3::ZERO)?;
+            let spin_deg_per_s = o.vec3("spin_deg_per_s", Vec3::ZERO)?;
             o.finish()?;
-            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate, mesh });
+            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate, mesh, velocity, spin_deg_per_s });
         }
 
         // [snowfall]
@@ -660,6 +676,9 @@ impl Scene {
         }
         for o in &self.objects {
             let _ = writeln!(s, "object {:?}: {} at {} size {} m, rotated {} deg{}", o.name, o.kind, o.position, o.size_m, o.rotation_deg, if o.dilate { "" } else { ", not dilated" });
+            if o.velocity != Vec3::ZERO || o.spin_deg_per_s != Vec3::ZERO {
+                let _ = writeln!(s, "  moving at {} m/s, turning {} deg/s", o.velocity, o.spin_deg_per_s);
+            }
         }
         if let Some(f) = &self.snowfall {
             let _ = writeln!(

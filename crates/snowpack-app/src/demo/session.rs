@@ -316,6 +316,11 @@ impl Session {
             self.player.position = p;
         }
         self.snow.set_center(self.window_center(camera));
+        let t = self.frames as f32 * dt;
+        for (k, o) in self.scene.objects.iter().enumerate() {
+            let (position, rotation) = o.pose_at(t);
+            self.snow.set_object_pose(k, position, rotation);
+        }
         let deformers = self.deformers();
         let characters = self.world.characters();
         let poses = crate::run::poses(&self.skins, &characters);
