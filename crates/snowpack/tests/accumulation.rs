@@ -388,7 +388,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let objects = random_objects(&mut rng, 8, extent);
     let mut acc = SnowAccumulation::new(&ctx.device, &objects, 64, params.resolution, params.texel_m()).expect("objects");
     let mut update = UpdatePass::new(&ctx.device, &res);
-    update.bind_sky(&ctx.device, &res, acc.sky_view());
+    update.bind_sky(&ctx.device, &res, Some(acc.sky_view()));
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     acc.upload_poses(&ctx.queue, DVec2::ZERO);

@@ -472,7 +472,7 @@ fn mesh_vertices(c: &Chart, m: &ChartedMesh, vertices: &mut Vec<ObjectVertex>, i
     let base = vertices.len() as u32;
     let [x0, y0, w, h] = c.rect;
     let chart = [x0 as f32, y0 as f32, (x0 + w) as f32, (y0 + h) as f32];
-    let mut tangents = vec![(Vec3::ZERO, Vec3::ZERO); m.positions.len()];
+    let mut tangents = vec![(Vec3::ZERO, Vec3::ZERO, 0u32); m.positions.len()];
     for t in m.indices.chunks_exact(3) {
         let [ia, ib, ic] = [0, 1, 2].map(|k| t[k] as usize);
         let (e1, e2) = (m.positions[ib] - m.positions[ia], m.positions[ic] - m.positions[ia]);
@@ -486,10 +486,11 @@ fn mesh_vertices(c: &Chart, m: &ChartedMesh, vertices: &mut Vec<ObjectVertex>, i
         for k in [ia, ib, ic] {
             tangents[k].0 += tx;
             tangents[k].1 += ty;
+            tangents[k].2 += 1;
         }
     }
     for (k, p) in m.positions.iter().enumerate() {
-        let count = m.indices.iter().filter(|&&i| i as usize == k).count().max(1) as f32;
+        let count = tangents[k].2.max(1) as f32;
         vertices.push(ObjectVertex {
             position: p.to_array(),
             normal: m.normals[k].to_array(),

@@ -126,6 +126,8 @@ pub struct SnowAccumulation {
     rng: u64,
     frame: u32,
     window_resolution: u32,
+    /// Whether the increment buffer may hold non-zero values (the last frame scattered).
+    fresh_dirty: bool,
 }
 
 impl SnowAccumulation {
@@ -186,6 +188,7 @@ impl SnowAccumulation {
             rng: 0x5eed_0f5a,
             frame: 0,
             window_resolution,
+            fresh_dirty: false,
         })
     }
 
@@ -316,9 +319,14 @@ impl SnowAccumulation {
             );
             self.frame = self.frame.wrapping_add(1);
         }
-        // Without snow the increment is zero, and it still clears the hits once.
+        // Without snow the increment is zero: written once after the last
+        // scatter (which also clears its hits), then left as it is.
         let rows = self.layout.used_rows();
-        self.increment.record(queue, encoder, timer, rows, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
+        let scattered = fall_volume_m3 > 0.0;
+        if scattered || self.fresh_dirty {
+            self.increment.record(queue, encoder, timer, rows, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
+        }
+        self.fresh_dirty = scattered;
         self.settle.record(queue, encoder, timer, rows, &settle_params(snowfall, n, dt_s));
         self.surface_pass.record(queue, encoder, timer, rows, &SurfaceParams { atlas_resolution: n, _pad: [0; 3] });
     }

@@ -184,12 +184,12 @@ impl SnowDeformation {
     pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), SnowError> {
         if objects.is_empty() {
             self.accumulation = None;
-            self.update_pass = UpdatePass::new(&ctx.device, &self.res);
+            self.update_pass.bind_sky(&ctx.device, &self.res, None);
             return Ok(());
         }
         let atlas = self.params.snowfall.as_ref().map_or(Snowfall::default().atlas_resolution, |s| s.atlas_resolution);
         let acc = SnowAccumulation::new(&ctx.device, objects, atlas, self.params.resolution, self.params.texel_m())?;
-        self.update_pass.bind_sky(&ctx.device, &self.res, acc.sky_view());
+        self.update_pass.bind_sky(&ctx.device, &self.res, Some(acc.sky_view()));
         self.accumulation = Some(acc);
         ctx.check("creating the accumulation passes")
     }

@@ -66,7 +66,7 @@ pub struct UpdatePass {
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
-    _no_sky: wgpu::TextureView,
+    no_sky: wgpu::TextureView,
 }
 
 /// A depth texture bindable where the update pass reads the occlusion depth.
@@ -105,7 +105,7 @@ impl UpdatePass {
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = Self::group(device, &layout, &params, res, &no_sky);
-        Self { pipeline, layout, params, bind_group, _no_sky: no_sky }
+        Self { pipeline, layout, params, bind_group, no_sky }
     }
 
     fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, res: &DeformResources, sky: &wgpu::TextureView) -> wgpu::BindGroup {
@@ -125,9 +125,10 @@ impl UpdatePass {
         )
     }
 
-    /// Binds the occlusion depth `sky` (of the window's resolution) for `USE_SKY`.
-    pub fn bind_sky(&mut self, device: &wgpu::Device, res: &DeformResources, sky: &wgpu::TextureView) {
-        self.bind_group = Self::group(device, &self.layout, &self.params, res, sky);
+    /// Binds the occlusion depth `sky` (of the window's resolution) for
+    /// `USE_SKY`, or none again.
+    pub fn bind_sky(&mut self, device: &wgpu::Device, res: &DeformResources, sky: Option<&wgpu::TextureView>) {
+        self.bind_group = Self::group(device, &self.layout, &self.params, res, sky.unwrap_or(&self.no_sky));
     }
 
     /// Records the update for this frame.

@@ -17,7 +17,9 @@ pub struct ObjectDrawPass {
     shadow: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
     info: wgpu::Buffer,
-    group: Option<wgpu::BindGroup>,
+    /// The bind group and the object buffer it was made for (a new
+    /// accumulation brings new buffers; the same one is bound frame after frame).
+    group: Option<(wgpu::Buffer, wgpu::BindGroup)>,
     count: u32,
 }
 
@@ -45,21 +47,26 @@ impl ObjectDrawPass {
 
     /// Binds this frame's objects (none when `acc` is `None`).
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, acc: Option<&SnowAccumulation>) {
-        self.count = 0;
-        self.group = None;
-        let Some(acc) = acc else { return };
-        queue.write_buffer(&self.info, 0, bytemuck::bytes_of(&[acc.layout().resolution, 0, 0, 0]));
-        self.group = Some(layout::bind_group(
-            device,
-            "objects",
-            &self.layout,
-            &[acc.object_buffer.as_entire_binding(), acc.surface.as_entire_binding(), self.info.as_entire_binding()],
-        ));
+        let Some(acc) = acc else {
+            self.count = 0;
+            self.group = None;
+            return;
+        };
+        if self.group.as_ref().is_none_or(|(buffer, _)| *buffer != acc.object_buffer) {
+            queue.write_buffer(&self.info, 0, bytemuck::bytes_of(&[acc.layout().resolution, 0, 0, 0]));
+            let group = layout::bind_group(
+                device,
+                "objects",
+                &self.layout,
+                &[acc.object_buffer.as_entire_binding(), acc.surface.as_entire_binding(), self.info.as_entire_binding()],
+            );
+            self.group = Some((acc.object_buffer.clone(), group));
+        }
         self.count = acc.index_count();
     }
 
     fn draw(&self, pass: &mut wgpu::RenderPass<'_>, pipeline: &wgpu::RenderPipeline, frame: &wgpu::BindGroup, acc: &SnowAccumulation) {
-        let Some(group) = &self.group else { return };
+        let Some((_, group)) = &self.group else { return };
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, frame, &[]);
         pass.set_bind_group(1, group, &[]);
