@@ -32,6 +32,9 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("SETTLE", &["shared/objects.wgsl", "settle.wgsl"]),
     ("ATLAS_SURFACE", &["shared/objects.wgsl", "atlas_surface.wgsl"]),
     ("OBJECT_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/objects.wgsl", "object_draw.wgsl"]),
+    ("EXCHANGE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "exchange.wgsl"]),
+    ("TILE_RESTORE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "tile_restore.wgsl"]),
+    ("TILE_WEATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "tile_weather.wgsl"]),
     ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
 ];
 

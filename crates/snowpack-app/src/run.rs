@@ -127,6 +127,10 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         }
         other => other.context("placing the [[object]]s")?,
     }
+    let resumed = match &scene.store {
+        Some(spec) => attach_store(&ctx, &mut snow, scene, spec, &opts.out)?,
+        None => false,
+    };
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
     let start = Instant::now();
@@ -154,6 +158,12 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     }
     snow.finish(&ctx)?;
     let wall_s = start.elapsed().as_secs_f64();
+    if scene.store.as_ref().is_some_and(|spec| spec.save) {
+        snow.save(&ctx).context("saving the snow into [store]")?;
+    }
+    for e in snow.take_store_errors() {
+        tracing::warn!("tile store: {e}");
+    }
 
     let res = scene.snow.resolution as usize;
     let snow_h = snow.read_snow(&ctx)?;
@@ -192,6 +202,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "timings_ms": timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
         "objects": object_meta(&snow, accumulation.as_ref().map(|(stats, _)| stats.as_slice())),
         "fallen_m": snow.fallen_m(),
+        "store": store_meta(&snow, resumed),
         "render": {
             "size": [width, height],
             "patches": stats.patches,
@@ -234,6 +245,43 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()),
         frames,
         wall_s,
+    })
+}
+
+/// Opens `[store]` and attaches it; a store that cannot be opened is bad input.
+fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene, spec: &snowpack_scene::StoreSpec, out: &std::path::Path) -> anyhow::Result<bool> {
+    use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+    const MIB: f64 = 1024.0 * 1024.0;
+    let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
+    let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
+    let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| BadInput(format!("{}: [store].path: {e}", scene.path.display())))?;
+    let streamer = TileStreamer::new(store, StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize });
+    match snow.attach_store(ctx, streamer) {
+        Err(snowpack::SnowError::Store(e)) => Err(BadInput(format!("{}: [store].path: {e}", scene.path.display())).into()),
+        Err(snowpack::SnowError::InvalidParameter { field, why }) => Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into()),
+        other => other.context("attaching the tile store"),
+    }
+}
+
+/// `meta.json`'s `store`: tile traffic and the store's figures (null without a store).
+fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
+    let Some(t) = snow.tile_stats() else { return serde_json::Value::Null };
+    serde_json::json!({
+        "resumed": resumed,
+        "time_s": snow.clock().time_s,
+        "resident_tiles": t.resident,
+        "restored_tiles": t.restored,
+        "fresh_tiles": t.fresh,
+        "evicted_tiles": t.evicted,
+        "window_waits": t.window_waits,
+        "memory_tiles": t.store.memory_tiles,
+        "memory_bytes": t.store.memory_bytes,
+        "disk_tiles": t.store.disk_tiles,
+        "disk_bytes": t.store.disk_bytes,
+        "bytes_written": t.store.bytes_written,
+        "hit_rate": t.store.hit_rate(),
+        "errors": t.store.errors,
+        "corrupt": t.store.corrupt,
     })
 }
 

@@ -338,6 +338,29 @@ impl RenderSpec {
     }
 }
 
+/// `[store]`: keep trails in a tile store when the window moves on (open worlds).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StoreSpec {
+    /// Store folder; relative paths resolve against the scene's folder.
+    /// `None`: `store/` inside the run's output folder. A save found there
+    /// (window position, clock) is loaded when the run starts.
+    pub path: Option<PathBuf>,
+    /// Tile side (texels): a power of two in 16..=256 dividing the resolution.
+    pub tile_texels: u32,
+    /// Memory cache of decoded tiles (MiB).
+    pub memory_mb: f32,
+    /// Disk budget (MiB); 0 = unlimited. The least recently touched tiles go first.
+    pub disk_mb: f32,
+    /// Save the whole state into the store at the end of a run.
+    pub save: bool,
+}
+
+impl Default for StoreSpec {
+    fn default() -> Self {
+        Self { path: None, tile_texels: 64, memory_mb: 64.0, disk_mb: 0.0, save: true }
+    }
+}
+
 /// A parsed, validated scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -357,6 +380,8 @@ pub struct Scene {
     pub objects: Vec<ObjectSpec>,
     /// `[snowfall]`, if present.
     pub snowfall: Option<SnowfallSpec>,
+    /// `[store]`, if present.
+    pub store: Option<StoreSpec>,
     /// `[sim]`.
     pub sim: SimSpec,
     /// `[camera]`.
@@ -568,6 +593,26 @@ impl Scene {
             }
         };
 
+        // [store]
+        let store = match root.table("store")? {
+            None => None,
+            Some(mut t) => {
+                let d = StoreSpec::default();
+                let spec = StoreSpec {
+                    path: t.string_opt("path")?.map(|p| base_dir.join(p)),
+                    tile_texels: t.u32_in("tile_texels", d.tile_texels, 16..=256)?,
+                    memory_mb: t.non_negative("memory_mb", d.memory_mb, " of MiB")?,
+                    disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
+                    save: t.bool("save", d.save)?,
+                };
+                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::deform::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
+                    return Err(t.err("tile_texels", why));
+                }
+                t.finish()?;
+                Some(spec)
+            }
+        };
+
         // [sim]
         let sim = match root.table("sim")? {
             None => SimSpec { frames: 120, dt_s: 1.0 / 60.0 },
@@ -613,6 +658,7 @@ impl Scene {
             spawns,
             objects,
             snowfall,
+            store,
             sim,
             camera,
             render,
@@ -686,6 +732,11 @@ impl Scene {
                 "snowfall: direction {}, {} m/s, flutter {} deg, noise {}, repose {} deg, falloff {}/s, at most {} m, atlas {}²",
                 f.direction, f.rate_m_per_s, f.flutter_deg, f.noise, f.repose_deg, f.falloff_per_s, f.max_m, f.atlas_resolution
             );
+        }
+        if let Some(t) = &self.store {
+            let at = t.path.as_ref().map_or("store/ in the output folder".to_owned(), |p| p.display().to_string());
+            let disk = if t.disk_mb > 0.0 { format!("{} MiB", t.disk_mb) } else { "unlimited".to_owned() };
+            let _ = writeln!(s, "store: {at}, tiles of {}², memory {} MiB, disk {disk}, save at the end {}", t.tile_texels, t.memory_mb, t.save);
         }
         let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
         let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);

@@ -50,4 +50,7 @@ pub enum SnowError {
     /// The adapter lacks something the renderer needs.
     #[error("the adapter cannot run the renderer: {0}")]
     Unsupported(String),
+    /// Saving or loading snow tiles failed (the error names the file).
+    #[error("tile store: {0}")]
+    Store(#[from] crate::persist::StoreError),
 }

@@ -10,6 +10,7 @@ pub mod cpu;
 pub mod deform;
 pub mod error;
 pub mod gpu;
+pub mod persist;
 pub mod render;
 pub mod shaders;
 pub mod skin;

@@ -5,6 +5,7 @@ use glam::DVec2;
 use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
+use crate::persist::{SnowClock, StoreError, TileStreamer};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
@@ -15,7 +16,9 @@ use super::normals::{unpack_surface, NormalPass};
 use super::query::SnowSnapshot;
 use super::resources::DeformResources;
 use super::rim::{RimParams, RimPass};
+use super::saved::{SavedWindow, STATE_NAME};
 use super::stamp::{contact_points, StampParams, StampPass};
+use super::tiles::{TileFrame, TileStats, TileStreaming};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
 
@@ -82,6 +85,12 @@ pub struct SnowDeformation {
     accumulation: Option<SnowAccumulation>,
     /// Snowfall so far on open ground (m), given to texels the window exposes.
     fallen_total_m: f32,
+    /// Time, refill and snowfall so far: what a tile away from the window missed.
+    clock: SnowClock,
+    /// The tile store and the resident tiles, when attached.
+    tiles: Option<TileStreaming>,
+    /// World (x, z) that deformer and object positions are relative to (f64).
+    floating_origin: DVec2,
 }
 
 /// A skinned mesh registered with [`SnowDeformation::add_skinned_mesh`].
@@ -156,6 +165,9 @@ impl SnowDeformation {
             posed: Vec::new(),
             accumulation: None,
             fallen_total_m: 0.0,
+            clock: SnowClock::default(),
+            tiles: None,
+            floating_origin: DVec2::ZERO,
         };
         ctx.check("creating the deformation passes")?;
         Ok(this)
@@ -235,6 +247,112 @@ impl SnowDeformation {
     #[must_use]
     pub fn fallen_m(&self) -> f32 {
         self.fallen_total_m
+    }
+
+    /// Attaches a tile store: from now on texels leaving the window are kept
+    /// (in memory, then on disk through `streamer`) and come back when the
+    /// window returns, brought up to the time then. Call before the first
+    /// frame. When the store holds a save ([`Self::save`]), the window's
+    /// clock, snowfall and position are loaded from it and `true` returned.
+    pub fn attach_store(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, SnowError> {
+        if self.frame > 0 || self.tiles.is_some() {
+            return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() });
+        }
+        let side = streamer.side();
+        let saved = match streamer.read_state(STATE_NAME)? {
+            Some(bytes) => Some(SavedWindow::decode(&bytes, &streamer.dir().join(STATE_NAME))?),
+            None => None,
+        };
+        let (low, high, _) = self.stamp_range();
+        if let Some(s) = &saved {
+            let path = streamer.dir().join(STATE_NAME);
+            let mismatch = |why: String| SnowError::Store(StoreError::Mismatch { path: path.clone(), why });
+            if s.resolution != self.params.resolution || s.tile_side != side {
+                return Err(mismatch(format!("saved with resolution {} and tiles of {}, the window has {} and {side}", s.resolution, s.tile_side, self.params.resolution)));
+            }
+            if s.texel_m != self.params.texel_m() || s.depth_m != self.params.depth_m || s.stamp_range_m != [low, high] {
+                return Err(mismatch(format!(
+                    "saved with texel {} m, depth {} m, footprint range {:?}; the window has {} m, {} m, {:?} (extent_m, depth_m, terrain or snowfall max_m changed)",
+                    s.texel_m, s.depth_m, s.stamp_range_m, self.params.texel_m(), self.params.depth_m, [low, high]
+                )));
+            }
+        }
+        self.tiles = Some(TileStreaming::new(ctx, &self.res, streamer)?);
+        if let Some(s) = saved {
+            self.clock = s.clock;
+            self.fallen_total_m = s.fallen_m;
+            self.stamp_refill_carry_m = s.stamp_carry_m;
+            self.center = s.center;
+            return Ok(true);
+        }
+        Ok(false)
+    }
+
+    /// Saves the whole snow state into the attached store: every tile (the
+    /// window's texels included) and the window's clock and position; when
+    /// it returns `Ok`, the store directory is a complete save that
+    /// [`Self::attach_store`] loads. Blocking (a save point, not a frame).
+    pub fn save(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
+        let (low, high, _) = self.stamp_range();
+        let origin = self.window.origin();
+        let Some(tiles) = &mut self.tiles else {
+            return Err(SnowError::InvalidParameter { field: "store", why: "saving needs a tile store (attach_store)".into() });
+        };
+        if let Some(origin) = origin {
+            tiles.checkpoint(ctx, &self.res, origin, self.clock, self.params.snowfall.is_some())?;
+        }
+        let state = SavedWindow {
+            resolution: self.params.resolution,
+            tile_side: tiles.grid().side(),
+            texel_m: self.params.texel_m(),
+            depth_m: self.params.depth_m,
+            stamp_range_m: [low, high],
+            origin: origin.unwrap_or_default(),
+            center: self.center,
+            clock: self.clock,
+            fallen_m: self.fallen_total_m,
+            stamp_carry_m: self.stamp_refill_carry_m,
+            frame: self.frame,
+        };
+        let streamer = tiles.streamer();
+        streamer.flush()?;
+        // The state goes last: a save is complete once it is there.
+        streamer.write_state(STATE_NAME, state.encode())?;
+        Ok(())
+    }
+
+    /// Tile traffic and store figures, when a store is attached.
+    #[must_use]
+    pub fn tile_stats(&self) -> Option<TileStats> {
+        self.tiles.as_ref().map(TileStreaming::stats)
+    }
+
+    /// Store errors since the last call (disk full, read-only, corrupt tiles
+    /// replaced by fresh snow): the frame goes on; the game decides what to tell.
+    pub fn take_store_errors(&mut self) -> Vec<StoreError> {
+        self.tiles.as_mut().map(TileStreaming::take_errors).unwrap_or_default()
+    }
+
+    /// Time, refill and snowfall so far.
+    #[must_use]
+    pub fn clock(&self) -> SnowClock {
+        self.clock
+    }
+
+    /// Sets the world (x, z) that deformer and object positions are given
+    /// relative to, for worlds far from the origin: f32 positions keep
+    /// millimetres only within a few kilometres, so a game 100 km out passes
+    /// positions relative to a nearby floating origin, and the window and
+    /// tiles, on integer texels, stay exact. The window centre stays in world
+    /// coordinates (f64).
+    pub fn set_floating_origin(&mut self, origin: DVec2) {
+        self.floating_origin = origin;
+    }
+
+    /// The floating origin (world m).
+    #[must_use]
+    pub fn floating_origin(&self) -> DVec2 {
+        self.floating_origin
     }
 
     /// Sets the refill rate (m/s); takes effect next frame.
@@ -416,32 +534,52 @@ impl SnowDeformation {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
         let texel = f64::from(p.texel_m());
-        let origin = self.window.snapped_origin(self.center.x, self.center.y, texel);
+        let desired = self.window.snapped_origin(self.center.x, self.center.y, texel);
+        let old = self.window.origin();
+        // With a store, the window may wait for tiles still loading.
+        let origin = match &mut self.tiles {
+            Some(tiles) => tiles.plan(ctx, old, desired),
+            None => desired,
+        };
         let rects = self.window.move_to(origin);
         self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
         // Window and tile coordinates stay in i64 on the CPU; the GPU needs only
         // i32 (about 134,000 km of texels at 6.25 cm).
         let origin_i32 = [origin[0] as i32, origin[1] as i32];
-        let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel);
+        // Deformers and objects are relative to the floating origin; so is the corner they are placed against.
+        let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel) - self.floating_origin;
 
         if begin_timer {
             self.timer.begin_frame();
         }
-        self.window_pass.record(
-            queue,
-            encoder,
-            &mut self.timer,
-            WindowParams {
-                origin: origin_i32,
-                resolution: p.resolution,
-                texel_m: p.texel_m(),
-                depth_m: p.depth_m,
-                fallen_m: self.fallen_total_m,
-                flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 },
-                ..WindowParams::default()
-            },
-            &rects,
-        );
+        let tile_frame = TileFrame {
+            depth_m: p.depth_m,
+            texel_m: p.texel_m(),
+            fallen_m: self.fallen_total_m,
+            max_fallen_m: p.snowfall.as_ref().map_or(0.0, |s| s.max_m),
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            use_fallen: p.snowfall.is_some(),
+        };
+        if let Some(tiles) = &mut self.tiles {
+            tiles.record_move(ctx, encoder, &mut self.timer, &self.res, (old, origin, &rects), &tile_frame, self.clock);
+        } else {
+            self.window_pass.record(
+                queue,
+                encoder,
+                &mut self.timer,
+                WindowParams {
+                    origin: origin_i32,
+                    resolution: p.resolution,
+                    texel_m: p.texel_m(),
+                    depth_m: p.depth_m,
+                    fallen_m: self.fallen_total_m,
+                    flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 },
+                    ..WindowParams::default()
+                },
+                &rects,
+            );
+        }
         // Snowfall: this frame's depth on open ground, and what the sky sees
         // (drawn while the snowfall is set, even at rate 0, so refill stays
         // out of shelter too).
@@ -514,6 +652,14 @@ impl SnowDeformation {
                 _pad: 0,
             },
         );
+        let refill_m = p.refill_m_per_s * dt_s.max(0.0);
+        if let Some(tiles) = &self.tiles {
+            tiles.record_weather(queue, encoder, &mut self.timer, origin, &tile_frame, (refill_m, fall_m), refill_quanta as u32);
+        }
+        self.clock.time_s += f64::from(dt_s.max(0.0));
+        self.clock.refill_m += f64::from(refill_m);
+        self.clock.fallen_m += f64::from(fall_m);
+        self.clock.stamp_quanta += refill_quanta as u64;
         self.fallen_total_m = (self.fallen_total_m + fall_m).min(max_fallen_m);
         self.rim_pass.record(
             queue,
@@ -558,6 +704,9 @@ impl SnowDeformation {
     /// arrived (snapshots and timings), without waiting.
     pub fn after_submit(&mut self, ctx: &GpuContext) {
         self.readback.after_submit();
+        if let Some(tiles) = &mut self.tiles {
+            tiles.after_submit();
+        }
         self.timer.after_submit();
         // A non-blocking poll runs mapping callbacks that are due; an error
         // here surfaces through `ctx.check` as well.

@@ -84,6 +84,12 @@ impl GpuTimer {
         }
     }
 
+    /// A timer that records nothing (for one-off work outside the frame loop).
+    #[must_use]
+    pub fn disabled() -> Self {
+        Self { query_set: None, resolve: None, ring: None, labels: Vec::new(), order: Vec::new(), period_ns: 1.0, samples: BTreeMap::new() }
+    }
+
     /// Whether timestamps are recorded.
     #[must_use]
     pub fn enabled(&self) -> bool {

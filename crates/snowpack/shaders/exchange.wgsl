@@ -1,0 +1,78 @@
+// Exchange pass: moves texels between the sliding window and the resident
+// tiles when the window moves (with a tile store attached). `stash` copies
+// the texels about to be overwritten (the old window's, at the storage the
+// newly exposed texels take) into their tiles; `load` fills the newly
+// exposed texels from theirs. Two dispatches, stash first, so a long jump
+// whose old and new tiles share slots stays correct (the slots' old tiles
+// are copied out for the store between them). CPU twin: src/cpu/exchange.rs.
+
+struct ExchangeParams {
+    origin: vec2<i32>,      // the window's origin after the move
+    old_origin: vec2<i32>,  // before it (stash only)
+    resolution: u32,
+    side: u32,              // tile side (texels)
+    slots_per_side: u32,
+    flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use)
+    rect_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    rects: array<vec4<u32>, 2>, // exposed window-local (row0, col0, rows, cols)
+}
+
+const STASH: u32 = 1u;
+const USE_FALLEN: u32 = 2u;
+
+@group(0) @binding(0) var<uniform> params: ExchangeParams;
+@group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
+@group(0) @binding(2) var<storage, read_write> terrain: array<f32>;
+@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
+
+const WORKGROUP: u32 = 256u;
+
+@compute @workgroup_size(256)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    var k = gid.x + gid.y * groups.x * WORKGROUP;
+    let r0 = params.rects[0];
+    var rect = r0;
+    if k >= r0.z * r0.w {
+        if params.rect_count < 2u {
+            return;
+        }
+        k -= r0.z * r0.w;
+        rect = params.rects[1];
+        if k >= rect.z * rect.w {
+            return;
+        }
+    }
+    let i = rect.x + k / rect.w;
+    let j = rect.y + k % rect.w;
+    let res = i32(params.resolution);
+    let s = storage_index(params.origin, params.resolution, i, j);
+    let use_fallen = (params.flags & USE_FALLEN) != 0u;
+    let n = params.slots_per_side;
+    let side = params.side;
+    if (params.flags & STASH) != 0u {
+        // The old window's texel at this storage: congruent to it, inside the old window.
+        let sj = i32(s % params.resolution);
+        let si = i32(s / params.resolution);
+        let o = params.old_origin;
+        let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
+        tiles[tile_index(g, side, n, PLANE_SNOW)] = bitcast<u32>(snow[s]);
+        tiles[tile_index(g, side, n, PLANE_STAMPS)] = stamps[s];
+        tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(terrain[s]);
+        if use_fallen {
+            tiles[tile_index(g, side, n, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
+        }
+    } else {
+        let g = params.origin + vec2<i32>(i32(j), i32(i));
+        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_SNOW)]);
+        stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+        terrain[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
+        if use_fallen {
+            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_FALLEN)]);
+        }
+    }
+}

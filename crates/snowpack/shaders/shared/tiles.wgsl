@@ -1,0 +1,68 @@
+// Resident tiles: the GPU's copy of the world's tiles around the sliding
+// window (src/deform/tiles.rs). The world is cut into square tiles of `side`
+// texels on the global texel grid; tile (col, row) lives in slot
+// (row mod n) * n + (col mod n) of a toroidal grid of n x n slots, so the
+// slots follow the window the way the window's texels do. A slot holds its
+// tile as four planes of side * side u32, row-major: snow height (f32 bits),
+// packed footprint, snowfall so far (f32 bits), terrain height (f32 bits).
+// Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
+
+const PLANE_SNOW: u32 = 0u;
+const PLANE_STAMPS: u32 = 1u;
+const PLANE_FALLEN: u32 = 2u;
+const PLANE_TERRAIN: u32 = 3u;
+const PLANES: u32 = 4u;
+
+// Tile index of global texel coordinate g (floor division).
+fn tile_coord(g: i32, side: u32) -> i32 {
+    let local = wrap_index(g, i32(side));
+    return (g - local) / i32(side);
+}
+
+fn slot_of(tile: vec2<i32>, n: u32) -> u32 {
+    return u32(wrap_index(tile.y, i32(n))) * n + u32(wrap_index(tile.x, i32(n)));
+}
+
+// Index into the resident tiles of global texel g = (column, row), plane `plane`.
+fn tile_index(g: vec2<i32>, side: u32, n: u32, plane: u32) -> u32 {
+    let tile = vec2<i32>(tile_coord(g.x, side), tile_coord(g.y, side));
+    let local = vec2<u32>(u32(g.x - tile.x * i32(side)), u32(g.y - tile.y * i32(side)));
+    return (slot_of(tile, n) * PLANES + plane) * side * side + local.y * side + local.x;
+}
+
+// One texel's persistent state.
+struct TexelState {
+    snow: f32,
+    stamp: u32,
+    fallen: f32,
+}
+
+// Time passing on a texel that no deformer reaches and the sky sees: what
+// update.wgsl does with `visible = 1` and no capture or stamps applied.
+// `fall_m`, `refill_m` and `quanta` are the snowfall, refill and footprint
+// refill of the time passed; `use_fallen` whether the world has snowfall.
+fn pass_time(ground: f32, depth_m: f32, t: TexelState, fall_m: f32, max_fallen_m: f32, refill_m: f32, quanta: u32, low_m: f32, high_m: f32, use_fallen: bool) -> TexelState {
+    var out = t;
+    var lying = 0.0;
+    var gained = 0.0;
+    if use_fallen {
+        lying = max(t.fallen, min(t.fallen + fall_m, max_fallen_m));
+        gained = lying - t.fallen;
+        out.fallen = lying;
+    }
+    let rest = ground + depth_m + lying;
+    let h = min(t.snow + gained + refill_m, rest);
+    if t.stamp != STAMP_EMPTY && quanta > 0u {
+        // Clamped so a long absence cannot overflow; any 65536 quanta empty it.
+        let q = min(quanta, 65536u);
+        let hq = t.stamp >> 16u;
+        let foot = (t.stamp & 0xffffu) + q;
+        if foot > 65535u || stamp_height(foot, low_m, high_m) >= rest {
+            out.stamp = STAMP_EMPTY;
+        } else {
+            out.stamp = (min(hq + q, 65535u) << 16u) | foot;
+        }
+    }
+    out.snow = max(h, ground);
+    return out;
+}

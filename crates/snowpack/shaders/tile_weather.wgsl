@@ -1,0 +1,58 @@
+// Tile weather pass: time passes on the resident tiles outside the window.
+// Each frame with refill or snowfall, every texel of a resident tile that the
+// window does not cover gets what the update gives open, untouched ground
+// (pass_time), so a tile is always current when the window comes back over
+// it or when it goes to the store. CPU twin: src/cpu/tile_weather.rs.
+
+struct WeatherParams {
+    origin: vec2<i32>,   // the window's origin; its texels are the update's
+    resolution: u32,
+    side: u32,
+    slots_per_side: u32,
+    flags: u32,          // 2: the world has snowfall
+    depth_m: f32,
+    refill_m: f32,       // this frame's refill (m)
+    fall_m: f32,         // this frame's snowfall on open ground (m)
+    max_fallen_m: f32,
+    quanta: u32,         // this frame's footprint refill (stamp quanta)
+    low_m: f32,
+    high_m: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+const USE_FALLEN: u32 = 2u;
+
+@group(0) @binding(0) var<uniform> params: WeatherParams;
+@group(0) @binding(1) var<storage, read> owners: array<vec4<i32>>; // (col, row, resident, 0) per slot
+@group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
+
+@compute @workgroup_size(256)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let area = params.side * params.side;
+    let slot = gid.y;
+    if gid.x >= area || slot >= params.slots_per_side * params.slots_per_side {
+        return;
+    }
+    let owner = owners[slot];
+    if owner.z == 0 {
+        return;
+    }
+    let g = owner.xy * i32(params.side) + vec2<i32>(i32(gid.x % params.side), i32(gid.x / params.side));
+    let d = g - params.origin;
+    let res = i32(params.resolution);
+    if d.x >= 0 && d.y >= 0 && d.x < res && d.y < res {
+        return;
+    }
+    let base = slot * PLANES * area + gid.x;
+    var t: TexelState;
+    t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
+    t.stamp = tiles[base + PLANE_STAMPS * area];
+    t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
+    let ground = bitcast<f32>(tiles[base + PLANE_TERRAIN * area]);
+    t = pass_time(ground, params.depth_m, t, params.fall_m, params.max_fallen_m, params.refill_m, params.quanta, params.low_m, params.high_m, (params.flags & USE_FALLEN) != 0u);
+    tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
+    tiles[base + PLANE_STAMPS * area] = t.stamp;
+    tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
+}

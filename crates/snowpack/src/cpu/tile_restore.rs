@@ -1,0 +1,39 @@
+//! CPU twin of `tile_restore.wgsl`.
+
+use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
+use crate::deform::tiles::{PLANES, PLANE_TERRAIN};
+use crate::TerrainSource;
+
+use super::stamp::STAMP_EMPTY;
+use super::tile_weather::{pass_time, write_texel, SnowConstants, TexelState, TimePassed};
+
+/// Writes each entry's tile into its slot: the saved planes in `upload`
+/// brought up to now, or fresh snow over `terrain`.
+pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terrain: &TerrainSource, tiles: &mut [u32]) {
+    let side = p.side as i32;
+    let area = (p.side * p.side) as usize;
+    let use_fallen = p.flags & RestoreParams::USE_FALLEN != 0;
+    let c = SnowConstants { depth_m: p.depth_m, max_fallen_m: p.max_fallen_m, low_m: p.low_m, high_m: p.high_m, use_fallen };
+    for e in entries.iter().take(p.count as usize) {
+        let slot = e.slot as usize;
+        for k in 0..area {
+            let g = [e.tile[0] * side + (k as i32 % side), e.tile[1] * side + (k as i32 / side)];
+            let x = (g[0] as f32 + 0.5) * p.texel_m;
+            let z = (g[1] as f32 + 0.5) * p.texel_m;
+            let ground = terrain.height_at(x, z);
+            let t = if e.upload == RestoreEntry::FRESH {
+                TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 } }
+            } else {
+                let u = e.upload as usize;
+                let saved = TexelState { snow: f32::from_bits(upload[u + k]), stamp: upload[u + area + k], fallen: f32::from_bits(upload[u + 2 * area + k]) };
+                if e.elapsed != 0 {
+                    pass_time(ground, &c, saved, &TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
+                } else {
+                    saved
+                }
+            };
+            write_texel(tiles, slot, area, k, t);
+            tiles[slot * PLANES * area + PLANE_TERRAIN * area + k] = ground.to_bits();
+        }
+    }
+}

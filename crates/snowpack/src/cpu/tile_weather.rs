@@ -1,0 +1,110 @@
+//! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
+
+use crate::deform::tile_weather::WeatherParams;
+use crate::deform::tiles::{PLANES, PLANE_FALLEN, PLANE_SNOW, PLANE_STAMPS, PLANE_TERRAIN};
+
+use super::stamp::{height, STAMP_EMPTY};
+
+/// One texel's persistent state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelState {
+    /// Snow height (m).
+    pub snow: f32,
+    /// Packed footprint.
+    pub stamp: u32,
+    /// Snowfall so far above the rest depth (m).
+    pub fallen: f32,
+}
+
+/// The time that passes: snowfall, refill and footprint refill (quanta).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TimePassed {
+    /// Snowfall on open ground (m).
+    pub fall_m: f32,
+    /// Trail refill (m).
+    pub refill_m: f32,
+    /// Footprint refill (stamp quanta).
+    pub quanta: u32,
+}
+
+/// The snow's constants `pass_time` needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SnowConstants {
+    /// Rest depth (m).
+    pub depth_m: f32,
+    /// Most snowfall a texel keeps (m).
+    pub max_fallen_m: f32,
+    /// Footprint quantisation range (m).
+    pub low_m: f32,
+    /// Footprint quantisation range (m).
+    pub high_m: f32,
+    /// Whether the world has snowfall.
+    pub use_fallen: bool,
+}
+
+/// Time passing on untouched, open texel over `ground`: what the update gives it.
+#[must_use]
+pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePassed) -> TexelState {
+    let mut out = t;
+    let (mut lying, mut gained) = (0.0, 0.0);
+    if c.use_fallen {
+        lying = t.fallen.max((t.fallen + time.fall_m).min(c.max_fallen_m));
+        gained = lying - t.fallen;
+        out.fallen = lying;
+    }
+    let rest = ground + c.depth_m + lying;
+    let h = (t.snow + gained + time.refill_m).min(rest);
+    if t.stamp != STAMP_EMPTY && time.quanta > 0 {
+        let q = time.quanta.min(65536);
+        let (hq, fq) = (t.stamp >> 16, t.stamp & 0xffff);
+        let foot = fq + q;
+        out.stamp = if foot > 65535 || height(foot, c.low_m, c.high_m) >= rest { STAMP_EMPTY } else { ((hq + q).min(65535) << 16) | foot };
+    }
+    out.snow = h.max(ground);
+    out
+}
+
+/// Reads texel `k` of slot `slot` (planes of `area` texels).
+#[must_use]
+pub fn read_texel(tiles: &[u32], slot: usize, area: usize, k: usize) -> (TexelState, f32) {
+    let base = slot * PLANES * area + k;
+    (
+        TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp: tiles[base + PLANE_STAMPS * area], fallen: f32::from_bits(tiles[base + PLANE_FALLEN * area]) },
+        f32::from_bits(tiles[base + PLANE_TERRAIN * area]),
+    )
+}
+
+/// Writes texel `k` of slot `slot`.
+pub fn write_texel(tiles: &mut [u32], slot: usize, area: usize, k: usize, t: TexelState) {
+    let base = slot * PLANES * area + k;
+    tiles[base + PLANE_SNOW * area] = t.snow.to_bits();
+    tiles[base + PLANE_STAMPS * area] = t.stamp;
+    tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
+}
+
+/// One frame of weather on the resident `tiles` outside the window; `owners`
+/// holds `(col, row, resident, 0)` per slot.
+pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], tiles: &mut [u32]) {
+    if !p.passes_time() {
+        return;
+    }
+    let side = p.side as i32;
+    let area = (p.side * p.side) as usize;
+    let c = SnowConstants { depth_m: p.depth_m, max_fallen_m: p.max_fallen_m, low_m: p.low_m, high_m: p.high_m, use_fallen: p.flags & WeatherParams::USE_FALLEN != 0 };
+    let time = TimePassed { fall_m: p.fall_m, refill_m: p.refill_m, quanta: p.quanta };
+    let res = p.resolution as i32;
+    for (slot, owner) in owners.iter().enumerate() {
+        if owner[2] == 0 {
+            continue;
+        }
+        for k in 0..area {
+            let g = [owner[0] * side + (k as i32 % side), owner[1] * side + (k as i32 / side)];
+            let d = [g[0] - p.origin[0], g[1] - p.origin[1]];
+            if d[0] >= 0 && d[1] >= 0 && d[0] < res && d[1] < res {
+                continue;
+            }
+            let (t, ground) = read_texel(tiles, slot, area, k);
+            write_texel(tiles, slot, area, k, pass_time(ground, &c, t, &time));
+        }
+    }
+}

@@ -1,0 +1,112 @@
+//! Exchange pass: texels between the sliding window and the resident tiles
+//! (`exchange.wgsl`), used when a tile store is attached.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+use super::resources::DeformResources;
+use super::window::TexelRect;
+
+/// Uniforms of `exchange.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ExchangeParams {
+    /// The window's origin after the move: `[column, row]`.
+    pub origin: [i32; 2],
+    /// Its origin before the move (read by the stash).
+    pub old_origin: [i32; 2],
+    /// Window texels per side.
+    pub resolution: u32,
+    /// Tile side (texels).
+    pub side: u32,
+    /// Resident slots per side.
+    pub slots_per_side: u32,
+    /// [`ExchangeParams::STASH`] | [`ExchangeParams::USE_FALLEN`].
+    pub flags: u32,
+    /// How many of `rects` are used.
+    pub rect_count: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
+    /// Exposed window-local rectangles `[row0, col0, rows, cols]`.
+    pub rects: [TexelRect; 2],
+}
+
+impl ExchangeParams {
+    /// Copy the old window's texels into their tiles (else: fill the new ones from theirs).
+    pub const STASH: u32 = 1;
+    /// The world has snowfall: the `fallen` plane is exchanged too.
+    pub const USE_FALLEN: u32 = 2;
+}
+
+/// One direction of the exchange, with its own uniforms (both run in one frame).
+struct Direction {
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+/// Stashes leaving texels into their tiles and loads entering ones from theirs.
+pub struct ExchangePass {
+    pipeline: wgpu::ComputePipeline,
+    stash: Direction,
+    load: Direction,
+}
+
+impl ExchangePass {
+    /// Builds the pipeline over the window's buffers and the resident `tiles`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "exchange",
+            shaders::EXCHANGE,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, false),
+                layout::storage(2, false),
+                layout::storage(3, false),
+                layout::storage(4, false),
+                layout::storage(5, false),
+            ],
+        );
+        let direction = |label: &str| {
+            let params = layout::uniform_buffer::<ExchangeParams>(device, label);
+            let bind_group = layout::bind_group(
+                device,
+                label,
+                &bgl,
+                &[
+                    params.as_entire_binding(),
+                    tiles.as_entire_binding(),
+                    res.terrain.as_entire_binding(),
+                    res.snow.as_entire_binding(),
+                    res.stamps.as_entire_binding(),
+                    res.fallen.as_entire_binding(),
+                ],
+            );
+            Direction { params, bind_group }
+        };
+        Self { pipeline, stash: direction("exchange stash"), load: direction("exchange load") }
+    }
+
+    /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
+    /// or the load of `rects`; nothing when empty.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, mut params: ExchangeParams, rects: &[TexelRect]) {
+        if rects.is_empty() {
+            return;
+        }
+        params.rect_count = rects.len().min(2) as u32;
+        for (slot, rect) in params.rects.iter_mut().zip(rects) {
+            *slot = *rect;
+        }
+        let stash = params.flags & ExchangeParams::STASH != 0;
+        let direction = if stash { &self.stash } else { &self.load };
+        queue.write_buffer(&direction.params, 0, bytemuck::bytes_of(&params));
+        let texels: u32 = rects.iter().take(2).map(|r| r[2] * r[3]).sum();
+        let groups = layout::groups(texels, 256);
+        let (gx, gy) = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
+        let label = if stash { "tile stash" } else { "tile load" };
+        layout::dispatch(encoder, timer, label, &self.pipeline, &direction.bind_group, (gx, gy));
+    }
+}

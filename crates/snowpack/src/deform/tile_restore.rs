@@ -1,0 +1,171 @@
+//! Tile restore pass: tiles become resident, from the store (brought up to
+//! now) or fresh (`tile_restore.wgsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// Uniforms of `tile_restore.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RestoreParams {
+    /// Tile side (texels).
+    pub side: u32,
+    /// Resident slots per side.
+    pub slots_per_side: u32,
+    /// Entries this frame.
+    pub count: u32,
+    /// [`RestoreParams::USE_FALLEN`].
+    pub flags: u32,
+    /// Texel size (m).
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Snowfall so far on open ground (m), for fresh tiles.
+    pub fallen_m: f32,
+    /// Most snowfall a texel keeps (m).
+    pub max_fallen_m: f32,
+    /// Footprint quantisation: lowest height (m).
+    pub low_m: f32,
+    /// Footprint quantisation: highest height (m).
+    pub high_m: f32,
+    /// Padding.
+    pub _pad: [u32; 2],
+}
+
+impl RestoreParams {
+    /// The world has snowfall.
+    pub const USE_FALLEN: u32 = 2;
+}
+
+/// One tile made resident (`RestoreEntry` in `tile_restore.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RestoreEntry {
+    /// Tile coordinates `[column, row]`.
+    pub tile: [i32; 2],
+    /// Its slot.
+    pub slot: u32,
+    /// First u32 of its saved planes in the upload buffer, or [`RestoreEntry::FRESH`].
+    pub upload: u32,
+    /// Refill of the time it was away (m).
+    pub refill_m: f32,
+    /// Snowfall of the time it was away (m).
+    pub fall_m: f32,
+    /// Footprint refill of the time it was away (stamp quanta).
+    pub quanta: u32,
+    /// 1 when any time counted (0: restored bit for bit).
+    pub elapsed: u32,
+}
+
+impl RestoreEntry {
+    /// No saved planes: fresh snow.
+    pub const FRESH: u32 = u32::MAX;
+}
+
+/// Writes restored or fresh tiles into their slots.
+pub struct TileRestorePass {
+    pipeline: wgpu::ComputePipeline,
+    bgl: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    entries: wgpu::Buffer,
+    upload: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl TileRestorePass {
+    /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "tile restore",
+            shaders::TILE_RESTORE,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
+                layout::storage(2, true),
+                layout::storage(3, true),
+                layout::storage(4, true),
+                layout::storage(5, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
+        let entries = storage_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);
+        let upload = storage_buffer(device, "tile upload", 16);
+        let bind_group = Self::group(device, &bgl, &params, &entries, &upload, res, tiles);
+        Self { pipeline, bgl, params, entries, upload, bind_group }
+    }
+
+    fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, entries: &wgpu::Buffer, upload: &wgpu::Buffer, res: &DeformResources, tiles: &wgpu::Buffer) -> wgpu::BindGroup {
+        layout::bind_group(
+            device,
+            "tile restore",
+            bgl,
+            &[
+                params.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
+                entries.as_entire_binding(),
+                upload.as_entire_binding(),
+                tiles.as_entire_binding(),
+            ],
+        )
+    }
+
+    /// Records the restore of `entries`, whose saved planes are `upload`
+    /// (indexed by [`RestoreEntry::upload`]); grows its buffers as needed.
+    #[expect(clippy::too_many_arguments, reason = "a pass's record call takes the frame's GPU handles and its inputs")]
+    pub fn record(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        (res, tiles): (&DeformResources, &wgpu::Buffer),
+        mut params: RestoreParams,
+        entries: &[RestoreEntry],
+        upload: &[u32],
+    ) {
+        if entries.is_empty() {
+            return;
+        }
+        let entry_bytes = std::mem::size_of_val(entries) as u64;
+        let upload_bytes = std::mem::size_of_val(upload) as u64;
+        if entry_bytes > self.entries.size() || upload_bytes > self.upload.size() {
+            if entry_bytes > self.entries.size() {
+                self.entries = storage_buffer(device, "tile restore entries", entry_bytes.next_power_of_two());
+            }
+            if upload_bytes > self.upload.size() {
+                self.upload = storage_buffer(device, "tile upload", upload_bytes.next_power_of_two());
+            }
+            self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, &self.upload, res, tiles);
+        }
+        params.count = entries.len() as u32;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(entries));
+        if !upload.is_empty() {
+            queue.write_buffer(&self.upload, 0, bytemuck::cast_slice(upload));
+        }
+        let groups = layout::groups(params.side * params.side, 256);
+        layout::dispatch(encoder, timer, "tile restore", &self.pipeline, &self.bind_group, (groups, params.count));
+    }
+
+    /// Bytes of GPU memory held (its upload and entry buffers).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.entries.size() + self.upload.size()
+    }
+}

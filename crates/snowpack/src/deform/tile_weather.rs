@@ -1,0 +1,84 @@
+//! Tile weather pass: refill and snowfall on the resident tiles outside the
+//! window (`tile_weather.wgsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+/// Uniforms of `tile_weather.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct WeatherParams {
+    /// The window's origin `[column, row]`; texels inside it are the update's.
+    pub origin: [i32; 2],
+    /// Window texels per side.
+    pub resolution: u32,
+    /// Tile side (texels).
+    pub side: u32,
+    /// Resident slots per side.
+    pub slots_per_side: u32,
+    /// [`WeatherParams::USE_FALLEN`].
+    pub flags: u32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// This frame's refill (m).
+    pub refill_m: f32,
+    /// This frame's snowfall on open ground (m).
+    pub fall_m: f32,
+    /// Most snowfall a texel keeps (m).
+    pub max_fallen_m: f32,
+    /// This frame's footprint refill (stamp quanta).
+    pub quanta: u32,
+    /// Footprint quantisation: lowest height (m).
+    pub low_m: f32,
+    /// Footprint quantisation: highest height (m).
+    pub high_m: f32,
+    /// Padding.
+    pub _pad: [u32; 3],
+}
+
+impl WeatherParams {
+    /// The world has snowfall.
+    pub const USE_FALLEN: u32 = 2;
+
+    /// Whether this frame changes anything outside the window.
+    #[must_use]
+    pub fn passes_time(&self) -> bool {
+        self.refill_m > 0.0 || self.fall_m > 0.0 || self.quanta > 0
+    }
+}
+
+/// Lets time pass on resident tiles the window does not cover.
+pub struct TileWeatherPass {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl TileWeatherPass {
+    /// Builds the pipeline over the slot `owners` and the resident `tiles`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "tile weather",
+            shaders::TILE_WEATHER,
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+        );
+        let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
+        let bind_group = layout::bind_group(device, "tile weather", &bgl, &[params.as_entire_binding(), owners.as_entire_binding(), tiles.as_entire_binding()]);
+        Self { pipeline, params, bind_group }
+    }
+
+    /// Records this frame's weather (nothing when it passes no time).
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &WeatherParams) {
+        if !params.passes_time() {
+            return;
+        }
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let groups = layout::groups(params.side * params.side, 256);
+        let slots = params.slots_per_side * params.slots_per_side;
+        layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, slots));
+    }
+}

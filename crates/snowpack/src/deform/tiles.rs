@@ -1,0 +1,573 @@
+//! Open worlds: the world's tiles around the sliding window, resident on the
+//! GPU, and their traffic with a [`TileStreamer`] (the tile store).
+//!
+//! The world is cut into square tiles of `side` texels on the global texel
+//! grid. With a store attached, the tiles the window touches, plus one spare
+//! ring, are resident in a toroidal grid of slots (`shared/tiles.wgsl`):
+//! texels leaving the window are stashed into their tile, texels entering are
+//! loaded from theirs, and the tile weather pass lets time pass on the
+//! resident texels outside the window. A slot is given up only when another
+//! tile needs it; its tile is then copied out in the same command buffer,
+//! read back asynchronously and handed to the streamer, which compresses and
+//! writes it on its worker thread. A tile coming back is restored in one pass
+//! with the refill and snowfall of the time it was away.
+//!
+//! The frame never waits for the disk: a tile the window needs that is not in
+//! memory yet keeps the window where it is (it waits, counted in
+//! [`TileStats::window_waits`]) while the streamer loads it; the prefetch ring
+//! around the window makes that rare. Only the first placement (start-up, a
+//! loaded save) blocks, as a loading screen would.
+
+use std::collections::HashSet;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
+
+use crate::error::SnowError;
+use crate::gpu::{GpuContext, GpuTimer};
+use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileLookup, TileStreamer};
+
+use super::exchange::{ExchangeParams, ExchangePass};
+use super::resources::DeformResources;
+use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use super::tile_weather::{TileWeatherPass, WeatherParams};
+use super::window::TexelRect;
+
+/// Planes per resident tile: snow, stamps, fallen, terrain (`shared/tiles.wgsl`).
+pub const PLANES: usize = 4;
+/// Planes that persist (terrain is recomputed).
+pub const SAVED_PLANES: usize = 3;
+/// Plane of the snow height (f32 bits).
+pub const PLANE_SNOW: usize = 0;
+/// Plane of the packed footprints.
+pub const PLANE_STAMPS: usize = 1;
+/// Plane of the snowfall so far (f32 bits).
+pub const PLANE_FALLEN: usize = 2;
+/// Plane of the terrain height (f32 bits).
+pub const PLANE_TERRAIN: usize = 3;
+
+/// Tiles around the window that are requested from the store ahead of need.
+pub const PREFETCH_MARGIN_TILES: i64 = 2;
+
+/// How a window of `resolution` texels is cut into tiles and slots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileGrid {
+    side: u32,
+    resolution: u32,
+    slots_per_side: u32,
+}
+
+impl TileGrid {
+    /// Tiles of `side` texels (a power of two, 16..=256, dividing the resolution).
+    pub fn new(resolution: u32, side: u32) -> Result<Self, SnowError> {
+        if !side.is_power_of_two() || !(16..=256).contains(&side) || !resolution.is_multiple_of(side) {
+            return Err(SnowError::InvalidParameter {
+                field: "tile_texels",
+                why: format!("{side} must be a power of two in 16..=256 that divides the resolution {resolution}"),
+            });
+        }
+        // A window touches at most resolution/side + 1 tiles per side; one
+        // more slot keeps a tile that just left resident, so a window
+        // jittering across a tile boundary never evicts.
+        Ok(Self { side, resolution, slots_per_side: resolution / side + 2 })
+    }
+
+    /// Tile side (texels).
+    #[must_use]
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    /// Resident slots per side.
+    #[must_use]
+    pub fn slots_per_side(&self) -> u32 {
+        self.slots_per_side
+    }
+
+    /// Resident slots in all.
+    #[must_use]
+    pub fn slot_count(&self) -> usize {
+        (self.slots_per_side * self.slots_per_side) as usize
+    }
+
+    /// Texels per tile.
+    #[must_use]
+    pub fn area(&self) -> usize {
+        (self.side * self.side) as usize
+    }
+
+    /// The tile holding global texel `g` (`[column, row]`).
+    #[must_use]
+    pub fn key_of(&self, g: [i64; 2]) -> TileKey {
+        let s = i64::from(self.side);
+        TileKey { col: g[0].div_euclid(s), row: g[1].div_euclid(s) }
+    }
+
+    /// The slot tile `key` lives in.
+    #[must_use]
+    pub fn slot_of(&self, key: TileKey) -> usize {
+        let n = i64::from(self.slots_per_side);
+        (key.row.rem_euclid(n) * n + key.col.rem_euclid(n)) as usize
+    }
+
+    /// Tiles within `margin` tiles of the window at `origin` (margin 0: those it touches).
+    #[must_use]
+    pub fn around(&self, origin: [i64; 2], margin: i64) -> Vec<TileKey> {
+        let last = i64::from(self.resolution) - 1;
+        let lo = self.key_of(origin);
+        let hi = self.key_of([origin[0] + last, origin[1] + last]);
+        let mut keys = Vec::new();
+        for row in lo.row - margin..=hi.row + margin {
+            for col in lo.col - margin..=hi.col + margin {
+                keys.push(TileKey { col, row });
+            }
+        }
+        keys
+    }
+
+    /// Index into the resident tiles of global texel `g`, plane `plane`
+    /// (`tile_index` of `shared/tiles.wgsl`).
+    #[must_use]
+    pub fn index(&self, g: [i64; 2], plane: usize) -> usize {
+        let key = self.key_of(g);
+        let s = i64::from(self.side);
+        let (lx, ly) = ((g[0] - key.col * s) as usize, (g[1] - key.row * s) as usize);
+        (self.slot_of(key) * PLANES + plane) * self.area() + ly * self.side as usize + lx
+    }
+}
+
+/// What the tile passes need to know of the snow each frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TileFrame {
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Texel size (m).
+    pub texel_m: f32,
+    /// Snowfall so far on open ground (m), for fresh tiles.
+    pub fallen_m: f32,
+    /// Most snowfall a texel keeps (m).
+    pub max_fallen_m: f32,
+    /// Footprint quantisation range (m).
+    pub low_m: f32,
+    /// Footprint quantisation range (m).
+    pub high_m: f32,
+    /// Whether the world has snowfall (a `fallen` plane).
+    pub use_fallen: bool,
+}
+
+/// Tile traffic so far, with the store's own figures.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TileStats {
+    /// The streamer's memory cache and disk store.
+    pub store: StoreStats,
+    /// Tiles resident on the GPU.
+    pub resident: usize,
+    /// Slots on the GPU.
+    pub slots: usize,
+    /// Frames the window stayed put because a tile it needed was still loading.
+    pub window_waits: u64,
+    /// Tiles restored from the store.
+    pub restored: u64,
+    /// Tiles made resident with fresh snow (never seen before).
+    pub fresh: u64,
+    /// Tiles copied out of the GPU for the store.
+    pub evicted: u64,
+    /// Tiles on their way back from the GPU.
+    pub evicting: usize,
+    /// GPU memory of the resident tiles (bytes).
+    pub gpu_bytes: u64,
+}
+
+/// Tiles copied out of their slots in one frame, on their way to the CPU.
+struct Eviction {
+    buffer: wgpu::Buffer,
+    keys: Vec<TileKey>,
+    clock: SnowClock,
+    flag: Option<Arc<AtomicU8>>,
+}
+
+const MAPPING: u8 = 0;
+const MAPPED: u8 = 1;
+const FAILED: u8 = 2;
+
+/// The resident tiles, their passes and the streamer behind them.
+pub struct TileStreaming {
+    grid: TileGrid,
+    streamer: TileStreamer,
+    tiles: wgpu::Buffer,
+    owners_buffer: wgpu::Buffer,
+    owners: Vec<Option<TileKey>>,
+    exchange: ExchangePass,
+    restore: TileRestorePass,
+    weather: TileWeatherPass,
+    evictions: Vec<Eviction>,
+    in_flight: HashSet<TileKey>,
+    prefetched_at: Option<TileKey>,
+    errors: Vec<StoreError>,
+    window_waits: u64,
+    restored: u64,
+    fresh: u64,
+    evicted: u64,
+}
+
+impl TileStreaming {
+    /// Resident slots for the window of `res`, behind `streamer`.
+    pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer) -> Result<Self, SnowError> {
+        let grid = TileGrid::new(res.resolution, streamer.side())?;
+        let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+        let limit = ctx.device.limits().max_storage_buffer_binding_size;
+        if bytes > limit {
+            return Err(SnowError::InvalidParameter {
+                field: "tile_texels",
+                why: format!("{} resident tiles of {}² need {bytes} bytes, above this adapter's {limit}; use larger tiles", grid.slot_count(), grid.side()),
+            });
+        }
+        let tiles = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("resident tiles"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let owners_buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile owners"),
+            size: grid.slot_count() as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let this = Self {
+            exchange: ExchangePass::new(&ctx.device, res, &tiles),
+            restore: TileRestorePass::new(&ctx.device, res, &tiles),
+            weather: TileWeatherPass::new(&ctx.device, &owners_buffer, &tiles),
+            owners: vec![None; grid.slot_count()],
+            grid,
+            streamer,
+            tiles,
+            owners_buffer,
+            evictions: Vec::new(),
+            in_flight: HashSet::new(),
+            prefetched_at: None,
+            errors: Vec::new(),
+            window_waits: 0,
+            restored: 0,
+            fresh: 0,
+            evicted: 0,
+        };
+        ctx.check("creating the resident tiles")?;
+        Ok(this)
+    }
+
+    /// The tile layout.
+    #[must_use]
+    pub fn grid(&self) -> &TileGrid {
+        &self.grid
+    }
+
+    /// The streamer (the store behind the tiles).
+    pub fn streamer(&mut self) -> &mut TileStreamer {
+        &mut self.streamer
+    }
+
+    fn resident(&self, key: TileKey) -> bool {
+        self.owners[self.grid.slot_of(key)] == Some(key)
+    }
+
+    /// Decides where the window goes this frame: `desired`, once every tile
+    /// it touches can be made resident without waiting for the disk; until
+    /// then it stays at `current`. The first placement waits (blocking).
+    pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
+        self.collect_evictions(ctx, false);
+        self.streamer.poll();
+        let here = self.grid.key_of(desired);
+        if self.prefetched_at != Some(here) {
+            self.prefetched_at = Some(here);
+            for key in self.grid.around(desired, PREFETCH_MARGIN_TILES) {
+                if !self.resident(key) && !self.in_flight.contains(&key) {
+                    self.streamer.request(key);
+                }
+            }
+        }
+        if current == Some(desired) {
+            return desired;
+        }
+        let needed: Vec<TileKey> = self.grid.around(desired, 0).into_iter().filter(|&k| !self.resident(k)).collect();
+        if current.is_none() {
+            // First placement: a loading screen, so waiting is fine.
+            if needed.iter().any(|k| self.in_flight.contains(k)) {
+                self.collect_evictions(ctx, true);
+            }
+            if let Err(e) = self.streamer.wait_for(&needed) {
+                self.errors.push(e);
+            }
+            return desired;
+        }
+        let ready = needed.iter().all(|&k| !self.in_flight.contains(&k) && self.streamer.is_ready(k));
+        if ready {
+            desired
+        } else {
+            self.window_waits += 1;
+            current.unwrap_or(desired)
+        }
+    }
+
+    /// Records the tile side of a window move from `old` to `origin` that
+    /// exposed `rects`: the stash of the leaving texels, the copy-out of
+    /// slots given up, the restore of the tiles now touched, the load of the
+    /// entering texels. `clock` is the clock at the start of this frame.
+    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles, the move and the snow's state")]
+    pub fn record_move(
+        &mut self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        res: &DeformResources,
+        (old, origin, rects): (Option<[i64; 2]>, [i64; 2], &[TexelRect]),
+        frame: &TileFrame,
+        clock: SnowClock,
+    ) {
+        if rects.is_empty() {
+            return;
+        }
+        let to_i32 = |o: [i64; 2]| [o[0] as i32, o[1] as i32];
+        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
+        let base = ExchangeParams {
+            origin: to_i32(origin),
+            old_origin: to_i32(old.unwrap_or(origin)),
+            resolution: res.resolution,
+            side: self.grid.side,
+            slots_per_side: self.grid.slots_per_side,
+            flags: fallen_flag,
+            ..ExchangeParams::default()
+        };
+        if old.is_some() {
+            self.exchange.record(&ctx.queue, encoder, timer, ExchangeParams { flags: fallen_flag | ExchangeParams::STASH, ..base }, rects);
+        }
+        let area = self.grid.area();
+        let (mut entries, mut upload, mut evicting) = (Vec::new(), Vec::<u32>::new(), Vec::new());
+        for key in self.grid.around(origin, 0) {
+            let slot = self.grid.slot_of(key);
+            if self.owners[slot] == Some(key) {
+                continue;
+            }
+            if let Some(previous) = self.owners[slot] {
+                evicting.push((previous, slot));
+            }
+            let saved = match self.streamer.lookup(key) {
+                TileLookup::Ready(saved) => saved,
+                // `plan` saw it ready; a dropped cache entry between the two gives fresh snow.
+                TileLookup::Pending => None,
+            };
+            let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
+            match saved {
+                Some(tile) if tile.side == self.grid.side && tile.snow.len() == area && tile.stamps.len() == area => {
+                    entry.upload = upload.len() as u32;
+                    upload.extend(tile.snow.iter().map(|v| v.to_bits()));
+                    upload.extend_from_slice(&tile.stamps);
+                    if tile.fallen.len() == area {
+                        upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
+                    } else {
+                        upload.extend(std::iter::repeat_n(0, area));
+                    }
+                    let refill = (clock.refill_m - tile.clock.refill_m).max(0.0);
+                    let fall = (clock.fallen_m - tile.clock.fallen_m).max(0.0);
+                    let quanta = clock.stamp_quanta.saturating_sub(tile.clock.stamp_quanta);
+                    entry.refill_m = refill as f32;
+                    entry.fall_m = fall as f32;
+                    entry.quanta = quanta.min(u64::from(u32::MAX)) as u32;
+                    entry.elapsed = u32::from(refill > 0.0 || fall > 0.0 || quanta > 0);
+                    self.restored += 1;
+                }
+                Some(tile) => {
+                    self.errors.push(StoreError::Mismatch {
+                        path: self.streamer.dir().to_path_buf(),
+                        why: format!("tile ({}, {}) has side {}, the window uses {}; fresh snow used", key.col, key.row, tile.side, self.grid.side),
+                    });
+                    self.fresh += 1;
+                }
+                None => self.fresh += 1,
+            }
+            entries.push(entry);
+            self.owners[slot] = Some(key);
+        }
+        if !evicting.is_empty() {
+            self.record_copy_out(&ctx.device, encoder, &evicting, clock);
+        }
+        let params = RestoreParams {
+            side: self.grid.side,
+            slots_per_side: self.grid.slots_per_side,
+            flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
+            texel_m: frame.texel_m,
+            depth_m: frame.depth_m,
+            fallen_m: frame.fallen_m,
+            max_fallen_m: frame.max_fallen_m,
+            low_m: frame.low_m,
+            high_m: frame.high_m,
+            ..RestoreParams::default()
+        };
+        self.restore.record(&ctx.device, &ctx.queue, encoder, timer, (res, &self.tiles), params, &entries, &upload);
+        if !entries.is_empty() {
+            self.write_owners(&ctx.queue);
+        }
+        self.exchange.record(&ctx.queue, encoder, timer, base, rects);
+    }
+
+    fn write_owners(&self, queue: &wgpu::Queue) {
+        let owners: Vec<[i32; 4]> = self.owners.iter().map(|o| o.map_or([0; 4], |k| [k.col as i32, k.row as i32, 1, 0])).collect();
+        queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
+    }
+
+    /// Copies the saved planes of `slots` into a staging buffer for the store.
+    fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
+        let tile_bytes = (SAVED_PLANES * self.grid.area() * 4) as u64;
+        let slot_bytes = (PLANES * self.grid.area() * 4) as u64;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile copy-out"),
+            size: tile_bytes * slots.len() as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        for (k, &(key, slot)) in slots.iter().enumerate() {
+            // The saved planes come first in a slot, so one copy per tile.
+            encoder.copy_buffer_to_buffer(&self.tiles, slot as u64 * slot_bytes, &buffer, k as u64 * tile_bytes, tile_bytes);
+            self.in_flight.insert(key);
+        }
+        self.evicted += slots.len() as u64;
+        self.evictions.push(Eviction { buffer, keys: slots.iter().map(|s| s.0).collect(), clock, flag: None });
+    }
+
+    /// Records this frame's weather on the resident tiles outside the window
+    /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
+    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and this frame's weather")]
+    pub fn record_weather(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i64; 2], frame: &TileFrame, (refill_m, fall_m): (f32, f32), quanta: u32) {
+        self.weather.record(
+            queue,
+            encoder,
+            timer,
+            &WeatherParams {
+                origin: [origin[0] as i32, origin[1] as i32],
+                resolution: self.grid.resolution,
+                side: self.grid.side,
+                slots_per_side: self.grid.slots_per_side,
+                flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
+                depth_m: frame.depth_m,
+                refill_m,
+                fall_m,
+                max_fallen_m: frame.max_fallen_m,
+                quanta,
+                low_m: frame.low_m,
+                high_m: frame.high_m,
+                _pad: [0; 3],
+            },
+        );
+    }
+
+    /// Starts reading back the tiles copied out in the submitted frame.
+    pub fn after_submit(&mut self) {
+        for eviction in &mut self.evictions {
+            if eviction.flag.is_some() {
+                continue;
+            }
+            let flag = Arc::new(AtomicU8::new(MAPPING));
+            let done = Arc::clone(&flag);
+            eviction.buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+                done.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+            });
+            eviction.flag = Some(flag);
+        }
+    }
+
+    /// Hands arrived copy-outs to the streamer; with `wait`, waits for all.
+    fn collect_evictions(&mut self, ctx: &GpuContext, wait: bool) {
+        if wait && !self.evictions.is_empty() {
+            self.after_submit();
+            if let Err(e) = ctx.wait_idle("reading back tiles for the store") {
+                tracing::warn!("{e}");
+            }
+        }
+        let area = self.grid.area();
+        let side = self.grid.side;
+        let mut k = 0;
+        while k < self.evictions.len() {
+            let state = self.evictions[k].flag.as_ref().map(|f| f.load(Ordering::Acquire));
+            if !matches!(state, Some(MAPPED | FAILED)) {
+                k += 1;
+                continue;
+            }
+            let eviction = self.evictions.swap_remove(k);
+            let bytes = if state == Some(MAPPED) { eviction.buffer.slice(..).get_mapped_range().map(|v| v.to_vec()).ok() } else { None };
+            for key in &eviction.keys {
+                self.in_flight.remove(key);
+            }
+            let Some(bytes) = bytes else {
+                self.errors.push(StoreError::Mismatch { path: self.streamer.dir().to_path_buf(), why: format!("{} tiles could not be read back from the GPU and are lost", eviction.keys.len()) });
+                continue;
+            };
+            eviction.buffer.unmap();
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+            for (t, key) in eviction.keys.iter().enumerate() {
+                let planes = &words[t * SAVED_PLANES * area..(t + 1) * SAVED_PLANES * area];
+                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, true));
+            }
+        }
+    }
+
+    /// Every resident tile, current at `clock`, into the streamer: the
+    /// window's texels are stashed into their tiles first. Blocking; for
+    /// saving, never in a frame loop.
+    pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock, use_fallen: bool) -> Result<(), SnowError> {
+        self.collect_evictions(ctx, true);
+        let full = [[0, 0, res.resolution, res.resolution]];
+        let o = [origin[0] as i32, origin[1] as i32];
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
+        let mut timer = GpuTimer::disabled();
+        let flags = ExchangeParams::STASH | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
+        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, ..ExchangeParams::default() };
+        self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
+        ctx.queue.submit([encoder.finish()]);
+        let raw = super::pipeline::read_buffer(ctx, &self.tiles)?;
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+        let slot_words = PLANES * self.grid.area();
+        for (slot, owner) in self.owners.iter().enumerate() {
+            if let Some(key) = owner {
+                let planes = &words[slot * slot_words..slot * slot_words + SAVED_PLANES * self.grid.area()];
+                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, use_fallen));
+            }
+        }
+        Ok(())
+    }
+
+    /// Errors since the last call: the streamer's (I/O, corrupt tiles) and the GPU side's.
+    pub fn take_errors(&mut self) -> Vec<StoreError> {
+        let mut errors = std::mem::take(&mut self.errors);
+        errors.extend(self.streamer.take_errors());
+        errors
+    }
+
+    /// Traffic so far.
+    #[must_use]
+    pub fn stats(&self) -> TileStats {
+        TileStats {
+            store: self.streamer.stats(),
+            resident: self.owners.iter().flatten().count(),
+            slots: self.owners.len(),
+            window_waits: self.window_waits,
+            restored: self.restored,
+            fresh: self.fresh,
+            evicted: self.evicted,
+            evicting: self.in_flight.len(),
+            gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes(),
+        }
+    }
+}
+
+/// A tile from its saved planes as they lie in a slot (snow, stamps, fallen bits).
+#[must_use]
+pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], use_fallen: bool) -> TileData {
+    let area = (side * side) as usize;
+    TileData {
+        key,
+        side,
+        clock,
+        snow: planes[..area].iter().map(|&b| f32::from_bits(b)).collect(),
+        stamps: planes[area..2 * area].to_vec(),
+        fallen: if use_fallen { planes[2 * area..3 * area].iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() },
+    }
+}

@@ -1,0 +1,272 @@
+//! Open-world persistence: the snow of tiles the player has left, kept on
+//! disk and brought back when the player returns.
+//!
+//! The deformation window hands out whole tiles (`side`×`side` texels on the
+//! global texel grid) as they leave the player's neighbourhood and asks for
+//! them again when they come back into view. This module is the CPU side of
+//! that: the tile type ([`TileData`]), its compressed file format
+//! ([`codec`]), a crash-safe store with a disk budget ([`TileStore`]) and a
+//! worker thread with a bounded memory cache that keeps compression and file
+//! I/O off the frame's path ([`TileStreamer`]). `docs/persistence.md`
+//! explains the choices.
+
+pub mod codec;
+pub mod store;
+pub mod streamer;
+
+use std::path::{Path, PathBuf};
+
+pub use codec::{FORMAT_VERSION, decode, encode};
+pub use store::{StoreConfig, TileStore};
+pub use streamer::{StoreStats, StreamerConfig, TileLookup, TileStreamer};
+
+/// The largest tile side the format accepts (the whole default window).
+pub const MAX_SIDE: u32 = 1024;
+
+/// Global tile coordinates: tile (col, row) holds global texels
+/// `col*side .. (col+1)*side` (x) and `row*side .. (row+1)*side` (z).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct TileKey {
+    /// Tile column (global texel column divided by `side`, rounded down).
+    pub col: i64,
+    /// Tile row (global texel row divided by `side`, rounded down; row = +z).
+    pub row: i64,
+}
+
+impl TileKey {
+    /// The tile at column `col`, row `row`.
+    #[must_use]
+    pub const fn new(col: i64, row: i64) -> Self {
+        Self { col, row }
+    }
+
+    /// The tile holding global texel (`texel_col`, `texel_row`). Rounds
+    /// towards negative infinity, so texel -1 is in tile -1, not 0.
+    #[must_use]
+    pub fn containing(texel_col: i64, texel_row: i64, side: u32) -> Self {
+        let side = i64::from(side.max(1));
+        Self {
+            col: texel_col.div_euclid(side),
+            row: texel_row.div_euclid(side),
+        }
+    }
+
+    /// Global texel `[column, row]` of the tile's first texel.
+    #[must_use]
+    pub fn first_texel(self, side: u32) -> [i64; 2] {
+        let side = i64::from(side);
+        [self.col.saturating_mul(side), self.row.saturating_mul(side)]
+    }
+}
+
+/// The simulation clock a tile's contents are current at (cumulative
+/// counters since the world began), so a returning tile can be caught up
+/// with the refill and snowfall it missed while it was away.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SnowClock {
+    /// Simulated seconds.
+    pub time_s: f64,
+    /// Refill so far (m): the sum of `refill_m_per_s * dt`.
+    pub refill_m: f64,
+    /// Snowfall so far on open ground (m).
+    pub fallen_m: f64,
+    /// Stamp quanta issued so far (the stamp encoding's clock).
+    pub stamp_quanta: u64,
+}
+
+/// One tile's persistent state, row-major (row = +z), `side*side` texels per plane.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileData {
+    /// Where the tile is.
+    pub key: TileKey,
+    /// Texels per side.
+    pub side: u32,
+    /// The clock the contents are current at.
+    pub clock: SnowClock,
+    /// Snow surface height (m, world Y).
+    pub snow: Vec<f32>,
+    /// Packed footprints (`shared/stamp.wgsl`).
+    pub stamps: Vec<u32>,
+    /// Snowfall so far per texel (m); empty when the world has no snowfall.
+    pub fallen: Vec<f32>,
+}
+
+impl TileData {
+    /// Texels per plane (`side²`).
+    #[must_use]
+    pub fn texels(&self) -> usize {
+        let side = self.side as usize;
+        side * side
+    }
+
+    /// Bytes of the planes (4 per texel per plane present); the streamer's
+    /// memory budget counts this. The struct itself (about 100 bytes) is left
+    /// out, so budgets are simple multiples of a tile.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of_val(self.snow.as_slice())
+            + std::mem::size_of_val(self.stamps.as_slice())
+            + std::mem::size_of_val(self.fallen.as_slice())
+    }
+
+    /// Checks that `side` is in `1..=`[`MAX_SIDE`] and the planes hold
+    /// `side²` texels each (`fallen` may be empty). The error is a
+    /// [`StoreError::Mismatch`] without a path.
+    pub fn validate(&self) -> Result<(), StoreError> {
+        let why = if self.side == 0 || self.side > MAX_SIDE {
+            format!("tile side {} is outside 1..={MAX_SIDE}", self.side)
+        } else if self.snow.len() != self.texels() {
+            format!(
+                "snow holds {} texels, a {}² tile needs {}",
+                self.snow.len(),
+                self.side,
+                self.texels()
+            )
+        } else if self.stamps.len() != self.texels() {
+            format!(
+                "stamps holds {} texels, a {}² tile needs {}",
+                self.stamps.len(),
+                self.side,
+                self.texels()
+            )
+        } else if !self.fallen.is_empty() && self.fallen.len() != self.texels() {
+            format!(
+                "fallen holds {} texels, a {}² tile needs {} (or none)",
+                self.fallen.len(),
+                self.side,
+                self.texels()
+            )
+        } else {
+            return Ok(());
+        };
+        Err(StoreError::Mismatch {
+            path: PathBuf::new(),
+            why,
+        })
+    }
+}
+
+/// What can go wrong storing or loading tiles. Every variant but
+/// [`StoreError::WorkerGone`] names the file (errors from [`decode`] alone,
+/// which sees bytes and no file, leave the path empty).
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// The operating system refused (disk full, read-only, a directory gone).
+    #[error("cannot {op} {}: {source}", shown(path))]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// What was being done, as a verb phrase ("write", "rename into place").
+        op: &'static str,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// The file is damaged (bad checksum, truncated, not a tile).
+    #[error("{} is corrupt: {why}", shown(path))]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// The file was written in a format this build does not read.
+    #[error(
+        "{} is format version {found}; this build reads version {expected}",
+        shown(path)
+    )]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// The version in the file.
+        found: u32,
+        /// The version this build reads and writes.
+        expected: u32,
+    },
+    /// A well-formed file or tile that does not fit (another tile side, another key).
+    #[error("{}: {why}", shown(path))]
+    Mismatch {
+        /// The file.
+        path: PathBuf,
+        /// What does not match.
+        why: String,
+    },
+    /// The streamer's worker thread has stopped (it panicked or never started).
+    #[error("the tile store's worker thread has stopped; tiles can no longer be loaded or saved")]
+    WorkerGone,
+}
+
+impl StoreError {
+    /// The file the error is about, when there is one.
+    #[must_use]
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            Self::Io { path, .. }
+            | Self::Corrupt { path, .. }
+            | Self::Version { path, .. }
+            | Self::Mismatch { path, .. } => {
+                (!path.as_os_str().is_empty()).then_some(path.as_path())
+            }
+            Self::WorkerGone => None,
+        }
+    }
+
+    /// The same error naming `file` where it named none (errors from
+    /// [`decode`] and [`TileData::validate`] see no file).
+    pub(crate) fn at(mut self, file: &Path) -> Self {
+        if let Self::Io { path, .. }
+        | Self::Corrupt { path, .. }
+        | Self::Version { path, .. }
+        | Self::Mismatch { path, .. } = &mut self
+            && path.as_os_str().is_empty()
+        {
+            file.clone_into(path);
+        }
+        self
+    }
+}
+
+/// How an error shows its path: errors from bytes alone have none.
+fn shown(path: &Path) -> String {
+    if path.as_os_str().is_empty() {
+        "the tile data".to_owned()
+    } else {
+        path.display().to_string()
+    }
+}
+
+/// Temporary directories for this module's unit tests, removed on drop.
+#[cfg(test)]
+pub(crate) mod test_dir {
+    use std::path::{Path, PathBuf};
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    /// A fresh, empty directory under the system's temporary directory.
+    pub(crate) struct TestDir(PathBuf);
+
+    impl TestDir {
+        pub(crate) fn new(name: &str) -> Self {
+            static COUNTER: AtomicU64 = AtomicU64::new(0);
+            let nanos = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.subsec_nanos());
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let dir = std::env::temp_dir().join(format!(
+                "snowpack-{name}-{}-{nanos}-{n}",
+                std::process::id()
+            ));
+            std::fs::create_dir_all(&dir).expect("create a test directory");
+            Self(dir)
+        }
+
+        pub(crate) fn path(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl Drop for TestDir {
+        fn drop(&mut self) {
+            // Best effort: a leftover directory under /tmp is harmless.
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}

@@ -1,0 +1,1008 @@
+//! The crash-safe tile store on disk: one file per tile, replaced atomically.
+//!
+//! ```text
+//! DIR/store.meta                     magic, format version, tile side, CRC32
+//! DIR/store.lock                     held (advisory lock) while a TileStore has DIR open
+//! DIR/{name}.state                   named blobs (`write_state`), framed with a CRC32
+//! DIR/tiles/r{col>>5}_{row>>5}/{col}_{row}.tile
+//! ```
+//!
+//! Every file is written to a unique temporary file beside it, synced,
+//! renamed over the old one and the directory synced, so a crash (or a
+//! kill) leaves each file either its old or its new version, never a mix.
+//! Temporary files left by a crash are deleted on open. Region folders of
+//! 32×32 tiles keep directories small.
+
+use std::collections::{BTreeSet, HashMap};
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant, SystemTime};
+
+use super::codec::{FORMAT_VERSION, decode, encode};
+use super::{MAX_SIDE, StoreError, TileData, TileKey};
+
+/// Identifies `store.meta`.
+const META_MAGIC: &[u8; 8] = b"SNOWSTOR";
+/// Identifies a `.state` file.
+const STATE_MAGIC: &[u8; 8] = b"SNOWSTAT";
+/// The store's description file.
+const META_FILE: &str = "store.meta";
+/// The file locked while a store is open.
+const LOCK_FILE: &str = "store.lock";
+/// The folder of region folders.
+const TILES_DIR: &str = "tiles";
+/// Suffix of temporary files (deleted on open).
+const TEMP_SUFFIX: &str = ".tmp";
+/// Suffix given to a tile file that failed to decode.
+const CORRUPT_SUFFIX: &str = ".corrupt";
+/// Tiles per region folder side is `1 << REGION_SHIFT`.
+const REGION_SHIFT: u32 = 5;
+/// How long `open` waits for a busy lock.
+const LOCK_PATIENCE: Duration = Duration::from_millis(500);
+/// Longest name `write_state` accepts.
+const MAX_STATE_NAME: usize = 64;
+
+/// How the store may use the disk.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StoreConfig {
+    /// Most bytes of tile files to keep (0 = unlimited). Beyond it the least
+    /// recently touched tiles are deleted. `store.meta` and state blobs are
+    /// not counted, and the tile just written is never deleted, so a budget
+    /// smaller than one tile keeps exactly one.
+    pub disk_budget_bytes: u64,
+}
+
+/// What the index knows of a tile on disk.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    /// Size of its file.
+    bytes: u64,
+    /// When it was last read or written, on the store's own clock.
+    touched: u64,
+}
+
+/// Tiles on disk, one file each, with an index of their sizes and recency
+/// and a disk budget. Blocking: the streamer runs it on its worker thread.
+///
+/// One `TileStore` at a time may have a directory open (an advisory lock on
+/// `store.lock` enforces it where the file system supports locks).
+#[derive(Debug)]
+pub struct TileStore {
+    dir: PathBuf,
+    side: u32,
+    config: StoreConfig,
+    index: HashMap<TileKey, Entry>,
+    /// The index ordered by recency, oldest first, for eviction.
+    by_age: BTreeSet<(u64, TileKey)>,
+    clock: u64,
+    total_bytes: u64,
+    evicted: u64,
+    /// Held for the lock; released when the store is dropped (or the process dies).
+    _lock: Option<File>,
+}
+
+impl TileStore {
+    /// Opens the store in `dir` for tiles of `side`² texels, creating it if
+    /// missing. An existing store must have the same tile side and format
+    /// version. Leftover temporary files are deleted, the tiles are indexed
+    /// (recency from their modification times) and, if the budget is now
+    /// smaller than what is stored, the oldest are evicted.
+    pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
+        let meta_path = dir.join(META_FILE);
+        if side == 0 || side > MAX_SIDE {
+            return Err(StoreError::Mismatch {
+                path: meta_path,
+                why: format!("tile side {side} is outside 1..={MAX_SIDE}"),
+            });
+        }
+        fs::create_dir_all(dir).map_err(io_error(dir, "create the store directory"))?;
+        let lock = lock(dir)?;
+        match fs::read(&meta_path) {
+            Ok(bytes) => check_meta(&meta_path, &bytes, side)?,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                atomic_write(&meta_path, &meta_bytes(side))?
+            }
+            Err(e) => {
+                return Err(StoreError::Io {
+                    path: meta_path,
+                    op: "read",
+                    source: e,
+                });
+            }
+        }
+        let tiles = dir.join(TILES_DIR);
+        match fs::create_dir(&tiles) {
+            Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
+                return Err(StoreError::Io {
+                    path: tiles,
+                    op: "create the tiles directory",
+                    source: e,
+                });
+            }
+            _ => {}
+        }
+        remove_temp_files(dir);
+
+        let mut found = Vec::new();
+        let regions = fs::read_dir(&tiles).map_err(io_error(&tiles, "list"))?;
+        for region in regions.flatten() {
+            let path = region.path();
+            if !path.is_dir() {
+                continue;
+            }
+            remove_temp_files(&path);
+            let Ok(files) = fs::read_dir(&path) else {
+                tracing::warn!(
+                    "tile store: cannot list {}; its tiles are not indexed",
+                    path.display()
+                );
+                continue;
+            };
+            for file in files.flatten() {
+                let name = file.file_name();
+                let Some(key) = name.to_str().and_then(parse_tile_name) else {
+                    continue;
+                };
+                if region_name(key) != region.file_name().to_string_lossy() {
+                    continue; // Not where this store puts that tile: not ours.
+                }
+                match file.metadata() {
+                    Ok(meta) if meta.is_file() => {
+                        found.push((
+                            meta.modified().unwrap_or(SystemTime::UNIX_EPOCH),
+                            key,
+                            meta.len(),
+                        ));
+                    }
+                    Ok(_) => {}
+                    Err(e) => {
+                        tracing::warn!("tile store: cannot stat {}: {e}", file.path().display())
+                    }
+                }
+            }
+        }
+        // Oldest first; the key breaks ties (file times are often coarser than writes).
+        found.sort_unstable();
+
+        let mut store = Self {
+            dir: dir.to_owned(),
+            side,
+            config,
+            index: HashMap::with_capacity(found.len()),
+            by_age: BTreeSet::new(),
+            clock: 0,
+            total_bytes: 0,
+            evicted: 0,
+            _lock: lock,
+        };
+        for (_, key, bytes) in found {
+            store.insert(key, bytes);
+        }
+        if let Err(e) = store.enforce_budget(None) {
+            // The store still works; the next write tries again.
+            tracing::warn!("tile store: over its disk budget: {e}");
+        }
+        Ok(store)
+    }
+
+    /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
+    ///
+    /// A tile that fails to decode is an error naming its file, which is
+    /// renamed to `*.tile.corrupt` (best effort, for inspection) and dropped
+    /// from the index, so the next read answers `Ok(None)` and the caller
+    /// can write fresh snow there.
+    pub fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError> {
+        if !self.index.contains_key(&key) {
+            return Ok(None);
+        }
+        let path = self.tile_path(key);
+        let bytes = match fs::read(&path) {
+            Ok(bytes) => bytes,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                // Deleted behind the store's back: as if never written.
+                self.forget(key);
+                return Ok(None);
+            }
+            Err(e) => {
+                return Err(StoreError::Io {
+                    path,
+                    op: "read",
+                    source: e,
+                });
+            }
+        };
+        let tile = decode(&bytes).and_then(|tile| {
+            if tile.key != key || tile.side != self.side {
+                return Err(StoreError::Mismatch {
+                    path: PathBuf::new(),
+                    why: format!(
+                        "holds tile {:?} of side {}, expected {key:?} of side {}",
+                        tile.key, tile.side, self.side
+                    ),
+                });
+            }
+            Ok(tile)
+        });
+        match tile {
+            Ok(tile) => {
+                self.touch(key);
+                Ok(Some(tile))
+            }
+            Err(e) => {
+                self.quarantine(key, &path);
+                Err(e.at(&path))
+            }
+        }
+    }
+
+    /// Writes a tile, atomically replacing any older version, then evicts the
+    /// least recently touched tiles (never this one) until the total is
+    /// within the disk budget. An error from eviction comes after the tile
+    /// itself was written.
+    pub fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
+        let path = self.tile_path(tile.key);
+        if tile.side != self.side {
+            return Err(StoreError::Mismatch {
+                path,
+                why: format!(
+                    "the tile is {}², the store holds {}² tiles",
+                    tile.side, self.side
+                ),
+            });
+        }
+        tile.validate().map_err(|e| e.at(&path))?;
+        let bytes = encode(tile);
+        if let Some(region) = path.parent() {
+            // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
+            // that is an error to report, not a directory to recreate.
+            match fs::create_dir(region) {
+                Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
+                    return Err(StoreError::Io {
+                        path: region.to_owned(),
+                        op: "create the region directory",
+                        source: e,
+                    });
+                }
+                _ => {}
+            }
+        }
+        atomic_write(&path, &bytes)?;
+        self.forget(tile.key);
+        self.insert(tile.key, bytes.len() as u64);
+        self.enforce_budget(Some(tile.key))
+    }
+
+    /// Writes a small named blob (the saved window, the clock) atomically,
+    /// framed with a magic, the format version and a CRC32. Names are 1 to
+    /// 64 characters of ASCII letters, digits, `-` and `_`.
+    pub fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        let path = self.state_path(name)?;
+        let mut framed = Vec::with_capacity(24 + bytes.len());
+        framed.extend_from_slice(STATE_MAGIC);
+        framed.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        framed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&framed);
+        crc.update(bytes);
+        framed.extend_from_slice(&crc.finalize().to_le_bytes());
+        framed.extend_from_slice(bytes);
+        atomic_write(&path, &framed)
+    }
+
+    /// Reads a blob written by [`TileStore::write_state`]; `Ok(None)` if there is none.
+    pub fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let path = self.state_path(name)?;
+        let framed = match fs::read(&path) {
+            Ok(framed) => framed,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => {
+                return Err(StoreError::Io {
+                    path,
+                    op: "read",
+                    source: e,
+                });
+            }
+        };
+        let corrupt = |why: &str| StoreError::Corrupt {
+            path: path.clone(),
+            why: why.to_owned(),
+        };
+        if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
+            return Err(corrupt(
+                "not a snowpack state file (no SNOWSTAT magic or too short)",
+            ));
+        }
+        let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
+        if version != FORMAT_VERSION {
+            return Err(StoreError::Version {
+                path,
+                found: version,
+                expected: FORMAT_VERSION,
+            });
+        }
+        let mut len = [0; 8];
+        len.copy_from_slice(&framed[12..20]);
+        let stored = u32::from_le_bytes([framed[20], framed[21], framed[22], framed[23]]);
+        let payload = &framed[24..];
+        if u64::from_le_bytes(len) != payload.len() as u64 {
+            return Err(corrupt("length mismatch (truncated?)"));
+        }
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&framed[..20]);
+        crc.update(payload);
+        if crc.finalize() != stored {
+            return Err(corrupt("bad CRC32"));
+        }
+        Ok(Some(payload.to_vec()))
+    }
+
+    /// The store's directory.
+    #[must_use]
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Texels per tile side.
+    #[must_use]
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    /// Tiles on disk.
+    #[must_use]
+    pub fn disk_tiles(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Bytes of tile files on disk (what the budget limits).
+    #[must_use]
+    pub fn disk_bytes(&self) -> u64 {
+        self.total_bytes
+    }
+
+    /// Tiles deleted to keep within the budget since the store was opened.
+    #[must_use]
+    pub fn evicted(&self) -> u64 {
+        self.evicted
+    }
+
+    /// Whether a tile is on disk (by the index; no I/O).
+    #[must_use]
+    pub fn contains(&self, key: TileKey) -> bool {
+        self.index.contains_key(&key)
+    }
+
+    /// Size of a tile's file, if it is on disk (by the index; no I/O).
+    #[must_use]
+    pub fn tile_bytes(&self, key: TileKey) -> Option<u64> {
+        self.index.get(&key).map(|e| e.bytes)
+    }
+
+    /// Where a tile's file is (whether or not it exists).
+    #[must_use]
+    pub fn tile_path(&self, key: TileKey) -> PathBuf {
+        tile_path(&self.dir, key)
+    }
+
+    fn state_path(&self, name: &str) -> Result<PathBuf, StoreError> {
+        let ok = !name.is_empty()
+            && name.len() <= MAX_STATE_NAME
+            && name
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+        if ok {
+            Ok(self.dir.join(format!("{name}.state")))
+        } else {
+            Err(StoreError::Mismatch {
+                path: self.dir.clone(),
+                why: format!(
+                    "{name:?} is not a state name (1 to {MAX_STATE_NAME} ASCII letters, digits, '-', '_')"
+                ),
+            })
+        }
+    }
+
+    /// Indexes a tile as just touched.
+    fn insert(&mut self, key: TileKey, bytes: u64) {
+        self.clock += 1;
+        self.index.insert(
+            key,
+            Entry {
+                bytes,
+                touched: self.clock,
+            },
+        );
+        self.by_age.insert((self.clock, key));
+        self.total_bytes += bytes;
+    }
+
+    fn touch(&mut self, key: TileKey) {
+        if let Some(bytes) = self.forget(key) {
+            self.insert(key, bytes);
+        }
+    }
+
+    /// Drops a tile from the index, returning its size.
+    fn forget(&mut self, key: TileKey) -> Option<u64> {
+        let entry = self.index.remove(&key)?;
+        self.by_age.remove(&(entry.touched, key));
+        self.total_bytes -= entry.bytes;
+        Some(entry.bytes)
+    }
+
+    fn quarantine(&mut self, key: TileKey, path: &Path) {
+        self.forget(key);
+        let mut aside = path.as_os_str().to_owned();
+        aside.push(CORRUPT_SUFFIX);
+        if let Err(e) = fs::rename(path, &aside) {
+            tracing::warn!(
+                "tile store: cannot move the corrupt tile {} aside: {e}",
+                path.display()
+            );
+        }
+    }
+
+    /// Deletes the least recently touched tiles (never `keep`) until the
+    /// total is within the budget.
+    fn enforce_budget(&mut self, keep: Option<TileKey>) -> Result<(), StoreError> {
+        let budget = self.config.disk_budget_bytes;
+        while budget > 0 && self.total_bytes > budget {
+            // At most two steps: only `keep` is skipped.
+            let Some(&(_, key)) = self.by_age.iter().find(|(_, k)| Some(*k) != keep) else {
+                break;
+            };
+            let path = self.tile_path(key);
+            match fs::remove_file(&path) {
+                Err(e) if e.kind() != io::ErrorKind::NotFound => {
+                    return Err(StoreError::Io {
+                        path,
+                        op: "delete (evicting to the disk budget)",
+                        source: e,
+                    });
+                }
+                _ => {}
+            }
+            self.forget(key);
+            self.evicted += 1;
+            if let Some(region) = path.parent() {
+                // Best effort: fails (harmlessly) while the region holds other tiles.
+                let _ = fs::remove_dir(region);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Where tile `key` of the store in `dir` lives. Arithmetic shifts keep
+/// negative coordinates in their own regions (-1 >> 5 is -1).
+pub(crate) fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
+    dir.join(TILES_DIR)
+        .join(region_name(key))
+        .join(format!("{}_{}.tile", key.col, key.row))
+}
+
+fn region_name(key: TileKey) -> String {
+    format!("r{}_{}", key.col >> REGION_SHIFT, key.row >> REGION_SHIFT)
+}
+
+/// `{col}_{row}.tile` back to its key.
+fn parse_tile_name(name: &str) -> Option<TileKey> {
+    let (col, row) = name.strip_suffix(".tile")?.split_once('_')?;
+    Some(TileKey {
+        col: col.parse().ok()?,
+        row: row.parse().ok()?,
+    })
+}
+
+fn meta_bytes(side: u32) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(20);
+    bytes.extend_from_slice(META_MAGIC);
+    bytes.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    bytes.extend_from_slice(&side.to_le_bytes());
+    let crc = crc32fast::hash(&bytes);
+    bytes.extend_from_slice(&crc.to_le_bytes());
+    bytes
+}
+
+fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
+    let field =
+        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    if bytes.len() != 20 || &bytes[..8] != META_MAGIC {
+        return Err(StoreError::Corrupt {
+            path: path.to_owned(),
+            why: "not a snowpack store description".to_owned(),
+        });
+    }
+    if crc32fast::hash(&bytes[..16]) != field(16) {
+        return Err(StoreError::Corrupt {
+            path: path.to_owned(),
+            why: "bad CRC32".to_owned(),
+        });
+    }
+    let (version, found_side) = (field(8), field(12));
+    if version != FORMAT_VERSION {
+        return Err(StoreError::Version {
+            path: path.to_owned(),
+            found: version,
+            expected: FORMAT_VERSION,
+        });
+    }
+    if found_side != side {
+        return Err(StoreError::Mismatch {
+            path: path.to_owned(),
+            why: format!("the store holds {found_side}² tiles, {side}² were asked for"),
+        });
+    }
+    Ok(())
+}
+
+/// Takes the store's advisory lock. Another holder (for longer than
+/// [`LOCK_PATIENCE`]) is an error; a file system without locks (or a
+/// read-only store) goes on unlocked.
+fn lock(dir: &Path) -> Result<Option<File>, StoreError> {
+    let path = dir.join(LOCK_FILE);
+    let file = match OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+    {
+        Ok(file) => file,
+        Err(e) => {
+            tracing::debug!("tile store: no lock file {}: {e}", path.display());
+            return Ok(None);
+        }
+    };
+    // A lock can outlive its holder for a moment: a process spawned while it
+    // was held keeps the locked file open until it execs. So a busy lock is
+    // retried briefly before it counts as another store.
+    let deadline = Instant::now() + LOCK_PATIENCE;
+    loop {
+        match file.try_lock() {
+            Ok(()) => return Ok(Some(file)),
+            Err(fs::TryLockError::WouldBlock) if Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Err(fs::TryLockError::WouldBlock) => {
+                return Err(StoreError::Io {
+                    path,
+                    op: "lock (another TileStore has the store open)",
+                    source: io::ErrorKind::WouldBlock.into(),
+                });
+            }
+            Err(fs::TryLockError::Error(e)) => {
+                tracing::debug!("tile store: cannot lock {}: {e}", path.display());
+                return Ok(None);
+            }
+        }
+    }
+}
+
+/// Deletes temporary files a crash left in `dir` (best effort).
+fn remove_temp_files(dir: &Path) {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        if entry.file_name().to_string_lossy().ends_with(TEMP_SUFFIX) {
+            let path = entry.path();
+            match fs::remove_file(&path) {
+                Ok(()) => tracing::debug!("tile store: removed the leftover {}", path.display()),
+                Err(e) => tracing::warn!(
+                    "tile store: cannot remove the leftover {}: {e}",
+                    path.display()
+                ),
+            }
+        }
+    }
+}
+
+/// Maps an I/O error on `path` to [`StoreError::Io`].
+fn io_error(path: &Path, op: &'static str) -> impl FnOnce(io::Error) -> StoreError {
+    let path = path.to_owned();
+    move |source| StoreError::Io { path, op, source }
+}
+
+/// Replaces `path` with `bytes` so that a crash leaves the old or the new
+/// file, never a mix: a unique temporary file in the same directory (rename
+/// is atomic only within a file system), synced, renamed over, and the
+/// directory synced so the rename itself is durable.
+fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mut temp = path.as_os_str().to_owned();
+    temp.push(format!(
+        ".{}-{}{TEMP_SUFFIX}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let temp = PathBuf::from(temp);
+    let written = (|| {
+        let mut file = OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&temp)
+            .map_err(io_error(&temp, "create"))?;
+        file.write_all(bytes).map_err(io_error(&temp, "write"))?;
+        file.sync_all().map_err(io_error(&temp, "sync"))?;
+        drop(file);
+        fs::rename(&temp, path).map_err(io_error(path, "rename into place"))
+    })();
+    if written.is_err() {
+        // Best effort; open() deletes leftovers anyway.
+        let _ = fs::remove_file(&temp);
+    }
+    written?;
+    if let Some(dir) = path.parent() {
+        sync_dir(dir);
+    }
+    Ok(())
+}
+
+/// Makes a rename in `dir` durable. Best effort: the rename is atomic
+/// either way, so a failure here can only lose the new version to a power
+/// cut (leaving the old one), and some platforms cannot sync directories.
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Err(e) = File::open(dir).and_then(|d| d.sync_all()) {
+        tracing::debug!(
+            "tile store: cannot sync the directory {}: {e}",
+            dir.display()
+        );
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::persist::SnowClock;
+    use crate::persist::test_dir::TestDir;
+
+    const SIDE: u32 = 16;
+
+    /// A tile whose every texel holds `v` (stamps `v`, fallen `v`).
+    fn tile(col: i64, row: i64, v: f32) -> TileData {
+        let n = (SIDE * SIDE) as usize;
+        TileData {
+            key: TileKey::new(col, row),
+            side: SIDE,
+            clock: SnowClock {
+                time_s: f64::from(v),
+                ..SnowClock::default()
+            },
+            // A little variation so sizes are realistic rather than minimal.
+            snow: (0..n).map(|k| v + (k % 7) as f32 * 0.001).collect(),
+            stamps: vec![v as u32; n],
+            fallen: vec![v; n],
+        }
+    }
+
+    fn open(dir: &Path, budget: u64) -> TileStore {
+        TileStore::open(
+            dir,
+            SIDE,
+            StoreConfig {
+                disk_budget_bytes: budget,
+            },
+        )
+        .expect("open the store")
+    }
+
+    #[test]
+    fn write_read_overwrite() {
+        let dir = TestDir::new("store-rw");
+        let mut store = open(dir.path(), 0);
+        assert_eq!(store.read(TileKey::new(0, 0)).expect("read"), None);
+        let a = tile(0, 0, 1.0);
+        store.write(&a).expect("write");
+        assert_eq!(store.read(a.key).expect("read"), Some(a.clone()));
+        let b = tile(0, 0, 2.0);
+        store.write(&b).expect("overwrite");
+        assert_eq!(store.read(a.key).expect("read"), Some(b));
+        assert_eq!(store.disk_tiles(), 1);
+        let on_disk = fs::metadata(store.tile_path(a.key))
+            .expect("the tile file")
+            .len();
+        assert_eq!(store.disk_bytes(), on_disk);
+        assert_eq!(store.tile_bytes(a.key), Some(on_disk));
+        // A tile of another side is refused, naming the file.
+        let mut wrong = tile(1, 0, 1.0);
+        wrong.side = 8;
+        match store.write(&wrong) {
+            Err(StoreError::Mismatch { path, .. }) => assert_eq!(path, store.tile_path(wrong.key)),
+            other => panic!("expected Mismatch, got {other:?}"),
+        }
+        let mut short = tile(1, 0, 1.0);
+        short.stamps.pop();
+        assert!(matches!(
+            store.write(&short),
+            Err(StoreError::Mismatch { .. })
+        ));
+        assert_eq!(store.disk_tiles(), 1);
+    }
+
+    #[test]
+    fn negative_keys_have_their_own_regions() {
+        let dir = TestDir::new("store-negative");
+        let mut store = open(dir.path(), 0);
+        let keys = [
+            (-1, -1),
+            (-32, 0),
+            (-33, 5),
+            (31, -32),
+            (32, 31),
+            (0, 0),
+            (i64::MIN, i64::MAX),
+        ];
+        for (k, &(col, row)) in keys.iter().enumerate() {
+            store.write(&tile(col, row, k as f32)).expect("write");
+        }
+        assert_eq!(
+            store.tile_path(TileKey::new(-1, -1)),
+            dir.path().join("tiles/r-1_-1/-1_-1.tile")
+        );
+        assert_eq!(
+            store.tile_path(TileKey::new(-33, 5)),
+            dir.path().join("tiles/r-2_0/-33_5.tile")
+        );
+        assert_eq!(
+            store.tile_path(TileKey::new(32, 31)),
+            dir.path().join("tiles/r1_0/32_31.tile")
+        );
+        for (k, &(col, row)) in keys.iter().enumerate() {
+            let back = store
+                .read(TileKey::new(col, row))
+                .expect("read")
+                .expect("written");
+            assert_eq!(back, tile(col, row, k as f32));
+        }
+        drop(store);
+        let mut store = open(dir.path(), 0);
+        assert_eq!(store.disk_tiles(), keys.len());
+        assert!(store.read(TileKey::new(-33, 5)).expect("read").is_some());
+    }
+
+    #[test]
+    fn the_budget_evicts_the_least_recently_touched() {
+        let dir = TestDir::new("store-budget");
+        let size = encode(&tile(0, 0, 1.0)).len() as u64;
+        // Room for three tiles (all tiles here encode to the same size).
+        let mut store = open(dir.path(), 3 * size + size / 2);
+        for col in 0..3 {
+            store.write(&tile(col, 0, 1.0)).expect("write");
+        }
+        assert_eq!((store.disk_tiles(), store.evicted()), (3, 0));
+        // Reading tile 0 touches it, so tile 1 is now the oldest.
+        assert!(store.read(TileKey::new(0, 0)).expect("read").is_some());
+        store.write(&tile(3, 0, 1.0)).expect("write");
+        assert_eq!(store.evicted(), 1);
+        assert!(
+            !store.contains(TileKey::new(1, 0)),
+            "tile 1 was the least recently touched"
+        );
+        assert!(!store.tile_path(TileKey::new(1, 0)).exists());
+        assert_eq!(store.read(TileKey::new(1, 0)).expect("read"), None);
+        for col in [0, 2, 3] {
+            assert!(store.contains(TileKey::new(col, 0)), "tile {col}");
+        }
+        // Overwriting tile 2 touches it: tile 0 goes next.
+        store.write(&tile(2, 0, 2.0)).expect("write");
+        store.write(&tile(4, 0, 1.0)).expect("write");
+        assert!(!store.contains(TileKey::new(0, 0)));
+        assert!(store.disk_bytes() <= 3 * size + size / 2);
+        assert_eq!(store.disk_tiles(), 3);
+
+        // A budget smaller than one tile keeps the one just written.
+        drop(store);
+        let mut tiny = open(dir.path(), 1);
+        assert_eq!(tiny.disk_tiles(), 0, "open evicts down to the new budget");
+        tiny.write(&tile(9, 9, 1.0)).expect("write");
+        tiny.write(&tile(8, 9, 1.0)).expect("write");
+        assert_eq!(tiny.disk_tiles(), 1);
+        assert!(tiny.contains(TileKey::new(8, 9)));
+    }
+
+    #[test]
+    fn reopening_keeps_the_index_and_removes_temp_files() {
+        let dir = TestDir::new("store-reopen");
+        let mut store = open(dir.path(), 0);
+        for col in 0..5 {
+            store.write(&tile(col, -col, col as f32)).expect("write");
+        }
+        store.write_state("window", b"origin").expect("state");
+        let (tiles, bytes) = (store.disk_tiles(), store.disk_bytes());
+        drop(store);
+        // What a crash between create and rename leaves behind.
+        let region = dir.path().join("tiles/r0_-1");
+        let leftover = region.join("-3_3.tile.1234-0.tmp");
+        fs::write(&leftover, b"half a tile").expect("leftover");
+        let state_leftover = dir.path().join("window.state.1234-1.tmp");
+        fs::write(&state_leftover, b"half").expect("leftover");
+        let unrelated = region.join("notes.txt");
+        fs::write(&unrelated, b"mine").expect("unrelated file");
+
+        let mut store = open(dir.path(), 0);
+        assert_eq!((store.disk_tiles(), store.disk_bytes()), (tiles, bytes));
+        assert!(
+            !leftover.exists() && !state_leftover.exists(),
+            "temp files are removed on open"
+        );
+        assert!(
+            unrelated.exists(),
+            "files the store did not write are left alone"
+        );
+        for col in 0..5 {
+            assert_eq!(
+                store.read(TileKey::new(col, -col)).expect("read"),
+                Some(tile(col, -col, col as f32))
+            );
+        }
+        assert_eq!(
+            store.read_state("window").expect("state"),
+            Some(b"origin".to_vec())
+        );
+    }
+
+    #[test]
+    fn a_corrupt_tile_is_quarantined() {
+        let dir = TestDir::new("store-corrupt");
+        let mut store = open(dir.path(), 0);
+        let key = TileKey::new(-2, 3);
+        store.write(&tile(key.col, key.row, 1.0)).expect("write");
+        let path = store.tile_path(key);
+        let mut bytes = fs::read(&path).expect("tile file");
+        let at = bytes.len() / 2;
+        bytes[at] ^= 0x40;
+        fs::write(&path, &bytes).expect("flip a byte");
+        match store.read(key) {
+            Err(StoreError::Corrupt { path: p, why }) => {
+                assert_eq!(p, path);
+                assert!(why.contains("CRC"), "{why}");
+            }
+            other => panic!("expected Corrupt, got {other:?}"),
+        }
+        assert!(!path.exists());
+        assert!(dir.path().join("tiles/r-1_0/-2_3.tile.corrupt").exists());
+        assert_eq!(store.read(key).expect("second read"), None);
+        assert_eq!(store.disk_tiles(), 0);
+        // Fresh snow can be written there again.
+        store.write(&tile(key.col, key.row, 5.0)).expect("write");
+        assert_eq!(
+            store.read(key).expect("read"),
+            Some(tile(key.col, key.row, 5.0))
+        );
+        // A tile file under another key's name is a mismatch, also set aside.
+        let other = TileKey::new(-2, 4);
+        fs::copy(&path, store.tile_path(other)).expect("copy");
+        drop(store);
+        let mut store = open(dir.path(), 0);
+        assert!(matches!(
+            store.read(other),
+            Err(StoreError::Mismatch { .. })
+        ));
+        assert_eq!(store.read(other).expect("second read"), None);
+    }
+
+    #[test]
+    fn store_meta_must_match() {
+        let dir = TestDir::new("store-meta");
+        drop(open(dir.path(), 0));
+        let meta = dir.path().join(META_FILE);
+        match TileStore::open(dir.path(), 32, StoreConfig::default()) {
+            Err(e @ StoreError::Mismatch { .. }) => {
+                assert_eq!(e.path(), Some(meta.as_path()));
+                assert!(e.to_string().contains("store.meta"), "{e}");
+            }
+            other => panic!("expected Mismatch, got {other:?}"),
+        }
+        let mut bytes = fs::read(&meta).expect("meta");
+        bytes[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
+        let crc = crc32fast::hash(&bytes[..16]);
+        bytes[16..20].copy_from_slice(&crc.to_le_bytes());
+        fs::write(&meta, &bytes).expect("write meta");
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+            Err(StoreError::Version {
+                path,
+                found,
+                expected,
+            }) => {
+                assert_eq!(
+                    (path, found, expected),
+                    (meta.clone(), FORMAT_VERSION + 1, FORMAT_VERSION)
+                );
+            }
+            other => panic!("expected Version, got {other:?}"),
+        }
+        fs::write(&meta, b"garbage").expect("write meta");
+        assert!(matches!(
+            TileStore::open(dir.path(), SIDE, StoreConfig::default()),
+            Err(StoreError::Corrupt { .. })
+        ));
+        assert!(matches!(
+            TileStore::open(dir.path(), 0, StoreConfig::default()),
+            Err(StoreError::Mismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn one_store_per_directory() {
+        let dir = TestDir::new("store-lock");
+        let store = open(dir.path(), 0);
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+            // Where the file system has locks, the second open is refused.
+            Err(StoreError::Io { source, .. }) => {
+                assert_eq!(source.kind(), io::ErrorKind::WouldBlock)
+            }
+            Ok(_) => assert!(store._lock.is_none(), "locked, yet a second store opened"),
+            Err(e) => panic!("unexpected {e}"),
+        }
+        drop(store);
+        drop(open(dir.path(), 0));
+    }
+
+    #[test]
+    fn state_round_trip_and_damage() {
+        let dir = TestDir::new("store-state");
+        let store = open(dir.path(), 0);
+        assert_eq!(store.read_state("window").expect("read"), None);
+        store.write_state("window", &[1, 2, 3]).expect("write");
+        store.write_state("empty", &[]).expect("write");
+        assert_eq!(
+            store.read_state("window").expect("read"),
+            Some(vec![1, 2, 3])
+        );
+        assert_eq!(store.read_state("empty").expect("read"), Some(Vec::new()));
+        store.write_state("window", &[4; 1000]).expect("overwrite");
+        assert_eq!(
+            store.read_state("window").expect("read"),
+            Some(vec![4; 1000])
+        );
+        for bad in ["", "../x", "a/b", "a.b", "x".repeat(65).as_str()] {
+            assert!(
+                matches!(
+                    store.write_state(bad, b"x"),
+                    Err(StoreError::Mismatch { .. })
+                ),
+                "{bad:?}"
+            );
+        }
+        let path = dir.path().join("window.state");
+        let mut bytes = fs::read(&path).expect("state file");
+        bytes[500] ^= 1;
+        fs::write(&path, &bytes).expect("damage");
+        match store.read_state("window") {
+            Err(StoreError::Corrupt { path: p, .. }) => assert_eq!(p, path),
+            other => panic!("expected Corrupt, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_vanished_directory_is_an_error() {
+        let dir = TestDir::new("store-vanished");
+        let mut store = open(dir.path(), 0);
+        store.write(&tile(0, 0, 1.0)).expect("write");
+        fs::remove_dir_all(dir.path()).expect("remove the store");
+        assert!(matches!(
+            store.write(&tile(1, 0, 1.0)),
+            Err(StoreError::Io { .. })
+        ));
+        assert!(matches!(
+            store.write(&tile(0, 0, 2.0)),
+            Err(StoreError::Io { .. })
+        ));
+        // Gone from disk: as if never written.
+        assert_eq!(store.read(TileKey::new(0, 0)).expect("read"), None);
+        assert!(matches!(
+            store.write_state("s", b"x"),
+            Err(StoreError::Io { .. })
+        ));
+        assert!(
+            !dir.path().exists(),
+            "the store is not recreated behind the caller's back"
+        );
+    }
+}

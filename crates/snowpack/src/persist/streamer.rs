@@ -1,0 +1,1127 @@
+//! Tiles off the frame's path: a worker thread owns the [`TileStore`] and
+//! does all compression and file I/O; the frame talks to it through two
+//! channels and a bounded memory cache, and never blocks (except in the
+//! calls documented as blocking).
+//!
+//! Ordering: one FIFO channel carries every request to the single worker,
+//! which answers them in order, so a load queued after a put sees that put's
+//! version even if the cache has dropped it meanwhile.
+//!
+//! Write-behind: [`TileStreamer::put`] puts the tile in the cache at once
+//! and queues its write. A tile whose write failed stays in the cache as
+//! dirty and is written again by the next [`TileStreamer::flush`] (and when
+//! the streamer is dropped). The cache does not pin dirty tiles: if the
+//! memory budget pushes one out while its last write had failed, it is gone
+//! and counted in [`StoreStats::lost`] (keeping it would let a failing disk
+//! grow memory without bound). A tile pushed out while its write is still
+//! queued is not lost: the worker holds it until written.
+
+use std::collections::{BTreeSet, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::thread::JoinHandle;
+
+use super::store::tile_path;
+use super::{StoreError, TileData, TileKey, TileStore};
+
+/// Most errors kept for [`TileStreamer::take_errors`]; more are logged and
+/// counted but not kept, so a game that never takes them does not grow.
+const MAX_ERRORS: usize = 1024;
+/// Tiles loaded for a request and not yet handed out by `lookup` may use up
+/// to this much (or the budget, if larger) before they are dropped, so a
+/// small budget cannot drop a tile the window is waiting for before it
+/// takes it (which would make it wait forever).
+const WANTED_FLOOR_BYTES: usize = 64 << 20;
+/// Most keys remembered as absent from the store (16 bytes each, plus the set's overhead).
+const MAX_ABSENT: usize = 1 << 16;
+
+/// How much memory the streamer's cache may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamerConfig {
+    /// Most bytes of tiles (by [`TileData::memory_bytes`]) to keep in memory;
+    /// beyond it the least recently used are dropped. Exceptions: the tile
+    /// most recently added is always kept (a budget smaller than one tile
+    /// keeps one); tiles loaded because they were asked for
+    /// ([`TileStreamer::request`], [`TileStreamer::lookup`],
+    /// [`TileStreamer::wait_for`]) and not yet handed out by `lookup` are
+    /// dropped last, and only beyond the budget or 64 MiB, whichever is
+    /// larger, so the window cannot wait forever for tiles that a small
+    /// budget keeps dropping. Tiles queued for writing are held by the
+    /// worker until written and are not counted.
+    pub memory_budget_bytes: usize,
+}
+
+impl Default for StreamerConfig {
+    /// 128 MiB: about 2,700 tiles of 64² texels with all three planes.
+    fn default() -> Self {
+        Self {
+            memory_budget_bytes: 128 << 20,
+        }
+    }
+}
+
+/// The answer to [`TileStreamer::lookup`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum TileLookup {
+    /// The tile's stored state; `None`: not in the store (never written,
+    /// evicted, or unreadable: see [`TileStreamer::take_errors`]), use fresh snow.
+    Ready(Option<TileData>),
+    /// Being loaded; ask again on a later frame.
+    Pending,
+}
+
+/// Counters of the cache and the store.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StoreStats {
+    /// Tiles in the memory cache.
+    pub memory_tiles: usize,
+    /// Their [`TileData::memory_bytes`].
+    pub memory_bytes: usize,
+    /// Tiles on disk (as of the worker's last reply).
+    pub disk_tiles: usize,
+    /// Bytes of tile files on disk (as of the worker's last reply).
+    pub disk_bytes: u64,
+    /// Lookups answered from memory (a cached tile, or known to be absent).
+    pub hits: u64,
+    /// Lookups that had to start a load from disk. (Asking again while the
+    /// load is in flight counts neither.)
+    pub misses: u64,
+    /// Loads the worker has answered.
+    pub loads: u64,
+    /// Tiles written to disk.
+    pub writes: u64,
+    /// Bytes of those writes (compressed, headers included).
+    pub bytes_written: u64,
+    /// Tiles that failed to decode (answered as absent, set aside on disk).
+    pub corrupt: u64,
+    /// Errors of any kind (each returned by [`TileStreamer::flush`] or in
+    /// [`TileStreamer::take_errors`]).
+    pub errors: u64,
+    /// Dirty tiles dropped from memory after their write had failed: their
+    /// latest version is lost.
+    pub lost: u64,
+    /// Tiles deleted from disk to keep within its budget.
+    pub evicted: u64,
+}
+
+impl StoreStats {
+    /// `hits / (hits + misses)`, 0 before any lookup.
+    #[must_use]
+    pub fn hit_rate(&self) -> f64 {
+        let total = self.hits + self.misses;
+        if total == 0 {
+            0.0
+        } else {
+            self.hits as f64 / total as f64
+        }
+    }
+}
+
+/// What the frame asks of the worker. `seq` orders requests and replies.
+enum Request {
+    Load {
+        seq: u64,
+        key: TileKey,
+    },
+    Write {
+        seq: u64,
+        tile: Arc<TileData>,
+    },
+    Flush {
+        seq: u64,
+    },
+    WriteState {
+        seq: u64,
+        name: String,
+        bytes: Vec<u8>,
+    },
+    ReadState {
+        seq: u64,
+        name: String,
+    },
+    /// Lets the tests kill the worker the way a bug would.
+    #[cfg(test)]
+    Panic,
+}
+
+/// The store's size after a request.
+#[derive(Clone, Copy, Debug, Default)]
+struct DiskNumbers {
+    tiles: usize,
+    bytes: u64,
+    evicted: u64,
+}
+
+struct Reply {
+    seq: u64,
+    disk: DiskNumbers,
+    outcome: Outcome,
+}
+
+enum Outcome {
+    Loaded {
+        key: TileKey,
+        result: Result<Option<TileData>, StoreError>,
+    },
+    /// The file's size on success.
+    Written {
+        key: TileKey,
+        result: Result<u64, StoreError>,
+    },
+    Flushed,
+    StateWritten(Result<(), StoreError>),
+    StateRead(Result<Option<Vec<u8>>, StoreError>),
+}
+
+/// Whether a cached tile is on disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Dirt {
+    /// Its version is the stored one.
+    Clean,
+    /// Its write (request `seq`) is queued.
+    Queued(u64),
+    /// Its last write failed; the next flush tries again.
+    Failed,
+}
+
+struct Cached {
+    tile: Arc<TileData>,
+    bytes: usize,
+    used: u64,
+    dirt: Dirt,
+    /// Loaded because it was asked for, and not yet handed out by `lookup`.
+    wanted: bool,
+}
+
+/// Streams tiles between the deformation window and a [`TileStore`] on a
+/// worker thread, with a bounded memory cache. See the module docs for the
+/// ordering and write-behind policies.
+pub struct TileStreamer {
+    side: u32,
+    dir: PathBuf,
+    config: StreamerConfig,
+    requests: Option<Sender<Request>>,
+    replies: Receiver<Reply>,
+    worker: Option<JoinHandle<()>>,
+    /// The worker has stopped (reported once in `errors`).
+    gone: bool,
+    seq: u64,
+    cache: HashMap<TileKey, Cached>,
+    /// The cache by last use, oldest first: tiles not `wanted`...
+    by_use: BTreeSet<(u64, TileKey)>,
+    /// ...and tiles `wanted` (dropped only after all of `by_use`).
+    wanted: BTreeSet<(u64, TileKey)>,
+    /// Bytes of the `wanted` tiles.
+    wanted_bytes: usize,
+    tick: u64,
+    memory_bytes: usize,
+    /// Keys the store has answered "not there" for (and not put since);
+    /// cleared when it reaches [`MAX_ABSENT`].
+    absent: HashSet<TileKey>,
+    /// Keys with a load in flight: the load's `seq`.
+    loading: HashMap<TileKey, u64>,
+    /// Keys with a write queued and not yet answered: the latest write's `seq`.
+    unwritten: HashMap<TileKey, u64>,
+    /// Errors for the game (at most [`MAX_ERRORS`]).
+    errors: Vec<StoreError>,
+    /// While `flush` waits: where the first write error goes, for it to return.
+    flush_error: Option<Option<StoreError>>,
+    stats: StoreStats,
+}
+
+impl TileStreamer {
+    /// Starts the worker thread ("snowpack-tiles"), which owns `store`.
+    ///
+    /// If the thread cannot be started, the streamer answers every lookup
+    /// with fresh snow and every blocking call with [`StoreError::WorkerGone`].
+    #[must_use]
+    pub fn new(store: TileStore, config: StreamerConfig) -> Self {
+        let (request_tx, request_rx) = mpsc::channel();
+        let (reply_tx, reply_rx) = mpsc::channel();
+        let stats = StoreStats {
+            disk_tiles: store.disk_tiles(),
+            disk_bytes: store.disk_bytes(),
+            evicted: store.evicted(),
+            ..StoreStats::default()
+        };
+        let (side, dir) = (store.side(), store.dir().to_owned());
+        let worker = std::thread::Builder::new()
+            .name("snowpack-tiles".to_owned())
+            .spawn(move || work(store, &request_rx, &reply_tx));
+        let worker = match worker {
+            Ok(handle) => Some(handle),
+            Err(e) => {
+                // The closure, and with it the reply sender, is dropped: the
+                // first poll finds the channel closed and reports WorkerGone.
+                tracing::error!("tile store: cannot start the worker thread: {e}");
+                None
+            }
+        };
+        Self {
+            side,
+            dir,
+            config,
+            requests: Some(request_tx),
+            replies: reply_rx,
+            worker,
+            gone: false,
+            seq: 0,
+            cache: HashMap::new(),
+            by_use: BTreeSet::new(),
+            wanted: BTreeSet::new(),
+            wanted_bytes: 0,
+            tick: 0,
+            memory_bytes: 0,
+            absent: HashSet::new(),
+            loading: HashMap::new(),
+            unwritten: HashMap::new(),
+            errors: Vec::new(),
+            flush_error: None,
+            stats,
+        }
+    }
+
+    /// Texels per tile side.
+    #[must_use]
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    /// The store's directory.
+    #[must_use]
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Whether [`TileStreamer::lookup`] would answer `Ready` now (the tile is
+    /// in memory or known to be absent, or the worker has stopped). Does not
+    /// drain replies or start a load: call [`TileStreamer::poll`] and
+    /// [`TileStreamer::request`] for that.
+    #[must_use]
+    pub fn is_ready(&self, key: TileKey) -> bool {
+        self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
+    }
+
+    /// Starts loading a tile the window will soon need (non-blocking). Does
+    /// nothing if it is cached, known to be absent, or already loading.
+    pub fn request(&mut self, key: TileKey) {
+        if self.cache.contains_key(&key)
+            || self.absent.contains(&key)
+            || self.loading.contains_key(&key)
+        {
+            return;
+        }
+        if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
+            self.loading.insert(key, seq);
+        }
+    }
+
+    /// A tile's stored state if it is at hand (non-blocking): a copy from
+    /// memory, `Ready(None)` if the store has none, otherwise `Pending` (and
+    /// the load is started). Drains the worker's replies first, as
+    /// [`TileStreamer::poll`] does.
+    pub fn lookup(&mut self, key: TileKey) -> TileLookup {
+        self.poll();
+        if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
+            self.touch(key);
+            // Handed out, it may now make room for others.
+            self.trim(key);
+            self.stats.hits += 1;
+            return TileLookup::Ready(Some((*tile).clone()));
+        }
+        if self.absent.contains(&key) {
+            self.stats.hits += 1;
+            return TileLookup::Ready(None);
+        }
+        if self.gone {
+            // Nothing will ever arrive: fresh snow rather than waiting forever.
+            return TileLookup::Ready(None);
+        }
+        if !self.loading.contains_key(&key) {
+            self.stats.misses += 1;
+            self.request(key);
+        }
+        TileLookup::Pending
+    }
+
+    /// Hands a tile to the store (non-blocking): it becomes the cached,
+    /// newest version at once and is written behind by the worker. A tile of
+    /// the wrong side or with planes of the wrong length is refused with an
+    /// error in [`TileStreamer::take_errors`].
+    pub fn put(&mut self, tile: TileData) {
+        let key = tile.key;
+        let valid = if tile.side == self.side {
+            tile.validate()
+        } else {
+            Err(StoreError::Mismatch {
+                path: PathBuf::new(),
+                why: format!(
+                    "the tile is {}², the store holds {}² tiles",
+                    tile.side, self.side
+                ),
+            })
+        };
+        if let Err(e) = valid {
+            self.report(e.at(&tile_path(&self.dir, key)), false);
+            return;
+        }
+        self.absent.remove(&key);
+        let tile = Arc::new(tile);
+        let bytes = tile.memory_bytes();
+        self.insert(
+            key,
+            Cached {
+                tile,
+                bytes,
+                used: 0,
+                dirt: Dirt::Failed,
+                wanted: false,
+            },
+        );
+        self.queue_write(key);
+    }
+
+    /// Takes the worker's replies into the cache, the statistics and the
+    /// errors (non-blocking). Call once a frame.
+    pub fn poll(&mut self) {
+        loop {
+            match self.replies.try_recv() {
+                Ok(reply) => self.handle(reply),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    self.worker_gone();
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Blocks until every key is ready (in memory or known absent): for the
+    /// first placement of the window and for loading a save. Read errors do
+    /// not stop it (those tiles are answered as absent and the errors are in
+    /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
+    /// keys together exceed the memory budget, the first may have been
+    /// dropped again by the time it returns.
+    pub fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
+        self.poll();
+        let mut waiting: Vec<TileKey> = keys.to_vec();
+        loop {
+            waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key));
+            if waiting.is_empty() {
+                return Ok(());
+            }
+            for &key in &waiting {
+                self.request(key);
+            }
+            if self.gone {
+                return Err(StoreError::WorkerGone);
+            }
+            match self.replies.recv() {
+                Ok(reply) => self.handle(reply),
+                Err(_) => {
+                    self.worker_gone();
+                    return Err(StoreError::WorkerGone);
+                }
+            }
+        }
+    }
+
+    /// Blocks until every queued write is done, writing again the cached
+    /// tiles whose earlier write failed. Returns the first write error of
+    /// this flush; any others are in [`TileStreamer::take_errors`].
+    pub fn flush(&mut self) -> Result<(), StoreError> {
+        self.poll();
+        let failed: Vec<TileKey> = self
+            .cache
+            .iter()
+            .filter(|(_, c)| c.dirt == Dirt::Failed)
+            .map(|(k, _)| *k)
+            .collect();
+        for key in failed {
+            self.queue_write(key);
+        }
+        let seq = self.send(|seq| Request::Flush { seq })?;
+        self.flush_error = Some(None);
+        let waited = self.wait(seq);
+        let first = self.flush_error.take().flatten();
+        if let Err(gone) = waited {
+            // The worker stopped mid-flush: that is the answer; keep the write error for later.
+            self.errors.extend(first);
+            return Err(gone);
+        }
+        first.map_or(Ok(()), Err)
+    }
+
+    /// The errors since the last call, for the game to show or log. A
+    /// corrupt tile is reported here and answered as `Ready(None)`.
+    pub fn take_errors(&mut self) -> Vec<StoreError> {
+        std::mem::take(&mut self.errors)
+    }
+
+    /// The counters now (disk numbers as of the worker's last reply).
+    #[must_use]
+    pub fn stats(&self) -> StoreStats {
+        StoreStats {
+            memory_tiles: self.cache.len(),
+            memory_bytes: self.memory_bytes,
+            ..self.stats
+        }
+    }
+
+    /// Stores a small named blob (blocking, ordered after the writes queued
+    /// before it); see [`TileStore::write_state`].
+    pub fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+        let name = name.to_owned();
+        let seq = self.send(|seq| Request::WriteState { seq, name, bytes })?;
+        match self.wait(seq)? {
+            Outcome::StateWritten(result) => result,
+            _ => Err(StoreError::WorkerGone),
+        }
+    }
+
+    /// Reads a named blob (blocking, ordered after the writes queued before
+    /// it); `Ok(None)` if there is none.
+    pub fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let name = name.to_owned();
+        let seq = self.send(|seq| Request::ReadState { seq, name })?;
+        match self.wait(seq)? {
+            Outcome::StateRead(result) => result,
+            _ => Err(StoreError::WorkerGone),
+        }
+    }
+
+    /// Sends a request numbered with the next `seq`.
+    fn send(&mut self, request: impl FnOnce(u64) -> Request) -> Result<u64, StoreError> {
+        if self.gone {
+            return Err(StoreError::WorkerGone);
+        }
+        self.seq += 1;
+        let sent = self
+            .requests
+            .as_ref()
+            .is_some_and(|tx| tx.send(request(self.seq)).is_ok());
+        if sent {
+            Ok(self.seq)
+        } else {
+            self.worker_gone();
+            Err(StoreError::WorkerGone)
+        }
+    }
+
+    /// Queues a write of the cached tile `key`.
+    fn queue_write(&mut self, key: TileKey) {
+        let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) else {
+            return;
+        };
+        let dirt = match self.send(|seq| Request::Write { seq, tile }) {
+            Ok(seq) => {
+                self.unwritten.insert(key, seq);
+                Dirt::Queued(seq)
+            }
+            Err(_) => Dirt::Failed,
+        };
+        if let Some(cached) = self.cache.get_mut(&key) {
+            cached.dirt = dirt;
+        }
+    }
+
+    /// Blocks for the reply to request `seq`, handling the ones before it.
+    fn wait(&mut self, seq: u64) -> Result<Outcome, StoreError> {
+        loop {
+            match self.replies.recv() {
+                Ok(reply) if reply.seq == seq => {
+                    self.take_disk(reply.disk);
+                    return Ok(reply.outcome);
+                }
+                Ok(reply) => self.handle(reply),
+                Err(_) => {
+                    self.worker_gone();
+                    return Err(StoreError::WorkerGone);
+                }
+            }
+        }
+    }
+
+    fn take_disk(&mut self, disk: DiskNumbers) {
+        self.stats.disk_tiles = disk.tiles;
+        self.stats.disk_bytes = disk.bytes;
+        self.stats.evicted = disk.evicted;
+    }
+
+    fn handle(&mut self, reply: Reply) {
+        self.take_disk(reply.disk);
+        let seq = reply.seq;
+        match reply.outcome {
+            Outcome::Loaded { key, result } => {
+                self.stats.loads += 1;
+                if self.loading.get(&key) == Some(&seq) {
+                    self.loading.remove(&key);
+                }
+                // The cache holds the newest version whenever it holds one;
+                // a write queued after this load also makes it stale (its
+                // tile was put, then dropped from memory: load it again).
+                let stale = self.cache.contains_key(&key)
+                    || self.unwritten.get(&key).is_some_and(|&w| w > seq);
+                let tile = match result {
+                    Ok(tile) => tile,
+                    Err(e) => {
+                        if matches!(
+                            e,
+                            StoreError::Corrupt { .. }
+                                | StoreError::Version { .. }
+                                | StoreError::Mismatch { .. }
+                        ) {
+                            self.stats.corrupt += 1;
+                        }
+                        self.report(e, false);
+                        // Fresh snow: the store has set the bad file aside.
+                        None
+                    }
+                };
+                if stale {
+                    return;
+                }
+                match tile {
+                    Some(tile) => {
+                        let tile = Arc::new(tile);
+                        let bytes = tile.memory_bytes();
+                        self.insert(
+                            key,
+                            Cached {
+                                tile,
+                                bytes,
+                                used: 0,
+                                dirt: Dirt::Clean,
+                                wanted: true,
+                            },
+                        );
+                    }
+                    None => {
+                        if self.absent.len() >= MAX_ABSENT {
+                            // Forgetting only costs a load each if asked again.
+                            self.absent.clear();
+                        }
+                        self.absent.insert(key);
+                    }
+                }
+            }
+            Outcome::Written { key, result } => {
+                if self.unwritten.get(&key) == Some(&seq) {
+                    self.unwritten.remove(&key);
+                }
+                let cached = self.cache.get_mut(&key);
+                match result {
+                    Ok(bytes) => {
+                        self.stats.writes += 1;
+                        self.stats.bytes_written += bytes;
+                        if let Some(cached) = cached
+                            && cached.dirt == Dirt::Queued(seq)
+                        {
+                            cached.dirt = Dirt::Clean;
+                        }
+                    }
+                    Err(e) => {
+                        match cached {
+                            Some(cached) if cached.dirt == Dirt::Queued(seq) => {
+                                cached.dirt = Dirt::Failed
+                            }
+                            // A newer version is in memory or queued: this one no longer matters.
+                            Some(_) => {}
+                            None if self.unwritten.contains_key(&key) => {}
+                            None => {
+                                tracing::warn!(
+                                    "tile store: tile {key:?} was dropped from memory and its write failed"
+                                );
+                                self.stats.lost += 1;
+                            }
+                        }
+                        self.report(e, true);
+                    }
+                }
+            }
+            // Answers to blocking calls arrive only while they wait.
+            Outcome::Flushed | Outcome::StateWritten(_) | Outcome::StateRead(_) => {}
+        }
+    }
+
+    fn report(&mut self, error: StoreError, from_write: bool) {
+        tracing::debug!("tile store: {error}");
+        self.stats.errors += 1;
+        if from_write && let Some(slot @ None) = &mut self.flush_error {
+            *slot = Some(error);
+        } else if self.errors.len() < MAX_ERRORS {
+            self.errors.push(error);
+        } else {
+            tracing::warn!(
+                "tile store: {error} (not kept: {MAX_ERRORS} errors are waiting for take_errors)"
+            );
+        }
+    }
+
+    fn worker_gone(&mut self) {
+        if !self.gone {
+            self.gone = true;
+            self.loading.clear();
+            tracing::error!("tile store: the worker thread has stopped");
+            self.report(StoreError::WorkerGone, false);
+        }
+    }
+
+    /// Caches a tile as the most recently used, then trims to the budget:
+    /// the least recently used tiles first, then (only while they alone are
+    /// over their allowance) the longest-waiting `wanted` ones. The tile just
+    /// added stays.
+    fn insert(&mut self, key: TileKey, mut cached: Cached) {
+        self.remove(key);
+        self.tick += 1;
+        cached.used = self.tick;
+        self.memory_bytes += cached.bytes;
+        if cached.wanted {
+            self.wanted_bytes += cached.bytes;
+            self.wanted.insert((self.tick, key));
+        } else {
+            self.by_use.insert((self.tick, key));
+        }
+        self.cache.insert(key, cached);
+        self.absent.remove(&key);
+        self.trim(key);
+    }
+
+    /// Drops tiles until the cache is within the budget (see [`Self::insert`]), never `keep`.
+    fn trim(&mut self, keep: TileKey) {
+        let wanted_allowance = self.config.memory_budget_bytes.max(WANTED_FLOOR_BYTES);
+        while self.memory_bytes > self.config.memory_budget_bytes {
+            // At most two steps each: only `keep` is skipped.
+            let oldest = |order: &BTreeSet<(u64, TileKey)>| {
+                order.iter().find(|(_, k)| *k != keep).map(|&(_, k)| k)
+            };
+            let victim = oldest(&self.by_use).or_else(|| {
+                (self.wanted_bytes > wanted_allowance)
+                    .then(|| oldest(&self.wanted))
+                    .flatten()
+            });
+            let Some(victim) = victim else { break };
+            if let Some(dropped) = self.remove(victim)
+                && dropped.dirt == Dirt::Failed
+            {
+                tracing::warn!(
+                    "tile store: tile {victim:?} was dropped from memory before it could be written"
+                );
+                self.stats.lost += 1;
+            }
+        }
+    }
+
+    fn remove(&mut self, key: TileKey) -> Option<Cached> {
+        let cached = self.cache.remove(&key)?;
+        if cached.wanted {
+            self.wanted.remove(&(cached.used, key));
+            self.wanted_bytes -= cached.bytes;
+        } else {
+            self.by_use.remove(&(cached.used, key));
+        }
+        self.memory_bytes -= cached.bytes;
+        Some(cached)
+    }
+
+    /// Marks a cached tile as just used and no longer `wanted` (it has been handed out).
+    fn touch(&mut self, key: TileKey) {
+        if let Some(cached) = self.cache.get_mut(&key) {
+            if cached.wanted {
+                cached.wanted = false;
+                self.wanted.remove(&(cached.used, key));
+                self.wanted_bytes -= cached.bytes;
+            } else {
+                self.by_use.remove(&(cached.used, key));
+            }
+            self.tick += 1;
+            cached.used = self.tick;
+            self.by_use.insert((self.tick, key));
+        }
+    }
+}
+
+impl Drop for TileStreamer {
+    /// Writes what is still dirty, lets the worker finish its queue and joins
+    /// it. Errors can no longer reach the game here; they are logged.
+    fn drop(&mut self) {
+        let failed: Vec<TileKey> = self
+            .cache
+            .iter()
+            .filter(|(_, c)| c.dirt == Dirt::Failed)
+            .map(|(k, _)| *k)
+            .collect();
+        for key in failed {
+            self.queue_write(key);
+        }
+        // Closing the channel ends the worker's loop once the queue is done.
+        drop(self.requests.take());
+        if let Some(worker) = self.worker.take()
+            && worker.join().is_err()
+        {
+            tracing::error!("tile store: the worker thread panicked; unwritten tiles are lost");
+        }
+        self.poll();
+        for error in self.errors.drain(..) {
+            tracing::warn!("tile store: {error}");
+        }
+        let unwritten = self
+            .cache
+            .values()
+            .filter(|c| c.dirt != Dirt::Clean)
+            .count();
+        if unwritten > 0 {
+            tracing::warn!("tile store: {unwritten} tiles could not be written and are lost");
+        }
+    }
+}
+
+/// The worker: answers requests in order until the streamer hangs up. Never
+/// panics on I/O errors: they go back in the replies.
+fn work(mut store: TileStore, requests: &Receiver<Request>, replies: &Sender<Reply>) {
+    for request in requests {
+        let (seq, outcome) = match request {
+            Request::Load { seq, key } => (
+                seq,
+                Outcome::Loaded {
+                    key,
+                    result: store.read(key),
+                },
+            ),
+            Request::Write { seq, tile } => {
+                let result = store
+                    .write(&tile)
+                    .map(|()| store.tile_bytes(tile.key).unwrap_or(0));
+                (
+                    seq,
+                    Outcome::Written {
+                        key: tile.key,
+                        result,
+                    },
+                )
+            }
+            Request::Flush { seq } => (seq, Outcome::Flushed),
+            Request::WriteState { seq, name, bytes } => {
+                (seq, Outcome::StateWritten(store.write_state(&name, &bytes)))
+            }
+            Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
+            #[cfg(test)]
+            Request::Panic => panic!("the tile worker panics (as a test asked)"),
+        };
+        let disk = DiskNumbers {
+            tiles: store.disk_tiles(),
+            bytes: store.disk_bytes(),
+            evicted: store.evicted(),
+        };
+        // The streamer may be dropping: keep going, the queued writes still matter.
+        let _ = replies.send(Reply { seq, disk, outcome });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use super::*;
+    use crate::persist::test_dir::TestDir;
+    use crate::persist::{SnowClock, StoreConfig, decode};
+
+    const SIDE: u32 = 8;
+
+    fn tile(col: i64, row: i64, v: f32) -> TileData {
+        let n = (SIDE * SIDE) as usize;
+        TileData {
+            key: TileKey::new(col, row),
+            side: SIDE,
+            clock: SnowClock {
+                time_s: f64::from(v),
+                ..SnowClock::default()
+            },
+            snow: vec![v; n],
+            stamps: vec![v as u32; n],
+            fallen: Vec::new(),
+        }
+    }
+
+    fn streamer(dir: &TestDir, tiles_in_memory: usize) -> TileStreamer {
+        let store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+        let budget = tiles_in_memory * tile(0, 0, 0.0).memory_bytes();
+        TileStreamer::new(
+            store,
+            StreamerConfig {
+                memory_budget_bytes: budget,
+            },
+        )
+    }
+
+    /// Polls until the lookup is ready (bounded, so a bug fails instead of hanging).
+    fn ready(s: &mut TileStreamer, key: TileKey) -> Option<TileData> {
+        let start = Instant::now();
+        loop {
+            if let TileLookup::Ready(tile) = s.lookup(key) {
+                return tile;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(10),
+                "{key:?} never became ready"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    #[test]
+    fn pending_then_ready_and_hits() {
+        let dir = TestDir::new("streamer-pending");
+        {
+            let mut store =
+                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            store.write(&tile(1, -1, 3.0)).expect("write");
+        }
+        let mut s = streamer(&dir, 16);
+        assert_eq!(s.side(), SIDE);
+        assert_eq!(s.stats().disk_tiles, 1);
+        let key = TileKey::new(1, -1);
+        assert!(!s.is_ready(key));
+        assert_eq!(
+            s.lookup(key),
+            TileLookup::Pending,
+            "the first lookup cannot be in memory"
+        );
+        assert_eq!(ready(&mut s, key), Some(tile(1, -1, 3.0)));
+        assert!(s.is_ready(key));
+        assert_eq!(s.lookup(key), TileLookup::Ready(Some(tile(1, -1, 3.0))));
+        let stats = s.stats();
+        assert_eq!((stats.misses, stats.hits, stats.loads), (1, 2, 1));
+        assert_eq!(stats.memory_tiles, 1);
+
+        // Never written: Pending, then known absent without another load.
+        let never = TileKey::new(50, 50);
+        s.request(never);
+        assert_eq!(ready(&mut s, never), None);
+        assert_eq!(s.lookup(never), TileLookup::Ready(None));
+        let stats = s.stats();
+        assert_eq!(
+            (stats.loads, stats.misses),
+            (2, 1),
+            "request() is a prefetch, not a miss"
+        );
+        assert!((stats.hit_rate() - stats.hits as f64 / (stats.hits + 1) as f64).abs() < 1e-12);
+        assert!(s.take_errors().is_empty());
+    }
+
+    #[test]
+    fn memory_budget_is_respected() {
+        let dir = TestDir::new("streamer-budget");
+        let mut s = streamer(&dir, 3);
+        let budget = 3 * tile(0, 0, 0.0).memory_bytes();
+        for col in 0..10 {
+            s.put(tile(col, 0, col as f32));
+            assert!(s.stats().memory_bytes <= budget);
+            assert!(s.stats().memory_tiles <= 3);
+        }
+        s.flush().expect("flush");
+        for col in 0..10 {
+            assert_eq!(
+                ready(&mut s, TileKey::new(col, 0)),
+                Some(tile(col, 0, col as f32))
+            );
+            assert!(s.stats().memory_bytes <= budget);
+        }
+        let stats = s.stats();
+        assert_eq!((stats.writes, stats.disk_tiles, stats.lost), (10, 10, 0));
+    }
+
+    #[test]
+    fn tiles_asked_for_wait_for_their_lookup() {
+        let dir = TestDir::new("streamer-wanted");
+        let keys: Vec<TileKey> = (0..6).map(|k| TileKey::new(k, -k)).collect();
+        {
+            let mut store =
+                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            for key in &keys {
+                store
+                    .write(&tile(key.col, key.row, key.col as f32))
+                    .expect("write");
+            }
+        }
+        // Room for one tile, but the window needs six at once.
+        let mut s = streamer(&dir, 1);
+        s.wait_for(&keys).expect("wait");
+        assert!(
+            keys.iter().all(|&k| s.is_ready(k)),
+            "every tile asked for is still there"
+        );
+        for key in &keys {
+            assert_eq!(
+                s.lookup(*key),
+                TileLookup::Ready(Some(tile(key.col, key.row, key.col as f32)))
+            );
+        }
+        // Handed out, they no longer hold memory beyond the budget.
+        let stats = s.stats();
+        assert_eq!((stats.memory_tiles, stats.loads, stats.misses), (1, 6, 0));
+        // Once taken, a tile is an ordinary cache entry and may be dropped.
+        s.put(tile(9, 9, 1.0));
+        assert_eq!(s.stats().memory_tiles, 1);
+        assert_eq!(s.lookup(keys[0]), TileLookup::Pending);
+    }
+
+    #[test]
+    fn put_then_evict_then_lookup_returns_the_newest() {
+        let dir = TestDir::new("streamer-newest");
+        {
+            let mut store =
+                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            store.write(&tile(0, 0, 1.0)).expect("write");
+        }
+        let mut s = streamer(&dir, 1);
+        let a = TileKey::new(0, 0);
+        // A load of the old version is queued before the put...
+        s.request(a);
+        s.put(tile(0, 0, 2.0));
+        // ...and the new version leaves memory before anything was written.
+        s.put(tile(1, 0, 9.0));
+        assert_eq!(s.stats().memory_tiles, 1);
+        s.wait_for(&[a]).expect("wait");
+        assert_eq!(s.lookup(a), TileLookup::Ready(Some(tile(0, 0, 2.0))));
+        assert_eq!(ready(&mut s, TileKey::new(1, 0)), Some(tile(1, 0, 9.0)));
+        assert_eq!(s.stats().lost, 0);
+    }
+
+    #[test]
+    fn flush_writes_everything_and_state_is_ordered() {
+        let dir = TestDir::new("streamer-flush");
+        let mut s = streamer(&dir, 64);
+        for col in -5..5 {
+            s.put(tile(col, 7, col as f32 + 10.0));
+        }
+        // State requests are ordered after the tile writes before them.
+        s.write_state("clock", vec![1, 2, 3]).expect("write state");
+        assert_eq!(s.stats().writes, 10);
+        s.flush().expect("flush");
+        assert_eq!(
+            s.read_state("clock").expect("read state"),
+            Some(vec![1, 2, 3])
+        );
+        assert_eq!(s.read_state("nothing").expect("read state"), None);
+        assert!(s.write_state("../escape", Vec::new()).is_err());
+        let stats = s.stats();
+        assert_eq!((stats.writes, stats.disk_tiles, stats.errors), (10, 10, 0));
+        assert_eq!(stats.bytes_written, stats.disk_bytes);
+        for col in -5..5 {
+            let bytes = std::fs::read(tile_path(dir.path(), TileKey::new(col, 7)))
+                .expect("the tile's file");
+            assert_eq!(
+                decode(&bytes).expect("decode"),
+                tile(col, 7, col as f32 + 10.0)
+            );
+        }
+        // Dropping writes what is queued.
+        s.put(tile(100, 100, 1.0));
+        drop(s);
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("reopen");
+        assert_eq!(
+            store.read(TileKey::new(100, 100)).expect("read"),
+            Some(tile(100, 100, 1.0))
+        );
+    }
+
+    #[test]
+    fn failed_writes_stay_dirty_and_are_retried() {
+        let dir = TestDir::new("streamer-retry");
+        let mut s = streamer(&dir, 2);
+        let tiles = dir.path().join("tiles");
+        // A file where the directory was: every tile write fails, as root too.
+        std::fs::remove_dir_all(&tiles).expect("remove tiles");
+        std::fs::write(&tiles, b"in the way").expect("block tiles");
+        s.put(tile(0, 0, 1.0));
+        assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
+        assert_eq!(s.stats().errors, 1);
+        assert!(
+            s.take_errors().is_empty(),
+            "the error flush returned is not repeated"
+        );
+        // Still answered from memory, and written once the disk is back.
+        assert_eq!(
+            s.lookup(TileKey::new(0, 0)),
+            TileLookup::Ready(Some(tile(0, 0, 1.0)))
+        );
+        std::fs::remove_file(&tiles).expect("unblock");
+        std::fs::create_dir(&tiles).expect("tiles again");
+        s.flush().expect("the retry succeeds");
+        assert_eq!((s.stats().writes, s.stats().disk_tiles), (1, 1));
+
+        // Dropping a failed tile from memory loses it, and says so.
+        std::fs::remove_dir_all(&tiles).expect("remove tiles");
+        std::fs::write(&tiles, b"in the way").expect("block tiles");
+        s.put(tile(1, 0, 1.0));
+        s.put(tile(2, 0, 1.0));
+        assert!(s.flush().is_err());
+        // One error was returned; the other write's (and any earlier attempt's) are here.
+        let errors = s.take_errors();
+        assert!(
+            !errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })),
+            "{errors:?}"
+        );
+        s.put(tile(3, 0, 1.0));
+        s.put(tile(4, 0, 1.0));
+        let stats = s.stats();
+        assert_eq!(stats.lost, 2, "tiles 1 and 2 were dropped unwritten");
+        assert_eq!(stats.memory_tiles, 2);
+        // Pushed out while their writes are queued: not lost until those fail.
+        s.put(tile(5, 0, 1.0));
+        s.put(tile(6, 0, 1.0));
+        assert!(s.flush().is_err());
+        assert_eq!(
+            s.stats().lost,
+            4,
+            "tiles 3 and 4 failed after leaving memory"
+        );
+        assert!(s.lookup(TileKey::new(6, 0)) == TileLookup::Ready(Some(tile(6, 0, 1.0))));
+    }
+
+    #[test]
+    fn a_dead_worker_is_reported_not_panicked() {
+        let dir = TestDir::new("streamer-dead");
+        let mut s = streamer(&dir, 4);
+        s.put(tile(0, 0, 1.0));
+        s.send(|_| Request::Panic).expect("send");
+        assert!(matches!(s.flush(), Err(StoreError::WorkerGone)));
+        assert!(matches!(
+            s.wait_for(&[TileKey::new(5, 5)]),
+            Err(StoreError::WorkerGone)
+        ));
+        assert!(matches!(s.read_state("x"), Err(StoreError::WorkerGone)));
+        assert_eq!(s.lookup(TileKey::new(5, 5)), TileLookup::Ready(None));
+        assert_eq!(
+            s.lookup(TileKey::new(0, 0)),
+            TileLookup::Ready(Some(tile(0, 0, 1.0)))
+        );
+        s.put(tile(1, 0, 1.0));
+        let errors = s.take_errors();
+        assert_eq!(errors.len(), 1, "{errors:?}");
+        assert!(matches!(errors[0], StoreError::WorkerGone));
+        drop(s); // Must not panic.
+    }
+
+    #[test]
+    fn a_wrong_tile_is_refused() {
+        let dir = TestDir::new("streamer-wrong");
+        let mut s = streamer(&dir, 4);
+        let mut short = tile(0, 0, 1.0);
+        short.snow.pop();
+        s.put(short);
+        let mut big = tile(1, 0, 1.0);
+        big.side = 16;
+        s.put(big);
+        let errors = s.take_errors();
+        assert_eq!(errors.len(), 2);
+        assert!(
+            errors
+                .iter()
+                .all(|e| matches!(e, StoreError::Mismatch { .. }) && e.path().is_some())
+        );
+        assert_eq!(s.stats().memory_tiles, 0);
+    }
+}

@@ -1,0 +1,403 @@
+//! The tile store survives what a game's disk goes through: a process
+//! killed while saving, a damaged file, a disk that stops accepting writes,
+//! and a disk budget. CPU only.
+
+use std::fs;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use snowpack::persist::{
+    SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore,
+    TileStreamer, encode,
+};
+use snowpack::testing::{self, Rng};
+
+/// Set (to a store directory) when the test binary runs as the writer child.
+const CHILD_ENV: &str = "SNOWPACK_PERSIST_CHILD_DIR";
+/// The writer child's test.
+const CHILD_TEST: &str = "killed_writer_child";
+/// What the child prints once every tile has a complete first version.
+const STARTED: &str = "snowpack-persist-child: started";
+/// Tiles the child rewrites.
+const CHILD_TILES: i64 = 32;
+const SIDE: u32 = 32;
+
+/// A fresh directory, removed on drop.
+struct TestDir(PathBuf);
+
+impl TestDir {
+    fn new(name: &str) -> Self {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let dir =
+            std::env::temp_dir().join(format!("snowpack-it-{name}-{}-{nanos}", std::process::id()));
+        fs::create_dir_all(&dir).expect("create a test directory");
+        Self(dir)
+    }
+
+    fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Version `v` of a tile: every texel of every plane holds `v`, so a tile
+/// mixing two versions is detectable.
+fn version(key: TileKey, v: u32) -> TileData {
+    let n = (SIDE * SIDE) as usize;
+    TileData {
+        key,
+        side: SIDE,
+        clock: SnowClock {
+            time_s: f64::from(v),
+            refill_m: f64::from(v),
+            fallen_m: f64::from(v),
+            stamp_quanta: u64::from(v),
+        },
+        snow: vec![v as f32; n],
+        stamps: vec![v; n],
+        fallen: vec![v as f32; n],
+    }
+}
+
+/// The version a tile holds, if it is one version throughout.
+fn uniform_version(tile: &TileData) -> Option<u32> {
+    let v = tile.stamps.first().copied()?;
+    let same = tile.snow.iter().all(|&s| s == v as f32)
+        && tile.stamps.iter().all(|&s| s == v)
+        && tile.fallen.iter().all(|&s| s == v as f32)
+        && tile.fallen.len() == tile.snow.len()
+        && tile.clock == version(tile.key, v).clock;
+    same.then_some(v)
+}
+
+fn child_keys() -> impl Iterator<Item = TileKey> {
+    // Across four regions, negative coordinates included.
+    (0..CHILD_TILES).map(|k| TileKey::new(k % 8 - 4, k / 8 * 20 - 35))
+}
+
+/// The child half of `a_store_killed_while_saving_keeps_whole_tiles`: writes
+/// versions 1, 2, 3, ... of every tile until it is killed. Returns at once
+/// when not started as the child.
+#[test]
+fn killed_writer_child() {
+    let Some(dir) = std::env::var_os(CHILD_ENV) else {
+        return;
+    };
+    let mut store =
+        TileStore::open(Path::new(&dir), SIDE, StoreConfig::default()).expect("child: open");
+    let start = Instant::now();
+    // Bounded, so an orphaned child does not write forever.
+    for v in 1.. {
+        for key in child_keys() {
+            store.write(&version(key, v)).expect("child: write");
+        }
+        if v == 1 {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{STARTED}").expect("child: stdout");
+            out.flush().expect("child: stdout");
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            break;
+        }
+    }
+}
+
+#[test]
+fn a_store_killed_while_saving_keeps_whole_tiles() {
+    let seed = testing::seed("a_store_killed_while_saving_keeps_whole_tiles");
+    let mut rng = Rng::new(seed);
+    let exe = std::env::current_exe().expect("the test binary");
+    for round in 0..5 {
+        let dir = TestDir::new("killed");
+        let mut child = Command::new(&exe)
+            .args(["--exact", CHILD_TEST, "--nocapture", "--test-threads=1"])
+            .env(CHILD_ENV, dir.path())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start the writer child");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let started = BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+            .any(|line| line.contains(STARTED));
+        assert!(
+            started,
+            "round {round}: the child ended before it started writing: {:?}",
+            child.wait()
+        );
+        let delay = rng.range(5.0, 60.0);
+        std::thread::sleep(Duration::from_secs_f32(delay / 1000.0));
+        child.kill().expect("kill the child");
+        let status = child.wait().expect("reap the child");
+        assert!(
+            !status.success(),
+            "round {round}: the child finished instead of being killed"
+        );
+
+        let mut store =
+            TileStore::open(dir.path(), SIDE, StoreConfig::default()).unwrap_or_else(|e| {
+                panic!("seed {seed} round {round}: the store does not open after a kill: {e}")
+            });
+        assert_eq!(
+            store.disk_tiles(),
+            CHILD_TILES as usize,
+            "seed {seed} round {round}"
+        );
+        let mut versions = Vec::new();
+        for key in child_keys() {
+            let tile = store
+                .read(key)
+                .unwrap_or_else(|e| panic!("seed {seed} round {round}: {key:?}: {e}"))
+                .unwrap_or_else(|| panic!("seed {seed} round {round}: {key:?} is missing"));
+            let v = uniform_version(&tile)
+                .unwrap_or_else(|| panic!("seed {seed} round {round}: {key:?} mixes versions"));
+            versions.push(v);
+        }
+        let leftovers: Vec<PathBuf> = walk(dir.path())
+            .into_iter()
+            .filter(|p| p.to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(
+            leftovers.is_empty(),
+            "temp files survive open: {leftovers:?}"
+        );
+        let (lo, hi) = (versions.iter().min(), versions.iter().max());
+        eprintln!("round {round}: killed after {delay:.0} ms, tile versions {lo:?}..={hi:?}");
+    }
+}
+
+#[test]
+fn a_corrupt_tile_is_reported_and_replaced_by_fresh_snow() {
+    let dir = TestDir::new("corrupt");
+    let (a, b) = (TileKey::new(3, -4), TileKey::new(-70, 12));
+    let (path_a, path_b) = {
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+        store.write(&version(a, 1)).expect("write");
+        store.write(&version(b, 1)).expect("write");
+        (store.tile_path(a), store.tile_path(b))
+    };
+    flip_a_byte(&path_a);
+    flip_a_byte(&path_b);
+
+    // Straight from the store: an error naming the file, then nothing there.
+    {
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+        match store.read(a) {
+            Err(StoreError::Corrupt { path, .. }) => assert_eq!(path, path_a),
+            other => panic!("expected Corrupt, got {other:?}"),
+        }
+        assert!(matches!(store.read(a), Ok(None)));
+    }
+
+    // Through the streamer: fresh snow, and the error for the game.
+    let store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+    let mut streamer = TileStreamer::new(store, StreamerConfig::default());
+    assert_eq!(ready(&mut streamer, b), None);
+    let errors = streamer.take_errors();
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    match &errors[0] {
+        StoreError::Corrupt { path, .. } => assert_eq!(path, &path_b),
+        other => panic!("expected Corrupt, got {other:?}"),
+    }
+    assert!(
+        errors[0]
+            .to_string()
+            .contains(&path_b.display().to_string())
+    );
+    let stats = streamer.stats();
+    assert_eq!((stats.corrupt, stats.errors), (1, 1));
+    // Fresh snow written there replaces it.
+    streamer.put(version(b, 2));
+    streamer.flush().expect("flush");
+    drop(streamer);
+    let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+    assert_eq!(store.read(b).expect("read"), Some(version(b, 2)));
+}
+
+#[test]
+fn a_failing_disk_is_an_error_not_a_panic() {
+    let dir = TestDir::new("failing");
+    let store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+    let mut streamer = TileStreamer::new(store, StreamerConfig::default());
+    let kept = TileKey::new(0, 0);
+    streamer.put(version(kept, 1));
+    streamer.flush().expect("the disk works at first");
+
+    // A regular file where the tiles directory was: every write fails with
+    // a real OS error, even for root (whom chmod does not stop).
+    let tiles = dir.path().join("tiles");
+    fs::remove_dir_all(&tiles).expect("remove tiles");
+    fs::write(&tiles, b"not a directory").expect("block tiles");
+    let (x, y) = (TileKey::new(1, 0), TileKey::new(-40, 9));
+    streamer.put(version(x, 1));
+    streamer.put(version(y, 1));
+    match streamer.flush() {
+        Err(e @ StoreError::Io { .. }) => {
+            assert!(e.path().is_some_and(|p| p.starts_with(&tiles)), "{e}")
+        }
+        other => panic!("expected an I/O error, got {other:?}"),
+    }
+    let errors = streamer.take_errors();
+    assert!(
+        !errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })),
+        "{errors:?}"
+    );
+    assert!(streamer.stats().errors >= 2);
+    assert_eq!(streamer.stats().writes, 1);
+
+    // Lookups keep answering: unwritten tiles from memory, others as fresh snow.
+    assert_eq!(streamer.lookup(x), TileLookup::Ready(Some(version(x, 1))));
+    assert_eq!(
+        streamer.lookup(kept),
+        TileLookup::Ready(Some(version(kept, 1)))
+    );
+    assert_eq!(ready(&mut streamer, TileKey::new(500, 500)), None);
+    drop(streamer);
+
+    // Without root, a read-only directory must fail the same way.
+    #[cfg(unix)]
+    if !writes_ignore_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = TestDir::new("read-only");
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+        store.write(&version(kept, 1)).expect("write");
+        let region = store
+            .tile_path(kept)
+            .parent()
+            .map(Path::to_owned)
+            .expect("region");
+        let tiles = dir.path().join("tiles");
+        let mode =
+            |p: &Path, m| fs::set_permissions(p, fs::Permissions::from_mode(m)).expect("chmod");
+        mode(&region, 0o555);
+        mode(&tiles, 0o555);
+        let mut streamer = TileStreamer::new(store, StreamerConfig::default());
+        streamer.put(version(kept, 2)); // same region
+        streamer.put(version(TileKey::new(100, 100), 1)); // a new region
+        let flushed = streamer.flush();
+        let errors = streamer.take_errors();
+        let stats = streamer.stats();
+        let still = streamer.lookup(kept);
+        drop(streamer);
+        mode(&region, 0o755);
+        mode(&tiles, 0o755);
+        assert!(matches!(flushed, Err(StoreError::Io { .. })), "{flushed:?}");
+        assert!(!errors.is_empty() && stats.errors >= 2, "{errors:?}");
+        assert_eq!(still, TileLookup::Ready(Some(version(kept, 2))));
+    }
+}
+
+#[test]
+fn the_disk_budget_keeps_the_newest_tiles() {
+    let dir = TestDir::new("budget");
+    let tile = |k: i64| version(TileKey::new(k % 10, k / 10), k as u32 + 1);
+    let largest = (0..100)
+        .map(|k| encode(&tile(k)).len() as u64)
+        .max()
+        .unwrap_or(0);
+    let budget = 20 * largest;
+    let mut store = TileStore::open(
+        dir.path(),
+        SIDE,
+        StoreConfig {
+            disk_budget_bytes: budget,
+        },
+    )
+    .expect("open");
+    for k in 0..100 {
+        store.write(&tile(k)).expect("write");
+        assert!(
+            store.disk_bytes() <= budget,
+            "after tile {k}: {} > {budget}",
+            store.disk_bytes()
+        );
+    }
+    let on_disk: u64 = walk(dir.path())
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "tile"))
+        .map(|p| fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
+    assert_eq!(on_disk, store.disk_bytes(), "the index matches the files");
+    let kept = store.disk_tiles() as i64;
+    assert!((19..=20).contains(&kept), "{kept} tiles kept");
+    assert_eq!(store.evicted(), 100 - kept as u64);
+    for k in 100 - kept..100 {
+        assert_eq!(
+            store.read(tile(k).key).expect("read"),
+            Some(tile(k)),
+            "tile {k}"
+        );
+    }
+    for k in 0..100 - kept {
+        assert_eq!(
+            store.read(tile(k).key).expect("read"),
+            None,
+            "tile {k} should have been evicted"
+        );
+    }
+}
+
+/// Polls until a lookup is ready (bounded, so a bug fails instead of hanging).
+fn ready(streamer: &mut TileStreamer, key: TileKey) -> Option<TileData> {
+    let start = Instant::now();
+    loop {
+        if let TileLookup::Ready(tile) = streamer.lookup(key) {
+            return tile;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "{key:?} never became ready"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn flip_a_byte(path: &Path) {
+    let mut bytes = fs::read(path).expect("read the tile file");
+    let at = bytes.len() - 5;
+    bytes[at] ^= 0x01;
+    fs::write(path, bytes).expect("write the tile file");
+}
+
+/// Every file under `dir`.
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for entry in fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            out.extend(walk(&path));
+        } else {
+            out.push(path);
+        }
+    }
+    out
+}
+
+/// Whether this process can write into a directory it made read-only (root can).
+#[cfg(unix)]
+fn writes_ignore_permissions() -> bool {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = TestDir::new("probe");
+    let locked = dir.path().join("locked");
+    let probe = fs::create_dir(&locked)
+        .and_then(|()| fs::set_permissions(&locked, fs::Permissions::from_mode(0o555)))
+        .map(|()| fs::write(locked.join("probe"), b"x").is_ok());
+    let _ = fs::set_permissions(&locked, fs::Permissions::from_mode(0o755));
+    let ignored = probe.unwrap_or(true);
+    if ignored {
+        eprintln!(
+            "running as root (or permissions are not enforced): the chmod 0o555 case is skipped"
+        );
+    }
+    ignored
+}

@@ -1,0 +1,421 @@
+//! Open worlds: the tile passes against their CPU twins, and trails that are
+//! still there when the window comes back (from memory, from disk, from a
+//! save), raised by the refill of the time away, 100 km from the origin too.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, Vec3};
+use snowpack::cpu;
+use snowpack::deform::exchange::{ExchangeParams, ExchangePass};
+use snowpack::deform::pipeline::read_buffer;
+use snowpack::deform::resources::DeformResources;
+use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
+use snowpack::deform::tiles::{TileGrid, PLANES};
+use snowpack::deform::window::SlidingWindow;
+use snowpack::gpu::GpuTimer;
+use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+use snowpack::testing::{self, Rng};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+
+fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+fn storage(ctx: &GpuContext, words: &[u32]) -> wgpu::Buffer {
+    let b = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test tiles"),
+        size: (words.len() * 4) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(&b, 0, bytemuck::cast_slice(words));
+    b
+}
+
+fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) {
+    ctx.queue.submit([encoder.finish()]);
+    ctx.wait_idle("test").expect("GPU error");
+}
+
+fn encoder(ctx: &GpuContext) -> wgpu::CommandEncoder {
+    ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test") })
+}
+
+/// Random finite f32 bits in [lo, hi).
+fn floats(rng: &mut Rng, n: usize, lo: f32, hi: f32) -> Vec<u32> {
+    (0..n).map(|_| rng.range(lo, hi).to_bits()).collect()
+}
+
+fn noise(rng: &mut Rng) -> TerrainSource {
+    TerrainSource::Noise(NoiseTerrain { seed: rng.next_u64() as u32, base_m: rng.range(-1.0, 1.0), amplitude_m: rng.range(0.1, 2.0), wavelength_m: rng.range(4.0, 20.0) })
+}
+
+/// Words of `a` and `b` that differ by more than `tol` as f32 (bitwise when 0).
+fn differing(a: &[u32], b: &[u32], tol: f32) -> usize {
+    a.iter().zip(b).filter(|&(&x, &y)| if tol == 0.0 { x != y } else { (f32::from_bits(x) - f32::from_bits(y)).abs() > tol }).count()
+}
+
+#[test]
+fn exchange_matches_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("exchange_matches_cpu");
+    let mut rng = Rng::new(seed);
+    let (resolution, side) = (64u32, 16u32);
+    let grid = TileGrid::new(resolution, side).expect("grid");
+    for jump in [false, true] {
+        let params = SnowParams { extent_m: 8.0, resolution, snowfall: Some(snowpack::accumulate::Snowfall::default()), ..SnowParams::default() };
+        let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &TerrainSource::Flat { height_m: 0.0 });
+        let texels = (resolution * resolution) as usize;
+        let terrain = floats(&mut rng, texels, -1.0, 1.0);
+        let snow = floats(&mut rng, texels, 0.0, 2.0);
+        let mut stamps: Vec<u32> = (0..texels).map(|_| rng.next_u64() as u32).collect();
+        let fallen = floats(&mut rng, texels, 0.0, 0.3);
+        ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
+        ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+        ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+        ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+        let mut tiles: Vec<u32> = (0..grid.slot_count() * PLANES * grid.area()).map(|_| rng.next_u64() as u32).collect();
+        let tiles_gpu = storage(ctx, &tiles);
+        let old = [(rng.next_u64() % 4000) as i64 - 2000, (rng.next_u64() % 4000) as i64 - 2000];
+        let step = if jump { 500 } else { 20 };
+        let new = [old[0] + (rng.next_u64() % (2 * step + 1)) as i64 - step as i64, old[1] + (rng.next_u64() % (2 * step + 1)) as i64 - step as i64];
+        let mut window = SlidingWindow::new(resolution);
+        window.move_to(old);
+        let rects = window.move_to(new);
+        let base = ExchangeParams {
+            origin: [new[0] as i32, new[1] as i32],
+            old_origin: [old[0] as i32, old[1] as i32],
+            resolution,
+            side,
+            slots_per_side: grid.slots_per_side(),
+            flags: ExchangeParams::USE_FALLEN,
+            ..ExchangeParams::default()
+        };
+        let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
+        let mut e = encoder(ctx);
+        let mut timer = GpuTimer::disabled();
+        let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
+        pass.record(&ctx.queue, &mut e, &mut timer, stash, &rects);
+        pass.record(&ctx.queue, &mut e, &mut timer, base, &rects);
+        submit(ctx, e);
+        let mut terrain_f: Vec<f32> = bytemuck::cast_slice(&terrain).to_vec();
+        let mut snow_f: Vec<f32> = bytemuck::cast_slice(&snow).to_vec();
+        let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
+        let mut w = cpu::exchange::WindowBuffers { terrain: &mut terrain_f, snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
+        cpu::exchange::exchange(&stash, &rects, &mut tiles, &mut w);
+        cpu::exchange::exchange(&base, &rects, &mut tiles, &mut w);
+        assert_eq!(differing(&read_u32(ctx, &tiles_gpu), &tiles, 0.0), 0, "tiles differ (jump {jump}); seed {seed}");
+        assert_eq!(differing(&read_u32(ctx, &res.snow), bytemuck::cast_slice(&snow_f), 0.0), 0, "snow differs; seed {seed}");
+        assert_eq!(differing(&read_u32(ctx, &res.terrain), bytemuck::cast_slice(&terrain_f), 0.0), 0, "terrain differs; seed {seed}");
+        assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
+        assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
+    }
+}
+
+#[test]
+fn tile_restore_and_weather_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("tile_restore_and_weather_match_cpu");
+    let mut rng = Rng::new(seed);
+    let (resolution, side) = (64u32, 16u32);
+    let grid = TileGrid::new(resolution, side).expect("grid");
+    let area = grid.area();
+    let terrain = noise(&mut rng);
+    let params = SnowParams { extent_m: 8.0, resolution, ..SnowParams::default() };
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain);
+    let mut tiles: Vec<u32> = vec![0; grid.slot_count() * PLANES * area];
+    let tiles_gpu = storage(ctx, &tiles);
+    let (low_m, high_m) = (-3.0, 4.0);
+    // Restore: every slot, a third fresh, the rest saved with or without time away.
+    let mut entries = Vec::new();
+    let mut upload = Vec::new();
+    for slot in 0..grid.slot_count() {
+        let tile = [(rng.next_u64() % 200) as i32 - 100, (rng.next_u64() % 200) as i32 - 100];
+        let mut e = RestoreEntry { tile, slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
+        if !rng.next_u64().is_multiple_of(3) {
+            e.upload = upload.len() as u32;
+            upload.extend(floats(&mut rng, area, -1.0, 3.0));
+            // Footprints: empty, or a foot a few hundred quanta deep.
+            upload.extend((0..area).map(|_| if rng.next_u64().is_multiple_of(2) { u32::MAX } else { let foot = 30000 + (rng.next_u64() % 3000) as u32; ((foot + 200) << 16) | foot }));
+            upload.extend(floats(&mut rng, area, 0.0, 0.2));
+            if rng.next_u64().is_multiple_of(2) {
+                e.elapsed = 1;
+                e.refill_m = rng.range(0.0, 0.3);
+                e.fall_m = rng.range(0.0, 0.1);
+                e.quanta = (rng.next_u64() % 1000) as u32;
+            }
+        }
+        entries.push(e);
+    }
+    let restore_params = RestoreParams {
+        side,
+        slots_per_side: grid.slots_per_side(),
+        count: entries.len() as u32,
+        flags: RestoreParams::USE_FALLEN,
+        texel_m: 0.125,
+        depth_m: 0.5,
+        fallen_m: 0.05,
+        max_fallen_m: 0.25,
+        low_m,
+        high_m,
+        ..RestoreParams::default()
+    };
+    let mut restore = TileRestorePass::new(&ctx.device, &res, &tiles_gpu);
+    let mut timer = GpuTimer::disabled();
+    let mut e = encoder(ctx);
+    restore.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), restore_params, &entries, &upload);
+    submit(ctx, e);
+    cpu::tile_restore::restore(&restore_params, &entries, &upload, &terrain, &mut tiles);
+    let gpu = read_u32(ctx, &tiles_gpu);
+    // Terrain (noise) agrees to rounding; so do heights built on it.
+    assert_eq!(differing(&gpu, &tiles, 1e-4), 0, "restore: slots differ; seed {seed}");
+    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + 1) * area..(s * PLANES + 2) * area).collect();
+    let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
+    // A footprint whose foot lands on the rest height to rounding may empty on one side only.
+    assert!(stamp_diff <= stamp_words.len() / 1000, "restore: {stamp_diff} footprints differ; seed {seed}");
+    // Start the weather from the GPU's result so rounding does not compound.
+    tiles.clone_from(&gpu);
+    let before = gpu;
+    let owners: Vec<[i32; 4]> = (0..grid.slot_count()).map(|s| { let t = entries[s].tile; [t[0], t[1], i32::from(!rng.next_u64().is_multiple_of(4)), 0] }).collect();
+    let owners_gpu = storage(ctx, bytemuck::cast_slice(&owners));
+    let weather = TileWeatherPass::new(&ctx.device, &owners_gpu, &tiles_gpu);
+    let centre = entries[0].tile;
+    let wp = WeatherParams {
+        origin: [centre[0] * side as i32 - 8, centre[1] * side as i32 - 8],
+        resolution,
+        side,
+        slots_per_side: grid.slots_per_side(),
+        flags: WeatherParams::USE_FALLEN,
+        depth_m: 0.5,
+        refill_m: rng.range(0.0, 0.01),
+        fall_m: rng.range(0.0, 0.01),
+        max_fallen_m: 0.25,
+        quanta: (rng.next_u64() % 20) as u32 + 1,
+        low_m,
+        high_m,
+        _pad: [0; 3],
+    };
+    let mut e = encoder(ctx);
+    weather.record(&ctx.queue, &mut e, &mut timer, &wp);
+    submit(ctx, e);
+    cpu::tile_weather::weather(&wp, &owners, &mut tiles);
+    let gpu = read_u32(ctx, &tiles_gpu);
+    assert_eq!(differing(&gpu, &tiles, 1e-5), 0, "weather: slots differ; seed {seed}");
+    let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
+    assert!(stamp_diff <= stamp_words.len() / 1000, "weather: {stamp_diff} footprints differ; seed {seed}");
+    // Non-vacuous: the weather changed many texels.
+    assert!(differing(&gpu, &before, 0.0) > area, "the weather changed nothing; seed {seed}");
+}
+
+const DT: f32 = 1.0 / 60.0;
+const SIDE: u32 = 16;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("snowpack-tiles-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A streamer over a store in `dir` keeping about `memory_tiles` tiles in memory.
+fn streamer(dir: &Path, memory_tiles: usize) -> TileStreamer {
+    let store = TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store opens");
+    TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_tiles * 3 * 4 * (SIDE * SIDE) as usize })
+}
+
+/// A 4 m window of 64 texels (6.25 cm) over `terrain`, centred on `center`.
+fn window(ctx: &GpuContext, terrain: TerrainSource, center: DVec2, refill: f32) -> SnowDeformation {
+    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, refill_m_per_s: refill, blur: false, elevation: 0.0, ..SnowParams::default() };
+    SnowDeformation::new(ctx, params, terrain, center).expect("window")
+}
+
+/// Drags a sphere 2 m along x through the snow around local (0, 0) of the floating origin.
+fn press_trail(ctx: &GpuContext, d: &mut SnowDeformation, ground: impl Fn(f32, f32) -> f32) {
+    for k in 0..=20 {
+        let x = -1.0 + 0.1 * k as f32;
+        let z = 0.3 * (x * 2.0).sin();
+        let center = Vec3::new(x, ground(x, z) + 0.2, z);
+        d.step(ctx, &[Deformer::Sphere { center, radius: 0.35 }], DT).expect("frame");
+    }
+    d.step(ctx, &[], DT).expect("frame");
+}
+
+/// Moves the window centre to `to` in steps of `step_m`, then waits (at most
+/// 600 frames) until the window is there, for tiles still loading.
+fn walk(ctx: &GpuContext, d: &mut SnowDeformation, from: DVec2, to: DVec2, step_m: f64) {
+    let n = ((to - from).length() / step_m).ceil().max(1.0) as usize;
+    for k in 1..=n {
+        d.set_center(from + (to - from) * (k as f64 / n as f64));
+        d.step(ctx, &[], DT).expect("frame");
+    }
+    let texel = f64::from(d.params().texel_m());
+    let target = [(to.x / texel).floor() as i64 - 32, (to.y / texel).floor() as i64 - 32];
+    for _ in 0..600 {
+        if d.origin_texel() == Some(target) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        d.step(ctx, &[], DT).expect("frame");
+    }
+    panic!("the window never reached {target:?} (at {:?}; stats {:?})", d.origin_texel(), d.tile_stats());
+}
+
+fn deepest_press(snow: &[f32], terrain: &[f32], depth_m: f32) -> f32 {
+    snow.iter().zip(terrain).map(|(s, t)| t + depth_m - s).fold(0.0, f32::max)
+}
+
+#[test]
+fn trail_comes_back_bit_exact_without_refill() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut rng = Rng::new(testing::seed("trail_comes_back_bit_exact_without_refill"));
+    let terrain = noise(&mut rng);
+    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let dir = temp_dir("exact");
+    let mut d = window(ctx, terrain, DVec2::ZERO, 0.0);
+    // Two tiles of memory: everything else goes through the disk.
+    assert!(!d.attach_store(ctx, streamer(&dir, 2)).expect("attach"));
+    press_trail(ctx, &mut d, ground);
+    let before = d.read_snow(ctx).expect("snow");
+    let terrain_before = d.read_terrain(ctx).expect("terrain");
+    assert!(deepest_press(&before, &terrain_before, 0.5) > 0.2, "no trail was pressed");
+    let origin = d.origin_texel();
+    // Five window widths away and back.
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.25);
+    walk(ctx, &mut d, DVec2::new(20.0, 0.0), DVec2::new(20.0, 20.0), 0.5);
+    walk(ctx, &mut d, DVec2::new(20.0, 20.0), DVec2::ZERO, 0.25);
+    assert_eq!(d.origin_texel(), origin);
+    let after = d.read_snow(ctx).expect("snow");
+    let stats = d.tile_stats().expect("stats");
+    eprintln!("{stats:?}");
+    assert!(stats.store.writes > 0 && stats.restored > 0, "the trail never went through the store: {stats:?}");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the round trip");
+    assert_eq!(d.read_terrain(ctx).expect("terrain"), terrain_before);
+    assert!(d.take_store_errors().is_empty());
+    drop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn trail_comes_back_refilled_by_the_time_away() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut rng = Rng::new(testing::seed("trail_comes_back_refilled_by_the_time_away"));
+    let terrain = noise(&mut rng);
+    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let dir = temp_dir("refill");
+    let refill = 0.01;
+    let mut d = window(ctx, terrain, DVec2::ZERO, refill);
+    d.attach_store(ctx, streamer(&dir, 2)).expect("attach");
+    press_trail(ctx, &mut d, ground);
+    let before = d.read_snow(ctx).expect("snow");
+    let ground_texels = d.read_terrain(ctx).expect("terrain");
+    let t0 = d.clock().time_s;
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(-20.0, 0.0), 0.25);
+    walk(ctx, &mut d, DVec2::new(-20.0, 0.0), DVec2::ZERO, 0.25);
+    let after = d.read_snow(ctx).expect("snow");
+    let elapsed = (d.clock().time_s - t0) as f32;
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.store.writes > 0 && stats.restored > 0, "the trail never went through the store: {stats:?}");
+    let raised = refill * elapsed;
+    assert!(raised > 0.02 && raised < 0.15, "refill {raised} m: the trail must be partly, not wholly, refilled");
+    let mut worst = 0.0f32;
+    let mut trail = 0;
+    for k in 0..before.len() {
+        let rest = ground_texels[k] + 0.5;
+        let expected = (before[k] + raised).min(rest);
+        worst = worst.max((after[k] - expected).abs());
+        if rest - before[k] > raised {
+            trail += 1;
+        }
+    }
+    assert!(trail > 100, "only {trail} texels deeper than the refill");
+    assert!(worst < 5e-5, "restored trail differs from before + refill x {elapsed} s by {worst} m");
+    drop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn save_and_load_restores_the_window_and_clock() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut rng = Rng::new(testing::seed("save_and_load_restores_the_window_and_clock"));
+    let terrain = noise(&mut rng);
+    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let dir = temp_dir("save");
+    let mut d = window(ctx, terrain.clone(), DVec2::ZERO, 0.0);
+    d.attach_store(ctx, streamer(&dir, 64)).expect("attach");
+    press_trail(ctx, &mut d, ground);
+    // Leave part of the trail outside the window: it is saved from the resident tiles.
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(1.5, 0.5), 0.25);
+    let before = d.read_snow(ctx).expect("snow");
+    let clock = d.clock();
+    d.save(ctx).expect("save");
+    drop(d);
+    let mut loaded = window(ctx, terrain, DVec2::new(123.0, 0.0), 0.0);
+    assert!(loaded.attach_store(ctx, streamer(&dir, 64)).expect("attach"), "no save found");
+    assert_eq!(loaded.clock(), clock);
+    loaded.step(ctx, &[], DT).expect("frame");
+    let after = loaded.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels differ after loading the save");
+    // And the part of the trail that was outside the window comes back too.
+    walk(ctx, &mut loaded, DVec2::new(1.5, 0.5), DVec2::ZERO, 0.25);
+    let snow = loaded.read_snow(ctx).expect("snow");
+    let terrain_texels = loaded.read_terrain(ctx).expect("terrain");
+    assert!(deepest_press(&snow, &terrain_texels, 0.5) > 0.2);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn trail_100_km_out_lands_on_the_same_texels() {
+    let Some(ctx) = testing::gpu() else { return };
+    let flat = TerrainSource::Flat { height_m: 0.0 };
+    let far = DVec2::new(100_000.0, -100_000.0);
+    // At the origin, no store.
+    let mut near = window(ctx, flat.clone(), DVec2::ZERO, 0.0);
+    press_trail(ctx, &mut near, |_, _| 0.0);
+    let near_snow = near.read_snow(ctx).expect("snow");
+    // 100 km out (x and z), with positions relative to a floating origin there, and a store.
+    let dir = temp_dir("far");
+    let mut out = window(ctx, flat, far, 0.0);
+    out.set_floating_origin(far);
+    out.attach_store(ctx, streamer(&dir, 2)).expect("attach");
+    press_trail(ctx, &mut out, |_, _| 0.0);
+    let texels = (100_000.0 / f64::from(out.params().texel_m())) as i64;
+    let (a, b) = (near.origin_texel().expect("placed"), out.origin_texel().expect("placed"));
+    assert_eq!([b[0] - a[0], b[1] - a[1]], [texels, -texels], "the far window is not exactly 100 km of texels away");
+    let out_snow = out.read_snow(ctx).expect("snow");
+    let differ = near_snow.iter().zip(&out_snow).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels differ between the trail at the origin and 100 km out");
+    assert!(deepest_press(&out_snow, &vec![0.0; out_snow.len()], 0.5) > 0.2);
+    // And it survives a trip through the store out there.
+    walk(ctx, &mut out, far, far + DVec2::new(0.0, 20.0), 0.5);
+    walk(ctx, &mut out, far + DVec2::new(0.0, 20.0), far, 0.5);
+    let back = out.read_snow(ctx).expect("snow");
+    assert!(near_snow.iter().zip(&back).all(|(x, y)| x.to_bits() == y.to_bits()), "the far trail changed after the store");
+    drop(out);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_failing_disk_reports_errors_and_frames_go_on() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = temp_dir("failing");
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    d.attach_store(ctx, streamer(&dir, 1)).expect("attach");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    // The disk goes away under the store: every write fails with a real OS error.
+    std::fs::remove_dir_all(dir.join("tiles")).expect("remove tiles");
+    std::fs::write(dir.join("tiles"), b"not a directory").expect("block tiles");
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(16.0, 0.0), 0.5);
+    walk(ctx, &mut d, DVec2::new(16.0, 0.0), DVec2::ZERO, 0.5);
+    let errors = d.take_store_errors();
+    assert!(!errors.is_empty(), "no error reported");
+    eprintln!("first error: {}", errors[0]);
+    assert!(d.tile_stats().expect("stats").store.errors > 0);
+    // Saving reports the failure as an error too.
+    assert!(d.save(ctx).is_err());
+    // The window still works.
+    d.step(ctx, &[Deformer::Sphere { center: Vec3::new(0.0, 0.3, 0.0), radius: 0.3 }], DT).expect("frame");
+    let _ = std::fs::remove_file(dir.join("tiles"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
