@@ -317,6 +317,10 @@ pub struct BenchResults {
     pub frame_rows: Vec<crate::bench_frames::FrameRow>,
     /// Dinh's accumulation table.
     pub accum_rows: Vec<crate::bench_accumulation::AccumRow>,
+    /// Window moves with and without the tile store.
+    pub move_rows: Vec<crate::bench_tiles::MoveRow>,
+    /// The tile store's bytes per km and restore latency.
+    pub store_row: Option<crate::bench_tiles::StoreRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -338,6 +342,8 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         render_frames: 0,
         frame_rows: Vec::new(),
         accum_rows: Vec::new(),
+        move_rows: Vec::new(),
+        store_row: None,
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -394,6 +400,24 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
                 results.accum_rows.push(row);
             }
         }
+    }
+    // Open worlds: window moves with and without the tile store, store size and latency.
+    if only.is_none_or(|o| "tiles".contains(o)) {
+        let scratch = std::env::temp_dir().join(format!("snowpack-bench-tiles-{}", std::process::id()));
+        let (tile_warmup, tile_frames) = if quick { (10, 40) } else { (60, 300) };
+        let sizes: &[u32] = if quick { &[512, 1024] } else { &[512, 1024, 2048] };
+        for &resolution in sizes {
+            for store in [false, true] {
+                let row = crate::bench_tiles::measure_move(ctx, resolution, store, tile_warmup, tile_frames, &scratch)
+                    .with_context(|| format!("window moves at {resolution}², store {store}"))?;
+                println!("  window move {resolution:>4}² store {:<3}: move {:.3} ms, frame {:.3} ms GPU, record {:.3} ms CPU, wall {:.2} ms", if store { "yes" } else { "no" }, row.move_gpu_ms, row.frame_gpu_ms, row.record_cpu_ms, row.wall_ms);
+                results.move_rows.push(row);
+            }
+        }
+        let row = crate::bench_tiles::measure_store(ctx, if quick { 100.0 } else { 500.0 }, &scratch).context("tile store size and latency")?;
+        println!("  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile", row.bytes_per_km_with_trail / 1e3, row.bytes_per_km_untouched / 1e3, row.restore_ms);
+        results.store_row = Some(row);
+        let _ = std::fs::remove_dir_all(&scratch);
     }
     // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
     // two counts only (a software adapter takes seconds a frame).
@@ -480,6 +504,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.accum_rows.is_empty() {
         md.push_str(&crate::bench_accumulation::markdown(&r.accum_rows, &r.adapter, r.software));
     }
+    if !r.move_rows.is_empty() || r.store_row.is_some() {
+        md.push_str(&crate::bench_tiles::markdown(&r.move_rows, r.store_row.as_ref(), &r.adapter, r.software));
+    }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
     let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
@@ -544,6 +571,13 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
             let _ = writeln!(csv, "{},{},{},{},{},{},{},{},{},{}", a.scenario, a.atlas, a.objects, a.occlusion_triangles, a.atlas_used, a.accumulation_ms, a.support_ms, a.frame_ms, a.wall_ms, a.memory_bytes);
         }
         files.push(("accumulation.csv", csv.into_bytes()));
+    }
+    if !r.move_rows.is_empty() {
+        let mut csv = String::from("resolution,store,move_gpu_ms,frame_gpu_ms,record_cpu_ms,wall_ms,resident_bytes\n");
+        for m in &r.move_rows {
+            let _ = writeln!(csv, "{},{},{},{},{},{},{}", m.resolution, m.store, m.move_gpu_ms, m.frame_gpu_ms, m.record_cpu_ms, m.wall_ms, m.resident_bytes);
+        }
+        files.push(("tiles.csv", csv.into_bytes()));
     }
     files
 }
@@ -671,10 +705,12 @@ mod tests {
                 wall_ms: 2.5,
                 memory_bytes: 100 << 20,
             }],
+            move_rows: vec![crate::bench_tiles::MoveRow { resolution: 1024, store: true, move_gpu_ms: 0.1, frame_gpu_ms: 1.0, record_cpu_ms: 0.2, wall_ms: 1.5, resident_bytes: 21 << 20 }],
+            store_row: Some(crate::bench_tiles::StoreRow { trail_m: 500.0, swath_m: 16.0, bytes_per_km_with_trail: 2e6, bytes_per_km_untouched: 1e6, mean_tile_bytes: 5000.0, restore_ms: 0.5, teleport_wait_frames: 3, teleport_ms: 50.0 }),
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv"]);
+        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv", "tiles.csv"]);
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
             let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!((img.width(), img.height()), (960, 540), "{name}");
@@ -704,7 +740,7 @@ mod tests {
             assert!(lines[k + 2] == "_Measured on NVIDIA H100 80GB HBM3 (vulkan)._", "{line} is not followed by the adapter: {:?}", &lines[k..k + 3]);
         }
         assert!(text("accumulation.csv").contains("both,2048,208,60000,0.9,0.5,0.25,2,2.5,104857600"), "{}", text("accumulation.csv"));
-        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], software: true, ..results };
+        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], move_rows: vec![], store_row: None, software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }

@@ -1,5 +1,6 @@
 // Tile restore pass: makes tiles resident in their slots as the window comes
-// near them. A tile the store held is copied from the upload buffer and
+// near them. A tile the store held (its heights XOR its rest height, so
+// untouched snow is 0) is copied from the upload buffer and
 // brought up to now: the snowfall, refill and footprint refill of the time it
 // was away are applied at once (pass_time, as the update would have over
 // those frames; nothing at all when no time counted, so a restore is then
@@ -62,9 +63,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         t.snow = ground + params.depth_m + params.fallen_m;
         t.stamp = STAMP_EMPTY;
     } else {
-        t.snow = bitcast<f32>(upload[e.upload + gid.x]);
+        // Saved heights are XOR their rest height (0 where untouched): the
+        // rest is recomputed here from the same terrain, so they come back exactly.
         t.stamp = upload[e.upload + area + gid.x];
         t.fallen = bitcast<f32>(upload[e.upload + 2u * area + gid.x]);
+        t.snow = bitcast<f32>(upload[e.upload + gid.x] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
         if e.elapsed != 0u {
             t = pass_time(ground, params.depth_m, t, e.fall_m, params.max_fallen_m, e.refill_m, e.quanta, params.low_m, params.high_m, use_fallen);
         }

@@ -2,7 +2,9 @@
 // Each frame with refill or snowfall, every texel of a resident tile that the
 // window does not cover gets what the update gives open, untouched ground
 // (pass_time), so a tile is always current when the window comes back over
-// it or when it goes to the store. CPU twin: src/cpu/tile_weather.rs.
+// it or when it goes to the store. Only the slots listed in `slots` run:
+// the CPU leaves out those wholly inside the window (most of them).
+// CPU twin: src/cpu/tile_weather.rs.
 
 struct WeatherParams {
     origin: vec2<i32>,   // the window's origin; its texels are the update's
@@ -17,9 +19,9 @@ struct WeatherParams {
     quanta: u32,         // this frame's footprint refill (stamp quanta)
     low_m: f32,
     high_m: f32,
+    count: u32,          // slots listed in `slots`
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
 }
 
 const USE_FALLEN: u32 = 2u;
@@ -27,14 +29,15 @@ const USE_FALLEN: u32 = 2u;
 @group(0) @binding(0) var<uniform> params: WeatherParams;
 @group(0) @binding(1) var<storage, read> owners: array<vec4<i32>>; // (col, row, resident, 0) per slot
 @group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
+@group(0) @binding(3) var<storage, read> slots: array<u32>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let area = params.side * params.side;
-    let slot = gid.y;
-    if gid.x >= area || slot >= params.slots_per_side * params.slots_per_side {
+    if gid.x >= area || gid.y >= params.count {
         return;
     }
+    let slot = slots[gid.y];
     let owner = owners[slot];
     if owner.z == 0 {
         return;

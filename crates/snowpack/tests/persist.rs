@@ -62,7 +62,7 @@ fn version(key: TileKey, v: u32) -> TileData {
             fallen_m: f64::from(v),
             stamp_quanta: u64::from(v),
         },
-        snow: vec![v as f32; n],
+        snow_xor_rest: vec![(v as f32).to_bits(); n],
         stamps: vec![v; n],
         fallen: vec![v as f32; n],
     }
@@ -71,10 +71,10 @@ fn version(key: TileKey, v: u32) -> TileData {
 /// The version a tile holds, if it is one version throughout.
 fn uniform_version(tile: &TileData) -> Option<u32> {
     let v = tile.stamps.first().copied()?;
-    let same = tile.snow.iter().all(|&s| s == v as f32)
+    let same = tile.snow_xor_rest.iter().all(|&s| s == (v as f32).to_bits())
         && tile.stamps.iter().all(|&s| s == v)
         && tile.fallen.iter().all(|&s| s == v as f32)
-        && tile.fallen.len() == tile.snow.len()
+        && tile.fallen.len() == tile.snow_xor_rest.len()
         && tile.clock == version(tile.key, v).clock;
     same.then_some(v)
 }

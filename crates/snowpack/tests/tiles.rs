@@ -135,10 +135,17 @@ fn tile_restore_and_weather_match_cpu() {
         let mut e = RestoreEntry { tile, slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
         if !rng.next_u64().is_multiple_of(3) {
             e.upload = upload.len() as u32;
-            upload.extend(floats(&mut rng, area, -1.0, 3.0));
+            // Heights are stored XOR their rest height (terrain + depth + fallen).
+            let fallen = floats(&mut rng, area, 0.0, 0.2);
+            for (k, lying) in fallen.iter().enumerate() {
+                let g = [tile[0] * side as i32 + (k as i32 % side as i32), tile[1] * side as i32 + (k as i32 / side as i32)];
+                let ground = terrain.height_at((g[0] as f32 + 0.5) * 0.125, (g[1] as f32 + 0.5) * 0.125);
+                let rest = ground + 0.5 + f32::from_bits(*lying);
+                upload.push(rng.range(ground - 0.2, rest).to_bits() ^ rest.to_bits());
+            }
             // Footprints: empty, or a foot a few hundred quanta deep.
             upload.extend((0..area).map(|_| if rng.next_u64().is_multiple_of(2) { u32::MAX } else { let foot = 30000 + (rng.next_u64() % 3000) as u32; ((foot + 200) << 16) | foot }));
-            upload.extend(floats(&mut rng, area, 0.0, 0.2));
+            upload.extend(fallen);
             if rng.next_u64().is_multiple_of(2) {
                 e.elapsed = 1;
                 e.refill_m = rng.range(0.0, 0.3);
@@ -194,12 +201,18 @@ fn tile_restore_and_weather_match_cpu() {
         quanta: (rng.next_u64() % 20) as u32 + 1,
         low_m,
         high_m,
-        _pad: [0; 3],
+        count: 0,
+        _pad: [0; 2],
     };
+    // A random subset of the slots, in random order.
+    let mut slots: Vec<u32> = (0..grid.slot_count() as u32).filter(|_| !rng.next_u64().is_multiple_of(5)).collect();
+    for k in (1..slots.len()).rev() {
+        slots.swap(k, (rng.next_u64() % (k as u64 + 1)) as usize);
+    }
     let mut e = encoder(ctx);
-    weather.record(&ctx.queue, &mut e, &mut timer, &wp);
+    weather.record(&ctx.queue, &mut e, &mut timer, &wp, &slots);
     submit(ctx, e);
-    cpu::tile_weather::weather(&wp, &owners, &mut tiles);
+    cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
     assert_eq!(differing(&gpu, &tiles, 1e-5), 0, "weather: slots differ; seed {seed}");
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();

@@ -5,10 +5,13 @@ use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, Sett
 use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
+use snowpack::deform::exchange::ExchangeParams;
 use snowpack::deform::normals::NormalParams;
 use snowpack::deform::rim::RimParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
+use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams};
+use snowpack::deform::tile_weather::WeatherParams;
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
@@ -59,6 +62,10 @@ fn uniform_sizes_match_naga() {
         (shaders::ATLAS_SURFACE, "params", size_of::<SurfaceParams>()),
         (shaders::OBJECT_DRAW, "frame", size_of::<FrameUniforms>()),
         (shaders::OBJECT_DRAW, "atlas_info", size_of::<[u32; 4]>()),
+        (shaders::EXCHANGE, "params", size_of::<ExchangeParams>()),
+        (shaders::TILE_RESTORE, "params", size_of::<RestoreParams>()),
+        (shaders::TILE_RESTORE, "terrain_params", size_of::<TerrainParams>()),
+        (shaders::TILE_WEATHER, "params", size_of::<WeatherParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -87,8 +94,14 @@ fn object_struct_matches_naga() {
 }
 
 #[test]
+fn tile_structs_match_naga() {
+    assert_eq!(wgsl_storage_stride(shaders::TILE_RESTORE, "entries") as usize, size_of::<RestoreEntry>());
+    assert_eq!(wgsl_storage_stride(shaders::TILE_WEATHER, "owners") as usize, size_of::<[i32; 4]>());
+}
+
+#[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 26);
+    assert_eq!(shaders::ALL.len(), 29);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -25,7 +25,9 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
                 TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 } }
             } else {
                 let u = e.upload as usize;
-                let saved = TexelState { snow: f32::from_bits(upload[u + k]), stamp: upload[u + area + k], fallen: f32::from_bits(upload[u + 2 * area + k]) };
+                let fallen = f32::from_bits(upload[u + 2 * area + k]);
+                let rest = ground + p.depth_m + fallen;
+                let saved = TexelState { snow: f32::from_bits(upload[u + k] ^ rest.to_bits()), stamp: upload[u + area + k], fallen };
                 if e.elapsed != 0 {
                     pass_time(ground, &c, saved, &TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
                 } else {

@@ -82,9 +82,9 @@ pub fn write_texel(tiles: &mut [u32], slot: usize, area: usize, k: usize, t: Tex
     tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
 }
 
-/// One frame of weather on the resident `tiles` outside the window; `owners`
-/// holds `(col, row, resident, 0)` per slot.
-pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], tiles: &mut [u32]) {
+/// One frame of weather on the resident `tiles` of the listed `slots`,
+/// outside the window; `owners` holds `(col, row, resident, 0)` per slot.
+pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mut [u32]) {
     if !p.passes_time() {
         return;
     }
@@ -93,7 +93,8 @@ pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], tiles: &mut [u32]) {
     let c = SnowConstants { depth_m: p.depth_m, max_fallen_m: p.max_fallen_m, low_m: p.low_m, high_m: p.high_m, use_fallen: p.flags & WeatherParams::USE_FALLEN != 0 };
     let time = TimePassed { fall_m: p.fall_m, refill_m: p.refill_m, quanta: p.quanta };
     let res = p.resolution as i32;
-    for (slot, owner) in owners.iter().enumerate() {
+    for &slot in slots {
+        let (slot, owner) = (slot as usize, owners[slot as usize]);
         if owner[2] == 0 {
             continue;
         }

@@ -277,7 +277,7 @@ impl SnowDeformation {
                 )));
             }
         }
-        self.tiles = Some(TileStreaming::new(ctx, &self.res, streamer)?);
+        self.tiles = Some(TileStreaming::new(ctx, &self.res, streamer, (self.params.depth_m, self.params.snowfall.is_some()))?);
         if let Some(s) = saved {
             self.clock = s.clock;
             self.fallen_total_m = s.fallen_m;
@@ -299,7 +299,7 @@ impl SnowDeformation {
             return Err(SnowError::InvalidParameter { field: "store", why: "saving needs a tile store (attach_store)".into() });
         };
         if let Some(origin) = origin {
-            tiles.checkpoint(ctx, &self.res, origin, self.clock, self.params.snowfall.is_some())?;
+            tiles.checkpoint(ctx, &self.res, origin, self.clock)?;
         }
         let state = SavedWindow {
             resolution: self.params.resolution,

@@ -34,8 +34,10 @@ pub struct WeatherParams {
     pub low_m: f32,
     /// Footprint quantisation: highest height (m).
     pub high_m: f32,
+    /// Slots listed for the pass (set by [`TileWeatherPass::record`]).
+    pub count: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 
 impl WeatherParams {
@@ -53,6 +55,7 @@ impl WeatherParams {
 pub struct TileWeatherPass {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
+    slots: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }
 
@@ -64,21 +67,35 @@ impl TileWeatherPass {
             device,
             "tile weather",
             shaders::TILE_WEATHER,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false), layout::storage(3, true)],
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
-        let bind_group = layout::bind_group(device, "tile weather", &bgl, &[params.as_entire_binding(), owners.as_entire_binding(), tiles.as_entire_binding()]);
-        Self { pipeline, params, bind_group }
+        // One entry per slot at most (the owners buffer holds 16 bytes per slot).
+        let slots = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile weather slots"),
+            size: (owners.size() / 4).max(4),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = layout::bind_group(
+            device,
+            "tile weather",
+            &bgl,
+            &[params.as_entire_binding(), owners.as_entire_binding(), tiles.as_entire_binding(), slots.as_entire_binding()],
+        );
+        Self { pipeline, params, slots, bind_group }
     }
 
-    /// Records this frame's weather (nothing when it passes no time).
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &WeatherParams) {
-        if !params.passes_time() {
+    /// Records this frame's weather on the listed `slots` (nothing when it
+    /// passes no time or lists none).
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &WeatherParams, slots: &[u32]) {
+        if !params.passes_time() || slots.is_empty() {
             return;
         }
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let params = WeatherParams { count: slots.len() as u32, ..*params };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);
-        let slots = params.slots_per_side * params.slots_per_side;
-        layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, slots));
+        layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, params.count));
     }
 }

@@ -34,8 +34,6 @@ use super::window::TexelRect;
 
 /// Planes per resident tile: snow, stamps, fallen, terrain (`shared/tiles.wgsl`).
 pub const PLANES: usize = 4;
-/// Planes that persist (terrain is recomputed).
-pub const SAVED_PLANES: usize = 3;
 /// Plane of the snow height (f32 bits).
 pub const PLANE_SNOW: usize = 0;
 /// Plane of the packed footprints.
@@ -192,6 +190,8 @@ const FAILED: u8 = 2;
 /// The resident tiles, their passes and the streamer behind them.
 pub struct TileStreaming {
     grid: TileGrid,
+    depth_m: f32,
+    use_fallen: bool,
     streamer: TileStreamer,
     tiles: wgpu::Buffer,
     owners_buffer: wgpu::Buffer,
@@ -211,7 +211,7 @@ pub struct TileStreaming {
 
 impl TileStreaming {
     /// Resident slots for the window of `res`, behind `streamer`.
-    pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer) -> Result<Self, SnowError> {
+    pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer, (depth_m, use_fallen): (f32, bool)) -> Result<Self, SnowError> {
         let grid = TileGrid::new(res.resolution, streamer.side())?;
         let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
@@ -239,6 +239,8 @@ impl TileStreaming {
             weather: TileWeatherPass::new(&ctx.device, &owners_buffer, &tiles),
             owners: vec![None; grid.slot_count()],
             grid,
+            depth_m,
+            use_fallen,
             streamer,
             tiles,
             owners_buffer,
@@ -357,9 +359,9 @@ impl TileStreaming {
             };
             let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
             match saved {
-                Some(tile) if tile.side == self.grid.side && tile.snow.len() == area && tile.stamps.len() == area => {
+                Some(tile) if tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area => {
                     entry.upload = upload.len() as u32;
-                    upload.extend(tile.snow.iter().map(|v| v.to_bits()));
+                    upload.extend_from_slice(&tile.snow_xor_rest);
                     upload.extend_from_slice(&tile.stamps);
                     if tile.fallen.len() == area {
                         upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
@@ -414,19 +416,18 @@ impl TileStreaming {
         queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
     }
 
-    /// Copies the saved planes of `slots` into a staging buffer for the store.
+    /// Copies the slots of `slots` (terrain too: the rest height the snow is
+    /// stored against) into a staging buffer for the store.
     fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
-        let tile_bytes = (SAVED_PLANES * self.grid.area() * 4) as u64;
         let slot_bytes = (PLANES * self.grid.area() * 4) as u64;
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("tile copy-out"),
-            size: tile_bytes * slots.len() as u64,
+            size: slot_bytes * slots.len() as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         for (k, &(key, slot)) in slots.iter().enumerate() {
-            // The saved planes come first in a slot, so one copy per tile.
-            encoder.copy_buffer_to_buffer(&self.tiles, slot as u64 * slot_bytes, &buffer, k as u64 * tile_bytes, tile_bytes);
+            encoder.copy_buffer_to_buffer(&self.tiles, slot as u64 * slot_bytes, &buffer, k as u64 * slot_bytes, slot_bytes);
             self.in_flight.insert(key);
         }
         self.evicted += slots.len() as u64;
@@ -437,6 +438,10 @@ impl TileStreaming {
     /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
     #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and this frame's weather")]
     pub fn record_weather(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i64; 2], frame: &TileFrame, (refill_m, fall_m): (f32, f32), quanta: u32) {
+        // Only tiles reaching outside the window: the update has the rest.
+        let (side, res) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
+        let inside = |k: TileKey| k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + res && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + res;
+        let slots: Vec<u32> = self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32).collect();
         self.weather.record(
             queue,
             encoder,
@@ -454,8 +459,10 @@ impl TileStreaming {
                 quanta,
                 low_m: frame.low_m,
                 high_m: frame.high_m,
-                _pad: [0; 3],
+                count: 0,
+                _pad: [0; 2],
             },
+            &slots,
         );
     }
 
@@ -503,8 +510,8 @@ impl TileStreaming {
             eviction.buffer.unmap();
             let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
             for (t, key) in eviction.keys.iter().enumerate() {
-                let planes = &words[t * SAVED_PLANES * area..(t + 1) * SAVED_PLANES * area];
-                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, true));
+                let planes = &words[t * PLANES * area..(t + 1) * PLANES * area];
+                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen)));
             }
         }
     }
@@ -512,7 +519,8 @@ impl TileStreaming {
     /// Every resident tile, current at `clock`, into the streamer: the
     /// window's texels are stashed into their tiles first. Blocking; for
     /// saving, never in a frame loop.
-    pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock, use_fallen: bool) -> Result<(), SnowError> {
+    pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock) -> Result<(), SnowError> {
+        let use_fallen = self.use_fallen;
         self.collect_evictions(ctx, true);
         let full = [[0, 0, res.resolution, res.resolution]];
         let o = [origin[0] as i32, origin[1] as i32];
@@ -527,8 +535,8 @@ impl TileStreaming {
         let slot_words = PLANES * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
             if let Some(key) = owner {
-                let planes = &words[slot * slot_words..slot * slot_words + SAVED_PLANES * self.grid.area()];
-                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, use_fallen));
+                let planes = &words[slot * slot_words..(slot + 1) * slot_words];
+                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.depth_m, self.use_fallen)));
             }
         }
         Ok(())
@@ -558,16 +566,20 @@ impl TileStreaming {
     }
 }
 
-/// A tile from its saved planes as they lie in a slot (snow, stamps, fallen bits).
+/// A tile from its slot's planes (snow, stamps, fallen, terrain bits), for
+/// the store: heights XOR their rest height (terrain + depth + fallen, as
+/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. The `fallen`
+/// plane is kept only when the world has snowfall.
 #[must_use]
-pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], use_fallen: bool) -> TileData {
+pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen): (f32, bool)) -> TileData {
     let area = (side * side) as usize;
-    TileData {
-        key,
-        side,
-        clock,
-        snow: planes[..area].iter().map(|&b| f32::from_bits(b)).collect(),
-        stamps: planes[area..2 * area].to_vec(),
-        fallen: if use_fallen { planes[2 * area..3 * area].iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() },
-    }
+    let plane = |p: usize| &planes[p * area..(p + 1) * area];
+    let fallen: Vec<f32> = plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect();
+    let snow_xor_rest = plane(PLANE_SNOW)
+        .iter()
+        .zip(plane(PLANE_TERRAIN))
+        .zip(&fallen)
+        .map(|((&snow, &ground), &lying)| snow ^ (f32::from_bits(ground) + depth_m + lying).to_bits())
+        .collect();
+    TileData { key, side, clock, snow_xor_rest, stamps: plane(PLANE_STAMPS).to_vec(), fallen: if use_fallen { fallen } else { Vec::new() } }
 }

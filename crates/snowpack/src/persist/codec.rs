@@ -56,12 +56,12 @@ const DEFLATE_LEVEL: u8 = 6;
 #[must_use]
 pub fn encode(tile: &TileData) -> Vec<u8> {
     let mut flags = 0;
-    let mut raw = Vec::with_capacity(4 * (tile.snow.len() + tile.stamps.len() + tile.fallen.len()));
+    let mut raw = Vec::with_capacity(4 * (tile.snow_xor_rest.len() + tile.stamps.len() + tile.fallen.len()));
     let side = tile.side as usize;
-    if !tile.snow.is_empty() {
+    if !tile.snow_xor_rest.is_empty() {
         flags |= PLANE_SNOW;
         shuffle_into(
-            &delta(tile.snow.iter().map(|v| v.to_bits()), side),
+            &delta(tile.snow_xor_rest.iter().copied(), side),
             &mut raw,
         );
     }
@@ -196,12 +196,7 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
         .chunks_exact(4 * texels)
         .map(|plane| undelta(&unshuffle(plane), side_us));
     // The flags check above guarantees the first two planes.
-    let snow = planes
-        .next()
-        .unwrap_or_default()
-        .into_iter()
-        .map(f32::from_bits)
-        .collect();
+    let snow_xor_rest = planes.next().unwrap_or_default();
     let stamps = planes.next().unwrap_or_default();
     let fallen = planes
         .next()
@@ -211,7 +206,7 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
         key,
         side,
         clock,
-        snow,
+        snow_xor_rest,
         stamps,
         fallen,
     })
@@ -336,7 +331,7 @@ mod tests {
                 fallen_m: 0.125,
                 stamp_quanta: 99,
             },
-            snow: plane,
+            snow_xor_rest: plane.iter().map(|v| v.to_bits()).collect(),
             stamps: vec![0; n * n],
             fallen: if fallen {
                 vec![0.125; n * n]
@@ -357,7 +352,7 @@ mod tests {
                 t.clock.fallen_m.to_bits(),
                 t.clock.stamp_quanta,
             ],
-            t.snow.iter().map(|v| v.to_bits()).collect(),
+            t.snow_xor_rest.clone(),
             t.stamps.clone(),
             t.fallen.iter().map(|v| v.to_bits()).collect(),
         )
@@ -401,7 +396,7 @@ mod tests {
                     fallen_m: f64::NAN,
                     stamp_quanta: rng.next_u64(),
                 },
-                snow: (0..n).map(|_| random_f32(&mut rng)).collect(),
+                snow_xor_rest: (0..n).map(|_| random_f32(&mut rng).to_bits()).collect(),
                 stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
                 fallen: if case % 2 == 0 {
                     (0..n).map(|_| random_f32(&mut rng)).collect()
@@ -453,10 +448,10 @@ mod tests {
             for j in 0..64 {
                 let d = (j as f32 - 20.0 - 0.3 * i as f32).abs() * 0.0625;
                 if d < 0.3 {
-                    trail.snow[i * 64 + j] -= 0.3 * (1.0 - d / 0.3);
+                    trail.snow_xor_rest[i * 64 + j] = (f32::from_bits(trail.snow_xor_rest[i * 64 + j]) - 0.3 * (1.0 - d / 0.3)).to_bits();
                     trail.stamps[i * 64 + j] = 0x1234_0000 | (i * 64 + j) as u32;
                 } else if d < 0.45 {
-                    trail.snow[i * 64 + j] += 0.05;
+                    trail.snow_xor_rest[i * 64 + j] = (f32::from_bits(trail.snow_xor_rest[i * 64 + j]) + 0.05).to_bits();
                 }
             }
         }
@@ -491,6 +486,22 @@ mod tests {
         // Rolling terrain and trails are bounded by the raw size with a good margin.
         assert!(sizes[2] < 16 * 1024, "rolling terrain {} bytes", sizes[2]);
         assert!(sizes[3] < 20 * 1024, "trail {} bytes", sizes[3]);
+        // What tiles really hold: heights XOR the rest height. Untouched
+        // snow over any terrain is zero; only the trail's texels are not.
+        let mut real = tile(side, |_, _| 0.0, true);
+        for i in 0..64 {
+            for j in 0..64 {
+                let d = (j as f32 - 20.0 - 0.3 * i as f32).abs() * 0.0625;
+                let rest = terrain(i, j);
+                let snow = if d < 0.3 { rest - 0.3 * (1.0 - d / 0.3) } else if d < 0.45 { rest + 0.05 } else { rest };
+                real.snow_xor_rest[i * 64 + j] = snow.to_bits() ^ rest.to_bits();
+            }
+        }
+        let untouched = encode(&tile(side, |_, _| 0.0, true)).len();
+        let trail_xor = encode(&real).len();
+        eprintln!("as stored (snow XOR rest): untouched {untouched} bytes, trail {trail_xor} bytes");
+        assert!(untouched < 300, "untouched tile {untouched} bytes");
+        assert!(trail_xor < sizes[3], "XOR against the rest must beat raw heights: {trail_xor} vs {}", sizes[3]);
     }
 
     #[test]
@@ -556,7 +567,7 @@ mod tests {
     #[test]
     fn an_inconsistent_tile_encodes_into_rejected_bytes() {
         let mut t = tile(8, |_, _| 1.0, false);
-        t.snow.pop();
+        t.snow_xor_rest.pop();
         assert!(t.validate().is_err());
         assert!(decode(&encode(&t)).is_err());
     }

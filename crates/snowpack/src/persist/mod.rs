@@ -83,8 +83,12 @@ pub struct TileData {
     pub side: u32,
     /// The clock the contents are current at.
     pub clock: SnowClock,
-    /// Snow surface height (m, world Y).
-    pub snow: Vec<f32>,
+    /// The snow surface height's f32 bits XOR its rest height's (terrain +
+    /// depth + this texel's snowfall, f32 adds in that order): 0 where the
+    /// snow is untouched, so untouched tiles compress to almost nothing,
+    /// and the height comes back bit for bit where the GPU recomputes the
+    /// rest (the tile restore pass).
+    pub snow_xor_rest: Vec<u32>,
     /// Packed footprints (`shared/stamp.wgsl`).
     pub stamps: Vec<u32>,
     /// Snowfall so far per texel (m); empty when the world has no snowfall.
@@ -104,7 +108,7 @@ impl TileData {
     /// out, so budgets are simple multiples of a tile.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.snow.as_slice())
+        std::mem::size_of_val(self.snow_xor_rest.as_slice())
             + std::mem::size_of_val(self.stamps.as_slice())
             + std::mem::size_of_val(self.fallen.as_slice())
     }
@@ -115,10 +119,10 @@ impl TileData {
     pub fn validate(&self) -> Result<(), StoreError> {
         let why = if self.side == 0 || self.side > MAX_SIDE {
             format!("tile side {} is outside 1..={MAX_SIDE}", self.side)
-        } else if self.snow.len() != self.texels() {
+        } else if self.snow_xor_rest.len() != self.texels() {
             format!(
                 "snow holds {} texels, a {}² tile needs {}",
-                self.snow.len(),
+                self.snow_xor_rest.len(),
                 self.side,
                 self.texels()
             )

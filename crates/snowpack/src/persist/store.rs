@@ -675,7 +675,7 @@ mod tests {
                 ..SnowClock::default()
             },
             // A little variation so sizes are realistic rather than minimal.
-            snow: (0..n).map(|k| v + (k % 7) as f32 * 0.001).collect(),
+            snow_xor_rest: (0..n).map(|k| (v + (k % 7) as f32 * 0.001).to_bits()).collect(),
             stamps: vec![v as u32; n],
             fallen: vec![v; n],
         }

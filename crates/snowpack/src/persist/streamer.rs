@@ -762,7 +762,11 @@ impl Drop for TileStreamer {
         {
             tracing::error!("tile store: the worker thread panicked; unwritten tiles are lost");
         }
-        self.poll();
+        // The worker ended because we closed its channel: take its last
+        // replies without reporting the closed channel as a failure.
+        while let Ok(reply) = self.replies.try_recv() {
+            self.handle(reply);
+        }
         for error in self.errors.drain(..) {
             tracing::warn!("tile store: {error}");
         }
@@ -838,7 +842,7 @@ mod tests {
                 time_s: f64::from(v),
                 ..SnowClock::default()
             },
-            snow: vec![v; n],
+            snow_xor_rest: vec![v.to_bits(); n],
             stamps: vec![v as u32; n],
             fallen: Vec::new(),
         }
@@ -1110,7 +1114,7 @@ mod tests {
         let dir = TestDir::new("streamer-wrong");
         let mut s = streamer(&dir, 4);
         let mut short = tile(0, 0, 1.0);
-        short.snow.pop();
+        short.snow_xor_rest.pop();
         s.put(short);
         let mut big = tile(1, 0, 1.0);
         big.side = 16;
