@@ -896,3 +896,80 @@ dt_s = 0.05
     assert!(statue["covered_fraction"].as_f64().expect("covered") > 0.3, "{statue}");
     expect_bad_input("gltf-object-missing", "[[object]]\nname = \"s\"\nkind = \"gltf\"\nfile = \"nowhere.glb\"\n", "nowhere.glb");
 }
+
+const OPEN_WORLD: &str = r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.4
+refill_m_per_s = 0.01
+blur = false
+[terrain]
+kind = "noise"
+seed = 4
+height_m = 0.0
+amplitude_m = 0.2
+wavelength_m = 12.0
+[window]
+follow = "actor:1"
+# A crate presses a trench to the ground for 0.2 s and is lifted away.
+[[actor]]
+kind = "box"
+size_m = [1.0, 2.0, 1.0]
+path = [[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.2], [0.0, 8.0, 0.0, 0.21]]
+# The window follows a bird 40 m out and back (five window widths).
+[[actor]]
+kind = "sphere"
+radius_m = 0.1
+path = [[0.0, 10.0, 0.0, 0.0], [0.0, 10.0, 0.0, 0.3], [40.0, 10.0, 0.0, 2.3], [0.0, 10.0, 0.0, 4.3]]
+[sim]
+frames = 300
+"#;
+
+#[test]
+fn a_trail_left_behind_comes_back_from_the_store_refilled_and_a_run_resumes_from_it() {
+    if !gpu_available() {
+        return;
+    }
+    let store = format!("{OPEN_WORLD}[store]\ntile_texels = 16\nmemory_mb = 0.05\n");
+    let run = run_scene("open-world", &store, &[]);
+    let (snow, terrain) = (run.grid("snow.npy"), run.grid("terrain.npy"));
+    assert_eq!(run.meta["origin_m"][0].as_f64(), Some(-4.0), "the window did not come back: {}", run.meta);
+    let meta = &run.meta["store"];
+    assert!(meta["disk_tiles"].as_u64() > Some(50) && meta["restored_tiles"].as_u64() > Some(10), "{meta}");
+    assert_eq!(meta["errors"].as_u64(), Some(0));
+    // The trench (pressed to the ground until 0.2 s) has refilled for the
+    // rest of the 5 s, most of it while the window was 40 m away.
+    let c = snow.res / 2;
+    let (trench, ground) = (snow.at(c, c), terrain.at(c, c));
+    let expected = 0.01 * (300.0 / 60.0 - 0.2 - 1.0 / 60.0);
+    assert!((trench - ground - expected).abs() < 2e-3, "trench {} m above ground, expected {expected}", trench - ground);
+    // Outside it the snow is at rest.
+    assert!((snow.at(4, 4) - terrain.at(4, 4) - 0.4).abs() < 1e-5);
+    // The same scene without a store forgets the trench.
+    let forgetful = run_scene("open-world-no-store", OPEN_WORLD, &[]);
+    let (s, t) = (forgetful.grid("snow.npy"), forgetful.grid("terrain.npy"));
+    assert!((s.at(c, c) - t.at(c, c) - 0.4).abs() < 1e-5, "without a store the trench should be fresh snow");
+    // Running again into the same output resumes from the save: the clock
+    // goes on and the trench keeps refilling (5 s more; the crate stays up).
+    let scene = run.out.parent().expect("dir").join("scene-again.toml");
+    let lifted = store.replace("path = [[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.2], [0.0, 8.0, 0.0, 0.21]]", "position = [0.0, 8.0, 0.0]");
+    assert_ne!(lifted, store);
+    std::fs::write(&scene, lifted).expect("write scene");
+    let output = bin().args(["run", "--headless", "--scene"]).arg(&scene).arg("--out").arg(&run.out).output().expect("run");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(run.out.join("meta.json")).expect("meta")).expect("json");
+    assert_eq!(meta["store"]["resumed"].as_bool(), Some(true), "{meta}");
+    assert!((meta["store"]["time_s"].as_f64().unwrap_or(0.0) - 10.0).abs() < 1e-3, "{meta}");
+    let again = Grid::load(&run.out.join("snow.npy"));
+    let raised = again.at(c, c) - ground;
+    assert!((raised - (expected + 0.05)).abs() < 3e-3, "after the second run the trench is {raised} m above ground, expected {}", expected + 0.05);
+}
+
+#[test]
+fn bad_store_values_exit_2_naming_file_and_key() {
+    expect_bad_input("store-tile", "[snow]\nresolution = 128\n[store]\ntile_texels = 48\n", "tile_texels");
+    expect_bad_input("store-key", "[store]\nbogus = 1\n", "bogus");
+    // A store path that is a file, not a folder.
+    expect_bad_input("store-path", "[snow]\nresolution = 128\n[store]\npath = \"store-path.toml\"\n", "path");
+}

@@ -38,6 +38,18 @@ fn the_bundled_scenes_parse() {
 }
 
 #[test]
+fn the_store_table_is_understood() {
+    assert_eq!(parse("").expect("valid").store, None);
+    let s = parse("[snow]\nresolution = 256\n[store]\n").expect("valid");
+    assert_eq!(s.store, Some(snowpack_scene::StoreSpec::default()));
+    let s = parse("[snow]\nresolution = 256\n[store]\npath = \"saves/world\"\ntile_texels = 32\nmemory_mb = 16\ndisk_mb = 512\nsave = false\n").expect("valid");
+    let t = s.store.clone().expect("store");
+    assert_eq!(t.path.as_deref(), Some(Path::new("dir/saves/world")), "relative to the scene's folder");
+    assert_eq!((t.tile_texels, t.memory_mb, t.disk_mb, t.save), (32, 16.0, 512.0, false));
+    assert!(s.describe().contains("store: dir/saves/world, tiles of 32²"));
+}
+
+#[test]
 fn actors_windows_and_keyframes_are_understood() {
     let s = parse(
         r#"
@@ -126,6 +138,12 @@ fn every_bad_value_names_the_file_and_the_key() {
         ("[[object]]\nname = \"g\"\nkind = \"gltf\"\n", "[[object]][0].file"),
         ("[[object]]\nname = \"g\"\nkind = \"gltf\"\nfile = \"nowhere.glb\"\n", "[[object]][0].file"),
         ("[[object]]\nname = \"d\"\ndilate = 1\n", "[[object]][0].dilate"),
+        ("[store]\ntile_texels = 48\n", "[store].tile_texels"),
+        ("[store]\ntile_texels = 512\n", "[store].tile_texels"),
+        ("[store]\nmemory_mb = -1\n", "[store].memory_mb"),
+        ("[store]\ndisk_mb = \"big\"\n", "[store].disk_mb"),
+        ("[store]\nsave = 1\n", "[store].save"),
+        ("[store]\nresume = true\n", "[store].resume"),
         ("[sim]\nframes = 0\n", "[sim].frames"),
         ("[sim]\ndt_s = -0.1\n", "[sim].dt_s"),
         ("[camera]\nfov_deg = 200\n", "[camera].fov_deg"),
