@@ -248,8 +248,9 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     })
 }
 
-/// Opens `[store]` and attaches it; a store that cannot be opened is bad input.
-fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene, spec: &snowpack_scene::StoreSpec, out: &std::path::Path) -> anyhow::Result<bool> {
+/// Opens `[store]` (default folder: `store/` in `out`) and attaches it; a
+/// store that cannot be opened is bad input. `Ok(true)`: a save was loaded.
+pub fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene, spec: &snowpack_scene::StoreSpec, out: &std::path::Path) -> anyhow::Result<bool> {
     use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
     const MIB: f64 = 1024.0 * 1024.0;
     let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));

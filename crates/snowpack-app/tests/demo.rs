@@ -90,9 +90,14 @@ struct DemoRun {
 
 /// Runs the demo on a fresh X server with a script; fails the test on a non-zero exit.
 fn run_demo(dir: &Path, frames: u32, script: &str, screenshot: Option<&str>) -> Option<DemoRun> {
+    run_demo_scene(dir, SCENE, frames, script, screenshot)
+}
+
+/// [`run_demo`] with its own scene text.
+fn run_demo_scene(dir: &Path, scene_text: &str, frames: u32, script: &str, screenshot: Option<&str>) -> Option<DemoRun> {
     let x = Xvfb::start()?;
     let scene = dir.join("scene.toml");
-    std::fs::write(&scene, SCENE).expect("scene");
+    std::fs::write(&scene, scene_text).expect("scene");
     let script_path = dir.join("script.txt");
     std::fs::write(&script_path, script).expect("script");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_snowpack"));
@@ -243,4 +248,20 @@ fn the_player_drives_the_fox_and_it_leaves_footsteps() {
     let (after, ..) = load_rgb(&dir.0.join("after.png"));
     let diff = mean_abs_difference(&before, &after);
     assert!(diff > 1.0, "the picture barely changed while the fox walked ({diff:.2}/255)");
+}
+
+#[test]
+fn the_player_walks_out_of_the_window_and_the_tile_store_keeps_the_snow() {
+    let dir = Temp::new("demo-store");
+    let scene = format!("{SCENE}\n[store]\npath = \"store\"\ntile_texels = 64\n");
+    // Tab twice: the follow camera (the window follows the player), then W for 2 s at 4 m/s.
+    let script = "0 key H\n1 key Tab\n2 key Tab\n4 key_down KeyW\n124 key_up KeyW\n";
+    let Some(run) = run_demo_scene(&dir.0, &scene, 128, script, None) else { return };
+    let line = run.stdout.lines().find(|l| l.starts_with("tile store: ")).unwrap_or_else(|| panic!("no tile store summary:\n{}", run.stdout));
+    let evicted: u64 = line.split(", ").find_map(|w| w.strip_suffix(" evicted")).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("no evicted count: {line}"));
+    assert!(evicted > 0, "walking 8 m (two tiles) out of a 16 m window evicted no tile: {line}");
+    assert!(line.contains(", 0 errors"), "{line}");
+    // [store] save defaults to true: the snow was saved on the way out.
+    assert!(dir.0.join("store").join("window.state").exists(), "no saved window state in the store folder");
+    assert!(run.stdout.contains("saved the snow into"), "{}", run.stdout);
 }

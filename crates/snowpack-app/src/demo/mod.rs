@@ -90,7 +90,22 @@ pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
     if let Some(reason) = app.gfx.as_ref().and_then(|g| g.lost.clone()) {
         anyhow::bail!("the GPU device was lost: {reason}");
     }
+    if let (Ok(()), Some(gfx)) = (&app.result, &mut app.gfx)
+        && gfx.session.scene.store.as_ref().is_some_and(|s| s.save)
+    {
+        // `[store] save = true`: the snow is saved on the way out, as a run does.
+        match gfx.session.save_store(&gfx.ctx) {
+            Ok(msg) => println!("{msg}"),
+            Err(e) => app.result = Err(e),
+        }
+    }
     if let (Ok(()), Some(gfx)) = (&app.result, &app.gfx) {
+        if let Some(t) = gfx.session.snow.tile_stats() {
+            println!(
+                "tile store: {} resident, {} restored, {} fresh, {} evicted, {} on disk ({} bytes), window waited {} frames, {} errors",
+                t.resident, t.restored, t.fresh, t.evicted, t.store.disk_tiles, t.store.disk_bytes, t.window_waits, t.store.errors
+            );
+        }
         // A summary for people and for the end-to-end tests.
         println!(
             "demo: {} frames, {} spheres, {} simulated frames since the last reset, technique {}, player {} at {:.2} {:.2} m, {} footsteps, adapter {} ({})",
@@ -327,6 +342,8 @@ impl Gfx {
         let result = match action {
             Action::Reset(count) => self.session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),
             Action::Rebuild => self.session.rebuild(ctx).map(|()| "rebuilt the window (fresh snow)".to_owned()),
+            Action::Store(on) => self.session.set_store(ctx, on).map(|()| if on { "tile store on: trails stay when the window moves on".to_owned() } else { "tile store off".to_owned() }),
+            Action::SaveStore => self.session.save_store(ctx),
             Action::CameraMode(mode) => {
                 self.rig.set_mode(mode, self.session.player.position);
                 if mode == CameraMode::Follow {

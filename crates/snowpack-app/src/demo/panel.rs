@@ -29,6 +29,10 @@ pub enum Action {
     Vsync(bool),
     /// Make the player a sphere or the fox.
     PlayerBody(PlayerBody),
+    /// Turn the tile store on or off (rebuilds).
+    Store(bool),
+    /// Save the snow into the tile store.
+    SaveStore,
 }
 
 /// State the panel keeps between frames.
@@ -234,6 +238,27 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                     ui.label(format!("fallen on open ground: {:.1} cm", session.snow_fallen_m() * 100.0));
                     if let Some(acc) = session.accumulation_objects() {
                         ui.label(format!("{acc} objects gathering snow"));
+                    }
+                }
+            });
+
+            egui::CollapsingHeader::new("Open world (tile store)").default_open(session.scene.store.is_some()).show(ui, |ui| {
+                let mut on = session.scene.store.is_some();
+                if ui.checkbox(&mut on, "keep trails when the window moves on (rebuilds)").on_hover_text("texels leaving the window go to resident tiles, then to a compressed store on disk, and come back refilled by the time away").changed() {
+                    actions.push(Action::Store(on));
+                }
+                if let Some(t) = session.snow.tile_stats() {
+                    let s = &t.store;
+                    ui.label(format!("GPU: {} of {} slots resident ({:.1} MB) · {} restored · {} fresh · {} evicted", t.resident, t.slots, t.gpu_bytes as f64 / 1e6, t.restored, t.fresh, t.evicted));
+                    ui.label(format!("memory: {} tiles, {:.1} MB · hit rate {:.0}%", s.memory_tiles, s.memory_bytes as f64 / 1e6, s.hit_rate() * 100.0));
+                    ui.label(format!("disk: {} tiles, {:.2} MB · {:.2} MB written · {} evicted", s.disk_tiles, s.disk_bytes as f64 / 1e6, s.bytes_written as f64 / 1e6, s.evicted));
+                    ui.label(format!("window waited {} frames for tiles · {} errors · {} corrupt · {} lost", t.window_waits, s.errors, s.corrupt, s.lost));
+                    ui.label(format!("time {:.1} s", session.snow.clock().time_s));
+                    for e in &session.store_errors {
+                        ui.colored_label(Color32::LIGHT_RED, e);
+                    }
+                    if ui.button("save the snow").on_hover_text("every tile and the window's clock and position into the store; the next start with this store resumes there").clicked() {
+                        actions.push(Action::SaveStore);
                     }
                 }
             });

@@ -2,6 +2,7 @@
 //! test-bed world, the player (a sphere or the fox), the deformation window
 //! and the renderer, with the operations the panel and the keys ask for.
 
+use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::Context as _;
@@ -10,6 +11,9 @@ use snowpack::gpu::PassTimings;
 use snowpack::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
 use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, WindowSpec, World};
+
+/// Where the demo keeps a tile store whose scene names no folder.
+pub const DEMO_OUT: &str = "snowpack-out";
 
 /// What the player drives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -105,6 +109,8 @@ pub struct Session {
     pub timings: TimingReport,
     /// Footsteps since the last reset, and the latest.
     pub footsteps: (u64, Option<FootstepEvent>),
+    /// The tile store's latest errors (the frame goes on without them).
+    pub store_errors: Vec<String>,
     /// The player's fox in the world (actor index), once it has been chosen.
     fox: Option<usize>,
     /// Skinned meshes registered with the deformation, by actor.
@@ -146,12 +152,36 @@ impl Session {
             step_once: false,
             reset_seed: scene.spawns.first().map_or(7, |s| s.seed),
             footsteps: (0, None),
+            store_errors: Vec::new(),
             fox: None,
             skins: Vec::new(),
             scene,
         };
+        session.attach_store(ctx)?;
         session.register_skins(ctx)?;
         Ok(session)
+    }
+
+    /// Attaches the scene's `[store]` (default folder `snowpack-out/store`);
+    /// when it holds a save, the window resumes there.
+    fn attach_store(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
+        if let Some(spec) = self.scene.store.clone() {
+            crate::run::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
+        }
+        Ok(())
+    }
+
+    /// Turns the tile store on or off (rebuilds the window).
+    pub fn set_store(&mut self, ctx: &GpuContext, on: bool) -> anyhow::Result<()> {
+        self.scene.store = on.then(|| self.scene.store.clone().unwrap_or_default());
+        self.rebuild(ctx)
+    }
+
+    /// Saves the whole snow state into the tile store.
+    pub fn save_store(&mut self, ctx: &GpuContext) -> anyhow::Result<String> {
+        self.snow.save(ctx).context("saving into the tile store")?;
+        let dir = self.scene.store.as_ref().and_then(|s| s.path.clone()).unwrap_or_else(|| Path::new(DEMO_OUT).join("store"));
+        Ok(format!("saved the snow into {}", dir.display()))
     }
 
     /// Uploads the skinned mesh of every character in the world and places the
@@ -325,6 +355,11 @@ impl Session {
         let characters = self.world.characters();
         let poses = crate::run::poses(&self.skins, &characters);
         self.snow.encode_posed(ctx, encoder, &deformers, &poses, dt);
+        for e in self.snow.take_store_errors() {
+            self.store_errors.push(e.to_string());
+        }
+        let keep = self.store_errors.len().saturating_sub(4);
+        self.store_errors.drain(..keep);
         self.frames += 1;
         if self.frames.is_multiple_of(30) {
             self.timings = TimingReport { deform: passes(self.snow.timings()), render: passes(self.renderer.timings()) };
@@ -351,8 +386,14 @@ impl Session {
         let center = scene_center(&self.scene, &self.world);
         let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
+        // The old window lets go of its store (flushing it) before the new one opens it.
         self.snow = snow;
         self.renderer = renderer;
+        self.store_errors.clear();
+        if let Err(e) = self.attach_store(ctx) {
+            self.scene.store = None;
+            return Err(e.context("the window was rebuilt without a tile store"));
+        }
         self.frames = 0;
         self.footsteps = (0, None);
         let xz = Vec2::new(center.x as f32, center.y as f32);
