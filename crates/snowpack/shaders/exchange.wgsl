@@ -34,21 +34,12 @@ const WORKGROUP: u32 = 256u;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    var k = gid.x + gid.y * groups.x * WORKGROUP;
-    let r0 = params.rects[0];
-    var rect = r0;
-    if k >= r0.z * r0.w {
-        if params.rect_count < 2u {
-            return;
-        }
-        k -= r0.z * r0.w;
-        rect = params.rects[1];
-        if k >= rect.z * rect.w {
-            return;
-        }
+    let texel = rect_texel(gid.x + gid.y * groups.x * WORKGROUP, params.rects, params.rect_count);
+    if texel.z == 0u {
+        return;
     }
-    let i = rect.x + k / rect.w;
-    let j = rect.y + k % rect.w;
+    let i = texel.x;
+    let j = texel.y;
     let res = i32(params.resolution);
     let s = storage_index(params.origin, params.resolution, i, j);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;

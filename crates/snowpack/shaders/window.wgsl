@@ -27,22 +27,12 @@ const WORKGROUP: u32 = 256u;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    var k = gid.x + gid.y * groups.x * WORKGROUP;
-    let r0 = params.rects[0];
-    let area0 = r0.z * r0.w;
-    var rect = r0;
-    if k >= area0 {
-        if params.rect_count < 2u {
-            return;
-        }
-        k -= area0;
-        rect = params.rects[1];
-        if k >= rect.z * rect.w {
-            return;
-        }
+    let texel = rect_texel(gid.x + gid.y * groups.x * WORKGROUP, params.rects, params.rect_count);
+    if texel.z == 0u {
+        return;
     }
-    let i = rect.x + k / rect.w;
-    let j = rect.y + k % rect.w;
+    let i = texel.x;
+    let j = texel.y;
     let s = storage_index(params.origin, params.resolution, i, j);
     let x = (f32(params.origin.x + i32(j)) + 0.5) * params.texel_m;
     let z = (f32(params.origin.y + i32(i)) + 0.5) * params.texel_m;

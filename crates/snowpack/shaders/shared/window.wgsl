@@ -19,3 +19,22 @@ fn storage_index(origin: vec2<i32>, res: u32, i: u32, j: u32) -> u32 {
     let sj = wrap_index(origin.x + i32(j), r);
     return u32(si) * res + u32(sj);
 }
+
+// Window-local texel (i, j) of the k-th texel of the exposed rectangles
+// (row0, col0, rows, cols; `count` of them used, row-major within each),
+// with z = 1, or z = 0 when k is past them.
+fn rect_texel(k_in: u32, rects: array<vec4<u32>, 2>, count: u32) -> vec3<u32> {
+    var k = k_in;
+    var rect = rects[0];
+    if k >= rect.z * rect.w {
+        if count < 2u {
+            return vec3<u32>(0u);
+        }
+        k -= rect.z * rect.w;
+        rect = rects[1];
+        if k >= rect.z * rect.w {
+            return vec3<u32>(0u);
+        }
+    }
+    return vec3<u32>(rect.x + k / rect.w, rect.y + k % rect.w, 1u);
+}
