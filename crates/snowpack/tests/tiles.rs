@@ -432,3 +432,50 @@ fn a_failing_disk_reports_errors_and_frames_go_on() {
     let _ = std::fs::remove_file(dir.join("tiles"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = temp_dir("corrupt");
+    let flat = TerrainSource::Flat { height_m: 0.0 };
+    let mut d = window(ctx, flat.clone(), DVec2::ZERO, 0.0);
+    d.attach_store(ctx, streamer(&dir, 64)).expect("attach");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    let origin = d.origin_texel().expect("placed");
+    d.save(ctx).expect("save");
+    drop(d);
+    // Damage the tile holding the trail's start, (-0.9, 0) m: one flipped byte.
+    let texel = [(-0.9f64 / 0.0625).floor() as i64, 0];
+    let key = snowpack::persist::TileKey { col: texel[0].div_euclid(i64::from(SIDE)), row: 0 };
+    let path = TileStore::open(&dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store").tile_path(key);
+    let mut bytes = std::fs::read(&path).expect("tile file");
+    let k = bytes.len() - 3;
+    bytes[k] ^= 0x40;
+    std::fs::write(&path, bytes).expect("write");
+    let mut loaded = window(ctx, flat, DVec2::ZERO, 0.0);
+    assert!(loaded.attach_store(ctx, streamer(&dir, 64)).expect("attach"));
+    loaded.step(ctx, &[], DT).expect("frame");
+    assert_eq!(loaded.origin_texel(), Some(origin));
+    let after = loaded.read_snow(ctx).expect("snow");
+    let errors = loaded.take_store_errors();
+    assert!(errors.iter().any(|e| matches!(e, snowpack::persist::StoreError::Corrupt { path: p, .. } if *p == path)), "no corrupt-tile error for {}: {errors:?}", path.display());
+    // Texels of the damaged tile are fresh snow; the rest of the trail is back.
+    let (mut fresh, mut kept) = (0, 0);
+    for i in 0..64usize {
+        for j in 0..64usize {
+            let g = [origin[0] + j as i64, origin[1] + i as i64];
+            let k = i * 64 + j;
+            let in_damaged = g[0].div_euclid(i64::from(SIDE)) == key.col && g[1].div_euclid(i64::from(SIDE)) == key.row;
+            if in_damaged {
+                assert_eq!(after[k], 0.5, "texel {g:?} of the damaged tile is not fresh snow");
+                fresh += usize::from(before[k] < 0.45);
+            } else {
+                assert_eq!(after[k].to_bits(), before[k].to_bits(), "texel {g:?} changed");
+                kept += usize::from(before[k] < 0.45);
+            }
+        }
+    }
+    assert!(fresh > 10 && kept > 50, "the damaged tile held {fresh} trail texels, the others {kept}: the test must cover both");
+    let _ = std::fs::remove_dir_all(&dir);
+}

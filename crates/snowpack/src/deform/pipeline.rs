@@ -776,6 +776,9 @@ impl SnowDeformation {
         if let Some(acc) = &self.accumulation {
             list.extend(acc.memory_bytes());
         }
+        if let Some(tiles) = &self.tiles {
+            list.push(("resident tiles", tiles.stats().gpu_bytes));
+        }
         list
     }
 
