@@ -479,3 +479,31 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     assert!(fresh > 10 && kept > 50, "the damaged tile held {fresh} trail texels, the others {kept}: the test must cover both");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = temp_dir("snowfall");
+    let rate = 0.1;
+    let snowfall = snowpack::accumulate::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::accumulate::Snowfall::default() };
+    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, snowfall: Some(snowfall.clone()), ..SnowParams::default() };
+    let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    d.attach_store(ctx, streamer(&dir, 2)).expect("attach");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    // It snows only while the window is away.
+    let t0 = d.clock().time_s;
+    d.set_snowfall(Some(snowpack::accumulate::Snowfall { rate_m_per_s: rate, ..snowfall.clone() })).expect("snowfall");
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.5);
+    d.set_snowfall(Some(snowfall)).expect("snowfall stops");
+    let snowed = rate * (d.clock().time_s - t0) as f32;
+    walk(ctx, &mut d, DVec2::new(20.0, 0.0), DVec2::ZERO, 0.5);
+    let after = d.read_snow(ctx).expect("snow");
+    assert!(d.tile_stats().expect("stats").restored > 0);
+    assert!((d.fallen_m() - snowed).abs() < 1e-4, "fallen {} against {snowed}", d.fallen_m());
+    let worst = before.iter().zip(&after).map(|(b, a)| (a - (b + snowed)).abs()).fold(0.0f32, f32::max);
+    assert!(snowed > 0.05, "too little snow fell ({snowed} m) to tell");
+    assert!(worst < 5e-5, "every texel, trail and untouched, should be {snowed} m higher; worst off by {worst}");
+    drop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
