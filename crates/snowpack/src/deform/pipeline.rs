@@ -283,6 +283,7 @@ impl SnowDeformation {
             self.fallen_total_m = s.fallen_m;
             self.stamp_refill_carry_m = s.stamp_carry_m;
             self.center = s.center;
+            self.frame = s.frame;
             return Ok(true);
         }
         Ok(false)
