@@ -275,6 +275,7 @@ fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
         "fresh_tiles": t.fresh,
         "evicted_tiles": t.evicted,
         "window_waits": t.window_waits,
+        "blocking_loads": t.blocking_loads,
         "memory_tiles": t.store.memory_tiles,
         "memory_bytes": t.store.memory_bytes,
         "disk_tiles": t.store.disk_tiles,

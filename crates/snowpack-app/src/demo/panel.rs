@@ -252,7 +252,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                     ui.label(format!("GPU: {} of {} slots resident ({:.1} MB) · {} restored · {} fresh · {} evicted", t.resident, t.slots, t.gpu_bytes as f64 / 1e6, t.restored, t.fresh, t.evicted));
                     ui.label(format!("memory: {} tiles, {:.1} MB · hit rate {:.0}%", s.memory_tiles, s.memory_bytes as f64 / 1e6, s.hit_rate() * 100.0));
                     ui.label(format!("disk: {} tiles, {:.2} MB · {:.2} MB written · {} evicted", s.disk_tiles, s.disk_bytes as f64 / 1e6, s.bytes_written as f64 / 1e6, s.evicted));
-                    ui.label(format!("window waited {} frames for tiles · {} errors · {} corrupt · {} lost", t.window_waits, s.errors, s.corrupt, s.lost));
+                    ui.label(format!("window waited {} frames for tiles · {} blocking loads · {} errors · {} corrupt · {} lost", t.window_waits, t.blocking_loads, s.errors, s.corrupt, s.lost));
                     ui.label(format!("time {:.1} s", session.snow.clock().time_s));
                     for e in &session.store_errors {
                         ui.colored_label(Color32::LIGHT_RED, e);

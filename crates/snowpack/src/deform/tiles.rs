@@ -171,6 +171,10 @@ pub struct TileStats {
     pub evicted: u64,
     /// Tiles on their way back from the GPU.
     pub evicting: usize,
+    /// Tiles the memory cache dropped between being found ready and being
+    /// used, read again from disk within the frame (blocking; rare, with a
+    /// memory budget smaller than the tiles the window needs at once).
+    pub blocking_loads: u64,
     /// GPU memory of the resident tiles (bytes).
     pub gpu_bytes: u64,
 }
@@ -204,6 +208,7 @@ pub struct TileStreaming {
     prefetched_at: Option<TileKey>,
     errors: Vec<StoreError>,
     window_waits: u64,
+    blocking_loads: u64,
     restored: u64,
     fresh: u64,
     evicted: u64,
@@ -249,6 +254,7 @@ impl TileStreaming {
             prefetched_at: None,
             errors: Vec::new(),
             window_waits: 0,
+            blocking_loads: 0,
             restored: 0,
             fresh: 0,
             evicted: 0,
@@ -303,11 +309,17 @@ impl TileStreaming {
         }
         let ready = needed.iter().all(|&k| !self.in_flight.contains(&k) && self.streamer.is_ready(k));
         if ready {
-            desired
-        } else {
-            self.window_waits += 1;
-            current.unwrap_or(desired)
+            return desired;
         }
+        // Ask again for what is missing: a tile that came back from the GPU
+        // after the prefetch may have left memory for the disk since.
+        for &key in &needed {
+            if !self.in_flight.contains(&key) {
+                self.streamer.request(key);
+            }
+        }
+        self.window_waits += 1;
+        current.unwrap_or(desired)
     }
 
     /// Records the tile side of a window move from `old` to `origin` that
@@ -354,8 +366,19 @@ impl TileStreaming {
             }
             let saved = match self.streamer.lookup(key) {
                 TileLookup::Ready(saved) => saved,
-                // `plan` saw it ready; a dropped cache entry between the two gives fresh snow.
-                TileLookup::Pending => None,
+                // `plan` saw it ready, but handing out the tiles before it let
+                // the memory cache drop it: read it again rather than lose it
+                // to fresh snow (blocking; counted).
+                TileLookup::Pending => {
+                    self.blocking_loads += 1;
+                    if let Err(e) = self.streamer.wait_for(&[key]) {
+                        self.errors.push(e);
+                    }
+                    match self.streamer.lookup(key) {
+                        TileLookup::Ready(saved) => saved,
+                        TileLookup::Pending => None,
+                    }
+                }
             };
             let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
             match saved {
@@ -561,6 +584,7 @@ impl TileStreaming {
             fresh: self.fresh,
             evicted: self.evicted,
             evicting: self.in_flight.len(),
+            blocking_loads: self.blocking_loads,
             gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes(),
         }
     }
