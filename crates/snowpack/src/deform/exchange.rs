@@ -7,7 +7,7 @@ use crate::gpu::{layout, GpuTimer};
 use crate::shaders;
 
 use super::resources::DeformResources;
-use super::window::TexelRect;
+use super::window::{rect_dispatch, TexelRect};
 
 /// Uniforms of `exchange.wgsl`.
 #[repr(C)]
@@ -93,20 +93,13 @@ impl ExchangePass {
     /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
     /// or the load of `rects`; nothing when empty.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, mut params: ExchangeParams, rects: &[TexelRect]) {
-        if rects.is_empty() {
-            return;
-        }
-        params.rect_count = rects.len().min(2) as u32;
-        for (slot, rect) in params.rects.iter_mut().zip(rects) {
-            *slot = *rect;
-        }
+        let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
+        params.rect_count = count;
+        params.rects = fixed;
         let stash = params.flags & ExchangeParams::STASH != 0;
         let direction = if stash { &self.stash } else { &self.load };
         queue.write_buffer(&direction.params, 0, bytemuck::bytes_of(&params));
-        let texels: u32 = rects.iter().take(2).map(|r| r[2] * r[3]).sum();
-        let groups = layout::groups(texels, 256);
-        let (gx, gy) = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
         let label = if stash { "tile stash" } else { "tile load" };
-        layout::dispatch(encoder, timer, label, &self.pipeline, &direction.bind_group, (gx, gy));
+        layout::dispatch(encoder, timer, label, &self.pipeline, &direction.bind_group, grid);
     }
 }

@@ -623,7 +623,8 @@ impl SnowDeformation {
         }
         // Footprints refill by whole quanta; the remainder carries to the next frame.
         let quantum = stamp_params.quantum_m();
-        self.stamp_refill_carry_m += p.refill_m_per_s * dt_s.max(0.0);
+        let refill_m = p.refill_m_per_s * dt_s.max(0.0);
+        self.stamp_refill_carry_m += refill_m;
         let refill_quanta = (self.stamp_refill_carry_m / quantum).floor().min(65535.0);
         self.stamp_refill_carry_m -= refill_quanta * quantum;
         self.update_pass.record(
@@ -634,7 +635,7 @@ impl SnowDeformation {
                 origin: origin_i32,
                 resolution: p.resolution,
                 depth_m: p.depth_m,
-                refill_m: p.refill_m_per_s * dt_s.max(0.0),
+                refill_m,
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
@@ -653,8 +654,7 @@ impl SnowDeformation {
                 _pad: 0,
             },
         );
-        let refill_m = p.refill_m_per_s * dt_s.max(0.0);
-        if let Some(tiles) = &self.tiles {
+        if let Some(tiles) = &mut self.tiles {
             tiles.record_weather(queue, encoder, &mut self.timer, origin, &tile_frame, (refill_m, fall_m), refill_quanta as u32);
         }
         self.clock.time_s += f64::from(dt_s.max(0.0));

@@ -121,16 +121,6 @@ impl TileGrid {
         }
         keys
     }
-
-    /// Index into the resident tiles of global texel `g`, plane `plane`
-    /// (`tile_index` of `shared/tiles.wgsl`).
-    #[must_use]
-    pub fn index(&self, g: [i64; 2], plane: usize) -> usize {
-        let key = self.key_of(g);
-        let s = i64::from(self.side);
-        let (lx, ly) = ((g[0] - key.col * s) as usize, (g[1] - key.row * s) as usize);
-        (self.slot_of(key) * PLANES + plane) * self.area() + ly * self.side as usize + lx
-    }
 }
 
 /// What the tile passes need to know of the snow each frame.
@@ -175,7 +165,8 @@ pub struct TileStats {
     /// used, read again from disk within the frame (blocking; rare, with a
     /// memory budget smaller than the tiles the window needs at once).
     pub blocking_loads: u64,
-    /// GPU memory of the resident tiles (bytes).
+    /// GPU memory of the resident tiles, their upload buffers and the
+    /// copy-out staging buffers kept for reuse (bytes).
     pub gpu_bytes: u64,
 }
 
@@ -204,6 +195,10 @@ pub struct TileStreaming {
     restore: TileRestorePass,
     weather: TileWeatherPass,
     evictions: Vec<Eviction>,
+    /// Staging buffers of finished copy-outs, reused by the next ones.
+    spare_staging: Vec<wgpu::Buffer>,
+    /// The weather pass's slot list, rebuilt each frame in place.
+    weather_slots: Vec<u32>,
     in_flight: HashSet<TileKey>,
     prefetched_at: Option<TileKey>,
     errors: Vec<StoreError>,
@@ -250,6 +245,8 @@ impl TileStreaming {
             tiles,
             owners_buffer,
             evictions: Vec::new(),
+            spare_staging: Vec::new(),
+            weather_slots: Vec::new(),
             in_flight: HashSet::new(),
             prefetched_at: None,
             errors: Vec::new(),
@@ -443,12 +440,17 @@ impl TileStreaming {
     /// stored against) into a staging buffer for the store.
     fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
         let slot_bytes = (PLANES * self.grid.area() * 4) as u64;
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile copy-out"),
-            size: slot_bytes * slots.len() as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let size = slot_bytes * slots.len() as u64;
+        // A staging buffer from an earlier copy-out when one is big enough.
+        let buffer = match self.spare_staging.iter().position(|b| b.size() >= size) {
+            Some(k) => self.spare_staging.swap_remove(k),
+            None => device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("tile copy-out"),
+                size: size.next_power_of_two(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
         for (k, &(key, slot)) in slots.iter().enumerate() {
             encoder.copy_buffer_to_buffer(&self.tiles, slot as u64 * slot_bytes, &buffer, k as u64 * slot_bytes, slot_bytes);
             self.in_flight.insert(key);
@@ -460,11 +462,12 @@ impl TileStreaming {
     /// Records this frame's weather on the resident tiles outside the window
     /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
     #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and this frame's weather")]
-    pub fn record_weather(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i64; 2], frame: &TileFrame, (refill_m, fall_m): (f32, f32), quanta: u32) {
+    pub fn record_weather(&mut self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i64; 2], frame: &TileFrame, (refill_m, fall_m): (f32, f32), quanta: u32) {
         // Only tiles reaching outside the window: the update has the rest.
         let (side, res) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
         let inside = |k: TileKey| k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + res && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + res;
-        let slots: Vec<u32> = self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32).collect();
+        self.weather_slots.clear();
+        self.weather_slots.extend(self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32));
         self.weather.record(
             queue,
             encoder,
@@ -485,7 +488,7 @@ impl TileStreaming {
                 count: 0,
                 _pad: [0; 2],
             },
-            &slots,
+            &self.weather_slots,
         );
     }
 
@@ -497,7 +500,8 @@ impl TileStreaming {
             }
             let flag = Arc::new(AtomicU8::new(MAPPING));
             let done = Arc::clone(&flag);
-            eviction.buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let used = (eviction.keys.len() * PLANES * self.grid.area() * 4) as u64;
+            eviction.buffer.slice(..used).map_async(wgpu::MapMode::Read, move |r| {
                 done.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
             });
             eviction.flag = Some(flag);
@@ -522,20 +526,25 @@ impl TileStreaming {
                 continue;
             }
             let eviction = self.evictions.swap_remove(k);
-            let bytes = if state == Some(MAPPED) { eviction.buffer.slice(..).get_mapped_range().map(|v| v.to_vec()).ok() } else { None };
+            let used = (eviction.keys.len() * PLANES * area * 4) as u64;
+            let words: Option<Vec<u32>> = if state == Some(MAPPED) {
+                eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok()
+            } else {
+                None
+            };
             for key in &eviction.keys {
                 self.in_flight.remove(key);
             }
-            let Some(bytes) = bytes else {
+            let Some(words) = words else {
                 self.errors.push(StoreError::Mismatch { path: self.streamer.dir().to_path_buf(), why: format!("{} tiles could not be read back from the GPU and are lost", eviction.keys.len()) });
                 continue;
             };
             eviction.buffer.unmap();
-            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
             for (t, key) in eviction.keys.iter().enumerate() {
                 let planes = &words[t * PLANES * area..(t + 1) * PLANES * area];
                 self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen)));
             }
+            self.spare_staging.push(eviction.buffer);
         }
     }
 
@@ -585,7 +594,7 @@ impl TileStreaming {
             evicted: self.evicted,
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,
-            gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes(),
+            gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes() + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
         }
     }
 }

@@ -71,6 +71,24 @@ impl SlidingWindow {
     }
 }
 
+/// The exposed rectangles as a pass's uniforms take them (count, fixed
+/// array) and the 2D workgroup grid of 256 that covers their texels (under
+/// the 65535 per-dimension limit); `None` when there are none.
+#[must_use]
+pub fn rect_dispatch(rects: &[TexelRect]) -> Option<(u32, [TexelRect; 2], (u32, u32))> {
+    if rects.is_empty() {
+        return None;
+    }
+    let mut fixed = [[0; 4]; 2];
+    for (slot, rect) in fixed.iter_mut().zip(rects) {
+        *slot = *rect;
+    }
+    let texels: u32 = rects.iter().take(2).map(|r| r[2] * r[3]).sum();
+    let groups = layout::groups(texels, 256);
+    let grid = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
+    Some((rects.len().min(2) as u32, fixed, grid))
+}
+
 /// Uniforms of `window.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -209,19 +227,11 @@ impl WindowPass {
         mut params: WindowParams,
         rects: &[TexelRect],
     ) {
-        if rects.is_empty() {
-            return;
-        }
-        params.rect_count = rects.len().min(2) as u32;
-        for (slot, rect) in params.rects.iter_mut().zip(rects) {
-            *slot = *rect;
-        }
+        let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
+        params.rect_count = count;
+        params.rects = fixed;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let texels: u32 = rects.iter().take(2).map(|r| r[2] * r[3]).sum();
-        let groups = layout::groups(texels, 256);
-        // Stay under the 65535 per-dimension limit with a 2D grid.
-        let (gx, gy) = if groups <= 65535 { (groups, 1) } else { (65535, groups.div_ceil(65535)) };
-        layout::dispatch(encoder, timer, "window", &self.pipeline, &self.bind_group, (gx, gy));
+        layout::dispatch(encoder, timer, "window", &self.pipeline, &self.bind_group, grid);
     }
 }
 

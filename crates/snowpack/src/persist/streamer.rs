@@ -194,6 +194,15 @@ struct Cached {
     wanted: bool,
 }
 
+impl Cached {
+    /// A fresh entry for `tile` (not yet used).
+    fn new(tile: TileData, dirt: Dirt, wanted: bool) -> Self {
+        let tile = Arc::new(tile);
+        let bytes = tile.memory_bytes();
+        Self { tile, bytes, used: 0, dirt, wanted }
+    }
+}
+
 /// Streams tiles between the deformation window and a [`TileStore`] on a
 /// worker thread, with a bounded memory cache. See the module docs for the
 /// ordering and write-behind policies.
@@ -367,18 +376,7 @@ impl TileStreamer {
             return;
         }
         self.absent.remove(&key);
-        let tile = Arc::new(tile);
-        let bytes = tile.memory_bytes();
-        self.insert(
-            key,
-            Cached {
-                tile,
-                bytes,
-                used: 0,
-                dirt: Dirt::Failed,
-                wanted: false,
-            },
-        );
+        self.insert(key, Cached::new(tile, Dirt::Failed, false));
         self.queue_write(key);
     }
 
@@ -584,18 +582,7 @@ impl TileStreamer {
                 }
                 match tile {
                     Some(tile) => {
-                        let tile = Arc::new(tile);
-                        let bytes = tile.memory_bytes();
-                        self.insert(
-                            key,
-                            Cached {
-                                tile,
-                                bytes,
-                                used: 0,
-                                dirt: Dirt::Clean,
-                                wanted: true,
-                            },
-                        );
+                        self.insert(key, Cached::new(tile, Dirt::Clean, true));
                     }
                     None => {
                         if self.absent.len() >= MAX_ABSENT {
