@@ -3,9 +3,12 @@
 //! channels and a bounded memory cache, and never blocks (except in the
 //! calls documented as blocking).
 //!
-//! Ordering: one FIFO channel carries every request to the single worker,
-//! which answers them in order, so a load queued after a put sees that put's
-//! version even if the cache has dropped it meanwhile.
+//! Ordering: one channel carries every request to the single worker, which
+//! answers them in order, except that loads go ahead of queued writes (a
+//! slow disk, where every write syncs, must not hold back the tiles the
+//! window waits for). A load queued after a put still sees that put's
+//! version even if the cache has dropped it meanwhile: the worker answers it
+//! from the queued write.
 //!
 //! Write-behind: [`TileStreamer::put`] puts the tile in the cache at once
 //! and queues its write. A tile whose write failed stays in the cache as
@@ -16,7 +19,7 @@
 //! grow memory without bound). A tile pushed out while its write is still
 //! queued is not lost: the worker holds it until written.
 
-use std::collections::{BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeSet, HashMap, HashSet, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
@@ -143,6 +146,9 @@ enum Request {
     /// Lets the tests kill the worker the way a bug would.
     #[cfg(test)]
     Panic,
+    /// Lets the tests hold the worker until `gate` is sent to or dropped.
+    #[cfg(test)]
+    Pause { seq: u64, gate: Receiver<()> },
 }
 
 /// The store's size after a request.
@@ -163,6 +169,8 @@ enum Outcome {
     Loaded {
         key: TileKey,
         result: Result<Option<TileData>, StoreError>,
+        /// The write (its `seq`) still queued that answered this load.
+        queued: Option<u64>,
     },
     /// The file's size on success.
     Written {
@@ -551,7 +559,7 @@ impl TileStreamer {
         self.take_disk(reply.disk);
         let seq = reply.seq;
         match reply.outcome {
-            Outcome::Loaded { key, result } => {
+            Outcome::Loaded { key, result, queued } => {
                 self.stats.loads += 1;
                 if self.loading.get(&key) == Some(&seq) {
                     self.loading.remove(&key);
@@ -582,7 +590,12 @@ impl TileStreamer {
                 }
                 match tile {
                     Some(tile) => {
-                        self.insert(key, Cached::new(tile, Dirt::Clean, true));
+                        // Answered from a write still queued: dirty until its reply.
+                        let dirt = match queued {
+                            Some(w) if self.unwritten.get(&key) == Some(&w) => Dirt::Queued(w),
+                            _ => Dirt::Clean,
+                        };
+                        self.insert(key, Cached::new(tile, dirt, true));
                     }
                     None => {
                         if self.absent.len() >= MAX_ABSENT {
@@ -768,37 +781,42 @@ impl Drop for TileStreamer {
     }
 }
 
-/// The worker: answers requests in order until the streamer hangs up. Never
-/// panics on I/O errors: they go back in the replies.
+/// The worker: answers requests until the streamer hangs up, in order
+/// except that loads go first (see the module docs). Never panics on I/O
+/// errors: they go back in the replies.
 fn work(mut store: TileStore, requests: &Receiver<Request>, replies: &Sender<Reply>) {
-    for request in requests {
-        let (seq, outcome) = match request {
-            Request::Load { seq, key } => (
-                seq,
-                Outcome::Loaded {
-                    key,
-                    result: store.read(key),
-                },
-            ),
-            Request::Write { seq, tile } => {
-                let result = store
-                    .write(&tile)
-                    .map(|()| store.tile_bytes(tile.key).unwrap_or(0));
-                (
-                    seq,
-                    Outcome::Written {
-                        key: tile.key,
-                        result,
-                    },
-                )
+    let mut queue: VecDeque<Request> = VecDeque::new();
+    loop {
+        // Block only when nothing is queued; then take all that has arrived.
+        if queue.is_empty() {
+            match requests.recv() {
+                Ok(request) => queue.push_back(request),
+                Err(_) => return,
             }
-            Request::Flush { seq } => (seq, Outcome::Flushed),
-            Request::WriteState { seq, name, bytes } => {
-                (seq, Outcome::StateWritten(store.write_state(&name, &bytes)))
+        }
+        queue.extend(requests.try_iter());
+        let load = queue.iter().enumerate().find_map(|(at, r)| match r {
+            Request::Load { seq, key } => Some((at, *seq, *key)),
+            _ => None,
+        });
+        let (seq, outcome) = match load {
+            Some((at, seq, key)) => {
+                queue.remove(at);
+                // The newest write of the same tile queued before the load is its answer.
+                let queued = queue.iter().take(at).rev().find_map(|r| match r {
+                    Request::Write { seq, tile } if tile.key == key => Some((*seq, Arc::clone(tile))),
+                    _ => None,
+                });
+                let outcome = match queued {
+                    Some((w, tile)) => Outcome::Loaded { key, result: Ok(Some((*tile).clone())), queued: Some(w) },
+                    None => Outcome::Loaded { key, result: store.read(key), queued: None },
+                };
+                (seq, outcome)
             }
-            Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
-            #[cfg(test)]
-            Request::Panic => panic!("the tile worker panics (as a test asked)"),
+            None => match queue.pop_front() {
+                Some(request) => answer(&mut store, request),
+                None => continue,
+            },
         };
         let disk = DiskNumbers {
             tiles: store.disk_tiles(),
@@ -807,6 +825,44 @@ fn work(mut store: TileStore, requests: &Receiver<Request>, replies: &Sender<Rep
         };
         // The streamer may be dropping: keep going, the queued writes still matter.
         let _ = replies.send(Reply { seq, disk, outcome });
+    }
+}
+
+/// Does one request other than a load jumping the queue.
+fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
+    match request {
+        Request::Load { seq, key } => (
+            seq,
+            Outcome::Loaded {
+                key,
+                result: store.read(key),
+                queued: None,
+            },
+        ),
+        Request::Write { seq, tile } => {
+            let result = store
+                .write(&tile)
+                .map(|()| store.tile_bytes(tile.key).unwrap_or(0));
+            (
+                seq,
+                Outcome::Written {
+                    key: tile.key,
+                    result,
+                },
+            )
+        }
+        Request::Flush { seq } => (seq, Outcome::Flushed),
+        Request::WriteState { seq, name, bytes } => {
+            (seq, Outcome::StateWritten(store.write_state(&name, &bytes)))
+        }
+        Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
+        #[cfg(test)]
+        Request::Panic => panic!("the tile worker panics (as a test asked)"),
+        #[cfg(test)]
+        Request::Pause { seq, gate } => {
+            let _ = gate.recv();
+            (seq, Outcome::Flushed)
+        }
     }
 }
 
@@ -978,6 +1034,35 @@ mod tests {
         assert_eq!(s.lookup(a), TileLookup::Ready(Some(tile(0, 0, 2.0))));
         assert_eq!(ready(&mut s, TileKey::new(1, 0)), Some(tile(1, 0, 9.0)));
         assert_eq!(s.stats().lost, 0);
+    }
+
+    #[test]
+    fn loads_go_ahead_of_queued_writes_and_see_the_newest_version() {
+        let dir = TestDir::new("streamer-loads-first");
+        let mut s = streamer(&dir, 1);
+        let a = TileKey::new(0, 0);
+        // Hold the worker, as a disk that syncs slowly would, while writes queue up.
+        let (release, gate) = mpsc::channel();
+        s.send(|seq| Request::Pause { seq, gate }).expect("send");
+        s.put(tile(0, 0, 1.0));
+        s.put(tile(0, 0, 2.0));
+        for col in 1..20 {
+            s.put(tile(col, 0, 9.0));
+        }
+        // The newest version of `a` has left memory; only its queued write holds it.
+        assert_eq!(s.lookup(a), TileLookup::Pending);
+        drop(release);
+        s.wait_for(&[a]).expect("wait");
+        // The load was answered before any of the 21 writes...
+        assert_eq!(s.stats().writes, 0);
+        // ...from the newest queued write, which is still dirty until written.
+        assert_eq!(s.lookup(a), TileLookup::Ready(Some(tile(0, 0, 2.0))));
+        s.flush().expect("flush");
+        assert_eq!(s.stats().writes, 21);
+        assert_eq!(s.stats().lost, 0);
+        drop(s);
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+        assert_eq!(store.read(a).expect("read"), Some(tile(0, 0, 2.0)));
     }
 
     #[test]
