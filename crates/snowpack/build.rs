@@ -36,6 +36,11 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("TILE_RESTORE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "tile_restore.wgsl"]),
     ("TILE_WEATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "tile_weather.wgsl"]),
     ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
+    ("SHELL_VERTICES", &["shared/terrain.wgsl", "shared/shell.wgsl", "shell_vertices.wgsl"]),
+    ("SHELL_TETRAHEDRA", &["shared/shell.wgsl", "shell_tetrahedra.wgsl"]),
+    ("SHELL_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/shell.wgsl", "shell_draw.wgsl"]),
+    ("SHELL_RESOLVE", &["shell_resolve.wgsl"]),
+    ("PEEL_COUNT", &["peel_count.wgsl"]),
 ];
 
 fn main() {

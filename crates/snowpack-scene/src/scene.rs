@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 use snowpack::render::params::{sun_from_angles, DebugView, LightParams, Material, MaterialPreset};
+use snowpack::render::shell::{DetailKind, ShellSettings};
 use snowpack::render::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
@@ -932,7 +933,39 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
         params.material = parse_material(&mut m, params.material)?;
         m.finish()?;
     }
+    if let Some(mut t) = root.table("shell")? {
+        params.shell = parse_shell(&mut t)?;
+        t.finish()?;
+    }
     Ok(RenderSpec { params, environment })
+}
+
+/// `[shell]`: volumetric detail over the snow near the camera (shell mapping).
+fn parse_shell(t: &mut Fields<'_>) -> Result<ShellSettings, SceneError> {
+    let d = ShellSettings::default();
+    let names: Vec<&str> = [DetailKind::Grass, DetailKind::Crust].iter().map(|k| k.name()).collect();
+    let texture = t.choice("texture", d.texture.name(), &names)?;
+    let settings = ShellSettings {
+        enabled: t.bool("enabled", true)?,
+        texture: DetailKind::parse(&texture).unwrap_or_default(),
+        texture_size: t.u32_in("texture_size", d.texture_size, 8..=512)?,
+        thickness_m: t.positive("thickness_m", d.thickness_m, " of metres")?,
+        tile_m: t.positive("tile_m", d.tile_m, " of metres")?,
+        radius_m: t.positive("radius_m", d.radius_m, " of metres")?,
+        spacing_m: t.positive("spacing_m", d.spacing_m, " of metres")?,
+        flatten_m: t.positive("flatten_m", d.flatten_m, " of metres")?,
+        min_fraction: t.positive("min_fraction", d.min_fraction, "")?,
+        lod: t.bool("lod", d.lod)?,
+        passes: t.u32_in("passes", d.passes, 1..=16)?,
+        opacity: t.positive("opacity", d.opacity, "")?,
+        max_steps: t.u32_in("max_steps", d.max_steps, 1..=1024)?,
+        debug_pass: t.u32_in("debug_pass", d.debug_pass, 0..=16)?,
+        seed: u64::from(t.u32_in("seed", d.seed as u32, 0..=u64::from(u32::MAX))?),
+    };
+    if let Err(snowpack::SnowError::InvalidParameter { field, why }) = settings.validate() {
+        return Err(t.err(field, why));
+    }
+    Ok(settings)
 }
 
 /// `[material]`: per-field overrides of the `[render] material` preset.

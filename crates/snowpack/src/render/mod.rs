@@ -6,7 +6,8 @@
 //!
 //! One frame, in order: `ao` (compute) → `shadow` (terrain, actors and posed
 //! characters into the shadow map) → `sky` → `terrain` → `actors` (spheres,
-//! boxes, characters) → `tonemap`.
+//! boxes, characters) → `objects` → `shell` (when on: construction, depth
+//! peeling, composite; [`shell`]) → `tonemap`.
 
 pub mod actors;
 pub mod ao;
@@ -19,6 +20,7 @@ pub mod objects;
 pub mod params;
 pub mod pipeline;
 pub mod shadow;
+pub mod shell;
 pub mod skinned;
 pub mod sky;
 pub mod terrain;
@@ -38,6 +40,7 @@ use self::lod::LodSettings;
 use self::pipeline::{entry, storage_ro, texture, DEPTH_FORMAT, HDR_FORMAT};
 use self::shadow::ShadowMap;
 use self::skinned::SkinnedDrawPass;
+use self::shell::ShellRenderer;
 use self::sky::SkyPass;
 use self::terrain::TerrainPass;
 use self::tonemap::TonemapPass;
@@ -99,6 +102,8 @@ pub struct Renderer {
     timer: GpuTimer,
     stats: RenderStats,
     height_bounds: (f32, f32),
+    lit_layout: wgpu::BindGroupLayout,
+    shell: Option<ShellRenderer>,
 }
 
 impl Renderer {
@@ -226,6 +231,8 @@ impl Renderer {
             stats: RenderStats::default(),
             // Rims rise above rest; leave room for them and for rounding.
             height_bounds: (lo - 0.5, hi + (p.depth_m + p.snowfall.as_ref().map_or(0.0, |s| s.max_m)) * (1.0 + p.elevation.max(0.0)) + 1.0),
+            lit_layout,
+            shell: None,
         })
     }
 
@@ -268,7 +275,7 @@ impl Renderer {
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
         let targets = self.targets.as_ref().map_or(0, |t| u64::from(t.size.0) * u64::from(t.size.1) * (8 + 4));
-        self.env.memory_bytes() + self.shadow.memory_bytes() + self.ao.ao.size() + targets
+        self.env.memory_bytes() + self.shadow.memory_bytes() + self.ao.ao.size() + targets + self.shell().map_or(0, ShellRenderer::memory_bytes)
     }
 
     fn ensure_targets(&mut self, device: &wgpu::Device, size: (u32, u32)) {
@@ -292,6 +299,10 @@ impl Renderer {
         let hdr = make("hdr scene", HDR_FORMAT);
         let depth = make("scene depth", DEPTH_FORMAT);
         let tonemap_group = self.tonemap.bind_group(device, &self.frame, &hdr);
+        // The shell's targets sample the old scene depth.
+        if let Some(shell) = &mut self.shell {
+            shell.drop_targets();
+        }
         self.targets = Some(Targets { size, hdr, depth, tonemap_group });
     }
 
@@ -408,6 +419,9 @@ impl Renderer {
                 self.objects.draw_shadow(&mut pass, &self.shadow_group, acc);
             }
         }
+        if self.params.shell.enabled {
+            self.sync_shell(ctx, snow);
+        }
         let Some(targets) = &self.targets else { return };
         {
             let mut pass = scene_pass(encoder, &mut self.timer, targets, "sky", true);
@@ -425,6 +439,11 @@ impl Renderer {
         if let Some(acc) = snow.accumulation() {
             let mut pass = scene_pass(encoder, &mut self.timer, targets, "objects", false);
             self.objects.draw_lit(&mut pass, &self.lit_group, acc);
+        }
+        if self.params.shell.enabled
+            && let Some(shell) = &mut self.shell
+        {
+            shell.encode(ctx, encoder, &mut self.timer, &self.lit_group, snow, camera.position, (&targets.depth, &targets.hdr, size));
         }
         {
             let slot = self.timer.reserve("tonemap");
@@ -444,6 +463,32 @@ impl Renderer {
             self.tonemap.draw(&mut pass, &targets.tonemap_group);
         }
         self.timer.end_frame(encoder);
+    }
+
+    /// Builds the shell, or rebuilds it when its texture or patch changed;
+    /// hands it settings that need no rebuild. A failure is logged and the
+    /// shell left off (the settings are validated when a scene is read).
+    fn sync_shell(&mut self, ctx: &GpuContext, snow: &SnowDeformation) {
+        let wanted = self.params.shell;
+        match &mut self.shell {
+            Some(shell) if !shell.settings().rebuild_needed(&wanted) => shell.set_settings(wanted),
+            _ => {
+                self.shell = match ShellRenderer::new(ctx, snow, wanted, &self.lit_layout) {
+                    Ok(shell) => Some(shell),
+                    Err(e) => {
+                        tracing::warn!("shell detail off: {e}");
+                        self.params.shell.enabled = false;
+                        None
+                    }
+                };
+            }
+        }
+    }
+
+    /// The shell, once drawn (for its statistics).
+    #[must_use]
+    pub fn shell(&self) -> Option<&ShellRenderer> {
+        self.shell.as_ref().filter(|_| self.params.shell.enabled)
     }
 
     /// Follows up a submitted frame: starts timestamp readbacks, collects any that arrived.

@@ -223,6 +223,8 @@ pub struct RenderParams {
     /// (`segments+1` x `rings+1` vertices); fixed when the renderer is built.
     /// The capture does not use it (it ray-casts spheres exactly).
     pub sphere_mesh: [u32; 2],
+    /// Volumetric detail over the snow near the camera (shell mapping); off by default.
+    pub shell: crate::render::shell::ShellSettings,
 }
 
 impl Default for RenderParams {
@@ -239,6 +241,7 @@ impl Default for RenderParams {
             ao_strength: 1.0,
             background: None,
             sphere_mesh: [32, 16],
+            shell: crate::render::shell::ShellSettings::default(),
         }
     }
 }

@@ -1,0 +1,69 @@
+//! Shell construction, step 2 of 2 (`shaders/shell_tetrahedra.wgsl`): each
+//! face's prism split into three tetrahedra by the vertex-index rule, with
+//! their affine maps and the vertex-data indices that draw them.
+
+use crate::gpu::{layout, GpuTimer};
+use crate::shaders;
+
+/// Parameters of [`ShellTetraPass`] (`TetraParams` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TetraParams {
+    /// Faces (triangles) of the base mesh.
+    pub faces: u32,
+    /// Vertices of the base mesh.
+    pub count: u32,
+    /// Padding.
+    pub _pad: [u32; 2],
+}
+
+/// A shell tetrahedron (`Tetra` in `shared/shell.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Tetra {
+    /// Corner 0 (world); w: 1, or 0 if degenerate (flat) and not drawn.
+    pub origin: [f32; 4],
+    /// Rows of the map world → barycentric λ1..λ3, relative to `origin` (xyz; w unused).
+    pub bary: [[f32; 4]; 3],
+    /// Texture coordinates (u, v, w) of the four corners (w: 0 base, 1 top).
+    pub tex: [[f32; 4]; 4],
+}
+
+/// Indices per tetrahedron in the corner buffer: four faces of three.
+pub const CORNERS_PER_TETRA: u32 = 12;
+
+/// Builds the tetrahedra, one invocation per face.
+pub struct ShellTetraPass {
+    params: wgpu::Buffer,
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+}
+
+impl ShellTetraPass {
+    /// The pass reading `faces` (three vertex indices each) and `vertices`
+    /// (from the vertex pass), writing `tetras` (three per face) and
+    /// `corners` ([`CORNERS_PER_TETRA`] per tetrahedron).
+    #[must_use]
+    pub fn new(device: &wgpu::Device, faces: &wgpu::Buffer, vertices: &wgpu::Buffer, tetras: &wgpu::Buffer, corners: &wgpu::Buffer) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "shell tetrahedra",
+            shaders::SHELL_TETRAHEDRA,
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, true), layout::storage(3, false), layout::storage(4, false)],
+        );
+        let params = layout::uniform_buffer::<TetraParams>(device, "shell tetra params");
+        let bind_group = layout::bind_group(
+            device,
+            "shell tetrahedra",
+            &bgl,
+            &[params.as_entire_binding(), faces.as_entire_binding(), vertices.as_entire_binding(), tetras.as_entire_binding(), corners.as_entire_binding()],
+        );
+        Self { params, pipeline, bind_group }
+    }
+
+    /// Records the pass over `params.faces` faces.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &TetraParams) {
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        layout::dispatch(encoder, timer, "shell tetrahedra", &self.pipeline, &self.bind_group, (layout::groups(params.faces, 64), 1));
+    }
+}
