@@ -27,8 +27,8 @@ struct ShellDrawParams {
 @group(1) @binding(5) var distance: texture_3d<f32>;
 @group(1) @binding(6) var volume_sampler: sampler;
 
-@group(2) @binding(0) var cull_depth: texture_depth_2d;
-@group(2) @binding(1) var scene_depth: texture_depth_2d;
+@group(2) @binding(0) var cull_depth: texture_2d<f32>;
+@group(2) @binding(1) var scene_depth: texture_2d<f32>;
 
 struct TetraOut {
     @invariant @builtin(position) clip: vec4<f32>,
@@ -87,15 +87,19 @@ fn footprint_lod(t: Tetra, dir: vec3<f32>, dist: f32) -> f32 {
     let fx = dpdx(dir) * dist;
     let fy = dpdy(dir) * dist;
     let dims = shell.dims.xyz;
-    let vx = length(texture_at(t, bary_rate(t, fx)) * dims);
-    let vy = length(texture_at(t, bary_rate(t, fy)) * dims);
-    let lod = log2(max(max(vx, vy), 1e-6)) + shell.lod_bias;
+    // Across the texture (u, v) only: where the shell is pressed flat, w is
+    // squeezed and would pick levels far too coarse for the flattened detail.
+    let vx = length((texture_at(t, bary_rate(t, fx)) * dims).xy);
+    let vy = length((texture_at(t, bary_rate(t, fy)) * dims).xy);
+    // The footprint's area (geometric mean of its axes): the longer axis of
+    // a grazing view alone would blur and thin the detail.
+    let lod = 0.5 * log2(max(vx * vy, 1e-12)) + shell.lod_bias;
     return select(0.0, clamp(lod, 0.0, shell.dims.w - 1.0), shell.use_lod != 0u);
 }
 
 // Distance along the ray from `entry` to the opaque scene at this pixel.
 fn scene_limit(pixel: vec2<f32>, entry: vec3<f32>, dir: vec3<f32>) -> f32 {
-    let z = textureLoad(scene_depth, vec2<i32>(pixel), 0);
+    let z = textureLoad(scene_depth, vec2<i32>(pixel), 0).r;
     if z <= 0.0 {
         return 1e30;  // reverse-Z: nothing drawn (sky)
     }
@@ -152,10 +156,12 @@ fn trace(id: u32, entry: vec3<f32>, dir: vec3<f32>, limit: f32, lod: f32, first_
                 out.alpha = c.a;
                 return out;
             }
-            // Coverage is opacity per voxel of the level: over half a voxel,
-            // 1 - sqrt(1 - a). The volume stores premultiplied colour, so
-            // filtering next to empty voxels does not darken edges.
-            let a = 1.0 - sqrt(max(1.0 - c.a, 0.0));
+            // Coverage is opacity per level-0 voxel of path (Beer-Lambert with
+            // the level's mean density, as prefiltered volumes do): over a
+            // step of `fine` level-0 voxels, 1 - (1 - a)^fine. The volume
+            // stores premultiplied colour, so filtering next to empty voxels
+            // does not darken edges.
+            let a = 1.0 - pow(max(1.0 - c.a, 0.0), fine);
             out.albedo += (1.0 - out.alpha) * a * (c.rgb / c.a);
             out.alpha += (1.0 - out.alpha) * a;
         }
@@ -185,7 +191,7 @@ fn fragment_ray(in: TetraOut) -> Fragment {
 @fragment
 fn fs_layer(in: TetraOut) {
     let f = fragment_ray(in);
-    let cull = textureLoad(cull_depth, vec2<i32>(in.clip.xy), 0);
+    let cull = textureLoad(cull_depth, vec2<i32>(in.clip.xy), 0).r;
     if in.clip.z >= cull || f.fade <= 0.0 {
         discard;
     }

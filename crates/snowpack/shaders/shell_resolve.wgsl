@@ -19,8 +19,8 @@ struct ResolveParams {
 }
 
 @group(0) @binding(0) var<uniform> params: ResolveParams;
-@group(0) @binding(1) var depth_a: texture_depth_2d;   // step 2: the layer; step 4: the peel depth
-@group(0) @binding(2) var depth_b: texture_depth_2d;   // the scene
+@group(0) @binding(1) var depth_a: texture_2d<f32>;   // step 2: the layer; step 4: the peel depth
+@group(0) @binding(2) var depth_b: texture_2d<f32>;   // the scene
 @group(0) @binding(3) var accumulated: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read> shaded: array<u32>;  // bit k-1: pass k shaded the pixel
 
@@ -33,15 +33,15 @@ fn vs_full(@builtin(vertex_index) vi: u32) -> @builtin(position) vec4<f32> {
 @fragment
 fn fs_layer_depth(@builtin(position) pos: vec4<f32>) -> @builtin(frag_depth) f32 {
     let p = vec2<i32>(pos.xy);
-    let layer = textureLoad(depth_a, p, 0);
-    let scene = textureLoad(depth_b, p, 0);
+    let layer = textureLoad(depth_a, p, 0).r;
+    let scene = textureLoad(depth_b, p, 0).r;
     return select(0.0, layer, layer > scene);
 }
 
 @fragment
 fn fs_extend(@builtin(position) pos: vec4<f32>) -> @builtin(frag_depth) f32 {
     let p = vec2<i32>(pos.xy);
-    let peel = textureLoad(depth_a, p, 0);
+    let peel = textureLoad(depth_a, p, 0).r;
     let alpha = textureLoad(accumulated, p, 0).a;
     return select(peel, 0.0, alpha >= params.threshold);
 }

@@ -191,9 +191,14 @@ impl GpuContext {
         let sink = Arc::new(ErrorSink::default());
         let errors = Arc::clone(&sink);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            tracing::error!("wgpu: {e}");
+            // The display of a validation error is only its kind; the description says what failed.
+            let message = match &e {
+                wgpu::Error::Validation { description, .. } | wgpu::Error::Internal { description, .. } => description.trim().to_owned(),
+                other => other.to_string(),
+            };
+            tracing::error!("wgpu: {message}");
             if let Ok(mut list) = errors.errors.lock() {
-                list.push(e.to_string());
+                list.push(message);
             }
         }));
         let lost = Arc::clone(&sink);

@@ -68,7 +68,8 @@ pub const PASS_LABELS: [&str; MAX_PASSES as usize] = [
 fn depth_binding(binding: u32) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
-        wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Depth, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false },
+        // Unfilterable float, not depth: GLSL has no `textureLoad` of depth textures.
+        wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Float { filterable: false }, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false },
     )
 }
 
