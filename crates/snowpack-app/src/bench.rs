@@ -321,6 +321,8 @@ pub struct BenchResults {
     pub move_rows: Vec<crate::bench_tiles::MoveRow>,
     /// The tile store's bytes per km and restore latency.
     pub store_row: Option<crate::bench_tiles::StoreRow>,
+    /// Shell mapping against texture size, with and without mips.
+    pub shell_rows: Vec<crate::bench_shell::ShellRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -344,6 +346,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         accum_rows: Vec::new(),
         move_rows: Vec::new(),
         store_row: None,
+        shell_rows: Vec::new(),
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -418,6 +421,16 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         println!("  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile", row.bytes_per_km_with_trail / 1e3, row.bytes_per_km_untouched / 1e3, row.restore_ms);
         results.store_row = Some(row);
         let _ = std::fs::remove_dir_all(&scratch);
+    }
+    // Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
+    // sizes and few frames (a software adapter takes seconds a frame at 2560x1600).
+    if only.is_none_or(|o| "shell".contains(o)) {
+        let (shell_warmup, shell_frames) = if quick { (1, 3) } else { (10, 60) };
+        let textures: &[u32] = if quick { &[32, 128] } else { &[16, 32, 64, 128, 256] };
+        results.shell_rows = crate::bench_shell::measure(ctx, &crate::bench_shell::SIZES, textures, shell_warmup, shell_frames).context("measuring the shell")?;
+        for row in &results.shell_rows {
+            println!("  shell {}x{} texture {:>3} {:<9}: {:.2} FPS, shell {:.2} ms GPU, pixels per pass {:?}", row.size.0, row.size.1, row.texture, if row.lod { "with mips" } else { "level 0" }, row.fps(), row.shell_gpu_ms, row.pass_pixels);
+        }
     }
     // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
     // two counts only (a software adapter takes seconds a frame).
@@ -507,6 +520,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.move_rows.is_empty() || r.store_row.is_some() {
         md.push_str(&crate::bench_tiles::markdown(&r.move_rows, r.store_row.as_ref(), &r.adapter, r.software));
     }
+    if !r.shell_rows.is_empty() {
+        md.push_str(&crate::bench_shell::markdown(&r.shell_rows, r.software));
+    }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
     let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
@@ -578,6 +594,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
             let _ = writeln!(csv, "{},{},{},{},{},{},{}", m.resolution, m.store, m.move_gpu_ms, m.frame_gpu_ms, m.record_cpu_ms, m.wall_ms, m.resident_bytes);
         }
         files.push(("tiles.csv", csv.into_bytes()));
+    }
+    if !r.shell_rows.is_empty() {
+        files.push(("shell.csv", crate::bench_shell::csv(&r.shell_rows).into_bytes()));
     }
     files
 }
@@ -707,10 +726,13 @@ mod tests {
             }],
             move_rows: vec![crate::bench_tiles::MoveRow { resolution: 1024, store: true, move_gpu_ms: 0.1, frame_gpu_ms: 1.0, record_cpu_ms: 0.2, wall_ms: 1.5, resident_bytes: 21 << 20 }],
             store_row: Some(crate::bench_tiles::StoreRow { trail_m: 500.0, swath_m: 16.0, bytes_per_km_with_trail: 2e6, bytes_per_km_untouched: 1e6, mean_tile_bytes: 5000.0, restore_ms: 0.5, teleport_wait_frames: 3, teleport_ms: 50.0 }),
+            shell_rows: [false, true]
+                .map(|lod| crate::bench_shell::ShellRow { size: (800, 800), texture: 64, lod, frame_ms: 20.0, shell_gpu_ms: 5.0, pass_ms: vec![2.0, 1.0], pass_pixels: vec![1000, 300], tetrahedra: 1000 })
+                .to_vec(),
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv", "tiles.csv"]);
+        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv", "tiles.csv", "shell.csv"]);
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
             let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!((img.width(), img.height()), (960, 540), "{name}");
@@ -740,7 +762,7 @@ mod tests {
             assert!(lines[k + 2] == "_Measured on NVIDIA H100 80GB HBM3 (vulkan)._", "{line} is not followed by the adapter: {:?}", &lines[k..k + 3]);
         }
         assert!(text("accumulation.csv").contains("both,2048,208,60000,0.9,0.5,0.25,2,2.5,104857600"), "{}", text("accumulation.csv"));
-        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], move_rows: vec![], store_row: None, software: true, ..results };
+        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], move_rows: vec![], store_row: None, shell_rows: vec![], software: true, ..results };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }

@@ -8,6 +8,7 @@ mod bench;
 mod bench_accumulation;
 mod bench_frames;
 mod bench_render;
+mod bench_shell;
 mod bench_tiles;
 mod demo;
 mod npy;

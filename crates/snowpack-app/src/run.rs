@@ -186,6 +186,14 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         .context("encoding frame.png")?;
     let stats = renderer.stats();
     let render_timings = renderer.timings();
+    let shell = match renderer.shell() {
+        Some(shell) => serde_json::json!({
+            "tetrahedra": shell.tetrahedra(),
+            "pass_pixels": shell.pass_pixels(&ctx).context("reading the shell's pass counts")?,
+            "gpu_memory_bytes": shell.memory_bytes(),
+        }),
+        None => serde_json::Value::Null,
+    };
 
     let timings = snow.timings();
     let origin = snow.origin_m().unwrap_or_default();
@@ -211,6 +219,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             "actors": stats.actors,
             "timings_ms": render_timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
             "gpu_memory_bytes": renderer.memory_bytes(),
+            "shell": shell,
         },
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });

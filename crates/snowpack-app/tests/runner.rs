@@ -973,3 +973,46 @@ fn bad_store_values_exit_2_naming_file_and_key() {
     // A store path that is a file, not a folder.
     expect_bad_input("store-path", "[snow]\nresolution = 128\n[store]\npath = \"store-path.toml\"\n", "path");
 }
+
+#[test]
+fn grass_in_a_shell_over_the_snow_peels_in_passes_that_shade_fewer_pixels() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.3
+[[actor]]
+kind = "sphere"
+radius_m = 0.25
+path = [[-3.0, 0.15, 0.5, 0.0], [3.0, 0.15, 0.5, 0.3]]
+[sim]
+frames = 20
+[camera]
+position = [0.3, 0.6, -1.6]
+target = [0.0, 0.1, 0.6]
+[shell]
+radius_m = 3.0
+passes = 6
+"#;
+    let run = run_scene("shell-grass", scene, &["--size", "160x120"]);
+    let shell = &run.meta["render"]["shell"];
+    assert!(shell["tetrahedra"].as_u64() > Some(1000), "{shell}");
+    let pixels: Vec<u64> = shell["pass_pixels"].as_array().expect("pass_pixels").iter().filter_map(serde_json::Value::as_u64).collect();
+    assert_eq!(pixels.len(), 6, "{shell}");
+    assert!(pixels[0] > 160 * 120 / 4, "the grass covers too little of the frame: {pixels:?}");
+    assert!(pixels.windows(2).all(|w| w[1] < w[0] || w[0] == 0), "{pixels:?}");
+    // Without [shell] there is none.
+    let bare = run_scene("shell-none", &scene.replace("[shell]\nradius_m = 3.0\npasses = 6\n", ""), &["--size", "160x120"]);
+    assert!(bare.meta["render"]["shell"].is_null());
+}
+
+#[test]
+fn bad_shell_values_exit_2_naming_file_and_key() {
+    expect_bad_input("shell-passes", "[shell]\npasses = 40\n", "passes");
+    expect_bad_input("shell-texture", "[shell]\ntexture = \"moss\"\n", "texture");
+    expect_bad_input("shell-size", "[shell]\ntexture_size = 48\n", "texture_size");
+    expect_bad_input("shell-debug", "[shell]\npasses = 2\ndebug_pass = 3\n", "debug_pass");
+}

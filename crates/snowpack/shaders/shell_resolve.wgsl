@@ -11,14 +11,14 @@
 //     the debug view, the pixels one pass shaded in green (their Figure 3).
 // Prepended: nothing.
 
-struct ResolveParams {
+struct PeelParams {
     threshold: f32,       // opacity that ends a pixel's peeling
     debug_pass: u32,      // 0 off; k: tint the pixels pass k shaded
     width: u32,
     _pad: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: ResolveParams;
+@group(0) @binding(0) var<uniform> params: PeelParams;
 @group(0) @binding(1) var depth_a: texture_2d<f32>;   // step 2: the layer; step 4: the peel depth
 @group(0) @binding(2) var depth_b: texture_2d<f32>;   // the scene
 @group(0) @binding(3) var accumulated: texture_2d<f32>;

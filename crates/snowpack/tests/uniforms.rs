@@ -17,6 +17,10 @@ use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
 use snowpack::render::environment::EnvParams;
 use snowpack::render::frame::FrameUniforms;
+use snowpack::render::shell::count::CountParams;
+use snowpack::render::shell::peel::{PeelParams, ShellDrawParams};
+use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
+use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
 use snowpack::shaders;
 use snowpack::skin::skinning::SkinningParams;
 
@@ -66,6 +70,13 @@ fn uniform_sizes_match_naga() {
         (shaders::TILE_RESTORE, "params", size_of::<RestoreParams>()),
         (shaders::TILE_RESTORE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::TILE_WEATHER, "params", size_of::<WeatherParams>()),
+        (shaders::SHELL_VERTICES, "params", size_of::<ShellVertexParams>()),
+        (shaders::SHELL_VERTICES, "terrain_params", size_of::<TerrainParams>()),
+        (shaders::SHELL_TETRAHEDRA, "params", size_of::<TetraParams>()),
+        (shaders::SHELL_DRAW, "frame", size_of::<FrameUniforms>()),
+        (shaders::SHELL_DRAW, "shell", size_of::<ShellDrawParams>()),
+        (shaders::SHELL_RESOLVE, "params", size_of::<PeelParams>()),
+        (shaders::PEEL_COUNT, "params", size_of::<CountParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -100,8 +111,17 @@ fn tile_structs_match_naga() {
 }
 
 #[test]
+fn shell_structs_match_naga() {
+    assert_eq!(wgsl_storage_stride(shaders::SHELL_VERTICES, "base") as usize, size_of::<BaseVertex>());
+    assert_eq!(wgsl_storage_stride(shaders::SHELL_VERTICES, "vertices") as usize, size_of::<ShellVertex>());
+    assert_eq!(wgsl_storage_stride(shaders::SHELL_TETRAHEDRA, "tetras") as usize, size_of::<Tetra>());
+    assert_eq!(wgsl_storage_stride(shaders::SHELL_DRAW, "tetras") as usize, size_of::<Tetra>());
+    assert_eq!(wgsl_storage_stride(shaders::SHELL_DRAW, "vertices") as usize, size_of::<ShellVertex>());
+}
+
+#[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 29);
+    assert_eq!(shaders::ALL.len(), 34);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

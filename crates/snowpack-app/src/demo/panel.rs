@@ -7,6 +7,7 @@ use std::collections::VecDeque;
 use egui::{Color32, ComboBox, RichText, Slider, Stroke};
 use glam::Vec3;
 use snowpack::render::params::{sun_from_angles, DebugView, Material, MaterialPreset};
+use snowpack::render::shell::DetailKind;
 use snowpack::{RimStyle, Technique};
 
 use super::camera::{CameraMode, CameraRig};
@@ -317,6 +318,28 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 ui.add(Slider::new(&mut rp.ao_strength, 0.0..=2.0).text("ambient occlusion"));
                 ui.add(Slider::new(&mut rp.shadow_distance_m, 10.0..=500.0).logarithmic(true).text("shadow distance").suffix(" m"));
                 ui.add(Slider::new(&mut rp.view_distance_m, 50.0..=5000.0).logarithmic(true).text("view distance").suffix(" m"));
+            });
+
+            egui::CollapsingHeader::new("Shell detail (grass, crust)").default_open(session.render_params.shell.enabled).show(ui, |ui| {
+                let shell = &mut session.render_params.shell;
+                ui.checkbox(&mut shell.enabled, "volumetric detail near the camera");
+                ui.horizontal(|ui| {
+                    for kind in [DetailKind::Grass, DetailKind::Crust] {
+                        ui.radio_value(&mut shell.texture, kind, kind.name());
+                    }
+                });
+                let mut exponent = shell.texture_size.trailing_zeros();
+                ui.add(Slider::new(&mut exponent, 4..=8).text("texture size (2^n)"));
+                shell.texture_size = 1 << exponent;
+                ui.add(Slider::new(&mut shell.thickness_m, 0.01..=0.4).text("thickness").suffix(" m"));
+                ui.add(Slider::new(&mut shell.tile_m, 0.05..=2.0).logarithmic(true).text("texture repeat").suffix(" m"));
+                ui.add(Slider::new(&mut shell.radius_m, 1.0..=16.0).text("radius").suffix(" m"));
+                ui.add(Slider::new(&mut shell.flatten_m, 0.01..=0.5).text("pressing that flattens it").suffix(" m"));
+                ui.checkbox(&mut shell.lod, "mip levels from the footprint");
+                ui.add(Slider::new(&mut shell.passes, 1..=16).text("peeling passes"));
+                ui.add(Slider::new(&mut shell.opacity, 0.5..=1.0).text("opacity that ends peeling"));
+                ui.add(Slider::new(&mut shell.debug_pass, 0..=shell.passes).text("show pixels of pass (0 off)"));
+                shell.debug_pass = shell.debug_pass.min(shell.passes);
             });
 
             egui::CollapsingHeader::new("Debug view (V)").default_open(false).show(ui, |ui| {

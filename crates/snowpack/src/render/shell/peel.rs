@@ -45,10 +45,10 @@ pub struct ShellDrawParams {
     pub fade_m: [f32; 2],
 }
 
-/// Parameters of the full-screen steps (`ResolveParams` in WGSL).
+/// Parameters of the full-screen steps (`PeelParams` in WGSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct ResolveParams {
+pub struct PeelParams {
     /// Accumulated opacity that ends a pixel's peeling (their 0.95).
     pub threshold: f32,
     /// 0: off; k: the debug view tints the pixels pass k shaded.
@@ -250,7 +250,7 @@ impl PeelTargets {
             mapped_at_creation: false,
         });
         let count = PeelCountPass::new(device, &peel_depth, &counts, &shaded);
-        let resolve_params = layout::uniform_buffer::<ResolveParams>(device, "shell resolve params");
+        let resolve_params = layout::uniform_buffer::<PeelParams>(device, "shell resolve params");
         let tetra_depths = layout::bind_group(device, "shell depths", &pipelines.depth_layout, &[wgpu::BindingResource::TextureView(&cull_depth), wgpu::BindingResource::TextureView(scene_depth)]);
         let resolve = |label: &str, a: &wgpu::TextureView| {
             layout::bind_group(
@@ -314,7 +314,7 @@ fn depth_pass<'e>(encoder: &'e mut wgpu::CommandEncoder, label: &str, view: &wgp
 /// Records the peeling passes and the composite into `hdr`.
 pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut crate::gpu::GpuTimer, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
     let size = targets.size;
-    queue.write_buffer(&targets.resolve_params, 0, bytemuck::bytes_of(&ResolveParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }));
+    queue.write_buffer(&targets.resolve_params, 0, bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }));
     targets.count.prepare(queue, size);
     encoder.clear_buffer(&targets.counts, 0, None);
     // Nothing peeled yet: the cull depth at the near plane lets every layer through.
