@@ -53,7 +53,7 @@ fn random_mesh(rng: &mut Rng, n: u32) -> (Vec<BaseVertex>, Vec<u32>) {
             let at = |a: u32, b: u32| order[(a * n + b) as usize];
             let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j), at(i + 1, j + 1));
             // Either diagonal, at random.
-            quads.push(if rng.next_u64() % 2 == 0 { [a, c, b, b, c, d] } else { [a, c, d, a, d, b] });
+            quads.push(if rng.next_u64().is_multiple_of(2) { [a, c, b, b, c, d] } else { [a, c, d, a, d, b] });
         }
     }
     for k in (1..quads.len()).rev() {
@@ -87,6 +87,9 @@ fn construct_on_gpu(ctx: &GpuContext, params: &ShellVertexParams, base: &[BaseVe
 fn close(a: f32, b: f32, tol: f32) -> bool {
     (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
 }
+
+/// The triangles (as corner sets) a prism puts on one of its sides.
+type SideTriangles = BTreeSet<BTreeSet<u32>>;
 
 /// The prism side a triangle of corner indices lies on, if any: its base edge.
 fn side_of(tri: [u32; 3], count: u32) -> Option<(u32, u32)> {
@@ -129,7 +132,7 @@ fn gpu_shell_equals_cpu_on_random_meshes_with_consistent_split_edges() {
             let v = if c < n * n { gpu_vertices[c as usize].base } else { gpu_vertices[(c - n * n) as usize].top };
             Vec3::new(v[0], v[1], v[2])
         };
-        let mut sides: HashMap<(u32, u32), Vec<(usize, BTreeSet<BTreeSet<u32>>)>> = HashMap::new();
+        let mut sides: HashMap<(u32, u32), Vec<(usize, SideTriangles)>> = HashMap::new();
         for (t, corners) in gpu_corners.chunks_exact(12).enumerate() {
             assert_eq!(gpu_tetras[t].origin[3], 1.0, "tetrahedron {t} is degenerate");
             let all: BTreeSet<u32> = corners.iter().copied().collect();
