@@ -265,3 +265,20 @@ fn the_player_walks_out_of_the_window_and_the_tile_store_keeps_the_snow() {
     assert!(dir.0.join("store").join("window.state").exists(), "no saved window state in the store folder");
     assert!(run.stdout.contains("saved the snow into"), "{}", run.stdout);
 }
+
+#[test]
+fn g_turns_the_grass_shell_on_and_it_changes_the_picture() {
+    let dir = Temp::new("demo-shell");
+    // Close over the snow, so the shell fills the view.
+    let scene = SCENE.replace("position = [0.0, 7.0, -11.0]\ntarget = [0.0, 0.0, 0.0]", "position = [0.3, 0.9, -1.6]\ntarget = [0.0, 0.3, 0.6]");
+    assert_ne!(scene, SCENE);
+    let script = "0 key H\n3 screenshot bare.png\n4 key G\n9 screenshot grass.png\n";
+    let Some(run) = run_demo_scene(&dir.0, &scene, 10, script, None) else { return };
+    assert!(run.stdout.contains("shell detail on"), "{}", run.stdout);
+    let line = run.stdout.lines().find(|l| l.starts_with("shell: ")).unwrap_or_else(|| panic!("no shell summary:\n{}", run.stdout));
+    assert!(line.contains(" tetrahedra, pixels per peeling pass ["), "{line}");
+    let (bare, _, _) = load_rgb(&dir.0.join("bare.png"));
+    let (grass, _, _) = load_rgb(&dir.0.join("grass.png"));
+    let diff = mean_abs_difference(&bare, &grass);
+    assert!(diff > 5.0, "the grass barely changed the picture (mean difference {diff:.2})");
+}

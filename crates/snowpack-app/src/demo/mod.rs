@@ -106,6 +106,12 @@ pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
                 t.resident, t.restored, t.fresh, t.evicted, t.store.disk_tiles, t.store.disk_bytes, t.window_waits, t.store.errors
             );
         }
+        if let Some(shell) = gfx.session.renderer.shell() {
+            match shell.pass_pixels(&gfx.ctx) {
+                Ok(pixels) => println!("shell: {} tetrahedra, pixels per peeling pass {pixels:?}", shell.tetrahedra()),
+                Err(e) => app.result = Err(e.into()),
+            }
+        }
         // A summary for people and for the end-to-end tests.
         println!(
             "demo: {} frames, {} spheres, {} simulated frames since the last reset, technique {}, player {} at {:.2} {:.2} m, {} footsteps, adapter {} ({})",
@@ -327,6 +333,11 @@ impl Gfx {
             KeyCode::Tab => {
                 let next = self.rig.mode.next();
                 self.act(Action::CameraMode(next));
+            }
+            KeyCode::KeyG => {
+                let shell = &mut self.session.render_params.shell;
+                shell.enabled = !shell.enabled;
+                println!("shell detail {}", if shell.enabled { "on" } else { "off" });
             }
             KeyCode::KeyV => {
                 let views = DebugView::ALL;

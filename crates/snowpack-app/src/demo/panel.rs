@@ -407,7 +407,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
             });
 
             egui::CollapsingHeader::new("Keys").default_open(false).show(ui, |ui| {
-                ui.label("1–4 technique · R reset · P pause · N step · Tab camera · V view · H panel");
+                ui.label("1–4 technique · R reset · P pause · N step · Tab camera · V view · G grass · H panel");
                 ui.label("orbit: left drag turn, right drag pan, wheel zoom");
                 ui.label("fly: right drag look, WASD move, Q/E down/up, wheel speed, Shift fast");
                 ui.label("follow: WASD drives the player (Shift: the fox runs), right drag turns, wheel zoom · F sphere/fox");
