@@ -18,6 +18,16 @@ use snowpack::render::IMAGE_FORMAT;
 use snowpack::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
+/// The tests here take turns on the GPU: on GL, wgpu runs a submission while
+/// holding the adapter's context, and a frame traced at 1280x960 on a
+/// software rasteriser holds it long enough for another test's pipeline
+/// creation to give up waiting ("Could not lock adapter context").
+static GPU_TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn gpu_turn() -> std::sync::MutexGuard<'static, ()> {
+    GPU_TURN.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 fn buffer(ctx: &GpuContext, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
     let b = ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: (bytes.len() as u64).max(16), usage: usage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
     ctx.queue.write_buffer(&b, 0, bytes);
@@ -105,6 +115,7 @@ fn side_of(tri: [u32; 3], count: u32) -> Option<(u32, u32)> {
 #[test]
 fn gpu_shell_equals_cpu_on_random_meshes_with_consistent_split_edges() {
     let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
     let mut rng = Rng::new(testing::seed("shell construction"));
     for n in [5u32, 12] {
         let (base, faces) = random_mesh(&mut rng, n);
@@ -188,6 +199,7 @@ fn trail_snow(ctx: &GpuContext) -> SnowDeformation {
 #[test]
 fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
     let snow = trail_snow(ctx);
     let p = snow.params();
     let corner = snow.origin_m().expect("placed");
@@ -242,6 +254,7 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
 #[test]
 fn peel_count_matches_cpu() {
     let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
     let mut rng = Rng::new(testing::seed("peel count"));
     let size = (37u32, 23u32);
     let n = (size.0 * size.1) as usize;
@@ -298,6 +311,7 @@ fn grass_camera() -> Camera {
 #[test]
 fn four_peeling_passes_converge_and_each_shades_fewer_pixels() {
     let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
     let snow = trail_snow(ctx);
     let shell = ShellSettings { enabled: true, radius_m: 3.0, ..ShellSettings::default() };
     let camera = grass_camera();
@@ -348,6 +362,7 @@ fn downsample(image: &[u8], size: (u32, u32), k: u32) -> Vec<u8> {
 #[test]
 fn mip_levels_come_closer_to_a_64_sample_reference_than_level_0() {
     let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
     let snow = trail_snow(ctx);
     // Farther grass, with a finer texture: many voxels per pixel.
     let shell = ShellSettings { enabled: true, radius_m: 3.5, texture_size: 128, ..ShellSettings::default() };

@@ -282,22 +282,8 @@ impl Renderer {
         if self.targets.as_ref().is_some_and(|t| t.size == size) {
             return;
         }
-        let make = |label: &str, format| {
-            device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                })
-                .create_view(&wgpu::TextureViewDescriptor::default())
-        };
-        let hdr = make("hdr scene", HDR_FORMAT);
-        let depth = make("scene depth", DEPTH_FORMAT);
+        let hdr = pipeline::screen_target(device, "hdr scene", size, HDR_FORMAT);
+        let depth = pipeline::screen_target(device, "scene depth", size, DEPTH_FORMAT);
         let tonemap_group = self.tonemap.bind_group(device, &self.frame, &hdr);
         // The shell's targets sample the old scene depth.
         if let Some(shell) = &mut self.shell {

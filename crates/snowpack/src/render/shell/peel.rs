@@ -15,7 +15,7 @@
 //! The discard comes before the trace, so a finished pixel costs one load.
 
 use crate::gpu::layout;
-use crate::render::pipeline::HDR_FORMAT;
+use crate::render::pipeline::{screen_target, HDR_FORMAT};
 use crate::shaders;
 
 use super::count::{PeelCountPass, MAX_PASSES};
@@ -214,29 +214,14 @@ pub struct PeelTargets {
     resolve_peel: wgpu::BindGroup,
 }
 
-fn target(device: &wgpu::Device, label: &str, size: (u32, u32), format: wgpu::TextureFormat) -> wgpu::TextureView {
-    device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&wgpu::TextureViewDescriptor::default())
-}
-
 impl PeelTargets {
     /// Targets of `size` over the scene's depth `scene_depth` (reverse-Z, sampled).
     #[must_use]
     pub fn new(device: &wgpu::Device, pipelines: &PeelPipelines, size: (u32, u32), scene_depth: &wgpu::TextureView) -> Self {
-        let layer_depth = target(device, "shell layer depth", size, PEEL_DEPTH_FORMAT);
-        let peel_depth = target(device, "shell peel depth", size, PEEL_DEPTH_FORMAT);
-        let cull_depth = target(device, "shell cull depth", size, PEEL_DEPTH_FORMAT);
-        let accumulated = target(device, "shell colour", size, HDR_FORMAT);
+        let layer_depth = screen_target(device, "shell layer depth", size, PEEL_DEPTH_FORMAT);
+        let peel_depth = screen_target(device, "shell peel depth", size, PEEL_DEPTH_FORMAT);
+        let cull_depth = screen_target(device, "shell cull depth", size, PEEL_DEPTH_FORMAT);
+        let accumulated = screen_target(device, "shell colour", size, HDR_FORMAT);
         let counts = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shell pass pixels"),
             size: u64::from(MAX_PASSES) * 4,
