@@ -152,6 +152,9 @@ impl Scene {
         render.insert("ao_strength".into(), float(r.ao_strength));
         root.insert("render".into(), Value::Table(render));
         root.insert("material".into(), Value::Table(material_table(&r.material)));
+        if r.shell.enabled || root.contains_key("shell") {
+            root.insert("shell".into(), Value::Table(shell_table(&r.shell)));
+        }
 
         let mut text = format!("# snowpack scene, saved from {}\n", self.path.display());
         text.push_str(&toml::to_string(&root).unwrap_or_default());
@@ -168,4 +171,21 @@ impl Scene {
             let _ = std::fs::remove_file(&tmp);
         })
     }
+}
+
+/// `[shell]` with every field, so a saved scene reloads the same shell.
+fn shell_table(s: &snowpack::render::shell::ShellSettings) -> Table {
+    let mut t = Table::new();
+    t.insert("enabled".into(), Value::Boolean(s.enabled));
+    t.insert("texture".into(), Value::String(s.texture.name().into()));
+    t.insert("texture_size".into(), Value::Integer(i64::from(s.texture_size)));
+    for (key, v) in [("thickness_m", s.thickness_m), ("tile_m", s.tile_m), ("radius_m", s.radius_m), ("spacing_m", s.spacing_m), ("flatten_m", s.flatten_m), ("min_fraction", s.min_fraction), ("opacity", s.opacity)] {
+        t.insert(key.into(), float(v));
+    }
+    t.insert("lod".into(), Value::Boolean(s.lod));
+    for (key, v) in [("passes", s.passes), ("max_steps", s.max_steps), ("debug_pass", s.debug_pass)] {
+        t.insert(key.into(), Value::Integer(i64::from(v)));
+    }
+    t.insert("seed".into(), Value::Integer(s.seed as i64));
+    t
 }

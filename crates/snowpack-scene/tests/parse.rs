@@ -236,6 +236,16 @@ fn saved_scenes_load_back_the_same() {
     scene.render.params.material.wrap = 0.3;
     scene.render.params.light.sun_direction = Some(sun_from_angles(12.0, 250.0));
     scene.render.params.light.exposure_ev = -0.5;
+    scene.render.params.shell = snowpack::render::shell::ShellSettings {
+        enabled: true,
+        texture: snowpack::render::shell::DetailKind::Crust,
+        texture_size: 32,
+        thickness_m: 0.05,
+        passes: 6,
+        debug_pass: 2,
+        lod: false,
+        ..Default::default()
+    };
     let dest = dir.join("saved.toml");
     scene.save(&dest).expect("save");
     let back = Scene::load(&dest).unwrap_or_else(|e| panic!("{e}\n{}", std::fs::read_to_string(&dest).unwrap_or_default()));
@@ -247,8 +257,23 @@ fn saved_scenes_load_back_the_same() {
     assert_eq!(back.sim, scene.sim);
     assert_eq!(back.render.params.material, scene.render.params.material);
     assert_eq!(back.render.params.light.exposure_ev, -0.5);
+    assert_eq!(back.render.params.shell, scene.render.params.shell);
     let (a, b) = (back.render.params.light.sun_direction.expect("sun"), sun_from_angles(12.0, 250.0));
     assert!((a - b).length() < 1e-5, "sun {a} vs {b}");
     assert!(!dir.join("saved.toml.tmp").exists(), "temporary file left behind");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_shell_table_is_understood() {
+    use snowpack::render::shell::{DetailKind, ShellSettings};
+    assert!(!parse("").expect("empty").render.params.shell.enabled, "the shell is off without [shell]");
+    let on = parse("[shell]\n").expect("shell");
+    assert_eq!(on.render.params.shell, ShellSettings { enabled: true, ..ShellSettings::default() });
+    let s = parse("[shell]\ntexture = \"crust\"\ntexture_size = 128\nthickness_m = 0.04\npasses = 8\ndebug_pass = 3\nlod = false\nenabled = false\n").expect("shell").render.params.shell;
+    assert_eq!((s.texture, s.texture_size, s.thickness_m, s.passes, s.debug_pass, s.lod, s.enabled), (DetailKind::Crust, 128, 0.04, 8, 3, false, false));
+    for (text, key) in [("[shell]\nmin_fraction = 2.0\n", "min_fraction"), ("[shell]\nopacity = 0.0\n", "opacity"), ("[shell]\ncolour = 1\n", "colour")] {
+        let e = parse(text).expect_err(text).to_string();
+        assert!(e.contains("test-scene.toml") && e.contains(key), "{e}");
+    }
 }
