@@ -231,7 +231,7 @@ impl ShellRenderer {
     pub fn new(ctx: &GpuContext, snow: &SnowDeformation, settings: ShellSettings, lit_layout: &wgpu::BindGroupLayout) -> Result<Self, SnowError> {
         settings.validate()?;
         let (device, queue) = (&ctx.device, &ctx.queue);
-        let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed).map_err(|why| SnowError::InvalidParameter { field: "texture_size", why })?;
+        let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed)?;
         // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
         let premultiplied = |l: &volume::VolumeLevel| l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect();
         let colour = volume_texture(device, queue, &volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
