@@ -56,7 +56,7 @@ impl PeelCountPass {
         Self { params, pipeline, bind_groups }
     }
 
-    /// Writes the parameters of every pass for a `size` target (before recording).
+    /// Writes the parameters of every pass for a `size` target (once per size, before recording).
     pub fn prepare(&self, queue: &wgpu::Queue, size: (u32, u32)) {
         for (k, buffer) in self.params.iter().enumerate() {
             let p = CountParams { pass_index: k as u32, width: size.0, height: size.1, _pad: 0 };

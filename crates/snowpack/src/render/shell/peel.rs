@@ -217,7 +217,7 @@ pub struct PeelTargets {
 impl PeelTargets {
     /// Targets of `size` over the scene's depth `scene_depth` (reverse-Z, sampled).
     #[must_use]
-    pub fn new(device: &wgpu::Device, pipelines: &PeelPipelines, size: (u32, u32), scene_depth: &wgpu::TextureView) -> Self {
+    pub fn new((device, queue): (&wgpu::Device, &wgpu::Queue), pipelines: &PeelPipelines, size: (u32, u32), scene_depth: &wgpu::TextureView) -> Self {
         let layer_depth = screen_target(device, "shell layer depth", size, PEEL_DEPTH_FORMAT);
         let peel_depth = screen_target(device, "shell peel depth", size, PEEL_DEPTH_FORMAT);
         let cull_depth = screen_target(device, "shell cull depth", size, PEEL_DEPTH_FORMAT);
@@ -235,6 +235,7 @@ impl PeelTargets {
             mapped_at_creation: false,
         });
         let count = PeelCountPass::new(device, &peel_depth, &counts, &shaded);
+        count.prepare(queue, size);
         let resolve_params = layout::uniform_buffer::<PeelParams>(device, "shell resolve params");
         let tetra_depths = layout::bind_group(device, "shell depths", &pipelines.depth_layout, &[wgpu::BindingResource::TextureView(&cull_depth), wgpu::BindingResource::TextureView(scene_depth)]);
         let resolve = |label: &str, a: &wgpu::TextureView| {
@@ -296,27 +297,41 @@ fn depth_pass<'e>(encoder: &'e mut wgpu::CommandEncoder, label: &str, view: &wgp
         })
 }
 
+/// A pass drawing into colour `view` (cleared to transparent or loaded), over
+/// the read-only depth `depth` if any.
+fn colour_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    view: &wgpu::TextureView,
+    clear: bool,
+    depth: Option<&wgpu::TextureView>,
+    timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: if clear { wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT) } else { wgpu::LoadOp::Load }, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: depth.map(|view| wgpu::RenderPassDepthStencilAttachment { view, depth_ops: None, stencil_ops: None }),
+        timestamp_writes: timestamps,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// Records the peeling passes and the composite into `hdr`.
 pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut crate::gpu::GpuTimer, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
     let size = targets.size;
     queue.write_buffer(&targets.resolve_params, 0, bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }));
-    targets.count.prepare(queue, size);
     encoder.clear_buffer(&targets.counts, 0, None);
     // Nothing peeled yet: the cull depth at the near plane lets every layer through.
     drop(depth_pass(encoder, "shell cull clear", &targets.cull_depth, Some(1.0), None));
-    drop(encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("shell colour clear"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &targets.accumulated,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        }));
+    drop(colour_pass(encoder, "shell colour clear", &targets.accumulated, true, None, None));
+    // The counts are not timed: one slot each would crowd out the passes' own.
+    let mut untimed = crate::gpu::GpuTimer::disabled();
     for k in 0..draw.passes.min(MAX_PASSES) {
         // One timestamp pair spans the pass's four steps (and its count).
         let slot = timer.reserve(PASS_LABELS[k as usize]);
@@ -343,22 +358,10 @@ pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &m
             pass.set_bind_group(0, &targets.resolve_layer, &[]);
             pass.draw(0..3, 0..1);
         }
-        targets.count.record(encoder, &mut crate::gpu::GpuTimer::disabled(), k, size);
+        targets.count.record(encoder, &mut untimed, k, size);
         {
             // Step 3: shade the layer, depth test `equal`, under what is there.
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("shell shade"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &targets.accumulated,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                    })],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment { view: &targets.peel_depth, depth_ops: None, stencil_ops: None }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+            let mut pass = colour_pass(encoder, "shell shade", &targets.accumulated, false, Some(&targets.peel_depth), None);
             pass.set_pipeline(&pipelines.shade);
             pass.set_bind_group(0, draw.lit_group, &[]);
             pass.set_bind_group(1, draw.shell_group, &[]);
@@ -374,19 +377,7 @@ pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &m
         }
     }
     let slot = timer.reserve("shell composite");
-    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("shell composite"),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: hdr,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-        })],
-        depth_stencil_attachment: None,
-        timestamp_writes: timer.render_writes(slot),
-        occlusion_query_set: None,
-        multiview_mask: None,
-    });
+    let mut pass = colour_pass(encoder, "shell composite", hdr, false, None, timer.render_writes(slot));
     pass.set_pipeline(&pipelines.composite);
     pass.set_bind_group(0, &targets.resolve_layer, &[]);
     pass.draw(0..3, 0..1);
