@@ -15,6 +15,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("RIM", &["shared/window.wgsl", "shared/stamp.wgsl", "rim.wgsl"]),
     ("BLUR", &["blur.wgsl"]),
     ("NORMALS", &["normals.wgsl"]),
+    ("QUERY", &["shared/window.wgsl", "query.wgsl"]),
     ("DECAL", &["decal.wgsl"]),
     ("TERRAIN_BAKE", &["terrain_bake.wgsl"]),
     ("TERRAIN_RESOLVE", &["terrain_resolve.wgsl"]),

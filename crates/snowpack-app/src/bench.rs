@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
 use snowpack::gpu::timing::median;
-use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack::{AdapterRequest, Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 use crate::output::OutputSet;
 
@@ -603,7 +603,7 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
 
 /// Runs the benchmark and writes its report into `out` (all or nothing).
 pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
-    let ctx = GpuContext::new_headless_with(backend, None).context("choosing a GPU adapter")?;
+    let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(backend)).context("choosing a GPU adapter")?;
     println!("snowpack bench on {} ({}){}", ctx.summary.name, ctx.summary.backend, if quick { ", quick" } else { "" });
     if !ctx.has_timestamps() {
         println!("this adapter has no timestamp queries: per-pass GPU times are unavailable");

@@ -8,7 +8,7 @@ use anyhow::Context as _;
 use glam::DVec2;
 use snowpack::gpu::PassTimings;
 use snowpack::render::{DebugView, MaterialPreset, IMAGE_FORMAT};
-use snowpack::{Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
+use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
 use snowpack_scene::{CharacterPose, Scene, Technique, WindowSpec, World};
 
 use crate::output::OutputSet;
@@ -94,6 +94,21 @@ pub fn register_characters(ctx: &GpuContext, world: &World, snow: &mut SnowDefor
         .collect()
 }
 
+/// How far an answered point may be from a foot to stand for it: a foot
+/// moves a few centimetres in the frame or two an answer takes.
+const SOLE_MATCH_M: f32 = 0.3;
+
+/// Every character's soles (x, z): what the runner and the demo ask the snow
+/// about each frame, for the next frames' placement and footstep depths.
+pub fn sole_points(world: &World) -> Vec<glam::Vec2> {
+    world.soles().into_iter().flat_map(|(_, soles)| soles.into_iter().map(|p| glam::Vec2::new(p.x, p.z))).collect()
+}
+
+/// The answered sample nearest to (x, z), if one is close enough.
+pub fn sole_sample(answers: Option<&snowpack::PointAnswers>, x: f32, z: f32) -> Option<snowpack::PointSample> {
+    answers.and_then(|a| a.nearest(glam::Vec2::new(x, z), SOLE_MATCH_M))
+}
+
 /// This frame's poses for the registered characters.
 pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) -> Vec<SkinnedPose<'a>> {
     characters
@@ -114,7 +129,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let frames = opts.frames.unwrap_or(scene.sim.frames);
     let (width, height) = opts.size.unwrap_or(DEFAULT_FRAME_SIZE);
 
-    let ctx = GpuContext::new_headless_with(opts.backend.as_deref(), None).context("choosing a GPU adapter")?;
+    let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
     let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
@@ -147,14 +162,15 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();
         }
-        // Characters on the snow stand in it as the latest snapshot shows it (older trails).
-        let snapshot = snow.snapshot();
-        world.step_on(scene.sim.dt_s, &|x, z| snapshot.and_then(|s| s.height_at(f64::from(x), f64::from(z))));
+        // Characters on the snow stand in it as the latest answers show it (older trails).
+        let answers = snow.point_answers();
+        world.step_on(scene.sim.dt_s, &|x, z| sole_sample(answers, x, z).map(|s| s.height_m));
         for mut step in world.take_footsteps() {
-            // The CPU query answers from a snapshot a few frames old: the snow the foot stepped into.
-            step.snow_depth_m = snow.snapshot().and_then(|s| s.depth_at(snow.terrain(), f64::from(step.position.x), f64::from(step.position.z)));
+            // Answered a frame or two late: the snow the foot stepped into.
+            step.snow_depth_m = sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
             footsteps.push(step);
         }
+        snow.query_points(&sole_points(&world));
     }
     snow.finish(&ctx)?;
     let wall_s = start.elapsed().as_secs_f64();
@@ -221,7 +237,9 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             "gpu_memory_bytes": renderer.memory_bytes(),
             "shell": shell,
         },
-        "gpu_memory_bytes": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+        // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
+        "gpu_memory_bytes": snow.memory_bytes().iter().map(|(_, v)| v).sum::<u64>(),
+        "gpu_memory_by_resource": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });
 
     let mut out = OutputSet::new(&opts.out)?;

@@ -12,7 +12,7 @@ use crate::gpu::GpuContext;
 #[must_use]
 pub fn gpu() -> Option<&'static GpuContext> {
     static CONTEXT: OnceLock<Option<GpuContext>> = OnceLock::new();
-    let ctx = CONTEXT.get_or_init(|| match GpuContext::new_headless() {
+    let ctx = CONTEXT.get_or_init(|| match GpuContext::new_headless(&crate::gpu::AdapterRequest::from_env()) {
         Ok(ctx) => {
             eprintln!("test GPU: {} ({})", ctx.summary.name, ctx.summary.backend);
             Some(ctx)

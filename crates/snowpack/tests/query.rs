@@ -1,43 +1,136 @@
-//! The readback ring answers CPU queries of snow height and depth, a few
-//! frames late, and agrees with a blocking read of the same frame.
+//! Point queries: answers equal the CPU twin of `query.wgsl`, arrive within
+//! three frames, follow trails in world space, and a frame never waits for
+//! them.
 
-use glam::{DVec2, Vec3};
-use snowpack::testing;
-use snowpack::{Deformer, SnowDeformation, SnowParams, TerrainSource};
+use glam::{DVec2, Vec2, Vec3};
+use snowpack::accumulate::Snowfall;
+use snowpack::cpu::query::query as cpu_query;
+use snowpack::deform::pipeline::read_buffer;
+use snowpack::deform::query::QueryParams;
+use snowpack::testing::{self, Rng};
+use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytemuck::pod_collect_to_vec(bytes)
+}
 
 #[test]
-fn snapshot_queries_match_the_pressed_snow() {
+fn point_answers_equal_the_cpu_twin_on_random_points() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("point_answers_equal_the_cpu_twin_on_random_points");
+    let mut rng = Rng::new(seed);
+    let params = SnowParams {
+        extent_m: 16.0,
+        resolution: 128,
+        depth_m: rng.range(0.2, 0.6),
+        snowfall: Some(Snowfall { rate_m_per_s: 0.05, max_m: 0.5, ..Snowfall::default() }),
+        ..SnowParams::default()
+    };
+    let terrain = TerrainSource::Noise(NoiseTerrain { seed: rng.next_u64() as u32, amplitude_m: 1.0, wavelength_m: 8.0, base_m: 0.0 });
+    let center = DVec2::new(f64::from(rng.range(-50.0, 50.0)), f64::from(rng.range(-50.0, 50.0)));
+    let mut snow = SnowDeformation::new(ctx, params.clone(), terrain.clone(), center).expect("window");
+    let spheres: Vec<Deformer> = (0..12)
+        .map(|_| {
+            let (x, z) = (center.x as f32 + rng.range(-7.0, 7.0), center.y as f32 + rng.range(-7.0, 7.0));
+            let ground = terrain.height_at(x, z);
+            Deformer::Sphere { center: Vec3::new(x, ground + rng.range(0.2, 0.8), z), radius: rng.range(0.2, 0.8) }
+        })
+        .collect();
+    for _ in 0..4 {
+        snow.step(ctx, &spheres, 1.0 / 60.0).expect("frame");
+    }
+    // Points all over the window, a few outside it and some on texel centres and edges.
+    let mut points: Vec<Vec2> = (0..500).map(|_| Vec2::new(center.x as f32 + rng.range(-8.5, 8.5), center.y as f32 + rng.range(-8.5, 8.5))).collect();
+    points.push(Vec2::new(center.x as f32 + 100.0, center.y as f32));
+    let ticket = snow.query_points(&points);
+    snow.step(ctx, &spheres, 1.0 / 60.0).expect("frame");
+    snow.finish(ctx).expect("finish");
+    let answers = snow.point_answers().expect("answered after a finish");
+    assert_eq!(answers.ticket, ticket);
+    assert_eq!(answers.points, points);
+
+    // The twin on the same state (no frame ran since the gather).
+    let res = snow.resources();
+    let origin = snow.origin_texel().expect("placed");
+    let corner = snow.origin_m().expect("placed");
+    let qp = QueryParams {
+        origin: [origin[0] as i32, origin[1] as i32],
+        resolution: params.resolution,
+        count: points.len() as u32,
+        texel_m: params.texel_m(),
+        depth_m: params.depth_m,
+        use_fallen: 1,
+        _pad: 0,
+    };
+    let local: Vec<[f32; 2]> = points.iter().map(|p| [(f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32]).collect();
+    let surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("surface"));
+    let cpu = cpu_query(
+        &qp,
+        &local,
+        &floats(&read_buffer(ctx, &res.terrain).expect("terrain")),
+        &floats(&read_buffer(ctx, &res.snow).expect("snow")),
+        &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
+        &surface,
+    );
+    let mut inside = 0;
+    let mut pressed = 0;
+    for (k, (gpu, cpu)) in answers.samples.iter().zip(cpu.iter().map(|c| c.sample())).enumerate() {
+        let (Some(g), Some(c)) = (gpu, cpu) else {
+            assert_eq!(gpu.is_some(), cpu.is_some(), "point {k} {:?}: inside on one side only (seed {seed})", points[k]);
+            continue;
+        };
+        inside += 1;
+        for (name, a, b) in [("height", g.height_m, c.height_m), ("surface", g.surface_m, c.surface_m), ("terrain", g.terrain_m, c.terrain_m), ("rest", g.rest_m, c.rest_m)] {
+            assert!((a - b).abs() < 1e-5, "point {k}: {name} {a} (GPU) vs {b} (CPU), seed {seed}");
+        }
+        assert!((g.normal - c.normal).length() < 1e-4, "point {k}: normal {} vs {}, seed {seed}", g.normal, c.normal);
+        assert!((g.normal.length() - 1.0).abs() < 1e-4);
+        // Physics: never below the terrain, never above the rest surface from deformation.
+        assert!(g.height_m >= g.terrain_m - 1e-5 && g.height_m <= g.rest_m + 1e-4, "point {k}: {g:?}");
+        assert!((0.0..=1.0).contains(&g.compaction()));
+        pressed += usize::from(g.compaction() > 0.05);
+    }
+    assert!(inside > 400, "only {inside} of 500 points inside (seed {seed})");
+    assert!(pressed > 0, "no point landed in a print: the test would not see deformation (seed {seed})");
+    assert!(answers.samples.last().expect("the far point").is_none(), "100 m away is outside the window");
+}
+
+#[test]
+fn answers_report_the_pressed_snow_within_three_frames() {
     let Some(ctx) = testing::gpu() else { return };
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
     let terrain = TerrainSource::Flat { height_m: 2.0 };
     let mut snow = SnowDeformation::new(ctx, params, terrain, DVec2::new(100.0, -40.0)).expect("window");
     // A sphere whose bottom is 0.25 m below the 2.5 m snow surface.
     let sphere = Deformer::Sphere { center: Vec3::new(101.0, 2.75, -39.5), radius: 0.5 };
-    for _ in 0..6 {
+    for _ in 0..3 {
         snow.step(ctx, &[sphere], 1.0 / 60.0).expect("frame");
     }
-    snow.finish(ctx).expect("finish");
-    let snap = snow.snapshot().expect("a snapshot has arrived");
-    assert!(snap.frame >= 3, "snapshot of frame {} after 6 frames and a finish", snap.frame);
-    let t = snow.terrain();
-    // Under the sphere's centre: 0.25 m of snow left (bilinear between texel centres
-    // near the bottom of the sphere, so within a few mm).
-    let depth = snap.depth_at(t, 101.0, -39.5).expect("inside the window");
-    assert!((depth - 0.25).abs() < 0.005, "depth under the sphere {depth}");
-    let height = snap.height_at(101.0, -39.5).expect("inside");
-    assert!((height - 2.25).abs() < 0.005, "height under the sphere {height}");
-    // Away from it: untouched.
-    assert!((snap.depth_at(t, 98.0, -42.0).expect("inside") - 0.5).abs() < 1e-6);
-    // Outside the window there is no answer rather than a wrong one.
-    assert!(snap.height_at(0.0, 0.0).is_none());
-
-    // The snapshot holds exactly what a blocking read returns.
-    let local = snow.read_snow(ctx).expect("read");
-    let origin = snow.origin_texel().expect("placed");
-    for (k, h) in local.iter().enumerate() {
-        let (i, j) = ((k / 128) as i64, (k % 128) as i64);
-        assert_eq!(snap.texel(origin[0] + j, origin[1] + i), Some(*h));
+    let ticket = snow.query_points(&[Vec2::new(101.0, -39.5), Vec2::new(98.0, -42.0), Vec2::ZERO]);
+    let mut arrived = None;
+    for frame in 1..=3 {
+        snow.step(ctx, &[sphere], 1.0 / 60.0).expect("frame");
+        // A GPU that keeps up: this frame's work is done before the next one starts.
+        ctx.wait_idle("test").expect("idle");
+        if snow.point_answers().is_some_and(|a| a.ticket == ticket) {
+            arrived = Some(frame);
+            break;
+        }
     }
+    // The frame after the one that gathered it collects it.
+    let frame = arrived.expect("no answer within three frames");
+    eprintln!("answer arrived {frame} frame(s) after the request");
+    let answers = snow.point_answers().expect("answers");
+    let under = answers.samples[0].expect("inside");
+    assert!((under.depth_m() - 0.25).abs() < 0.005, "depth under the sphere {}", under.depth_m());
+    assert!((under.height_m - 2.25).abs() < 0.005, "height under the sphere {}", under.height_m);
+    assert!((under.compaction() - 0.5).abs() < 0.01, "half the column pressed out: {}", under.compaction());
+    assert!((under.sinkage_m() - 0.25).abs() < 0.005);
+    let away = answers.samples[1].expect("inside");
+    assert!((away.depth_m() - 0.5).abs() < 1e-6 && away.compaction() == 0.0);
+    assert!(away.normal.y > 0.999, "flat untouched snow faces up: {}", away.normal);
+    // Outside the window there is no answer rather than a wrong one.
+    assert!(answers.samples[2].is_none());
 }
 
 #[test]
@@ -51,14 +144,78 @@ fn window_moves_keep_trails_in_world_space() {
     assert_eq!(full, 128 * 128);
     // Slide 3 m in x and 1 m in z: only the new strips are rewritten.
     snow.set_center(DVec2::new(3.0, 1.0));
+    snow.query_points(&[Vec2::new(1.0, 1.0), Vec2::new(4.0, 4.0)]);
     snow.step(ctx, &[], 0.016).expect("frame");
     let texel = 16.0 / 128.0;
     let (dx, dz) = ((3.0 / texel) as u64, (1.0 / texel) as u64);
     assert_eq!(snow.exposed_texels() - full, 128 * 128 - (128 - dx) * (128 - dz));
     snow.finish(ctx).expect("finish");
-    let snap = snow.snapshot().expect("snapshot");
+    let answers = snow.point_answers().expect("answers");
     // The print is still at world (1, 1): 0.2 m deep at its centre.
-    let h = snap.height_at(1.0, 1.0).expect("still inside the window");
+    let h = answers.samples[0].expect("still inside the window").height_m;
     assert!((h - 0.2).abs() < 0.01, "print moved or vanished: {h}");
-    assert!((snap.height_at(4.0, 4.0).expect("inside") - 0.5).abs() < 1e-6);
+    assert!((answers.samples[1].expect("inside").height_m - 0.5).abs() < 1e-6);
+}
+
+#[test]
+fn a_frame_never_waits_for_answers_when_the_gpu_is_behind() {
+    let Some(ctx) = testing::gpu() else { return };
+    // A large window so each frame is real work for a software rasteriser,
+    // submitted back to back without waiting: the GPU falls behind.
+    let params = SnowParams { extent_m: 64.0, resolution: 1024, depth_m: 0.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let ball = |k: usize| Deformer::Sphere { center: Vec3::new(k as f32 * 0.5 - 10.0, 0.5, 0.0), radius: 0.3 };
+    let asked = 12;
+    let mut last = None;
+    for k in 0..asked {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
+        last = Some(snow.query_points(&[Vec2::new(k as f32 * 0.5 - 10.0, 0.0)]));
+        snow.encode(ctx, &mut encoder, &[ball(k)], 1.0 / 60.0);
+        ctx.queue.submit([encoder.finish()]);
+        // Never waits: a non-blocking poll, then whatever has arrived.
+        snow.after_submit(ctx);
+    }
+    let stats = snow.query_stats();
+    eprintln!("after {asked} frames back to back: {stats:?}");
+    // Every request was either gathered or skipped (never waited for).
+    assert_eq!(stats.gathered + stats.skipped, asked as u64);
+    assert!(stats.answered <= stats.gathered);
+    snow.finish(ctx).expect("finish");
+    let answers = snow.point_answers().expect("answers after a finish");
+    // The newest answer is for the last request the ring had room for.
+    let stats = snow.query_stats();
+    if stats.skipped == 0 {
+        assert_eq!(Some(answers.ticket), last);
+    }
+    let sample = answers.samples[0].expect("inside");
+    assert!(sample.height_m < 0.25, "the ball's own print: {}", sample.height_m);
+}
+
+#[test]
+fn a_frame_whose_answer_buffers_are_all_busy_skips_its_gather_and_returns() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 64, depth_m: 0.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    // Frames submitted while none of their answers has been started back:
+    // every staging buffer is taken after three, as when the GPU is behind.
+    let mut tickets = Vec::new();
+    for k in 0..6 {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
+        tickets.push(snow.query_points(&[Vec2::new(0.1 * k as f32, 0.0)]));
+        snow.encode(ctx, &mut encoder, &[], 1.0 / 60.0);
+        ctx.queue.submit([encoder.finish()]);
+    }
+    let stats = snow.query_stats();
+    assert_eq!((stats.gathered, stats.skipped, stats.answered), (3, 3, 0), "{stats:?}");
+    // Once they come back, the newest gathered request is the answer.
+    snow.after_submit(ctx);
+    snow.finish(ctx).expect("finish");
+    let answers = snow.point_answers().expect("answers");
+    assert_eq!(answers.ticket, tickets[2]);
+    assert_eq!(answers.points, vec![Vec2::new(0.2, 0.0)]);
+    // And the ring is free again: the next request is gathered and answered.
+    let next = snow.query_points(&[Vec2::new(1.0, 1.0)]);
+    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    snow.finish(ctx).expect("finish");
+    assert_eq!(snow.point_answers().expect("answers").ticket, next);
 }

@@ -7,6 +7,7 @@ use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
 use snowpack::deform::exchange::ExchangeParams;
 use snowpack::deform::normals::NormalParams;
+use snowpack::deform::query::{QueryParams, RawSample};
 use snowpack::deform::rim::RimParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
@@ -48,6 +49,7 @@ fn uniform_sizes_match_naga() {
         (shaders::RIM, "params", size_of::<RimParams>()),
         (shaders::BLUR, "params", size_of::<BlurParams>()),
         (shaders::NORMALS, "params", size_of::<NormalParams>()),
+        (shaders::QUERY, "params", size_of::<QueryParams>()),
         (shaders::TERRAIN_BAKE, "params", size_of::<TerrainBakeParams>()),
         (shaders::TERRAIN_RESOLVE, "params", size_of::<ResolveParams>()),
         (shaders::TERRAIN_DRAW, "frame", size_of::<FrameUniforms>()),
@@ -105,6 +107,12 @@ fn object_struct_matches_naga() {
 }
 
 #[test]
+fn query_structs_match_naga() {
+    assert_eq!(wgsl_storage_stride(shaders::QUERY, "samples") as usize, size_of::<RawSample>());
+    assert_eq!(wgsl_storage_stride(shaders::QUERY, "points") as usize, size_of::<glam::Vec2>());
+}
+
+#[test]
 fn tile_structs_match_naga() {
     assert_eq!(wgsl_storage_stride(shaders::TILE_RESTORE, "entries") as usize, size_of::<RestoreEntry>());
     assert_eq!(wgsl_storage_stride(shaders::TILE_WEATHER, "owners") as usize, size_of::<[i32; 4]>());
@@ -121,7 +129,12 @@ fn shell_structs_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 34);
+    // One constant per pass file in shaders/ (shared snippets are composed into them).
+    let files = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders"))
+        .expect("shaders/")
+        .filter(|e| e.as_ref().is_ok_and(|e| e.path().extension().is_some_and(|x| x == "wgsl")))
+        .count();
+    assert_eq!(shaders::ALL.len(), files);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

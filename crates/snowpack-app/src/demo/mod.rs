@@ -22,7 +22,7 @@ use anyhow::Context as _;
 use glam::{Vec2, Vec3};
 use snowpack::render::DebugView;
 use snowpack::gpu::readback::TextureReadback;
-use snowpack::{GpuContext, Technique};
+use snowpack::{AdapterRequest, GpuContext, Technique};
 use snowpack_scene::Scene;
 use winit::application::ApplicationHandler;
 use winit::dpi::{LogicalSize, PhysicalSize};
@@ -211,15 +211,15 @@ impl App {
         let (w, h) = self.opts.size;
         let attrs = Window::default_attributes().with_title("snowpack").with_inner_size(LogicalSize::new(w, h));
         let window = Arc::new(event_loop.create_window(attrs).context("opening the window")?);
-        let backend = self.opts.backend.as_deref();
+        let request = AdapterRequest::from_env().with_backends(self.opts.backend.as_deref());
         let desc = GpuContext::instance_descriptor(
-            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(event_loop.owned_display_handle())),
-            backend,
+            wgpu::InstanceDescriptor::new_with_display_handle(Box::new(event_loop.owned_display_handle())),
+            &request,
         )?;
         let instance = wgpu::Instance::new(desc);
         let surface = instance.create_surface(Arc::clone(&window)).context("creating the window's surface")?;
-        let ctx = GpuContext::choose(instance, Some(&surface), backend, None).context("choosing a GPU adapter for the window")?;
-        let caps = surface.get_capabilities(&ctx.adapter);
+        let ctx = GpuContext::choose(instance, Some(&surface), &request).context("choosing a GPU adapter for the window")?;
+        let caps = surface.get_capabilities(ctx.adapter.as_ref().context("the demo chose its own adapter")?);
         let format = caps
             .formats
             .iter()

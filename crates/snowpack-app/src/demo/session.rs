@@ -332,13 +332,15 @@ impl Session {
         self.step_once = false;
         let dt = self.scene.sim.dt_s;
         if self.physics {
-            // Characters on the snow stand in it as the latest snapshot shows it (older trails).
-            let snapshot = self.snow.snapshot();
-            self.world.step_on(dt, &|x, z| snapshot.and_then(|s| s.height_at(f64::from(x), f64::from(z))));
+            // Characters on the snow stand in it as the latest answers show it (older trails).
+            let answers = self.snow.point_answers();
+            self.world.step_on(dt, &|x, z| crate::run::sole_sample(answers, x, z).map(|s| s.height_m));
             for mut step in self.world.take_footsteps() {
-                step.snow_depth_m = snapshot.and_then(|s| s.depth_at(self.snow.terrain(), f64::from(step.position.x), f64::from(step.position.z)));
+                step.snow_depth_m = crate::run::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
                 self.footsteps = (self.footsteps.0 + 1, Some(step));
             }
+            let soles = crate::run::sole_points(&self.world);
+            self.snow.query_points(&soles);
         }
         if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
             && let Some(p) = self.world.actor_position(k)

@@ -11,6 +11,7 @@ pub mod exchange;
 pub mod increment;
 pub mod normals;
 pub mod peel_count;
+pub mod query;
 pub mod rim;
 pub mod scatter;
 pub mod settle;

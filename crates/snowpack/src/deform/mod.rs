@@ -24,4 +24,4 @@ pub mod update;
 pub mod window;
 
 pub use pipeline::{SkinnedId, SkinnedPose, SnowDeformation};
-pub use query::SnowSnapshot;
+pub use query::{PointAnswers, PointSample, QueryStats, QueryTicket};

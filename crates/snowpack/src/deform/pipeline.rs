@@ -4,7 +4,7 @@ use glam::DVec2;
 
 use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
 use crate::error::SnowError;
-use crate::gpu::{GpuContext, GpuTimer, PassTimings, ReadbackRing};
+use crate::gpu::{GpuContext, GpuTimer, PassTimings};
 use crate::persist::{SnowClock, StoreError, TileStreamer};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
@@ -13,7 +13,7 @@ use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
 use crate::skin::skinning::{SkinnedInstance, SkinningPass};
 use super::decal::{DecalPass, DecalRing, DEFAULT_PER_ACTOR};
 use super::normals::{unpack_surface, NormalPass};
-use super::query::SnowSnapshot;
+use super::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use super::resources::DeformResources;
 use super::rim::{RimParams, RimPass};
 use super::saved::{SavedWindow, STATE_NAME};
@@ -21,9 +21,6 @@ use super::stamp::{contact_points, StampParams, StampPass};
 use super::tiles::{TileFrame, TileStats, TileStreaming};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
-
-/// Staging buffers in the query readback ring.
-const READBACK_SLOTS: usize = 3;
 
 /// Margin of the capture depth range beyond the terrain and the snow (m).
 const CAPTURE_MARGIN_M: f32 = 1.0;
@@ -45,8 +42,8 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
 /// from below; techniques depth and combined), [`StampPass`] (contact points'
 /// footprints; points and combined), [`UpdatePass`] (persistent height with
 /// refill), [`RimPass`] (Hanák's remap or point rims), [`BlurPass`] (x then
-/// z, optional), [`NormalPass`] (packed surface), then a readback copy for
-/// CPU queries.
+/// z, optional), [`NormalPass`] (packed surface), then [`QueryPass`] (the
+/// points asked with [`Self::query_points`], answered a frame or two later).
 ///
 /// Switching technique ([`Self::set_technique`]) reallocates nothing: every
 /// buffer exists for every technique. A switch keeps the persistent snow (so
@@ -70,8 +67,11 @@ pub struct SnowDeformation {
     blur_pass: BlurPass,
     normal_pass: NormalPass,
     timer: GpuTimer,
-    readback: ReadbackRing<(u64, [i64; 2])>,
-    latest: Option<SnowSnapshot>,
+    query_pass: QueryPass,
+    /// Points asked for the next frame (relative to the floating origin) and their ticket.
+    asked: Option<(QueryTicket, Vec<glam::Vec2>)>,
+    tickets: u64,
+    answers: Option<PointAnswers>,
     frame: u64,
     exposed_texels: u64,
     /// Footprint refill not yet applied, below one stamp quantum (m).
@@ -126,6 +126,12 @@ impl SnowDeformation {
                 why: format!("{} needs {surface_bytes} byte buffers, above this adapter's limit", params.resolution),
             });
         }
+        let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center));
+        ctx.check("creating the deformation passes")?;
+        Ok(this)
+    }
+
+    fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Self {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let res = DeformResources::new(device, queue, &params, &terrain);
         let (tmin, tmax) = terrain.height_bounds();
@@ -137,7 +143,7 @@ impl SnowDeformation {
             low_m: tmin - CAPTURE_MARGIN_M,
             high_m: capture_top(tmin, tmax, deepest),
         };
-        let this = Self {
+        Self {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
             stamp_pass: StampPass::new(device, &res),
@@ -148,14 +154,16 @@ impl SnowDeformation {
             blur_pass: BlurPass::new(device, queue, &res),
             normal_pass: NormalPass::new(device, queue, &res, params.texel_m()),
             timer: GpuTimer::new(device, queue),
-            readback: ReadbackRing::new(device, "snow", res.snow.size(), READBACK_SLOTS),
+            query_pass: QueryPass::new(device, &res),
+            asked: None,
+            tickets: 0,
+            answers: None,
             window: SlidingWindow::new(params.resolution),
             center,
             capture_params,
             params,
             terrain,
             res,
-            latest: None,
             frame: 0,
             exposed_texels: 0,
             stamp_refill_carry_m: 0.0,
@@ -168,9 +176,7 @@ impl SnowDeformation {
             clock: SnowClock::default(),
             tiles: None,
             floating_origin: DVec2::ZERO,
-        };
-        ctx.check("creating the deformation passes")?;
-        Ok(this)
+        }
     }
 
     /// The parameters in use.
@@ -517,8 +523,10 @@ impl SnowDeformation {
     /// Records, submits and follows up one frame with characters; fails on GPU errors.
     pub fn step_posed(&mut self, ctx: &GpuContext, deformers: &[Deformer], poses: &[SkinnedPose<'_>], dt_s: f32) -> Result<(), SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        self.encode_posed(ctx, &mut encoder, deformers, poses, dt_s);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.capturing(|| {
+            self.encode_posed(ctx, &mut encoder, deformers, poses, dt_s);
+            ctx.queue.submit([encoder.finish()]);
+        });
         self.after_submit(ctx);
         ctx.check("deformation frame")
     }
@@ -696,15 +704,27 @@ impl SnowDeformation {
             self.decal_pass.prepare(device, queue, &mut self.decals, corner, p.extent_m);
             self.decal_pass.record(encoder, &mut self.timer);
         }
-        self.readback.record_copy(encoder, &self.res.snow, (self.frame, origin));
+        if let Some((ticket, points)) = self.asked.take() {
+            let local: Vec<glam::Vec2> = points.iter().map(|p| glam::Vec2::new((f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32)).collect();
+            let params = QueryParams {
+                origin: origin_i32,
+                resolution: p.resolution,
+                count: 0,
+                texel_m: p.texel_m(),
+                depth_m: p.depth_m,
+                use_fallen: u32::from(snowfall.is_some()),
+                _pad: 0,
+            };
+            self.query_pass.record(device, queue, encoder, &mut self.timer, &self.res, params, &local, (ticket, self.frame, points));
+        }
         self.timer.end_frame(encoder);
         self.frame += 1;
     }
 
-    /// Starts the readbacks of the submitted frame and collects any that have
-    /// arrived (snapshots and timings), without waiting.
+    /// Starts the readbacks of the submitted frame (point answers, timings)
+    /// and collects any that have arrived, without waiting.
     pub fn after_submit(&mut self, ctx: &GpuContext) {
-        self.readback.after_submit();
+        self.query_pass.after_submit();
         if let Some(tiles) = &mut self.tiles {
             tiles.after_submit();
         }
@@ -716,14 +736,8 @@ impl SnowDeformation {
     }
 
     fn collect(&mut self) {
-        if let Some(((frame, origin), bytes)) = self.readback.take_latest() {
-            self.latest = Some(SnowSnapshot {
-                origin,
-                resolution: self.params.resolution,
-                texel_m: f64::from(self.params.texel_m()),
-                frame,
-                heights: bytemuck::pod_collect_to_vec(&bytes),
-            });
+        if let Some(answers) = self.query_pass.take_answers() {
+            self.answers = Some(answers);
         }
         self.timer.collect();
     }
@@ -731,8 +745,10 @@ impl SnowDeformation {
     /// Records, submits and follows up one frame; fails on GPU errors.
     pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        self.encode(ctx, &mut encoder, deformers, dt_s);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.capturing(|| {
+            self.encode(ctx, &mut encoder, deformers, dt_s);
+            ctx.queue.submit([encoder.finish()]);
+        });
         self.after_submit(ctx);
         ctx.check("deformation frame")
     }
@@ -745,10 +761,30 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// The newest snow snapshot that has come back from the GPU.
+    /// Asks for the snow at `points` (world x, z relative to the floating
+    /// origin, like deformers) as the next encoded frame leaves it. The
+    /// answer, tagged with the returned ticket, arrives a frame or two later
+    /// in [`Self::point_answers`]; a frame never waits for it. A later call
+    /// before that frame replaces the request. If the GPU is so far behind
+    /// that every staging buffer is in flight, the request is dropped and
+    /// counted in [`QueryStats::skipped`]: ask again (games ask every frame).
+    pub fn query_points(&mut self, points: &[glam::Vec2]) -> QueryTicket {
+        self.tickets += 1;
+        let ticket = QueryTicket(self.tickets);
+        self.asked = Some((ticket, points.to_vec()));
+        ticket
+    }
+
+    /// The newest answer to [`Self::query_points`] that has come back.
     #[must_use]
-    pub fn snapshot(&self) -> Option<&SnowSnapshot> {
-        self.latest.as_ref()
+    pub fn point_answers(&self) -> Option<&PointAnswers> {
+        self.answers.as_ref()
+    }
+
+    /// Requests gathered, answered and skipped so far.
+    #[must_use]
+    pub fn query_stats(&self) -> QueryStats {
+        self.query_pass.stats()
     }
 
     /// Median GPU time per pass so far (empty without timestamp support).
@@ -768,11 +804,11 @@ impl SnowDeformation {
         self.timer.enabled()
     }
 
-    /// GPU memory held, by resource (bytes), including the readback ring.
+    /// GPU memory held, by resource (bytes), including the point queries' buffers.
     #[must_use]
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
         let mut list = self.res.memory_bytes();
-        list.push(("readback ring", self.readback.memory_bytes()));
+        list.push(("point queries", self.query_pass.memory_bytes()));
         list.push(("decal layer", u64::from(self.params.resolution).pow(2) * 4));
         if let Some(acc) = &self.accumulation {
             list.extend(acc.memory_bytes());

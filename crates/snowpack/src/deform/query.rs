@@ -1,57 +1,297 @@
-//! CPU queries of snow height and depth, answered from the readback ring a few
-//! frames late (never stalling the GPU).
+//! Point queries: the game asks for the snow at a few points (feet, wheels,
+//! AI probes; up to thousands) and gets depth, compaction and normal a frame
+//! or two later, without stalling. A compute pass gathers the points into a
+//! small buffer (`query.wgsl`, CPU twin `cpu/query.rs`) and a ring of staging
+//! buffers brings it back; a frame whose staging buffers are all still in
+//! flight (the GPU is behind) skips its gather instead of waiting.
 
-use crate::TerrainSource;
+use bytemuck::{Pod, Zeroable};
+use glam::{Vec2, Vec3};
 
-/// A copy of the persistent snow height as it was at one frame.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SnowSnapshot {
-    /// Global texel index `[column, row]` of the window's local (0, 0) at that frame.
-    pub origin: [i64; 2],
+use crate::gpu::{layout, GpuTimer, ReadbackRing};
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// Staging buffers of the answer ring: one being written, one in flight, one
+/// arriving. More would only add latency.
+const ANSWER_SLOTS: usize = 3;
+/// Points the pass holds before it first grows.
+const INITIAL_CAPACITY: u32 = 256;
+
+/// Uniforms of `query.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct QueryParams {
+    /// Global texel index of the window's local (0, 0).
+    pub origin: [i32; 2],
     /// Texels per side.
     pub resolution: u32,
+    /// Points asked.
+    pub count: u32,
     /// Texel size (m).
-    pub texel_m: f64,
-    /// The frame the data belongs to (counting from 0).
-    pub frame: u64,
-    /// Heights in toroidal storage order.
-    pub heights: Vec<f32>,
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// 1 when the window has snowfall (a per-texel `fallen` buffer).
+    pub use_fallen: u32,
+    /// Padding.
+    pub _pad: u32,
 }
 
-impl SnowSnapshot {
-    /// Snow height of the global texel (column, row), if it was inside the window.
+/// One answer as the GPU writes it (`Sample` in `query.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RawSample {
+    /// Persistent snow height (m).
+    pub height_m: f32,
+    /// Displayed surface height (m).
+    pub surface_m: f32,
+    /// Terrain height (m).
+    pub terrain_m: f32,
+    /// Untouched snow height (m).
+    pub rest_m: f32,
+    /// Displayed surface normal.
+    pub normal: [f32; 3],
+    /// 1 inside the window, 0 outside.
+    pub inside: f32,
+}
+
+/// Which request an answer belongs to: the n-th call of
+/// [`crate::SnowDeformation::query_points`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct QueryTicket(pub u64);
+
+/// The snow at one asked point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointSample {
+    /// Persistent snow surface height (m): the trails, without rims or blur.
+    pub height_m: f32,
+    /// Displayed surface height (m): with rims and blur, what is drawn.
+    pub surface_m: f32,
+    /// Terrain height under the snow (m).
+    pub terrain_m: f32,
+    /// Height of untouched snow here (m): terrain + rest depth + snowfall so far.
+    pub rest_m: f32,
+    /// Unit normal of the displayed surface.
+    pub normal: Vec3,
+}
+
+impl PointSample {
+    /// Snow depth above the terrain (m).
     #[must_use]
-    pub fn texel(&self, col: i64, row: i64) -> Option<f32> {
-        let r = i64::from(self.resolution);
-        let (lc, lr) = (col - self.origin[0], row - self.origin[1]);
-        if !(0..r).contains(&lc) || !(0..r).contains(&lr) {
+    pub fn depth_m(&self) -> f32 {
+        (self.height_m - self.terrain_m).max(0.0)
+    }
+
+    /// How much of the snow has been pressed out: 0 untouched, 1 pressed to
+    /// the ground; `(rest - height) / (rest - terrain)`, 0 where there is no snow to press.
+    #[must_use]
+    pub fn compaction(&self) -> f32 {
+        let column = self.rest_m - self.terrain_m;
+        if column <= 1e-6 { 0.0 } else { ((self.rest_m - self.height_m) / column).clamp(0.0, 1.0) }
+    }
+
+    /// How far the snow here is pressed below its rest height (m).
+    #[must_use]
+    pub fn sinkage_m(&self) -> f32 {
+        (self.rest_m - self.height_m).max(0.0)
+    }
+}
+
+impl RawSample {
+    /// The sample, or `None` outside the window.
+    #[must_use]
+    pub fn sample(&self) -> Option<PointSample> {
+        (self.inside > 0.5).then(|| PointSample {
+            height_m: self.height_m,
+            surface_m: self.surface_m,
+            terrain_m: self.terrain_m,
+            rest_m: self.rest_m,
+            normal: Vec3::from(self.normal),
+        })
+    }
+}
+
+/// The answer to one request: the points as asked and the snow at each
+/// (`None` outside the window or within half a texel of its edge).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointAnswers {
+    /// The request answered.
+    pub ticket: QueryTicket,
+    /// The frame whose snow this is (counting from 0).
+    pub frame: u64,
+    /// The points asked (relative to the floating origin, like deformers).
+    pub points: Vec<Vec2>,
+    /// The snow at each point, in the same order.
+    pub samples: Vec<Option<PointSample>>,
+}
+
+impl PointAnswers {
+    /// The answered point nearest to `p` within `within_m`, with its sample:
+    /// how a game reads a moving foot's snow from an answer a frame or two old.
+    #[must_use]
+    pub fn nearest(&self, p: Vec2, within_m: f32) -> Option<PointSample> {
+        let (k, d2) = self
+            .points
+            .iter()
+            .enumerate()
+            .map(|(k, q)| (k, q.distance_squared(p)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        if d2 > within_m * within_m {
             return None;
         }
-        let (sc, sr) = (col.rem_euclid(r), row.rem_euclid(r));
-        self.heights.get((sr * r + sc) as usize).copied()
+        self.samples[k]
+    }
+}
+
+/// Counts of the query pipeline since the window was made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueryStats {
+    /// Requests gathered on the GPU.
+    pub gathered: u64,
+    /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
+    pub answered: u64,
+    /// Requests not gathered because every staging buffer was still in flight
+    /// (the GPU was behind): the frame went on; a later request is answered.
+    pub skipped: u64,
+    /// Points the pass holds now (it grows to the largest request).
+    pub capacity: u32,
+}
+
+/// Gathers asked points on the GPU and brings the answers back through a ring.
+pub struct QueryPass {
+    pipeline: wgpu::ComputePipeline,
+    bgl: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    points: wgpu::Buffer,
+    samples: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    ring: ReadbackRing<(QueryTicket, u64, Vec<Vec2>)>,
+    capacity: u32,
+    stats: QueryStats,
+}
+
+fn buffers(device: &wgpu::Device, capacity: u32) -> (wgpu::Buffer, wgpu::Buffer) {
+    let points = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("query points"),
+        size: u64::from(capacity) * 8,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let samples = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("query samples"),
+        size: u64::from(capacity) * size_of::<RawSample>() as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    (points, samples)
+}
+
+impl QueryPass {
+    /// Builds the pipeline over `res` with room for a first few hundred points.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "query",
+            shaders::QUERY,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, true),
+                layout::storage(3, true),
+                layout::storage(4, true),
+                layout::storage(5, true),
+                layout::storage(6, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<QueryParams>(device, "query params");
+        let (points, samples) = buffers(device, INITIAL_CAPACITY);
+        let bind_group = Self::bind(device, &bgl, &params, &points, &samples, res);
+        let ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
+        Self { pipeline, bgl, params, points, samples, bind_group, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
     }
 
-    /// Snow surface height (m) at world (x, z), bilinear between texel centres;
-    /// `None` outside the window (or within half a texel of its edge).
-    #[must_use]
-    pub fn height_at(&self, x: f64, z: f64) -> Option<f32> {
-        let u = x / self.texel_m - 0.5;
-        let v = z / self.texel_m - 0.5;
-        let (c0, r0) = (u.floor(), v.floor());
-        let (fu, fv) = ((u - c0) as f32, (v - r0) as f32);
-        let (c0, r0) = (c0 as i64, r0 as i64);
-        let a = self.texel(c0, r0)?;
-        let b = self.texel(c0 + 1, r0)?;
-        let c = self.texel(c0, r0 + 1)?;
-        let d = self.texel(c0 + 1, r0 + 1)?;
-        let ab = a + (b - a) * fu;
-        let cd = c + (d - c) * fu;
-        Some(ab + (cd - ab) * fv)
+    fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, samples: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
+        layout::bind_group(
+            device,
+            "query",
+            bgl,
+            &[
+                params.as_entire_binding(),
+                points.as_entire_binding(),
+                res.terrain.as_entire_binding(),
+                res.snow.as_entire_binding(),
+                res.fallen.as_entire_binding(),
+                res.surface.as_entire_binding(),
+                samples.as_entire_binding(),
+            ],
+        )
     }
 
-    /// Snow depth (m) above the terrain at world (x, z).
+    /// Records the gather of `points` (metres from the window's corner, `local`)
+    /// and the copy of its answers, tagged with `ticket`, `frame` and the points
+    /// as asked. Grows the buffers for a larger request (answers in flight
+    /// from before are then dropped). Returns false, recording nothing, when
+    /// every staging buffer is in flight.
+    #[expect(clippy::too_many_arguments, reason = "one request's parts; a struct would only rename them")]
+    pub fn record(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        res: &DeformResources,
+        params: QueryParams,
+        local: &[Vec2],
+        tag: (QueryTicket, u64, Vec<Vec2>),
+    ) -> bool {
+        let count = local.len() as u32;
+        if count > self.capacity {
+            self.capacity = count.next_power_of_two();
+            let (points, samples) = buffers(device, self.capacity);
+            self.bind_group = Self::bind(device, &self.bgl, &self.params, &points, &samples, res);
+            self.ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
+            (self.points, self.samples) = (points, samples);
+        }
+        let len = u64::from(count) * size_of::<RawSample>() as u64;
+        if !self.ring.has_free_slot() {
+            self.stats.skipped += 1;
+            return false;
+        }
+        if count > 0 {
+            queue.write_buffer(&self.points, 0, bytemuck::cast_slice(local));
+            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&QueryParams { count, ..params }));
+            layout::dispatch(encoder, timer, "query", &self.pipeline, &self.bind_group, (layout::groups(count, 64), 1));
+        }
+        self.ring.record_copy_len(encoder, &self.samples, len, tag);
+        self.stats.gathered += 1;
+        true
+    }
+
+    /// Requests the mapping of the copies just submitted.
+    pub fn after_submit(&mut self) {
+        self.ring.after_submit();
+    }
+
+    /// The newest answer that has arrived since the last call, if any.
+    pub fn take_answers(&mut self) -> Option<PointAnswers> {
+        let ((ticket, frame, points), bytes) = self.ring.take_latest()?;
+        self.stats.answered += 1;
+        let raw: Vec<RawSample> = bytemuck::pod_collect_to_vec(&bytes);
+        Some(PointAnswers { ticket, frame, points, samples: raw.iter().map(RawSample::sample).collect() })
+    }
+
+    /// Counts so far.
     #[must_use]
-    pub fn depth_at(&self, terrain: &TerrainSource, x: f64, z: f64) -> Option<f32> {
-        self.height_at(x, z).map(|h| (h - terrain.height_at(x as f32, z as f32)).max(0.0))
+    pub fn stats(&self) -> QueryStats {
+        QueryStats { capacity: self.capacity, ..self.stats }
+    }
+
+    /// Bytes of GPU memory held: point and answer buffers and the staging ring.
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.points.size() + self.samples.size() + self.ring.memory_bytes()
     }
 }

@@ -1,8 +1,11 @@
-//! Adapter and device selection with overrides, fallbacks and actionable errors.
+//! Adapter and device selection with overrides, fallbacks and actionable errors,
+//! or a device the game already has ([`GpuContext::from_device`]).
 //!
-//! * `SNOWPACK_BACKEND` (or wgpu's `WGPU_BACKEND`): a comma list of
-//!   `vulkan`, `gl`, `metal`, `dx12`, `webgpu`.
-//! * `SNOWPACK_ADAPTER`: a case-insensitive substring of the adapter's name.
+//! The library reads no environment variables. A program that wants
+//! overrides asks for them: [`AdapterRequest::from_env`] reads
+//! `SNOWPACK_BACKEND` (a comma list of `vulkan`, `gl`, `metal`, `dx12`,
+//! `webgpu`) and `SNOWPACK_ADAPTER` (a case-insensitive substring of the
+//! adapter's name), as the `snowpack` binary and the tests do.
 //!
 //! Without overrides the best adapter wins: discrete, integrated, virtual, then
 //! software; Vulkan before other backends on a tie.
@@ -60,18 +63,64 @@ struct ErrorSink {
     lost: Mutex<Option<String>>,
 }
 
-/// A wgpu device and queue chosen for snowpack, with error tracking.
+/// Which adapter snowpack's own selection ([`GpuContext::new_headless`],
+/// [`GpuContext::choose`]) may pick. The default asks for nothing in
+/// particular: the best adapter of any backend.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct AdapterRequest {
+    /// A comma list of backends (`vulkan`, `gl`, `metal`, `dx12`, `webgpu`).
+    pub backends: Option<String>,
+    /// A case-insensitive substring of the adapter's name.
+    pub adapter_name: Option<String>,
+}
+
+impl AdapterRequest {
+    /// `SNOWPACK_BACKEND` (or wgpu's `WGPU_BACKEND`) and `SNOWPACK_ADAPTER` from the environment (empty
+    /// values count as unset): what the `snowpack` binary and the tests honour.
+    #[must_use]
+    pub fn from_env() -> Self {
+        let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
+        Self { backends: env("SNOWPACK_BACKEND").or_else(|| env("WGPU_BACKEND")), adapter_name: env("SNOWPACK_ADAPTER") }
+    }
+
+    /// This request with `backends` replaced when given (a command-line
+    /// `--backend` over the environment).
+    #[must_use]
+    pub fn with_backends(mut self, backends: Option<&str>) -> Self {
+        if let Some(list) = backends {
+            self.backends = Some(list.to_owned());
+        }
+        self
+    }
+
+    /// The backends asked for, or every backend.
+    pub fn parse_backends(&self) -> Result<wgpu::Backends, SnowError> {
+        self.backends.as_deref().map_or(Ok(wgpu::Backends::all()), parse_backends)
+    }
+}
+
+/// A wgpu device and queue for snowpack, with error tracking.
+///
+/// Made by snowpack's own adapter selection ([`Self::new_headless`],
+/// [`Self::choose`]) for the demo, the runner and tools, or around a device
+/// the game already has ([`Self::from_device`]).
 pub struct GpuContext {
-    /// The instance the adapter came from.
-    pub instance: wgpu::Instance,
-    /// The chosen adapter.
-    pub adapter: wgpu::Adapter,
+    /// The instance the adapter came from (`None` for a game's device).
+    pub instance: Option<wgpu::Instance>,
+    /// The chosen adapter (`None` for a game's device).
+    pub adapter: Option<wgpu::Adapter>,
     /// The device.
     pub device: wgpu::Device,
     /// Its queue.
     pub queue: wgpu::Queue,
     /// The adapter, in words.
     pub summary: AdapterSummary,
+    /// What the adapter can do below full WebGPU (all of it for a game's device,
+    /// which is trusted to be able to run what it asks for).
+    pub downlevel: wgpu::DownlevelFlags,
+    /// Whether snowpack owns the device's error and device-lost handlers;
+    /// a game's device keeps its own.
+    owns_handlers: bool,
     sink: Arc<ErrorSink>,
 }
 
@@ -93,6 +142,14 @@ fn parse_backends(list: &str) -> Result<wgpu::Backends, SnowError> {
     Ok(backends)
 }
 
+/// The display of a validation error is only its kind; the description says what failed.
+fn error_message(e: &wgpu::Error) -> String {
+    match e {
+        wgpu::Error::Validation { description, .. } | wgpu::Error::Internal { description, .. } => description.trim().to_owned(),
+        other => other.to_string(),
+    }
+}
+
 fn type_rank(t: wgpu::DeviceType) -> u32 {
     match t {
         wgpu::DeviceType::DiscreteGpu => 0,
@@ -108,54 +165,39 @@ const NO_ADAPTER_HINT: &str = "install a driver: on Debian/Ubuntu without a GPU,
 (llvmpipe, GL); check SNOWPACK_BACKEND / SNOWPACK_ADAPTER if set";
 
 impl GpuContext {
-    /// Picks an adapter (honouring `SNOWPACK_BACKEND` and `SNOWPACK_ADAPTER`) and
-    /// creates a device without a surface, for headless runs, tests and the bench.
-    pub fn new_headless() -> Result<Self, SnowError> {
-        Self::new_headless_with(None, None)
-    }
-
-    /// Like [`Self::new_headless`], with explicit backend list and adapter-name
-    /// filter taking precedence over the environment (for `--backend`).
-    pub fn new_headless_with(backend: Option<&str>, adapter: Option<&str>) -> Result<Self, SnowError> {
-        let desc = Self::instance_descriptor(wgpu::InstanceDescriptor::new_without_display_handle_from_env(), backend)?;
+    /// Picks an adapter as `request` asks and creates a device without a
+    /// surface, for headless runs, tests and the bench.
+    pub fn new_headless(request: &AdapterRequest) -> Result<Self, SnowError> {
+        let desc = Self::instance_descriptor(wgpu::InstanceDescriptor::new_without_display_handle(), request)?;
         let instance = wgpu::Instance::new(desc);
-        Self::choose(instance, None, backend, adapter)
+        Self::choose(instance, None, request)
     }
 
-    /// `desc` with its backends narrowed by `backend` or `SNOWPACK_BACKEND`
-    /// (for a windowed instance, start from
-    /// `wgpu::InstanceDescriptor::new_with_display_handle_from_env`).
-    pub fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, backend: Option<&str>) -> Result<wgpu::InstanceDescriptor, SnowError> {
-        let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
-        if let Some(list) = backend.map(str::to_owned).or_else(|| env("SNOWPACK_BACKEND")) {
-            desc.backends = parse_backends(&list)?;
+    /// `desc` with its backends narrowed to `request`'s (for a windowed
+    /// instance, start from `wgpu::InstanceDescriptor::new_with_display_handle`).
+    pub fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
+        if request.backends.is_some() {
+            desc.backends = request.parse_backends()?;
         }
         Ok(desc)
     }
 
     /// Picks the best adapter of `instance` that can present to `surface`
-    /// (when given), honouring `backend`/`SNOWPACK_BACKEND` and
-    /// `adapter`/`SNOWPACK_ADAPTER`, and creates the device.
-    pub fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, backend: Option<&str>, adapter: Option<&str>) -> Result<Self, SnowError> {
-        let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
-        let backend_env = backend.map(str::to_owned).or_else(|| env("SNOWPACK_BACKEND"));
-        let adapter_env = adapter.map(str::to_owned).or_else(|| env("SNOWPACK_ADAPTER"));
-        let backends = match &backend_env {
-            Some(list) => parse_backends(list)?,
-            None => wgpu::Backends::all(),
-        };
+    /// (when given) and matches `request`, and creates the device.
+    pub fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
+        let backends = request.parse_backends()?;
         let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
         if let Some(surface) = surface {
             adapters.retain(|a| a.is_surface_supported(surface));
         }
         let mut filter = String::new();
-        if let Some(list) = &backend_env {
+        if let Some(list) = &request.backends {
             filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
         }
         if surface.is_some() {
             filter.push_str(" that can present to the window");
         }
-        if let Some(name) = &adapter_env {
+        if let Some(name) = &request.adapter_name {
             let needle = name.to_ascii_lowercase();
             adapters.retain(|a| a.get_info().name.to_ascii_lowercase().contains(&needle));
             filter.push_str(&format!(" with SNOWPACK_ADAPTER={name}"));
@@ -169,6 +211,35 @@ impl GpuContext {
             .next()
             .ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
         Self::from_adapter(instance, adapter)
+    }
+
+    /// Wraps a device the game already has (shared with its renderer).
+    ///
+    /// snowpack installs no handlers on it: uncaptured errors and device loss
+    /// stay with the game's own handlers. snowpack's calls that report GPU
+    /// errors (creating a window, [`crate::SnowDeformation::step`]) catch
+    /// their own errors in error scopes instead. Work snowpack records into
+    /// the game's encoder is validated when the game finishes that encoder.
+    ///
+    /// ```no_run
+    /// # fn game_device() -> (wgpu::Device, wgpu::Queue) { unimplemented!() }
+    /// let (device, queue) = game_device();
+    /// let ctx = snowpack::GpuContext::from_device(device.clone(), queue.clone());
+    /// println!("snow on {}", ctx.summary.name);
+    /// ```
+    #[must_use]
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let summary = AdapterSummary::from_info(&device.adapter_info());
+        Self {
+            instance: None,
+            adapter: None,
+            device,
+            queue,
+            summary,
+            downlevel: wgpu::DownlevelFlags::all(),
+            owns_handlers: false,
+            sink: Arc::new(ErrorSink::default()),
+        }
     }
 
     /// Creates the device on a given adapter, asking for the optional features
@@ -191,11 +262,7 @@ impl GpuContext {
         let sink = Arc::new(ErrorSink::default());
         let errors = Arc::clone(&sink);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            // The display of a validation error is only its kind; the description says what failed.
-            let message = match &e {
-                wgpu::Error::Validation { description, .. } | wgpu::Error::Internal { description, .. } => description.trim().to_owned(),
-                other => other.to_string(),
-            };
+            let message = error_message(&e);
             tracing::error!("wgpu: {message}");
             if let Ok(mut list) = errors.errors.lock() {
                 list.push(message);
@@ -215,13 +282,35 @@ impl GpuContext {
             summary.device_type,
             device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
         );
-        Ok(Self { instance, adapter, device, queue, summary, sink })
+        let downlevel = adapter.get_downlevel_capabilities().flags;
+        Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
     }
 
     /// Whether per-pass GPU timestamps are available.
     #[must_use]
     pub fn has_timestamps(&self) -> bool {
         self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Runs `work`, catching the GPU errors it causes (validation, out of
+    /// memory) for [`Self::check`] to report. With snowpack's own device the
+    /// uncaptured-error handler catches them already; with a game's device
+    /// ([`Self::from_device`]) this error scope is how snowpack sees its own
+    /// errors without taking the game's.
+    pub fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
+        if self.owns_handlers {
+            return work();
+        }
+        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = work();
+        // Native wgpu reports errors as the calls happen, so the futures are ready.
+        for error in [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())].into_iter().flatten() {
+            if let Ok(mut list) = self.sink.errors.lock() {
+                list.push(error_message(&error));
+            }
+        }
+        out
     }
 
     /// Returns the first GPU error reported since the last call (validation,

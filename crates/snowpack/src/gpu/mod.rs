@@ -5,6 +5,6 @@ pub mod layout;
 pub mod readback;
 pub mod timing;
 
-pub use context::{AdapterSummary, GpuContext};
+pub use context::{AdapterRequest, AdapterSummary, GpuContext};
 pub use readback::ReadbackRing;
 pub use timing::{GpuTimer, PassTimings};

@@ -11,9 +11,9 @@ const FAILED: u8 = 2;
 enum SlotState<M> {
     Free,
     /// Copy recorded into an encoder, not yet submitted.
-    Recorded { meta: M, seq: u64 },
+    Recorded { meta: M, seq: u64, len: u64 },
     /// `map_async` requested; the flag turns MAPPED or FAILED in wgpu's callback.
-    Mapping { meta: M, seq: u64, flag: Arc<AtomicU8> },
+    Mapping { meta: M, seq: u64, len: u64, flag: Arc<AtomicU8> },
 }
 
 struct Slot<M> {
@@ -63,13 +63,29 @@ impl<M> ReadbackRing<M> {
     /// Records a copy of `size` bytes of `src` into a free slot; returns false
     /// (and records nothing) when every slot is still in flight.
     pub fn record_copy(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, meta: M) -> bool {
+        self.record_copy_len(encoder, src, self.size, meta)
+    }
+
+    /// Like [`Self::record_copy`] for the first `len` bytes of `src` (at most
+    /// the slot size, a multiple of 4); only those come back.
+    pub fn record_copy_len(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, len: u64, meta: M) -> bool {
+        let len = len.min(self.size);
         let Some(slot) = self.slots.iter_mut().find(|s| matches!(s.state, SlotState::Free)) else {
             return false;
         };
-        encoder.copy_buffer_to_buffer(src, 0, &slot.buffer, 0, self.size);
-        slot.state = SlotState::Recorded { meta, seq: self.next_seq };
+        if len > 0 {
+            encoder.copy_buffer_to_buffer(src, 0, &slot.buffer, 0, len);
+        }
+        slot.state = SlotState::Recorded { meta, seq: self.next_seq, len };
         self.next_seq += 1;
         true
+    }
+
+    /// Whether [`Self::record_copy_len`] would find a free slot now (so a
+    /// caller can skip the work whose result it would copy).
+    #[must_use]
+    pub fn has_free_slot(&self) -> bool {
+        self.slots.iter().any(|s| matches!(s.state, SlotState::Free))
     }
 
     /// Requests mapping of the slots recorded since the last call; call it
@@ -79,15 +95,20 @@ impl<M> ReadbackRing<M> {
             if !matches!(slot.state, SlotState::Recorded { .. }) {
                 continue;
             }
-            let SlotState::Recorded { meta, seq } = std::mem::replace(&mut slot.state, SlotState::Free) else {
+            let SlotState::Recorded { meta, seq, len } = std::mem::replace(&mut slot.state, SlotState::Free) else {
                 continue;
             };
             let flag = Arc::new(AtomicU8::new(MAPPING));
-            let done = Arc::clone(&flag);
-            slot.buffer.slice(..).map_async(wgpu::MapMode::Read, move |result| {
-                done.store(if result.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
-            });
-            slot.state = SlotState::Mapping { meta, seq, flag };
+            if len == 0 {
+                // Nothing to map (an empty answer): it has arrived.
+                flag.store(MAPPED, Ordering::Release);
+            } else {
+                let done = Arc::clone(&flag);
+                slot.buffer.slice(..len).map_async(wgpu::MapMode::Read, move |result| {
+                    done.store(if result.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+                });
+            }
+            slot.state = SlotState::Mapping { meta, seq, len, flag };
         }
     }
 
@@ -121,11 +142,17 @@ impl<M> ReadbackRing<M> {
             if !arrived {
                 continue;
             }
-            let SlotState::Mapping { meta, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
+            let SlotState::Mapping { meta, len, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
                 continue;
             };
+            if len == 0 {
+                if k == index && self.delivered_seq.is_none_or(|d| seq > d) {
+                    result = Some((meta, Vec::new()));
+                }
+                continue;
+            }
             if k == index && self.delivered_seq.is_none_or(|d| seq > d) {
-                let bytes = slot.buffer.slice(..).get_mapped_range().map(|view| view.to_vec());
+                let bytes = slot.buffer.slice(..len).get_mapped_range().map(|view| view.to_vec());
                 if let Ok(bytes) = bytes {
                     result = Some((meta, bytes));
                 }

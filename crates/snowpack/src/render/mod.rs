@@ -117,7 +117,7 @@ impl Renderer {
         output_format: wgpu::TextureFormat,
     ) -> Result<Self, SnowError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
-        let flags = ctx.adapter.get_downlevel_capabilities().flags;
+        let flags = ctx.downlevel;
         if !flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
             return Err(SnowError::Unsupported("storage buffers in vertex shaders (the terrain reads the snow surface)".into()));
         }
