@@ -304,12 +304,12 @@ pub enum EnvironmentSpec {
 
 /// The fox every build carries (`file = "builtin:fox"`): `assets/Fox.glb`,
 /// model by PixelMannen (CC0), rigging and animation by tomkranis (CC-BY 4.0).
-pub const BUILTIN_FOX_GLB: &[u8] = include_bytes!("../../../assets/Fox.glb");
+pub const BUILTIN_FOX_GLB: &[u8] = include_bytes!("../assets/Fox.glb");
 /// The `file` value that names [`BUILTIN_FOX_GLB`].
 pub const BUILTIN_FOX: &str = "builtin:fox";
 
 /// The built-in sky: Poly Haven's "Spiaggia di Mondello" (CC0), 1024x512 RGBE.
-pub const BUILTIN_SKY_HDR: &[u8] = include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr");
+pub const BUILTIN_SKY_HDR: &[u8] = include_bytes!("../assets/spiaggia_di_mondello_1k.hdr");
 
 /// `[light]` and `[render]`.
 #[derive(Clone, Debug, PartialEq)]
