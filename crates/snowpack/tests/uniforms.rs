@@ -17,6 +17,7 @@ use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
 use snowpack::render::environment::EnvParams;
 use snowpack::render::frame::FrameUniforms;
+use snowpack::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
 use snowpack::render::shell::count::CountParams;
 use snowpack::render::shell::peel::{PeelParams, ShellDrawParams};
 use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
@@ -77,6 +78,10 @@ fn uniform_sizes_match_naga() {
         (shaders::SHELL_DRAW, "shell", size_of::<ShellDrawParams>()),
         (shaders::SHELL_RESOLVE, "params", size_of::<PeelParams>()),
         (shaders::PEEL_COUNT, "params", size_of::<CountParams>()),
+        (shaders::SNOW_SAMPLING, "snow_window", size_of::<SnowWindowUniform>()),
+        (shaders::SNOW_SAMPLING, "snow_terrain", size_of::<TerrainParams>()),
+        (shaders::GROUND, "camera", size_of::<GroundCamera>()),
+        (shaders::GROUND, "ground", size_of::<GroundParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -121,7 +126,7 @@ fn shell_structs_match_naga() {
 
 #[test]
 fn every_shader_is_listed_and_valid() {
-    assert_eq!(shaders::ALL.len(), 34);
+    assert_eq!(shaders::ALL.len(), 36);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
