@@ -368,3 +368,33 @@ impl SnowGround {
         self.index_count / 3
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::{GroundLighting, GroundParams};
+
+    #[test]
+    fn grid_lines_stay_put_in_world_space_and_cover_the_window() {
+        let lighting = GroundLighting::default();
+        let texel = 64.0 / 1024.0;
+        // The window at two places a few texels apart (and off the quad size).
+        let corners = [DVec2::new(-32.0, -32.0), DVec2::new(-32.0 + 3.0 * texel, -32.0 - 5.0 * texel), DVec2::new(1000.1875, -7.0625)];
+        for corner in corners {
+            let p = GroundParams::new(&lighting, 256, corner, 64.0);
+            let quad = p.grid[2];
+            assert_eq!(quad, 0.25);
+            assert_eq!(p.grid[3], 257.0, "one quad more than asked, to cover the window from a line before it");
+            for k in 0..2 {
+                let first = f64::from(p.grid[k]);
+                // On a multiple of the quad size, at or before the corner, and the last line at or past the far side.
+                assert_eq!((first / 0.25).fract(), 0.0, "grid line {first} off the world grid");
+                assert!(first <= corner[k] && corner[k] - first < 0.25);
+                assert!(first + 257.0 * 0.25 >= corner[k] + 64.0);
+                assert_eq!(f64::from(p.bounds[k]), corner[k]);
+                assert_eq!(f64::from(p.bounds[k + 2]), corner[k] + 64.0);
+            }
+        }
+    }
+}
