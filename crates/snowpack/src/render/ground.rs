@@ -331,7 +331,8 @@ impl SnowGround {
         &self.lighting
     }
 
-    /// The snow bindings this pass uses (group 1), for the caller's own shaders too.
+    /// The snow bindings this pass uses (group 1, visible to vertex and
+    /// fragment shaders), which the caller's own draws may bind too.
     #[must_use]
     pub fn sampling(&self) -> &SnowSampling {
         &self.sampling
