@@ -42,6 +42,9 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("SHELL_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/shell.wgsl", "shell_draw.wgsl"]),
     ("SHELL_RESOLVE", &["shell_resolve.wgsl"]),
     ("PEEL_COUNT", &["peel_count.wgsl"]),
+    // The module games import (no entry points): `render::ground::SNOW_SAMPLING_WGSL`.
+    ("SNOW_SAMPLING", &["shared/terrain.wgsl", "shared/snow_sampling.wgsl"]),
+    ("GROUND", &["shared/terrain.wgsl", "shared/snow_sampling.wgsl", "ground.wgsl"]),
 ];
 
 fn main() {

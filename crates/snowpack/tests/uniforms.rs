@@ -18,6 +18,7 @@ use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
 use snowpack::render::environment::EnvParams;
 use snowpack::render::frame::FrameUniforms;
+use snowpack::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
 use snowpack::render::shell::count::CountParams;
 use snowpack::render::shell::peel::{PeelParams, ShellDrawParams};
 use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
@@ -79,6 +80,10 @@ fn uniform_sizes_match_naga() {
         (shaders::SHELL_DRAW, "shell", size_of::<ShellDrawParams>()),
         (shaders::SHELL_RESOLVE, "params", size_of::<PeelParams>()),
         (shaders::PEEL_COUNT, "params", size_of::<CountParams>()),
+        (shaders::SNOW_SAMPLING, "snow_window", size_of::<SnowWindowUniform>()),
+        (shaders::SNOW_SAMPLING, "snow_terrain", size_of::<TerrainParams>()),
+        (shaders::GROUND, "camera", size_of::<GroundCamera>()),
+        (shaders::GROUND, "ground", size_of::<GroundParams>()),
     ];
     for (source, name, rust) in cases {
         assert_eq!(wgsl_uniform_size(source, name) as usize, *rust, "uniform `{name}`");
@@ -134,7 +139,8 @@ fn every_shader_is_listed_and_valid() {
         .expect("shaders/")
         .filter(|e| e.as_ref().is_ok_and(|e| e.path().extension().is_some_and(|x| x == "wgsl")))
         .count();
-    assert_eq!(shaders::ALL.len(), files);
+    // Plus SNOW_SAMPLING, the exported module, composed of shared snippets only.
+    assert_eq!(shaders::ALL.len(), files + 1);
     for (name, source) in shaders::ALL {
         let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())

@@ -18,6 +18,7 @@ pub mod settle;
 pub mod shell_tetrahedra;
 pub mod shell_vertices;
 pub mod skinning;
+pub mod snow_sampling;
 pub mod stamp;
 pub mod terrain_bake;
 pub mod tile_restore;

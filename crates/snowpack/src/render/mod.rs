@@ -15,10 +15,12 @@ pub mod camera;
 pub mod detail;
 pub mod environment;
 pub mod frame;
+pub mod ground;
 pub mod lod;
 pub mod objects;
 pub mod params;
 pub mod pipeline;
+pub mod sampling;
 pub mod shadow;
 pub mod shell;
 pub mod skinned;
@@ -30,6 +32,7 @@ use glam::{Vec2, Vec3};
 
 pub use camera::Camera;
 pub use environment::EnvironmentMap;
+pub use ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use params::{DebugView, LightParams, Material, MaterialPreset, RenderParams};
 
 use self::actors::ActorPass;
