@@ -66,7 +66,7 @@ pub fn measure(ctx: &GpuContext, technique: Technique, count: usize, mesh_side: 
     for frame in 0..warmup + frames {
         let actors = spheres(frame as f32 / 60.0, count, &terrain, 40.96);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bench frame") });
-        snow.encode(ctx, &mut encoder, &actors, 1.0 / 60.0);
+        snow.encode(ctx, &mut encoder, &snowpack::SnowFrame::new(1.0 / 60.0, &actors));
         renderer.encode(ctx, &mut encoder, &snow, &actors, &camera, &view, SIZE);
         ctx.queue.submit([encoder.finish()]);
         snow.after_submit(ctx);

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use glam::{DVec2, Mat4, Vec2, Vec3};
 use snowpack::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
-use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 use winit::application::ApplicationHandler;
 use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -80,7 +80,7 @@ impl Game {
 
     fn view_proj(&self) -> Mat4 {
         let aspect = self.config.width as f32 / self.config.height.max(1) as f32;
-        Mat4::perspective_rh(50f32.to_radians(), aspect, 0.1, 200.0) * Mat4::look_at_rh(EYE, Vec3::ZERO, Vec3::Y)
+        glam::camera::rh::proj::directx::perspective(50f32.to_radians(), aspect, 0.1, 200.0) * glam::camera::rh::view::look_at_mat4(EYE, Vec3::ZERO, Vec3::Y)
     }
 
     /// Where the mouse ray meets the snow surface's plane (y = 0.4).
@@ -101,7 +101,8 @@ impl Game {
         let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("game frame") });
         // Ask for the snow under the ball; the answer arrives a frame or two later.
         self.snow.query_points(&[Vec2::new(self.ball.x, self.ball.z)]);
-        self.snow.encode(&self.ctx, &mut encoder, &[Deformer::Sphere { center: self.ball, radius: 0.4 }], 1.0 / 60.0);
+        let ball = [Deformer::Sphere { center: self.ball, radius: 0.4 }];
+        self.snow.encode(&self.ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &ball));
         self.ground.prepare(&self.ctx.queue, &self.snow, &GroundCamera::new(self.view_proj(), EYE));
         let frame = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,

@@ -20,7 +20,7 @@ pub mod testing;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
-pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket, SkinnedId, SkinnedPose, SnowDeformation};
+pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use render::{Camera, EnvironmentMap, RenderParams, Renderer};

@@ -8,7 +8,7 @@ use snowpack::cpu::query::query as cpu_query;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::query::QueryParams;
 use snowpack::testing::{self, Rng};
-use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(bytes)
@@ -170,7 +170,7 @@ fn a_frame_never_waits_for_answers_when_the_gpu_is_behind() {
     for k in 0..asked {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
         last = Some(snow.query_points(&[Vec2::new(k as f32 * 0.5 - 10.0, 0.0)]));
-        snow.encode(ctx, &mut encoder, &[ball(k)], 1.0 / 60.0);
+        snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[ball(k)]));
         ctx.queue.submit([encoder.finish()]);
         // Never waits: a non-blocking poll, then whatever has arrived.
         snow.after_submit(ctx);
@@ -202,7 +202,7 @@ fn a_frame_whose_answer_buffers_are_all_busy_skips_its_gather_and_returns() {
     for k in 0..6 {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
         tickets.push(snow.query_points(&[Vec2::new(0.1 * k as f32, 0.0)]));
-        snow.encode(ctx, &mut encoder, &[], 1.0 / 60.0);
+        snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[]));
         ctx.queue.submit([encoder.finish()]);
     }
     let stats = snow.query_stats();

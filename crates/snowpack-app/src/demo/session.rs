@@ -356,7 +356,7 @@ impl Session {
         let deformers = self.deformers();
         let characters = self.world.characters();
         let poses = crate::run::poses(&self.skins, &characters);
-        self.snow.encode_posed(ctx, encoder, &deformers, &poses, dt);
+        self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_poses(&poses));
         for e in self.snow.take_store_errors() {
             self.store_errors.push(e.to_string());
         }

@@ -23,5 +23,5 @@ pub mod traffic;
 pub mod update;
 pub mod window;
 
-pub use pipeline::{SkinnedId, SkinnedPose, SnowDeformation};
+pub use pipeline::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use query::{PointAnswers, PointSample, QueryStats, QueryTicket};

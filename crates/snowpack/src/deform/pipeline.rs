@@ -93,6 +93,42 @@ pub struct SnowDeformation {
     floating_origin: DVec2,
 }
 
+/// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SnowFrame<'a> {
+    /// Seconds since the last frame (refill and snowfall advance by it).
+    pub dt_s: f32,
+    /// Spheres, boxes and contact points.
+    pub deformers: &'a [Deformer],
+    /// Characters: registered skinned meshes in this frame's pose.
+    pub poses: &'a [SkinnedPose<'a>],
+    /// World-space triangle meshes the caller has already posed this frame
+    /// (recorded into the same encoder before [`SnowDeformation::encode`]).
+    pub meshes: &'a [CaptureMesh<'a>],
+}
+
+impl<'a> SnowFrame<'a> {
+    /// A frame of `dt_s` seconds with `deformers` and nothing else.
+    #[must_use]
+    pub fn new(dt_s: f32, deformers: &'a [Deformer]) -> Self {
+        Self { dt_s, deformers, poses: &[], meshes: &[] }
+    }
+
+    /// The same frame with characters in pose.
+    #[must_use]
+    pub fn with_poses(mut self, poses: &'a [SkinnedPose<'a>]) -> Self {
+        self.poses = poses;
+        self
+    }
+
+    /// The same frame with caller-posed meshes.
+    #[must_use]
+    pub fn with_meshes(mut self, meshes: &'a [CaptureMesh<'a>]) -> Self {
+        self.meshes = meshes;
+        self
+    }
+}
+
 /// A skinned mesh registered with [`SnowDeformation::add_skinned_mesh`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SkinnedId(usize);
@@ -478,13 +514,7 @@ impl SnowDeformation {
         self.exposed_texels
     }
 
-    /// Records one frame of deformation into `encoder`. Call
-    /// [`Self::after_submit`] once the encoder has been submitted.
-    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], dt_s: f32) {
-        self.encode_with_meshes(ctx, encoder, deformers, &[], dt_s);
-    }
-
-    /// Uploads a skinned mesh (a character's) for [`Self::encode_posed`];
+    /// Uploads a skinned mesh (a character's) for [`SnowFrame::poses`];
     /// `joint_count` is its skin's.
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &crate::skin::skinning::SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
@@ -498,13 +528,15 @@ impl SnowDeformation {
         self.posed.iter().filter_map(|&k| self.skinned.get(k))
     }
 
-    /// Like [`Self::encode`], with characters: each pose skins its mesh on the
-    /// GPU (the `skinning` pass) and the posed mesh presses the snow where it
-    /// reaches below it (depth and combined techniques).
-    pub fn encode_posed(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], poses: &[SkinnedPose<'_>], dt_s: f32) {
+    /// Records one frame of deformation into `encoder`: the one per-frame
+    /// entry point. Characters in `frame.poses` are skinned on the GPU (the
+    /// `skinning` pass) and their posed meshes press the snow with
+    /// `frame.meshes` and the deformers. Submit the encoder, then call
+    /// [`Self::after_submit`].
+    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) {
         self.posed.clear();
         self.timer.begin_frame();
-        for pose in poses {
+        for pose in frame.poses {
             let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
             self.skinning.record(&ctx.queue, encoder, &mut self.timer, instance, pose.joints, pose.model);
             self.posed.push(pose.mesh.0);
@@ -514,32 +546,32 @@ impl SnowDeformation {
             .posed
             .iter()
             .map(|&k| CaptureMesh { vertices: &skinned[k].skinned, indices: &skinned[k].indices, index_count: skinned[k].index_count, vertex_count: skinned[k].vertex_count })
+            .chain(frame.meshes.iter().copied())
             .collect();
-        self.encode_frame(ctx, encoder, deformers, &meshes, dt_s, false);
+        self.encode_frame(ctx, encoder, frame.deformers, &meshes, frame.dt_s);
         drop(meshes);
         self.skinned = skinned;
     }
 
-    /// Records, submits and follows up one frame with characters; fails on GPU errors.
-    pub fn step_posed(&mut self, ctx: &GpuContext, deformers: &[Deformer], poses: &[SkinnedPose<'_>], dt_s: f32) -> Result<(), SnowError> {
+    /// Records, submits and follows up one frame ([`Self::encode`], submit,
+    /// [`Self::after_submit`]); fails on GPU errors. For programs without an
+    /// encoder of their own.
+    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<(), SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
         ctx.capturing(|| {
-            self.encode_posed(ctx, &mut encoder, deformers, poses, dt_s);
+            self.encode(ctx, &mut encoder, frame);
             ctx.queue.submit([encoder.finish()]);
         });
         self.after_submit(ctx);
         ctx.check("deformation frame")
     }
 
-    /// Like [`Self::encode`], with world-space triangle meshes (skinned
-    /// characters in pose, recorded into `encoder` before this) pressing the
-    /// snow too, under the depth and combined techniques.
-    pub fn encode_with_meshes(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32) {
-        self.posed.clear();
-        self.encode_frame(ctx, encoder, deformers, meshes, dt_s, true);
+    /// [`Self::step_frame`] with only `deformers` pressing the snow.
+    pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
+        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers))
     }
 
-    fn encode_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32, begin_timer: bool) {
+    fn encode_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
         let texel = f64::from(p.texel_m());
@@ -558,9 +590,6 @@ impl SnowDeformation {
         // Deformers and objects are relative to the floating origin; so is the corner they are placed against.
         let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel) - self.floating_origin;
 
-        if begin_timer {
-            self.timer.begin_frame();
-        }
         let tile_frame = TileFrame {
             depth_m: p.depth_m,
             texel_m: p.texel_m(),
@@ -740,17 +769,6 @@ impl SnowDeformation {
             self.answers = Some(answers);
         }
         self.timer.collect();
-    }
-
-    /// Records, submits and follows up one frame; fails on GPU errors.
-    pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
-        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        ctx.capturing(|| {
-            self.encode(ctx, &mut encoder, deformers, dt_s);
-            ctx.queue.submit([encoder.finish()]);
-        });
-        self.after_submit(ctx);
-        ctx.check("deformation frame")
     }
 
     /// Waits for every outstanding readback (snapshot and timings); for the
