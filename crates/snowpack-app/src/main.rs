@@ -97,7 +97,7 @@ enum Command {
         /// The scene file (TOML; see docs/scene.md).
         #[arg(long)]
         scene: PathBuf,
-        /// Frames to simulate (default: the scene's [sim] frames).
+        /// Frames to simulate (default: the scene's `[sim]` frames).
         #[arg(long)]
         frames: Option<u32>,
         /// Output directory.

@@ -871,16 +871,5 @@ impl SnowDeformation {
     }
 }
 
-/// Copies a whole buffer into a staging buffer and waits for it (blocking).
-pub fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, SnowError> {
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("blocking readback"),
-        size: buffer.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-    ctx.queue.submit([encoder.finish()]);
-    crate::gpu::readback::map_blocking(ctx, &staging)
-}
+/// Kept here for callers of the old path; the helper lives in [`crate::gpu::readback`].
+pub use crate::gpu::readback::read_buffer;

@@ -562,7 +562,7 @@ impl TileStreaming {
         let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
-        let raw = super::pipeline::read_buffer(ctx, &self.tiles)?;
+        let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
         let slot_words = PLANES * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
