@@ -70,13 +70,16 @@ pub struct RunReport {
     pub wall_s: f64,
 }
 
-fn window_center(scene: &Scene, world: &World) -> DVec2 {
+/// Where the scene's `[window]` puts the window's centre this frame.
+pub fn window_center(scene: &Scene, world: &World) -> DVec2 {
     match &scene.window {
         WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
         WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
         WindowSpec::FollowActor(i) => world
             .actor_position(*i)
             .map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
+        // A window kind this runner does not know yet: where the camera is.
+        _ => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
     }
 }
 

@@ -19,6 +19,7 @@ use snowpack::skin::sinking::FootLoad;
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum WindowSpec {
     /// A fixed centre (x, z) in metres.
     Center([f32; 2]),
@@ -30,6 +31,7 @@ pub enum WindowSpec {
 
 /// The shape of an actor or object.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum ShapeSpec {
     /// A sphere of this radius (m).
     Sphere {
@@ -89,6 +91,7 @@ pub struct Gait {
 
 /// Where a character's root is put each frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum Placement {
     /// At the path's (or position's) height, as written.
     #[default]
@@ -176,6 +179,7 @@ impl std::fmt::Debug for GltfActor {
 
 /// How an actor moves.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Motion {
     /// Fixed position plus constant velocity (m/s).
     Kinematic {
@@ -293,6 +297,7 @@ pub struct CameraSpec {
 
 /// Where the sky light comes from (`[light] environment`).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum EnvironmentSpec {
     /// The built-in HDR sky (`assets/spiaggia_di_mondello_1k.hdr`).
     Builtin,
@@ -711,6 +716,8 @@ impl Scene {
                 m.grid.center_m,
                 self.terrain.height_bounds()
             ),
+            // A terrain kind added to the library after this describer.
+            other => format!("{other:?}"),
         };
         let _ = writeln!(s, "terrain: {terrain}");
         let _ = writeln!(s, "window: {:?}", self.window);

@@ -2,6 +2,7 @@
 
 /// Everything that can go wrong in snowpack's library calls.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SnowError {
     /// No adapter matched; the message says what to install or set.
     #[error("no GPU adapter found{filter}: {hint}")]

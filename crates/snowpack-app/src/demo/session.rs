@@ -128,7 +128,7 @@ impl Session {
         let world = World::new(&scene);
         let snow_params = scene.snow.clone();
         let render_params = scene.render.params;
-        let center = scene_center(&scene, &world);
+        let center = crate::run::window_center(&scene, &world);
         let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
@@ -262,7 +262,7 @@ impl Session {
         match self.follow {
             WindowFollow::Scene => match self.scene.window {
                 WindowSpec::FollowCamera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
-                _ => scene_center(&self.scene, &self.world),
+                _ => crate::run::window_center(&self.scene, &self.world),
             },
             WindowFollow::Player => DVec2::new(f64::from(self.player.position.x), f64::from(self.player.position.z)),
             WindowFollow::Camera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
@@ -385,7 +385,7 @@ impl Session {
         self.scene.snow = self.snow_params.clone();
         self.scene.render.params = self.render_params;
         self.world = World::new(&self.scene);
-        let center = scene_center(&self.scene, &self.world);
+        let center = crate::run::window_center(&self.scene, &self.world);
         let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
         // The old window lets go of its store (flushing it) before the new one opens it.
@@ -429,14 +429,6 @@ impl Session {
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
         self.snow.memory_bytes().iter().map(|m| m.1).sum::<u64>() + self.renderer.memory_bytes()
-    }
-}
-
-fn scene_center(scene: &Scene, world: &World) -> DVec2 {
-    match &scene.window {
-        WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
-        WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
-        WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
     }
 }
 

@@ -154,6 +154,7 @@ impl TileData {
 /// [`StoreError::WorkerGone`] names the file (errors from [`decode`] alone,
 /// which sees bytes and no file, leave the path empty).
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum StoreError {
     /// The operating system refused (disk full, read-only, a directory gone).
     #[error("cannot {op} {}: {source}", shown(path))]
