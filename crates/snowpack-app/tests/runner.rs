@@ -1016,3 +1016,22 @@ fn bad_shell_values_exit_2_naming_file_and_key() {
     expect_bad_input("shell-size", "[shell]\ntexture_size = 48\n", "texture_size");
     expect_bad_input("shell-debug", "[shell]\npasses = 2\ndebug_pass = 3\n", "debug_pass");
 }
+
+#[test]
+fn a_bad_backend_exits_2_naming_the_option_for_every_command() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/default.toml");
+    let dir = Temp::new("bad-backend");
+    for args in [
+        vec!["run", "--headless", "--backend", "voodoo", "--scene"],
+        vec!["bench", "--quick", "--backend", "voodoo", "--out"],
+        vec!["demo", "--backend", "vulkan,voodoo", "--scene"],
+    ] {
+        let target = if args[0] == "bench" { dir.0.join("bench") } else { scene.clone() };
+        let output = bin().args(&args).arg(&target).output().expect("run");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains("--backend") && stderr.contains("voodoo"), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    assert!(!dir.0.join("bench").exists(), "nothing written for a bad backend");
+}
