@@ -10,7 +10,7 @@ use glam::{DVec2, Vec2, Vec3};
 use snowpack::gpu::PassTimings;
 use snowpack::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
-use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, WindowSpec, World};
+use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec, World};
 
 /// Where the demo keeps a tile store whose scene names no folder.
 pub const DEMO_OUT: &str = "snowpack-out";
@@ -171,9 +171,27 @@ impl Session {
         Ok(())
     }
 
-    /// Turns the tile store on or off (rebuilds the window).
-    pub fn set_store(&mut self, ctx: &GpuContext, on: bool) -> anyhow::Result<()> {
-        self.scene.store = on.then(|| self.scene.store.clone().unwrap_or_default());
+    /// Where trails are kept now: a disk store, memory (a scene without
+    /// `[store]`, or `keep = "memory"`), or nowhere.
+    #[must_use]
+    pub fn store_keep(&self) -> StoreKeep {
+        match &self.scene.store {
+            Some(spec) => spec.keep,
+            None if self.snow_params.tile_memory_bytes.is_some() => StoreKeep::Memory,
+            None => StoreKeep::Off,
+        }
+    }
+
+    /// Keeps trails on disk, in memory or not at all (rebuilds the window).
+    pub fn set_store(&mut self, ctx: &GpuContext, keep: StoreKeep) -> anyhow::Result<()> {
+        let old = self.scene.store.take().filter(|s| s.keep == StoreKeep::Disk);
+        self.scene.store = match keep {
+            StoreKeep::Disk => Some(old.unwrap_or_default()),
+            // The library's default memory keeper.
+            StoreKeep::Memory => None,
+            StoreKeep::Off => Some(StoreSpec { keep, save: false, ..StoreSpec::default() }),
+        };
+        self.snow_params.tile_memory_bytes = (keep != StoreKeep::Off).then_some(snowpack::deform::params::DEFAULT_TILE_MEMORY_BYTES);
         self.rebuild(ctx)
     }
 
