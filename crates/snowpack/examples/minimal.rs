@@ -75,7 +75,7 @@ impl Game {
         let snow = SnowDeformation::new(&ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
         let desc = SnowGroundDescriptor::new(config.format).with_depth(DEPTH, wgpu::CompareFunction::Less);
         let ground = SnowGround::new(&ctx.device, &snow, &desc);
-        Ok(Self { window, surface, config, depth, ctx, snow, ground, mouse: Vec2::ZERO, ball: Vec3::new(0.0, 0.3, 0.0), frames: 0 })
+        Ok(Self { window, surface, config, depth, ctx, snow, ground, mouse: Vec2::ZERO, ball: Vec3::new(0.0, 0.5, 0.0), frames: 0 })
     }
 
     fn view_proj(&self) -> Mat4 {
@@ -94,8 +94,8 @@ impl Game {
 
     fn frame(&mut self) -> Result<(), Box<dyn std::error::Error>> {
         if let Some(target) = self.mouse_on_snow() {
-            // The ball rolls toward the mouse, half sunk in the snow.
-            let to = Vec3::new(target.x, 0.3, target.z);
+            // The ball rolls toward the mouse, pressing the 0.4 m of snow down to 0.1 m.
+            let to = Vec3::new(target.x, 0.5, target.z);
             self.ball += (to - self.ball).clamp_length_max(0.15);
         }
         let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("game frame") });
