@@ -2,7 +2,8 @@
 // prism between S_t and S'_t split into three tetrahedra by the vertex-index
 // rule (`prism_corner`), each with its world -> barycentric map and its
 // corners' texture coordinates, and the twelve vertex-data indices of its
-// four faces, wound counter-clockwise seen from outside, for drawing. Data
+// four faces, wound counter-clockwise seen from outside, for drawing; one
+// too flat for an accurate map in f32 is marked and drawn as nothing. Data
 // independent: one invocation per face. CPU twin: `src/cpu/shell_tetrahedra.rs`.
 // Prepended: shared/shell.wgsl.
 
