@@ -2,7 +2,8 @@
 // prism between S_t and S'_t split into three tetrahedra by the vertex-index
 // rule (`prism_corner`), each with its world -> barycentric map and its
 // corners' texture coordinates, and the twelve vertex-data indices of its
-// four faces, wound counter-clockwise seen from outside, for drawing. Data
+// four faces, wound counter-clockwise seen from outside, for drawing; one
+// too flat for an accurate map in f32 is marked and drawn as nothing. Data
 // independent: one invocation per face. CPU twin: `src/cpu/shell_tetrahedra.rs`.
 // Prepended: shared/shell.wgsl.
 
@@ -31,7 +32,12 @@ fn corner_texture(index: u32) -> vec4<f32> {
     return vec4<f32>(v.base.w, v.top.w, select(1.0, 0.0, index < params.count), 0.0);
 }
 
-// Faces of a tetrahedron as (corner, corner, corner, opposite corner).
+// Largest shape ratio (longest edge from corner 0, cubed, over 6 x the
+// volume) of a tetrahedron that is drawn: `MAX_SHAPE_RATIO` in tetrahedra.rs.
+const MAX_SHAPE_RATIO: f32 = 4096.0;
+
+// Faces of a tetrahedron as (corner, corner, corner, opposite corner),
+// wound counter-clockwise seen from outside when det(e1, e2, e3) > 0.
 const TETRA_FACES = array<vec4<u32>, 4>(
     vec4<u32>(1u, 2u, 3u, 0u),
     vec4<u32>(0u, 3u, 2u, 1u),
@@ -63,10 +69,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let e1 = p[1] - p[0];
         let e2 = p[2] - p[0];
         let e3 = p[3] - p[0];
-        let det = dot(e1, cross(e2, e3));
+        let c1 = cross(e2, e3);
+        let c2 = cross(e3, e1);
+        let c3 = cross(e1, e2);
+        let det = dot(e1, c1);
         let slot = 3u * f + t;
-        if abs(det) <= 1e-18 {
-            // A flat prism (zero thickness or area): nothing to trace.
+        // Shape ratio: the longest edge from corner 0, cubed, over |det| (6 x
+        // the volume). It bounds the f32 error of the map below at points
+        // inside (45 u x ratio, docs/shell.md). Past MAX_SHAPE_RATIO the
+        // tetrahedron is flat, or a sliver about 1/4096 of its edges thin: it
+        // is marked and not drawn. A product, so det = 0 is caught too.
+        let longest = max(max(dot(e1, e1), dot(e2, e2)), dot(e3, e3));
+        if !(abs(det) * MAX_SHAPE_RATIO > longest * sqrt(longest)) {
             tet.origin = vec4<f32>(p[0], 0.0);
             tetras[slot] = tet;
             for (var k = 0u; k < 12u; k++) {
@@ -75,15 +89,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             continue;
         }
         tet.origin = vec4<f32>(p[0], 1.0);
-        tet.bary[0] = vec4<f32>(cross(e2, e3) / det, 0.0);
-        tet.bary[1] = vec4<f32>(cross(e3, e1) / det, 0.0);
-        tet.bary[2] = vec4<f32>(cross(e1, e2) / det, 0.0);
+        tet.bary[0] = vec4<f32>(c1 / det, 0.0);
+        tet.bary[1] = vec4<f32>(c2 / det, 0.0);
+        tet.bary[2] = vec4<f32>(c3 / det, 0.0);
         tetras[slot] = tet;
+        // Outward winding from the one sign of det: TETRA_FACES winds outward
+        // for det > 0. (A test per face could disagree with another on a thin one.)
+        let flip = det < 0.0;
         for (var face = 0u; face < 4u; face++) {
             let q = TETRA_FACES[face];
-            let n = cross(p[q.y] - p[q.x], p[q.z] - p[q.x]);
-            // Outward normal: away from the opposite corner.
-            let flip = dot(n, p[q.w] - p[q.x]) > 0.0;
             corners[12u * slot + 3u * face] = idx[q.x];
             corners[12u * slot + 3u * face + 1u] = select(idx[q.y], idx[q.z], flip);
             corners[12u * slot + 3u * face + 2u] = select(idx[q.z], idx[q.y], flip);

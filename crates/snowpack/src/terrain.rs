@@ -73,7 +73,8 @@ const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 /// centre wins, as a depth test would choose): on the GPU by
 /// [`crate::deform::terrain_bake::TerrainBakePass`] for the snow window, and on
 /// the CPU by [`crate::cpu::terrain_bake::draw`] for physics and queries (the
-/// tests hold the two to 1e-4 m). Overhangs are invisible from above, which is
+/// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
+/// centre is not on a triangle's edge). Overhangs are invisible from above, which is
 /// right for snow: it lies on the top surface.
 #[derive(Clone, PartialEq)]
 pub struct TerrainMesh {

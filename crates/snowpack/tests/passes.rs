@@ -354,24 +354,70 @@ fn terrain_bake_matches_cpu() {
     let gpu = read_f32(ctx, &buffer);
     let cpu = &mesh.grid.heights_m;
     assert_eq!(gpu.len(), cpu.len());
-    // The rasteriser snaps vertices to 1/256 of a texel (the CPU does not):
-    // heights on steep triangles move by slope x texel / 256 (a few mm here),
-    // and a texel centre within that distance of a platform's edge may be
-    // covered on one side and not the other. So: almost every texel within
-    // 2 mm, and the mean error well below that (0.5 mm: one seed in six gave
-    // 0.16-0.17 mm against an earlier 0.1 mm bound, from edge texels alone).
-    let off: Vec<usize> = (0..cpu.len()).filter(|&k| (gpu[k] - cpu[k]).abs() > 2e-3).collect();
-    let mean = gpu.iter().zip(cpu).map(|(a, b)| f64::from((a - b).abs())).sum::<f64>() / cpu.len() as f64;
-    assert!(mean < 5e-4, "mean difference {mean} m; seed {seed}");
-    assert!(
-        off.len() <= cpu.len() / 2000,
-        "{} of {} texels differ (first at {}: gpu {}, cpu {}); seed {seed}",
-        off.len(),
-        cpu.len(),
-        off[0],
-        gpu[off[0]],
-        cpu[off[0]]
-    );
+    // The rasteriser snaps vertices to 1/256 of a texel (the CPU does not),
+    // which moves a triangle's edges by under 1/256 of a texel and its
+    // heights by up to its slope times that. So, texel by texel:
+    // - a centre within texel / 128 of a triangle's edge (seen from above)
+    //   may be covered on one side and not the other (the rasteriser's
+    //   top-left rule decides a centre on an edge, the CPU counts edges in):
+    //   anything goes there. (Seed 136 put a whole column of centres on the
+    //   mesh's outer edge: the GPU left it at the floor, the CPU drew it.)
+    // - elsewhere, the same triangles cover the centre on both sides, and
+    //   the heights agree to 0.1 mm plus the steepest of them times texel / 128.
+    let grid = &mesh.grid;
+    let (w, h) = (grid.width as usize, grid.height as usize);
+    let texel = [grid.size_m[0] / w as f32, grid.size_m[1] / h as f32];
+    let origin = [grid.center_m[0] - grid.size_m[0] * 0.5, grid.center_m[1] - grid.size_m[1] * 0.5];
+    let margin = f64::from(texel[0].max(texel[1])) / 128.0;
+    let centre = |k: usize| DVec2::new(f64::from(origin[0] + ((k % w) as f32 + 0.5) * texel[0]), f64::from(origin[1] + ((k / w) as f32 + 0.5) * texel[1]));
+    let mut near_edge = vec![false; w * h];
+    let mut steepest = vec![0.0f64; w * h];
+    for tri in &mesh.triangles {
+        let p = tri.map(|v| DVec2::new(f64::from(v[0]), f64::from(v[2])));
+        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+        // Slope of the triangle's plane (its height's gradient in x, z).
+        let slope = if area.abs() > 1e-12 {
+            let (dy1, dy2) = (f64::from(tri[1][1] - tri[0][1]), f64::from(tri[2][1] - tri[0][1]));
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            DVec2::new(dy1 * e2.y - dy2 * e1.y, dy2 * e1.x - dy1 * e2.x).length() / area.abs()
+        } else {
+            f64::INFINITY
+        };
+        let lo = p[0].min(p[1]).min(p[2]) - margin;
+        let hi = p[0].max(p[1]).max(p[2]) + margin;
+        let col = |x: f64| ((x - f64::from(origin[0])) / f64::from(texel[0]) - 0.5).clamp(0.0, w as f64 - 1.0);
+        let row = |z: f64| ((z - f64::from(origin[1])) / f64::from(texel[1]) - 0.5).clamp(0.0, h as f64 - 1.0);
+        for i in row(lo.y).ceil() as usize..=row(hi.y).floor() as usize {
+            for j in col(lo.x).ceil() as usize..=col(hi.x).floor() as usize {
+                let k = i * w + j;
+                let c = centre(k);
+                let distance = (0..3).map(|e| {
+                    let (a, b) = (p[e], p[(e + 1) % 3]);
+                    let t = ((c - a).dot(b - a) / (b - a).length_squared().max(1e-30)).clamp(0.0, 1.0);
+                    c.distance(a + (b - a) * t)
+                });
+                if distance.fold(f64::INFINITY, f64::min) <= margin {
+                    near_edge[k] = true;
+                } else if [0, 1, 2].iter().all(|&e| (p[(e + 1) % 3] - p[e]).perp_dot(c - p[e]) * area > 0.0) {
+                    steepest[k] = steepest[k].max(slope);
+                }
+            }
+        }
+    }
+    let (mut edge_texels, mut worst) = (0, 0.0f64);
+    for k in 0..cpu.len() {
+        if near_edge[k] {
+            edge_texels += 1;
+            continue;
+        }
+        let tolerance = 1e-4 + steepest[k] * margin;
+        let error = f64::from((gpu[k] - cpu[k]).abs());
+        worst = worst.max(error / tolerance);
+        assert!(error <= tolerance, "texel {k} (row {}, column {}): gpu {}, cpu {}, over {tolerance} m (slope {}); seed {seed}", k / w, k % w, gpu[k], cpu[k], steepest[k]);
+    }
+    eprintln!("{edge_texels} of {} texels on edges; elsewhere the worst error is {worst:.3} of its tolerance", cpu.len());
+    // The edges' neighbourhoods are a small part of the grid.
+    assert!(edge_texels * 10 < cpu.len(), "{edge_texels} of {} texels lie on edges; seed {seed}", cpu.len());
 }
 
 #[test]

@@ -5,13 +5,13 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 use snowpack::cpu;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::window::TerrainParams;
 use snowpack::gpu::GpuTimer;
 use snowpack::render::shell::count::PeelCountPass;
-use snowpack::render::shell::tetrahedra::{ShellTetraPass, Tetra, TetraParams};
+use snowpack::render::shell::tetrahedra::{ShellTetraPass, Tetra, TetraParams, MAX_SHAPE_RATIO};
 use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
 use snowpack::render::shell::ShellSettings;
 use snowpack::render::IMAGE_FORMAT;
@@ -94,6 +94,156 @@ fn construct_on_gpu(ctx: &GpuContext, params: &ShellVertexParams, base: &[BaseVe
     (bytemuck::pod_collect_to_vec(&read(&vertices)), bytemuck::pod_collect_to_vec(&read(&tetras)), bytemuck::pod_collect_to_vec(&read(&corners)))
 }
 
+/// Runs the tetrahedra pass alone on given shell vertices.
+fn tetrahedra_on_gpu(ctx: &GpuContext, count: u32, vertices: &[ShellVertex], faces: &[u32]) -> (Vec<Tetra>, Vec<u32>) {
+    let face_count = faces.len() as u32 / 3;
+    let faces_buffer = storage(ctx, "faces", bytemuck::cast_slice(faces));
+    let vertex_buffer = storage(ctx, "vertices", bytemuck::cast_slice(vertices));
+    let tetras = storage(ctx, "tetras", &vec![0u8; face_count as usize * 3 * size_of::<Tetra>()]);
+    let corners = storage(ctx, "corners", &vec![0u8; face_count as usize * 36 * 4]);
+    let pass = ShellTetraPass::new(&ctx.device, &faces_buffer, &vertex_buffer, &tetras, &corners);
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shell tetrahedra") });
+    pass.record(&ctx.queue, &mut encoder, &mut GpuTimer::disabled(), &TetraParams { faces: face_count, count, _pad: [0; 2] });
+    ctx.queue.submit([encoder.finish()]);
+    let read = |b: &wgpu::Buffer| read_buffer(ctx, b).expect("readback");
+    (bytemuck::pod_collect_to_vec(&read(&tetras)), bytemuck::pod_collect_to_vec(&read(&corners)))
+}
+
+/// Unit roundoff of f32 (half an ulp at 1).
+const U: f64 = f32::EPSILON as f64 / 2.0;
+
+/// The construction's error bound at points inside a tetrahedron, in units
+/// of u x shape ratio (docs/shell.md: 45, from the cross products, det, a
+/// division of up to 2.5 ulp as Vulkan allows, and lambda_0 = 1 - the rest).
+const MAP_ERROR: f64 = 48.0;
+
+/// Relative width of the band around [`MAX_SHAPE_RATIO`] in which f32
+/// rounding of det and of the longest edge (6.5 u x ratio + a few u) may
+/// tip the GPU's and the CPU's drawn-or-not decisions apart.
+const DECISION_BAND: f64 = 8.0 * U * MAX_SHAPE_RATIO as f64;
+
+/// Barycentric points a map is checked at: the corners, the edges'
+/// midpoints, the centroid and four points off-centre.
+const SAMPLES: [[f64; 4]; 15] = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+    [0.0, 0.0, 0.0, 1.0],
+    [0.5, 0.5, 0.0, 0.0],
+    [0.5, 0.0, 0.5, 0.0],
+    [0.5, 0.0, 0.0, 0.5],
+    [0.0, 0.5, 0.5, 0.0],
+    [0.0, 0.5, 0.0, 0.5],
+    [0.0, 0.0, 0.5, 0.5],
+    [0.25, 0.25, 0.25, 0.25],
+    [0.7, 0.1, 0.1, 0.1],
+    [0.1, 0.7, 0.1, 0.1],
+    [0.1, 0.1, 0.7, 0.1],
+    [0.1, 0.1, 0.1, 0.7],
+];
+
+/// What [`check_tetrahedra`] found (counts: the GPU's tetrahedra).
+#[derive(Debug, Default)]
+struct TetraStats {
+    drawn: usize,
+    skipped: usize,
+    /// Largest shape ratio among drawn tetrahedra.
+    worst_ratio: f64,
+    /// Largest barycentric error seen, in units of u x shape ratio.
+    worst_error: f64,
+}
+
+/// Checks the GPU's tetrahedra against the CPU twin's and against exact
+/// arithmetic, tetrahedron by tetrahedron, for what the draw relies on:
+/// - every value finite; origin and texture corners copied bit-exactly;
+/// - drawn (origin.w 1) exactly when the shape ratio, computed in f64 from
+///   the f32 edges both used, is under [`MAX_SHAPE_RATIO`]; GPU and CPU may
+///   differ only within [`DECISION_BAND`] of it;
+/// - a skipped one: a zero map and its twelve corners one vertex;
+/// - a drawn one: the twelve corner indices bit-exact with the CPU's, its
+///   four faces the four triangles of its corners, each wound outward;
+///   and both maps take points inside it ([`SAMPLES`]) to their barycentric
+///   coordinates within `MAP_ERROR` u x shape ratio (so to within twice that
+///   of each other). Comparing the maps' entries would ask for more than the
+///   draw needs and than f32 gives on thin tetrahedra.
+fn check_tetrahedra(count: u32, faces: &[u32], vertices: &[ShellVertex], gpu: (&[Tetra], &[u32]), cpu: (&[Tetra], &[u32])) -> TetraStats {
+    let position = |c: u32| {
+        let v = if c < count { vertices[c as usize].base } else { vertices[(c - count) as usize].top };
+        Vec3::new(v[0], v[1], v[2])
+    };
+    let mut stats = TetraStats::default();
+    for (f, face) in faces.chunks_exact(3).enumerate() {
+        let mut sorted = [face[0], face[1], face[2]];
+        sorted.sort_unstable();
+        for t in 0..3u32 {
+            let slot = 3 * f + t as usize;
+            let idx: [u32; 4] = std::array::from_fn(|c| cpu::shell_tetrahedra::prism_corner(sorted, count, t, c as u32));
+            let p = idx.map(position);
+            // The edges as both compute them (f32 subtraction is correctly
+            // rounded on both), then exact enough in f64.
+            let e = [p[1] - p[0], p[2] - p[0], p[3] - p[0]].map(|v| v.as_dvec3());
+            let det = e[0].dot(e[1].cross(e[2]));
+            let longest = e.iter().map(|v| v.length()).fold(0.0, f64::max);
+            let ratio = longest.powi(3) / det.abs();
+            let (g, c) = (&gpu.0[slot], &cpu.0[slot]);
+            let (gc, cc) = (&gpu.1[slot * 12..slot * 12 + 12], &cpu.1[slot * 12..slot * 12 + 12]);
+            let context = format!("tetrahedron {slot} (corners {idx:?}, shape ratio {ratio:.1})");
+            for tet in [g, c] {
+                let values: &[f32] = bytemuck::cast_slice(std::slice::from_ref(tet));
+                assert!(values.iter().all(|v| v.is_finite()), "{context}: not finite: {tet:?}");
+                assert_eq!(tet.origin[..3], p[0].to_array(), "{context}: origin");
+                assert!(tet.origin[3] == 0.0 || tet.origin[3] == 1.0, "{context}: origin.w {}", tet.origin[3]);
+            }
+            assert_eq!(g.tex, c.tex, "{context}: texture corners");
+            let (g_drawn, c_drawn) = (g.origin[3] == 1.0, c.origin[3] == 1.0);
+            let near = (ratio / f64::from(MAX_SHAPE_RATIO) - 1.0).abs() <= DECISION_BAND;
+            if !near {
+                let drawn = ratio < f64::from(MAX_SHAPE_RATIO);
+                assert!(g_drawn == drawn && c_drawn == drawn, "{context}: drawn on GPU {g_drawn}, CPU {c_drawn}, expected {drawn}");
+            }
+            if g_drawn && c_drawn {
+                assert_eq!(gc, cc, "{context}: corner indices differ");
+            }
+            for (tet, corners, who) in [(g, gc, "GPU"), (c, cc, "CPU")] {
+                let counted = if tet.origin[3] == 0.0 { &mut stats.skipped } else { &mut stats.drawn };
+                if who == "GPU" {
+                    *counted += 1;
+                }
+                if tet.origin[3] == 0.0 {
+                    assert_eq!(tet.bary, [[0.0; 4]; 3], "{context}: {who} skipped it but wrote a map");
+                    assert!(corners.iter().all(|&k| k == idx[0]), "{context}: {who} skipped it but draws {corners:?}");
+                    continue;
+                }
+                stats.worst_ratio = stats.worst_ratio.max(ratio);
+                // Its four faces are the four triangles of its corners, wound outward.
+                let centre = p.iter().map(|v| v.as_dvec3()).sum::<DVec3>() / 4.0;
+                let mut triangles = BTreeSet::new();
+                for tri in corners.chunks_exact(3) {
+                    triangles.insert(tri.iter().copied().collect::<BTreeSet<u32>>());
+                    let [a, b, c] = [tri[0], tri[1], tri[2]].map(|k| position(k).as_dvec3());
+                    assert!((b - a).cross(c - a).dot((a + b + c) / 3.0 - centre) > 0.0, "{context}: {who} face {tri:?} winds inward");
+                }
+                let expected: BTreeSet<BTreeSet<u32>> = (0..4).map(|skip| (0..4).filter(|&k| k != skip).map(|k| idx[k]).collect()).collect();
+                assert_eq!(triangles, expected, "{context}: {who} faces {corners:?}");
+                // Points inside go to their barycentric coordinates.
+                let rows = tet.bary.map(|r| DVec3::new(r[0].into(), r[1].into(), r[2].into()));
+                let bound = MAP_ERROR * U * ratio;
+                for mu in SAMPLES {
+                    let r = e[0] * mu[1] + e[1] * mu[2] + e[2] * mu[3];
+                    let l = [rows[0].dot(r), rows[1].dot(r), rows[2].dot(r)];
+                    let lambda = [1.0 - l[0] - l[1] - l[2], l[0], l[1], l[2]];
+                    for k in 0..4 {
+                        let error = (lambda[k] - mu[k]).abs();
+                        stats.worst_error = stats.worst_error.max(error / (U * ratio));
+                        assert!(error <= bound, "{context}: {who} maps {mu:?} to {lambda:?}, error {error:e} over {bound:e}: {tet:?}");
+                    }
+                }
+            }
+        }
+    }
+    stats
+}
+
 fn close(a: f32, b: f32, tol: f32) -> bool {
     (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
 }
@@ -130,37 +280,29 @@ fn gpu_shell_equals_cpu_on_random_meshes_with_consistent_split_edges() {
         }
         let tetra_params = TetraParams { faces: faces.len() as u32 / 3, count: n * n, _pad: [0; 2] };
         let (cpu_tetras, cpu_corners) = cpu::shell_tetrahedra::shell_tetrahedra(&tetra_params, &faces, &gpu_vertices);
-        // Same tetrahedra: the same corners in the same order, the same maps.
-        assert_eq!(gpu_corners, cpu_corners, "corner indices differ");
-        for (g, c) in gpu_tetras.iter().zip(&cpu_tetras) {
-            let (gf, cf): (&[f32], &[f32]) = (bytemuck::cast_slice(std::slice::from_ref(g)), bytemuck::cast_slice(std::slice::from_ref(c)));
-            for (a, b) in gf.iter().zip(cf) {
-                assert!(close(*a, *b, 1e-4), "tetrahedron {g:?} vs {c:?}");
-            }
-        }
-        // Each tetrahedron is proper and its faces wind outward.
-        let position = |c: u32| {
-            let v = if c < n * n { gpu_vertices[c as usize].base } else { gpu_vertices[(c - n * n) as usize].top };
-            Vec3::new(v[0], v[1], v[2])
-        };
+        // Same tetrahedra, drawn the same way, with maps as accurate as their
+        // shape allows in f32; too flat ones marked and skipped by both.
+        let stats = check_tetrahedra(n * n, &faces, &gpu_vertices, (&gpu_tetras, &gpu_corners), (&cpu_tetras, &cpu_corners));
+        eprintln!("{n}x{n} mesh: {stats:?}");
+        assert!(stats.drawn > 2 * stats.skipped, "most of a random shell is drawn: {stats:?}");
+        // The sides each prism puts down by the index rule; a drawn
+        // tetrahedron draws exactly these faces (checked above).
         let mut sides: HashMap<(u32, u32), Vec<(usize, SideTriangles)>> = HashMap::new();
-        for (t, corners) in gpu_corners.chunks_exact(12).enumerate() {
-            assert_eq!(gpu_tetras[t].origin[3], 1.0, "tetrahedron {t} is degenerate");
-            let all: BTreeSet<u32> = corners.iter().copied().collect();
-            assert_eq!(all.len(), 4, "tetrahedron {t} has corners {corners:?}");
-            let centre = all.iter().map(|&c| position(c)).sum::<Vec3>() / 4.0;
-            for tri in corners.chunks_exact(3) {
-                let (a, b, c) = (position(tri[0]), position(tri[1]), position(tri[2]));
-                let normal = (b - a).cross(c - a);
-                assert!(normal.dot((a + b + c) / 3.0 - centre) > 0.0, "face {tri:?} of tetrahedron {t} winds inward");
-                if let Some(edge) = side_of([tri[0], tri[1], tri[2]], n * n) {
-                    let prism = t / 3;
-                    let list = sides.entry(edge).or_default();
-                    match list.iter_mut().find(|(p, _)| *p == prism) {
-                        Some((_, set)) => {
-                            set.insert(tri.iter().copied().collect());
+        for (f, face) in faces.chunks_exact(3).enumerate() {
+            let mut sorted = [face[0], face[1], face[2]];
+            sorted.sort_unstable();
+            for t in 0..3 {
+                let idx: [u32; 4] = std::array::from_fn(|c| cpu::shell_tetrahedra::prism_corner(sorted, n * n, t, c as u32));
+                for skip in 0..4 {
+                    let tri: Vec<u32> = (0..4).filter(|&k| k != skip).map(|k| idx[k]).collect();
+                    if let Some(edge) = side_of([tri[0], tri[1], tri[2]], n * n) {
+                        let list = sides.entry(edge).or_default();
+                        match list.iter_mut().find(|(p, _)| *p == f) {
+                            Some((_, set)) => {
+                                set.insert(tri.iter().copied().collect());
+                            }
+                            None => list.push((f, [tri.iter().copied().collect()].into_iter().collect())),
                         }
-                        None => list.push((prism, [tri.iter().copied().collect()].into_iter().collect())),
                     }
                 }
             }
@@ -223,7 +365,7 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     let res = snow.resources();
     let surface = SnowSurface { surface: &res.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
     let faces = snowpack::render::shell::ShellPatch { side, stride: 2 }.faces();
-    let (gpu, _, _) = construct_on_gpu(ctx, &params, &[BaseVertex::default()], &faces, Some(&surface));
+    let (gpu, gpu_tetras, gpu_corners) = construct_on_gpu(ctx, &params, &[BaseVertex::default()], &faces, Some(&surface));
     let texels: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("surface"));
     let cpu = cpu::shell_vertices::shell_vertices(&params, &[], &texels, snow.terrain());
     for (g, c) in gpu.iter().zip(&cpu) {
@@ -249,6 +391,70 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     for t in &open {
         assert!((t - 0.12).abs() < 1e-4, "on open snow the shell is {t} m thick, expected 0.12 m");
     }
+    // The tetrahedra over real snow, pressed flat in the trench included:
+    // every one drawn, with an accurate map, as on the CPU.
+    let tetra_params = TetraParams { faces: faces.len() as u32 / 3, count: params.count, _pad: [0; 2] };
+    let (cpu_tetras, cpu_corners) = cpu::shell_tetrahedra::shell_tetrahedra(&tetra_params, &faces, &gpu);
+    let stats = check_tetrahedra(params.count, &faces, &gpu, (&gpu_tetras, &gpu_corners), (&cpu_tetras, &cpu_corners));
+    eprintln!("shell over the trail: {stats:?}");
+    assert_eq!(stats.skipped, 0, "a tetrahedron over the snow is too flat to draw: {stats:?}");
+}
+
+/// Shell vertices on a square grid of `side` x `side` at `spacing` from
+/// `corner`, each offset along `normal(i, j)` by `thickness(i, j)`.
+fn grid_shell(side: u32, spacing: f32, corner: Vec3, normal: impl Fn(u32, u32) -> Vec3, thickness: impl Fn(u32, u32) -> f32) -> Vec<ShellVertex> {
+    let mut vertices = Vec::new();
+    for i in 0..side {
+        for j in 0..side {
+            let base = corner + Vec3::new(j as f32 * spacing, 0.0, i as f32 * spacing);
+            let top = base + normal(i, j).normalize() * thickness(i, j);
+            vertices.push(ShellVertex { base: base.extend(j as f32 * 0.25).to_array(), top: top.extend(i as f32 * 0.25).to_array() });
+        }
+    }
+    vertices
+}
+
+#[test]
+fn flat_and_sliver_tetrahedra_are_skipped_and_every_map_is_finite_and_accurate() {
+    let Some(ctx) = testing::gpu() else { return };
+    let _turn = gpu_turn();
+    let side = 5;
+    let faces = snowpack::render::shell::ShellPatch { side, stride: 2 }.faces();
+    let check = |vertices: &[ShellVertex], faces: &[u32]| {
+        let count = vertices.len() as u32;
+        let (gpu_tetras, gpu_corners) = tetrahedra_on_gpu(ctx, count, vertices, faces);
+        let params = TetraParams { faces: faces.len() as u32 / 3, count, _pad: [0; 2] };
+        let (cpu_tetras, cpu_corners) = cpu::shell_tetrahedra::shell_tetrahedra(&params, faces, vertices);
+        let stats = check_tetrahedra(count, faces, vertices, (&gpu_tetras, &gpu_corners), (&cpu_tetras, &cpu_corners));
+        (stats, gpu_tetras)
+    };
+    // A kilometre from the origin, where f32 positions are 61 um apart: the
+    // snow's shell pressed ever flatter, down to no thickness at all. 1e-7 m
+    // rounds away (the top lands on the base), 2e-5 m is a shell 1/6000 of
+    // its spacing thin; down to 2e-4 m the maps are good enough to draw.
+    let corner = Vec3::new(1000.0, 20.0, -1000.0);
+    for (h, drawn) in [(0.12, true), (0.018, true), (1e-3, true), (2e-4, true), (2e-5, false), (1e-7, false), (0.0, false)] {
+        let vertices = grid_shell(side, 0.125, corner, |_, _| Vec3::Y, |_, _| h);
+        let (stats, _) = check(&vertices, &faces);
+        eprintln!("uniform shell {h} m thick: {stats:?}");
+        let expected = if drawn { (stats.drawn + stats.skipped, 0) } else { (0, stats.drawn + stats.skipped) };
+        assert_eq!((stats.drawn, stats.skipped), expected, "a shell {h} m thick");
+    }
+    // Thickness and tilt changing from vertex to vertex (a trench's wall):
+    // prisms twist, some tetrahedra turn into slivers or inside out.
+    for (tilt, scale) in [(0.6, 0.12), (1.5, 0.12), (3.0, 0.05)] {
+        let vertices = grid_shell(side, 0.125, corner, |i, j| Vec3::new(tilt * ((i * 7 + j * 3) % 5) as f32 / 4.0 - tilt / 2.0, 1.0, tilt * ((i * 3 + j * 5) % 4) as f32 / 3.0 - tilt / 2.0), |i, j| scale * [1.0, 0.15, 1e-3, 0.5, 1e-6][((i + 2 * j) % 5) as usize]);
+        let (stats, _) = check(&vertices, &faces);
+        eprintln!("twisted shell, tilt {tilt}, thickness up to {scale} m: {stats:?}");
+    }
+    // One prism whose middle tetrahedron T1 = (a, b, b', c') is exactly
+    // flat: a, b, b' and c' lie in the plane z = -1000 (so det is 0 in f32
+    // too), while T0 and T2 are proper.
+    let at = |x: f32, y: f32, z: f32| (corner + Vec3::new(x, y, z)).to_array();
+    let vertex = |base: [f32; 3], top: [f32; 3]| ShellVertex { base: [base[0], base[1], base[2], 0.0], top: [top[0], top[1], top[2], 0.0] };
+    let prism = [vertex(at(0.0, 0.0, 0.0), at(0.0, 0.1, 0.06)), vertex(at(0.125, 0.0, 0.0), at(0.125, 0.1, 0.0)), vertex(at(0.0, 0.0, 0.125), at(0.0625, 0.1, 0.0))];
+    let (stats, tetras) = check(&prism, &[0, 1, 2]);
+    assert_eq!(tetras.iter().map(|t| t.origin[3]).collect::<Vec<_>>(), [1.0, 0.0, 1.0], "only the flat middle tetrahedron is skipped: {stats:?}");
 }
 
 #[test]

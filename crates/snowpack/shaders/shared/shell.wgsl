@@ -14,7 +14,9 @@ struct ShellVertex {
 // origin.xyz) for i = 1..3 and lambda_0 = 1 - their sum. Its rows are the
 // tetrahedron's planes, which give a ray its exit; relative to corner 0 so
 // the large world coordinates cancel before the steep gradients multiply.
-// origin.w is 1, or 0 for a degenerate tetrahedron (not drawn).
+// origin.w is 1, or 0 for a tetrahedron too flat for an accurate map in f32
+// (shape ratio over MAX_SHAPE_RATIO): its map is zero and its twelve corner
+// indices are one vertex, so it draws nothing.
 struct Tetra {
     origin: vec4<f32>,
     bary: array<vec4<f32>, 3>,

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::render::shell::tetrahedra::{Tetra, TetraParams, CORNERS_PER_TETRA};
+use crate::render::shell::tetrahedra::{Tetra, TetraParams, CORNERS_PER_TETRA, MAX_SHAPE_RATIO};
 use crate::render::shell::vertices::ShellVertex;
 
 /// Corner `c` of tetrahedron `t` of the prism over a face with vertex indices
@@ -18,7 +18,8 @@ pub fn prism_corner(sorted: [u32; 3], count: u32, t: u32, c: u32) -> u32 {
     corners[(t * 4 + c) as usize]
 }
 
-/// Faces of a tetrahedron as (corner, corner, corner, opposite corner), as in the shader.
+/// Faces of a tetrahedron as (corner, corner, corner, opposite corner), as in
+/// the shader: wound counter-clockwise seen from outside when det(e1, e2, e3) > 0.
 const TETRA_FACES: [[usize; 4]; 4] = [[1, 2, 3, 0], [0, 3, 2, 1], [0, 1, 3, 2], [0, 2, 1, 3]];
 
 fn corner_position(vertices: &[ShellVertex], count: u32, index: u32) -> Vec3 {
@@ -48,21 +49,26 @@ pub fn shell_tetrahedra(params: &TetraParams, faces: &[u32], vertices: &[ShellVe
             let p: [Vec3; 4] = idx.map(|i| corner_position(vertices, params.count, i));
             let mut tet = Tetra { tex: idx.map(|i| corner_texture(vertices, params.count, i)), ..Tetra::default() };
             let (e1, e2, e3) = (p[1] - p[0], p[2] - p[0], p[3] - p[0]);
-            let det = e1.dot(e2.cross(e3));
+            let (c1, c2, c3) = (e2.cross(e3), e3.cross(e1), e1.cross(e2));
+            let det = e1.dot(c1);
             let slot = 3 * f + t as usize;
             let out = &mut corners[slot * 12..slot * 12 + 12];
-            if det.abs() <= 1e-18 {
+            // Too flat for an accurate map (shape ratio over MAX_SHAPE_RATIO,
+            // det = 0 included): marked and collapsed, as in the shader.
+            let longest = e1.length_squared().max(e2.length_squared()).max(e3.length_squared());
+            let drawn = det.abs() * MAX_SHAPE_RATIO > longest * longest.sqrt();
+            if !drawn {
                 tet.origin = p[0].extend(0.0).to_array();
                 tetras[slot] = tet;
                 out.fill(idx[0]);
                 continue;
             }
             tet.origin = p[0].extend(1.0).to_array();
-            tet.bary = [(e2.cross(e3) / det).extend(0.0).to_array(), (e3.cross(e1) / det).extend(0.0).to_array(), (e1.cross(e2) / det).extend(0.0).to_array()];
+            tet.bary = [c1, c2, c3].map(|c| (c / det).extend(0.0).to_array());
             tetras[slot] = tet;
+            // Outward from the one sign of det, as in the shader.
+            let flip = det < 0.0;
             for (face, q) in TETRA_FACES.iter().enumerate() {
-                let normal = (p[q[1]] - p[q[0]]).cross(p[q[2]] - p[q[0]]);
-                let flip = normal.dot(p[q[3]] - p[q[0]]) > 0.0;
                 out[3 * face] = idx[q[0]];
                 out[3 * face + 1] = if flip { idx[q[2]] } else { idx[q[1]] };
                 out[3 * face + 2] = if flip { idx[q[1]] } else { idx[q[2]] };

@@ -21,13 +21,22 @@ pub struct TetraParams {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Tetra {
-    /// Corner 0 (world); w: 1, or 0 if degenerate (flat) and not drawn.
+    /// Corner 0 (world); w: 1, or 0 if too flat for an accurate map
+    /// ([`MAX_SHAPE_RATIO`]): then the map is zero and nothing is drawn.
     pub origin: [f32; 4],
     /// Rows of the map world → barycentric λ1..λ3, relative to `origin` (xyz; w unused).
     pub bary: [[f32; 4]; 3],
     /// Texture coordinates (u, v, w) of the four corners (w: 0 base, 1 top).
     pub tex: [[f32; 4]; 4],
 }
+
+/// Largest shape ratio of a drawn tetrahedron: the longest edge from corner
+/// 0, cubed, over |det(e1, e2, e3)| (six times the volume). The ratio bounds
+/// the f32 error of the world → barycentric map at points inside the
+/// tetrahedron by 45 u × ratio (u = 2⁻²⁴; see `docs/shell.md`): at 4096,
+/// 1.1 % of the tetrahedron. Flatter ones, exactly flat or slivers about
+/// 1/4096 of their edges thin, are marked (`origin[3] = 0`) and not drawn.
+pub const MAX_SHAPE_RATIO: f32 = 4096.0;
 
 /// Indices per tetrahedron in the corner buffer: four faces of three.
 pub const CORNERS_PER_TETRA: u32 = 12;
