@@ -30,6 +30,32 @@
 //! # }
 //! ```
 //!
+//! Without a device of its own (tools, tests, a headless server), snowpack
+//! picks an adapter itself; this runs as a test:
+//!
+//! ```
+//! # fn main() -> Result<(), snowpack::SnowError> {
+//! use glam::{DVec2, Vec2, Vec3};
+//! use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
+//!
+//! # if GpuContext::new_headless(&AdapterRequest::from_env()).is_err() && !snowpack::testing::gpu_required() { return Ok(()) }
+//! let ctx = GpuContext::new_headless(&AdapterRequest::from_env())?;
+//! let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
+//! let mut snow = SnowDeformation::new(&ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
+//! // A ball whose bottom is 0.2 m above the ground presses 0.3 m of the 0.5 m of snow away.
+//! let ball = Deformer::Sphere { center: Vec3::new(1.0, 0.6, 1.0), radius: 0.4 };
+//! let ticket = snow.query_points(&[Vec2::new(1.0, 1.0), Vec2::new(-3.0, -3.0)]);
+//! snow.step(&ctx, &[ball], 1.0 / 60.0)?;
+//! snow.finish(&ctx)?; // a test may wait; a game's frame never does
+//! let answers = snow.point_answers().expect("answered");
+//! assert_eq!(answers.ticket, ticket);
+//! let (under, away) = (answers.samples[0].unwrap(), answers.samples[1].unwrap());
+//! assert!((under.depth_m() - 0.2).abs() < 0.01 && (under.compaction() - 0.6).abs() < 0.02);
+//! assert!((away.depth_m() - 0.5).abs() < 1e-3 && away.compaction() < 1e-3);
+//! # Ok(())
+//! # }
+//! ```
+//!
 //! `docs/integration.md` in the repository walks through adopting it.
 
 pub mod accumulate;
