@@ -282,13 +282,25 @@ impl TileStreamer {
                 None
             }
         };
+        Self::with_channels(side, dir, config, (Some(request_tx), reply_rx, worker), stats)
+    }
+
+    /// A streamer with an empty cache around its channels to a worker
+    /// (`None` requests: memory only, no worker).
+    fn with_channels(
+        side: u32,
+        dir: PathBuf,
+        config: StreamerConfig,
+        (requests, replies, worker): (Option<Sender<Request>>, Receiver<Reply>, Option<JoinHandle<()>>),
+        stats: StoreStats,
+    ) -> Self {
         Self {
             side,
             dir,
-            memory_only: false,
+            memory_only: requests.is_none(),
             config,
-            requests: Some(request_tx),
-            replies: reply_rx,
+            requests,
+            replies,
             worker,
             gone: false,
             seq: 0,
@@ -321,29 +333,7 @@ impl TileStreamer {
     pub fn in_memory(side: u32, config: StreamerConfig) -> Self {
         // A channel whose sender is gone: nothing is ever asked or answered.
         let (_, replies) = mpsc::channel();
-        Self {
-            side,
-            dir: PathBuf::new(),
-            memory_only: true,
-            config,
-            requests: None,
-            replies,
-            worker: None,
-            gone: false,
-            seq: 0,
-            cache: HashMap::new(),
-            by_use: BTreeSet::new(),
-            wanted: BTreeSet::new(),
-            wanted_bytes: 0,
-            tick: 0,
-            memory_bytes: 0,
-            absent: HashSet::new(),
-            loading: HashMap::new(),
-            unwritten: HashMap::new(),
-            errors: Vec::new(),
-            flush_error: None,
-            stats: StoreStats::default(),
-        }
+        Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
     }
 
     /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
