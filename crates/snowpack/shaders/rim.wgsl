@@ -1,4 +1,5 @@
-// Rim pass: the displayed height before blur, in window-local order.
+// Rim pass: the displayed height before blur, in window-local order, into
+// the height word of `surface` (even words; the normal words are left alone).
 // Mode 0 (depth, decals): Hanák's cubic remap (eq. 4.1),
 //   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
 // applied to the normalised snow depth x and blended in by `elevation`:
@@ -26,7 +27,8 @@ struct RimParams {
 @group(0) @binding(0) var<uniform> params: RimParams;
 @group(0) @binding(1) var<storage, read> terrain: array<f32>;
 @group(0) @binding(2) var<storage, read> snow: array<f32>;
-@group(0) @binding(3) var<storage, read_write> shown: array<f32>;
+// Viewed as f32 words: texel t's height is word 2t (see normals.wgsl).
+@group(0) @binding(3) var<storage, read_write> surface: array<f32>;
 @group(0) @binding(4) var<storage, read> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read> fallen: array<f32>;
 
@@ -83,5 +85,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             out += point_rim(stamps[s], rest);
         }
     }
-    shown[i * params.resolution + j] = out;
+    surface[2u * (i * params.resolution + j)] = out;
 }

@@ -6,10 +6,13 @@
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`) |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
-//! | `capture` | Depth32Float texture | window-local | lowest actor surface, linear in height |
-//! | `shown` | f32 per texel | window-local | displayed height (rims, then blurred in place via `scratch`) |
-//! | `scratch` | f32 per texel | window-local | blur's intermediate |
+//! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
 //! | `surface` | (f32 bits, snorm16x2) per texel | window-local | displayed height and normal for the renderer |
+//!
+//! `surface` is also the rim and blur passes' working memory: the rim writes
+//! the height words, the blur's x axis writes the normal words (as f32
+//! scratch) and its z axis the height words again, then the normals pass
+//! overwrites the normal words. No separate displayed-height or blur buffer.
 
 use crate::gpu::layout;
 use crate::{SnowParams, TerrainSource};
@@ -17,8 +20,16 @@ use crate::{SnowParams, TerrainSource};
 use super::terrain_bake::TerrainBakePass;
 use super::window::TerrainParams;
 
-/// Format of the capture depth target.
-pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Format of the capture depth target: 16-bit unorm, linear in height over
+/// the capture range `[low_m, high_m]`, so one code is `(high_m - low_m) /
+/// 65535` (92 µm over the 6 m range of flat ground with 0.5 m of snow) and a
+/// captured height is within half of that of the actor's surface. The
+/// footprints stored by the points technique are quantised over the same
+/// range with the same step (`shared/stamp.wgsl`).
+pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
+
+/// Codes of the capture depth target ([`CAPTURE_FORMAT`]).
+pub const CAPTURE_CODES: f32 = 65535.0;
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {
@@ -40,10 +51,6 @@ pub struct DeformResources {
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
-    /// Displayed height, window-local.
-    pub shown: wgpu::Buffer,
-    /// Blur intermediate, window-local.
-    pub scratch: wgpu::Buffer,
     /// Packed height and normal, window-local; what a renderer samples.
     pub surface: wgpu::Buffer,
 }
@@ -108,8 +115,6 @@ impl DeformResources {
             terrain_params,
             capture,
             capture_view,
-            shown: height_buffer(device, "shown", texels),
-            scratch: height_buffer(device, "blur scratch", texels),
             surface: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("surface"),
                 size: texels * 8,
@@ -122,7 +127,7 @@ impl DeformResources {
     /// Bytes of GPU memory held, by resource.
     #[must_use]
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 4;
+        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         vec![
             ("terrain", self.terrain.size()),
             ("snow", self.snow.size()),
@@ -130,8 +135,6 @@ impl DeformResources {
             ("fallen", self.fallen.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
-            ("shown", self.shown.size()),
-            ("scratch", self.scratch.size()),
             ("surface", self.surface.size()),
         ]
     }

@@ -53,7 +53,7 @@ pub struct RimPass {
 }
 
 impl RimPass {
-    /// Builds the pipeline and binds it to `res` (output: `res.shown`).
+    /// Builds the pipeline and binds it to `res` (output: the height words of `res.surface`).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
@@ -78,7 +78,7 @@ impl RimPass {
                 params.as_entire_binding(),
                 res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
-                res.shown.as_entire_binding(),
+                res.surface.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 res.fallen.as_entire_binding(),
             ],
