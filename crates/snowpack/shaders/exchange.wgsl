@@ -12,7 +12,7 @@ struct ExchangeParams {
     resolution: u32,
     side: u32,              // tile side (texels)
     slots_per_side: u32,
-    flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use)
+    flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
     _pad0: u32,
     _pad1: u32,
@@ -22,6 +22,7 @@ struct ExchangeParams {
 
 const STASH: u32 = 1u;
 const USE_FALLEN: u32 = 2u;
+const HAS_STAMPS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: ExchangeParams;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
@@ -43,6 +44,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let res = i32(params.resolution);
     let s = storage_index(params.origin, params.resolution, i, j);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;
+    let has_stamps = (params.flags & HAS_STAMPS) != 0u;
     let n = params.slots_per_side;
     let side = params.side;
     if (params.flags & STASH) != 0u {
@@ -52,7 +54,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
         tiles[tile_index(g, side, n, PLANE_SNOW)] = bitcast<u32>(snow[s]);
-        tiles[tile_index(g, side, n, PLANE_STAMPS)] = stamps[s];
+        var st = 0xffffffffu; // no footprint buffer: none
+        if has_stamps {
+            st = stamps[s];
+        }
+        tiles[tile_index(g, side, n, PLANE_STAMPS)] = st;
         tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(terrain[s]);
         if use_fallen {
             tiles[tile_index(g, side, n, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
@@ -60,7 +66,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
         snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_SNOW)]);
-        stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+        if has_stamps {
+            stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+        }
         terrain[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
         if use_fallen {
             fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_FALLEN)]);

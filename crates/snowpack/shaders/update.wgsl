@@ -36,6 +36,8 @@ const USE_CAPTURE: u32 = 1u;
 const USE_STAMPS: u32 = 2u;
 const USE_FALLEN: u32 = 4u;
 const USE_SKY: u32 = 8u;
+// The window has a footprint buffer (allocated for points and combined, kept after).
+const HAS_STAMPS: u32 = 16u;
 const SKY_BIAS_M: f32 = 0.02;
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
@@ -93,7 +95,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             h = min(h, max(ground, actor));
         }
     }
-    let st = stamps[s];
+    var st = STAMP_EMPTY;
+    if (params.flags & HAS_STAMPS) != 0u {
+        st = stamps[s];
+    }
     if st != STAMP_EMPTY {
         let hq = st >> 16u;
         let fq = st & 0xffffu;

@@ -1,6 +1,7 @@
 // Window pass: writes terrain height and fresh snow into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
-// columns), and nothing else; their footprints are cleared. New texels get
+// columns), and nothing else; their footprints are cleared (when the window
+// has a footprint buffer: the points and combined techniques). New texels get
 // the snowfall so far (as if the sky reached them). CPU twin: src/cpu/window.rs.
 
 struct WindowParams {
@@ -10,7 +11,7 @@ struct WindowParams {
     depth_m: f32,
     rect_count: u32,
     fallen_m: f32,          // snowfall so far on open ground, given to new texels
-    flags: u32,             // 1: write `fallen`
+    flags: u32,             // 1: write `fallen`, 2: write `stamps`
 
     rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
 }
@@ -42,5 +43,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     if (params.flags & 1u) != 0u {
         fallen[s] = params.fallen_m;
     }
-    stamps[s] = 0xffffffffu; // no footprint yet
+    if (params.flags & 2u) != 0u {
+        stamps[s] = 0xffffffffu; // no footprint yet
+    }
 }

@@ -40,6 +40,8 @@ fn setup(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, Terra
         refill_m_per_s: rng.range(0.0, 0.05),
         elevation: rng.range(0.0, 1.5),
         blur: true,
+        // Every buffer, the footprints included.
+        technique: snowpack::Technique::Combined,
         ..SnowParams::default()
     };
     let terrain = TerrainSource::Noise(NoiseTerrain {
@@ -105,6 +107,7 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
             resolution: params.resolution,
             texel_m: params.texel_m(),
             depth_m: params.depth_m,
+            flags: WindowParams::WRITE_STAMPS,
             ..WindowParams::default()
         };
         let mut enc = encoder(ctx);
@@ -159,7 +162,7 @@ fn capture_and_update_match_cpu() {
         refill_m: rng.range(0.0, 0.1),
         low_m: cparams.low_m,
         high_m: cparams.high_m,
-        flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_STAMPS,
+        flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_STAMPS | UpdateParams::HAS_STAMPS,
         refill_quanta: rng.range(0.0, 40.0) as u32,
         ..UpdateParams::default()
     };

@@ -64,7 +64,9 @@ fn exchange_matches_cpu() {
     let (resolution, side) = (64u32, 16u32);
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
-        let params = SnowParams { extent_m: 8.0, resolution, snowfall: Some(snowpack::accumulate::Snowfall::default()), ..SnowParams::default() };
+        // The short move with a footprint buffer (points), the jump without one (depth).
+        let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
+        let params = SnowParams { extent_m: 8.0, resolution, snowfall: Some(snowpack::accumulate::Snowfall::default()), technique, ..SnowParams::default() };
         let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &TerrainSource::Flat { height_m: 0.0 });
         let texels = (resolution * resolution) as usize;
         let terrain = floats(&mut rng, texels, -1.0, 1.0);
@@ -73,7 +75,10 @@ fn exchange_matches_cpu() {
         let fallen = floats(&mut rng, texels, 0.0, 0.3);
         ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
-        ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+        assert_eq!(res.has_stamps(), !jump);
+        if res.has_stamps() {
+            ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+        }
         ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
         let mut tiles: Vec<u32> = (0..grid.slot_count() * PLANES * grid.area()).map(|_| rng.next_u64() as u32).collect();
         let tiles_gpu = storage(ctx, &tiles);
@@ -89,7 +94,7 @@ fn exchange_matches_cpu() {
             resolution,
             side,
             slots_per_side: grid.slots_per_side(),
-            flags: ExchangeParams::USE_FALLEN,
+            flags: ExchangeParams::USE_FALLEN | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
             ..ExchangeParams::default()
         };
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
@@ -108,7 +113,9 @@ fn exchange_matches_cpu() {
         assert_eq!(differing(&read_u32(ctx, &tiles_gpu), &tiles, 0.0), 0, "tiles differ (jump {jump}); seed {seed}");
         assert_eq!(differing(&read_u32(ctx, &res.snow), bytemuck::cast_slice(&snow_f), 0.0), 0, "snow differs; seed {seed}");
         assert_eq!(differing(&read_u32(ctx, &res.terrain), bytemuck::cast_slice(&terrain_f), 0.0), 0, "terrain differs; seed {seed}");
-        assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
+        if res.has_stamps() {
+            assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
+        }
         assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
     }
 }

@@ -33,6 +33,7 @@ pub struct WindowBuffers<'a> {
 pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &mut WindowBuffers<'_>) {
     let res = p.resolution as i32;
     let use_fallen = p.flags & ExchangeParams::USE_FALLEN != 0;
+    let has_stamps = p.flags & ExchangeParams::HAS_STAMPS != 0;
     let (side, n) = (p.side, p.slots_per_side);
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
@@ -43,7 +44,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let o = p.old_origin;
                     let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
                     tiles[tile_index(g, side, n, PLANE_SNOW)] = w.snow[s].to_bits();
-                    tiles[tile_index(g, side, n, PLANE_STAMPS)] = w.stamps[s];
+                    tiles[tile_index(g, side, n, PLANE_STAMPS)] = if has_stamps { w.stamps[s] } else { crate::cpu::stamp::STAMP_EMPTY };
                     tiles[tile_index(g, side, n, PLANE_TERRAIN)] = w.terrain[s].to_bits();
                     if use_fallen {
                         tiles[tile_index(g, side, n, PLANE_FALLEN)] = w.fallen[s].to_bits();
@@ -51,7 +52,9 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                 } else {
                     let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
                     w.snow[s] = f32::from_bits(tiles[tile_index(g, side, n, PLANE_SNOW)]);
-                    w.stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+                    if has_stamps {
+                        w.stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+                    }
                     w.terrain[s] = f32::from_bits(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
                     if use_fallen {
                         w.fallen[s] = f32::from_bits(tiles[tile_index(g, side, n, PLANE_FALLEN)]);

@@ -32,7 +32,9 @@ pub fn expose(
                 let ground = terrain_src.height_at(x, z);
                 terrain[s] = ground;
                 snow[s] = ground + p.depth_m + p.fallen_m;
-                stamps[s] = super::stamp::STAMP_EMPTY;
+                if p.flags & WindowParams::WRITE_STAMPS != 0 {
+                    stamps[s] = super::stamp::STAMP_EMPTY;
+                }
                 if p.flags & WindowParams::WRITE_FALLEN != 0 {
                     fallen[s] = p.fallen_m;
                 }

@@ -38,6 +38,9 @@ impl ExchangeParams {
     pub const STASH: u32 = 1;
     /// The world has snowfall: the `fallen` plane is exchanged too.
     pub const USE_FALLEN: u32 = 2;
+    /// `flags`: the window has a footprint buffer; without it, stashed
+    /// tiles get no footprints and loaded tiles' footprints are not copied.
+    pub const HAS_STAMPS: u32 = 4;
 }
 
 /// One direction of the exchange, with its own uniforms (both run in one frame).

@@ -4,7 +4,7 @@
 //! |---|---|---|---|
 //! | `terrain` | f32 per texel | toroidal | terrain height (m) |
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
-//! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`) |
+//! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
 //! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
 //! | `surface` | (f32 bits, snorm16x2) per texel | window-local | displayed height and normal for the renderer |
@@ -39,7 +39,10 @@ pub struct DeformResources {
     pub terrain: wgpu::Buffer,
     /// Persistent snow height per texel, toroidal.
     pub snow: wgpu::Buffer,
-    /// Packed footprints (height16 << 16 | foot16) per texel, toroidal; persistent.
+    /// Packed footprints (height16 << 16 | foot16) per texel, toroidal;
+    /// persistent. Allocated for the points and combined techniques (at
+    /// creation, or by [`Self::allocate_stamps`] on the first switch to one);
+    /// until then a 4-byte stand-in that no pass reads ([`Self::has_stamps`]).
     pub stamps: wgpu::Buffer,
     /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
     pub fallen: wgpu::Buffer,
@@ -108,7 +111,7 @@ impl DeformResources {
             terrain: height_buffer(device, "terrain", texels),
             snow: height_buffer(device, "snow", texels),
             // Every texel is written by the window pass on first placement.
-            stamps: height_buffer(device, "stamps", texels),
+            stamps: height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 }),
             // Zeroed by wgpu; only read and written while `params.snowfall` is set.
             fallen: height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 }),
             heightmap,
@@ -122,6 +125,26 @@ impl DeformResources {
                 mapped_at_creation: false,
             }),
         }
+    }
+
+    /// Whether the footprint buffer is allocated (one `u32` per texel).
+    #[must_use]
+    pub fn has_stamps(&self) -> bool {
+        self.stamps.size() == u64::from(self.resolution) * u64::from(self.resolution) * 4
+    }
+
+    /// Allocates the footprint buffer, every texel without a footprint, when
+    /// it is not yet; returns whether it did (passes bound to the old one
+    /// must then be bound again).
+    pub fn allocate_stamps(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> bool {
+        if self.has_stamps() {
+            return false;
+        }
+        let texels = u64::from(self.resolution) * u64::from(self.resolution);
+        self.stamps = height_buffer(device, "stamps", texels);
+        let empty = vec![u32::MAX; texels as usize];
+        queue.write_buffer(&self.stamps, 0, bytemuck::cast_slice(&empty));
+        true
     }
 
     /// Bytes of GPU memory held, by resource.

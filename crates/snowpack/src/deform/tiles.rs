@@ -210,6 +210,11 @@ pub struct TileStreaming {
 }
 
 impl TileStreaming {
+    /// Binds the exchange to `res` again (after its footprint buffer was allocated).
+    pub fn rebind(&mut self, device: &wgpu::Device, res: &DeformResources) {
+        self.exchange = ExchangePass::new(device, res, &self.tiles);
+    }
+
     /// Resident slots for the window of `res`, behind `streamer`.
     pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer, (depth_m, use_fallen): (f32, bool)) -> Result<Self, SnowError> {
         let grid = TileGrid::new(res.resolution, streamer.side())?;
@@ -338,7 +343,8 @@ impl TileStreaming {
             return;
         }
         let to_i32 = |o: [i64; 2]| [o[0] as i32, o[1] as i32];
-        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
+        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
+            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
         let base = ExchangeParams {
             origin: to_i32(origin),
             old_origin: to_i32(old.unwrap_or(origin)),
@@ -558,7 +564,9 @@ impl TileStreaming {
         let o = [origin[0] as i32, origin[1] as i32];
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
         let mut timer = GpuTimer::disabled();
-        let flags = ExchangeParams::STASH | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
+        let flags = ExchangeParams::STASH
+            | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
+            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
         let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);

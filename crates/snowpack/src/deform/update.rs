@@ -57,6 +57,9 @@ impl UpdateParams {
     pub const USE_FALLEN: u32 = 4;
     /// Test each texel against the occlusion depth (objects hide the sky).
     pub const USE_SKY: u32 = 8;
+    /// `flags`: the window has a footprint buffer (refill it; apply it with
+    /// [`Self::USE_STAMPS`]). Without it `stamps` is a 4-byte stand-in, never read.
+    pub const HAS_STAMPS: u32 = 16;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.

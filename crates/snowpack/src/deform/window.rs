@@ -114,6 +114,8 @@ pub struct WindowParams {
 impl WindowParams {
     /// Write the snowfall so far into `fallen` of new texels.
     pub const WRITE_FALLEN: u32 = 1;
+    /// `flags`: clear the footprints of new texels (the window has a footprint buffer).
+    pub const WRITE_STAMPS: u32 = 2;
 }
 
 /// Uniforms of `shared/terrain.wgsl`.

@@ -1,0 +1,60 @@
+//! GPU memory of a default window (64 m at 1024²), per resource, as
+//! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
+//! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
+//! allocates per texel.
+
+use glam::DVec2;
+use snowpack::{testing, SnowDeformation, SnowParams, Technique, TerrainSource};
+
+const MIB: f64 = 1024.0 * 1024.0;
+
+fn table(snow: &SnowDeformation, what: &str) -> u64 {
+    let list = snow.memory_bytes();
+    let total: u64 = list.iter().map(|(_, b)| b).sum();
+    println!("{what}:");
+    for (name, bytes) in &list {
+        println!("  {name:<16} {bytes:>10} B  {:>7.3} MiB", *bytes as f64 / MIB);
+    }
+    println!("  {:<16} {total:>10} B  {:>7.3} MiB", "total", total as f64 / MIB);
+    total
+}
+
+fn bytes_of(snow: &SnowDeformation, name: &str) -> u64 {
+    snow.memory_bytes().iter().find(|(n, _)| *n == name).map_or_else(|| panic!("no {name} in memory_bytes"), |(_, b)| *b)
+}
+
+#[test]
+fn default_window_memory_per_technique() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams::default();
+    assert_eq!((params.extent_m, params.resolution, params.technique), (64.0, 1024, Technique::Depth));
+    let texels = u64::from(params.resolution).pow(2);
+    let terrain = TerrainSource::Flat { height_m: 0.0 };
+
+    let mut depth = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("depth window");
+    let depth_total = table(&depth, "depth");
+    // Per texel: terrain 4, snow 4, capture 2 (Depth16Unorm), surface 8;
+    // no footprint buffer, no decal layer, no blur or displayed-height buffer.
+    assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
+    assert_eq!(bytes_of(&depth, "surface"), 8 * texels);
+    assert_eq!(bytes_of(&depth, "stamps"), 4);
+    assert_eq!(bytes_of(&depth, "decal layer"), 4);
+    let per_texel = 4 + 4 + 2 + 8;
+    assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth total {depth_total}");
+
+    let combined = SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
+    let combined_total = table(&combined, "combined");
+    assert_eq!(bytes_of(&combined, "stamps"), 4 * texels);
+    assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");
+
+    // Switching allocates what the new technique needs at the next frame, and keeps it.
+    depth.set_technique(Technique::Points);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("points frame");
+    assert_eq!(bytes_of(&depth, "stamps"), 4 * texels);
+    depth.set_technique(Technique::Decals);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("decals frame");
+    assert_eq!(bytes_of(&depth, "decal layer"), 4 * texels);
+    depth.set_technique(Technique::Depth);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("depth frame");
+    assert_eq!(table(&depth, "depth after points and decals"), depth_total + 8 * texels - 8);
+}
