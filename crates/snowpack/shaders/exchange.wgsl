@@ -14,7 +14,7 @@ struct ExchangeParams {
     slots_per_side: u32,
     flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
-    _pad0: u32,
+    texel_m: f32,           // where the terrain is evaluated (stash)
     _pad1: u32,
     _pad2: u32,
     rects: array<vec4<u32>, 2>, // exposed window-local (row0, col0, rows, cols)
@@ -26,10 +26,12 @@ const HAS_STAMPS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: ExchangeParams;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
-@group(0) @binding(2) var<storage, read_write> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl): a stashed tile's terrain plane.
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
 
 const WORKGROUP: u32 = 256u;
 
@@ -59,7 +61,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
             st = stamps[s];
         }
         tiles[tile_index(g, side, n, PLANE_STAMPS)] = st;
-        tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(terrain[s]);
+        tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
         if use_fallen {
             tiles[tile_index(g, side, n, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
@@ -69,7 +71,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if has_stamps {
             stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
         }
-        terrain[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
         if use_fallen {
             fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_FALLEN)]);
         }

@@ -44,11 +44,13 @@ const SKY_BIAS_M: f32 = 0.02;
 // The depth target is bound as an unfilterable float texture: GLSL has no
 // texelFetch for depth textures, and this binding works on every backend.
 @group(0) @binding(1) var capture: texture_2d<f32>;
-@group(0) @binding(2) var<storage, read> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var sky: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -72,7 +74,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = storage_index(params.origin, params.resolution, i, j);
-    let ground = terrain[s];
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let old = snow[s];
     var visible = 1.0;
     if (params.flags & USE_SKY) != 0u {

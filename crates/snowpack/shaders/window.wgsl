@@ -1,4 +1,4 @@
-// Window pass: writes terrain height and fresh snow into the texels that the
+// Window pass: writes fresh snow (terrain height + rest depth) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
 // columns), and nothing else; their footprints are cleared (when the window
 // has a footprint buffer: the points and combined techniques). New texels get
@@ -19,10 +19,9 @@ struct WindowParams {
 @group(0) @binding(0) var<uniform> params: WindowParams;
 @group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> terrain: array<f32>;
-@group(0) @binding(4) var<storage, read_write> snow: array<f32>;
-@group(0) @binding(5) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -35,10 +34,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let i = texel.x;
     let j = texel.y;
     let s = storage_index(params.origin, params.resolution, i, j);
-    let x = (f32(params.origin.x + i32(j)) + 0.5) * params.texel_m;
-    let z = (f32(params.origin.y + i32(i)) + 0.5) * params.texel_m;
-    let ground = terrain_height(terrain_params, x, z);
-    terrain[s] = ground;
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     snow[s] = ground + params.depth_m + params.fallen_m;
     if (params.flags & 1u) != 0u {
         fallen[s] = params.fallen_m;

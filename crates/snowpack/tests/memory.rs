@@ -33,13 +33,15 @@ fn default_window_memory_per_technique() {
 
     let mut depth = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("depth window");
     let depth_total = table(&depth, "depth");
-    // Per texel: terrain 4, snow 4, capture 2 (Depth16Unorm), surface 8;
-    // no footprint buffer, no decal layer, no blur or displayed-height buffer.
+    // Per texel: snow 4, capture 2 (Depth16Unorm), surface 8; no terrain copy
+    // (evaluated from its source), no footprint buffer, no decal layer, no
+    // blur or displayed-height buffer.
+    assert!(depth.memory_bytes().iter().all(|(name, _)| *name != "terrain"));
     assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
     assert_eq!(bytes_of(&depth, "surface"), 8 * texels);
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
-    let per_texel = 4 + 4 + 2 + 8;
+    let per_texel = 4 + 2 + 8;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth total {depth_total}");
 
     let combined = SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");

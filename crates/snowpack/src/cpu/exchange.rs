@@ -19,8 +19,8 @@ pub fn tile_index(g: [i32; 2], side: u32, n: u32, plane: usize) -> usize {
 /// The window's toroidal buffers the exchange reads and writes.
 #[derive(Debug)]
 pub struct WindowBuffers<'a> {
-    /// Terrain height.
-    pub terrain: &'a mut [f32],
+    /// The terrain's source: a stashed tile's terrain plane is evaluated from it.
+    pub terrain: &'a crate::TerrainSource,
     /// Snow height.
     pub snow: &'a mut [f32],
     /// Packed footprints.
@@ -45,7 +45,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
                     tiles[tile_index(g, side, n, PLANE_SNOW)] = w.snow[s].to_bits();
                     tiles[tile_index(g, side, n, PLANE_STAMPS)] = if has_stamps { w.stamps[s] } else { crate::cpu::stamp::STAMP_EMPTY };
-                    tiles[tile_index(g, side, n, PLANE_TERRAIN)] = w.terrain[s].to_bits();
+                    tiles[tile_index(g, side, n, PLANE_TERRAIN)] = super::window::texel_ground(w.terrain, g, p.texel_m).to_bits();
                     if use_fallen {
                         tiles[tile_index(g, side, n, PLANE_FALLEN)] = w.fallen[s].to_bits();
                     }
@@ -55,7 +55,6 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     if has_stamps {
                         w.stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
                     }
-                    w.terrain[s] = f32::from_bits(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
                     if use_fallen {
                         w.fallen[s] = f32::from_bits(tiles[tile_index(g, side, n, PLANE_FALLEN)]);
                     }

@@ -741,7 +741,7 @@ impl SnowDeformation {
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 use_fallen: u32::from(snowfall.is_some()),
-                _pad: 0,
+                texel_m: p.texel_m(),
             },
         );
         if p.blur {
@@ -888,10 +888,21 @@ impl SnowDeformation {
         Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
     }
 
-    /// Terrain height (m), window-local row-major; blocking.
-    pub fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        let raw = read_buffer(ctx, &self.res.terrain)?;
-        Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
+    /// Terrain height (m) at the texel centres, window-local row-major.
+    /// Evaluated on the CPU from the terrain's source with the GPU's formula
+    /// (`texel_ground`), so they agree to rounding; a mesh terrain uses its
+    /// CPU grid, which the GPU's bake matches but for rasteriser edge texels.
+    /// No GPU buffer holds the terrain per texel. Never fails; the `Result`
+    /// keeps the signature of the other reads.
+    pub fn read_terrain(&self, _ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let r = self.params.resolution;
+        let origin = self.window.origin().unwrap_or([0, 0]);
+        let o = [origin[0] as i32, origin[1] as i32];
+        let texel = self.params.texel_m();
+        Ok((0..r)
+            .flat_map(|i| (0..r).map(move |j| (i, j)))
+            .map(|(i, j)| crate::cpu::window::texel_ground(&self.terrain, [o[0] + j as i32, o[1] + i as i32], texel))
+            .collect())
     }
 
     /// Displayed height (m) and unit normal per texel, window-local; blocking.

@@ -2,7 +2,6 @@
 //!
 //! | resource | format | order | meaning |
 //! |---|---|---|---|
-//! | `terrain` | f32 per texel | toroidal | terrain height (m) |
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
@@ -35,8 +34,8 @@ pub const CAPTURE_CODES: f32 = 65535.0;
 pub struct DeformResources {
     /// Texels per side.
     pub resolution: u32,
-    /// Terrain height per texel, toroidal.
-    pub terrain: wgpu::Buffer,
+    /// Texel size (m).
+    pub texel_m: f32,
     /// Persistent snow height per texel, toroidal.
     pub snow: wgpu::Buffer,
     /// Packed footprints (height16 << 16 | foot16) per texel, toroidal;
@@ -46,7 +45,10 @@ pub struct DeformResources {
     pub stamps: wgpu::Buffer,
     /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
     pub fallen: wgpu::Buffer,
-    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one zero otherwise).
+    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
+    /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
+    /// passes evaluate the ground at texel centres (`texel_ground` in
+    /// `shared/terrain.wgsl`) instead of reading a per-texel copy.
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
@@ -108,7 +110,7 @@ impl DeformResources {
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
         Self {
             resolution: res,
-            terrain: height_buffer(device, "terrain", texels),
+            texel_m: params.texel_m(),
             snow: height_buffer(device, "snow", texels),
             // Every texel is written by the window pass on first placement.
             stamps: height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 }),
@@ -152,7 +154,6 @@ impl DeformResources {
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
         let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         vec![
-            ("terrain", self.terrain.size()),
             ("snow", self.snow.size()),
             ("stamps", self.stamps.size()),
             ("fallen", self.fallen.size()),

@@ -352,6 +352,7 @@ impl TileStreaming {
             side: self.grid.side,
             slots_per_side: self.grid.slots_per_side,
             flags: fallen_flag,
+            texel_m: res.texel_m,
             ..ExchangeParams::default()
         };
         if old.is_some() {
@@ -567,7 +568,7 @@ impl TileStreaming {
         let flags = ExchangeParams::STASH
             | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
             | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
-        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, ..ExchangeParams::default() };
+        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
         let raw = super::pipeline::read_buffer(ctx, &self.tiles)?;

@@ -103,6 +103,7 @@ impl UpdatePass {
                 layout::storage(4, false),
                 layout::depth_texture(5),
                 layout::storage(6, false),
+                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
@@ -119,11 +120,12 @@ impl UpdatePass {
             &[
                 params.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&res.capture_view),
-                res.terrain.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 wgpu::BindingResource::TextureView(sky),
                 res.fallen.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
             ],
         )
     }
