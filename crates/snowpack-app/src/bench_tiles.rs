@@ -81,7 +81,8 @@ fn plough(center: DVec2) -> Deformer {
 
 /// The window moving steadily along x with a plough at its centre, with or without a store.
 pub fn measure_move(ctx: &GpuContext, resolution: u32, store: bool, warmup: u32, frames: u32, scratch: &Path) -> anyhow::Result<MoveRow> {
-    let p = params(resolution, 0.001);
+    // Without a store the window forgets (no memory keeper either): the plain window pass.
+    let p = SnowParams { tile_memory_bytes: None, ..params(resolution, 0.001) };
     let texel = f64::from(p.texel_m());
     let mut snow = SnowDeformation::new(ctx, p, terrain(), DVec2::ZERO)?;
     let dir = scratch.join(format!("move-{resolution}"));

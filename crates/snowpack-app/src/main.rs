@@ -70,7 +70,7 @@ struct DemoArgs {
     #[arg(long, value_parser = parse_size)]
     window_size: Option<(u32, u32)>,
     /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_backend)]
     backend: Option<String>,
 }
 
@@ -97,7 +97,7 @@ enum Command {
         /// The scene file (TOML; see docs/scene.md).
         #[arg(long)]
         scene: PathBuf,
-        /// Frames to simulate (default: the scene's [sim] frames).
+        /// Frames to simulate (default: the scene's `[sim]` frames).
         #[arg(long)]
         frames: Option<u32>,
         /// Output directory.
@@ -113,7 +113,7 @@ enum Command {
         #[arg(long)]
         technique: Option<String>,
         /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
-        #[arg(long)]
+        #[arg(long, value_parser = parse_backend)]
         backend: Option<String>,
         /// What frame.png shows: lit, normals, ao, lod, wireframe or deformation.
         #[arg(long)]
@@ -133,8 +133,8 @@ enum Command {
         /// Only one part: passes (or passes-1024 and so on), techniques, render, frames or accumulation.
         #[arg(long)]
         only: Option<String>,
-        /// GPU backend(s).
-        #[arg(long)]
+        /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
+        #[arg(long, value_parser = parse_backend)]
         backend: Option<String>,
     },
     /// Parse and validate a scene file and print what was understood.
@@ -197,6 +197,14 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--backend`: checked before anything opens, so a typo exits 2 naming the option (clap's usage error).
+fn parse_backend(list: &str) -> Result<String, String> {
+    snowpack::AdapterRequest { backends: Some(list.to_owned()), adapter_name: None }
+        .parse_backends()
+        .map(|_| list.to_owned())
+        .map_err(|e| e.to_string())
 }
 
 fn main() -> ExitCode {

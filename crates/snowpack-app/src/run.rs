@@ -70,13 +70,16 @@ pub struct RunReport {
     pub wall_s: f64,
 }
 
-fn window_center(scene: &Scene, world: &World) -> DVec2 {
+/// Where the scene's `[window]` puts the window's centre this frame.
+pub fn window_center(scene: &Scene, world: &World) -> DVec2 {
     match &scene.window {
         WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
         WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
         WindowSpec::FollowActor(i) => world
             .actor_position(*i)
             .map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
+        // A window kind this runner does not know yet: where the camera is.
+        _ => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
     }
 }
 
@@ -174,7 +177,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     }
     snow.finish(&ctx)?;
     let wall_s = start.elapsed().as_secs_f64();
-    if scene.store.as_ref().is_some_and(|spec| spec.save) {
+    if scene.store.as_ref().is_some_and(|spec| spec.keep == snowpack_scene::StoreKeep::Disk && spec.save) {
         snow.save(&ctx).context("saving the snow into [store]")?;
     }
     for e in snow.take_store_errors() {
@@ -275,15 +278,25 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     })
 }
 
-/// Opens `[store]` (default folder: `store/` in `out`) and attaches it; a
+/// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
+/// with `keep = "memory"`, a memory keeper of its tile size and budget;
+/// `keep = "off"` attaches nothing (the scene's `[snow]` already forgets). A
 /// store that cannot be opened is bad input. `Ok(true)`: a save was loaded.
 pub fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene, spec: &snowpack_scene::StoreSpec, out: &std::path::Path) -> anyhow::Result<bool> {
     use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+    use snowpack_scene::StoreKeep;
     const MIB: f64 = 1024.0 * 1024.0;
-    let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
-    let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
-    let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| BadInput(format!("{}: [store].path: {e}", scene.path.display())))?;
-    let streamer = TileStreamer::new(store, StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize });
+    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize };
+    let streamer = match spec.keep {
+        StoreKeep::Off => return Ok(false),
+        StoreKeep::Memory => TileStreamer::in_memory(spec.tile_texels, memory),
+        StoreKeep::Disk => {
+            let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
+            let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
+            let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| BadInput(format!("{}: [store].path: {e}", scene.path.display())))?;
+            TileStreamer::new(store, memory)
+        }
+    };
     match snow.attach_store(ctx, streamer) {
         Err(snowpack::SnowError::Store(e)) => Err(BadInput(format!("{}: [store].path: {e}", scene.path.display())).into()),
         Err(snowpack::SnowError::InvalidParameter { field, why }) => Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into()),
@@ -291,10 +304,12 @@ pub fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene,
     }
 }
 
-/// `meta.json`'s `store`: tile traffic and the store's figures (null without a store).
+/// `meta.json`'s `store`: tile traffic and the keeper's figures (null when
+/// trails are forgotten); `keep` is `"memory"` or `"disk"`.
 fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
     let Some(t) = snow.tile_stats() else { return serde_json::Value::Null };
     serde_json::json!({
+        "keep": if t.memory_only { "memory" } else { "disk" },
         "resumed": resumed,
         "time_s": snow.clock().time_s,
         "resident_tiles": t.resident,
@@ -311,6 +326,7 @@ fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
         "hit_rate": t.store.hit_rate(),
         "errors": t.store.errors,
         "corrupt": t.store.corrupt,
+        "lost": t.store.lost,
     })
 }
 

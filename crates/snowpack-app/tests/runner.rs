@@ -946,10 +946,11 @@ fn a_trail_left_behind_comes_back_from_the_store_refilled_and_a_run_resumes_from
     assert!((trench - ground - expected).abs() < 2e-3, "trench {} m above ground, expected {expected}", trench - ground);
     // Outside it the snow is at rest.
     assert!((snow.at(4, 4) - terrain.at(4, 4) - 0.4).abs() < 1e-5);
-    // The same scene without a store forgets the trench.
-    let forgetful = run_scene("open-world-no-store", OPEN_WORLD, &[]);
+    // With `keep = "off"` the trench is forgotten.
+    let forgetful = run_scene("open-world-keep-off", &format!("{OPEN_WORLD}[store]\nkeep = \"off\"\n"), &[]);
     let (s, t) = (forgetful.grid("snow.npy"), forgetful.grid("terrain.npy"));
-    assert!((s.at(c, c) - t.at(c, c) - 0.4).abs() < 1e-5, "without a store the trench should be fresh snow");
+    assert!((s.at(c, c) - t.at(c, c) - 0.4).abs() < 1e-5, "with keep = \"off\" the trench should be fresh snow");
+    assert!(forgetful.meta["store"].is_null(), "{}", forgetful.meta["store"]);
     // Running again into the same output resumes from the save: the clock
     // goes on and the trench keeps refilling (5 s more; the crate stays up).
     let scene = run.out.parent().expect("dir").join("scene-again.toml");
@@ -967,9 +968,98 @@ fn a_trail_left_behind_comes_back_from_the_store_refilled_and_a_run_resumes_from
 }
 
 #[test]
+fn a_trail_left_behind_comes_back_from_memory_with_no_store_table() {
+    if !gpu_available() {
+        return;
+    }
+    let run = run_scene("open-world-memory", OPEN_WORLD, &[]);
+    let (snow, terrain) = (run.grid("snow.npy"), run.grid("terrain.npy"));
+    assert_eq!(run.meta["origin_m"][0].as_f64(), Some(-4.0), "the window did not come back: {}", run.meta);
+    let meta = &run.meta["store"];
+    assert_eq!(meta["keep"].as_str(), Some("memory"), "{meta}");
+    // The trench's tiles came back from memory (untouched ones are not kept: fresh snow is the same).
+    assert!(meta["restored_tiles"].as_u64() > Some(0) && meta["evicted_tiles"].as_u64() > Some(50), "{meta}");
+    assert_eq!((meta["disk_tiles"].as_u64(), meta["errors"].as_u64(), meta["lost"].as_u64()), (Some(0), Some(0), Some(0)), "{meta}");
+    assert!(!run.out.join("store").exists(), "a memory keeper wrote a store folder");
+    // The trench, refilled for the time since it was pressed, as with a disk store.
+    let c = snow.res / 2;
+    let expected = 0.01 * (300.0 / 60.0 - 0.2 - 1.0 / 60.0);
+    let trench = snow.at(c, c) - terrain.at(c, c);
+    assert!((trench - expected).abs() < 2e-3, "trench {trench} m above ground, expected {expected}");
+    assert!((snow.at(4, 4) - terrain.at(4, 4) - 0.4).abs() < 1e-5);
+    // `keep = "memory"` with its own tiles and budget does the same.
+    let memory = run_scene("open-world-keep-memory", &format!("{OPEN_WORLD}[store]\nkeep = \"memory\"\ntile_texels = 16\nmemory_mb = 4\n"), &[]);
+    let (s, t) = (memory.grid("snow.npy"), memory.grid("terrain.npy"));
+    assert!((s.at(c, c) - t.at(c, c) - expected).abs() < 2e-3, "keep = \"memory\": trench {} m above ground", s.at(c, c) - t.at(c, c));
+    assert_eq!(memory.meta["store"]["keep"].as_str(), Some("memory"));
+}
+
+#[test]
+fn snowfall_on_bare_ground_lies_at_its_rate_and_a_deformer_leaves_it_bare() {
+    if !gpu_available() {
+        return;
+    }
+    // depth_m = 0: all the snow comes from the sky (0.02 m/s for 60 frames of 1/30 s).
+    let scene = r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.0
+[terrain]
+kind = "flat"
+height_m = 0.3
+[snowfall]
+rate_m_per_s = 0.02
+[[actor]]
+kind = "sphere"
+radius_m = 0.4
+position = [0.0, 0.4, 0.0]
+[sim]
+frames = 60
+dt_s = 0.033333335
+"#;
+    let run = run_scene("bare-ground", scene, &[]);
+    let (snow, terrain, surface) = (run.grid("snow.npy"), run.grid("terrain.npy"), run.grid("surface.npy"));
+    let expected = 0.02 * 60.0 * 0.033333335;
+    assert!((run.meta["fallen_m"].as_f64().expect("fallen_m") - f64::from(expected)).abs() < 1e-5, "{}", run.meta["fallen_m"]);
+    let (mut open, mut under) = (0, 0);
+    for i in 0..snow.res {
+        for j in 0..snow.res {
+            let (depth, shown) = (snow.at(i, j) - terrain.at(i, j), surface.at(i, j));
+            assert!(depth.is_finite() && shown.is_finite(), "NaN at ({i}, {j})");
+            let (x, z) = run.world(i, j);
+            let r = x.hypot(z);
+            // Away from the sphere: the snowfall, within f32 rounding of its sum over frames.
+            if r > 0.6 {
+                assert!((depth - expected).abs() < 1e-5, "({i}, {j}): {depth} m of snow, expected {expected}");
+                open += 1;
+            }
+            // Under it (below the ground within 0.39 m of its axis): bare ground.
+            if r < 0.2 {
+                assert_eq!(depth, 0.0, "({i}, {j}) under the sphere holds {depth} m of snow");
+                under += 1;
+            }
+        }
+    }
+    assert!(open > snow.res * snow.res / 2 && under > 20, "{open} open, {under} under the sphere");
+}
+
+#[test]
+fn bare_ground_is_accepted_and_a_negative_depth_exits_2() {
+    let dir = Temp::new("bare-ground-check");
+    let scene = dir.0.join("bare.toml");
+    std::fs::write(&scene, "[snow]\ndepth_m = 0\n").expect("write scene");
+    let output = bin().arg("check-scene").arg(&scene).output().expect("check");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    expect_bad_input("negative-depth", "[snow]\ndepth_m = -0.1\n", "[snow].depth_m");
+}
+
+#[test]
 fn bad_store_values_exit_2_naming_file_and_key() {
     expect_bad_input("store-tile", "[snow]\nresolution = 128\n[store]\ntile_texels = 48\n", "tile_texels");
     expect_bad_input("store-key", "[store]\nbogus = 1\n", "bogus");
+    expect_bad_input("store-keep", "[store]\nkeep = \"cloud\"\n", "[store].keep");
+    expect_bad_input("store-keep-memory-save", "[store]\nkeep = \"memory\"\nsave = true\n", "[store].save");
     // A store path that is a file, not a folder.
     expect_bad_input("store-path", "[snow]\nresolution = 128\n[store]\npath = \"store-path.toml\"\n", "path");
 }
@@ -1015,4 +1105,23 @@ fn bad_shell_values_exit_2_naming_file_and_key() {
     expect_bad_input("shell-texture", "[shell]\ntexture = \"moss\"\n", "texture");
     expect_bad_input("shell-size", "[shell]\ntexture_size = 48\n", "texture_size");
     expect_bad_input("shell-debug", "[shell]\npasses = 2\ndebug_pass = 3\n", "debug_pass");
+}
+
+#[test]
+fn a_bad_backend_exits_2_naming_the_option_for_every_command() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/default.toml");
+    let dir = Temp::new("bad-backend");
+    for args in [
+        vec!["run", "--headless", "--backend", "voodoo", "--scene"],
+        vec!["bench", "--quick", "--backend", "voodoo", "--out"],
+        vec!["demo", "--backend", "vulkan,voodoo", "--scene"],
+    ] {
+        let target = if args[0] == "bench" { dir.0.join("bench") } else { scene.clone() };
+        let output = bin().args(&args).arg(&target).output().expect("run");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains("--backend") && stderr.contains("voodoo"), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    assert!(!dir.0.join("bench").exists(), "nothing written for a bad backend");
 }

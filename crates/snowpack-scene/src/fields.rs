@@ -199,6 +199,11 @@ impl<'f> Fields<'f> {
         }
     }
 
+    /// Whether `key` is present and not yet taken.
+    pub(crate) fn has(&self, key: &str) -> bool {
+        self.table.contains_key(key)
+    }
+
     /// Fails on any key that was not taken.
     pub(crate) fn finish(self) -> Result<(), SceneError> {
         match self.table.keys().next() {

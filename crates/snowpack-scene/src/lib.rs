@@ -13,7 +13,7 @@ mod world;
 
 pub use error::SceneError;
 pub use scene::{
-    ActorSpec, CameraSpec, EnvironmentSpec, Gait, GltfActor, Placement, RenderSpec, BUILTIN_FOX, BUILTIN_FOX_GLB, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreSpec,
+    ActorSpec, CameraSpec, EnvironmentSpec, Gait, GltfActor, Placement, RenderSpec, BUILTIN_FOX, BUILTIN_FOX_GLB, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreKeep, StoreSpec,
     WindowSpec, DEFAULT_SCENE,
 };
 pub use snowpack::{RimStyle, Technique};

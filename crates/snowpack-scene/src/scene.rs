@@ -19,6 +19,7 @@ use snowpack::skin::sinking::FootLoad;
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum WindowSpec {
     /// A fixed centre (x, z) in metres.
     Center([f32; 2]),
@@ -30,6 +31,7 @@ pub enum WindowSpec {
 
 /// The shape of an actor or object.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum ShapeSpec {
     /// A sphere of this radius (m).
     Sphere {
@@ -89,6 +91,7 @@ pub struct Gait {
 
 /// Where a character's root is put each frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum Placement {
     /// At the path's (or position's) height, as written.
     #[default]
@@ -176,6 +179,7 @@ impl std::fmt::Debug for GltfActor {
 
 /// How an actor moves.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Motion {
     /// Fixed position plus constant velocity (m/s).
     Kinematic {
@@ -293,6 +297,7 @@ pub struct CameraSpec {
 
 /// Where the sky light comes from (`[light] environment`).
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum EnvironmentSpec {
     /// The built-in HDR sky (`assets/spiaggia_di_mondello_1k.hdr`).
     Builtin,
@@ -339,12 +344,41 @@ impl RenderSpec {
     }
 }
 
-/// `[store]`: keep trails in a tile store when the window moves on (open worlds).
+/// Where `[store]` keeps the snow of tiles the window has left.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum StoreKeep {
+    /// In memory, then compressed on disk (`keep = "disk"`, the default of a
+    /// `[store]` table): trails survive the run and a save resumes it.
+    #[default]
+    Disk,
+    /// In memory only (`keep = "memory"`, what a scene without `[store]`
+    /// does): trails stay for the run, within `memory_mb`.
+    Memory,
+    /// Not at all (`keep = "off"`): texels leaving the window are forgotten.
+    Off,
+}
+
+impl StoreKeep {
+    /// The name in scene files.
+    #[must_use]
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Disk => "disk",
+            Self::Memory => "memory",
+            Self::Off => "off",
+        }
+    }
+}
+
+/// `[store]`: where trails are kept when the window moves on (open worlds).
+/// A scene without it keeps them in memory ([`snowpack::SnowParams::tile_memory_bytes`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct StoreSpec {
-    /// Store folder; relative paths resolve against the scene's folder.
-    /// `None`: `store/` inside the run's output folder. A save found there
-    /// (window position, clock) is loaded when the run starts.
+    /// Disk (the default), memory only, or off.
+    pub keep: StoreKeep,
+    /// Store folder (disk only); relative paths resolve against the scene's
+    /// folder. `None`: `store/` inside the run's output folder. A save found
+    /// there (window position, clock) is loaded when the run starts.
     pub path: Option<PathBuf>,
     /// Tile side (texels): a power of two in 16..=256 dividing the resolution.
     pub tile_texels: u32,
@@ -352,13 +386,13 @@ pub struct StoreSpec {
     pub memory_mb: f32,
     /// Disk budget (MiB); 0 = unlimited. The least recently touched tiles go first.
     pub disk_mb: f32,
-    /// Save the whole state into the store at the end of a run.
+    /// Save the whole state into the store at the end of a run (disk only).
     pub save: bool,
 }
 
 impl Default for StoreSpec {
     fn default() -> Self {
-        Self { path: None, tile_texels: 64, memory_mb: 64.0, disk_mb: 0.0, save: true }
+        Self { keep: StoreKeep::Disk, path: None, tile_texels: 64, memory_mb: 64.0, disk_mb: 0.0, save: true }
     }
 }
 
@@ -445,7 +479,7 @@ impl Scene {
                 let snow = SnowParams {
                     extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
                     resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
-                    depth_m: t.positive("depth_m", defaults.depth_m, " of metres")?,
+                    depth_m: t.non_negative("depth_m", defaults.depth_m, " of metres")?,
                     refill_m_per_s: t.non_negative("refill_m_per_s", defaults.refill_m_per_s, " (m/s)")?,
                     elevation: t.non_negative("elevation", defaults.elevation, "")?,
                     blur: t.bool("blur", defaults.blur)?,
@@ -454,6 +488,7 @@ impl Scene {
                     rim,
                     hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
                     snowfall: None,
+                    tile_memory_bytes: defaults.tile_memory_bytes,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
@@ -599,12 +634,29 @@ impl Scene {
             None => None,
             Some(mut t) => {
                 let d = StoreSpec::default();
+                let keep = match t.choice("keep", "disk", &["disk", "memory", "off"])?.as_str() {
+                    "memory" => StoreKeep::Memory,
+                    "off" => StoreKeep::Off,
+                    _ => StoreKeep::Disk,
+                };
+                // Keys that mean nothing for this kind of keeping are mistakes, not defaults.
+                let only_disk: &[&str] = &["path", "disk_mb", "save"];
+                let unused: &[&str] = match keep {
+                    StoreKeep::Disk => &[],
+                    StoreKeep::Memory => only_disk,
+                    StoreKeep::Off => &["path", "disk_mb", "save", "tile_texels", "memory_mb"],
+                };
+                if let Some(key) = unused.iter().find(|k| t.has(k)) {
+                    return Err(t.err(key.as_ref(), format!("has no effect with keep = \"{}\"", keep.as_str())));
+                }
+                let tile_default = if keep == StoreKeep::Disk { d.tile_texels } else { snowpack::deform::params::default_tile_texels(snow.resolution) };
                 let spec = StoreSpec {
+                    keep,
                     path: t.string_opt("path")?.map(|p| base_dir.join(p)),
-                    tile_texels: t.u32_in("tile_texels", d.tile_texels, 16..=256)?,
+                    tile_texels: t.u32_in("tile_texels", tile_default, 16..=256)?,
                     memory_mb: t.non_negative("memory_mb", d.memory_mb, " of MiB")?,
                     disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
-                    save: t.bool("save", d.save)?,
+                    save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::deform::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
                     return Err(t.err("tile_texels", why));
@@ -649,7 +701,14 @@ impl Scene {
         let render = parse_render(&mut root, &base_dir)?;
         root.finish()?;
         // The window carries the snowfall (its ground gains snow).
-        let snow = SnowParams { snowfall: snowfall.clone(), ..snow };
+        // Trails: in memory unless `[store]` says otherwise (a disk store or
+        // `keep = "memory"` is attached by the runner; `off` forgets).
+        let tile_memory_bytes = match &store {
+            None => snow.tile_memory_bytes,
+            Some(spec) if spec.keep == StoreKeep::Off => None,
+            Some(spec) => Some((f64::from(spec.memory_mb) * 1024.0 * 1024.0) as usize),
+        };
+        let snow = SnowParams { snowfall: snowfall.clone(), tile_memory_bytes, ..snow };
         Ok(Self {
             path: path.to_owned(),
             snow,
@@ -711,6 +770,8 @@ impl Scene {
                 m.grid.center_m,
                 self.terrain.height_bounds()
             ),
+            // A terrain kind added to the library after this describer.
+            other => format!("{other:?}"),
         };
         let _ = writeln!(s, "terrain: {terrain}");
         let _ = writeln!(s, "window: {:?}", self.window);
@@ -734,10 +795,22 @@ impl Scene {
                 f.direction, f.rate_m_per_s, f.flutter_deg, f.noise, f.repose_deg, f.falloff_per_s, f.max_m, f.atlas_resolution
             );
         }
-        if let Some(t) = &self.store {
-            let at = t.path.as_ref().map_or("store/ in the output folder".to_owned(), |p| p.display().to_string());
-            let disk = if t.disk_mb > 0.0 { format!("{} MiB", t.disk_mb) } else { "unlimited".to_owned() };
-            let _ = writeln!(s, "store: {at}, tiles of {}², memory {} MiB, disk {disk}, save at the end {}", t.tile_texels, t.memory_mb, t.save);
+        match &self.store {
+            Some(t) if t.keep == StoreKeep::Disk => {
+                let at = t.path.as_ref().map_or("store/ in the output folder".to_owned(), |p| p.display().to_string());
+                let disk = if t.disk_mb > 0.0 { format!("{} MiB", t.disk_mb) } else { "unlimited".to_owned() };
+                let _ = writeln!(s, "store: {at}, tiles of {}², memory {} MiB, disk {disk}, save at the end {}", t.tile_texels, t.memory_mb, t.save);
+            }
+            Some(t) if t.keep == StoreKeep::Memory => {
+                let _ = writeln!(s, "store: trails kept in memory, tiles of {}², memory {} MiB", t.tile_texels, t.memory_mb);
+            }
+            Some(_) => {
+                let _ = writeln!(s, "store: off, trails are forgotten when the window moves on");
+            }
+            None => {
+                let mib = self.snow.tile_memory_bytes.map_or(0.0, |b| b as f64 / (1024.0 * 1024.0));
+                let _ = writeln!(s, "store: trails kept in memory (no [store]), tiles of {}², memory {mib} MiB", snowpack::deform::params::default_tile_texels(self.snow.resolution));
+            }
         }
         let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
         let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);

@@ -50,6 +50,36 @@ fn the_store_table_is_understood() {
 }
 
 #[test]
+fn trails_are_kept_in_memory_without_a_store_table_and_keep_chooses() {
+    use snowpack_scene::StoreKeep;
+    // No [store]: the library's memory keeper, with its default budget.
+    let s = parse("[snow]\nresolution = 256\n").expect("valid");
+    assert_eq!((s.store.clone(), s.snow.tile_memory_bytes), (None, Some(snowpack::deform::params::DEFAULT_TILE_MEMORY_BYTES)));
+    assert!(s.describe().contains("store: trails kept in memory (no [store]), tiles of 32²"), "{}", s.describe());
+    // A [store] table is a disk store unless `keep` says otherwise.
+    let s = parse("[snow]\nresolution = 256\n[store]\n").expect("valid");
+    assert_eq!(s.store.clone().map(|t| t.keep), Some(StoreKeep::Disk));
+    let s = parse("[snow]\nresolution = 256\n[store]\nkeep = \"memory\"\nmemory_mb = 2\n").expect("valid");
+    let t = s.store.clone().expect("store");
+    assert_eq!((t.keep, t.tile_texels, t.memory_mb, t.save, t.path), (StoreKeep::Memory, 32, 2.0, false, None));
+    assert_eq!(s.snow.tile_memory_bytes, Some(2 << 20));
+    assert!(s.describe().contains("store: trails kept in memory, tiles of 32², memory 2 MiB"), "{}", s.describe());
+    let s = parse("[snow]\nresolution = 48\n[store]\nkeep = \"memory\"\n").expect("valid");
+    assert_eq!(s.store.map(|t| t.tile_texels), Some(16), "memory tiles default to a side dividing the resolution");
+    let s = parse("[store]\nkeep = \"off\"\n").expect("valid");
+    assert_eq!((s.store.clone().map(|t| t.keep), s.snow.tile_memory_bytes), (Some(StoreKeep::Off), None));
+    assert!(s.describe().contains("store: off"));
+}
+
+#[test]
+fn bare_ground_is_a_depth_of_zero() {
+    let s = parse("[snow]\ndepth_m = 0\n[snowfall]\nrate_m_per_s = 0.01\n").expect("depth_m = 0 is bare ground");
+    assert_eq!(s.snow.depth_m, 0.0);
+    let err = parse("[snow]\ndepth_m = -0.1\n").expect_err("negative depth");
+    assert!(err.to_string().contains("depth_m") && err.to_string().contains("zero or positive"), "{err}");
+}
+
+#[test]
 fn actors_windows_and_keyframes_are_understood() {
     let s = parse(
         r#"
@@ -144,6 +174,15 @@ fn every_bad_value_names_the_file_and_the_key() {
         ("[store]\ndisk_mb = \"big\"\n", "[store].disk_mb"),
         ("[store]\nsave = 1\n", "[store].save"),
         ("[store]\nresume = true\n", "[store].resume"),
+        ("[store]\nkeep = \"cloud\"\n", "[store].keep"),
+        ("[store]\nkeep = false\n", "[store].keep"),
+        ("[store]\nkeep = \"memory\"\npath = \"saves\"\n", "[store].path"),
+        ("[store]\nkeep = \"memory\"\nsave = true\n", "[store].save"),
+        ("[store]\nkeep = \"memory\"\ndisk_mb = 5\n", "[store].disk_mb"),
+        ("[store]\nkeep = \"memory\"\nmemory_mb = -2\n", "[store].memory_mb"),
+        ("[store]\nkeep = \"off\"\nmemory_mb = 8\n", "[store].memory_mb"),
+        ("[store]\nkeep = \"off\"\ntile_texels = 32\n", "[store].tile_texels"),
+        ("[snow]\ndepth_m = -0.1\n", "[snow].depth_m"),
         ("[sim]\nframes = 0\n", "[sim].frames"),
         ("[sim]\ndt_s = -0.1\n", "[sim].dt_s"),
         ("[camera]\nfov_deg = 200\n", "[camera].fov_deg"),

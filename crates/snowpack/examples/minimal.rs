@@ -140,7 +140,7 @@ impl Game {
         self.window.pre_present_notify();
         self.ctx.queue.present(frame);
         self.ctx.check("frame")?;
-        if let Some(s) = self.snow.point_answers().and_then(|a| a.samples[0]).filter(|_| self.frames % 30 == 0) {
+        if let Some(s) = self.snow.point_answers().and_then(|a| a.samples[0]).filter(|_| self.frames.is_multiple_of(30)) {
             println!("snow under the ball: {:.3} m deep, {:.0}% pressed", s.depth_m(), 100.0 * s.compaction());
         }
         self.frames += 1;

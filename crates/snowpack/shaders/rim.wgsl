@@ -76,7 +76,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         depth += fallen[s];
     }
     var out: f32;
-    if params.mode == 0u {
+    if depth <= 0.0 {
+        // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
+        // push into rims.
+        out = snow[s];
+    } else if params.mode == 0u {
         let x = clamp((snow[s] - ground) / depth, 0.0, 1.0);
         let remapped = x + params.elevation * (hanak_cubic(x) - x);
         out = ground + depth * max(remapped, 0.0);

@@ -2,6 +2,7 @@
 
 /// Everything that can go wrong in snowpack's library calls.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SnowError {
     /// No adapter matched; the message says what to install or set.
     #[error("no GPU adapter found{filter}: {hint}")]
@@ -11,8 +12,8 @@ pub enum SnowError {
         /// What a person can do about it.
         hint: String,
     },
-    /// `SNOWPACK_BACKEND` named no known backend.
-    #[error("SNOWPACK_BACKEND={0:?} is not a backend; use vulkan, gl, metal, dx12 or webgpu")]
+    /// A backend list (`--backend`, `SNOWPACK_BACKEND`) named no known backend.
+    #[error("{0:?} names no backend; use vulkan, gl, metal, dx12 or webgpu (comma-separated)")]
     UnknownBackend(String),
     /// The adapter refused the device.
     #[error("the adapter {adapter:?} refused to create a device: {source}")]

@@ -43,6 +43,7 @@ pub struct HeightmapTerrain {
 
 /// Where the terrain's height comes from.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum TerrainSource {
     /// A horizontal plane at this height (m).
     Flat {

@@ -1,22 +1,27 @@
 //! GPU memory of a default window (64 m at 1024²), per resource, as
 //! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
 //! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
-//! allocates per texel.
+//! allocates per texel. The resident tiles of the default trail keeper are
+//! printed and counted apart: their ring (34² slots of 32² texels, four f32
+//! planes) is sized by the tile grid, not by the technique.
 
 use glam::DVec2;
 use snowpack::{testing, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 const MIB: f64 = 1024.0 * 1024.0;
 
+/// Prints the table; returns the total without the resident tiles.
 fn table(snow: &SnowDeformation, what: &str) -> u64 {
     let list = snow.memory_bytes();
     let total: u64 = list.iter().map(|(_, b)| b).sum();
+    let window: u64 = list.iter().filter(|(n, _)| *n != "resident tiles").map(|(_, b)| b).sum();
     println!("{what}:");
     for (name, bytes) in &list {
         println!("  {name:<16} {bytes:>10} B  {:>7.3} MiB", *bytes as f64 / MIB);
     }
+    println!("  {:<16} {window:>10} B  {:>7.3} MiB", "window", window as f64 / MIB);
     println!("  {:<16} {total:>10} B  {:>7.3} MiB", "total", total as f64 / MIB);
-    total
+    window
 }
 
 fn bytes_of(snow: &SnowDeformation, name: &str) -> u64 {
@@ -42,7 +47,12 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
     let per_texel = 4 + 2 + 8;
-    assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth total {depth_total}");
+    assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
+    // The default keeps trails: 34² resident slots of 32² texels, four 4-byte
+    // planes, and the slots' small bookkeeping buffers.
+    let ring = 34 * 34 * 32 * 32 * 16;
+    let tiles = bytes_of(&depth, "resident tiles");
+    assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
 
     let combined = SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
     let combined_total = table(&combined, "combined");

@@ -513,3 +513,76 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     drop(d);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_trench_comes_back_from_memory_with_no_store_attached() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut rng = Rng::new(testing::seed("a_trench_comes_back_from_memory_with_no_store_attached"));
+    let terrain = noise(&mut rng);
+    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    // The default: tiles are kept in memory, no attach_store.
+    let mut d = window(ctx, terrain, DVec2::ZERO, 0.0);
+    let kept = d.tile_stats().expect("tiles are kept by default");
+    assert!(kept.memory_only, "{kept:?}");
+    press_trail(ctx, &mut d, ground);
+    let before = d.read_snow(ctx).expect("snow");
+    let terrain_before = d.read_terrain(ctx).expect("terrain");
+    assert!(deepest_press(&before, &terrain_before, 0.5) > 0.2, "no trench was pressed");
+    let origin = d.origin_texel();
+    // Far away (the trench leaves the window and the resident tiles) and back.
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(30.0, 10.0), 0.5);
+    let away = d.read_snow(ctx).expect("snow");
+    let terrain_away = d.read_terrain(ctx).expect("terrain");
+    assert!(deepest_press(&away, &terrain_away, 0.5) < 1e-6, "the window 30 m away still shows a trench");
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.store.memory_tiles > 0 && stats.store.disk_tiles == 0, "the trench's tiles are not in memory: {stats:?}");
+    walk(ctx, &mut d, DVec2::new(30.0, 10.0), DVec2::ZERO, 0.5);
+    assert_eq!(d.origin_texel(), origin);
+    let after = d.read_snow(ctx).expect("snow");
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.restored > 0 && stats.store.lost == 0, "{stats:?}");
+    // Depths asserted texel by texel: the trench is back bit for bit.
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the round trip through memory");
+    assert!((deepest_press(&after, &terrain_before, 0.5) - deepest_press(&before, &terrain_before, 0.5)).abs() < 1e-6);
+    assert!(d.take_store_errors().is_empty());
+    // Saving needs a disk store.
+    let err = d.save(ctx).expect_err("saving without a disk store");
+    assert!(err.to_string().contains("disk store"), "{err}");
+}
+
+#[test]
+fn with_tile_keeping_off_a_trench_is_forgotten() {
+    let Some(ctx) = testing::gpu() else { return };
+    let flat = TerrainSource::Flat { height_m: 0.0 };
+    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, tile_memory_bytes: None, ..SnowParams::default() };
+    let mut d = SnowDeformation::new(ctx, params, flat, DVec2::ZERO).expect("window");
+    assert!(d.tile_stats().is_none() && !d.memory_bytes().iter().any(|(name, _)| *name == "resident tiles"));
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    assert!(deepest_press(&d.read_snow(ctx).expect("snow"), &[0.0; 64 * 64], 0.5) > 0.2);
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.5);
+    walk(ctx, &mut d, DVec2::new(20.0, 0.0), DVec2::ZERO, 0.5);
+    let after = d.read_snow(ctx).expect("snow");
+    assert!(after.iter().all(|&h| h == 0.5), "without tile keeping the trench should be fresh snow");
+}
+
+#[test]
+fn a_memory_keeper_over_its_budget_forgets_the_trench_as_fresh_snow() {
+    let Some(ctx) = testing::gpu() else { return };
+    let flat = TerrainSource::Flat { height_m: 0.0 };
+    // Room for one tile of 32² (8 KiB: snow and stamps); the trench spans four.
+    let budget = 32 * 32 * 2 * 4;
+    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, tile_memory_bytes: Some(budget), ..SnowParams::default() };
+    let mut d = SnowDeformation::new(ctx, params, flat, DVec2::ZERO).expect("window");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.5);
+    walk(ctx, &mut d, DVec2::new(20.0, 0.0), DVec2::ZERO, 0.5);
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.store.lost > 0 && stats.store.memory_bytes <= budget, "{stats:?}");
+    let after = d.read_snow(ctx).expect("snow");
+    // Each texel is the trench as pressed or fresh snow, nothing in between.
+    assert!(after.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits() || *a == 0.5));
+    let pressed = |snow: &[f32]| snow.iter().filter(|&&h| h < 0.45).count();
+    assert!(pressed(&after) < pressed(&before), "the whole trench outlived a one-tile budget ({} texels)", pressed(&after));
+}

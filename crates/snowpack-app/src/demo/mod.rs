@@ -91,7 +91,7 @@ pub fn run(opts: DemoOptions) -> anyhow::Result<()> {
         anyhow::bail!("the GPU device was lost: {reason}");
     }
     if let (Ok(()), Some(gfx)) = (&app.result, &mut app.gfx)
-        && gfx.session.scene.store.as_ref().is_some_and(|s| s.save)
+        && gfx.session.scene.store.as_ref().is_some_and(|s| s.keep == snowpack_scene::StoreKeep::Disk && s.save)
     {
         // `[store] save = true`: the snow is saved on the way out, as a run does.
         match gfx.session.save_store(&gfx.ctx) {
@@ -353,7 +353,11 @@ impl Gfx {
         let result = match action {
             Action::Reset(count) => self.session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),
             Action::Rebuild => self.session.rebuild(ctx).map(|()| "rebuilt the window (fresh snow)".to_owned()),
-            Action::Store(on) => self.session.set_store(ctx, on).map(|()| if on { "tile store on: trails stay when the window moves on".to_owned() } else { "tile store off".to_owned() }),
+            Action::Store(keep) => self.session.set_store(ctx, keep).map(|()| match keep {
+                snowpack_scene::StoreKeep::Disk => "trails kept on disk: they stay when the window moves on, and the snow can be saved".to_owned(),
+                snowpack_scene::StoreKeep::Memory => "trails kept in memory: they stay when the window moves on".to_owned(),
+                snowpack_scene::StoreKeep::Off => "trails are forgotten when the window moves on".to_owned(),
+            }),
             Action::SaveStore => self.session.save_store(ctx),
             Action::CameraMode(mode) => {
                 self.rig.set_mode(mode, self.session.player.position);

@@ -30,8 +30,8 @@ pub enum Action {
     Vsync(bool),
     /// Make the player a sphere or the fox.
     PlayerBody(PlayerBody),
-    /// Turn the tile store on or off (rebuilds).
-    Store(bool),
+    /// Keep trails on disk, in memory or not at all (rebuilds).
+    Store(snowpack_scene::StoreKeep),
     /// Save the snow into the tile store.
     SaveStore,
 }
@@ -244,10 +244,21 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
             });
 
             egui::CollapsingHeader::new("Open world (tile store)").default_open(session.scene.store.is_some()).show(ui, |ui| {
-                let mut on = session.scene.store.is_some();
-                if ui.checkbox(&mut on, "keep trails when the window moves on (rebuilds)").on_hover_text("texels leaving the window go to resident tiles, then to a compressed store on disk, and come back refilled by the time away").changed() {
-                    actions.push(Action::Store(on));
-                }
+                use snowpack_scene::StoreKeep;
+                let keep = session.store_keep();
+                ui.horizontal(|ui| {
+                    ui.label("keep trails (rebuilds):");
+                    let hints = [
+                        (StoreKeep::Memory, "texels leaving the window go to resident tiles, then to memory (a bounded budget), and come back refilled by the time away"),
+                        (StoreKeep::Disk, "as memory, then compressed on disk; the snow can be saved and a later start resumes it"),
+                        (StoreKeep::Off, "texels leaving the window are forgotten"),
+                    ];
+                    for (choice, hint) in hints {
+                        if ui.radio(keep == choice, choice.as_str()).on_hover_text(hint).clicked() && keep != choice {
+                            actions.push(Action::Store(choice));
+                        }
+                    }
+                });
                 if let Some(t) = session.snow.tile_stats() {
                     let s = &t.store;
                     ui.label(format!("GPU: {} of {} slots resident ({:.1} MB) · {} restored · {} fresh · {} evicted", t.resident, t.slots, t.gpu_bytes as f64 / 1e6, t.restored, t.fresh, t.evicted));
@@ -258,7 +269,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                     for e in &session.store_errors {
                         ui.colored_label(Color32::LIGHT_RED, e);
                     }
-                    if ui.button("save the snow").on_hover_text("every tile and the window's clock and position into the store; the next start with this store resumes there").clicked() {
+                    if !t.memory_only && ui.button("save the snow").on_hover_text("every tile and the window's clock and position into the store; the next start with this store resumes there").clicked() {
                         actions.push(Action::SaveStore);
                     }
                 }
@@ -284,7 +295,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 });
                 ui.separator();
                 ui.label("These rebuild the window (fresh snow):");
-                ui.add(Slider::new(&mut p.depth_m, 0.05..=3.0).text("snow depth").suffix(" m"));
+                ui.add(Slider::new(&mut p.depth_m, 0.0..=3.0).text("snow depth").suffix(" m"));
                 ui.add(Slider::new(&mut p.extent_m, 4.0..=256.0).logarithmic(true).text("window").suffix(" m"));
                 let mut log2 = p.resolution.ilog2();
                 ui.add(Slider::new(&mut log2, 6..=12).text("resolution").custom_formatter(|v, _| format!("{}²", 1u32 << v as u32)));

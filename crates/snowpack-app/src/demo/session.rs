@@ -10,7 +10,7 @@ use glam::{DVec2, Vec2, Vec3};
 use snowpack::gpu::PassTimings;
 use snowpack::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
-use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, WindowSpec, World};
+use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec, World};
 
 /// Where the demo keeps a tile store whose scene names no folder.
 pub const DEMO_OUT: &str = "snowpack-out";
@@ -128,7 +128,7 @@ impl Session {
         let world = World::new(&scene);
         let snow_params = scene.snow.clone();
         let render_params = scene.render.params;
-        let center = scene_center(&scene, &world);
+        let center = crate::run::window_center(&scene, &world);
         let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
@@ -171,9 +171,27 @@ impl Session {
         Ok(())
     }
 
-    /// Turns the tile store on or off (rebuilds the window).
-    pub fn set_store(&mut self, ctx: &GpuContext, on: bool) -> anyhow::Result<()> {
-        self.scene.store = on.then(|| self.scene.store.clone().unwrap_or_default());
+    /// Where trails are kept now: a disk store, memory (a scene without
+    /// `[store]`, or `keep = "memory"`), or nowhere.
+    #[must_use]
+    pub fn store_keep(&self) -> StoreKeep {
+        match &self.scene.store {
+            Some(spec) => spec.keep,
+            None if self.snow_params.tile_memory_bytes.is_some() => StoreKeep::Memory,
+            None => StoreKeep::Off,
+        }
+    }
+
+    /// Keeps trails on disk, in memory or not at all (rebuilds the window).
+    pub fn set_store(&mut self, ctx: &GpuContext, keep: StoreKeep) -> anyhow::Result<()> {
+        let old = self.scene.store.take().filter(|s| s.keep == StoreKeep::Disk);
+        self.scene.store = match keep {
+            StoreKeep::Disk => Some(old.unwrap_or_default()),
+            // The library's default memory keeper.
+            StoreKeep::Memory => None,
+            StoreKeep::Off => Some(StoreSpec { keep, save: false, ..StoreSpec::default() }),
+        };
+        self.snow_params.tile_memory_bytes = (keep != StoreKeep::Off).then_some(snowpack::deform::params::DEFAULT_TILE_MEMORY_BYTES);
         self.rebuild(ctx)
     }
 
@@ -262,7 +280,7 @@ impl Session {
         match self.follow {
             WindowFollow::Scene => match self.scene.window {
                 WindowSpec::FollowCamera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
-                _ => scene_center(&self.scene, &self.world),
+                _ => crate::run::window_center(&self.scene, &self.world),
             },
             WindowFollow::Player => DVec2::new(f64::from(self.player.position.x), f64::from(self.player.position.z)),
             WindowFollow::Camera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
@@ -385,7 +403,7 @@ impl Session {
         self.scene.snow = self.snow_params.clone();
         self.scene.render.params = self.render_params;
         self.world = World::new(&self.scene);
-        let center = scene_center(&self.scene, &self.world);
+        let center = crate::run::window_center(&self.scene, &self.world);
         let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
         // The old window lets go of its store (flushing it) before the new one opens it.
@@ -429,14 +447,6 @@ impl Session {
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
         self.snow.memory_bytes().iter().map(|m| m.1).sum::<u64>() + self.renderer.memory_bytes()
-    }
-}
-
-fn scene_center(scene: &Scene, world: &World) -> DVec2 {
-    match &scene.window {
-        WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
-        WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
-        WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
     }
 }
 

@@ -338,12 +338,12 @@ impl SnowAccumulation {
 
     /// The accumulation atlas read back (m per texel, row-major); blocking.
     pub fn read_atlas(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        Ok(bytemuck::pod_collect_to_vec(&crate::deform::pipeline::read_buffer(ctx, &self.acc)?))
+        Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, &self.acc)?))
     }
 
     /// The atlas surface read back: (height, slope x, slope y, owned) per texel; blocking.
     pub fn read_surface(&self, ctx: &GpuContext) -> Result<Vec<[f32; 4]>, SnowError> {
-        Ok(bytemuck::pod_collect_to_vec(&crate::deform::pipeline::read_buffer(ctx, &self.surface)?))
+        Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, &self.surface)?))
     }
 
     /// Snow on each object's upward surfaces, from an atlas read back with [`Self::read_atlas`].

@@ -42,7 +42,11 @@ pub fn rim(p: &RimParams, terrain: &[f32], snow: &[f32], stamps: &[u32], fallen:
             let s = storage_index(p.origin, r, i, j);
             let ground = terrain[s];
             let depth = if p.use_fallen != 0 { p.depth_m + fallen[s] } else { p.depth_m };
-            shown[(i * r + j) as usize] = if p.mode == 0 {
+            shown[(i * r + j) as usize] = if depth <= 0.0 {
+                // Bare ground (depth_m 0, no snowfall yet): no snow to remap
+                // or to push into rims.
+                snow[s]
+            } else if p.mode == 0 {
                 let x = ((snow[s] - ground) / depth).clamp(0.0, 1.0);
                 let remapped = x + p.elevation * (hanak_cubic(x) - x);
                 ground + depth * remapped.max(0.0)

@@ -12,7 +12,8 @@ pub struct SnowParams {
     pub extent_m: f32,
     /// Texels per side of the window.
     pub resolution: u32,
-    /// Rest depth of fresh snow above the terrain (m).
+    /// Rest depth of fresh snow above the terrain (m), >= 0; 0 is bare
+    /// ground (snow comes only from `snowfall`).
     pub depth_m: f32,
     /// Linear refill of trails while it snows (m/s).
     pub refill_m_per_s: f32,
@@ -34,6 +35,34 @@ pub struct SnowParams {
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
     pub snowfall: Option<crate::accumulate::Snowfall>,
+    /// Memory budget (bytes) for the snow of tiles the window has left, so a
+    /// trail is still there when the window comes back (the scene's
+    /// `[store]` table). `Some`: kept in memory
+    /// ([`crate::persist::TileStreamer::in_memory`], tiles of
+    /// [`default_tile_texels`]); beyond the budget the least recently left
+    /// tiles are forgotten (fresh snow). `None`: texels leaving the window
+    /// are forgotten and no tiles are resident on the GPU. Default
+    /// [`DEFAULT_TILE_MEMORY_BYTES`]. A disk store attached with
+    /// [`crate::SnowDeformation::attach_store`] replaces the memory keeper.
+    pub tile_memory_bytes: Option<usize>,
+}
+
+/// The default [`SnowParams::tile_memory_bytes`]: 64 MiB, the scene's
+/// `[store] memory_mb` default. Untouched tiles are not kept, so without
+/// snowfall it holds about 8,000 trodden tiles of 32² (8 KiB each): 33,000
+/// m² of trails at the default 6.25 cm texel; with snowfall every tile is
+/// kept (12 KiB), about five default windows' worth.
+pub const DEFAULT_TILE_MEMORY_BYTES: usize = 64 << 20;
+
+/// Tile side (texels) of the default memory keeper for a window of
+/// `resolution` texels: 32, or the largest power of two that divides the
+/// resolution when that is smaller (16 for 16, 48, 80, ...). Small tiles
+/// keep the GPU's resident ring close to the window (its side is the
+/// resolution plus two tiles) and the memory keeper's trails narrow.
+#[must_use]
+pub fn default_tile_texels(resolution: u32) -> u32 {
+    let largest = 1u32 << resolution.trailing_zeros().min(31);
+    largest.min(32)
 }
 
 impl Default for SnowParams {
@@ -50,6 +79,7 @@ impl Default for SnowParams {
             rim: RimStyle::Rounded,
             hardness_kpa: 10.0,
             snowfall: None,
+            tile_memory_bytes: Some(DEFAULT_TILE_MEMORY_BYTES),
         }
     }
 }
@@ -87,8 +117,8 @@ impl SnowParams {
         if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
             return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
         }
-        if !(self.depth_m.is_finite() && self.depth_m > 0.0) {
-            return bad("depth_m", format!("{} must be a positive number of metres", self.depth_m));
+        if !(self.depth_m.is_finite() && self.depth_m >= 0.0) {
+            return bad("depth_m", format!("{} must be zero or a positive number of metres", self.depth_m));
         }
         if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
             return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));

@@ -5,7 +5,7 @@ use glam::DVec2;
 use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings};
-use crate::persist::{SnowClock, StoreError, TileStreamer};
+use crate::persist::{SnowClock, StoreError, StreamerConfig, TileStreamer};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
@@ -18,7 +18,8 @@ use super::resources::DeformResources;
 use super::rim::{RimParams, RimPass};
 use super::saved::{SavedWindow, STATE_NAME};
 use super::stamp::{contact_points, StampParams, StampPass};
-use super::tiles::{TileFrame, TileStats, TileStreaming};
+use super::params::default_tile_texels;
+use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, PLANES};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
 
@@ -34,6 +35,24 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
     let low = tmin - CAPTURE_MARGIN_M;
     let rest = tmax + depth_m;
     (rest + CAPTURE_MARGIN_M).max(4.0 * rest - 3.0 * low)
+}
+
+/// The default tile keeper: tiles of [`default_tile_texels`] kept in memory
+/// up to `budget` bytes. `None` (with a warning) where the resident ring
+/// would not fit in one of this adapter's storage buffers (resolutions far
+/// above the default): the window then forgets, as with
+/// `tile_memory_bytes: None`, rather than failing to be created.
+fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, budget: usize) -> Result<Option<TileStreaming>, SnowError> {
+    let side = default_tile_texels(params.resolution);
+    let grid = TileGrid::new(params.resolution, side)?;
+    let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+    let limit = ctx.device.limits().max_storage_buffer_binding_size;
+    if bytes > limit {
+        tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);
+        return Ok(None);
+    }
+    let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget });
+    TileStreaming::new(ctx, res, streamer, (params.depth_m, params.snowfall.is_some())).map(Some)
 }
 
 /// A deformation window and the passes that update it.
@@ -54,6 +73,11 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
 /// switch keeps the persistent snow (so trails made by any technique stay)
 /// and the stored footprints (rims come back when points do); it changes
 /// only which deformers write from the next frame on and how rims are shown.
+///
+/// Trails stay: texels leaving the window are kept in memory by default
+/// ([`SnowParams::tile_memory_bytes`]) and come back, refilled by the time
+/// away, when the window returns; [`Self::attach_store`] keeps them on disk
+/// instead (and makes [`Self::save`] possible).
 pub struct SnowDeformation {
     params: SnowParams,
     terrain: TerrainSource,
@@ -91,8 +115,11 @@ pub struct SnowDeformation {
     fallen_total_m: f32,
     /// Time, refill and snowfall so far: what a tile away from the window missed.
     clock: SnowClock,
-    /// The tile store and the resident tiles, when attached.
+    /// The tile keeper (memory by default, or an attached store) and the
+    /// resident tiles; `None` when trails are forgotten.
     tiles: Option<TileStreaming>,
+    /// [`Self::attach_store`] has been called.
+    store_attached: bool,
     /// World (x, z) that deformer and object positions are relative to (f64).
     floating_origin: DVec2,
 }
@@ -166,12 +193,12 @@ impl SnowDeformation {
                 why: format!("{} needs {surface_bytes} byte buffers, above this adapter's limit", params.resolution),
             });
         }
-        let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center));
+        let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
         ctx.check("creating the deformation passes")?;
         Ok(this)
     }
 
-    fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Self {
+    fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let res = DeformResources::new(device, queue, &params, &terrain);
         let (tmin, tmax) = terrain.height_bounds();
@@ -183,7 +210,11 @@ impl SnowDeformation {
             low_m: tmin - CAPTURE_MARGIN_M,
             high_m: capture_top(tmin, tmax, deepest),
         };
-        Self {
+        let tiles = match params.tile_memory_bytes {
+            Some(budget) => keep_in_memory(ctx, &res, &params, budget)?,
+            None => None,
+        };
+        Ok(Self {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
             stamp_pass: StampPass::new(device, &res),
@@ -214,9 +245,10 @@ impl SnowDeformation {
             accumulation: None,
             fallen_total_m: 0.0,
             clock: SnowClock::default(),
-            tiles: None,
+            tiles,
+            store_attached: false,
             floating_origin: DVec2::ZERO,
-        }
+        })
     }
 
     /// The parameters in use.
@@ -296,12 +328,15 @@ impl SnowDeformation {
     }
 
     /// Attaches a tile store: from now on texels leaving the window are kept
-    /// (in memory, then on disk through `streamer`) and come back when the
-    /// window returns, brought up to the time then. Call before the first
-    /// frame. When the store holds a save ([`Self::save`]), the window's
-    /// clock, snowfall and position are loaded from it and `true` returned.
+    /// through `streamer` (in memory, then on disk; or in memory alone for
+    /// [`TileStreamer::in_memory`]) and come back when the window returns,
+    /// brought up to the time then. It replaces the memory keeper the window
+    /// was created with ([`SnowParams::tile_memory_bytes`]). Call before the
+    /// first frame, once. When the store holds a save ([`Self::save`]), the
+    /// window's clock, snowfall and position are loaded from it and `true`
+    /// returned.
     pub fn attach_store(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, SnowError> {
-        if self.frame > 0 || self.tiles.is_some() {
+        if self.frame > 0 || self.store_attached {
             return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() });
         }
         let side = streamer.side();
@@ -323,7 +358,10 @@ impl SnowDeformation {
                 )));
             }
         }
+        // The memory keeper's resident tiles go first: two rings need not coexist.
+        self.tiles = None;
         self.tiles = Some(TileStreaming::new(ctx, &self.res, streamer, (self.params.depth_m, self.params.snowfall.is_some()))?);
+        self.store_attached = true;
         if let Some(s) = saved {
             self.clock = s.clock;
             self.fallen_total_m = s.fallen_m;
@@ -339,11 +377,13 @@ impl SnowDeformation {
     /// window's texels included) and the window's clock and position; when
     /// it returns `Ok`, the store directory is a complete save that
     /// [`Self::attach_store`] loads. Blocking (a save point, not a frame).
+    /// Saving needs a disk store: with tiles kept in memory only (the
+    /// default) or not at all it is an error naming `store`.
     pub fn save(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
         let (low, high, _) = self.stamp_range();
         let origin = self.window.origin();
-        let Some(tiles) = &mut self.tiles else {
-            return Err(SnowError::InvalidParameter { field: "store", why: "saving needs a tile store (attach_store)".into() });
+        let Some(tiles) = self.tiles.as_mut().filter(|t| !t.is_memory_only()) else {
+            return Err(SnowError::InvalidParameter { field: "store", why: "saving needs a disk store (attach_store with a TileStreamer over a TileStore); tiles are kept in memory only or not at all".into() });
         };
         if let Some(origin) = origin {
             tiles.checkpoint(ctx, &self.res, origin, self.clock)?;
@@ -368,7 +408,8 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// Tile traffic and store figures, when a store is attached.
+    /// Tile traffic and store figures, when tiles are kept (in memory or in
+    /// an attached store).
     #[must_use]
     pub fn tile_stats(&self) -> Option<TileStats> {
         self.tiles.as_ref().map(TileStreaming::stats)
@@ -912,16 +953,5 @@ impl SnowDeformation {
     }
 }
 
-/// Copies a whole buffer into a staging buffer and waits for it (blocking).
-pub fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, SnowError> {
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("blocking readback"),
-        size: buffer.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-    ctx.queue.submit([encoder.finish()]);
-    crate::gpu::readback::map_blocking(ctx, &staging)
-}
+/// Kept here for callers of the old path; the helper lives in [`crate::gpu::readback`].
+pub use crate::gpu::readback::read_buffer;

@@ -4,6 +4,7 @@ use glam::{Mat4, Quat, Vec3};
 
 /// One object that deforms the snow this frame, in world coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Deformer {
     /// A sphere; captured exactly (an impostor writes the analytic lower surface).
     Sphere {

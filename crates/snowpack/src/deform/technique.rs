@@ -5,6 +5,7 @@ use std::str::FromStr;
 
 /// How actors deform the snow (Wasmut 2019 compares the four).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum Technique {
     /// Actors' depth captured from below (Horizon Zero Dawn, Hanák).
     #[default]
@@ -58,6 +59,7 @@ impl FromStr for Technique {
 /// `M = sqrt(rest - foot)`, `ratio = e / M`, and a peak of
 /// `elevation * RIM_PEAK * (rest - foot)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum RimStyle {
     /// Michels and Sikachev (GPU Pro 7): `1 - (0.5 - 2 ratio)^2` times the
     /// peak. It starts at 0.75 of the peak at the depression's edge (a step),

@@ -1,8 +1,9 @@
 //! Open worlds: the world's tiles around the sliding window, resident on the
-//! GPU, and their traffic with a [`TileStreamer`] (the tile store).
+//! GPU, and their traffic with a [`TileStreamer`] (the tile keeper: memory
+//! only by default, or a disk store).
 //!
 //! The world is cut into square tiles of `side` texels on the global texel
-//! grid. With a store attached, the tiles the window touches, plus one spare
+//! grid. While tiles are kept, the tiles the window touches, plus one spare
 //! ring, are resident in a toroidal grid of slots (`shared/tiles.wgsl`):
 //! texels leaving the window are stashed into their tile, texels entering are
 //! loaded from theirs, and the tile weather pass lets time pass on the
@@ -168,6 +169,8 @@ pub struct TileStats {
     /// GPU memory of the resident tiles, their upload buffers and the
     /// copy-out staging buffers kept for reuse (bytes).
     pub gpu_bytes: u64,
+    /// The tiles are kept in memory only (no disk store behind them).
+    pub memory_only: bool,
 }
 
 /// Tiles copied out of their slots in one frame, on their way to the CPU.
@@ -274,6 +277,12 @@ impl TileStreaming {
     /// The streamer (the store behind the tiles).
     pub fn streamer(&mut self) -> &mut TileStreamer {
         &mut self.streamer
+    }
+
+    /// Whether the tiles are kept in memory only (no disk store behind them).
+    #[must_use]
+    pub fn is_memory_only(&self) -> bool {
+        self.streamer.is_memory_only()
     }
 
     fn resident(&self, key: TileKey) -> bool {
@@ -571,7 +580,7 @@ impl TileStreaming {
         let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
-        let raw = super::pipeline::read_buffer(ctx, &self.tiles)?;
+        let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
         let slot_words = PLANES * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
@@ -604,6 +613,7 @@ impl TileStreaming {
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,
             gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes() + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
+            memory_only: self.streamer.is_memory_only(),
         }
     }
 }

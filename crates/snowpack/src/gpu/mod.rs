@@ -3,8 +3,9 @@
 pub mod context;
 pub mod layout;
 pub mod readback;
+pub mod render;
 pub mod timing;
 
 pub use context::{AdapterRequest, AdapterSummary, GpuContext};
-pub use readback::ReadbackRing;
+pub use readback::{read_buffer, ReadbackRing};
 pub use timing::{GpuTimer, PassTimings};

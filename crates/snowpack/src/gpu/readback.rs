@@ -166,6 +166,20 @@ impl<M> ReadbackRing<M> {
     }
 }
 
+/// Copies a whole buffer into a staging buffer and waits for it (blocking).
+pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("blocking readback"),
+        size: buffer.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+    ctx.queue.submit([encoder.finish()]);
+    map_blocking(ctx, &staging)
+}
+
 /// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it and
 /// returns its bytes (blocking; for tests, headless frames and tools).
 pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {

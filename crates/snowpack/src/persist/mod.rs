@@ -1,5 +1,5 @@
-//! Open-world persistence: the snow of tiles the player has left, kept on
-//! disk and brought back when the player returns.
+//! Open-world persistence: the snow of tiles the player has left, kept in
+//! memory (the default) or on disk and brought back when the player returns.
 //!
 //! The deformation window hands out whole tiles (`side`×`side` texels on the
 //! global texel grid) as they leave the player's neighbourhood and asks for
@@ -7,7 +7,8 @@
 //! that: the tile type ([`TileData`]), its compressed file format
 //! ([`codec`]), a crash-safe store with a disk budget ([`TileStore`]) and a
 //! worker thread with a bounded memory cache that keeps compression and file
-//! I/O off the frame's path ([`TileStreamer`]). `docs/persistence.md`
+//! I/O off the frame's path ([`TileStreamer`], which without a store keeps
+//! tiles in that cache alone: [`TileStreamer::in_memory`]). `docs/persistence.md`
 //! explains the choices.
 
 pub mod codec;
@@ -151,9 +152,10 @@ impl TileData {
 }
 
 /// What can go wrong storing or loading tiles. Every variant but
-/// [`StoreError::WorkerGone`] names the file (errors from [`decode`] alone,
+/// [`StoreError::WorkerGone`] and [`StoreError::NoDisk`] names the file (errors from [`decode`] alone,
 /// which sees bytes and no file, leave the path empty).
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum StoreError {
     /// The operating system refused (disk full, read-only, a directory gone).
     #[error("cannot {op} {}: {source}", shown(path))]
@@ -197,6 +199,10 @@ pub enum StoreError {
     /// The streamer's worker thread has stopped (it panicked or never started).
     #[error("the tile store's worker thread has stopped; tiles can no longer be loaded or saved")]
     WorkerGone,
+    /// Tiles are kept in memory only ([`TileStreamer::in_memory`]); saving
+    /// needs a disk store.
+    #[error("tiles are kept in memory only; saving needs a disk store (a TileStreamer over a TileStore, attached with attach_store)")]
+    NoDisk,
 }
 
 impl StoreError {
@@ -210,7 +216,7 @@ impl StoreError {
             | Self::Mismatch { path, .. } => {
                 (!path.as_os_str().is_empty()).then_some(path.as_path())
             }
-            Self::WorkerGone => None,
+            Self::WorkerGone | Self::NoDisk => None,
         }
     }
 

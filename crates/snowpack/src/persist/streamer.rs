@@ -27,6 +27,7 @@ use std::thread::JoinHandle;
 
 use super::store::tile_path;
 use super::{StoreError, TileData, TileKey, TileStore};
+use crate::cpu::stamp::STAMP_EMPTY;
 
 /// Most errors kept for [`TileStreamer::take_errors`]; more are logged and
 /// counted but not kept, so a game that never takes them does not grow.
@@ -102,7 +103,9 @@ pub struct StoreStats {
     /// [`TileStreamer::take_errors`]).
     pub errors: u64,
     /// Dirty tiles dropped from memory after their write had failed: their
-    /// latest version is lost.
+    /// latest version is lost. For a memory-only streamer
+    /// ([`TileStreamer::in_memory`]): every tile the budget dropped (it comes
+    /// back as fresh snow).
     pub lost: u64,
     /// Tiles deleted from disk to keep within its budget.
     pub evicted: u64,
@@ -212,11 +215,15 @@ impl Cached {
 }
 
 /// Streams tiles between the deformation window and a [`TileStore`] on a
-/// worker thread, with a bounded memory cache. See the module docs for the
-/// ordering and write-behind policies.
+/// worker thread, with a bounded memory cache; or, made with
+/// [`TileStreamer::in_memory`], keeps them in that cache alone. See the
+/// module docs for the ordering, write-behind and memory-only policies.
 pub struct TileStreamer {
     side: u32,
+    /// The store's directory; empty for a memory-only streamer.
     dir: PathBuf,
+    /// No store behind the cache (see [`TileStreamer::in_memory`]).
+    memory_only: bool,
     config: StreamerConfig,
     requests: Option<Sender<Request>>,
     replies: Receiver<Reply>,
@@ -278,6 +285,7 @@ impl TileStreamer {
         Self {
             side,
             dir,
+            memory_only: false,
             config,
             requests: Some(request_tx),
             replies: reply_rx,
@@ -299,13 +307,58 @@ impl TileStreamer {
         }
     }
 
+    /// Keeps tiles of `side` texels in memory only: no store, no worker
+    /// thread, no files. [`TileStreamer::lookup`] answers at once: the tile
+    /// put last (handed out once: it leaves the cache, as the window holds it
+    /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
+    /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
+    /// least recently used tiles are dropped and come back as fresh snow
+    /// (each counted in [`StoreStats::lost`]). Untouched tiles (every height
+    /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
+    /// is the same. [`TileStreamer::write_state`] (and so saving) fails:
+    /// saving needs a disk store.
+    #[must_use]
+    pub fn in_memory(side: u32, config: StreamerConfig) -> Self {
+        // A channel whose sender is gone: nothing is ever asked or answered.
+        let (_, replies) = mpsc::channel();
+        Self {
+            side,
+            dir: PathBuf::new(),
+            memory_only: true,
+            config,
+            requests: None,
+            replies,
+            worker: None,
+            gone: false,
+            seq: 0,
+            cache: HashMap::new(),
+            by_use: BTreeSet::new(),
+            wanted: BTreeSet::new(),
+            wanted_bytes: 0,
+            tick: 0,
+            memory_bytes: 0,
+            absent: HashSet::new(),
+            loading: HashMap::new(),
+            unwritten: HashMap::new(),
+            errors: Vec::new(),
+            flush_error: None,
+            stats: StoreStats::default(),
+        }
+    }
+
+    /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
+    #[must_use]
+    pub fn is_memory_only(&self) -> bool {
+        self.memory_only
+    }
+
     /// Texels per tile side.
     #[must_use]
     pub fn side(&self) -> u32 {
         self.side
     }
 
-    /// The store's directory.
+    /// The store's directory (empty for a memory-only streamer).
     #[must_use]
     pub fn dir(&self) -> &Path {
         &self.dir
@@ -317,13 +370,14 @@ impl TileStreamer {
     /// [`TileStreamer::request`] for that.
     #[must_use]
     pub fn is_ready(&self, key: TileKey) -> bool {
-        self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
+        self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
     }
 
     /// Starts loading a tile the window will soon need (non-blocking). Does
     /// nothing if it is cached, known to be absent, or already loading.
     pub fn request(&mut self, key: TileKey) {
-        if self.cache.contains_key(&key)
+        if self.memory_only
+            || self.cache.contains_key(&key)
             || self.absent.contains(&key)
             || self.loading.contains_key(&key)
         {
@@ -340,6 +394,14 @@ impl TileStreamer {
     /// [`TileStreamer::poll`] does.
     pub fn lookup(&mut self, key: TileKey) -> TileLookup {
         self.poll();
+        if self.memory_only
+            && let Some(cached) = self.remove(key)
+        {
+            // Handed out to the window, which puts it back when it leaves:
+            // the budget holds only tiles away from the GPU.
+            self.stats.hits += 1;
+            return TileLookup::Ready(Some(Arc::unwrap_or_clone(cached.tile)));
+        }
         if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
             self.touch(key);
             // Handed out, it may now make room for others.
@@ -349,6 +411,11 @@ impl TileStreamer {
         }
         if self.absent.contains(&key) {
             self.stats.hits += 1;
+            return TileLookup::Ready(None);
+        }
+        if self.memory_only {
+            // Never kept, dropped by the budget, or untouched: fresh snow.
+            self.stats.misses += 1;
             return TileLookup::Ready(None);
         }
         if self.gone {
@@ -384,6 +451,15 @@ impl TileStreamer {
             return;
         }
         self.absent.remove(&key);
+        if self.memory_only {
+            // Nothing to write: the cache is the only copy.
+            if is_untouched(&tile) {
+                self.remove(key);
+            } else {
+                self.insert(key, Cached::new(tile, Dirt::Clean, false));
+            }
+            return;
+        }
         self.insert(key, Cached::new(tile, Dirt::Failed, false));
         self.queue_write(key);
     }
@@ -391,6 +467,9 @@ impl TileStreamer {
     /// Takes the worker's replies into the cache, the statistics and the
     /// errors (non-blocking). Call once a frame.
     pub fn poll(&mut self) {
+        if self.memory_only {
+            return;
+        }
         loop {
             match self.replies.try_recv() {
                 Ok(reply) => self.handle(reply),
@@ -410,6 +489,9 @@ impl TileStreamer {
     /// keys together exceed the memory budget, the first may have been
     /// dropped again by the time it returns.
     pub fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
+        if self.memory_only {
+            return Ok(());
+        }
         self.poll();
         let mut waiting: Vec<TileKey> = keys.to_vec();
         loop {
@@ -437,6 +519,10 @@ impl TileStreamer {
     /// tiles whose earlier write failed. Returns the first write error of
     /// this flush; any others are in [`TileStreamer::take_errors`].
     pub fn flush(&mut self) -> Result<(), StoreError> {
+        if self.memory_only {
+            // Nothing is ever waiting to be written.
+            return Ok(());
+        }
         self.poll();
         let failed: Vec<TileKey> = self
             .cache
@@ -476,8 +562,12 @@ impl TileStreamer {
     }
 
     /// Stores a small named blob (blocking, ordered after the writes queued
-    /// before it); see [`TileStore::write_state`].
+    /// before it); see [`TileStore::write_state`]. A memory-only streamer
+    /// has nowhere to put it: [`StoreError::NoDisk`].
     pub fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+        if self.memory_only {
+            return Err(StoreError::NoDisk);
+        }
         let name = name.to_owned();
         let seq = self.send(|seq| Request::WriteState { seq, name, bytes })?;
         match self.wait(seq)? {
@@ -487,8 +577,11 @@ impl TileStreamer {
     }
 
     /// Reads a named blob (blocking, ordered after the writes queued before
-    /// it); `Ok(None)` if there is none.
+    /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
     pub fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        if self.memory_only {
+            return Ok(None);
+        }
         let name = name.to_owned();
         let seq = self.send(|seq| Request::ReadState { seq, name })?;
         match self.wait(seq)? {
@@ -702,7 +795,13 @@ impl TileStreamer {
                     .flatten()
             });
             let Some(victim) = victim else { break };
-            if let Some(dropped) = self.remove(victim)
+            let dropped = self.remove(victim);
+            if self.memory_only {
+                // The cache was its only copy: it comes back as fresh snow.
+                self.stats.lost += 1;
+                continue;
+            }
+            if let Some(dropped) = dropped
                 && dropped.dirt == Dirt::Failed
             {
                 tracing::warn!(
@@ -740,6 +839,15 @@ impl TileStreamer {
             self.by_use.insert((self.tick, key));
         }
     }
+}
+
+/// Whether `tile` is fresh snow: every height at its rest (XOR 0), no
+/// footprint and no snowfall plane, so restoring it gives the same bits as
+/// a fresh tile (the refill of the time away leaves snow at rest unchanged).
+fn is_untouched(tile: &TileData) -> bool {
+    tile.fallen.is_empty()
+        && tile.snow_xor_rest.iter().all(|&x| x == 0)
+        && tile.stamps.iter().all(|&s| s == STAMP_EMPTY)
 }
 
 impl Drop for TileStreamer {
@@ -1179,6 +1287,75 @@ mod tests {
         assert_eq!(errors.len(), 1, "{errors:?}");
         assert!(matches!(errors[0], StoreError::WorkerGone));
         drop(s); // Must not panic.
+    }
+
+    fn memory(tiles_in_memory: usize) -> TileStreamer {
+        let budget = tiles_in_memory * tile(0, 0, 0.0).memory_bytes();
+        TileStreamer::in_memory(SIDE, StreamerConfig { memory_budget_bytes: budget })
+    }
+
+    #[test]
+    fn in_memory_keeps_tiles_within_the_budget_and_forgets_the_oldest() {
+        let mut s = memory(3);
+        assert!(s.is_memory_only() && s.dir().as_os_str().is_empty());
+        let key = |col| TileKey::new(col, 2);
+        // Never put: fresh snow at once, no load, no worker.
+        assert!(s.is_ready(key(0)));
+        assert_eq!(s.lookup(key(0)), TileLookup::Ready(None));
+        s.wait_for(&[key(0), key(1)]).expect("nothing to wait for");
+        for col in 0..5 {
+            s.put(tile(col, 2, col as f32 + 1.0));
+            assert!(s.stats().memory_tiles <= 3);
+        }
+        let stats = s.stats();
+        assert_eq!((stats.memory_tiles, stats.memory_bytes), (3, 3 * tile(0, 0, 0.0).memory_bytes()));
+        assert_eq!(stats.lost, 2, "tiles 0 and 1 were forgotten for the budget");
+        assert_eq!((stats.writes, stats.disk_tiles, stats.errors), (0, 0, 0));
+        // The two oldest are fresh snow; the newest three come back as put.
+        assert_eq!(s.lookup(key(0)), TileLookup::Ready(None));
+        assert_eq!(s.lookup(key(1)), TileLookup::Ready(None));
+        for col in 2..5 {
+            assert_eq!(s.lookup(key(col)), TileLookup::Ready(Some(tile(col, 2, col as f32 + 1.0))));
+        }
+        // Handed out once: the window holds them now.
+        assert_eq!(s.stats().memory_tiles, 0);
+        assert_eq!(s.lookup(key(4)), TileLookup::Ready(None));
+        s.flush().expect("nothing to flush");
+        assert!(s.take_errors().is_empty());
+    }
+
+    #[test]
+    fn in_memory_keeps_the_newest_version_and_not_untouched_tiles() {
+        let mut s = memory(8);
+        let key = TileKey::new(-3, 7);
+        s.put(tile(-3, 7, 1.0));
+        s.put(tile(-3, 7, 2.0));
+        assert_eq!(s.stats().memory_tiles, 1);
+        // Snow at rest everywhere, no footprint, no snowfall: the same as fresh snow.
+        let untouched = TileData { snow_xor_rest: vec![0; 64], stamps: vec![STAMP_EMPTY; 64], ..tile(-3, 7, 0.0) };
+        s.put(untouched.clone());
+        assert_eq!(s.stats().memory_tiles, 0, "an untouched tile replaces what was kept and is not kept");
+        assert_eq!(s.lookup(key), TileLookup::Ready(None));
+        // With a snowfall plane it is kept (snowfall may differ from the fresh snow's).
+        s.put(TileData { fallen: vec![0.0; 64], ..untouched });
+        assert_eq!(s.stats().memory_tiles, 1);
+        s.put(tile(-3, 7, 5.0));
+        assert_eq!(s.lookup(key), TileLookup::Ready(Some(tile(-3, 7, 5.0))));
+        assert_eq!(s.stats().lost, 0);
+    }
+
+    #[test]
+    fn in_memory_has_no_state_to_save() {
+        let mut s = memory(2);
+        assert_eq!(s.read_state("window.state").expect("read"), None);
+        let err = s.write_state("window.state", vec![1]).expect_err("no disk");
+        assert!(matches!(err, StoreError::NoDisk) && err.path().is_none());
+        assert!(err.to_string().contains("disk store"), "{err}");
+        let mut short = tile(0, 0, 1.0);
+        short.stamps.pop();
+        s.put(short);
+        assert_eq!(s.take_errors().len(), 1, "a wrong tile is refused in memory too");
+        drop(s); // No worker to join, nothing to write.
     }
 
     #[test]

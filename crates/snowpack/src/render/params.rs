@@ -5,6 +5,7 @@ use glam::Vec3;
 
 /// Surface materials that swap in by name (Wasmut section 6; the blog's mud and sand).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum MaterialPreset {
     /// Fresh powder over compacted trails: bright, rough, blue-tinted scattering, sparkle.
     #[default]
@@ -117,6 +118,7 @@ pub struct Material {
 
 /// What the terrain and actors show instead of the lit image (Wasmut's appendix).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum DebugView {
     /// The lit image.
     #[default]

@@ -388,7 +388,7 @@ impl ShellRenderer {
     /// Pixels each peeling pass shaded in the last frame drawn (blocking readback; for tests and tools).
     pub fn pass_pixels(&self, ctx: &GpuContext) -> Result<PassPixels, SnowError> {
         let Some(targets) = self.targets.as_ref().filter(|_| self.drawn) else { return Ok(Vec::new()) };
-        let raw = crate::deform::pipeline::read_buffer(ctx, &targets.counts)?;
+        let raw = crate::gpu::read_buffer(ctx, &targets.counts)?;
         let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
         Ok(counts[..self.settings.passes as usize].to_vec())
     }

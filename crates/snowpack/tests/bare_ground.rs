@@ -1,0 +1,163 @@
+//! `depth_m = 0`: bare ground, where all the snow there is comes from the
+//! snowfall. Nothing divides by the rest depth into a NaN, the snow grows at
+//! the snowfall's rate, and a deformer pressing into it leaves bare ground.
+
+use glam::{DVec2, Vec3};
+use snowpack::accumulate::Snowfall;
+use snowpack::cpu;
+use snowpack::deform::pipeline::read_buffer;
+use snowpack::deform::resources::DeformResources;
+use snowpack::deform::rim::{RimParams, RimPass};
+use snowpack::gpu::GpuTimer;
+use snowpack::testing;
+use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
+
+const DT: f32 = 1.0 / 60.0;
+const RES: usize = 64;
+/// Window side (m): 6.25 cm texels.
+const EXTENT_M: f32 = 4.0;
+const GROUND_M: f32 = 0.25;
+
+/// A sphere of 0.3 m at the window's centre, its bottom 0.2 m below the ground.
+fn sphere() -> Deformer {
+    Deformer::Sphere { center: Vec3::new(0.0, GROUND_M + 0.1, 0.0), radius: 0.3 }
+}
+
+/// Distance (m) of texel (i, j)'s centre from the window's centre (x, z).
+fn from_centre(i: usize, j: usize) -> f32 {
+    let texel = EXTENT_M / RES as f32;
+    let c = |k: usize| (k as f32 + 0.5) * texel - EXTENT_M / 2.0;
+    c(j).hypot(c(i))
+}
+
+fn bare_window(ctx: &GpuContext, technique: Technique, rate: f32) -> SnowDeformation {
+    let fall = Snowfall { rate_m_per_s: rate, max_m: 1.0, ..Snowfall::default() };
+    let params = SnowParams { extent_m: EXTENT_M, resolution: RES as u32, depth_m: 0.0, technique, snowfall: Some(fall), ..SnowParams::default() };
+    SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: GROUND_M }, DVec2::ZERO).expect("a window on bare ground")
+}
+
+#[test]
+fn snowfall_on_bare_ground_grows_at_its_rate_and_a_deformer_leaves_bare_ground() {
+    let Some(ctx) = testing::gpu() else { return };
+    let rate = 0.05;
+    for technique in [Technique::Depth, Technique::Points, Technique::Combined] {
+        let mut snow = bare_window(ctx, technique, 0.0);
+        // First frame with no snowfall: no snow at all, and no NaN in the
+        // displayed surface (its rims divide by the rest depth).
+        snow.step(ctx, &[sphere()], DT).expect("frame");
+        let (shown, normals) = snow.read_surface(ctx).expect("surface");
+        assert!(shown.iter().all(|&h| h == GROUND_M), "{technique:?}: bare ground is not shown at the ground");
+        assert!(normals.iter().flatten().all(|n| n.is_finite()));
+        assert!(snow.read_snow(ctx).expect("snow").iter().all(|&h| h == GROUND_M));
+        // Then it snows for 2 s with the sphere resting in the snow.
+        let fall = Snowfall { rate_m_per_s: rate, max_m: 1.0, ..Snowfall::default() };
+        snow.set_snowfall(Some(fall)).expect("snowfall");
+        let frames = 120;
+        for _ in 0..frames {
+            snow.step(ctx, &[sphere()], DT).expect("frame");
+        }
+        snow.finish(ctx).expect("finish");
+        let expected = rate * DT * frames as f32;
+        assert!((snow.fallen_m() - expected).abs() < 1e-5, "{technique:?}: fallen {} m, expected {expected}", snow.fallen_m());
+        let heights = snow.read_snow(ctx).expect("snow");
+        let (shown, normals) = snow.read_surface(ctx).expect("surface");
+        assert!(heights.iter().chain(&shown).all(|h| h.is_finite()) && normals.iter().flatten().all(|n| n.is_finite()), "{technique:?}: NaN in the snow");
+        let (mut open, mut under) = (0, 0);
+        for i in 0..RES {
+            for j in 0..RES {
+                let depth = heights[i * RES + j] - GROUND_M;
+                let r = from_centre(i, j);
+                // Away from the sphere (and from the points' footprints and rims): the snowfall, everywhere.
+                if r > 2.2 * 0.3 {
+                    assert!((depth - expected).abs() < 1e-5, "{technique:?}: texel ({i}, {j}) has {depth} m of snow, expected {expected}");
+                    open += 1;
+                }
+                // Under the sphere (the capture reaches where it is below the ground; the points at its contact).
+                let pressed = if technique == Technique::Points { r < 0.05 } else { r < 0.2 };
+                if pressed {
+                    assert_eq!(depth, 0.0, "{technique:?}: texel ({i}, {j}) under the sphere holds {depth} m of snow");
+                    under += 1;
+                }
+            }
+        }
+        assert!(open > RES * RES / 2 && under > 0, "{technique:?}: {open} open texels, {under} under the sphere");
+    }
+}
+
+#[test]
+fn bare_ground_keeps_its_trench_through_the_tiles() {
+    let Some(ctx) = testing::gpu() else { return };
+    // The default memory keeper: XOR against a rest of terrain + 0 + fallen.
+    let mut snow = bare_window(ctx, Technique::Depth, 0.05);
+    for _ in 0..60 {
+        snow.step(ctx, &[sphere()], DT).expect("frame");
+    }
+    let before = snow.read_snow(ctx).expect("snow");
+    assert!(before.contains(&GROUND_M) && before.iter().any(|&h| h > GROUND_M + 0.04));
+    snow.set_snowfall(None).expect("the snow stops");
+    // Two ring widths out (the trench's slots go to other tiles) and back.
+    for center in [DVec2::new(8.0, 0.0), DVec2::new(16.0, 0.0), DVec2::ZERO] {
+        snow.set_center(center);
+        for _ in 0..120 {
+            snow.step(ctx, &[], DT).expect("frame");
+        }
+    }
+    let stats = snow.tile_stats().expect("tiles are kept by default");
+    assert!(stats.restored > 0 && stats.window_waits < 120, "{stats:?}");
+    let after = snow.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels of bare ground and new snow changed after the round trip");
+}
+
+#[test]
+fn rims_at_zero_depth_match_cpu_and_stay_finite() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("rims_at_zero_depth_match_cpu_and_stay_finite");
+    let mut rng = testing::Rng::new(seed);
+    // Combined: the window has a footprint buffer for the point rims.
+    let params = SnowParams { extent_m: EXTENT_M, resolution: RES as u32, depth_m: 0.0, snowfall: Some(Snowfall::default()), technique: snowpack::Technique::Combined, ..SnowParams::default() };
+    let terrain_src = TerrainSource::Noise(snowpack::NoiseTerrain { seed: rng.next_u64() as u32, base_m: 0.0, amplitude_m: 1.0, wavelength_m: rng.range(2.0, 10.0) });
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let n = RES * RES;
+    // The ground the rim evaluates from the terrain's source, per texel.
+    let terrain = cpu::window::ground_plane(&terrain_src, [0, 0], RES as u32, params.texel_m());
+    // Half the texels bare (no snowfall yet: a rest depth of 0), half with some snow.
+    let fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.5 { 0.0 } else { rng.range(0.001, 0.3) }).collect();
+    let snow: Vec<f32> = terrain.iter().zip(&fallen).map(|(t, f)| if rng.range(0.0, 1.0) < 0.5 { t + f } else { t + rng.range(0.0, *f) }).collect();
+    let (low_m, high_m) = (-3.0_f32, 3.0_f32);
+    let stamps: Vec<u32> = terrain
+        .iter()
+        .zip(&fallen)
+        .map(|(t, f)| {
+            let rest = t + f;
+            let foot = cpu::stamp::quantise(rest - rng.range(-0.1, 0.4), low_m, high_m);
+            let h = cpu::stamp::quantise(rest + rng.range(-0.2, 0.5), low_m, high_m).max(foot);
+            (h << 16) | foot
+        })
+        .collect();
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+    let rim = RimPass::new(&ctx.device, &res);
+    let mut timer = GpuTimer::disabled();
+    for mode in [0, 1, 2] {
+        let rp = RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, texel_m: params.texel_m() };
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
+        rim.record(&ctx.queue, &mut encoder, &mut timer, &rp);
+        ctx.queue.submit([encoder.finish()]);
+        // The displayed height is in the even (height) words of `surface`.
+        let words: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("readback"));
+        let gpu: Vec<f32> = words.iter().step_by(2).copied().collect();
+        let cpu = cpu::rim::rim(&rp, &terrain, &snow, &stamps, &fallen);
+        assert!(gpu.iter().all(|h| h.is_finite()), "mode {mode}: NaN in the displayed surface; seed {seed}");
+        let worst = gpu.iter().zip(&cpu).map(|(g, c)| (g - c).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "mode {mode}: GPU and CPU differ by {worst}; seed {seed}");
+        // Bare texels show their snow (origin 0: window-local is toroidal), with no rim.
+        let bare: Vec<usize> = (0..n).filter(|&s| fallen[s] == 0.0).collect();
+        assert!(bare.len() > n / 3);
+        assert!(bare.iter().all(|&s| gpu[s] == snow[s]), "mode {mode}: a bare texel is not shown as its snow; seed {seed}");
+        // And the snowy ones still get their remap or rims.
+        let changed = (0..n).filter(|&s| fallen[s] > 0.0 && (gpu[s] - snow[s]).abs() > 1e-4).count();
+        assert!(changed > n / 20, "mode {mode}: only {changed} snowy texels remapped; seed {seed}");
+    }
+}
