@@ -929,20 +929,30 @@ impl SnowDeformation {
         Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
     }
 
-    /// Terrain height (m) at the texel centres, window-local row-major.
-    /// Evaluated on the CPU from the terrain's source with the GPU's formula
-    /// (`texel_ground`), so they agree to rounding; a mesh terrain uses its
-    /// CPU grid, which the GPU's bake matches but for rasteriser edge texels.
-    /// No GPU buffer holds the terrain per texel. Never fails; the `Result`
-    /// keeps the signature of the other reads.
-    pub fn read_terrain(&self, _ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+    /// Terrain height (m) at the texel centres, window-local row-major; for
+    /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
+    /// (`texel_ground`), so they agree to rounding: from the terrain's
+    /// description, and for a mesh terrain from the grid the GPU baked (read
+    /// back), which is what the passes sample. No GPU buffer holds the
+    /// terrain per texel.
+    pub fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let baked;
+        let source = match &self.terrain {
+            TerrainSource::Mesh(mesh) => {
+                let n = (mesh.grid.width * mesh.grid.height) as usize;
+                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
+                baked = TerrainSource::Heightmap(crate::HeightmapTerrain { heights_m: heights[..n].to_vec(), ..mesh.grid.clone() });
+                &baked
+            }
+            other => other,
+        };
         let r = self.params.resolution;
         let origin = self.window.origin().unwrap_or([0, 0]);
         let o = [origin[0] as i32, origin[1] as i32];
         let texel = self.params.texel_m();
         Ok((0..r)
             .flat_map(|i| (0..r).map(move |j| (i, j)))
-            .map(|(i, j)| crate::cpu::window::texel_ground(&self.terrain, [o[0] + j as i32, o[1] + i as i32], texel))
+            .map(|(i, j)| crate::cpu::window::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
             .collect())
     }
 
