@@ -15,7 +15,7 @@ struct ExchangeParams {
     flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
     texel_m: f32,           // where the terrain is evaluated (stash)
-    _pad1: u32,
+    planes: u32,            // planes per resident slot (shared/tiles.wgsl)
     _pad2: u32,
     rects: array<vec4<u32>, 2>, // exposed window-local (row0, col0, rows, cols)
 }
@@ -55,24 +55,24 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let si = i32(s / params.resolution);
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
-        tiles[tile_index(g, side, n, PLANE_SNOW)] = bitcast<u32>(snow[s]);
+        tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow[s]);
         var st = 0xffffffffu; // no footprint buffer: none
         if has_stamps {
             st = stamps[s];
         }
-        tiles[tile_index(g, side, n, PLANE_STAMPS)] = st;
-        tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
+        tiles[tile_index(g, side, n, params.planes, PLANE_STAMPS)] = st;
+        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
         if use_fallen {
-            tiles[tile_index(g, side, n, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
+            tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
-        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_SNOW)]);
+        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
         if has_stamps {
-            stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
+            stamps[s] = tiles[tile_index(g, side, n, params.planes, PLANE_STAMPS)];
         }
         if use_fallen {
-            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_FALLEN)]);
+            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);
         }
     }
 }

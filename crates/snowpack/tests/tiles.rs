@@ -11,7 +11,7 @@ use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
-use snowpack::deform::tiles::{TileGrid, PLANES};
+use snowpack::deform::tiles::{planes, TileGrid, PLANES};
 use snowpack::deform::window::SlidingWindow;
 use snowpack::gpu::GpuTimer;
 use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
@@ -64,9 +64,12 @@ fn exchange_matches_cpu() {
     let (resolution, side) = (64u32, 16u32);
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
-        // The short move with a footprint buffer (points), the jump without one (depth).
+        // The short move with a footprint buffer (points) and snowfall (four
+        // planes a slot), the jump without either (depth, three planes).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
-        let params = SnowParams { extent_m: 8.0, resolution, snowfall: Some(snowpack::accumulate::Snowfall::default()), technique, ..SnowParams::default() };
+        let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
+        let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
+        let use_fallen = !jump;
         // Flat at a random height: the stashed terrain plane is compared bit for bit.
         let terrain_src = TerrainSource::Flat { height_m: rng.range(-1.0, 1.0) };
         let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
@@ -79,8 +82,10 @@ fn exchange_matches_cpu() {
         if res.has_stamps() {
             ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
         }
-        ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
-        let mut tiles: Vec<u32> = (0..grid.slot_count() * PLANES * grid.area()).map(|_| rng.next_u64() as u32).collect();
+        if use_fallen {
+            ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+        }
+        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen) * grid.area()).map(|_| rng.next_u64() as u32).collect();
         let tiles_gpu = storage(ctx, &tiles);
         let old = [(rng.next_u64() % 4000) as i64 - 2000, (rng.next_u64() % 4000) as i64 - 2000];
         let step = if jump { 500 } else { 20 };
@@ -94,8 +99,9 @@ fn exchange_matches_cpu() {
             resolution,
             side,
             slots_per_side: grid.slots_per_side(),
-            flags: ExchangeParams::USE_FALLEN | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
+            flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
             texel_m: res.texel_m,
+            planes: planes(use_fallen) as u32,
             ..ExchangeParams::default()
         };
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
@@ -115,7 +121,9 @@ fn exchange_matches_cpu() {
         if res.has_stamps() {
             assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
         }
-        assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
+        if use_fallen {
+            assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
+        }
     }
 }
 
@@ -166,6 +174,7 @@ fn tile_restore_and_weather_match_cpu() {
         slots_per_side: grid.slots_per_side(),
         count: entries.len() as u32,
         flags: RestoreParams::USE_FALLEN,
+        planes: PLANES as u32,
         texel_m: 0.125,
         depth_m: 0.5,
         fallen_m: 0.05,
@@ -208,7 +217,8 @@ fn tile_restore_and_weather_match_cpu() {
         low_m,
         high_m,
         count: 0,
-        _pad: [0; 2],
+        planes: PLANES as u32,
+        _pad: 0,
     };
     // A random subset of the slots, in random order.
     let mut slots: Vec<u32> = (0..grid.slot_count() as u32).filter(|_| !rng.next_u64().is_multiple_of(5)).collect();

@@ -1,7 +1,7 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
-use crate::deform::tiles::{PLANES, PLANE_TERRAIN};
+use crate::deform::tiles::PLANE_TERRAIN;
 use crate::TerrainSource;
 
 use super::stamp::STAMP_EMPTY;
@@ -34,8 +34,9 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
                     saved
                 }
             };
-            write_texel(tiles, slot, area, k, t);
-            tiles[slot * PLANES * area + PLANE_TERRAIN * area + k] = ground.to_bits();
+            let planes = p.planes as usize;
+            write_texel(tiles, slot, (area, planes), k, t);
+            tiles[slot * planes * area + PLANE_TERRAIN * area + k] = ground.to_bits();
         }
     }
 }

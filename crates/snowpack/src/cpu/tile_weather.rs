@@ -1,7 +1,7 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
 use crate::deform::tile_weather::WeatherParams;
-use crate::deform::tiles::{PLANES, PLANE_FALLEN, PLANE_SNOW, PLANE_STAMPS, PLANE_TERRAIN};
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_STAMPS, PLANE_TERRAIN};
 
 use super::stamp::{height, STAMP_EMPTY};
 
@@ -64,22 +64,26 @@ pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePasse
     out
 }
 
-/// Reads texel `k` of slot `slot` (planes of `area` texels).
+/// Reads texel `k` of slot `slot` (`planes` planes of `area` texels; no
+/// snowfall plane, and 0 m of it, below [`crate::deform::tiles::PLANES`]).
 #[must_use]
-pub fn read_texel(tiles: &[u32], slot: usize, area: usize, k: usize) -> (TexelState, f32) {
-    let base = slot * PLANES * area + k;
+pub fn read_texel(tiles: &[u32], slot: usize, (area, planes): (usize, usize), k: usize) -> (TexelState, f32) {
+    let base = slot * planes * area + k;
+    let fallen = if planes > PLANE_FALLEN { f32::from_bits(tiles[base + PLANE_FALLEN * area]) } else { 0.0 };
     (
-        TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp: tiles[base + PLANE_STAMPS * area], fallen: f32::from_bits(tiles[base + PLANE_FALLEN * area]) },
+        TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp: tiles[base + PLANE_STAMPS * area], fallen },
         f32::from_bits(tiles[base + PLANE_TERRAIN * area]),
     )
 }
 
-/// Writes texel `k` of slot `slot`.
-pub fn write_texel(tiles: &mut [u32], slot: usize, area: usize, k: usize, t: TexelState) {
-    let base = slot * PLANES * area + k;
+/// Writes texel `k` of slot `slot` (its terrain plane is left as it is).
+pub fn write_texel(tiles: &mut [u32], slot: usize, (area, planes): (usize, usize), k: usize, t: TexelState) {
+    let base = slot * planes * area + k;
     tiles[base + PLANE_SNOW * area] = t.snow.to_bits();
     tiles[base + PLANE_STAMPS * area] = t.stamp;
-    tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
+    if planes > PLANE_FALLEN {
+        tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
+    }
 }
 
 /// One frame of weather on the resident `tiles` of the listed `slots`,
@@ -104,8 +108,9 @@ pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mu
             if d[0] >= 0 && d[1] >= 0 && d[0] < res && d[1] < res {
                 continue;
             }
-            let (t, ground) = read_texel(tiles, slot, area, k);
-            write_texel(tiles, slot, area, k, pass_time(ground, &c, t, &time));
+            let layout = (area, p.planes as usize);
+            let (t, ground) = read_texel(tiles, slot, layout, k);
+            write_texel(tiles, slot, layout, k, pass_time(ground, &c, t, &time));
         }
     }
 }

@@ -29,8 +29,10 @@ pub struct ExchangeParams {
     pub rect_count: u32,
     /// Texel size (m): where a stashed tile's terrain plane is evaluated.
     pub texel_m: f32,
+    /// Planes per resident slot ([`super::tiles::planes`]).
+    pub planes: u32,
     /// Padding.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
     /// Exposed window-local rectangles `[row0, col0, rows, cols]`.
     pub rects: [TexelRect; 2],
 }

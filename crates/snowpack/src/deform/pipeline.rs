@@ -19,7 +19,7 @@ use super::rim::{RimParams, RimPass};
 use super::saved::{SavedWindow, STATE_NAME};
 use super::stamp::{contact_points, StampParams, StampPass};
 use super::params::default_tile_texels;
-use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, PLANES};
+use super::tiles::{planes, TileFrame, TileGrid, TileStats, TileStreaming};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
 
@@ -45,7 +45,7 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
 fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, budget: usize) -> Result<Option<TileStreaming>, SnowError> {
     let side = default_tile_texels(params.resolution);
     let grid = TileGrid::new(params.resolution, side)?;
-    let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+    let bytes = (grid.slot_count() * planes(params.snowfall.is_some()) * grid.area() * 4) as u64;
     let limit = ctx.device.limits().max_storage_buffer_binding_size;
     if bytes > limit {
         tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);

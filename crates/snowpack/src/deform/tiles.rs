@@ -33,16 +33,24 @@ use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use super::tile_weather::{TileWeatherPass, WeatherParams};
 use super::window::TexelRect;
 
-/// Planes per resident tile: snow, stamps, fallen, terrain (`shared/tiles.wgsl`).
+/// Planes per resident tile in a world with snowfall: snow, stamps,
+/// terrain, fallen (`shared/tiles.wgsl`); without snowfall the last is left
+/// out ([`planes`]).
 pub const PLANES: usize = 4;
 /// Plane of the snow height (f32 bits).
 pub const PLANE_SNOW: usize = 0;
 /// Plane of the packed footprints.
 pub const PLANE_STAMPS: usize = 1;
-/// Plane of the snowfall so far (f32 bits).
-pub const PLANE_FALLEN: usize = 2;
 /// Plane of the terrain height (f32 bits).
-pub const PLANE_TERRAIN: usize = 3;
+pub const PLANE_TERRAIN: usize = 2;
+/// Plane of the snowfall so far (f32 bits); only in a world with snowfall.
+pub const PLANE_FALLEN: usize = 3;
+
+/// Planes per resident tile: [`PLANES`] with snowfall, one fewer without.
+#[must_use]
+pub const fn planes(use_fallen: bool) -> usize {
+    if use_fallen { PLANES } else { PLANES - 1 }
+}
 
 /// Tiles around the window that are requested from the store ahead of need.
 pub const PREFETCH_MARGIN_TILES: i64 = 2;
@@ -221,7 +229,7 @@ impl TileStreaming {
     /// Resident slots for the window of `res`, behind `streamer`.
     pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer, (depth_m, use_fallen): (f32, bool)) -> Result<Self, SnowError> {
         let grid = TileGrid::new(res.resolution, streamer.side())?;
-        let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+        let bytes = (grid.slot_count() * planes(use_fallen) * grid.area() * 4) as u64;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             return Err(SnowError::InvalidParameter {
@@ -362,6 +370,7 @@ impl TileStreaming {
             slots_per_side: self.grid.slots_per_side,
             flags: fallen_flag,
             texel_m: res.texel_m,
+            planes: planes(frame.use_fallen) as u32,
             ..ExchangeParams::default()
         };
         if old.is_some() {
@@ -432,6 +441,7 @@ impl TileStreaming {
             side: self.grid.side,
             slots_per_side: self.grid.slots_per_side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
+            planes: planes(frame.use_fallen) as u32,
             texel_m: frame.texel_m,
             depth_m: frame.depth_m,
             fallen_m: frame.fallen_m,
@@ -455,7 +465,7 @@ impl TileStreaming {
     /// Copies the slots of `slots` (terrain too: the rest height the snow is
     /// stored against) into a staging buffer for the store.
     fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
-        let slot_bytes = (PLANES * self.grid.area() * 4) as u64;
+        let slot_bytes = (planes(self.use_fallen) * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // A staging buffer from an earlier copy-out when one is big enough.
         let buffer = match self.spare_staging.iter().position(|b| b.size() >= size) {
@@ -494,6 +504,7 @@ impl TileStreaming {
                 side: self.grid.side,
                 slots_per_side: self.grid.slots_per_side,
                 flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
+                planes: planes(frame.use_fallen) as u32,
                 depth_m: frame.depth_m,
                 refill_m,
                 fall_m,
@@ -502,7 +513,7 @@ impl TileStreaming {
                 low_m: frame.low_m,
                 high_m: frame.high_m,
                 count: 0,
-                _pad: [0; 2],
+                _pad: 0,
             },
             &self.weather_slots,
         );
@@ -516,7 +527,7 @@ impl TileStreaming {
             }
             let flag = Arc::new(AtomicU8::new(MAPPING));
             let done = Arc::clone(&flag);
-            let used = (eviction.keys.len() * PLANES * self.grid.area() * 4) as u64;
+            let used = (eviction.keys.len() * planes(self.use_fallen) * self.grid.area() * 4) as u64;
             eviction.buffer.slice(..used).map_async(wgpu::MapMode::Read, move |r| {
                 done.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
             });
@@ -542,7 +553,7 @@ impl TileStreaming {
                 continue;
             }
             let eviction = self.evictions.swap_remove(k);
-            let used = (eviction.keys.len() * PLANES * area * 4) as u64;
+            let used = (eviction.keys.len() * planes(self.use_fallen) * area * 4) as u64;
             let words: Option<Vec<u32>> = if state == Some(MAPPED) {
                 eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok()
             } else {
@@ -557,7 +568,8 @@ impl TileStreaming {
             };
             eviction.buffer.unmap();
             for (t, key) in eviction.keys.iter().enumerate() {
-                let planes = &words[t * PLANES * area..(t + 1) * PLANES * area];
+                let n = planes(self.use_fallen);
+                let planes = &words[t * n * area..(t + 1) * n * area];
                 self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen)));
             }
             self.spare_staging.push(eviction.buffer);
@@ -577,12 +589,12 @@ impl TileStreaming {
         let flags = ExchangeParams::STASH
             | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
             | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
-        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, ..ExchangeParams::default() };
+        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, planes: planes(use_fallen) as u32, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
         let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
-        let slot_words = PLANES * self.grid.area();
+        let slot_words = planes(use_fallen) * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
             if let Some(key) = owner {
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
@@ -618,15 +630,15 @@ impl TileStreaming {
     }
 }
 
-/// A tile from its slot's planes (snow, stamps, fallen, terrain bits), for
-/// the store: heights XOR their rest height (terrain + depth + fallen, as
-/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. The `fallen`
-/// plane is kept only when the world has snowfall.
+/// A tile from its slot's planes (snow, stamps, terrain, and fallen where
+/// the world has snowfall: [`planes`]), for the store: heights XOR their
+/// rest height (terrain + depth + fallen, as `tile_restore.wgsl` recomputes
+/// it), so untouched snow is 0.
 #[must_use]
 pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen): (f32, bool)) -> TileData {
     let area = (side * side) as usize;
     let plane = |p: usize| &planes[p * area..(p + 1) * area];
-    let fallen: Vec<f32> = plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect();
+    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { vec![0.0; area] };
     let snow_xor_rest = plane(PLANE_SNOW)
         .iter()
         .zip(plane(PLANE_TERRAIN))
