@@ -56,11 +56,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
         tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow[s]);
-        var st = 0xffffffffu; // no footprint buffer: none
+        // The slots have a footprint plane exactly when the window has a footprint buffer.
         if has_stamps {
-            st = stamps[s];
+            tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
         }
-        tiles[tile_index(g, side, n, params.planes, PLANE_STAMPS)] = st;
         tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
         if use_fallen {
             tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
@@ -69,7 +68,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let g = params.origin + vec2<i32>(i32(j), i32(i));
         snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
         if has_stamps {
-            stamps[s] = tiles[tile_index(g, side, n, params.planes, PLANE_STAMPS)];
+            stamps[s] = tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))];
         }
         if use_fallen {
             fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);

@@ -74,7 +74,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
-    tiles[base + PLANE_STAMPS * area] = t.stamp;
+    if has_stamp_plane(params.planes, use_fallen) {
+        tiles[base + plane_stamps(params.planes) * area] = t.stamp;
+    }
     tiles[base + PLANE_TERRAIN * area] = bitcast<u32>(ground);
     if (params.flags & USE_FALLEN) != 0u {
         tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);

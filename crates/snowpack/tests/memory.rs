@@ -2,9 +2,9 @@
 //! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
 //! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
 //! allocates per texel. The resident tiles of the default trail keeper are
-//! printed and counted apart: their ring (34² slots of 32² texels, three
-//! 4-byte planes without snowfall) is sized by the tile grid, not by the
-//! technique.
+//! printed and counted apart: their ring (34² slots of 32² texels, two to
+//! four 4-byte planes) is sized by the tile grid, a plane more for the
+//! footprints of points and combined and one for snowfall.
 
 use glam::DVec2;
 use snowpack::{testing, SnowDeformation, SnowParams, Technique, TerrainSource};
@@ -49,10 +49,10 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
     let per_texel = 4 + 2 + 8;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
-    // The default keeps trails: 34² resident slots of 32² texels, three
-    // 4-byte planes without snowfall (snow, footprints, terrain), and the
-    // slots' small bookkeeping buffers.
-    let ring = 34 * 34 * 32 * 32 * 12;
+    // The default keeps trails: 34² resident slots of 32² texels, two 4-byte
+    // planes for depth without snowfall (snow, terrain), and the slots' small
+    // bookkeeping buffers.
+    let ring = 34 * 34 * 32 * 32 * 8;
     let tiles = bytes_of(&depth, "resident tiles");
     assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
 
@@ -60,6 +60,8 @@ fn default_window_memory_per_technique() {
     let combined_total = table(&combined, "combined");
     assert_eq!(bytes_of(&combined, "stamps"), 4 * texels);
     assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");
+    // ... and the slots' footprint plane.
+    assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 34 * 34 * 32 * 32 * 4);
 
     // Switching allocates what the new technique needs at the next frame, and keeps it.
     depth.set_technique(Technique::Points);

@@ -10,7 +10,10 @@ fn switching_keeps_trails_and_allocates_once() {
     let Some(ctx) = testing::gpu() else { return };
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
-    let total = |s: &SnowDeformation| s.memory_bytes().iter().map(|(_, b)| b).sum::<u64>();
+    // The window's resources; the resident tiles of the default trail keeper apart.
+    let total = |s: &SnowDeformation| s.memory_bytes().iter().filter(|(n, _)| *n != "resident tiles").map(|(_, b)| b).sum::<u64>();
+    let tiles = |s: &SnowDeformation| s.memory_bytes().iter().find(|(n, _)| *n == "resident tiles").map_or(0, |(_, b)| *b);
+    let depth_tiles = tiles(&snow);
     let depth_memory = total(&snow);
     let at = |x: f32| Deformer::Sphere { center: Vec3::new(x, 0.6, 0.0), radius: 0.4 };
     // Depth presses a print at x = -2, points one at x = 0, combined one at x = 2.
@@ -24,6 +27,9 @@ fn switching_keeps_trails_and_allocates_once() {
     // Points allocated the footprint buffer (4 bytes a texel, less its 4-byte stand-in).
     let texels = 128 * 128;
     assert_eq!(total(&snow), depth_memory + 4 * texels - 4, "points allocated more than the footprints");
+    // And the resident slots a footprint plane: three planes where there were two.
+    assert!(depth_tiles > 0, "trails are kept by default");
+    assert!(tiles(&snow) > depth_tiles && tiles(&snow) < depth_tiles * 3 / 2 + 64 * 1024, "resident tiles {} after {depth_tiles}", tiles(&snow));
     // Decals: the sphere moves on and the height field must not change.
     snow.set_technique(Technique::Decals);
     let before = snow.read_snow(ctx).expect("read");

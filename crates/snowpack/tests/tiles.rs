@@ -11,7 +11,7 @@ use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
-use snowpack::deform::tiles::{planes, TileGrid, PLANES};
+use snowpack::deform::tiles::{plane_stamps, planes, TileGrid, PLANES};
 use snowpack::deform::window::SlidingWindow;
 use snowpack::gpu::GpuTimer;
 use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
@@ -65,7 +65,7 @@ fn exchange_matches_cpu() {
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
         // The short move with a footprint buffer (points) and snowfall (four
-        // planes a slot), the jump without either (depth, three planes).
+        // planes a slot), the jump without either (depth: snow and terrain only).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
         let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
         let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
@@ -85,7 +85,7 @@ fn exchange_matches_cpu() {
         if use_fallen {
             ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
         }
-        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen) * grid.area()).map(|_| rng.next_u64() as u32).collect();
+        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen, !jump) * grid.area()).map(|_| rng.next_u64() as u32).collect();
         let tiles_gpu = storage(ctx, &tiles);
         let old = [(rng.next_u64() % 4000) as i64 - 2000, (rng.next_u64() % 4000) as i64 - 2000];
         let step = if jump { 500 } else { 20 };
@@ -101,7 +101,7 @@ fn exchange_matches_cpu() {
             slots_per_side: grid.slots_per_side(),
             flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
             texel_m: res.texel_m,
-            planes: planes(use_fallen) as u32,
+            planes: planes(use_fallen, !jump) as u32,
             ..ExchangeParams::default()
         };
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
@@ -192,7 +192,7 @@ fn tile_restore_and_weather_match_cpu() {
     let gpu = read_u32(ctx, &tiles_gpu);
     // Terrain (noise) agrees to rounding; so do heights built on it.
     assert_eq!(differing(&gpu, &tiles, 1e-4), 0, "restore: slots differ; seed {seed}");
-    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + 1) * area..(s * PLANES + 2) * area).collect();
+    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + plane_stamps(PLANES)) * area..(s * PLANES + plane_stamps(PLANES) + 1) * area).collect();
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     // A footprint whose foot lands on the rest height to rounding may empty on one side only.
     assert!(stamp_diff <= stamp_words.len() / 1000, "restore: {stamp_diff} footprints differ; seed {seed}");

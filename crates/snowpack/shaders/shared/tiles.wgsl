@@ -4,14 +4,24 @@
 // (row mod n) * n + (col mod n) of a toroidal grid of n x n slots, so the
 // slots follow the window the way the window's texels do. A slot holds its
 // tile as `planes` planes of side * side u32, row-major: snow height (f32
-// bits), packed footprint, terrain height (f32 bits), and where the world has
-// snowfall the snowfall so far (f32 bits): 4 planes with snowfall, 3 without.
+// bits), terrain height (f32 bits), the snowfall so far (f32 bits) where the
+// world has snowfall, and last the packed footprints where the window has a
+// footprint buffer: 2 to 4 planes (`tiles::planes` in Rust).
 // Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
 
 const PLANE_SNOW: u32 = 0u;
-const PLANE_STAMPS: u32 = 1u;
-const PLANE_TERRAIN: u32 = 2u;
-const PLANE_FALLEN: u32 = 3u; // only with snowfall
+const PLANE_TERRAIN: u32 = 1u;
+const PLANE_FALLEN: u32 = 2u; // only with snowfall
+
+// The footprint plane of a slot of `planes` planes (where there is one).
+fn plane_stamps(planes: u32) -> u32 {
+    return planes - 1u;
+}
+
+// Whether a slot of `planes` planes has a footprint plane.
+fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
+    return planes > 2u + select(0u, 1u, use_fallen);
+}
 
 // Tile index of global texel coordinate g (floor division).
 fn tile_coord(g: i32, side: u32) -> i32 {

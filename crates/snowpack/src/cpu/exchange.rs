@@ -1,7 +1,7 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
 use crate::deform::exchange::ExchangeParams;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_STAMPS, PLANE_TERRAIN};
+use crate::deform::tiles::{plane_stamps, PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN};
 use crate::deform::window::TexelRect;
 
 use super::window::storage_index;
@@ -45,7 +45,9 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let o = p.old_origin;
                     let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
                     tiles[tile_index(g, side, n, planes, PLANE_SNOW)] = w.snow[s].to_bits();
-                    tiles[tile_index(g, side, n, planes, PLANE_STAMPS)] = if has_stamps { w.stamps[s] } else { crate::cpu::stamp::STAMP_EMPTY };
+                    if has_stamps {
+                        tiles[tile_index(g, side, n, planes, plane_stamps(planes))] = w.stamps[s];
+                    }
                     tiles[tile_index(g, side, n, planes, PLANE_TERRAIN)] = super::window::texel_ground(w.terrain, g, p.texel_m).to_bits();
                     if use_fallen {
                         tiles[tile_index(g, side, n, planes, PLANE_FALLEN)] = w.fallen[s].to_bits();
@@ -54,7 +56,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
                     w.snow[s] = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_SNOW)]);
                     if has_stamps {
-                        w.stamps[s] = tiles[tile_index(g, side, n, planes, PLANE_STAMPS)];
+                        w.stamps[s] = tiles[tile_index(g, side, n, planes, plane_stamps(planes))];
                     }
                     if use_fallen {
                         w.fallen[s] = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_FALLEN)]);

@@ -5,7 +5,7 @@ use crate::deform::tiles::PLANE_TERRAIN;
 use crate::TerrainSource;
 
 use super::stamp::STAMP_EMPTY;
-use super::tile_weather::{pass_time, write_texel, SnowConstants, TexelState, TimePassed};
+use super::tile_weather::{pass_time, write_texel, SlotLayout, SnowConstants, TexelState, TimePassed};
 
 /// Writes each entry's tile into its slot: the saved planes in `upload`
 /// brought up to now, or fresh snow over `terrain`.
@@ -35,7 +35,7 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
                 }
             };
             let planes = p.planes as usize;
-            write_texel(tiles, slot, (area, planes), k, t);
+            write_texel(tiles, slot, SlotLayout { area, planes, use_fallen }, k, t);
             tiles[slot * planes * area + PLANE_TERRAIN * area + k] = ground.to_bits();
         }
     }

@@ -45,7 +45,7 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
 fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, budget: usize) -> Result<Option<TileStreaming>, SnowError> {
     let side = default_tile_texels(params.resolution);
     let grid = TileGrid::new(params.resolution, side)?;
-    let bytes = (grid.slot_count() * planes(params.snowfall.is_some()) * grid.area() * 4) as u64;
+    let bytes = (grid.slot_count() * planes(params.snowfall.is_some(), true) * grid.area() * 4) as u64;
     let limit = ctx.device.limits().max_storage_buffer_binding_size;
     if bytes > limit {
         tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);
@@ -647,7 +647,7 @@ impl SnowDeformation {
             self.update_pass = UpdatePass::new(device, &self.res);
             self.update_pass.bind_sky(device, &self.res, self.accumulation.as_ref().map(SnowAccumulation::sky_view));
             if let Some(tiles) = &mut self.tiles {
-                tiles.rebind(device, &self.res);
+                tiles.add_stamp_plane(ctx, &self.res);
             }
         }
         let rects = self.window.move_to(origin);
