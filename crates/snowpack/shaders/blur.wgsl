@@ -2,16 +2,21 @@
 // displayed height, window-local order, clamped at the window's edges. A
 // 16x16 tile and its 2-texel apron along the axis are loaded into workgroup
 // memory once; every tap then reads workgroup memory. CPU twin: src/cpu/blur.rs.
+// Works in place in `surface`, viewed as two f32 words per texel: x reads the
+// height words (2t) and writes the normal words (2t + 1) as scratch, z reads
+// them back into the height words; the normals pass then overwrites the
+// normal words. A dispatch reads one word of each texel and writes the
+// other, so no word is both read and written in one dispatch.
 
 struct BlurParams {
     resolution: u32,
     axis: u32,       // 0: along rows (x), 1: along columns (z)
-    _pad: vec2<u32>,
+    src_word: u32,   // word of a texel read: 0 height, 1 normal (scratch)
+    dst_word: u32,   // word of a texel written
 }
 
 @group(0) @binding(0) var<uniform> params: BlurParams;
-@group(0) @binding(1) var<storage, read> src: array<f32>;
-@group(0) @binding(2) var<storage, read_write> dst: array<f32>;
+@group(0) @binding(1) var<storage, read_write> surface: array<f32>;
 
 const TILE: u32 = 16u;
 const RADIUS: u32 = 2u;
@@ -24,9 +29,9 @@ fn texel(along: i32, across: u32) -> f32 {
     let r = i32(params.resolution);
     let a = u32(clamp(along, 0, r - 1));
     if params.axis == 0u {
-        return src[across * params.resolution + a];
+        return surface[2u * (across * params.resolution + a) + params.src_word];
     }
-    return src[a * params.resolution + across];
+    return surface[2u * (a * params.resolution + across) + params.src_word];
 }
 
 @compute @workgroup_size(16, 16)
@@ -56,5 +61,5 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     if params.axis == 1u {
         out_index = along * params.resolution + across;
     }
-    dst[out_index] = sum * (1.0 / 16.0);
+    surface[2u * out_index + params.dst_word] = sum * (1.0 / 16.0);
 }

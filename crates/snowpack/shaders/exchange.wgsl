@@ -12,23 +12,26 @@ struct ExchangeParams {
     resolution: u32,
     side: u32,              // tile side (texels)
     slots_per_side: u32,
-    flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use)
+    flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
-    _pad0: u32,
-    _pad1: u32,
+    texel_m: f32,           // where the terrain is evaluated (stash)
+    planes: u32,            // planes per resident slot (shared/tiles.wgsl)
     _pad2: u32,
     rects: array<vec4<u32>, 2>, // exposed window-local (row0, col0, rows, cols)
 }
 
 const STASH: u32 = 1u;
 const USE_FALLEN: u32 = 2u;
+const HAS_STAMPS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: ExchangeParams;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
-@group(0) @binding(2) var<storage, read_write> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl): a stashed tile's terrain plane.
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
 
 const WORKGROUP: u32 = 256u;
 
@@ -43,6 +46,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let res = i32(params.resolution);
     let s = storage_index(params.origin, params.resolution, i, j);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;
+    let has_stamps = (params.flags & HAS_STAMPS) != 0u;
     let n = params.slots_per_side;
     let side = params.side;
     if (params.flags & STASH) != 0u {
@@ -51,19 +55,23 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let si = i32(s / params.resolution);
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
-        tiles[tile_index(g, side, n, PLANE_SNOW)] = bitcast<u32>(snow[s]);
-        tiles[tile_index(g, side, n, PLANE_STAMPS)] = stamps[s];
-        tiles[tile_index(g, side, n, PLANE_TERRAIN)] = bitcast<u32>(terrain[s]);
+        tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow[s]);
+        // The slots have a footprint plane exactly when the window has a footprint buffer.
+        if has_stamps {
+            tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
+        }
+        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
         if use_fallen {
-            tiles[tile_index(g, side, n, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
+            tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
-        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_SNOW)]);
-        stamps[s] = tiles[tile_index(g, side, n, PLANE_STAMPS)];
-        terrain[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_TERRAIN)]);
+        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
+        if has_stamps {
+            stamps[s] = tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))];
+        }
         if use_fallen {
-            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, PLANE_FALLEN)]);
+            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);
         }
     }
 }

@@ -2,6 +2,8 @@
 // workgroup-memory tile (16x16 plus a one-texel apron, clamped at the window's
 // edges), packed with the height for the renderer:
 //   surface[t] = (bitcast<u32>(height), pack2x16snorm(normal.x, normal.z))
+// The rim and blur passes leave the height in word 2t; this pass reads those
+// words and writes only the normal words 2t + 1.
 // with normal.y = sqrt(1 - x^2 - z^2). CPU twin: src/cpu/normals.rs.
 
 struct NormalParams {
@@ -11,8 +13,7 @@ struct NormalParams {
 }
 
 @group(0) @binding(0) var<uniform> params: NormalParams;
-@group(0) @binding(1) var<storage, read> height: array<f32>;
-@group(0) @binding(2) var<storage, read_write> surface: array<vec2<u32>>;
+@group(0) @binding(1) var<storage, read_write> surface: array<u32>;
 
 const TILE: u32 = 16u;
 const SPAN: u32 = 18u;
@@ -21,7 +22,7 @@ var<workgroup> tile: array<f32, 324>;
 
 fn load(i: i32, j: i32) -> f32 {
     let r = i32(params.resolution) - 1;
-    return height[u32(clamp(i, 0, r)) * params.resolution + u32(clamp(j, 0, r))];
+    return bitcast<f32>(surface[2u * (u32(clamp(i, 0, r)) * params.resolution + u32(clamp(j, 0, r)))]);
 }
 
 @compute @workgroup_size(16, 16)
@@ -42,5 +43,5 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let dx = tile[t + 1u] - tile[t - 1u];
     let dz = tile[t + SPAN] - tile[t - SPAN];
     let n = normalize(vec3(-dx, 2.0 * params.texel_m, -dz));
-    surface[i * params.resolution + j] = vec2(bitcast<u32>(tile[t]), pack2x16snorm(vec2(n.x, n.z)));
+    surface[2u * (i * params.resolution + j) + 1u] = pack2x16snorm(vec2(n.x, n.z));
 }

@@ -30,11 +30,13 @@ struct Sample {
 
 @group(0) @binding(0) var<uniform> params: QueryParams;
 @group(0) @binding(1) var<storage, read> points: array<vec2<f32>>;
-@group(0) @binding(2) var<storage, read> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read> snow: array<f32>;
 @group(0) @binding(4) var<storage, read> fallen: array<f32>;
 @group(0) @binding(5) var<storage, read> surface: array<vec2<u32>>;
 @group(0) @binding(6) var<storage, read_write> samples: array<Sample>;
+@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
 
 fn bilerp(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
     let ab = a + (b - a) * f.x;
@@ -71,7 +73,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s10 = storage_index(params.origin, res, i + 1u, j);
     let s11 = storage_index(params.origin, res, i + 1u, j + 1u);
     out.height_m = bilerp(snow[s00], snow[s01], snow[s10], snow[s11], f);
-    out.terrain_m = bilerp(terrain[s00], terrain[s01], terrain[s10], terrain[s11], f);
+    let g = params.origin + vec2<i32>(i32(j), i32(i));
+    let t00 = texel_ground(terrain_params, g, params.texel_m);
+    let t01 = texel_ground(terrain_params, g + vec2<i32>(1, 0), params.texel_m);
+    let t10 = texel_ground(terrain_params, g + vec2<i32>(0, 1), params.texel_m);
+    let t11 = texel_ground(terrain_params, g + vec2<i32>(1, 1), params.texel_m);
+    out.terrain_m = bilerp(t00, t01, t10, t11, f);
     var fallen_m = 0.0;
     if params.use_fallen != 0u {
         fallen_m = bilerp(fallen[s00], fallen[s01], fallen[s10], fallen[s11], f);

@@ -1,4 +1,5 @@
-// Rim pass: the displayed height before blur, in window-local order.
+// Rim pass: the displayed height before blur, in window-local order, into
+// the height word of `surface` (even words; the normal words are left alone).
 // Mode 0 (depth, decals): Hanák's cubic remap (eq. 4.1),
 //   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
 // applied to the normalised snow depth x and blended in by `elevation`:
@@ -20,15 +21,18 @@ struct RimParams {
     low_m: f32,
     high_m: f32,
     use_fallen: u32,  // 1: the rest depth includes `fallen` (snowfall so far)
-    _pad: u32,
+    texel_m: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: RimParams;
-@group(0) @binding(1) var<storage, read> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
+@group(0) @binding(1) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(2) var<storage, read> snow: array<f32>;
-@group(0) @binding(3) var<storage, read_write> shown: array<f32>;
+// Viewed as f32 words: texel t's height is word 2t (see normals.wgsl).
+@group(0) @binding(3) var<storage, read_write> surface: array<f32>;
 @group(0) @binding(4) var<storage, read> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read> fallen: array<f32>;
+@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
 
 const RIM_PEAK: f32 = 0.25;
 // Snow within this of the rest height counts as undisturbed (grows rims).
@@ -66,7 +70,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = storage_index(params.origin, params.resolution, i, j);
-    let ground = terrain[s];
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     var depth = params.depth_m;
     if params.use_fallen != 0u {
         depth += fallen[s];
@@ -87,5 +91,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             out += point_rim(stamps[s], rest);
         }
     }
-    shown[i * params.resolution + j] = out;
+    surface[2u * (i * params.resolution + j)] = out;
 }

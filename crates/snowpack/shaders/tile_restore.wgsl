@@ -20,7 +20,7 @@ struct RestoreParams {
     max_fallen_m: f32,
     low_m: f32,          // footprint quantisation range
     high_m: f32,
-    _pad0: u32,
+    planes: u32,         // planes per resident slot (shared/tiles.wgsl)
     _pad1: u32,
 }
 
@@ -72,9 +72,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             t = pass_time(ground, params.depth_m, t, e.fall_m, params.max_fallen_m, e.refill_m, e.quanta, params.low_m, params.high_m, use_fallen);
         }
     }
-    let base = e.slot * PLANES * area + gid.x;
+    let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
-    tiles[base + PLANE_STAMPS * area] = t.stamp;
-    tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
+    if has_stamp_plane(params.planes, use_fallen) {
+        tiles[base + plane_stamps(params.planes) * area] = t.stamp;
+    }
     tiles[base + PLANE_TERRAIN * area] = bitcast<u32>(ground);
+    if (params.flags & USE_FALLEN) != 0u {
+        tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
+    }
 }

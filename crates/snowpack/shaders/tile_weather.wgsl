@@ -20,7 +20,7 @@ struct WeatherParams {
     low_m: f32,
     high_m: f32,
     count: u32,          // slots listed in `slots`
-    _pad0: u32,
+    planes: u32,         // planes per resident slot (shared/tiles.wgsl)
     _pad1: u32,
 }
 
@@ -48,14 +48,26 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if d.x >= 0 && d.y >= 0 && d.x < res && d.y < res {
         return;
     }
-    let base = slot * PLANES * area + gid.x;
+    let base = slot * params.planes * area + gid.x;
+    let use_fallen = (params.flags & USE_FALLEN) != 0u;
     var t: TexelState;
     t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
-    t.stamp = tiles[base + PLANE_STAMPS * area];
-    t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
+    let stamp_plane = has_stamp_plane(params.planes, use_fallen);
+    t.stamp = STAMP_EMPTY;
+    if stamp_plane {
+        t.stamp = tiles[base + plane_stamps(params.planes) * area];
+    }
+    t.fallen = 0.0;
+    if use_fallen {
+        t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
+    }
     let ground = bitcast<f32>(tiles[base + PLANE_TERRAIN * area]);
-    t = pass_time(ground, params.depth_m, t, params.fall_m, params.max_fallen_m, params.refill_m, params.quanta, params.low_m, params.high_m, (params.flags & USE_FALLEN) != 0u);
+    t = pass_time(ground, params.depth_m, t, params.fall_m, params.max_fallen_m, params.refill_m, params.quanta, params.low_m, params.high_m, use_fallen);
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
-    tiles[base + PLANE_STAMPS * area] = t.stamp;
-    tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
+    if stamp_plane {
+        tiles[base + plane_stamps(params.planes) * area] = t.stamp;
+    }
+    if use_fallen {
+        tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
+    }
 }

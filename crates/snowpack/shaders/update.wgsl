@@ -36,17 +36,21 @@ const USE_CAPTURE: u32 = 1u;
 const USE_STAMPS: u32 = 2u;
 const USE_FALLEN: u32 = 4u;
 const USE_SKY: u32 = 8u;
+// The window has a footprint buffer (allocated for points and combined, kept after).
+const HAS_STAMPS: u32 = 16u;
 const SKY_BIAS_M: f32 = 0.02;
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
 // The depth target is bound as an unfilterable float texture: GLSL has no
 // texelFetch for depth textures, and this binding works on every backend.
 @group(0) @binding(1) var capture: texture_2d<f32>;
-@group(0) @binding(2) var<storage, read> terrain: array<f32>;
+// The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
+@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<f32>;
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var sky: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -70,7 +74,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = storage_index(params.origin, params.resolution, i, j);
-    let ground = terrain[s];
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let old = snow[s];
     var visible = 1.0;
     if (params.flags & USE_SKY) != 0u {
@@ -93,7 +97,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             h = min(h, max(ground, actor));
         }
     }
-    let st = stamps[s];
+    var st = STAMP_EMPTY;
+    if (params.flags & HAS_STAMPS) != 0u {
+        st = stamps[s];
+    }
     if st != STAMP_EMPTY {
         let hq = st >> 16u;
         let fq = st & 0xffffu;

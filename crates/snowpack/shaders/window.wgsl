@@ -1,6 +1,7 @@
-// Window pass: writes terrain height and fresh snow into the texels that the
+// Window pass: writes fresh snow (terrain height + rest depth) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
-// columns), and nothing else; their footprints are cleared. New texels get
+// columns), and nothing else; their footprints are cleared (when the window
+// has a footprint buffer: the points and combined techniques). New texels get
 // the snowfall so far (as if the sky reached them). CPU twin: src/cpu/window.rs.
 
 struct WindowParams {
@@ -10,7 +11,7 @@ struct WindowParams {
     depth_m: f32,
     rect_count: u32,
     fallen_m: f32,          // snowfall so far on open ground, given to new texels
-    flags: u32,             // 1: write `fallen`
+    flags: u32,             // 1: write `fallen`, 2: write `stamps`
 
     rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
 }
@@ -18,10 +19,9 @@ struct WindowParams {
 @group(0) @binding(0) var<uniform> params: WindowParams;
 @group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> terrain: array<f32>;
-@group(0) @binding(4) var<storage, read_write> snow: array<f32>;
-@group(0) @binding(5) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -34,13 +34,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let i = texel.x;
     let j = texel.y;
     let s = storage_index(params.origin, params.resolution, i, j);
-    let x = (f32(params.origin.x + i32(j)) + 0.5) * params.texel_m;
-    let z = (f32(params.origin.y + i32(i)) + 0.5) * params.texel_m;
-    let ground = terrain_height(terrain_params, x, z);
-    terrain[s] = ground;
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     snow[s] = ground + params.depth_m + params.fallen_m;
     if (params.flags & 1u) != 0u {
         fallen[s] = params.fallen_m;
     }
-    stamps[s] = 0xffffffffu; // no footprint yet
+    if (params.flags & 2u) != 0u {
+        stamps[s] = 0xffffffffu; // no footprint yet
+    }
 }

@@ -114,10 +114,13 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("rims_at_zero_depth_match_cpu_and_stay_finite");
     let mut rng = testing::Rng::new(seed);
-    let params = SnowParams { extent_m: EXTENT_M, resolution: RES as u32, depth_m: 0.0, snowfall: Some(Snowfall::default()), ..SnowParams::default() };
-    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &TerrainSource::Flat { height_m: 0.0 });
+    // Combined: the window has a footprint buffer for the point rims.
+    let params = SnowParams { extent_m: EXTENT_M, resolution: RES as u32, depth_m: 0.0, snowfall: Some(Snowfall::default()), technique: snowpack::Technique::Combined, ..SnowParams::default() };
+    let terrain_src = TerrainSource::Noise(snowpack::NoiseTerrain { seed: rng.next_u64() as u32, base_m: 0.0, amplitude_m: 1.0, wavelength_m: rng.range(2.0, 10.0) });
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
     let n = RES * RES;
-    let terrain: Vec<f32> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+    // The ground the rim evaluates from the terrain's source, per texel.
+    let terrain = cpu::window::ground_plane(&terrain_src, [0, 0], RES as u32, params.texel_m());
     // Half the texels bare (no snowfall yet: a rest depth of 0), half with some snow.
     let fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.5 { 0.0 } else { rng.range(0.001, 0.3) }).collect();
     let snow: Vec<f32> = terrain.iter().zip(&fallen).map(|(t, f)| if rng.range(0.0, 1.0) < 0.5 { t + f } else { t + rng.range(0.0, *f) }).collect();
@@ -132,18 +135,19 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             (h << 16) | foot
         })
         .collect();
-    ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
     let rim = RimPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::disabled();
     for mode in [0, 1, 2] {
-        let rp = RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, _pad: 0 };
+        let rp = RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, texel_m: params.texel_m() };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
         rim.record(&ctx.queue, &mut encoder, &mut timer, &rp);
         ctx.queue.submit([encoder.finish()]);
-        let gpu: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.shown).expect("readback"));
+        // The displayed height is in the even (height) words of `surface`.
+        let words: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("readback"));
+        let gpu: Vec<f32> = words.iter().step_by(2).copied().collect();
         let cpu = cpu::rim::rim(&rp, &terrain, &snow, &stamps, &fallen);
         assert!(gpu.iter().all(|h| h.is_finite()), "mode {mode}: NaN in the displayed surface; seed {seed}");
         let worst = gpu.iter().zip(&cpu).map(|(g, c)| (g - c).abs()).fold(0.0f32, f32::max);

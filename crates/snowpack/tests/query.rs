@@ -67,7 +67,8 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
     let cpu = cpu_query(
         &qp,
         &local,
-        &floats(&read_buffer(ctx, &res.terrain).expect("terrain")),
+        // The ground the query evaluates from the terrain's source, per texel.
+        &snowpack::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
         &floats(&read_buffer(ctx, &res.snow).expect("snow")),
         &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
         &surface,

@@ -1,16 +1,20 @@
-//! Switching technique at runtime keeps the trails, reallocates nothing and
-//! leaves no stale footprints behind.
+//! Switching technique at runtime keeps the trails, allocates a technique's
+//! buffer once, on its first frame, and leaves no stale footprints behind.
 
 use glam::{DVec2, Vec3};
 use snowpack::testing;
 use snowpack::{Deformer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 #[test]
-fn switching_keeps_trails_and_allocates_nothing() {
+fn switching_keeps_trails_and_allocates_once() {
     let Some(ctx) = testing::gpu() else { return };
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
-    let memory = snow.memory_bytes();
+    // The window's resources; the resident tiles of the default trail keeper apart.
+    let total = |s: &SnowDeformation| s.memory_bytes().iter().filter(|(n, _)| *n != "resident tiles").map(|(_, b)| b).sum::<u64>();
+    let tiles = |s: &SnowDeformation| s.memory_bytes().iter().find(|(n, _)| *n == "resident tiles").map_or(0, |(_, b)| *b);
+    let depth_tiles = tiles(&snow);
+    let depth_memory = total(&snow);
     let at = |x: f32| Deformer::Sphere { center: Vec3::new(x, 0.6, 0.0), radius: 0.4 };
     // Depth presses a print at x = -2, points one at x = 0, combined one at x = 2.
     for (technique, x) in [(Technique::Depth, -2.0), (Technique::Points, 0.0), (Technique::Combined, 2.0)] {
@@ -20,6 +24,12 @@ fn switching_keeps_trails_and_allocates_nothing() {
         }
         assert_eq!(snow.technique(), technique);
     }
+    // Points allocated the footprint buffer (4 bytes a texel, less its 4-byte stand-in).
+    let texels = 128 * 128;
+    assert_eq!(total(&snow), depth_memory + 4 * texels - 4, "points allocated more than the footprints");
+    // And the resident slots a footprint plane: three planes where there were two.
+    assert!(depth_tiles > 0, "trails are kept by default");
+    assert!(tiles(&snow) > depth_tiles && tiles(&snow) < depth_tiles * 3 / 2 + 64 * 1024, "resident tiles {} after {depth_tiles}", tiles(&snow));
     // Decals: the sphere moves on and the height field must not change.
     snow.set_technique(Technique::Decals);
     let before = snow.read_snow(ctx).expect("read");
@@ -42,11 +52,14 @@ fn switching_keeps_trails_and_allocates_nothing() {
         assert!((h - 0.2).abs() < 0.01, "print at x = {x} is {h} m, want 0.2 m");
     }
     // Back to depth: nothing stale from the points (their stored footprints do
-    // not lower the snow under the depth technique) and no new allocation.
+    // not lower the snow under the depth technique); decals allocated their
+    // layer, and switching back frees and allocates nothing.
+    let memory = snow.memory_bytes();
+    assert_eq!(total(&snow), depth_memory + 8 * texels - 8);
     snow.set_technique(Technique::Depth);
     snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
     assert_eq!(snow.read_snow(ctx).expect("read"), after);
-    assert_eq!(snow.memory_bytes(), memory, "a switch changed GPU memory");
+    assert_eq!(snow.memory_bytes(), memory, "a switch back changed GPU memory");
 }
 
 /// A footprint's rim ends inside its range: beyond the rim's reach the

@@ -11,7 +11,7 @@ use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
-use snowpack::deform::tiles::{TileGrid, PLANES};
+use snowpack::deform::tiles::{plane_stamps, planes, TileGrid, PLANES};
 use snowpack::deform::window::SlidingWindow;
 use snowpack::gpu::GpuTimer;
 use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
@@ -64,18 +64,28 @@ fn exchange_matches_cpu() {
     let (resolution, side) = (64u32, 16u32);
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
-        let params = SnowParams { extent_m: 8.0, resolution, snowfall: Some(snowpack::accumulate::Snowfall::default()), ..SnowParams::default() };
-        let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &TerrainSource::Flat { height_m: 0.0 });
+        // The short move with a footprint buffer (points) and snowfall (four
+        // planes a slot), the jump without either (depth: snow and terrain only).
+        let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
+        let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
+        let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
+        let use_fallen = !jump;
+        // Flat at a random height: the stashed terrain plane is compared bit for bit.
+        let terrain_src = TerrainSource::Flat { height_m: rng.range(-1.0, 1.0) };
+        let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
         let texels = (resolution * resolution) as usize;
-        let terrain = floats(&mut rng, texels, -1.0, 1.0);
         let snow = floats(&mut rng, texels, 0.0, 2.0);
         let mut stamps: Vec<u32> = (0..texels).map(|_| rng.next_u64() as u32).collect();
         let fallen = floats(&mut rng, texels, 0.0, 0.3);
-        ctx.queue.write_buffer(&res.terrain, 0, bytemuck::cast_slice(&terrain));
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
-        ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
-        ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
-        let mut tiles: Vec<u32> = (0..grid.slot_count() * PLANES * grid.area()).map(|_| rng.next_u64() as u32).collect();
+        assert_eq!(res.has_stamps(), !jump);
+        if res.has_stamps() {
+            ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+        }
+        if use_fallen {
+            ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+        }
+        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen, !jump) * grid.area()).map(|_| rng.next_u64() as u32).collect();
         let tiles_gpu = storage(ctx, &tiles);
         let old = [(rng.next_u64() % 4000) as i64 - 2000, (rng.next_u64() % 4000) as i64 - 2000];
         let step = if jump { 500 } else { 20 };
@@ -89,7 +99,9 @@ fn exchange_matches_cpu() {
             resolution,
             side,
             slots_per_side: grid.slots_per_side(),
-            flags: ExchangeParams::USE_FALLEN,
+            flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
+            texel_m: res.texel_m,
+            planes: planes(use_fallen, !jump) as u32,
             ..ExchangeParams::default()
         };
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
@@ -99,17 +111,19 @@ fn exchange_matches_cpu() {
         pass.record(&ctx.queue, &mut e, &mut timer, stash, &rects);
         pass.record(&ctx.queue, &mut e, &mut timer, base, &rects);
         submit(ctx, e);
-        let mut terrain_f: Vec<f32> = bytemuck::cast_slice(&terrain).to_vec();
         let mut snow_f: Vec<f32> = bytemuck::cast_slice(&snow).to_vec();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
-        let mut w = cpu::exchange::WindowBuffers { terrain: &mut terrain_f, snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
+        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
         cpu::exchange::exchange(&stash, &rects, &mut tiles, &mut w);
         cpu::exchange::exchange(&base, &rects, &mut tiles, &mut w);
         assert_eq!(differing(&read_u32(ctx, &tiles_gpu), &tiles, 0.0), 0, "tiles differ (jump {jump}); seed {seed}");
         assert_eq!(differing(&read_u32(ctx, &res.snow), bytemuck::cast_slice(&snow_f), 0.0), 0, "snow differs; seed {seed}");
-        assert_eq!(differing(&read_u32(ctx, &res.terrain), bytemuck::cast_slice(&terrain_f), 0.0), 0, "terrain differs; seed {seed}");
-        assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
-        assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
+        if res.has_stamps() {
+            assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
+        }
+        if use_fallen {
+            assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
+        }
     }
 }
 
@@ -160,6 +174,7 @@ fn tile_restore_and_weather_match_cpu() {
         slots_per_side: grid.slots_per_side(),
         count: entries.len() as u32,
         flags: RestoreParams::USE_FALLEN,
+        planes: PLANES as u32,
         texel_m: 0.125,
         depth_m: 0.5,
         fallen_m: 0.05,
@@ -177,7 +192,7 @@ fn tile_restore_and_weather_match_cpu() {
     let gpu = read_u32(ctx, &tiles_gpu);
     // Terrain (noise) agrees to rounding; so do heights built on it.
     assert_eq!(differing(&gpu, &tiles, 1e-4), 0, "restore: slots differ; seed {seed}");
-    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + 1) * area..(s * PLANES + 2) * area).collect();
+    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + plane_stamps(PLANES)) * area..(s * PLANES + plane_stamps(PLANES) + 1) * area).collect();
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     // A footprint whose foot lands on the rest height to rounding may empty on one side only.
     assert!(stamp_diff <= stamp_words.len() / 1000, "restore: {stamp_diff} footprints differ; seed {seed}");
@@ -202,7 +217,8 @@ fn tile_restore_and_weather_match_cpu() {
         low_m,
         high_m,
         count: 0,
-        _pad: [0; 2],
+        planes: PLANES as u32,
+        _pad: 0,
     };
     // A random subset of the slots, in random order.
     let mut slots: Vec<u32> = (0..grid.slot_count() as u32).filter(|_| !rng.next_u64().is_multiple_of(5)).collect();

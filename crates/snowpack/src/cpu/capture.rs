@@ -44,6 +44,17 @@ pub fn capture_depths(inst: &CaptureInstances, p: &CaptureParams, resolution: u3
     depth
 }
 
+/// Rounds depths to the capture target's 16-bit codes
+/// ([`crate::deform::resources::CAPTURE_FORMAT`]), as the GPU stores them:
+/// call after [`capture_depths`] and [`capture_triangles`] (rounding is
+/// monotonic, so the lowest surface stays the lowest).
+pub fn quantise_depths(depth: &mut [f32]) {
+    use crate::deform::resources::CAPTURE_CODES;
+    for d in depth {
+        *d = (*d * CAPTURE_CODES).round() / CAPTURE_CODES;
+    }
+}
+
 /// Lowest world height where the vertical line through (x, z) meets the unit
 /// cube mapped by the inverse model matrix `inv`.
 fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {

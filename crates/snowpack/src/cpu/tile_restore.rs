@@ -1,11 +1,11 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
-use crate::deform::tiles::{PLANES, PLANE_TERRAIN};
+use crate::deform::tiles::PLANE_TERRAIN;
 use crate::TerrainSource;
 
 use super::stamp::STAMP_EMPTY;
-use super::tile_weather::{pass_time, write_texel, SnowConstants, TexelState, TimePassed};
+use super::tile_weather::{pass_time, write_texel, SlotLayout, SnowConstants, TexelState, TimePassed};
 
 /// Writes each entry's tile into its slot: the saved planes in `upload`
 /// brought up to now, or fresh snow over `terrain`.
@@ -34,8 +34,9 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
                     saved
                 }
             };
-            write_texel(tiles, slot, area, k, t);
-            tiles[slot * PLANES * area + PLANE_TERRAIN * area + k] = ground.to_bits();
+            let planes = p.planes as usize;
+            write_texel(tiles, slot, SlotLayout { area, planes, use_fallen }, k, t);
+            tiles[slot * planes * area + PLANE_TERRAIN * area + k] = ground.to_bits();
         }
     }
 }

@@ -1,7 +1,7 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
 use crate::deform::tile_weather::WeatherParams;
-use crate::deform::tiles::{PLANES, PLANE_FALLEN, PLANE_SNOW, PLANE_STAMPS, PLANE_TERRAIN};
+use crate::deform::tiles::{plane_stamps, PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN};
 
 use super::stamp::{height, STAMP_EMPTY};
 
@@ -64,22 +64,45 @@ pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePasse
     out
 }
 
-/// Reads texel `k` of slot `slot` (planes of `area` texels).
-#[must_use]
-pub fn read_texel(tiles: &[u32], slot: usize, area: usize, k: usize) -> (TexelState, f32) {
-    let base = slot * PLANES * area + k;
-    (
-        TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp: tiles[base + PLANE_STAMPS * area], fallen: f32::from_bits(tiles[base + PLANE_FALLEN * area]) },
-        f32::from_bits(tiles[base + PLANE_TERRAIN * area]),
-    )
+/// How a slot is laid out: texels per plane, planes, and whether it has the
+/// snowfall plane (the footprint plane is there when a plane is left over:
+/// `shared/tiles.wgsl`'s `has_stamp_plane`).
+#[derive(Clone, Copy, Debug)]
+pub struct SlotLayout {
+    /// Texels per plane.
+    pub area: usize,
+    /// Planes per slot ([`crate::deform::tiles::planes`]).
+    pub planes: usize,
+    /// The world has snowfall (the slot a snowfall plane).
+    pub use_fallen: bool,
 }
 
-/// Writes texel `k` of slot `slot`.
-pub fn write_texel(tiles: &mut [u32], slot: usize, area: usize, k: usize, t: TexelState) {
-    let base = slot * PLANES * area + k;
+impl SlotLayout {
+    fn has_stamps(self) -> bool {
+        self.planes > 2 + usize::from(self.use_fallen)
+    }
+}
+
+/// Reads texel `k` of slot `slot`: its state (no footprint, 0 m of
+/// snowfall, where the slot has no plane for them) and its terrain height.
+#[must_use]
+pub fn read_texel(tiles: &[u32], slot: usize, l: SlotLayout, k: usize) -> (TexelState, f32) {
+    let (area, base) = (l.area, slot * l.planes * l.area + k);
+    let fallen = if l.use_fallen { f32::from_bits(tiles[base + PLANE_FALLEN * area]) } else { 0.0 };
+    let stamp = if l.has_stamps() { tiles[base + plane_stamps(l.planes) * area] } else { STAMP_EMPTY };
+    (TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp, fallen }, f32::from_bits(tiles[base + PLANE_TERRAIN * area]))
+}
+
+/// Writes texel `k` of slot `slot` (its terrain plane is left as it is).
+pub fn write_texel(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, t: TexelState) {
+    let (area, base) = (l.area, slot * l.planes * l.area + k);
     tiles[base + PLANE_SNOW * area] = t.snow.to_bits();
-    tiles[base + PLANE_STAMPS * area] = t.stamp;
-    tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
+    if l.use_fallen {
+        tiles[base + PLANE_FALLEN * area] = t.fallen.to_bits();
+    }
+    if l.has_stamps() {
+        tiles[base + plane_stamps(l.planes) * area] = t.stamp;
+    }
 }
 
 /// One frame of weather on the resident `tiles` of the listed `slots`,
@@ -104,8 +127,9 @@ pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mu
             if d[0] >= 0 && d[1] >= 0 && d[0] < res && d[1] < res {
                 continue;
             }
-            let (t, ground) = read_texel(tiles, slot, area, k);
-            write_texel(tiles, slot, area, k, pass_time(ground, &c, t, &time));
+            let layout = SlotLayout { area, planes: p.planes as usize, use_fallen: c.use_fallen };
+            let (t, ground) = read_texel(tiles, slot, layout, k);
+            write_texel(tiles, slot, layout, k, pass_time(ground, &c, t, &time));
         }
     }
 }

@@ -65,7 +65,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [f32], stam
                     h = h.min(ground.max(actor));
                 }
             }
-            let st = stamps[s];
+            let st = if p.flags & UpdateParams::HAS_STAMPS != 0 { stamps[s] } else { STAMP_EMPTY };
             if st != STAMP_EMPTY {
                 let (hq, fq) = (st >> 16, st & 0xffff);
                 if p.flags & UpdateParams::USE_STAMPS != 0 {

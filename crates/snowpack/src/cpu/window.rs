@@ -12,13 +12,34 @@ pub fn storage_index(origin: [i32; 2], res: u32, i: u32, j: u32) -> usize {
     si * res as usize + sj
 }
 
-/// Writes terrain and fresh snow (with the snowfall so far) into the texels
-/// of `rects` and clears their footprints.
+/// Terrain height at the centre of global texel `g` = (column, row): twin of
+/// `texel_ground` in `shared/terrain.wgsl`.
+#[must_use]
+pub fn texel_ground(terrain: &TerrainSource, g: [i32; 2], texel_m: f32) -> f32 {
+    let x = (g[0] as f32 + 0.5) * texel_m;
+    let z = (g[1] as f32 + 0.5) * texel_m;
+    terrain.height_at(x, z)
+}
+
+/// The ground under every texel of a window at `origin`, toroidal: what the
+/// passes evaluate per texel, as the array the CPU twins take.
+#[must_use]
+pub fn ground_plane(terrain: &TerrainSource, origin: [i32; 2], res: u32, texel_m: f32) -> Vec<f32> {
+    let mut out = vec![0.0; (res * res) as usize];
+    for i in 0..res {
+        for j in 0..res {
+            out[storage_index(origin, res, i, j)] = texel_ground(terrain, [origin[0] + j as i32, origin[1] + i as i32], texel_m);
+        }
+    }
+    out
+}
+
+/// Writes fresh snow (terrain + rest depth + the snowfall so far) into the
+/// texels of `rects` and clears their footprints.
 pub fn expose(
     p: &WindowParams,
     rects: &[TexelRect],
     terrain_src: &TerrainSource,
-    terrain: &mut [f32],
     snow: &mut [f32],
     stamps: &mut [u32],
     fallen: &mut [f32],
@@ -27,12 +48,11 @@ pub fn expose(
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
                 let s = storage_index(p.origin, p.resolution, i, j);
-                let x = ((p.origin[0] + j as i32) as f32 + 0.5) * p.texel_m;
-                let z = ((p.origin[1] + i as i32) as f32 + 0.5) * p.texel_m;
-                let ground = terrain_src.height_at(x, z);
-                terrain[s] = ground;
+                let ground = texel_ground(terrain_src, [p.origin[0] + j as i32, p.origin[1] + i as i32], p.texel_m);
                 snow[s] = ground + p.depth_m + p.fallen_m;
-                stamps[s] = super::stamp::STAMP_EMPTY;
+                if p.flags & WindowParams::WRITE_STAMPS != 0 {
+                    stamps[s] = super::stamp::STAMP_EMPTY;
+                }
                 if p.flags & WindowParams::WRITE_FALLEN != 0 {
                     fallen[s] = p.fallen_m;
                 }

@@ -1,5 +1,6 @@
 //! Blur pass: the separable 5x5 Gaussian in workgroup memory (`blur.wgsl`),
-//! `shown` -> `scratch` along x, then `scratch` -> `shown` along z.
+//! in place in `surface`: its height words -> its normal words (scratch until
+//! the normals pass) along x, then back along z.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -16,8 +17,10 @@ pub struct BlurParams {
     pub resolution: u32,
     /// 0: along x (rows), 1: along z (columns).
     pub axis: u32,
-    /// Padding.
-    pub _pad: [u32; 2],
+    /// Word of a texel's `surface` entry read: 0 the height, 1 the normal (scratch).
+    pub src_word: u32,
+    /// Word of a texel's `surface` entry written.
+    pub dst_word: u32,
 }
 
 /// Both axes of the blur; each axis has its own uniforms and bind group, so
@@ -36,20 +39,20 @@ impl BlurPass {
             device,
             "blur",
             shaders::BLUR,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)],
         );
-        let make = |axis: u32, src: &wgpu::Buffer, dst: &wgpu::Buffer| {
+        let make = |axis: u32| {
             let params = layout::uniform_buffer::<BlurParams>(device, "blur params");
-            let p = BlurParams { resolution: res.resolution, axis, _pad: [0; 2] };
+            let p = BlurParams { resolution: res.resolution, axis, src_word: axis, dst_word: 1 - axis };
             queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
             layout::bind_group(
                 device,
                 "blur",
                 &bgl,
-                &[params.as_entire_binding(), src.as_entire_binding(), dst.as_entire_binding()],
+                &[params.as_entire_binding(), res.surface.as_entire_binding()],
             )
         };
-        let axes = [make(0, &res.shown, &res.scratch), make(1, &res.scratch, &res.shown)];
+        let axes = [make(0), make(1)];
         Self { pipeline, axes, resolution: res.resolution }
     }
 

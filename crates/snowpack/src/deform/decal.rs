@@ -165,9 +165,26 @@ pub struct DecalPass {
     bind_group: wgpu::BindGroup,
     instances: wgpu::Buffer,
     count: u32,
-    /// The layer: window-local, [`DECAL_FORMAT`].
+    /// The layer: window-local, [`DECAL_FORMAT`]; 1x1 and transparent until
+    /// [`Self::allocate_layer`] (the decals technique's first frame).
     pub layer: wgpu::Texture,
     layer_view: wgpu::TextureView,
+    /// Texels per side of the full layer.
+    resolution: u32,
+}
+
+fn layer_texture(device: &wgpu::Device, side: u32) -> wgpu::Texture {
+    // Zero-initialised by wgpu: transparent, no decal anywhere.
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("decal layer"),
+        size: wgpu::Extent3d { width: side, height: side, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: DECAL_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
 }
 
 fn instance_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
@@ -180,9 +197,11 @@ fn instance_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
 }
 
 impl DecalPass {
-    /// Builds the pipeline, the footprint texture and a `resolution`² layer.
+    /// Builds the pipeline, the footprint texture and the layer: `resolution`²
+    /// when `full` (the decals technique is in use), else a transparent 1x1
+    /// placeholder that renderers can bind, replaced by [`Self::allocate_layer`].
     #[must_use]
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, resolution: u32) -> Self {
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, resolution: u32, full: bool) -> Self {
         let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("decal"),
             entries: &[
@@ -283,18 +302,25 @@ impl DecalPass {
                 wgpu::BindingResource::Sampler(&sampler),
             ],
         );
-        let layer = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("decal layer"),
-            size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: DECAL_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let layer = layer_texture(device, if full { resolution } else { 1 });
         let layer_view = layer.create_view(&wgpu::TextureViewDescriptor::default());
-        Self { pipeline, params, bind_group, instances: instance_buffer(device, 32 * 1024), count: 0, layer, layer_view }
+        Self { pipeline, params, bind_group, instances: instance_buffer(device, 32 * 1024), count: 0, layer, layer_view, resolution }
+    }
+
+    /// Replaces the 1x1 placeholder with the full `resolution`² layer; does
+    /// nothing when it is already full. Renderers holding the old texture
+    /// rebind ([`crate::SnowDeformation::decal_layer`] changes).
+    pub fn allocate_layer(&mut self, device: &wgpu::Device) {
+        if self.layer.width() != self.resolution {
+            self.layer = layer_texture(device, self.resolution);
+            self.layer_view = self.layer.create_view(&wgpu::TextureViewDescriptor::default());
+        }
+    }
+
+    /// Bytes of GPU memory of the layer.
+    #[must_use]
+    pub fn layer_bytes(&self) -> u64 {
+        u64::from(self.layer.width()) * u64::from(self.layer.height()) * 4
     }
 
     /// Uploads the ring when it changed, and this frame's window placement.

@@ -27,8 +27,12 @@ pub struct ExchangeParams {
     pub flags: u32,
     /// How many of `rects` are used.
     pub rect_count: u32,
+    /// Texel size (m): where a stashed tile's terrain plane is evaluated.
+    pub texel_m: f32,
+    /// Planes per resident slot ([`super::tiles::planes`]).
+    pub planes: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: u32,
     /// Exposed window-local rectangles `[row0, col0, rows, cols]`.
     pub rects: [TexelRect; 2],
 }
@@ -38,6 +42,9 @@ impl ExchangeParams {
     pub const STASH: u32 = 1;
     /// The world has snowfall: the `fallen` plane is exchanged too.
     pub const USE_FALLEN: u32 = 2;
+    /// `flags`: the window has a footprint buffer; without it, stashed
+    /// tiles get no footprints and loaded tiles' footprints are not copied.
+    pub const HAS_STAMPS: u32 = 4;
 }
 
 /// One direction of the exchange, with its own uniforms (both run in one frame).
@@ -64,10 +71,11 @@ impl ExchangePass {
             &[
                 layout::uniform(0, wgpu::ShaderStages::COMPUTE),
                 layout::storage(1, false),
-                layout::storage(2, false),
+                layout::storage(2, true),
                 layout::storage(3, false),
                 layout::storage(4, false),
                 layout::storage(5, false),
+                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let direction = |label: &str| {
@@ -79,10 +87,11 @@ impl ExchangePass {
                 &[
                     params.as_entire_binding(),
                     tiles.as_entire_binding(),
-                    res.terrain.as_entire_binding(),
+                    res.heightmap.as_entire_binding(),
                     res.snow.as_entire_binding(),
                     res.stamps.as_entire_binding(),
                     res.fallen.as_entire_binding(),
+                    res.terrain_params.as_entire_binding(),
                 ],
             );
             Direction { params, bind_group }

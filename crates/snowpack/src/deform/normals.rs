@@ -1,5 +1,5 @@
-//! Normals pass: central differences from workgroup memory, packed with the
-//! height into `surface` (`normals.wgsl`).
+//! Normals pass: central differences from workgroup memory of the heights in
+//! `surface`, written beside them (`normals.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 
@@ -28,14 +28,14 @@ pub struct NormalPass {
 }
 
 impl NormalPass {
-    /// Builds the pipeline reading `res.shown` and writing `res.surface`.
+    /// Builds the pipeline reading and writing `res.surface`.
     #[must_use]
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, texel_m: f32) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
             device,
             "normals",
             shaders::NORMALS,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)],
         );
         let params = layout::uniform_buffer::<NormalParams>(device, "normal params");
         let p = NormalParams { resolution: res.resolution, texel_m, _pad: [0; 2] };
@@ -44,7 +44,7 @@ impl NormalPass {
             device,
             "normals",
             &bgl,
-            &[params.as_entire_binding(), res.shown.as_entire_binding(), res.surface.as_entire_binding()],
+            &[params.as_entire_binding(), res.surface.as_entire_binding()],
         );
         Self { pipeline, bind_group, resolution: res.resolution }
     }

@@ -19,7 +19,7 @@ use super::rim::{RimParams, RimPass};
 use super::saved::{SavedWindow, STATE_NAME};
 use super::stamp::{contact_points, StampParams, StampPass};
 use super::params::default_tile_texels;
-use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, PLANES};
+use super::tiles::{planes, TileFrame, TileGrid, TileStats, TileStreaming};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
 
@@ -45,7 +45,7 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
 fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, budget: usize) -> Result<Option<TileStreaming>, SnowError> {
     let side = default_tile_texels(params.resolution);
     let grid = TileGrid::new(params.resolution, side)?;
-    let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+    let bytes = (grid.slot_count() * planes(params.snowfall.is_some(), true) * grid.area() * 4) as u64;
     let limit = ctx.device.limits().max_storage_buffer_binding_size;
     if bytes > limit {
         tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);
@@ -64,11 +64,15 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// z, optional), [`NormalPass`] (packed surface), then [`QueryPass`] (the
 /// points asked with [`Self::query_points`], answered a frame or two later).
 ///
-/// Switching technique ([`Self::set_technique`]) reallocates nothing: every
-/// buffer exists for every technique. A switch keeps the persistent snow (so
-/// trails made by any technique stay) and the stored footprints (rims come
-/// back when points do); it changes only which deformers write from the next
-/// frame on and how rims are shown.
+/// Buffers exist only for the techniques used so far: the footprint buffer
+/// (`stamps`, 4 bytes a texel) for points and combined, the decal layer (4
+/// bytes a texel) for decals. Switching technique ([`Self::set_technique`])
+/// to one whose buffer is not there yet allocates it at the next encoded
+/// frame (and rebinds the passes and, for the decal layer, renderers that
+/// compare [`Self::decal_layer`]); nothing is freed by switching back. A
+/// switch keeps the persistent snow (so trails made by any technique stay)
+/// and the stored footprints (rims come back when points do); it changes
+/// only which deformers write from the next frame on and how rims are shown.
 ///
 /// Trails stay: texels leaving the window are kept in memory by default
 /// ([`SnowParams::tile_memory_bytes`]) and come back, refilled by the time
@@ -214,7 +218,7 @@ impl SnowDeformation {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
             stamp_pass: StampPass::new(device, &res),
-            decal_pass: DecalPass::new(device, queue, params.resolution),
+            decal_pass: DecalPass::new(device, queue, params.resolution, params.technique == Technique::Decals),
             decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
             update_pass: UpdatePass::new(device, &res),
             rim_pass: RimPass::new(device, &res),
@@ -451,6 +455,10 @@ impl SnowDeformation {
 
     /// Switches the deformation technique from the next frame on; keeps the
     /// snow and the stored footprints, allocates nothing.
+    ///
+    /// A technique whose buffer the window does not have yet (the footprint
+    /// buffer for points and combined, the decal layer for decals) gets it
+    /// at the next encoded frame: 4 bytes a texel, kept from then on.
     pub fn set_technique(&mut self, technique: Technique) {
         self.params.technique = technique;
     }
@@ -487,15 +495,23 @@ impl SnowDeformation {
     }
 
     /// The decal layer (window-local RGBA8: normal x, z, tint, coverage), drawn
-    /// with the decals technique; transparent otherwise.
+    /// with the decals technique; transparent otherwise. Until the decals
+    /// technique's first frame it is a transparent 1x1 placeholder; that
+    /// frame replaces it with the full layer, so a renderer that bound it
+    /// rebinds when the texture returned here changes (wgpu textures compare
+    /// by identity).
     #[must_use]
     pub fn decal_layer(&self) -> &wgpu::Texture {
         &self.decal_pass.layer
     }
 
-    /// The decal layer read back, window-local row-major; blocking.
+    /// The decal layer read back, window-local row-major; blocking. All
+    /// transparent before the decals technique's first frame.
     pub fn read_decals(&self, ctx: &GpuContext) -> Result<Vec<[u8; 4]>, SnowError> {
         let r = self.params.resolution;
+        if self.decal_pass.layer.width() != r {
+            return Ok(vec![[0; 4]; (r * r) as usize]);
+        }
         let row = (r * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("decal layer copy"),
@@ -623,6 +639,17 @@ impl SnowDeformation {
             Some(tiles) => tiles.plan(ctx, old, desired),
             None => desired,
         };
+        if p.technique.uses_stamps() && self.res.allocate_stamps(device, queue) {
+            // Every pass bound to the 4-byte stand-in binds the new buffer.
+            self.window_pass = WindowPass::new(device, &self.res);
+            self.stamp_pass = StampPass::new(device, &self.res);
+            self.rim_pass = RimPass::new(device, &self.res);
+            self.update_pass = UpdatePass::new(device, &self.res);
+            self.update_pass.bind_sky(device, &self.res, self.accumulation.as_ref().map(SnowAccumulation::sky_view));
+            if let Some(tiles) = &mut self.tiles {
+                tiles.add_stamp_plane(ctx, &self.res);
+            }
+        }
         let rects = self.window.move_to(origin);
         self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
         // Window and tile coordinates stay in i64 on the CPU; the GPU needs only
@@ -653,7 +680,8 @@ impl SnowDeformation {
                     texel_m: p.texel_m(),
                     depth_m: p.depth_m,
                     fallen_m: self.fallen_total_m,
-                    flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 },
+                    flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 }
+                        | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
                     ..WindowParams::default()
                 },
                 &rects,
@@ -719,7 +747,8 @@ impl SnowDeformation {
                 flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
                     | if stamps { UpdateParams::USE_STAMPS } else { 0 }
                     | if snowfall.is_some() { UpdateParams::USE_FALLEN } else { 0 }
-                    | if sky.is_some() { UpdateParams::USE_SKY } else { 0 },
+                    | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
+                    | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 },
                 refill_quanta: refill_quanta as u32,
                 fall_m,
                 max_fallen_m,
@@ -753,7 +782,7 @@ impl SnowDeformation {
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 use_fallen: u32::from(snowfall.is_some()),
-                _pad: 0,
+                texel_m: p.texel_m(),
             },
         );
         if p.blur {
@@ -771,6 +800,7 @@ impl SnowDeformation {
         // shows the recent ones; they are drawn only with the decals technique.
         self.decals.observe(deformers, &self.terrain, p.depth_m);
         if technique == Technique::Decals {
+            self.decal_pass.allocate_layer(device);
             self.decal_pass.prepare(device, queue, &mut self.decals, corner, p.extent_m);
             self.decal_pass.record(encoder, &mut self.timer);
         }
@@ -868,7 +898,7 @@ impl SnowDeformation {
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
         let mut list = self.res.memory_bytes();
         list.push(("point queries", self.query_pass.memory_bytes()));
-        list.push(("decal layer", u64::from(self.params.resolution).pow(2) * 4));
+        list.push(("decal layer", self.decal_pass.layer_bytes()));
         if let Some(acc) = &self.accumulation {
             list.extend(acc.memory_bytes());
         }
@@ -899,10 +929,31 @@ impl SnowDeformation {
         Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
     }
 
-    /// Terrain height (m), window-local row-major; blocking.
+    /// Terrain height (m) at the texel centres, window-local row-major; for
+    /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
+    /// (`texel_ground`), so they agree to rounding: from the terrain's
+    /// description, and for a mesh terrain from the grid the GPU baked (read
+    /// back), which is what the passes sample. No GPU buffer holds the
+    /// terrain per texel.
     pub fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        let raw = read_buffer(ctx, &self.res.terrain)?;
-        Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
+        let baked;
+        let source = match &self.terrain {
+            TerrainSource::Mesh(mesh) => {
+                let n = (mesh.grid.width * mesh.grid.height) as usize;
+                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
+                baked = TerrainSource::Heightmap(crate::HeightmapTerrain { heights_m: heights[..n].to_vec(), ..mesh.grid.clone() });
+                &baked
+            }
+            other => other,
+        };
+        let r = self.params.resolution;
+        let origin = self.window.origin().unwrap_or([0, 0]);
+        let o = [origin[0] as i32, origin[1] as i32];
+        let texel = self.params.texel_m();
+        Ok((0..r)
+            .flat_map(|i| (0..r).map(move |j| (i, j)))
+            .map(|(i, j)| crate::cpu::window::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
+            .collect())
     }
 
     /// Displayed height (m) and unit normal per texel, window-local; blocking.

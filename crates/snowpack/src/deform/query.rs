@@ -204,6 +204,7 @@ impl QueryPass {
                 layout::storage(4, true),
                 layout::storage(5, true),
                 layout::storage(6, false),
+                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let params = layout::uniform_buffer::<QueryParams>(device, "query params");
@@ -221,11 +222,12 @@ impl QueryPass {
             &[
                 params.as_entire_binding(),
                 points.as_entire_binding(),
-                res.terrain.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.fallen.as_entire_binding(),
                 res.surface.as_entire_binding(),
                 samples.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
             ],
         )
     }

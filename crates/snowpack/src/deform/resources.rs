@@ -2,14 +2,16 @@
 //!
 //! | resource | format | order | meaning |
 //! |---|---|---|---|
-//! | `terrain` | f32 per texel | toroidal | terrain height (m) |
 //! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
-//! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`) |
+//! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
-//! | `capture` | Depth32Float texture | window-local | lowest actor surface, linear in height |
-//! | `shown` | f32 per texel | window-local | displayed height (rims, then blurred in place via `scratch`) |
-//! | `scratch` | f32 per texel | window-local | blur's intermediate |
+//! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
 //! | `surface` | (f32 bits, snorm16x2) per texel | window-local | displayed height and normal for the renderer |
+//!
+//! `surface` is also the rim and blur passes' working memory: the rim writes
+//! the height words, the blur's x axis writes the normal words (as f32
+//! scratch) and its z axis the height words again, then the normals pass
+//! overwrites the normal words. No separate displayed-height or blur buffer.
 
 use crate::gpu::layout;
 use crate::{SnowParams, TerrainSource};
@@ -17,22 +19,36 @@ use crate::{SnowParams, TerrainSource};
 use super::terrain_bake::TerrainBakePass;
 use super::window::TerrainParams;
 
-/// Format of the capture depth target.
-pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Format of the capture depth target: 16-bit unorm, linear in height over
+/// the capture range `[low_m, high_m]`, so one code is `(high_m - low_m) /
+/// 65535` (92 µm over the 6 m range of flat ground with 0.5 m of snow) and a
+/// captured height is within half of that of the actor's surface. The
+/// footprints stored by the points technique are quantised over the same
+/// range with the same step (`shared/stamp.wgsl`).
+pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
+
+/// Codes of the capture depth target ([`CAPTURE_FORMAT`]).
+pub const CAPTURE_CODES: f32 = 65535.0;
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {
     /// Texels per side.
     pub resolution: u32,
-    /// Terrain height per texel, toroidal.
-    pub terrain: wgpu::Buffer,
+    /// Texel size (m).
+    pub texel_m: f32,
     /// Persistent snow height per texel, toroidal.
     pub snow: wgpu::Buffer,
-    /// Packed footprints (height16 << 16 | foot16) per texel, toroidal; persistent.
+    /// Packed footprints (height16 << 16 | foot16) per texel, toroidal;
+    /// persistent. Allocated for the points and combined techniques (at
+    /// creation, or by [`Self::allocate_stamps`] on the first switch to one);
+    /// until then a 4-byte stand-in that no pass reads ([`Self::has_stamps`]).
     pub stamps: wgpu::Buffer,
     /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
     pub fallen: wgpu::Buffer,
-    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one zero otherwise).
+    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
+    /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
+    /// passes evaluate the ground at texel centres (`texel_ground` in
+    /// `shared/terrain.wgsl`) instead of reading a per-texel copy.
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
@@ -40,10 +56,6 @@ pub struct DeformResources {
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
-    /// Displayed height, window-local.
-    pub shown: wgpu::Buffer,
-    /// Blur intermediate, window-local.
-    pub scratch: wgpu::Buffer,
     /// Packed height and normal, window-local; what a renderer samples.
     pub surface: wgpu::Buffer,
 }
@@ -98,18 +110,16 @@ impl DeformResources {
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
         Self {
             resolution: res,
-            terrain: height_buffer(device, "terrain", texels),
+            texel_m: params.texel_m(),
             snow: height_buffer(device, "snow", texels),
             // Every texel is written by the window pass on first placement.
-            stamps: height_buffer(device, "stamps", texels),
+            stamps: height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 }),
             // Zeroed by wgpu; only read and written while `params.snowfall` is set.
             fallen: height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 }),
             heightmap,
             terrain_params,
             capture,
             capture_view,
-            shown: height_buffer(device, "shown", texels),
-            scratch: height_buffer(device, "blur scratch", texels),
             surface: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("surface"),
                 size: texels * 8,
@@ -119,19 +129,36 @@ impl DeformResources {
         }
     }
 
+    /// Whether the footprint buffer is allocated (one `u32` per texel).
+    #[must_use]
+    pub fn has_stamps(&self) -> bool {
+        self.stamps.size() == u64::from(self.resolution) * u64::from(self.resolution) * 4
+    }
+
+    /// Allocates the footprint buffer, every texel without a footprint, when
+    /// it is not yet; returns whether it did (passes bound to the old one
+    /// must then be bound again).
+    pub fn allocate_stamps(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> bool {
+        if self.has_stamps() {
+            return false;
+        }
+        let texels = u64::from(self.resolution) * u64::from(self.resolution);
+        self.stamps = height_buffer(device, "stamps", texels);
+        let empty = vec![u32::MAX; texels as usize];
+        queue.write_buffer(&self.stamps, 0, bytemuck::cast_slice(&empty));
+        true
+    }
+
     /// Bytes of GPU memory held, by resource.
     #[must_use]
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 4;
+        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         vec![
-            ("terrain", self.terrain.size()),
             ("snow", self.snow.size()),
             ("stamps", self.stamps.size()),
             ("fallen", self.fallen.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
-            ("shown", self.shown.size()),
-            ("scratch", self.scratch.size()),
             ("surface", self.surface.size()),
         ]
     }

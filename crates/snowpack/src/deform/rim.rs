@@ -28,8 +28,8 @@ pub struct RimParams {
     pub high_m: f32,
     /// 1 when the rest depth includes the `fallen` buffer (snowfall so far).
     pub use_fallen: u32,
-    /// Padding to the 8-byte alignment of `origin`.
-    pub _pad: u32,
+    /// Texel size (m): where the terrain is evaluated.
+    pub texel_m: f32,
 }
 
 impl RimParams {
@@ -53,7 +53,7 @@ pub struct RimPass {
 }
 
 impl RimPass {
-    /// Builds the pipeline and binds it to `res` (output: `res.shown`).
+    /// Builds the pipeline and binds it to `res` (output: the height words of `res.surface`).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
@@ -67,6 +67,7 @@ impl RimPass {
                 layout::storage(3, false),
                 layout::storage(4, true),
                 layout::storage(5, true),
+                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let params = layout::uniform_buffer::<RimParams>(device, "rim params");
@@ -76,11 +77,12 @@ impl RimPass {
             &bgl,
             &[
                 params.as_entire_binding(),
-                res.terrain.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
-                res.shown.as_entire_binding(),
+                res.surface.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 res.fallen.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
             ],
         );
         Self { pipeline, params, bind_group }

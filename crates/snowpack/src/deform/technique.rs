@@ -32,6 +32,13 @@ impl Technique {
             Self::Combined => "combined",
         }
     }
+
+    /// Whether the technique stamps contact points' footprints (and so needs
+    /// the window's footprint buffer).
+    #[must_use]
+    pub fn uses_stamps(self) -> bool {
+        matches!(self, Self::Points | Self::Combined)
+    }
 }
 
 impl FromStr for Technique {

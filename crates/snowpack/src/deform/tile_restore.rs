@@ -32,8 +32,10 @@ pub struct RestoreParams {
     pub low_m: f32,
     /// Footprint quantisation: highest height (m).
     pub high_m: f32,
+    /// Planes per resident slot ([`super::tiles::planes`]).
+    pub planes: u32,
     /// Padding.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 impl RestoreParams {

@@ -36,8 +36,10 @@ pub struct WeatherParams {
     pub high_m: f32,
     /// Slots listed for the pass (set by [`TileWeatherPass::record`]).
     pub count: u32,
+    /// Planes per resident slot ([`super::tiles::planes`]).
+    pub planes: u32,
     /// Padding.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 impl WeatherParams {

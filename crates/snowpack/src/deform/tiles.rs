@@ -33,16 +33,32 @@ use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use super::tile_weather::{TileWeatherPass, WeatherParams};
 use super::window::TexelRect;
 
-/// Planes per resident tile: snow, stamps, fallen, terrain (`shared/tiles.wgsl`).
+/// Most planes per resident tile: snow, terrain, fallen, stamps
+/// (`shared/tiles.wgsl`); a slot has the snowfall plane only in a world
+/// with snowfall and the footprint plane only while the window has a
+/// footprint buffer ([`planes`]).
 pub const PLANES: usize = 4;
 /// Plane of the snow height (f32 bits).
 pub const PLANE_SNOW: usize = 0;
-/// Plane of the packed footprints.
-pub const PLANE_STAMPS: usize = 1;
-/// Plane of the snowfall so far (f32 bits).
-pub const PLANE_FALLEN: usize = 2;
 /// Plane of the terrain height (f32 bits).
-pub const PLANE_TERRAIN: usize = 3;
+pub const PLANE_TERRAIN: usize = 1;
+/// Plane of the snowfall so far (f32 bits); only in a world with snowfall.
+pub const PLANE_FALLEN: usize = 2;
+
+/// Planes per resident tile: snow and terrain, the snowfall so far where
+/// the world has snowfall, the packed footprints where the window has a
+/// footprint buffer (points or combined used).
+#[must_use]
+pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
+    2 + use_fallen as usize + has_stamps as usize
+}
+
+/// Plane of the packed footprints in a slot of `planes` planes: the last
+/// (only where the window has a footprint buffer).
+#[must_use]
+pub const fn plane_stamps(planes: usize) -> usize {
+    planes - 1
+}
 
 /// Tiles around the window that are requested from the store ahead of need.
 pub const PREFETCH_MARGIN_TILES: i64 = 2;
@@ -190,6 +206,8 @@ pub struct TileStreaming {
     grid: TileGrid,
     depth_m: f32,
     use_fallen: bool,
+    /// Whether the slots have a footprint plane (the window a footprint buffer).
+    has_stamps: bool,
     streamer: TileStreamer,
     tiles: wgpu::Buffer,
     owners_buffer: wgpu::Buffer,
@@ -213,12 +231,55 @@ pub struct TileStreaming {
 }
 
 impl TileStreaming {
+    /// Planes per slot now.
+    fn planes(&self) -> usize {
+        planes(self.use_fallen, self.has_stamps)
+    }
+
+    /// After the window's footprint buffer was allocated: gives every slot a
+    /// footprint plane (no footprints), keeping the other planes, and binds
+    /// the passes to the new slots and to `res`. Waits for the copy-outs in
+    /// flight (they have the old layout). Once, on the first switch to
+    /// points or combined.
+    pub fn add_stamp_plane(&mut self, ctx: &GpuContext, res: &DeformResources) {
+        if self.has_stamps || !res.has_stamps() {
+            return;
+        }
+        self.collect_evictions(ctx, true);
+        let area = self.grid.area() as u64;
+        let old = self.planes() as u64;
+        self.has_stamps = true;
+        let new = self.planes() as u64;
+        let slots = self.grid.slot_count() as u64;
+        let tiles = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("resident tiles"),
+            size: slots * new * area * 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // No footprint anywhere, then each slot's old planes in front of its new last one.
+        let empty = vec![u32::MAX; (slots * new * area) as usize];
+        ctx.queue.write_buffer(&tiles, 0, bytemuck::cast_slice(&empty));
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile footprint plane") });
+        for slot in 0..slots {
+            encoder.copy_buffer_to_buffer(&self.tiles, slot * old * area * 4, &tiles, slot * new * area * 4, old * area * 4);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        self.tiles = tiles;
+        self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles);
+        self.restore = TileRestorePass::new(&ctx.device, res, &self.tiles);
+        self.weather = TileWeatherPass::new(&ctx.device, &self.owners_buffer, &self.tiles);
+    }
+
     /// Resident slots for the window of `res`, behind `streamer`.
     pub fn new(ctx: &GpuContext, res: &DeformResources, streamer: TileStreamer, (depth_m, use_fallen): (f32, bool)) -> Result<Self, SnowError> {
         let grid = TileGrid::new(res.resolution, streamer.side())?;
-        let bytes = (grid.slot_count() * PLANES * grid.area() * 4) as u64;
+        // Sized for the footprint plane too, so a later switch to points fits.
+        let most = (grid.slot_count() * planes(use_fallen, true) * grid.area() * 4) as u64;
+        let bytes = (grid.slot_count() * planes(use_fallen, res.has_stamps()) * grid.area() * 4) as u64;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
-        if bytes > limit {
+        if most > limit {
+            let bytes = most;
             return Err(SnowError::InvalidParameter {
                 field: "tile_texels",
                 why: format!("{} resident tiles of {}² need {bytes} bytes, above this adapter's {limit}; use larger tiles", grid.slot_count(), grid.side()),
@@ -244,6 +305,7 @@ impl TileStreaming {
             grid,
             depth_m,
             use_fallen,
+            has_stamps: res.has_stamps(),
             streamer,
             tiles,
             owners_buffer,
@@ -347,7 +409,8 @@ impl TileStreaming {
             return;
         }
         let to_i32 = |o: [i64; 2]| [o[0] as i32, o[1] as i32];
-        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
+        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
+            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
         let base = ExchangeParams {
             origin: to_i32(origin),
             old_origin: to_i32(old.unwrap_or(origin)),
@@ -355,6 +418,8 @@ impl TileStreaming {
             side: self.grid.side,
             slots_per_side: self.grid.slots_per_side,
             flags: fallen_flag,
+            texel_m: res.texel_m,
+            planes: self.planes() as u32,
             ..ExchangeParams::default()
         };
         if old.is_some() {
@@ -425,6 +490,7 @@ impl TileStreaming {
             side: self.grid.side,
             slots_per_side: self.grid.slots_per_side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
+            planes: self.planes() as u32,
             texel_m: frame.texel_m,
             depth_m: frame.depth_m,
             fallen_m: frame.fallen_m,
@@ -448,7 +514,7 @@ impl TileStreaming {
     /// Copies the slots of `slots` (terrain too: the rest height the snow is
     /// stored against) into a staging buffer for the store.
     fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
-        let slot_bytes = (PLANES * self.grid.area() * 4) as u64;
+        let slot_bytes = (self.planes() * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // A staging buffer from an earlier copy-out when one is big enough.
         let buffer = match self.spare_staging.iter().position(|b| b.size() >= size) {
@@ -487,6 +553,7 @@ impl TileStreaming {
                 side: self.grid.side,
                 slots_per_side: self.grid.slots_per_side,
                 flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
+                planes: self.planes() as u32,
                 depth_m: frame.depth_m,
                 refill_m,
                 fall_m,
@@ -495,7 +562,7 @@ impl TileStreaming {
                 low_m: frame.low_m,
                 high_m: frame.high_m,
                 count: 0,
-                _pad: [0; 2],
+                _pad: 0,
             },
             &self.weather_slots,
         );
@@ -503,13 +570,14 @@ impl TileStreaming {
 
     /// Starts reading back the tiles copied out in the submitted frame.
     pub fn after_submit(&mut self) {
+        let slot_bytes = self.planes() * self.grid.area() * 4;
         for eviction in &mut self.evictions {
             if eviction.flag.is_some() {
                 continue;
             }
             let flag = Arc::new(AtomicU8::new(MAPPING));
             let done = Arc::clone(&flag);
-            let used = (eviction.keys.len() * PLANES * self.grid.area() * 4) as u64;
+            let used = (eviction.keys.len() * slot_bytes) as u64;
             eviction.buffer.slice(..used).map_async(wgpu::MapMode::Read, move |r| {
                 done.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
             });
@@ -535,7 +603,7 @@ impl TileStreaming {
                 continue;
             }
             let eviction = self.evictions.swap_remove(k);
-            let used = (eviction.keys.len() * PLANES * area * 4) as u64;
+            let used = (eviction.keys.len() * self.planes() * area * 4) as u64;
             let words: Option<Vec<u32>> = if state == Some(MAPPED) {
                 eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok()
             } else {
@@ -550,8 +618,9 @@ impl TileStreaming {
             };
             eviction.buffer.unmap();
             for (t, key) in eviction.keys.iter().enumerate() {
-                let planes = &words[t * PLANES * area..(t + 1) * PLANES * area];
-                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen)));
+                let n = self.planes();
+                let planes = &words[t * n * area..(t + 1) * n * area];
+                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
             }
             self.spare_staging.push(eviction.buffer);
         }
@@ -567,17 +636,19 @@ impl TileStreaming {
         let o = [origin[0] as i32, origin[1] as i32];
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
         let mut timer = GpuTimer::disabled();
-        let flags = ExchangeParams::STASH | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 };
-        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, ..ExchangeParams::default() };
+        let flags = ExchangeParams::STASH
+            | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
+            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
+        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, planes: self.planes() as u32, ..ExchangeParams::default() };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
         let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
-        let slot_words = PLANES * self.grid.area();
+        let slot_words = self.planes() * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
             if let Some(key) = owner {
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
-                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.depth_m, self.use_fallen)));
+                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
             }
         }
         Ok(())
@@ -609,20 +680,22 @@ impl TileStreaming {
     }
 }
 
-/// A tile from its slot's planes (snow, stamps, fallen, terrain bits), for
-/// the store: heights XOR their rest height (terrain + depth + fallen, as
-/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. The `fallen`
-/// plane is kept only when the world has snowfall.
+/// A tile from its slot's planes (snow, terrain, fallen where the world has
+/// snowfall, stamps where the window has footprints: [`planes`]), for the
+/// store: heights XOR their rest height (terrain + depth + fallen, as
+/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. Without a
+/// footprint plane the tile has no footprints.
 #[must_use]
-pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen): (f32, bool)) -> TileData {
+pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen, has_stamps): (f32, bool, bool)) -> TileData {
     let area = (side * side) as usize;
     let plane = |p: usize| &planes[p * area..(p + 1) * area];
-    let fallen: Vec<f32> = plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect();
+    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { vec![0.0; area] };
     let snow_xor_rest = plane(PLANE_SNOW)
         .iter()
         .zip(plane(PLANE_TERRAIN))
         .zip(&fallen)
         .map(|((&snow, &ground), &lying)| snow ^ (f32::from_bits(ground) + depth_m + lying).to_bits())
         .collect();
-    TileData { key, side, clock, snow_xor_rest, stamps: plane(PLANE_STAMPS).to_vec(), fallen: if use_fallen { fallen } else { Vec::new() } }
+    let stamps = if has_stamps { plane(plane_stamps(self::planes(use_fallen, true))).to_vec() } else { vec![u32::MAX; area] };
+    TileData { key, side, clock, snow_xor_rest, stamps, fallen: if use_fallen { fallen } else { Vec::new() } }
 }

@@ -43,25 +43,30 @@ impl PassTraffic {
 #[must_use]
 pub fn frame_traffic(params: &SnowParams) -> Vec<PassTraffic> {
     const F32: u64 = 4;
+    // One texel of the 16-bit capture target.
+    const DEPTH: u64 = 2;
     let n = params.texel_count() as u64;
     let captures = matches!(params.technique, Technique::Depth | Technique::Combined);
     let pass = |pass, read_per_texel: u64, written_per_texel: u64| PassTraffic { pass, read_bytes: n * read_per_texel, written_bytes: n * written_per_texel };
     let mut out = Vec::new();
     if captures {
         // The depth target is cleared and stored whole.
-        out.push(pass("capture", 0, F32));
+        out.push(pass("capture", 0, DEPTH));
     }
-    // update.wgsl: terrain, snow and the stamp word always, the capture depth
-    // when capturing; the snow height back.
-    out.push(pass("update", 3 * F32 + if captures { F32 } else { 0 }, F32));
-    // rim.wgsl: terrain and snow; the shown height.
-    out.push(pass("rim", 2 * F32, F32));
+    // The terrain is evaluated from its source (flat and noise read nothing
+    // per texel; a heightmap's samples are cached reads, not counted).
+    let stamps = params.technique.uses_stamps();
+    // update.wgsl: snow, the stamp word where the window has footprints, the
+    // capture depth when capturing; the snow height back.
+    out.push(pass("update", F32 + if stamps { F32 } else { 0 } + if captures { DEPTH } else { 0 }, F32));
+    // rim.wgsl: snow, and the stamp word for point rims; the shown height.
+    out.push(pass("rim", F32 + if stamps { F32 } else { 0 }, F32));
     if params.blur {
         out.push(pass("blur_x", F32, F32));
         out.push(pass("blur_z", F32, F32));
     }
-    // normals.wgsl: the shown height; height and packed normal (8 bytes).
-    out.push(pass("normals", F32, 2 * F32));
+    // normals.wgsl: the shown height; the packed normal beside it.
+    out.push(pass("normals", F32, F32));
     out
 }
 
@@ -102,21 +107,22 @@ mod tests {
         let params = SnowParams { resolution: 16, extent_m: 1.0, technique: Technique::Depth, blur: true, ..SnowParams::default() };
         let t = frame_traffic(&params);
         let by_name = |name: &str| t.iter().find(|p| p.pass == name).copied().unwrap_or_else(|| panic!("no {name}"));
-        // 256 texels: capture stores 256 depths; update reads capture, terrain,
-        // snow and stamps (16 B) and writes snow (4 B); rim reads terrain and
-        // snow and writes shown; each blur direction reads and writes one f32;
-        // normals reads one f32 and writes two words.
-        assert_eq!(by_name("capture"), PassTraffic { pass: "capture", read_bytes: 0, written_bytes: 1024 });
-        assert_eq!(by_name("update"), PassTraffic { pass: "update", read_bytes: 4096, written_bytes: 1024 });
-        assert_eq!(by_name("rim"), PassTraffic { pass: "rim", read_bytes: 2048, written_bytes: 1024 });
+        // 256 texels: capture stores 256 16-bit depths; update reads capture
+        // (2 B) and snow (6 B) and writes snow (4 B); rim reads snow and
+        // writes shown; each blur direction reads and writes one f32;
+        // normals reads one f32 and writes the normal word.
+        assert_eq!(by_name("capture"), PassTraffic { pass: "capture", read_bytes: 0, written_bytes: 512 });
+        assert_eq!(by_name("update"), PassTraffic { pass: "update", read_bytes: 1536, written_bytes: 1024 });
+        assert_eq!(by_name("rim"), PassTraffic { pass: "rim", read_bytes: 1024, written_bytes: 1024 });
         assert_eq!(by_name("blur_x").total_bytes(), 2048);
         assert_eq!(by_name("blur_z").total_bytes(), 2048);
-        assert_eq!(by_name("normals"), PassTraffic { pass: "normals", read_bytes: 1024, written_bytes: 2048 });
-        assert_eq!(t.iter().map(PassTraffic::total_bytes).sum::<u64>(), 1024 + 5120 + 3072 + 4096 + 3072);
+        assert_eq!(by_name("normals"), PassTraffic { pass: "normals", read_bytes: 1024, written_bytes: 1024 });
+        assert_eq!(t.iter().map(PassTraffic::total_bytes).sum::<u64>(), 512 + 2560 + 2048 + 4096 + 2048);
         // The points technique captures nothing; without blur there is no blur pass.
         let points = frame_traffic(&SnowParams { technique: Technique::Points, blur: false, ..params });
         assert_eq!(points.iter().map(|p| p.pass).collect::<Vec<_>>(), ["update", "rim", "normals"]);
-        assert_eq!(points[0].read_bytes, 3072);
+        // Points read snow and the stamp word.
+        assert_eq!(points[0].read_bytes, 2048);
     }
 
     #[test]

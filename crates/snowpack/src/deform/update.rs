@@ -57,6 +57,9 @@ impl UpdateParams {
     pub const USE_FALLEN: u32 = 4;
     /// Test each texel against the occlusion depth (objects hide the sky).
     pub const USE_SKY: u32 = 8;
+    /// `flags`: the window has a footprint buffer (refill it; apply it with
+    /// [`Self::USE_STAMPS`]). Without it `stamps` is a 4-byte stand-in, never read.
+    pub const HAS_STAMPS: u32 = 16;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
@@ -100,6 +103,7 @@ impl UpdatePass {
                 layout::storage(4, false),
                 layout::depth_texture(5),
                 layout::storage(6, false),
+                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
@@ -116,11 +120,12 @@ impl UpdatePass {
             &[
                 params.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&res.capture_view),
-                res.terrain.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 wgpu::BindingResource::TextureView(sky),
                 res.fallen.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
             ],
         )
     }

@@ -114,6 +114,8 @@ pub struct WindowParams {
 impl WindowParams {
     /// Write the snowfall so far into `fallen` of new texels.
     pub const WRITE_FALLEN: u32 = 1;
+    /// `flags`: clear the footprints of new texels (the window has a footprint buffer).
+    pub const WRITE_STAMPS: u32 = 2;
 }
 
 /// Uniforms of `shared/terrain.wgsl`.
@@ -197,7 +199,6 @@ impl WindowPass {
                 layout::storage(3, false),
                 layout::storage(4, false),
                 layout::storage(5, false),
-                layout::storage(6, false),
             ],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
@@ -209,7 +210,6 @@ impl WindowPass {
                 params.as_entire_binding(),
                 res.terrain_params.as_entire_binding(),
                 res.heightmap.as_entire_binding(),
-                res.terrain.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 res.fallen.as_entire_binding(),

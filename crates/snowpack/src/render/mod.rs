@@ -83,6 +83,24 @@ struct Targets {
     tonemap_group: wgpu::BindGroup,
 }
 
+/// The terrain pass's group 1: surface, heightmap, terrain params, AO, decal layer.
+fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDeformation, ao: &AoPass) -> wgpu::BindGroup {
+    let res = snow.resources();
+    let decal_view = snow.decal_layer().create_view(&wgpu::TextureViewDescriptor::default());
+    layout::bind_group(
+        device,
+        "terrain snow",
+        &terrain.snow_layout,
+        &[
+            res.surface.as_entire_binding(),
+            res.heightmap.as_entire_binding(),
+            res.terrain_params.as_entire_binding(),
+            ao.ao.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&decal_view),
+        ],
+    )
+}
+
 /// Draws a [`SnowDeformation`] and its actors.
 pub struct Renderer {
     params: RenderParams,
@@ -90,6 +108,9 @@ pub struct Renderer {
     lit_group: wgpu::BindGroup,
     shadow_group: wgpu::BindGroup,
     snow_group: wgpu::BindGroup,
+    /// The decal layer `snow_group` binds: the deformation replaces its 1x1
+    /// placeholder when the decals technique starts, and the group is rebuilt.
+    decal_layer: wgpu::Texture,
     env: EnvironmentPass,
     env_sun: (Vec3, Vec3),
     shadow: ShadowMap,
@@ -182,19 +203,7 @@ impl Renderer {
         let res = snow.resources();
         let ao = AoPass::new(device, &res.surface, res.resolution);
         let terrain = TerrainPass::new(device, &lit_layout, &shadow_layout, params.patch_quads);
-        let decal_view = snow.decal_layer().create_view(&wgpu::TextureViewDescriptor::default());
-        let snow_group = layout::bind_group(
-            device,
-            "terrain snow",
-            &terrain.snow_layout,
-            &[
-                res.surface.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                ao.ao.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&decal_view),
-            ],
-        );
+        let snow_group = snow_bind_group(device, &terrain, snow, &ao);
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
         let objects = objects::ObjectDrawPass::new(device, &lit_layout, &shadow_layout);
@@ -218,6 +227,7 @@ impl Renderer {
             lit_group,
             shadow_group,
             snow_group,
+            decal_layer: snow.decal_layer().clone(),
             env_sun: env.brightest(),
             env: env_pass,
             shadow,
@@ -359,6 +369,10 @@ impl Renderer {
         let eye_height = (camera.position.y - ground).max(0.0);
         let (uniforms, lod) = self.uniforms(snow, camera, size, eye_height);
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
+        if snow.decal_layer() != &self.decal_layer {
+            self.snow_group = snow_bind_group(device, &self.terrain, snow, &self.ao);
+            self.decal_layer = snow.decal_layer().clone();
+        }
 
         let eye = Vec2::new(camera.position.x, camera.position.z);
         let all = lod.select(eye);

@@ -1,0 +1,76 @@
+//! GPU memory of a default window (64 m at 1024²), per resource, as
+//! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
+//! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
+//! allocates per texel. The resident tiles of the default trail keeper are
+//! printed and counted apart: their ring (34² slots of 32² texels, two to
+//! four 4-byte planes) is sized by the tile grid, a plane more for the
+//! footprints of points and combined and one for snowfall.
+
+use glam::DVec2;
+use snowpack::{testing, SnowDeformation, SnowParams, Technique, TerrainSource};
+
+const MIB: f64 = 1024.0 * 1024.0;
+
+/// Prints the table; returns the total without the resident tiles.
+fn table(snow: &SnowDeformation, what: &str) -> u64 {
+    let list = snow.memory_bytes();
+    let total: u64 = list.iter().map(|(_, b)| b).sum();
+    let window: u64 = list.iter().filter(|(n, _)| *n != "resident tiles").map(|(_, b)| b).sum();
+    println!("{what}:");
+    for (name, bytes) in &list {
+        println!("  {name:<16} {bytes:>10} B  {:>7.3} MiB", *bytes as f64 / MIB);
+    }
+    println!("  {:<16} {window:>10} B  {:>7.3} MiB", "window", window as f64 / MIB);
+    println!("  {:<16} {total:>10} B  {:>7.3} MiB", "total", total as f64 / MIB);
+    window
+}
+
+fn bytes_of(snow: &SnowDeformation, name: &str) -> u64 {
+    snow.memory_bytes().iter().find(|(n, _)| *n == name).map_or_else(|| panic!("no {name} in memory_bytes"), |(_, b)| *b)
+}
+
+#[test]
+fn default_window_memory_per_technique() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams::default();
+    assert_eq!((params.extent_m, params.resolution, params.technique), (64.0, 1024, Technique::Depth));
+    let texels = u64::from(params.resolution).pow(2);
+    let terrain = TerrainSource::Flat { height_m: 0.0 };
+
+    let mut depth = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("depth window");
+    let depth_total = table(&depth, "depth");
+    // Per texel: snow 4, capture 2 (Depth16Unorm), surface 8; no terrain copy
+    // (evaluated from its source), no footprint buffer, no decal layer, no
+    // blur or displayed-height buffer.
+    assert!(depth.memory_bytes().iter().all(|(name, _)| *name != "terrain"));
+    assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
+    assert_eq!(bytes_of(&depth, "surface"), 8 * texels);
+    assert_eq!(bytes_of(&depth, "stamps"), 4);
+    assert_eq!(bytes_of(&depth, "decal layer"), 4);
+    let per_texel = 4 + 2 + 8;
+    assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
+    // The default keeps trails: 34² resident slots of 32² texels, two 4-byte
+    // planes for depth without snowfall (snow, terrain), and the slots' small
+    // bookkeeping buffers.
+    let ring = 34 * 34 * 32 * 32 * 8;
+    let tiles = bytes_of(&depth, "resident tiles");
+    assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
+
+    let combined = SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
+    let combined_total = table(&combined, "combined");
+    assert_eq!(bytes_of(&combined, "stamps"), 4 * texels);
+    assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");
+    // ... and the slots' footprint plane.
+    assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 34 * 34 * 32 * 32 * 4);
+
+    // Switching allocates what the new technique needs at the next frame, and keeps it.
+    depth.set_technique(Technique::Points);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("points frame");
+    assert_eq!(bytes_of(&depth, "stamps"), 4 * texels);
+    depth.set_technique(Technique::Decals);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("decals frame");
+    assert_eq!(bytes_of(&depth, "decal layer"), 4 * texels);
+    depth.set_technique(Technique::Depth);
+    depth.step(ctx, &[], 1.0 / 60.0).expect("depth frame");
+    assert_eq!(table(&depth, "depth after points and decals"), depth_total + 8 * texels - 8);
+}
