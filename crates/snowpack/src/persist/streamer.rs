@@ -1210,8 +1210,17 @@ mod tests {
         std::fs::remove_dir_all(&tiles).expect("remove tiles");
         std::fs::write(&tiles, b"in the way").expect("block tiles");
         s.put(tile(0, 0, 1.0));
-        assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
+        // Let the worker answer that write (it fails) before a flush looks at
+        // the cache: whether flush's own poll saw the failure, and so retried
+        // the write once more, depended on timing (1 in 60 runs).
+        let seq = s.send(|seq| Request::Flush { seq }).expect("send");
+        s.wait(seq).expect("answered");
         assert_eq!(s.stats().errors, 1);
+        assert_eq!(s.take_errors().len(), 1, "the failed write is reported");
+        // A flush retries the failed write, which fails again: that error is
+        // flush's answer, and is not repeated in take_errors.
+        assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
+        assert_eq!(s.stats().errors, 2);
         assert!(
             s.take_errors().is_empty(),
             "the error flush returned is not repeated"
