@@ -55,36 +55,20 @@ fn main() {
         let mut source = String::new();
         for part in *parts {
             let path = dir.join(part);
-            let text = std::fs::read_to_string(&path)
-                .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+            let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
             source.push_str(&text);
             source.push('\n');
         }
-        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| {
-            panic!("WGSL parse error in {name} ({parts:?}):\n{}", e.emit_to_string(&source))
-        });
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| {
-            panic!("WGSL validation error in {name} ({parts:?}):\n{}", e.emit_to_string(&source))
-        });
-        let includes: Vec<String> = parts
-            .iter()
-            .map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}\"))"))
-            .collect();
-        writeln!(
-            out,
-            "/// WGSL of the `{name}` pass: {parts:?}.\npub const {name}: &str = concat!({}, \"\\n\");",
-            includes.join(", \"\\n\", ")
-        )
-        .expect("write to String");
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("WGSL parse error in {name} ({parts:?}):\n{}", e.emit_to_string(&source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("WGSL validation error in {name} ({parts:?}):\n{}", e.emit_to_string(&source)));
+        let includes: Vec<String> = parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}\"))")).collect();
+        writeln!(out, "/// WGSL of the `{name}` pass: {parts:?}.\npub const {name}: &str = concat!({}, \"\\n\");", includes.join(", \"\\n\", "))
+            .expect("write to String");
     }
     let list: Vec<String> = SHADERS.iter().map(|(n, _)| format!("(\"{n}\", {n})")).collect();
-    writeln!(out, "/// Every pass's WGSL, by constant name.\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", "))
-        .expect("write to String");
+    writeln!(out, "/// Every pass's WGSL, by constant name.\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", ")).expect("write to String");
     let out_dir = std::env::var("OUT_DIR").expect("OUT_DIR is set by cargo");
     std::fs::write(Path::new(&out_dir).join("shaders.rs"), out).expect("write shaders.rs");
 }

@@ -54,13 +54,7 @@ pub struct Config {
 /// Measures one configuration.
 pub fn measure(ctx: &GpuContext, config: Config, warmup: u32, frames: u32) -> anyhow::Result<BenchRow> {
     let Config { resolution, spheres, technique, range_texels } = config;
-    let params = SnowParams {
-        extent_m: 64.0 * resolution as f32 / 1024.0,
-        resolution,
-        technique,
-        range_texels,
-        ..SnowParams::default()
-    };
+    let params = SnowParams { extent_m: 64.0 * resolution as f32 / 1024.0, resolution, technique, range_texels, ..SnowParams::default() };
     let terrain = TerrainSource::Noise(NoiseTerrain { seed: 1, base_m: 0.0, amplitude_m: 0.3, wavelength_m: 30.0 });
     let extent = params.extent_m;
     let mut snow = SnowDeformation::new(ctx, params, terrain, DVec2::ZERO)?;
@@ -132,12 +126,7 @@ pub fn markdown(rows: &[BenchRow], adapter: &str, backend: &str, software: bool,
             }
         }
         let total: f64 = row.passes.iter().map(|p| p.1).sum();
-        let _ = writeln!(
-            md,
-            " {total:.4} | {:.3} | {:.1} |",
-            row.cpu_record_ms,
-            row.memory_bytes as f64 / (1024.0 * 1024.0)
-        );
+        let _ = writeln!(md, " {total:.4} | {:.3} | {:.1} |", row.cpu_record_ms, row.memory_bytes as f64 / (1024.0 * 1024.0));
     }
     md
 }
@@ -152,7 +141,10 @@ pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
     let mut md = String::from("\n## The physical floor: bytes each pass must move, against the time it took\n\n");
     match bandwidth {
         Some(gb) => {
-            let _ = writeln!(md, "{adapter}: {gb} GB/s of memory bandwidth (maker's data sheet). Floor = bytes / bandwidth; measured / floor says how far a pass is from streaming at full bandwidth.\n");
+            let _ = writeln!(
+                md,
+                "{adapter}: {gb} GB/s of memory bandwidth (maker's data sheet). Floor = bytes / bandwidth; measured / floor says how far a pass is from streaming at full bandwidth.\n"
+            );
         }
         None => {
             let _ = writeln!(md, "{adapter}: memory bandwidth unknown, so bytes only (floors need a known GPU; see `KNOWN_BANDWIDTH_GB_PER_S`).\n");
@@ -160,7 +152,8 @@ pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
     }
     let _ = writeln!(md, "| window | pass | MiB moved | floor ms | measured ms | measured / floor |\n|---|---|---|---|---|---|");
     for row in rows {
-        let params = SnowParams { resolution: row.resolution, extent_m: 64.0 * row.resolution as f32 / 1024.0, technique: Technique::Depth, ..SnowParams::default() };
+        let params =
+            SnowParams { resolution: row.resolution, extent_m: 64.0 * row.resolution as f32 / 1024.0, technique: Technique::Depth, ..SnowParams::default() };
         for t in frame_traffic(&params) {
             let measured = row.passes.iter().find(|p| p.0 == t.pass).map(|p| p.1);
             let floor = bandwidth.map(|gb| t.floor_ms(gb));
@@ -191,7 +184,12 @@ pub fn hanak_markdown(row: &BenchRow, adapter: &str, software: bool) -> String {
     let ms = |names: &[&str]| -> f64 { row.passes.iter().filter(|p| names.contains(&p.0.as_str())).map(|p| p.1).sum() };
     let mut md = format!("\n## Hanák 2021, Table 6.1, beside this adapter ({}² window, {} spheres)\n\n", row.resolution, row.spheres);
     md.push_str("| GPU | deformation ms | Gaussian blur ms | normals ms | capture ms per object |\n|---|---|---|---|---|\n");
-    for (gpu, d, b, n) in [("GTX 1060 (Hanák)", 0.07, 0.13, 0.14), ("GTX 1070 (Hanák)", 0.05, 0.08, 0.10), ("RTX 2070 (Hanák)", 0.04, 0.06, 0.04), ("RTX 2070S (Hanák)", 0.03, 0.05, 0.03)] {
+    for (gpu, d, b, n) in [
+        ("GTX 1060 (Hanák)", 0.07, 0.13, 0.14),
+        ("GTX 1070 (Hanák)", 0.05, 0.08, 0.10),
+        ("RTX 2070 (Hanák)", 0.04, 0.06, 0.04),
+        ("RTX 2070S (Hanák)", 0.03, 0.05, 0.03),
+    ] {
         let _ = writeln!(md, "| {gpu} | {d:.2} | {b:.2} | {n:.2} | 0.01 |");
     }
     let per_object = if row.spheres > 0 { ms(&["capture"]) / row.spheres as f64 } else { 0.0 };
@@ -399,7 +397,10 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
             for atlas in [512, 1024, 2048] {
                 let row = crate::bench_accumulation::measure(ctx, scenario, atlas, acc_warmup, acc_frames)
                     .with_context(|| format!("accumulation: {scenario} at {atlas}²"))?;
-                println!("  accumulation {scenario:<13} {atlas:>4}²: accumulation {:.3} ms, support {:.3} ms, frame {:.3} ms", row.accumulation_ms, row.support_ms, row.frame_ms);
+                println!(
+                    "  accumulation {scenario:<13} {atlas:>4}²: accumulation {:.3} ms, support {:.3} ms, frame {:.3} ms",
+                    row.accumulation_ms, row.support_ms, row.frame_ms
+                );
                 results.accum_rows.push(row);
             }
         }
@@ -413,12 +414,24 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
             for store in [false, true] {
                 let row = crate::bench_tiles::measure_move(ctx, resolution, store, tile_warmup, tile_frames, &scratch)
                     .with_context(|| format!("window moves at {resolution}², store {store}"))?;
-                println!("  window move {resolution:>4}² store {:<3}: move {:.3} ms, frame {:.3} ms GPU, record {:.3} ms CPU, wall {:.2} ms", if store { "yes" } else { "no" }, row.move_gpu_ms, row.frame_gpu_ms, row.record_cpu_ms, row.wall_ms);
+                println!(
+                    "  window move {resolution:>4}² store {:<3}: move {:.3} ms, frame {:.3} ms GPU, record {:.3} ms CPU, wall {:.2} ms",
+                    if store { "yes" } else { "no" },
+                    row.move_gpu_ms,
+                    row.frame_gpu_ms,
+                    row.record_cpu_ms,
+                    row.wall_ms
+                );
                 results.move_rows.push(row);
             }
         }
         let row = crate::bench_tiles::measure_store(ctx, if quick { 100.0 } else { 500.0 }, &scratch).context("tile store size and latency")?;
-        println!("  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile", row.bytes_per_km_with_trail / 1e3, row.bytes_per_km_untouched / 1e3, row.restore_ms);
+        println!(
+            "  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile",
+            row.bytes_per_km_with_trail / 1e3,
+            row.bytes_per_km_untouched / 1e3,
+            row.restore_ms
+        );
         results.store_row = Some(row);
         let _ = std::fs::remove_dir_all(&scratch);
     }
@@ -427,9 +440,19 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
     if only.is_none_or(|o| "shell".contains(o)) {
         let (shell_warmup, shell_frames) = if quick { (1, 3) } else { (10, 60) };
         let textures: &[u32] = if quick { &[32, 128] } else { &[16, 32, 64, 128, 256] };
-        results.shell_rows = crate::bench_shell::measure(ctx, &crate::bench_shell::SIZES, textures, shell_warmup, shell_frames).context("measuring the shell")?;
+        results.shell_rows =
+            crate::bench_shell::measure(ctx, &crate::bench_shell::SIZES, textures, shell_warmup, shell_frames).context("measuring the shell")?;
         for row in &results.shell_rows {
-            println!("  shell {}x{} texture {:>3} {:<9}: {:.2} FPS, shell {:.2} ms GPU, pixels per pass {:?}", row.size.0, row.size.1, row.texture, if row.lod { "with mips" } else { "level 0" }, row.fps(), row.shell_gpu_ms, row.pass_pixels);
+            println!(
+                "  shell {}x{} texture {:>3} {:<9}: {:.2} FPS, shell {:.2} ms GPU, pixels per pass {:?}",
+                row.size.0,
+                row.size.1,
+                row.texture,
+                if row.lod { "with mips" } else { "level 0" },
+                row.fps(),
+                row.shell_gpu_ms,
+                row.pass_pixels
+            );
         }
     }
     // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
@@ -468,7 +491,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
 /// against camera distance).
 #[must_use]
 pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
-    use crate::plot::{render_png, Chart, Series};
+    use crate::plot::{Chart, Series, render_png};
     let by_pass = |rows: Vec<(f64, &[(String, f64)])>| -> Vec<Series> {
         let mut names: Vec<&str> = Vec::new();
         for (_, passes) in &rows {
@@ -584,7 +607,11 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.accum_rows.is_empty() {
         let mut csv = String::from("scenario,atlas,objects,occlusion_triangles,atlas_used,accumulation_ms,support_ms,frame_ms,wall_ms,memory_bytes\n");
         for a in &r.accum_rows {
-            let _ = writeln!(csv, "{},{},{},{},{},{},{},{},{},{}", a.scenario, a.atlas, a.objects, a.occlusion_triangles, a.atlas_used, a.accumulation_ms, a.support_ms, a.frame_ms, a.wall_ms, a.memory_bytes);
+            let _ = writeln!(
+                csv,
+                "{},{},{},{},{},{},{},{},{},{}",
+                a.scenario, a.atlas, a.objects, a.occlusion_triangles, a.atlas_used, a.accumulation_ms, a.support_ms, a.frame_ms, a.wall_ms, a.memory_bytes
+            );
         }
         files.push(("accumulation.csv", csv.into_bytes()));
     }
@@ -677,7 +704,14 @@ mod tests {
         let row = BenchRow {
             resolution: 1024,
             spheres: 100,
-            passes: vec![("capture".into(), 0.5), ("update".into(), 0.03), ("rim".into(), 0.01), ("blur_x".into(), 0.02), ("blur_z".into(), 0.02), ("normals".into(), 0.03)],
+            passes: vec![
+                ("capture".into(), 0.5),
+                ("update".into(), 0.03),
+                ("rim".into(), 0.01),
+                ("blur_x".into(), 0.02),
+                ("blur_z".into(), 0.02),
+                ("normals".into(), 0.03),
+            ],
             cpu_record_ms: 0.1,
             memory_bytes: 0,
             memory_parts: vec![],
@@ -709,9 +743,22 @@ mod tests {
             technique_rows: vec![("depth".into(), vec![0.3, 0.9]), ("points".into(), vec![0.2, 1.1])],
             cpu_rows: vec![("depth".into(), vec![0.05, 0.4]), ("points".into(), vec![0.06, 0.5])],
             ranges: vec![(32, 0.01, 0.2), (128, 0.05, 0.3)],
-            render_rows: vec![crate::bench_render::RenderRow { distance_m: 4.0, patches: 100, triangles: 10_000, levels: (0, 3), passes: vec![("terrain".into(), 0.5)] }],
+            render_rows: vec![crate::bench_render::RenderRow {
+                distance_m: 4.0,
+                patches: 100,
+                triangles: 10_000,
+                levels: (0, 3),
+                passes: vec![("terrain".into(), 0.5)],
+            }],
             render_frames: 100,
-            frame_rows: vec![crate::bench_frames::FrameRow { technique: Technique::Depth, spheres: 128, mesh_side: 32, range_texels: 64, deform_ms: 1.0, render_ms: 4.0 }],
+            frame_rows: vec![crate::bench_frames::FrameRow {
+                technique: Technique::Depth,
+                spheres: 128,
+                mesh_side: 32,
+                range_texels: 64,
+                deform_ms: 1.0,
+                render_ms: 4.0,
+            }],
             accum_rows: vec![crate::bench_accumulation::AccumRow {
                 scenario: "both".into(),
                 atlas: 2048,
@@ -724,15 +771,57 @@ mod tests {
                 wall_ms: 2.5,
                 memory_bytes: 100 << 20,
             }],
-            move_rows: vec![crate::bench_tiles::MoveRow { resolution: 1024, store: true, move_gpu_ms: 0.1, frame_gpu_ms: 1.0, record_cpu_ms: 0.2, wall_ms: 1.5, resident_bytes: 21 << 20 }],
-            store_row: Some(crate::bench_tiles::StoreRow { trail_m: 500.0, swath_m: 16.0, bytes_per_km_with_trail: 2e6, bytes_per_km_untouched: 1e6, mean_tile_bytes: 5000.0, restore_ms: 0.5, teleport_wait_frames: 3, teleport_ms: 50.0 }),
+            move_rows: vec![crate::bench_tiles::MoveRow {
+                resolution: 1024,
+                store: true,
+                move_gpu_ms: 0.1,
+                frame_gpu_ms: 1.0,
+                record_cpu_ms: 0.2,
+                wall_ms: 1.5,
+                resident_bytes: 21 << 20,
+            }],
+            store_row: Some(crate::bench_tiles::StoreRow {
+                trail_m: 500.0,
+                swath_m: 16.0,
+                bytes_per_km_with_trail: 2e6,
+                bytes_per_km_untouched: 1e6,
+                mean_tile_bytes: 5000.0,
+                restore_ms: 0.5,
+                teleport_wait_frames: 3,
+                teleport_ms: 50.0,
+            }),
             shell_rows: [false, true]
-                .map(|lod| crate::bench_shell::ShellRow { size: (800, 800), texture: 64, lod, frame_ms: 20.0, shell_gpu_ms: 5.0, pass_ms: vec![2.0, 1.0], pass_pixels: vec![1000, 300], tetrahedra: 1000 })
+                .map(|lod| crate::bench_shell::ShellRow {
+                    size: (800, 800),
+                    texture: 64,
+                    lod,
+                    frame_ms: 20.0,
+                    shell_gpu_ms: 5.0,
+                    pass_ms: vec![2.0, 1.0],
+                    pass_pixels: vec![1000, 300],
+                    tetrahedra: 1000,
+                })
                 .to_vec(),
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
-        assert_eq!(names, ["report.md", "passes.csv", "passes.png", "techniques.csv", "techniques.png", "cpu_record.png", "render.csv", "render.png", "frames.csv", "accumulation.csv", "tiles.csv", "shell.csv"]);
+        assert_eq!(
+            names,
+            [
+                "report.md",
+                "passes.csv",
+                "passes.png",
+                "techniques.csv",
+                "techniques.png",
+                "cpu_record.png",
+                "render.csv",
+                "render.png",
+                "frames.csv",
+                "accumulation.csv",
+                "tiles.csv",
+                "shell.csv"
+            ]
+        );
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
             let img = image::load_from_memory(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
             assert_eq!((img.width(), img.height()), (960, 540), "{name}");
@@ -762,7 +851,20 @@ mod tests {
             assert!(lines[k + 2] == "_Measured on NVIDIA H100 80GB HBM3 (vulkan)._", "{line} is not followed by the adapter: {:?}", &lines[k..k + 3]);
         }
         assert!(text("accumulation.csv").contains("both,2048,208,60000,0.9,0.5,0.25,2,2.5,104857600"), "{}", text("accumulation.csv"));
-        let render_only = BenchResults { rows: vec![], counts: vec![], technique_rows: vec![], cpu_rows: vec![], ranges: vec![], frame_rows: vec![], accum_rows: vec![], move_rows: vec![], store_row: None, shell_rows: vec![], software: true, ..results };
+        let render_only = BenchResults {
+            rows: vec![],
+            counts: vec![],
+            technique_rows: vec![],
+            cpu_rows: vec![],
+            ranges: vec![],
+            frame_rows: vec![],
+            accum_rows: vec![],
+            move_rows: vec![],
+            store_row: None,
+            shell_rows: vec![],
+            software: true,
+            ..results
+        };
         let names: Vec<&str> = report_files(&render_only).iter().map(|f| f.0).collect();
         assert_eq!(names, ["report.md", "render.csv", "render.png"]);
     }

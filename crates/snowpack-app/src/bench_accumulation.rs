@@ -56,11 +56,7 @@ const DINH: [(&str, u32, f64, f64, &str, u32); 9] = [
 /// Objects in Dinh's scenes: eight simple ones; the ground and the forest
 /// mesh; the ground, the forest and six trees.
 fn dinh_objects(scenario: &str) -> u32 {
-    if scenario == "forest" {
-        2
-    } else {
-        8
-    }
+    if scenario == "forest" { 2 } else { 8 }
 }
 
 fn thing(name: String, shape: ObjectShape, position: Vec3, yaw: f32) -> SnowObject {
@@ -145,7 +141,15 @@ pub fn markdown(rows: &[AccumRow], adapter: &str, software: bool) -> String {
     for scenario in SCENARIOS {
         for size in [512u32, 1024, 2048] {
             if let Some(d) = DINH.iter().find(|d| d.0 == scenario && d.1 == size) {
-                let _ = writeln!(md, "| {scenario} | {size}² | Dinh (RTX 3060) | {} | – | – | {:.2} | {:.2} | {} FPS | – | {} |", dinh_objects(scenario), d.2, d.3, d.4, d.5);
+                let _ = writeln!(
+                    md,
+                    "| {scenario} | {size}² | Dinh (RTX 3060) | {} | – | – | {:.2} | {:.2} | {} FPS | – | {} |",
+                    dinh_objects(scenario),
+                    d.2,
+                    d.3,
+                    d.4,
+                    d.5
+                );
             }
             if let Some(r) = rows.iter().find(|r| r.scenario == scenario && r.atlas == size) {
                 let _ = writeln!(

@@ -117,13 +117,24 @@ fn table_of(row: &FrameRow) -> u32 {
 #[must_use]
 pub fn markdown(rows: &[FrameRow], adapter: &str, software: bool) -> String {
     let mut md = format!("\n## Wasmut 2019, Tables 1–4: frames per second at {}x{} (deformation + render GPU time)\n\n", SIZE.0, SIZE.1);
-    let _ = writeln!(md, "Wasmut's figures are whole-application FPS on a GeForce GTX 960 (section 5.2); snowpack's are `1000 / GPU ms` on **{adapter}**{}. snowpack captures spheres as exact ray-cast impostors, so the mesh size changes only their drawing, not the capture (Wasmut's render target drew the meshes into the capture).", if software { " (a software adapter: ratios only)" } else { "" });
-    let titles = ["", "Table 1: spheres drawn with 32x32 vertices", "Table 2: 128x128 vertices", "Table 3: 512x512 vertices", "Table 4: points technique against footprint range"];
+    let _ = writeln!(
+        md,
+        "Wasmut's figures are whole-application FPS on a GeForce GTX 960 (section 5.2); snowpack's are `1000 / GPU ms` on **{adapter}**{}. snowpack captures spheres as exact ray-cast impostors, so the mesh size changes only their drawing, not the capture (Wasmut's render target drew the meshes into the capture).",
+        if software { " (a software adapter: ratios only)" } else { "" }
+    );
+    let titles = [
+        "",
+        "Table 1: spheres drawn with 32x32 vertices",
+        "Table 2: 128x128 vertices",
+        "Table 3: 512x512 vertices",
+        "Table 4: points technique against footprint range",
+    ];
     for table in 1..=4u32 {
         let ours: Vec<&FrameRow> = rows.iter().filter(|r| table_of(r) == table).collect();
         let theirs: Vec<_> = WASMUT.iter().filter(|w| w.0 == table).collect();
         let counts = theirs[0].2;
-        let _ = write!(md, "\n### {}\n\n| source | {} |", titles[table as usize], if table == 4 { "range, against spheres" } else { "technique, against spheres" });
+        let _ =
+            write!(md, "\n### {}\n\n| source | {} |", titles[table as usize], if table == 4 { "range, against spheres" } else { "technique, against spheres" });
         for n in counts {
             let _ = write!(md, " {n} |");
         }
@@ -151,7 +162,14 @@ mod tests {
 
     #[test]
     fn the_tables_put_our_fps_beside_wasmuts() {
-        let row = |technique, spheres, mesh_side, range_texels, ms: f64| FrameRow { technique, spheres, mesh_side, range_texels, deform_ms: ms * 0.25, render_ms: ms * 0.75 };
+        let row = |technique, spheres, mesh_side, range_texels, ms: f64| FrameRow {
+            technique,
+            spheres,
+            mesh_side,
+            range_texels,
+            deform_ms: ms * 0.25,
+            render_ms: ms * 0.75,
+        };
         let rows = [
             row(Technique::Depth, 128, 32, 64, 5.0),
             row(Technique::Points, 1024, 128, 64, 20.0),

@@ -105,10 +105,7 @@ pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec
 /// The render section of the report.
 #[must_use]
 pub fn markdown(rows: &[RenderRow], frames: u32) -> String {
-    let mut md = format!(
-        "\n## Rendering at {}x{}: 64 m window (1024²), 1 km view, GPU ms per pass (median of {frames} frames)\n\n",
-        SIZE.0, SIZE.1
-    );
+    let mut md = format!("\n## Rendering at {}x{}: 64 m window (1024²), 1 km view, GPU ms per pass (median of {frames} frames)\n\n", SIZE.0, SIZE.1);
     let mut names: Vec<&str> = Vec::new();
     for row in rows {
         for (n, _) in &row.passes {

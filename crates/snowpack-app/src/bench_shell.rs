@@ -73,7 +73,8 @@ pub fn measure(ctx: &GpuContext, sizes: &[(u32, u32)], textures: &[u32], warmup:
         for &texture in textures {
             for lod in [false, true] {
                 let shell = ShellSettings { texture_size: texture, lod, ..base };
-                let mut renderer = Renderer::new(ctx, &snow, &env, RenderParams { shell, ..RenderParams::default() }, snowpack::render::IMAGE_FORMAT).context("creating the renderer")?;
+                let mut renderer = Renderer::new(ctx, &snow, &env, RenderParams { shell, ..RenderParams::default() }, snowpack::render::IMAGE_FORMAT)
+                    .context("creating the renderer")?;
                 let mut walls = Vec::new();
                 for frame in 0..warmup + frames {
                     let start = Instant::now();
@@ -132,7 +133,15 @@ pub fn markdown(rows: &[ShellRow], software: bool) -> String {
     }
     if let Some(row) = rows.iter().find(|r| r.lod && !r.pass_ms.is_empty()) {
         let passes: Vec<String> = row.pass_ms.iter().map(|ms| format!("{ms:.3}")).collect();
-        let _ = writeln!(md, "\nGPU ms per peeling pass ({}x{}, {}³/2 with mips; {} tetrahedra a pass): {}", row.size.0, row.size.1, row.texture, row.tetrahedra, passes.join(", "));
+        let _ = writeln!(
+            md,
+            "\nGPU ms per peeling pass ({}x{}, {}³/2 with mips; {} tetrahedra a pass): {}",
+            row.size.0,
+            row.size.1,
+            row.texture,
+            row.tetrahedra,
+            passes.join(", ")
+        );
     }
     md
 }
@@ -144,7 +153,19 @@ pub fn csv(rows: &[ShellRow]) -> String {
     for r in rows {
         let ms: Vec<String> = r.pass_ms.iter().map(|v| format!("{v:.4}")).collect();
         let px: Vec<String> = r.pass_pixels.iter().map(u32::to_string).collect();
-        let _ = writeln!(csv, "{},{},{},{},{:.3},{:.3},{:.4},{},{}", r.size.0, r.size.1, r.texture, r.lod, r.frame_ms, r.fps(), r.shell_gpu_ms, ms.join(" "), px.join(" "));
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{:.3},{:.3},{:.4},{},{}",
+            r.size.0,
+            r.size.1,
+            r.texture,
+            r.lod,
+            r.frame_ms,
+            r.fps(),
+            r.shell_gpu_ms,
+            ms.join(" "),
+            px.join(" ")
+        );
     }
     csv
 }

@@ -201,17 +201,13 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
 
 /// `--backend`: checked before anything opens, so a typo exits 2 naming the option (clap's usage error).
 fn parse_backend(list: &str) -> Result<String, String> {
-    snowpack::AdapterRequest { backends: Some(list.to_owned()), adapter_name: None }
-        .parse_backends()
-        .map(|_| list.to_owned())
-        .map_err(|e| e.to_string())
+    snowpack::AdapterRequest { backends: Some(list.to_owned()), adapter_name: None }.parse_backends().map(|_| list.to_owned()).map_err(|e| e.to_string())
 }
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("SNOWPACK_LOG")
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,snowpack=info")),
+            tracing_subscriber::EnvFilter::try_from_env("SNOWPACK_LOG").unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,snowpack=info")),
         )
         .with_writer(std::io::stderr)
         .init();

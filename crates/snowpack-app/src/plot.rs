@@ -205,10 +205,12 @@ pub fn render_png(chart: &Chart, width: u32, height: u32) -> Vec<u8> {
     xticks.sort_by(f64::total_cmp);
     xticks.dedup();
     if xticks.len() > 8 || xticks.is_empty() {
-        xticks = (0..=4).map(|k| {
-            let t = x0 + (x1 - x0) * f64::from(k) / 4.0;
-            if chart.log_x { 10f64.powf(t) } else { t }
-        }).collect();
+        xticks = (0..=4)
+            .map(|k| {
+                let t = x0 + (x1 - x0) * f64::from(k) / 4.0;
+                if chart.log_x { 10f64.powf(t) } else { t }
+            })
+            .collect();
     }
     for v in xticks {
         let x = px(v);
@@ -266,7 +268,7 @@ mod tests {
         assert!(count(COLOURS[1]) > 150, "{} pixels of the second series", count(COLOURS[1]));
         assert!(count([30, 30, 30]) > 500, "axes and text");
         // The first series rises to the right: its rightmost pixel is higher (smaller y) than its leftmost.
-        let xs: Vec<(u32, u32)> = img.enumerate_pixels().filter(|p| p.2 .0 == COLOURS[0] && p.0 < 440).map(|p| (p.0, p.1)).collect();
+        let xs: Vec<(u32, u32)> = img.enumerate_pixels().filter(|p| p.2.0 == COLOURS[0] && p.0 < 440).map(|p| (p.0, p.1)).collect();
         let leftmost = xs.iter().min_by_key(|p| p.0).expect("pixels");
         let rightmost = xs.iter().max_by_key(|p| p.0).expect("pixels");
         assert!(rightmost.1 < leftmost.1, "{leftmost:?} .. {rightmost:?}");

@@ -7,12 +7,12 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::DVec2;
 use snowpack::gpu::PassTimings;
-use snowpack::render::{DebugView, MaterialPreset, IMAGE_FORMAT};
+use snowpack::render::{DebugView, IMAGE_FORMAT, MaterialPreset};
 use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
 use snowpack_scene::{CharacterPose, Scene, Technique, WindowSpec, World};
 
 use crate::output::OutputSet;
-use crate::{npy, BadInput};
+use crate::{BadInput, npy};
 
 /// Size of `frame.png` without `--size`.
 pub const DEFAULT_FRAME_SIZE: (u32, u32) = (1280, 720);
@@ -75,9 +75,7 @@ pub fn window_center(scene: &Scene, world: &World) -> DVec2 {
     match &scene.window {
         WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
         WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
-        WindowSpec::FollowActor(i) => world
-            .actor_position(*i)
-            .map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
+        WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
         // A window kind this runner does not know yet: where the camera is.
         _ => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
     }
@@ -89,9 +87,7 @@ pub fn register_characters(ctx: &GpuContext, world: &World, snow: &mut SnowDefor
     world
         .gltf_actors()
         .map(|(k, g)| {
-            let id = snow
-                .add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len())
-                .with_context(|| format!("uploading {}", g.file.display()))?;
+            let id = snow.add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len()).with_context(|| format!("uploading {}", g.file.display()))?;
             Ok((k, id))
         })
         .collect()
@@ -123,9 +119,7 @@ pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) 
 /// Runs `scene` headless and writes its outputs.
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> {
     let technique = match &opts.technique {
-        Some(name) => name
-            .parse::<Technique>()
-            .map_err(|e| BadInput(format!("--technique: {e}")))?,
+        Some(name) => name.parse::<Technique>().map_err(|e| BadInput(format!("--technique: {e}")))?,
         None => scene.snow.technique,
     };
     let render_params = render_params(scene, opts)?;
@@ -135,8 +129,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
-    let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world))
-        .context("creating the deformation window")?;
+    let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world)).context("creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
     match snow.set_objects(&ctx, &objects) {
@@ -193,16 +186,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let env = scene.render.environment_map();
     let mut renderer = Renderer::new(&ctx, &snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
     let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
-    let rgba = renderer
-        .render_image(&ctx, &snow, &world.deformers(), &camera, (width, height))
-        .context("rendering frame.png")?;
+    let rgba = renderer.render_image(&ctx, &snow, &world.deformers(), &camera, (width, height)).context("rendering frame.png")?;
     renderer.finish(&ctx)?;
     let image = image::RgbaImage::from_raw(width, height, rgba).context("frame size")?;
     let mut png = Vec::new();
-    image::DynamicImage::ImageRgba8(image)
-        .to_rgb8()
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .context("encoding frame.png")?;
+    image::DynamicImage::ImageRgba8(image).to_rgb8().write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).context("encoding frame.png")?;
     let stats = renderer.stats();
     let render_timings = renderer.timings();
     let shell = match renderer.shell() {
@@ -269,20 +257,20 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         out.stage("footsteps.json", serde_json::to_string_pretty(&steps)?.as_bytes())?;
     }
     let files = out.commit()?;
-    Ok(RunReport {
-        files,
-        timings,
-        adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()),
-        frames,
-        wall_s,
-    })
+    Ok(RunReport { files, timings, adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()), frames, wall_s })
 }
 
 /// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
 /// with `keep = "memory"`, a memory keeper of its tile size and budget;
 /// `keep = "off"` attaches nothing (the scene's `[snow]` already forgets). A
 /// store that cannot be opened is bad input. `Ok(true)`: a save was loaded.
-pub fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, scene: &Scene, spec: &snowpack_scene::StoreSpec, out: &std::path::Path) -> anyhow::Result<bool> {
+pub fn attach_store(
+    ctx: &GpuContext,
+    snow: &mut SnowDeformation,
+    scene: &Scene,
+    spec: &snowpack_scene::StoreSpec,
+    out: &std::path::Path,
+) -> anyhow::Result<bool> {
     use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
     use snowpack_scene::StoreKeep;
     const MIB: f64 = 1024.0 * 1024.0;
@@ -354,10 +342,7 @@ fn object_meta(snow: &SnowDeformation, stats: Option<&[snowpack::accumulate::Obj
 
 /// Prints what a run wrote and how long each pass took.
 pub fn print_report(report: &RunReport, out: &Path) {
-    println!(
-        "ran {} frames in {:.2} s on {} ({})",
-        report.frames, report.wall_s, report.adapter.0, report.adapter.1
-    );
+    println!("ran {} frames in {:.2} s on {} ({})", report.frames, report.wall_s, report.adapter.0, report.adapter.1);
     println!("wrote into {}:", out.display());
     for f in &report.files {
         println!("  {}", f.display());

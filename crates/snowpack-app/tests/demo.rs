@@ -29,10 +29,7 @@ impl Xvfb {
         let mut child = match spawned {
             Ok(c) => c,
             Err(e) => {
-                assert!(
-                    !snowpack::testing::gpu_required(),
-                    "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb"
-                );
+                assert!(!snowpack::testing::gpu_required(), "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb");
                 eprintln!("skipping the demo test: no Xvfb ({e})");
                 return None;
             }
@@ -53,7 +50,6 @@ impl Drop for Xvfb {
         let _ = self.child.wait();
     }
 }
-
 
 /// A small scene so a software rasteriser runs it quickly: 24 spheres dropped
 /// on gentle hills, a 16 m window at 256².
@@ -258,7 +254,8 @@ fn the_player_walks_out_of_the_window_and_the_tile_store_keeps_the_snow() {
     let script = "0 key H\n1 key Tab\n2 key Tab\n4 key_down KeyW\n124 key_up KeyW\n";
     let Some(run) = run_demo_scene(&dir.0, &scene, 128, script, None) else { return };
     let line = run.stdout.lines().find(|l| l.starts_with("tile store: ")).unwrap_or_else(|| panic!("no tile store summary:\n{}", run.stdout));
-    let evicted: u64 = line.split(", ").find_map(|w| w.strip_suffix(" evicted")).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("no evicted count: {line}"));
+    let evicted: u64 =
+        line.split(", ").find_map(|w| w.strip_suffix(" evicted")).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("no evicted count: {line}"));
     assert!(evicted > 0, "walking 8 m (two tiles) out of a 16 m window evicted no tile: {line}");
     assert!(line.contains(", 0 errors"), "{line}");
     // [store] save defaults to true: the snow was saved on the way out.

@@ -17,7 +17,6 @@ fn gpu_available() -> bool {
     snowpack::testing::gpu().is_some()
 }
 
-
 struct Grid {
     res: usize,
     data: Vec<f32>,
@@ -30,8 +29,7 @@ impl Grid {
         let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
         let header = std::str::from_utf8(&bytes[10..10 + len]).expect("ascii header");
         assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"), "{header}");
-        let data: Vec<f32> =
-            bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+        let data: Vec<f32> = bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
         let res = (data.len() as f64).sqrt() as usize;
         assert_eq!(res * res, data.len());
         assert!(header.contains(&format!("'shape': ({res}, {res})")), "{header}");
@@ -67,22 +65,9 @@ fn run_scene(name: &str, toml: &str, extra: &[&str]) -> Run {
     let scene = dir.0.join("scene.toml");
     std::fs::write(&scene, toml).expect("write scene");
     let out = dir.0.join("out");
-    let output = bin()
-        .args(["run", "--headless", "--scene"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .args(extra)
-        .output()
-        .expect("run snowpack");
-    assert!(
-        output.status.success(),
-        "snowpack run failed: {}\n{}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let meta: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("meta.json")).expect("meta.json")).expect("valid JSON");
+    let output = bin().args(["run", "--headless", "--scene"]).arg(&scene).arg("--out").arg(&out).args(extra).output().expect("run snowpack");
+    assert!(output.status.success(), "snowpack run failed: {}\n{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("meta.json")).expect("meta.json")).expect("valid JSON");
     Run { _dir: dir, out, meta }
 }
 
@@ -715,7 +700,10 @@ fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
         let load = snowpack::skin::sinking::FootLoad::default();
         let (least, most) = (load.sinkage_m(4.0, 0.2, hardness), load.sinkage_m(1.0, 0.2, hardness));
         for (print, sink, _) in &prints {
-            assert!((least - 0.02..most + 0.025).contains(print), "{hardness} kPa: a print {print:.3} m deep; the model allows {least:.3}..{most:.3} (sink {sink:.3} at touchdown)");
+            assert!(
+                (least - 0.02..most + 0.025).contains(print),
+                "{hardness} kPa: a print {print:.3} m deep; the model allows {least:.3}..{most:.3} (sink {sink:.3} at touchdown)"
+            );
         }
         let error = mean(&prints.iter().map(|(p, s, _)| (p - s).abs()).collect::<Vec<_>>());
         assert!(error < 0.02, "{hardness} kPa: prints differ from the model's sinkage by {error:.3} m on average: {prints:?}");

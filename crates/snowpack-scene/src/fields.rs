@@ -117,11 +117,7 @@ impl<'f> Fields<'f> {
     /// A string from a fixed set of choices.
     pub(crate) fn choice(&mut self, key: &str, default: &str, choices: &[&str]) -> Result<String, SceneError> {
         let s = self.string_opt(key)?.unwrap_or_else(|| default.to_owned());
-        if choices.contains(&s.as_str()) {
-            Ok(s)
-        } else {
-            Err(self.err(key, format!("{s:?} is not one of {}", choices.join(", "))))
-        }
+        if choices.contains(&s.as_str()) { Ok(s) } else { Err(self.err(key, format!("{s:?} is not one of {}", choices.join(", ")))) }
     }
 
     fn numbers(&self, key: &str, v: &Value, n: usize) -> Result<Vec<f32>, SceneError> {

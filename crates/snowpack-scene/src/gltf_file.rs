@@ -31,14 +31,9 @@ impl GltfFile {
         let mut buffers = Vec::new();
         for buffer in gltf.document.buffers() {
             let data = match buffer.source() {
-                gltf::buffer::Source::Bin => {
-                    blob.take().ok_or_else(|| format!("{}: the binary chunk is missing", path.display()))?
-                }
+                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| format!("{}: the binary chunk is missing", path.display()))?,
                 gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                    return Err(format!(
-                        "{}: embedded base64 buffers are not supported; export as .glb or with a separate .bin",
-                        path.display()
-                    ));
+                    return Err(format!("{}: embedded base64 buffers are not supported; export as .glb or with a separate .bin", path.display()));
                 }
                 gltf::buffer::Source::Uri(uri) => {
                     let file = dir.join(uri);
@@ -46,13 +41,7 @@ impl GltfFile {
                 }
             };
             if data.len() < buffer.length() {
-                return Err(format!(
-                    "{}: buffer {} holds {} bytes, the file says {}",
-                    path.display(),
-                    buffer.index(),
-                    data.len(),
-                    buffer.length()
-                ));
+                return Err(format!("{}: buffer {} holds {} bytes, the file says {}", path.display(), buffer.index(), data.len(), buffer.length()));
             }
             buffers.push(data);
         }
@@ -62,11 +51,7 @@ impl GltfFile {
     /// Every triangle of the default scene (or the first), in world space,
     /// with node transforms applied and `scale` on top.
     pub fn world_triangles(&self, scale: f32) -> Result<Vec<[[f32; 3]; 3]>, String> {
-        let scene = self
-            .document
-            .default_scene()
-            .or_else(|| self.document.scenes().next())
-            .ok_or("the file has no scene")?;
+        let scene = self.document.default_scene().or_else(|| self.document.scenes().next()).ok_or("the file has no scene")?;
         let mut out = Vec::new();
         let root = Mat4::from_scale(Vec3::splat(scale));
         for node in scene.nodes() {
@@ -79,11 +64,7 @@ impl GltfFile {
     /// mesh, node transforms and `scale` applied, with normals and, when every
     /// primitive has them, `TEXCOORD_0` UVs (an accumulation object).
     pub fn object_mesh(&self, scale: f32) -> Result<snowpack::accumulate::ObjectMesh, String> {
-        let scene = self
-            .document
-            .default_scene()
-            .or_else(|| self.document.scenes().next())
-            .ok_or("the file has no scene")?;
+        let scene = self.document.default_scene().or_else(|| self.document.scenes().next()).ok_or("the file has no scene")?;
         let mut out = snowpack::accumulate::ObjectMesh { uvs: Some(Vec::new()), ..Default::default() };
         let root = Mat4::from_scale(Vec3::splat(scale));
         let mut stack: Vec<(gltf::Node<'_>, Mat4)> = scene.nodes().map(|n| (n, root)).collect();
@@ -168,11 +149,7 @@ impl GltfFile {
     /// The first skinned mesh of the default scene with its skeleton and
     /// every animation: what a `kind = "gltf"` actor needs.
     pub fn skinned_model(&self) -> Result<SkinnedModel, String> {
-        let scene = self
-            .document
-            .default_scene()
-            .or_else(|| self.document.scenes().next())
-            .ok_or("the file has no scene")?;
+        let scene = self.document.default_scene().or_else(|| self.document.scenes().next()).ok_or("the file has no scene")?;
         // Nodes in depth-first order, so parents come before children.
         let mut nodes = Vec::new();
         let mut index_of = vec![None; self.document.nodes().len()];
@@ -215,7 +192,8 @@ impl GltfFile {
             }
             let reader = prim.reader(buffers);
             let name = mesh.name().unwrap_or("");
-            let positions: Vec<Vec3> = reader.read_positions().ok_or_else(|| format!("mesh {name:?} has a primitive without positions"))?.map(Vec3::from).collect();
+            let positions: Vec<Vec3> =
+                reader.read_positions().ok_or_else(|| format!("mesh {name:?} has a primitive without positions"))?.map(Vec3::from).collect();
             let ids: Vec<[u16; 4]> = reader.read_joints(0).ok_or_else(|| format!("mesh {name:?} has no JOINTS_0: it is not skinned"))?.into_u16().collect();
             let weights: Vec<[f32; 4]> = reader
                 .read_weights(0)
@@ -263,7 +241,9 @@ impl GltfFile {
                 let reader = ch.reader(buffers);
                 let times: Vec<f32> = reader.read_inputs().ok_or_else(|| format!("animation {name:?} has a channel without key times"))?.collect();
                 let values: Vec<Vec4> = match reader.read_outputs().ok_or_else(|| format!("animation {name:?} has a channel without values"))? {
-                    gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => v.map(|x| Vec3::from(x).extend(0.0)).collect(),
+                    gltf::animation::util::ReadOutputs::Translations(v) | gltf::animation::util::ReadOutputs::Scales(v) => {
+                        v.map(|x| Vec3::from(x).extend(0.0)).collect()
+                    }
                     gltf::animation::util::ReadOutputs::Rotations(r) => r.into_f32().map(Vec4::from).collect(),
                     gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
                 };

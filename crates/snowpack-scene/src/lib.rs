@@ -13,8 +13,8 @@ mod world;
 
 pub use error::SceneError;
 pub use scene::{
-    ActorSpec, CameraSpec, EnvironmentSpec, Gait, GltfActor, Placement, RenderSpec, BUILTIN_FOX, BUILTIN_FOX_GLB, BUILTIN_SKY_HDR, Motion, ObjectSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreKeep, StoreSpec,
-    WindowSpec, DEFAULT_SCENE,
+    ActorSpec, BUILTIN_FOX, BUILTIN_FOX_GLB, BUILTIN_SKY_HDR, CameraSpec, DEFAULT_SCENE, EnvironmentSpec, Gait, GltfActor, Motion, ObjectSpec, Placement,
+    RenderSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec,
 };
 pub use snowpack::{RimStyle, Technique};
-pub use world::{CharacterPose, World, FRICTION, GRAVITY, RESTITUTION};
+pub use world::{CharacterPose, FRICTION, GRAVITY, RESTITUTION, World};

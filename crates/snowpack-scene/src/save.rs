@@ -179,7 +179,15 @@ fn shell_table(s: &snowpack::render::shell::ShellSettings) -> Table {
     t.insert("enabled".into(), Value::Boolean(s.enabled));
     t.insert("texture".into(), Value::String(s.texture.name().into()));
     t.insert("texture_size".into(), Value::Integer(i64::from(s.texture_size)));
-    for (key, v) in [("thickness_m", s.thickness_m), ("tile_m", s.tile_m), ("radius_m", s.radius_m), ("spacing_m", s.spacing_m), ("flatten_m", s.flatten_m), ("min_fraction", s.min_fraction), ("opacity", s.opacity)] {
+    for (key, v) in [
+        ("thickness_m", s.thickness_m),
+        ("tile_m", s.tile_m),
+        ("radius_m", s.radius_m),
+        ("spacing_m", s.spacing_m),
+        ("flatten_m", s.flatten_m),
+        ("min_fraction", s.min_fraction),
+        ("opacity", s.opacity),
+    ] {
         t.insert(key.into(), float(v));
     }
     t.insert("lod".into(), Value::Boolean(s.lod));

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::render::params::{sun_from_angles, DebugView, LightParams, Material, MaterialPreset};
+use snowpack::render::params::{DebugView, LightParams, Material, MaterialPreset, sun_from_angles};
 use snowpack::render::shell::{DetailKind, ShellSettings};
 use snowpack::render::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
@@ -14,7 +14,7 @@ use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::{GltfFile, SkinnedModel};
-use snowpack::skin::feet::{attach_paws, find_feet, stride_speed, Foot, DEFAULT_FOOT_PATTERNS};
+use snowpack::skin::feet::{DEFAULT_FOOT_PATTERNS, Foot, attach_paws, find_feet, stride_speed};
 use snowpack::skin::sinking::FootLoad;
 
 /// Where the deformation window is centred.
@@ -444,8 +444,7 @@ fn rotation_from_deg(deg: Vec3) -> Quat {
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SceneError::new(path, "", format!("cannot read the scene file: {e}")))?;
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError::new(path, "", format!("cannot read the scene file: {e}")))?;
         Self::parse(&text, path)
     }
 
@@ -470,12 +469,8 @@ impl Scene {
         let snow = match root.table("snow")? {
             None => defaults,
             Some(mut t) => {
-                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| {
-                    s.parse::<Technique>().map_err(|why| t.err("technique", why))
-                })?;
-                let rim = t.string_opt("rim")?.map_or(Ok(RimStyle::Rounded), |s| {
-                    s.parse::<RimStyle>().map_err(|why| t.err("rim", why))
-                })?;
+                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| s.parse::<Technique>().map_err(|why| t.err("technique", why)))?;
+                let rim = t.string_opt("rim")?.map_or(Ok(RimStyle::Rounded), |s| s.parse::<RimStyle>().map_err(|why| t.err("rim", why)))?;
                 let snow = SnowParams {
                     extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
                     resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
@@ -538,14 +533,12 @@ impl Scene {
                     (None, None) => WindowSpec::Center([0.0, 0.0]),
                     (None, Some(f)) if f == "camera" => WindowSpec::FollowCamera,
                     (None, Some(f)) => {
-                        let index = f.strip_prefix("actor:").and_then(|n| n.parse::<usize>().ok()).ok_or_else(|| {
-                            w.err("follow", format!("{f:?} is neither \"camera\" nor \"actor:N\""))
-                        })?;
+                        let index = f
+                            .strip_prefix("actor:")
+                            .and_then(|n| n.parse::<usize>().ok())
+                            .ok_or_else(|| w.err("follow", format!("{f:?} is neither \"camera\" nor \"actor:N\"")))?;
                         if index >= actors.len() {
-                            return Err(w.err(
-                                "follow",
-                                format!("actor:{index} does not exist (the scene has {} [[actor]] tables)", actors.len()),
-                            ));
+                            return Err(w.err("follow", format!("actor:{index} does not exist (the scene has {} [[actor]] tables)", actors.len())));
                         }
                         WindowSpec::FollowActor(index)
                     }
@@ -579,9 +572,7 @@ impl Scene {
                 let rel = o.string_opt("file")?.ok_or_else(|| o.err("file", "a gltf object needs a file (.glb or .gltf)"))?;
                 let scale = o.positive("scale", 1.0, "")?;
                 let full = base_dir.join(&rel);
-                let mesh = GltfFile::open(&full)
-                    .and_then(|g| g.object_mesh(scale))
-                    .map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
+                let mesh = GltfFile::open(&full).and_then(|g| g.object_mesh(scale)).map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
                 if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = mesh.validate() {
                     return Err(o.err("file", format!("{}: {why}", full.display())));
                 }
@@ -670,10 +661,7 @@ impl Scene {
         let sim = match root.table("sim")? {
             None => SimSpec { frames: 120, dt_s: 1.0 / 60.0 },
             Some(mut s) => {
-                let sim = SimSpec {
-                    frames: s.u32_in("frames", 120, 1..=1_000_000)?,
-                    dt_s: s.positive("dt_s", 1.0 / 60.0, " of seconds")?,
-                };
+                let sim = SimSpec { frames: s.u32_in("frames", 120, 1..=1_000_000)?, dt_s: s.positive("dt_s", 1.0 / 60.0, " of seconds")? };
                 if sim.dt_s > 1.0 {
                     return Err(s.err("dt_s", format!("{} s per frame is more than 1 s", sim.dt_s)));
                 }
@@ -709,21 +697,7 @@ impl Scene {
             Some(spec) => Some((f64::from(spec.memory_mb) * 1024.0 * 1024.0) as usize),
         };
         let snow = SnowParams { snowfall: snowfall.clone(), tile_memory_bytes, ..snow };
-        Ok(Self {
-            path: path.to_owned(),
-            snow,
-            terrain,
-            window,
-            actors,
-            spawns,
-            objects,
-            snowfall,
-            store,
-            sim,
-            camera,
-            render,
-            source,
-        })
+        Ok(Self { path: path.to_owned(), snow, terrain, window, actors, spawns, objects, snowfall, store, sim, camera, render, source })
     }
 
     /// Everything that was understood, for `snowpack check-scene`.
@@ -749,18 +723,10 @@ impl Scene {
         );
         let terrain = match &self.terrain {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
-            TerrainSource::Noise(n) => format!(
-                "noise, seed {}, height {} m, amplitude {} m, wavelength {} m",
-                n.seed, n.base_m, n.amplitude_m, n.wavelength_m
-            ),
-            TerrainSource::Heightmap(h) => format!(
-                "heightmap {}x{} px over {:?} m centred at {:?}, heights {:?} m",
-                h.width,
-                h.height,
-                h.size_m,
-                h.center_m,
-                self.terrain.height_bounds()
-            ),
+            TerrainSource::Noise(n) => format!("noise, seed {}, height {} m, amplitude {} m, wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m),
+            TerrainSource::Heightmap(h) => {
+                format!("heightmap {}x{} px over {:?} m centred at {:?}, heights {:?} m", h.width, h.height, h.size_m, h.center_m, self.terrain.height_bounds())
+            }
             TerrainSource::Mesh(m) => format!(
                 "mesh of {} triangles drawn into {}x{} texels over {:?} m centred at {:?}, heights {:?} m",
                 m.triangles.len(),
@@ -783,7 +749,16 @@ impl Scene {
             let _ = writeln!(s, "spawn: {} spheres of radius {} m, seed {}", sp.count, sp.radius_m, sp.seed);
         }
         for o in &self.objects {
-            let _ = writeln!(s, "object {:?}: {} at {} size {} m, rotated {} deg{}", o.name, o.kind, o.position, o.size_m, o.rotation_deg, if o.dilate { "" } else { ", not dilated" });
+            let _ = writeln!(
+                s,
+                "object {:?}: {} at {} size {} m, rotated {} deg{}",
+                o.name,
+                o.kind,
+                o.position,
+                o.size_m,
+                o.rotation_deg,
+                if o.dilate { "" } else { ", not dilated" }
+            );
             if o.velocity != Vec3::ZERO || o.spin_deg_per_s != Vec3::ZERO {
                 let _ = writeln!(s, "  moving at {} m/s, turning {} deg/s", o.velocity, o.spin_deg_per_s);
             }
@@ -809,7 +784,11 @@ impl Scene {
             }
             None => {
                 let mib = self.snow.tile_memory_bytes.map_or(0.0, |b| b as f64 / (1024.0 * 1024.0));
-                let _ = writeln!(s, "store: trails kept in memory (no [store]), tiles of {}², memory {mib} MiB", snowpack::deform::params::default_tile_texels(self.snow.resolution));
+                let _ = writeln!(
+                    s,
+                    "store: trails kept in memory (no [store]), tiles of {}², memory {mib} MiB",
+                    snowpack::deform::params::default_tile_texels(self.snow.resolution)
+                );
             }
         }
         let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
@@ -838,9 +817,7 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
     }
     let center = t.vec2_opt("center")?.unwrap_or([0.0, 0.0]);
     let file = base_dir.join(&rel);
-    let img = image::open(&file).map_err(|e| {
-        SceneError::new(t.file(), t.key("path"), format!("cannot load heightmap {}: {e}", file.display()))
-    })?;
+    let img = image::open(&file).map_err(|e| SceneError::new(t.file(), t.key("path"), format!("cannot load heightmap {}: {e}", file.display())))?;
     let gray = img.to_luma16();
     let (width, height) = gray.dimensions();
     if width < 2 || height < 2 {
@@ -877,18 +854,16 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
                 return Err(a.err("file", format!("{} does not exist", full.display())));
             }
             let opened = if builtin { GltfFile::from_bytes(BUILTIN_FOX_GLB, &full) } else { GltfFile::open(&full) };
-            let model = opened
-                .and_then(|g| g.skinned_model())
-                .map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
+            let model = opened.and_then(|g| g.skinned_model()).map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
             let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();
             if names.is_empty() {
                 return Err(a.err("file", format!("{} has no animations; a gltf actor plays one", full.display())));
             }
             let clip = match a.string_opt("animation")? {
                 None => 0,
-                Some(name) => model.clip(&name).ok_or_else(|| {
-                    a.err("animation", format!("{name:?} is not an animation of {} (it has {})", full.display(), names.join(", ")))
-                })?,
+                Some(name) => model
+                    .clip(&name)
+                    .ok_or_else(|| a.err("animation", format!("{name:?} is not an animation of {} (it has {})", full.display(), names.join(", "))))?,
             };
             let scale = a.positive("scale", 1.0, "")?;
             let speed = a.non_negative("animation_speed", 1.0, "")?;
@@ -970,10 +945,8 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
                 "procedural" => EnvironmentSpec::Procedural,
                 file => {
                     let path = base_dir.join(file);
-                    let bytes = std::fs::read(&path)
-                        .map_err(|e| l.err("environment", format!("cannot read {}: {e}", path.display())))?;
-                    let map = EnvironmentMap::from_hdr(&bytes)
-                        .map_err(|e| l.err("environment", format!("{}: {e}", path.display())))?;
+                    let bytes = std::fs::read(&path).map_err(|e| l.err("environment", format!("cannot read {}: {e}", path.display())))?;
+                    let map = EnvironmentMap::from_hdr(&bytes).map_err(|e| l.err("environment", format!("{}: {e}", path.display())))?;
                     EnvironmentSpec::File(path, Arc::new(map))
                 }
             };

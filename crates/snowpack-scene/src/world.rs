@@ -8,8 +8,8 @@
 use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
-use snowpack::skin::feet::{mean_feet_down, FootTracker, FootstepEvent};
 use snowpack::skin::AnimationPlayer;
+use snowpack::skin::feet::{FootTracker, FootstepEvent, mean_feet_down};
 use snowpack::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
@@ -356,13 +356,8 @@ impl World {
             // The root that puts the planted paws on their supports, on average
             // (a clip's paws are not all exactly level).
             let current = root.unwrap_or(0.0);
-            let wanted: Vec<f32> = soles
-                .iter()
-                .zip(&supports)
-                .zip(&planted)
-                .filter(|(_, down)| **down)
-                .map(|((sole, support), _)| support - sole.y + current)
-                .collect();
+            let wanted: Vec<f32> =
+                soles.iter().zip(&supports).zip(&planted).filter(|(_, down)| **down).map(|((sole, support), _)| support - sole.y + current).collect();
             // No paw down (a run's flight, or a body held too high): it falls
             // until the first paw touches, the highest root that puts a paw on its support.
             let falling = soles.iter().zip(&supports).map(|(sole, support)| support - sole.y + current).reduce(f32::max);
@@ -390,7 +385,6 @@ impl World {
         }
     }
 
-
     /// Simulated time (s).
     #[must_use]
     pub fn time(&self) -> f32 {
@@ -417,9 +411,7 @@ impl World {
             (_, Some(b), _) => self.bodies[b].pos,
             (_, None, Some((position, _))) => position,
             (Motion::Path(keys), None, None) => path_at(keys, self.time),
-            (Motion::Kinematic { position, velocity } | Motion::Physics { position, velocity }, None, None) => {
-                *position + *velocity * self.time
-            }
+            (Motion::Kinematic { position, velocity } | Motion::Physics { position, velocity }, None, None) => *position + *velocity * self.time,
         };
         if let Some(y) = a.root_y {
             // Placed characters: the scene's height is an offset from their feet's support.
@@ -445,9 +437,7 @@ impl World {
             let Some(center) = self.actor_position(i) else { continue };
             out.push(match &a.shape {
                 ShapeSpec::Sphere { radius_m } => Deformer::Sphere { center, radius: *radius_m },
-                ShapeSpec::Box { size_m, rotation } => {
-                    Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation }
-                }
+                ShapeSpec::Box { size_m, rotation } => Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation },
                 ShapeSpec::Point { scale_per_m } => Deformer::Point { position: center, scale_per_m: *scale_per_m },
                 // Characters press the snow with their skinned mesh (see
                 // `characters`) and, for the points technique, a point under
@@ -556,11 +546,8 @@ impl World {
             // The sole's height over what it stands on: the support of a placed
             // character, or else the ground the root walks on, following the
             // terrain under each foot.
-            let heights: Vec<f32> = soles
-                .iter()
-                .enumerate()
-                .map(|(k, p)| p.y - a.supports.get(k).copied().unwrap_or(root.y + self.terrain.height_at(p.x, p.z) - base))
-                .collect();
+            let heights: Vec<f32> =
+                soles.iter().enumerate().map(|(k, p)| p.y - a.supports.get(k).copied().unwrap_or(root.y + self.terrain.height_at(p.x, p.z) - base)).collect();
             let Some(tracker) = self.actors[actor].feet.as_mut() else { continue };
             let down = tracker.update(&heights);
             let ShapeSpec::Gltf(g) = &self.actors[actor].shape else { continue };
@@ -704,7 +691,12 @@ fn ground_contact(terrain: &TerrainSource, b: &mut Body, h: f32) {
 fn wall_contact(b: &mut Body, min: Vec2, max: Vec2) {
     let r = b.radius;
     let bounce = |p: &mut f32, v: &mut f32, lo: f32, hi: f32| {
-        let (lo, hi) = if lo <= hi { (lo, hi) } else { let m = 0.5 * (lo + hi); (m, m) };
+        let (lo, hi) = if lo <= hi {
+            (lo, hi)
+        } else {
+            let m = 0.5 * (lo + hi);
+            (m, m)
+        };
         if *p < lo {
             *p = lo;
             *v = v.abs() * RESTITUTION;

@@ -249,8 +249,7 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
     let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(4, 2, |x, y| image::Luma([(x * 1000 + y * 20000) as u16]));
     img.save(dir.join("ground.png")).expect("png");
     let scene_path = dir.join("s.toml");
-    std::fs::write(&scene_path, "[terrain]\nkind = \"heightmap\"\npath = \"ground.png\"\nheight_scale_m = 65.535\nsize_m = [4.0, 2.0]\n")
-        .expect("write");
+    std::fs::write(&scene_path, "[terrain]\nkind = \"heightmap\"\npath = \"ground.png\"\nheight_scale_m = 65.535\nsize_m = [4.0, 2.0]\n").expect("write");
     let s = Scene::load(&scene_path).expect("loads");
     let TerrainSource::Heightmap(h) = &s.terrain else { panic!("not a heightmap") };
     assert_eq!((h.width, h.height), (4, 2));
@@ -262,7 +261,7 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
 
 #[test]
 fn saved_scenes_load_back_the_same() {
-    use snowpack::render::params::{sun_from_angles, MaterialPreset};
+    use snowpack::render::params::{MaterialPreset, sun_from_angles};
     let dir = std::env::temp_dir().join(format!("snowpack-save-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let mut scene = Scene::default_scene().expect("default");
@@ -309,7 +308,11 @@ fn the_shell_table_is_understood() {
     assert!(!parse("").expect("empty").render.params.shell.enabled, "the shell is off without [shell]");
     let on = parse("[shell]\n").expect("shell");
     assert_eq!(on.render.params.shell, ShellSettings { enabled: true, ..ShellSettings::default() });
-    let s = parse("[shell]\ntexture = \"crust\"\ntexture_size = 128\nthickness_m = 0.04\npasses = 8\ndebug_pass = 3\nlod = false\nenabled = false\n").expect("shell").render.params.shell;
+    let s = parse("[shell]\ntexture = \"crust\"\ntexture_size = 128\nthickness_m = 0.04\npasses = 8\ndebug_pass = 3\nlod = false\nenabled = false\n")
+        .expect("shell")
+        .render
+        .params
+        .shell;
     assert_eq!((s.texture, s.texture_size, s.thickness_m, s.passes, s.debug_pass, s.lod, s.enabled), (DetailKind::Crust, 128, 0.04, 8, 3, false, false));
     for (text, key) in [("[shell]\nmin_fraction = 2.0\n", "min_fraction"), ("[shell]\nopacity = 0.0\n", "opacity"), ("[shell]\ncolour = 1\n", "colour")] {
         let e = parse(text).expect_err(text).to_string();

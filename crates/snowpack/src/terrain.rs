@@ -137,10 +137,7 @@ impl TerrainMesh {
     /// Lowest and highest vertex height (m).
     #[must_use]
     pub fn height_range(&self) -> (f32, f32) {
-        self.triangles
-            .iter()
-            .flatten()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
+        self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
     }
 }
 
@@ -150,9 +147,7 @@ pub const NOISE_OCTAVES: u32 = 4;
 /// The lattice hash shared with `shared/terrain.wgsl` (a murmur-style finaliser).
 #[must_use]
 pub fn lattice_hash(ix: i32, iz: i32, seed: u32) -> u32 {
-    let mut h = (ix as u32).wrapping_mul(0x8da6_b343)
-        ^ (iz as u32).wrapping_mul(0xd816_3841)
-        ^ seed.wrapping_mul(0xcb1a_b31f);
+    let mut h = (ix as u32).wrapping_mul(0x8da6_b343) ^ (iz as u32).wrapping_mul(0xd816_3841) ^ seed.wrapping_mul(0xcb1a_b31f);
     h = (h ^ (h >> 16)).wrapping_mul(0x7feb_352d);
     h = (h ^ (h >> 15)).wrapping_mul(0x846c_a68b);
     h ^ (h >> 16)
@@ -204,9 +199,7 @@ impl HeightmapTerrain {
     /// Lowest and highest sample (m).
     #[must_use]
     pub fn height_range(&self) -> (f32, f32) {
-        self.heights_m
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+        self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
     }
 
     /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
@@ -239,9 +232,7 @@ impl TerrainSource {
     pub fn height_at(&self, x: f32, z: f32) -> f32 {
         match self {
             Self::Flat { height_m } => *height_m,
-            Self::Noise(n) => {
-                n.base_m + n.amplitude_m * fbm(x / n.wavelength_m, z / n.wavelength_m, n.seed)
-            }
+            Self::Noise(n) => n.base_m + n.amplitude_m * fbm(x / n.wavelength_m, z / n.wavelength_m, n.seed),
             Self::Heightmap(hm) => hm.height_at(x, z),
             Self::Mesh(m) => m.grid.height_at(x, z),
         }
@@ -288,13 +279,7 @@ mod tests {
 
     #[test]
     fn heightmap_interpolates_between_pixel_centres() {
-        let hm = HeightmapTerrain {
-            width: 2,
-            height: 1,
-            heights_m: vec![0.0, 2.0],
-            center_m: [0.0, 0.0],
-            size_m: [2.0, 2.0],
-        };
+        let hm = HeightmapTerrain { width: 2, height: 1, heights_m: vec![0.0, 2.0], center_m: [0.0, 0.0], size_m: [2.0, 2.0] };
         // Pixel centres at x = -0.5 and x = 0.5.
         assert!((hm.height_at(-0.5, 0.0) - 0.0).abs() < 1e-6);
         assert!((hm.height_at(0.0, 0.0) - 1.0).abs() < 1e-6);

@@ -36,11 +36,10 @@ pub fn gpu_required() -> bool {
 /// failure), otherwise fresh from the clock. Printed so failures can be replayed.
 #[must_use]
 pub fn seed(test: &str) -> u64 {
-    let seed = std::env::var("SNOWPACK_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or_else(|| {
-        std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0x5eed, |d| d.as_nanos() as u64)
-    });
+    let seed = std::env::var("SNOWPACK_TEST_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0x5eed, |d| d.as_nanos() as u64));
     eprintln!("{test}: seed {seed} (replay with SNOWPACK_TEST_SEED={seed})");
     seed
 }
@@ -74,9 +73,7 @@ impl Rng {
 
 /// Luma (Rec. 709, on the stored sRGB values) of each pixel of an RGBA8 image.
 fn luma(rgba: &[u8]) -> Vec<f64> {
-    rgba.chunks_exact(4)
-        .map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2]))
-        .collect()
+    rgba.chunks_exact(4).map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])).collect()
 }
 
 /// Structural similarity (Wang et al. 2004) of two RGBA8 images of
@@ -129,11 +126,7 @@ pub fn ssim(a: &[u8], b: &[u8], width: u32, height: u32) -> f64 {
 #[must_use]
 pub fn mean_abs_difference(a: &[u8], b: &[u8]) -> f64 {
     assert_eq!(a.len(), b.len(), "images differ in size");
-    let total: u64 = a
-        .chunks_exact(4)
-        .zip(b.chunks_exact(4))
-        .map(|(p, q)| (0..3).map(|k| u64::from(p[k].abs_diff(q[k]))).sum::<u64>())
-        .sum();
+    let total: u64 = a.chunks_exact(4).zip(b.chunks_exact(4)).map(|(p, q)| (0..3).map(|k| u64::from(p[k].abs_diff(q[k]))).sum::<u64>()).sum();
     total as f64 / (a.len() / 4 * 3).max(1) as f64
 }
 

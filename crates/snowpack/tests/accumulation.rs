@@ -86,9 +86,8 @@ fn a_roof_beyond_the_angle_of_repose_sheds_its_snow_and_a_gentle_one_keeps_it() 
     let atlas = acc.read_atlas(ctx).expect("atlas");
     let bake = acc.bake();
     // The roof itself: each slab's top face (object normal +y); its thin edges are other surfaces.
-    let roof_texels = |object: u32| -> Vec<f32> {
-        (0..atlas.len()).filter(|&k| bake.owner[k] == object && bake.normal_area[k][1] > 0.99).map(|k| atlas[k]).collect()
-    };
+    let roof_texels =
+        |object: u32| -> Vec<f32> { (0..atlas.len()).filter(|&k| bake.owner[k] == object && bake.normal_area[k][1] > 0.99).map(|k| atlas[k]).collect() };
     let fallen = RATE * DT * frames as f32;
     let steep = roof_texels(0);
     assert!(steep.iter().all(|&a| a == 0.0), "the 50° roof holds up to {} m", steep.iter().fold(0.0f32, |m, &a| m.max(a)));
@@ -190,11 +189,11 @@ fn trails_refill_only_where_snow_falls() {
 // The accumulation's compute passes against their CPU twins on random inputs.
 
 use snowpack::accumulate::atlas::{AtlasLayout, NO_OWNER};
+use snowpack::accumulate::settle::SettleBuffers;
 use snowpack::accumulate::state::ObjectGpu;
 use snowpack::accumulate::{
     AtlasSurfacePass, IncrementParams, IncrementPass, ScatterParams, ScatterPass, SettleParams, SettlePass, SnowAccumulation, SurfaceParams,
 };
-use snowpack::accumulate::settle::SettleBuffers;
 use snowpack::cpu;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
@@ -431,7 +430,12 @@ fn update_with_snowfall_under_objects_matches_cpu() {
          }",
         &[snowpack::gpu::layout::depth_texture(0), snowpack::gpu::layout::storage(1, false)],
     );
-    let group = snowpack::gpu::layout::bind_group(&ctx.device, "depth to buffer", &bgl, &[wgpu::BindingResource::TextureView(acc.sky_view()), staging.as_entire_binding()]);
+    let group = snowpack::gpu::layout::bind_group(
+        &ctx.device,
+        "depth to buffer",
+        &bgl,
+        &[wgpu::BindingResource::TextureView(acc.sky_view()), staging.as_entire_binding()],
+    );
     snowpack::gpu::layout::dispatch(&mut enc, &mut timer, "depth to buffer", &pipeline, &group, (r.div_ceil(8), r.div_ceil(8)));
     submit(ctx, enc);
     let sky_depth: Vec<f32> = read(ctx, &staging);

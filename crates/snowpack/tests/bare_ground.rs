@@ -115,8 +115,16 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
     let seed = testing::seed("rims_at_zero_depth_match_cpu_and_stay_finite");
     let mut rng = testing::Rng::new(seed);
     // Combined: the window has a footprint buffer for the point rims.
-    let params = SnowParams { extent_m: EXTENT_M, resolution: RES as u32, depth_m: 0.0, snowfall: Some(Snowfall::default()), technique: snowpack::Technique::Combined, ..SnowParams::default() };
-    let terrain_src = TerrainSource::Noise(snowpack::NoiseTerrain { seed: rng.next_u64() as u32, base_m: 0.0, amplitude_m: 1.0, wavelength_m: rng.range(2.0, 10.0) });
+    let params = SnowParams {
+        extent_m: EXTENT_M,
+        resolution: RES as u32,
+        depth_m: 0.0,
+        snowfall: Some(Snowfall::default()),
+        technique: snowpack::Technique::Combined,
+        ..SnowParams::default()
+    };
+    let terrain_src =
+        TerrainSource::Noise(snowpack::NoiseTerrain { seed: rng.next_u64() as u32, base_m: 0.0, amplitude_m: 1.0, wavelength_m: rng.range(2.0, 10.0) });
     let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
     let n = RES * RES;
     // The ground the rim evaluates from the terrain's source, per texel.
@@ -141,7 +149,8 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
     let rim = RimPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::disabled();
     for mode in [0, 1, 2] {
-        let rp = RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, texel_m: params.texel_m() };
+        let rp =
+            RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, texel_m: params.texel_m() };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
         rim.record(&ctx.queue, &mut encoder, &mut timer, &rp);
         ctx.queue.submit([encoder.finish()]);

@@ -5,8 +5,7 @@ use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
 use snowpack::cpu::snow_sampling::SampledSurface;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::render::ground::{
-    snow_sampling_wgsl, GroundCamera, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, SNOW_SAMPLING_GROUP,
-    SNOW_SAMPLING_WGSL,
+    GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
 };
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
@@ -153,7 +152,8 @@ fn plate(ctx: &GpuContext, view_proj: Mat4) -> Plate {
         layout: &layout,
         entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
     });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("plate"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
+    let pipeline_layout =
+        device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("plate"), bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("plate"),
         layout: Some(&pipeline_layout),
@@ -290,7 +290,10 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
             }
         }
     }
-    eprintln!("plate: {red_ok} pixels over the trench, {snow_ok} hidden by snow; ground depth vs twin: mean {:.2e} m, worst {worst:.3} m", sum / n.max(1) as f32);
+    eprintln!(
+        "plate: {red_ok} pixels over the trench, {snow_ok} hidden by snow; ground depth vs twin: mean {:.2e} m, worst {worst:.3} m",
+        sum / n.max(1) as f32
+    );
     assert!(wrong.is_empty(), "{} plate pixels wrong, e.g. {:?}", wrong.len(), &wrong[..wrong.len().min(5)]);
     assert!(red_ok > 300 && snow_ok > 300, "plate test covered too little: {red_ok} red, {snow_ok} snow");
     // One grid vertex per texel corner: within a millimetre on average; the
@@ -404,7 +407,13 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
     let extent = 16.0;
     // Random points inside the window and up to 3 m beyond it, texel centres and the window's own corners.
     let mut probes: Vec<Vec2> = (0..2000)
-        .map(|_| if rng.range(0.0, 1.0) < 0.8 { corner + Vec2::new(rng.range(0.0, extent), rng.range(0.0, extent)) } else { corner + Vec2::new(rng.range(-3.0, extent + 3.0), rng.range(-3.0, extent + 3.0)) })
+        .map(|_| {
+            if rng.range(0.0, 1.0) < 0.8 {
+                corner + Vec2::new(rng.range(0.0, extent), rng.range(0.0, extent))
+            } else {
+                corner + Vec2::new(rng.range(-3.0, extent + 3.0), rng.range(-3.0, extent + 3.0))
+            }
+        })
         .collect();
     probes.extend((0..50).map(|_| corner + (Vec2::new((rng.range(0.0, 128.0)).floor(), (rng.range(0.0, 128.0)).floor()) + 0.5) * window.texel_m));
     probes.extend([corner, corner + Vec2::new(extent, 0.0), corner + Vec2::splat(extent), corner - 0.01]);
@@ -418,7 +427,8 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
         ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
         count: None,
     };
-    let game_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("game"), entries: &[storage(0, true), storage(1, false), storage(2, false)] });
+    let game_layout = device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("game"), entries: &[storage(0, true), storage(1, false), storage(2, false)] });
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("game probe"),
         bind_group_layouts: &[Some(&game_layout), Some(sampling.layout())],
@@ -464,8 +474,14 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
     let (heights, normals) = snow.read_surface(ctx).expect("surface");
     let persistent = snow.read_snow(ctx).expect("snow");
     let ground = snow.read_terrain(ctx).expect("terrain");
-    let (worst_k, worst) = heights.iter().zip(&persistent).map(|(a, b)| (a - b).abs()).enumerate().fold((0, 0.0f32), |m, (k, e)| if e > m.1 { (k, e) } else { m });
-    assert!(worst < 1e-6, "without rims and blur the displayed surface is the persistent snow: texel {worst_k} {} vs {}", heights[worst_k], persistent[worst_k]);
+    let (worst_k, worst) =
+        heights.iter().zip(&persistent).map(|(a, b)| (a - b).abs()).enumerate().fold((0, 0.0f32), |m, (k, e)| if e > m.1 { (k, e) } else { m });
+    assert!(
+        worst < 1e-6,
+        "without rims and blur the displayed surface is the persistent snow: texel {worst_k} {} vs {}",
+        heights[worst_k],
+        persistent[worst_k]
+    );
     let cpu = SampledSurface { window, heights: &heights, normals: &normals, terrain: snow.terrain() };
     // Compaction from the persistent snow and terrain texels, independently of the twin.
     let res = 128usize;

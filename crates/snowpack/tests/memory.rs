@@ -7,7 +7,7 @@
 //! footprints of points and combined and one for snowfall.
 
 use glam::DVec2;
-use snowpack::{testing, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack::{SnowDeformation, SnowParams, Technique, TerrainSource, testing};
 
 const MIB: f64 = 1024.0 * 1024.0;
 
@@ -56,7 +56,8 @@ fn default_window_memory_per_technique() {
     let tiles = bytes_of(&depth, "resident tiles");
     assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
 
-    let combined = SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
+    let combined =
+        SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
     let combined_total = table(&combined, "combined");
     assert_eq!(bytes_of(&combined, "stamps"), 4 * texels);
     assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");

@@ -65,18 +65,9 @@ fn encoder(ctx: &GpuContext) -> wgpu::CommandEncoder {
 
 fn assert_close(gpu: &[f32], cpu: &[f32], tol: f32, what: &str, seed: u64) {
     assert_eq!(gpu.len(), cpu.len());
-    let (k, worst) = gpu
-        .iter()
-        .zip(cpu)
-        .map(|(a, b)| (a - b).abs())
-        .enumerate()
-        .fold((0, 0.0_f32), |acc, (k, d)| if d > acc.1 || d.is_nan() { (k, d) } else { acc });
-    assert!(
-        worst <= tol,
-        "{what}: GPU and CPU differ by {worst} at {k} (gpu {}, cpu {}); seed {seed}",
-        gpu[k],
-        cpu[k]
-    );
+    let (k, worst) =
+        gpu.iter().zip(cpu).map(|(a, b)| (a - b).abs()).enumerate().fold((0, 0.0_f32), |acc, (k, d)| if d > acc.1 || d.is_nan() { (k, d) } else { acc });
+    assert!(worst <= tol, "{what}: GPU and CPU differ by {worst} at {k} (gpu {}, cpu {}); seed {seed}", gpu[k], cpu[k]);
 }
 
 #[test]
@@ -129,8 +120,7 @@ fn capture_and_update_match_cpu() {
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     // The ground the update evaluates from the terrain's source, per texel.
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    let mut snow: Vec<f32> =
-        terrain.iter().map(|t| t + rng.range(0.0, params.depth_m * 1.1)).collect();
+    let mut snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m * 1.1)).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     let e = params.extent_m;
     let mut deformers = Vec::new();
@@ -205,7 +195,12 @@ fn capture_and_update_match_cpu() {
         mapped_at_creation: false,
     });
     ctx.queue.write_buffer(&mesh_indices, 0, bytemuck::cast_slice(&mesh_indices_cpu));
-    let meshes = [CaptureMesh { vertices: &mesh_vertices, indices: &mesh_indices, index_count: mesh_indices_cpu.len() as u32, vertex_count: mesh_indices_cpu.len() as u32 }];
+    let meshes = [CaptureMesh {
+        vertices: &mesh_vertices,
+        indices: &mesh_indices,
+        index_count: mesh_indices_cpu.len() as u32,
+        vertex_count: mesh_indices_cpu.len() as u32,
+    }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record_with_meshes(&mut enc, &mut timer, &res, &meshes);
@@ -249,8 +244,7 @@ fn rim_blur_and_normals_match_cpu() {
     let origin = [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
     // Half the texels undisturbed (at rest: point rims may grow there), half pressed.
-    let snow: Vec<f32> =
-        terrain.iter().map(|t| if rng.range(0.0, 1.0) < 0.5 { t + params.depth_m } else { t + rng.range(0.0, params.depth_m) }).collect();
+    let snow: Vec<f32> = terrain.iter().map(|t| if rng.range(0.0, 1.0) < 0.5 { t + params.depth_m } else { t + rng.range(0.0, params.depth_m) }).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     // Footprints around the rest height so every branch of the point rims runs.
     let (low_m, high_m) = (-3.0_f32, 3.0_f32);
@@ -426,7 +420,15 @@ fn terrain_bake_matches_cpu() {
         let tolerance = 1e-4 + steepest[k] * margin;
         let error = f64::from((gpu[k] - cpu[k]).abs());
         worst = worst.max(error / tolerance);
-        assert!(error <= tolerance, "texel {k} (row {}, column {}): gpu {}, cpu {}, over {tolerance} m (slope {}); seed {seed}", k / w, k % w, gpu[k], cpu[k], steepest[k]);
+        assert!(
+            error <= tolerance,
+            "texel {k} (row {}, column {}): gpu {}, cpu {}, over {tolerance} m (slope {}); seed {seed}",
+            k / w,
+            k % w,
+            gpu[k],
+            cpu[k],
+            steepest[k]
+        );
     }
     eprintln!("{edge_texels} of {} texels on edges; elsewhere the worst error is {worst:.3} of its tolerance", cpu.len());
     // The edges' neighbourhoods are a small part of the grid.
@@ -444,8 +446,8 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
     let mesh = snowpack::TerrainMesh::new(tris, 0.1).expect("valid mesh");
     let terrain = TerrainSource::Mesh(std::sync::Arc::new(mesh));
     let params = SnowParams { extent_m: 16.0, resolution: 64, ..SnowParams::default() };
-    let mut snow = snowpack::SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::new(f64::from(centre[0]), f64::from(centre[1])))
-        .expect("window");
+    let mut snow =
+        snowpack::SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::new(f64::from(centre[0]), f64::from(centre[1]))).expect("window");
     snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
     // The ground the GPU evaluates from the baked heightmap: untouched snow at rest depth above it.
     let gpu: Vec<f32> = snow.read_snow(ctx).expect("readback").iter().map(|h| h - params.depth_m).collect();
@@ -461,9 +463,7 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
 }
 
 fn random_points(rng: &mut Rng, count: usize, extent: f32) -> Vec<[f32; 4]> {
-    (0..count)
-        .map(|_| [rng.range(-0.1 * extent, 1.1 * extent), rng.range(-1.0, 2.0), rng.range(-0.1 * extent, 1.1 * extent), rng.range(0.2, 8.0)])
-        .collect()
+    (0..count).map(|_| [rng.range(-0.1 * extent, 1.1 * extent), rng.range(-1.0, 2.0), rng.range(-0.1 * extent, 1.1 * extent), rng.range(0.2, 8.0)]).collect()
 }
 
 fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points: &[[f32; 4]]) -> Vec<u32> {
@@ -521,20 +521,11 @@ fn overlapping_footprints_resolve_to_the_minimum_in_any_order() {
     let seed = testing::seed("stamp order");
     let mut rng = Rng::new(seed);
     let (params, _terrain, res) = setup(ctx, &mut rng, 64);
-    let sp = StampParams {
-        origin: [3, -7],
-        resolution: params.resolution,
-        range_texels: 64,
-        texel_m: params.texel_m(),
-        low_m: -1.5,
-        high_m: 3.0,
-        count: 0,
-    };
+    let sp = StampParams { origin: [3, -7], resolution: params.resolution, range_texels: 64, texel_m: params.texel_m(), low_m: -1.5, high_m: 3.0, count: 0 };
     // Many points crowded into the middle so every texel sees many footprints.
     let e = params.extent_m;
-    let mut points: Vec<[f32; 4]> = (0..400)
-        .map(|_| [rng.range(0.3 * e, 0.7 * e), rng.range(-1.0, 2.0), rng.range(0.3 * e, 0.7 * e), rng.range(0.2, 8.0)])
-        .collect();
+    let mut points: Vec<[f32; 4]> =
+        (0..400).map(|_| [rng.range(0.3 * e, 0.7 * e), rng.range(-1.0, 2.0), rng.range(0.3 * e, 0.7 * e), rng.range(0.2, 8.0)]).collect();
     let first = run_stamps(ctx, &res, &sp, &points);
     // Fisher-Yates shuffle.
     for k in (1..points.len()).rev() {

@@ -8,10 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use snowpack::persist::{
-    SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore,
-    TileStreamer, encode,
-};
+use snowpack::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, encode};
 use snowpack::testing::{self, Rng};
 
 /// Set (to a store directory) when the test binary runs as the writer child.
@@ -29,11 +26,8 @@ struct TestDir(PathBuf);
 
 impl TestDir {
     fn new(name: &str) -> Self {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let dir =
-            std::env::temp_dir().join(format!("snowpack-it-{name}-{}-{nanos}", std::process::id()));
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+        let dir = std::env::temp_dir().join(format!("snowpack-it-{name}-{}-{nanos}", std::process::id()));
         fs::create_dir_all(&dir).expect("create a test directory");
         Self(dir)
     }
@@ -56,12 +50,7 @@ fn version(key: TileKey, v: u32) -> TileData {
     TileData {
         key,
         side: SIDE,
-        clock: SnowClock {
-            time_s: f64::from(v),
-            refill_m: f64::from(v),
-            fallen_m: f64::from(v),
-            stamp_quanta: u64::from(v),
-        },
+        clock: SnowClock { time_s: f64::from(v), refill_m: f64::from(v), fallen_m: f64::from(v), stamp_quanta: u64::from(v) },
         snow_xor_rest: vec![(v as f32).to_bits(); n],
         stamps: vec![v; n],
         fallen: vec![v as f32; n],
@@ -92,8 +81,7 @@ fn killed_writer_child() {
     let Some(dir) = std::env::var_os(CHILD_ENV) else {
         return;
     };
-    let mut store =
-        TileStore::open(Path::new(&dir), SIDE, StoreConfig::default()).expect("child: open");
+    let mut store = TileStore::open(Path::new(&dir), SIDE, StoreConfig::default()).expect("child: open");
     let start = Instant::now();
     // Bounded, so an orphaned child does not write forever.
     for v in 1.. {
@@ -126,51 +114,28 @@ fn a_store_killed_while_saving_keeps_whole_tiles() {
             .spawn()
             .expect("start the writer child");
         let stdout = child.stdout.take().expect("piped stdout");
-        let started = BufReader::new(stdout)
-            .lines()
-            .map_while(Result::ok)
-            .any(|line| line.contains(STARTED));
-        assert!(
-            started,
-            "round {round}: the child ended before it started writing: {:?}",
-            child.wait()
-        );
+        let started = BufReader::new(stdout).lines().map_while(Result::ok).any(|line| line.contains(STARTED));
+        assert!(started, "round {round}: the child ended before it started writing: {:?}", child.wait());
         let delay = rng.range(5.0, 60.0);
         std::thread::sleep(Duration::from_secs_f32(delay / 1000.0));
         child.kill().expect("kill the child");
         let status = child.wait().expect("reap the child");
-        assert!(
-            !status.success(),
-            "round {round}: the child finished instead of being killed"
-        );
+        assert!(!status.success(), "round {round}: the child finished instead of being killed");
 
-        let mut store =
-            TileStore::open(dir.path(), SIDE, StoreConfig::default()).unwrap_or_else(|e| {
-                panic!("seed {seed} round {round}: the store does not open after a kill: {e}")
-            });
-        assert_eq!(
-            store.disk_tiles(),
-            CHILD_TILES as usize,
-            "seed {seed} round {round}"
-        );
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default())
+            .unwrap_or_else(|e| panic!("seed {seed} round {round}: the store does not open after a kill: {e}"));
+        assert_eq!(store.disk_tiles(), CHILD_TILES as usize, "seed {seed} round {round}");
         let mut versions = Vec::new();
         for key in child_keys() {
             let tile = store
                 .read(key)
                 .unwrap_or_else(|e| panic!("seed {seed} round {round}: {key:?}: {e}"))
                 .unwrap_or_else(|| panic!("seed {seed} round {round}: {key:?} is missing"));
-            let v = uniform_version(&tile)
-                .unwrap_or_else(|| panic!("seed {seed} round {round}: {key:?} mixes versions"));
+            let v = uniform_version(&tile).unwrap_or_else(|| panic!("seed {seed} round {round}: {key:?} mixes versions"));
             versions.push(v);
         }
-        let leftovers: Vec<PathBuf> = walk(dir.path())
-            .into_iter()
-            .filter(|p| p.to_string_lossy().ends_with(".tmp"))
-            .collect();
-        assert!(
-            leftovers.is_empty(),
-            "temp files survive open: {leftovers:?}"
-        );
+        let leftovers: Vec<PathBuf> = walk(dir.path()).into_iter().filter(|p| p.to_string_lossy().ends_with(".tmp")).collect();
+        assert!(leftovers.is_empty(), "temp files survive open: {leftovers:?}");
         let (lo, hi) = (versions.iter().min(), versions.iter().max());
         eprintln!("round {round}: killed after {delay:.0} ms, tile versions {lo:?}..={hi:?}");
     }
@@ -209,11 +174,7 @@ fn a_corrupt_tile_is_reported_and_replaced_by_fresh_snow() {
         StoreError::Corrupt { path, .. } => assert_eq!(path, &path_b),
         other => panic!("expected Corrupt, got {other:?}"),
     }
-    assert!(
-        errors[0]
-            .to_string()
-            .contains(&path_b.display().to_string())
-    );
+    assert!(errors[0].to_string().contains(&path_b.display().to_string()));
     let stats = streamer.stats();
     assert_eq!((stats.corrupt, stats.errors), (1, 1));
     // Fresh snow written there replaces it.
@@ -248,19 +209,13 @@ fn a_failing_disk_is_an_error_not_a_panic() {
         other => panic!("expected an I/O error, got {other:?}"),
     }
     let errors = streamer.take_errors();
-    assert!(
-        !errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })),
-        "{errors:?}"
-    );
+    assert!(!errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })), "{errors:?}");
     assert!(streamer.stats().errors >= 2);
     assert_eq!(streamer.stats().writes, 1);
 
     // Lookups keep answering: unwritten tiles from memory, others as fresh snow.
     assert_eq!(streamer.lookup(x), TileLookup::Ready(Some(version(x, 1))));
-    assert_eq!(
-        streamer.lookup(kept),
-        TileLookup::Ready(Some(version(kept, 1)))
-    );
+    assert_eq!(streamer.lookup(kept), TileLookup::Ready(Some(version(kept, 1))));
     assert_eq!(ready(&mut streamer, TileKey::new(500, 500)), None);
     drop(streamer);
 
@@ -271,14 +226,9 @@ fn a_failing_disk_is_an_error_not_a_panic() {
         let dir = TestDir::new("read-only");
         let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
         store.write(&version(kept, 1)).expect("write");
-        let region = store
-            .tile_path(kept)
-            .parent()
-            .map(Path::to_owned)
-            .expect("region");
+        let region = store.tile_path(kept).parent().map(Path::to_owned).expect("region");
         let tiles = dir.path().join("tiles");
-        let mode =
-            |p: &Path, m| fs::set_permissions(p, fs::Permissions::from_mode(m)).expect("chmod");
+        let mode = |p: &Path, m| fs::set_permissions(p, fs::Permissions::from_mode(m)).expect("chmod");
         mode(&region, 0o555);
         mode(&tiles, 0o555);
         let mut streamer = TileStreamer::new(store, StreamerConfig::default());
@@ -301,49 +251,23 @@ fn a_failing_disk_is_an_error_not_a_panic() {
 fn the_disk_budget_keeps_the_newest_tiles() {
     let dir = TestDir::new("budget");
     let tile = |k: i64| version(TileKey::new(k % 10, k / 10), k as u32 + 1);
-    let largest = (0..100)
-        .map(|k| encode(&tile(k)).len() as u64)
-        .max()
-        .unwrap_or(0);
+    let largest = (0..100).map(|k| encode(&tile(k)).len() as u64).max().unwrap_or(0);
     let budget = 20 * largest;
-    let mut store = TileStore::open(
-        dir.path(),
-        SIDE,
-        StoreConfig {
-            disk_budget_bytes: budget,
-        },
-    )
-    .expect("open");
+    let mut store = TileStore::open(dir.path(), SIDE, StoreConfig { disk_budget_bytes: budget }).expect("open");
     for k in 0..100 {
         store.write(&tile(k)).expect("write");
-        assert!(
-            store.disk_bytes() <= budget,
-            "after tile {k}: {} > {budget}",
-            store.disk_bytes()
-        );
+        assert!(store.disk_bytes() <= budget, "after tile {k}: {} > {budget}", store.disk_bytes());
     }
-    let on_disk: u64 = walk(dir.path())
-        .iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "tile"))
-        .map(|p| fs::metadata(p).map_or(0, |m| m.len()))
-        .sum();
+    let on_disk: u64 = walk(dir.path()).iter().filter(|p| p.extension().is_some_and(|e| e == "tile")).map(|p| fs::metadata(p).map_or(0, |m| m.len())).sum();
     assert_eq!(on_disk, store.disk_bytes(), "the index matches the files");
     let kept = store.disk_tiles() as i64;
     assert!((19..=20).contains(&kept), "{kept} tiles kept");
     assert_eq!(store.evicted(), 100 - kept as u64);
     for k in 100 - kept..100 {
-        assert_eq!(
-            store.read(tile(k).key).expect("read"),
-            Some(tile(k)),
-            "tile {k}"
-        );
+        assert_eq!(store.read(tile(k).key).expect("read"), Some(tile(k)), "tile {k}");
     }
     for k in 0..100 - kept {
-        assert_eq!(
-            store.read(tile(k).key).expect("read"),
-            None,
-            "tile {k} should have been evicted"
-        );
+        assert_eq!(store.read(tile(k).key).expect("read"), None, "tile {k} should have been evicted");
     }
 }
 
@@ -354,10 +278,7 @@ fn ready(streamer: &mut TileStreamer, key: TileKey) -> Option<TileData> {
         if let TileLookup::Ready(tile) = streamer.lookup(key) {
             return tile;
         }
-        assert!(
-            start.elapsed() < Duration::from_secs(10),
-            "{key:?} never became ready"
-        );
+        assert!(start.elapsed() < Duration::from_secs(10), "{key:?} never became ready");
         std::thread::sleep(Duration::from_millis(1));
     }
 }
@@ -395,9 +316,7 @@ fn writes_ignore_permissions() -> bool {
     let _ = fs::set_permissions(&locked, fs::Permissions::from_mode(0o755));
     let ignored = probe.unwrap_or(true);
     if ignored {
-        eprintln!(
-            "running as root (or permissions are not enforced): the chmod 0o555 case is skipped"
-        );
+        eprintln!("running as root (or permissions are not enforced): the chmod 0o555 case is skipped");
     }
     ignored
 }

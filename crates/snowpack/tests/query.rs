@@ -81,7 +81,9 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
             continue;
         };
         inside += 1;
-        for (name, a, b) in [("height", g.height_m, c.height_m), ("surface", g.surface_m, c.surface_m), ("terrain", g.terrain_m, c.terrain_m), ("rest", g.rest_m, c.rest_m)] {
+        for (name, a, b) in
+            [("height", g.height_m, c.height_m), ("surface", g.surface_m, c.surface_m), ("terrain", g.terrain_m, c.terrain_m), ("rest", g.rest_m, c.rest_m)]
+        {
             assert!((a - b).abs() < 1e-5, "point {k}: {name} {a} (GPU) vs {b} (CPU), seed {seed}");
         }
         assert!((g.normal - c.normal).length() < 1e-4, "point {k}: normal {} vs {}, seed {seed}", g.normal, c.normal);

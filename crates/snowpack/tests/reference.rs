@@ -15,7 +15,7 @@ use std::path::PathBuf;
 
 use glam::{DVec2, Vec3};
 use snowpack::render::params::sun_from_angles;
-use snowpack::render::{LightParams, IMAGE_FORMAT};
+use snowpack::render::{IMAGE_FORMAT, LightParams};
 use snowpack::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
@@ -42,9 +42,8 @@ fn check_reference(name: &str, image: &[u8], min_ssim: f64) -> f64 {
         eprintln!("blessed {}", path.display());
         return 1.0;
     }
-    let reference = image::open(&path)
-        .unwrap_or_else(|e| panic!("reference {} cannot be read ({e}); run with SNOWPACK_BLESS=1 to make it", path.display()))
-        .to_rgba8();
+    let reference =
+        image::open(&path).unwrap_or_else(|e| panic!("reference {} cannot be read ({e}); run with SNOWPACK_BLESS=1 to make it", path.display())).to_rgba8();
     assert_eq!(reference.dimensions(), SIZE, "reference {} has another size", path.display());
     let score = testing::ssim(reference.as_raw(), image, SIZE.0, SIZE.1);
     eprintln!("{name}: SSIM {score:.4} (threshold {min_ssim})");
@@ -53,11 +52,7 @@ fn check_reference(name: &str, image: &[u8], min_ssim: f64) -> f64 {
         let difference = dir.join(format!("{name}-difference.png"));
         save_png(&actual, image);
         save_png(&difference, &testing::difference_image(reference.as_raw(), image));
-        panic!(
-            "{name}: SSIM {score:.4} is below {min_ssim}; see {} and {}",
-            actual.display(),
-            difference.display()
-        );
+        panic!("{name}: SSIM {score:.4} is below {min_ssim}; see {} and {}", actual.display(), difference.display());
     }
     score
 }

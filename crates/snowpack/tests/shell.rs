@@ -10,11 +10,11 @@ use snowpack::cpu;
 use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::window::TerrainParams;
 use snowpack::gpu::GpuTimer;
-use snowpack::render::shell::count::PeelCountPass;
-use snowpack::render::shell::tetrahedra::{ShellTetraPass, Tetra, TetraParams, MAX_SHAPE_RATIO};
-use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
-use snowpack::render::shell::ShellSettings;
 use snowpack::render::IMAGE_FORMAT;
+use snowpack::render::shell::ShellSettings;
+use snowpack::render::shell::count::PeelCountPass;
+use snowpack::render::shell::tetrahedra::{MAX_SHAPE_RATIO, ShellTetraPass, Tetra, TetraParams};
+use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
 use snowpack::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
@@ -29,7 +29,12 @@ fn gpu_turn() -> std::sync::MutexGuard<'static, ()> {
 }
 
 fn buffer(ctx: &GpuContext, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    let b = ctx.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: (bytes.len() as u64).max(16), usage: usage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false });
+    let b = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (bytes.len() as u64).max(16),
+        usage: usage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
     ctx.queue.write_buffer(&b, 0, bytes);
     b
 }
@@ -73,7 +78,13 @@ fn random_mesh(rng: &mut Rng, n: u32) -> (Vec<BaseVertex>, Vec<u32>) {
 }
 
 /// Runs both construction passes on the GPU.
-fn construct_on_gpu(ctx: &GpuContext, params: &ShellVertexParams, base: &[BaseVertex], faces: &[u32], snow: Option<&SnowSurface<'_>>) -> (Vec<ShellVertex>, Vec<Tetra>, Vec<u32>) {
+fn construct_on_gpu(
+    ctx: &GpuContext,
+    params: &ShellVertexParams,
+    base: &[BaseVertex],
+    faces: &[u32],
+    snow: Option<&SnowSurface<'_>>,
+) -> (Vec<ShellVertex>, Vec<Tetra>, Vec<u32>) {
     let face_count = faces.len() as u32 / 3;
     let base_buffer = storage(ctx, "base", bytemuck::cast_slice(base));
     let faces_buffer = storage(ctx, "faces", bytemuck::cast_slice(faces));
@@ -443,7 +454,13 @@ fn flat_and_sliver_tetrahedra_are_skipped_and_every_map_is_finite_and_accurate()
     // Thickness and tilt changing from vertex to vertex (a trench's wall):
     // prisms twist, some tetrahedra turn into slivers or inside out.
     for (tilt, scale) in [(0.6, 0.12), (1.5, 0.12), (3.0, 0.05)] {
-        let vertices = grid_shell(side, 0.125, corner, |i, j| Vec3::new(tilt * ((i * 7 + j * 3) % 5) as f32 / 4.0 - tilt / 2.0, 1.0, tilt * ((i * 3 + j * 5) % 4) as f32 / 3.0 - tilt / 2.0), |i, j| scale * [1.0, 0.15, 1e-3, 0.5, 1e-6][((i + 2 * j) % 5) as usize]);
+        let vertices = grid_shell(
+            side,
+            0.125,
+            corner,
+            |i, j| Vec3::new(tilt * ((i * 7 + j * 3) % 5) as f32 / 4.0 - tilt / 2.0, 1.0, tilt * ((i * 3 + j * 5) % 4) as f32 / 3.0 - tilt / 2.0),
+            |i, j| scale * [1.0, 0.15, 1e-3, 0.5, 1e-6][((i + 2 * j) % 5) as usize],
+        );
         let (stats, _) = check(&vertices, &faces);
         eprintln!("twisted shell, tilt {tilt}, thickness up to {scale} m: {stats:?}");
     }
@@ -452,7 +469,8 @@ fn flat_and_sliver_tetrahedra_are_skipped_and_every_map_is_finite_and_accurate()
     // too), while T0 and T2 are proper.
     let at = |x: f32, y: f32, z: f32| (corner + Vec3::new(x, y, z)).to_array();
     let vertex = |base: [f32; 3], top: [f32; 3]| ShellVertex { base: [base[0], base[1], base[2], 0.0], top: [top[0], top[1], top[2], 0.0] };
-    let prism = [vertex(at(0.0, 0.0, 0.0), at(0.0, 0.1, 0.06)), vertex(at(0.125, 0.0, 0.0), at(0.125, 0.1, 0.0)), vertex(at(0.0, 0.0, 0.125), at(0.0625, 0.1, 0.0))];
+    let prism =
+        [vertex(at(0.0, 0.0, 0.0), at(0.0, 0.1, 0.06)), vertex(at(0.125, 0.0, 0.0), at(0.125, 0.1, 0.0)), vertex(at(0.0, 0.0, 0.125), at(0.0625, 0.1, 0.0))];
     let (stats, tetras) = check(&prism, &[0, 1, 2]);
     assert_eq!(tetras.iter().map(|t| t.origin[3]).collect::<Vec<_>>(), [1.0, 0.0, 1.0], "only the flat middle tetrahedron is skipped: {stats:?}");
 }
@@ -587,4 +605,3 @@ fn mip_levels_come_closer_to_a_64_sample_reference_than_level_0() {
     }
     assert!(with > without + 0.01, "mips do not bring the frame closer to the reference: {with:.4} vs {without:.4}");
 }
-

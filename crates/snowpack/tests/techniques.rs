@@ -70,7 +70,15 @@ fn switching_keeps_trails_and_allocates_once() {
 fn point_rims_end_before_the_footprint_range() {
     let Some(ctx) = testing::gpu() else { return };
     let (extent, res, depth) = (16.0f32, 256u32, 0.6f32);
-    let params = SnowParams { extent_m: extent, resolution: res, depth_m: depth, technique: Technique::Points, range_texels: 128, elevation: 1.5, ..SnowParams::default() };
+    let params = SnowParams {
+        extent_m: extent,
+        resolution: res,
+        depth_m: depth,
+        technique: Technique::Points,
+        range_texels: 128,
+        elevation: 1.5,
+        ..SnowParams::default()
+    };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
     let radius = 0.45;
     // Dragged along x at z = 0, its lowest point 0.1 m above the ground.

@@ -11,7 +11,7 @@ use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
-use snowpack::deform::tiles::{plane_stamps, planes, TileGrid, PLANES};
+use snowpack::deform::tiles::{PLANES, TileGrid, plane_stamps, planes};
 use snowpack::deform::window::SlidingWindow;
 use snowpack::gpu::GpuTimer;
 use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
@@ -48,7 +48,12 @@ fn floats(rng: &mut Rng, n: usize, lo: f32, hi: f32) -> Vec<u32> {
 }
 
 fn noise(rng: &mut Rng) -> TerrainSource {
-    TerrainSource::Noise(NoiseTerrain { seed: rng.next_u64() as u32, base_m: rng.range(-1.0, 1.0), amplitude_m: rng.range(0.1, 2.0), wavelength_m: rng.range(4.0, 20.0) })
+    TerrainSource::Noise(NoiseTerrain {
+        seed: rng.next_u64() as u32,
+        base_m: rng.range(-1.0, 1.0),
+        amplitude_m: rng.range(0.1, 2.0),
+        wavelength_m: rng.range(4.0, 20.0),
+    })
 }
 
 /// Words of `a` and `b` that differ by more than `tol` as f32 (bitwise when 0).
@@ -158,7 +163,14 @@ fn tile_restore_and_weather_match_cpu() {
                 upload.push(rng.range(ground - 0.2, rest).to_bits() ^ rest.to_bits());
             }
             // Footprints: empty, or a foot a few hundred quanta deep.
-            upload.extend((0..area).map(|_| if rng.next_u64().is_multiple_of(2) { u32::MAX } else { let foot = 30000 + (rng.next_u64() % 3000) as u32; ((foot + 200) << 16) | foot }));
+            upload.extend((0..area).map(|_| {
+                if rng.next_u64().is_multiple_of(2) {
+                    u32::MAX
+                } else {
+                    let foot = 30000 + (rng.next_u64() % 3000) as u32;
+                    ((foot + 200) << 16) | foot
+                }
+            }));
             upload.extend(fallen);
             if rng.next_u64().is_multiple_of(2) {
                 e.elapsed = 1;
@@ -192,14 +204,20 @@ fn tile_restore_and_weather_match_cpu() {
     let gpu = read_u32(ctx, &tiles_gpu);
     // Terrain (noise) agrees to rounding; so do heights built on it.
     assert_eq!(differing(&gpu, &tiles, 1e-4), 0, "restore: slots differ; seed {seed}");
-    let stamp_words: Vec<usize> = (0..grid.slot_count()).flat_map(|s| (s * PLANES + plane_stamps(PLANES)) * area..(s * PLANES + plane_stamps(PLANES) + 1) * area).collect();
+    let stamp_words: Vec<usize> =
+        (0..grid.slot_count()).flat_map(|s| (s * PLANES + plane_stamps(PLANES)) * area..(s * PLANES + plane_stamps(PLANES) + 1) * area).collect();
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     // A footprint whose foot lands on the rest height to rounding may empty on one side only.
     assert!(stamp_diff <= stamp_words.len() / 1000, "restore: {stamp_diff} footprints differ; seed {seed}");
     // Start the weather from the GPU's result so rounding does not compound.
     tiles.clone_from(&gpu);
     let before = gpu;
-    let owners: Vec<[i32; 4]> = (0..grid.slot_count()).map(|s| { let t = entries[s].tile; [t[0], t[1], i32::from(!rng.next_u64().is_multiple_of(4)), 0] }).collect();
+    let owners: Vec<[i32; 4]> = (0..grid.slot_count())
+        .map(|s| {
+            let t = entries[s].tile;
+            [t[0], t[1], i32::from(!rng.next_u64().is_multiple_of(4)), 0]
+        })
+        .collect();
     let owners_gpu = storage(ctx, bytemuck::cast_slice(&owners));
     let weather = TileWeatherPass::new(&ctx.device, &owners_gpu, &tiles_gpu);
     let centre = entries[0].tile;
@@ -298,7 +316,10 @@ fn trail_comes_back_bit_exact_without_refill() {
     let Some(ctx) = testing::gpu() else { return };
     let mut rng = Rng::new(testing::seed("trail_comes_back_bit_exact_without_refill"));
     let terrain = noise(&mut rng);
-    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let ground = {
+        let t = terrain.clone();
+        move |x: f32, z: f32| t.height_at(x, z)
+    };
     let dir = temp_dir("exact");
     let mut d = window(ctx, terrain, DVec2::ZERO, 0.0);
     // Two tiles of memory: everything else goes through the disk.
@@ -330,7 +351,10 @@ fn trail_comes_back_refilled_by_the_time_away() {
     let Some(ctx) = testing::gpu() else { return };
     let mut rng = Rng::new(testing::seed("trail_comes_back_refilled_by_the_time_away"));
     let terrain = noise(&mut rng);
-    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let ground = {
+        let t = terrain.clone();
+        move |x: f32, z: f32| t.height_at(x, z)
+    };
     let dir = temp_dir("refill");
     let refill = 0.01;
     let mut d = window(ctx, terrain, DVec2::ZERO, refill);
@@ -368,7 +392,10 @@ fn save_and_load_restores_the_window_and_clock() {
     let Some(ctx) = testing::gpu() else { return };
     let mut rng = Rng::new(testing::seed("save_and_load_restores_the_window_and_clock"));
     let terrain = noise(&mut rng);
-    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let ground = {
+        let t = terrain.clone();
+        move |x: f32, z: f32| t.height_at(x, z)
+    };
     let dir = temp_dir("save");
     let mut d = window(ctx, terrain.clone(), DVec2::ZERO, 0.0);
     d.attach_store(ctx, streamer(&dir, 64)).expect("attach");
@@ -475,7 +502,11 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     assert_eq!(loaded.origin_texel(), Some(origin));
     let after = loaded.read_snow(ctx).expect("snow");
     let errors = loaded.take_store_errors();
-    assert!(errors.iter().any(|e| matches!(e, snowpack::persist::StoreError::Corrupt { path: p, .. } if *p == path)), "no corrupt-tile error for {}: {errors:?}", path.display());
+    assert!(
+        errors.iter().any(|e| matches!(e, snowpack::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
+        "no corrupt-tile error for {}: {errors:?}",
+        path.display()
+    );
     // Texels of the damaged tile are fresh snow; the rest of the trail is back.
     let (mut fresh, mut kept) = (0, 0);
     for i in 0..64usize {
@@ -502,7 +533,8 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     let dir = temp_dir("snowfall");
     let rate = 0.1;
     let snowfall = snowpack::accumulate::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::accumulate::Snowfall::default() };
-    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, snowfall: Some(snowfall.clone()), ..SnowParams::default() };
+    let params =
+        SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, snowfall: Some(snowfall.clone()), ..SnowParams::default() };
     let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
     d.attach_store(ctx, streamer(&dir, 2)).expect("attach");
     press_trail(ctx, &mut d, |_, _| 0.0);
@@ -529,7 +561,10 @@ fn a_trench_comes_back_from_memory_with_no_store_attached() {
     let Some(ctx) = testing::gpu() else { return };
     let mut rng = Rng::new(testing::seed("a_trench_comes_back_from_memory_with_no_store_attached"));
     let terrain = noise(&mut rng);
-    let ground = { let t = terrain.clone(); move |x: f32, z: f32| t.height_at(x, z) };
+    let ground = {
+        let t = terrain.clone();
+        move |x: f32, z: f32| t.height_at(x, z)
+    };
     // The default: tiles are kept in memory, no attach_store.
     let mut d = window(ctx, terrain, DVec2::ZERO, 0.0);
     let kept = d.tile_stats().expect("tiles are kept by default");
@@ -582,7 +617,8 @@ fn a_memory_keeper_over_its_budget_forgets_the_trench_as_fresh_snow() {
     let flat = TerrainSource::Flat { height_m: 0.0 };
     // Room for one tile of 32² (8 KiB: snow and stamps); the trench spans four.
     let budget = 32 * 32 * 2 * 4;
-    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, tile_memory_bytes: Some(budget), ..SnowParams::default() };
+    let params =
+        SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, tile_memory_bytes: Some(budget), ..SnowParams::default() };
     let mut d = SnowDeformation::new(ctx, params, flat, DVec2::ZERO).expect("window");
     press_trail(ctx, &mut d, |_, _| 0.0);
     let before = d.read_snow(ctx).expect("snow");

@@ -93,11 +93,7 @@ fn uniform_sizes_match_naga() {
 /// Stride naga gives the element type of the storage array `name` in `source`.
 fn wgsl_storage_stride(source: &str, name: &str) -> u32 {
     let module = naga::front::wgsl::parse_str(source).expect("shader parses");
-    let (_, var) = module
-        .global_variables
-        .iter()
-        .find(|(_, v)| v.name.as_deref() == Some(name))
-        .unwrap_or_else(|| panic!("no global `{name}`"));
+    let (_, var) = module.global_variables.iter().find(|(_, v)| v.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no global `{name}`"));
     match module.types[var.ty].inner {
         naga::TypeInner::Array { stride, .. } => stride,
         ref other => panic!("`{name}` is not an array: {other:?}"),

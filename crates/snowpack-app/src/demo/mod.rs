@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use glam::{Vec2, Vec3};
-use snowpack::render::DebugView;
 use snowpack::gpu::readback::TextureReadback;
+use snowpack::render::DebugView;
 use snowpack::{AdapterRequest, GpuContext, Technique};
 use snowpack_scene::Scene;
 use winit::application::ApplicationHandler;
@@ -212,10 +212,7 @@ impl App {
         let attrs = Window::default_attributes().with_title("snowpack").with_inner_size(LogicalSize::new(w, h));
         let window = Arc::new(event_loop.create_window(attrs).context("opening the window")?);
         let request = AdapterRequest::from_env().with_backends(self.opts.backend.as_deref());
-        let desc = GpuContext::instance_descriptor(
-            wgpu::InstanceDescriptor::new_with_display_handle(Box::new(event_loop.owned_display_handle())),
-            &request,
-        )?;
+        let desc = GpuContext::instance_descriptor(wgpu::InstanceDescriptor::new_with_display_handle(Box::new(event_loop.owned_display_handle())), &request)?;
         let instance = wgpu::Instance::new(desc);
         let surface = instance.create_surface(Arc::clone(&window)).context("creating the window's surface")?;
         let ctx = GpuContext::choose(instance, Some(&surface), &request).context("choosing a GPU adapter for the window")?;
@@ -249,11 +246,8 @@ impl App {
         if session.scene.window == snowpack_scene::WindowSpec::FollowCamera {
             session.follow = WindowFollow::Camera;
         }
-        let scene_camera = snowpack::Camera {
-            position: session.scene.camera.position,
-            target: session.scene.camera.target,
-            fov_deg: session.scene.camera.fov_deg,
-        };
+        let scene_camera =
+            snowpack::Camera { position: session.scene.camera.position, target: session.scene.camera.target, fov_deg: session.scene.camera.fov_deg };
         let rig = CameraRig::from_camera(&scene_camera);
         let egui_ctx = egui::Context::default();
         let max_side = ctx.device.limits().max_texture_dimension_2d as usize;
@@ -366,19 +360,16 @@ impl Gfx {
                 }
                 Ok(format!("camera: {}", CameraMode::ALL.iter().find(|m| m.0 == mode).map_or("", |m| m.1)))
             }
-            Action::Load(path) => Scene::load(std::path::Path::new(&path))
-                .map_err(anyhow::Error::from)
-                .and_then(|scene| {
-                    let camera = snowpack::Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
-                    self.session.load(ctx, scene)?;
-                    self.rig = CameraRig::from_camera(&camera);
-                    self.panel.sphere_count = self.session.sphere_count() as u32;
-                    Ok(format!("loaded {path}"))
-                }),
-            Action::PlayerBody(body) => self
-                .session
-                .set_body(ctx, body)
-                .map(|()| format!("player: {}", PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1))),
+            Action::Load(path) => Scene::load(std::path::Path::new(&path)).map_err(anyhow::Error::from).and_then(|scene| {
+                let camera = snowpack::Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
+                self.session.load(ctx, scene)?;
+                self.rig = CameraRig::from_camera(&camera);
+                self.panel.sphere_count = self.session.sphere_count() as u32;
+                Ok(format!("loaded {path}"))
+            }),
+            Action::PlayerBody(body) => {
+                self.session.set_body(ctx, body).map(|()| format!("player: {}", PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1)))
+            }
             Action::Vsync(on) => {
                 self.panel.vsync = on;
                 self.config.present_mode = if on { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync };

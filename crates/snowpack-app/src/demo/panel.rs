@@ -6,12 +6,12 @@ use std::collections::VecDeque;
 
 use egui::{Color32, ComboBox, RichText, Slider, Stroke};
 use glam::Vec3;
-use snowpack::render::params::{sun_from_angles, DebugView, Material, MaterialPreset};
+use snowpack::render::params::{DebugView, Material, MaterialPreset, sun_from_angles};
 use snowpack::render::shell::DetailKind;
 use snowpack::{RimStyle, Technique};
 
 use super::camera::{CameraMode, CameraRig};
-use super::session::{PlayerBody, Session, WindowFollow, FOX_RUN_M_PER_S, FOX_WALK_M_PER_S};
+use super::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
 
 /// What the panel asks the app to do after this frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -139,11 +139,8 @@ fn frame_graph(ui: &mut egui::Ui, frames: &VecDeque<f32>) {
         }
     }
     let n = PanelState::HISTORY as f32;
-    let points: Vec<egui::Pos2> = frames
-        .iter()
-        .enumerate()
-        .map(|(k, ms)| egui::pos2(rect.left() + rect.width() * k as f32 / n, rect.bottom() - rect.height() * ms / top))
-        .collect();
+    let points: Vec<egui::Pos2> =
+        frames.iter().enumerate().map(|(k, ms)| egui::pos2(rect.left() + rect.width() * k as f32 / n, rect.bottom() - rect.height() * ms / top)).collect();
     painter.add(egui::Shape::line(points, Stroke::new(1.5, Color32::LIGHT_GREEN)));
     painter.text(rect.left_top() + egui::vec2(4.0, 2.0), egui::Align2::LEFT_TOP, format!("max {top:.1} ms"), egui::FontId::monospace(10.0), Color32::GRAY);
 }
@@ -212,11 +209,14 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                     )),
                     None => ui.label("footsteps: none yet"),
                 };
-                ComboBox::from_label("window follows").selected_text(WindowFollow::ALL.iter().find(|f| f.0 == session.follow).map_or("", |f| f.1)).show_ui(ui, |ui| {
-                    for (f, name) in WindowFollow::ALL {
-                        ui.selectable_value(&mut session.follow, f, name);
-                    }
-                });
+                ComboBox::from_label("window follows").selected_text(WindowFollow::ALL.iter().find(|f| f.0 == session.follow).map_or("", |f| f.1)).show_ui(
+                    ui,
+                    |ui| {
+                        for (f, name) in WindowFollow::ALL {
+                            ui.selectable_value(&mut session.follow, f, name);
+                        }
+                    },
+                );
             });
 
             egui::CollapsingHeader::new("Snowfall").default_open(session.snow_params.snowfall.is_some()).show(ui, |ui| {
@@ -249,7 +249,10 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 ui.horizontal(|ui| {
                     ui.label("keep trails (rebuilds):");
                     let hints = [
-                        (StoreKeep::Memory, "texels leaving the window go to resident tiles, then to memory (a bounded budget), and come back refilled by the time away"),
+                        (
+                            StoreKeep::Memory,
+                            "texels leaving the window go to resident tiles, then to memory (a bounded budget), and come back refilled by the time away",
+                        ),
                         (StoreKeep::Disk, "as memory, then compressed on disk; the snow can be saved and a later start resumes it"),
                         (StoreKeep::Off, "texels leaving the window are forgotten"),
                     ];
@@ -261,15 +264,37 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 });
                 if let Some(t) = session.snow.tile_stats() {
                     let s = &t.store;
-                    ui.label(format!("GPU: {} of {} slots resident ({:.1} MB) · {} restored · {} fresh · {} evicted", t.resident, t.slots, t.gpu_bytes as f64 / 1e6, t.restored, t.fresh, t.evicted));
+                    ui.label(format!(
+                        "GPU: {} of {} slots resident ({:.1} MB) · {} restored · {} fresh · {} evicted",
+                        t.resident,
+                        t.slots,
+                        t.gpu_bytes as f64 / 1e6,
+                        t.restored,
+                        t.fresh,
+                        t.evicted
+                    ));
                     ui.label(format!("memory: {} tiles, {:.1} MB · hit rate {:.0}%", s.memory_tiles, s.memory_bytes as f64 / 1e6, s.hit_rate() * 100.0));
-                    ui.label(format!("disk: {} tiles, {:.2} MB · {:.2} MB written · {} evicted", s.disk_tiles, s.disk_bytes as f64 / 1e6, s.bytes_written as f64 / 1e6, s.evicted));
-                    ui.label(format!("window waited {} frames for tiles · {} blocking loads · {} errors · {} corrupt · {} lost", t.window_waits, t.blocking_loads, s.errors, s.corrupt, s.lost));
+                    ui.label(format!(
+                        "disk: {} tiles, {:.2} MB · {:.2} MB written · {} evicted",
+                        s.disk_tiles,
+                        s.disk_bytes as f64 / 1e6,
+                        s.bytes_written as f64 / 1e6,
+                        s.evicted
+                    ));
+                    ui.label(format!(
+                        "window waited {} frames for tiles · {} blocking loads · {} errors · {} corrupt · {} lost",
+                        t.window_waits, t.blocking_loads, s.errors, s.corrupt, s.lost
+                    ));
                     ui.label(format!("time {:.1} s", session.snow.clock().time_s));
                     for e in &session.store_errors {
                         ui.colored_label(Color32::LIGHT_RED, e);
                     }
-                    if !t.memory_only && ui.button("save the snow").on_hover_text("every tile and the window's clock and position into the store; the next start with this store resumes there").clicked() {
+                    if !t.memory_only
+                        && ui
+                            .button("save the snow")
+                            .on_hover_text("every tile and the window's clock and position into the store; the next start with this store resumes there")
+                            .clicked()
+                    {
                         actions.push(Action::SaveStore);
                     }
                 }

@@ -55,8 +55,32 @@ pub struct Script {
 fn key_code(name: &str) -> Option<KeyCode> {
     use KeyCode as K;
     let letters = [
-        K::KeyA, K::KeyB, K::KeyC, K::KeyD, K::KeyE, K::KeyF, K::KeyG, K::KeyH, K::KeyI, K::KeyJ, K::KeyK, K::KeyL, K::KeyM,
-        K::KeyN, K::KeyO, K::KeyP, K::KeyQ, K::KeyR, K::KeyS, K::KeyT, K::KeyU, K::KeyV, K::KeyW, K::KeyX, K::KeyY, K::KeyZ,
+        K::KeyA,
+        K::KeyB,
+        K::KeyC,
+        K::KeyD,
+        K::KeyE,
+        K::KeyF,
+        K::KeyG,
+        K::KeyH,
+        K::KeyI,
+        K::KeyJ,
+        K::KeyK,
+        K::KeyL,
+        K::KeyM,
+        K::KeyN,
+        K::KeyO,
+        K::KeyP,
+        K::KeyQ,
+        K::KeyR,
+        K::KeyS,
+        K::KeyT,
+        K::KeyU,
+        K::KeyV,
+        K::KeyW,
+        K::KeyX,
+        K::KeyY,
+        K::KeyZ,
     ];
     let digits = [K::Digit0, K::Digit1, K::Digit2, K::Digit3, K::Digit4, K::Digit5, K::Digit6, K::Digit7, K::Digit8, K::Digit9];
     let one = |s: &str| -> Option<KeyCode> {
@@ -110,7 +134,9 @@ impl Script {
             };
             let key = |k: usize| -> Result<KeyCode, String> {
                 let s = arg(k)?;
-                key_code(s).ok_or_else(|| err(format!("{s:?} is not a key this script knows (KeyA..KeyZ, Digit0..Digit9, Space, Tab, Escape, Enter, ShiftLeft, F1..F3)")))
+                key_code(s).ok_or_else(|| {
+                    err(format!("{s:?} is not a key this script knows (KeyA..KeyZ, Digit0..Digit9, Space, Tab, Escape, Enter, ShiftLeft, F1..F3)"))
+                })
             };
             let size = |k: usize| -> Result<u32, String> {
                 let s = arg(k)?;

@@ -218,7 +218,8 @@ impl Session {
         if body == PlayerBody::Fox && self.fox.is_none() {
             let fox = player_fox()?;
             let at = self.player.position;
-            let spec = ActorSpec { shape: ShapeSpec::Gltf(fox.clone()), motion: Motion::Kinematic { position: Vec3::new(at.x, 0.0, at.z), velocity: Vec3::ZERO } };
+            let spec =
+                ActorSpec { shape: ShapeSpec::Gltf(fox.clone()), motion: Motion::Kinematic { position: Vec3::new(at.x, 0.0, at.z), velocity: Vec3::ZERO } };
             let k = self.world.add_actor(&spec);
             let id = self.snow.add_skinned_mesh(ctx, &fox.model.mesh, fox.model.skeleton.joints.len()).context("uploading the fox")?;
             self.skins.push((k, id));
@@ -453,9 +454,8 @@ impl Session {
 /// The player's fox: the built-in model, walking and running by speed, on the snow.
 fn player_fox() -> anyhow::Result<GltfActor> {
     let file = std::path::PathBuf::from(snowpack_scene::BUILTIN_FOX);
-    let model = snowpack_scene::gltf_file::GltfFile::from_bytes(snowpack_scene::BUILTIN_FOX_GLB, &file)
-        .and_then(|g| g.skinned_model())
-        .map_err(anyhow::Error::msg)?;
+    let model =
+        snowpack_scene::gltf_file::GltfFile::from_bytes(snowpack_scene::BUILTIN_FOX_GLB, &file).and_then(|g| g.skinned_model()).map_err(anyhow::Error::msg)?;
     let mut fox = GltfActor::new(file, Arc::new(model)).context("the fox has no feet")?;
     fox.scale = 0.01;
     fox.clip = fox.model.clip("Survey").unwrap_or(0);

@@ -13,7 +13,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
-use super::mesh::{barycentric, ChartedMesh};
+use super::mesh::{ChartedMesh, barycentric};
 use super::{ObjectShape, SnowObject};
 use crate::error::SnowError;
 
@@ -45,11 +45,7 @@ enum ChartMap {
 /// Octahedral square coordinate in [-1, 1]² to a unit direction.
 fn octa_decode(q: Vec2) -> Vec3 {
     let y = 1.0 - q.x.abs() - q.y.abs();
-    let (x, z) = if y >= 0.0 {
-        (q.x, q.y)
-    } else {
-        ((1.0 - q.y.abs()) * q.x.signum(), (1.0 - q.x.abs()) * q.y.signum())
-    };
+    let (x, z) = if y >= 0.0 { (q.x, q.y) } else { ((1.0 - q.y.abs()) * q.x.signum(), (1.0 - q.x.abs()) * q.y.signum()) };
     Vec3::new(x, y, z).normalize()
 }
 
@@ -175,13 +171,7 @@ fn box_faces(size: Vec3) -> Vec<ChartMap> {
             u[ua] = 1.0;
             let v = n.cross(u);
             let va = (0..3).find(|&k| v[k] != 0.0).unwrap_or(0);
-            faces.push(ChartMap::Face {
-                origin: n * size[axis] * 0.5,
-                n,
-                u,
-                v,
-                size: Vec2::new(size[ua], size[va]),
-            });
+            faces.push(ChartMap::Face { origin: n * size[axis] * 0.5, n, u, v, size: Vec2::new(size[ua], size[va]) });
         }
     }
     faces
@@ -226,11 +216,8 @@ impl AtlasLayout {
     /// Lays out `objects` in an atlas of `resolution` texels per side, no finer
     /// than [`TEXELS_PER_PIXEL`] texels per occlusion pixel of `pixel_m`.
     pub fn new(objects: &[SnowObject], resolution: u32, pixel_m: f32) -> Result<Self, SnowError> {
-        let maps: Vec<(u32, ChartMap)> = objects
-            .iter()
-            .enumerate()
-            .flat_map(|(k, o)| object_charts(&o.shape).into_iter().map(move |m| (k as u32, m)))
-            .collect();
+        let maps: Vec<(u32, ChartMap)> =
+            objects.iter().enumerate().flat_map(|(k, o)| object_charts(&o.shape).into_iter().map(move |m| (k as u32, m))).collect();
         for o in objects {
             let ok = match &o.shape {
                 ObjectShape::Box { size_m } => size_m.is_finite() && size_m.min_element() > 0.0,
@@ -277,7 +264,11 @@ impl AtlasLayout {
         let charts = maps
             .iter()
             .zip(sizes.iter().zip(&places))
-            .map(|((object, map), (s, p))| Chart { object: *object, rect: [p[0] + GUTTER, p[1] + GUTTER, s[0] - 2 * GUTTER, s[1] - 2 * GUTTER], map: map.clone() })
+            .map(|((object, map), (s, p))| Chart {
+                object: *object,
+                rect: [p[0] + GUTTER, p[1] + GUTTER, s[0] - 2 * GUTTER, s[1] - 2 * GUTTER],
+                map: map.clone(),
+            })
             .collect();
         Ok(Self { resolution, texels_per_m: density, charts, object_count: objects.len() as u32 })
     }
@@ -318,13 +309,11 @@ impl AtlasLayout {
     /// surface (by the baked positions); for tests and tools.
     #[must_use]
     pub fn nearest_texel(&self, bake: &AtlasBake, object: u32, p: Vec3) -> Option<usize> {
-        (0..bake.owner.len())
-            .filter(|&k| bake.owner[k] == object)
-            .min_by(|&a, &b| {
-                let da = Vec3::from(bake.position[a]).distance_squared(p);
-                let db = Vec3::from(bake.position[b]).distance_squared(p);
-                da.total_cmp(&db)
-            })
+        (0..bake.owner.len()).filter(|&k| bake.owner[k] == object).min_by(|&a, &b| {
+            let da = Vec3::from(bake.position[a]).distance_squared(p);
+            let db = Vec3::from(bake.position[b]).distance_squared(p);
+            da.total_cmp(&db)
+        })
     }
 
     /// Every object's mesh: vertices, triangle indices, and per object its
@@ -417,9 +406,7 @@ fn chart_grid(c: &Chart, [qa, qb]: [u32; 2], vertices: &mut Vec<ObjectVertex>, i
             // Outward winding (counter-clockwise seen from outside).
             for t in [t1, t2] {
                 let p = |k: u32| Vec3::from(vertices[k as usize].position);
-                let nrm = Vec3::from(vertices[t[0] as usize].normal)
-                    + Vec3::from(vertices[t[1] as usize].normal)
-                    + Vec3::from(vertices[t[2] as usize].normal);
+                let nrm = Vec3::from(vertices[t[0] as usize].normal) + Vec3::from(vertices[t[1] as usize].normal) + Vec3::from(vertices[t[2] as usize].normal);
                 let cross = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0]));
                 if cross.dot(nrm) >= 0.0 {
                     indices.extend_from_slice(&t);
@@ -513,7 +500,13 @@ mod tests {
 
     fn objects() -> Vec<SnowObject> {
         vec![
-            SnowObject { name: "table".into(), shape: ObjectShape::Box { size_m: Vec3::new(2.0, 0.1, 1.0) }, position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: true },
+            SnowObject {
+                name: "table".into(),
+                shape: ObjectShape::Box { size_m: Vec3::new(2.0, 0.1, 1.0) },
+                position: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+                dilate: true,
+            },
             SnowObject { name: "ball".into(), shape: ObjectShape::Sphere { radius_m: 0.5 }, position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: true },
         ]
     }
@@ -566,7 +559,13 @@ mod tests {
         let layout = AtlasLayout::new(&objects(), 512, 0.001).expect("fits");
         let used: u32 = layout.charts.iter().map(|c| (c.rect[2] + 2 * GUTTER) * (c.rect[3] + 2 * GUTTER)).sum();
         assert!(used as f32 > 0.4 * 512.0 * 512.0, "the densest packing uses a good part of the atlas ({used} texels)");
-        let tiny = vec![SnowObject { name: "pebble".into(), shape: ObjectShape::Sphere { radius_m: 0.01 }, position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: false }];
+        let tiny = vec![SnowObject {
+            name: "pebble".into(),
+            shape: ObjectShape::Sphere { radius_m: 0.01 },
+            position: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            dilate: false,
+        }];
         let layout = AtlasLayout::new(&tiny, 512, 0.001).expect("fits");
         assert!((layout.texels_per_m - 1.0 / MIN_TEXEL_M).abs() < 1e-3, "a small object stops at the finest texel");
         let layout = AtlasLayout::new(&tiny, 512, 0.1).expect("fits");
@@ -577,13 +576,26 @@ mod tests {
     fn a_mesh_bakes_its_area_with_its_own_uvs_or_a_chart_per_triangle() {
         use crate::accumulate::ObjectMesh;
         // A tent: two 2 x 1 m slopes meeting at a ridge, UV-mapped side by side.
-        let p = [Vec3::new(-1.0, 0.0, -0.5), Vec3::new(1.0, 0.0, -0.5), Vec3::new(-1.0, 0.5, 0.0), Vec3::new(1.0, 0.5, 0.0), Vec3::new(-1.0, 0.0, 0.5), Vec3::new(1.0, 0.0, 0.5)];
+        let p = [
+            Vec3::new(-1.0, 0.0, -0.5),
+            Vec3::new(1.0, 0.0, -0.5),
+            Vec3::new(-1.0, 0.5, 0.0),
+            Vec3::new(1.0, 0.5, 0.0),
+            Vec3::new(-1.0, 0.0, 0.5),
+            Vec3::new(1.0, 0.0, 0.5),
+        ];
         let uv = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.5), Vec2::new(1.0, 0.5), Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0)];
         let indices = vec![0, 2, 1, 1, 2, 3, 2, 4, 3, 3, 4, 5];
         let area = 2.0 * 2.0 * (0.5f32 * 0.5 + 0.5 * 0.5).sqrt();
         for uvs in [Some(uv.to_vec()), None] {
             let mesh = ObjectMesh { positions: p.to_vec(), normals: vec![], uvs: uvs.clone(), indices: indices.clone() };
-            let object = SnowObject { name: "tent".into(), shape: ObjectShape::Mesh(std::sync::Arc::new(mesh)), position: Vec3::ZERO, rotation: Quat::IDENTITY, dilate: true };
+            let object = SnowObject {
+                name: "tent".into(),
+                shape: ObjectShape::Mesh(std::sync::Arc::new(mesh)),
+                position: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+                dilate: true,
+            };
             let layout = AtlasLayout::new(&[object], 128, 0.01).expect("fits");
             let bake = layout.bake();
             let baked: f32 = bake.normal_area.iter().zip(&bake.owner).filter(|(_, o)| **o == 0).map(|(n, _)| n[3]).sum();

@@ -91,10 +91,7 @@ impl ObjectMesh {
     /// Surface area (m²).
     #[must_use]
     pub fn area(&self) -> f32 {
-        self.indices
-            .chunks_exact(3)
-            .map(|t| tri_area(self.positions[t[0] as usize], self.positions[t[1] as usize], self.positions[t[2] as usize]))
-            .sum()
+        self.indices.chunks_exact(3).map(|t| tri_area(self.positions[t[0] as usize], self.positions[t[1] as usize], self.positions[t[2] as usize])).sum()
     }
 
     /// Farthest vertex from the origin (m).

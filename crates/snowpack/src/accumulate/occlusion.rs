@@ -6,8 +6,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
-use crate::gpu::{layout, GpuTimer};
-use crate::render::pipeline::{render_pipeline, storage_ro, PipelineSpec};
+use crate::gpu::{GpuTimer, layout};
+use crate::render::pipeline::{PipelineSpec, render_pipeline, storage_ro};
 use crate::shaders;
 
 use super::atlas::ObjectVertex;

@@ -2,7 +2,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Uniforms of `scatter.wgsl`.
@@ -50,12 +50,8 @@ impl ScatterPass {
             ],
         );
         let params = layout::uniform_buffer::<ScatterParams>(device, "scatter params");
-        let bind_group = layout::bind_group(
-            device,
-            "scatter",
-            &bgl,
-            &[params.as_entire_binding(), wgpu::BindingResource::TextureView(footprint), hits.as_entire_binding()],
-        );
+        let bind_group =
+            layout::bind_group(device, "scatter", &bgl, &[params.as_entire_binding(), wgpu::BindingResource::TextureView(footprint), hits.as_entire_binding()]);
         Self { pipeline, params, bind_group }
     }
 

@@ -87,11 +87,7 @@ pub fn flutter(d: Vec3, max_deg: f32, u1: f32, u2: f32) -> Vec3 {
     let az = std::f32::consts::TAU * u2;
     let (b1, b2) = d.any_orthonormal_pair();
     let tilted = (d * angle.cos() + (b1 * az.cos() + b2 * az.sin()) * angle.sin()).normalize();
-    if tilted.y > -super::MIN_DOWNWARD * 0.5 {
-        d
-    } else {
-        tilted
-    }
+    if tilted.y > -super::MIN_DOWNWARD * 0.5 { d } else { tilted }
 }
 
 /// The objects' accumulation: atlas, meshes, poses and passes.
@@ -308,7 +304,15 @@ impl SnowAccumulation {
 
     /// Records the atlas passes: scatter and increment when `fall_volume_m3`
     /// (snow per occlusion pixel this frame) is positive, then settle and surface.
-    pub fn record_atlas(&mut self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, snowfall: &Snowfall, fall_volume_m3: f32, dt_s: f32) {
+    pub fn record_atlas(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        snowfall: &Snowfall,
+        fall_volume_m3: f32,
+        dt_s: f32,
+    ) {
         let n = self.layout.resolution;
         if fall_volume_m3 > 0.0 {
             self.scatter.record(

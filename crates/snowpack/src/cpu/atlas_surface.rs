@@ -1,7 +1,7 @@
 //! CPU twin of `atlas_surface.wgsl`.
 
-use crate::accumulate::atlas::NO_OWNER;
 use crate::accumulate::SurfaceParams;
+use crate::accumulate::atlas::NO_OWNER;
 
 /// (height, slope x, slope y, owned) per atlas texel from the accumulation;
 /// `dilate[o]` says whether object `o` is dilated.

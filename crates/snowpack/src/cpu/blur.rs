@@ -11,11 +11,7 @@ pub fn blur_axis(src: &[f32], resolution: u32, axis: u32) -> Vec<f32> {
     let mut dst = vec![0.0; src.len()];
     for across in 0..r {
         for along in 0..r {
-            let sum = at(along - 2, across)
-                + 4.0 * at(along - 1, across)
-                + 6.0 * at(along, across)
-                + 4.0 * at(along + 1, across)
-                + at(along + 2, across);
+            let sum = at(along - 2, across) + 4.0 * at(along - 1, across) + 6.0 * at(along, across) + 4.0 * at(along + 1, across) + at(along + 2, across);
             let out = if axis == 0 { across * r + along } else { along * r + across };
             dst[out as usize] = sum * (1.0 / 16.0);
         }

@@ -82,10 +82,8 @@ fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
 /// [`crate::deform::capture::CaptureMesh`]es.
 pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner: glam::DVec2, p: &CaptureParams, resolution: u32) {
     // The terrain bake's rasteriser keeps the highest surface; mirror heights to keep the lowest.
-    let mirrored: Vec<[[f32; 3]; 3]> = triangles
-        .iter()
-        .map(|t| t.map(|v| [(f64::from(v[0]) - corner.x) as f32, -v[1], (f64::from(v[2]) - corner.y) as f32]))
-        .collect();
+    let mirrored: Vec<[[f32; 3]; 3]> =
+        triangles.iter().map(|t| t.map(|v| [(f64::from(v[0]) - corner.x) as f32, -v[1], (f64::from(v[2]) - corner.y) as f32])).collect();
     let extent = p.texel_m * resolution as f32;
     let lowest = super::terrain_bake::draw(&mirrored, resolution, resolution, [0.0, 0.0], [extent, extent], f32::NEG_INFINITY);
     let range = p.high_m - p.low_m;

@@ -1,7 +1,7 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
 use crate::deform::exchange::ExchangeParams;
-use crate::deform::tiles::{plane_stamps, PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN};
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
 use crate::deform::window::TexelRect;
 
 use super::window::storage_index;

@@ -3,7 +3,7 @@
 use crate::deform::rim::RimParams;
 use crate::deform::technique::RIM_PEAK;
 
-use super::stamp::{height, STAMP_EMPTY};
+use super::stamp::{STAMP_EMPTY, height};
 use super::window::storage_index;
 
 /// Snow within this of the rest height counts as undisturbed (grows rims).

@@ -2,8 +2,8 @@
 
 use glam::{Mat4, Vec3};
 
-use crate::accumulate::atlas::NO_OWNER;
 use crate::accumulate::SettleParams;
+use crate::accumulate::atlas::NO_OWNER;
 
 /// Dinh's Gaussian weights for offsets 0, 1 and 2.
 const WEIGHTS: [f32; 3] = [0.227_027_03, 0.194_594_6, 0.121_621_62];

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::render::shell::tetrahedra::{Tetra, TetraParams, CORNERS_PER_TETRA, MAX_SHAPE_RATIO};
+use crate::render::shell::tetrahedra::{CORNERS_PER_TETRA, MAX_SHAPE_RATIO, Tetra, TetraParams};
 use crate::render::shell::vertices::ShellVertex;
 
 /// Corner `c` of tetrahedron `t` of the prism over a face with vertex indices

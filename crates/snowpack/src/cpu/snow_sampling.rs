@@ -5,8 +5,8 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::render::sampling::SnowWindowUniform;
 use crate::TerrainSource;
+use crate::render::sampling::SnowWindowUniform;
 
 /// A read-back displayed surface and where it lies.
 #[derive(Clone, Copy, Debug)]
@@ -117,13 +117,8 @@ impl SampledSurface<'_> {
             return 0.0;
         }
         let k = self.taps(xz);
-        let ground = Self::bilinear(
-            &k,
-            self.texel_ground(k.i0, k.j0),
-            self.texel_ground(k.i0, k.j1),
-            self.texel_ground(k.i1, k.j0),
-            self.texel_ground(k.i1, k.j1),
-        );
+        let ground =
+            Self::bilinear(&k, self.texel_ground(k.i0, k.j0), self.texel_ground(k.i0, k.j1), self.texel_ground(k.i1, k.j0), self.texel_ground(k.i1, k.j1));
         let depth = self.window.rest_depth_m;
         ((ground + depth - self.height(xz)) / depth.max(1e-4)).clamp(0.0, 1.0)
     }

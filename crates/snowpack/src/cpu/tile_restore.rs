@@ -1,11 +1,11 @@
 //! CPU twin of `tile_restore.wgsl`.
 
+use crate::TerrainSource;
 use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
 use crate::deform::tiles::PLANE_TERRAIN;
-use crate::TerrainSource;
 
 use super::stamp::STAMP_EMPTY;
-use super::tile_weather::{pass_time, write_texel, SlotLayout, SnowConstants, TexelState, TimePassed};
+use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_texel};
 
 /// Writes each entry's tile into its slot: the saved planes in `upload`
 /// brought up to now, or fresh snow over `terrain`.
@@ -28,11 +28,7 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
                 let fallen = f32::from_bits(upload[u + 2 * area + k]);
                 let rest = ground + p.depth_m + fallen;
                 let saved = TexelState { snow: f32::from_bits(upload[u + k] ^ rest.to_bits()), stamp: upload[u + area + k], fallen };
-                if e.elapsed != 0 {
-                    pass_time(ground, &c, saved, &TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
-                } else {
-                    saved
-                }
+                if e.elapsed != 0 { pass_time(ground, &c, saved, &TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta }) } else { saved }
             };
             let planes = p.planes as usize;
             write_texel(tiles, slot, SlotLayout { area, planes, use_fallen }, k, t);

@@ -1,9 +1,9 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
 use crate::deform::tile_weather::WeatherParams;
-use crate::deform::tiles::{plane_stamps, PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN};
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
 
-use super::stamp::{height, STAMP_EMPTY};
+use super::stamp::{STAMP_EMPTY, height};
 
 /// One texel's persistent state.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,7 +113,13 @@ pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mu
     }
     let side = p.side as i32;
     let area = (p.side * p.side) as usize;
-    let c = SnowConstants { depth_m: p.depth_m, max_fallen_m: p.max_fallen_m, low_m: p.low_m, high_m: p.high_m, use_fallen: p.flags & WeatherParams::USE_FALLEN != 0 };
+    let c = SnowConstants {
+        depth_m: p.depth_m,
+        max_fallen_m: p.max_fallen_m,
+        low_m: p.low_m,
+        high_m: p.high_m,
+        use_fallen: p.flags & WeatherParams::USE_FALLEN != 0,
+    };
     let time = TimePassed { fall_m: p.fall_m, refill_m: p.refill_m, quanta: p.quanta };
     let res = p.resolution as i32;
     for &slot in slots {

@@ -2,7 +2,7 @@
 
 use crate::deform::update::UpdateParams;
 
-use super::stamp::{height, STAMP_EMPTY};
+use super::stamp::{STAMP_EMPTY, height};
 use super::window::storage_index;
 
 /// Below the surface the occlusion saw by less than this, a texel still counts as seen (m).
@@ -21,11 +21,7 @@ pub fn sky_visible(p: &UpdateParams, sky: &[f32], i: u32, j: u32, h: f32) -> f32
     }
     let seen = sky[(pz as u32 * p.resolution + px as u32) as usize];
     let here = (p.sky_high_m - (h + SKY_BIAS_M)) / (p.sky_high_m - p.sky_low_m);
-    if here <= seen {
-        1.0
-    } else {
-        0.0
-    }
+    if here <= seen { 1.0 } else { 0.0 }
 }
 
 /// The update's inputs besides its parameters: window-local capture and
@@ -73,11 +69,8 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [f32], stam
                 }
                 if p.refill_quanta > 0 {
                     let foot = fq + p.refill_quanta;
-                    stamps[s] = if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest {
-                        STAMP_EMPTY
-                    } else {
-                        ((hq + p.refill_quanta).min(65535) << 16) | foot
-                    };
+                    stamps[s] =
+                        if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest { STAMP_EMPTY } else { ((hq + p.refill_quanta).min(65535) << 16) | foot };
                 }
             }
             snow[s] = h.max(ground);

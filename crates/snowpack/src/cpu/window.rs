@@ -1,7 +1,7 @@
 //! CPU twin of `window.wgsl`.
 
-use crate::deform::window::{TexelRect, WindowParams};
 use crate::TerrainSource;
+use crate::deform::window::{TexelRect, WindowParams};
 
 /// Toroidal storage index of window-local texel (i, j).
 #[must_use]
@@ -36,14 +36,7 @@ pub fn ground_plane(terrain: &TerrainSource, origin: [i32; 2], res: u32, texel_m
 
 /// Writes fresh snow (terrain + rest depth + the snowfall so far) into the
 /// texels of `rects` and clears their footprints.
-pub fn expose(
-    p: &WindowParams,
-    rects: &[TexelRect],
-    terrain_src: &TerrainSource,
-    snow: &mut [f32],
-    stamps: &mut [u32],
-    fallen: &mut [f32],
-) {
+pub fn expose(p: &WindowParams, rects: &[TexelRect], terrain_src: &TerrainSource, snow: &mut [f32], stamps: &mut [u32], fallen: &mut [f32]) {
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {

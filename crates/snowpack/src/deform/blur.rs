@@ -4,7 +4,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -35,22 +35,13 @@ impl BlurPass {
     /// Builds the pipeline and binds both axes to `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
-            device,
-            "blur",
-            shaders::BLUR,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)],
-        );
+        let (pipeline, bgl) =
+            layout::compute_pipeline(device, "blur", shaders::BLUR, &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)]);
         let make = |axis: u32| {
             let params = layout::uniform_buffer::<BlurParams>(device, "blur params");
             let p = BlurParams { resolution: res.resolution, axis, src_word: axis, dst_word: 1 - axis };
             queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
-            layout::bind_group(
-                device,
-                "blur",
-                &bgl,
-                &[params.as_entire_binding(), res.surface.as_entire_binding()],
-            )
+            layout::bind_group(device, "blur", &bgl, &[params.as_entire_binding(), res.surface.as_entire_binding()])
         };
         let axes = [make(0), make(1)];
         Self { pipeline, axes, resolution: res.resolution }

@@ -9,10 +9,10 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
 
-use crate::gpu::{layout, GpuTimer};
-use crate::{shaders, Deformer};
+use crate::gpu::{GpuTimer, layout};
+use crate::{Deformer, shaders};
 
-use super::resources::{DeformResources, CAPTURE_FORMAT};
+use super::resources::{CAPTURE_FORMAT, DeformResources};
 
 /// Uniforms of `capture_sphere.wgsl` and `capture_mesh.wgsl`.
 #[repr(C)]
@@ -37,19 +37,9 @@ impl CaptureParams {
 }
 
 /// Unit cube, corners at ±1: 8 vertices, 12 triangles.
-const CUBE_VERTICES: [[f32; 3]; 8] = [
-    [-1.0, -1.0, -1.0],
-    [1.0, -1.0, -1.0],
-    [1.0, 1.0, -1.0],
-    [-1.0, 1.0, -1.0],
-    [-1.0, -1.0, 1.0],
-    [1.0, -1.0, 1.0],
-    [1.0, 1.0, 1.0],
-    [-1.0, 1.0, 1.0],
-];
-const CUBE_INDICES: [u16; 36] = [
-    0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6, 0, 4, 5, 0, 5, 1, 3, 2, 6, 3, 6, 7, 0, 3, 7, 0, 7, 4, 1, 5, 6, 1, 6, 2,
-];
+const CUBE_VERTICES: [[f32; 3]; 8] =
+    [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]];
+const CUBE_INDICES: [u16; 36] = [0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6, 0, 4, 5, 0, 5, 1, 3, 2, 6, 3, 6, 7, 0, 3, 7, 0, 7, 4, 1, 5, 6, 1, 6, 2];
 
 /// Instances prepared for one frame, in window-local coordinates.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -84,13 +74,7 @@ impl CaptureInstances {
         let offset = Vec3::new(-window_corner_m.x as f32, 0.0, -window_corner_m.y as f32);
         let mut out = Self { window_offset: Mat4::from_translation(offset).to_cols_array(), ..Self::default() };
         let extent = f64::from(params.extent_m);
-        let local = |c: Vec3| {
-            Vec3::new(
-                (f64::from(c.x) - window_corner_m.x) as f32,
-                c.y,
-                (f64::from(c.z) - window_corner_m.y) as f32,
-            )
-        };
+        let local = |c: Vec3| Vec3::new((f64::from(c.x) - window_corner_m.x) as f32, c.y, (f64::from(c.z) - window_corner_m.y) as f32);
         for d in deformers {
             if d.lowest_point() >= params.high_m {
                 continue;
@@ -99,10 +83,7 @@ impl CaptureInstances {
                 Deformer::Sphere { center, radius } => {
                     let c = local(center);
                     let r = f64::from(radius);
-                    let outside = f64::from(c.x) + r < 0.0
-                        || f64::from(c.x) - r > extent
-                        || f64::from(c.z) + r < 0.0
-                        || f64::from(c.z) - r > extent;
+                    let outside = f64::from(c.x) + r < 0.0 || f64::from(c.x) - r > extent || f64::from(c.z) + r < 0.0 || f64::from(c.z) - r > extent;
                     if !outside && radius > 0.0 {
                         out.spheres.push([c.x, c.y, c.z, radius]);
                     }
@@ -110,10 +91,8 @@ impl CaptureInstances {
                 Deformer::Box { center, half_extents, rotation } => {
                     let c = local(center);
                     let reach = f64::from(half_extents.length());
-                    let outside = f64::from(c.x) + reach < 0.0
-                        || f64::from(c.x) - reach > extent
-                        || f64::from(c.z) + reach < 0.0
-                        || f64::from(c.z) - reach > extent;
+                    let outside =
+                        f64::from(c.x) + reach < 0.0 || f64::from(c.x) - reach > extent || f64::from(c.z) + reach < 0.0 || f64::from(c.z) - reach > extent;
                     if !outside {
                         out.boxes.push(Mat4::from_scale_rotation_translation(half_extents, rotation, c).to_cols_array());
                     }
@@ -171,11 +150,8 @@ impl CapturePass {
             label: Some("capture"),
             entries: &[layout::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("capture"),
-            bind_group_layouts: &[Some(&bgl)],
-            immediate_size: 0,
-        });
+        let pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("capture"), bind_group_layouts: &[Some(&bgl)], immediate_size: 0 });
         // Seen from below, front and back faces swap; cull nothing and let the depth test choose.
         let primitive = wgpu::PrimitiveState { cull_mode: None, ..Default::default() };
         let sphere_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -211,33 +187,35 @@ impl CapturePass {
             label: Some("capture meshes"),
             source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_MESH.into()),
         });
-        let mesh_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &mesh_module,
-                entry_point: Some("vs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                buffers: &[
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 12,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 64,
-                        step_mode: wgpu::VertexStepMode::Instance,
-                        attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
-                    }),
-                ],
-            },
-            primitive,
-            depth_stencil: Some(depth_state()),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
+        let mesh_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &mesh_module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                    buffers: &[
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: 12,
+                            step_mode: wgpu::VertexStepMode::Vertex,
+                            attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                        }),
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: 64,
+                            step_mode: wgpu::VertexStepMode::Instance,
+                            attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
+                        }),
+                    ],
+                },
+                primitive,
+                depth_stencil: Some(depth_state()),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: None,
+                multiview_mask: None,
+                cache: None,
+            })
+        };
         let mesh_pipeline = mesh_pipeline_with("capture meshes", primitive);
         let mesh_point_pipeline = mesh_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");

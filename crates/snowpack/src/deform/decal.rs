@@ -9,8 +9,8 @@ use std::collections::VecDeque;
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Vec3};
 
-use crate::gpu::{layout, GpuTimer};
-use crate::{shaders, Deformer, TerrainSource};
+use crate::gpu::{GpuTimer, layout};
+use crate::{Deformer, TerrainSource, shaders};
 
 /// Format of the decal layer: normal x, z, tint, coverage.
 pub const DECAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -224,15 +224,10 @@ impl DecalPass {
                 },
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("decal"),
-            bind_group_layouts: &[Some(&bgl)],
-            immediate_size: 0,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("decal"),
-            source: wgpu::ShaderSource::Wgsl(shaders::DECAL.into()),
-        });
+        let pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("decal"), bind_group_layouts: &[Some(&bgl)], immediate_size: 0 });
+        let module =
+            device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("decal"), source: wgpu::ShaderSource::Wgsl(shaders::DECAL.into()) });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("decal"),
             layout: Some(&pipeline_layout),

@@ -3,11 +3,11 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
-use super::window::{rect_dispatch, TexelRect};
+use super::window::{TexelRect, rect_dispatch};
 
 /// Uniforms of `exchange.wgsl`.
 #[repr(C)]

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -31,21 +31,12 @@ impl NormalPass {
     /// Builds the pipeline reading and writing `res.surface`.
     #[must_use]
     pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, texel_m: f32) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
-            device,
-            "normals",
-            shaders::NORMALS,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)],
-        );
+        let (pipeline, bgl) =
+            layout::compute_pipeline(device, "normals", shaders::NORMALS, &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false)]);
         let params = layout::uniform_buffer::<NormalParams>(device, "normal params");
         let p = NormalParams { resolution: res.resolution, texel_m, _pad: [0; 2] };
         queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
-        let bind_group = layout::bind_group(
-            device,
-            "normals",
-            &bgl,
-            &[params.as_entire_binding(), res.surface.as_entire_binding()],
-        );
+        let bind_group = layout::bind_group(device, "normals", &bgl, &[params.as_entire_binding(), res.surface.as_entire_binding()]);
         Self { pipeline, bind_group, resolution: res.resolution }
     }
 

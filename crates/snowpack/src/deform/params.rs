@@ -104,15 +104,7 @@ impl SnowParams {
     pub fn validate(&self) -> Result<(), SnowError> {
         let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
         if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
-            return bad(
-                "resolution",
-                format!(
-                    "{} is not a multiple of 16 in {}..={}",
-                    self.resolution,
-                    RESOLUTION_RANGE.start(),
-                    RESOLUTION_RANGE.end()
-                ),
-            );
+            return bad("resolution", format!("{} is not a multiple of 16 in {}..={}", self.resolution, RESOLUTION_RANGE.start(), RESOLUTION_RANGE.end()));
         }
         if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
             return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));

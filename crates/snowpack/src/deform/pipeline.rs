@@ -10,18 +10,18 @@ use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::blur::BlurPass;
 use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
-use crate::skin::skinning::{SkinnedInstance, SkinningPass};
-use super::decal::{DecalPass, DecalRing, DEFAULT_PER_ACTOR};
-use super::normals::{unpack_surface, NormalPass};
+use super::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
+use super::normals::{NormalPass, unpack_surface};
+use super::params::default_tile_texels;
 use super::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use super::resources::DeformResources;
 use super::rim::{RimParams, RimPass};
-use super::saved::{SavedWindow, STATE_NAME};
-use super::stamp::{contact_points, StampParams, StampPass};
-use super::params::default_tile_texels;
-use super::tiles::{planes, TileFrame, TileGrid, TileStats, TileStreaming};
+use super::saved::{STATE_NAME, SavedWindow};
+use super::stamp::{StampParams, StampPass, contact_points};
+use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, planes};
 use super::update::{UpdateParams, UpdatePass};
 use super::window::{SlidingWindow, WindowParams, WindowPass};
+use crate::skin::skinning::{SkinnedInstance, SkinningPass};
 
 /// Margin of the capture depth range beyond the terrain and the snow (m).
 const CAPTURE_MARGIN_M: f32 = 1.0;
@@ -204,12 +204,8 @@ impl SnowDeformation {
         let (tmin, tmax) = terrain.height_bounds();
         // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
         let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
-        let capture_params = CaptureParams {
-            extent_m: params.extent_m,
-            texel_m: params.texel_m(),
-            low_m: tmin - CAPTURE_MARGIN_M,
-            high_m: capture_top(tmin, tmax, deepest),
-        };
+        let capture_params =
+            CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m: tmin - CAPTURE_MARGIN_M, high_m: capture_top(tmin, tmax, deepest) };
         let tiles = match params.tile_memory_bytes {
             Some(budget) => keep_in_memory(ctx, &res, &params, budget)?,
             None => None,
@@ -304,7 +300,10 @@ impl SnowDeformation {
         if let Some(s) = &snowfall {
             s.validate()?;
             if self.params.snowfall.is_none() {
-                return Err(SnowError::InvalidParameter { field: "snowfall", why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into() });
+                return Err(SnowError::InvalidParameter {
+                    field: "snowfall",
+                    why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into(),
+                });
             }
         }
         // The footprint quantisation was fixed at creation from `max_m`.
@@ -349,12 +348,20 @@ impl SnowDeformation {
             let path = streamer.dir().join(STATE_NAME);
             let mismatch = |why: String| SnowError::Store(StoreError::Mismatch { path: path.clone(), why });
             if s.resolution != self.params.resolution || s.tile_side != side {
-                return Err(mismatch(format!("saved with resolution {} and tiles of {}, the window has {} and {side}", s.resolution, s.tile_side, self.params.resolution)));
+                return Err(mismatch(format!(
+                    "saved with resolution {} and tiles of {}, the window has {} and {side}",
+                    s.resolution, s.tile_side, self.params.resolution
+                )));
             }
             if s.texel_m != self.params.texel_m() || s.depth_m != self.params.depth_m || s.stamp_range_m != [low, high] {
                 return Err(mismatch(format!(
                     "saved with texel {} m, depth {} m, footprint range {:?}; the window has {} m, {} m, {:?} (extent_m, depth_m, terrain or snowfall max_m changed)",
-                    s.texel_m, s.depth_m, s.stamp_range_m, self.params.texel_m(), self.params.depth_m, [low, high]
+                    s.texel_m,
+                    s.depth_m,
+                    s.stamp_range_m,
+                    self.params.texel_m(),
+                    self.params.depth_m,
+                    [low, high]
                 )));
             }
         }
@@ -383,7 +390,10 @@ impl SnowDeformation {
         let (low, high, _) = self.stamp_range();
         let origin = self.window.origin();
         let Some(tiles) = self.tiles.as_mut().filter(|t| !t.is_memory_only()) else {
-            return Err(SnowError::InvalidParameter { field: "store", why: "saving needs a disk store (attach_store with a TileStreamer over a TileStore); tiles are kept in memory only or not at all".into() });
+            return Err(SnowError::InvalidParameter {
+                field: "store",
+                why: "saving needs a disk store (attach_store with a TileStreamer over a TileStore); tiles are kept in memory only or not at all".into(),
+            });
         };
         if let Some(origin) = origin {
             tiles.checkpoint(ctx, &self.res, origin, self.clock)?;
@@ -530,10 +540,7 @@ impl SnowDeformation {
         );
         ctx.queue.submit([encoder.finish()]);
         let raw = read_buffer(ctx, &staging)?;
-        Ok(raw
-            .chunks_exact(row as usize)
-            .flat_map(|line| line[..(r * 4) as usize].chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]))
-            .collect())
+        Ok(raw.chunks_exact(row as usize).flat_map(|line| line[..(r * 4) as usize].chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]])).collect())
     }
 
     /// Turns the displayed-surface blur on or off.
@@ -602,7 +609,12 @@ impl SnowDeformation {
         let meshes: Vec<CaptureMesh<'_>> = self
             .posed
             .iter()
-            .map(|&k| CaptureMesh { vertices: &skinned[k].skinned, indices: &skinned[k].indices, index_count: skinned[k].index_count, vertex_count: skinned[k].vertex_count })
+            .map(|&k| CaptureMesh {
+                vertices: &skinned[k].skinned,
+                indices: &skinned[k].indices,
+                index_count: skinned[k].index_count,
+                vertex_count: skinned[k].vertex_count,
+            })
             .chain(frame.meshes.iter().copied())
             .collect();
         self.encode_frame(ctx, encoder, frame.deformers, &meshes, frame.dt_s);
@@ -697,9 +709,7 @@ impl SnowDeformation {
             acc.upload_poses(queue, corner);
         }
         let sky = match (&snowfall, &mut self.accumulation) {
-            (Some(s), Some(acc)) => {
-                Some(acc.record_occlusion(queue, encoder, &mut self.timer, s, p.extent_m, (tmin, tmax + p.depth_m + self.fallen_total_m)))
-            }
+            (Some(s), Some(acc)) => Some(acc.record_occlusion(queue, encoder, &mut self.timer, s, p.extent_m, (tmin, tmax + p.depth_m + self.fallen_total_m))),
             _ => None,
         };
         let max_fallen_m = snowfall.as_ref().map_or(0.0, |s| s.max_m);
@@ -805,7 +815,8 @@ impl SnowDeformation {
             self.decal_pass.record(encoder, &mut self.timer);
         }
         if let Some((ticket, points)) = self.asked.take() {
-            let local: Vec<glam::Vec2> = points.iter().map(|p| glam::Vec2::new((f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32)).collect();
+            let local: Vec<glam::Vec2> =
+                points.iter().map(|p| glam::Vec2::new((f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32)).collect();
             let params = QueryParams {
                 origin: origin_i32,
                 resolution: p.resolution,

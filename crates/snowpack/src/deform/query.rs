@@ -8,7 +8,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
-use crate::gpu::{layout, GpuTimer, ReadbackRing};
+use crate::gpu::{GpuTimer, ReadbackRing, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -132,12 +132,7 @@ impl PointAnswers {
     /// how a game reads a moving foot's snow from an answer a frame or two old.
     #[must_use]
     pub fn nearest(&self, p: Vec2, within_m: f32) -> Option<PointSample> {
-        let (k, d2) = self
-            .points
-            .iter()
-            .enumerate()
-            .map(|(k, q)| (k, q.distance_squared(p)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let (k, d2) = self.points.iter().enumerate().map(|(k, q)| (k, q.distance_squared(p))).min_by(|a, b| a.1.total_cmp(&b.1))?;
         if d2 > within_m * within_m {
             return None;
         }
@@ -214,7 +209,14 @@ impl QueryPass {
         Self { pipeline, bgl, params, points, samples, bind_group, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
     }
 
-    fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, samples: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
+    fn bind(
+        device: &wgpu::Device,
+        bgl: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        points: &wgpu::Buffer,
+        samples: &wgpu::Buffer,
+        res: &DeformResources,
+    ) -> wgpu::BindGroup {
         layout::bind_group(
             device,
             "query",

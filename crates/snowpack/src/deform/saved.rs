@@ -88,7 +88,10 @@ struct Reader<'a> {
 
 impl Reader<'_> {
     fn take<const N: usize>(&mut self) -> Result<[u8; N], StoreError> {
-        let s = self.bytes.get(self.at..self.at + N).ok_or_else(|| StoreError::Corrupt { path: self.path.to_path_buf(), why: "the window state is truncated".to_owned() })?;
+        let s = self
+            .bytes
+            .get(self.at..self.at + N)
+            .ok_or_else(|| StoreError::Corrupt { path: self.path.to_path_buf(), why: "the window state is truncated".to_owned() })?;
         self.at += N;
         let mut out = [0u8; N];
         out.copy_from_slice(s);

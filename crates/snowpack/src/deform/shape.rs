@@ -47,9 +47,7 @@ impl Deformer {
             Self::Box { center, half_extents, rotation } => {
                 let m = glam::Mat3::from_quat(rotation);
                 // Support function of the box in the -Y direction.
-                let extent = (m.x_axis.y.abs() * half_extents.x)
-                    + (m.y_axis.y.abs() * half_extents.y)
-                    + (m.z_axis.y.abs() * half_extents.z);
+                let extent = (m.x_axis.y.abs() * half_extents.x) + (m.y_axis.y.abs() * half_extents.y) + (m.z_axis.y.abs() * half_extents.z);
                 center.y - extent
             }
             Self::Point { position, .. } => position.y,

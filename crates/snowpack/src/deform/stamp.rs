@@ -10,8 +10,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DVec2;
 
-use crate::gpu::{layout, GpuTimer};
-use crate::{shaders, Deformer};
+use crate::gpu::{GpuTimer, layout};
+use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
 
@@ -65,8 +65,7 @@ pub fn contact_points(deformers: &[Deformer], window_corner_m: DVec2, params: &S
             let x = f64::from(at.x) - window_corner_m.x;
             let z = f64::from(at.z) - window_corner_m.y;
             let outside = x + reach < 0.0 || x - reach > extent || z + reach < 0.0 || z - reach > extent;
-            (!outside && foot < params.high_m && scale.is_finite() && scale >= 0.0)
-                .then_some([x as f32, foot, z as f32, scale])
+            (!outside && foot < params.high_m && scale.is_finite() && scale >= 0.0).then_some([x as f32, foot, z as f32, scale])
         })
         .collect()
 }
@@ -102,11 +101,7 @@ impl StampPass {
             device,
             "stamp",
             shaders::STAMP,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, false),
-            ],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
         );
         let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
         let points = points_buffer(device, 16 * 256);
@@ -115,12 +110,7 @@ impl StampPass {
     }
 
     fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "stamp",
-            bgl,
-            &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding()],
-        )
+        layout::bind_group(device, "stamp", bgl, &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding()])
     }
 
     /// Uploads this frame's points (at most [`MAX_POINTS`]), growing the buffer when needed.

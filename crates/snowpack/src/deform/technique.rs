@@ -45,13 +45,9 @@ impl FromStr for Technique {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|t| t.as_str() == s)
-            .ok_or_else(|| format!("{s:?} is not one of depth, points, decals, combined"))
+        Self::ALL.into_iter().find(|t| t.as_str() == s).ok_or_else(|| format!("{s:?} is not one of depth, points, decals, combined"))
     }
 }
-
 
 /// How the points technique raises rims from the stored foot height
 /// (Wasmut 2019, sections 2.2.2 and 4.2.2). Both use the elevation distance

@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::layout;
-use crate::{shaders, TerrainMesh};
+use crate::{TerrainMesh, shaders};
 
 /// Uniforms of `terrain_bake.wgsl`.
 #[repr(C)]
@@ -66,10 +66,8 @@ impl TerrainBakePass {
             bind_group_layouts: &[Some(&bgl)],
             immediate_size: 0,
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("terrain bake"),
-            source: wgpu::ShaderSource::Wgsl(shaders::TERRAIN_BAKE.into()),
-        });
+        let module = device
+            .create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("terrain bake"), source: wgpu::ShaderSource::Wgsl(shaders::TERRAIN_BAKE.into()) });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("terrain bake"),
             layout: Some(&pipeline_layout),
@@ -101,11 +99,7 @@ impl TerrainBakePass {
             device,
             "terrain resolve",
             shaders::TERRAIN_RESOLVE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::depth_texture(1),
-                layout::storage(2, false),
-            ],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::depth_texture(1), layout::storage(2, false)],
         );
         Self { pipeline, bgl, resolve, resolve_bgl }
     }
@@ -171,14 +165,7 @@ impl TerrainBakePass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let resolve_params = ResolveParams {
-            width: grid.width,
-            height: grid.height,
-            low_m: params.low_m,
-            high_m: params.high_m,
-            floor_m: low,
-            _pad: [0; 3],
-        };
+        let resolve_params = ResolveParams { width: grid.width, height: grid.height, low_m: params.low_m, high_m: params.high_m, floor_m: low, _pad: [0; 3] };
         let resolve_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("terrain resolve params"),
             contents: bytemuck::bytes_of(&resolve_params),
@@ -188,11 +175,7 @@ impl TerrainBakePass {
             device,
             "terrain resolve",
             &self.resolve_bgl,
-            &[
-                resolve_uniform.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&depth_view),
-                out.as_entire_binding(),
-            ],
+            &[resolve_uniform.as_entire_binding(), wgpu::BindingResource::TextureView(&depth_view), out.as_entire_binding()],
         );
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("terrain resolve"), timestamp_writes: None });
         pass.set_pipeline(&self.resolve);

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -111,7 +111,15 @@ impl TileRestorePass {
         Self { pipeline, bgl, params, entries, upload, bind_group }
     }
 
-    fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, entries: &wgpu::Buffer, upload: &wgpu::Buffer, res: &DeformResources, tiles: &wgpu::Buffer) -> wgpu::BindGroup {
+    fn group(
+        device: &wgpu::Device,
+        bgl: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        entries: &wgpu::Buffer,
+        upload: &wgpu::Buffer,
+        res: &DeformResources,
+        tiles: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
         layout::bind_group(
             device,
             "tile restore",

@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Uniforms of `tile_weather.wgsl`.

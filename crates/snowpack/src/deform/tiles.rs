@@ -20,8 +20,8 @@
 //! loaded save) blocks, as a loading screen would.
 
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer};
@@ -409,8 +409,7 @@ impl TileStreaming {
             return;
         }
         let to_i32 = |o: [i64; 2]| [o[0] as i32, o[1] as i32];
-        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
-            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
+        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
         let base = ExchangeParams {
             origin: to_i32(origin),
             old_origin: to_i32(old.unwrap_or(origin)),
@@ -537,10 +536,21 @@ impl TileStreaming {
     /// Records this frame's weather on the resident tiles outside the window
     /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
     #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and this frame's weather")]
-    pub fn record_weather(&mut self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i64; 2], frame: &TileFrame, (refill_m, fall_m): (f32, f32), quanta: u32) {
+    pub fn record_weather(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        origin: [i64; 2],
+        frame: &TileFrame,
+        (refill_m, fall_m): (f32, f32),
+        quanta: u32,
+    ) {
         // Only tiles reaching outside the window: the update has the rest.
         let (side, res) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
-        let inside = |k: TileKey| k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + res && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + res;
+        let inside = |k: TileKey| {
+            k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + res && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + res
+        };
         self.weather_slots.clear();
         self.weather_slots.extend(self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32));
         self.weather.record(
@@ -604,16 +614,16 @@ impl TileStreaming {
             }
             let eviction = self.evictions.swap_remove(k);
             let used = (eviction.keys.len() * self.planes() * area * 4) as u64;
-            let words: Option<Vec<u32>> = if state == Some(MAPPED) {
-                eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok()
-            } else {
-                None
-            };
+            let words: Option<Vec<u32>> =
+                if state == Some(MAPPED) { eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok() } else { None };
             for key in &eviction.keys {
                 self.in_flight.remove(key);
             }
             let Some(words) = words else {
-                self.errors.push(StoreError::Mismatch { path: self.streamer.dir().to_path_buf(), why: format!("{} tiles could not be read back from the GPU and are lost", eviction.keys.len()) });
+                self.errors.push(StoreError::Mismatch {
+                    path: self.streamer.dir().to_path_buf(),
+                    why: format!("{} tiles could not be read back from the GPU and are lost", eviction.keys.len()),
+                });
                 continue;
             };
             eviction.buffer.unmap();
@@ -636,10 +646,19 @@ impl TileStreaming {
         let o = [origin[0] as i32, origin[1] as i32];
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
         let mut timer = GpuTimer::disabled();
-        let flags = ExchangeParams::STASH
-            | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
-            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
-        let params = ExchangeParams { origin: o, old_origin: o, resolution: res.resolution, side: self.grid.side, slots_per_side: self.grid.slots_per_side, flags, texel_m: res.texel_m, planes: self.planes() as u32, ..ExchangeParams::default() };
+        let flags =
+            ExchangeParams::STASH | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
+        let params = ExchangeParams {
+            origin: o,
+            old_origin: o,
+            resolution: res.resolution,
+            side: self.grid.side,
+            slots_per_side: self.grid.slots_per_side,
+            flags,
+            texel_m: res.texel_m,
+            planes: self.planes() as u32,
+            ..ExchangeParams::default()
+        };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
         ctx.queue.submit([encoder.finish()]);
         let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
@@ -674,7 +693,10 @@ impl TileStreaming {
             evicted: self.evicted,
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,
-            gpu_bytes: self.tiles.size() + self.owners_buffer.size() + self.restore.memory_bytes() + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
+            gpu_bytes: self.tiles.size()
+                + self.owners_buffer.size()
+                + self.restore.memory_bytes()
+                + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
             memory_only: self.streamer.is_memory_only(),
         }
     }

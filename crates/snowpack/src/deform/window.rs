@@ -8,8 +8,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::layout;
 use crate::gpu::GpuTimer;
+use crate::gpu::layout;
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -151,14 +151,7 @@ impl TerrainParams {
         use crate::TerrainSource as T;
         match terrain {
             T::Flat { height_m } => Self { kind: 0, base_m: *height_m, ..Self::default() },
-            T::Noise(n) => Self {
-                kind: 1,
-                seed: n.seed,
-                base_m: n.base_m,
-                amplitude_m: n.amplitude_m,
-                wavelength_m: n.wavelength_m,
-                ..Self::default()
-            },
+            T::Noise(n) => Self { kind: 1, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, wavelength_m: n.wavelength_m, ..Self::default() },
             T::Heightmap(h) => Self::heightmap(h),
             // The mesh is drawn into a grid on the GPU and sampled like a heightmap.
             T::Mesh(m) => Self::heightmap(&m.grid),
@@ -166,14 +159,7 @@ impl TerrainParams {
     }
 
     fn heightmap(h: &crate::HeightmapTerrain) -> Self {
-        Self {
-            kind: 2,
-            hm_width: h.width,
-            hm_height: h.height,
-            hm_center_m: h.center_m,
-            hm_size_m: h.size_m,
-            ..Self::default()
-        }
+        Self { kind: 2, hm_width: h.width, hm_height: h.height, hm_center_m: h.center_m, hm_size_m: h.size_m, ..Self::default() }
     }
 }
 
@@ -219,14 +205,7 @@ impl WindowPass {
     }
 
     /// Records the exposure of `rects` (nothing when empty).
-    pub fn record(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        mut params: WindowParams,
-        rects: &[TexelRect],
-    ) {
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, mut params: WindowParams, rects: &[TexelRect]) {
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;

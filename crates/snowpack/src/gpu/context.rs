@@ -206,10 +206,7 @@ impl GpuContext {
             let info = a.get_info();
             (type_rank(info.device_type), u32::from(info.backend != wgpu::Backend::Vulkan))
         });
-        let adapter = adapters
-            .into_iter()
-            .next()
-            .ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
+        let adapter = adapters.into_iter().next().ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
         Self::from_adapter(instance, adapter)
     }
 
@@ -320,10 +317,7 @@ impl GpuContext {
         if let Some(reason) = self.sink.lost.lock().ok().and_then(|s| s.clone()) {
             return Err(SnowError::DeviceLost(reason));
         }
-        let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu {
-            context,
-            message: "error list poisoned".to_owned(),
-        })?;
+        let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
         if errors.is_empty() {
             return Ok(());
         }
@@ -348,10 +342,7 @@ mod tests {
     #[test]
     fn backend_lists_parse_and_reject_nonsense() {
         assert_eq!(parse_backends("vulkan").ok(), Some(wgpu::Backends::VULKAN));
-        assert_eq!(
-            parse_backends("GL, vulkan").ok(),
-            Some(wgpu::Backends::GL | wgpu::Backends::VULKAN)
-        );
+        assert_eq!(parse_backends("GL, vulkan").ok(), Some(wgpu::Backends::GL | wgpu::Backends::VULKAN));
         assert!(matches!(parse_backends("voodoo"), Err(SnowError::UnknownBackend(_))));
         assert!(matches!(parse_backends(" , "), Err(SnowError::UnknownBackend(_))));
     }

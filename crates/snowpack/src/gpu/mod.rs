@@ -7,5 +7,5 @@ pub mod render;
 pub mod timing;
 
 pub use context::{AdapterRequest, AdapterSummary, GpuContext};
-pub use readback::{read_buffer, ReadbackRing};
+pub use readback::{ReadbackRing, read_buffer};
 pub use timing::{GpuTimer, PassTimings};

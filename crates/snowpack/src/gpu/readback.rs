@@ -11,9 +11,18 @@ const FAILED: u8 = 2;
 enum SlotState<M> {
     Free,
     /// Copy recorded into an encoder, not yet submitted.
-    Recorded { meta: M, seq: u64, len: u64 },
+    Recorded {
+        meta: M,
+        seq: u64,
+        len: u64,
+    },
     /// `map_async` requested; the flag turns MAPPED or FAILED in wgpu's callback.
-    Mapping { meta: M, seq: u64, len: u64, flag: Arc<AtomicU8> },
+    Mapping {
+        meta: M,
+        seq: u64,
+        len: u64,
+        flag: Arc<AtomicU8>,
+    },
 }
 
 struct Slot<M> {
@@ -125,10 +134,9 @@ impl<M> ReadbackRing<M> {
         for (k, slot) in self.slots.iter_mut().enumerate() {
             let SlotState::Mapping { seq, flag, .. } = &slot.state else { continue };
             match flag.load(Ordering::Acquire) {
-                MAPPED
-                    if best.is_none_or(|(_, s)| *seq > s) => {
-                        best = Some((k, *seq));
-                    }
+                MAPPED if best.is_none_or(|(_, s)| *seq > s) => {
+                    best = Some((k, *seq));
+                }
                 FAILED => slot.state = SlotState::Free,
                 _ => {}
             }
@@ -192,11 +200,7 @@ pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<V
     rx.recv_timeout(std::time::Duration::from_secs(5))
         .map_err(|_| SnowError::Readback("the map callback never ran".to_owned()))?
         .map_err(|e| SnowError::Readback(e.to_string()))?;
-    let bytes = staging
-        .slice(..)
-        .get_mapped_range()
-        .map_err(|e| SnowError::Readback(e.to_string()))?
-        .to_vec();
+    let bytes = staging.slice(..).get_mapped_range().map_err(|e| SnowError::Readback(e.to_string()))?.to_vec();
     staging.unmap();
     Ok(bytes)
 }

@@ -73,16 +73,9 @@ pub struct PipelineSpec<'a> {
 /// Builds a render pipeline from `spec`.
 #[must_use]
 pub fn render_pipeline(device: &wgpu::Device, spec: &PipelineSpec<'_>) -> wgpu::RenderPipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(spec.label),
-        source: wgpu::ShaderSource::Wgsl(spec.source.into()),
-    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(spec.label), source: wgpu::ShaderSource::Wgsl(spec.source.into()) });
     let layouts: Vec<Option<&wgpu::BindGroupLayout>> = spec.layouts.iter().map(|l| Some(*l)).collect();
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(spec.label),
-        bind_group_layouts: &layouts,
-        immediate_size: 0,
-    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some(spec.label), bind_group_layouts: &layouts, immediate_size: 0 });
     let targets = spec.fragment.map(|(_, format)| [Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })]);
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(spec.label),

@@ -57,11 +57,7 @@ impl GpuTimer {
         let bytes = u64::from(count) * 8;
         let (query_set, resolve, ring) = if enabled {
             (
-                Some(device.create_query_set(&wgpu::QuerySetDescriptor {
-                    label: Some("pass timestamps"),
-                    ty: wgpu::QueryType::Timestamp,
-                    count,
-                })),
+                Some(device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("pass timestamps"), ty: wgpu::QueryType::Timestamp, count })),
                 Some(device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("timestamp resolve"),
                     size: bytes,
@@ -73,15 +69,7 @@ impl GpuTimer {
         } else {
             (None, None, None)
         };
-        Self {
-            query_set,
-            resolve,
-            ring,
-            labels: Vec::new(),
-            order: Vec::new(),
-            period_ns: f64::from(queue.get_timestamp_period()),
-            samples: BTreeMap::new(),
-        }
+        Self { query_set, resolve, ring, labels: Vec::new(), order: Vec::new(), period_ns: f64::from(queue.get_timestamp_period()), samples: BTreeMap::new() }
     }
 
     /// A timer that records nothing (for one-off work outside the frame loop).
@@ -119,22 +107,14 @@ impl GpuTimer {
     #[must_use]
     pub fn compute_writes(&self, slot: Option<u32>) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
         let (query_set, slot) = (self.query_set.as_ref()?, slot?);
-        Some(wgpu::ComputePassTimestampWrites {
-            query_set,
-            beginning_of_pass_write_index: Some(slot * 2),
-            end_of_pass_write_index: Some(slot * 2 + 1),
-        })
+        Some(wgpu::ComputePassTimestampWrites { query_set, beginning_of_pass_write_index: Some(slot * 2), end_of_pass_write_index: Some(slot * 2 + 1) })
     }
 
     /// Timestamp writes for a render pass reserved with [`Self::reserve`].
     #[must_use]
     pub fn render_writes(&self, slot: Option<u32>) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
         let (query_set, slot) = (self.query_set.as_ref()?, slot?);
-        Some(wgpu::RenderPassTimestampWrites {
-            query_set,
-            beginning_of_pass_write_index: Some(slot * 2),
-            end_of_pass_write_index: Some(slot * 2 + 1),
-        })
+        Some(wgpu::RenderPassTimestampWrites { query_set, beginning_of_pass_write_index: Some(slot * 2), end_of_pass_write_index: Some(slot * 2 + 1) })
     }
 
     /// Resolves this frame's timestamps and queues their readback.

@@ -60,10 +60,7 @@ pub fn encode(tile: &TileData) -> Vec<u8> {
     let side = tile.side as usize;
     if !tile.snow_xor_rest.is_empty() {
         flags |= PLANE_SNOW;
-        shuffle_into(
-            &delta(tile.snow_xor_rest.iter().copied(), side),
-            &mut raw,
-        );
+        shuffle_into(&delta(tile.snow_xor_rest.iter().copied(), side), &mut raw);
     }
     if !tile.stamps.is_empty() {
         flags |= PLANE_STAMPS;
@@ -71,10 +68,7 @@ pub fn encode(tile: &TileData) -> Vec<u8> {
     }
     if !tile.fallen.is_empty() {
         flags |= PLANE_FALLEN;
-        shuffle_into(
-            &delta(tile.fallen.iter().map(|v| v.to_bits()), side),
-            &mut raw,
-        );
+        shuffle_into(&delta(tile.fallen.iter().map(|v| v.to_bits()), side), &mut raw);
     }
     let payload = miniz_oxide::deflate::compress_to_vec(&raw, DEFLATE_LEVEL);
 
@@ -103,113 +97,63 @@ pub fn encode(tile: &TileData) -> Vec<u8> {
 /// [`StoreError::Version`] for another format version, [`StoreError::Corrupt`]
 /// for anything else that is wrong.
 pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
-    let corrupt = |why: String| StoreError::Corrupt {
-        path: PathBuf::new(),
-        why,
-    };
+    let corrupt = |why: String| StoreError::Corrupt { path: PathBuf::new(), why };
     if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
         return Err(corrupt("not a snow tile (no SNOWTILE magic)".to_owned()));
     }
     if bytes.len() < HEADER_BYTES {
-        return Err(corrupt(format!(
-            "truncated: {} bytes, the header alone is {HEADER_BYTES}",
-            bytes.len()
-        )));
+        return Err(corrupt(format!("truncated: {} bytes, the header alone is {HEADER_BYTES}", bytes.len())));
     }
     let mut header = Reader::new(&bytes[MAGIC.len()..HEADER_BYTES]);
     let version = header.u32();
     if version != FORMAT_VERSION {
-        return Err(StoreError::Version {
-            path: PathBuf::new(),
-            found: version,
-            expected: FORMAT_VERSION,
-        });
+        return Err(StoreError::Version { path: PathBuf::new(), found: version, expected: FORMAT_VERSION });
     }
     let side = header.u32();
-    let key = TileKey {
-        col: header.i64(),
-        row: header.i64(),
-    };
-    let clock = SnowClock {
-        time_s: header.f64(),
-        refill_m: header.f64(),
-        fallen_m: header.f64(),
-        stamp_quanta: header.u64(),
-    };
+    let key = TileKey { col: header.i64(), row: header.i64() };
+    let clock = SnowClock { time_s: header.f64(), refill_m: header.f64(), fallen_m: header.f64(), stamp_quanta: header.u64() };
     let flags = header.u32();
     let raw_len = header.u32() as usize;
     let packed_len = header.u32() as usize;
     let crc = header.u32();
 
     if side == 0 || side > MAX_SIDE {
-        return Err(corrupt(format!(
-            "tile side {side} is outside 1..={MAX_SIDE}"
-        )));
+        return Err(corrupt(format!("tile side {side} is outside 1..={MAX_SIDE}")));
     }
     let payload = &bytes[HEADER_BYTES..];
     if payload.len() < packed_len {
-        return Err(corrupt(format!(
-            "truncated: the payload has {} of {packed_len} bytes",
-            payload.len()
-        )));
+        return Err(corrupt(format!("truncated: the payload has {} of {packed_len} bytes", payload.len())));
     }
     if payload.len() > packed_len {
-        return Err(corrupt(format!(
-            "length mismatch: {} bytes follow the header, it announces {packed_len}",
-            payload.len()
-        )));
+        return Err(corrupt(format!("length mismatch: {} bytes follow the header, it announces {packed_len}", payload.len())));
     }
     let found = checksum(&bytes[..CRC_AT], payload);
     if found != crc {
-        return Err(corrupt(format!(
-            "bad CRC32: stored {crc:#010x}, computed {found:#010x}"
-        )));
+        return Err(corrupt(format!("bad CRC32: stored {crc:#010x}, computed {found:#010x}")));
     }
     // Past the CRC the header is what the writer wrote; these checks catch a
     // writer with a bug rather than a damaged disk.
-    if flags & !(PLANE_SNOW | PLANE_STAMPS | PLANE_FALLEN) != 0
-        || flags & (PLANE_SNOW | PLANE_STAMPS) != PLANE_SNOW | PLANE_STAMPS
-    {
-        return Err(corrupt(format!(
-            "plane flags {flags:#x}: snow and stamps are required, fallen optional, nothing else"
-        )));
+    if flags & !(PLANE_SNOW | PLANE_STAMPS | PLANE_FALLEN) != 0 || flags & (PLANE_SNOW | PLANE_STAMPS) != PLANE_SNOW | PLANE_STAMPS {
+        return Err(corrupt(format!("plane flags {flags:#x}: snow and stamps are required, fallen optional, nothing else")));
     }
     let texels = side as usize * side as usize;
     let expected = 4 * texels * flags.count_ones() as usize;
     if raw_len != expected {
-        return Err(corrupt(format!(
-            "length mismatch: {raw_len} payload bytes announced, {side}² tile with flags {flags:#x} has {expected}"
-        )));
+        return Err(corrupt(format!("length mismatch: {raw_len} payload bytes announced, {side}² tile with flags {flags:#x} has {expected}")));
     }
     // The limit bounds the allocation whatever the compressed stream claims.
-    let raw = miniz_oxide::inflate::decompress_to_vec_with_limit(payload, expected)
-        .map_err(|e| corrupt(format!("the payload does not inflate: {e}")))?;
+    let raw = miniz_oxide::inflate::decompress_to_vec_with_limit(payload, expected).map_err(|e| corrupt(format!("the payload does not inflate: {e}")))?;
     if raw.len() != expected {
-        return Err(corrupt(format!(
-            "length mismatch: the payload inflates to {} bytes, expected {expected}",
-            raw.len()
-        )));
+        return Err(corrupt(format!("length mismatch: the payload inflates to {} bytes, expected {expected}", raw.len())));
     }
 
     let side_us = side as usize;
-    let mut planes = raw
-        .chunks_exact(4 * texels)
-        .map(|plane| undelta(&unshuffle(plane), side_us));
+    let mut planes = raw.chunks_exact(4 * texels).map(|plane| undelta(&unshuffle(plane), side_us));
     // The flags check above guarantees the first two planes.
     let snow_xor_rest = planes.next().unwrap_or_default();
     let stamps = planes.next().unwrap_or_default();
-    let fallen = planes
-        .next()
-        .map(|p| p.into_iter().map(f32::from_bits).collect())
-        .unwrap_or_default();
-    Ok(TileData {
-        key,
-        side,
-        clock,
-        snow_xor_rest,
-        stamps,
-        fallen,
-    })
+    let fallen = planes.next().map(|p| p.into_iter().map(f32::from_bits).collect()).unwrap_or_default();
+    Ok(TileData { key, side, clock, snow_xor_rest, stamps, fallen })
 }
 
 /// CRC32 of `head` followed by `payload`.
@@ -266,9 +210,7 @@ fn shuffle_into(residuals: &[u32], out: &mut Vec<u8>) {
 /// Inverse of [`shuffle_into`] for one plane.
 fn unshuffle(bytes: &[u8]) -> Vec<u32> {
     let n = bytes.len() / 4;
-    (0..n)
-        .map(|k| u32::from_le_bytes([bytes[k], bytes[n + k], bytes[2 * n + k], bytes[3 * n + k]]))
-        .collect()
+    (0..n).map(|k| u32::from_le_bytes([bytes[k], bytes[n + k], bytes[2 * n + k], bytes[3 * n + k]])).collect()
 }
 
 /// Little-endian fields from a slice known to be long enough.
@@ -325,19 +267,10 @@ mod tests {
         TileData {
             key: TileKey::new(-3, 7),
             side,
-            clock: SnowClock {
-                time_s: 12.5,
-                refill_m: 0.25,
-                fallen_m: 0.125,
-                stamp_quanta: 99,
-            },
+            clock: SnowClock { time_s: 12.5, refill_m: 0.25, fallen_m: 0.125, stamp_quanta: 99 },
             snow_xor_rest: plane.iter().map(|v| v.to_bits()).collect(),
             stamps: vec![0; n * n],
-            fallen: if fallen {
-                vec![0.125; n * n]
-            } else {
-                Vec::new()
-            },
+            fallen: if fallen { vec![0.125; n * n] } else { Vec::new() },
         }
     }
 
@@ -346,12 +279,7 @@ mod tests {
         (
             t.key,
             t.side,
-            [
-                t.clock.time_s.to_bits(),
-                t.clock.refill_m.to_bits(),
-                t.clock.fallen_m.to_bits(),
-                t.clock.stamp_quanta,
-            ],
+            [t.clock.time_s.to_bits(), t.clock.refill_m.to_bits(), t.clock.fallen_m.to_bits(), t.clock.stamp_quanta],
             t.snow_xor_rest.clone(),
             t.stamps.clone(),
             t.fallen.iter().map(|v| v.to_bits()).collect(),
@@ -398,33 +326,17 @@ mod tests {
                 },
                 snow_xor_rest: (0..n).map(|_| random_f32(&mut rng).to_bits()).collect(),
                 stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
-                fallen: if case % 2 == 0 {
-                    (0..n).map(|_| random_f32(&mut rng)).collect()
-                } else {
-                    Vec::new()
-                },
+                fallen: if case % 2 == 0 { (0..n).map(|_| random_f32(&mut rng)).collect() } else { Vec::new() },
             };
             let bytes = encode(&t);
             let back = decode(&bytes).unwrap_or_else(|e| panic!("seed {seed} case {case}: {e}"));
-            assert!(
-                bits(&back) == bits(&t),
-                "seed {seed} case {case}: round trip changed the tile"
-            );
+            assert!(bits(&back) == bits(&t), "seed {seed} case {case}: round trip changed the tile");
         }
     }
 
     #[test]
     fn special_values_round_trip() {
-        let specials = [
-            0.0,
-            -0.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            f32::MIN_POSITIVE / 2.0,
-            f32::MAX,
-            -f32::MAX,
-        ];
+        let specials = [0.0, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, f32::MIN_POSITIVE / 2.0, f32::MAX, -f32::MAX];
         let t = tile(4, |i, j| specials[(i * 4 + j) % specials.len()], true);
         assert_eq!(bits(&decode(&encode(&t)).expect("decode")), bits(&t));
     }
@@ -456,12 +368,7 @@ mod tests {
             }
         }
         let mut sizes = Vec::new();
-        for (name, t) in [
-            ("constant", &constant),
-            ("linear slope", &plane),
-            ("rolling terrain", &rolling),
-            ("trail", &trail),
-        ] {
+        for (name, t) in [("constant", &constant), ("linear slope", &plane), ("rolling terrain", &rolling), ("trail", &trail)] {
             let bytes = encode(t);
             assert_eq!(bits(&decode(&bytes).expect("decode")), bits(t), "{name}");
             eprintln!(
@@ -475,10 +382,7 @@ mod tests {
             for _ in 0..10 {
                 let _ = decode(&encode(t));
             }
-            eprintln!(
-                "  encode + decode: {:.2} ms",
-                start.elapsed().as_secs_f64() * 100.0
-            );
+            eprintln!("  encode + decode: {:.2} ms", start.elapsed().as_secs_f64() * 100.0);
             sizes.push(bytes.len());
         }
         assert!(sizes[0] < 300, "constant tile {} bytes", sizes[0]);
@@ -493,7 +397,13 @@ mod tests {
             for j in 0..64 {
                 let d = (j as f32 - 20.0 - 0.3 * i as f32).abs() * 0.0625;
                 let rest = terrain(i, j);
-                let snow = if d < 0.3 { rest - 0.3 * (1.0 - d / 0.3) } else if d < 0.45 { rest + 0.05 } else { rest };
+                let snow = if d < 0.3 {
+                    rest - 0.3 * (1.0 - d / 0.3)
+                } else if d < 0.45 {
+                    rest + 0.05
+                } else {
+                    rest
+                };
                 real.snow_xor_rest[i * 64 + j] = snow.to_bits() ^ rest.to_bits();
             }
         }
@@ -518,11 +428,7 @@ mod tests {
         version[8..12].copy_from_slice(&7u32.to_le_bytes());
         reseal(&mut version);
         match decode(&version) {
-            Err(StoreError::Version {
-                found: 7,
-                expected: FORMAT_VERSION,
-                ..
-            }) => {}
+            Err(StoreError::Version { found: 7, expected: FORMAT_VERSION, .. }) => {}
             other => panic!("expected Version, got {other:?}"),
         }
 

@@ -46,10 +46,7 @@ impl TileKey {
     #[must_use]
     pub fn containing(texel_col: i64, texel_row: i64, side: u32) -> Self {
         let side = i64::from(side.max(1));
-        Self {
-            col: texel_col.div_euclid(side),
-            row: texel_row.div_euclid(side),
-        }
+        Self { col: texel_col.div_euclid(side), row: texel_row.div_euclid(side) }
     }
 
     /// Global texel `[column, row]` of the tile's first texel.
@@ -109,9 +106,7 @@ impl TileData {
     /// out, so budgets are simple multiples of a tile.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.snow_xor_rest.as_slice())
-            + std::mem::size_of_val(self.stamps.as_slice())
-            + std::mem::size_of_val(self.fallen.as_slice())
+        std::mem::size_of_val(self.snow_xor_rest.as_slice()) + std::mem::size_of_val(self.stamps.as_slice()) + std::mem::size_of_val(self.fallen.as_slice())
     }
 
     /// Checks that `side` is in `1..=`[`MAX_SIDE`] and the planes hold
@@ -121,33 +116,15 @@ impl TileData {
         let why = if self.side == 0 || self.side > MAX_SIDE {
             format!("tile side {} is outside 1..={MAX_SIDE}", self.side)
         } else if self.snow_xor_rest.len() != self.texels() {
-            format!(
-                "snow holds {} texels, a {}² tile needs {}",
-                self.snow_xor_rest.len(),
-                self.side,
-                self.texels()
-            )
+            format!("snow holds {} texels, a {}² tile needs {}", self.snow_xor_rest.len(), self.side, self.texels())
         } else if self.stamps.len() != self.texels() {
-            format!(
-                "stamps holds {} texels, a {}² tile needs {}",
-                self.stamps.len(),
-                self.side,
-                self.texels()
-            )
+            format!("stamps holds {} texels, a {}² tile needs {}", self.stamps.len(), self.side, self.texels())
         } else if !self.fallen.is_empty() && self.fallen.len() != self.texels() {
-            format!(
-                "fallen holds {} texels, a {}² tile needs {} (or none)",
-                self.fallen.len(),
-                self.side,
-                self.texels()
-            )
+            format!("fallen holds {} texels, a {}² tile needs {} (or none)", self.fallen.len(), self.side, self.texels())
         } else {
             return Ok(());
         };
-        Err(StoreError::Mismatch {
-            path: PathBuf::new(),
-            why,
-        })
+        Err(StoreError::Mismatch { path: PathBuf::new(), why })
     }
 }
 
@@ -176,10 +153,7 @@ pub enum StoreError {
         why: String,
     },
     /// The file was written in a format this build does not read.
-    #[error(
-        "{} is format version {found}; this build reads version {expected}",
-        shown(path)
-    )]
+    #[error("{} is format version {found}; this build reads version {expected}", shown(path))]
     Version {
         /// The file.
         path: PathBuf,
@@ -210,10 +184,7 @@ impl StoreError {
     #[must_use]
     pub fn path(&self) -> Option<&Path> {
         match self {
-            Self::Io { path, .. }
-            | Self::Corrupt { path, .. }
-            | Self::Version { path, .. }
-            | Self::Mismatch { path, .. } => {
+            Self::Io { path, .. } | Self::Corrupt { path, .. } | Self::Version { path, .. } | Self::Mismatch { path, .. } => {
                 (!path.as_os_str().is_empty()).then_some(path.as_path())
             }
             Self::WorkerGone | Self::NoDisk => None,
@@ -223,10 +194,7 @@ impl StoreError {
     /// The same error naming `file` where it named none (errors from
     /// [`decode`] and [`TileData::validate`] see no file).
     pub(crate) fn at(mut self, file: &Path) -> Self {
-        if let Self::Io { path, .. }
-        | Self::Corrupt { path, .. }
-        | Self::Version { path, .. }
-        | Self::Mismatch { path, .. } = &mut self
+        if let Self::Io { path, .. } | Self::Corrupt { path, .. } | Self::Version { path, .. } | Self::Mismatch { path, .. } = &mut self
             && path.as_os_str().is_empty()
         {
             file.clone_into(path);
@@ -237,11 +205,7 @@ impl StoreError {
 
 /// How an error shows its path: errors from bytes alone have none.
 fn shown(path: &Path) -> String {
-    if path.as_os_str().is_empty() {
-        "the tile data".to_owned()
-    } else {
-        path.display().to_string()
-    }
+    if path.as_os_str().is_empty() { "the tile data".to_owned() } else { path.display().to_string() }
 }
 
 /// Temporary directories for this module's unit tests, removed on drop.
@@ -256,14 +220,9 @@ pub(crate) mod test_dir {
     impl TestDir {
         pub(crate) fn new(name: &str) -> Self {
             static COUNTER: AtomicU64 = AtomicU64::new(0);
-            let nanos = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0, |d| d.subsec_nanos());
+            let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let dir = std::env::temp_dir().join(format!(
-                "snowpack-{name}-{}-{nanos}-{n}",
-                std::process::id()
-            ));
+            let dir = std::env::temp_dir().join(format!("snowpack-{name}-{}-{nanos}-{n}", std::process::id()));
             std::fs::create_dir_all(&dir).expect("create a test directory");
             Self(dir)
         }

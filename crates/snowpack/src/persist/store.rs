@@ -92,34 +92,21 @@ impl TileStore {
     pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
         let meta_path = dir.join(META_FILE);
         if side == 0 || side > MAX_SIDE {
-            return Err(StoreError::Mismatch {
-                path: meta_path,
-                why: format!("tile side {side} is outside 1..={MAX_SIDE}"),
-            });
+            return Err(StoreError::Mismatch { path: meta_path, why: format!("tile side {side} is outside 1..={MAX_SIDE}") });
         }
         fs::create_dir_all(dir).map_err(io_error(dir, "create the store directory"))?;
         let lock = lock(dir)?;
         match fs::read(&meta_path) {
             Ok(bytes) => check_meta(&meta_path, &bytes, side)?,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                atomic_write(&meta_path, &meta_bytes(side))?
-            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => atomic_write(&meta_path, &meta_bytes(side))?,
             Err(e) => {
-                return Err(StoreError::Io {
-                    path: meta_path,
-                    op: "read",
-                    source: e,
-                });
+                return Err(StoreError::Io { path: meta_path, op: "read", source: e });
             }
         }
         let tiles = dir.join(TILES_DIR);
         match fs::create_dir(&tiles) {
             Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
-                return Err(StoreError::Io {
-                    path: tiles,
-                    op: "create the tiles directory",
-                    source: e,
-                });
+                return Err(StoreError::Io { path: tiles, op: "create the tiles directory", source: e });
             }
             _ => {}
         }
@@ -134,10 +121,7 @@ impl TileStore {
             }
             remove_temp_files(&path);
             let Ok(files) = fs::read_dir(&path) else {
-                tracing::warn!(
-                    "tile store: cannot list {}; its tiles are not indexed",
-                    path.display()
-                );
+                tracing::warn!("tile store: cannot list {}; its tiles are not indexed", path.display());
                 continue;
             };
             for file in files.flatten() {
@@ -150,11 +134,7 @@ impl TileStore {
                 }
                 match file.metadata() {
                     Ok(meta) if meta.is_file() => {
-                        found.push((
-                            meta.modified().unwrap_or(SystemTime::UNIX_EPOCH),
-                            key,
-                            meta.len(),
-                        ));
+                        found.push((meta.modified().unwrap_or(SystemTime::UNIX_EPOCH), key, meta.len()));
                     }
                     Ok(_) => {}
                     Err(e) => {
@@ -206,21 +186,14 @@ impl TileStore {
                 return Ok(None);
             }
             Err(e) => {
-                return Err(StoreError::Io {
-                    path,
-                    op: "read",
-                    source: e,
-                });
+                return Err(StoreError::Io { path, op: "read", source: e });
             }
         };
         let tile = decode(&bytes).and_then(|tile| {
             if tile.key != key || tile.side != self.side {
                 return Err(StoreError::Mismatch {
                     path: PathBuf::new(),
-                    why: format!(
-                        "holds tile {:?} of side {}, expected {key:?} of side {}",
-                        tile.key, tile.side, self.side
-                    ),
+                    why: format!("holds tile {:?} of side {}, expected {key:?} of side {}", tile.key, tile.side, self.side),
                 });
             }
             Ok(tile)
@@ -244,13 +217,7 @@ impl TileStore {
     pub fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
         let path = self.tile_path(tile.key);
         if tile.side != self.side {
-            return Err(StoreError::Mismatch {
-                path,
-                why: format!(
-                    "the tile is {}², the store holds {}² tiles",
-                    tile.side, self.side
-                ),
-            });
+            return Err(StoreError::Mismatch { path, why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) });
         }
         tile.validate().map_err(|e| e.at(&path))?;
         let bytes = encode(tile);
@@ -259,11 +226,7 @@ impl TileStore {
             // that is an error to report, not a directory to recreate.
             match fs::create_dir(region) {
                 Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
-                    return Err(StoreError::Io {
-                        path: region.to_owned(),
-                        op: "create the region directory",
-                        source: e,
-                    });
+                    return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
                 }
                 _ => {}
             }
@@ -298,29 +261,16 @@ impl TileStore {
             Ok(framed) => framed,
             Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
             Err(e) => {
-                return Err(StoreError::Io {
-                    path,
-                    op: "read",
-                    source: e,
-                });
+                return Err(StoreError::Io { path, op: "read", source: e });
             }
         };
-        let corrupt = |why: &str| StoreError::Corrupt {
-            path: path.clone(),
-            why: why.to_owned(),
-        };
+        let corrupt = |why: &str| StoreError::Corrupt { path: path.clone(), why: why.to_owned() };
         if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
-            return Err(corrupt(
-                "not a snowpack state file (no SNOWSTAT magic or too short)",
-            ));
+            return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
         }
         let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
         if version != FORMAT_VERSION {
-            return Err(StoreError::Version {
-                path,
-                found: version,
-                expected: FORMAT_VERSION,
-            });
+            return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
         }
         let mut len = [0; 8];
         len.copy_from_slice(&framed[12..20]);
@@ -387,19 +337,13 @@ impl TileStore {
     }
 
     fn state_path(&self, name: &str) -> Result<PathBuf, StoreError> {
-        let ok = !name.is_empty()
-            && name.len() <= MAX_STATE_NAME
-            && name
-                .bytes()
-                .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+        let ok = !name.is_empty() && name.len() <= MAX_STATE_NAME && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
         if ok {
             Ok(self.dir.join(format!("{name}.state")))
         } else {
             Err(StoreError::Mismatch {
                 path: self.dir.clone(),
-                why: format!(
-                    "{name:?} is not a state name (1 to {MAX_STATE_NAME} ASCII letters, digits, '-', '_')"
-                ),
+                why: format!("{name:?} is not a state name (1 to {MAX_STATE_NAME} ASCII letters, digits, '-', '_')"),
             })
         }
     }
@@ -407,13 +351,7 @@ impl TileStore {
     /// Indexes a tile as just touched.
     fn insert(&mut self, key: TileKey, bytes: u64) {
         self.clock += 1;
-        self.index.insert(
-            key,
-            Entry {
-                bytes,
-                touched: self.clock,
-            },
-        );
+        self.index.insert(key, Entry { bytes, touched: self.clock });
         self.by_age.insert((self.clock, key));
         self.total_bytes += bytes;
     }
@@ -437,10 +375,7 @@ impl TileStore {
         let mut aside = path.as_os_str().to_owned();
         aside.push(CORRUPT_SUFFIX);
         if let Err(e) = fs::rename(path, &aside) {
-            tracing::warn!(
-                "tile store: cannot move the corrupt tile {} aside: {e}",
-                path.display()
-            );
+            tracing::warn!("tile store: cannot move the corrupt tile {} aside: {e}", path.display());
         }
     }
 
@@ -456,11 +391,7 @@ impl TileStore {
             let path = self.tile_path(key);
             match fs::remove_file(&path) {
                 Err(e) if e.kind() != io::ErrorKind::NotFound => {
-                    return Err(StoreError::Io {
-                        path,
-                        op: "delete (evicting to the disk budget)",
-                        source: e,
-                    });
+                    return Err(StoreError::Io { path, op: "delete (evicting to the disk budget)", source: e });
                 }
                 _ => {}
             }
@@ -478,9 +409,7 @@ impl TileStore {
 /// Where tile `key` of the store in `dir` lives. Arithmetic shifts keep
 /// negative coordinates in their own regions (-1 >> 5 is -1).
 pub(crate) fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
-    dir.join(TILES_DIR)
-        .join(region_name(key))
-        .join(format!("{}_{}.tile", key.col, key.row))
+    dir.join(TILES_DIR).join(region_name(key)).join(format!("{}_{}.tile", key.col, key.row))
 }
 
 fn region_name(key: TileKey) -> String {
@@ -490,10 +419,7 @@ fn region_name(key: TileKey) -> String {
 /// `{col}_{row}.tile` back to its key.
 fn parse_tile_name(name: &str) -> Option<TileKey> {
     let (col, row) = name.strip_suffix(".tile")?.split_once('_')?;
-    Some(TileKey {
-        col: col.parse().ok()?,
-        row: row.parse().ok()?,
-    })
+    Some(TileKey { col: col.parse().ok()?, row: row.parse().ok()? })
 }
 
 fn meta_bytes(side: u32) -> Vec<u8> {
@@ -507,33 +433,19 @@ fn meta_bytes(side: u32) -> Vec<u8> {
 }
 
 fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
-    let field =
-        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let field = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     if bytes.len() != 20 || &bytes[..8] != META_MAGIC {
-        return Err(StoreError::Corrupt {
-            path: path.to_owned(),
-            why: "not a snowpack store description".to_owned(),
-        });
+        return Err(StoreError::Corrupt { path: path.to_owned(), why: "not a snowpack store description".to_owned() });
     }
     if crc32fast::hash(&bytes[..16]) != field(16) {
-        return Err(StoreError::Corrupt {
-            path: path.to_owned(),
-            why: "bad CRC32".to_owned(),
-        });
+        return Err(StoreError::Corrupt { path: path.to_owned(), why: "bad CRC32".to_owned() });
     }
     let (version, found_side) = (field(8), field(12));
     if version != FORMAT_VERSION {
-        return Err(StoreError::Version {
-            path: path.to_owned(),
-            found: version,
-            expected: FORMAT_VERSION,
-        });
+        return Err(StoreError::Version { path: path.to_owned(), found: version, expected: FORMAT_VERSION });
     }
     if found_side != side {
-        return Err(StoreError::Mismatch {
-            path: path.to_owned(),
-            why: format!("the store holds {found_side}² tiles, {side}² were asked for"),
-        });
+        return Err(StoreError::Mismatch { path: path.to_owned(), why: format!("the store holds {found_side}² tiles, {side}² were asked for") });
     }
     Ok(())
 }
@@ -543,12 +455,7 @@ fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
 /// read-only store) goes on unlocked.
 fn lock(dir: &Path) -> Result<Option<File>, StoreError> {
     let path = dir.join(LOCK_FILE);
-    let file = match OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&path)
-    {
+    let file = match OpenOptions::new().create(true).truncate(false).write(true).open(&path) {
         Ok(file) => file,
         Err(e) => {
             tracing::debug!("tile store: no lock file {}: {e}", path.display());
@@ -566,11 +473,7 @@ fn lock(dir: &Path) -> Result<Option<File>, StoreError> {
                 std::thread::sleep(Duration::from_millis(5));
             }
             Err(fs::TryLockError::WouldBlock) => {
-                return Err(StoreError::Io {
-                    path,
-                    op: "lock (another TileStore has the store open)",
-                    source: io::ErrorKind::WouldBlock.into(),
-                });
+                return Err(StoreError::Io { path, op: "lock (another TileStore has the store open)", source: io::ErrorKind::WouldBlock.into() });
             }
             Err(fs::TryLockError::Error(e)) => {
                 tracing::debug!("tile store: cannot lock {}: {e}", path.display());
@@ -590,10 +493,7 @@ fn remove_temp_files(dir: &Path) {
             let path = entry.path();
             match fs::remove_file(&path) {
                 Ok(()) => tracing::debug!("tile store: removed the leftover {}", path.display()),
-                Err(e) => tracing::warn!(
-                    "tile store: cannot remove the leftover {}: {e}",
-                    path.display()
-                ),
+                Err(e) => tracing::warn!("tile store: cannot remove the leftover {}: {e}", path.display()),
             }
         }
     }
@@ -612,19 +512,10 @@ fn io_error(path: &Path, op: &'static str) -> impl FnOnce(io::Error) -> StoreErr
 fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let mut temp = path.as_os_str().to_owned();
-    temp.push(format!(
-        ".{}-{}{TEMP_SUFFIX}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
+    temp.push(format!(".{}-{}{TEMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
     let temp = PathBuf::from(temp);
     let written = (|| {
-        let mut file = OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&temp)
-            .map_err(io_error(&temp, "create"))?;
+        let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&temp).map_err(io_error(&temp, "create"))?;
         file.write_all(bytes).map_err(io_error(&temp, "write"))?;
         file.sync_all().map_err(io_error(&temp, "sync"))?;
         drop(file);
@@ -647,10 +538,7 @@ fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
 fn sync_dir(dir: &Path) {
     #[cfg(unix)]
     if let Err(e) = File::open(dir).and_then(|d| d.sync_all()) {
-        tracing::debug!(
-            "tile store: cannot sync the directory {}: {e}",
-            dir.display()
-        );
+        tracing::debug!("tile store: cannot sync the directory {}: {e}", dir.display());
     }
     #[cfg(not(unix))]
     let _ = dir;
@@ -670,10 +558,7 @@ mod tests {
         TileData {
             key: TileKey::new(col, row),
             side: SIDE,
-            clock: SnowClock {
-                time_s: f64::from(v),
-                ..SnowClock::default()
-            },
+            clock: SnowClock { time_s: f64::from(v), ..SnowClock::default() },
             // A little variation so sizes are realistic rather than minimal.
             snow_xor_rest: (0..n).map(|k| (v + (k % 7) as f32 * 0.001).to_bits()).collect(),
             stamps: vec![v as u32; n],
@@ -682,14 +567,7 @@ mod tests {
     }
 
     fn open(dir: &Path, budget: u64) -> TileStore {
-        TileStore::open(
-            dir,
-            SIDE,
-            StoreConfig {
-                disk_budget_bytes: budget,
-            },
-        )
-        .expect("open the store")
+        TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: budget }).expect("open the store")
     }
 
     #[test]
@@ -704,9 +582,7 @@ mod tests {
         store.write(&b).expect("overwrite");
         assert_eq!(store.read(a.key).expect("read"), Some(b));
         assert_eq!(store.disk_tiles(), 1);
-        let on_disk = fs::metadata(store.tile_path(a.key))
-            .expect("the tile file")
-            .len();
+        let on_disk = fs::metadata(store.tile_path(a.key)).expect("the tile file").len();
         assert_eq!(store.disk_bytes(), on_disk);
         assert_eq!(store.tile_bytes(a.key), Some(on_disk));
         // A tile of another side is refused, naming the file.
@@ -718,10 +594,7 @@ mod tests {
         }
         let mut short = tile(1, 0, 1.0);
         short.stamps.pop();
-        assert!(matches!(
-            store.write(&short),
-            Err(StoreError::Mismatch { .. })
-        ));
+        assert!(matches!(store.write(&short), Err(StoreError::Mismatch { .. })));
         assert_eq!(store.disk_tiles(), 1);
     }
 
@@ -729,35 +602,15 @@ mod tests {
     fn negative_keys_have_their_own_regions() {
         let dir = TestDir::new("store-negative");
         let mut store = open(dir.path(), 0);
-        let keys = [
-            (-1, -1),
-            (-32, 0),
-            (-33, 5),
-            (31, -32),
-            (32, 31),
-            (0, 0),
-            (i64::MIN, i64::MAX),
-        ];
+        let keys = [(-1, -1), (-32, 0), (-33, 5), (31, -32), (32, 31), (0, 0), (i64::MIN, i64::MAX)];
         for (k, &(col, row)) in keys.iter().enumerate() {
             store.write(&tile(col, row, k as f32)).expect("write");
         }
-        assert_eq!(
-            store.tile_path(TileKey::new(-1, -1)),
-            dir.path().join("tiles/r-1_-1/-1_-1.tile")
-        );
-        assert_eq!(
-            store.tile_path(TileKey::new(-33, 5)),
-            dir.path().join("tiles/r-2_0/-33_5.tile")
-        );
-        assert_eq!(
-            store.tile_path(TileKey::new(32, 31)),
-            dir.path().join("tiles/r1_0/32_31.tile")
-        );
+        assert_eq!(store.tile_path(TileKey::new(-1, -1)), dir.path().join("tiles/r-1_-1/-1_-1.tile"));
+        assert_eq!(store.tile_path(TileKey::new(-33, 5)), dir.path().join("tiles/r-2_0/-33_5.tile"));
+        assert_eq!(store.tile_path(TileKey::new(32, 31)), dir.path().join("tiles/r1_0/32_31.tile"));
         for (k, &(col, row)) in keys.iter().enumerate() {
-            let back = store
-                .read(TileKey::new(col, row))
-                .expect("read")
-                .expect("written");
+            let back = store.read(TileKey::new(col, row)).expect("read").expect("written");
             assert_eq!(back, tile(col, row, k as f32));
         }
         drop(store);
@@ -780,10 +633,7 @@ mod tests {
         assert!(store.read(TileKey::new(0, 0)).expect("read").is_some());
         store.write(&tile(3, 0, 1.0)).expect("write");
         assert_eq!(store.evicted(), 1);
-        assert!(
-            !store.contains(TileKey::new(1, 0)),
-            "tile 1 was the least recently touched"
-        );
+        assert!(!store.contains(TileKey::new(1, 0)), "tile 1 was the least recently touched");
         assert!(!store.tile_path(TileKey::new(1, 0)).exists());
         assert_eq!(store.read(TileKey::new(1, 0)).expect("read"), None);
         for col in [0, 2, 3] {
@@ -827,24 +677,12 @@ mod tests {
 
         let mut store = open(dir.path(), 0);
         assert_eq!((store.disk_tiles(), store.disk_bytes()), (tiles, bytes));
-        assert!(
-            !leftover.exists() && !state_leftover.exists(),
-            "temp files are removed on open"
-        );
-        assert!(
-            unrelated.exists(),
-            "files the store did not write are left alone"
-        );
+        assert!(!leftover.exists() && !state_leftover.exists(), "temp files are removed on open");
+        assert!(unrelated.exists(), "files the store did not write are left alone");
         for col in 0..5 {
-            assert_eq!(
-                store.read(TileKey::new(col, -col)).expect("read"),
-                Some(tile(col, -col, col as f32))
-            );
+            assert_eq!(store.read(TileKey::new(col, -col)).expect("read"), Some(tile(col, -col, col as f32)));
         }
-        assert_eq!(
-            store.read_state("window").expect("state"),
-            Some(b"origin".to_vec())
-        );
+        assert_eq!(store.read_state("window").expect("state"), Some(b"origin".to_vec()));
     }
 
     #[test]
@@ -871,19 +709,13 @@ mod tests {
         assert_eq!(store.disk_tiles(), 0);
         // Fresh snow can be written there again.
         store.write(&tile(key.col, key.row, 5.0)).expect("write");
-        assert_eq!(
-            store.read(key).expect("read"),
-            Some(tile(key.col, key.row, 5.0))
-        );
+        assert_eq!(store.read(key).expect("read"), Some(tile(key.col, key.row, 5.0)));
         // A tile file under another key's name is a mismatch, also set aside.
         let other = TileKey::new(-2, 4);
         fs::copy(&path, store.tile_path(other)).expect("copy");
         drop(store);
         let mut store = open(dir.path(), 0);
-        assert!(matches!(
-            store.read(other),
-            Err(StoreError::Mismatch { .. })
-        ));
+        assert!(matches!(store.read(other), Err(StoreError::Mismatch { .. })));
         assert_eq!(store.read(other).expect("second read"), None);
     }
 
@@ -905,27 +737,14 @@ mod tests {
         bytes[16..20].copy_from_slice(&crc.to_le_bytes());
         fs::write(&meta, &bytes).expect("write meta");
         match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
-            Err(StoreError::Version {
-                path,
-                found,
-                expected,
-            }) => {
-                assert_eq!(
-                    (path, found, expected),
-                    (meta.clone(), FORMAT_VERSION + 1, FORMAT_VERSION)
-                );
+            Err(StoreError::Version { path, found, expected }) => {
+                assert_eq!((path, found, expected), (meta.clone(), FORMAT_VERSION + 1, FORMAT_VERSION));
             }
             other => panic!("expected Version, got {other:?}"),
         }
         fs::write(&meta, b"garbage").expect("write meta");
-        assert!(matches!(
-            TileStore::open(dir.path(), SIDE, StoreConfig::default()),
-            Err(StoreError::Corrupt { .. })
-        ));
-        assert!(matches!(
-            TileStore::open(dir.path(), 0, StoreConfig::default()),
-            Err(StoreError::Mismatch { .. })
-        ));
+        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()), Err(StoreError::Corrupt { .. })));
+        assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()), Err(StoreError::Mismatch { .. })));
     }
 
     #[test]
@@ -951,24 +770,12 @@ mod tests {
         assert_eq!(store.read_state("window").expect("read"), None);
         store.write_state("window", &[1, 2, 3]).expect("write");
         store.write_state("empty", &[]).expect("write");
-        assert_eq!(
-            store.read_state("window").expect("read"),
-            Some(vec![1, 2, 3])
-        );
+        assert_eq!(store.read_state("window").expect("read"), Some(vec![1, 2, 3]));
         assert_eq!(store.read_state("empty").expect("read"), Some(Vec::new()));
         store.write_state("window", &[4; 1000]).expect("overwrite");
-        assert_eq!(
-            store.read_state("window").expect("read"),
-            Some(vec![4; 1000])
-        );
+        assert_eq!(store.read_state("window").expect("read"), Some(vec![4; 1000]));
         for bad in ["", "../x", "a/b", "a.b", "x".repeat(65).as_str()] {
-            assert!(
-                matches!(
-                    store.write_state(bad, b"x"),
-                    Err(StoreError::Mismatch { .. })
-                ),
-                "{bad:?}"
-            );
+            assert!(matches!(store.write_state(bad, b"x"), Err(StoreError::Mismatch { .. })), "{bad:?}");
         }
         let path = dir.path().join("window.state");
         let mut bytes = fs::read(&path).expect("state file");
@@ -986,23 +793,11 @@ mod tests {
         let mut store = open(dir.path(), 0);
         store.write(&tile(0, 0, 1.0)).expect("write");
         fs::remove_dir_all(dir.path()).expect("remove the store");
-        assert!(matches!(
-            store.write(&tile(1, 0, 1.0)),
-            Err(StoreError::Io { .. })
-        ));
-        assert!(matches!(
-            store.write(&tile(0, 0, 2.0)),
-            Err(StoreError::Io { .. })
-        ));
+        assert!(matches!(store.write(&tile(1, 0, 1.0)), Err(StoreError::Io { .. })));
+        assert!(matches!(store.write(&tile(0, 0, 2.0)), Err(StoreError::Io { .. })));
         // Gone from disk: as if never written.
         assert_eq!(store.read(TileKey::new(0, 0)).expect("read"), None);
-        assert!(matches!(
-            store.write_state("s", b"x"),
-            Err(StoreError::Io { .. })
-        ));
-        assert!(
-            !dir.path().exists(),
-            "the store is not recreated behind the caller's back"
-        );
+        assert!(matches!(store.write_state("s", b"x"), Err(StoreError::Io { .. })));
+        assert!(!dir.path().exists(), "the store is not recreated behind the caller's back");
     }
 }

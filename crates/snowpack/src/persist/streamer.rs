@@ -59,9 +59,7 @@ pub struct StreamerConfig {
 impl Default for StreamerConfig {
     /// 128 MiB: about 2,700 tiles of 64² texels with all three planes.
     fn default() -> Self {
-        Self {
-            memory_budget_bytes: 128 << 20,
-        }
+        Self { memory_budget_bytes: 128 << 20 }
     }
 }
 
@@ -116,11 +114,7 @@ impl StoreStats {
     #[must_use]
     pub fn hit_rate(&self) -> f64 {
         let total = self.hits + self.misses;
-        if total == 0 {
-            0.0
-        } else {
-            self.hits as f64 / total as f64
-        }
+        if total == 0 { 0.0 } else { self.hits as f64 / total as f64 }
     }
 }
 
@@ -151,7 +145,10 @@ enum Request {
     Panic,
     /// Lets the tests hold the worker until `gate` is sent to or dropped.
     #[cfg(test)]
-    Pause { seq: u64, gate: Receiver<()> },
+    Pause {
+        seq: u64,
+        gate: Receiver<()>,
+    },
 }
 
 /// The store's size after a request.
@@ -263,16 +260,9 @@ impl TileStreamer {
     pub fn new(store: TileStore, config: StreamerConfig) -> Self {
         let (request_tx, request_rx) = mpsc::channel();
         let (reply_tx, reply_rx) = mpsc::channel();
-        let stats = StoreStats {
-            disk_tiles: store.disk_tiles(),
-            disk_bytes: store.disk_bytes(),
-            evicted: store.evicted(),
-            ..StoreStats::default()
-        };
+        let stats = StoreStats { disk_tiles: store.disk_tiles(), disk_bytes: store.disk_bytes(), evicted: store.evicted(), ..StoreStats::default() };
         let (side, dir) = (store.side(), store.dir().to_owned());
-        let worker = std::thread::Builder::new()
-            .name("snowpack-tiles".to_owned())
-            .spawn(move || work(store, &request_rx, &reply_tx));
+        let worker = std::thread::Builder::new().name("snowpack-tiles".to_owned()).spawn(move || work(store, &request_rx, &reply_tx));
         let worker = match worker {
             Ok(handle) => Some(handle),
             Err(e) => {
@@ -366,11 +356,7 @@ impl TileStreamer {
     /// Starts loading a tile the window will soon need (non-blocking). Does
     /// nothing if it is cached, known to be absent, or already loading.
     pub fn request(&mut self, key: TileKey) {
-        if self.memory_only
-            || self.cache.contains_key(&key)
-            || self.absent.contains(&key)
-            || self.loading.contains_key(&key)
-        {
+        if self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.loading.contains_key(&key) {
             return;
         }
         if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
@@ -428,13 +414,7 @@ impl TileStreamer {
         let valid = if tile.side == self.side {
             tile.validate()
         } else {
-            Err(StoreError::Mismatch {
-                path: PathBuf::new(),
-                why: format!(
-                    "the tile is {}², the store holds {}² tiles",
-                    tile.side, self.side
-                ),
-            })
+            Err(StoreError::Mismatch { path: PathBuf::new(), why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) })
         };
         if let Err(e) = valid {
             self.report(e.at(&tile_path(&self.dir, key)), false);
@@ -514,12 +494,7 @@ impl TileStreamer {
             return Ok(());
         }
         self.poll();
-        let failed: Vec<TileKey> = self
-            .cache
-            .iter()
-            .filter(|(_, c)| c.dirt == Dirt::Failed)
-            .map(|(k, _)| *k)
-            .collect();
+        let failed: Vec<TileKey> = self.cache.iter().filter(|(_, c)| c.dirt == Dirt::Failed).map(|(k, _)| *k).collect();
         for key in failed {
             self.queue_write(key);
         }
@@ -544,11 +519,7 @@ impl TileStreamer {
     /// The counters now (disk numbers as of the worker's last reply).
     #[must_use]
     pub fn stats(&self) -> StoreStats {
-        StoreStats {
-            memory_tiles: self.cache.len(),
-            memory_bytes: self.memory_bytes,
-            ..self.stats
-        }
+        StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
     }
 
     /// Stores a small named blob (blocking, ordered after the writes queued
@@ -586,10 +557,7 @@ impl TileStreamer {
             return Err(StoreError::WorkerGone);
         }
         self.seq += 1;
-        let sent = self
-            .requests
-            .as_ref()
-            .is_some_and(|tx| tx.send(request(self.seq)).is_ok());
+        let sent = self.requests.as_ref().is_some_and(|tx| tx.send(request(self.seq)).is_ok());
         if sent {
             Ok(self.seq)
         } else {
@@ -650,17 +618,11 @@ impl TileStreamer {
                 // The cache holds the newest version whenever it holds one;
                 // a write queued after this load also makes it stale (its
                 // tile was put, then dropped from memory: load it again).
-                let stale = self.cache.contains_key(&key)
-                    || self.unwritten.get(&key).is_some_and(|&w| w > seq);
+                let stale = self.cache.contains_key(&key) || self.unwritten.get(&key).is_some_and(|&w| w > seq);
                 let tile = match result {
                     Ok(tile) => tile,
                     Err(e) => {
-                        if matches!(
-                            e,
-                            StoreError::Corrupt { .. }
-                                | StoreError::Version { .. }
-                                | StoreError::Mismatch { .. }
-                        ) {
+                        if matches!(e, StoreError::Corrupt { .. } | StoreError::Version { .. } | StoreError::Mismatch { .. }) {
                             self.stats.corrupt += 1;
                         }
                         self.report(e, false);
@@ -706,16 +668,12 @@ impl TileStreamer {
                     }
                     Err(e) => {
                         match cached {
-                            Some(cached) if cached.dirt == Dirt::Queued(seq) => {
-                                cached.dirt = Dirt::Failed
-                            }
+                            Some(cached) if cached.dirt == Dirt::Queued(seq) => cached.dirt = Dirt::Failed,
                             // A newer version is in memory or queued: this one no longer matters.
                             Some(_) => {}
                             None if self.unwritten.contains_key(&key) => {}
                             None => {
-                                tracing::warn!(
-                                    "tile store: tile {key:?} was dropped from memory and its write failed"
-                                );
+                                tracing::warn!("tile store: tile {key:?} was dropped from memory and its write failed");
                                 self.stats.lost += 1;
                             }
                         }
@@ -736,9 +694,7 @@ impl TileStreamer {
         } else if self.errors.len() < MAX_ERRORS {
             self.errors.push(error);
         } else {
-            tracing::warn!(
-                "tile store: {error} (not kept: {MAX_ERRORS} errors are waiting for take_errors)"
-            );
+            tracing::warn!("tile store: {error} (not kept: {MAX_ERRORS} errors are waiting for take_errors)");
         }
     }
 
@@ -776,14 +732,8 @@ impl TileStreamer {
         let wanted_allowance = self.config.memory_budget_bytes.max(WANTED_FLOOR_BYTES);
         while self.memory_bytes > self.config.memory_budget_bytes {
             // At most two steps each: only `keep` is skipped.
-            let oldest = |order: &BTreeSet<(u64, TileKey)>| {
-                order.iter().find(|(_, k)| *k != keep).map(|&(_, k)| k)
-            };
-            let victim = oldest(&self.by_use).or_else(|| {
-                (self.wanted_bytes > wanted_allowance)
-                    .then(|| oldest(&self.wanted))
-                    .flatten()
-            });
+            let oldest = |order: &BTreeSet<(u64, TileKey)>| order.iter().find(|(_, k)| *k != keep).map(|&(_, k)| k);
+            let victim = oldest(&self.by_use).or_else(|| (self.wanted_bytes > wanted_allowance).then(|| oldest(&self.wanted)).flatten());
             let Some(victim) = victim else { break };
             let dropped = self.remove(victim);
             if self.memory_only {
@@ -794,9 +744,7 @@ impl TileStreamer {
             if let Some(dropped) = dropped
                 && dropped.dirt == Dirt::Failed
             {
-                tracing::warn!(
-                    "tile store: tile {victim:?} was dropped from memory before it could be written"
-                );
+                tracing::warn!("tile store: tile {victim:?} was dropped from memory before it could be written");
                 self.stats.lost += 1;
             }
         }
@@ -835,21 +783,14 @@ impl TileStreamer {
 /// footprint and no snowfall plane, so restoring it gives the same bits as
 /// a fresh tile (the refill of the time away leaves snow at rest unchanged).
 fn is_untouched(tile: &TileData) -> bool {
-    tile.fallen.is_empty()
-        && tile.snow_xor_rest.iter().all(|&x| x == 0)
-        && tile.stamps.iter().all(|&s| s == STAMP_EMPTY)
+    tile.fallen.is_empty() && tile.snow_xor_rest.iter().all(|&x| x == 0) && tile.stamps.iter().all(|&s| s == STAMP_EMPTY)
 }
 
 impl Drop for TileStreamer {
     /// Writes what is still dirty, lets the worker finish its queue and joins
     /// it. Errors can no longer reach the game here; they are logged.
     fn drop(&mut self) {
-        let failed: Vec<TileKey> = self
-            .cache
-            .iter()
-            .filter(|(_, c)| c.dirt == Dirt::Failed)
-            .map(|(k, _)| *k)
-            .collect();
+        let failed: Vec<TileKey> = self.cache.iter().filter(|(_, c)| c.dirt == Dirt::Failed).map(|(k, _)| *k).collect();
         for key in failed {
             self.queue_write(key);
         }
@@ -868,11 +809,7 @@ impl Drop for TileStreamer {
         for error in self.errors.drain(..) {
             tracing::warn!("tile store: {error}");
         }
-        let unwritten = self
-            .cache
-            .values()
-            .filter(|c| c.dirt != Dirt::Clean)
-            .count();
+        let unwritten = self.cache.values().filter(|c| c.dirt != Dirt::Clean).count();
         if unwritten > 0 {
             tracing::warn!("tile store: {unwritten} tiles could not be written and are lost");
         }
@@ -916,11 +853,7 @@ fn work(mut store: TileStore, requests: &Receiver<Request>, replies: &Sender<Rep
                 None => continue,
             },
         };
-        let disk = DiskNumbers {
-            tiles: store.disk_tiles(),
-            bytes: store.disk_bytes(),
-            evicted: store.evicted(),
-        };
+        let disk = DiskNumbers { tiles: store.disk_tiles(), bytes: store.disk_bytes(), evicted: store.evicted() };
         // The streamer may be dropping: keep going, the queued writes still matter.
         let _ = replies.send(Reply { seq, disk, outcome });
     }
@@ -929,30 +862,13 @@ fn work(mut store: TileStore, requests: &Receiver<Request>, replies: &Sender<Rep
 /// Does one request other than a load jumping the queue.
 fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
     match request {
-        Request::Load { seq, key } => (
-            seq,
-            Outcome::Loaded {
-                key,
-                result: store.read(key),
-                queued: None,
-            },
-        ),
+        Request::Load { seq, key } => (seq, Outcome::Loaded { key, result: store.read(key), queued: None }),
         Request::Write { seq, tile } => {
-            let result = store
-                .write(&tile)
-                .map(|()| store.tile_bytes(tile.key).unwrap_or(0));
-            (
-                seq,
-                Outcome::Written {
-                    key: tile.key,
-                    result,
-                },
-            )
+            let result = store.write(&tile).map(|()| store.tile_bytes(tile.key).unwrap_or(0));
+            (seq, Outcome::Written { key: tile.key, result })
         }
         Request::Flush { seq } => (seq, Outcome::Flushed),
-        Request::WriteState { seq, name, bytes } => {
-            (seq, Outcome::StateWritten(store.write_state(&name, &bytes)))
-        }
+        Request::WriteState { seq, name, bytes } => (seq, Outcome::StateWritten(store.write_state(&name, &bytes))),
         Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
         #[cfg(test)]
         Request::Panic => panic!("the tile worker panics (as a test asked)"),
@@ -979,10 +895,7 @@ mod tests {
         TileData {
             key: TileKey::new(col, row),
             side: SIDE,
-            clock: SnowClock {
-                time_s: f64::from(v),
-                ..SnowClock::default()
-            },
+            clock: SnowClock { time_s: f64::from(v), ..SnowClock::default() },
             snow_xor_rest: vec![v.to_bits(); n],
             stamps: vec![v as u32; n],
             fallen: Vec::new(),
@@ -992,12 +905,7 @@ mod tests {
     fn streamer(dir: &TestDir, tiles_in_memory: usize) -> TileStreamer {
         let store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
         let budget = tiles_in_memory * tile(0, 0, 0.0).memory_bytes();
-        TileStreamer::new(
-            store,
-            StreamerConfig {
-                memory_budget_bytes: budget,
-            },
-        )
+        TileStreamer::new(store, StreamerConfig { memory_budget_bytes: budget })
     }
 
     /// Polls until the lookup is ready (bounded, so a bug fails instead of hanging).
@@ -1007,10 +915,7 @@ mod tests {
             if let TileLookup::Ready(tile) = s.lookup(key) {
                 return tile;
             }
-            assert!(
-                start.elapsed() < Duration::from_secs(10),
-                "{key:?} never became ready"
-            );
+            assert!(start.elapsed() < Duration::from_secs(10), "{key:?} never became ready");
             std::thread::sleep(Duration::from_millis(1));
         }
     }
@@ -1019,8 +924,7 @@ mod tests {
     fn pending_then_ready_and_hits() {
         let dir = TestDir::new("streamer-pending");
         {
-            let mut store =
-                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
             store.write(&tile(1, -1, 3.0)).expect("write");
         }
         let mut s = streamer(&dir, 16);
@@ -1028,11 +932,7 @@ mod tests {
         assert_eq!(s.stats().disk_tiles, 1);
         let key = TileKey::new(1, -1);
         assert!(!s.is_ready(key));
-        assert_eq!(
-            s.lookup(key),
-            TileLookup::Pending,
-            "the first lookup cannot be in memory"
-        );
+        assert_eq!(s.lookup(key), TileLookup::Pending, "the first lookup cannot be in memory");
         assert_eq!(ready(&mut s, key), Some(tile(1, -1, 3.0)));
         assert!(s.is_ready(key));
         assert_eq!(s.lookup(key), TileLookup::Ready(Some(tile(1, -1, 3.0))));
@@ -1046,11 +946,7 @@ mod tests {
         assert_eq!(ready(&mut s, never), None);
         assert_eq!(s.lookup(never), TileLookup::Ready(None));
         let stats = s.stats();
-        assert_eq!(
-            (stats.loads, stats.misses),
-            (2, 1),
-            "request() is a prefetch, not a miss"
-        );
+        assert_eq!((stats.loads, stats.misses), (2, 1), "request() is a prefetch, not a miss");
         assert!((stats.hit_rate() - stats.hits as f64 / (stats.hits + 1) as f64).abs() < 1e-12);
         assert!(s.take_errors().is_empty());
     }
@@ -1067,10 +963,7 @@ mod tests {
         }
         s.flush().expect("flush");
         for col in 0..10 {
-            assert_eq!(
-                ready(&mut s, TileKey::new(col, 0)),
-                Some(tile(col, 0, col as f32))
-            );
+            assert_eq!(ready(&mut s, TileKey::new(col, 0)), Some(tile(col, 0, col as f32)));
             assert!(s.stats().memory_bytes <= budget);
         }
         let stats = s.stats();
@@ -1082,26 +975,17 @@ mod tests {
         let dir = TestDir::new("streamer-wanted");
         let keys: Vec<TileKey> = (0..6).map(|k| TileKey::new(k, -k)).collect();
         {
-            let mut store =
-                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
             for key in &keys {
-                store
-                    .write(&tile(key.col, key.row, key.col as f32))
-                    .expect("write");
+                store.write(&tile(key.col, key.row, key.col as f32)).expect("write");
             }
         }
         // Room for one tile, but the window needs six at once.
         let mut s = streamer(&dir, 1);
         s.wait_for(&keys).expect("wait");
-        assert!(
-            keys.iter().all(|&k| s.is_ready(k)),
-            "every tile asked for is still there"
-        );
+        assert!(keys.iter().all(|&k| s.is_ready(k)), "every tile asked for is still there");
         for key in &keys {
-            assert_eq!(
-                s.lookup(*key),
-                TileLookup::Ready(Some(tile(key.col, key.row, key.col as f32)))
-            );
+            assert_eq!(s.lookup(*key), TileLookup::Ready(Some(tile(key.col, key.row, key.col as f32))));
         }
         // Handed out, they no longer hold memory beyond the budget.
         let stats = s.stats();
@@ -1116,8 +1000,7 @@ mod tests {
     fn put_then_evict_then_lookup_returns_the_newest() {
         let dir = TestDir::new("streamer-newest");
         {
-            let mut store =
-                TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
             store.write(&tile(0, 0, 1.0)).expect("write");
         }
         let mut s = streamer(&dir, 1);
@@ -1174,31 +1057,21 @@ mod tests {
         s.write_state("clock", vec![1, 2, 3]).expect("write state");
         assert_eq!(s.stats().writes, 10);
         s.flush().expect("flush");
-        assert_eq!(
-            s.read_state("clock").expect("read state"),
-            Some(vec![1, 2, 3])
-        );
+        assert_eq!(s.read_state("clock").expect("read state"), Some(vec![1, 2, 3]));
         assert_eq!(s.read_state("nothing").expect("read state"), None);
         assert!(s.write_state("../escape", Vec::new()).is_err());
         let stats = s.stats();
         assert_eq!((stats.writes, stats.disk_tiles, stats.errors), (10, 10, 0));
         assert_eq!(stats.bytes_written, stats.disk_bytes);
         for col in -5..5 {
-            let bytes = std::fs::read(tile_path(dir.path(), TileKey::new(col, 7)))
-                .expect("the tile's file");
-            assert_eq!(
-                decode(&bytes).expect("decode"),
-                tile(col, 7, col as f32 + 10.0)
-            );
+            let bytes = std::fs::read(tile_path(dir.path(), TileKey::new(col, 7))).expect("the tile's file");
+            assert_eq!(decode(&bytes).expect("decode"), tile(col, 7, col as f32 + 10.0));
         }
         // Dropping writes what is queued.
         s.put(tile(100, 100, 1.0));
         drop(s);
         let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("reopen");
-        assert_eq!(
-            store.read(TileKey::new(100, 100)).expect("read"),
-            Some(tile(100, 100, 1.0))
-        );
+        assert_eq!(store.read(TileKey::new(100, 100)).expect("read"), Some(tile(100, 100, 1.0)));
     }
 
     #[test]
@@ -1221,15 +1094,9 @@ mod tests {
         // flush's answer, and is not repeated in take_errors.
         assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
         assert_eq!(s.stats().errors, 2);
-        assert!(
-            s.take_errors().is_empty(),
-            "the error flush returned is not repeated"
-        );
+        assert!(s.take_errors().is_empty(), "the error flush returned is not repeated");
         // Still answered from memory, and written once the disk is back.
-        assert_eq!(
-            s.lookup(TileKey::new(0, 0)),
-            TileLookup::Ready(Some(tile(0, 0, 1.0)))
-        );
+        assert_eq!(s.lookup(TileKey::new(0, 0)), TileLookup::Ready(Some(tile(0, 0, 1.0))));
         std::fs::remove_file(&tiles).expect("unblock");
         std::fs::create_dir(&tiles).expect("tiles again");
         s.flush().expect("the retry succeeds");
@@ -1243,10 +1110,7 @@ mod tests {
         assert!(s.flush().is_err());
         // One error was returned; the other write's (and any earlier attempt's) are here.
         let errors = s.take_errors();
-        assert!(
-            !errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })),
-            "{errors:?}"
-        );
+        assert!(!errors.is_empty() && errors.iter().all(|e| matches!(e, StoreError::Io { .. })), "{errors:?}");
         s.put(tile(3, 0, 1.0));
         s.put(tile(4, 0, 1.0));
         let stats = s.stats();
@@ -1256,11 +1120,7 @@ mod tests {
         s.put(tile(5, 0, 1.0));
         s.put(tile(6, 0, 1.0));
         assert!(s.flush().is_err());
-        assert_eq!(
-            s.stats().lost,
-            4,
-            "tiles 3 and 4 failed after leaving memory"
-        );
+        assert_eq!(s.stats().lost, 4, "tiles 3 and 4 failed after leaving memory");
         assert!(s.lookup(TileKey::new(6, 0)) == TileLookup::Ready(Some(tile(6, 0, 1.0))));
     }
 
@@ -1271,16 +1131,10 @@ mod tests {
         s.put(tile(0, 0, 1.0));
         s.send(|_| Request::Panic).expect("send");
         assert!(matches!(s.flush(), Err(StoreError::WorkerGone)));
-        assert!(matches!(
-            s.wait_for(&[TileKey::new(5, 5)]),
-            Err(StoreError::WorkerGone)
-        ));
+        assert!(matches!(s.wait_for(&[TileKey::new(5, 5)]), Err(StoreError::WorkerGone)));
         assert!(matches!(s.read_state("x"), Err(StoreError::WorkerGone)));
         assert_eq!(s.lookup(TileKey::new(5, 5)), TileLookup::Ready(None));
-        assert_eq!(
-            s.lookup(TileKey::new(0, 0)),
-            TileLookup::Ready(Some(tile(0, 0, 1.0)))
-        );
+        assert_eq!(s.lookup(TileKey::new(0, 0)), TileLookup::Ready(Some(tile(0, 0, 1.0))));
         s.put(tile(1, 0, 1.0));
         let errors = s.take_errors();
         assert_eq!(errors.len(), 1, "{errors:?}");
@@ -1369,11 +1223,7 @@ mod tests {
         s.put(big);
         let errors = s.take_errors();
         assert_eq!(errors.len(), 2);
-        assert!(
-            errors
-                .iter()
-                .all(|e| matches!(e, StoreError::Mismatch { .. }) && e.path().is_some())
-        );
+        assert!(errors.iter().all(|e| matches!(e, StoreError::Mismatch { .. }) && e.path().is_some()));
         assert_eq!(s.stats().memory_tiles, 0);
     }
 }

@@ -3,9 +3,9 @@
 
 use glam::{Mat3, Mat4, Quat, Vec3};
 
-use super::pipeline::{lit_and_shadow, DrawSpec};
-use crate::shaders;
+use super::pipeline::{DrawSpec, lit_and_shadow};
 use crate::Deformer;
+use crate::shaders;
 
 /// One mesh vertex.
 #[repr(C)]
@@ -141,7 +141,14 @@ impl ActorPass {
         ];
         let (lit, shadow) = lit_and_shadow(
             device,
-            &DrawSpec { label: "actors", source: shaders::ACTOR_DRAW, buffers: &buffers, lit_layouts: &[lit_layout], shadow_layouts: &[shadow_layout], cull: (true, true) },
+            &DrawSpec {
+                label: "actors",
+                source: shaders::ACTOR_DRAW,
+                buffers: &buffers,
+                lit_layouts: &[lit_layout],
+                shadow_layouts: &[shadow_layout],
+                cull: (true, true),
+            },
         );
         Self {
             lit,
@@ -164,18 +171,15 @@ impl ActorPass {
         let mut list: Vec<ActorInstance> = actors
             .iter()
             .filter_map(|a| match *a {
-                Deformer::Sphere { center, radius } => Some(ActorInstance::new(
-                    Mat4::from_scale_rotation_translation(Vec3::splat(radius), Quat::IDENTITY, center),
-                    SPHERE_COLOUR,
-                )),
+                Deformer::Sphere { center, radius } => {
+                    Some(ActorInstance::new(Mat4::from_scale_rotation_translation(Vec3::splat(radius), Quat::IDENTITY, center), SPHERE_COLOUR))
+                }
                 _ => None,
             })
             .collect();
         self.spheres = list.len() as u32;
         list.extend(actors.iter().filter_map(|a| match *a {
-            Deformer::Box { center, half_extents, rotation } => {
-                Some(ActorInstance::new(Deformer::box_matrix(center, half_extents, rotation), BOX_COLOUR))
-            }
+            Deformer::Box { center, half_extents, rotation } => Some(ActorInstance::new(Deformer::box_matrix(center, half_extents, rotation), BOX_COLOUR)),
             _ => None,
         }));
         self.boxes = list.len() as u32 - self.spheres;

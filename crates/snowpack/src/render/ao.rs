@@ -1,6 +1,6 @@
 //! Ambient occlusion of the displayed snow from its height field (`shaders/ao.wgsl`).
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Parameters of the AO pass (`AoParams` in WGSL).
@@ -49,12 +49,7 @@ impl AoPass {
             &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
         );
         let params = layout::uniform_buffer::<AoParams>(device, "ao params");
-        let bind_group = layout::bind_group(
-            device,
-            "ao",
-            &bgl,
-            &[params.as_entire_binding(), surface.as_entire_binding(), ao.as_entire_binding()],
-        );
+        let bind_group = layout::bind_group(device, "ao", &bgl, &[params.as_entire_binding(), surface.as_entire_binding(), ao.as_entire_binding()]);
         Self { ao, params, pipeline, bind_group, resolution }
     }
 

@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use crate::cpu::environment::{dir_equirect, equirect_dir};
 use crate::error::SnowError;
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Width of the downsampled map the prefilter integrates.
@@ -36,14 +36,10 @@ pub struct EnvironmentMap {
 impl EnvironmentMap {
     /// Decodes a Radiance `.hdr` image.
     pub fn from_hdr(bytes: &[u8]) -> Result<Self, SnowError> {
-        let image = image::load_from_memory_with_format(bytes, image::ImageFormat::Hdr)
-            .map_err(|e| SnowError::Environment(e.to_string()))?
-            .into_rgb32f();
+        let image = image::load_from_memory_with_format(bytes, image::ImageFormat::Hdr).map_err(|e| SnowError::Environment(e.to_string()))?.into_rgb32f();
         let (width, height) = image.dimensions();
         if width < DOWNSAMPLED_W || height < DOWNSAMPLED_H {
-            return Err(SnowError::Environment(format!(
-                "{width}x{height} is smaller than {DOWNSAMPLED_W}x{DOWNSAMPLED_H}"
-            )));
+            return Err(SnowError::Environment(format!("{width}x{height} is smaller than {DOWNSAMPLED_W}x{DOWNSAMPLED_H}")));
         }
         let texels = image.pixels().map(|p| [p[0].max(0.0), p[1].max(0.0), p[2].max(0.0), 1.0]).collect();
         Ok(Self { width, height, texels })
@@ -161,26 +157,13 @@ impl EnvironmentPass {
         let full = storage_buffer(device, "environment", u64::from(env.width) * u64::from(env.height));
         queue.write_buffer(&full, 0, bytemuck::cast_slice(&env.texels));
         let downsampled = storage_buffer(device, "environment downsampled", u64::from(DOWNSAMPLED_W * DOWNSAMPLED_H));
-        let prefiltered = storage_buffer(
-            device,
-            "environment prefiltered",
-            u64::from(PREFILTERED_W * PREFILTERED_H * PREFILTERED_LEVELS),
-        );
-        let entries = [
-            layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-            layout::storage(1, true),
-            layout::storage(2, false),
-        ];
+        let prefiltered = storage_buffer(device, "environment prefiltered", u64::from(PREFILTERED_W * PREFILTERED_H * PREFILTERED_LEVELS));
+        let entries = [layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)];
         let make = |label: &str, source: &str, params: EnvParams, src: &wgpu::Buffer, dst: &wgpu::Buffer| {
             let (pipeline, bgl) = layout::compute_pipeline(device, label, source, &entries);
             let uniform = layout::uniform_buffer::<EnvParams>(device, label);
             queue.write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
-            let bg = layout::bind_group(
-                device,
-                label,
-                &bgl,
-                &[uniform.as_entire_binding(), src.as_entire_binding(), dst.as_entire_binding()],
-            );
+            let bg = layout::bind_group(device, label, &bgl, &[uniform.as_entire_binding(), src.as_entire_binding(), dst.as_entire_binding()]);
             (pipeline, bg)
         };
         let downsample = make(
@@ -222,10 +205,7 @@ impl EnvironmentPass {
         layout::dispatch(encoder, timer, "env downsample", p, bg, (layout::groups(DOWNSAMPLED_W, 8), layout::groups(DOWNSAMPLED_H, 8)));
         let (p, bg) = &self.prefilter;
         let slot = timer.reserve("env prefilter");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("env prefilter"),
-            timestamp_writes: timer.compute_writes(slot),
-        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("env prefilter"), timestamp_writes: timer.compute_writes(slot) });
         pass.set_pipeline(p);
         pass.set_bind_group(0, bg, &[]);
         pass.dispatch_workgroups(layout::groups(PREFILTERED_W, 8), layout::groups(PREFILTERED_H, 8), PREFILTERED_LEVELS);

@@ -16,8 +16,7 @@ use crate::gpu::layout;
 use crate::shaders;
 
 pub use super::sampling::{
-    sampling_bind_group, sampling_layout_entries, snow_sampling_wgsl, SnowSampling, SnowWindowUniform, SNOW_SAMPLING_GROUP,
-    SNOW_SAMPLING_WGSL,
+    SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowSampling, SnowWindowUniform, sampling_bind_group, sampling_layout_entries, snow_sampling_wgsl,
 };
 
 /// Default quads per side of the ground grid.
@@ -119,14 +118,7 @@ impl SnowGroundDescriptor {
     /// Colour target `color_format`, no depth, one sample, [`DEFAULT_GRID_QUADS`], back faces culled, default lighting.
     #[must_use]
     pub fn new(color_format: wgpu::TextureFormat) -> Self {
-        Self {
-            color_format,
-            depth: None,
-            sample_count: 1,
-            grid_quads: DEFAULT_GRID_QUADS,
-            cull_back_faces: true,
-            lighting: GroundLighting::default(),
-        }
+        Self { color_format, depth: None, sample_count: 1, grid_quads: DEFAULT_GRID_QUADS, cull_back_faces: true, lighting: GroundLighting::default() }
     }
 
     /// The same with a depth attachment of `format`, tested with `compare` and written.
@@ -264,10 +256,8 @@ impl SnowGround {
         let camera = layout::uniform_buffer::<GroundCamera>(device, "snow ground camera");
         let params = layout::uniform_buffer::<GroundParams>(device, "snow ground params");
         let frame_group = layout::bind_group(device, "snow ground", &frame_layout, &[camera.as_entire_binding(), params.as_entire_binding()]);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("snow ground"),
-            source: wgpu::ShaderSource::Wgsl(shaders::GROUND.into()),
-        });
+        let module =
+            device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("snow ground"), source: wgpu::ShaderSource::Wgsl(shaders::GROUND.into()) });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("snow ground"),
             bind_group_layouts: &[Some(&frame_layout), Some(sampling.layout())],

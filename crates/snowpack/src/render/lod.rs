@@ -201,11 +201,7 @@ pub fn cull(patches: &[PatchInstance], planes: &[Vec4], y_range: (f32, f32)) -> 
             let hi = glam::Vec3::new(p.node[0] + p.node[2], y_range.1, p.node[1] + p.node[2]);
             planes.iter().all(|pl| {
                 // The box corner farthest along the plane's normal.
-                let c = glam::Vec3::new(
-                    if pl.x >= 0.0 { hi.x } else { lo.x },
-                    if pl.y >= 0.0 { hi.y } else { lo.y },
-                    if pl.z >= 0.0 { hi.z } else { lo.z },
-                );
+                let c = glam::Vec3::new(if pl.x >= 0.0 { hi.x } else { lo.x }, if pl.y >= 0.0 { hi.y } else { lo.y }, if pl.z >= 0.0 { hi.z } else { lo.z });
                 pl.truncate().dot(c) + pl.w >= 0.0
             })
         })

@@ -40,17 +40,17 @@ use self::ao::{AoParams, AoPass};
 use self::environment::EnvironmentPass;
 use self::frame::FrameUniforms;
 use self::lod::LodSettings;
-use self::pipeline::{entry, storage_ro, texture, DEPTH_FORMAT, HDR_FORMAT};
+use self::pipeline::{DEPTH_FORMAT, HDR_FORMAT, entry, storage_ro, texture};
 use self::shadow::ShadowMap;
-use self::skinned::SkinnedDrawPass;
 use self::shell::ShellRenderer;
+use self::skinned::SkinnedDrawPass;
 use self::sky::SkyPass;
 use self::terrain::TerrainPass;
 use self::tonemap::TonemapPass;
+use crate::Deformer;
 use crate::deform::SnowDeformation;
 use crate::error::SnowError;
-use crate::gpu::{layout, GpuContext, GpuTimer, PassTimings};
-use crate::Deformer;
+use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 
 /// Output format of [`Renderer::render_image`].
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -258,7 +258,8 @@ impl Renderer {
     /// Changes material, light, debug view or distances (the shadow map size,
     /// patch grid and sphere mesh stay as built).
     pub fn set_params(&mut self, params: RenderParams) {
-        self.params = RenderParams { shadow_map_size: self.params.shadow_map_size, patch_quads: self.params.patch_quads, sphere_mesh: self.params.sphere_mesh, ..params };
+        self.params =
+            RenderParams { shadow_map_size: self.params.shadow_map_size, patch_quads: self.params.patch_quads, sphere_mesh: self.params.sphere_mesh, ..params };
     }
 
     /// Unit vector toward the sun as lit.
@@ -352,7 +353,10 @@ impl Renderer {
 
     /// Records one frame into `encoder`, drawing into `target` (of the output
     /// format, `size` pixels). Call [`Self::after_submit`] after submitting.
-    #[expect(clippy::too_many_arguments, reason = "each is a separate thing the caller holds (device, encoder, snow, actors, camera, target); a bundle would be built only to be unpacked")]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "each is a separate thing the caller holds (device, encoder, snow, actors, camera, target); a bundle would be built only to be unpacked"
+    )]
     pub fn encode(
         &mut self,
         ctx: &GpuContext,
@@ -389,10 +393,7 @@ impl Renderer {
             shadow_patches: casters.len() as u32,
             actors: self.actors.count(),
             actor_triangles: self.actors.triangles() + self.objects.triangles(),
-            levels: (
-                visible.iter().map(lod::PatchInstance::level).min().unwrap_or(0),
-                visible.iter().map(lod::PatchInstance::level).max().unwrap_or(0),
-            ),
+            levels: (visible.iter().map(lod::PatchInstance::level).min().unwrap_or(0), visible.iter().map(lod::PatchInstance::level).max().unwrap_or(0)),
         };
 
         self.timer.begin_frame();
@@ -546,19 +547,10 @@ impl Renderer {
 }
 
 /// Begins a pass over the HDR scene target and depth, cleared or loaded.
-fn scene_pass<'e>(
-    encoder: &'e mut wgpu::CommandEncoder,
-    timer: &mut GpuTimer,
-    targets: &Targets,
-    label: &'static str,
-    clear: bool,
-) -> wgpu::RenderPass<'e> {
+fn scene_pass<'e>(encoder: &'e mut wgpu::CommandEncoder, timer: &mut GpuTimer, targets: &Targets, label: &'static str, clear: bool) -> wgpu::RenderPass<'e> {
     let slot = timer.reserve(label);
-    let (colour_load, depth_load) = if clear {
-        (wgpu::LoadOp::Clear(wgpu::Color::BLACK), wgpu::LoadOp::Clear(0.0))
-    } else {
-        (wgpu::LoadOp::Load, wgpu::LoadOp::Load)
-    };
+    let (colour_load, depth_load) =
+        if clear { (wgpu::LoadOp::Clear(wgpu::Color::BLACK), wgpu::LoadOp::Clear(0.0)) } else { (wgpu::LoadOp::Load, wgpu::LoadOp::Load) };
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
         color_attachments: &[Some(wgpu::RenderPassColorAttachment {

@@ -1,7 +1,7 @@
 //! Accumulation objects drawn with their snow (`shaders/object_draw.wgsl`),
 //! lit like the snow and casting into the shadow map.
 
-use super::pipeline::{lit_and_shadow, storage_ro, DrawSpec};
+use super::pipeline::{DrawSpec, lit_and_shadow, storage_ro};
 use crate::accumulate::{ObjectVertex, SnowAccumulation};
 use crate::gpu::layout;
 use crate::shaders;
@@ -39,7 +39,14 @@ impl ObjectDrawPass {
         })];
         let (lit, shadow) = lit_and_shadow(
             device,
-            &DrawSpec { label: "objects", source: shaders::OBJECT_DRAW, buffers: &buffers, lit_layouts: &[lit_layout, &layout], shadow_layouts: &[shadow_layout, &layout], cull: (true, true) },
+            &DrawSpec {
+                label: "objects",
+                source: shaders::OBJECT_DRAW,
+                buffers: &buffers,
+                lit_layouts: &[lit_layout, &layout],
+                shadow_layouts: &[shadow_layout, &layout],
+                cull: (true, true),
+            },
         );
         let info = layout::uniform_buffer::<[u32; 4]>(device, "atlas info");
         Self { lit, shadow, layout, info, group: None, count: 0 }

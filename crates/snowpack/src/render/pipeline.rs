@@ -1,7 +1,7 @@
 //! The renderer's targets and its lit-and-shadow pipeline pairs; the
 //! generic builders live in [`crate::gpu::render`] and are re-exported here.
 
-pub use crate::gpu::render::{entry, render_pipeline, screen_target, storage_ro, texture, PipelineSpec};
+pub use crate::gpu::render::{PipelineSpec, entry, render_pipeline, screen_target, storage_ro, texture};
 
 /// Colour format of the HDR scene target.
 pub const HDR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;

@@ -106,12 +106,7 @@ pub fn sampling_bind_group(device: &wgpu::Device, layout: &wgpu::BindGroupLayout
         device,
         "snow sampling",
         layout,
-        &[
-            window.as_entire_binding(),
-            res.terrain_params.as_entire_binding(),
-            res.heightmap.as_entire_binding(),
-            res.surface.as_entire_binding(),
-        ],
+        &[window.as_entire_binding(), res.terrain_params.as_entire_binding(), res.heightmap.as_entire_binding(), res.surface.as_entire_binding()],
     )
 }
 
@@ -136,10 +131,8 @@ impl SnowSampling {
     /// Layout, window uniform and bind group for `snow`, visible to `visibility`.
     #[must_use]
     pub fn new(device: &wgpu::Device, snow: &SnowDeformation, visibility: wgpu::ShaderStages) -> Self {
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("snow sampling"),
-            entries: &sampling_layout_entries(visibility),
-        });
+        let layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("snow sampling"), entries: &sampling_layout_entries(visibility) });
         let window = layout::uniform_buffer::<SnowWindowUniform>(device, "snow window");
         let bind_group = sampling_bind_group(device, &layout, snow, &window);
         Self { device: device.clone(), layout, window, bind_group, bound: bound_buffers(snow) }

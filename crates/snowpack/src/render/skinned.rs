@@ -2,7 +2,7 @@
 //! deformation posed this frame ([`crate::SnowDeformation::posed_meshes`]),
 //! drawn lit and into the shadow map.
 
-use super::pipeline::{lit_and_shadow, DrawSpec};
+use super::pipeline::{DrawSpec, lit_and_shadow};
 use crate::shaders;
 use crate::skin::skinning::SkinnedInstance;
 
@@ -22,7 +22,14 @@ impl SkinnedDrawPass {
         // Exporters wind triangles either way; cull nothing (the shader faces normals to the eye).
         let (lit, shadow) = lit_and_shadow(
             device,
-            &DrawSpec { label: "skinned", source: shaders::SKINNED_DRAW, buffers: &buffers, lit_layouts: &[lit_layout], shadow_layouts: &[shadow_layout], cull: (false, false) },
+            &DrawSpec {
+                label: "skinned",
+                source: shaders::SKINNED_DRAW,
+                buffers: &buffers,
+                lit_layouts: &[lit_layout],
+                shadow_layouts: &[shadow_layout],
+                cull: (false, false),
+            },
         );
         Self { lit, shadow }
     }

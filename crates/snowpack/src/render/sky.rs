@@ -1,6 +1,6 @@
 //! The sky background pass (`shaders/sky.wgsl`): the environment along each view ray.
 
-use super::pipeline::{render_pipeline, storage_ro, PipelineSpec, DEPTH_FORMAT, HDR_FORMAT};
+use super::pipeline::{DEPTH_FORMAT, HDR_FORMAT, PipelineSpec, render_pipeline, storage_ro};
 use crate::gpu::layout;
 use crate::shaders;
 

@@ -3,7 +3,7 @@
 //! depth-only into the shadow map.
 
 use super::lod::PatchInstance;
-use super::pipeline::{lit_and_shadow, storage_ro, texture, DrawSpec};
+use super::pipeline::{DrawSpec, lit_and_shadow, storage_ro, texture};
 use crate::shaders;
 
 /// Index list of a `quads`² grid of `(quads + 1)²` vertices numbered row by row.

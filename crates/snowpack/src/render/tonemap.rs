@@ -1,6 +1,6 @@
 //! Exposure and filmic tone mapping (`shaders/tonemap.wgsl`) from the HDR target to the output.
 
-use super::pipeline::{render_pipeline, texture, PipelineSpec};
+use super::pipeline::{PipelineSpec, render_pipeline, texture};
 use crate::gpu::layout;
 use crate::shaders;
 

@@ -94,20 +94,14 @@ pub fn find_feet(skeleton: &Skeleton, clips: &[Clip], patterns: &[&str]) -> Vec<
         skeleton.joints.contains(&k) && pats.iter().any(|p| n.contains(p.as_str()))
     };
     let candidates: Vec<usize> = (0..skeleton.nodes.len()).filter(|&k| matches(k)).collect();
-    let leaves: Vec<usize> = candidates
-        .iter()
-        .copied()
-        .filter(|&k| !candidates.iter().any(|&c| c != k && is_ancestor(skeleton, k, c)))
-        .collect();
+    let leaves: Vec<usize> = candidates.iter().copied().filter(|&k| !candidates.iter().any(|&c| c != k && is_ancestor(skeleton, k, c))).collect();
     leaves
         .into_iter()
         .map(|node| {
             let planted_height = clips
                 .iter()
                 .map(|clip| {
-                    (0..48)
-                        .map(|s| skeleton.globals(&clip.sample(skeleton, clip.duration * s as f32 / 48.0, true))[node].w_axis.y)
-                        .fold(f32::MAX, f32::min)
+                    (0..48).map(|s| skeleton.globals(&clip.sample(skeleton, clip.duration * s as f32 / 48.0, true))[node].w_axis.y).fold(f32::MAX, f32::min)
                 })
                 .collect();
             Foot { node, name: skeleton.nodes[node].name.clone(), planted_height, paw: Vec::new() }

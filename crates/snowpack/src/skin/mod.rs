@@ -196,11 +196,7 @@ impl Channel {
             Interpolation::Step => self.value(k),
             Interpolation::Linear => {
                 let (a, b) = (self.value(k), self.value(k + 1));
-                if rotation {
-                    Vec4::from(Quat::from_vec4(a).normalize().slerp(Quat::from_vec4(b).normalize(), u))
-                } else {
-                    a.lerp(b, u)
-                }
+                if rotation { Vec4::from(Quat::from_vec4(a).normalize().slerp(Quat::from_vec4(b).normalize(), u)) } else { a.lerp(b, u) }
             }
             Interpolation::CubicSpline => {
                 let p0 = self.values[k * 3 + 1];
@@ -352,7 +348,13 @@ mod tests {
         assert!((cubic.sample(u).x - u * u * (3.0 - 2.0 * u)).abs() < 1e-6);
         // Rotations slerp: half way between identity and 90° about y is 45°.
         let q90 = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
-        let rot = Channel { node: 0, property: Property::Rotation, interpolation: Interpolation::Linear, times: vec![0.0, 1.0], values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(q90)] };
+        let rot = Channel {
+            node: 0,
+            property: Property::Rotation,
+            interpolation: Interpolation::Linear,
+            times: vec![0.0, 1.0],
+            values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(q90)],
+        };
         let half = Quat::from_vec4(rot.sample(0.5));
         assert!(half.angle_between(Quat::from_rotation_y(std::f32::consts::FRAC_PI_4)) < 1e-5);
     }

@@ -5,7 +5,7 @@
 use glam::{Mat4, Vec3};
 
 use crate::error::SnowError;
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Uniforms of the skinning pass (`SkinningParams` in WGSL).
@@ -52,7 +52,9 @@ impl SkinnedMesh {
         if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
             return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
         }
-        if let Some((k, w)) = self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01) {
+        if let Some((k, w)) =
+            self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01)
+        {
             return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
         }
         Ok(())
@@ -156,7 +158,15 @@ impl SkinningPass {
     }
 
     /// Records skinning of `instance` with `joints` (one matrix per skin joint) placed by `model`.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
+    pub fn record(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        instance: &SkinnedInstance,
+        joints: &[Mat4],
+        model: Mat4,
+    ) {
         let count = joints.len().min(instance.joint_count as usize);
         let matrices: Vec<[[f32; 4]; 4]> = joints[..count].iter().map(Mat4::to_cols_array_2d).collect();
         queue.write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));

@@ -1,7 +1,7 @@
 //! After step 2 of each peeling pass (`shaders/peel_count.wgsl`): the pixels
 //! the pass will shade, counted and marked for the debug view.
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Parameters of [`PeelCountPass`] (`CountParams` in WGSL).

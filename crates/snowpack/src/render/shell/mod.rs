@@ -19,11 +19,11 @@ use glam::Vec3;
 
 use crate::deform::SnowDeformation;
 use crate::error::SnowError;
-use crate::gpu::{layout, GpuContext, GpuTimer};
+use crate::gpu::{GpuContext, GpuTimer, layout};
 
 use self::count::MAX_PASSES;
 use self::peel::{PeelDraw, PeelPipelines, PeelTargets, ShellDrawParams};
-use self::tetrahedra::{ShellTetraPass, TetraParams, CORNERS_PER_TETRA};
+use self::tetrahedra::{CORNERS_PER_TETRA, ShellTetraPass, TetraParams};
 use self::vertices::{ShellVertexParams, ShellVertexPass, SnowSurface};
 pub use self::volume::{DetailKind, DetailVolume};
 
@@ -91,7 +91,13 @@ impl ShellSettings {
         if !self.texture_size.is_power_of_two() || !(8..=512).contains(&self.texture_size) {
             return bad("texture_size", format!("{} is not a power of two in 8..=512", self.texture_size));
         }
-        for (field, v) in [("thickness_m", self.thickness_m), ("tile_m", self.tile_m), ("radius_m", self.radius_m), ("spacing_m", self.spacing_m), ("flatten_m", self.flatten_m)] {
+        for (field, v) in [
+            ("thickness_m", self.thickness_m),
+            ("tile_m", self.tile_m),
+            ("radius_m", self.radius_m),
+            ("spacing_m", self.spacing_m),
+            ("flatten_m", self.flatten_m),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(field, format!("{v} must be positive"));
             }
@@ -202,7 +208,14 @@ pub struct ShellRenderer {
     drawn: bool,
 }
 
-fn volume_texture(device: &wgpu::Device, queue: &wgpu::Queue, volume: &DetailVolume, format: wgpu::TextureFormat, texel: impl Fn(&volume::VolumeLevel) -> Vec<u8>, bytes_per_voxel: u32) -> wgpu::Texture {
+fn volume_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    volume: &DetailVolume,
+    format: wgpu::TextureFormat,
+    texel: impl Fn(&volume::VolumeLevel) -> Vec<u8>,
+    bytes_per_voxel: u32,
+) -> wgpu::Texture {
     let [x, y, z] = volume.size();
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some("shell detail volume"),
@@ -233,10 +246,13 @@ impl ShellRenderer {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed)?;
         // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
-        let premultiplied = |l: &volume::VolumeLevel| l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect();
+        let premultiplied = |l: &volume::VolumeLevel| {
+            l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect()
+        };
         let colour = volume_texture(device, queue, &volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
         // Distances in level-0 voxels, whole voxels (0..=255): what sphere tracing needs.
-        let distance = volume_texture(device, queue, &volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
+        let distance =
+            volume_texture(device, queue, &volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("shell detail"),
             address_mode_u: wgpu::AddressMode::Repeat,
@@ -252,7 +268,12 @@ impl ShellRenderer {
         let faces = patch.faces();
         let face_count = (faces.len() / 3) as u32;
         let storage = |label: &str, size: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: size.max(16), usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC, mapped_at_creation: false })
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
         };
         let face_buffer = storage("shell faces", faces.len() as u64 * 4);
         queue.write_buffer(&face_buffer, 0, bytemuck::cast_slice(&faces));
@@ -261,7 +282,12 @@ impl ShellRenderer {
         let tetras = storage("shell tetrahedra", u64::from(face_count) * 3 * size_of::<tetrahedra::Tetra>() as u64);
         let corners = storage("shell corners", u64::from(face_count) * 3 * u64::from(CORNERS_PER_TETRA) * 4);
         let res = snow.resources();
-        let vertex_pass = ShellVertexPass::new(device, &base, &SnowSurface { surface: &res.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params }, &vertices);
+        let vertex_pass = ShellVertexPass::new(
+            device,
+            &base,
+            &SnowSurface { surface: &res.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params },
+            &vertices,
+        );
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);
         let pipelines = PeelPipelines::new(device, lit_layout);
         let draw_params = layout::uniform_buffer::<ShellDrawParams>(device, "shell draw params");
@@ -283,7 +309,21 @@ impl ShellRenderer {
         );
         let bytes = face_buffer.size() + base.size() + vertices.size() + tetras.size() + corners.size() + volume.gpu_bytes();
         ctx.check("building the shell")?;
-        Ok(Self { settings, patch, faces: face_count, vertex_pass, tetra_pass, draw_params, shell_group, pipelines, targets: None, levels: volume.levels.len() as u32, dims: volume.size(), bytes, drawn: false })
+        Ok(Self {
+            settings,
+            patch,
+            faces: face_count,
+            vertex_pass,
+            tetra_pass,
+            draw_params,
+            shell_group,
+            pipelines,
+            targets: None,
+            levels: volume.levels.len() as u32,
+            dims: volume.size(),
+            bytes,
+            drawn: false,
+        })
     }
 
     /// The settings it was built or last updated with.

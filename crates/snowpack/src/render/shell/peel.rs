@@ -15,10 +15,10 @@
 //! The discard comes before the trace, so a finished pixel costs one load.
 
 use crate::gpu::layout;
-use crate::render::pipeline::{screen_target, HDR_FORMAT};
+use crate::render::pipeline::{HDR_FORMAT, screen_target};
 use crate::shaders;
 
-use super::count::{PeelCountPass, MAX_PASSES};
+use super::count::{MAX_PASSES, PeelCountPass};
 
 /// Depth format of the peeling's buffers (reverse-Z, as the scene).
 pub const PEEL_DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -61,15 +61,33 @@ pub struct PeelParams {
 
 /// Labels of the passes' GPU timings, one per peeling pass.
 pub const PASS_LABELS: [&str; MAX_PASSES as usize] = [
-    "shell pass 1", "shell pass 2", "shell pass 3", "shell pass 4", "shell pass 5", "shell pass 6", "shell pass 7", "shell pass 8",
-    "shell pass 9", "shell pass 10", "shell pass 11", "shell pass 12", "shell pass 13", "shell pass 14", "shell pass 15", "shell pass 16",
+    "shell pass 1",
+    "shell pass 2",
+    "shell pass 3",
+    "shell pass 4",
+    "shell pass 5",
+    "shell pass 6",
+    "shell pass 7",
+    "shell pass 8",
+    "shell pass 9",
+    "shell pass 10",
+    "shell pass 11",
+    "shell pass 12",
+    "shell pass 13",
+    "shell pass 14",
+    "shell pass 15",
+    "shell pass 16",
 ];
 
 fn depth_binding(binding: u32) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
         // Unfilterable float, not depth: GLSL has no `textureLoad` of depth textures.
-        wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Float { filterable: false }, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false },
+        wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
     )
 }
 
@@ -78,7 +96,10 @@ fn layout_entry(binding: u32, ty: wgpu::BindingType) -> wgpu::BindGroupLayoutEnt
 }
 
 fn storage_ro(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    layout_entry(binding, wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None })
+    layout_entry(
+        binding,
+        wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None },
+    )
 }
 
 fn uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -88,7 +109,11 @@ fn uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
 fn volume_binding(binding: u32) -> wgpu::BindGroupLayoutEntry {
     layout_entry(
         binding,
-        wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Float { filterable: true }, view_dimension: wgpu::TextureViewDimension::D3, multisampled: false },
+        wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D3,
+            multisampled: false,
+        },
     )
 }
 
@@ -111,7 +136,12 @@ fn pipeline(device: &wgpu::Device, spec: &Spec<'_>) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(spec.label),
         layout: Some(&layout),
-        vertex: wgpu::VertexState { module: spec.module, entry_point: Some(spec.vertex), compilation_options: wgpu::PipelineCompilationOptions::default(), buffers: &[] },
+        vertex: wgpu::VertexState {
+            module: spec.module,
+            entry_point: Some(spec.vertex),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            buffers: &[],
+        },
         primitive: wgpu::PrimitiveState { cull_mode: spec.cull.then_some(wgpu::Face::Back), ..wgpu::PrimitiveState::default() },
         depth_stencil: spec.depth.map(|(compare, write)| wgpu::DepthStencilState {
             format: PEEL_DEPTH_FORMAT,
@@ -133,9 +163,11 @@ fn pipeline(device: &wgpu::Device, spec: &Spec<'_>) -> wgpu::RenderPipeline {
 }
 
 /// Front to back "under" blending of premultiplied colour.
-const UNDER: wgpu::BlendComponent = wgpu::BlendComponent { src_factor: wgpu::BlendFactor::OneMinusDstAlpha, dst_factor: wgpu::BlendFactor::One, operation: wgpu::BlendOperation::Add };
+const UNDER: wgpu::BlendComponent =
+    wgpu::BlendComponent { src_factor: wgpu::BlendFactor::OneMinusDstAlpha, dst_factor: wgpu::BlendFactor::One, operation: wgpu::BlendOperation::Add };
 /// Premultiplied "over" for the composite onto the scene.
-const OVER: wgpu::BlendComponent = wgpu::BlendComponent { src_factor: wgpu::BlendFactor::One, dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha, operation: wgpu::BlendOperation::Add };
+const OVER: wgpu::BlendComponent =
+    wgpu::BlendComponent { src_factor: wgpu::BlendFactor::One, dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha, operation: wgpu::BlendOperation::Add };
 
 /// The peeling's pipelines and layouts (independent of the target size).
 pub struct PeelPipelines {
@@ -166,31 +198,100 @@ impl PeelPipelines {
                 layout_entry(6, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
             ],
         });
-        let depth_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("shell depths"), entries: &[depth_binding(0), depth_binding(1)] });
+        let depth_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("shell depths"), entries: &[depth_binding(0), depth_binding(1)] });
         let resolve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shell resolve"),
             entries: &[
                 uniform(0),
                 depth_binding(1),
                 depth_binding(2),
-                layout_entry(3, wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Float { filterable: false }, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false }),
+                layout_entry(
+                    3,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
                 storage_ro(4),
             ],
         });
-        let draw = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shell draw"), source: wgpu::ShaderSource::Wgsl(shaders::SHELL_DRAW.into()) });
-        let resolve = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shell resolve"), source: wgpu::ShaderSource::Wgsl(shaders::SHELL_RESOLVE.into()) });
+        let draw = device
+            .create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shell draw"), source: wgpu::ShaderSource::Wgsl(shaders::SHELL_DRAW.into()) });
+        let resolve = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("shell resolve"),
+            source: wgpu::ShaderSource::Wgsl(shaders::SHELL_RESOLVE.into()),
+        });
         let tetra_layouts = [lit_layout, &shell_layout, &depth_layout];
         let full = [&resolve_layout];
         let under = wgpu::BlendState { color: UNDER, alpha: UNDER };
         let over = wgpu::BlendState { color: OVER, alpha: OVER };
-        let layer = pipeline(device, &Spec { label: "shell layer", module: &draw, vertex: "vs_tetra", fragment: "fs_layer", layouts: &tetra_layouts, colour: None, depth: Some((wgpu::CompareFunction::Greater, true)), cull: true });
+        let layer = pipeline(
+            device,
+            &Spec {
+                label: "shell layer",
+                module: &draw,
+                vertex: "vs_tetra",
+                fragment: "fs_layer",
+                layouts: &tetra_layouts,
+                colour: None,
+                depth: Some((wgpu::CompareFunction::Greater, true)),
+                cull: true,
+            },
+        );
         let shade = pipeline(
             device,
-            &Spec { label: "shell shade", module: &draw, vertex: "vs_tetra", fragment: "fs_shade", layouts: &tetra_layouts, colour: Some((HDR_FORMAT, Some(under))), depth: Some((wgpu::CompareFunction::Equal, false)), cull: true },
+            &Spec {
+                label: "shell shade",
+                module: &draw,
+                vertex: "vs_tetra",
+                fragment: "fs_shade",
+                layouts: &tetra_layouts,
+                colour: Some((HDR_FORMAT, Some(under))),
+                depth: Some((wgpu::CompareFunction::Equal, false)),
+                cull: true,
+            },
         );
-        let layer_depth = pipeline(device, &Spec { label: "shell layer depth", module: &resolve, vertex: "vs_full", fragment: "fs_layer_depth", layouts: &full, colour: None, depth: Some((wgpu::CompareFunction::Always, true)), cull: false });
-        let extend = pipeline(device, &Spec { label: "shell extend", module: &resolve, vertex: "vs_full", fragment: "fs_extend", layouts: &full, colour: None, depth: Some((wgpu::CompareFunction::Always, true)), cull: false });
-        let composite = pipeline(device, &Spec { label: "shell composite", module: &resolve, vertex: "vs_full", fragment: "fs_composite", layouts: &full, colour: Some((HDR_FORMAT, Some(over))), depth: None, cull: false });
+        let layer_depth = pipeline(
+            device,
+            &Spec {
+                label: "shell layer depth",
+                module: &resolve,
+                vertex: "vs_full",
+                fragment: "fs_layer_depth",
+                layouts: &full,
+                colour: None,
+                depth: Some((wgpu::CompareFunction::Always, true)),
+                cull: false,
+            },
+        );
+        let extend = pipeline(
+            device,
+            &Spec {
+                label: "shell extend",
+                module: &resolve,
+                vertex: "vs_full",
+                fragment: "fs_extend",
+                layouts: &full,
+                colour: None,
+                depth: Some((wgpu::CompareFunction::Always, true)),
+                cull: false,
+            },
+        );
+        let composite = pipeline(
+            device,
+            &Spec {
+                label: "shell composite",
+                module: &resolve,
+                vertex: "vs_full",
+                fragment: "fs_composite",
+                layouts: &full,
+                colour: Some((HDR_FORMAT, Some(over))),
+                depth: None,
+                cull: false,
+            },
+        );
         Self { shell_layout, depth_layout, resolve_layout, layer, shade, layer_depth, extend, composite }
     }
 }
@@ -237,7 +338,12 @@ impl PeelTargets {
         let count = PeelCountPass::new(device, &peel_depth, &counts, &shaded);
         count.prepare(queue, size);
         let resolve_params = layout::uniform_buffer::<PeelParams>(device, "shell resolve params");
-        let tetra_depths = layout::bind_group(device, "shell depths", &pipelines.depth_layout, &[wgpu::BindingResource::TextureView(&cull_depth), wgpu::BindingResource::TextureView(scene_depth)]);
+        let tetra_depths = layout::bind_group(
+            device,
+            "shell depths",
+            &pipelines.depth_layout,
+            &[wgpu::BindingResource::TextureView(&cull_depth), wgpu::BindingResource::TextureView(scene_depth)],
+        );
         let resolve = |label: &str, a: &wgpu::TextureView| {
             layout::bind_group(
                 device,
@@ -281,20 +387,25 @@ pub struct PeelDraw<'a> {
     pub debug_pass: u32,
 }
 
-fn depth_pass<'e>(encoder: &'e mut wgpu::CommandEncoder, label: &str, view: &wgpu::TextureView, clear: Option<f32>, timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>) -> wgpu::RenderPass<'e> {
-    encoder
-        .begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some(label),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view,
-                depth_ops: Some(wgpu::Operations { load: clear.map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear), store: wgpu::StoreOp::Store }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: timestamps,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        })
+fn depth_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    view: &wgpu::TextureView,
+    clear: Option<f32>,
+    timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view,
+            depth_ops: Some(wgpu::Operations { load: clear.map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear), store: wgpu::StoreOp::Store }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: timestamps,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }
 
 /// A pass drawing into colour `view` (cleared to transparent or loaded), over
@@ -323,9 +434,21 @@ fn colour_pass<'e>(
 }
 
 /// Records the peeling passes and the composite into `hdr`.
-pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut crate::gpu::GpuTimer, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
+pub fn record(
+    queue: &wgpu::Queue,
+    encoder: &mut wgpu::CommandEncoder,
+    timer: &mut crate::gpu::GpuTimer,
+    pipelines: &PeelPipelines,
+    targets: &PeelTargets,
+    draw: &PeelDraw<'_>,
+    hdr: &wgpu::TextureView,
+) {
     let size = targets.size;
-    queue.write_buffer(&targets.resolve_params, 0, bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }));
+    queue.write_buffer(
+        &targets.resolve_params,
+        0,
+        bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }),
+    );
     encoder.clear_buffer(&targets.counts, 0, None);
     // Nothing peeled yet: the cull depth at the near plane lets every layer through.
     drop(depth_pass(encoder, "shell cull clear", &targets.cull_depth, Some(1.0), None));
@@ -338,8 +461,16 @@ pub fn record(queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &m
         let stamps = timer.render_writes(slot);
         let (begin, end) = stamps.map_or((None, None), |w| {
             (
-                Some(wgpu::RenderPassTimestampWrites { query_set: w.query_set, beginning_of_pass_write_index: w.beginning_of_pass_write_index, end_of_pass_write_index: None }),
-                Some(wgpu::RenderPassTimestampWrites { query_set: w.query_set, beginning_of_pass_write_index: None, end_of_pass_write_index: w.end_of_pass_write_index }),
+                Some(wgpu::RenderPassTimestampWrites {
+                    query_set: w.query_set,
+                    beginning_of_pass_write_index: w.beginning_of_pass_write_index,
+                    end_of_pass_write_index: None,
+                }),
+                Some(wgpu::RenderPassTimestampWrites {
+                    query_set: w.query_set,
+                    beginning_of_pass_write_index: None,
+                    end_of_pass_write_index: w.end_of_pass_write_index,
+                }),
             )
         });
         {

@@ -2,7 +2,7 @@
 //! face's prism split into three tetrahedra by the vertex-index rule, with
 //! their affine maps and the vertex-data indices that draw them.
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Parameters of [`ShellTetraPass`] (`TetraParams` in WGSL).
@@ -58,7 +58,13 @@ impl ShellTetraPass {
             device,
             "shell tetrahedra",
             shaders::SHELL_TETRAHEDRA,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, true), layout::storage(3, false), layout::storage(4, false)],
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, true),
+                layout::storage(3, false),
+                layout::storage(4, false),
+            ],
         );
         let params = layout::uniform_buffer::<TetraParams>(device, "shell tetra params");
         let bind_group = layout::bind_group(

@@ -1,7 +1,7 @@
 //! Shell construction, step 1 of 2 (`shaders/shell_vertices.wgsl`): the base
 //! surface as drawn this frame and its offset copy along the normals.
 
-use crate::gpu::{layout, GpuTimer};
+use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 /// Parameters of [`ShellVertexPass`] (`ShellVertexParams` in WGSL).

@@ -115,7 +115,10 @@ impl DetailVolume {
     /// If `size` is not a power of two in 8..=512.
     pub fn generate(kind: DetailKind, size: u32, seed: u64) -> Result<Self, crate::SnowError> {
         if !size.is_power_of_two() || !(8..=512).contains(&size) {
-            return Err(crate::SnowError::InvalidParameter { field: "texture_size", why: format!("detail volume size {size} is not a power of two in 8..=512") });
+            return Err(crate::SnowError::InvalidParameter {
+                field: "texture_size",
+                why: format!("detail volume size {size} is not a power of two in 8..=512"),
+            });
         }
         let mut rng = Rng(seed ^ kind.salt());
         let mut grid = Grid::new(size);
