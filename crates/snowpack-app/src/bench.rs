@@ -676,16 +676,16 @@ mod tests {
             memory_bytes: 1 << 20,
             memory_parts: vec![("snow".into(), 1 << 19), ("terrain".into(), 1 << 19)],
         }];
-        // normals at 1024²: 4 B read + 8 B written per texel = 12 MiB; at 3350 GB/s, 0.00376 ms.
+        // normals at 1024²: 4 B read + 4 B written per texel (surface's height words in, normal words out) = 8 MiB; at 3350 GB/s, 0.0025 ms.
         let md = floor_markdown(&rows, "NVIDIA H100 80GB HBM3");
         assert!(md.contains("3350 GB/s"), "{md}");
-        assert!(md.contains("| 1024² | normals | 12.00 | 0.0038 | 0.0200 | 5.3 |"), "{md}");
-        // Update: 16 B read and 4 B written per texel.
-        assert!(md.contains("| 1024² | update | 20.00 |"), "{md}");
+        assert!(md.contains("| 1024² | normals | 8.00 | 0.0025 | 0.0200 | 8.0 |"), "{md}");
+        // Update (depth): snow (4 B) and the 16-bit capture (2 B) read, snow (4 B) written per texel.
+        assert!(md.contains("| 1024² | update | 10.00 |"), "{md}");
         // Unknown adapters get bytes and measured times, no floor.
         let md = floor_markdown(&rows, "llvmpipe (LLVM 15.0.6, 256 bits)");
         assert!(md.contains("bandwidth unknown"), "{md}");
-        assert!(md.contains("| 1024² | normals | 12.00 | n/a | 0.0200 | n/a |"), "{md}");
+        assert!(md.contains("| 1024² | normals | 8.00 | n/a | 0.0200 | n/a |"), "{md}");
     }
 
     #[test]
