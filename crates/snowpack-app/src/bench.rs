@@ -244,10 +244,11 @@ pub fn memory_markdown(rows: &[BenchRow]) -> String {
     md.push_str(
         "\nThe sources, for 64 m at 1024² (6.25 cm texels): Hanák 2021 (section 6.1), 9 MB, plus 2 MB for a 16-bit depth of \
          level geometry; Rise of the Tomb Raider as Wasmut 2019 quotes it, 2 to 4 MB depending on the float precision; Surface \
-         Trails, 24 MB (the figure the benchmark issue quotes; not in the source texts). snowpack keeps f32 heights for the terrain \
-         (so any terrain works without a mesh pass each frame), the persistent snow, the shown surface and the blur's scratch, \
-         a packed height-and-normal surface for the renderer, the point stamps and the decal layer whatever the technique (so \
-         switching allocates nothing), and a readback ring for the CPU queries.\n",
+         Trails, 24 MB (the figure the benchmark issue quotes; not in the source texts). snowpack keeps the persistent snow in \
+         f32, a packed height-and-normal surface for the renderer (the rim, blur and normals work inside it), a 16-bit capture \
+         depth, the terrain evaluated from its source, the point stamps only for points and combined and the decal layer only \
+         for decals (switching allocates them once), a few kilobytes for point queries, and the resident tiles that keep \
+         trails when the window moves on.\n",
     );
     md
 }

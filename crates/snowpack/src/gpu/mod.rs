@@ -1,4 +1,4 @@
-//! GPU plumbing: adapter and device selection, readback rings, per-pass timing.
+//! GPU plumbing: adapter and device selection (or a game's device), readback rings, per-pass timing, render-pipeline builders.
 
 pub mod context;
 pub mod layout;
