@@ -9,11 +9,11 @@
 //!
 //! A game with its own wgpu device:
 //!
-//! ```no_run
-//! # fn main() -> Result<(), snowpack::SnowError> {
-//! # let (device, queue): (wgpu::Device, wgpu::Queue) = unimplemented!();
+//! ```
 //! use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 //!
+//! /// The game hands over its device and queue (cheap handles; it keeps its own).
+//! fn snow_on(device: wgpu::Device, queue: wgpu::Queue) -> Result<(), snowpack::SnowError> {
 //! let ctx = GpuContext::from_device(device, queue);
 //! let mut snow = SnowDeformation::new(&ctx, SnowParams::default(), TerrainSource::Flat { height_m: 0.0 }, glam::DVec2::ZERO)?;
 //! let ball = [Deformer::Sphere { center: glam::Vec3::new(0.0, 0.3, 0.0), radius: 0.4 }];
@@ -26,8 +26,8 @@
 //! if let Some(sample) = snow.point_answers().and_then(|a| a.samples[0]) {
 //!     println!("{:.2} m of snow, {:.0}% pressed", sample.depth_m(), 100.0 * sample.compaction());
 //! }
-//! # Ok(())
-//! # }
+//! Ok(())
+//! }
 //! ```
 //!
 //! Without a device of its own (tools, tests, a headless server), snowpack

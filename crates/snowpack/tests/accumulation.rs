@@ -195,10 +195,10 @@ use snowpack::accumulate::{
     AtlasSurfacePass, IncrementParams, IncrementPass, ScatterParams, ScatterPass, SettleParams, SettlePass, SnowAccumulation, SurfaceParams,
 };
 use snowpack::cpu;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::update::{UpdateParams, UpdatePass};
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::testing::Rng;
 
 fn random_objects(rng: &mut Rng, count: usize, extent: f32) -> Vec<SnowObject> {

@@ -5,10 +5,10 @@
 use glam::{DVec2, Vec3};
 use snowpack::accumulate::Snowfall;
 use snowpack::cpu;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::rim::{RimParams, RimPass};
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::testing;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
 

@@ -3,7 +3,7 @@
 
 use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
 use snowpack::cpu::snow_sampling::SampledSurface;
-use snowpack::deform::pipeline::read_buffer;
+use snowpack::gpu::read_buffer;
 use snowpack::render::ground::{
     GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
 };

@@ -10,13 +10,13 @@ use snowpack::cpu;
 use snowpack::deform::blur::BlurPass;
 use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
 use snowpack::deform::normals::NormalPass;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::rim::{RimParams, RimPass};
 use snowpack::deform::stamp::{StampParams, StampPass};
 use snowpack::deform::update::{UpdateParams, UpdatePass};
 use snowpack::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
 

@@ -5,8 +5,8 @@
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::accumulate::Snowfall;
 use snowpack::cpu::query::query as cpu_query;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::query::QueryParams;
+use snowpack::gpu::read_buffer;
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 

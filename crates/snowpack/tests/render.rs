@@ -3,8 +3,8 @@
 
 use glam::{DVec2, Vec3};
 use snowpack::cpu;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::render::ao::{AoParams, AoPass};
 use snowpack::render::environment::{self, EnvironmentPass};
 use snowpack::render::{DebugView, IMAGE_FORMAT};

@@ -7,9 +7,9 @@ use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
 use snowpack::cpu;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::deform::window::TerrainParams;
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::render::IMAGE_FORMAT;
 use snowpack::render::shell::ShellSettings;
 use snowpack::render::shell::count::PeelCountPass;

@@ -2,8 +2,8 @@
 
 use glam::{Mat4, Quat, Vec3};
 use snowpack::cpu;
-use snowpack::deform::pipeline::read_buffer;
 use snowpack::gpu::GpuTimer;
+use snowpack::gpu::read_buffer;
 use snowpack::skin::skinning::{SkinnedMesh, SkinningPass};
 use snowpack::testing::{self, Rng};
 

@@ -4,7 +4,7 @@ use glam::DVec2;
 
 use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
 use crate::error::SnowError;
-use crate::gpu::{GpuContext, GpuTimer, PassTimings};
+use crate::gpu::{GpuContext, GpuTimer, PassTimings, read_buffer};
 use crate::persist::{SnowClock, StoreError, StreamerConfig, TileStreamer};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
@@ -464,7 +464,7 @@ impl SnowDeformation {
     }
 
     /// Switches the deformation technique from the next frame on; keeps the
-    /// snow and the stored footprints, allocates nothing.
+    /// snow and the stored footprints.
     ///
     /// A technique whose buffer the window does not have yet (the footprint
     /// buffer for points and combined, the decal layer for decals) gets it
@@ -973,6 +973,3 @@ impl SnowDeformation {
         Ok(raw.into_iter().map(unpack_surface).unzip())
     }
 }
-
-/// Kept here for callers of the old path; the helper lives in [`crate::gpu::readback`].
-pub use crate::gpu::readback::read_buffer;

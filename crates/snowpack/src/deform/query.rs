@@ -20,6 +20,7 @@ const ANSWER_SLOTS: usize = 3;
 const INITIAL_CAPACITY: u32 = 256;
 
 /// Uniforms of `query.wgsl`.
+#[doc(hidden)]
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct QueryParams {
@@ -40,6 +41,7 @@ pub struct QueryParams {
 }
 
 /// One answer as the GPU writes it (`Sample` in `query.wgsl`).
+#[doc(hidden)]
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct RawSample {
@@ -155,6 +157,7 @@ pub struct QueryStats {
 }
 
 /// Gathers asked points on the GPU and brings the answers back through a ring.
+#[doc(hidden)]
 pub struct QueryPass {
     pipeline: wgpu::ComputePipeline,
     bgl: wgpu::BindGroupLayout,

@@ -218,11 +218,12 @@ impl GpuContext {
     /// their own errors in error scopes instead. Work snowpack records into
     /// the game's encoder is validated when the game finishes that encoder.
     ///
-    /// ```no_run
-    /// # fn game_device() -> (wgpu::Device, wgpu::Queue) { unimplemented!() }
-    /// let (device, queue) = game_device();
-    /// let ctx = snowpack::GpuContext::from_device(device.clone(), queue.clone());
-    /// println!("snow on {}", ctx.summary.name);
+    /// ```
+    /// fn adopt(device: &wgpu::Device, queue: &wgpu::Queue) -> snowpack::GpuContext {
+    ///     let ctx = snowpack::GpuContext::from_device(device.clone(), queue.clone());
+    ///     println!("snow on {}", ctx.summary.name);
+    ///     ctx
+    /// }
     /// ```
     #[must_use]
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {

@@ -153,19 +153,16 @@ impl<M> ReadbackRing<M> {
             let SlotState::Mapping { meta, len, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
                 continue;
             };
-            if len == 0 {
-                if k == index && self.delivered_seq.is_none_or(|d| seq > d) {
-                    result = Some((meta, Vec::new()));
-                }
-                continue;
-            }
             if k == index && self.delivered_seq.is_none_or(|d| seq > d) {
-                let bytes = slot.buffer.slice(..len).get_mapped_range().map(|view| view.to_vec());
+                // An empty copy was never mapped: it arrives as no bytes.
+                let bytes = if len == 0 { Ok(Vec::new()) } else { slot.buffer.slice(..len).get_mapped_range().map(|view| view.to_vec()) };
                 if let Ok(bytes) = bytes {
                     result = Some((meta, bytes));
                 }
             }
-            slot.buffer.unmap();
+            if len > 0 {
+                slot.buffer.unmap();
+            }
         }
         if result.is_some() {
             self.delivered_seq = Some(seq);
