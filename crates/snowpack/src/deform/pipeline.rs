@@ -853,10 +853,21 @@ impl SnowDeformation {
         self.timer.collect();
     }
 
-    /// Waits for every outstanding readback (snapshot and timings); for the
-    /// end of a headless run or a test, never in a frame loop.
+    /// Waits for every outstanding readback (point answers and timings);
+    /// for the end of a headless run or a test, never in a frame loop.
     pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
         ctx.wait_idle("finishing readbacks")?;
+        // An idle GPU is not enough: another thread polling the same device
+        // (a game's loader, parallel tests) may have taken the answers'
+        // mapping callbacks and fire them after our poll returned.
+        let deadline = std::time::Instant::now() + crate::gpu::context::WAIT_TIMEOUT;
+        while self.query_pass.callbacks_pending() {
+            if std::time::Instant::now() > deadline {
+                return Err(SnowError::Readback("a point answer's mapping never completed".to_owned()));
+            }
+            std::thread::yield_now();
+            let _ = ctx.device.poll(wgpu::PollType::Poll);
+        }
         self.collect();
         Ok(())
     }

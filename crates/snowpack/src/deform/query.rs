@@ -290,6 +290,12 @@ impl QueryPass {
         Some(PointAnswers { ticket, frame, points, samples: raw.iter().map(RawSample::sample).collect() })
     }
 
+    /// Whether an answer's mapping callback has yet to run.
+    #[must_use]
+    pub fn callbacks_pending(&self) -> bool {
+        self.ring.callbacks_pending()
+    }
+
     /// Counts so far.
     #[must_use]
     pub fn stats(&self) -> QueryStats {

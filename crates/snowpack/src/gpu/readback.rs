@@ -121,6 +121,14 @@ impl<M> ReadbackRing<M> {
         }
     }
 
+    /// Whether a mapping has been asked for and its callback has not run yet.
+    /// Once the GPU is idle this is only the time until some thread's poll
+    /// fires the callback (wgpu fires them from whichever poll collected them).
+    #[must_use]
+    pub fn callbacks_pending(&self) -> bool {
+        self.slots.iter().any(|s| matches!(&s.state, SlotState::Mapping { flag, .. } if flag.load(Ordering::Acquire) == MAPPING))
+    }
+
     /// Whether any slot is waiting for the GPU.
     #[must_use]
     pub fn in_flight(&self) -> bool {
