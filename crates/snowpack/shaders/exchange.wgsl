@@ -4,7 +4,9 @@
 // newly exposed texels take) into their tiles; `load` fills the newly
 // exposed texels from theirs. Two dispatches, stash first, so a long jump
 // whose old and new tiles share slots stays correct (the slots' old tiles
-// are copied out for the store between them). CPU twin: src/cpu/exchange.rs.
+// are copied out for the store between them). The window keeps its snow as
+// a deficit below the rest height (shared/snow_word.wgsl), the tiles as the
+// f32 height: stash and load convert. CPU twin: src/cpu/exchange.rs.
 
 struct ExchangeParams {
     origin: vec2<i32>,      // the window's origin after the move
@@ -14,9 +16,9 @@ struct ExchangeParams {
     slots_per_side: u32,
     flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
-    texel_m: f32,           // where the terrain is evaluated (stash)
+    texel_m: f32,           // where the terrain is evaluated
     planes: u32,            // planes per resident slot (shared/tiles.wgsl)
-    _pad2: u32,
+    depth_m: f32,           // rest depth: the window's snow words are deficits below terrain + depth + fallen
     rects: array<vec4<u32>, 2>, // exposed window-local (row0, col0, rows, cols)
 }
 
@@ -28,7 +30,7 @@ const HAS_STAMPS: u32 = 4u;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
 // The terrain's source (shared/terrain.wgsl): a stashed tile's terrain plane.
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(3) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
 @group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
@@ -55,23 +57,33 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let si = i32(s / params.resolution);
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
-        tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow[s]);
+        let ground = texel_ground(terrain_params, g, params.texel_m);
+        var rest = ground + params.depth_m;
+        if use_fallen {
+            rest += fallen[s];
+        }
+        tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow_word_height(snow[s], rest, ground));
         // The slots have a footprint plane exactly when the window has a footprint buffer.
         if has_stamps {
             tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
         }
-        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
+        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(ground);
         if use_fallen {
             tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
-        snow[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
+        let ground = texel_ground(terrain_params, g, params.texel_m);
+        var rest = ground + params.depth_m;
         if has_stamps {
             stamps[s] = tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))];
         }
         if use_fallen {
-            fallen[s] = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);
+            let lying = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);
+            fallen[s] = lying;
+            rest += lying;
         }
+        let h = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
+        snow[s] = snow_press_quanta(rest, ground, h);
     }
 }

@@ -3,6 +3,10 @@
 // snow height, the displayed surface and its normal, the terrain and the rest
 // surface (terrain + depth + snowfall so far). Points within half a texel of
 // the window's edge, or outside it, are answered with inside = 0.
+// The snow words hold both the persistent snow (a deficit below rest) and
+// the displayed height (above the terrain, shared/snow_word.wgsl); a
+// texel's normal is the central difference of the displayed heights around
+// it, clamped at the window's edges, as the renderer computes it.
 // One thread per point; a few thousand points cost one small dispatch.
 // CPU twin: src/cpu/query.rs.
 
@@ -32,11 +36,10 @@ struct Sample {
 @group(0) @binding(1) var<storage, read> points: array<vec2<f32>>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read> snow: array<f32>;
+@group(0) @binding(3) var<storage, read> snow: array<u32>;
 @group(0) @binding(4) var<storage, read> fallen: array<f32>;
-@group(0) @binding(5) var<storage, read> surface: array<vec2<u32>>;
-@group(0) @binding(6) var<storage, read_write> samples: array<Sample>;
-@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(5) var<storage, read_write> samples: array<Sample>;
+@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
 
 fn bilerp(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
     let ab = a + (b - a) * f.x;
@@ -44,9 +47,19 @@ fn bilerp(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
     return ab + (cd - ab) * f.y;
 }
 
-fn surface_normal(t: vec2<u32>) -> vec3<f32> {
-    let n = unpack2x16snorm(t.y);
-    return vec3(n.x, sqrt(max(1.0 - n.x * n.x - n.y * n.y, 0.0)), n.y);
+// Displayed height of window-local texel (i, j), clamped into the window.
+fn shown_at(i: i32, j: i32) -> f32 {
+    let last = i32(params.resolution) - 1;
+    let ci = u32(clamp(i, 0, last));
+    let cj = u32(clamp(j, 0, last));
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
+    return snow_word_shown(snow[storage_index(params.origin, params.resolution, ci, cj)], ground);
+}
+
+fn texel_normal(i: i32, j: i32) -> vec3<f32> {
+    let dx = shown_at(i, j + 1) - shown_at(i, j - 1);
+    let dz = shown_at(i + 1, j) - shown_at(i - 1, j);
+    return normalize(vec3(-dx, 2.0 * params.texel_m, -dz));
 }
 
 @compute @workgroup_size(64)
@@ -67,33 +80,39 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let j = u32(cell.x);
     let i = u32(cell.y);
     let res = params.resolution;
-    // Persistent state is toroidal; the displayed surface is window-local.
     let s00 = storage_index(params.origin, res, i, j);
     let s01 = storage_index(params.origin, res, i, j + 1u);
     let s10 = storage_index(params.origin, res, i + 1u, j);
     let s11 = storage_index(params.origin, res, i + 1u, j + 1u);
-    out.height_m = bilerp(snow[s00], snow[s01], snow[s10], snow[s11], f);
     let g = params.origin + vec2<i32>(i32(j), i32(i));
     let t00 = texel_ground(terrain_params, g, params.texel_m);
     let t01 = texel_ground(terrain_params, g + vec2<i32>(1, 0), params.texel_m);
     let t10 = texel_ground(terrain_params, g + vec2<i32>(0, 1), params.texel_m);
     let t11 = texel_ground(terrain_params, g + vec2<i32>(1, 1), params.texel_m);
     out.terrain_m = bilerp(t00, t01, t10, t11, f);
-    var fallen_m = 0.0;
+    var l00 = 0.0;
+    var l01 = 0.0;
+    var l10 = 0.0;
+    var l11 = 0.0;
     if params.use_fallen != 0u {
-        fallen_m = bilerp(fallen[s00], fallen[s01], fallen[s10], fallen[s11], f);
+        l00 = fallen[s00];
+        l01 = fallen[s01];
+        l10 = fallen[s10];
+        l11 = fallen[s11];
     }
-    out.rest_m = out.terrain_m + params.depth_m + fallen_m;
-    let w00 = surface[i * res + j];
-    let w01 = surface[i * res + j + 1u];
-    let w10 = surface[(i + 1u) * res + j];
-    let w11 = surface[(i + 1u) * res + j + 1u];
-    out.surface_m = bilerp(bitcast<f32>(w00.x), bitcast<f32>(w01.x), bitcast<f32>(w10.x), bitcast<f32>(w11.x), f);
-    let n00 = surface_normal(w00);
-    let n01 = surface_normal(w01);
-    let n10 = surface_normal(w10);
-    let n11 = surface_normal(w11);
-    let n = normalize(mix(mix(n00, n01, f.x), mix(n10, n11, f.x), f.y));
+    out.rest_m = out.terrain_m + params.depth_m + bilerp(l00, l01, l10, l11, f);
+    let d = params.depth_m;
+    out.height_m = bilerp(
+        snow_word_height(snow[s00], t00 + d + l00, t00),
+        snow_word_height(snow[s01], t01 + d + l01, t01),
+        snow_word_height(snow[s10], t10 + d + l10, t10),
+        snow_word_height(snow[s11], t11 + d + l11, t11),
+        f,
+    );
+    out.surface_m = bilerp(snow_word_shown(snow[s00], t00), snow_word_shown(snow[s01], t01), snow_word_shown(snow[s10], t10), snow_word_shown(snow[s11], t11), f);
+    let ii = i32(i);
+    let jj = i32(j);
+    let n = normalize(mix(mix(texel_normal(ii, jj), texel_normal(ii, jj + 1), f.x), mix(texel_normal(ii + 1, jj), texel_normal(ii + 1, jj + 1), f.x), f.y));
     out.normal_x = n.x;
     out.normal_y = n.y;
     out.normal_z = n.z;

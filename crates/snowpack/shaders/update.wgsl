@@ -1,22 +1,27 @@
-// Update pass: the persistent snow height. Per texel,
-//   snow = max(terrain, min(snow + fall + refill * dt capped at rest, max(terrain, actor), max(terrain, stamp)))
+// Update pass: the persistent snow, as its deficit below the rest height
+// (shared/snow_word.wgsl). Per texel, in height terms,
+//   snow = max(terrain, min(snow + fall + refill capped at rest, max(terrain, actor), max(terrain, stamp)))
 // where rest = terrain + depth + fallen, actor is the captured lowest actor surface
 // (when the technique captures depth) and stamp the footprint height (when it
-// stamps points). Footprints refill too: they rise by whole quanta (the CPU
-// carries the remainder), and vanish once their foot is back at rest.
+// stamps points). In deficit terms the fall raises rest and snow together
+// (the deficit stays), the refill lowers the deficit by whole quanta, and a
+// press raises it to the quantised depth of the press below rest. Footprints
+// refill too: they rise by whole quanta (the CPU carries the remainder of
+// both), and vanish once their foot is back at rest.
 // While it snows (USE_FALLEN), `fallen` grows by fall = rate * dt (up to
 // max_fallen_m) on texels the sky reaches, and trails there get the refill;
 // texels the occlusion render shows under an object (USE_SKY) gain neither,
 // so no snow settles under a table or a roof (Dinh figure 5.1). A texel
 // reaches the sky when its surface point, projected along the snowfall onto
 // the occlusion map, is no lower (less 2 cm) than what that pixel saw.
-// In place: each texel reads and writes only itself. CPU twin: src/cpu/update.rs.
+// In place: each texel reads and writes only itself; the displayed half of
+// each word is kept (the display pass rewrites it). CPU twin: src/cpu/update.rs.
 
 struct UpdateParams {
     origin: vec2<i32>,
     resolution: u32,
     depth_m: f32,
-    refill_m: f32,   // refill_m_per_s * dt for this frame
+    snow_refill_quanta: u32, // this frame's refill, in snow quanta (SNOW_QUANTUM_M)
     low_m: f32,
     high_m: f32,
     flags: u32,          // 1: apply the capture, 2: apply the stamps
@@ -46,7 +51,7 @@ const SKY_BIAS_M: f32 = 0.02;
 @group(0) @binding(1) var capture: texture_2d<f32>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
+@group(0) @binding(3) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var sky: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
@@ -75,26 +80,30 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let s = storage_index(params.origin, params.resolution, i, j);
     let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
-    let old = snow[s];
+    let word = snow[s];
+    var lying = 0.0;
+    if (params.flags & USE_FALLEN) != 0u {
+        lying = fallen[s];
+    }
     var visible = 1.0;
     if (params.flags & USE_SKY) != 0u {
-        visible = sky_visible(i, j, old);
+        visible = sky_visible(i, j, snow_word_height(word, ground + params.depth_m + lying, ground));
     }
-    var lying = 0.0;
-    var gained = 0.0;
     if (params.flags & USE_FALLEN) != 0u {
-        let before = fallen[s];
+        let before = lying;
         lying = max(before, min(before + params.fall_m * visible, params.max_fallen_m));
-        gained = lying - before;
         fallen[s] = lying;
     }
     let rest = ground + params.depth_m + lying;
-    var h = min(old + gained + params.refill_m * visible, rest);
+    var deficit = word & 0xffffu;
+    if visible > 0.0 {
+        deficit -= min(deficit, params.snow_refill_quanta);
+    }
     if (params.flags & USE_CAPTURE) != 0u {
         let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
         if d < 1.0 {
             let actor = params.low_m + d * (params.high_m - params.low_m);
-            h = min(h, max(ground, actor));
+            deficit = max(deficit, snow_press_quanta(rest, ground, actor));
         }
     }
     var st = STAMP_EMPTY;
@@ -105,7 +114,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let hq = st >> 16u;
         let fq = st & 0xffffu;
         if (params.flags & USE_STAMPS) != 0u {
-            h = min(h, max(ground, stamp_height(hq, params.low_m, params.high_m)));
+            deficit = max(deficit, snow_press_quanta(rest, ground, stamp_height(hq, params.low_m, params.high_m)));
         }
         if params.refill_quanta > 0u {
             let foot = fq + params.refill_quanta;
@@ -116,5 +125,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    snow[s] = max(h, ground);
+    // Never below the terrain.
+    deficit = min(deficit, snow_press_quanta(rest, ground, ground));
+    snow[s] = (word & 0xffff0000u) | deficit;
 }

@@ -1,4 +1,4 @@
-// Window pass: writes fresh snow (terrain height + rest depth) into the texels that the
+// Window pass: writes fresh snow (deficit 0: at its rest height) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
 // columns), and nothing else; their footprints are cleared (when the window
 // has a footprint buffer: the points and combined techniques). New texels get
@@ -17,11 +17,9 @@ struct WindowParams {
 }
 
 @group(0) @binding(0) var<uniform> params: WindowParams;
-@group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<f32>;
-@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
+@group(0) @binding(1) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
+@group(0) @binding(2) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(3) var<storage, read_write> fallen: array<f32>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -34,8 +32,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let i = texel.x;
     let j = texel.y;
     let s = storage_index(params.origin, params.resolution, i, j);
-    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
-    snow[s] = ground + params.depth_m + params.fallen_m;
+    // Untouched: no deficit below the rest height. The displayed half is
+    // written by the display pass later in the frame.
+    snow[s] = 0u;
     if (params.flags & 1u) != 0u {
         fallen[s] = params.fallen_m;
     }

@@ -377,7 +377,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let texels = params.texel_count();
     // Flat ground at 0: the update evaluates it from the source.
     let terrain = vec![0.0_f32; texels];
-    let mut snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m)).collect();
+    let mut snow: Vec<u32> = terrain.iter().map(|_| snowpack::deform::snow_word::deficit_quanta(rng.range(0.0, params.depth_m))).collect();
     let mut fallen: Vec<f32> = (0..texels).map(|_| rng.range(0.0, 0.2)).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
@@ -397,7 +397,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         origin: [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32],
         resolution: params.resolution,
         depth_m: params.depth_m,
-        refill_m: rng.range(0.0, 0.05),
+        snow_refill_quanta: rng.range(0.0, 500.0) as u32,
         low_m: -2.0,
         high_m: 4.0,
         flags: UpdateParams::USE_FALLEN | UpdateParams::USE_SKY,
@@ -441,9 +441,9 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let sky_depth: Vec<f32> = read(ctx, &staging);
     let capture = vec![1.0f32; texels];
     let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
-    let before = snow.clone();
+    let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut fallen);
-    close(&read::<f32>(ctx, &res.snow), &snow, 1e-5, "snow", seed);
+    assert_eq!(read::<u32>(ctx, &res.snow), snow, "snow words; seed {seed}");
     close(&read::<f32>(ctx, &res.fallen), &fallen, 1e-5, "fallen", seed);
     let hidden = (0..r)
         .flat_map(|i| (0..r).map(move |j| (i, j)))

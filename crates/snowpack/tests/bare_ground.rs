@@ -6,7 +6,8 @@ use glam::{DVec2, Vec3};
 use snowpack::accumulate::Snowfall;
 use snowpack::cpu;
 use snowpack::deform::resources::DeformResources;
-use snowpack::deform::rim::{RimParams, RimPass};
+use snowpack::deform::display::{DisplayParams, DisplayPass};
+use snowpack::deform::snow_word;
 use snowpack::gpu::GpuTimer;
 use snowpack::gpu::read_buffer;
 use snowpack::testing;
@@ -131,7 +132,8 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
     let terrain = cpu::window::ground_plane(&terrain_src, [0, 0], RES as u32, params.texel_m());
     // Half the texels bare (no snowfall yet: a rest depth of 0), half with some snow.
     let fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.5 { 0.0 } else { rng.range(0.001, 0.3) }).collect();
-    let snow: Vec<f32> = terrain.iter().zip(&fallen).map(|(t, f)| if rng.range(0.0, 1.0) < 0.5 { t + f } else { t + rng.range(0.0, *f) }).collect();
+    let snow_words: Vec<u32> = fallen.iter().map(|f| if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, *f)) }).collect();
+    let snow: Vec<f32> = snow_words.iter().zip(&terrain).zip(&fallen).map(|((&w, t), f)| snow_word::height(w, t + f, *t)).collect();
     let (low_m, high_m) = (-3.0_f32, 3.0_f32);
     let stamps: Vec<u32> = terrain
         .iter()
@@ -143,28 +145,40 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             (h << 16) | foot
         })
         .collect();
-    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow_words));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
-    let rim = RimPass::new(&ctx.device, &res);
+    let display = DisplayPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::disabled();
     for mode in [0, 1, 2] {
-        let rp =
-            RimParams { origin: [0, 0], resolution: RES as u32, depth_m: 0.0, elevation: 1.5, mode, low_m, high_m, use_fallen: 1, texel_m: params.texel_m() };
+        let rp = DisplayParams {
+            origin: [0, 0],
+            resolution: RES as u32,
+            depth_m: 0.0,
+            elevation: 1.5,
+            mode,
+            low_m,
+            high_m,
+            use_fallen: 1,
+            texel_m: params.texel_m(),
+            blur: 0,
+            _pad: 0,
+        };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
-        rim.record(&ctx.queue, &mut encoder, &mut timer, &rp);
+        display.record(&ctx.queue, &mut encoder, &mut timer, &rp);
         ctx.queue.submit([encoder.finish()]);
-        // The displayed height is in the even (height) words of `surface`.
-        let words: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("readback"));
-        let gpu: Vec<f32> = words.iter().step_by(2).copied().collect();
-        let cpu = cpu::rim::rim(&rp, &terrain, &snow, &stamps, &fallen);
+        // The displayed height is the upper (f16) half of each word, above the terrain.
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.snow).expect("readback"));
+        let gpu: Vec<f32> = words.iter().zip(&terrain).map(|(&w, &t)| snow_word::shown(w, t)).collect();
+        let cpu = cpu::display::shown(&rp, &terrain, &snow_words, &stamps, &fallen);
         assert!(gpu.iter().all(|h| h.is_finite()), "mode {mode}: NaN in the displayed surface; seed {seed}");
-        let worst = gpu.iter().zip(&cpu).map(|(g, c)| (g - c).abs()).fold(0.0f32, f32::max);
-        assert!(worst < 1e-4, "mode {mode}: GPU and CPU differ by {worst}; seed {seed}");
+        // Within an f16 step of the height above the terrain (f16 in the word).
+        let worst = gpu.iter().zip(&cpu).zip(&terrain).map(|((g, c), t)| (g - c).abs() / ((c - t).abs() * 2f32.powi(-10) + 1e-4)).fold(0.0f32, f32::max);
+        assert!(worst <= 1.0, "mode {mode}: GPU and CPU differ by {worst} of the tolerance; seed {seed}");
         // Bare texels show their snow (origin 0: window-local is toroidal), with no rim.
         let bare: Vec<usize> = (0..n).filter(|&s| fallen[s] == 0.0).collect();
         assert!(bare.len() > n / 3);
-        assert!(bare.iter().all(|&s| gpu[s] == snow[s]), "mode {mode}: a bare texel is not shown as its snow; seed {seed}");
+        assert!(bare.iter().all(|&s| gpu[s] == terrain[s] && snow[s] == terrain[s]), "mode {mode}: a bare texel is not shown as its snow; seed {seed}");
         // And the snowy ones still get their remap or rims.
         let changed = (0..n).filter(|&s| fallen[s] > 0.0 && (gpu[s] - snow[s]).abs() > 1e-4).count();
         assert!(changed > n / 20, "mode {mode}: only {changed} snowy texels remapped; seed {seed}");

@@ -39,15 +39,16 @@ fn default_window_memory_per_technique() {
 
     let mut depth = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("depth window");
     let depth_total = table(&depth, "depth");
-    // Per texel: snow 4, capture 2 (Depth16Unorm), surface 8; no terrain copy
-    // (evaluated from its source), no footprint buffer, no decal layer, no
-    // blur or displayed-height buffer.
-    assert!(depth.memory_bytes().iter().all(|(name, _)| *name != "terrain"));
+    // Per texel: the snow word 4 (persistent and displayed), capture 2
+    // (Depth16Unorm); no terrain copy (evaluated from its source), no
+    // footprint buffer, no decal layer, no blur, displayed-height or normal
+    // buffer (normals are computed where they are used).
+    assert!(depth.memory_bytes().iter().all(|(name, _)| *name != "terrain" && *name != "surface"));
+    assert_eq!(bytes_of(&depth, "snow"), 4 * texels);
     assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
-    assert_eq!(bytes_of(&depth, "surface"), 8 * texels);
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
-    let per_texel = 4 + 2 + 8;
+    let per_texel = 4 + 2;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
     // The default keeps trails: 34² resident slots of 32² texels, two 4-byte
     // planes for depth without snowfall (snow, terrain), and the slots' small

@@ -1,22 +1,24 @@
 //! Every GPU pass against its CPU twin on fresh random inputs.
 //!
 //! Tolerances: heights agree to 1e-4 m (the twins use the same f32 operations;
-//! the GPU may fuse multiply-adds); packed normals to 2 snorm16 steps; the
+//! the GPU may fuse multiply-adds); snow words' deficits exactly or by the
+//! quantum a fused multiply-add can tip, displayed f16s to one f16 step;
+//! packed normals to 2 snorm16 steps; the
 //! capture of boxes may differ at silhouette texels (rasteriser coverage of
 //! a texel centre exactly on an edge), so a few such texels are allowed.
 
 use glam::{DVec2, Quat, Vec3};
 use snowpack::cpu;
-use snowpack::deform::blur::BlurPass;
 use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
-use snowpack::deform::normals::NormalPass;
+use snowpack::deform::display::{DisplayParams, DisplayPass};
 use snowpack::deform::resources::DeformResources;
-use snowpack::deform::rim::{RimParams, RimPass};
+use snowpack::deform::snow_word;
 use snowpack::deform::stamp::{StampParams, StampPass};
 use snowpack::deform::update::{UpdateParams, UpdatePass};
 use snowpack::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use snowpack::gpu::GpuTimer;
 use snowpack::gpu::read_buffer;
+use snowpack::render::surface::SurfaceUnpackPass;
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
 
@@ -26,10 +28,6 @@ fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
-}
-
-fn random_field(rng: &mut Rng, n: usize, lo: f32, hi: f32) -> Vec<f32> {
-    (0..n).map(|_| rng.range(lo, hi)).collect()
 }
 
 fn setup(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, TerrainSource, DeformResources) {
@@ -75,9 +73,9 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("window");
     let mut rng = Rng::new(seed);
-    let (params, terrain, res) = setup(ctx, &mut rng, 80);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 80);
     let n = params.texel_count();
-    let mut cpu_snow = random_field(&mut rng, n, -5.0, 5.0);
+    let mut cpu_snow: Vec<u32> = (0..n).map(|_| rng.next_u64() as u32).collect();
     let mut cpu_stamps: Vec<u32> = (0..n).map(|_| rng.next_u64() as u32).collect();
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&cpu_stamps));
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&cpu_snow));
@@ -104,8 +102,8 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
-        cpu::window::expose(&cp, &rects, &terrain, &mut cpu_snow, &mut cpu_stamps, &mut []);
-        assert_close(&read_f32(ctx, &res.snow), &cpu_snow, 1e-4, "window snow", seed);
+        cpu::window::expose(&cp, &rects, &mut cpu_snow, &mut cpu_stamps, &mut []);
+        assert_eq!(read_u32(ctx, &res.snow), cpu_snow, "window snow words; seed {seed}");
         assert_eq!(read_u32(ctx, &res.stamps), cpu_stamps, "window stamps; seed {seed}");
     }
 }
@@ -120,7 +118,10 @@ fn capture_and_update_match_cpu() {
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     // The ground the update evaluates from the terrain's source, per texel.
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    let mut snow: Vec<f32> = terrain.iter().map(|t| t + rng.range(0.0, params.depth_m * 1.1)).collect();
+    // Deficits up to a little past the rest depth (the update clamps them
+    // at the terrain), under random displayed halves (the update keeps them).
+    let mut snow: Vec<u32> =
+        terrain.iter().map(|_| (rng.next_u64() as u32 & 0xffff_0000) | snow_word::deficit_quanta(rng.range(0.0, params.depth_m * 1.1))).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     let e = params.extent_m;
     let mut deformers = Vec::new();
@@ -146,7 +147,7 @@ fn capture_and_update_match_cpu() {
         origin,
         resolution: params.resolution,
         depth_m: params.depth_m,
-        refill_m: rng.range(0.0, 0.1),
+        snow_refill_quanta: rng.range(0.0, 1000.0) as u32,
         low_m: cparams.low_m,
         high_m: cparams.high_m,
         flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_STAMPS | UpdateParams::HAS_STAMPS,
@@ -213,7 +214,10 @@ fn capture_and_update_match_cpu() {
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
-    let gpu = read_f32(ctx, &res.snow);
+    let gpu_words = read_u32(ctx, &res.snow);
+    assert!(gpu_words.iter().zip(&snow).all(|(a, b)| a >> 16 == b >> 16), "the update changed displayed halves; seed {seed}");
+    let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::height(w, t + params.depth_m, t)).collect() };
+    let (gpu, snow) = (height(&gpu_words), height(&snow));
     // The 16-bit capture's code is 5 m / 65535 = 76 µm here and both sides
     // round to it, so agreeing texels differ by rasteriser rounding only (a
     // code at most): 1 mm leaves room for that and flags any real difference.
@@ -229,28 +233,34 @@ fn capture_and_update_match_cpu() {
     assert!(pressed > n / 50, "only {pressed} texels captured; seed {seed}");
 }
 
-/// The height words of `surface` (its even words; the odd ones are the normals).
-fn heights(surface: &[f32]) -> Vec<f32> {
-    surface.iter().step_by(2).copied().collect()
+/// Whether two displayed halves (f16 bits of the same sign) are within one f16 step.
+fn within_one_f16_step(a: u32, b: u32) -> bool {
+    let (a, b) = (a >> 16, b >> 16);
+    a == b || ((a ^ b) & 0x8000 == 0 && a.abs_diff(b) <= 1) || (a & 0x7fff == 0 && b & 0x7fff == 0)
 }
 
 #[test]
-fn rim_blur_and_normals_match_cpu() {
+fn display_and_surface_unpack_match_cpu() {
     let Some(ctx) = testing::gpu() else { return };
-    let seed = testing::seed("rim+blur+normals");
+    let seed = testing::seed("display+unpack");
     let mut rng = Rng::new(seed);
     let (params, terrain_src, res) = setup(ctx, &mut rng, 96);
     let n = params.texel_count();
     let origin = [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    // Half the texels undisturbed (at rest: point rims may grow there), half pressed.
-    let snow: Vec<f32> = terrain.iter().map(|t| if rng.range(0.0, 1.0) < 0.5 { t + params.depth_m } else { t + rng.range(0.0, params.depth_m) }).collect();
-    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    // Half the texels undisturbed (at rest: point rims may grow there), half
+    // pressed; the displayed halves start as garbage (the pass rewrites them).
+    let snow: Vec<u32> = (0..n)
+        .map(|_| {
+            let deficit = if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, params.depth_m)) };
+            (rng.next_u64() as u32 & 0xffff_0000) | deficit
+        })
+        .collect();
     // Footprints around the rest height so every branch of the point rims runs.
     let (low_m, high_m) = (-3.0_f32, 3.0_f32);
     let stamps: Vec<u32> = (0..n)
-        .map(|k| {
-            let s = k; // toroidal index; terrain and snow are indexed the same way
+        .map(|s| {
+            // Toroidal index; terrain and snow are indexed the same way.
             if rng.range(0.0, 1.0) < 0.2 {
                 return cpu::stamp::STAMP_EMPTY;
             }
@@ -261,7 +271,7 @@ fn rim_blur_and_normals_match_cpu() {
         })
         .collect();
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
-    let mut rp = RimParams {
+    let mut dp = DisplayParams {
         origin,
         resolution: params.resolution,
         depth_m: params.depth_m,
@@ -270,43 +280,59 @@ fn rim_blur_and_normals_match_cpu() {
         low_m,
         high_m,
         texel_m: params.texel_m(),
-        ..RimParams::default()
+        ..DisplayParams::default()
     };
-    let rim = RimPass::new(&ctx.device, &res);
-    let blur = BlurPass::new(&ctx.device, &ctx.queue, &res);
-    let normals = NormalPass::new(&ctx.device, &ctx.queue, &res, params.texel_m());
+    let display = DisplayPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
 
-    // Modes 1 and 2 (point rims), then 0 (Hanák), whose output the blur test uses.
-    let mut cpu_shown = Vec::new();
-    for mode in [1, 2, 0] {
-        rp.mode = mode;
+    // Modes 1 and 2 (point rims) and 0 (Hanák) unblurred, then 0 blurred,
+    // whose output the unpack test uses.
+    let mut gpu_words = Vec::new();
+    for (mode, blur) in [(1, 0), (2, 0), (0, 0), (0, 1)] {
+        dp.mode = mode;
+        dp.blur = blur;
+        ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
         let mut enc = encoder(ctx);
-        rim.record(&ctx.queue, &mut enc, &mut timer, &rp);
+        display.record(&ctx.queue, &mut enc, &mut timer, &dp);
         submit(ctx, enc);
-        cpu_shown = cpu::rim::rim(&rp, &terrain, &snow, &stamps, &[]);
-        assert_close(&heights(&read_f32(ctx, &res.surface)), &cpu_shown, 1e-4, &format!("rim (mode {mode})"), seed);
+        let mut cpu_words = snow.clone();
+        cpu::display::display(&dp, &terrain, &mut cpu_words, &stamps, &[]);
+        gpu_words = read_u32(ctx, &res.snow);
+        let what = format!("display (mode {mode}, blur {blur})");
+        for (k, (g, c)) in gpu_words.iter().zip(&cpu_words).enumerate() {
+            assert_eq!(g & 0xffff, c & 0xffff, "{what}: the deficit at {k} changed; seed {seed}");
+            assert!(within_one_f16_step(*g, *c), "{what} at {k}: {g:#x} vs {c:#x}; seed {seed}");
+        }
+        // Against the f32 it stands for, within the f16's half step (and the 1e-4 the twins allow).
+        let shown = cpu::display::shown(&dp, &terrain, &snow, &stamps, &[]);
+        for i in 0..params.resolution {
+            for j in 0..params.resolution {
+                let s = cpu::window::storage_index(origin, params.resolution, i, j);
+                let want = shown[(i * params.resolution + j) as usize];
+                let got = snow_word::shown(gpu_words[s], terrain[s]);
+                assert!((got - want).abs() <= (want - terrain[s]).abs() * 2f32.powi(-11) + 1e-4, "{what}: {got} vs {want}; seed {seed}");
+            }
+        }
         if mode != 0 {
-            let raised = cpu_shown.iter().zip(&terrain).filter(|(s, t)| **s > **t + params.depth_m + 1e-3).count();
+            let raised = shown.iter().enumerate().filter(|&(k, &h)| {
+                let (i, j) = (k as u32 / params.resolution, k as u32 % params.resolution);
+                h > terrain[cpu::window::storage_index(origin, params.resolution, i, j)] + params.depth_m + 1e-3
+            });
+            let raised = raised.count();
             assert!(raised > n / 50 || params.elevation < 0.05, "mode {mode}: only {raised} rim texels; seed {seed}");
         }
     }
 
+    // The renderer's unpack, from the GPU's own words so only that pass is tested.
+    let unpack = SurfaceUnpackPass::new(&ctx.device, &res);
     let mut enc = encoder(ctx);
-    blur.record(&mut enc, &mut timer);
+    unpack.record(&ctx.queue, &mut enc, &mut timer, origin);
     submit(ctx, enc);
-    let cpu_blurred = cpu::blur::blur(&cpu_shown, params.resolution);
-    let gpu_blurred = heights(&read_f32(ctx, &res.surface));
-    assert_close(&gpu_blurred, &cpu_blurred, 1e-4, "blur", seed);
-
-    let mut enc = encoder(ctx);
-    normals.record(&mut enc, &mut timer);
-    submit(ctx, enc);
-    // Compare from the GPU's own blurred input so only the normals pass is tested.
-    let cpu_surface = cpu::normals::normals(&gpu_blurred, params.resolution, params.texel_m());
-    let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("readback"));
+    let cpu_surface = cpu::normals::normals(&gpu_words, &terrain, origin, params.resolution, params.texel_m());
+    let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("readback"));
     for (k, (g, c)) in gpu_surface.iter().zip(&cpu_surface).enumerate() {
-        assert_eq!(g[0], c[0], "height bits at {k}; seed {seed}");
+        let (a, b) = (f32::from_bits(g[0]), f32::from_bits(c[0]));
+        assert!((a - b).abs() <= 1e-4, "unpacked height at {k}: {a} vs {b}; seed {seed}");
         for shift in [0, 16] {
             let (a, b) = (((g[1] >> shift) & 0xffff) as u16 as i16, ((c[1] >> shift) & 0xffff) as u16 as i16);
             assert!((i32::from(a) - i32::from(b)).abs() <= 2, "normal at {k}: {a} vs {b}; seed {seed}");
@@ -449,16 +475,20 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
     let mut snow =
         snowpack::SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::new(f64::from(centre[0]), f64::from(centre[1]))).expect("window");
     snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
-    // The ground the GPU evaluates from the baked heightmap: untouched snow at rest depth above it.
-    let gpu: Vec<f32> = snow.read_snow(ctx).expect("readback").iter().map(|h| h - params.depth_m).collect();
+    // The ground the GPU evaluates from the baked heightmap, as the point
+    // queries report it at texel centres, against the mesh itself.
     let origin = snow.origin_m().expect("placed");
-    let t = params.texel_m();
-    let cpu: Vec<f32> = (0..64 * 64)
-        .map(|k| {
-            let (i, j) = (k / 64, k % 64);
-            terrain.height_at((origin.x + (f64::from(j as u32) + 0.5) * f64::from(t)) as f32, (origin.y + (f64::from(i as u32) + 0.5) * f64::from(t)) as f32)
-        })
+    let t = f64::from(params.texel_m());
+    let centres: Vec<glam::Vec2> = (0..64 * 64)
+        .filter(|k| (k / 64) % 3 == 1 && (k % 64) % 3 == 1)
+        .map(|k| glam::Vec2::new((origin.x + (f64::from(k % 64) + 0.5) * t) as f32, (origin.y + (f64::from(k / 64) + 0.5) * t) as f32))
         .collect();
+    snow.query_points(&centres);
+    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    snow.finish(ctx).expect("finish");
+    let answers = snow.point_answers().expect("answers");
+    let gpu: Vec<f32> = answers.samples.iter().map(|s| s.expect("inside").terrain_m).collect();
+    let cpu: Vec<f32> = centres.iter().map(|c| terrain.height_at(c.x, c.y)).collect();
     assert_close(&gpu, &cpu, 2e-3, "terrain under the window", seed);
 }
 

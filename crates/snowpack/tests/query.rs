@@ -63,15 +63,13 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
         _pad: 0,
     };
     let local: Vec<[f32; 2]> = points.iter().map(|p| [(f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32]).collect();
-    let surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("surface"));
     let cpu = cpu_query(
         &qp,
         &local,
         // The ground the query evaluates from the terrain's source, per texel.
         &snowpack::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
-        &floats(&read_buffer(ctx, &res.snow).expect("snow")),
+        &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.snow).expect("snow")),
         &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
-        &surface,
     );
     let mut inside = 0;
     let mut pressed = 0;

@@ -374,10 +374,16 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
         ..ShellVertexParams::default()
     };
     let res = snow.resources();
-    let surface = SnowSurface { surface: &res.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
+    // The renderer's unpacked surface, which the shell reads.
+    let unpack = snowpack::render::surface::SurfaceUnpackPass::new(&ctx.device, res);
+    let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("unpack") });
+    let origin = snow.origin_texel().expect("placed");
+    unpack.record(&ctx.queue, &mut enc, &mut snowpack::gpu::GpuTimer::disabled(), [origin[0] as i32, origin[1] as i32]);
+    ctx.queue.submit([enc.finish()]);
+    let surface = SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
     let faces = snowpack::render::shell::ShellPatch { side, stride: 2 }.faces();
     let (gpu, gpu_tetras, gpu_corners) = construct_on_gpu(ctx, &params, &[BaseVertex::default()], &faces, Some(&surface));
-    let texels: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.surface).expect("surface"));
+    let texels: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("surface"));
     let cpu = cpu::shell_vertices::shell_vertices(&params, &[], &texels, snow.terrain());
     for (g, c) in gpu.iter().zip(&cpu) {
         for k in 0..4 {

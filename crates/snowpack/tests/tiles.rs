@@ -79,7 +79,8 @@ fn exchange_matches_cpu() {
         let terrain_src = TerrainSource::Flat { height_m: rng.range(-1.0, 1.0) };
         let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
         let texels = (resolution * resolution) as usize;
-        let snow = floats(&mut rng, texels, 0.0, 2.0);
+        // Snow words: deficits up to 1 m below rest under random displayed halves.
+        let snow: Vec<u32> = (0..texels).map(|_| (rng.next_u64() as u32 & 0xffff_0000) | (rng.next_u64() % 10_000) as u32).collect();
         let mut stamps: Vec<u32> = (0..texels).map(|_| rng.next_u64() as u32).collect();
         let fallen = floats(&mut rng, texels, 0.0, 0.3);
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
@@ -90,7 +91,8 @@ fn exchange_matches_cpu() {
         if use_fallen {
             ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
         }
-        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen, !jump) * grid.area()).map(|_| rng.next_u64() as u32).collect();
+        // Every word a finite height (loads convert the snow plane), footprints random.
+        let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen, !jump) * grid.area()).map(|_| rng.range(-1.0, 2.0).to_bits()).collect();
         let tiles_gpu = storage(ctx, &tiles);
         let old = [(rng.next_u64() % 4000) as i64 - 2000, (rng.next_u64() % 4000) as i64 - 2000];
         let step = if jump { 500 } else { 20 };
@@ -107,6 +109,7 @@ fn exchange_matches_cpu() {
             flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
             texel_m: res.texel_m,
             planes: planes(use_fallen, !jump) as u32,
+            depth_m: params.depth_m,
             ..ExchangeParams::default()
         };
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
@@ -116,13 +119,21 @@ fn exchange_matches_cpu() {
         pass.record(&ctx.queue, &mut e, &mut timer, stash, &rects);
         pass.record(&ctx.queue, &mut e, &mut timer, base, &rects);
         submit(ctx, e);
-        let mut snow_f: Vec<f32> = bytemuck::cast_slice(&snow).to_vec();
+        let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
-        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
+        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f };
         cpu::exchange::exchange(&stash, &rects, &mut tiles, &mut w);
         cpu::exchange::exchange(&base, &rects, &mut tiles, &mut w);
-        assert_eq!(differing(&read_u32(ctx, &tiles_gpu), &tiles, 0.0), 0, "tiles differ (jump {jump}); seed {seed}");
-        assert_eq!(differing(&read_u32(ctx, &res.snow), bytemuck::cast_slice(&snow_f), 0.0), 0, "snow differs; seed {seed}");
+        // Stashed heights are rest - deficit * quantum: a fused multiply-add on
+        // the GPU may change the last bit; loads round to the quantum, and may
+        // tip by one.
+        let tiles_back = read_u32(ctx, &tiles_gpu);
+        let far = tiles_back.iter().zip(&tiles).filter(|&(&x, &y)| x != y && !((f32::from_bits(x) - f32::from_bits(y)).abs() <= 1e-5)).count();
+        assert_eq!(far, 0, "tiles differ (jump {jump}); seed {seed}");
+        let snow_back = read_u32(ctx, &res.snow);
+        let far = snow_back.iter().zip(&snow_w).filter(|&(&x, &y)| x >> 16 != y >> 16 || (x & 0xffff).abs_diff(y & 0xffff) > 1).count();
+        assert_eq!(far, 0, "snow words differ; seed {seed}");
+        assert!(snow_back.iter().zip(&snow).filter(|(a, b)| a != b).count() > 0, "the load wrote nothing; seed {seed}");
         if res.has_stamps() {
             assert_eq!(differing(&read_u32(ctx, &res.stamps), &stamps, 0.0), 0, "stamps differ; seed {seed}");
         }

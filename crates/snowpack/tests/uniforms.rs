@@ -2,13 +2,12 @@
 
 use snowpack::accumulate::state::ObjectGpu;
 use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
-use snowpack::deform::blur::BlurParams;
+use snowpack::deform::display::DisplayParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
 use snowpack::deform::exchange::ExchangeParams;
-use snowpack::deform::normals::NormalParams;
 use snowpack::deform::query::{QueryParams, RawSample};
-use snowpack::deform::rim::RimParams;
+use snowpack::render::surface::UnpackParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams};
@@ -41,15 +40,14 @@ fn wgsl_uniform_size(source: &str, name: &str) -> u32 {
 fn uniform_sizes_match_naga() {
     let cases: &[(&str, &str, usize)] = &[
         (shaders::WINDOW, "params", size_of::<WindowParams>()),
-        (shaders::WINDOW, "terrain_params", size_of::<TerrainParams>()),
+        (shaders::UPDATE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
         (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
         (shaders::STAMP, "params", size_of::<StampParams>()),
         (shaders::DECAL, "params", size_of::<DecalParams>()),
         (shaders::UPDATE, "params", size_of::<UpdateParams>()),
-        (shaders::RIM, "params", size_of::<RimParams>()),
-        (shaders::BLUR, "params", size_of::<BlurParams>()),
-        (shaders::NORMALS, "params", size_of::<NormalParams>()),
+        (shaders::DISPLAY, "params", size_of::<DisplayParams>()),
+        (shaders::SURFACE_UNPACK, "params", size_of::<UnpackParams>()),
         (shaders::QUERY, "params", size_of::<QueryParams>()),
         (shaders::TERRAIN_BAKE, "params", size_of::<TerrainBakeParams>()),
         (shaders::TERRAIN_RESOLVE, "params", size_of::<ResolveParams>()),

@@ -10,8 +10,11 @@
 //   binding 0  uniform              SnowWindow      where the window is (updated per frame)
 //   binding 1  uniform              TerrainParams   the terrain description
 //   binding 2  storage, read        array<f32>      heightmap samples (heightmap or mesh terrain)
-//   binding 3  storage, read        array<vec2<u32>> the displayed surface, window-local row-major:
-//                                   (f32 height bits, pack2x16snorm(normal.x, normal.z))
+//   binding 3  storage, read        array<u32>      the window's snow words, toroidal: global texel
+//                                   (col, row) at (row mod res) * res + (col mod res); the
+//                                   upper 16 bits of a word are the displayed height above
+//                                   the terrain as an f16 (the lower 16 are the persistent
+//                                   snow's deficit below rest, not read here)
 //
 // Functions (world_xz: world (x, z) in metres, relative to the deformation's
 // floating origin, which is the world origin unless the game set one):
@@ -35,8 +38,12 @@
 // Rims (raised above rest) count as 0. The rest depth is the window's
 // `depth_m` plus the snowfall so far on open ground.
 //
+// Normals: the terrain's gradient by central differences over one texel at
+// the point, plus the bilinear central differences of the displayed height
+// above the terrain between texel centres (no terrain evaluation per texel).
+//
 // Global names this module declares (avoid them in your shader): SnowWindow,
-// SnowTaps, snow_window, snow_terrain, heightmap, snow_surface, every snow_*
+// SnowTaps, snow_window, snow_terrain, heightmap, snow_words, every snow_*
 // function, and shared/terrain.wgsl's TerrainParams, NOISE_OCTAVES,
 // lattice_hash, lattice_value, noise_fade, value_noise, fbm, heightmap_at,
 // terrain_height.
@@ -55,7 +62,7 @@ struct SnowWindow {
 @group(1) @binding(0) var<uniform> snow_window: SnowWindow;
 @group(1) @binding(1) var<uniform> snow_terrain: TerrainParams;
 @group(1) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(1) @binding(3) var<storage, read> snow_surface: array<vec2<u32>>;
+@group(1) @binding(3) var<storage, read> snow_words: array<u32>;
 
 fn snow_ground_height(world_xz: vec2<f32>) -> f32 {
     let p = world_xz + snow_window.floating_origin;
@@ -91,17 +98,46 @@ fn snow_taps(world_xz: vec2<f32>) -> SnowTaps {
     return SnowTaps(i0, j0, min(i0 + 1u, r - 1u), min(j0 + 1u, r - 1u), t - c0);
 }
 
-fn snow_texel(i: u32, j: u32) -> vec2<u32> {
-    return snow_surface[i * snow_window.resolution + j];
+// Euclidean remainder with only non-negative operands (GLSL's % of a
+// negative integer is undefined).
+fn snow_wrap(g: i32, r: i32) -> i32 {
+    if g >= 0 {
+        return g % r;
+    }
+    return (r - 1) - ((-1 - g) % r);
 }
 
-fn snow_unpack_normal(bits: u32) -> vec3<f32> {
-    let xz = unpack2x16snorm(bits);
-    return vec3<f32>(xz.x, sqrt(max(1.0 - dot(xz, xz), 0.0)), xz.y);
+// Displayed height above the terrain of local texel (i, j), clamped into the window.
+fn snow_above_ground(i: i32, j: i32) -> f32 {
+    let r = i32(snow_window.resolution);
+    let ci = clamp(i, 0, r - 1);
+    let cj = clamp(j, 0, r - 1);
+    let g = snow_window.origin_texel + vec2<i32>(cj, ci);
+    let h = snow_words[u32(snow_wrap(g.y, r) * r + snow_wrap(g.x, r))] >> 16u;
+    // The f16 decoded with integer operations (unpack2x16float needs a
+    // capability some downlevel backends lack); snowpack never writes
+    // subnormals or infinities.
+    let e = (h >> 10u) & 0x1fu;
+    let sign = (h & 0x8000u) << 16u;
+    if e == 0u {
+        return bitcast<f32>(sign);
+    }
+    return bitcast<f32>(sign | ((e + 112u) << 23u) | ((h & 0x3ffu) << 13u));
 }
 
 fn snow_bilinear(k: SnowTaps, a: f32, b: f32, c: f32, d: f32) -> f32 {
     return mix(mix(a, b, k.f.x), mix(c, d, k.f.x), k.f.y);
+}
+
+// The displayed height above the terrain, bilinear between texel centres.
+fn snow_above_ground_at(k: SnowTaps) -> f32 {
+    return snow_bilinear(
+        k,
+        snow_above_ground(i32(k.i0), i32(k.j0)),
+        snow_above_ground(i32(k.i0), i32(k.j1)),
+        snow_above_ground(i32(k.i1), i32(k.j0)),
+        snow_above_ground(i32(k.i1), i32(k.j1)),
+    );
 }
 
 fn snow_height(world_xz: vec2<f32>) -> f32 {
@@ -109,36 +145,46 @@ fn snow_height(world_xz: vec2<f32>) -> f32 {
         return snow_rest_height(world_xz);
     }
     let k = snow_taps(world_xz);
-    return snow_bilinear(
-        k,
-        bitcast<f32>(snow_texel(k.i0, k.j0).x),
-        bitcast<f32>(snow_texel(k.i0, k.j1).x),
-        bitcast<f32>(snow_texel(k.i1, k.j0).x),
-        bitcast<f32>(snow_texel(k.i1, k.j1).x),
-    );
+    let ground = snow_bilinear(k, snow_texel_ground(k.i0, k.j0), snow_texel_ground(k.i0, k.j1), snow_texel_ground(k.i1, k.j0), snow_texel_ground(k.i1, k.j1));
+    return ground + snow_above_ground_at(k);
 }
 
 fn snow_normal(world_xz: vec2<f32>) -> vec3<f32> {
-    if !snow_inside(world_xz) {
-        let e = snow_window.texel_m;
-        let dx = snow_rest_height(world_xz + vec2<f32>(e, 0.0)) - snow_rest_height(world_xz - vec2<f32>(e, 0.0));
-        let dz = snow_rest_height(world_xz + vec2<f32>(0.0, e)) - snow_rest_height(world_xz - vec2<f32>(0.0, e));
-        return normalize(vec3<f32>(-dx, 2.0 * e, -dz));
+    let e = snow_window.texel_m;
+    // The terrain's part of the slope (the rest depth is constant over it).
+    var dx = snow_ground_height(world_xz + vec2<f32>(e, 0.0)) - snow_ground_height(world_xz - vec2<f32>(e, 0.0));
+    var dz = snow_ground_height(world_xz + vec2<f32>(0.0, e)) - snow_ground_height(world_xz - vec2<f32>(0.0, e));
+    if snow_inside(world_xz) {
+        let k = snow_taps(world_xz);
+        let i0 = i32(k.i0);
+        let j0 = i32(k.j0);
+        let i1 = i32(k.i1);
+        let j1 = i32(k.j1);
+        // Central differences of the height above the terrain at the four texels.
+        dx += snow_bilinear(
+            k,
+            snow_above_ground(i0, j0 + 1) - snow_above_ground(i0, j0 - 1),
+            snow_above_ground(i0, j1 + 1) - snow_above_ground(i0, j1 - 1),
+            snow_above_ground(i1, j0 + 1) - snow_above_ground(i1, j0 - 1),
+            snow_above_ground(i1, j1 + 1) - snow_above_ground(i1, j1 - 1),
+        );
+        dz += snow_bilinear(
+            k,
+            snow_above_ground(i0 + 1, j0) - snow_above_ground(i0 - 1, j0),
+            snow_above_ground(i0 + 1, j1) - snow_above_ground(i0 - 1, j1),
+            snow_above_ground(i1 + 1, j0) - snow_above_ground(i1 - 1, j0),
+            snow_above_ground(i1 + 1, j1) - snow_above_ground(i1 - 1, j1),
+        );
     }
-    let k = snow_taps(world_xz);
-    let a = snow_unpack_normal(snow_texel(k.i0, k.j0).y);
-    let b = snow_unpack_normal(snow_texel(k.i0, k.j1).y);
-    let c = snow_unpack_normal(snow_texel(k.i1, k.j0).y);
-    let d = snow_unpack_normal(snow_texel(k.i1, k.j1).y);
-    return normalize(mix(mix(a, b, k.f.x), mix(c, d, k.f.x), k.f.y));
+    return normalize(vec3<f32>(-dx, 2.0 * e, -dz));
 }
 
 fn snow_depth(world_xz: vec2<f32>) -> f32 {
     return max(snow_height(world_xz) - snow_ground_height(world_xz), 0.0);
 }
 
-// Terrain at local texel (i, j)'s centre, computed as the window pass does
-// (from the global texel index), so untouched snow has compaction 0 exactly.
+// Terrain at local texel (i, j)'s centre, computed as the deformation does
+// (from the global texel index): what the stored heights are above.
 fn snow_texel_ground(i: u32, j: u32) -> f32 {
     let g = snow_window.origin_texel + vec2<i32>(i32(j), i32(i));
     let x = (f32(g.x) + 0.5) * snow_window.texel_m;
@@ -150,8 +196,7 @@ fn snow_compaction(world_xz: vec2<f32>) -> f32 {
     if !snow_inside(world_xz) {
         return 0.0;
     }
-    let k = snow_taps(world_xz);
-    let ground = snow_bilinear(k, snow_texel_ground(k.i0, k.j0), snow_texel_ground(k.i0, k.j1), snow_texel_ground(k.i1, k.j0), snow_texel_ground(k.i1, k.j1));
+    // rest - height over the same bilinear terrain: depth - height above it.
     let depth = snow_window.rest_depth_m;
-    return clamp((ground + depth - snow_height(world_xz)) / max(depth, 1e-4), 0.0, 1.0);
+    return clamp((depth - snow_above_ground_at(snow_taps(world_xz))) / max(depth, 1e-4), 0.0, 1.0);
 }

@@ -1,6 +1,7 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
 use crate::deform::exchange::ExchangeParams;
+use crate::deform::snow_word;
 use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
 use crate::deform::window::TexelRect;
 
@@ -22,8 +23,8 @@ pub fn tile_index(g: [i32; 2], side: u32, n: u32, planes: usize, plane: usize) -
 pub struct WindowBuffers<'a> {
     /// The terrain's source: a stashed tile's terrain plane is evaluated from it.
     pub terrain: &'a crate::TerrainSource,
-    /// Snow height.
-    pub snow: &'a mut [f32],
+    /// Snow words (`shared/snow_word.wgsl`).
+    pub snow: &'a mut [u32],
     /// Packed footprints.
     pub stamps: &'a mut [u32],
     /// Snowfall so far (one texel without snowfall).
@@ -44,23 +45,30 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let (sj, si) = ((s % p.resolution as usize) as i32, (s / p.resolution as usize) as i32);
                     let o = p.old_origin;
                     let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
-                    tiles[tile_index(g, side, n, planes, PLANE_SNOW)] = w.snow[s].to_bits();
+                    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
+                    let rest = ground + p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
+                    tiles[tile_index(g, side, n, planes, PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
                     if has_stamps {
                         tiles[tile_index(g, side, n, planes, plane_stamps(planes))] = w.stamps[s];
                     }
-                    tiles[tile_index(g, side, n, planes, PLANE_TERRAIN)] = super::window::texel_ground(w.terrain, g, p.texel_m).to_bits();
+                    tiles[tile_index(g, side, n, planes, PLANE_TERRAIN)] = ground.to_bits();
                     if use_fallen {
                         tiles[tile_index(g, side, n, planes, PLANE_FALLEN)] = w.fallen[s].to_bits();
                     }
                 } else {
                     let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
-                    w.snow[s] = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_SNOW)]);
+                    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
+                    let mut rest = ground + p.depth_m;
                     if has_stamps {
                         w.stamps[s] = tiles[tile_index(g, side, n, planes, plane_stamps(planes))];
                     }
                     if use_fallen {
-                        w.fallen[s] = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_FALLEN)]);
+                        let lying = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_FALLEN)]);
+                        w.fallen[s] = lying;
+                        rest += lying;
                     }
+                    let h = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_SNOW)]);
+                    w.snow[s] = snow_word::press_quanta(rest, ground, h);
                 }
             }
         }

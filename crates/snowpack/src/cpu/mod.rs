@@ -4,15 +4,14 @@
 
 pub mod ao;
 pub mod atlas_surface;
-pub mod blur;
 pub mod capture;
+pub mod display;
 pub mod environment;
 pub mod exchange;
 pub mod increment;
 pub mod normals;
 pub mod peel_count;
 pub mod query;
-pub mod rim;
 pub mod scatter;
 pub mod settle;
 pub mod shell_tetrahedra;

@@ -1,4 +1,8 @@
-//! CPU twin of `normals.wgsl`.
+//! CPU twin of `surface_unpack.wgsl`.
+
+use crate::deform::snow_word;
+
+use super::window::storage_index;
 
 /// WGSL's `pack2x16snorm`.
 #[must_use]
@@ -7,9 +11,22 @@ pub fn pack2x16snorm(a: f32, b: f32) -> u32 {
     q(a) | (q(b) << 16)
 }
 
-/// Packed (height bits, normal) per texel from window-local heights.
+/// The displayed heights, window-local, from the toroidal snow words and terrain.
 #[must_use]
-pub fn normals(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[u32; 2]> {
+pub fn shown_heights(snow: &[u32], terrain: &[f32], origin: [i32; 2], resolution: u32) -> Vec<f32> {
+    let mut out = Vec::with_capacity(snow.len());
+    for i in 0..resolution {
+        for j in 0..resolution {
+            let s = storage_index(origin, resolution, i, j);
+            out.push(snow_word::shown(snow[s], terrain[s]));
+        }
+    }
+    out
+}
+
+/// Unit normals by central differences of window-local heights (clamped at the edges).
+#[must_use]
+pub fn normals_of(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[f32; 3]> {
     let r = resolution as i32;
     let at = |i: i32, j: i32| height[(i.clamp(0, r - 1) * r + j.clamp(0, r - 1)) as usize];
     let mut out = Vec::with_capacity(height.len());
@@ -17,9 +34,16 @@ pub fn normals(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[u32; 2]> {
         for j in 0..r {
             let dx = at(i, j + 1) - at(i, j - 1);
             let dz = at(i + 1, j) - at(i - 1, j);
-            let n = glam::Vec3::new(-dx, 2.0 * texel_m, -dz).normalize();
-            out.push([at(i, j).to_bits(), pack2x16snorm(n.x, n.z)]);
+            out.push(glam::Vec3::new(-dx, 2.0 * texel_m, -dz).normalize().to_array());
         }
     }
     out
+}
+
+/// Packed (height bits, normal) per texel, window-local, from the toroidal
+/// snow words and terrain.
+#[must_use]
+pub fn normals(snow: &[u32], terrain: &[f32], origin: [i32; 2], resolution: u32, texel_m: f32) -> Vec<[u32; 2]> {
+    let height = shown_heights(snow, terrain, origin, resolution);
+    normals_of(&height, resolution, texel_m).iter().zip(&height).map(|(n, h)| [h.to_bits(), pack2x16snorm(n[0], n[2])]).collect()
 }

@@ -1,6 +1,7 @@
 //! CPU twin of `query.wgsl`.
 
 use crate::deform::query::{QueryParams, RawSample};
+use crate::deform::snow_word;
 
 use super::window::storage_index;
 
@@ -10,16 +11,22 @@ fn bilerp(a: f32, b: f32, c: f32, d: f32, f: [f32; 2]) -> f32 {
     ab + (cd - ab) * f[1]
 }
 
-fn unpack_normal(bits: u32) -> [f32; 3] {
-    let snorm = |b: u32| (f32::from(b as u16 as i16) / 32767.0).clamp(-1.0, 1.0);
-    let (x, z) = (snorm(bits & 0xffff), snorm(bits >> 16));
-    [x, (1.0 - x * x - z * z).max(0.0).sqrt(), z]
+/// Displayed height of window-local texel (i, j), clamped into the window.
+fn shown_at(params: &QueryParams, terrain: &[f32], snow: &[u32], i: i32, j: i32) -> f32 {
+    let last = params.resolution as i32 - 1;
+    let s = storage_index(params.origin, params.resolution, i.clamp(0, last) as u32, j.clamp(0, last) as u32);
+    snow_word::shown(snow[s], terrain[s])
+}
+
+fn texel_normal(params: &QueryParams, terrain: &[f32], snow: &[u32], i: i32, j: i32) -> glam::Vec3 {
+    let h = |i, j| shown_at(params, terrain, snow, i, j);
+    glam::Vec3::new(-(h(i, j + 1) - h(i, j - 1)), 2.0 * params.texel_m, -(h(i + 1, j) - h(i - 1, j))).normalize()
 }
 
 /// The samples `query.wgsl` writes for `points` (m from the window's
-/// corner), from toroidal `terrain`, `snow`, `fallen` and window-local `surface`.
+/// corner), from toroidal `terrain`, snow words and `fallen`.
 #[must_use]
-pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], snow: &[f32], fallen: &[f32], surface: &[[u32; 2]]) -> Vec<RawSample> {
+pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], snow: &[u32], fallen: &[f32]) -> Vec<RawSample> {
     let res = params.resolution;
     let r = res as i32;
     points
@@ -35,18 +42,18 @@ pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], snow: &
             }
             let (j, i) = (cell[0] as u32, cell[1] as u32);
             let s = |di: u32, dj: u32| storage_index(params.origin, res, i + di, j + dj);
-            let (s00, s01, s10, s11) = (s(0, 0), s(0, 1), s(1, 0), s(1, 1));
-            out.height_m = bilerp(snow[s00], snow[s01], snow[s10], snow[s11], f);
-            out.terrain_m = bilerp(terrain[s00], terrain[s01], terrain[s10], terrain[s11], f);
-            let fallen_m = if params.use_fallen != 0 { bilerp(fallen[s00], fallen[s01], fallen[s10], fallen[s11], f) } else { 0.0 };
-            out.rest_m = out.terrain_m + params.depth_m + fallen_m;
-            let w = |di: u32, dj: u32| surface[((i + di) * res + j + dj) as usize];
-            let (w00, w01, w10, w11) = (w(0, 0), w(0, 1), w(1, 0), w(1, 1));
-            let h = |t: [u32; 2]| f32::from_bits(t[0]);
-            out.surface_m = bilerp(h(w00), h(w01), h(w10), h(w11), f);
-            let n = [w00, w01, w10, w11].map(|t| glam::Vec3::from(unpack_normal(t[1])));
-            let n = n[0].lerp(n[1], f[0]).lerp(n[2].lerp(n[3], f[0]), f[1]).normalize();
-            out.normal = n.to_array();
+            let taps = [s(0, 0), s(0, 1), s(1, 0), s(1, 1)];
+            let t = taps.map(|s| terrain[s]);
+            let l = taps.map(|s| if params.use_fallen != 0 { fallen[s] } else { 0.0 });
+            out.terrain_m = bilerp(t[0], t[1], t[2], t[3], f);
+            out.rest_m = out.terrain_m + params.depth_m + bilerp(l[0], l[1], l[2], l[3], f);
+            let h: [f32; 4] = std::array::from_fn(|k| snow_word::height(snow[taps[k]], t[k] + params.depth_m + l[k], t[k]));
+            out.height_m = bilerp(h[0], h[1], h[2], h[3], f);
+            let shown: [f32; 4] = std::array::from_fn(|k| snow_word::shown(snow[taps[k]], t[k]));
+            out.surface_m = bilerp(shown[0], shown[1], shown[2], shown[3], f);
+            let (ii, jj) = (i as i32, j as i32);
+            let n = [(0, 0), (0, 1), (1, 0), (1, 1)].map(|(di, dj)| texel_normal(params, terrain, snow, ii + di, jj + dj));
+            out.normal = n[0].lerp(n[1], f[0]).lerp(n[2].lerp(n[3], f[0]), f[1]).normalize().to_array();
             out.inside = 1.0;
             out
         })

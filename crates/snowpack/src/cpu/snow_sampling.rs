@@ -1,7 +1,7 @@
 //! CPU twin of `shaders/shared/snow_sampling.wgsl`: the same samples of the
 //! displayed surface (height, normal, depth, compaction) from a blocking read
-//! of it ([`crate::SnowDeformation::read_surface`]), same operations in the
-//! same order.
+//! of the snow words ([`crate::SnowDeformation::read_snow_words`]), same
+//! operations in the same order.
 
 use glam::{Vec2, Vec3};
 
@@ -13,10 +13,9 @@ use crate::render::sampling::SnowWindowUniform;
 pub struct SampledSurface<'a> {
     /// The window, as bound at binding 0.
     pub window: SnowWindowUniform,
-    /// Displayed height per texel, window-local row-major.
-    pub heights: &'a [f32],
-    /// Unit normal per texel, window-local row-major.
-    pub normals: &'a [[f32; 3]],
+    /// Displayed height above the terrain per texel, window-local row-major
+    /// ([`above_ground`]).
+    pub above: &'a [f32],
     /// The terrain under the snow.
     pub terrain: &'a TerrainSource,
 }
@@ -73,6 +72,16 @@ impl SampledSurface<'_> {
         self.window.placed != 0 && q.cmpge(Vec2::ZERO).all() && q.cmple(Vec2::splat(extent)).all()
     }
 
+    fn above_at(&self, i: i32, j: i32) -> f32 {
+        let last = self.window.resolution as i32 - 1;
+        self.above[self.at(i.clamp(0, last) as usize, j.clamp(0, last) as usize)]
+    }
+
+    fn above_bilinear(&self, k: &Taps) -> f32 {
+        let a = |i: usize, j: usize| self.above[self.at(i, j)];
+        Self::bilinear(k, a(k.i0, k.j0), a(k.i0, k.j1), a(k.i1, k.j0), a(k.i1, k.j1))
+    }
+
     /// `snow_height`.
     #[must_use]
     pub fn height(&self, xz: Vec2) -> f32 {
@@ -80,23 +89,25 @@ impl SampledSurface<'_> {
             return self.rest_height(xz);
         }
         let k = self.taps(xz);
-        let h = |i, j| self.heights[self.at(i, j)];
-        Self::bilinear(&k, h(k.i0, k.j0), h(k.i0, k.j1), h(k.i1, k.j0), h(k.i1, k.j1))
+        let g = |i, j| self.texel_ground(i, j);
+        Self::bilinear(&k, g(k.i0, k.j0), g(k.i0, k.j1), g(k.i1, k.j0), g(k.i1, k.j1)) + self.above_bilinear(&k)
     }
 
     /// `snow_normal`.
     #[must_use]
     pub fn normal(&self, xz: Vec2) -> Vec3 {
-        if !self.inside(xz) {
-            let e = self.window.texel_m;
-            let dx = self.rest_height(xz + Vec2::new(e, 0.0)) - self.rest_height(xz - Vec2::new(e, 0.0));
-            let dz = self.rest_height(xz + Vec2::new(0.0, e)) - self.rest_height(xz - Vec2::new(0.0, e));
-            return Vec3::new(-dx, 2.0 * e, -dz).normalize();
+        let e = self.window.texel_m;
+        let mut dx = self.ground_height(xz + Vec2::new(e, 0.0)) - self.ground_height(xz - Vec2::new(e, 0.0));
+        let mut dz = self.ground_height(xz + Vec2::new(0.0, e)) - self.ground_height(xz - Vec2::new(0.0, e));
+        if self.inside(xz) {
+            let k = self.taps(xz);
+            let (i0, j0, i1, j1) = (k.i0 as i32, k.j0 as i32, k.i1 as i32, k.j1 as i32);
+            let ddx = |i, j| self.above_at(i, j + 1) - self.above_at(i, j - 1);
+            let ddz = |i, j| self.above_at(i + 1, j) - self.above_at(i - 1, j);
+            dx += Self::bilinear(&k, ddx(i0, j0), ddx(i0, j1), ddx(i1, j0), ddx(i1, j1));
+            dz += Self::bilinear(&k, ddz(i0, j0), ddz(i0, j1), ddz(i1, j0), ddz(i1, j1));
         }
-        let k = self.taps(xz);
-        let n = |i, j| Vec3::from(self.normals[self.at(i, j)]);
-        let (a, b, c, d) = (n(k.i0, k.j0), n(k.i0, k.j1), n(k.i1, k.j0), n(k.i1, k.j1));
-        a.lerp(b, k.f.x).lerp(c.lerp(d, k.f.x), k.f.y).normalize()
+        Vec3::new(-dx, 2.0 * e, -dz).normalize()
     }
 
     /// `snow_depth`.
@@ -116,10 +127,14 @@ impl SampledSurface<'_> {
         if !self.inside(xz) {
             return 0.0;
         }
-        let k = self.taps(xz);
-        let ground =
-            Self::bilinear(&k, self.texel_ground(k.i0, k.j0), self.texel_ground(k.i0, k.j1), self.texel_ground(k.i1, k.j0), self.texel_ground(k.i1, k.j1));
         let depth = self.window.rest_depth_m;
-        ((ground + depth - self.height(xz)) / depth.max(1e-4)).clamp(0.0, 1.0)
+        ((depth - self.above_bilinear(&self.taps(xz))) / depth.max(1e-4)).clamp(0.0, 1.0)
     }
+}
+
+/// The displayed height above the terrain per texel from snow words in
+/// window-local order ([`crate::SnowDeformation::read_snow_words`]).
+#[must_use]
+pub fn above_ground(words: &[u32]) -> Vec<f32> {
+    words.iter().map(|w| crate::deform::snow_word::f16_to_f32(w >> 16)).collect()
 }

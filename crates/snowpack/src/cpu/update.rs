@@ -1,5 +1,6 @@
 //! CPU twin of `update.wgsl`.
 
+use crate::deform::snow_word::{height as word_height, press_quanta};
 use crate::deform::update::UpdateParams;
 
 use super::stamp::{STAMP_EMPTY, height};
@@ -36,36 +37,40 @@ pub struct UpdateInputs<'a> {
     pub terrain: &'a [f32],
 }
 
-/// Updates the toroidal `snow`, `fallen` (and refills `stamps`) in place.
-pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [f32], stamps: &mut [u32], fallen: &mut [f32]) {
+/// Updates the toroidal `snow` words (`shared/snow_word.wgsl`), `fallen`
+/// (and refills `stamps`) in place.
+pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
     let r = p.resolution;
     for i in 0..r {
         for j in 0..r {
             let s = storage_index(p.origin, r, i, j);
             let ground = input.terrain[s];
-            let old = snow[s];
-            let visible = if p.flags & UpdateParams::USE_SKY != 0 { sky_visible(p, input.sky_depth, i, j, old) } else { 1.0 };
-            let (mut lying, mut gained) = (0.0, 0.0);
+            let word = snow[s];
+            let mut lying = if p.flags & UpdateParams::USE_FALLEN != 0 { fallen[s] } else { 0.0 };
+            let visible =
+                if p.flags & UpdateParams::USE_SKY != 0 { sky_visible(p, input.sky_depth, i, j, word_height(word, ground + p.depth_m + lying, ground)) } else { 1.0 };
             if p.flags & UpdateParams::USE_FALLEN != 0 {
-                let before = fallen[s];
+                let before = lying;
                 lying = before.max((before + p.fall_m * visible).min(p.max_fallen_m));
-                gained = lying - before;
                 fallen[s] = lying;
             }
             let rest = ground + p.depth_m + lying;
-            let mut h = (old + gained + p.refill_m * visible).min(rest);
+            let mut deficit = word & 0xffff;
+            if visible > 0.0 {
+                deficit -= deficit.min(p.snow_refill_quanta);
+            }
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
                 let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
                     let actor = p.low_m + d * (p.high_m - p.low_m);
-                    h = h.min(ground.max(actor));
+                    deficit = deficit.max(press_quanta(rest, ground, actor));
                 }
             }
             let st = if p.flags & UpdateParams::HAS_STAMPS != 0 { stamps[s] } else { STAMP_EMPTY };
             if st != STAMP_EMPTY {
                 let (hq, fq) = (st >> 16, st & 0xffff);
                 if p.flags & UpdateParams::USE_STAMPS != 0 {
-                    h = h.min(ground.max(height(hq, p.low_m, p.high_m)));
+                    deficit = deficit.max(press_quanta(rest, ground, height(hq, p.low_m, p.high_m)));
                 }
                 if p.refill_quanta > 0 {
                     let foot = fq + p.refill_quanta;
@@ -73,7 +78,9 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [f32], stam
                         if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest { STAMP_EMPTY } else { ((hq + p.refill_quanta).min(65535) << 16) | foot };
                 }
             }
-            snow[s] = h.max(ground);
+            // Never below the terrain.
+            deficit = deficit.min(press_quanta(rest, ground, ground));
+            snow[s] = (word & 0xffff_0000) | deficit;
         }
     }
 }

@@ -34,15 +34,14 @@ pub fn ground_plane(terrain: &TerrainSource, origin: [i32; 2], res: u32, texel_m
     out
 }
 
-/// Writes fresh snow (terrain + rest depth + the snowfall so far) into the
-/// texels of `rects` and clears their footprints.
-pub fn expose(p: &WindowParams, rects: &[TexelRect], terrain_src: &TerrainSource, snow: &mut [f32], stamps: &mut [u32], fallen: &mut [f32]) {
+/// Writes fresh snow (snow words with no deficit: at rest, the snowfall so
+/// far included) into the texels of `rects` and clears their footprints.
+pub fn expose(p: &WindowParams, rects: &[TexelRect], snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
                 let s = storage_index(p.origin, p.resolution, i, j);
-                let ground = texel_ground(terrain_src, [p.origin[0] + j as i32, p.origin[1] + i as i32], p.texel_m);
-                snow[s] = ground + p.depth_m + p.fallen_m;
+                snow[s] = 0;
                 if p.flags & WindowParams::WRITE_STAMPS != 0 {
                     stamps[s] = super::stamp::STAMP_EMPTY;
                 }

@@ -27,12 +27,13 @@ pub struct ExchangeParams {
     pub flags: u32,
     /// How many of `rects` are used.
     pub rect_count: u32,
-    /// Texel size (m): where a stashed tile's terrain plane is evaluated.
+    /// Texel size (m): where the terrain is evaluated.
     pub texel_m: f32,
     /// Planes per resident slot ([`super::tiles::planes`]).
     pub planes: u32,
-    /// Padding.
-    pub _pad: u32,
+    /// Rest depth (m): the window's snow words are deficits below terrain +
+    /// depth + snowfall so far, the tiles' snow planes f32 heights.
+    pub depth_m: f32,
     /// Exposed window-local rectangles `[row0, col0, rows, cols]`.
     pub rects: [TexelRect; 2],
 }

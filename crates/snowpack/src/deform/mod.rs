@@ -1,18 +1,17 @@
 //! The deformation pipeline: sliding window, capture, update, rims, blur,
 //! normals and readback, one module (and one WGSL file) per pass.
 
-pub mod blur;
 pub mod capture;
 pub mod decal;
+pub mod display;
 pub mod exchange;
-pub mod normals;
 pub mod params;
 pub mod pipeline;
 pub mod query;
 pub mod resources;
-pub mod rim;
 pub mod saved;
 pub mod shape;
+pub mod snow_word;
 pub mod stamp;
 pub mod technique;
 pub mod terrain_bake;

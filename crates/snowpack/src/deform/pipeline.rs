@@ -8,15 +8,14 @@ use crate::gpu::{GpuContext, GpuTimer, PassTimings, read_buffer};
 use crate::persist::{SnowClock, StoreError, StreamerConfig, TileStreamer};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
-use super::blur::BlurPass;
 use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
 use super::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
-use super::normals::{NormalPass, unpack_surface};
+use super::display::{DisplayParams, DisplayPass};
 use super::params::default_tile_texels;
 use super::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use super::resources::DeformResources;
-use super::rim::{RimParams, RimPass};
 use super::saved::{STATE_NAME, SavedWindow};
+use super::snow_word::{self, SNOW_QUANTUM_M};
 use super::stamp::{StampParams, StampPass, contact_points};
 use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, planes};
 use super::update::{UpdateParams, UpdatePass};
@@ -60,9 +59,10 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// Per frame: [`WindowPass`] (newly exposed texels), [`CapturePass`] (actors
 /// from below; techniques depth and combined), [`StampPass`] (contact points'
 /// footprints; points and combined), [`UpdatePass`] (persistent height with
-/// refill), [`RimPass`] (Hanák's remap or point rims), [`BlurPass`] (x then
-/// z, optional), [`NormalPass`] (packed surface), then [`QueryPass`] (the
+/// refill), [`DisplayPass`] (Hanák's remap or point rims, then the optional
+/// blur, into the displayed half of each snow word), then [`QueryPass`] (the
 /// points asked with [`Self::query_points`], answered a frame or two later).
+/// Normals are computed where they are used, from the displayed heights.
 ///
 /// Buffers exist only for the techniques used so far: the footprint buffer
 /// (`stamps`, 4 bytes a texel) for points and combined, the decal layer (4
@@ -91,9 +91,7 @@ pub struct SnowDeformation {
     decal_pass: DecalPass,
     decals: DecalRing,
     update_pass: UpdatePass,
-    rim_pass: RimPass,
-    blur_pass: BlurPass,
-    normal_pass: NormalPass,
+    display_pass: DisplayPass,
     timer: GpuTimer,
     query_pass: QueryPass,
     /// Points asked for the next frame (relative to the floating origin) and their ticket.
@@ -104,6 +102,8 @@ pub struct SnowDeformation {
     exposed_texels: u64,
     /// Footprint refill not yet applied, below one stamp quantum (m).
     stamp_refill_carry_m: f32,
+    /// Refill not yet given to the snow: less than one snow quantum (m).
+    snow_refill_carry_m: f32,
     points_last_frame: usize,
     skinning: SkinningPass,
     skinned: Vec<SkinnedInstance>,
@@ -186,11 +186,11 @@ impl SnowDeformation {
                 why: format!("{} exceeds this adapter's texture limit {}", params.resolution, limits.max_texture_dimension_2d),
             });
         }
-        let surface_bytes = params.texel_count() as u64 * 8;
-        if surface_bytes > limits.max_storage_buffer_binding_size {
+        let buffer_bytes = params.texel_count() as u64 * 4;
+        if buffer_bytes > limits.max_storage_buffer_binding_size {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
-                why: format!("{} needs {surface_bytes} byte buffers, above this adapter's limit", params.resolution),
+                why: format!("{} needs {buffer_bytes} byte buffers, above this adapter's limit", params.resolution),
             });
         }
         let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
@@ -217,9 +217,7 @@ impl SnowDeformation {
             decal_pass: DecalPass::new(device, queue, params.resolution, params.technique == Technique::Decals),
             decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
             update_pass: UpdatePass::new(device, &res),
-            rim_pass: RimPass::new(device, &res),
-            blur_pass: BlurPass::new(device, queue, &res),
-            normal_pass: NormalPass::new(device, queue, &res, params.texel_m()),
+            display_pass: DisplayPass::new(device, &res),
             timer: GpuTimer::new(device, queue),
             query_pass: QueryPass::new(device, &res),
             asked: None,
@@ -234,6 +232,7 @@ impl SnowDeformation {
             frame: 0,
             exposed_texels: 0,
             stamp_refill_carry_m: 0.0,
+            snow_refill_carry_m: 0.0,
             points_last_frame: 0,
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
@@ -655,7 +654,7 @@ impl SnowDeformation {
             // Every pass bound to the 4-byte stand-in binds the new buffer.
             self.window_pass = WindowPass::new(device, &self.res);
             self.stamp_pass = StampPass::new(device, &self.res);
-            self.rim_pass = RimPass::new(device, &self.res);
+            self.display_pass = DisplayPass::new(device, &self.res);
             self.update_pass = UpdatePass::new(device, &self.res);
             self.update_pass.bind_sky(device, &self.res, self.accumulation.as_ref().map(SnowAccumulation::sky_view));
             if let Some(tiles) = &mut self.tiles {
@@ -743,6 +742,10 @@ impl SnowDeformation {
         self.stamp_refill_carry_m += refill_m;
         let refill_quanta = (self.stamp_refill_carry_m / quantum).floor().min(65535.0);
         self.stamp_refill_carry_m -= refill_quanta * quantum;
+        // So does the snow, by its own quanta (snow_word).
+        self.snow_refill_carry_m += refill_m;
+        let snow_refill_quanta = (self.snow_refill_carry_m / SNOW_QUANTUM_M).floor().min(65535.0);
+        self.snow_refill_carry_m -= snow_refill_quanta * SNOW_QUANTUM_M;
         self.update_pass.record(
             queue,
             encoder,
@@ -751,7 +754,7 @@ impl SnowDeformation {
                 origin: origin_i32,
                 resolution: p.resolution,
                 depth_m: p.depth_m,
-                refill_m,
+                snow_refill_quanta: snow_refill_quanta as u32,
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
@@ -779,26 +782,24 @@ impl SnowDeformation {
         self.clock.fallen_m += f64::from(fall_m);
         self.clock.stamp_quanta += refill_quanta as u64;
         self.fallen_total_m = (self.fallen_total_m + fall_m).min(max_fallen_m);
-        self.rim_pass.record(
+        self.display_pass.record(
             queue,
             encoder,
             &mut self.timer,
-            &RimParams {
+            &DisplayParams {
                 origin: origin_i32,
                 resolution: p.resolution,
                 depth_m: p.depth_m,
                 elevation: p.elevation,
-                mode: RimParams::mode_for(technique, p.rim),
+                mode: DisplayParams::mode_for(technique, p.rim),
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 use_fallen: u32::from(snowfall.is_some()),
                 texel_m: p.texel_m(),
+                blur: u32::from(p.blur),
+                _pad: 0,
             },
         );
-        if p.blur {
-            self.blur_pass.record(encoder, &mut self.timer);
-        }
-        self.normal_pass.record(encoder, &mut self.timer);
         if let Some(acc) = &mut self.accumulation {
             match &snowfall {
                 // One occlusion pixel is one window texel of ground.
@@ -930,12 +931,12 @@ impl SnowDeformation {
         list
     }
 
-    fn untorus(&self, toroidal: &[f32]) -> Vec<f32> {
+    fn untorus<T: Copy + Default>(&self, toroidal: &[T]) -> Vec<T> {
         let r = self.params.resolution as usize;
         let origin = self.window.origin().unwrap_or([0, 0]);
         let ri = r as i64;
         let (oc, or) = (origin[0].rem_euclid(ri) as usize, origin[1].rem_euclid(ri) as usize);
-        let mut out = vec![0.0; r * r];
+        let mut out = vec![T::default(); r * r];
         for i in 0..r {
             let si = (or + i) % r;
             for j in 0..r {
@@ -945,10 +946,24 @@ impl SnowDeformation {
         out
     }
 
+    /// The snow words ([`super::snow_word`]), window-local row-major (row i
+    /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
+    /// decode them.
+    pub fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
+        let raw = read_buffer(ctx, &self.res.snow)?;
+        Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
+    }
+
     /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
     pub fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        let raw = read_buffer(ctx, &self.res.snow)?;
-        Ok(self.untorus(&bytemuck::pod_collect_to_vec(&raw)))
+        let words = self.read_snow_words(ctx)?;
+        let terrain = self.read_terrain(ctx)?;
+        let fallen: Vec<f32> = if self.params.snowfall.is_some() {
+            self.untorus(&bytemuck::pod_collect_to_vec::<u8, f32>(&read_buffer(ctx, &self.res.fallen)?))
+        } else {
+            vec![0.0; words.len()]
+        };
+        Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.params.depth_m + l, g)).collect())
     }
 
     /// Terrain height (m) at the texel centres, window-local row-major; for
@@ -979,8 +994,13 @@ impl SnowDeformation {
     }
 
     /// Displayed height (m) and unit normal per texel, window-local; blocking.
+    /// The normals are central differences of the displayed heights, as the
+    /// renderer and the point queries compute them.
     pub fn read_surface(&self, ctx: &GpuContext) -> Result<(Vec<f32>, Vec<[f32; 3]>), SnowError> {
-        let raw: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.surface)?);
-        Ok(raw.into_iter().map(unpack_surface).unzip())
+        let words = self.read_snow_words(ctx)?;
+        let terrain = self.read_terrain(ctx)?;
+        let heights: Vec<f32> = words.iter().zip(&terrain).map(|(&w, &g)| snow_word::shown(w, g)).collect();
+        let normals = crate::cpu::normals::normals_of(&heights, self.params.resolution, self.params.texel_m());
+        Ok((heights, normals))
     }
 }

@@ -200,9 +200,8 @@ impl QueryPass {
                 layout::storage(2, true),
                 layout::storage(3, true),
                 layout::storage(4, true),
-                layout::storage(5, true),
-                layout::storage(6, false),
-                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
+                layout::storage(5, false),
+                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let params = layout::uniform_buffer::<QueryParams>(device, "query params");
@@ -230,7 +229,6 @@ impl QueryPass {
                 res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.fallen.as_entire_binding(),
-                res.surface.as_entire_binding(),
                 samples.as_entire_binding(),
                 res.terrain_params.as_entire_binding(),
             ],

@@ -2,16 +2,16 @@
 //!
 //! | resource | format | order | meaning |
 //! |---|---|---|---|
-//! | `snow` | f32 per texel | toroidal | persistent snow surface height (m) |
+//! | `snow` | u32 per texel ([`super::snow_word`]) | toroidal | persistent snow as a 16-bit deficit below its rest height, and the displayed height above the terrain as an f16 |
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
 //! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
-//! | `surface` | (f32 bits, snorm16x2) per texel | window-local | displayed height and normal for the renderer |
 //!
-//! `surface` is also the rim and blur passes' working memory: the rim writes
-//! the height words, the blur's x axis writes the normal words (as f32
-//! scratch) and its z axis the height words again, then the normals pass
-//! overwrites the normal words. No separate displayed-height or blur buffer.
+//! Six bytes a texel with the depth technique: the persistent and the
+//! displayed snow share one word, the display pass fuses rims and blur in
+//! workgroup memory (no scratch), and normals are computed where they are
+//! used from the displayed heights. The terrain is evaluated from its
+//! source, never stored per texel.
 
 use crate::gpu::layout;
 use crate::{SnowParams, TerrainSource};
@@ -36,7 +36,7 @@ pub struct DeformResources {
     pub resolution: u32,
     /// Texel size (m).
     pub texel_m: f32,
-    /// Persistent snow height per texel, toroidal.
+    /// The snow words, toroidal ([`super::snow_word`]): persistent snow and displayed height.
     pub snow: wgpu::Buffer,
     /// Packed footprints (height16 << 16 | foot16) per texel, toroidal;
     /// persistent. Allocated for the points and combined techniques (at
@@ -56,8 +56,6 @@ pub struct DeformResources {
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
-    /// Packed height and normal, window-local; what a renderer samples.
-    pub surface: wgpu::Buffer,
 }
 
 fn height_buffer(device: &wgpu::Device, label: &str, texels: u64) -> wgpu::Buffer {
@@ -120,12 +118,6 @@ impl DeformResources {
             terrain_params,
             capture,
             capture_view,
-            surface: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("surface"),
-                size: texels * 8,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
         }
     }
 
@@ -159,7 +151,6 @@ impl DeformResources {
             ("fallen", self.fallen.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
-            ("surface", self.surface.size()),
         ]
     }
 }

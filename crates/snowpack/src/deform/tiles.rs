@@ -419,6 +419,7 @@ impl TileStreaming {
             flags: fallen_flag,
             texel_m: res.texel_m,
             planes: self.planes() as u32,
+            depth_m: frame.depth_m,
             ..ExchangeParams::default()
         };
         if old.is_some() {
@@ -657,6 +658,7 @@ impl TileStreaming {
             flags,
             texel_m: res.texel_m,
             planes: self.planes() as u32,
+            depth_m: self.depth_m,
             ..ExchangeParams::default()
         };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);

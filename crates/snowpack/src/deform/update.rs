@@ -18,8 +18,9 @@ pub struct UpdateParams {
     pub resolution: u32,
     /// Rest depth of snow (m).
     pub depth_m: f32,
-    /// Refill this frame: `refill_m_per_s * dt` (m).
-    pub refill_m: f32,
+    /// Refill this frame in snow quanta ([`super::snow_word::SNOW_QUANTUM_M`]):
+    /// `refill_m_per_s * dt` plus the remainder carried from earlier frames.
+    pub snow_refill_quanta: u32,
     /// Capture depth 0 height (m).
     pub low_m: f32,
     /// Capture depth 1 height (m).

@@ -163,7 +163,7 @@ impl TerrainParams {
     }
 }
 
-/// Writes terrain and fresh snow into newly exposed texels (`window.wgsl`).
+/// Writes fresh, untouched snow into newly exposed texels (`window.wgsl`).
 pub struct WindowPass {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
@@ -180,11 +180,9 @@ impl WindowPass {
             shaders::WINDOW,
             &[
                 layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
-                layout::storage(2, true),
+                layout::storage(1, false),
+                layout::storage(2, false),
                 layout::storage(3, false),
-                layout::storage(4, false),
-                layout::storage(5, false),
             ],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
@@ -194,8 +192,6 @@ impl WindowPass {
             &bgl,
             &[
                 params.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 res.fallen.as_entire_binding(),

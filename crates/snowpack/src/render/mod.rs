@@ -25,6 +25,7 @@ pub mod shadow;
 pub mod shell;
 pub mod skinned;
 pub mod sky;
+pub mod surface;
 pub mod terrain;
 pub mod tonemap;
 
@@ -84,7 +85,7 @@ struct Targets {
 }
 
 /// The terrain pass's group 1: surface, heightmap, terrain params, AO, decal layer.
-fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDeformation, ao: &AoPass) -> wgpu::BindGroup {
+fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDeformation, surface: &wgpu::Buffer, ao: &AoPass) -> wgpu::BindGroup {
     let res = snow.resources();
     let decal_view = snow.decal_layer().create_view(&wgpu::TextureViewDescriptor::default());
     layout::bind_group(
@@ -92,7 +93,7 @@ fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDefo
         "terrain snow",
         &terrain.snow_layout,
         &[
-            res.surface.as_entire_binding(),
+            surface.as_entire_binding(),
             res.heightmap.as_entire_binding(),
             res.terrain_params.as_entire_binding(),
             ao.ao.as_entire_binding(),
@@ -114,6 +115,7 @@ pub struct Renderer {
     env: EnvironmentPass,
     env_sun: (Vec3, Vec3),
     shadow: ShadowMap,
+    unpack: surface::SurfaceUnpackPass,
     ao: AoPass,
     terrain: TerrainPass,
     actors: ActorPass,
@@ -201,9 +203,10 @@ impl Renderer {
         );
         let shadow_group = layout::bind_group(device, "shadow frame", &shadow_layout, &[frame.as_entire_binding()]);
         let res = snow.resources();
-        let ao = AoPass::new(device, &res.surface, res.resolution);
+        let unpack = surface::SurfaceUnpackPass::new(device, res);
+        let ao = AoPass::new(device, &unpack.surface, res.resolution);
         let terrain = TerrainPass::new(device, &lit_layout, &shadow_layout, params.patch_quads);
-        let snow_group = snow_bind_group(device, &terrain, snow, &ao);
+        let snow_group = snow_bind_group(device, &terrain, snow, &unpack.surface, &ao);
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
         let objects = objects::ObjectDrawPass::new(device, &lit_layout, &shadow_layout);
@@ -231,6 +234,7 @@ impl Renderer {
             env_sun: env.brightest(),
             env: env_pass,
             shadow,
+            unpack,
             ao,
             terrain,
             actors,
@@ -289,7 +293,7 @@ impl Renderer {
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
         let targets = self.targets.as_ref().map_or(0, |t| u64::from(t.size.0) * u64::from(t.size.1) * (8 + 4));
-        self.env.memory_bytes() + self.shadow.memory_bytes() + self.ao.ao.size() + targets + self.shell().map_or(0, ShellRenderer::memory_bytes)
+        self.env.memory_bytes() + self.shadow.memory_bytes() + self.unpack.memory_bytes() + self.ao.ao.size() + targets + self.shell().map_or(0, ShellRenderer::memory_bytes)
     }
 
     fn ensure_targets(&mut self, device: &wgpu::Device, size: (u32, u32)) {
@@ -374,7 +378,7 @@ impl Renderer {
         let (uniforms, lod) = self.uniforms(snow, camera, size, eye_height);
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
         if snow.decal_layer() != &self.decal_layer {
-            self.snow_group = snow_bind_group(device, &self.terrain, snow, &self.ao);
+            self.snow_group = snow_bind_group(device, &self.terrain, snow, &self.unpack.surface, &self.ao);
             self.decal_layer = snow.decal_layer().clone();
         }
 
@@ -397,7 +401,9 @@ impl Renderer {
         };
 
         self.timer.begin_frame();
-        if snow.origin_m().is_some() {
+        if let Some(origin) = snow.origin_texel() {
+            // Window coordinates fit i32 on the GPU (see the deformation's frame).
+            self.unpack.record(queue, encoder, &mut self.timer, [origin[0] as i32, origin[1] as i32]);
             let sp = snow.params();
             let params = AoParams { resolution: sp.resolution, steps: AoPass::STEPS, texel_m: sp.texel_m(), strength: self.params.ao_strength };
             self.ao.record(queue, encoder, &mut self.timer, params);
@@ -477,7 +483,7 @@ impl Renderer {
         match &mut self.shell {
             Some(shell) if !shell.settings().rebuild_needed(&wanted) => shell.set_settings(wanted),
             _ => {
-                self.shell = match ShellRenderer::new(ctx, snow, wanted, &self.lit_layout) {
+                self.shell = match ShellRenderer::new(ctx, snow, &self.unpack.surface, wanted, &self.lit_layout) {
                     Ok(shell) => Some(shell),
                     Err(e) => {
                         tracing::warn!("shell detail off: {e}");

@@ -8,7 +8,7 @@
 //! | 0 | uniform `SnowWindow` (48 B) | [`SnowSampling`]'s own, [`SnowWindowUniform`] | where the window is; rewritten each frame |
 //! | 1 | uniform `TerrainParams` (48 B) | `DeformResources::terrain_params` | the terrain description |
 //! | 2 | storage, read `array<f32>` | `DeformResources::heightmap` | heightmap samples (heightmap and mesh terrain) |
-//! | 3 | storage, read `array<vec2<u32>>` | `DeformResources::surface` | displayed height and normal per texel, window-local |
+//! | 3 | storage, read `array<u32>` | `DeformResources::snow` | the snow words, toroidal: displayed height above the terrain (upper f16) and persistent deficit (lower 16 bits) |
 //!
 //! All four are in group [`SNOW_SAMPLING_GROUP`] (1); [`snow_sampling_wgsl`]
 //! gives the module for another group. The WGSL file's header documents the
@@ -106,7 +106,7 @@ pub fn sampling_bind_group(device: &wgpu::Device, layout: &wgpu::BindGroupLayout
         device,
         "snow sampling",
         layout,
-        &[window.as_entire_binding(), res.terrain_params.as_entire_binding(), res.heightmap.as_entire_binding(), res.surface.as_entire_binding()],
+        &[window.as_entire_binding(), res.terrain_params.as_entire_binding(), res.heightmap.as_entire_binding(), res.snow.as_entire_binding()],
     )
 }
 
@@ -118,13 +118,13 @@ pub struct SnowSampling {
     layout: wgpu::BindGroupLayout,
     window: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    /// The deformation's buffers the bind group holds (surface, terrain params, heightmap).
+    /// The deformation's buffers the bind group holds (snow words, terrain params, heightmap).
     bound: [wgpu::Buffer; 3],
 }
 
 fn bound_buffers(snow: &SnowDeformation) -> [wgpu::Buffer; 3] {
     let res = snow.resources();
-    [res.surface.clone(), res.terrain_params.clone(), res.heightmap.clone()]
+    [res.snow.clone(), res.terrain_params.clone(), res.heightmap.clone()]
 }
 
 impl SnowSampling {

@@ -240,8 +240,15 @@ fn volume_texture(
 }
 
 impl ShellRenderer {
-    /// Builds the shell over `snow` with `settings`; `lit_layout` is the renderer's group 0.
-    pub fn new(ctx: &GpuContext, snow: &SnowDeformation, settings: ShellSettings, lit_layout: &wgpu::BindGroupLayout) -> Result<Self, SnowError> {
+    /// Builds the shell over `snow` with `settings`, reading the renderer's
+    /// unpacked `surface` ([`crate::render::surface`]); `lit_layout` is the renderer's group 0.
+    pub fn new(
+        ctx: &GpuContext,
+        snow: &SnowDeformation,
+        surface: &wgpu::Buffer,
+        settings: ShellSettings,
+        lit_layout: &wgpu::BindGroupLayout,
+    ) -> Result<Self, SnowError> {
         settings.validate()?;
         let (device, queue) = (&ctx.device, &ctx.queue);
         let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed)?;
@@ -285,7 +292,7 @@ impl ShellRenderer {
         let vertex_pass = ShellVertexPass::new(
             device,
             &base,
-            &SnowSurface { surface: &res.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params },
+            &SnowSurface { surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params },
             &vertices,
         );
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);

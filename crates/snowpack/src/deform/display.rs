@@ -1,5 +1,5 @@
-//! Rim pass: Hanák's cubic remap, or rims from the points' stored foot
-//! heights, into the displayed height (`rim.wgsl`).
+//! Display pass: the displayed snow height, rims and blur fused in one
+//! dispatch (`display.wgsl`), into the upper half of each `snow` word.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -8,10 +8,10 @@ use crate::shaders;
 
 use super::resources::DeformResources;
 
-/// Uniforms of `rim.wgsl`.
+/// Uniforms of `display.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct RimParams {
+pub struct DisplayParams {
     /// Global texel index of local (0, 0): `[column, row]`.
     pub origin: [i32; 2],
     /// Texels per side.
@@ -20,7 +20,7 @@ pub struct RimParams {
     pub depth_m: f32,
     /// Rim strength: blend of the cubic remap (mode 0), or rim height scale (modes 1, 2).
     pub elevation: f32,
-    /// 0 Hanák's remap, 1 MS16 point rims, 2 rounded point rims ([`RimParams::mode_for`]).
+    /// 0 Hanák's remap, 1 MS16 point rims, 2 rounded point rims ([`DisplayParams::mode_for`]).
     pub mode: u32,
     /// Height of stamp code 0 (m).
     pub low_m: f32,
@@ -30,9 +30,13 @@ pub struct RimParams {
     pub use_fallen: u32,
     /// Texel size (m): where the terrain is evaluated.
     pub texel_m: f32,
+    /// 1: blur the rimmed height (the 5x5 Gaussian); 0: show it as it is.
+    pub blur: u32,
+    /// Padding to the WGSL struct's size.
+    pub _pad: u32,
 }
 
-impl RimParams {
+impl DisplayParams {
     /// The rim mode of a technique: rims from points where points are stamped.
     #[must_use]
     pub fn mode_for(technique: crate::Technique, style: crate::RimStyle) -> u32 {
@@ -45,41 +49,39 @@ impl RimParams {
     }
 }
 
-/// Writes the displayed height (before blur) in window-local order.
-pub struct RimPass {
+/// Writes the displayed height of every texel (upper halves of `res.snow`).
+pub struct DisplayPass {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }
 
-impl RimPass {
-    /// Builds the pipeline and binds it to `res` (output: the height words of `res.surface`).
+impl DisplayPass {
+    /// Builds the pipeline and binds it to `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
             device,
-            "rim",
-            shaders::RIM,
+            "display",
+            shaders::DISPLAY,
             &[
                 layout::uniform(0, wgpu::ShaderStages::COMPUTE),
                 layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, false),
+                layout::storage(2, false),
+                layout::storage(3, true),
                 layout::storage(4, true),
-                layout::storage(5, true),
-                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
+                layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
         );
-        let params = layout::uniform_buffer::<RimParams>(device, "rim params");
+        let params = layout::uniform_buffer::<DisplayParams>(device, "display params");
         let bind_group = layout::bind_group(
             device,
-            "rim",
+            "display",
             &bgl,
             &[
                 params.as_entire_binding(),
                 res.heightmap.as_entire_binding(),
                 res.snow.as_entire_binding(),
-                res.surface.as_entire_binding(),
                 res.stamps.as_entire_binding(),
                 res.fallen.as_entire_binding(),
                 res.terrain_params.as_entire_binding(),
@@ -88,10 +90,10 @@ impl RimPass {
         Self { pipeline, params, bind_group }
     }
 
-    /// Records the remap for this frame.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &RimParams) {
+    /// Records this frame's display.
+    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &DisplayParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
-        layout::dispatch(encoder, timer, "rim", &self.pipeline, &self.bind_group, (g, g));
+        layout::dispatch(encoder, timer, "display", &self.pipeline, &self.bind_group, (g, g));
     }
 }

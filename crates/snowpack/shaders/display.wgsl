@@ -1,0 +1,144 @@
+// Display pass: the displayed snow height, written into the upper half of
+// each `snow` word (shared/snow_word.wgsl) as its height above the terrain.
+// It is the rim, then (with `blur`) the separable 5x5 Gaussian (1 4 6 4 1)/16
+// of the rimmed height, clamped at the window's edges, fused in one dispatch:
+// a workgroup computes the rim of its 16x16 texels and a 2-texel apron into
+// workgroup memory, blurs along x there, then along z, and writes only its
+// own texels' words, so no scratch buffer is needed.
+// The rim, mode 0 (depth, decals): Hanák's cubic remap (eq. 4.1),
+//   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
+// applied to the normalised snow depth x and blended in by `elevation`:
+//   shown = terrain + depth * (x + elevation * (f(x) - x)),
+// depth being the rest depth plus the snowfall so far where it snows.
+// Modes 1 (MS16) and 2 (Wasmut's rounded variant), for points and combined:
+// the persistent snow as it is, plus a rim where a stored footprint rises
+// above the rest height over undisturbed snow, from its foot height:
+//   e = sqrt(h - foot) - sqrt(rest - foot), M = sqrt(rest - foot), r = e / M,
+//   MS16: 1 - (0.5 - 2r)^2, rounded: 1 - (2r - 1)^2, clamped at 0,
+// times elevation * RIM_PEAK * (rest - foot).
+// `snow` is atomic here only because other workgroups read the lower half of
+// words whose upper half this one writes: each word has one writer, which
+// keeps the lower half it read. CPU twin: src/cpu/display.rs.
+
+struct DisplayParams {
+    origin: vec2<i32>,
+    resolution: u32,
+    depth_m: f32,
+    elevation: f32,
+    mode: u32,
+    low_m: f32,
+    high_m: f32,
+    use_fallen: u32,  // 1: the rest depth includes `fallen` (snowfall so far)
+    texel_m: f32,
+    blur: u32,        // 1: blur the rimmed height
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: DisplayParams;
+// The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
+@group(0) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(2) var<storage, read_write> snow: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read> stamps: array<u32>;
+@group(0) @binding(4) var<storage, read> fallen: array<f32>;
+@group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
+
+const RIM_PEAK: f32 = 0.25;
+// Snow within this of the rest height counts as undisturbed (grows rims).
+const UNDISTURBED_M: f32 = 0.001;
+const TILE: u32 = 16u;
+const SPAN: u32 = 20u; // TILE + 2 * 2 (the blur's radius on both sides)
+
+// Rimmed heights of the tile and its apron, [row * SPAN + column].
+var<workgroup> rimmed: array<f32, 400>;
+// Blurred along x: the tile's 16 columns over the apron's 20 rows, [row * TILE + column].
+var<workgroup> along_x: array<f32, 320>;
+
+fn hanak_cubic(x: f32) -> f32 {
+    return ((-3.4766 * x + 6.508) * x - 2.231) * x + 0.215;
+}
+
+fn point_rim(st: u32, rest: f32) -> f32 {
+    if st == STAMP_EMPTY {
+        return 0.0;
+    }
+    let h = stamp_height(st >> 16u, params.low_m, params.high_m);
+    let foot = stamp_height(st & 0xffffu, params.low_m, params.high_m);
+    if foot >= rest || h <= rest {
+        return 0.0;
+    }
+    let m = sqrt(rest - foot);
+    let r = (sqrt(h - foot) - m) / m;
+    var t: f32;
+    if params.mode == 1u {
+        t = 0.5 - 2.0 * r;
+    } else {
+        t = 2.0 * r - 1.0;
+    }
+    return max(1.0 - t * t, 0.0) * params.elevation * RIM_PEAK * (rest - foot);
+}
+
+fn ground_at(i: u32, j: u32) -> f32 {
+    return texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+}
+
+// The rimmed (not yet blurred) height of window-local texel (i, j).
+fn rimmed_height(i: u32, j: u32) -> f32 {
+    let s = storage_index(params.origin, params.resolution, i, j);
+    let ground = ground_at(i, j);
+    var depth = params.depth_m;
+    if params.use_fallen != 0u {
+        depth += fallen[s];
+    }
+    let snow_h = snow_word_height(atomicLoad(&snow[s]), ground + depth, ground);
+    if depth <= 0.0 {
+        // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
+        // push into rims.
+        return snow_h;
+    }
+    if params.mode == 0u {
+        let x = clamp((snow_h - ground) / depth, 0.0, 1.0);
+        let remapped = x + params.elevation * (hanak_cubic(x) - x);
+        return ground + depth * max(remapped, 0.0);
+    }
+    let rest = ground + depth;
+    var out = snow_h;
+    if out >= rest - UNDISTURBED_M {
+        out += point_rim(stamps[s], rest);
+    }
+    return out;
+}
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(local_invocation_index) flat: u32) {
+    let last = i32(params.resolution) - 1;
+    if params.blur != 0u {
+        let i0 = i32(wg.y * TILE) - 2;
+        let j0 = i32(wg.x * TILE) - 2;
+        for (var k = flat; k < SPAN * SPAN; k += TILE * TILE) {
+            let i = clamp(i0 + i32(k / SPAN), 0, last);
+            let j = clamp(j0 + i32(k % SPAN), 0, last);
+            rimmed[k] = rimmed_height(u32(i), u32(j));
+        }
+        workgroupBarrier();
+        for (var k = flat; k < SPAN * TILE; k += TILE * TILE) {
+            let t = (k / TILE) * SPAN + k % TILE;
+            along_x[k] = (rimmed[t] + 4.0 * rimmed[t + 1u] + 6.0 * rimmed[t + 2u] + 4.0 * rimmed[t + 3u] + rimmed[t + 4u]) * (1.0 / 16.0);
+        }
+        workgroupBarrier();
+    }
+    let i = wg.y * TILE + lid.y;
+    let j = wg.x * TILE + lid.x;
+    if i >= params.resolution || j >= params.resolution {
+        return;
+    }
+    var shown: f32;
+    if params.blur != 0u {
+        let t = lid.y * TILE + lid.x;
+        shown = (along_x[t] + 4.0 * along_x[t + TILE] + 6.0 * along_x[t + 2u * TILE] + 4.0 * along_x[t + 3u * TILE] + along_x[t + 4u * TILE]) * (1.0 / 16.0);
+    } else {
+        shown = rimmed_height(i, j);
+    }
+    let s = storage_index(params.origin, params.resolution, i, j);
+    let word = atomicLoad(&snow[s]);
+    atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(i, j)));
+}
