@@ -60,7 +60,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if has_stamps {
             tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
         }
-        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(texel_ground(terrain_params, g, params.texel_m));
         if use_fallen {
             tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }

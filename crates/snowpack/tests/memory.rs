@@ -50,9 +50,9 @@ fn default_window_memory_per_technique() {
     let per_texel = 4 + 2 + 8;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
     // The default keeps trails: 34² resident slots of 32² texels, two 4-byte
-    // planes for depth without snowfall (snow, terrain), and the slots' small
+    // plane for depth without snowfall (snow), and the slots' small
     // bookkeeping buffers.
-    let ring = 34 * 34 * 32 * 32 * 8;
+    let ring = 34 * 34 * 32 * 32 * 4;
     let tiles = bytes_of(&depth, "resident tiles");
     assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
 

@@ -9,6 +9,7 @@ use snowpack::cpu;
 use snowpack::deform::exchange::{ExchangeParams, ExchangePass};
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use snowpack::deform::tile_seal::{SealParams, TileSealPass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
 use snowpack::deform::tiles::{PLANES, TileGrid, plane_stamps, planes};
 use snowpack::deform::window::SlidingWindow;
@@ -69,8 +70,8 @@ fn exchange_matches_cpu() {
     let (resolution, side) = (64u32, 16u32);
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
-        // The short move with a footprint buffer (points) and snowfall (four
-        // planes a slot), the jump without either (depth: snow and terrain only).
+        // The short move with a footprint buffer (points) and snowfall (three
+        // planes a slot), the jump without either (depth: snow only).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
         let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
         let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
@@ -183,7 +184,6 @@ fn tile_restore_and_weather_match_cpu() {
     }
     let restore_params = RestoreParams {
         side,
-        slots_per_side: grid.slots_per_side(),
         count: entries.len() as u32,
         flags: RestoreParams::USE_FALLEN,
         planes: PLANES as u32,
@@ -219,13 +219,13 @@ fn tile_restore_and_weather_match_cpu() {
         })
         .collect();
     let owners_gpu = storage(ctx, bytemuck::cast_slice(&owners));
-    let weather = TileWeatherPass::new(&ctx.device, &owners_gpu, &tiles_gpu);
+    let weather = TileWeatherPass::new(&ctx.device, &res, &owners_gpu, &tiles_gpu);
     let centre = entries[0].tile;
     let wp = WeatherParams {
         origin: [centre[0] * side as i32 - 8, centre[1] * side as i32 - 8],
         resolution,
         side,
-        slots_per_side: grid.slots_per_side(),
+        texel_m: 0.125,
         flags: WeatherParams::USE_FALLEN,
         depth_m: 0.5,
         refill_m: rng.range(0.0, 0.01),
@@ -246,13 +246,38 @@ fn tile_restore_and_weather_match_cpu() {
     let mut e = encoder(ctx);
     weather.record(&ctx.queue, &mut e, &mut timer, &wp, &slots);
     submit(ctx, e);
-    cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &mut tiles);
+    cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
     assert_eq!(differing(&gpu, &tiles, 1e-5), 0, "weather: slots differ; seed {seed}");
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     assert!(stamp_diff <= stamp_words.len() / 1000, "weather: {stamp_diff} footprints differ; seed {seed}");
     // Non-vacuous: the weather changed many texels.
     assert!(differing(&gpu, &before, 0.0) > area, "the weather changed nothing; seed {seed}");
+
+    // Seal: a random subset of the slots, their snow XOR the rest height;
+    // sealing again gives the slots back bit for bit.
+    tiles.clone_from(&gpu);
+    let before = gpu;
+    let seal_entries: Vec<[i32; 4]> =
+        (0..grid.slot_count()).filter(|_| !rng.next_u64().is_multiple_of(3)).map(|s| [entries[s].tile[0], entries[s].tile[1], s as i32, 0]).collect();
+    let sp = SealParams { side, planes: PLANES as u32, flags: SealParams::USE_FALLEN, texel_m: 0.125, depth_m: 0.5, ..SealParams::default() };
+    let mut seal = TileSealPass::new(&ctx.device, &res, &tiles_gpu);
+    let mut e = encoder(ctx);
+    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    submit(ctx, e);
+    cpu::tile_seal::seal(&sp, &seal_entries, &terrain, &mut tiles);
+    let gpu = read_u32(ctx, &tiles_gpu);
+    // Sealed snow words are XORs: equal bits where the rest heights agree;
+    // noise terrain agrees to rounding, so compare the unsealed heights.
+    let mut unsealed = gpu.clone();
+    cpu::tile_seal::seal(&sp, &seal_entries, &terrain, &mut unsealed);
+    assert_eq!(differing(&unsealed, &before, 1e-4), 0, "seal: CPU unseal of the GPU's seal differs; seed {seed}");
+    let sealed_snow = seal_entries.iter().flat_map(|e| (e[2] as usize * PLANES * area)..(e[2] as usize * PLANES * area + area));
+    assert!(sealed_snow.filter(|&k| gpu[k] != before[k]).count() > area, "the seal changed nothing; seed {seed}");
+    let mut e = encoder(ctx);
+    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    submit(ctx, e);
+    assert_eq!(read_u32(ctx, &tiles_gpu), before, "sealing twice is not the identity; seed {seed}");
 }
 
 const DT: f32 = 1.0 / 60.0;

@@ -4,14 +4,15 @@
 // (row mod n) * n + (col mod n) of a toroidal grid of n x n slots, so the
 // slots follow the window the way the window's texels do. A slot holds its
 // tile as `planes` planes of side * side u32, row-major: snow height (f32
-// bits), terrain height (f32 bits), the snowfall so far (f32 bits) where the
-// world has snowfall, and last the packed footprints where the window has a
-// footprint buffer: 2 to 4 planes (`tiles::planes` in Rust).
+// bits), the snowfall so far (f32 bits) where the world has snowfall, and
+// last the packed footprints where the window has a footprint buffer: 1 to
+// 3 planes (`tiles::planes` in Rust). There is no terrain plane: the passes
+// evaluate the ground of a slot texel from the terrain's source
+// (texel_ground in shared/terrain.wgsl).
 // Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
 
 const PLANE_SNOW: u32 = 0u;
-const PLANE_TERRAIN: u32 = 1u;
-const PLANE_FALLEN: u32 = 2u; // only with snowfall
+const PLANE_FALLEN: u32 = 1u; // only with snowfall
 
 // The footprint plane of a slot of `planes` planes (where there is one).
 fn plane_stamps(planes: u32) -> u32 {
@@ -20,7 +21,7 @@ fn plane_stamps(planes: u32) -> u32 {
 
 // Whether a slot of `planes` planes has a footprint plane.
 fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
-    return planes > 2u + select(0u, 1u, use_fallen);
+    return planes > 1u + select(0u, 1u, use_fallen);
 }
 
 // Tile index of global texel coordinate g (floor division).

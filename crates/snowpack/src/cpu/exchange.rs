@@ -1,7 +1,7 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
 use crate::deform::exchange::ExchangeParams;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
 use crate::deform::window::TexelRect;
 
 use super::window::storage_index;
@@ -48,7 +48,6 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     if has_stamps {
                         tiles[tile_index(g, side, n, planes, plane_stamps(planes))] = w.stamps[s];
                     }
-                    tiles[tile_index(g, side, n, planes, PLANE_TERRAIN)] = super::window::texel_ground(w.terrain, g, p.texel_m).to_bits();
                     if use_fallen {
                         tiles[tile_index(g, side, n, planes, PLANE_FALLEN)] = w.fallen[s].to_bits();
                     }

@@ -30,27 +30,28 @@ use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileL
 use super::exchange::{ExchangeParams, ExchangePass};
 use super::resources::DeformResources;
 use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use super::tile_seal::{SealParams, TileSealPass};
 use super::tile_weather::{TileWeatherPass, WeatherParams};
 use super::window::TexelRect;
 
-/// Most planes per resident tile: snow, terrain, fallen, stamps
+/// Most planes per resident tile: snow, fallen, stamps
 /// (`shared/tiles.wgsl`); a slot has the snowfall plane only in a world
 /// with snowfall and the footprint plane only while the window has a
-/// footprint buffer ([`planes`]).
-pub const PLANES: usize = 4;
-/// Plane of the snow height (f32 bits).
+/// footprint buffer ([`planes`]). No terrain plane: the passes evaluate the
+/// ground under a slot texel from the terrain's source.
+pub const PLANES: usize = 3;
+/// Plane of the snow height (f32 bits; height XOR rest height while sealed
+/// for a copy-out, `tile_seal.wgsl`).
 pub const PLANE_SNOW: usize = 0;
-/// Plane of the terrain height (f32 bits).
-pub const PLANE_TERRAIN: usize = 1;
 /// Plane of the snowfall so far (f32 bits); only in a world with snowfall.
-pub const PLANE_FALLEN: usize = 2;
+pub const PLANE_FALLEN: usize = 1;
 
-/// Planes per resident tile: snow and terrain, the snowfall so far where
-/// the world has snowfall, the packed footprints where the window has a
-/// footprint buffer (points or combined used).
+/// Planes per resident tile: snow, the snowfall so far where the world has
+/// snowfall, the packed footprints where the window has a footprint buffer
+/// (points or combined used).
 #[must_use]
 pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
-    2 + use_fallen as usize + has_stamps as usize
+    1 + use_fallen as usize + has_stamps as usize
 }
 
 /// Plane of the packed footprints in a slot of `planes` planes: the last
@@ -214,6 +215,7 @@ pub struct TileStreaming {
     owners: Vec<Option<TileKey>>,
     exchange: ExchangePass,
     restore: TileRestorePass,
+    seal: TileSealPass,
     weather: TileWeatherPass,
     evictions: Vec<Eviction>,
     /// Staging buffers of finished copy-outs, reused by the next ones.
@@ -268,7 +270,8 @@ impl TileStreaming {
         self.tiles = tiles;
         self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles);
         self.restore = TileRestorePass::new(&ctx.device, res, &self.tiles);
-        self.weather = TileWeatherPass::new(&ctx.device, &self.owners_buffer, &self.tiles);
+        self.seal = TileSealPass::new(&ctx.device, res, &self.tiles);
+        self.weather = TileWeatherPass::new(&ctx.device, res, &self.owners_buffer, &self.tiles);
     }
 
     /// Resident slots for the window of `res`, behind `streamer`.
@@ -300,7 +303,8 @@ impl TileStreaming {
         let this = Self {
             exchange: ExchangePass::new(&ctx.device, res, &tiles),
             restore: TileRestorePass::new(&ctx.device, res, &tiles),
-            weather: TileWeatherPass::new(&ctx.device, &owners_buffer, &tiles),
+            seal: TileSealPass::new(&ctx.device, res, &tiles),
+            weather: TileWeatherPass::new(&ctx.device, res, &owners_buffer, &tiles),
             owners: vec![None; grid.slot_count()],
             grid,
             depth_m,
@@ -483,11 +487,10 @@ impl TileStreaming {
             self.owners[slot] = Some(key);
         }
         if !evicting.is_empty() {
-            self.record_copy_out(&ctx.device, encoder, &evicting, clock);
+            self.record_copy_out(ctx, encoder, res, &evicting, clock);
         }
         let params = RestoreParams {
             side: self.grid.side,
-            slots_per_side: self.grid.slots_per_side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
             planes: self.planes() as u32,
             texel_m: frame.texel_m,
@@ -505,14 +508,29 @@ impl TileStreaming {
         self.exchange.record(&ctx.queue, encoder, timer, base, rects);
     }
 
+    /// The seal's uniforms for the window of `res`.
+    fn seal_params(&self, res: &DeformResources) -> SealParams {
+        SealParams {
+            side: self.grid.side,
+            planes: self.planes() as u32,
+            flags: if self.use_fallen { SealParams::USE_FALLEN } else { 0 },
+            texel_m: res.texel_m,
+            depth_m: self.depth_m,
+            ..SealParams::default()
+        }
+    }
+
     fn write_owners(&self, queue: &wgpu::Queue) {
         let owners: Vec<[i32; 4]> = self.owners.iter().map(|o| o.map_or([0; 4], |k| [k.col as i32, k.row as i32, 1, 0])).collect();
         queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
     }
 
-    /// Copies the slots of `slots` (terrain too: the rest height the snow is
-    /// stored against) into a staging buffer for the store.
-    fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
+    /// Seals the slots of `slots` (snow XOR rest height, `tile_seal.wgsl`)
+    /// and copies them into a staging buffer for the store.
+    fn record_copy_out(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, res: &DeformResources, slots: &[(TileKey, usize)], clock: SnowClock) {
+        let device = &ctx.device;
+        let entries: Vec<[i32; 4]> = slots.iter().map(|&(k, slot)| [k.col as i32, k.row as i32, slot as i32, 0]).collect();
+        self.seal.record(device, &ctx.queue, encoder, &mut GpuTimer::disabled(), (res, &self.tiles), self.seal_params(res), &entries);
         let slot_bytes = (self.planes() * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // A staging buffer from an earlier copy-out when one is big enough.
@@ -561,7 +579,7 @@ impl TileStreaming {
                 origin: [origin[0] as i32, origin[1] as i32],
                 resolution: self.grid.resolution,
                 side: self.grid.side,
-                slots_per_side: self.grid.slots_per_side,
+                texel_m: frame.texel_m,
                 flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
                 planes: self.planes() as u32,
                 depth_m: frame.depth_m,
@@ -630,7 +648,7 @@ impl TileStreaming {
             for (t, key) in eviction.keys.iter().enumerate() {
                 let n = self.planes();
                 let planes = &words[t * n * area..(t + 1) * n * area];
-                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.use_fallen, self.has_stamps)));
             }
             self.spare_staging.push(eviction.buffer);
         }
@@ -660,14 +678,22 @@ impl TileStreaming {
             ..ExchangeParams::default()
         };
         self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
+        let entries: Vec<[i32; 4]> =
+            self.owners.iter().enumerate().filter_map(|(slot, o)| o.map(|k| [k.col as i32, k.row as i32, slot as i32, 0])).collect();
+        let seal = self.seal_params(res);
+        self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
         ctx.queue.submit([encoder.finish()]);
         let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
+        // Sealing again gives the slots back (XOR is its own inverse).
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile unseal") });
+        self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
+        ctx.queue.submit([encoder.finish()]);
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
         let slot_words = self.planes() * self.grid.area();
         for (slot, owner) in self.owners.iter().enumerate() {
             if let Some(key) = owner {
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
-                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.use_fallen, self.has_stamps)));
             }
         }
         Ok(())
@@ -702,22 +728,17 @@ impl TileStreaming {
     }
 }
 
-/// A tile from its slot's planes (snow, terrain, fallen where the world has
-/// snowfall, stamps where the window has footprints: [`planes`]), for the
-/// store: heights XOR their rest height (terrain + depth + fallen, as
-/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. Without a
-/// footprint plane the tile has no footprints.
+/// A tile from its sealed slot's planes (snow XOR rest height, fallen where
+/// the world has snowfall, stamps where the window has footprints:
+/// [`planes`]), for the store. The seal (`tile_seal.wgsl`) XORed the heights
+/// with their rest height (terrain + depth + fallen, as `tile_restore.wgsl`
+/// recomputes it) on the GPU, so untouched snow is 0 and the round trip is
+/// exact on any terrain. Without a footprint plane the tile has no footprints.
 #[must_use]
-pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen, has_stamps): (f32, bool, bool)) -> TileData {
+pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (use_fallen, has_stamps): (bool, bool)) -> TileData {
     let area = (side * side) as usize;
     let plane = |p: usize| &planes[p * area..(p + 1) * area];
-    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { vec![0.0; area] };
-    let snow_xor_rest = plane(PLANE_SNOW)
-        .iter()
-        .zip(plane(PLANE_TERRAIN))
-        .zip(&fallen)
-        .map(|((&snow, &ground), &lying)| snow ^ (f32::from_bits(ground) + depth_m + lying).to_bits())
-        .collect();
+    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() };
     let stamps = if has_stamps { plane(plane_stamps(self::planes(use_fallen, true))).to_vec() } else { vec![u32::MAX; area] };
-    TileData { key, side, clock, snow_xor_rest, stamps, fallen: if use_fallen { fallen } else { Vec::new() } }
+    TileData { key, side, clock, snow_xor_rest: plane(PLANE_SNOW).to_vec(), stamps, fallen }
 }
