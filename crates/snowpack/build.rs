@@ -33,7 +33,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("SETTLE", &["shared/objects.wgsl", "settle.wgsl"]),
     ("ATLAS_SURFACE", &["shared/objects.wgsl", "atlas_surface.wgsl"]),
     ("OBJECT_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/objects.wgsl", "object_draw.wgsl"]),
-    ("EXCHANGE", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "exchange.wgsl"]),
+    ("EXCHANGE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/tile_table.wgsl", "exchange.wgsl"]),
     ("TILE_RESTORE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "tile_restore.wgsl"]),
     ("TILE_WEATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "tile_weather.wgsl"]),
     ("TILE_SEAL", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "tile_seal.wgsl"]),

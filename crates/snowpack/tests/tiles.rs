@@ -104,13 +104,24 @@ fn exchange_matches_cpu() {
             old_origin: [old[0] as i32, old[1] as i32],
             resolution,
             side,
-            slots_per_side: grid.slots_per_side(),
+            keys_per_side: grid.keys_per_side(),
             flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
-            texel_m: res.texel_m,
             planes: planes(use_fallen, !jump) as u32,
             ..ExchangeParams::default()
         };
-        let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
+        // A key table with distinct slots in random entries, the rest empty
+        // (those texels are skipped on both sides).
+        let nk = grid.keys_per_side() as usize;
+        let mut table = vec![cpu::exchange::NO_SLOT; nk * nk];
+        let mut entries: Vec<usize> = (0..nk * nk).collect();
+        for k in (1..entries.len()).rev() {
+            entries.swap(k, (rng.next_u64() % (k as u64 + 1)) as usize);
+        }
+        for (slot, &entry) in entries.iter().take(grid.slot_count()).enumerate() {
+            table[entry] = slot as u32;
+        }
+        let table_gpu = storage(ctx, &table);
+        let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu, &table_gpu);
         let mut e = encoder(ctx);
         let mut timer = GpuTimer::disabled();
         let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
@@ -119,9 +130,9 @@ fn exchange_matches_cpu() {
         submit(ctx, e);
         let mut snow_f: Vec<f32> = bytemuck::cast_slice(&snow).to_vec();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
-        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
-        cpu::exchange::exchange(&stash, &rects, &mut tiles, &mut w);
-        cpu::exchange::exchange(&base, &rects, &mut tiles, &mut w);
+        let mut w = cpu::exchange::WindowBuffers { snow: &mut snow_f, stamps: &mut stamps, fallen: &mut fallen_f };
+        cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
+        cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w);
         assert_eq!(differing(&read_u32(ctx, &tiles_gpu), &tiles, 0.0), 0, "tiles differ (jump {jump}); seed {seed}");
         assert_eq!(differing(&read_u32(ctx, &res.snow), bytemuck::cast_slice(&snow_f), 0.0), 0, "snow differs; seed {seed}");
         if res.has_stamps() {

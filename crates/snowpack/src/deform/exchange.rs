@@ -21,14 +21,14 @@ pub struct ExchangeParams {
     pub resolution: u32,
     /// Tile side (texels).
     pub side: u32,
-    /// Resident slots per side.
-    pub slots_per_side: u32,
+    /// Side of the toroidal key table (`shared/tiles.wgsl`).
+    pub keys_per_side: u32,
     /// [`ExchangeParams::STASH`] | [`ExchangeParams::USE_FALLEN`].
     pub flags: u32,
     /// How many of `rects` are used.
     pub rect_count: u32,
-    /// Texel size (m): where a stashed tile's terrain plane is evaluated.
-    pub texel_m: f32,
+    /// Padding.
+    pub _pad1: u32,
     /// Planes per resident slot ([`super::tiles::planes`]).
     pub planes: u32,
     /// Padding.
@@ -61,9 +61,10 @@ pub struct ExchangePass {
 }
 
 impl ExchangePass {
-    /// Builds the pipeline over the window's buffers and the resident `tiles`.
+    /// Builds the pipeline over the window's buffers, the resident `tiles`
+    /// and their key `table` (tile key -> slot).
     #[must_use]
-    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
+    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer, table: &wgpu::Buffer) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
             device,
             "exchange",
@@ -75,7 +76,6 @@ impl ExchangePass {
                 layout::storage(3, false),
                 layout::storage(4, false),
                 layout::storage(5, false),
-                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let direction = |label: &str| {
@@ -87,11 +87,10 @@ impl ExchangePass {
                 &[
                     params.as_entire_binding(),
                     tiles.as_entire_binding(),
-                    res.heightmap.as_entire_binding(),
+                    table.as_entire_binding(),
                     res.snow.as_entire_binding(),
                     res.stamps.as_entire_binding(),
                     res.fallen.as_entire_binding(),
-                    res.terrain_params.as_entire_binding(),
                 ],
             );
             Direction { params, bind_group }

@@ -117,4 +117,10 @@ impl TileWeatherPass {
         let groups = layout::groups(params.side * params.side, 256);
         layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, params.count));
     }
+
+    /// Bytes of GPU memory held (its slot list).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.slots.size()
+    }
 }
