@@ -668,3 +668,23 @@ fn a_memory_keeper_over_its_budget_forgets_the_trench_as_fresh_snow() {
     let pressed = |snow: &[f32]| snow.iter().filter(|&&h| h < 0.45).count();
     assert!(pressed(&after) < pressed(&before), "the whole trench outlived a one-tile budget ({} texels)", pressed(&after));
 }
+
+#[test]
+fn a_window_jittering_across_a_tile_boundary_never_evicts() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::new(2.0, 2.0), 0.0);
+    d.step(ctx, &[], DT).expect("frame");
+    let texel = f64::from(d.params().texel_m());
+    let before = d.tile_stats().expect("tiles kept");
+    // One texel either side of a tile boundary, 100 times each way.
+    for k in 0..200 {
+        let dx = if k % 2 == 0 { texel } else { -texel };
+        let boundary = texel * f64::from(snowpack::deform::params::default_tile_texels(64));
+        d.set_center(DVec2::new(2.0 + boundary + dx, 2.0 + dx));
+        d.step(ctx, &[], DT).expect("frame");
+    }
+    let after = d.tile_stats().expect("tiles kept");
+    assert_eq!(after.evicted, before.evicted, "jitter evicted tiles: {after:?}");
+    assert_eq!(after.batched_moves, before.batched_moves, "jitter needed batched moves: {after:?}");
+    assert!(after.resident <= after.slots, "{after:?}");
+}
