@@ -419,7 +419,7 @@ impl TileStreaming {
     /// Tiles the window at `desired` needs from the streamer when coming
     /// from `current`: those it touches that have no slot and were not in
     /// the window before (a tile the old window touched lives there or in its slot).
-    fn from_store(&self, current: Option<[i64; 2]>, desired: [i64; 2]) -> Vec<TileKey> {
+    fn needed_from_store(&self, current: Option<[i64; 2]>, desired: [i64; 2]) -> Vec<TileKey> {
         self.grid.around(desired, 0).into_iter().filter(|&k| !self.resident(k) && !current.is_some_and(|o| self.grid.touched(k, o))).collect()
     }
 
@@ -441,7 +441,7 @@ impl TileStreaming {
         if current == Some(desired) {
             return desired;
         }
-        let needed = self.from_store(current, desired);
+        let needed = self.needed_from_store(current, desired);
         if current.is_none() {
             // First placement: a loading screen, so waiting is fine.
             if needed.iter().any(|k| self.in_flight.contains(k)) {
