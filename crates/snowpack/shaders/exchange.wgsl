@@ -2,18 +2,19 @@
 // tiles when the window moves (with a tile store attached). `stash` copies
 // the texels about to be overwritten (the old window's, at the storage the
 // newly exposed texels take) into their tiles; `load` fills the newly
-// exposed texels from theirs. Two dispatches, stash first, so a long jump
-// whose old and new tiles share slots stays correct (the slots' old tiles
-// are copied out for the store between them). The window keeps its snow as
-// a deficit below the rest height (shared/snow_word.wgsl), the tiles as the
-// f32 height: stash and load convert. CPU twin: src/cpu/exchange.rs.
+// exposed texels from theirs. Two dispatches, stash first. Texels whose
+// tile has no slot (not in the key table) are left alone: a long move
+// stashes and loads in batches of tiles (src/deform/tiles.rs). The window
+// keeps its snow as a deficit below the rest height (shared/snow_word.wgsl),
+// the tiles as the f32 height: stash and load convert, evaluating the
+// terrain from its source. CPU twin: src/cpu/exchange.rs.
 
 struct ExchangeParams {
     origin: vec2<i32>,      // the window's origin after the move
     old_origin: vec2<i32>,  // before it (stash only)
     resolution: u32,
     side: u32,              // tile side (texels)
-    slots_per_side: u32,
+    keys_per_side: u32,     // side of the toroidal key table (shared/tiles.wgsl)
     flags: u32,             // 1: stash (else load), 2: the world has snowfall (`fallen` in use), 4: the window has `stamps`
     rect_count: u32,
     texel_m: f32,           // where the terrain is evaluated
@@ -28,12 +29,14 @@ const HAS_STAMPS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: ExchangeParams;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
-// The terrain's source (shared/terrain.wgsl): a stashed tile's terrain plane.
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
+// Tile key -> slot (shared/tiles.wgsl).
+@group(0) @binding(2) var<storage, read> tile_table: array<u32>;
 @group(0) @binding(3) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
 @group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
 @group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
-@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
+// The terrain's source (shared/terrain.wgsl): the rest height the snow words are below.
+@group(0) @binding(6) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
 
 const WORKGROUP: u32 = 256u;
 
@@ -49,7 +52,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let s = storage_index(params.origin, params.resolution, i, j);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;
     let has_stamps = (params.flags & HAS_STAMPS) != 0u;
-    let n = params.slots_per_side;
+    let n = params.keys_per_side;
     let side = params.side;
     if (params.flags & STASH) != 0u {
         // The old window's texel at this storage: congruent to it, inside the old window.
@@ -57,6 +60,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let si = i32(s / params.resolution);
         let o = params.old_origin;
         let g = vec2<i32>(o.x + wrap_index(sj - o.x, res), o.y + wrap_index(si - o.y, res));
+        // Only tiles with a slot take texels (a long move stashes in batches).
+        if !tile_resident(g, side, n) {
+            return;
+        }
         let ground = texel_ground(terrain_params, g, params.texel_m);
         var rest = ground + params.depth_m;
         if use_fallen {
@@ -67,12 +74,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if has_stamps {
             tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
         }
-        tiles[tile_index(g, side, n, params.planes, PLANE_TERRAIN)] = bitcast<u32>(ground);
         if use_fallen {
             tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
+        if !tile_resident(g, side, n) {
+            return;
+        }
         let ground = texel_ground(terrain_params, g, params.texel_m);
         var rest = ground + params.depth_m;
         if has_stamps {

@@ -11,7 +11,7 @@
 
 struct RestoreParams {
     side: u32,
-    slots_per_side: u32,
+    _pad0: u32,
     count: u32,
     flags: u32,          // 2: the world has snowfall
     texel_m: f32,
@@ -53,9 +53,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let e = entries[gid.y];
     let local = vec2<i32>(i32(gid.x % params.side), i32(gid.x / params.side));
     let g = e.tile * i32(params.side) + local;
-    let x = (f32(g.x) + 0.5) * params.texel_m;
-    let z = (f32(g.y) + 0.5) * params.texel_m;
-    let ground = terrain_height(terrain_params, x, z);
+    let ground = texel_ground(terrain_params, g, params.texel_m);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;
     var t: TexelState;
     if e.upload == FRESH {
@@ -77,7 +75,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if has_stamp_plane(params.planes, use_fallen) {
         tiles[base + plane_stamps(params.planes) * area] = t.stamp;
     }
-    tiles[base + PLANE_TERRAIN * area] = bitcast<u32>(ground);
     if (params.flags & USE_FALLEN) != 0u {
         tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
     }

@@ -10,7 +10,7 @@ struct WeatherParams {
     origin: vec2<i32>,   // the window's origin; its texels are the update's
     resolution: u32,
     side: u32,
-    slots_per_side: u32,
+    texel_m: f32,        // where a slot texel's ground is evaluated
     flags: u32,          // 2: the world has snowfall
     depth_m: f32,
     refill_m: f32,       // this frame's refill (m)
@@ -30,6 +30,9 @@ const USE_FALLEN: u32 = 2u;
 @group(0) @binding(1) var<storage, read> owners: array<vec4<i32>>; // (col, row, resident, 0) per slot
 @group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
+// The terrain's source (shared/terrain.wgsl): the ground under a slot texel.
+@group(0) @binding(4) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -61,7 +64,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if use_fallen {
         t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
     }
-    let ground = bitcast<f32>(tiles[base + PLANE_TERRAIN * area]);
+    let ground = texel_ground(terrain_params, g, params.texel_m);
     t = pass_time(ground, params.depth_m, t, params.fall_m, params.max_fallen_m, params.refill_m, params.quanta, params.low_m, params.high_m, use_fallen);
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
     if stamp_plane {

@@ -2,9 +2,10 @@
 //! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
 //! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
 //! allocates per texel. The resident tiles of the default trail keeper are
-//! printed and counted apart: their ring (34² slots of 32² texels, two to
-//! four 4-byte planes) is sized by the tile grid, a plane more for the
-//! footprints of points and combined and one for snowfall.
+//! printed and counted apart: their slot pool (225 slots of 32² texels, one
+//! to three 4-byte planes: only the tiles the window partly covers, and a
+//! few near it) is sized by the tile grid, a plane more for the footprints
+//! of points and combined and one for snowfall.
 
 use glam::DVec2;
 use snowpack::{SnowDeformation, SnowParams, Technique, TerrainSource, testing};
@@ -50,12 +51,13 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
     let per_texel = 4 + 2;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
-    // The default keeps trails: 34² resident slots of 32² texels, two 4-byte
-    // planes for depth without snowfall (snow, terrain), and the slots' small
-    // bookkeeping buffers.
-    let ring = 34 * 34 * 32 * 32 * 8;
+    // The default keeps trails: a pool of 225 slots of 32² texels (128 edge
+    // tiles, 65 for a diagonal step, 32 spare), one 4-byte plane for depth
+    // without snowfall (snow), and the small key table and bookkeeping
+    // buffers: under 1 MiB.
+    let ring = 225 * 32 * 32 * 4;
     let tiles = bytes_of(&depth, "resident tiles");
-    assert!(tiles >= ring && tiles < ring + 64 * 1024, "resident tiles {tiles}");
+    assert!(tiles >= ring && tiles < ring + 64 * 1024 && tiles <= 1 << 20, "resident tiles {tiles}");
 
     let combined =
         SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
@@ -63,7 +65,8 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&combined, "stamps"), 4 * texels);
     assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");
     // ... and the slots' footprint plane.
-    assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 34 * 34 * 32 * 32 * 4);
+    assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 225 * 32 * 32 * 4);
+    assert!(bytes_of(&combined, "resident tiles") <= 2 << 20);
 
     // Switching allocates what the new technique needs at the next frame, and keeps it.
     depth.set_technique(Technique::Points);

@@ -9,6 +9,7 @@ use snowpack::cpu;
 use snowpack::deform::exchange::{ExchangeParams, ExchangePass};
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use snowpack::deform::tile_seal::{SealParams, TileSealPass};
 use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
 use snowpack::deform::tiles::{PLANES, TileGrid, plane_stamps, planes};
 use snowpack::deform::window::SlidingWindow;
@@ -69,13 +70,13 @@ fn exchange_matches_cpu() {
     let (resolution, side) = (64u32, 16u32);
     let grid = TileGrid::new(resolution, side).expect("grid");
     for jump in [false, true] {
-        // The short move with a footprint buffer (points) and snowfall (four
-        // planes a slot), the jump without either (depth: snow and terrain only).
+        // The short move with a footprint buffer (points) and snowfall (three
+        // planes a slot), the jump without either (depth: snow only).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
         let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
         let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
         let use_fallen = !jump;
-        // Flat at a random height: the stashed terrain plane is compared bit for bit.
+        // Flat at a random height (the rest height the snow words are below).
         let terrain_src = TerrainSource::Flat { height_m: rng.range(-1.0, 1.0) };
         let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
         let texels = (resolution * resolution) as usize;
@@ -105,14 +106,26 @@ fn exchange_matches_cpu() {
             old_origin: [old[0] as i32, old[1] as i32],
             resolution,
             side,
-            slots_per_side: grid.slots_per_side(),
+            keys_per_side: grid.keys_per_side(),
             flags: if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 },
             texel_m: res.texel_m,
             planes: planes(use_fallen, !jump) as u32,
             depth_m: params.depth_m,
             ..ExchangeParams::default()
         };
-        let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu);
+        // A key table with distinct slots in random entries, the rest empty
+        // (those texels are skipped on both sides).
+        let nk = grid.keys_per_side() as usize;
+        let mut table = vec![cpu::exchange::NO_SLOT; nk * nk];
+        let mut entries: Vec<usize> = (0..nk * nk).collect();
+        for k in (1..entries.len()).rev() {
+            entries.swap(k, (rng.next_u64() % (k as u64 + 1)) as usize);
+        }
+        for (slot, &entry) in entries.iter().take(grid.slot_count()).enumerate() {
+            table[entry] = slot as u32;
+        }
+        let table_gpu = storage(ctx, &table);
+        let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu, &table_gpu);
         let mut e = encoder(ctx);
         let mut timer = GpuTimer::disabled();
         let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
@@ -122,8 +135,8 @@ fn exchange_matches_cpu() {
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
         let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f };
-        cpu::exchange::exchange(&stash, &rects, &mut tiles, &mut w);
-        cpu::exchange::exchange(&base, &rects, &mut tiles, &mut w);
+        cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
+        cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w);
         // Stashed heights are rest - deficit * quantum: a fused multiply-add on
         // the GPU may change the last bit; loads round to the quantum, and may
         // tip by one.
@@ -194,7 +207,6 @@ fn tile_restore_and_weather_match_cpu() {
     }
     let restore_params = RestoreParams {
         side,
-        slots_per_side: grid.slots_per_side(),
         count: entries.len() as u32,
         flags: RestoreParams::USE_FALLEN,
         planes: PLANES as u32,
@@ -230,13 +242,13 @@ fn tile_restore_and_weather_match_cpu() {
         })
         .collect();
     let owners_gpu = storage(ctx, bytemuck::cast_slice(&owners));
-    let weather = TileWeatherPass::new(&ctx.device, &owners_gpu, &tiles_gpu);
+    let weather = TileWeatherPass::new(&ctx.device, &res, &owners_gpu, &tiles_gpu);
     let centre = entries[0].tile;
     let wp = WeatherParams {
         origin: [centre[0] * side as i32 - 8, centre[1] * side as i32 - 8],
         resolution,
         side,
-        slots_per_side: grid.slots_per_side(),
+        texel_m: 0.125,
         flags: WeatherParams::USE_FALLEN,
         depth_m: 0.5,
         refill_m: rng.range(0.0, 0.01),
@@ -257,13 +269,38 @@ fn tile_restore_and_weather_match_cpu() {
     let mut e = encoder(ctx);
     weather.record(&ctx.queue, &mut e, &mut timer, &wp, &slots);
     submit(ctx, e);
-    cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &mut tiles);
+    cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
     assert_eq!(differing(&gpu, &tiles, 1e-5), 0, "weather: slots differ; seed {seed}");
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     assert!(stamp_diff <= stamp_words.len() / 1000, "weather: {stamp_diff} footprints differ; seed {seed}");
     // Non-vacuous: the weather changed many texels.
     assert!(differing(&gpu, &before, 0.0) > area, "the weather changed nothing; seed {seed}");
+
+    // Seal: a random subset of the slots, their snow XOR the rest height;
+    // sealing again gives the slots back bit for bit.
+    tiles.clone_from(&gpu);
+    let before = gpu;
+    let seal_entries: Vec<[i32; 4]> =
+        (0..grid.slot_count()).filter(|_| !rng.next_u64().is_multiple_of(3)).map(|s| [entries[s].tile[0], entries[s].tile[1], s as i32, 0]).collect();
+    let sp = SealParams { side, planes: PLANES as u32, flags: SealParams::USE_FALLEN, texel_m: 0.125, depth_m: 0.5, ..SealParams::default() };
+    let mut seal = TileSealPass::new(&ctx.device, &res, &tiles_gpu);
+    let mut e = encoder(ctx);
+    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    submit(ctx, e);
+    cpu::tile_seal::seal(&sp, &seal_entries, &terrain, &mut tiles);
+    let gpu = read_u32(ctx, &tiles_gpu);
+    // Sealed snow words are XORs: equal bits where the rest heights agree;
+    // noise terrain agrees to rounding, so compare the unsealed heights.
+    let mut unsealed = gpu.clone();
+    cpu::tile_seal::seal(&sp, &seal_entries, &terrain, &mut unsealed);
+    assert_eq!(differing(&unsealed, &before, 1e-4), 0, "seal: CPU unseal of the GPU's seal differs; seed {seed}");
+    let sealed_snow = seal_entries.iter().flat_map(|e| (e[2] as usize * PLANES * area)..(e[2] as usize * PLANES * area + area));
+    assert!(sealed_snow.filter(|&k| gpu[k] != before[k]).count() > area, "the seal changed nothing; seed {seed}");
+    let mut e = encoder(ctx);
+    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    submit(ctx, e);
+    assert_eq!(read_u32(ctx, &tiles_gpu), before, "sealing twice is not the identity; seed {seed}");
 }
 
 const DT: f32 = 1.0 / 60.0;
@@ -642,4 +679,24 @@ fn a_memory_keeper_over_its_budget_forgets_the_trench_as_fresh_snow() {
     assert!(after.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits() || *a == 0.5));
     let pressed = |snow: &[f32]| snow.iter().filter(|&&h| h < 0.45).count();
     assert!(pressed(&after) < pressed(&before), "the whole trench outlived a one-tile budget ({} texels)", pressed(&after));
+}
+
+#[test]
+fn a_window_jittering_across_a_tile_boundary_never_evicts() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::new(2.0, 2.0), 0.0);
+    d.step(ctx, &[], DT).expect("frame");
+    let texel = f64::from(d.params().texel_m());
+    let before = d.tile_stats().expect("tiles kept");
+    // One texel either side of a tile boundary, 100 times each way.
+    for k in 0..200 {
+        let dx = if k % 2 == 0 { texel } else { -texel };
+        let boundary = texel * f64::from(snowpack::deform::params::default_tile_texels(64));
+        d.set_center(DVec2::new(2.0 + boundary + dx, 2.0 + dx));
+        d.step(ctx, &[], DT).expect("frame");
+    }
+    let after = d.tile_stats().expect("tiles kept");
+    assert_eq!(after.evicted, before.evicted, "jitter evicted tiles: {after:?}");
+    assert_eq!(after.batched_moves, before.batched_moves, "jitter needed batched moves: {after:?}");
+    assert!(after.resident <= after.slots, "{after:?}");
 }

@@ -11,6 +11,7 @@ use snowpack::render::surface::UnpackParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams};
+use snowpack::deform::tile_seal::SealParams;
 use snowpack::deform::tile_weather::WeatherParams;
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
@@ -71,6 +72,7 @@ fn uniform_sizes_match_naga() {
         (shaders::TILE_RESTORE, "params", size_of::<RestoreParams>()),
         (shaders::TILE_RESTORE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::TILE_WEATHER, "params", size_of::<WeatherParams>()),
+        (shaders::TILE_SEAL, "params", size_of::<SealParams>()),
         (shaders::SHELL_VERTICES, "params", size_of::<ShellVertexParams>()),
         (shaders::SHELL_VERTICES, "terrain_params", size_of::<TerrainParams>()),
         (shaders::SHELL_TETRAHEDRA, "params", size_of::<TetraParams>()),

@@ -1,17 +1,19 @@
 // Resident tiles: the GPU's copy of the world's tiles around the sliding
 // window (src/deform/tiles.rs). The world is cut into square tiles of `side`
-// texels on the global texel grid; tile (col, row) lives in slot
-// (row mod n) * n + (col mod n) of a toroidal grid of n x n slots, so the
-// slots follow the window the way the window's texels do. A slot holds its
+// texels on the global texel grid; a tile the window partly covers, or one
+// near it, lives in a slot of a fixed pool, found through a key table
+// (shared/tile_table.wgsl). Tiles wholly inside the window have no slot: their texels live
+// in the window's own buffers. A slot holds its
 // tile as `planes` planes of side * side u32, row-major: snow height (f32
-// bits), terrain height (f32 bits), the snowfall so far (f32 bits) where the
-// world has snowfall, and last the packed footprints where the window has a
-// footprint buffer: 2 to 4 planes (`tiles::planes` in Rust).
+// bits), the snowfall so far (f32 bits) where the world has snowfall, and
+// last the packed footprints where the window has a footprint buffer: 1 to
+// 3 planes (`tiles::planes` in Rust). There is no terrain plane: the passes
+// evaluate the ground of a slot texel from the terrain's source
+// (texel_ground in shared/terrain.wgsl).
 // Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
 
 const PLANE_SNOW: u32 = 0u;
-const PLANE_TERRAIN: u32 = 1u;
-const PLANE_FALLEN: u32 = 2u; // only with snowfall
+const PLANE_FALLEN: u32 = 1u; // only with snowfall
 
 // The footprint plane of a slot of `planes` planes (where there is one).
 fn plane_stamps(planes: u32) -> u32 {
@@ -20,25 +22,13 @@ fn plane_stamps(planes: u32) -> u32 {
 
 // Whether a slot of `planes` planes has a footprint plane.
 fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
-    return planes > 2u + select(0u, 1u, use_fallen);
+    return planes > 1u + select(0u, 1u, use_fallen);
 }
 
 // Tile index of global texel coordinate g (floor division).
 fn tile_coord(g: i32, side: u32) -> i32 {
     let local = wrap_index(g, i32(side));
     return (g - local) / i32(side);
-}
-
-fn slot_of(tile: vec2<i32>, n: u32) -> u32 {
-    return u32(wrap_index(tile.y, i32(n))) * n + u32(wrap_index(tile.x, i32(n)));
-}
-
-// Index into the resident tiles (`planes` planes a slot) of global texel
-// g = (column, row), plane `plane`.
-fn tile_index(g: vec2<i32>, side: u32, n: u32, planes: u32, plane: u32) -> u32 {
-    let tile = vec2<i32>(tile_coord(g.x, side), tile_coord(g.y, side));
-    let local = vec2<u32>(u32(g.x - tile.x * i32(side)), u32(g.y - tile.y * i32(side)));
-    return (slot_of(tile, n) * planes + plane) * side * side + local.y * side + local.x;
 }
 
 // One texel's persistent state.

@@ -2,26 +2,30 @@
 
 use crate::deform::exchange::ExchangeParams;
 use crate::deform::snow_word;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
 use crate::deform::window::TexelRect;
 
 use super::window::storage_index;
 
+/// The key table's "no slot".
+pub const NO_SLOT: u32 = u32::MAX;
+
 /// Index into the resident tiles (`planes` planes a slot) of global texel
-/// `g` (`[column, row]`), plane `plane`.
+/// `g` (`[column, row]`), plane `plane`, through the key `table` of `nk`²
+/// entries; `None` where its tile has no slot.
 #[must_use]
-pub fn tile_index(g: [i32; 2], side: u32, n: u32, planes: usize, plane: usize) -> usize {
+pub fn tile_index(g: [i32; 2], side: u32, nk: u32, table: &[u32], planes: usize, plane: usize) -> Option<usize> {
     let s = side as i32;
     let (tc, tr) = (g[0].div_euclid(s), g[1].div_euclid(s));
     let (lx, ly) = ((g[0] - tc * s) as usize, (g[1] - tr * s) as usize);
-    let slot = (tr.rem_euclid(n as i32) * n as i32 + tc.rem_euclid(n as i32)) as usize;
-    (slot * planes + plane) * (side * side) as usize + ly * side as usize + lx
+    let slot = table[(tr.rem_euclid(nk as i32) * nk as i32 + tc.rem_euclid(nk as i32)) as usize];
+    (slot != NO_SLOT).then(|| (slot as usize * planes + plane) * (side * side) as usize + ly * side as usize + lx)
 }
 
 /// The window's toroidal buffers the exchange reads and writes.
 #[derive(Debug)]
 pub struct WindowBuffers<'a> {
-    /// The terrain's source: a stashed tile's terrain plane is evaluated from it.
+    /// The terrain's source: the rest height the snow words are below.
     pub terrain: &'a crate::TerrainSource,
     /// Snow words (`shared/snow_word.wgsl`).
     pub snow: &'a mut [u32],
@@ -31,12 +35,13 @@ pub struct WindowBuffers<'a> {
     pub fallen: &'a mut [f32],
 }
 
-/// Stashes (with [`ExchangeParams::STASH`]) or loads the texels of `rects`.
-pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &mut WindowBuffers<'_>) {
+/// Stashes (with [`ExchangeParams::STASH`]) or loads the texels of `rects`
+/// whose tiles have a slot in the key `table`.
+pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &mut [u32], w: &mut WindowBuffers<'_>) {
     let res = p.resolution as i32;
     let use_fallen = p.flags & ExchangeParams::USE_FALLEN != 0;
     let has_stamps = p.flags & ExchangeParams::HAS_STAMPS != 0;
-    let (side, n, planes) = (p.side, p.slots_per_side, p.planes as usize);
+    let (side, n, planes) = (p.side, p.keys_per_side, p.planes as usize);
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
@@ -45,29 +50,32 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], tiles: &mut [u32], w: &
                     let (sj, si) = ((s % p.resolution as usize) as i32, (s / p.resolution as usize) as i32);
                     let o = p.old_origin;
                     let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
+                    let Some(at) = tile_index(g, side, n, table, planes, 0) else { continue };
+                    let idx = |plane: usize| at + plane * (side * side) as usize;
                     let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
                     let rest = ground + p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
-                    tiles[tile_index(g, side, n, planes, PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
+                    tiles[idx(PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
                     if has_stamps {
-                        tiles[tile_index(g, side, n, planes, plane_stamps(planes))] = w.stamps[s];
+                        tiles[idx(plane_stamps(planes))] = w.stamps[s];
                     }
-                    tiles[tile_index(g, side, n, planes, PLANE_TERRAIN)] = ground.to_bits();
                     if use_fallen {
-                        tiles[tile_index(g, side, n, planes, PLANE_FALLEN)] = w.fallen[s].to_bits();
+                        tiles[idx(PLANE_FALLEN)] = w.fallen[s].to_bits();
                     }
                 } else {
                     let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
+                    let Some(at) = tile_index(g, side, n, table, planes, 0) else { continue };
+                    let idx = |plane: usize| at + plane * (side * side) as usize;
                     let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
                     let mut rest = ground + p.depth_m;
                     if has_stamps {
-                        w.stamps[s] = tiles[tile_index(g, side, n, planes, plane_stamps(planes))];
+                        w.stamps[s] = tiles[idx(plane_stamps(planes))];
                     }
                     if use_fallen {
-                        let lying = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_FALLEN)]);
+                        let lying = f32::from_bits(tiles[idx(PLANE_FALLEN)]);
                         w.fallen[s] = lying;
                         rest += lying;
                     }
-                    let h = f32::from_bits(tiles[tile_index(g, side, n, planes, PLANE_SNOW)]);
+                    let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
                     w.snow[s] = snow_word::press_quanta(rest, ground, h);
                 }
             }

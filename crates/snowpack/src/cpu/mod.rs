@@ -21,6 +21,7 @@ pub mod snow_sampling;
 pub mod stamp;
 pub mod terrain_bake;
 pub mod tile_restore;
+pub mod tile_seal;
 pub mod tile_weather;
 pub mod update;
 pub mod window;

@@ -2,7 +2,6 @@
 
 use crate::TerrainSource;
 use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
-use crate::deform::tiles::PLANE_TERRAIN;
 
 use super::stamp::STAMP_EMPTY;
 use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_texel};
@@ -18,9 +17,7 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
         let slot = e.slot as usize;
         for k in 0..area {
             let g = [e.tile[0] * side + (k as i32 % side), e.tile[1] * side + (k as i32 / side)];
-            let x = (g[0] as f32 + 0.5) * p.texel_m;
-            let z = (g[1] as f32 + 0.5) * p.texel_m;
-            let ground = terrain.height_at(x, z);
+            let ground = super::window::texel_ground(terrain, g, p.texel_m);
             let t = if e.upload == RestoreEntry::FRESH {
                 TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 } }
             } else {
@@ -32,7 +29,6 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
             };
             let planes = p.planes as usize;
             write_texel(tiles, slot, SlotLayout { area, planes, use_fallen }, k, t);
-            tiles[slot * planes * area + PLANE_TERRAIN * area + k] = ground.to_bits();
         }
     }
 }

@@ -1,7 +1,8 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
 use crate::deform::tile_weather::WeatherParams;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, PLANE_TERRAIN, plane_stamps};
+use crate::TerrainSource;
+use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
 
 use super::stamp::{STAMP_EMPTY, height};
 
@@ -79,21 +80,21 @@ pub struct SlotLayout {
 
 impl SlotLayout {
     fn has_stamps(self) -> bool {
-        self.planes > 2 + usize::from(self.use_fallen)
+        self.planes > 1 + usize::from(self.use_fallen)
     }
 }
 
 /// Reads texel `k` of slot `slot`: its state (no footprint, 0 m of
-/// snowfall, where the slot has no plane for them) and its terrain height.
+/// snowfall, where the slot has no plane for them).
 #[must_use]
-pub fn read_texel(tiles: &[u32], slot: usize, l: SlotLayout, k: usize) -> (TexelState, f32) {
+pub fn read_texel(tiles: &[u32], slot: usize, l: SlotLayout, k: usize) -> TexelState {
     let (area, base) = (l.area, slot * l.planes * l.area + k);
     let fallen = if l.use_fallen { f32::from_bits(tiles[base + PLANE_FALLEN * area]) } else { 0.0 };
     let stamp = if l.has_stamps() { tiles[base + plane_stamps(l.planes) * area] } else { STAMP_EMPTY };
-    (TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp, fallen }, f32::from_bits(tiles[base + PLANE_TERRAIN * area]))
+    TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp, fallen }
 }
 
-/// Writes texel `k` of slot `slot` (its terrain plane is left as it is).
+/// Writes texel `k` of slot `slot`.
 pub fn write_texel(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, t: TexelState) {
     let (area, base) = (l.area, slot * l.planes * l.area + k);
     tiles[base + PLANE_SNOW * area] = t.snow.to_bits();
@@ -106,8 +107,8 @@ pub fn write_texel(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, t: T
 }
 
 /// One frame of weather on the resident `tiles` of the listed `slots`,
-/// outside the window; `owners` holds `(col, row, resident, 0)` per slot.
-pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mut [u32]) {
+/// outside the window, over `terrain`; `owners` holds `(col, row, resident, 0)` per slot.
+pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], terrain: &TerrainSource, tiles: &mut [u32]) {
     if !p.passes_time() {
         return;
     }
@@ -134,7 +135,8 @@ pub fn weather(p: &WeatherParams, owners: &[[i32; 4]], slots: &[u32], tiles: &mu
                 continue;
             }
             let layout = SlotLayout { area, planes: p.planes as usize, use_fallen: c.use_fallen };
-            let (t, ground) = read_texel(tiles, slot, layout, k);
+            let t = read_texel(tiles, slot, layout, k);
+            let ground = super::window::texel_ground(terrain, g, p.texel_m);
             write_texel(tiles, slot, layout, k, pass_time(ground, &c, t, &time));
         }
     }

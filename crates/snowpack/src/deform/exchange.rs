@@ -21,8 +21,8 @@ pub struct ExchangeParams {
     pub resolution: u32,
     /// Tile side (texels).
     pub side: u32,
-    /// Resident slots per side.
-    pub slots_per_side: u32,
+    /// Side of the toroidal key table (`shared/tiles.wgsl`).
+    pub keys_per_side: u32,
     /// [`ExchangeParams::STASH`] | [`ExchangeParams::USE_FALLEN`].
     pub flags: u32,
     /// How many of `rects` are used.
@@ -62,9 +62,10 @@ pub struct ExchangePass {
 }
 
 impl ExchangePass {
-    /// Builds the pipeline over the window's buffers and the resident `tiles`.
+    /// Builds the pipeline over the window's buffers, the resident `tiles`
+    /// and their key `table` (tile key -> slot).
     #[must_use]
-    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
+    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer, table: &wgpu::Buffer) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
             device,
             "exchange",
@@ -76,7 +77,8 @@ impl ExchangePass {
                 layout::storage(3, false),
                 layout::storage(4, false),
                 layout::storage(5, false),
-                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
+                layout::storage(6, true),
+                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
         );
         let direction = |label: &str| {
@@ -88,10 +90,11 @@ impl ExchangePass {
                 &[
                     params.as_entire_binding(),
                     tiles.as_entire_binding(),
-                    res.heightmap.as_entire_binding(),
+                    table.as_entire_binding(),
                     res.snow.as_entire_binding(),
                     res.stamps.as_entire_binding(),
                     res.fallen.as_entire_binding(),
+                    res.heightmap.as_entire_binding(),
                     res.terrain_params.as_entire_binding(),
                 ],
             );

@@ -16,6 +16,7 @@ pub mod stamp;
 pub mod technique;
 pub mod terrain_bake;
 pub mod tile_restore;
+pub mod tile_seal;
 pub mod tile_weather;
 pub mod tiles;
 pub mod traffic;

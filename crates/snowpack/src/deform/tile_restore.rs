@@ -14,8 +14,8 @@ use super::resources::DeformResources;
 pub struct RestoreParams {
     /// Tile side (texels).
     pub side: u32,
-    /// Resident slots per side.
-    pub slots_per_side: u32,
+    /// Padding (was the toroidal slot grid's side).
+    pub _pad0: u32,
     /// Entries this frame.
     pub count: u32,
     /// [`RestoreParams::USE_FALLEN`].

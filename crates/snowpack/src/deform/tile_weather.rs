@@ -6,6 +6,8 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
+use super::resources::DeformResources;
+
 /// Uniforms of `tile_weather.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -16,8 +18,8 @@ pub struct WeatherParams {
     pub resolution: u32,
     /// Tile side (texels).
     pub side: u32,
-    /// Resident slots per side.
-    pub slots_per_side: u32,
+    /// Texel size (m): where a slot texel's ground is evaluated.
+    pub texel_m: f32,
     /// [`WeatherParams::USE_FALLEN`].
     pub flags: u32,
     /// Rest depth of fresh snow (m).
@@ -62,14 +64,22 @@ pub struct TileWeatherPass {
 }
 
 impl TileWeatherPass {
-    /// Builds the pipeline over the slot `owners` and the resident `tiles`.
+    /// Builds the pipeline over the slot `owners`, the resident `tiles` and
+    /// the terrain description in `res` (the ground under each texel).
     #[must_use]
-    pub fn new(device: &wgpu::Device, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
+    pub fn new(device: &wgpu::Device, res: &DeformResources, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
         let (pipeline, bgl) = layout::compute_pipeline(
             device,
             "tile weather",
             shaders::TILE_WEATHER,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false), layout::storage(3, true)],
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, false),
+                layout::storage(3, true),
+                layout::storage(4, true),
+                layout::uniform(5, wgpu::ShaderStages::COMPUTE),
+            ],
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
         // One entry per slot at most (the owners buffer holds 16 bytes per slot).
@@ -83,7 +93,14 @@ impl TileWeatherPass {
             device,
             "tile weather",
             &bgl,
-            &[params.as_entire_binding(), owners.as_entire_binding(), tiles.as_entire_binding(), slots.as_entire_binding()],
+            &[
+                params.as_entire_binding(),
+                owners.as_entire_binding(),
+                tiles.as_entire_binding(),
+                slots.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
+            ],
         );
         Self { pipeline, params, slots, bind_group }
     }
@@ -99,5 +116,11 @@ impl TileWeatherPass {
         queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);
         layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, params.count));
+    }
+
+    /// Bytes of GPU memory held (its slot list).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.slots.size()
     }
 }

@@ -19,7 +19,7 @@
 //! around the window makes that rare. Only the first placement (start-up, a
 //! loaded save) blocks, as a loading screen would.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -30,27 +30,31 @@ use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileL
 use super::exchange::{ExchangeParams, ExchangePass};
 use super::resources::DeformResources;
 use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use super::tile_seal::{SealParams, TileSealPass};
 use super::tile_weather::{TileWeatherPass, WeatherParams};
 use super::window::TexelRect;
 
-/// Most planes per resident tile: snow, terrain, fallen, stamps
+/// The key table's "no slot" (`NO_SLOT` in `shared/tiles.wgsl`).
+pub const NO_SLOT: u32 = u32::MAX;
+
+/// Most planes per resident tile: snow, fallen, stamps
 /// (`shared/tiles.wgsl`); a slot has the snowfall plane only in a world
 /// with snowfall and the footprint plane only while the window has a
-/// footprint buffer ([`planes`]).
-pub const PLANES: usize = 4;
-/// Plane of the snow height (f32 bits).
+/// footprint buffer ([`planes`]). No terrain plane: the passes evaluate the
+/// ground under a slot texel from the terrain's source.
+pub const PLANES: usize = 3;
+/// Plane of the snow height (f32 bits; height XOR rest height while sealed
+/// for a copy-out, `tile_seal.wgsl`).
 pub const PLANE_SNOW: usize = 0;
-/// Plane of the terrain height (f32 bits).
-pub const PLANE_TERRAIN: usize = 1;
 /// Plane of the snowfall so far (f32 bits); only in a world with snowfall.
-pub const PLANE_FALLEN: usize = 2;
+pub const PLANE_FALLEN: usize = 1;
 
-/// Planes per resident tile: snow and terrain, the snowfall so far where
-/// the world has snowfall, the packed footprints where the window has a
-/// footprint buffer (points or combined used).
+/// Planes per resident tile: snow, the snowfall so far where the world has
+/// snowfall, the packed footprints where the window has a footprint buffer
+/// (points or combined used).
 #[must_use]
 pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
-    2 + use_fallen as usize + has_stamps as usize
+    1 + use_fallen as usize + has_stamps as usize
 }
 
 /// Plane of the packed footprints in a slot of `planes` planes: the last
@@ -60,15 +64,21 @@ pub const fn plane_stamps(planes: usize) -> usize {
     planes - 1
 }
 
+/// Most tiles per submission of a batched move or a save.
+const BATCH_TILES: usize = 32;
+
 /// Tiles around the window that are requested from the store ahead of need.
 pub const PREFETCH_MARGIN_TILES: i64 = 2;
 
-/// How a window of `resolution` texels is cut into tiles and slots.
+/// Spare slots beyond what a one-step move needs ([`TileGrid::slot_count`]).
+pub const SPARE_SLOTS: u32 = 32;
+
+/// How a window of `resolution` texels is cut into tiles, and the slot pool
+/// and key table that hold the resident ones.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TileGrid {
     side: u32,
     resolution: u32,
-    slots_per_side: u32,
 }
 
 impl TileGrid {
@@ -80,10 +90,7 @@ impl TileGrid {
                 why: format!("{side} must be a power of two in 16..=256 that divides the resolution {resolution}"),
             });
         }
-        // A window touches at most resolution/side + 1 tiles per side; one
-        // more slot keeps a tile that just left resident, so a window
-        // jittering across a tile boundary never evicts.
-        Ok(Self { side, resolution, slots_per_side: resolution / side + 2 })
+        Ok(Self { side, resolution })
     }
 
     /// Tile side (texels).
@@ -92,16 +99,25 @@ impl TileGrid {
         self.side
     }
 
-    /// Resident slots per side.
+    /// Side of the toroidal key table: every resident tile lies within
+    /// [`PREFETCH_MARGIN_TILES`] tiles of the window, a span of at most
+    /// `resolution/side + 1 + 2·margin` tiles, one less than this, so no two
+    /// resident tiles share an entry.
     #[must_use]
-    pub fn slots_per_side(&self) -> u32 {
-        self.slots_per_side
+    pub fn keys_per_side(&self) -> u32 {
+        self.resolution / self.side + 2 + 2 * PREFETCH_MARGIN_TILES as u32
     }
 
-    /// Resident slots in all.
+    /// Slots in the pool: the most tiles an unaligned window partly covers
+    /// (its edge tiles, `4(n+1) − 4` with `n = resolution/side`), the tiles a
+    /// one-tile diagonal step leaves behind and that keep texels stashed in
+    /// that move (`2(n+1) − 1`), and [`SPARE_SLOTS`] for tiles near the window
+    /// (prefetched, or recently left: a window jittering across a tile
+    /// boundary keeps them). 225 at 1024/32.
     #[must_use]
     pub fn slot_count(&self) -> usize {
-        (self.slots_per_side * self.slots_per_side) as usize
+        let n = self.resolution / self.side;
+        (4 * (n + 1) - 4 + 2 * (n + 1) - 1 + SPARE_SLOTS) as usize
     }
 
     /// Texels per tile.
@@ -117,11 +133,34 @@ impl TileGrid {
         TileKey { col: g[0].div_euclid(s), row: g[1].div_euclid(s) }
     }
 
-    /// The slot tile `key` lives in.
+    /// The key table entry of tile `key`.
     #[must_use]
-    pub fn slot_of(&self, key: TileKey) -> usize {
-        let n = i64::from(self.slots_per_side);
+    pub fn table_entry(&self, key: TileKey) -> usize {
+        let n = i64::from(self.keys_per_side());
         (key.row.rem_euclid(n) * n + key.col.rem_euclid(n)) as usize
+    }
+
+    /// Whether tile `key` lies wholly inside the window at `origin` (its
+    /// texels are all in the window's buffers: it needs no slot).
+    #[must_use]
+    pub fn inside(&self, key: TileKey, origin: [i64; 2]) -> bool {
+        let (s, r) = (i64::from(self.side), i64::from(self.resolution));
+        key.col * s >= origin[0] && (key.col + 1) * s <= origin[0] + r && key.row * s >= origin[1] && (key.row + 1) * s <= origin[1] + r
+    }
+
+    /// Whether tile `key` has a texel in the window at `origin`.
+    #[must_use]
+    pub fn touched(&self, key: TileKey, origin: [i64; 2]) -> bool {
+        let (s, r) = (i64::from(self.side), i64::from(self.resolution));
+        (key.col + 1) * s > origin[0] && key.col * s < origin[0] + r && (key.row + 1) * s > origin[1] && key.row * s < origin[1] + r
+    }
+
+    /// Whether tile `key` is within `margin` tiles of the window at `origin`.
+    #[must_use]
+    pub fn near(&self, key: TileKey, origin: [i64; 2], margin: i64) -> bool {
+        let last = i64::from(self.resolution) - 1;
+        let (lo, hi) = (self.key_of(origin), self.key_of([origin[0] + last, origin[1] + last]));
+        key.col >= lo.col - margin && key.col <= hi.col + margin && key.row >= lo.row - margin && key.row <= hi.row + margin
     }
 
     /// Tiles within `margin` tiles of the window at `origin` (margin 0: those it touches).
@@ -170,6 +209,10 @@ pub struct TileStats {
     pub slots: usize,
     /// Frames the window stayed put because a tile it needed was still loading.
     pub window_waits: u64,
+    /// Window moves too long for the slot pool in one frame, done in
+    /// batches of their own submissions (blocking): the first placement,
+    /// jumps, moves of more than a tile or two.
+    pub batched_moves: u64,
     /// Tiles restored from the store.
     pub restored: u64,
     /// Tiles made resident with fresh snow (never seen before).
@@ -211,9 +254,20 @@ pub struct TileStreaming {
     streamer: TileStreamer,
     tiles: wgpu::Buffer,
     owners_buffer: wgpu::Buffer,
+    /// The tile in each slot of the pool.
     owners: Vec<Option<TileKey>>,
+    /// Each resident tile's slot.
+    slots: HashMap<TileKey, usize>,
+    /// When each slot's tile was last needed (a move count), for eviction.
+    last_needed: Vec<u64>,
+    /// The key table (tile key -> slot or [`NO_SLOT`]) and its GPU copy.
+    table: Vec<u32>,
+    table_buffer: wgpu::Buffer,
+    moves: u64,
+    batched_moves: u64,
     exchange: ExchangePass,
     restore: TileRestorePass,
+    seal: TileSealPass,
     weather: TileWeatherPass,
     evictions: Vec<Eviction>,
     /// Staging buffers of finished copy-outs, reused by the next ones.
@@ -266,9 +320,10 @@ impl TileStreaming {
         }
         ctx.queue.submit([encoder.finish()]);
         self.tiles = tiles;
-        self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles);
+        self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles, &self.table_buffer);
         self.restore = TileRestorePass::new(&ctx.device, res, &self.tiles);
-        self.weather = TileWeatherPass::new(&ctx.device, &self.owners_buffer, &self.tiles);
+        self.seal = TileSealPass::new(&ctx.device, res, &self.tiles);
+        self.weather = TileWeatherPass::new(&ctx.device, res, &self.owners_buffer, &self.tiles);
     }
 
     /// Resident slots for the window of `res`, behind `streamer`.
@@ -297,11 +352,26 @@ impl TileStreaming {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let table = vec![NO_SLOT; (grid.keys_per_side() * grid.keys_per_side()) as usize];
+        let table_buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile key table"),
+            size: table.len() as u64 * 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.queue.write_buffer(&table_buffer, 0, bytemuck::cast_slice(&table));
         let this = Self {
-            exchange: ExchangePass::new(&ctx.device, res, &tiles),
+            exchange: ExchangePass::new(&ctx.device, res, &tiles, &table_buffer),
             restore: TileRestorePass::new(&ctx.device, res, &tiles),
-            weather: TileWeatherPass::new(&ctx.device, &owners_buffer, &tiles),
+            seal: TileSealPass::new(&ctx.device, res, &tiles),
+            weather: TileWeatherPass::new(&ctx.device, res, &owners_buffer, &tiles),
             owners: vec![None; grid.slot_count()],
+            slots: HashMap::new(),
+            last_needed: vec![0; grid.slot_count()],
+            table,
+            table_buffer,
+            moves: 0,
+            batched_moves: 0,
             grid,
             depth_m,
             use_fallen,
@@ -343,7 +413,14 @@ impl TileStreaming {
     }
 
     fn resident(&self, key: TileKey) -> bool {
-        self.owners[self.grid.slot_of(key)] == Some(key)
+        self.slots.contains_key(&key)
+    }
+
+    /// Tiles the window at `desired` needs from the streamer when coming
+    /// from `current`: those it touches that have no slot and were not in
+    /// the window before (a tile the old window touched lives there or in its slot).
+    fn needed_from_store(&self, current: Option<[i64; 2]>, desired: [i64; 2]) -> Vec<TileKey> {
+        self.grid.around(desired, 0).into_iter().filter(|&k| !self.resident(k) && !current.is_some_and(|o| self.grid.touched(k, o))).collect()
     }
 
     /// Decides where the window goes this frame: `desired`, once every tile
@@ -364,7 +441,7 @@ impl TileStreaming {
         if current == Some(desired) {
             return desired;
         }
-        let needed: Vec<TileKey> = self.grid.around(desired, 0).into_iter().filter(|&k| !self.resident(k)).collect();
+        let needed = self.needed_from_store(current, desired);
         if current.is_none() {
             // First placement: a loading screen, so waiting is fine.
             if needed.iter().any(|k| self.in_flight.contains(k)) {
@@ -408,87 +485,37 @@ impl TileStreaming {
         if rects.is_empty() {
             return;
         }
-        let to_i32 = |o: [i64; 2]| [o[0] as i32, o[1] as i32];
-        let fallen_flag = if frame.use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
-        let base = ExchangeParams {
-            origin: to_i32(origin),
-            old_origin: to_i32(old.unwrap_or(origin)),
+        self.moves += 1;
+        if let Some(old) = old
+            && self.record_step(ctx, encoder, timer, res, (old, origin, rects), frame, clock)
+        {
+            return;
+        }
+        self.batched_moves += 1;
+        self.record_batched(ctx, res, (old, origin), frame, clock);
+    }
+
+    fn exchange_params(&self, res: &DeformResources, old: [i64; 2], origin: [i64; 2], stash: bool) -> ExchangeParams {
+        let flags = if self.use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
+            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 }
+            | if stash { ExchangeParams::STASH } else { 0 };
+        ExchangeParams {
+            origin: [origin[0] as i32, origin[1] as i32],
+            old_origin: [old[0] as i32, old[1] as i32],
             resolution: res.resolution,
             side: self.grid.side,
-            slots_per_side: self.grid.slots_per_side,
-            flags: fallen_flag,
+            keys_per_side: self.grid.keys_per_side(),
+            flags,
             texel_m: res.texel_m,
             planes: self.planes() as u32,
-            depth_m: frame.depth_m,
+            depth_m: self.depth_m,
             ..ExchangeParams::default()
-        };
-        if old.is_some() {
-            self.exchange.record(&ctx.queue, encoder, timer, ExchangeParams { flags: fallen_flag | ExchangeParams::STASH, ..base }, rects);
         }
-        let area = self.grid.area();
-        let (mut entries, mut upload, mut evicting) = (Vec::new(), Vec::<u32>::new(), Vec::new());
-        for key in self.grid.around(origin, 0) {
-            let slot = self.grid.slot_of(key);
-            if self.owners[slot] == Some(key) {
-                continue;
-            }
-            if let Some(previous) = self.owners[slot] {
-                evicting.push((previous, slot));
-            }
-            let saved = match self.streamer.lookup(key) {
-                TileLookup::Ready(saved) => saved,
-                // `plan` saw it ready, but handing out the tiles before it let
-                // the memory cache drop it: read it again rather than lose it
-                // to fresh snow (blocking; counted).
-                TileLookup::Pending => {
-                    self.blocking_loads += 1;
-                    if let Err(e) = self.streamer.wait_for(&[key]) {
-                        self.errors.push(e);
-                    }
-                    match self.streamer.lookup(key) {
-                        TileLookup::Ready(saved) => saved,
-                        TileLookup::Pending => None,
-                    }
-                }
-            };
-            let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
-            match saved {
-                Some(tile) if tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area => {
-                    entry.upload = upload.len() as u32;
-                    upload.extend_from_slice(&tile.snow_xor_rest);
-                    upload.extend_from_slice(&tile.stamps);
-                    if tile.fallen.len() == area {
-                        upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
-                    } else {
-                        upload.extend(std::iter::repeat_n(0, area));
-                    }
-                    let refill = (clock.refill_m - tile.clock.refill_m).max(0.0);
-                    let fall = (clock.fallen_m - tile.clock.fallen_m).max(0.0);
-                    let quanta = clock.stamp_quanta.saturating_sub(tile.clock.stamp_quanta);
-                    entry.refill_m = refill as f32;
-                    entry.fall_m = fall as f32;
-                    entry.quanta = quanta.min(u64::from(u32::MAX)) as u32;
-                    entry.elapsed = u32::from(refill > 0.0 || fall > 0.0 || quanta > 0);
-                    self.restored += 1;
-                }
-                Some(tile) => {
-                    self.errors.push(StoreError::Mismatch {
-                        path: self.streamer.dir().to_path_buf(),
-                        why: format!("tile ({}, {}) has side {}, the window uses {}; fresh snow used", key.col, key.row, tile.side, self.grid.side),
-                    });
-                    self.fresh += 1;
-                }
-                None => self.fresh += 1,
-            }
-            entries.push(entry);
-            self.owners[slot] = Some(key);
-        }
-        if !evicting.is_empty() {
-            self.record_copy_out(&ctx.device, encoder, &evicting, clock);
-        }
-        let params = RestoreParams {
+    }
+
+    fn restore_params(&self, frame: &TileFrame) -> RestoreParams {
+        RestoreParams {
             side: self.grid.side,
-            slots_per_side: self.grid.slots_per_side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
             planes: self.planes() as u32,
             texel_m: frame.texel_m,
@@ -498,12 +525,259 @@ impl TileStreaming {
             low_m: frame.low_m,
             high_m: frame.high_m,
             ..RestoreParams::default()
-        };
-        self.restore.record(&ctx.device, &ctx.queue, encoder, timer, (res, &self.tiles), params, &entries, &upload);
-        if !entries.is_empty() {
-            self.write_owners(&ctx.queue);
         }
-        self.exchange.record(&ctx.queue, encoder, timer, base, rects);
+    }
+
+    fn assign(&mut self, key: TileKey, slot: usize) {
+        self.owners[slot] = Some(key);
+        self.slots.insert(key, slot);
+        self.last_needed[slot] = self.moves;
+        self.table[self.grid.table_entry(key)] = slot as u32;
+    }
+
+    fn release(&mut self, key: TileKey) {
+        if let Some(slot) = self.slots.remove(&key) {
+            self.owners[slot] = None;
+            self.table[self.grid.table_entry(key)] = NO_SLOT;
+        }
+    }
+
+    fn free_slot(&self) -> Option<usize> {
+        self.owners.iter().position(Option::is_none)
+    }
+
+    fn write_table(&self, queue: &wgpu::Queue) {
+        queue.write_buffer(&self.table_buffer, 0, bytemuck::cast_slice(&self.table));
+        self.write_owners(queue);
+    }
+
+    /// The restore entry of `key` into `slot`, from the streamer (saved
+    /// planes appended to `upload`) or fresh.
+    fn restore_entry(&mut self, key: TileKey, slot: usize, upload: &mut Vec<u32>, clock: SnowClock) -> RestoreEntry {
+        let area = self.grid.area();
+        let saved = match self.streamer.lookup(key) {
+            TileLookup::Ready(saved) => saved,
+            // `plan` saw it ready, but handing out the tiles before it let
+            // the memory cache drop it: read it again rather than lose it
+            // to fresh snow (blocking; counted).
+            TileLookup::Pending => {
+                self.blocking_loads += 1;
+                if let Err(e) = self.streamer.wait_for(&[key]) {
+                    self.errors.push(e);
+                }
+                match self.streamer.lookup(key) {
+                    TileLookup::Ready(saved) => saved,
+                    TileLookup::Pending => None,
+                }
+            }
+        };
+        let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
+        match saved {
+            Some(tile) if tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area => {
+                entry.upload = upload.len() as u32;
+                upload.extend_from_slice(&tile.snow_xor_rest);
+                upload.extend_from_slice(&tile.stamps);
+                if tile.fallen.len() == area {
+                    upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
+                } else {
+                    upload.extend(std::iter::repeat_n(0, area));
+                }
+                let refill = (clock.refill_m - tile.clock.refill_m).max(0.0);
+                let fall = (clock.fallen_m - tile.clock.fallen_m).max(0.0);
+                let quanta = clock.stamp_quanta.saturating_sub(tile.clock.stamp_quanta);
+                entry.refill_m = refill as f32;
+                entry.fall_m = fall as f32;
+                entry.quanta = quanta.min(u64::from(u32::MAX)) as u32;
+                entry.elapsed = u32::from(refill > 0.0 || fall > 0.0 || quanta > 0);
+                self.restored += 1;
+            }
+            Some(tile) => {
+                self.errors.push(StoreError::Mismatch {
+                    path: self.streamer.dir().to_path_buf(),
+                    why: format!("tile ({}, {}) has side {}, the window uses {}; fresh snow used", key.col, key.row, tile.side, self.grid.side),
+                });
+                self.fresh += 1;
+            }
+            None => self.fresh += 1,
+        }
+        entry
+    }
+
+    /// A move of at most a few tiles, in the frame's encoder, when the pool
+    /// holds every tile it needs: stash, copy-out, restore, load. The tiles
+    /// that need a slot are those that keep or receive texels outside the new
+    /// window (stash targets, edge tiles) and those its entering texels come
+    /// from. `false` (nothing recorded) when they do not fit.
+    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles, the move and the snow's state")]
+    fn record_step(
+        &mut self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        res: &DeformResources,
+        (old, origin, rects): ([i64; 2], [i64; 2], &[TexelRect]),
+        frame: &TileFrame,
+        clock: SnowClock,
+    ) -> bool {
+        let g = self.grid;
+        let mut required: Vec<TileKey> = g.around(old, 0).into_iter().filter(|&k| !g.inside(k, origin)).collect();
+        required.extend(g.around(origin, 0).into_iter().filter(|&k| !g.inside(k, old) && !g.touched(k, old)));
+        required.extend(g.around(origin, 0).into_iter().filter(|&k| g.touched(k, old) && !g.inside(k, old) && g.inside(k, origin)));
+        // Every tile the table maps this frame must lie near the new window.
+        if required.len() > g.slot_count() || required.iter().any(|&k| !g.near(k, origin, PREFETCH_MARGIN_TILES)) {
+            return false;
+        }
+        let wanted: HashSet<TileKey> = required.iter().copied().collect();
+        // Tiles that drifted away from the window go (the table's span), then
+        // the least recently needed, as slots are needed.
+        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
+        for slot in 0..self.owners.len() {
+            if let Some(k) = self.owners[slot]
+                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
+            {
+                evicting.push((k, slot));
+                self.release(k);
+            }
+        }
+        for &k in &required {
+            if let Some(&slot) = self.slots.get(&k) {
+                self.last_needed[slot] = self.moves;
+            }
+        }
+        let missing = required.iter().filter(|k| !self.resident(**k)).count();
+        let free = self.owners.iter().filter(|o| o.is_none()).count();
+        if missing > free {
+            let mut candidates: Vec<(u64, usize)> =
+                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
+            candidates.sort_unstable();
+            for &(_, slot) in candidates.iter().take(missing - free) {
+                let key = self.owners[slot].expect("a candidate has an owner");
+                evicting.push((key, slot));
+                self.release(key);
+            }
+        }
+        let stash = self.exchange_params(res, old, origin, true);
+        let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
+        let mut deferred = Vec::new();
+        for &k in &required {
+            if self.resident(k) {
+                continue;
+            }
+            let slot = self.free_slot().expect("room was made for every missing tile");
+            if g.touched(k, old) {
+                // Wholly inside the old window: its texels are all there; the
+                // stash fills the ones leaving, nothing reads the others.
+                self.assign(k, slot);
+            } else {
+                deferred.push((k, slot));
+                self.assign(k, slot);
+            }
+        }
+        // The stash sees the table with the tiles restored below already
+        // mapped; they receive no stashed texels (the old window did not touch them).
+        // The evicted tiles were not in the old window (no stashed texels):
+        // copied out first, before their slots take stashed or restored texels.
+        if !evicting.is_empty() {
+            self.record_copy_out(ctx, encoder, res, &evicting, clock);
+        }
+        self.write_table(&ctx.queue);
+        self.exchange.record(&ctx.queue, encoder, timer, stash, rects);
+        for (k, slot) in deferred {
+            let entry = self.restore_entry(k, slot, &mut upload, clock);
+            entries.push(entry);
+        }
+        let params = self.restore_params(frame);
+        self.restore.record(&ctx.device, &ctx.queue, encoder, timer, (res, &self.tiles), params, &entries, &upload);
+        self.exchange.record(&ctx.queue, encoder, timer, self.exchange_params(res, old, origin, false), rects);
+        // Tiles now wholly inside the window give their slots up (their
+        // texels were all loaded or never left): no copy-out. The GPU table
+        // keeps them until the next write, after this frame's load.
+        let inside: Vec<TileKey> = self.slots.keys().copied().filter(|&k| g.inside(k, origin)).collect();
+        for k in inside {
+            self.release(k);
+        }
+        true
+    }
+
+    /// A long move (or the first placement) in batches of its own submits,
+    /// blocking: every tile of the old window is stashed whole and copied
+    /// out (as many at a time as the pool holds), the copies are waited for,
+    /// then every tile of the new window is restored and loaded whole, and
+    /// only its edge tiles keep their slots.
+    fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &TileFrame, clock: SnowClock) {
+        let g = self.grid;
+        let full = [[0, 0, res.resolution, res.resolution]];
+        let mut timer = GpuTimer::disabled();
+        let submit = |ctx: &GpuContext, encoder: wgpu::CommandEncoder| ctx.queue.submit([encoder.finish()]);
+        let new_encoder = |ctx: &GpuContext| ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile batch") });
+        // Leave: every resident tile and every tile of the old window goes to the store.
+        let mut leaving: Vec<TileKey> = self.owners.iter().flatten().copied().collect();
+        if let Some(old) = old {
+            leaving.extend(g.around(old, 0).into_iter().filter(|k| !self.resident(*k)));
+        }
+        // Batches of at most BATCH_TILES keep the staging and upload buffers small.
+        for batch in leaving.chunks(BATCH_TILES) {
+            for &k in batch {
+                if !self.resident(k) {
+                    let slot = self.free_slot().expect("the pool is emptied batch by batch");
+                    self.assign(k, slot);
+                }
+            }
+            self.write_table(&ctx.queue);
+            let mut encoder = new_encoder(ctx);
+            if let Some(old) = old {
+                self.exchange.record(&ctx.queue, &mut encoder, &mut timer, self.exchange_params(res, old, old, true), &full);
+            }
+            let out: Vec<(TileKey, usize)> = batch.iter().map(|k| (*k, self.slots[k])).collect();
+            self.record_copy_out(ctx, &mut encoder, res, &out, clock);
+            submit(ctx, encoder);
+            self.after_submit();
+            for &k in batch {
+                self.release(k);
+            }
+        }
+        // The new window's tiles must find the old ones' latest versions.
+        self.collect_evictions(ctx, true);
+        let mut arriving: Vec<TileKey> = g.around(origin, 0);
+        arriving.sort_by_key(|&k| g.inside(k, origin));
+        let keep = arriving.iter().filter(|&&k| !g.inside(k, origin)).count();
+        let mut start = 0;
+        while start < arriving.len() {
+            let room = self.owners.iter().filter(|o| o.is_none()).count();
+            let batch = &arriving[start..(start + room.min(BATCH_TILES)).min(arriving.len())];
+            start += batch.len();
+            let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
+            for &k in batch {
+                let slot = self.free_slot().expect("room counted");
+                entries.push(self.restore_entry(k, slot, &mut upload, clock));
+                self.assign(k, slot);
+            }
+            self.write_table(&ctx.queue);
+            let mut encoder = new_encoder(ctx);
+            let params = self.restore_params(frame);
+            self.restore.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), params, &entries, &upload);
+            self.exchange.record(&ctx.queue, &mut encoder, &mut timer, self.exchange_params(res, origin, origin, false), &full);
+            submit(ctx, encoder);
+            for &k in batch {
+                if g.inside(k, origin) {
+                    self.release(k);
+                }
+            }
+        }
+        debug_assert_eq!(self.slots.len(), keep);
+        self.write_table(&ctx.queue);
+    }
+
+    /// The seal's uniforms for the window of `res`.
+    fn seal_params(&self, res: &DeformResources) -> SealParams {
+        SealParams {
+            side: self.grid.side,
+            planes: self.planes() as u32,
+            flags: if self.use_fallen { SealParams::USE_FALLEN } else { 0 },
+            texel_m: res.texel_m,
+            depth_m: self.depth_m,
+            ..SealParams::default()
+        }
     }
 
     fn write_owners(&self, queue: &wgpu::Queue) {
@@ -511,9 +785,12 @@ impl TileStreaming {
         queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
     }
 
-    /// Copies the slots of `slots` (terrain too: the rest height the snow is
-    /// stored against) into a staging buffer for the store.
-    fn record_copy_out(&mut self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, slots: &[(TileKey, usize)], clock: SnowClock) {
+    /// Seals the slots of `slots` (snow XOR rest height, `tile_seal.wgsl`)
+    /// and copies them into a staging buffer for the store.
+    fn record_copy_out(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, res: &DeformResources, slots: &[(TileKey, usize)], clock: SnowClock) {
+        let device = &ctx.device;
+        let entries: Vec<[i32; 4]> = slots.iter().map(|&(k, slot)| [k.col as i32, k.row as i32, slot as i32, 0]).collect();
+        self.seal.record(device, &ctx.queue, encoder, &mut GpuTimer::disabled(), (res, &self.tiles), self.seal_params(res), &entries);
         let slot_bytes = (self.planes() * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // A staging buffer from an earlier copy-out when one is big enough.
@@ -562,7 +839,7 @@ impl TileStreaming {
                 origin: [origin[0] as i32, origin[1] as i32],
                 resolution: self.grid.resolution,
                 side: self.grid.side,
-                slots_per_side: self.grid.slots_per_side,
+                texel_m: frame.texel_m,
                 flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
                 planes: self.planes() as u32,
                 depth_m: frame.depth_m,
@@ -631,47 +908,68 @@ impl TileStreaming {
             for (t, key) in eviction.keys.iter().enumerate() {
                 let n = self.planes();
                 let planes = &words[t * n * area..(t + 1) * n * area];
-                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.use_fallen, self.has_stamps)));
             }
             self.spare_staging.push(eviction.buffer);
+            // Keep the two largest for reuse: a batched move leaves many.
+            if self.spare_staging.len() > 2 {
+                self.spare_staging.sort_by_key(|b| std::cmp::Reverse(b.size()));
+                self.spare_staging.truncate(2);
+            }
         }
     }
 
-    /// Every resident tile, current at `clock`, into the streamer: the
-    /// window's texels are stashed into their tiles first. Blocking; for
-    /// saving, never in a frame loop.
+    /// Every resident tile and every tile of the window, current at
+    /// `clock`, into the streamer: the window's texels are stashed into their
+    /// tiles first. Tiles wholly inside the window have no slot: they borrow
+    /// free slots, as many at a time as the pool has. Blocking; for saving,
+    /// never in a frame loop.
     pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock) -> Result<(), SnowError> {
-        let use_fallen = self.use_fallen;
         self.collect_evictions(ctx, true);
         let full = [[0, 0, res.resolution, res.resolution]];
-        let o = [origin[0] as i32, origin[1] as i32];
-        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
+        let stash = self.exchange_params(res, origin, origin, true);
+        let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
-        let flags =
-            ExchangeParams::STASH | if use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 };
-        let params = ExchangeParams {
-            origin: o,
-            old_origin: o,
-            resolution: res.resolution,
-            side: self.grid.side,
-            slots_per_side: self.grid.slots_per_side,
-            flags,
-            texel_m: res.texel_m,
-            planes: self.planes() as u32,
-            depth_m: self.depth_m,
-            ..ExchangeParams::default()
-        };
-        self.exchange.record(&ctx.queue, &mut encoder, &mut timer, params, &full);
-        ctx.queue.submit([encoder.finish()]);
-        let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
-        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
-        let slot_words = self.planes() * self.grid.area();
-        for (slot, owner) in self.owners.iter().enumerate() {
-            if let Some(key) = owner {
+        let g = self.grid;
+        // The resident tiles first (they stay), then the window's inside tiles in batches.
+        let mut batches: Vec<Vec<TileKey>> = vec![self.owners.iter().flatten().copied().collect()];
+        let inside: Vec<TileKey> = g.around(origin, 0).into_iter().filter(|k| !self.resident(*k)).collect();
+        let room = self.owners.iter().filter(|o| o.is_none()).count().clamp(1, BATCH_TILES);
+        batches.extend(inside.chunks(room).map(<[TileKey]>::to_vec));
+        for (n, batch) in batches.iter().enumerate() {
+            let borrowed = n > 0;
+            if borrowed {
+                for &k in batch {
+                    let slot = self.free_slot().expect("a batch fits the free slots");
+                    self.assign(k, slot);
+                }
+            }
+            self.write_table(&ctx.queue);
+            let entries: Vec<[i32; 4]> = batch.iter().map(|k| [k.col as i32, k.row as i32, self.slots[k] as i32, 0]).collect();
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
+            self.exchange.record(&ctx.queue, &mut encoder, &mut timer, stash, &full);
+            self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
+            ctx.queue.submit([encoder.finish()]);
+            let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+            let slot_words = self.planes() * g.area();
+            for &k in batch {
+                let slot = self.slots[&k];
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
-                self.streamer.put(tile_from_planes(*key, self.grid.side, clock, planes, (self.depth_m, self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(k, g.side, clock, planes, (self.use_fallen, self.has_stamps)));
+            }
+            if borrowed {
+                for &k in batch {
+                    self.release(k);
+                }
+            } else {
+                // Sealing again gives the resident slots back (XOR is its own inverse).
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile unseal") });
+                self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
+                ctx.queue.submit([encoder.finish()]);
             }
         }
+        self.write_table(&ctx.queue);
         Ok(())
     }
 
@@ -687,7 +985,8 @@ impl TileStreaming {
     pub fn stats(&self) -> TileStats {
         TileStats {
             store: self.streamer.stats(),
-            resident: self.owners.iter().flatten().count(),
+            resident: self.slots.len(),
+            batched_moves: self.batched_moves,
             slots: self.owners.len(),
             window_waits: self.window_waits,
             restored: self.restored,
@@ -697,6 +996,9 @@ impl TileStreaming {
             blocking_loads: self.blocking_loads,
             gpu_bytes: self.tiles.size()
                 + self.owners_buffer.size()
+                + self.table_buffer.size()
+                + self.weather.memory_bytes()
+                + self.seal.memory_bytes()
                 + self.restore.memory_bytes()
                 + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
             memory_only: self.streamer.is_memory_only(),
@@ -704,22 +1006,17 @@ impl TileStreaming {
     }
 }
 
-/// A tile from its slot's planes (snow, terrain, fallen where the world has
-/// snowfall, stamps where the window has footprints: [`planes`]), for the
-/// store: heights XOR their rest height (terrain + depth + fallen, as
-/// `tile_restore.wgsl` recomputes it), so untouched snow is 0. Without a
-/// footprint plane the tile has no footprints.
+/// A tile from its sealed slot's planes (snow XOR rest height, fallen where
+/// the world has snowfall, stamps where the window has footprints:
+/// [`planes`]), for the store. The seal (`tile_seal.wgsl`) XORed the heights
+/// with their rest height (terrain + depth + fallen, as `tile_restore.wgsl`
+/// recomputes it) on the GPU, so untouched snow is 0 and the round trip is
+/// exact on any terrain. Without a footprint plane the tile has no footprints.
 #[must_use]
-pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (depth_m, use_fallen, has_stamps): (f32, bool, bool)) -> TileData {
+pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32], (use_fallen, has_stamps): (bool, bool)) -> TileData {
     let area = (side * side) as usize;
     let plane = |p: usize| &planes[p * area..(p + 1) * area];
-    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { vec![0.0; area] };
-    let snow_xor_rest = plane(PLANE_SNOW)
-        .iter()
-        .zip(plane(PLANE_TERRAIN))
-        .zip(&fallen)
-        .map(|((&snow, &ground), &lying)| snow ^ (f32::from_bits(ground) + depth_m + lying).to_bits())
-        .collect();
+    let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() };
     let stamps = if has_stamps { plane(plane_stamps(self::planes(use_fallen, true))).to_vec() } else { vec![u32::MAX; area] };
-    TileData { key, side, clock, snow_xor_rest, stamps, fallen: if use_fallen { fallen } else { Vec::new() } }
+    TileData { key, side, clock, snow_xor_rest: plane(PLANE_SNOW).to_vec(), stamps, fallen }
 }

@@ -1,0 +1,132 @@
+//! Tile seal pass: the snow plane of slots about to be copied out becomes
+//! height XOR rest height, the form the store keeps (`tile_seal.wgsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::{GpuTimer, layout};
+use crate::shaders;
+
+use super::resources::DeformResources;
+
+/// Uniforms of `tile_seal.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SealParams {
+    /// Tile side (texels).
+    pub side: u32,
+    /// Planes per resident slot ([`super::tiles::planes`]).
+    pub planes: u32,
+    /// [`SealParams::USE_FALLEN`].
+    pub flags: u32,
+    /// Entries listed (set by [`TileSealPass::record`]).
+    pub count: u32,
+    /// Texel size (m).
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Padding.
+    pub _pad: [u32; 2],
+}
+
+impl SealParams {
+    /// The world has snowfall (the rest height includes each texel's).
+    pub const USE_FALLEN: u32 = 2;
+}
+
+/// Seals the snow plane of listed slots, `[col, row, slot, 0]` each.
+pub struct TileSealPass {
+    pipeline: wgpu::ComputePipeline,
+    bgl: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    entries: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl TileSealPass {
+    /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
+        let (pipeline, bgl) = layout::compute_pipeline(
+            device,
+            "tile seal",
+            shaders::TILE_SEAL,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
+                layout::storage(2, true),
+                layout::storage(3, true),
+                layout::storage(4, false),
+            ],
+        );
+        let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");
+        let entries = Self::entry_buffer(device, 64 * 16);
+        let bind_group = Self::group(device, &bgl, &params, &entries, res, tiles);
+        Self { pipeline, bgl, params, entries, bind_group }
+    }
+
+    fn entry_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile seal entries"),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    fn group(
+        device: &wgpu::Device,
+        bgl: &wgpu::BindGroupLayout,
+        params: &wgpu::Buffer,
+        entries: &wgpu::Buffer,
+        res: &DeformResources,
+        tiles: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        layout::bind_group(
+            device,
+            "tile seal",
+            bgl,
+            &[
+                params.as_entire_binding(),
+                res.terrain_params.as_entire_binding(),
+                res.heightmap.as_entire_binding(),
+                entries.as_entire_binding(),
+                tiles.as_entire_binding(),
+            ],
+        )
+    }
+
+    /// Records the seal of `entries` (`[col, row, slot, 0]`); grows its entry
+    /// buffer as needed; nothing when empty. One record per submission (its
+    /// uniforms and entries are written through the queue).
+    #[expect(clippy::too_many_arguments, reason = "a pass's record call takes the frame's GPU handles and its inputs")]
+    pub fn record(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        (res, tiles): (&DeformResources, &wgpu::Buffer),
+        mut params: SealParams,
+        entries: &[[i32; 4]],
+    ) {
+        if entries.is_empty() {
+            return;
+        }
+        let bytes = std::mem::size_of_val(entries) as u64;
+        if bytes > self.entries.size() {
+            self.entries = Self::entry_buffer(device, bytes.next_power_of_two());
+            self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, res, tiles);
+        }
+        params.count = entries.len() as u32;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(entries));
+        let groups = layout::groups(params.side * params.side, 256);
+        layout::dispatch(encoder, timer, "tile seal", &self.pipeline, &self.bind_group, (groups, params.count));
+    }
+
+    /// Bytes of GPU memory held (its entry list).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.entries.size()
+    }
+}
