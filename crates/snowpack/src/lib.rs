@@ -63,26 +63,33 @@ pub mod accumulate;
 pub mod cpu;
 pub mod deform;
 pub mod error;
+pub mod frame;
 pub mod gpu;
+pub mod height_depth;
 pub mod persist;
 pub mod render;
 #[doc(hidden)]
 pub mod shaders;
 pub mod skin;
+pub mod snow;
+pub mod snowfall;
 pub mod terrain;
 #[doc(hidden)]
 pub mod testing;
+pub mod tiles;
 
 // The types a game needs, at the root (docs/integration.md walks through them).
-pub use accumulate::{SnowObject, Snowfall};
+pub use accumulate::SnowObject;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
-pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket};
 pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::shell::ShellSettings;
 pub use render::{Camera, EnvironmentMap, GroundCamera, RenderParams, Renderer, SnowGround, SnowGroundDescriptor};
+pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+pub use snowfall::Snowfall;
 pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};

@@ -5,14 +5,11 @@ use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, Sett
 use snowpack::deform::blur::BlurParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
-use snowpack::deform::exchange::ExchangeParams;
 use snowpack::deform::normals::NormalParams;
 use snowpack::deform::query::{QueryParams, RawSample};
 use snowpack::deform::rim::RimParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
-use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams};
-use snowpack::deform::tile_weather::WeatherParams;
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
@@ -25,6 +22,9 @@ use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
 use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
 use snowpack::shaders;
 use snowpack::skin::skinning::SkinningParams;
+use snowpack::tiles::exchange::ExchangeParams;
+use snowpack::tiles::restore::{RestoreEntry, RestoreParams};
+use snowpack::tiles::weather::WeatherParams;
 
 /// Size naga gives the uniform global `name` in `source`.
 fn wgsl_uniform_size(source: &str, name: &str) -> u32 {

@@ -1,8 +1,8 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use crate::TerrainSource;
-use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
-use crate::deform::tiles::PLANE_TERRAIN;
+use crate::tiles::restore::{RestoreEntry, RestoreParams};
+use crate::tiles::streaming::PLANE_TERRAIN;
 
 use super::stamp::STAMP_EMPTY;
 use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_texel};

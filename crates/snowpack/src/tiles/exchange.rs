@@ -6,8 +6,8 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
-use super::resources::DeformResources;
-use super::window::{TexelRect, rect_dispatch};
+use crate::deform::resources::DeformResources;
+use crate::deform::window::{TexelRect, rect_dispatch};
 
 /// Uniforms of `exchange.wgsl`.
 #[repr(C)]
