@@ -57,6 +57,20 @@
 //! ```
 //!
 //! `docs/integration.md` in the repository walks through adopting it.
+//!
+//! The modules, core first (each uses only those above it, and the neutral
+//! ones; `tests/layering.rs` keeps `deform` and `accumulate` apart):
+//!
+//! | module | what |
+//! |---|---|
+//! | [`gpu`], [`terrain`], [`error`] | device and readback plumbing, terrain sources, errors |
+//! | [`frame`], [`height_depth`], [`snowfall`] | neutral: the per-frame recording context and window placement plug-ins get, the capture and occlusion depth format, the snowfall settings |
+//! | [`deform`] | the core deformation: the window's resources and passes (window, capture, footprints, update, rims, blur, normals, decals, point queries) |
+//! | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
+//! | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
+//! | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
+//! | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
+//! | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
 
 pub mod accumulate;
 #[doc(hidden)]

@@ -29,7 +29,7 @@ pub struct ExchangeParams {
     pub rect_count: u32,
     /// Texel size (m): where a stashed tile's terrain plane is evaluated.
     pub texel_m: f32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,

@@ -32,7 +32,7 @@ pub struct RestoreParams {
     pub low_m: f32,
     /// Footprint quantisation: highest height (m).
     pub high_m: f32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,

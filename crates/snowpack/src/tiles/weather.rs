@@ -36,7 +36,7 @@ pub struct WeatherParams {
     pub high_m: f32,
     /// Slots listed for the pass (set by [`TileWeatherPass::record`]).
     pub count: u32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,
