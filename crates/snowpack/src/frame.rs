@@ -12,8 +12,7 @@ use crate::gpu::{GpuContext, GpuTimer};
 /// The handles a plug-in records its part of a frame with: the device and
 /// queue, the frame's encoder and its timer (each pass reserves a timing
 /// slot). Short-lived: made for one call between the core passes, which
-/// use the same encoder and timer; [`Self::reborrow`] passes it on to
-/// several calls.
+/// use the same encoder and timer.
 pub struct FrameContext<'a> {
     /// Device and queue (uploads, buffers made on demand).
     pub gpu: &'a GpuContext,
@@ -27,11 +26,6 @@ impl<'a> FrameContext<'a> {
     /// The handles for recording into `encoder`, timed by `timer`.
     pub fn new(gpu: &'a GpuContext, encoder: &'a mut wgpu::CommandEncoder, timer: &'a mut GpuTimer) -> Self {
         Self { gpu, encoder, timer }
-    }
-
-    /// The same handles for one more call, leaving this context usable after it.
-    pub fn reborrow(&mut self) -> FrameContext<'_> {
-        FrameContext { gpu: self.gpu, encoder: self.encoder, timer: self.timer }
     }
 }
 
