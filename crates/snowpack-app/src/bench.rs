@@ -178,7 +178,9 @@ pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
 
 /// Hanák 2021, Table 6.1 (deformation, blur, normals at 1024², his GPUs) with
 /// this adapter's figures from the 1024² row beside it, and the capture's
-/// cost per object against his 0.01 ms.
+/// cost per object against his 0.01 ms. snowpack fuses rims and blur into
+/// one display pass and stores no normals (they are computed where used), so
+/// its row gives the update, the display and no normals pass.
 #[must_use]
 pub fn hanak_markdown(row: &BenchRow, adapter: &str, software: bool) -> String {
     let ms = |names: &[&str]| -> f64 { row.passes.iter().filter(|p| names.contains(&p.0.as_str())).map(|p| p.1).sum() };
@@ -197,11 +199,11 @@ pub fn hanak_markdown(row: &BenchRow, adapter: &str, software: bool) -> String {
         md,
         "| {adapter} (snowpack){} | {:.4} | {:.4} | {:.4} | {per_object:.5} |",
         if software { ", software: ratios only" } else { "" },
-        ms(&["update", "rim"]),
-        ms(&["blur_x", "blur_z"]),
-        ms(&["normals"])
+        ms(&["update"]),
+        ms(&["display"]),
+        0.0
     );
-    md.push_str("\nsnowpack's deformation is its update and rim passes; its blur is both directions; its capture draws spheres as exact ray-cast quads, so its cost per object is the capture pass over the sphere count.\n");
+    md.push_str("\nsnowpack's deformation is its update pass; its blur column is the display pass, the rims and both blur directions fused in workgroup memory; it has no normals pass (normals are central differences of the displayed heights wherever they are used); its capture draws spheres as exact ray-cast quads, so its cost per object is the capture pass over the sphere count.\n");
     md
 }
 
@@ -245,8 +247,8 @@ pub fn memory_markdown(rows: &[BenchRow]) -> String {
         "\nThe sources, for 64 m at 1024² (6.25 cm texels): Hanák 2021 (section 6.1), 9 MB, plus 2 MB for a 16-bit depth of \
          level geometry; Rise of the Tomb Raider as Wasmut 2019 quotes it, 2 to 4 MB depending on the float precision; Surface \
          Trails, 24 MB (the figure the benchmark issue quotes; not in the source texts). snowpack keeps the persistent snow in \
-         f32, a packed height-and-normal surface for the renderer (the rim, blur and normals work inside it), a 16-bit capture \
-         depth, the terrain evaluated from its source, the point stamps only for points and combined and the decal layer only \
+         one u32 word a texel holding both the persistent snow (a 16-bit deficit below rest) and the displayed height (an f16 above \
+         the terrain; rims and blur are fused in one pass, normals computed where used), a 16-bit capture depth, the terrain evaluated from its source, the point stamps only for points and combined and the decal layer only \
          for decals (switching allocates them once), a few kilobytes for point queries, and the resident tiles that keep \
          trails when the window moves on.\n",
     );
@@ -672,21 +674,21 @@ mod tests {
         let rows = vec![BenchRow {
             resolution: 1024,
             spheres: 8,
-            passes: vec![("normals".into(), 0.02), ("update".into(), 0.05)],
+            passes: vec![("display".into(), 0.02), ("update".into(), 0.05)],
             cpu_record_ms: 0.1,
             memory_bytes: 1 << 20,
             memory_parts: vec![("snow".into(), 1 << 19), ("terrain".into(), 1 << 19)],
         }];
-        // normals at 1024²: 4 B read + 4 B written per texel (surface's height words in, normal words out) = 8 MiB; at 3350 GB/s, 0.0025 ms.
+        // display at 1024²: the snow word read and written (4 B + 4 B per texel) = 8 MiB; at 3350 GB/s, 0.0025 ms.
         let md = floor_markdown(&rows, "NVIDIA H100 80GB HBM3");
         assert!(md.contains("3350 GB/s"), "{md}");
-        assert!(md.contains("| 1024² | normals | 8.00 | 0.0025 | 0.0200 | 8.0 |"), "{md}");
-        // Update (depth): snow (4 B) and the 16-bit capture (2 B) read, snow (4 B) written per texel.
+        assert!(md.contains("| 1024² | display | 8.00 | 0.0025 | 0.0200 | 8.0 |"), "{md}");
+        // Update (depth): the snow word (4 B) and the 16-bit capture (2 B) read, the word (4 B) written per texel.
         assert!(md.contains("| 1024² | update | 10.00 |"), "{md}");
         // Unknown adapters get bytes and measured times, no floor.
         let md = floor_markdown(&rows, "llvmpipe (LLVM 15.0.6, 256 bits)");
         assert!(md.contains("bandwidth unknown"), "{md}");
-        assert!(md.contains("| 1024² | normals | 8.00 | n/a | 0.0200 | n/a |"), "{md}");
+        assert!(md.contains("| 1024² | display | 8.00 | n/a | 0.0200 | n/a |"), "{md}");
     }
 
     #[test]
@@ -707,11 +709,8 @@ mod tests {
             spheres: 100,
             passes: vec![
                 ("capture".into(), 0.5),
-                ("update".into(), 0.03),
-                ("rim".into(), 0.01),
-                ("blur_x".into(), 0.02),
-                ("blur_z".into(), 0.02),
-                ("normals".into(), 0.03),
+                ("update".into(), 0.04),
+                ("display".into(), 0.05),
             ],
             cpu_record_ms: 0.1,
             memory_bytes: 0,
@@ -720,7 +719,7 @@ mod tests {
         let md = hanak_markdown(&row, "NVIDIA H100", false);
         assert!(md.contains("| GTX 1060 (Hanák) | 0.07 | 0.13 | 0.14 | 0.01 |"), "{md}");
         assert!(md.contains("| RTX 2070S (Hanák) | 0.03 | 0.05 | 0.03 | 0.01 |"), "{md}");
-        assert!(md.contains("| NVIDIA H100 (snowpack) | 0.0400 | 0.0400 | 0.0300 | 0.00500 |"), "{md}");
+        assert!(md.contains("| NVIDIA H100 (snowpack) | 0.0400 | 0.0500 | 0.0000 | 0.00500 |"), "{md}");
         assert!(hanak_markdown(&row, "llvmpipe", true).contains("software: ratios only"));
     }
 
@@ -729,7 +728,7 @@ mod tests {
         let row = |resolution: u32| BenchRow {
             resolution,
             spheres: 256,
-            passes: vec![("capture".into(), 0.2), ("update".into(), 0.03), ("rim".into(), 0.01), ("normals".into(), 0.03)],
+            passes: vec![("capture".into(), 0.2), ("update".into(), 0.03), ("display".into(), 0.04)],
             cpu_record_ms: 0.1,
             memory_bytes: 8 << 20,
             memory_parts: vec![("snow".into(), 4 << 20), ("terrain".into(), 4 << 20)],

@@ -649,7 +649,7 @@ impl Scene {
                     disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
                     save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
                 };
-                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::deform::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
+                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
                     return Err(t.err("tile_texels", why));
                 }
                 t.finish()?;

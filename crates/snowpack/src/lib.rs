@@ -57,32 +57,53 @@
 //! ```
 //!
 //! `docs/integration.md` in the repository walks through adopting it.
+//!
+//! The modules, core first (each uses only those above it, and the neutral
+//! ones; `tests/layering.rs` keeps `deform` and `accumulate` apart):
+//!
+//! | module | what |
+//! |---|---|
+//! | [`gpu`], [`terrain`], [`error`] | device and readback plumbing, terrain sources, errors |
+//! | [`frame`], [`height_depth`], [`snowfall`] | neutral: the per-frame recording context and window placement plug-ins get, the capture and occlusion depth format, the snowfall settings |
+//! | [`deform`] | the core deformation: the window's resources and passes (window, capture, footprints, update, rims, blur, normals, decals, point queries) |
+//! | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
+//! | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
+//! | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
+//! | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
+//! | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
 
 pub mod accumulate;
 #[doc(hidden)]
 pub mod cpu;
 pub mod deform;
 pub mod error;
+pub mod frame;
 pub mod gpu;
+pub mod height_depth;
 pub mod persist;
 pub mod render;
 #[doc(hidden)]
 pub mod shaders;
 pub mod skin;
+pub mod snow;
+pub mod snowfall;
 pub mod terrain;
 #[doc(hidden)]
 pub mod testing;
+pub mod tiles;
 
 // The types a game needs, at the root (docs/integration.md walks through them).
-pub use accumulate::{SnowObject, Snowfall};
+pub use accumulate::SnowObject;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
-pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket};
 pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::shell::ShellSettings;
 pub use render::{Camera, EnvironmentMap, GroundCamera, RenderParams, Renderer, SnowGround, SnowGroundDescriptor};
+pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+pub use snowfall::Snowfall;
 pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};

@@ -197,6 +197,7 @@ use snowpack::accumulate::{
 use snowpack::cpu;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::update::{UpdateParams, UpdatePass};
+use snowpack::frame::{FrameContext, WindowFrame};
 use snowpack::gpu::GpuTimer;
 use snowpack::gpu::read_buffer;
 use snowpack::testing::Rng;
@@ -391,8 +392,18 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     update.bind_sky(&ctx.device, &res, Some(acc.sky_view()));
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    acc.upload_poses(&ctx.queue, DVec2::ZERO);
-    let sky = acc.record_occlusion(&ctx.queue, &mut enc, &mut timer, &fall, extent, (-0.3, 0.3 + params.depth_m));
+    // The terrain spans -0.3..0.3 m; the window's corner is at the origin.
+    let window = WindowFrame {
+        corner: DVec2::ZERO,
+        resolution: params.resolution,
+        extent_m: extent,
+        texel_m: params.texel_m(),
+        depth_m: params.depth_m,
+        terrain_m: (-0.3, 0.3),
+        ..WindowFrame::default()
+    };
+    acc.upload_poses(&ctx.queue, &window);
+    let sky = acc.record_occlusion(FrameContext::new(ctx, &mut enc, &mut timer), &window, &fall);
     let up = UpdateParams {
         origin: [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32],
         resolution: params.resolution,

@@ -6,16 +6,16 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec2, Vec3};
 use snowpack::cpu;
-use snowpack::deform::exchange::{ExchangeParams, ExchangePass};
 use snowpack::deform::resources::DeformResources;
-use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
-use snowpack::deform::tile_seal::{SealParams, TileSealPass};
-use snowpack::deform::tile_weather::{TileWeatherPass, WeatherParams};
-use snowpack::deform::tiles::{PLANES, TileGrid, plane_stamps, planes};
 use snowpack::deform::window::SlidingWindow;
 use snowpack::gpu::GpuTimer;
 use snowpack::gpu::read_buffer;
 use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+use snowpack::tiles::exchange::{ExchangeParams, ExchangePass};
+use snowpack::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use snowpack::tiles::seal::{SealParams, TileSealPass};
+use snowpack::tiles::streaming::{PLANES, TileGrid, plane_stamps, planes};
+use snowpack::tiles::weather::{TileWeatherPass, WeatherParams};
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
 

@@ -5,14 +5,10 @@ use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, Sett
 use snowpack::deform::display::DisplayParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
-use snowpack::deform::exchange::ExchangeParams;
 use snowpack::deform::query::{QueryParams, RawSample};
 use snowpack::render::surface::UnpackParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
-use snowpack::deform::tile_restore::{RestoreEntry, RestoreParams};
-use snowpack::deform::tile_seal::SealParams;
-use snowpack::deform::tile_weather::WeatherParams;
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
@@ -25,6 +21,10 @@ use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
 use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
 use snowpack::shaders;
 use snowpack::skin::skinning::SkinningParams;
+use snowpack::tiles::exchange::ExchangeParams;
+use snowpack::tiles::restore::{RestoreEntry, RestoreParams};
+use snowpack::tiles::seal::SealParams;
+use snowpack::tiles::weather::WeatherParams;
 
 /// Size naga gives the uniform global `name` in `source`.
 fn wgsl_uniform_size(source: &str, name: &str) -> u32 {

@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
 use crate::gpu::{GpuTimer, layout};
+use crate::height_depth::{CAPTURE_FORMAT, sky_depth_texture};
 use crate::render::pipeline::{PipelineSpec, render_pipeline, storage_ro};
 use crate::shaders;
 
@@ -41,7 +42,7 @@ impl OcclusionParams {
     /// The projection for fall direction `d` (pointing down).
     #[must_use]
     pub fn new(extent_m: f32, y0_m: f32, (low_m, high_m): (f32, f32), d: Vec3, offset_m: Vec2) -> Self {
-        let shear = Vec2::new(d.x, d.z) / (-d.y).max(super::MIN_DOWNWARD * 0.5);
+        let shear = Vec2::new(d.x, d.z) / (-d.y).max(crate::snowfall::MIN_DOWNWARD * 0.5);
         Self { extent_m, y0_m, low_m, high_m, shear: shear.to_array(), offset_m: offset_m.to_array() }
     }
 
@@ -98,14 +99,14 @@ impl OcclusionPass {
                 fragment: Some(("fs_main", FOOTPRINT_FORMAT)),
                 buffers: &buffers,
                 layouts: &[&bgl],
-                depth: Some((crate::deform::resources::CAPTURE_FORMAT, wgpu::CompareFunction::Less, true)),
+                depth: Some((CAPTURE_FORMAT, wgpu::CompareFunction::Less, true)),
                 bias: wgpu::DepthBiasState::default(),
                 cull: false,
             },
         );
         let params = layout::uniform_buffer::<OcclusionParams>(device, "occlusion params");
         let bind_group = layout::bind_group(device, "occlusion", &bgl, &[params.as_entire_binding(), objects.as_entire_binding()]);
-        let depth = crate::deform::update::sky_depth_texture(device, resolution);
+        let depth = sky_depth_texture(device, resolution);
         let footprint = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("occlusion footprint"),
             size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },

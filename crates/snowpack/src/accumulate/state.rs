@@ -4,7 +4,7 @@
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
-use glam::{DVec2, Mat4, Quat, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 
 use super::atlas::{AtlasBake, AtlasLayout, NO_OWNER};
 use super::increment::{IncrementParams, IncrementPass};
@@ -12,9 +12,11 @@ use super::occlusion::{OcclusionParams, OcclusionPass};
 use super::scatter::{ScatterParams, ScatterPass};
 use super::settle::{SettleBuffers, SettleParams, SettlePass};
 use super::surface::{AtlasSurfacePass, SurfaceParams};
-use super::{ObjectShape, SnowObject, Snowfall};
+use super::{ObjectShape, SnowObject};
 use crate::error::SnowError;
-use crate::gpu::{GpuContext, GpuTimer};
+use crate::frame::{FrameContext, WindowFrame};
+use crate::gpu::GpuContext;
+use crate::snowfall::Snowfall;
 
 /// One object as the shaders see it (`shared/objects.wgsl`).
 #[repr(C)]
@@ -87,7 +89,7 @@ pub fn flutter(d: Vec3, max_deg: f32, u1: f32, u2: f32) -> Vec3 {
     let az = std::f32::consts::TAU * u2;
     let (b1, b2) = d.any_orthonormal_pair();
     let tilted = (d * angle.cos() + (b1 * az.cos() + b2 * az.sin()) * angle.sin()).normalize();
-    if tilted.y > -super::MIN_DOWNWARD * 0.5 { d } else { tilted }
+    if tilted.y > -crate::snowfall::MIN_DOWNWARD * 0.5 { d } else { tilted }
 }
 
 /// The objects' accumulation: atlas, meshes, poses and passes.
@@ -254,8 +256,9 @@ impl SnowAccumulation {
             .fold(f32::NEG_INFINITY, f32::max)
     }
 
-    /// Uploads the objects' matrices for a window whose corner is at world `corner`.
-    pub fn upload_poses(&self, queue: &wgpu::Queue, corner: DVec2) {
+    /// Uploads the objects' matrices for `window` (placed against its corner).
+    pub fn upload_poses(&self, queue: &wgpu::Queue, window: &WindowFrame) {
+        let corner = window.corner;
         let list: Vec<ObjectGpu> = self
             .objects
             .iter()
@@ -280,39 +283,30 @@ impl SnowAccumulation {
         queue.write_buffer(&self.object_buffer, 0, bytemuck::cast_slice(&list));
     }
 
-    /// Draws the occlusion for this frame (flutter and jitter drawn here) and
-    /// returns its projection, which the ground's update uses too. Call
-    /// [`Self::upload_poses`] first, with the same `corner`.
-    pub fn record_occlusion(
-        &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        snowfall: &Snowfall,
-        extent_m: f32,
-        (ground_low_m, ground_high_m): (f32, f32),
-    ) -> OcclusionParams {
+    /// Draws the occlusion over `window` for this frame (flutter and jitter
+    /// drawn here), covering the heights from its lowest ground to its
+    /// highest snow and the objects, and returns its projection, which the
+    /// ground's update uses too. Call [`Self::upload_poses`] first, with the
+    /// same window.
+    pub fn record_occlusion(&mut self, cx: FrameContext<'_>, window: &WindowFrame, snowfall: &Snowfall) -> OcclusionParams {
+        let FrameContext { gpu, encoder, timer } = cx;
+        let extent_m = window.extent_m;
+        let (ground_low_m, ground_high_m) = window.ground_range_m();
         let d = flutter(snowfall.direction, snowfall.flutter_deg, next_unit(&mut self.rng), next_unit(&mut self.rng));
         let texel = extent_m / self.window_resolution as f32;
         let offset = Vec2::new(next_unit(&mut self.rng), next_unit(&mut self.rng)) * texel;
         let low = ground_low_m - HEIGHT_MARGIN_M;
         let high = ground_high_m.max(self.top_m()) + HEIGHT_MARGIN_M;
         let params = OcclusionParams::new(extent_m, 0.5 * (ground_low_m + ground_high_m), (low, high), d, offset);
-        self.occlusion.record(queue, encoder, timer, &params, (&self.occlusion_vertices, &self.occlusion_indices, self.occlusion_index_count));
+        self.occlusion.record(&gpu.queue, encoder, timer, &params, (&self.occlusion_vertices, &self.occlusion_indices, self.occlusion_index_count));
         params
     }
 
     /// Records the atlas passes: scatter and increment when `fall_volume_m3`
     /// (snow per occlusion pixel this frame) is positive, then settle and surface.
-    pub fn record_atlas(
-        &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        snowfall: &Snowfall,
-        fall_volume_m3: f32,
-        dt_s: f32,
-    ) {
+    pub fn record_atlas(&mut self, cx: FrameContext<'_>, snowfall: &Snowfall, fall_volume_m3: f32, dt_s: f32) {
+        let FrameContext { gpu, encoder, timer } = cx;
+        let queue = &gpu.queue;
         let n = self.layout.resolution;
         if fall_volume_m3 > 0.0 {
             self.scatter.record(
@@ -336,8 +330,9 @@ impl SnowAccumulation {
     }
 
     /// Records only the surface pass (objects without snowfall).
-    pub fn record_surface(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
-        self.surface_pass.record(queue, encoder, timer, self.layout.used_rows(), &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
+    pub fn record_surface(&self, cx: FrameContext<'_>) {
+        let FrameContext { gpu, encoder, timer } = cx;
+        self.surface_pass.record(&gpu.queue, encoder, timer, self.layout.used_rows(), &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
     }
 
     /// The accumulation atlas read back (m per texel, row-major); blocking.

@@ -45,11 +45,11 @@ pub fn capture_depths(inst: &CaptureInstances, p: &CaptureParams, resolution: u3
 }
 
 /// Rounds depths to the capture target's 16-bit codes
-/// ([`crate::deform::resources::CAPTURE_FORMAT`]), as the GPU stores them:
+/// ([`crate::height_depth::CAPTURE_FORMAT`]), as the GPU stores them:
 /// call after [`capture_depths`] and [`capture_triangles`] (rounding is
 /// monotonic, so the lowest surface stays the lowest).
 pub fn quantise_depths(depth: &mut [f32]) {
-    use crate::deform::resources::CAPTURE_CODES;
+    use crate::height_depth::CAPTURE_CODES;
     for d in depth {
         *d = (*d * CAPTURE_CODES).round() / CAPTURE_CODES;
     }

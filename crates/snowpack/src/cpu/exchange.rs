@@ -1,9 +1,9 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
-use crate::deform::exchange::ExchangeParams;
 use crate::deform::snow_word;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
 use crate::deform::window::TexelRect;
+use crate::tiles::exchange::ExchangeParams;
+use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
 
 use super::window::storage_index;
 

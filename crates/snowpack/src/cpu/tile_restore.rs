@@ -1,7 +1,7 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use crate::TerrainSource;
-use crate::deform::tile_restore::{RestoreEntry, RestoreParams};
+use crate::tiles::restore::{RestoreEntry, RestoreParams};
 
 use super::stamp::STAMP_EMPTY;
 use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_texel};

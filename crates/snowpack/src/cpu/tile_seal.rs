@@ -1,8 +1,8 @@
 //! CPU twin of `tile_seal.wgsl`.
 
 use crate::TerrainSource;
-use crate::deform::tile_seal::SealParams;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW};
+use crate::tiles::seal::SealParams;
+use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW};
 
 use super::window::texel_ground;
 

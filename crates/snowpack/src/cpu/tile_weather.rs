@@ -1,8 +1,8 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
-use crate::deform::tile_weather::WeatherParams;
 use crate::TerrainSource;
-use crate::deform::tiles::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
+use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
+use crate::tiles::weather::WeatherParams;
 
 use super::stamp::{STAMP_EMPTY, height};
 
@@ -72,7 +72,7 @@ pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePasse
 pub struct SlotLayout {
     /// Texels per plane.
     pub area: usize,
-    /// Planes per slot ([`crate::deform::tiles::planes`]).
+    /// Planes per slot ([`crate::tiles::streaming::planes`]).
     pub planes: usize,
     /// The world has snowfall (the slot a snowfall plane).
     pub use_fallen: bool,

@@ -10,9 +10,10 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
 
 use crate::gpu::{GpuTimer, layout};
+use crate::height_depth::CAPTURE_FORMAT;
 use crate::{Deformer, shaders};
 
-use super::resources::{CAPTURE_FORMAT, DeformResources};
+use super::resources::DeformResources;
 
 /// Uniforms of `capture_sphere.wgsl` and `capture_mesh.wgsl`.
 #[repr(C)]

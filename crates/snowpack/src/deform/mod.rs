@@ -1,27 +1,23 @@
-//! The deformation pipeline: sliding window, capture, update, rims, blur,
-//! normals and readback, one module (and one WGSL file) per pass.
+//! The core deformation: the window's resources and the passes over them
+//! (sliding window, capture, footprints, update, the display: rims and blur,
+//! decals, point queries), one module (and one WGSL file) per pass. It knows
+//! nothing of accumulation on objects, of the tiles kept for the world or of
+//! skinning: the orchestrator ([`crate::snow::SnowDeformation`]) records
+//! those beside these passes.
 
 pub mod capture;
 pub mod decal;
 pub mod display;
-pub mod exchange;
 pub mod params;
-pub mod pipeline;
 pub mod query;
 pub mod resources;
-pub mod saved;
 pub mod shape;
 pub mod snow_word;
 pub mod stamp;
 pub mod technique;
 pub mod terrain_bake;
-pub mod tile_restore;
-pub mod tile_seal;
-pub mod tile_weather;
-pub mod tiles;
 pub mod traffic;
 pub mod update;
 pub mod window;
 
-pub use pipeline::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use query::{PointAnswers, PointSample, QueryStats, QueryTicket};

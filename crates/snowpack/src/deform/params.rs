@@ -34,7 +34,7 @@ pub struct SnowParams {
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
-    pub snowfall: Option<crate::accumulate::Snowfall>,
+    pub snowfall: Option<crate::snowfall::Snowfall>,
     /// Memory budget (bytes) for the snow of tiles the window has left, so a
     /// trail is still there when the window comes back (the scene's
     /// `[store]` table). `Some`: kept in memory

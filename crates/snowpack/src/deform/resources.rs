@@ -14,21 +14,11 @@
 //! source, never stored per texel.
 
 use crate::gpu::layout;
+use crate::height_depth::CAPTURE_FORMAT;
 use crate::{SnowParams, TerrainSource};
 
 use super::terrain_bake::TerrainBakePass;
 use super::window::TerrainParams;
-
-/// Format of the capture depth target: 16-bit unorm, linear in height over
-/// the capture range `[low_m, high_m]`, so one code is `(high_m - low_m) /
-/// 65535` (92 µm over the 6 m range of flat ground with 0.5 m of snow) and a
-/// captured height is within half of that of the actor's surface. The
-/// footprints stored by the points technique are quantised over the same
-/// range with the same step (`shared/stamp.wgsl`).
-pub const CAPTURE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth16Unorm;
-
-/// Codes of the capture depth target ([`CAPTURE_FORMAT`]).
-pub const CAPTURE_CODES: f32 = 65535.0;
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {

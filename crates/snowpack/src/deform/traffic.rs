@@ -42,7 +42,8 @@ impl PassTraffic {
 /// The compulsory traffic of each pass of one frame with `params`, in frame order.
 #[must_use]
 pub fn frame_traffic(params: &SnowParams) -> Vec<PassTraffic> {
-    const F32: u64 = 4;
+    // One snow or stamp word.
+    const WORD: u64 = 4;
     // One texel of the 16-bit capture target.
     const DEPTH: u64 = 2;
     let n = params.texel_count() as u64;
@@ -56,17 +57,13 @@ pub fn frame_traffic(params: &SnowParams) -> Vec<PassTraffic> {
     // The terrain is evaluated from its source (flat and noise read nothing
     // per texel; a heightmap's samples are cached reads, not counted).
     let stamps = params.technique.uses_stamps();
-    // update.wgsl: snow, the stamp word where the window has footprints, the
-    // capture depth when capturing; the snow height back.
-    out.push(pass("update", F32 + if stamps { F32 } else { 0 } + if captures { DEPTH } else { 0 }, F32));
-    // rim.wgsl: snow, and the stamp word for point rims; the shown height.
-    out.push(pass("rim", F32 + if stamps { F32 } else { 0 }, F32));
-    if params.blur {
-        out.push(pass("blur_x", F32, F32));
-        out.push(pass("blur_z", F32, F32));
-    }
-    // normals.wgsl: the shown height; the packed normal beside it.
-    out.push(pass("normals", F32, F32));
+    // update.wgsl: the snow word, the stamp word where the window has
+    // footprints, the capture depth when capturing; the snow word back.
+    out.push(pass("update", WORD + if stamps { WORD } else { 0 } + if captures { DEPTH } else { 0 }, WORD));
+    // display.wgsl: the snow word, and the stamp word for point rims; the
+    // word back with its displayed half. The blur's apron is re-read from
+    // cache and workgroup memory, not counted; there is no normals pass.
+    out.push(pass("display", WORD + if stamps { WORD } else { 0 }, WORD));
     out
 }
 
@@ -105,24 +102,19 @@ mod tests {
     #[test]
     fn a_16x16_depth_frame_moves_what_a_hand_count_of_the_shaders_says() {
         let params = SnowParams { resolution: 16, extent_m: 1.0, technique: Technique::Depth, blur: true, ..SnowParams::default() };
-        let t = frame_traffic(&params);
-        let by_name = |name: &str| t.iter().find(|p| p.pass == name).copied().unwrap_or_else(|| panic!("no {name}"));
+        let frame = frame_traffic(&params);
+        let by_name = |name: &str| *frame.iter().find(|p| p.pass == name).expect(name);
         // 256 texels: capture stores 256 16-bit depths; update reads capture
-        // (2 B) and snow (6 B) and writes snow (4 B); rim reads snow and
-        // writes shown; each blur direction reads and writes one f32;
-        // normals reads one f32 and writes the normal word.
+        // (2 B) and the snow word (4 B) and writes the word (4 B); display
+        // reads and writes the word (the blur is in workgroup memory).
         assert_eq!(by_name("capture"), PassTraffic { pass: "capture", read_bytes: 0, written_bytes: 512 });
         assert_eq!(by_name("update"), PassTraffic { pass: "update", read_bytes: 1536, written_bytes: 1024 });
-        assert_eq!(by_name("rim"), PassTraffic { pass: "rim", read_bytes: 1024, written_bytes: 1024 });
-        assert_eq!(by_name("blur_x").total_bytes(), 2048);
-        assert_eq!(by_name("blur_z").total_bytes(), 2048);
-        assert_eq!(by_name("normals"), PassTraffic { pass: "normals", read_bytes: 1024, written_bytes: 1024 });
-        assert_eq!(t.iter().map(PassTraffic::total_bytes).sum::<u64>(), 512 + 2560 + 2048 + 4096 + 2048);
-        // The points technique captures nothing; without blur there is no blur pass.
+        assert_eq!(by_name("display"), PassTraffic { pass: "display", read_bytes: 1024, written_bytes: 1024 });
+        assert_eq!(frame.iter().map(PassTraffic::total_bytes).sum::<u64>(), 256 * 20);
+        // The points technique captures nothing, and reads the footprints twice.
         let points = frame_traffic(&SnowParams { technique: Technique::Points, blur: false, ..params });
-        assert_eq!(points.iter().map(|p| p.pass).collect::<Vec<_>>(), ["update", "rim", "normals"]);
-        // Points read snow and the stamp word.
-        assert_eq!(points[0].read_bytes, 2048);
+        assert_eq!(points.iter().map(|p| p.pass).collect::<Vec<_>>(), ["update", "display"]);
+        assert_eq!(points[1].read_bytes, 2048);
     }
 
     #[test]

@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::{GpuTimer, layout};
+use crate::height_depth::sky_depth_texture;
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -71,21 +72,6 @@ pub struct UpdatePass {
     bind_group: wgpu::BindGroup,
     /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
     no_sky: wgpu::TextureView,
-}
-
-/// A depth texture bindable where the update pass reads the occlusion depth.
-#[must_use]
-pub fn sky_depth_texture(device: &wgpu::Device, resolution: u32) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("sky occlusion depth"),
-        size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: super::resources::CAPTURE_FORMAT,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
 }
 
 impl UpdatePass {

@@ -11,7 +11,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
 use super::terrain::grid_indices;
-use crate::deform::SnowDeformation;
+use crate::snow::SnowDeformation;
 use crate::gpu::layout;
 use crate::shaders;
 

@@ -49,7 +49,7 @@ use self::sky::SkyPass;
 use self::terrain::TerrainPass;
 use self::tonemap::TonemapPass;
 use crate::Deformer;
-use crate::deform::SnowDeformation;
+use crate::snow::SnowDeformation;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 

@@ -18,7 +18,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::pipeline::storage_ro;
-use crate::deform::SnowDeformation;
+use crate::snow::SnowDeformation;
 use crate::gpu::layout;
 use crate::shaders;
 

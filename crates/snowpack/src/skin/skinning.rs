@@ -5,7 +5,8 @@
 use glam::{Mat4, Vec3};
 
 use crate::error::SnowError;
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Uniforms of the skinning pass (`SkinningParams` in WGSL).
@@ -158,15 +159,9 @@ impl SkinningPass {
     }
 
     /// Records skinning of `instance` with `joints` (one matrix per skin joint) placed by `model`.
-    pub fn record(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        instance: &SkinnedInstance,
-        joints: &[Mat4],
-        model: Mat4,
-    ) {
+    pub fn record(&self, cx: FrameContext<'_>, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
+        let FrameContext { gpu, encoder, timer } = cx;
+        let queue = &gpu.queue;
         let count = joints.len().min(instance.joint_count as usize);
         let matrices: Vec<[[f32; 4]; 4]> = joints[..count].iter().map(Mat4::to_cols_array_2d).collect();
         queue.write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));

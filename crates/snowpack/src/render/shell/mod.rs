@@ -17,7 +17,7 @@ pub mod volume;
 
 use glam::Vec3;
 
-use crate::deform::SnowDeformation;
+use crate::snow::SnowDeformation;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, layout};
 

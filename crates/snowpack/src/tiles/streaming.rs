@@ -23,16 +23,17 @@ use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
+use crate::deform::resources::DeformResources;
+use crate::deform::window::TexelRect;
 use crate::error::SnowError;
+use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::{GpuContext, GpuTimer};
 use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileLookup, TileStreamer};
 
 use super::exchange::{ExchangeParams, ExchangePass};
-use super::resources::DeformResources;
-use super::tile_restore::{RestoreEntry, RestoreParams, TileRestorePass};
-use super::tile_seal::{SealParams, TileSealPass};
-use super::tile_weather::{TileWeatherPass, WeatherParams};
-use super::window::TexelRect;
+use super::restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use super::seal::{SealParams, TileSealPass};
+use super::weather::{TileWeatherPass, WeatherParams};
 
 /// The key table's "no slot" (`NO_SLOT` in `shared/tiles.wgsl`).
 pub const NO_SLOT: u32 = u32::MAX;
@@ -177,25 +178,6 @@ impl TileGrid {
         }
         keys
     }
-}
-
-/// What the tile passes need to know of the snow each frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct TileFrame {
-    /// Rest depth of fresh snow (m).
-    pub depth_m: f32,
-    /// Texel size (m).
-    pub texel_m: f32,
-    /// Snowfall so far on open ground (m), for fresh tiles.
-    pub fallen_m: f32,
-    /// Most snowfall a texel keeps (m).
-    pub max_fallen_m: f32,
-    /// Footprint quantisation range (m).
-    pub low_m: f32,
-    /// Footprint quantisation range (m).
-    pub high_m: f32,
-    /// Whether the world has snowfall (a `fallen` plane).
-    pub use_fallen: bool,
 }
 
 /// Tile traffic so far, with the store's own figures.
@@ -471,15 +453,12 @@ impl TileStreaming {
     /// exposed `rects`: the stash of the leaving texels, the copy-out of
     /// slots given up, the restore of the tiles now touched, the load of the
     /// entering texels. `clock` is the clock at the start of this frame.
-    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles, the move and the snow's state")]
     pub fn record_move(
         &mut self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        FrameContext { gpu: ctx, encoder, timer }: FrameContext<'_>,
+        frame @ &WindowFrame { origin, .. }: &WindowFrame,
         res: &DeformResources,
-        (old, origin, rects): (Option<[i64; 2]>, [i64; 2], &[TexelRect]),
-        frame: &TileFrame,
+        (old, rects): (Option<[i64; 2]>, &[TexelRect]),
         clock: SnowClock,
     ) {
         if rects.is_empty() {
@@ -513,7 +492,7 @@ impl TileStreaming {
         }
     }
 
-    fn restore_params(&self, frame: &TileFrame) -> RestoreParams {
+    fn restore_params(&self, frame: &WindowFrame) -> RestoreParams {
         RestoreParams {
             side: self.grid.side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
@@ -616,7 +595,7 @@ impl TileStreaming {
         timer: &mut GpuTimer,
         res: &DeformResources,
         (old, origin, rects): ([i64; 2], [i64; 2], &[TexelRect]),
-        frame: &TileFrame,
+        frame: &WindowFrame,
         clock: SnowClock,
     ) -> bool {
         let g = self.grid;
@@ -704,7 +683,7 @@ impl TileStreaming {
     /// out (as many at a time as the pool holds), the copies are waited for,
     /// then every tile of the new window is restored and loaded whole, and
     /// only its edge tiles keep their slots.
-    fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &TileFrame, clock: SnowClock) {
+    fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &WindowFrame, clock: SnowClock) {
         let g = self.grid;
         let full = [[0, 0, res.resolution, res.resolution]];
         let mut timer = GpuTimer::disabled();
@@ -813,14 +792,10 @@ impl TileStreaming {
 
     /// Records this frame's weather on the resident tiles outside the window
     /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
-    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and this frame's weather")]
     pub fn record_weather(
         &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        origin: [i64; 2],
-        frame: &TileFrame,
+        FrameContext { gpu: GpuContext { queue, .. }, encoder, timer }: FrameContext<'_>,
+        frame @ &WindowFrame { origin, .. }: &WindowFrame,
         (refill_m, fall_m): (f32, f32),
         quanta: u32,
     ) {

@@ -6,8 +6,8 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
-use super::resources::DeformResources;
-use super::window::{TexelRect, rect_dispatch};
+use crate::deform::resources::DeformResources;
+use crate::deform::window::{TexelRect, rect_dispatch};
 
 /// Uniforms of `exchange.wgsl`.
 #[repr(C)]
@@ -29,7 +29,7 @@ pub struct ExchangeParams {
     pub rect_count: u32,
     /// Texel size (m): where the terrain is evaluated.
     pub texel_m: f32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Rest depth (m): the window's snow words are deficits below terrain +
     /// depth + snowfall so far, the tiles' snow planes f32 heights.

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
-use super::resources::DeformResources;
+use crate::deform::resources::DeformResources;
 
 /// Uniforms of `tile_restore.wgsl`.
 #[repr(C)]
@@ -32,7 +32,7 @@ pub struct RestoreParams {
     pub low_m: f32,
     /// Footprint quantisation: highest height (m).
     pub high_m: f32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,

@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
-use super::resources::DeformResources;
+use crate::deform::resources::DeformResources;
 
 /// Uniforms of `tile_seal.wgsl`.
 #[repr(C)]

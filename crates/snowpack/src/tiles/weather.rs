@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
-use super::resources::DeformResources;
+use crate::deform::resources::DeformResources;
 
 /// Uniforms of `tile_weather.wgsl`.
 #[repr(C)]
@@ -38,7 +38,7 @@ pub struct WeatherParams {
     pub high_m: f32,
     /// Slots listed for the pass (set by [`TileWeatherPass::record`]).
     pub count: u32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,

@@ -2,25 +2,28 @@
 
 use glam::DVec2;
 
-use crate::accumulate::{SnowAccumulation, SnowObject, Snowfall};
+use crate::accumulate::{SnowAccumulation, SnowObject};
+use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
+use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
+use crate::deform::display::{DisplayParams, DisplayPass};
+use crate::deform::params::{RANGE_TEXELS, default_tile_texels};
+use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
+use crate::deform::resources::DeformResources;
+use crate::deform::snow_word::{self, SNOW_QUANTUM_M};
+use crate::deform::stamp::{StampParams, StampPass, contact_points};
+use crate::deform::update::{UpdateParams, UpdatePass};
+use crate::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use crate::error::SnowError;
+use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, read_buffer};
 use crate::persist::{SnowClock, StoreError, StreamerConfig, TileStreamer};
+use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
+use crate::snowfall::Snowfall;
+use crate::tiles::streaming::planes;
+use crate::tiles::{TileGrid, TileStats, TileStreaming};
 use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
-use super::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
-use super::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
-use super::display::{DisplayParams, DisplayPass};
-use super::params::default_tile_texels;
-use super::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
-use super::resources::DeformResources;
 use super::saved::{STATE_NAME, SavedWindow};
-use super::snow_word::{self, SNOW_QUANTUM_M};
-use super::stamp::{StampParams, StampPass, contact_points};
-use super::tiles::{TileFrame, TileGrid, TileStats, TileStreaming, planes};
-use super::update::{UpdateParams, UpdatePass};
-use super::window::{SlidingWindow, WindowParams, WindowPass};
-use crate::skin::skinning::{SkinnedInstance, SkinningPass};
 
 /// Margin of the capture depth range beyond the terrain and the snow (m).
 const CAPTURE_MARGIN_M: f32 = 1.0;
@@ -480,7 +483,7 @@ impl SnowDeformation {
 
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
     pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
-        self.params.range_texels = range_texels.clamp(*super::params::RANGE_TEXELS.start(), *super::params::RANGE_TEXELS.end());
+        self.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
         self.params.rim = rim;
     }
 
@@ -579,7 +582,7 @@ impl SnowDeformation {
 
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::poses`];
     /// `joint_count` is its skin's.
-    pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &crate::skin::skinning::SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
+    pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
         self.skinned.push(instance);
         Ok(SkinnedId(self.skinned.len() - 1))
@@ -601,7 +604,7 @@ impl SnowDeformation {
         self.timer.begin_frame();
         for pose in frame.poses {
             let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
-            self.skinning.record(&ctx.queue, encoder, &mut self.timer, instance, pose.joints, pose.model);
+            self.skinning.record(FrameContext::new(ctx, encoder, &mut self.timer), instance, pose.joints, pose.model);
             self.posed.push(pose.mesh.0);
         }
         let skinned = std::mem::take(&mut self.skinned);
@@ -669,7 +672,11 @@ impl SnowDeformation {
         // Deformers and objects are relative to the floating origin; so is the corner they are placed against.
         let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel) - self.floating_origin;
 
-        let tile_frame = TileFrame {
+        let window = WindowFrame {
+            origin,
+            corner,
+            resolution: p.resolution,
+            extent_m: p.extent_m,
             depth_m: p.depth_m,
             texel_m: p.texel_m(),
             fallen_m: self.fallen_total_m,
@@ -677,9 +684,10 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             use_fallen: p.snowfall.is_some(),
+            terrain_m: self.terrain.height_bounds(),
         };
         if let Some(tiles) = &mut self.tiles {
-            tiles.record_move(ctx, encoder, &mut self.timer, &self.res, (old, origin, &rects), &tile_frame, self.clock);
+            tiles.record_move(FrameContext::new(ctx, encoder, &mut self.timer), &window, &self.res, (old, &rects), self.clock);
         } else {
             self.window_pass.record(
                 queue,
@@ -703,12 +711,11 @@ impl SnowDeformation {
         // out of shelter too).
         let snowfall = p.snowfall.clone();
         let fall_m = snowfall.as_ref().map_or(0.0, |s| s.rate_m_per_s * dt_s.max(0.0));
-        let (tmin, tmax) = self.terrain.height_bounds();
         if let Some(acc) = &self.accumulation {
-            acc.upload_poses(queue, corner);
+            acc.upload_poses(queue, &window);
         }
         let sky = match (&snowfall, &mut self.accumulation) {
-            (Some(s), Some(acc)) => Some(acc.record_occlusion(queue, encoder, &mut self.timer, s, p.extent_m, (tmin, tmax + p.depth_m + self.fallen_total_m))),
+            (Some(s), Some(acc)) => Some(acc.record_occlusion(FrameContext::new(ctx, encoder, &mut self.timer), &window, s)),
             _ => None,
         };
         let max_fallen_m = snowfall.as_ref().map_or(0.0, |s| s.max_m);
@@ -775,7 +782,7 @@ impl SnowDeformation {
             },
         );
         if let Some(tiles) = &mut self.tiles {
-            tiles.record_weather(queue, encoder, &mut self.timer, origin, &tile_frame, (refill_m, fall_m), refill_quanta as u32);
+            tiles.record_weather(FrameContext::new(ctx, encoder, &mut self.timer), &window, (refill_m, fall_m), refill_quanta as u32);
         }
         self.clock.time_s += f64::from(dt_s.max(0.0));
         self.clock.refill_m += f64::from(refill_m);
@@ -803,8 +810,8 @@ impl SnowDeformation {
         if let Some(acc) = &mut self.accumulation {
             match &snowfall {
                 // One occlusion pixel is one window texel of ground.
-                Some(s) => acc.record_atlas(queue, encoder, &mut self.timer, s, if sky.is_some() { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
-                None => acc.record_surface(queue, encoder, &mut self.timer),
+                Some(s) => acc.record_atlas(FrameContext::new(ctx, encoder, &mut self.timer), s, if sky.is_some() { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
+                None => acc.record_surface(FrameContext::new(ctx, encoder, &mut self.timer)),
             }
         }
         // Contacts are recorded whatever the technique, so switching to decals
