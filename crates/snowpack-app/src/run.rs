@@ -230,6 +230,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         },
         // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(_, v)| v).sum::<u64>(),
+        "gpu_memory_peak_bytes": snow.peak_memory_bytes(),
         "gpu_memory_by_resource": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });
 

@@ -914,6 +914,55 @@ path = [[0.0, 10.0, 0.0, 0.0], [0.0, 10.0, 0.0, 0.3], [40.0, 10.0, 0.0, 2.3], [0
 frames = 300
 "#;
 
+/// The adoption budget, as `meta.json` reports it: a default-sized window
+/// (64 m at 1024²) that presses a trench and walks more than a window width,
+/// trails kept in memory (the default), holds at most 8 MiB of GPU memory with
+/// the depth technique and 12 MiB with combined.
+#[test]
+fn a_default_sized_window_stays_within_8_mib_for_depth_and_12_for_combined() {
+    if !gpu_available() {
+        return;
+    }
+    for (technique, budget) in [("depth", 8u64 << 20), ("combined", 12 << 20)] {
+        let scene = format!(
+            r#"
+[snow]
+extent_m = 64.0
+resolution = 1024
+depth_m = 0.4
+technique = "{technique}"
+[terrain]
+kind = "noise"
+seed = 9
+height_m = 0.0
+amplitude_m = 0.3
+wavelength_m = 30.0
+[window]
+follow = "actor:0"
+[[actor]]
+kind = "sphere"
+radius_m = 0.5
+path = [[0.0, 0.3, 0.0, 0.0], [90.0, 0.3, 0.0, 0.5]]
+[sim]
+frames = 40
+"#
+        );
+        let run = run_scene(&format!("budget-{technique}"), &scene, &["--size", "64x64"]);
+        let bytes = run.meta["gpu_memory_bytes"].as_u64().expect("gpu_memory_bytes");
+        assert!(bytes <= budget, "{technique}: {bytes} bytes, over {budget}: {}", run.meta["gpu_memory_by_resource"]);
+        // The peak includes tiles on their way to the CPU (staging for a frame
+        // or two); at 180 m/s a column of 33 tiles leaves every frame, so the
+        // copy-outs in flight add up to an eighth of the budget here (a
+        // runner at 10 m/s sends a column every twelve frames).
+        let peak = run.meta["gpu_memory_peak_bytes"].as_u64().expect("gpu_memory_peak_bytes");
+        eprintln!("{technique}: {bytes} bytes at the end, {peak} at the peak");
+        assert!(peak >= bytes && peak <= budget + (budget >> 3), "{technique}: peak {peak}");
+        // The window walked and tiles went out: the figure is not a standing window's.
+        assert!(run.meta["origin_m"][0].as_f64() > Some(40.0), "{technique}: the window did not walk: {}", run.meta["origin_m"]);
+        assert!(run.meta["store"]["evicted_tiles"].as_u64() > Some(0), "{technique}: {}", run.meta["store"]);
+    }
+}
+
 #[test]
 fn a_trail_left_behind_comes_back_from_the_store_refilled_and_a_run_resumes_from_it() {
     if !gpu_available() {

@@ -67,6 +67,11 @@ fn default_window_memory_per_technique() {
     // ... and the slots' footprint plane.
     assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 225 * 32 * 32 * 4);
     assert!(bytes_of(&combined, "resident tiles") <= 2 << 20);
+    // The adoption budget, everything `gpu_memory_bytes` sums: 8 MiB for
+    // depth, 12 MiB for combined, trails kept.
+    let all = |snow: &SnowDeformation| snow.memory_bytes().iter().map(|(_, b)| b).sum::<u64>();
+    assert!(all(&depth) <= 8 << 20, "depth: {} bytes", all(&depth));
+    assert!(all(&combined) <= 12 << 20, "combined: {} bytes", all(&combined));
 
     // Switching allocates what the new technique needs at the next frame, and keeps it.
     depth.set_technique(Technique::Points);

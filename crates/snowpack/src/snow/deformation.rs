@@ -107,6 +107,8 @@ pub struct SnowDeformation {
     stamp_refill_carry_m: f32,
     /// Refill not yet given to the snow: less than one snow quantum (m).
     snow_refill_carry_m: f32,
+    /// The most GPU memory held after any submitted frame (bytes).
+    peak_memory_bytes: u64,
     points_last_frame: usize,
     skinning: SkinningPass,
     skinned: Vec<SkinnedInstance>,
@@ -236,6 +238,7 @@ impl SnowDeformation {
             exposed_texels: 0,
             stamp_refill_carry_m: 0.0,
             snow_refill_carry_m: 0.0,
+            peak_memory_bytes: 0,
             points_last_frame: 0,
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
@@ -843,6 +846,8 @@ impl SnowDeformation {
     /// Starts the readbacks of the submitted frame (point answers, timings)
     /// and collects any that have arrived, without waiting.
     pub fn after_submit(&mut self, ctx: &GpuContext) {
+        // Before the copy-outs of this frame can be collected and dropped.
+        self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum());
         self.query_pass.after_submit();
         if let Some(tiles) = &mut self.tiles {
             tiles.after_submit();
@@ -921,6 +926,14 @@ impl SnowDeformation {
     #[must_use]
     pub fn timing_enabled(&self) -> bool {
         self.timer.enabled()
+    }
+
+    /// The most GPU memory [`Self::memory_bytes`] summed to after any frame
+    /// so far (bytes): with tiles on their way to the CPU, the copy-out
+    /// staging they hold for a frame or two.
+    #[must_use]
+    pub fn peak_memory_bytes(&self) -> u64 {
+        self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum())
     }
 
     /// GPU memory held, by resource (bytes), including the point queries' buffers.

@@ -208,7 +208,7 @@ pub struct TileStats {
     /// memory budget smaller than the tiles the window needs at once).
     pub blocking_loads: u64,
     /// GPU memory of the resident tiles, their upload buffers and the
-    /// copy-out staging buffers kept for reuse (bytes).
+    /// copy-out staging buffers still in flight (bytes).
     pub gpu_bytes: u64,
     /// The tiles are kept in memory only (no disk store behind them).
     pub memory_only: bool,
@@ -253,7 +253,6 @@ pub struct TileStreaming {
     weather: TileWeatherPass,
     evictions: Vec<Eviction>,
     /// Staging buffers of finished copy-outs, reused by the next ones.
-    spare_staging: Vec<wgpu::Buffer>,
     /// The weather pass's slot list, rebuilt each frame in place.
     weather_slots: Vec<u32>,
     in_flight: HashSet<TileKey>,
@@ -362,7 +361,6 @@ impl TileStreaming {
             tiles,
             owners_buffer,
             evictions: Vec::new(),
-            spare_staging: Vec::new(),
             weather_slots: Vec::new(),
             in_flight: HashSet::new(),
             prefetched_at: None,
@@ -772,16 +770,15 @@ impl TileStreaming {
         self.seal.record(device, &ctx.queue, encoder, &mut GpuTimer::disabled(), (res, &self.tiles), self.seal_params(res), &entries);
         let slot_bytes = (self.planes() * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
-        // A staging buffer from an earlier copy-out when one is big enough.
-        let buffer = match self.spare_staging.iter().position(|b| b.size() >= size) {
-            Some(k) => self.spare_staging.swap_remove(k),
-            None => device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("tile copy-out"),
-                size: size.next_power_of_two(),
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-        };
+        // Exactly this copy-out's size, dropped once read back: GPU memory
+        // only while tiles are on their way to the CPU (counted in
+        // `TileStats::gpu_bytes` meanwhile), none kept for reuse.
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile copy-out"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         for (k, &(key, slot)) in slots.iter().enumerate() {
             encoder.copy_buffer_to_buffer(&self.tiles, slot as u64 * slot_bytes, &buffer, k as u64 * slot_bytes, slot_bytes);
             self.in_flight.insert(key);
@@ -885,12 +882,6 @@ impl TileStreaming {
                 let planes = &words[t * n * area..(t + 1) * n * area];
                 self.streamer.put(tile_from_planes(*key, side, eviction.clock, planes, (self.use_fallen, self.has_stamps)));
             }
-            self.spare_staging.push(eviction.buffer);
-            // Keep the two largest for reuse: a batched move leaves many.
-            if self.spare_staging.len() > 2 {
-                self.spare_staging.sort_by_key(|b| std::cmp::Reverse(b.size()));
-                self.spare_staging.truncate(2);
-            }
         }
     }
 
@@ -975,7 +966,7 @@ impl TileStreaming {
                 + self.weather.memory_bytes()
                 + self.seal.memory_bytes()
                 + self.restore.memory_bytes()
-                + self.spare_staging.iter().map(wgpu::Buffer::size).sum::<u64>(),
+                + self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>(),
             memory_only: self.streamer.is_memory_only(),
         }
     }
