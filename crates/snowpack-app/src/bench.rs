@@ -707,11 +707,7 @@ mod tests {
         let row = BenchRow {
             resolution: 1024,
             spheres: 100,
-            passes: vec![
-                ("capture".into(), 0.5),
-                ("update".into(), 0.04),
-                ("display".into(), 0.05),
-            ],
+            passes: vec![("capture".into(), 0.5), ("update".into(), 0.04), ("display".into(), 0.05)],
             cpu_record_ms: 0.1,
             memory_bytes: 0,
             memory_parts: vec![],

@@ -5,8 +5,8 @@
 use glam::{DVec2, Vec3};
 use snowpack::accumulate::Snowfall;
 use snowpack::cpu;
-use snowpack::deform::resources::DeformResources;
 use snowpack::deform::display::{DisplayParams, DisplayPass};
+use snowpack::deform::resources::DeformResources;
 use snowpack::deform::snow_word;
 use snowpack::gpu::GpuTimer;
 use snowpack::gpu::read_buffer;

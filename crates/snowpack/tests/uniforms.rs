@@ -2,11 +2,10 @@
 
 use snowpack::accumulate::state::ObjectGpu;
 use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
-use snowpack::deform::display::DisplayParams;
 use snowpack::deform::capture::CaptureParams;
 use snowpack::deform::decal::DecalParams;
+use snowpack::deform::display::DisplayParams;
 use snowpack::deform::query::{QueryParams, RawSample};
-use snowpack::render::surface::UnpackParams;
 use snowpack::deform::stamp::StampParams;
 use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::update::UpdateParams;
@@ -19,6 +18,7 @@ use snowpack::render::shell::count::CountParams;
 use snowpack::render::shell::peel::{PeelParams, ShellDrawParams};
 use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
 use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
+use snowpack::render::surface::UnpackParams;
 use snowpack::shaders;
 use snowpack::skin::skinning::SkinningParams;
 use snowpack::tiles::exchange::ExchangeParams;

@@ -332,7 +332,13 @@ impl SnowAccumulation {
     /// Records only the surface pass (objects without snowfall).
     pub fn record_surface(&self, cx: FrameContext<'_>) {
         let FrameContext { gpu, encoder, timer } = cx;
-        self.surface_pass.record(&gpu.queue, encoder, timer, self.layout.used_rows(), &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
+        self.surface_pass.record(
+            &gpu.queue,
+            encoder,
+            timer,
+            self.layout.used_rows(),
+            &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] },
+        );
     }
 
     /// The accumulation atlas read back (m per texel, row-major); blocking.

@@ -47,8 +47,11 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
             let ground = input.terrain[s];
             let word = snow[s];
             let mut lying = if p.flags & UpdateParams::USE_FALLEN != 0 { fallen[s] } else { 0.0 };
-            let visible =
-                if p.flags & UpdateParams::USE_SKY != 0 { sky_visible(p, input.sky_depth, i, j, word_height(word, ground + p.depth_m + lying, ground)) } else { 1.0 };
+            let visible = if p.flags & UpdateParams::USE_SKY != 0 {
+                sky_visible(p, input.sky_depth, i, j, word_height(word, ground + p.depth_m + lying, ground))
+            } else {
+                1.0
+            };
             if p.flags & UpdateParams::USE_FALLEN != 0 {
                 let before = lying;
                 lying = before.max((before + p.fall_m * visible).min(p.max_fallen_m));

@@ -178,24 +178,14 @@ impl WindowPass {
             device,
             "window",
             shaders::WINDOW,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, false),
-                layout::storage(2, false),
-                layout::storage(3, false),
-            ],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false), layout::storage(2, false), layout::storage(3, false)],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
         let bind_group = layout::bind_group(
             device,
             "window",
             &bgl,
-            &[
-                params.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.stamps.as_entire_binding(),
-                res.fallen.as_entire_binding(),
-            ],
+            &[params.as_entire_binding(), res.snow.as_entire_binding(), res.stamps.as_entire_binding(), res.fallen.as_entire_binding()],
         );
         Self { pipeline, params, bind_group }
     }

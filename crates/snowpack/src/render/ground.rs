@@ -11,9 +11,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
 use super::terrain::grid_indices;
-use crate::snow::SnowDeformation;
 use crate::gpu::layout;
 use crate::shaders;
+use crate::snow::SnowDeformation;
 
 pub use super::sampling::{
     SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowSampling, SnowWindowUniform, sampling_bind_group, sampling_layout_entries, snow_sampling_wgsl,

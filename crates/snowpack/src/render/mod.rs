@@ -49,9 +49,9 @@ use self::sky::SkyPass;
 use self::terrain::TerrainPass;
 use self::tonemap::TonemapPass;
 use crate::Deformer;
-use crate::snow::SnowDeformation;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
+use crate::snow::SnowDeformation;
 
 /// Output format of [`Renderer::render_image`].
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -293,7 +293,12 @@ impl Renderer {
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
         let targets = self.targets.as_ref().map_or(0, |t| u64::from(t.size.0) * u64::from(t.size.1) * (8 + 4));
-        self.env.memory_bytes() + self.shadow.memory_bytes() + self.unpack.memory_bytes() + self.ao.ao.size() + targets + self.shell().map_or(0, ShellRenderer::memory_bytes)
+        self.env.memory_bytes()
+            + self.shadow.memory_bytes()
+            + self.unpack.memory_bytes()
+            + self.ao.ao.size()
+            + targets
+            + self.shell().map_or(0, ShellRenderer::memory_bytes)
     }
 
     fn ensure_targets(&mut self, device: &wgpu::Device, size: (u32, u32)) {

@@ -18,9 +18,9 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::pipeline::storage_ro;
-use crate::snow::SnowDeformation;
 use crate::gpu::layout;
 use crate::shaders;
+use crate::snow::SnowDeformation;
 
 /// WGSL a game prepends to its shader to sample the snow: declares the four
 /// bindings (group [`SNOW_SAMPLING_GROUP`], bindings 0..=3) and the functions

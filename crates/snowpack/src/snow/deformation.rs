@@ -813,7 +813,12 @@ impl SnowDeformation {
         if let Some(acc) = &mut self.accumulation {
             match &snowfall {
                 // One occlusion pixel is one window texel of ground.
-                Some(s) => acc.record_atlas(FrameContext::new(ctx, encoder, &mut self.timer), s, if sky.is_some() { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
+                Some(s) => acc.record_atlas(
+                    FrameContext::new(ctx, encoder, &mut self.timer),
+                    s,
+                    if sky.is_some() { fall_m * p.texel_m() * p.texel_m() } else { 0.0 },
+                    dt_s,
+                ),
                 None => acc.record_surface(FrameContext::new(ctx, encoder, &mut self.timer)),
             }
         }

@@ -17,9 +17,9 @@ pub mod volume;
 
 use glam::Vec3;
 
-use crate::snow::SnowDeformation;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, GpuTimer, layout};
+use crate::snow::SnowDeformation;
 
 use self::count::MAX_PASSES;
 use self::peel::{PeelDraw, PeelPipelines, PeelTargets, ShellDrawParams};
@@ -289,12 +289,8 @@ impl ShellRenderer {
         let tetras = storage("shell tetrahedra", u64::from(face_count) * 3 * size_of::<tetrahedra::Tetra>() as u64);
         let corners = storage("shell corners", u64::from(face_count) * 3 * u64::from(CORNERS_PER_TETRA) * 4);
         let res = snow.resources();
-        let vertex_pass = ShellVertexPass::new(
-            device,
-            &base,
-            &SnowSurface { surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params },
-            &vertices,
-        );
+        let vertex_pass =
+            ShellVertexPass::new(device, &base, &SnowSurface { surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params }, &vertices);
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);
         let pipelines = PeelPipelines::new(device, lit_layout);
         let draw_params = layout::uniform_buffer::<ShellDrawParams>(device, "shell draw params");
