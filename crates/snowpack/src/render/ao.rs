@@ -32,7 +32,7 @@ impl AoPass {
     pub const STEPS: u32 = 6;
 
     /// Builds the pass over a `resolution`² window-local `surface` buffer
-    /// (packed height and normal, as [`crate::deform::resources::DeformResources::surface`]).
+    /// (packed height and normal, as [`crate::render::surface::SurfaceUnpackPass::surface`]).
     #[must_use]
     pub fn new(device: &wgpu::Device, surface: &wgpu::Buffer, resolution: u32) -> Self {
         let r = u64::from(resolution);

@@ -971,7 +971,7 @@ impl SnowDeformation {
         out
     }
 
-    /// The snow words ([`super::snow_word`]), window-local row-major (row i
+    /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
     /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
     /// decode them.
     pub fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {

@@ -14,7 +14,7 @@ use crate::deform::resources::DeformResources;
 pub struct SealParams {
     /// Tile side (texels).
     pub side: u32,
-    /// Planes per resident slot ([`super::tiles::planes`]).
+    /// Planes per resident slot ([`super::streaming::planes`]).
     pub planes: u32,
     /// [`SealParams::USE_FALLEN`].
     pub flags: u32,
