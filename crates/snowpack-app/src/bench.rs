@@ -838,7 +838,7 @@ mod tests {
             assert!(md.contains(section), "no {section:?} in:\n{md}");
         }
         assert!(text("techniques.csv").contains("depth,16384,0.9,0.4"), "{}", text("techniques.csv"));
-        assert_eq!(text("passes.csv").lines().count(), 1 + 2 * 3, "{}", text("passes.csv"));
+        assert_eq!(text("passes.csv").lines().count(), 1 + 2 * 4, "{}", text("passes.csv"));
         // Only what was measured: the render table alone gives the report and its CSV.
         assert!(text("frames.csv").contains("depth,128,32,64,1,4,200"), "{}", text("frames.csv"));
         // Every table says where it was measured.
