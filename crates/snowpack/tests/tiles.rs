@@ -434,7 +434,12 @@ fn trail_comes_back_refilled_by_the_time_away() {
         }
     }
     assert!(trail > 100, "only {trail} texels deeper than the refill");
-    assert!(worst < 5e-5, "restored trail differs from before + refill x {elapsed} s by {worst} m");
+    // The window refills by whole snow quanta (0.1 mm), carrying what is
+    // left below one: the carry when `before` was read and at the end each
+    // hold back less than a quantum, and a returning tile's height rounds to
+    // the nearest quantum: within two quanta of the exact refill.
+    let quantum = snowpack::deform::snow_word::SNOW_QUANTUM_M;
+    assert!(worst < 2.0 * quantum, "restored trail differs from before + refill x {elapsed} s by {worst} m");
     drop(d);
     let _ = std::fs::remove_dir_all(&dir);
 }
