@@ -725,15 +725,22 @@ impl Scene {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
             TerrainSource::Noise(n) => format!("noise, seed {}, height {} m, amplitude {} m, wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m),
             TerrainSource::Heightmap(h) => {
-                format!("heightmap {}x{} px over {:?} m centred at {:?}, heights {:?} m", h.width, h.height, h.size_m, h.center_m, self.terrain.height_bounds())
+                format!(
+                    "heightmap {}x{} px over {:?} m centred at {:?}, heights {:?} m",
+                    h.width(),
+                    h.height(),
+                    h.size_m(),
+                    h.center_m(),
+                    self.terrain.height_bounds()
+                )
             }
             TerrainSource::Mesh(m) => format!(
                 "mesh of {} triangles drawn into {}x{} texels over {:?} m centred at {:?}, heights {:?} m",
                 m.triangles.len(),
-                m.grid.width,
-                m.grid.height,
-                m.grid.size_m,
-                m.grid.center_m,
+                m.grid.width(),
+                m.grid.height(),
+                m.grid.size_m(),
+                m.grid.center_m(),
                 self.terrain.height_bounds()
             ),
             // A terrain kind added to the library after this describer.
@@ -831,7 +838,16 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
             heights_m.push(f32::from(gray.get_pixel(col, row)[0]) / 65535.0 * scale);
         }
     }
-    Ok(TerrainSource::Heightmap(HeightmapTerrain { width, height, heights_m, center_m: center, size_m: size }))
+    let heightmap = HeightmapTerrain::new(width, height, heights_m, center, size).map_err(|e| {
+        // The library names its field; the scene names the key that set it.
+        let key = match &e {
+            snowpack::SnowError::InvalidParameter { field: "heightmap size_m", .. } => "size_m",
+            snowpack::SnowError::InvalidParameter { field: "heightmap center_m", .. } => "center",
+            _ => "height_scale_m",
+        };
+        t.err(key, format!("heightmap {}: {e}", file.display()))
+    })?;
+    Ok(TerrainSource::Heightmap(heightmap))
 }
 
 fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneError> {

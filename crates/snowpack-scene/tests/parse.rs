@@ -252,10 +252,10 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
     std::fs::write(&scene_path, "[terrain]\nkind = \"heightmap\"\npath = \"ground.png\"\nheight_scale_m = 65.535\nsize_m = [4.0, 2.0]\n").expect("write");
     let s = Scene::load(&scene_path).expect("loads");
     let TerrainSource::Heightmap(h) = &s.terrain else { panic!("not a heightmap") };
-    assert_eq!((h.width, h.height), (4, 2));
+    assert_eq!((h.width(), h.height()), (4, 2));
     // Image row 0 (y = 0) is the far edge (+z): terrain row 1.
-    assert!((h.heights_m[4 + 3] - 3.0).abs() < 1e-4, "{:?}", h.heights_m);
-    assert!((h.heights_m[3] - 23.0).abs() < 1e-4, "{:?}", h.heights_m);
+    assert!((h.heights_m()[4 + 3] - 3.0).abs() < 1e-4, "{:?}", h.heights_m());
+    assert!((h.heights_m()[3] - 23.0).abs() < 1e-4, "{:?}", h.heights_m());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

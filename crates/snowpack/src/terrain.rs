@@ -25,20 +25,16 @@ pub struct NoiseTerrain {
     pub wavelength_m: f32,
 }
 
-/// A grid of heights covering a square of the world, sampled bilinearly between
-/// pixel centres and clamped at its edges.
+/// A grid of heights covering a rectangle of the world, sampled bilinearly
+/// between pixel centres and clamped at its edges. Made by
+/// [`HeightmapTerrain::new`], which checks it, so sampling never fails.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightmapTerrain {
-    /// Pixels per row.
-    pub width: u32,
-    /// Rows; row `r` lies at larger world z than row `r - 1`.
-    pub height: u32,
-    /// Heights in metres, row-major, `width * height` values.
-    pub heights_m: Vec<f32>,
-    /// World (x, z) of the centre of the covered area (m).
-    pub center_m: [f32; 2],
-    /// World size (x, z) of the covered area (m).
-    pub size_m: [f32; 2],
+    width: u32,
+    height: u32,
+    heights_m: Vec<f32>,
+    center_m: [f32; 2],
+    size_m: [f32; 2],
 }
 
 /// Where the terrain's height comes from.
@@ -196,6 +192,68 @@ pub fn fbm(x: f32, z: f32, seed: u32) -> f32 {
 }
 
 impl HeightmapTerrain {
+    /// A heightmap of `width` x `height` pixels, `heights_m` row-major (row
+    /// `r` at larger world z than row `r - 1`), covering `size_m` (x, z)
+    /// metres centred on world `center_m`. Errors name what is wrong: a zero
+    /// side, a sample count other than `width * height`, a height that is
+    /// not finite, a size that is not positive and finite, a centre that is
+    /// not finite.
+    pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, SnowError> {
+        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+        if width == 0 || height == 0 {
+            return bad("heightmap", format!("{width}x{height} pixels: both sides must be at least 1"));
+        }
+        if heights_m.len() as u64 != u64::from(width) * u64::from(height) {
+            return bad("heightmap", format!("{} heights for {width}x{height} pixels (needs {})", heights_m.len(), u64::from(width) * u64::from(height)));
+        }
+        if let Some(k) = heights_m.iter().position(|h| !h.is_finite()) {
+            return bad("heightmap", format!("height {} at pixel {k} is not a finite number of metres", heights_m[k]));
+        }
+        if !size_m.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return bad("heightmap size_m", format!("{size_m:?} must be two positive, finite sizes in metres"));
+        }
+        if !center_m.iter().all(|c| c.is_finite()) {
+            return bad("heightmap center_m", format!("{center_m:?} must be finite"));
+        }
+        Ok(Self { width, height, heights_m, center_m, size_m })
+    }
+
+    /// Pixels per row.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Rows.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Heights in metres, row-major, `width * height` values.
+    #[must_use]
+    pub fn heights_m(&self) -> &[f32] {
+        &self.heights_m
+    }
+
+    /// World (x, z) of the centre of the covered area (m).
+    #[must_use]
+    pub fn center_m(&self) -> [f32; 2] {
+        self.center_m
+    }
+
+    /// World size (x, z) of the covered area (m).
+    #[must_use]
+    pub fn size_m(&self) -> [f32; 2] {
+        self.size_m
+    }
+
+    /// The same grid with other heights (as many, finite): a mesh terrain's
+    /// grid as the GPU baked it.
+    pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
+        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m)
+    }
+
     /// Lowest and highest sample (m).
     #[must_use]
     pub fn height_range(&self) -> (f32, f32) {
@@ -263,6 +321,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_heightmap_is_checked_when_made() {
+        let ok = |w, h, n: usize| HeightmapTerrain::new(w, h, vec![1.0; n], [0.0, 0.0], [4.0, 4.0]);
+        assert!(ok(2, 3, 6).is_ok());
+        let why = |r: Result<HeightmapTerrain, SnowError>| r.expect_err("must be refused").to_string();
+        assert!(why(ok(0, 3, 0)).contains("at least 1"));
+        assert!(why(ok(2, 3, 5)).contains("5 heights for 2x3"));
+        assert!(why(HeightmapTerrain::new(1, 2, vec![1.0, f32::NAN], [0.0, 0.0], [1.0, 1.0])).contains("pixel 1"));
+        assert!(why(HeightmapTerrain::new(1, 1, vec![1.0], [0.0, 0.0], [0.0, 1.0])).contains("size_m"));
+        assert!(why(HeightmapTerrain::new(1, 1, vec![1.0], [f32::INFINITY, 0.0], [1.0, 1.0])).contains("center_m"));
+        // A checked heightmap samples anywhere without panicking, one pixel included.
+        let one = HeightmapTerrain::new(1, 1, vec![2.5], [0.0, 0.0], [1.0, 1.0]).expect("valid");
+        assert_eq!(one.height_at(-1e9, 1e9), 2.5);
+    }
+
+    #[test]
     fn fbm_stays_in_range_and_varies() {
         let mut lo = f32::INFINITY;
         let mut hi = f32::NEG_INFINITY;
@@ -279,7 +352,7 @@ mod tests {
 
     #[test]
     fn heightmap_interpolates_between_pixel_centres() {
-        let hm = HeightmapTerrain { width: 2, height: 1, heights_m: vec![0.0, 2.0], center_m: [0.0, 0.0], size_m: [2.0, 2.0] };
+        let hm = HeightmapTerrain::new(2, 1, vec![0.0, 2.0], [0.0, 0.0], [2.0, 2.0]).expect("valid");
         // Pixel centres at x = -0.5 and x = 0.5.
         assert!((hm.height_at(-0.5, 0.0) - 0.0).abs() < 1e-6);
         assert!((hm.height_at(0.0, 0.0) - 1.0).abs() < 1e-6);

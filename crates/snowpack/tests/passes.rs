@@ -385,7 +385,7 @@ fn terrain_bake_matches_cpu() {
     let buffer = TerrainBakePass::new(&ctx.device).record(&ctx.device, &mut enc, &mesh);
     submit(ctx, enc);
     let gpu = read_f32(ctx, &buffer);
-    let cpu = &mesh.grid.heights_m;
+    let cpu = &mesh.grid.heights_m();
     assert_eq!(gpu.len(), cpu.len());
     // The rasteriser snaps vertices to 1/256 of a texel (the CPU does not),
     // which moves a triangle's edges by under 1/256 of a texel and its
@@ -398,9 +398,9 @@ fn terrain_bake_matches_cpu() {
     // - elsewhere, the same triangles cover the centre on both sides, and
     //   the heights agree to 0.1 mm plus the steepest of them times texel / 128.
     let grid = &mesh.grid;
-    let (w, h) = (grid.width as usize, grid.height as usize);
-    let texel = [grid.size_m[0] / w as f32, grid.size_m[1] / h as f32];
-    let origin = [grid.center_m[0] - grid.size_m[0] * 0.5, grid.center_m[1] - grid.size_m[1] * 0.5];
+    let (w, h) = (grid.width() as usize, grid.height() as usize);
+    let texel = [grid.size_m()[0] / w as f32, grid.size_m()[1] / h as f32];
+    let origin = [grid.center_m()[0] - grid.size_m()[0] * 0.5, grid.center_m()[1] - grid.size_m()[1] * 0.5];
     let margin = f64::from(texel[0].max(texel[1])) / 128.0;
     let centre = |k: usize| DVec2::new(f64::from(origin[0] + ((k % w) as f32 + 0.5) * texel[0]), f64::from(origin[1] + ((k / w) as f32 + 0.5) * texel[1]));
     let mut near_edge = vec![false; w * h];

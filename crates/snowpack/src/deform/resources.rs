@@ -71,7 +71,7 @@ impl DeformResources {
             buffer
         } else {
             let samples: &[f32] = match terrain {
-                TerrainSource::Heightmap(h) => &h.heights_m,
+                TerrainSource::Heightmap(h) => h.heights_m(),
                 _ => &[0.0],
             };
             let buffer = device.create_buffer(&wgpu::BufferDescriptor {

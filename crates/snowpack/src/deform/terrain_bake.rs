@@ -104,7 +104,7 @@ impl TerrainBakePass {
         Self { pipeline, bgl, resolve, resolve_bgl }
     }
 
-    /// Draws `mesh` into a new storage buffer of `grid.width * grid.height`
+    /// Draws `mesh` into a new storage buffer of `grid.width() * grid.height()`
     /// heights (row-major, row 0 at the smallest z), recorded into `encoder`.
     #[must_use]
     pub fn record(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, mesh: &TerrainMesh) -> wgpu::Buffer {
@@ -112,8 +112,8 @@ impl TerrainBakePass {
         let grid = &mesh.grid;
         let (low, high) = mesh.height_range();
         let params = TerrainBakeParams {
-            origin_m: [grid.center_m[0] - grid.size_m[0] * 0.5, grid.center_m[1] - grid.size_m[1] * 0.5],
-            size_m: grid.size_m,
+            origin_m: [grid.center_m()[0] - grid.size_m()[0] * 0.5, grid.center_m()[1] - grid.size_m()[1] * 0.5],
+            size_m: grid.size_m(),
             // A margin keeps the lowest and highest vertices strictly inside (0, 1).
             low_m: low - 1.0,
             high_m: high + 1.0,
@@ -132,7 +132,7 @@ impl TerrainBakePass {
         });
         let depth = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("terrain bake depth"),
-            size: wgpu::Extent3d { width: grid.width, height: grid.height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d { width: grid.width(), height: grid.height(), depth_or_array_layers: 1 },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -161,11 +161,12 @@ impl TerrainBakePass {
         }
         let out = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("heightmap (drawn terrain mesh)"),
-            size: u64::from(grid.width) * u64::from(grid.height) * 4,
+            size: u64::from(grid.width()) * u64::from(grid.height()) * 4,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let resolve_params = ResolveParams { width: grid.width, height: grid.height, low_m: params.low_m, high_m: params.high_m, floor_m: low, _pad: [0; 3] };
+        let resolve_params =
+            ResolveParams { width: grid.width(), height: grid.height(), low_m: params.low_m, high_m: params.high_m, floor_m: low, _pad: [0; 3] };
         let resolve_uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("terrain resolve params"),
             contents: bytemuck::bytes_of(&resolve_params),
@@ -180,7 +181,7 @@ impl TerrainBakePass {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("terrain resolve"), timestamp_writes: None });
         pass.set_pipeline(&self.resolve);
         pass.set_bind_group(0, &resolve_group, &[]);
-        pass.dispatch_workgroups(layout::groups(grid.width, 16), layout::groups(grid.height, 16), 1);
+        pass.dispatch_workgroups(layout::groups(grid.width(), 16), layout::groups(grid.height(), 16), 1);
         drop(pass);
         out
     }

@@ -159,7 +159,7 @@ impl TerrainParams {
     }
 
     fn heightmap(h: &crate::HeightmapTerrain) -> Self {
-        Self { kind: 2, hm_width: h.width, hm_height: h.height, hm_center_m: h.center_m, hm_size_m: h.size_m, ..Self::default() }
+        Self { kind: 2, hm_width: h.width(), hm_height: h.height(), hm_center_m: h.center_m(), hm_size_m: h.size_m(), ..Self::default() }
     }
 }
 

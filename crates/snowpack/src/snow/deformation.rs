@@ -1001,9 +1001,9 @@ impl SnowDeformation {
         let baked;
         let source = match &self.terrain {
             TerrainSource::Mesh(mesh) => {
-                let n = (mesh.grid.width * mesh.grid.height) as usize;
+                let n = (mesh.grid.width() * mesh.grid.height()) as usize;
                 let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
-                baked = TerrainSource::Heightmap(crate::HeightmapTerrain { heights_m: heights[..n].to_vec(), ..mesh.grid.clone() });
+                baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
                 &baked
             }
             other => other,
