@@ -446,7 +446,17 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         let (sweep_warmup, sweep_frames) = if quick { (5, 20) } else { (30, 120) };
         results.sweep_rows = crate::bench_sweep::measure(ctx, sweep_warmup, sweep_frames).context("measuring swept capture")?;
         for row in &results.sweep_rows {
-            println!("  sweep {:<48} {}: unswept {:.3} ms, swept {:.3} ms ({:.2}x)", row.scenario, row.pass, row.unswept_ms, row.swept_ms, row.ratio());
+            println!(
+                "  sweep {:<48} {}: unswept {:.3} ms, swept {:.3} ms ({:.2}x); frame {:.3} against {:.3} ms ({:.2}x)",
+                row.scenario,
+                row.pass,
+                row.unswept_ms,
+                row.swept_ms,
+                row.ratio(),
+                row.unswept_frame_ms,
+                row.swept_frame_ms,
+                row.frame_ratio()
+            );
         }
     }
     // Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
@@ -815,7 +825,14 @@ mod tests {
                     tetrahedra: 1000,
                 })
                 .to_vec(),
-            sweep_rows: vec![crate::bench_sweep::SweepRow { scenario: "balls", pass: "capture", unswept_ms: 0.5, swept_ms: 0.6 }],
+            sweep_rows: vec![crate::bench_sweep::SweepRow {
+                scenario: "balls",
+                pass: "capture",
+                unswept_ms: 0.5,
+                swept_ms: 0.6,
+                unswept_frame_ms: 10.0,
+                swept_frame_ms: 10.5,
+            }],
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();

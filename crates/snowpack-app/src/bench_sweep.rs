@@ -19,6 +19,11 @@ pub struct SweepRow {
     pub unswept_ms: f64,
     /// Median GPU ms of the pass, each deformer over its motion.
     pub swept_ms: f64,
+    /// Median GPU ms of the whole deformation frame, unswept (software
+    /// adapters move work between passes' timestamps; the total keeps it).
+    pub unswept_frame_ms: f64,
+    /// The same, swept.
+    pub swept_frame_ms: f64,
 }
 
 impl SweepRow {
@@ -26,6 +31,12 @@ impl SweepRow {
     #[must_use]
     pub fn ratio(&self) -> f64 {
         if self.unswept_ms > 0.0 { self.swept_ms / self.unswept_ms } else { f64::NAN }
+    }
+
+    /// Swept over unswept, whole frames.
+    #[must_use]
+    pub fn frame_ratio(&self) -> f64 {
+        if self.unswept_frame_ms > 0.0 { self.swept_frame_ms / self.unswept_frame_ms } else { f64::NAN }
     }
 }
 
@@ -60,7 +71,8 @@ const SCENARIOS: [Scenario; 3] = [
     ("256 contact points at 12 m/s (segments)", Technique::Points, "stamp", fast_spheres),
 ];
 
-fn pass_ms(ctx: &GpuContext, technique: Technique, pass: &str, teleport_m: f32, at: fn(f32) -> Vec<Deformer>, warmup: u32, frames: u32) -> anyhow::Result<f64> {
+/// (median ms of `pass`, median ms of the frame's passes together).
+fn pass_ms(ctx: &GpuContext, technique: Technique, pass: &str, teleport_m: f32, at: fn(f32) -> Vec<Deformer>, warmup: u32, frames: u32) -> anyhow::Result<(f64, f64)> {
     let params = SnowParams { technique, teleport_m, tile_memory_bytes: None, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
     for frame in 0..warmup + frames {
@@ -71,7 +83,8 @@ fn pass_ms(ctx: &GpuContext, technique: Technique, pass: &str, teleport_m: f32, 
         }
     }
     snow.finish(ctx)?;
-    Ok(snow.timings().passes.iter().find(|p| p.0 == pass).map_or(0.0, |p| p.1))
+    let passes = snow.timings().passes;
+    Ok((passes.iter().find(|p| p.0 == pass).map_or(0.0, |p| p.1), passes.iter().map(|p| p.1).sum()))
 }
 
 /// Measures every scenario swept and not (default teleport distance against 0).
@@ -79,12 +92,9 @@ pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec
     SCENARIOS
         .iter()
         .map(|&(scenario, technique, pass, at)| {
-            Ok(SweepRow {
-                scenario,
-                pass,
-                unswept_ms: pass_ms(ctx, technique, pass, 0.0, at, warmup, frames)?,
-                swept_ms: pass_ms(ctx, technique, pass, SnowParams::default().teleport_m, at, warmup, frames)?,
-            })
+            let (unswept_ms, unswept_frame_ms) = pass_ms(ctx, technique, pass, 0.0, at, warmup, frames)?;
+            let (swept_ms, swept_frame_ms) = pass_ms(ctx, technique, pass, SnowParams::default().teleport_m, at, warmup, frames)?;
+            Ok(SweepRow { scenario, pass, unswept_ms, swept_ms, unswept_frame_ms, swept_frame_ms })
         })
         .collect()
 }
@@ -94,11 +104,22 @@ pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec
 pub fn markdown(rows: &[SweepRow], adapter: &str, software: bool) -> String {
     let mut md = format!("\n## Swept capture against unswept ({adapter}, 1024² window, 60 frames a second)\n\n");
     if software {
-        md.push_str("A software rasteriser: the ratio is the figure to read, not the milliseconds.\n\n");
+        md.push_str("A software rasteriser: the ratios are the figures to read, not the milliseconds; its per-pass timestamps also move work between passes, so the frame's total is given too.\n\n");
     }
-    md.push_str("| deformers | pass | unswept ms | swept ms | swept / unswept |\n|---|---|---|---|---|\n");
+    md.push_str("| deformers | pass | unswept ms | swept ms | swept / unswept | frame unswept ms | frame swept ms | swept / unswept |\n|---|---|---|---|---|---|---|---|\n");
     for r in rows {
-        let _ = writeln!(md, "| {} | {} | {:.3} | {:.3} | {:.2} |", r.scenario, r.pass, r.unswept_ms, r.swept_ms, r.ratio());
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.3} | {:.3} | {:.2} |",
+            r.scenario,
+            r.pass,
+            r.unswept_ms,
+            r.swept_ms,
+            r.ratio(),
+            r.unswept_frame_ms,
+            r.swept_frame_ms,
+            r.frame_ratio()
+        );
     }
     md
 }
@@ -106,9 +127,9 @@ pub fn markdown(rows: &[SweepRow], adapter: &str, software: bool) -> String {
 /// `sweep.csv`.
 #[must_use]
 pub fn csv(rows: &[SweepRow]) -> String {
-    let mut csv = String::from("scenario,pass,unswept_ms,swept_ms,ratio\n");
+    let mut csv = String::from("scenario,pass,unswept_ms,swept_ms,ratio,unswept_frame_ms,swept_frame_ms,frame_ratio\n");
     for r in rows {
-        let _ = writeln!(csv, "{},{},{},{},{}", r.scenario, r.pass, r.unswept_ms, r.swept_ms, r.ratio());
+        let _ = writeln!(csv, "{},{},{},{},{},{},{},{}", r.scenario, r.pass, r.unswept_ms, r.swept_ms, r.ratio(), r.unswept_frame_ms, r.swept_frame_ms, r.frame_ratio());
     }
     csv
 }
@@ -119,11 +140,11 @@ mod tests {
 
     #[test]
     fn the_table_gives_the_ratio_of_swept_to_unswept() {
-        let rows = vec![SweepRow { scenario: "balls", pass: "capture", unswept_ms: 0.5, swept_ms: 0.75 }];
+        let rows = vec![SweepRow { scenario: "balls", pass: "capture", unswept_ms: 0.5, swept_ms: 0.75, unswept_frame_ms: 10.0, swept_frame_ms: 11.0 }];
         let md = markdown(&rows, "lavapipe", true);
-        assert!(md.contains("| balls | capture | 0.500 | 0.750 | 1.50 |"), "{md}");
-        assert!(md.contains("ratio is the figure"));
-        assert!(csv(&rows).lines().nth(1).is_some_and(|l| l == "balls,capture,0.5,0.75,1.5"));
+        assert!(md.contains("| balls | capture | 0.500 | 0.750 | 1.50 | 10.000 | 11.000 | 1.10 |"), "{md}");
+        assert!(md.contains("ratios are the figures"));
+        assert!(csv(&rows).lines().nth(1).is_some_and(|l| l == "balls,capture,0.5,0.75,1.5,10,11,1.1"));
     }
 
     #[test]

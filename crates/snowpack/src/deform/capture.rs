@@ -4,7 +4,9 @@
 //! linear in world height between `low_m` (depth 0) and `high_m` (depth 1), so
 //! the depth test keeps the lowest surface per texel. Spheres are impostor
 //! quads writing their exact lower surface; boxes (and meshes in general) are
-//! instanced triangles. Actors outside the window leave no mark.
+//! instanced triangles. Every deformer is swept over its motion since the
+//! last frame (see [`super::sweep`]): spheres as capsules, boxes and meshes
+//! in sub-steps. Actors outside the window leave no mark.
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
