@@ -324,6 +324,8 @@ pub struct BenchResults {
     pub store_row: Option<crate::bench_tiles::StoreRow>,
     /// Shell mapping against texture size, with and without mips.
     pub shell_rows: Vec<crate::bench_shell::ShellRow>,
+    /// Swept capture against unswept.
+    pub sweep_rows: Vec<crate::bench_sweep::SweepRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -348,6 +350,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         move_rows: Vec::new(),
         store_row: None,
         shell_rows: Vec::new(),
+        sweep_rows: Vec::new(),
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -437,6 +440,24 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         );
         results.store_row = Some(row);
         let _ = std::fs::remove_dir_all(&scratch);
+    }
+    // Swept capture against unswept (issue 21).
+    if only.is_none_or(|o| "sweep".contains(o)) {
+        let (sweep_warmup, sweep_frames) = if quick { (5, 20) } else { (30, 120) };
+        results.sweep_rows = crate::bench_sweep::measure(ctx, sweep_warmup, sweep_frames).context("measuring swept capture")?;
+        for row in &results.sweep_rows {
+            println!(
+                "  sweep {:<48} {}: unswept {:.3} ms, swept {:.3} ms ({:.2}x); frame {:.3} against {:.3} ms ({:.2}x)",
+                row.scenario,
+                row.pass,
+                row.unswept_ms,
+                row.swept_ms,
+                row.ratio(),
+                row.unswept_frame_ms,
+                row.swept_frame_ms,
+                row.frame_ratio()
+            );
+        }
     }
     // Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
     // sizes and few frames (a software adapter takes seconds a frame at 2560x1600).
@@ -549,6 +570,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.shell_rows.is_empty() {
         md.push_str(&crate::bench_shell::markdown(&r.shell_rows, r.software));
     }
+    if !r.sweep_rows.is_empty() {
+        md.push_str(&crate::bench_sweep::markdown(&r.sweep_rows, &r.adapter, r.software));
+    }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
     let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
@@ -627,6 +651,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     }
     if !r.shell_rows.is_empty() {
         files.push(("shell.csv", crate::bench_shell::csv(&r.shell_rows).into_bytes()));
+    }
+    if !r.sweep_rows.is_empty() {
+        files.push(("sweep.csv", crate::bench_sweep::csv(&r.sweep_rows).into_bytes()));
     }
     files
 }
@@ -798,6 +825,14 @@ mod tests {
                     tetrahedra: 1000,
                 })
                 .to_vec(),
+            sweep_rows: vec![crate::bench_sweep::SweepRow {
+                scenario: "balls",
+                pass: "capture",
+                unswept_ms: 0.5,
+                swept_ms: 0.6,
+                unswept_frame_ms: 10.0,
+                swept_frame_ms: 10.5,
+            }],
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
@@ -815,7 +850,8 @@ mod tests {
                 "frames.csv",
                 "accumulation.csv",
                 "tiles.csv",
-                "shell.csv"
+                "shell.csv",
+                "sweep.csv"
             ]
         );
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
@@ -834,6 +870,7 @@ mod tests {
             "## Points: GPU ms",
             "## Wasmut 2019, Tables 1–4",
             "## Dinh 2021, section 6.2",
+            "## Swept capture against unswept",
         ] {
             assert!(md.contains(section), "no {section:?} in:\n{md}");
         }
@@ -858,6 +895,7 @@ mod tests {
             move_rows: vec![],
             store_row: None,
             shell_rows: vec![],
+            sweep_rows: vec![],
             software: true,
             ..results
         };

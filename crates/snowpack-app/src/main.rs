@@ -9,6 +9,7 @@ mod bench_accumulation;
 mod bench_frames;
 mod bench_render;
 mod bench_shell;
+mod bench_sweep;
 mod bench_tiles;
 mod demo;
 mod npy;

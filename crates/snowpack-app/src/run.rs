@@ -153,7 +153,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             snow.set_object_pose(k, position, rotation);
         }
         let characters = world.characters();
-        snow.step_frame(&ctx, &snowpack::SnowFrame::new(scene.sim.dt_s, &world.deformers()).with_poses(&poses(&skins, &characters)))
+        snow.step_frame(&ctx, &snowpack::SnowFrame::new(scene.sim.dt_s, &world.deformers()).with_ids(&world.deformer_ids()).with_poses(&poses(&skins, &characters)))
             .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();

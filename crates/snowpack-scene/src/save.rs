@@ -87,6 +87,7 @@ impl Scene {
         snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
         snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
         snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
+        snow.insert("teleport_m".into(), float(p.teleport_m));
         root.insert("snow".into(), Value::Table(snow));
 
         if self.spawns.is_empty() {

@@ -484,6 +484,7 @@ impl Scene {
                     hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
                     snowfall: None,
                     tile_memory_bytes: defaults.tile_memory_bytes,
+                    teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
                 };
                 if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
@@ -708,7 +709,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, teleport {} m",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -719,7 +720,8 @@ impl Scene {
             p.technique.as_str(),
             p.range_texels,
             p.rim.as_str(),
-            p.hardness_kpa
+            p.hardness_kpa,
+            p.teleport_m
         );
         let terrain = match &self.terrain {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),

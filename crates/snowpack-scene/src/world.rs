@@ -450,6 +450,33 @@ impl World {
         out
     }
 
+    /// A stable id for each of [`Self::deformers`], in the same order, for
+    /// [`snowpack::SnowFrame::with_ids`]: actor i is `i`, the foot points of
+    /// actor i's foot k are `1 << 40 | i << 8 | k`, body b is `2 << 40 | b`;
+    /// so each deformer is swept from its own last pose however many feet
+    /// are down.
+    #[must_use]
+    pub fn deformer_ids(&self) -> Vec<u64> {
+        let mut out = Vec::with_capacity(self.actors.len() + self.bodies.len());
+        for (i, a) in self.actors.iter().enumerate() {
+            if a.body.is_some() || !a.enabled || self.actor_position(i).is_none() || matches!(a.shape, ShapeSpec::Gltf(_)) {
+                continue;
+            }
+            out.push(i as u64);
+        }
+        for (actor, soles) in self.soles() {
+            let a = &self.actors[actor];
+            let (ShapeSpec::Gltf(_), Some(tracker)) = (&a.shape, &a.feet) else { continue };
+            for (k, (_, down)) in soles.iter().zip(tracker.planted()).enumerate() {
+                if *down {
+                    out.push(1 << 40 | (actor as u64) << 8 | k as u64);
+                }
+            }
+        }
+        out.extend((0..self.bodies.len() as u64).map(|b| 2 << 40 | b));
+        out
+    }
+
     /// The points technique's contacts of characters: a point under each
     /// foot that is down, as deep as the foot stands, as wide as its sole.
     #[must_use]

@@ -184,3 +184,62 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
         assert!(changed > n / 20, "mode {mode}: only {changed} snowy texels remapped; seed {seed}");
     }
 }
+
+/// Mean linear-ish brightness (sum of RGB / 765) of the pixels in columns
+/// `cols` and rows `rows` of an RGBA8 image `width` wide.
+fn mean_brightness(rgba: &[u8], width: u32, cols: std::ops::Range<u32>, rows: std::ops::Range<u32>) -> f64 {
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for y in rows {
+        for x in cols.clone() {
+            let k = ((y * width + x) * 4) as usize;
+            sum += f64::from(rgba[k]) + f64::from(rgba[k + 1]) + f64::from(rgba[k + 2]);
+            n += 1.0;
+        }
+    }
+    sum / n / 765.0
+}
+
+#[test]
+fn snowfall_on_bare_ground_shows_no_square_at_the_window_edge() {
+    use snowpack::{Camera, EnvironmentMap, RenderParams, Renderer};
+    let Some(ctx) = testing::gpu() else { return };
+    // Bare ground, then 0.2 m of snow falls; the window is 16 m wide around
+    // the origin and the camera looks straight down on its edge at x = 8 m.
+    let fall = Snowfall { rate_m_per_s: 0.2, max_m: 1.0, ..Snowfall::default() };
+    let params = SnowParams { extent_m: 16.0, resolution: 256, depth_m: 0.0, snowfall: Some(fall), ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: GROUND_M }, DVec2::ZERO).expect("window");
+    for _ in 0..60 {
+        snow.step(ctx, &[], DT).expect("frame");
+    }
+    snow.finish(ctx).expect("finish");
+    assert!((snow.fallen_m() - 0.2).abs() < 1e-3, "fallen {}", snow.fallen_m());
+    let edge = snow.origin_m().expect("placed").x as f32 + 16.0;
+    let sky = EnvironmentMap::from_hdr(include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr")).expect("sky");
+    let mut renderer = Renderer::new(ctx, &snow, &sky, RenderParams { shadow_map_size: 512, ..RenderParams::default() }, snowpack::render::IMAGE_FORMAT).expect("renderer");
+    let camera = Camera { position: Vec3::new(edge, GROUND_M + 6.0, -0.01), target: Vec3::new(edge, GROUND_M, 0.0), fov_deg: 50.0 };
+    let (w, h) = (256_u32, 160_u32);
+    let rgba = renderer.render_image(ctx, &snow, &[], &camera, (w, h)).expect("frame");
+    if let Ok(dir) = std::env::var("SNOWPACK_TEST_IMAGES") {
+        let path = std::path::Path::new(&dir).join("bare_ground_snowfall_edge.png");
+        image::save_buffer(&path, &rgba, w, h, image::ExtendedColorType::Rgba8).expect("png");
+    }
+    // The image's halves are the two sides of the edge (which is which
+    // depends on the view's handedness); away from the centre column the
+    // snow inside and outside the window must look the same.
+    let rows = h / 2 - 30..h / 2 + 30;
+    let left = mean_brightness(&rgba, w, w / 2 - 60..w / 2 - 8, rows.clone());
+    let right = mean_brightness(&rgba, w, w / 2 + 8..w / 2 + 60, rows.clone());
+    // And the band across the edge matches both (no line along it).
+    let seam = mean_brightness(&rgba, w, w / 2 - 3..w / 2 + 3, rows);
+    println!("brightness: one side {left:.4}, the other {right:.4}, across the edge {seam:.4}");
+    assert!(left > 0.5 && right > 0.5, "not snow-white: {left}, {right}");
+    assert!((left - right).abs() / left.max(right) < 0.03, "the window's edge shows: {left} against {right}");
+    assert!((seam - 0.5 * (left + right)).abs() / left.max(right) < 0.03, "a line along the edge: {seam}");
+    // Point samples agree too: the rest height the renderer and the
+    // sampling module use outside is what the window holds inside.
+    let inside = snow.read_snow(ctx).expect("snow");
+    let rest_inside = inside[128 * 256 + 255];
+    let outside = snowpack::render::sampling::SnowWindowUniform::new(&snow);
+    assert!((GROUND_M + outside.rest_depth_m - rest_inside).abs() < 1e-3, "rest outside {} against {rest_inside} inside", GROUND_M + outside.rest_depth_m);
+}

@@ -9,7 +9,7 @@
 
 use glam::{DVec2, Quat, Vec3};
 use snowpack::cpu;
-use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
+use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::deform::display::{DisplayParams, DisplayPass};
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::snow_word;
@@ -138,10 +138,28 @@ fn capture_and_update_match_cpu() {
             rotation: Quat::from_euler(glam::EulerRot::XYZ, rng.range(-0.5, 0.5), rng.range(-3.0, 3.0), rng.range(-0.5, 0.5)),
         });
     }
+    // Half the deformers swept over the frame from a pose up to 3 m away
+    // (and, for boxes, turned): capsules and box sub-steps.
+    let previous: Vec<Option<Deformer>> = deformers
+        .iter()
+        .map(|d| {
+            if rng.range(0.0, 1.0) < 0.5 {
+                return None;
+            }
+            let shift = Vec3::new(rng.range(-3.0, 3.0), rng.range(-0.4, 0.4), rng.range(-3.0, 3.0));
+            Some(match *d {
+                Deformer::Sphere { center, radius } => Deformer::Sphere { center: center + shift, radius },
+                Deformer::Box { center, half_extents, rotation } => {
+                    Deformer::Box { center: center + shift, half_extents, rotation: rotation * Quat::from_rotation_y(rng.range(-0.6, 0.6)) }
+                }
+                other => other,
+            })
+        })
+        .collect();
     let cparams = CaptureParams { extent_m: e, texel_m: params.texel_m(), low_m: -2.0, high_m: 3.0 };
-    let instances = CaptureInstances::new(&deformers, DVec2::ZERO, &cparams);
+    let mut instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
+    assert!(instances.capsules.iter().any(|c| c[0] != c[4]) && instances.boxes.len() > 4, "nothing swept; seed {seed}");
     let mut capture = CapturePass::new(&ctx.device);
-    capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
     let update = UpdatePass::new(&ctx.device, &res);
     let up = UpdateParams {
         origin,
@@ -180,14 +198,25 @@ fn capture_and_update_match_cpu() {
         let corner = |rng: &mut Rng| [c[0] + rng.range(-0.1, 0.1) * texel, c[1] + rng.range(-0.05, 0.05), c[2] + rng.range(-0.1, 0.1) * texel];
         triangles.push([corner(&mut rng), corner(&mut rng), corner(&mut rng)]);
     }
-    let flat: Vec<f32> = triangles.iter().flatten().flatten().copied().collect();
-    let mesh_vertices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test mesh"),
-        size: flat.len() as u64 * 4,
-        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    ctx.queue.write_buffer(&mesh_vertices, 0, bytemuck::cast_slice(&flat));
+    // The same mesh last frame, each corner up to 1.5 m away, swept in sub-steps.
+    let before: Vec<[[f32; 3]; 3]> =
+        triangles.iter().map(|t| t.map(|v| [v[0] + rng.range(-1.5, 1.5), v[1] + rng.range(-0.3, 0.3), v[2] + rng.range(-1.5, 1.5)])).collect();
+    let steps = 1 + (rng.next_u64() % 12) as u32;
+    instances.mesh_steps = vec![steps];
+    capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
+    let vertex_buffer = |tris: &[[[f32; 3]; 3]]| {
+        let flat: Vec<f32> = tris.iter().flatten().flatten().copied().collect();
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("test mesh"),
+            size: flat.len() as u64 * 4,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.queue.write_buffer(&buffer, 0, bytemuck::cast_slice(&flat));
+        buffer
+    };
+    let mesh_vertices = vertex_buffer(&triangles);
+    let previous_vertices = vertex_buffer(&before);
     let mesh_indices_cpu: Vec<u32> = (0..triangles.len() as u32 * 3).collect();
     let mesh_indices = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("test mesh indices"),
@@ -196,20 +225,19 @@ fn capture_and_update_match_cpu() {
         mapped_at_creation: false,
     });
     ctx.queue.write_buffer(&mesh_indices, 0, bytemuck::cast_slice(&mesh_indices_cpu));
-    let meshes = [CaptureMesh {
-        vertices: &mesh_vertices,
-        indices: &mesh_indices,
-        index_count: mesh_indices_cpu.len() as u32,
-        vertex_count: mesh_indices_cpu.len() as u32,
+    let meshes = [SweptMesh {
+        mesh: CaptureMesh { vertices: &mesh_vertices, indices: &mesh_indices, index_count: mesh_indices_cpu.len() as u32, vertex_count: mesh_indices_cpu.len() as u32 },
+        previous: Some(&previous_vertices),
     }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record_with_meshes(&mut enc, &mut timer, &res, &meshes);
+    capture.record_swept(&mut enc, &mut timer, &res, &meshes);
     update.record(&ctx.queue, &mut enc, &mut timer, &up);
     submit(ctx, enc);
 
     let mut depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
-    cpu::capture::capture_triangles(&mut depth, &triangles, DVec2::ZERO, &cparams, params.resolution);
+    let swept = cpu::capture::swept_triangles(&before, &triangles, steps);
+    cpu::capture::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
     cpu::capture::quantise_depths(&mut depth);
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
@@ -492,11 +520,19 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
     assert_close(&gpu, &cpu, 2e-3, "terrain under the window", seed);
 }
 
-fn random_points(rng: &mut Rng, count: usize, extent: f32) -> Vec<[f32; 4]> {
-    (0..count).map(|_| [rng.range(-0.1 * extent, 1.1 * extent), rng.range(-1.0, 2.0), rng.range(-0.1 * extent, 1.1 * extent), rng.range(0.2, 8.0)]).collect()
+/// Random contact points, a third of them swept (moved up to 2 m, climbing or
+/// sinking up to 0.5 m) and the rest still.
+fn random_points(rng: &mut Rng, count: usize, extent: f32) -> Vec<[f32; 8]> {
+    (0..count)
+        .map(|k| {
+            let p = [rng.range(-0.1 * extent, 1.1 * extent), rng.range(-1.0, 2.0), rng.range(-0.1 * extent, 1.1 * extent), rng.range(0.2, 8.0)];
+            let from = if k % 3 == 0 { [p[0] + rng.range(-2.0, 2.0), p[1] + rng.range(-0.5, 0.5), p[2] + rng.range(-2.0, 2.0)] } else { [p[0], p[1], p[2]] };
+            [p[0], p[1], p[2], p[3], from[0], from[1], from[2], 0.0]
+        })
+        .collect()
 }
 
-fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points: &[[f32; 4]]) -> Vec<u32> {
+fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points: &[[f32; 8]]) -> Vec<u32> {
     let n = (res.resolution * res.resolution) as usize;
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&vec![cpu::stamp::STAMP_EMPTY; n]));
     let mut pass = StampPass::new(&ctx.device, res);
@@ -529,14 +565,16 @@ fn stamp_pass_matches_cpu_packing_and_rounding() {
     let mut cpu = vec![cpu::stamp::STAMP_EMPTY; n];
     cpu::stamp::stamp(&StampParams { count: points.len() as u32, ..sp }, &points, &mut cpu);
     // The GPU may fuse the footprint's multiply-adds; a result on a rounding
-    // boundary can then land one code away. Allow that, rarely, and nothing more.
+    // boundary can then land one code away (the height, or along a swept
+    // segment the foot height too). Allow that, rarely, and nothing more.
     let mut off_by_one = 0;
     for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
         if g == c {
             continue;
         }
         let (gh, ch) = (g >> 16, c >> 16);
-        assert!(g & 0xffff == c & 0xffff || gh != ch, "foot differs at {k}: {g:#x} vs {c:#x}; seed {seed}");
+        let (gf, cf) = (g & 0xffff, c & 0xffff);
+        assert!(gf.abs_diff(cf) <= 1 || gh != ch, "foot differs at {k}: {g:#x} vs {c:#x}; seed {seed}");
         assert!(gh.abs_diff(ch) <= 1 && *g != cpu::stamp::STAMP_EMPTY && *c != cpu::stamp::STAMP_EMPTY, "texel {k}: gpu {g:#x}, cpu {c:#x}; seed {seed}");
         off_by_one += 1;
     }
@@ -554,8 +592,12 @@ fn overlapping_footprints_resolve_to_the_minimum_in_any_order() {
     let sp = StampParams { origin: [3, -7], resolution: params.resolution, range_texels: 64, texel_m: params.texel_m(), low_m: -1.5, high_m: 3.0, count: 0 };
     // Many points crowded into the middle so every texel sees many footprints.
     let e = params.extent_m;
-    let mut points: Vec<[f32; 4]> =
-        (0..400).map(|_| [rng.range(0.3 * e, 0.7 * e), rng.range(-1.0, 2.0), rng.range(0.3 * e, 0.7 * e), rng.range(0.2, 8.0)]).collect();
+    let mut points: Vec<[f32; 8]> = (0..400)
+        .map(|_| {
+            let p = [rng.range(0.3 * e, 0.7 * e), rng.range(-1.0, 2.0), rng.range(0.3 * e, 0.7 * e)];
+            [p[0], p[1], p[2], rng.range(0.2, 8.0), p[0], p[1], p[2], 0.0]
+        })
+        .collect();
     let first = run_stamps(ctx, &res, &sp, &points);
     // Fisher-Yates shuffle.
     for k in (1..points.len()).rev() {

@@ -245,6 +245,17 @@ impl Session {
         self.step_once = true;
     }
 
+    /// A stable id for each of [`Self::deformers`] (the world's, then the
+    /// player's sphere), so each is swept from its own last pose.
+    #[must_use]
+    pub fn deformer_ids(&self) -> Vec<u64> {
+        let mut ids = self.world.deformer_ids();
+        if self.player.enabled && self.player.body == PlayerBody::Sphere {
+            ids.push(u64::MAX);
+        }
+        ids
+    }
+
     /// Everything pressing the snow this frame.
     #[must_use]
     pub fn deformers(&self) -> Vec<Deformer> {
@@ -375,7 +386,8 @@ impl Session {
         let deformers = self.deformers();
         let characters = self.world.characters();
         let poses = crate::run::poses(&self.skins, &characters);
-        self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_poses(&poses));
+        let ids = self.deformer_ids();
+        self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses));
         for e in self.snow.take_store_errors() {
             self.store_errors.push(e.to_string());
         }

@@ -1,6 +1,8 @@
 //! CPU twin of the capture pass (`capture_sphere.wgsl`, `capture_mesh.wgsl`):
 //! the depth each window texel's centre sees looking up from below, by ray
-//! casting the same shapes analytically.
+//! casting the same shapes analytically: spheres swept over the frame as
+//! capsules, boxes in the sub-steps [`CaptureInstances`] lists, meshes in the
+//! sub-steps [`swept_triangles`] lists.
 
 use glam::{Mat4, Vec3};
 
@@ -18,14 +20,9 @@ pub fn capture_depths(inst: &CaptureInstances, p: &CaptureParams, resolution: u3
             let x = (j as f32 + 0.5) * p.texel_m;
             let z = (i as f32 + 0.5) * p.texel_m;
             let mut best = 1.0_f32;
-            for s in &inst.spheres {
-                let (dx, dz) = (x - s[0], z - s[2]);
-                let d2 = dx * dx + dz * dz;
-                let r2 = s[3] * s[3];
-                if d2 > r2 {
-                    continue;
-                }
-                let d = (s[1] - (r2 - d2).sqrt() - p.low_m) / range;
+            for c in &inst.capsules {
+                let Some(y) = capsule_bottom([x, z], [c[0], c[1], c[2]], [c[4], c[5], c[6]], c[3]) else { continue };
+                let d = (y - p.low_m) / range;
                 if d <= 1.0 {
                     best = best.min(d.clamp(0.0, 1.0));
                 }
@@ -42,6 +39,65 @@ pub fn capture_depths(inst: &CaptureInstances, p: &CaptureParams, resolution: u3
         }
     }
     depth
+}
+
+/// Lowest height where the vertical line through `p` (x, z) meets the sphere
+/// at `c` of radius `r`.
+fn sphere_bottom(p: [f32; 2], c: [f32; 3], r: f32) -> Option<f32> {
+    let (dx, dz) = (p[0] - c[0], p[1] - c[2]);
+    let d2 = dx * dx + dz * dz;
+    (d2 <= r * r).then(|| c[1] - (r * r - d2).sqrt())
+}
+
+/// Lowest height where the vertical line through `p` (x, z) meets the
+/// capsule of radius `r` around the segment `a`..`b` (a swept sphere), as
+/// `capture_sphere.wgsl` computes it: the lower of the end spheres and the
+/// lateral cylinder where its hit projects inside the segment.
+#[must_use]
+pub fn capsule_bottom(p: [f32; 2], a: [f32; 3], b: [f32; 3], r: f32) -> Option<f32> {
+    let ends = [sphere_bottom(p, a, r), sphere_bottom(p, b, r)];
+    let mut best = ends.into_iter().flatten().reduce(f32::min);
+    let (a, b) = (Vec3::from(a), Vec3::from(b));
+    let axis = b - a;
+    let len2 = axis.length_squared();
+    if len2 < 1e-12 {
+        return best;
+    }
+    let u = axis / len2.sqrt();
+    let w0 = Vec3::new(p[0] - a.x, 0.0, p[1] - a.z);
+    let wu = w0.dot(u);
+    let qa = 1.0 - u.y * u.y;
+    if qa < 1e-6 {
+        return best;
+    }
+    let qb = w0.y - wu * u.y;
+    let qc = w0.length_squared() - wu * wu - r * r;
+    let disc = qb * qb - qa * qc;
+    if disc < 0.0 {
+        return best;
+    }
+    let y = (-qb - disc.sqrt()) / qa;
+    let t = (wu + y * u.y) / len2.sqrt();
+    if (0.0..=1.0).contains(&t) {
+        best = Some(best.map_or(a.y + y, |v| v.min(a.y + y)));
+    }
+    best
+}
+
+/// The triangles a swept mesh is drawn as (`capture_mesh.wgsl`, `vs_swept`):
+/// each of `steps + 1` sub-steps t = k / steps, every corner at
+/// `mix(previous, current, t)`; `steps = 0` is the current pose alone.
+#[must_use]
+pub fn swept_triangles(previous: &[[[f32; 3]; 3]], current: &[[[f32; 3]; 3]], steps: u32) -> Vec<[[f32; 3]; 3]> {
+    if steps == 0 {
+        return current.to_vec();
+    }
+    let mut out = Vec::with_capacity(current.len() * (steps as usize + 1));
+    for k in 0..=steps {
+        let t = k as f32 / steps as f32;
+        out.extend(previous.iter().zip(current).map(|(a, b)| std::array::from_fn(|v| std::array::from_fn(|c| a[v][c] * (1.0 - t) + b[v][c] * t))));
+    }
+    out
 }
 
 /// Rounds depths to the capture target's 16-bit codes

@@ -28,20 +28,38 @@ pub fn unpack(packed: u32, low: f32, high: f32) -> Option<(f32, f32)> {
 }
 
 /// Writes every point's footprint into the toroidal `stamps` with a minimum.
-/// `points` are (window-local x, foot height, window-local z, scale).
-pub fn stamp(p: &StampParams, points: &[[f32; 4]], stamps: &mut [u32]) {
+/// `points` are as [`crate::deform::stamp::contact_points`] returns them:
+/// (window-local x, foot height, window-local z, scale) where the point is
+/// now, then (x, foot, z, 0) where it was swept from.
+pub fn stamp(p: &StampParams, points: &[[f32; 8]], stamps: &mut [u32]) {
     let res = p.resolution as i32;
     let range = p.range_texels as i32;
     for pt in points.iter().take(p.count as usize) {
-        let i0 = (pt[2] / p.texel_m).floor() as i32 - range / 2;
-        let j0 = (pt[0] / p.texel_m).floor() as i32 - range / 2;
-        let foot = quantise(pt[1], p.low_m, p.high_m);
-        for i in (i0..i0 + range).filter(|i| (0..res).contains(i)) {
-            let dz = (i as f32 + 0.5) * p.texel_m - pt[2];
-            for j in (j0..j0 + range).filter(|j| (0..res).contains(j)) {
-                let dx = (j as f32 + 0.5) * p.texel_m - pt[0];
-                let h = pt[1] + (dx * dx + dz * dz) * pt[3];
-                let packed = (quantise(h, p.low_m, p.high_m) << 16) | foot;
+        let (p1, p0, scale) = ([pt[0], pt[1], pt[2]], [pt[4], pt[5], pt[6]], pt[3]);
+        let i0 = (p0[2].min(p1[2]) / p.texel_m).floor() as i32 - range / 2;
+        let j0 = (p0[0].min(p1[0]) / p.texel_m).floor() as i32 - range / 2;
+        let i1 = (p0[2].max(p1[2]) / p.texel_m).floor() as i32 - range / 2 + range;
+        let j1 = (p0[0].max(p1[0]) / p.texel_m).floor() as i32 - range / 2 + range;
+        let travel = [p1[0] - p0[0], p1[2] - p0[2]];
+        let climb = p1[1] - p0[1];
+        let qa = scale * (travel[0] * travel[0] + travel[1] * travel[1]);
+        for i in (i0..i1).filter(|i| (0..res).contains(i)) {
+            let qz = (i as f32 + 0.5) * p.texel_m;
+            for j in (j0..j1).filter(|j| (0..res).contains(j)) {
+                let qx = (j as f32 + 0.5) * p.texel_m;
+                let qb = climb - 2.0 * scale * ((qx - p0[0]) * travel[0] + (qz - p0[2]) * travel[1]);
+                let t = if qa > 1e-12 {
+                    (-qb / (2.0 * qa)).clamp(0.0, 1.0)
+                } else if qb > 0.0 {
+                    0.0
+                } else {
+                    1.0
+                };
+                let (ax, az) = (p0[0] + t * travel[0], p0[2] + t * travel[1]);
+                let foot = p0[1] + t * climb;
+                let (dx, dz) = (qx - ax, qz - az);
+                let h = foot + (dx * dx + dz * dz) * scale;
+                let packed = (quantise(h, p.low_m, p.high_m) << 16) | quantise(foot, p.low_m, p.high_m);
                 let s = storage_index(p.origin, p.resolution, i as u32, j as u32);
                 stamps[s] = stamps[s].min(packed);
             }

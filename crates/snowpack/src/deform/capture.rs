@@ -4,7 +4,9 @@
 //! linear in world height between `low_m` (depth 0) and `high_m` (depth 1), so
 //! the depth test keeps the lowest surface per texel. Spheres are impostor
 //! quads writing their exact lower surface; boxes (and meshes in general) are
-//! instanced triangles. Actors outside the window leave no mark.
+//! instanced triangles. Every deformer is swept over its motion since the
+//! last frame (see [`super::sweep`]): spheres as capsules, boxes and meshes
+//! in sub-steps. Actors outside the window leave no mark.
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
@@ -45,12 +47,19 @@ const CUBE_INDICES: [u16; 36] = [0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6, 0, 4, 5, 0,
 /// Instances prepared for one frame, in window-local coordinates.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CaptureInstances {
-    /// (x, y, z, radius) per sphere; x and z relative to the window's corner.
-    pub spheres: Vec<[f32; 4]>,
-    /// Column-major model matrix per box, mapping the unit cube to window-local space.
+    /// Per sphere, swept from `a` (last frame) to `b` (this frame):
+    /// `[ax, ay, az, radius, bx, by, bz, 0]`, x and z relative to the
+    /// window's corner; `a == b` for a sphere that is not swept.
+    pub capsules: Vec<[f32; 8]>,
+    /// Column-major model matrix per box (and per sub-step of a swept box),
+    /// mapping the unit cube to window-local space.
     pub boxes: Vec<[f32; 16]>,
-    /// World to window-local space (a translation by minus the corner), for meshes given in world space.
-    pub window_offset: [f32; 16],
+    /// World (x, z) of the window's corner (window-local 0, 0), relative to
+    /// the floating origin, for meshes given in world space.
+    pub corner_m: [f32; 2],
+    /// Sub-steps of each world-space mesh drawn with
+    /// [`CapturePass::record_swept`], in order (0: its current pose only).
+    pub mesh_steps: Vec<u32>,
 }
 
 /// A triangle mesh already in world space this frame (a skinned character in
@@ -67,39 +76,77 @@ pub struct CaptureMesh<'a> {
     pub vertex_count: u32,
 }
 
+/// A world-space mesh with the positions its vertices had last frame: drawn
+/// at `steps` sub-steps between them (see [`crate::deform::sweep`]), plus
+/// this frame's pose.
+#[derive(Clone, Copy, Debug)]
+pub struct SweptMesh<'a> {
+    /// This frame's mesh.
+    pub mesh: CaptureMesh<'a>,
+    /// Last frame's positions of the same vertices (same layout); `None`
+    /// draws only this frame's pose.
+    pub previous: Option<&'a wgpu::Buffer>,
+}
+
 impl CaptureInstances {
     /// Window-local instances of the deformers that can touch the window:
-    /// footprint overlapping it and lowest point below `high_m`.
+    /// footprint overlapping it and lowest point below `high_m`. Nothing is
+    /// swept.
     #[must_use]
     pub fn new(deformers: &[Deformer], window_corner_m: DVec2, params: &CaptureParams) -> Self {
-        let offset = Vec3::new(-window_corner_m.x as f32, 0.0, -window_corner_m.y as f32);
-        let mut out = Self { window_offset: Mat4::from_translation(offset).to_cols_array(), ..Self::default() };
+        Self::swept(deformers, &[], window_corner_m, params)
+    }
+
+    /// Like [`Self::new`], sweeping deformer k from `previous[k]` where it is
+    /// `Some` (see [`crate::deform::sweep::DeformerHistory::sweeps`]): spheres
+    /// as capsules, boxes in sub-steps.
+    #[must_use]
+    pub fn swept(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &CaptureParams) -> Self {
+        let mut out = Self { corner_m: [window_corner_m.x as f32, window_corner_m.y as f32], ..Self::default() };
         let extent = f64::from(params.extent_m);
         let local = |c: Vec3| Vec3::new((f64::from(c.x) - window_corner_m.x) as f32, c.y, (f64::from(c.z) - window_corner_m.y) as f32);
-        for d in deformers {
-            if d.lowest_point() >= params.high_m {
+        // Whether the square of half-side `reach` around the segment a..b misses the window.
+        let outside = |a: Vec3, b: Vec3, reach: f32| {
+            let reach = f64::from(reach);
+            let (x0, x1) = (f64::from(a.x.min(b.x)) - reach, f64::from(a.x.max(b.x)) + reach);
+            let (z0, z1) = (f64::from(a.z.min(b.z)) - reach, f64::from(a.z.max(b.z)) + reach);
+            x1 < 0.0 || x0 > extent || z1 < 0.0 || z0 > extent
+        };
+        for (k, d) in deformers.iter().enumerate() {
+            let prev = previous.get(k).copied().flatten();
+            if d.lowest_point().min(prev.map_or(f32::INFINITY, |p| p.lowest_point())) >= params.high_m {
                 continue;
             }
-            match *d {
-                Deformer::Sphere { center, radius } => {
-                    let c = local(center);
-                    let r = f64::from(radius);
-                    let outside = f64::from(c.x) + r < 0.0 || f64::from(c.x) - r > extent || f64::from(c.z) + r < 0.0 || f64::from(c.z) - r > extent;
-                    if !outside && radius > 0.0 {
-                        out.spheres.push([c.x, c.y, c.z, radius]);
+            match (*d, prev) {
+                (Deformer::Sphere { center, radius }, prev) => {
+                    let b = local(center);
+                    let a = match prev {
+                        Some(Deformer::Sphere { center, .. }) => local(center),
+                        _ => b,
+                    };
+                    if !outside(a, b, radius) && radius > 0.0 {
+                        out.capsules.push([a.x, a.y, a.z, radius, b.x, b.y, b.z, 0.0]);
                     }
                 }
-                Deformer::Box { center, half_extents, rotation } => {
-                    let c = local(center);
-                    let reach = f64::from(half_extents.length());
-                    let outside =
-                        f64::from(c.x) + reach < 0.0 || f64::from(c.x) - reach > extent || f64::from(c.z) + reach < 0.0 || f64::from(c.z) - reach > extent;
-                    if !outside {
-                        out.boxes.push(Mat4::from_scale_rotation_translation(half_extents, rotation, c).to_cols_array());
+                (Deformer::Box { center, half_extents, rotation }, prev) => {
+                    let now = (local(center), half_extents, rotation);
+                    let poses = match prev {
+                        Some(Deformer::Box { center, half_extents, rotation }) => {
+                            let then = (local(center), half_extents, rotation);
+                            match super::sweep::steps_for(super::sweep::box_travel(then, now), params.texel_m) {
+                                0 => vec![now],
+                                n => super::sweep::box_poses(then, now, n),
+                            }
+                        }
+                        _ => vec![now],
+                    };
+                    let reach = half_extents.length();
+                    if !outside(poses[0].0, now.0, reach) {
+                        out.boxes.extend(poses.iter().map(|&(c, h, q)| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array()));
                     }
                 }
                 // Points have no surface to draw; only the stamp pass uses them.
-                Deformer::Point { .. } => {}
+                (Deformer::Point { .. }, _) => {}
             }
         }
         out
@@ -119,14 +166,20 @@ fn growable(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
 pub struct CapturePass {
     sphere_pipeline: wgpu::RenderPipeline,
     mesh_pipeline: wgpu::RenderPipeline,
+    /// World-space meshes, each vertex between its last and this frame's position.
+    swept_pipeline: wgpu::RenderPipeline,
     /// The meshes' vertices again as points: a paw or a leg thinner than a
     /// texel can fall between texel centres and leave no print at all; a
     /// point always marks the texel it lies in, so every vertex prints.
-    mesh_point_pipeline: wgpu::RenderPipeline,
+    swept_point_pipeline: wgpu::RenderPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    sphere_instances: wgpu::Buffer,
+    capsule_instances: wgpu::Buffer,
     box_instances: wgpu::Buffer,
+    /// Per mesh sub-step: (corner x, corner z, t, 0); entry 0 is t = 1.
+    step_instances: wgpu::Buffer,
+    /// First entry in `step_instances` and sub-steps of each prepared mesh.
+    mesh_steps: Vec<(u32, u32)>,
     cube_vertices: wgpu::Buffer,
     cube_indices: wgpu::Buffer,
     counts: (u32, u32),
@@ -167,9 +220,9 @@ impl CapturePass {
                 entry_point: Some("vs_main"),
                 compilation_options: wgpu::PipelineCompilationOptions::default(),
                 buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 16,
+                    array_stride: 32,
                     step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x4],
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
                 })],
             },
             primitive,
@@ -188,13 +241,40 @@ impl CapturePass {
             label: Some("capture meshes"),
             source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_MESH.into()),
         });
-        let mesh_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| {
+        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("capture boxes"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_module,
+                entry_point: Some("vs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                buffers: &[
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: 12,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                    }),
+                    Some(wgpu::VertexBufferLayout {
+                        array_stride: 64,
+                        step_mode: wgpu::VertexStepMode::Instance,
+                        attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
+                    }),
+                ],
+            },
+            primitive,
+            depth_stencil: Some(depth_state()),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        });
+        let swept_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(&pipeline_layout),
                 vertex: wgpu::VertexState {
                     module: &mesh_module,
-                    entry_point: Some("vs_main"),
+                    entry_point: Some("vs_swept"),
                     compilation_options: wgpu::PipelineCompilationOptions::default(),
                     buffers: &[
                         Some(wgpu::VertexBufferLayout {
@@ -203,9 +283,14 @@ impl CapturePass {
                             attributes: &wgpu::vertex_attr_array![0 => Float32x3],
                         }),
                         Some(wgpu::VertexBufferLayout {
-                            array_stride: 64,
+                            array_stride: 16,
                             step_mode: wgpu::VertexStepMode::Instance,
-                            attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
+                            attributes: &wgpu::vertex_attr_array![1 => Float32x4],
+                        }),
+                        Some(wgpu::VertexBufferLayout {
+                            array_stride: 12,
+                            step_mode: wgpu::VertexStepMode::Vertex,
+                            attributes: &wgpu::vertex_attr_array![5 => Float32x3],
                         }),
                     ],
                 },
@@ -217,8 +302,8 @@ impl CapturePass {
                 cache: None,
             })
         };
-        let mesh_pipeline = mesh_pipeline_with("capture meshes", primitive);
-        let mesh_point_pipeline = mesh_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
+        let swept_pipeline = swept_pipeline_with("capture meshes", primitive);
+        let swept_point_pipeline = swept_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");
         let bind_group = layout::bind_group(device, "capture", &bgl, &[params.as_entire_binding()]);
         let cube_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -234,11 +319,14 @@ impl CapturePass {
         Self {
             sphere_pipeline,
             mesh_pipeline,
-            mesh_point_pipeline,
+            swept_pipeline,
+            swept_point_pipeline,
             params,
             bind_group,
-            sphere_instances: growable(device, "sphere instances", 16 * 64),
+            capsule_instances: growable(device, "capsule instances", 32 * 64),
             box_instances: growable(device, "box instances", 64 * 64),
+            step_instances: growable(device, "mesh step instances", 16 * 64),
+            mesh_steps: Vec::new(),
             cube_vertices,
             cube_indices,
             counts: (0, 0),
@@ -248,29 +336,49 @@ impl CapturePass {
     /// Uploads this frame's instances, growing the instance buffers when needed.
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        let sphere_bytes: &[u8] = bytemuck::cast_slice(&inst.spheres);
-        // The boxes' model matrices, then the window offset that world-space meshes use.
-        let mut matrices = inst.boxes.clone();
-        matrices.push(inst.window_offset);
-        let box_bytes: &[u8] = bytemuck::cast_slice(&matrices);
-        if sphere_bytes.len() as u64 > self.sphere_instances.size() {
-            self.sphere_instances = growable(device, "sphere instances", (sphere_bytes.len() as u64).next_power_of_two());
+        let capsule_bytes: &[u8] = bytemuck::cast_slice(&inst.capsules);
+        let box_bytes: &[u8] = bytemuck::cast_slice(&inst.boxes);
+        // Entry 0 is every unswept mesh's only draw; then each swept mesh's steps.
+        let [cx, cz] = inst.corner_m;
+        let mut steps = vec![[cx, cz, 1.0, 0.0]];
+        self.mesh_steps.clear();
+        for &n in &inst.mesh_steps {
+            if n == 0 {
+                self.mesh_steps.push((0, 0));
+                continue;
+            }
+            self.mesh_steps.push((steps.len() as u32, n));
+            steps.extend((0..=n).map(|k| [cx, cz, k as f32 / n as f32, 0.0]));
         }
-        if box_bytes.len() as u64 > self.box_instances.size() {
-            self.box_instances = growable(device, "box instances", (box_bytes.len() as u64).next_power_of_two());
+        let step_bytes: &[u8] = bytemuck::cast_slice(&steps);
+        for (buffer, bytes, label) in [
+            (&mut self.capsule_instances, capsule_bytes, "capsule instances"),
+            (&mut self.box_instances, box_bytes, "box instances"),
+            (&mut self.step_instances, step_bytes, "mesh step instances"),
+        ] {
+            if bytes.len() as u64 > buffer.size() {
+                *buffer = growable(device, label, (bytes.len() as u64).next_power_of_two());
+            }
+            queue.write_buffer(buffer, 0, bytes);
         }
-        queue.write_buffer(&self.sphere_instances, 0, sphere_bytes);
-        queue.write_buffer(&self.box_instances, 0, box_bytes);
-        self.counts = (inst.spheres.len() as u32, inst.boxes.len() as u32);
+        self.counts = (inst.capsules.len() as u32, inst.boxes.len() as u32);
     }
 
     /// Clears the capture target and draws the prepared instances.
     pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources) {
-        self.record_with_meshes(encoder, timer, res, &[]);
+        self.record_swept(encoder, timer, res, &[]);
     }
 
-    /// Like [`Self::record`], also drawing world-space `meshes`.
+    /// Like [`Self::record`], also drawing world-space `meshes` in their current pose.
     pub fn record_with_meshes(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
+        let swept: Vec<SweptMesh<'_>> = meshes.iter().map(|&mesh| SweptMesh { mesh, previous: None }).collect();
+        self.record_swept(encoder, timer, res, &swept);
+    }
+
+    /// Like [`Self::record`], also drawing world-space `meshes`, mesh k swept
+    /// over the sub-steps `prepare` was given in
+    /// [`CaptureInstances::mesh_steps`]`[k]` where it has previous positions.
+    pub fn record_swept<'a>(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
         let slot = timer.reserve("capture");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("capture"),
@@ -287,7 +395,7 @@ impl CapturePass {
         pass.set_bind_group(0, &self.bind_group, &[]);
         if self.counts.0 > 0 {
             pass.set_pipeline(&self.sphere_pipeline);
-            pass.set_vertex_buffer(0, self.sphere_instances.slice(..));
+            pass.set_vertex_buffer(0, self.capsule_instances.slice(..));
             pass.draw(0..6, 0..self.counts.0);
         }
         if self.counts.1 > 0 {
@@ -297,20 +405,32 @@ impl CapturePass {
             pass.set_index_buffer(self.cube_indices.slice(..), wgpu::IndexFormat::Uint16);
             pass.draw_indexed(0..CUBE_INDICES.len() as u32, 0, 0..self.counts.1);
         }
-        if !meshes.is_empty() {
-            pass.set_pipeline(&self.mesh_pipeline);
-            pass.set_vertex_buffer(1, self.box_instances.slice(..));
-            let offset = self.counts.1;
-            for mesh in meshes {
-                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..mesh.index_count, 0, offset..offset + 1);
+        if meshes.is_empty() {
+            return;
+        }
+        // (previous positions, instances) of mesh k: itself and t = 1 when not swept.
+        let steps = &self.mesh_steps;
+        let draw_of = |k: usize, m: &SweptMesh<'a>| -> (&'a wgpu::Buffer, std::ops::Range<u32>) {
+            match (m.previous, steps.get(k).copied()) {
+                (Some(prev), Some((first, n))) if n > 0 => (prev, first..first + n + 1),
+                _ => (m.mesh.vertices, 0..1),
             }
-            pass.set_pipeline(&self.mesh_point_pipeline);
-            for mesh in meshes {
-                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-                pass.draw(0..mesh.vertex_count, offset..offset + 1);
-            }
+        };
+        pass.set_vertex_buffer(1, self.step_instances.slice(..));
+        pass.set_pipeline(&self.swept_pipeline);
+        for (k, m) in meshes.iter().enumerate() {
+            let (prev, instances) = draw_of(k, m);
+            pass.set_vertex_buffer(0, m.mesh.vertices.slice(..));
+            pass.set_vertex_buffer(2, prev.slice(..));
+            pass.set_index_buffer(m.mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..m.mesh.index_count, 0, instances);
+        }
+        pass.set_pipeline(&self.swept_point_pipeline);
+        for (k, m) in meshes.iter().enumerate() {
+            let (prev, instances) = draw_of(k, m);
+            pass.set_vertex_buffer(0, m.mesh.vertices.slice(..));
+            pass.set_vertex_buffer(2, prev.slice(..));
+            pass.draw(0..m.mesh.vertex_count, instances);
         }
     }
 }

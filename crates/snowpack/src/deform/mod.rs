@@ -14,6 +14,7 @@ pub mod resources;
 pub mod shape;
 pub mod snow_word;
 pub mod stamp;
+pub mod sweep;
 pub mod technique;
 pub mod terrain_bake;
 pub mod traffic;

@@ -5,7 +5,9 @@
 //! paraboloid that osculates it (`scale = 1 / 2r`), a box's lowest point with
 //! its narrower half-width, or an explicit [`Deformer::Point`]. Each writes
 //! `h = foot + d^2 * scale` over a `range_texels` square into the packed
-//! toroidal stamp buffer (see `shared/stamp.wgsl` for the format).
+//! toroidal stamp buffer (see `shared/stamp.wgsl` for the format). A point
+//! swept over the frame stamps the lowest of the footprints along its
+//! segment (see [`crate::deform::sweep`]).
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec2;
@@ -43,29 +45,41 @@ impl StampParams {
     }
 }
 
+/// The contact point of a deformer: (where, foot height, scale).
+fn contact(d: &Deformer) -> Option<(glam::Vec3, f32, f32)> {
+    match *d {
+        Deformer::Sphere { center, radius } if radius > 0.0 => Some((center, center.y - radius, 0.5 / radius)),
+        Deformer::Box { center, half_extents, .. } => {
+            let half = half_extents.x.min(half_extents.z).max(1e-3);
+            Some((center, d.lowest_point(), 0.5 / half))
+        }
+        Deformer::Point { position, scale_per_m } => Some((position, position.y, scale_per_m)),
+        Deformer::Sphere { .. } => None,
+    }
+}
+
 /// Contact points of `deformers` whose footprint can touch the window, as
-/// (window-local x, foot height, window-local z, scale). Points whose foot is
-/// above `high_m` (above any snow) are dropped.
+/// `[x, foot, z, scale, x0, foot0, z0, 0]`: window-local x, foot height and
+/// window-local z now, then where the point was swept from (`previous[k]`
+/// for deformer k where it is `Some`, see
+/// [`crate::deform::sweep::DeformerHistory::sweeps`]; otherwise the same
+/// point). Points whose foot stays above `high_m` (above any snow) are
+/// dropped.
 #[must_use]
-pub fn contact_points(deformers: &[Deformer], window_corner_m: DVec2, params: &StampParams) -> Vec<[f32; 4]> {
+pub fn contact_points(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &StampParams) -> Vec<[f32; 8]> {
     let extent = f64::from(params.texel_m) * f64::from(params.resolution);
     let reach = f64::from(params.texel_m) * f64::from(params.range_texels);
     deformers
         .iter()
-        .filter_map(|d| {
-            let (at, foot, scale) = match *d {
-                Deformer::Sphere { center, radius } if radius > 0.0 => (center, center.y - radius, 0.5 / radius),
-                Deformer::Box { center, half_extents, .. } => {
-                    let half = half_extents.x.min(half_extents.z).max(1e-3);
-                    (center, d.lowest_point(), 0.5 / half)
-                }
-                Deformer::Point { position, scale_per_m } => (position, position.y, scale_per_m),
-                Deformer::Sphere { .. } => return None,
-            };
-            let x = f64::from(at.x) - window_corner_m.x;
-            let z = f64::from(at.z) - window_corner_m.y;
-            let outside = x + reach < 0.0 || x - reach > extent || z + reach < 0.0 || z - reach > extent;
-            (!outside && foot < params.high_m && scale.is_finite() && scale >= 0.0).then_some([x as f32, foot, z as f32, scale])
+        .enumerate()
+        .filter_map(|(k, d)| {
+            let (at, foot, scale) = contact(d)?;
+            let (from, foot0) = previous.get(k).copied().flatten().and_then(|p| contact(&p)).map_or((at, foot), |(at, foot, _)| (at, foot));
+            let (x, z) = (f64::from(at.x) - window_corner_m.x, f64::from(at.z) - window_corner_m.y);
+            let (x0, z0) = (f64::from(from.x) - window_corner_m.x, f64::from(from.z) - window_corner_m.y);
+            let outside = x.max(x0) + reach < 0.0 || x.min(x0) - reach > extent || z.max(z0) + reach < 0.0 || z.min(z0) - reach > extent;
+            (!outside && foot.min(foot0) < params.high_m && scale.is_finite() && scale >= 0.0)
+                .then_some([x as f32, foot, z as f32, scale, x0 as f32, foot0, z0 as f32, 0.0])
         })
         .collect()
 }
@@ -104,7 +118,7 @@ impl StampPass {
             &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
         );
         let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
-        let points = points_buffer(device, 16 * 256);
+        let points = points_buffer(device, 32 * 256);
         let bind_group = Self::bind(device, &bgl, &params, &points, res);
         Self { pipeline, bgl, params, points, bind_group, count: 0 }
     }
@@ -114,7 +128,7 @@ impl StampPass {
     }
 
     /// Uploads this frame's points (at most [`MAX_POINTS`]), growing the buffer when needed.
-    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 4]]) {
+    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 8]]) {
         let points = &points[..points.len().min(MAX_POINTS)];
         let bytes: &[u8] = bytemuck::cast_slice(points);
         if bytes.len() as u64 > self.points.size() {

@@ -348,7 +348,10 @@ impl Renderer {
             window: [corner.x, corner.y, sp.extent_m, sp.texel_m()],
             window_info: [sp.resolution, placed, p.debug_view.index(), u32::from(sp.technique == crate::Technique::Decals)],
             lod: [lod.bonus_m, lod.bonus_margin_m, 0.0, p.view_distance_m],
-            snow: [sp.depth_m, p.shadow_distance_m, shadow_texel, BASE_EXPOSURE * p.light.exposure_ev.exp2()],
+            // The rest depth of open ground: the window's undisturbed snow
+            // and the ground outside it, which get the same snowfall, so no
+            // edge shows where the window ends.
+            snow: [sp.depth_m + snow.fallen_m(), p.shadow_distance_m, shadow_texel, BASE_EXPOSURE * p.light.exposure_ev.exp2()],
             fresh: m.fresh_albedo.extend(m.fresh_roughness).to_array(),
             packed: m.packed_albedo.extend(m.packed_roughness).to_array(),
             ground: m.ground_albedo.extend(m.ground_roughness).to_array(),
@@ -378,7 +381,7 @@ impl Renderer {
     ) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         self.ensure_targets(device, size);
-        let ground = snow.terrain().height_at(camera.position.x, camera.position.z) + snow.params().depth_m;
+        let ground = snow.terrain().height_at(camera.position.x, camera.position.z) + snow.params().depth_m + snow.fallen_m();
         let eye_height = (camera.position.y - ground).max(0.0);
         let (uniforms, lod) = self.uniforms(snow, camera, size, eye_height);
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));

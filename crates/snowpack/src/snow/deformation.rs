@@ -3,7 +3,8 @@
 use glam::DVec2;
 
 use crate::accumulate::{SnowAccumulation, SnowObject};
-use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass};
+use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
+use crate::deform::sweep::DeformerHistory;
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
 use crate::deform::params::{RANGE_TEXELS, default_tile_texels};
@@ -127,6 +128,10 @@ pub struct SnowDeformation {
     store_attached: bool,
     /// World (x, z) that deformer and object positions are relative to (f64).
     floating_origin: DVec2,
+    /// Last frame's deformers, by index, to sweep this frame's from.
+    history: DeformerHistory,
+    /// Last frame's positions of the meshes, to sweep them.
+    mesh_history: super::sweep::MeshHistory,
 }
 
 /// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
@@ -141,13 +146,24 @@ pub struct SnowFrame<'a> {
     /// World-space triangle meshes the caller has already posed this frame
     /// (recorded into the same encoder before [`SnowDeformation::encode`]).
     pub meshes: &'a [CaptureMesh<'a>],
+    /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
+    /// upper bound: mesh k is swept over that motion when it has one here,
+    /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
+    /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
+    /// pose presses.
+    pub mesh_travel_m: &'a [f32],
+    /// A stable id per deformer (the same body has the same id every frame),
+    /// to find each one's last pose when the list's length or order changes
+    /// ([`Self::with_ids`]); empty (or of another length): deformer k is
+    /// the same body as last frame's deformer k.
+    pub ids: &'a [u64],
 }
 
 impl<'a> SnowFrame<'a> {
     /// A frame of `dt_s` seconds with `deformers` and nothing else.
     #[must_use]
     pub fn new(dt_s: f32, deformers: &'a [Deformer]) -> Self {
-        Self { dt_s, deformers, poses: &[], meshes: &[] }
+        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[] }
     }
 
     /// The same frame with characters in pose.
@@ -161,6 +177,22 @@ impl<'a> SnowFrame<'a> {
     #[must_use]
     pub fn with_meshes(mut self, meshes: &'a [CaptureMesh<'a>]) -> Self {
         self.meshes = meshes;
+        self
+    }
+
+    /// The same frame with the motion of each caller mesh since the last
+    /// frame (see [`Self::mesh_travel_m`]), so they are swept.
+    #[must_use]
+    pub fn with_mesh_travel(mut self, travel_m: &'a [f32]) -> Self {
+        self.mesh_travel_m = travel_m;
+        self
+    }
+
+    /// The same frame with a stable id per deformer (see [`Self::ids`]), so
+    /// each is swept from its own last pose (see [`crate::deform::sweep`]).
+    #[must_use]
+    pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
+        self.ids = ids;
         self
     }
 }
@@ -249,6 +281,8 @@ impl SnowDeformation {
             tiles,
             store_attached: false,
             floating_origin: DVec2::ZERO,
+            history: DeformerHistory::new(),
+            mesh_history: super::sweep::MeshHistory::default(),
         })
     }
 
@@ -449,6 +483,13 @@ impl SnowDeformation {
     /// tiles, on integer texels, stay exact. The window centre stays in world
     /// coordinates (f64).
     pub fn set_floating_origin(&mut self, origin: DVec2) {
+        // Remembered deformers move with the origin (so they still sweep);
+        // remembered mesh positions are on the GPU and are forgotten instead.
+        let delta = self.floating_origin - origin;
+        if delta != DVec2::ZERO {
+            self.history.shift(glam::Vec3::new(delta.x as f32, 0.0, delta.y as f32));
+            self.mesh_history.clear();
+        }
         self.floating_origin = origin;
     }
 
@@ -588,6 +629,8 @@ impl SnowDeformation {
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
         self.skinned.push(instance);
+        let radius = mesh.positions.iter().map(|p| p.length()).fold(0.0, f32::max);
+        self.mesh_history.register_skinned(self.skinned.len() - 1, radius);
         Ok(SkinnedId(self.skinned.len() - 1))
     }
 
@@ -603,15 +646,27 @@ impl SnowDeformation {
     /// `frame.meshes` and the deformers. Submit the encoder, then call
     /// [`Self::after_submit`].
     pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) {
+        use super::sweep::MeshKey;
         self.posed.clear();
         self.timer.begin_frame();
+        let (texel_m, teleport_m) = (self.params.texel_m(), self.params.teleport_m);
+        let mut steps = Vec::new();
         for pose in frame.poses {
             let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
             self.skinning.record(FrameContext::new(ctx, encoder, &mut self.timer), instance, pose.joints, pose.model);
             self.posed.push(pose.mesh.0);
+            let world = pose.joints.iter().map(|j| pose.model * *j).collect();
+            steps.push(self.mesh_history.skinned_steps(pose.mesh.0, world, texel_m, teleport_m));
+        }
+        for k in 0..frame.meshes.len() {
+            // No travel given (NaN) compares false: not swept.
+            let travel = frame.mesh_travel_m.get(k).copied().unwrap_or(f32::NAN);
+            steps.push(if teleport_m > 0.0 && travel <= teleport_m { crate::deform::sweep::steps_for(travel, texel_m) } else { 0 });
         }
         let skinned = std::mem::take(&mut self.skinned);
-        let meshes: Vec<CaptureMesh<'_>> = self
+        let mut history = std::mem::take(&mut self.mesh_history);
+        let keys: Vec<MeshKey> = self.posed.iter().map(|&k| MeshKey::Skinned(k)).chain((0..frame.meshes.len()).map(MeshKey::Caller)).collect();
+        let current: Vec<CaptureMesh<'_>> = self
             .posed
             .iter()
             .map(|&k| CaptureMesh {
@@ -622,8 +677,20 @@ impl SnowDeformation {
             })
             .chain(frame.meshes.iter().copied())
             .collect();
-        self.encode_frame(ctx, encoder, frame.deformers, &meshes, frame.dt_s);
+        let meshes: Vec<SweptMesh<'_>> = current
+            .iter()
+            .zip(&keys)
+            .map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) })
+            .collect();
+        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s);
         drop(meshes);
+        // This frame's positions are the next frame's previous ones.
+        history.age();
+        for (mesh, key) in current.iter().zip(keys) {
+            history.remember(&ctx.device, encoder, key, mesh.vertices, u64::from(mesh.vertex_count) * 12);
+        }
+        drop(current);
+        self.mesh_history = history;
         self.skinned = skinned;
     }
 
@@ -645,7 +712,15 @@ impl SnowDeformation {
         self.step_frame(ctx, &SnowFrame::new(dt_s, deformers))
     }
 
-    fn encode_frame(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, deformers: &[Deformer], meshes: &[CaptureMesh<'_>], dt_s: f32) {
+    fn encode_frame(
+        &mut self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        (deformers, ids): (&[Deformer], &[u64]),
+        meshes: &[SweptMesh<'_>],
+        mesh_steps: Vec<u32>,
+        dt_s: f32,
+    ) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
         let texel = f64::from(p.texel_m());
@@ -725,10 +800,14 @@ impl SnowDeformation {
         let technique = p.technique;
         let captures = matches!(technique, Technique::Depth | Technique::Combined);
         let stamps = matches!(technique, Technique::Points | Technique::Combined);
+        // Each deformer presses over its motion since the last frame.
+        let sweeps = self.history.sweeps(deformers, ids, p.teleport_m);
+        self.history.remember(deformers, ids);
         if captures {
-            let instances = CaptureInstances::new(deformers, corner, &self.capture_params);
+            let mut instances = CaptureInstances::swept(deformers, &sweeps, corner, &self.capture_params);
+            instances.mesh_steps = mesh_steps;
             self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
-            self.capture_pass.record_with_meshes(encoder, &mut self.timer, &self.res, meshes);
+            self.capture_pass.record_swept(encoder, &mut self.timer, &self.res, meshes);
         }
         let stamp_params = StampParams {
             origin: origin_i32,
@@ -741,7 +820,7 @@ impl SnowDeformation {
         };
         self.points_last_frame = 0;
         if stamps {
-            let points = contact_points(deformers, corner, &stamp_params);
+            let points = contact_points(deformers, &sweeps, corner, &stamp_params);
             self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
             self.stamp_pass.record(encoder, &mut self.timer);
             self.points_last_frame = points.len();

@@ -7,5 +7,6 @@
 
 pub mod deformation;
 pub mod saved;
+pub mod sweep;
 
 pub use deformation::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
