@@ -60,7 +60,11 @@ fn fast_boxes(t: f32) -> Vec<Deformer> {
         .map(|k| {
             let (a, r) = (k as f32 * 2.399_963, 3.0 + 20.0 * ((k as f32 + 0.5) / 64.0).sqrt());
             let phase = a + t * 6.0 / r;
-            Deformer::Box { center: Vec3::new(r * phase.cos(), 0.5, r * phase.sin()), half_extents: Vec3::new(0.5, 0.2, 1.0), rotation: Quat::from_rotation_y(t + a) }
+            Deformer::Box {
+                center: Vec3::new(r * phase.cos(), 0.5, r * phase.sin()),
+                half_extents: Vec3::new(0.5, 0.2, 1.0),
+                rotation: Quat::from_rotation_y(t + a),
+            }
         })
         .collect()
 }
@@ -72,7 +76,15 @@ const SCENARIOS: [Scenario; 3] = [
 ];
 
 /// (median ms of `pass`, median ms of the frame's passes together).
-fn pass_ms(ctx: &GpuContext, technique: Technique, pass: &str, teleport_m: f32, at: fn(f32) -> Vec<Deformer>, warmup: u32, frames: u32) -> anyhow::Result<(f64, f64)> {
+fn pass_ms(
+    ctx: &GpuContext,
+    technique: Technique,
+    pass: &str,
+    teleport_m: f32,
+    at: fn(f32) -> Vec<Deformer>,
+    warmup: u32,
+    frames: u32,
+) -> anyhow::Result<(f64, f64)> {
     let params = SnowParams { technique, teleport_m, tile_memory_bytes: None, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
     for frame in 0..warmup + frames {
@@ -129,7 +141,18 @@ pub fn markdown(rows: &[SweepRow], adapter: &str, software: bool) -> String {
 pub fn csv(rows: &[SweepRow]) -> String {
     let mut csv = String::from("scenario,pass,unswept_ms,swept_ms,ratio,unswept_frame_ms,swept_frame_ms,frame_ratio\n");
     for r in rows {
-        let _ = writeln!(csv, "{},{},{},{},{},{},{},{}", r.scenario, r.pass, r.unswept_ms, r.swept_ms, r.ratio(), r.unswept_frame_ms, r.swept_frame_ms, r.frame_ratio());
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{},{}",
+            r.scenario,
+            r.pass,
+            r.unswept_ms,
+            r.swept_ms,
+            r.ratio(),
+            r.unswept_frame_ms,
+            r.swept_frame_ms,
+            r.frame_ratio()
+        );
     }
     csv
 }
@@ -152,9 +175,8 @@ mod tests {
         for (name, _, _, at) in SCENARIOS {
             let (a, b) = (at(0.0), at(1.0 / 60.0));
             let moved = |p: &Deformer, q: &Deformer| match (p, q) {
-                (Deformer::Sphere { center: c0, .. }, Deformer::Sphere { center: c1, .. }) | (Deformer::Box { center: c0, .. }, Deformer::Box { center: c1, .. }) => {
-                    c0.distance(*c1)
-                }
+                (Deformer::Sphere { center: c0, .. }, Deformer::Sphere { center: c1, .. })
+                | (Deformer::Box { center: c0, .. }, Deformer::Box { center: c1, .. }) => c0.distance(*c1),
                 _ => 0.0,
             };
             assert!(a.iter().zip(&b).all(|(p, q)| moved(p, q) > 0.0625), "{name}");

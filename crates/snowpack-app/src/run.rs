@@ -153,8 +153,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             snow.set_object_pose(k, position, rotation);
         }
         let characters = world.characters();
-        snow.step_frame(&ctx, &snowpack::SnowFrame::new(scene.sim.dt_s, &world.deformers()).with_ids(&world.deformer_ids()).with_poses(&poses(&skins, &characters)))
-            .with_context(|| format!("GPU frame {frame}"))?;
+        snow.step_frame(
+            &ctx,
+            &snowpack::SnowFrame::new(scene.sim.dt_s, &world.deformers()).with_ids(&world.deformer_ids()).with_poses(&poses(&skins, &characters)),
+        )
+        .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();
         }
@@ -231,6 +234,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(_, v)| v).sum::<u64>(),
         "gpu_memory_peak_bytes": snow.peak_memory_bytes(),
+        "points_dropped": snow.points_dropped(),
         "gpu_memory_by_resource": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });
 

@@ -568,7 +568,9 @@ frames = 470
     let walked_s = 470.0 / 60.0;
     let steps = (walked_s / 0.708_333_f64).ceil() as usize;
     for (name, side) in [("left", -1.0), ("right", 1.0)] {
-        let prints = prints_along_x(&run, &pressed, |z| z * side > 0.0, 0.12);
+        // Prints closer than 8 cm are one: swept paws (issue 21) press their
+        // landing and lift-off slides, so the gaps between steps are 12-17 cm.
+        let prints = prints_along_x(&run, &pressed, |z| z * side > 0.0, 0.08);
         let summary: Vec<String> = prints.iter().map(|p| format!("{:.2}..{:.2}", p.0, p.1)).collect();
         assert!(prints.len().abs_diff(steps) <= 1, "{name} side: {} prints for {steps} steps: {summary:?}", prints.len());
         assert!(prints.iter().all(|p| p.1 - p.0 < 0.6), "{name} side: a print longer than 0.6 m (a groove, not prints): {summary:?}");

@@ -216,7 +216,8 @@ fn snowfall_on_bare_ground_shows_no_square_at_the_window_edge() {
     assert!((snow.fallen_m() - 0.2).abs() < 1e-3, "fallen {}", snow.fallen_m());
     let edge = snow.origin_m().expect("placed").x as f32 + 16.0;
     let sky = EnvironmentMap::from_hdr(include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr")).expect("sky");
-    let mut renderer = Renderer::new(ctx, &snow, &sky, RenderParams { shadow_map_size: 512, ..RenderParams::default() }, snowpack::render::IMAGE_FORMAT).expect("renderer");
+    let mut renderer =
+        Renderer::new(ctx, &snow, &sky, RenderParams { shadow_map_size: 512, ..RenderParams::default() }, snowpack::render::IMAGE_FORMAT).expect("renderer");
     let camera = Camera { position: Vec3::new(edge, GROUND_M + 6.0, -0.01), target: Vec3::new(edge, GROUND_M, 0.0), fov_deg: 50.0 };
     let (w, h) = (256_u32, 160_u32);
     let rgba = renderer.render_image(ctx, &snow, &[], &camera, (w, h)).expect("frame");

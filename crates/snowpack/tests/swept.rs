@@ -160,4 +160,3 @@ fn a_teleport_and_a_new_deformer_do_not_sweep() {
         assert!((at(x) - DEPTH_M).abs() < 1e-3, "a sweep pressed {x}: {}", at(x));
     }
 }
-

@@ -303,7 +303,8 @@ impl CapturePass {
             })
         };
         let swept_pipeline = swept_pipeline_with("capture meshes", primitive);
-        let swept_point_pipeline = swept_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
+        let swept_point_pipeline =
+            swept_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");
         let bind_group = layout::bind_group(device, "capture", &bgl, &[params.as_entire_binding()]);
         let cube_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

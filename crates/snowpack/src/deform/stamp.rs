@@ -127,8 +127,12 @@ impl StampPass {
         layout::bind_group(device, "stamp", bgl, &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding()])
     }
 
-    /// Uploads this frame's points (at most [`MAX_POINTS`]), growing the buffer when needed.
-    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 8]]) {
+    /// Uploads this frame's points, growing the buffer when needed. At most
+    /// [`MAX_POINTS`] are stamped; returns how many were left out (0 unless
+    /// a frame brings more), for the caller to report.
+    #[must_use = "points left out must be reported"]
+    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 8]]) -> usize {
+        let dropped = points.len().saturating_sub(MAX_POINTS);
         let points = &points[..points.len().min(MAX_POINTS)];
         let bytes: &[u8] = bytemuck::cast_slice(points);
         if bytes.len() as u64 > self.points.size() {
@@ -140,6 +144,7 @@ impl StampPass {
         let mut p = *params;
         p.count = self.count;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        dropped
     }
 
     /// Records the stamping of the prepared points (nothing when there are none).

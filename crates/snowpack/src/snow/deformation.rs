@@ -4,7 +4,6 @@ use glam::DVec2;
 
 use crate::accumulate::{SnowAccumulation, SnowObject};
 use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
-use crate::deform::sweep::DeformerHistory;
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
 use crate::deform::params::{RANGE_TEXELS, default_tile_texels};
@@ -12,6 +11,7 @@ use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, Que
 use crate::deform::resources::DeformResources;
 use crate::deform::snow_word::{self, SNOW_QUANTUM_M};
 use crate::deform::stamp::{StampParams, StampPass, contact_points};
+use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use crate::error::SnowError;
@@ -111,6 +111,8 @@ pub struct SnowDeformation {
     /// The most GPU memory held after any submitted frame (bytes).
     peak_memory_bytes: u64,
     points_last_frame: usize,
+    /// Contact points left out because a frame brought more than the stamp pass takes.
+    points_dropped: u64,
     skinning: SkinningPass,
     skinned: Vec<SkinnedInstance>,
     /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
@@ -272,6 +274,7 @@ impl SnowDeformation {
             snow_refill_carry_m: 0.0,
             peak_memory_bytes: 0,
             points_last_frame: 0,
+            points_dropped: 0,
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
             posed: Vec::new(),
@@ -537,6 +540,14 @@ impl SnowDeformation {
         self.points_last_frame
     }
 
+    /// Contact points left out so far because a frame brought more than the
+    /// stamp pass takes ([`crate::deform::stamp::MAX_POINTS`], about a
+    /// million); each time the total doubles a warning says so.
+    #[must_use]
+    pub fn points_dropped(&self) -> u64 {
+        self.points_dropped
+    }
+
     /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
     #[must_use]
     pub fn stamp_range(&self) -> (f32, f32, f32) {
@@ -677,11 +688,8 @@ impl SnowDeformation {
             })
             .chain(frame.meshes.iter().copied())
             .collect();
-        let meshes: Vec<SweptMesh<'_>> = current
-            .iter()
-            .zip(&keys)
-            .map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) })
-            .collect();
+        let meshes: Vec<SweptMesh<'_>> =
+            current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
         self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s);
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
@@ -821,9 +829,23 @@ impl SnowDeformation {
         self.points_last_frame = 0;
         if stamps {
             let points = contact_points(deformers, &sweeps, corner, &stamp_params);
-            self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
+            let dropped = self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
             self.stamp_pass.record(encoder, &mut self.timer);
-            self.points_last_frame = points.len();
+            self.points_last_frame = points.len() - dropped;
+            if dropped > 0 {
+                // Said once per doubling of the total, so a scene that always
+                // brings too many is reported without flooding the log.
+                let before = self.points_dropped;
+                self.points_dropped += dropped as u64;
+                if before == 0 || self.points_dropped.ilog2() > before.ilog2() {
+                    tracing::warn!(
+                        "{} contact points this frame, above the stamp pass's {}: {dropped} left out ({} so far; see points_dropped)",
+                        points.len(),
+                        crate::deform::stamp::MAX_POINTS,
+                        self.points_dropped
+                    );
+                }
+            }
         }
         // Footprints refill by whole quanta; the remainder carries to the next frame.
         let quantum = stamp_params.quantum_m();
