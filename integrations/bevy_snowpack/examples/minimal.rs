@@ -29,7 +29,12 @@ fn main() {
         .run();
 }
 
-fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut ground: ResMut<Assets<SnowGroundMaterial>>, mut materials: ResMut<Assets<StandardMaterial>>) {
+fn setup(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut ground: ResMut<Assets<SnowGroundMaterial>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
     // The ground: a flat grid over the 32 m window, one vertex per snow texel; the snow gives its heights.
     let grid = Plane3d::default().mesh().size(32.0, 32.0).subdivisions(511);
     let snow = StandardMaterial { base_color: Color::srgb(0.92, 0.94, 0.98), perceptual_roughness: 0.85, ..default() };

@@ -6,8 +6,8 @@
 use bevy::asset::uuid_handle;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::VisibilitySystems;
-use bevy::ecs::system::lifetimeless::SRes;
 use bevy::ecs::system::SystemParamItem;
+use bevy::ecs::system::lifetimeless::SRes;
 use bevy::math::Vec3A;
 use bevy::pbr::{ExtendedMaterial, MaterialExtension, MaterialPlugin};
 use bevy::prelude::*;
@@ -142,8 +142,7 @@ pub(crate) fn build(app: &mut App) {
     // The handles are constant ids; inserting cannot fail for them.
     let _ = shaders.insert(VERTEX_SHADER.id(), main);
     let _ = shaders.insert(PREPASS_SHADER.id(), prepass);
-    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default())
-        .add_systems(PostUpdate, grow_ground_bounds.after(VisibilitySystems::CalculateBounds));
+    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default()).add_systems(PostUpdate, grow_ground_bounds.after(VisibilitySystems::CalculateBounds));
 }
 
 /// The ground mesh's bounds span the heights the snow can displace it to.

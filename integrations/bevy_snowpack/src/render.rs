@@ -25,7 +25,7 @@ pub struct SnowRenderState {
     /// The `SnowWindow` uniform of the sampling WGSL, rewritten each frame.
     pub(crate) window: wgpu::Buffer,
     /// Library tickets of the combined requests in flight, with the callers' tickets and ranges.
-    in_flight: Vec<(snowpack::QueryTicket, Vec<(SnowTicket, std::ops::Range<usize>)>)>,
+    in_flight: Vec<(snowpack::QueryTicket, Split)>,
 }
 
 impl SnowRenderState {
@@ -46,6 +46,9 @@ impl SnowRenderState {
         &self.ctx
     }
 }
+
+/// How one combined request splits back into the callers' requests: their tickets and ranges.
+type Split = Vec<(SnowTicket, std::ops::Range<usize>)>;
 
 /// What presses the snow this frame, extracted from the main world.
 #[derive(Resource, Default)]

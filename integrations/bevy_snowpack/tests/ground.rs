@@ -24,6 +24,7 @@ const SIZE: u32 = 256;
 struct Captured(Arc<Mutex<Option<Image>>>);
 
 #[test]
+#[ignore = "crashes Mesa 22.3 lavapipe's queue thread (SIGSEGV) as soon as a drawn vertex depends on the sampled snow; run with --ignored on a hardware adapter"]
 fn ground_is_displaced_in_main_and_shadow_passes() {
     let settings = SnowpackSettings {
         params: SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.4, refill_m_per_s: 0.0, ..SnowParams::default() },

@@ -6,7 +6,7 @@
 mod common;
 
 use bevy::prelude::*;
-use bevy_snowpack::{SnowDeformer, SnowQuery, SnowpackSettings};
+use bevy_snowpack::{FootKind, SnowDeformer, SnowFoot, SnowFootstep, SnowQuery, SnowpackSettings};
 use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
 
 const DT: f32 = 1.0 / 60.0;
@@ -110,4 +110,34 @@ fn plugin_snow_and_queries_equal_the_library() {
     assert!((under.depth_m() - 0.15).abs() < 0.02 && under.compaction() > 0.5, "under the path: {under:?}");
     let off = answers.samples[3].unwrap();
     assert!((off.depth_m() - 0.4).abs() < 1e-3 && off.compaction() < 1e-3, "off the trail: {off:?}");
+}
+
+#[derive(Component)]
+struct Paw;
+
+/// A paw lowered onto the snow raises one footstep, with the depth and
+/// sinkage the query answered; lifting it and lowering it again raises another.
+#[test]
+fn a_paw_coming_down_raises_a_footstep() {
+    let Some(mut app) = common::headless_app(settings()) else { return };
+    // Above the snow for 10 frames, down on the surface (0.4 m) for 10, up, then down again.
+    let height = |k: u32| if (10..20).contains(&k) || (30..40).contains(&k) { 0.41 } else { 1.0 };
+    app.add_systems(Update, move |mut frame: Local<u32>, mut paw: Single<&mut Transform, With<Paw>>| {
+        paw.translation.y = height(*frame);
+        *frame += 1;
+    });
+    app.world_mut().spawn((Paw, SnowFoot::new(FootKind::Paw), Transform::from_xyz(1.0, 1.0, -1.0)));
+    let mut steps = Vec::new();
+    for _ in 0..45 {
+        app.update();
+        let mut messages = app.world_mut().resource_mut::<Messages<SnowFootstep>>();
+        steps.extend(messages.drain());
+    }
+    assert_eq!(steps.len(), 2, "one step per time the paw came down: {steps:?}");
+    for s in &steps {
+        assert_eq!(s.kind, FootKind::Paw);
+        // On the displayed surface (f16 heights, within a centimetre of the 0.4 m rest).
+        assert!((s.position - Vec3::new(1.0, 0.4, -1.0)).length() < 0.01, "{s:?}");
+        assert!((s.depth_m - 0.4).abs() < 1e-3 && s.sinkage_m.abs() < 1e-3, "untouched snow under the paw: {s:?}");
+    }
 }

@@ -60,9 +60,10 @@ fn count_frames(mut commands: Commands, cli: Res<Cli>, mut frames: ResMut<Frames
     match &cli.screenshot {
         Some(path) if !frames.shot_taken && frames.count >= at => {
             frames.shot_taken = true;
-            commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone())).observe(
-                |_: On<ScreenshotCaptured>, mut frames: ResMut<Frames>| frames.shot_saved = frames.count,
-            );
+            commands
+                .spawn(Screenshot::primary_window())
+                .observe(save_to_disk(path.clone()))
+                .observe(|_: On<ScreenshotCaptured>, mut frames: ResMut<Frames>| frames.shot_saved = frames.count);
         }
         // Exit a couple of frames after the capture so the file is written.
         Some(_) if frames.shot_saved > 0 && frames.count > frames.shot_saved + 2 => {

@@ -19,6 +19,8 @@ pub fn headless_app(settings: SnowpackSettings) -> Option<App> {
         DefaultPlugins
             .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, close_when_requested: false, ..default() })
             .disable::<bevy::winit::WinitPlugin>()
+            // Each test's app would install the global logger again.
+            .disable::<bevy::log::LogPlugin>(),
     )
     .add_plugins(SnowpackPlugin::new(settings));
     while app.plugins_state() == PluginsState::Adding {
@@ -34,6 +36,7 @@ pub fn headless_app(settings: SnowpackSettings) -> Option<App> {
 }
 
 /// The plugin's deformation in the render world.
+#[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
 pub fn render_state(app: &App) -> &SnowRenderState {
     app.get_sub_app(RenderApp).expect("render app").world().get_resource::<SnowRenderState>().expect("the plugin created its deformation")
 }
