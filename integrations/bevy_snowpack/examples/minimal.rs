@@ -1,5 +1,5 @@
 //! The smallest bevy_snowpack app: a cube pushed around on the snow, a sun,
-//! a camera, and a snow ground drawn with `SnowGroundMaterial`.
+//! a camera that draws snowpack's snow ground in its main pass (`SnowGroundPass`).
 //!
 //! ```text
 //! cargo run --example minimal [-- --exit-after-frames N] [--screenshot FILE]
@@ -11,7 +11,7 @@ mod cli;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::CascadeShadowConfigBuilder;
 use bevy::prelude::*;
-use bevy_snowpack::{SnowDeformer, SnowGroundExtension, SnowGroundMaterial, SnowpackPlugin, SnowpackSettings};
+use bevy_snowpack::{SnowDeformer, SnowGroundPass, SnowpackPlugin, SnowpackSettings};
 
 #[derive(Component)]
 struct Pushed;
@@ -29,16 +29,7 @@ fn main() {
         .run();
 }
 
-fn setup(
-    mut commands: Commands,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut ground: ResMut<Assets<SnowGroundMaterial>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
-) {
-    // The ground: a flat grid over the 32 m window, one vertex per snow texel; the snow gives its heights.
-    let grid = Plane3d::default().mesh().size(32.0, 32.0).subdivisions(511);
-    let snow = StandardMaterial { base_color: Color::srgb(0.92, 0.94, 0.98), perceptual_roughness: 0.85, ..default() };
-    commands.spawn((Mesh3d(meshes.add(grid)), MeshMaterial3d(ground.add(SnowGroundMaterial { base: snow, extension: SnowGroundExtension }))));
+fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>) {
     // The cube: 0.6 m wide, its bottom 0.1 m above the ground in 0.4 m of snow.
     commands.spawn((
         Pushed,
@@ -52,7 +43,13 @@ fn setup(
         Transform::from_xyz(-4.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
         CascadeShadowConfigBuilder { maximum_distance: 30.0, ..default() }.build(),
     ));
-    commands.spawn((Camera3d::default(), Tonemapping::AcesFitted, Transform::from_xyz(0.0, 6.0, 9.0).looking_at(Vec3::new(0.0, 0.0, 1.0), Vec3::Y)));
+    // The camera draws snowpack's own snow ground in its main pass.
+    commands.spawn((
+        Camera3d::default(),
+        SnowGroundPass,
+        Tonemapping::AcesFitted,
+        Transform::from_xyz(0.0, 6.0, 9.0).looking_at(Vec3::new(0.0, 0.0, 1.0), Vec3::Y),
+    ));
 }
 
 /// The cube slides along a figure eight, turning with its path.

@@ -5,9 +5,11 @@
 //! into the render graph before the cameras draw. Entities with a
 //! [`SnowDeformer`] press the snow; the [`SnowWindowTarget`] entity carries
 //! the deformation window along; [`SnowQuery`] asks the snow at points
-//! (answers a frame or two late); [`SnowGroundMaterial`] draws a ground mesh
-//! displaced by the snow in the main and the prepass (depth, shadow) vertex
-//! shaders; [`SnowFoot`] entities raise [`SnowFootstep`] messages.
+//! (answers a frame or two late); a camera with [`SnowGroundPass`] draws
+//! snowpack's own snow ground in its main pass, or [`SnowGroundMaterial`]
+//! draws a ground mesh displaced by the snow in the main and the prepass
+//! (depth, shadow) vertex shaders; [`SnowFoot`] entities raise
+//! [`SnowFootstep`] messages.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -23,6 +25,7 @@
 
 mod footsteps;
 mod ground;
+mod ground_pass;
 mod query;
 mod render;
 
@@ -33,6 +36,7 @@ use snowpack::{SnowParams, TerrainSource};
 
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
+pub use ground_pass::SnowGroundPass;
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
 
@@ -115,6 +119,7 @@ impl Plugin for SnowpackPlugin {
         app.insert_resource(self.settings.clone()).insert_resource(query.clone());
         footsteps::build(app);
         ground::build(app);
+        ground_pass::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, self.settings.clone(), query);
         }
