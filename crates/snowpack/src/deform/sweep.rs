@@ -17,7 +17,7 @@
 //!   impostor, `capture_sphere.wgsl`);
 //! - boxes: sub-steps, centre interpolated linearly and rotation by slerp, as
 //!   many as make consecutive poses' corners move at most [`SWEEP_STEP_TEXELS`]
-//!   texels ([`box_steps`]);
+//!   texels ([`steps_for`], [`box_poses`]);
 //! - meshes (skinned characters, caller meshes): the same sub-steps, each
 //!   vertex interpolated linearly between its two positions
 //!   (`capture_mesh.wgsl`, `vs_swept`);
