@@ -658,8 +658,23 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     files
 }
 
+/// The parts `--only` picks from: a value selects every part whose name contains it.
+const PARTS: [&str; 11] =
+    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "shell", "frames"];
+
+/// `--only`'s value, checked before any GPU work: it must select a part.
+fn check_only(only: Option<&str>) -> Result<(), crate::BadInput> {
+    match only {
+        Some(o) if !PARTS.iter().any(|p| p.contains(o)) => {
+            Err(crate::BadInput(format!("--only {o:?} selects no part of the benchmark; the parts are {}", PARTS.join(", "))))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Runs the benchmark and writes its report into `out` (all or nothing).
 pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -> anyhow::Result<()> {
+    check_only(only)?;
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(backend)).context("choosing a GPU adapter")?;
     println!("snowpack bench on {} ({}){}", ctx.summary.name, ctx.summary.backend, if quick { ", quick" } else { "" });
     if !ctx.has_timestamps() {
@@ -679,6 +694,15 @@ pub fn run(quick: bool, out: &Path, only: Option<&str>, backend: Option<&str>) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_must_select_a_part() {
+        for ok in [None, Some("passes"), Some("passes-1024"), Some("sweep"), Some("tech"), Some("frames")] {
+            assert!(check_only(ok).is_ok(), "{ok:?}");
+        }
+        let err = check_only(Some("everything")).expect_err("selects nothing").to_string();
+        assert!(err.contains("--only") && err.contains("techniques"), "{err}");
+    }
 
     #[test]
     fn markdown_has_a_column_per_pass_and_flags_software() {

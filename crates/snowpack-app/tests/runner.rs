@@ -1164,3 +1164,51 @@ fn a_bad_backend_exits_2_naming_the_option_for_every_command() {
     }
     assert!(!dir.0.join("bench").exists(), "nothing written for a bad backend");
 }
+
+/// Every option of every command given a bad value, and a missing or bad
+/// input file, exits 2 with a message naming the option (or file and key),
+/// never a panic, and writes nothing.
+#[test]
+fn every_bad_option_exits_2_naming_it() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/default.toml");
+    let scene = scene.to_str().expect("a UTF-8 path");
+    let dir = Temp::new("bad-options");
+    let out = dir.0.join("out");
+    let out = out.to_str().expect("a UTF-8 path");
+    let bad_scene = dir.0.join("bad.toml");
+    std::fs::write(&bad_scene, "[snow]\nresolution = -3\n").expect("write");
+    let bad_scene = bad_scene.to_str().expect("a UTF-8 path");
+    let missing = dir.0.join("missing.toml");
+    let missing = missing.to_str().expect("a UTF-8 path");
+    // (arguments, what the message must name)
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["run", "--scene", scene, "--out", out, "--frames", "many"], "--frames"),
+        (vec!["run", "--scene", scene, "--out", out, "--frames=-4"], "--frames"),
+        (vec!["run", "--scene", scene, "--out", out, "--size", "0x10"], "--size"),
+        (vec!["run", "--scene", scene, "--out", out, "--size", "big"], "--size"),
+        (vec!["run", "--scene", scene, "--out", out, "--technique", "magic"], "technique"),
+        (vec!["run", "--scene", scene, "--out", out, "--view", "xray"], "view"),
+        (vec!["run", "--scene", scene, "--out", out, "--material", "plastic"], "material"),
+        (vec!["run", "--scene", scene, "--out", out, "--backend", "voodoo"], "--backend"),
+        (vec!["run", "--scene", scene, "--out", out, "--bogus"], "--bogus"),
+        (vec!["run", "--out", out], "--scene"),
+        (vec!["run", "--scene", missing, "--out", out], "missing.toml"),
+        (vec!["run", "--scene", bad_scene, "--out", out], "resolution"),
+        (vec!["bench", "--out", out, "--only", "everything"], "only"),
+        (vec!["bench", "--out", out, "--backend", "voodoo"], "--backend"),
+        (vec!["check-scene", missing], "missing.toml"),
+        (vec!["check-scene", bad_scene], "resolution"),
+        (vec!["check-scene"], "FILE"),
+        (vec!["demo", "--window-size", "0x0"], "--window-size"),
+        (vec!["demo", "--exit-after-frames", "soon"], "--exit-after-frames"),
+        (vec!["frobnicate"], "frobnicate"),
+    ];
+    for (args, names) in &cases {
+        let output = bin().env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").args(args).output().expect("run snowpack");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?} exited {:?}: {stderr}", output.status.code());
+        assert!(stderr.contains(names), "{args:?}: the message does not name {names:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!Path::new(out).exists(), "{args:?} wrote its output folder");
+    }
+}
