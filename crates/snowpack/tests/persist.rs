@@ -320,3 +320,70 @@ fn writes_ignore_permissions() -> bool {
     }
     ignored
 }
+
+/// A tile of noise (incompressible planes), so a few fill a small disk.
+fn noisy(key: TileKey, seed: u64) -> TileData {
+    let mut rng = Rng::new(seed);
+    let n = (SIDE * SIDE) as usize;
+    TileData {
+        key,
+        side: SIDE,
+        clock: SnowClock { time_s: seed as f64, ..SnowClock::default() },
+        snow_xor_rest: (0..n).map(|_| rng.next_u64() as u32).collect(),
+        stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
+        fallen: Vec::new(),
+    }
+}
+
+/// Unmounts on drop, so a failing test leaves no mount behind.
+struct Mounted(PathBuf);
+
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+/// A real full disk and a real read-only disk: a 256 KiB tmpfs, mounted by
+/// the test (root only; `.ci/run` sets SNOWPACK_REQUIRE_MOUNT so CI, which
+/// runs as root, cannot skip it). Writes fail with an I/O error naming the
+/// file, the tile that was there stays whole and readable, no temporary file
+/// is left; on the disk remounted read-only the store opens and reads, and
+/// every write is an I/O error.
+#[cfg(unix)]
+#[test]
+fn a_full_disk_and_a_read_only_disk_are_errors_that_keep_the_old_tiles() {
+    let dir = TestDir::new("tmpfs");
+    let mnt = dir.path().join("mnt");
+    fs::create_dir(&mnt).expect("mount point");
+    let mount = |args: &[&std::ffi::OsStr]| Command::new("mount").args(args).stderr(Stdio::null()).status().is_ok_and(|s| s.success());
+    if !mount(&["-t".as_ref(), "tmpfs".as_ref(), "-o".as_ref(), "size=256k".as_ref(), "tmpfs".as_ref(), mnt.as_os_str()]) {
+        assert!(std::env::var_os("SNOWPACK_REQUIRE_MOUNT").is_none(), "could not mount a tmpfs, and SNOWPACK_REQUIRE_MOUNT is set");
+        eprintln!("skipped: mounting a small tmpfs needs root (CI runs this test as root)");
+        return;
+    }
+    let _mounted = Mounted(mnt.clone());
+    let store_dir = mnt.join("store");
+    let mut store = TileStore::open(&store_dir, SIDE, StoreConfig::default()).expect("open on the tmpfs");
+    let kept = noisy(TileKey::new(0, 0), 1);
+    store.write(&kept).expect("the first tile fits");
+
+    // Fill the disk: some write fails with ENOSPC, as an error, not a panic.
+    let full = (1..200).find_map(|k| store.write(&noisy(TileKey::new(k, k % 3), k as u64)).err()).expect("a 256 KiB disk filled up");
+    assert!(matches!(full, StoreError::Io { .. }), "{full}");
+    assert!(full.path().is_some_and(|p| p.starts_with(&store_dir)), "the error names no file in the store: {full}");
+    // Replacing the kept tile on the full disk fails and leaves the old one whole.
+    assert!(store.write(&noisy(kept.key, 99)).is_err(), "a tile was written to a full disk");
+    assert_eq!(store.read(kept.key).expect("read"), Some(kept.clone()));
+    assert!(walk(&store_dir).iter().all(|p| !p.to_string_lossy().ends_with(".tmp")), "temporary files left behind");
+
+    // Read-only (remounted once the store has closed its files): the store
+    // opens and reads, and every write is an I/O error, not a panic.
+    drop(store);
+    assert!(mount(&["-o".as_ref(), "remount,ro".as_ref(), mnt.as_os_str()]), "remount read-only");
+    let mut store = TileStore::open(&store_dir, SIDE, StoreConfig::default()).expect("a store on a read-only disk opens for reading");
+    assert_eq!(store.read(kept.key).expect("read on a read-only disk"), Some(kept));
+    let refused = store.write(&noisy(TileKey::new(-5, -5), 5)).expect_err("a write to a read-only disk");
+    assert!(matches!(refused, StoreError::Io { .. }) && refused.path().is_some_and(|p| p.starts_with(&store_dir)), "{refused}");
+    assert!(store.write_state("window", b"state").is_err(), "a state was written to a read-only disk");
+}

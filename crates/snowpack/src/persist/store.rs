@@ -108,7 +108,8 @@ impl TileStore {
             Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
                 return Err(StoreError::Io { path: tiles, op: "create the tiles directory", source: e });
             }
-            _ => {}
+            Ok(()) => sync_dir(dir),
+            Err(_) => {}
         }
         remove_temp_files(dir);
 
@@ -228,7 +229,14 @@ impl TileStore {
                 Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
                     return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
                 }
-                _ => {}
+                // A new region folder is an entry in `tiles`: synced, so a
+                // power cut cannot lose the folder under a synced tile.
+                Ok(()) => {
+                    if let Some(tiles) = region.parent() {
+                        sync_dir(tiles);
+                    }
+                }
+                Err(_) => {}
             }
         }
         atomic_write(&path, &bytes)?;
