@@ -145,3 +145,54 @@ fn small_camera_steps_change_the_frame_little() {
     // crack would change whole patches at once.
     assert!(worst < 2.0, "a 2 cm camera step changed the frame by {worst:.2}/255 on average");
 }
+
+/// Mean of the 8-bit RGB channels of pixel `k`.
+fn luminance(image: &[u8], k: usize) -> f64 {
+    image[4 * k..4 * k + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0
+}
+
+#[test]
+fn compacted_snow_is_darker_only_where_pressed() {
+    let Some(ctx) = testing::gpu() else { return };
+    // A sphere dragged along z = 0 over flat ground with its bottom 15 cm
+    // above it: 70 % of the half metre pressed at the centre line, no bare ground.
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let mut actors = Vec::new();
+    for k in 0..40 {
+        actors = vec![Deformer::Sphere { center: Vec3::new(-3.0 + 0.15 * k as f32, 0.75, 0.0), radius: 0.6 }];
+        snow.step(ctx, &actors, 1.0 / 30.0).expect("frame");
+    }
+    snow.finish(ctx).expect("finish");
+    actors.clear();
+    let camera = Camera { position: Vec3::new(0.0, 5.0, -2.5), target: Vec3::new(0.0, 0.0, 0.5), fov_deg: 60.0 };
+    let size = (160, 120);
+    let on = RenderParams { ao_strength: 0.0, ..RenderParams::default() };
+    let off = RenderParams { material: on.material.without_compaction(), ..on };
+    let mut r = renderer(ctx, &snow, on);
+    let lit_on = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+    r.set_params(off);
+    let lit_off = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+    r.set_params(RenderParams { debug_view: DebugView::Deformation, ..on });
+    let pressed = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+
+    // The deformation view is grey (0.12) plus red for the fraction pressed.
+    let (mut deep, mut untouched) = (Vec::new(), Vec::new());
+    for k in 0..(size.0 * size.1) as usize {
+        let (red, green) = (i32::from(pressed[4 * k]), i32::from(pressed[4 * k + 1]));
+        if red - green > 90 {
+            deep.push(k);
+        } else if (red - green).abs() <= 1 {
+            untouched.push(k);
+        }
+    }
+    assert!(deep.len() > 300 && untouched.len() > 3000, "{} pressed and {} untouched pixels in view", deep.len(), untouched.len());
+    let mean = |image: &[u8], ks: &[usize]| ks.iter().map(|&k| luminance(image, k)).sum::<f64>() / ks.len() as f64;
+    let (deep_on, deep_off) = (mean(&lit_on, &deep), mean(&lit_off, &deep));
+    let (fresh_on, fresh_off) = (mean(&lit_on, &untouched), mean(&lit_off, &untouched));
+    eprintln!("{} pressed pixels: {deep_on:.1} on, {deep_off:.1} off; {} untouched: {fresh_on:.2} on, {fresh_off:.2} off", deep.len(), untouched.len());
+    // The packed albedo (0.6..0.76 against 0.92..0.98) darkens the trail floor clearly...
+    assert!(deep_on < deep_off - 15.0, "trail floor {deep_on:.1}/255 with compaction, {deep_off:.1}/255 without");
+    // ...and leaves untouched snow as it was (sparkle and detail are unchanged there).
+    assert!((fresh_on - fresh_off).abs() < 0.5, "untouched snow {fresh_on:.1}/255 with compaction, {fresh_off:.1}/255 without");
+}
