@@ -35,6 +35,10 @@ fn material_table(m: &Material) -> Table {
     t.insert("detail_strength".into(), float(m.detail_strength));
     t.insert("detail_frequency".into(), float(m.detail_frequency));
     t.insert("macro_variation".into(), float(m.macro_variation));
+    t.insert("compaction_full".into(), float(m.compaction_full));
+    t.insert("packed_detail".into(), float(m.packed_detail));
+    t.insert("packed_sparkle".into(), float(m.packed_sparkle));
+    t.insert("ground_show_through".into(), float(m.ground_show_through));
     t
 }
 

@@ -1062,5 +1062,15 @@ fn parse_material(m: &mut Fields<'_>, base: Material) -> Result<Material, SceneE
         detail_strength: m.non_negative("detail_strength", base.detail_strength, "")?,
         detail_frequency: m.positive("detail_frequency", base.detail_frequency, " of repeats per metre")?,
         macro_variation: unit(m, "macro_variation", base.macro_variation)?,
+        compaction_full: {
+            let x = m.f32("compaction_full", base.compaction_full)?;
+            if !(0.05..=1.0).contains(&x) {
+                return Err(m.err("compaction_full", format!("must be in 0.05..=1 (a fraction of the depth), got {x}")));
+            }
+            x
+        },
+        packed_detail: unit(m, "packed_detail", base.packed_detail)?,
+        packed_sparkle: unit(m, "packed_sparkle", base.packed_sparkle)?,
+        ground_show_through: unit(m, "ground_show_through", base.ground_show_through)?,
     })
 }

@@ -196,6 +196,10 @@ fn every_bad_value_names_the_file_and_the_key() {
         ("[render]\npatch_quads = 18\n", "[render].patch_quads"),
         ("[render]\nshadow_map_size = 100\n", "[render].shadow_map_size"),
         ("[render]\nview_distance_m = 0\n", "[render].view_distance_m"),
+        ("[material]\ncompaction_full = 0.01\n", "[material].compaction_full"),
+        ("[material]\npacked_detail = 1.5\n", "[material].packed_detail"),
+        ("[material]\npacked_sparkle = -0.1\n", "[material].packed_sparkle"),
+        ("[material]\nground_show_through = 2\n", "[material].ground_show_through"),
     ];
     for (text, key) in cases {
         let err = parse(text).expect_err(text);
@@ -233,6 +237,23 @@ ao_strength = 0.5
     assert_eq!(p.debug_view, DebugView::Wireframe);
     assert_eq!((p.patch_quads, p.ao_strength), (32, 0.5));
     assert_eq!(s.render.environment, snowpack_scene::EnvironmentSpec::Procedural);
+}
+
+#[test]
+fn compacted_snow_keys_are_understood_and_default_to_the_preset() {
+    use snowpack::render::MaterialPreset;
+    let s = parse("[render]\nmaterial = \"mud\"\n[material]\ncompaction_full = 0.5\npacked_detail = 1.0\npacked_sparkle = 0.25\n").expect("valid");
+    let m = s.render.params.material;
+    let mud = MaterialPreset::Mud.material();
+    assert_eq!((m.compaction_full, m.packed_detail, m.packed_sparkle), (0.5, 1.0, 0.25));
+    assert_eq!(m.ground_show_through, mud.ground_show_through, "unset keys keep the preset's value");
+    // The neutral material of docs/rendering.md's "off" image.
+    let off = parse("[material]\npacked_albedo = [0.92, 0.94, 0.98]\npacked_roughness = 0.8\npacked_detail = 1.0\npacked_sparkle = 1.0\nground_show_through = 0.0\n")
+        .expect("valid")
+        .render
+        .params
+        .material;
+    assert_eq!(off, MaterialPreset::Snow.material().without_compaction());
 }
 
 #[test]

@@ -194,11 +194,17 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         n = normalize(mix(n, surface_normal(taps), w));
         ao = mix(1.0, window_ao(taps), w);
     }
-    // How far the snow is pressed below its rest height, 0..1 of the depth.
+    // Compaction: how far the snow is pressed below its rest height, 0..1 of
+    // the rest depth (which includes the snow fallen so far), from the
+    // displayed height the draw already reads: no extra buffer, and refill
+    // raising the snow takes the compacted look away with it.
     let pressed = clamp((rest - h) / max(frame.snow.x, 1e-4), 0.0, 1.0);
-    let compaction = smoothstep(0.02, 0.35, pressed);
-    // Snow thickness above the ground; bare ground shows where it is gone.
+    let compaction = smoothstep(0.02, max(frame.compaction.x, 0.03), pressed);
+    // Snow thickness above the ground; bare ground shows where it is gone,
+    // and partly at the bottom of a print pressed to the last quarter of a
+    // deep layer (frame.compaction.w).
     let bare = 1.0 - smoothstep(0.005, 0.03, h - ground);
+    let show_through = frame.compaction.w * smoothstep(0.75, 1.0, pressed) * (1.0 - bare);
 
     // Decals (the decal technique's footprints): premultiplied normal x, z, tint, coverage.
     var tint = 1.0;
@@ -215,7 +221,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     }
 
     // Detail normals, UDN-blended at two scales; flattened in compacted snow.
-    let detail_strength = frame.detail.y * (1.0 - 0.7 * compaction) * (1.0 - bare);
+    let detail_strength = frame.detail.y * mix(1.0, frame.compaction.y, compaction) * (1.0 - bare);
     let dxz = (d1 + d2 * 0.8) * detail_strength;
     n = normalize(vec3<f32>(n.x + dxz.x, n.y, n.z + dxz.y));
 
@@ -223,10 +229,11 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let macro_noise = value_noise(xz.x / 9.0, xz.y / 9.0, 91u) * 0.6 + value_noise(xz.x / 31.0, xz.y / 31.0, 92u) * 0.4;
     var albedo = mix(frame.fresh.rgb, frame.packed.rgb, compaction) * (1.0 + frame.detail.w * macro_noise) * tint;
     var roughness = mix(frame.fresh.a, frame.packed.a, compaction);
-    albedo = mix(albedo, frame.ground.rgb, bare);
-    roughness = mix(roughness, frame.ground.a, bare);
+    albedo = mix(albedo, frame.ground.rgb, bare + show_through);
+    roughness = mix(roughness, frame.ground.a, bare + show_through);
 
-    let s = Surface(in.world, n, albedo, roughness, ao, frame.scatter.rgb, frame.scatter.a, frame.detail.x * (1.0 - compaction) * (1.0 - bare));
+    let sparkle = frame.detail.x * mix(1.0, frame.compaction.z, compaction) * (1.0 - bare - show_through);
+    let s = Surface(in.world, n, albedo, roughness, ao, frame.scatter.rgb, frame.scatter.a, sparkle);
     var colour = shade(s);
 
     switch frame.window_info.z {

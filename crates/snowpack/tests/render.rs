@@ -145,3 +145,74 @@ fn small_camera_steps_change_the_frame_little() {
     // crack would change whole patches at once.
     assert!(worst < 2.0, "a 2 cm camera step changed the frame by {worst:.2}/255 on average");
 }
+
+/// Mean of the 8-bit RGB channels of pixel `k`.
+fn luminance(image: &[u8], k: usize) -> f64 {
+    image[4 * k..4 * k + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0
+}
+
+#[test]
+fn compacted_snow_is_darker_only_where_pressed() {
+    let Some(ctx) = testing::gpu() else { return };
+    // A sphere dragged along z = 0 over flat ground with its bottom 15 cm
+    // above it (70 % of the half metre pressed at the centre line), and one
+    // along z = 2 with its bottom 4 cm above it (92 %: the ground shows
+    // through), no bare ground.
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let mut actors = Vec::new();
+    for k in 0..40 {
+        let x = -3.0 + 0.15 * k as f32;
+        actors = vec![Deformer::Sphere { center: Vec3::new(x, 0.75, 0.0), radius: 0.6 }, Deformer::Sphere { center: Vec3::new(x, 0.64, 2.0), radius: 0.6 }];
+        snow.step(ctx, &actors, 1.0 / 30.0).expect("frame");
+    }
+    snow.finish(ctx).expect("finish");
+    actors.clear();
+    let camera = Camera { position: Vec3::new(0.0, 5.0, -2.5), target: Vec3::new(0.0, 0.0, 0.5), fov_deg: 60.0 };
+    let size = (160, 120);
+    let on = RenderParams { ao_strength: 0.0, ..RenderParams::default() };
+    let off = RenderParams { material: on.material.without_compaction(), ..on };
+    let mut r = renderer(ctx, &snow, on);
+    let lit_on = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+    r.set_params(off);
+    let lit_off = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+    let mut no_ground = on;
+    no_ground.material.ground_show_through = 0.0;
+    r.set_params(no_ground);
+    let lit_no_ground = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+    r.set_params(RenderParams { debug_view: DebugView::Deformation, ..on });
+    let pressed = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+
+    // The deformation view is grey (0.12) plus red for the fraction pressed.
+    let (mut deep, mut untouched) = (Vec::new(), Vec::new());
+    for k in 0..(size.0 * size.1) as usize {
+        let (red, green) = (i32::from(pressed[4 * k]), i32::from(pressed[4 * k + 1]));
+        if red - green > 90 {
+            deep.push(k);
+        } else if (red - green).abs() <= 1 {
+            untouched.push(k);
+        }
+    }
+    assert!(deep.len() > 300 && untouched.len() > 3000, "{} pressed and {} untouched pixels in view", deep.len(), untouched.len());
+    let mean = |image: &[u8], ks: &[usize]| ks.iter().map(|&k| luminance(image, k)).sum::<f64>() / ks.len() as f64;
+    let (deep_on, deep_off) = (mean(&lit_on, &deep), mean(&lit_off, &deep));
+    let (fresh_on, fresh_off) = (mean(&lit_on, &untouched), mean(&lit_off, &untouched));
+    eprintln!("{} pressed pixels: {deep_on:.1} on, {deep_off:.1} off; {} untouched: {fresh_on:.2} on, {fresh_off:.2} off", deep.len(), untouched.len());
+    // The packed albedo (0.6..0.76 against 0.92..0.98) darkens the trail floor clearly...
+    assert!(deep_on < deep_off - 15.0, "trail floor {deep_on:.1}/255 with compaction, {deep_off:.1}/255 without");
+    // ...and leaves untouched snow as it was (sparkle and detail are unchanged there).
+    assert!((fresh_on - fresh_off).abs() < 0.5, "untouched snow {fresh_on:.1}/255 with compaction, {fresh_off:.1}/255 without");
+    // The ground (brown, dark) shows only in the deeper print: pixels it
+    // changes are pressed ones, and they turn darker and (a little: the blue
+    // sky and scattering light the trench floor) warmer.
+    // Warmth: red over blue (the packed snow is blue-grey, the ground brown).
+    let warmth = |image: &[u8], k: usize| f64::from(image[4 * k]) / f64::from(image[4 * k + 2]).max(1.0);
+    let through: Vec<usize> = (0..(size.0 * size.1) as usize).filter(|&k| (luminance(&lit_on, k) - luminance(&lit_no_ground, k)).abs() > 4.0).collect();
+    assert!(through.len() > 100, "the ground shows through in only {} pixels", through.len());
+    assert!(through.iter().all(|k| deep.contains(k)), "the ground shows through outside the pressed trails");
+    let n = through.len() as f64;
+    let darker = through.iter().map(|&k| luminance(&lit_no_ground, k) - luminance(&lit_on, k)).sum::<f64>() / n;
+    let warmer = through.iter().map(|&k| warmth(&lit_on, k) - warmth(&lit_no_ground, k)).sum::<f64>() / n;
+    eprintln!("ground shows through in {} pixels: {darker:.1}/255 darker, red/blue up {warmer:.3}", through.len());
+    assert!(darker > 8.0 && warmer > 0.0, "where the ground shows through: {darker:.1}/255 darker, red/blue up {warmer:.3}");
+}

@@ -99,6 +99,10 @@ fn material_ui(ui: &mut egui::Ui, m: &mut Material) {
     ui.add(Slider::new(&mut m.fresh_roughness, 0.05..=1.0).text("fresh roughness"));
     colour(ui, "packed albedo (trails)", &mut m.packed_albedo);
     ui.add(Slider::new(&mut m.packed_roughness, 0.05..=1.0).text("packed roughness"));
+    ui.add(Slider::new(&mut m.compaction_full, 0.05..=1.0).text("fully packed at (fraction of depth)"));
+    ui.add(Slider::new(&mut m.packed_detail, 0.0..=1.0).text("packed detail kept"));
+    ui.add(Slider::new(&mut m.packed_sparkle, 0.0..=1.0).text("packed sparkle kept"));
+    ui.add(Slider::new(&mut m.ground_show_through, 0.0..=1.0).text("ground through deep prints"));
     colour(ui, "ground albedo", &mut m.ground_albedo);
     ui.add(Slider::new(&mut m.ground_roughness, 0.05..=1.0).text("ground roughness"));
     colour(ui, "scatter tint", &mut m.scatter);

@@ -18,6 +18,7 @@ struct Frame {
     detail: vec4<f32>,          // sparkle, detail normal strength, detail frequency (1/m), macro variation
     background: vec4<f32>,      // solid background rgb; w: 1 draws it instead of the sky
     env_info: vec4<u32>,        // full environment width, height; unused, unused
+    compaction: vec4<f32>,      // pressed fraction of the full compacted look, detail kept, sparkle kept, ground show-through
 }
 
 // Debug views (`DebugView` in `src/render/params.rs`).

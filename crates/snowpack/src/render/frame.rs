@@ -38,4 +38,6 @@ pub struct FrameUniforms {
     pub background: [f32; 4],
     /// Environment width and height (texels), unused, unused.
     pub env_info: [u32; 4],
+    /// Compacted snow: full-look pressed fraction, detail kept, sparkle kept, ground show-through.
+    pub compaction: [f32; 4],
 }

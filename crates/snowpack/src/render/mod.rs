@@ -359,6 +359,7 @@ impl Renderer {
             detail: [m.sparkle, m.detail_strength, m.detail_frequency, m.macro_variation],
             background: p.background.map_or([0.0; 4], |c| c.extend(1.0).to_array()),
             env_info: [self.env.size.0, self.env.size.1, 0, 0],
+            compaction: [m.compaction_full, m.packed_detail, m.packed_sparkle, m.ground_show_through],
         };
         (u, lod)
     }

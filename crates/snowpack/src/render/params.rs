@@ -50,6 +50,10 @@ impl MaterialPreset {
                 detail_strength: 0.25,
                 detail_frequency: 0.6,
                 macro_variation: 0.05,
+                compaction_full: 0.35,
+                packed_detail: 0.3,
+                packed_sparkle: 0.1,
+                ground_show_through: 0.6,
             },
             Self::Mud => Material {
                 preset: self,
@@ -65,6 +69,10 @@ impl MaterialPreset {
                 detail_strength: 0.35,
                 detail_frequency: 0.8,
                 macro_variation: 0.15,
+                compaction_full: 0.3,
+                packed_detail: 0.5,
+                packed_sparkle: 0.0,
+                ground_show_through: 0.35,
             },
             Self::Sand => Material {
                 preset: self,
@@ -80,6 +88,10 @@ impl MaterialPreset {
                 detail_strength: 0.4,
                 detail_frequency: 1.2,
                 macro_variation: 0.1,
+                compaction_full: 0.4,
+                packed_detail: 0.6,
+                packed_sparkle: 0.3,
+                ground_show_through: 0.3,
             },
         }
     }
@@ -114,6 +126,36 @@ pub struct Material {
     pub detail_frequency: f32,
     /// Amplitude of the low-frequency brightness drift.
     pub macro_variation: f32,
+    /// Pressed fraction of the rest depth (0..1) at which the compacted look
+    /// (`packed_*`) is complete; it starts at 2 % (below that is filtering noise).
+    pub compaction_full: f32,
+    /// Fraction of the detail normal kept in fully compacted snow (1: as fresh).
+    pub packed_detail: f32,
+    /// Fraction of the sparkle kept in fully compacted snow (1: as fresh).
+    pub packed_sparkle: f32,
+    /// How much of the ground colour shows at the bottom of a print pressed
+    /// to the ground (0 none, 1 the ground's albedo and roughness); it rises
+    /// over the last quarter of the depth, so a deep print shows it before
+    /// the snow is gone.
+    pub ground_show_through: f32,
+}
+
+impl Material {
+    /// This material with the compacted look switched off: trails have the
+    /// fresh albedo, roughness, detail and sparkle and no ground shows
+    /// through (bare ground where the snow is gone still shows). For
+    /// before/after comparisons.
+    #[must_use]
+    pub fn without_compaction(self) -> Self {
+        Self {
+            packed_albedo: self.fresh_albedo,
+            packed_roughness: self.fresh_roughness,
+            packed_detail: 1.0,
+            packed_sparkle: 1.0,
+            ground_show_through: 0.0,
+            ..self
+        }
+    }
 }
 
 /// What the terrain and actors show instead of the lit image (Wasmut's appendix).
