@@ -248,11 +248,12 @@ fn compacted_snow_keys_are_understood_and_default_to_the_preset() {
     assert_eq!((m.compaction_full, m.packed_detail, m.packed_sparkle), (0.5, 1.0, 0.25));
     assert_eq!(m.ground_show_through, mud.ground_show_through, "unset keys keep the preset's value");
     // The neutral material of docs/rendering.md's "off" image.
-    let off = parse("[material]\npacked_albedo = [0.92, 0.94, 0.98]\npacked_roughness = 0.8\npacked_detail = 1.0\npacked_sparkle = 1.0\nground_show_through = 0.0\n")
-        .expect("valid")
-        .render
-        .params
-        .material;
+    let off =
+        parse("[material]\npacked_albedo = [0.92, 0.94, 0.98]\npacked_roughness = 0.8\npacked_detail = 1.0\npacked_sparkle = 1.0\nground_show_through = 0.0\n")
+            .expect("valid")
+            .render
+            .params
+            .material;
     assert_eq!(off, MaterialPreset::Snow.material().without_compaction());
 }
 
