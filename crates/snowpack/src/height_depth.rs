@@ -16,8 +16,15 @@ pub const CAPTURE_CODES: f32 = 65535.0;
 /// A depth texture bindable where the update pass reads the occlusion depth.
 #[must_use]
 pub fn sky_depth_texture(device: &wgpu::Device, resolution: u32) -> wgpu::Texture {
+    height_depth_texture(device, "sky occlusion depth", resolution)
+}
+
+/// A square `resolution`² depth target of [`CAPTURE_FORMAT`] that passes can
+/// also read (the capture, the sky occlusion).
+#[must_use]
+pub fn height_depth_texture(device: &wgpu::Device, label: &str, resolution: u32) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("sky occlusion depth"),
+        label: Some(label),
         size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },
         mip_level_count: 1,
         sample_count: 1,

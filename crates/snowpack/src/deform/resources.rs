@@ -14,7 +14,7 @@
 //! source, never stored per texel.
 
 use crate::gpu::layout;
-use crate::height_depth::CAPTURE_FORMAT;
+use crate::height_depth::height_depth_texture;
 use crate::{SnowParams, TerrainSource};
 
 use super::terrain_bake::TerrainBakePass;
@@ -85,16 +85,7 @@ impl DeformResources {
         };
         let terrain_params = layout::uniform_buffer::<TerrainParams>(device, "terrain params");
         queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&TerrainParams::new(terrain)));
-        let capture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("capture depth"),
-            size: wgpu::Extent3d { width: res, height: res, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: CAPTURE_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let capture = height_depth_texture(device, "capture depth", res);
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
         Self {
             resolution: res,
