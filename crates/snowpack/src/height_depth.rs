@@ -22,7 +22,7 @@ pub fn sky_depth_texture(device: &wgpu::Device, resolution: u32) -> wgpu::Textur
 /// A square `resolution`² depth target of [`CAPTURE_FORMAT`] that passes can
 /// also read (the capture, the sky occlusion).
 #[must_use]
-pub fn height_depth_texture(device: &wgpu::Device, label: &str, resolution: u32) -> wgpu::Texture {
+pub(crate) fn height_depth_texture(device: &wgpu::Device, label: &str, resolution: u32) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d { width: resolution, height: resolution, depth_or_array_layers: 1 },

@@ -66,13 +66,6 @@ pub fn with_shown(word: u32, above_ground: f32) -> u32 {
     (word & 0xffff) | (f16_bits(above_ground) << 16)
 }
 
-/// A word for snow `deficit` quanta below rest (displayed height zero until
-/// the display pass writes it).
-#[must_use]
-pub fn from_deficit(deficit: u32) -> u32 {
-    deficit.min(0xffff)
-}
-
 /// f16 bits of `v` as `snow_f16_bits` computes them: round to nearest even,
 /// subnormals to zero, clamped to the largest finite f16.
 #[must_use]
@@ -143,7 +136,7 @@ mod tests {
         }
         assert_eq!(deficit_quanta(-1.0), 0);
         assert_eq!(deficit_quanta(100.0), 65_535);
-        assert_eq!(shown(with_shown(from_deficit(7), 0.25), 1.0), 1.25);
+        assert_eq!(shown(with_shown(7, 0.25), 1.0), 1.25);
         // A press to the terrain reads as the terrain, whatever the rounding.
         for rest in [0.3, 0.123_456_7, 1.000_05, 6.5] {
             let ground = 0.017;
@@ -152,6 +145,6 @@ mod tests {
         }
         // Deeper than a deficit holds: the deepest press stops above the terrain.
         assert!(height(press_quanta(10.0, 0.0, 0.0), 10.0, 0.0) > 3.0);
-        assert_eq!(with_shown(from_deficit(7), 0.25) & 0xffff, 7);
+        assert_eq!(with_shown(7, 0.25) & 0xffff, 7);
     }
 }

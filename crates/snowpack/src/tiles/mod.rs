@@ -14,3 +14,14 @@ pub mod streaming;
 pub mod weather;
 
 pub use streaming::{TileGrid, TileStats, TileStreaming};
+
+/// A storage buffer the CPU fills through the queue (a tile pass's entry
+/// list or upload), at least 16 bytes.
+pub(crate) fn input_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}

@@ -78,15 +78,6 @@ pub struct TileRestorePass {
     bind_group: wgpu::BindGroup,
 }
 
-fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(16),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
-}
-
 impl TileRestorePass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
@@ -105,8 +96,8 @@ impl TileRestorePass {
             ],
         );
         let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
-        let entries = storage_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);
-        let upload = storage_buffer(device, "tile upload", 16);
+        let entries = super::input_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);
+        let upload = super::input_buffer(device, "tile upload", 16);
         let bind_group = Self::group(device, &bgl, &params, &entries, &upload, res, tiles);
         Self { pipeline, bgl, params, entries, upload, bind_group }
     }
@@ -156,10 +147,10 @@ impl TileRestorePass {
         let upload_bytes = std::mem::size_of_val(upload) as u64;
         if entry_bytes > self.entries.size() || upload_bytes > self.upload.size() {
             if entry_bytes > self.entries.size() {
-                self.entries = storage_buffer(device, "tile restore entries", entry_bytes.next_power_of_two());
+                self.entries = super::input_buffer(device, "tile restore entries", entry_bytes.next_power_of_two());
             }
             if upload_bytes > self.upload.size() {
-                self.upload = storage_buffer(device, "tile upload", upload_bytes.next_power_of_two());
+                self.upload = super::input_buffer(device, "tile upload", upload_bytes.next_power_of_two());
             }
             self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, &self.upload, res, tiles);
         }

@@ -59,18 +59,9 @@ impl TileSealPass {
             ],
         );
         let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");
-        let entries = Self::entry_buffer(device, 64 * 16);
+        let entries = super::input_buffer(device, "tile seal entries", 64 * 16);
         let bind_group = Self::group(device, &bgl, &params, &entries, res, tiles);
         Self { pipeline, bgl, params, entries, bind_group }
-    }
-
-    fn entry_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
-        device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile seal entries"),
-            size: bytes.max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
     }
 
     fn group(
@@ -114,7 +105,7 @@ impl TileSealPass {
         }
         let bytes = std::mem::size_of_val(entries) as u64;
         if bytes > self.entries.size() {
-            self.entries = Self::entry_buffer(device, bytes.next_power_of_two());
+            self.entries = super::input_buffer(device, "tile seal entries", bytes.next_power_of_two());
             self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, res, tiles);
         }
         params.count = entries.len() as u32;

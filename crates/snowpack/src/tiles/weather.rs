@@ -83,12 +83,7 @@ impl TileWeatherPass {
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
         // One entry per slot at most (the owners buffer holds 16 bytes per slot).
-        let slots = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile weather slots"),
-            size: (owners.size() / 4).max(4),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let slots = super::input_buffer(device, "tile weather slots", owners.size() / 4);
         let bind_group = layout::bind_group(
             device,
             "tile weather",
