@@ -35,6 +35,13 @@ impl SnowFoot {
     pub fn new(kind: FootKind) -> Self {
         Self { kind, contact_m: 0.03, down: false }
     }
+
+    /// The same foot touching the snow within `contact_m` (a bone that sits above the sole).
+    #[must_use]
+    pub fn with_contact(mut self, contact_m: f32) -> Self {
+        self.contact_m = contact_m;
+        self
+    }
 }
 
 /// A foot came down on the snow.

@@ -1,7 +1,8 @@
 //! The snow ground: `ExtendedMaterial<StandardMaterial, SnowGroundExtension>`
 //! whose main and prepass vertex shaders displace the mesh to the snow
-//! surface with snowpack's exported sampling WGSL, and bounds grown to the
-//! snow's height range so the displaced ground is not culled.
+//! surface with snowpack's exported sampling WGSL, whose fragment shader
+//! gives trails the compacted look of snowpack's material, and bounds grown
+//! to the snow's height range so the displaced ground is not culled.
 
 use bevy::asset::uuid_handle;
 use bevy::camera::primitives::Aabb;
@@ -29,15 +30,62 @@ pub type SnowGroundMaterial = ExtendedMaterial<StandardMaterial, SnowGroundExten
 /// (the standard material's own bindings are below 100).
 pub const FIRST_BINDING: u32 = 100;
 
+/// Binding of the fragment shader's `SnowLook` uniform, after the sampling module's four.
+const LOOK_BINDING: u32 = FIRST_BINDING + 4;
+
 const VERTEX_SHADER: Handle<Shader> = uuid_handle!("5b0f3d8e-4f0c-4a55-9d5e-1c2a9d7e6b01");
 const PREPASS_SHADER: Handle<Shader> = uuid_handle!("5b0f3d8e-4f0c-4a55-9d5e-1c2a9d7e6b02");
+const FRAGMENT_SHADER: Handle<Shader> = uuid_handle!("5b0f3d8e-4f0c-4a55-9d5e-1c2a9d7e6b03");
 
 /// The extension that displaces a [`StandardMaterial`]'s mesh to the snow
-/// surface (main pass and prepass: depth, normals and shadows match). The
-/// mesh supplies x and z only (a flat grid covering the window, with normals;
-/// `Plane3d` subdivided does); its heights and normals come from the snow.
-#[derive(Asset, Reflect, Clone, Debug, Default)]
-pub struct SnowGroundExtension;
+/// surface (main pass and prepass: depth, normals and shadows match) and
+/// shades trails as snowpack's material does. The mesh supplies x and z only
+/// (a flat grid covering the window, with normals; `Plane3d` subdivided
+/// does); its heights and normals come from the snow. The standard
+/// material's base colour and roughness are the fresh snow's.
+#[derive(Asset, Reflect, Clone, Debug, PartialEq)]
+pub struct SnowGroundExtension {
+    /// Albedo of snow pressed to the full compacted look (linear RGB).
+    pub packed_albedo: Vec3,
+    /// Roughness of fully compacted snow.
+    pub packed_roughness: f32,
+    /// Albedo of the ground where the snow is gone or shows through.
+    pub ground_albedo: Vec3,
+    /// Roughness of the ground.
+    pub ground_roughness: f32,
+    /// Pressed fraction of the snow's depth at which the compacted look is complete.
+    pub compaction_full: f32,
+    /// How much ground shows at the bottom of a print pressed to it (0..1).
+    pub ground_show_through: f32,
+}
+
+impl SnowGroundExtension {
+    /// The compacted look, ground and show-through of one of snowpack's materials.
+    #[must_use]
+    pub fn from_material(m: &snowpack::render::Material) -> Self {
+        Self {
+            packed_albedo: m.packed_albedo,
+            packed_roughness: m.packed_roughness,
+            ground_albedo: m.ground_albedo,
+            ground_roughness: m.ground_roughness,
+            compaction_full: m.compaction_full,
+            ground_show_through: m.ground_show_through,
+        }
+    }
+
+    /// The `SnowLook` uniform of the fragment shader.
+    fn look(&self) -> [f32; 12] {
+        let (p, g) = (self.packed_albedo, self.ground_albedo);
+        [p.x, p.y, p.z, self.packed_roughness, g.x, g.y, g.z, self.ground_roughness, self.compaction_full, self.ground_show_through, 0.0, 0.0]
+    }
+}
+
+impl Default for SnowGroundExtension {
+    /// snowpack's snow preset.
+    fn default() -> Self {
+        Self::from_material(&snowpack::render::Material::default())
+    }
+}
 
 /// The deformation's buffers the material binds, in the render world.
 #[derive(Resource, Clone)]
@@ -63,7 +111,7 @@ impl AsBindGroup for SnowGroundExtension {
     fn build_bind_group(
         &self,
         _layout: &BindGroupLayout,
-        _render_device: &RenderDevice,
+        render_device: &RenderDevice,
         buffers: &mut SystemParamItem<'_, '_, Self::Param>,
         _force_no_bindless: bool,
         output: &mut BindGroupBuilder,
@@ -73,6 +121,12 @@ impl AsBindGroup for SnowGroundExtension {
         for (k, b) in buffers.0.iter().enumerate() {
             output.push((FIRST_BINDING + k as u32, UnpreparedBindingResource::Buffer(b.clone())));
         }
+        let look = render_device.create_buffer_with_data(&wgpu::util::BufferInitDescriptor {
+            label: Some("snow_ground_look"),
+            contents: bytemuck::cast_slice(&self.look()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        output.push((LOOK_BINDING, UnpreparedBindingResource::Buffer(look)));
         Ok(())
     }
 
@@ -80,12 +134,19 @@ impl AsBindGroup for SnowGroundExtension {
     where
         Self: Sized,
     {
+        let look = BindGroupLayoutEntry {
+            binding: LOOK_BINDING,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: wgpu::BufferSize::new(48) },
+            count: None,
+        };
         sampling_layout_entries(wgpu::ShaderStages::VERTEX_FRAGMENT)
             .into_iter()
             .map(|mut e| {
                 e.binding += FIRST_BINDING;
                 e
             })
+            .chain([look])
             .collect()
     }
 }
@@ -101,6 +162,14 @@ impl MaterialExtension for SnowGroundExtension {
 
     fn deferred_vertex_shader() -> ShaderRef {
         ShaderRef::Handle(PREPASS_SHADER)
+    }
+
+    fn fragment_shader() -> ShaderRef {
+        ShaderRef::Handle(FRAGMENT_SHADER)
+    }
+
+    fn deferred_fragment_shader() -> ShaderRef {
+        ShaderRef::Handle(FRAGMENT_SHADER)
     }
 }
 
@@ -139,9 +208,14 @@ pub(crate) fn build(app: &mut App) {
         shader_source(include_str!("shaders/ground_prepass.wesl"), include_str!("shaders/ground_prepass_main.wesl")),
         "embedded://bevy_snowpack/ground_prepass.wesl",
     );
+    let fragment = Shader::from_wesl(
+        shader_source(include_str!("shaders/ground_fragment.wesl"), include_str!("shaders/ground_fragment_main.wesl")),
+        "embedded://bevy_snowpack/ground_fragment.wesl",
+    );
     // The handles are constant ids; inserting cannot fail for them.
     let _ = shaders.insert(VERTEX_SHADER.id(), main);
     let _ = shaders.insert(PREPASS_SHADER.id(), prepass);
+    let _ = shaders.insert(FRAGMENT_SHADER.id(), fragment);
     app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default()).add_systems(PostUpdate, grow_ground_bounds.after(VisibilitySystems::CalculateBounds));
 }
 

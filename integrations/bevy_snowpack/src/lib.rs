@@ -23,17 +23,22 @@
 //!     .run();
 //! ```
 
+mod control;
 mod footsteps;
 mod ground;
 mod ground_pass;
+mod mesh_deformer;
 mod query;
 mod render;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use glam::DVec2;
+use snowpack::accumulate::ObjectShape;
+use snowpack::persist::{StoreConfig, StreamerConfig};
 use snowpack::{SnowParams, TerrainSource};
 
+pub use control::SnowControl;
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 pub use ground_pass::SnowGroundPass;
@@ -53,6 +58,32 @@ pub struct SnowpackSettings {
     /// Step the snow by this many seconds each frame instead of the frame's
     /// `Time` delta: deterministic replays and tests.
     pub fixed_dt_s: Option<f32>,
+    /// Keep trails that leave the window on disk (and load a save found
+    /// there); `None` keeps them in memory (`params.tile_memory_bytes`).
+    pub store: Option<SnowStoreSettings>,
+}
+
+/// A disk store for the snow that leaves the window: the library's tile
+/// store (`docs/persistence.md`). A save in `dir` ([`SnowControl::request_save`])
+/// is loaded when the app starts again with the same window settings.
+#[derive(Clone, Debug)]
+pub struct SnowStoreSettings {
+    /// The store's folder (created when missing; one app at a time).
+    pub dir: std::path::PathBuf,
+    /// Side of a stored tile (texels; the window's resolution need not be a multiple).
+    pub tile_texels: u32,
+    /// Disk budget (least recently used tiles go beyond it).
+    pub disk: StoreConfig,
+    /// Memory the streamer keeps tiles in before and after the disk.
+    pub memory: StreamerConfig,
+}
+
+impl SnowStoreSettings {
+    /// A store in `dir` with tiles of 64 texels, no disk budget and 128 MiB of memory.
+    #[must_use]
+    pub fn new(dir: impl Into<std::path::PathBuf>) -> Self {
+        Self { dir: dir.into(), tile_texels: 64, disk: StoreConfig::default(), memory: StreamerConfig::default() }
+    }
 }
 
 impl Default for SnowpackSettings {
@@ -62,6 +93,7 @@ impl Default for SnowpackSettings {
             terrain: TerrainSource::Flat { height_m: 0.0 },
             center: Vec2::ZERO,
             fixed_dt_s: None,
+            store: None,
         }
     }
 }
@@ -80,17 +112,53 @@ pub enum SnowDeformer {
         /// Half the box's size along the entity's axes (m) before scaling.
         half_extents: Vec3,
     },
+    /// The entity's own mesh (`Mesh3d`) in its current pose, or, on an
+    /// entity without one (a glTF scene's root), every mesh below it.
+    /// Skinned meshes press in pose (the library skins them on the GPU from
+    /// the joints' transforms); the mesh asset must keep its data in the
+    /// main world (`RenderAssetUsages::MAIN_WORLD`, the glTF default).
+    Mesh,
 }
 
 impl SnowDeformer {
-    /// The library's deformer for this shape placed at `transform`.
+    /// The library's deformer for this shape placed at `transform`; `None`
+    /// for [`Self::Mesh`], which presses as a posed mesh instead.
     #[must_use]
-    pub fn placed(&self, transform: &GlobalTransform) -> snowpack::Deformer {
+    pub fn placed(&self, transform: &GlobalTransform) -> Option<snowpack::Deformer> {
         let (scale, rotation, translation) = transform.to_scale_rotation_translation();
         match *self {
-            Self::Sphere { radius } => snowpack::Deformer::Sphere { center: translation, radius: radius * scale.abs().max_element() },
-            Self::Box { half_extents } => snowpack::Deformer::Box { center: translation, half_extents: half_extents * scale.abs(), rotation },
+            Self::Sphere { radius } => Some(snowpack::Deformer::Sphere { center: translation, radius: radius * scale.abs().max_element() }),
+            Self::Box { half_extents } => Some(snowpack::Deformer::Box { center: translation, half_extents: half_extents * scale.abs(), rotation }),
+            Self::Mesh => None,
         }
+    }
+}
+
+/// An object snow settles on while it falls (`params.snowfall`): the
+/// library's accumulation on its upward surfaces where the sky reaches them,
+/// carried along as the entity moves and turns. Adding or removing one lays
+/// the objects' atlas out anew (their snow so far is lost). Read the snow on
+/// each through [`SnowControl::request_object_stats`]; the atlas itself is
+/// `SnowRenderState::deformation().accumulation()`.
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct SnowObject {
+    /// Its shape (a box or a sphere around the entity's origin, or a mesh).
+    pub shape: ObjectShape,
+    /// Whether its snow is dilated across chart seams (off for thin, holey objects).
+    pub dilate: bool,
+}
+
+impl SnowObject {
+    /// A box of these side lengths (m).
+    #[must_use]
+    pub fn cuboid(size_m: Vec3) -> Self {
+        Self { shape: ObjectShape::Box { size_m }, dilate: true }
+    }
+
+    /// A sphere of this radius (m).
+    #[must_use]
+    pub fn sphere(radius_m: f32) -> Self {
+        Self { shape: ObjectShape::Sphere { radius_m }, dilate: true }
     }
 }
 
@@ -116,12 +184,14 @@ impl SnowpackPlugin {
 impl Plugin for SnowpackPlugin {
     fn build(&self, app: &mut App) {
         let query = SnowQuery::default();
-        app.insert_resource(self.settings.clone()).insert_resource(query.clone());
+        let control = SnowControl::default();
+        app.insert_resource(self.settings.clone()).insert_resource(query.clone()).insert_resource(control.clone());
         footsteps::build(app);
         ground::build(app);
         ground_pass::build(app);
+        mesh_deformer::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
-            render::build(render_app, self.settings.clone(), query);
+            render::build(render_app, self.settings.clone(), query, control);
         }
     }
 }

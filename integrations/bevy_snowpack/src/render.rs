@@ -2,17 +2,22 @@
 //! deformers extracted from the main world, the frame recorded into the
 //! render graph before `camera_driver`, readbacks started after the submit.
 
+use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
 
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, RenderStartup};
+use snowpack::accumulate::ObjectShape;
+use snowpack::persist::{TileStore, TileStreamer};
 use snowpack::render::sampling::SnowWindowUniform;
-use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame};
+use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 
+use crate::control::SnowControl;
+use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};
 use crate::query::{SnowQuery, SnowTicket};
-use crate::{SnowDeformer, SnowWindowTarget, SnowpackSettings, dvec2};
+use crate::{SnowDeformer, SnowObject, SnowStoreSettings, SnowWindowTarget, SnowpackSettings, dvec2};
 
 /// The plugin's deformation in the render world, on Bevy's device and queue.
 /// Tests and tools read it back (`deformation().read_snow(context())`).
@@ -26,6 +31,10 @@ pub struct SnowRenderState {
     pub(crate) window: wgpu::Buffer,
     /// Library tickets of the combined requests in flight, with the callers' tickets and ranges.
     in_flight: Vec<(snowpack::QueryTicket, Split)>,
+    /// Mesh deformers registered with the library, by mesh entity.
+    meshes: HashMap<u64, SkinnedId>,
+    /// The objects the accumulation was laid out for (entity, shape, dilate), in its order.
+    objects: Vec<(Entity, ObjectShape, bool)>,
 }
 
 impl SnowRenderState {
@@ -55,28 +64,42 @@ type Split = Vec<(SnowTicket, std::ops::Range<usize>)>;
 pub(crate) struct ExtractedSnowFrame {
     dt_s: f32,
     deformers: Vec<Deformer>,
+    /// A stable id per deformer (its entity), so each is swept from its own last pose.
+    ids: Vec<u64>,
     center: Option<Vec2>,
     requests: Vec<(SnowTicket, Vec<Vec2>)>,
+    meshes: MeshDeformerFrame,
+    /// Every object this frame, by entity, with its pose.
+    objects: Vec<(Entity, SnowObject, Vec3, Quat)>,
 }
 
 /// The settings, in the render world.
 #[derive(Resource)]
 struct RenderSettings(SnowpackSettings);
 
-pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, query: SnowQuery) {
+pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, query: SnowQuery, control: SnowControl) {
     render_app
         .insert_resource(RenderSettings(settings))
         .insert_resource(query)
+        .insert_resource(control)
         .init_resource::<ExtractedSnowFrame>()
         .add_systems(RenderStartup, create_deformation)
         .add_systems(ExtractSchedule, extract_snow_frame)
         .add_systems(RenderGraph, (encode_snow.before(camera_driver), after_submit.in_set(RenderGraphSystems::Finish)));
 }
 
-fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, control: Res<SnowControl>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
     let ctx = GpuContext::from_device(device.wgpu_device().clone(), (**queue).clone());
     let s = &settings.0;
-    match SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), dvec2(s.center)) {
+    let created = SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), dvec2(s.center)).and_then(|mut snow| {
+        let loaded = match &s.store {
+            Some(store) => attach_store(&ctx, &mut snow, store)?,
+            None => false,
+        };
+        control.set_loaded_save(loaded);
+        Ok(snow)
+    });
+    match created {
         Ok(snow) => {
             let window = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("bevy_snowpack window"),
@@ -86,31 +109,96 @@ fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, dev
             });
             ctx.queue.write_buffer(&window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(&snow)));
             commands.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &window));
-            commands.insert_resource(SnowRenderState { ctx, snow: Mutex::new(snow), window, in_flight: Vec::new() });
+            commands.insert_resource(SnowRenderState {
+                ctx,
+                snow: Mutex::new(snow),
+                window,
+                in_flight: Vec::new(),
+                meshes: HashMap::new(),
+                objects: Vec::new(),
+            });
         }
         Err(e) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
     }
 }
 
+/// The disk store of the settings, attached before the first frame; `Ok(true)`: a save was loaded.
+fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, store: &SnowStoreSettings) -> Result<bool, snowpack::SnowError> {
+    let tiles = TileStore::open(&store.dir, store.tile_texels, store.disk)?;
+    snow.attach_store(ctx, TileStreamer::new(tiles, store.memory))
+}
+
+#[allow(clippy::too_many_arguments, reason = "an extract system: each argument is a main-world query or resource it copies")]
 fn extract_snow_frame(
     mut frame: ResMut<ExtractedSnowFrame>,
     settings: Res<RenderSettings>,
     query: Res<SnowQuery>,
     time: Extract<Res<Time>>,
-    deformers: Extract<Query<(&SnowDeformer, &GlobalTransform)>>,
+    deformers: Extract<Query<(Entity, &SnowDeformer, &GlobalTransform)>>,
     target: Extract<Query<&GlobalTransform, With<SnowWindowTarget>>>,
+    meshes: Extract<Res<MeshDeformerFrame>>,
+    objects: Extract<Query<(Entity, &SnowObject, &GlobalTransform)>>,
 ) {
     frame.dt_s = settings.0.fixed_dt_s.unwrap_or_else(|| time.delta_secs());
-    frame.deformers.clear();
-    frame.deformers.extend(deformers.iter().map(|(d, t)| d.placed(t)));
+    let placed: Vec<(u64, Deformer)> = deformers.iter().filter_map(|(e, d, t)| d.placed(t).map(|d| (e.to_bits(), d))).collect();
+    frame.ids = placed.iter().map(|(id, _)| *id).collect();
+    frame.deformers = placed.into_iter().map(|(_, d)| d).collect();
     frame.center = target.iter().next().map(|t| t.translation().xz());
     frame.requests = query.take_requests();
+    frame.meshes = (*meshes).clone();
+    frame.objects = objects
+        .iter()
+        .map(|(e, o, t)| {
+            let (_, rotation, translation) = t.to_scale_rotation_translation();
+            (e, o.clone(), translation, rotation)
+        })
+        .collect();
+    frame.objects.sort_by_key(|(e, ..)| *e);
+}
+
+/// Registers the meshes new this frame; the poses of every registered one.
+fn pose_meshes(ctx: &GpuContext, snow: &mut SnowDeformation, ids: &mut HashMap<u64, SkinnedId>, frame: &MeshDeformerFrame) -> Vec<(SkinnedId, usize)> {
+    for MeshRegistration { key, mesh, joint_count } in &frame.registrations {
+        match snow.add_skinned_mesh(ctx, mesh, *joint_count) {
+            Ok(id) => {
+                ids.insert(*key, id);
+            }
+            Err(e) => tracing::error!("bevy_snowpack: a mesh deformer cannot be registered: {e}"),
+        }
+    }
+    frame.poses.iter().enumerate().filter_map(|(k, MeshPose { key, .. })| ids.get(key).map(|&id| (id, k))).collect()
+}
+
+/// Lays the objects out anew when the set changed, then places each.
+fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Vec<(Entity, ObjectShape, bool)>, objects: &[(Entity, SnowObject, Vec3, Quat)]) {
+    let now: Vec<(Entity, ObjectShape, bool)> = objects.iter().map(|(e, o, ..)| (*e, o.shape.clone(), o.dilate)).collect();
+    if now != *laid_out {
+        let list: Vec<snowpack::SnowObject> = objects
+            .iter()
+            .map(|(e, o, position, rotation)| snowpack::SnowObject {
+                name: format!("{e}"),
+                shape: o.shape.clone(),
+                position: *position,
+                rotation: *rotation,
+                dilate: o.dilate,
+            })
+            .collect();
+        if let Err(e) = snow.set_objects(ctx, &list) {
+            tracing::error!("bevy_snowpack: the snow objects cannot be laid out: {e}");
+        }
+        *laid_out = now;
+    }
+    for (k, (_, _, position, rotation)) in objects.iter().enumerate() {
+        snow.set_object_pose(k, *position, *rotation);
+    }
 }
 
 fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRenderState>>, mut frame: ResMut<ExtractedSnowFrame>) {
     let Some(mut state) = state else { return };
-    let SnowRenderState { ctx, snow, window, in_flight } = &mut *state;
+    let SnowRenderState { ctx, snow, window, in_flight, meshes, objects } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+    place_objects(ctx, snow, objects, &frame.objects);
+    let posed = pose_meshes(ctx, snow, meshes, &frame.meshes);
     if let Some(center) = frame.center {
         snow.set_center(dvec2(center));
     }
@@ -127,16 +215,29 @@ fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRende
         in_flight.push((ticket, ranges));
     }
     let encoder = render_context.command_encoder();
-    snow.encode(ctx, encoder, &SnowFrame::new(frame.dt_s, &frame.deformers));
+    let poses: Vec<SkinnedPose<'_>> =
+        posed.iter().map(|&(mesh, k)| SkinnedPose { mesh, joints: &frame.meshes.poses[k].joints, model: Mat4::IDENTITY }).collect();
+    snow.encode(ctx, encoder, &SnowFrame::new(frame.dt_s, &frame.deformers).with_ids(&frame.ids).with_poses(&poses));
     // Written before this frame's submit, so the cameras' draws see the window as encoded.
     ctx.queue.write_buffer(window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(snow)));
 }
 
-fn after_submit(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>) {
+fn after_submit(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>, control: Res<SnowControl>) {
     let Some(mut state) = state else { return };
-    let SnowRenderState { ctx, snow, in_flight, .. } = &mut *state;
+    let SnowRenderState { ctx, snow, in_flight, objects, .. } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
     snow.after_submit(ctx);
+    // Blocking requests, after the frame's submit so they see it.
+    if control.take_save_request() {
+        control.set_save_result(snow.save(ctx).map(|()| snow.frame()).map_err(|e| e.to_string()));
+    }
+    if control.take_stats_request() {
+        match snow.accumulation().map(|acc| acc.read_atlas(ctx).map(|atlas| acc.stats(&atlas))) {
+            Some(Ok(stats)) => control.set_object_stats(objects.iter().map(|(e, ..)| *e).zip(stats).collect()),
+            Some(Err(e)) => tracing::error!("bevy_snowpack: reading the objects' snow: {e}"),
+            None => control.set_object_stats(Vec::new()),
+        }
+    }
     let Some(answers) = snow.point_answers() else { return };
     if let Some(k) = in_flight.iter().position(|(t, _)| *t == answers.ticket) {
         let (_, ranges) = in_flight.remove(k);

@@ -31,6 +31,7 @@ fn ground_is_displaced_in_main_and_shadow_passes() {
         terrain: TerrainSource::Flat { height_m: 0.0 },
         center: Vec2::ZERO,
         fixed_dt_s: Some(1.0 / 60.0),
+        store: None,
     };
     let Some(mut app) = common::headless_app(settings) else { return };
     let captured = Captured::default();
@@ -43,7 +44,7 @@ fn ground_is_displaced_in_main_and_shadow_passes() {
     let grid = Plane3d::default().mesh().size(8.0, 8.0).subdivisions(127);
     let mesh = world.resource_mut::<Assets<Mesh>>().add(grid);
     let snow = StandardMaterial { base_color: Color::WHITE, perceptual_roughness: 1.0, ..default() };
-    let material = world.resource_mut::<Assets<SnowGroundMaterial>>().add(SnowGroundMaterial { base: snow, extension: SnowGroundExtension });
+    let material = world.resource_mut::<Assets<SnowGroundMaterial>>().add(SnowGroundMaterial { base: snow, extension: SnowGroundExtension::default() });
     world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
     // A trench along x, 1 m wide at the bottom, pressed from 0.4 m of snow down to 0.1 m.
     world.spawn((SnowDeformer::Box { half_extents: Vec3::new(3.0, 0.5, 0.5) }, Transform::from_xyz(0.0, 0.6, 0.0)));
@@ -106,6 +107,7 @@ fn snow_ground_pass_draws_the_trench() {
         terrain: TerrainSource::Flat { height_m: 0.0 },
         center: Vec2::ZERO,
         fixed_dt_s: Some(1.0 / 60.0),
+        store: None,
     };
     let Some(mut app) = common::headless_app(settings) else { return };
     let captured = Captured::default();

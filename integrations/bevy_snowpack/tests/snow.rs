@@ -27,6 +27,7 @@ fn settings() -> SnowpackSettings {
         terrain: TerrainSource::Flat { height_m: 0.0 },
         center: Vec2::ZERO,
         fixed_dt_s: Some(DT),
+        store: None,
     }
 }
 

@@ -12,6 +12,7 @@ pub fn gpu_required() -> bool {
     std::env::var_os("SNOWPACK_REQUIRE_GPU").is_some_and(|v| v != "0")
 }
 
+#[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
 /// An app with the plugin, ready to update; `None` (skip) when there is no adapter and none is required.
 pub fn headless_app(settings: SnowpackSettings) -> Option<App> {
     let mut app = App::new();
@@ -39,4 +40,32 @@ pub fn headless_app(settings: SnowpackSettings) -> Option<App> {
 #[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
 pub fn render_state(app: &App) -> &SnowRenderState {
     app.get_sub_app(RenderApp).expect("render app").world().get_resource::<SnowRenderState>().expect("the plugin created its deformation")
+}
+
+/// Settings for the tests: an 8 m window of 128 texels (6.25 cm) in 0.4 m of
+/// snow on flat ground, no refill, a fixed 1/60 s step.
+#[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
+pub fn test_settings() -> SnowpackSettings {
+    SnowpackSettings {
+        params: snowpack::SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.4, refill_m_per_s: 0.0, ..snowpack::SnowParams::default() },
+        terrain: snowpack::TerrainSource::Flat { height_m: 0.0 },
+        center: Vec2::ZERO,
+        fixed_dt_s: Some(1.0 / 60.0),
+        store: None,
+    }
+}
+
+/// The plugin's persistent snow heights (row-major, z rows) and a lookup of the texel under world (x, z).
+#[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
+pub fn snow_heights(app: &App) -> impl Fn(f32, f32) -> f32 {
+    let state = render_state(app);
+    let snow = state.deformation();
+    let heights = snow.read_snow(state.context()).expect("read the plugin's snow");
+    let origin = snow.origin_m().expect("the window is placed");
+    let (n, texel) = (snow.params().resolution as usize, f64::from(snow.params().texel_m()));
+    move |x: f32, z: f32| {
+        let j = ((f64::from(x) - origin.x) / texel).floor() as usize;
+        let i = ((f64::from(z) - origin.y) / texel).floor() as usize;
+        heights[i.min(n - 1) * n + j.min(n - 1)]
+    }
 }

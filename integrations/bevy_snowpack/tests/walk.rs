@@ -1,0 +1,110 @@
+//! The `walk` example end to end: the real binary (built by `cargo test`
+//! beside the tests) opens a window on a private X server (Xvfb, which
+//! `.ci/run` installs), runs 120 scripted frames on the software adapter and
+//! writes Bevy's screenshot. Where it says a ball's trench is, the picture
+//! must differ from untouched snow; the fox's paws must have reported steps.
+//!
+//! Without Xvfb this test skips, unless `SNOWPACK_REQUIRE_GPU` is set (CI).
+
+mod common;
+
+use std::io::{BufRead as _, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+
+/// A private X server for one test, stopped on drop.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start() -> Option<Self> {
+        let spawned = Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn();
+        let mut child = match spawned {
+            Ok(c) => c,
+            Err(e) => {
+                assert!(!common::gpu_required(), "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb");
+                eprintln!("skipping the walk example's test: no Xvfb ({e})");
+                return None;
+            }
+        };
+        // Xvfb writes the display number it chose once it accepts connections.
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line).expect("reading Xvfb's display number");
+        let number = line.trim();
+        assert!(!number.is_empty() && number.chars().all(|c| c.is_ascii_digit()), "Xvfb printed {line:?}");
+        Some(Self { child, display: format!(":{number}") })
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The example binary `cargo test` built next to this test's own.
+fn example(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("the test's path");
+    let dir = exe.parent().and_then(|deps| deps.parent()).expect("target/<profile>/deps");
+    dir.join("examples").join(name)
+}
+
+/// Mean luma (0..255) of the 9x9 pixels around (x, y).
+fn patch_luma(image: &image::RgbaImage, x: u32, y: u32) -> f32 {
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for py in y.saturating_sub(4)..=(y + 4).min(image.height() - 1) {
+        for px in x.saturating_sub(4)..=(x + 4).min(image.width() - 1) {
+            let [r, g, b, _] = image.get_pixel(px, py).0;
+            sum += 0.2126 * f32::from(r) + 0.7152 * f32::from(g) + 0.0722 * f32::from(b);
+            n += 1.0;
+        }
+    }
+    sum / n
+}
+
+#[test]
+fn walk_example_leaves_visible_trails_and_footsteps() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = std::env::temp_dir().join(format!("bevy_snowpack_walk_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    let shot = dir.join("walk.png");
+    let out = Command::new(example("walk"))
+        .args(["--exit-after-frames", "120", "--screenshot"])
+        .arg(&shot)
+        .env("DISPLAY", &x.display)
+        // Bevy resolves the assets folder from the manifest's directory.
+        .env("CARGO_MANIFEST_DIR", env!("CARGO_MANIFEST_DIR"))
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("the walk example runs (cargo test builds it)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "walk exited with {}\nstdout:\n{stdout}\nstderr:\n{stderr}", out.status);
+    let report = stdout.lines().find(|l| l.starts_with("walk: ")).unwrap_or_else(|| panic!("no report line in\n{stdout}\n{stderr}"));
+    let words: Vec<&str> = report.split_whitespace().collect();
+    // walk: trench pixel X Y fresh pixel X Y footsteps N
+    assert_eq!(words.get(1..3), Some(&["trench", "pixel"][..]), "no trench on screen: {report}");
+    let number = |k: usize| words[k].parse::<f32>().unwrap_or_else(|e| panic!("{report}: word {k}: {e}"));
+    let (trench, fresh, steps) = ((number(3), number(4)), (number(7), number(8)), number(10));
+
+    let image = image::open(&shot).unwrap_or_else(|e| panic!("{}: {e}", shot.display())).to_rgba8();
+    let inside = |(x, y): (f32, f32)| x >= 4.0 && y >= 4.0 && x < image.width() as f32 - 4.0 && y < image.height() as f32 - 4.0;
+    assert!(inside(trench) && inside(fresh), "{report}: off the {}x{} picture", image.width(), image.height());
+    let luma = |(x, y): (f32, f32)| patch_luma(&image, x as u32, y as u32);
+    let (trench_luma, fresh_luma) = (luma(trench), luma(fresh));
+    println!("{report}; luma: trench {trench_luma:.1}, fresh {fresh_luma:.1}; picture {}", shot.display());
+    // Untouched snow is bright; the trench is shaded apart from it (compacted, its walls shadowing).
+    assert!(fresh_luma > 120.0, "untouched snow reads {fresh_luma:.1}: not snow");
+    assert!((trench_luma - fresh_luma).abs() > 10.0, "the trench ({trench_luma:.1}) looks like untouched snow ({fresh_luma:.1})");
+    // Four paws, about 4 s of walking and running: many steps.
+    assert!(steps >= 8.0, "only {steps} footsteps from the fox's paws");
+    let _ = std::fs::remove_dir_all(&dir);
+}
