@@ -3,7 +3,8 @@
 //! puts its bottom in the shadow of its near wall. Undisplaced shadow
 //! geometry would lie flat below the snow and shadow nothing; the trench's
 //! flat bottom faces the sun like untouched snow, so only the displaced
-//! shadow pass darkens it.
+//! shadow pass darkens it. Its fragment shader gives the pressed floor the
+//! compacted look. And snowpack's own ground through `SnowGroundPass`.
 
 mod common;
 
@@ -23,17 +24,20 @@ const SIZE: u32 = 256;
 #[derive(Resource, Clone, Default)]
 struct Captured(Arc<Mutex<Option<Image>>>);
 
-#[test]
-#[ignore = "crashes Mesa 22.3 lavapipe's queue thread (SIGSEGV) as soon as a drawn vertex depends on the sampled snow; run with --ignored on a hardware adapter"]
-fn ground_is_displaced_in_main_and_shadow_passes() {
-    let settings = SnowpackSettings {
-        params: SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.4, refill_m_per_s: 0.0, ..SnowParams::default() },
-        terrain: TerrainSource::Flat { height_m: 0.0 },
-        center: Vec2::ZERO,
-        fixed_dt_s: Some(1.0 / 60.0),
-        store: None,
-    };
-    let Some(mut app) = common::headless_app(settings) else { return };
+/// Why the material's tests are ignored by a plain `cargo test`.
+const LAVAPIPE_22: &str = "Mesa 22.3's lavapipe (Debian 12's) kills its queue thread (SIGSEGV) on any draw whose vertex position \
+                           depends on the sampled snow; .ci/run runs these on lavapipe from Mesa 25.0.7 (bookworm-backports), \
+                           run them with --ignored on any other adapter";
+
+/// The ground material over a box's trench along x (1 m wide at the bottom,
+/// pressed from 0.4 m of snow to `floor_m`), seen straight down from 6 m
+/// with -z up the picture, lit by a sun at `sun_elevation_deg` shining along
+/// +z (across the trench). Returns the luma of the trench's floor (the
+/// middle rows) and of untouched snow 2.5 m away, and the picture as RGBA8.
+/// (The depth technique shows a press with Hanák's remap: a floor at 0.1 m
+/// is drawn at 4 mm, at 0.3 m at 0.29 m.)
+fn render_trench(extension: SnowGroundExtension, floor_m: f32, sun_elevation_deg: f32) -> Option<(f32, f32, Vec<u8>)> {
+    let Some(mut app) = common::headless_app(common::test_settings()) else { return None };
     let captured = Captured::default();
     app.insert_resource(captured.clone());
 
@@ -44,18 +48,15 @@ fn ground_is_displaced_in_main_and_shadow_passes() {
     let grid = Plane3d::default().mesh().size(8.0, 8.0).subdivisions(127);
     let mesh = world.resource_mut::<Assets<Mesh>>().add(grid);
     let snow = StandardMaterial { base_color: Color::WHITE, perceptual_roughness: 1.0, ..default() };
-    let material = world.resource_mut::<Assets<SnowGroundMaterial>>().add(SnowGroundMaterial { base: snow, extension: SnowGroundExtension::default() });
+    let material = world.resource_mut::<Assets<SnowGroundMaterial>>().add(SnowGroundMaterial { base: snow, extension });
     world.spawn((Mesh3d(mesh), MeshMaterial3d(material)));
-    // A trench along x, 1 m wide at the bottom, pressed from 0.4 m of snow down to 0.1 m.
-    world.spawn((SnowDeformer::Box { half_extents: Vec3::new(3.0, 0.5, 0.5) }, Transform::from_xyz(0.0, 0.6, 0.0)));
-    // A low sun (15 degrees) shining along +z, across the trench: its near wall (0.3 m) shades 1.1 m.
+    world.spawn((SnowDeformer::Box { half_extents: Vec3::new(3.0, 0.5, 0.5) }, Transform::from_xyz(0.0, floor_m + 0.5, 0.0)));
     world.spawn((
-        DirectionalLight { illuminance: 6_000.0, shadow_maps_enabled: true, ..default() },
-        Transform::from_xyz(0.0, 15f32.to_radians().tan(), -1.0).looking_at(Vec3::ZERO, Vec3::Y),
+        DirectionalLight { illuminance: 1_500.0, shadow_maps_enabled: true, ..default() },
+        Transform::from_xyz(0.0, sun_elevation_deg.to_radians().tan(), -1.0).looking_at(Vec3::ZERO, Vec3::Y),
         CascadeShadowConfigBuilder { num_cascades: 1, maximum_distance: 20.0, ..default() }.build(),
     ));
     world.insert_resource(GlobalAmbientLight { brightness: 0.0, ..default() });
-    // Straight down from 6 m.
     world.spawn((
         Camera3d::default(),
         RenderTarget::Image(target.clone().into()),
@@ -90,12 +91,53 @@ fn ground_is_displaced_in_main_and_shadow_passes() {
         }
         sum / (5.0 * (width / 2) as f32)
     };
-    // The camera looks down with -z up the image: z = 0 (the trench) is the middle row,
-    // z = +2.5 m (untouched, far from the trench) is in the lower part.
+    // z = 0 (the trench) is the middle row, z = +2.5 m (untouched, far from the trench) in the lower part.
     let (trench, untouched) = (band(SIZE as usize / 2), band(SIZE as usize * 7 / 8));
-    let rows: Vec<u32> = (0..16).map(|k| band(8 + k * 15) as u32).collect();
-    assert!(untouched > 60.0, "untouched snow is lit (luma {untouched}); rows: {rows:?}");
-    assert!(trench < 0.5 * untouched, "the trench bottom is in its wall's shadow: luma {trench} vs {untouched}; rows: {rows:?}");
+    Some((trench, untouched, rgba))
+}
+
+/// Saves a test's picture where `BEVY_SNOWPACK_DUMP` (a folder) says, to look at.
+fn dump(name: &str, rgba: &[u8]) {
+    if let Some(dir) = std::env::var_os("BEVY_SNOWPACK_DUMP") {
+        let path = std::path::Path::new(&dir).join(name);
+        image::RgbaImage::from_raw(SIZE, SIZE, rgba.to_vec()).expect("a full picture").save(&path).expect("saved");
+    }
+}
+
+/// The material without its compacted look: trails shade only by their shape and shadows.
+fn shape_only() -> SnowGroundExtension {
+    let fresh = SnowGroundExtension::default();
+    SnowGroundExtension { packed_albedo: Vec3::ONE, packed_roughness: 1.0, ground_show_through: 0.0, ..fresh }
+}
+
+/// A low sun (15 degrees) across a trench pressed to 0.1 m (drawn at 4 mm):
+/// its near wall shades 1.5 m, more than its 1 m floor. The compacted look
+/// is off, so only shadows darken the floor.
+#[test]
+#[ignore = "needs lavapipe from Mesa >= 23 or a hardware adapter (see LAVAPIPE_22)"]
+fn ground_is_displaced_in_main_and_shadow_passes() {
+    let _ = LAVAPIPE_22;
+    let Some((trench, untouched, rgba)) = render_trench(shape_only(), 0.1, 15.0) else { return };
+    dump("material_shadow.png", &rgba);
+    assert!(untouched > 60.0, "untouched snow is lit (luma {untouched})");
+    assert!(trench < 0.5 * untouched, "the trench bottom is in its wall's shadow: luma {trench} vs {untouched}");
+}
+
+/// The sun high (70 degrees) over a trench pressed to 0.3 m (a quarter of the
+/// depth, drawn a quarter down), so its floor is lit like open snow: with
+/// snowpack's material the pressed floor is darker (packed albedo) than with
+/// the look off, and untouched snow is the same either way.
+#[test]
+#[ignore = "needs lavapipe from Mesa >= 23 or a hardware adapter (see LAVAPIPE_22)"]
+fn the_material_gives_trails_the_compacted_look() {
+    let Some((plain_trench, plain_open, plain)) = render_trench(shape_only(), 0.3, 70.0) else { return };
+    dump("material_look_off.png", &plain);
+    let Some((trench, open, rgba)) = render_trench(SnowGroundExtension::default(), 0.3, 70.0) else { return };
+    dump("material_look.png", &rgba);
+    println!("trench floor luma: look {trench:.1}, shape only {plain_trench:.1}; untouched: {open:.1}, {plain_open:.1}");
+    assert!((open - plain_open).abs() < 1.0, "untouched snow changed with the look: {open} vs {plain_open}");
+    assert!((plain_trench - plain_open).abs() < 0.1 * plain_open, "a lit floor without the look reads like open snow: {plain_trench} vs {plain_open}");
+    assert!(trench < 0.93 * plain_trench, "the pressed floor is darker with the look: {trench} vs {plain_trench}");
 }
 
 /// snowpack's own ground drawn in the camera's main pass: the trench is there,
@@ -137,10 +179,8 @@ fn snow_ground_pass_draws_the_trench() {
         }
     }
     let image = captured.0.lock().unwrap().take().expect("screenshot captured");
-    if let Some(path) = std::env::var_os("BEVY_SNOWPACK_DUMP") {
-        image.clone().try_into_dynamic().expect("rgba8").to_rgb8().save(path).expect("saved");
-    }
     let rgba = image.data.expect("pixels");
+    dump("ground_pass.png", &rgba);
     let width = image.texture_descriptor.size.width as usize;
     // Mean luma of image row y over the middle half of the columns.
     let row = |y: usize| {
