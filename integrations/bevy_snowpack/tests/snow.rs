@@ -69,6 +69,28 @@ fn plugin_snow_and_queries_equal_the_library() {
 
     let state = common::render_state(&app);
     let plugin_snow = state.deformation().read_snow(state.context()).expect("read the plugin's snow");
+    // The CPU twin of the query pass over the plugin's snow as read back (the ball has
+    // rested, unchanged, since before the gather; no refill), asked the same points.
+    let twin = {
+        let snow = state.deformation();
+        let (ctx, res, params) = (state.context(), snow.resources(), snow.params().clone());
+        let origin = snow.origin_texel().expect("placed");
+        let corner = snow.origin_m().expect("placed");
+        let qp = snowpack::deform::query::QueryParams {
+            origin: [origin[0] as i32, origin[1] as i32],
+            resolution: params.resolution,
+            count: points.len() as u32,
+            texel_m: params.texel_m(),
+            depth_m: params.depth_m,
+            use_fallen: 0,
+            _pad: 0,
+        };
+        let local: Vec<[f32; 2]> = points.iter().map(|p| [(f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32]).collect();
+        let words = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::gpu::read_buffer(ctx, &res.snow).expect("snow words"));
+        let fallen = bytemuck::pod_collect_to_vec::<u8, f32>(&snowpack::gpu::read_buffer(ctx, &res.fallen).expect("fallen"));
+        let ground = snowpack::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
+        snowpack::cpu::query::query(&qp, &local, &ground, &words, &fallen)
+    };
     let frames = state.deformation().frame() as usize;
     let placed = &app.world().resource::<Placed>().0;
     assert!(frames >= placed.len() - 2 && frames <= placed.len(), "{frames} frames encoded for {} updates", placed.len());
@@ -94,6 +116,13 @@ fn plugin_snow_and_queries_equal_the_library() {
     let lowest = plugin_snow.iter().copied().fold(f32::INFINITY, f32::min);
     assert!((lowest - 0.15).abs() < 0.02, "trench bottom {lowest} m, expected 0.15 m");
 
+    for (k, (ours, cpu)) in answers.samples.iter().zip(twin.iter().map(|c| c.sample())).enumerate() {
+        let (ours, cpu) = (ours.expect("inside the window"), cpu.expect("inside the window on the CPU too"));
+        for (what, a, b) in [("height", ours.height_m, cpu.height_m), ("surface", ours.surface_m, cpu.surface_m), ("rest", ours.rest_m, cpu.rest_m)] {
+            assert!((a - b).abs() < 1e-4, "point {k} {what}: through Bevy {a}, CPU twin {b}");
+        }
+        assert!((ours.normal - cpu.normal).length() < 1e-3, "point {k} normal: through Bevy {}, CPU twin {}", ours.normal, cpu.normal);
+    }
     let library = snow.point_answers().expect("the library answered");
     for (k, (ours, theirs)) in answers.samples.iter().zip(&library.samples).enumerate() {
         let (ours, theirs) = (ours.expect("inside the window"), theirs.expect("inside the window"));
