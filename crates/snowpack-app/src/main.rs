@@ -205,7 +205,36 @@ fn parse_backend(list: &str) -> Result<String, String> {
     snowpack::AdapterRequest { backends: Some(list.to_owned()), adapter_name: None }.parse_backends().map(|_| list.to_owned()).map_err(|e| e.to_string())
 }
 
+/// Mesa's implicit Vulkan layer `VK_LAYER_MESA_device_select` tries to reach
+/// a Wayland compositor while the adapters are listed, and libwayland prints
+/// "error: XDG_RUNTIME_DIR is invalid or not set in the environment." when
+/// that variable is missing (headless machines, CI), although nothing
+/// failed. Without a runtime directory there is no compositor to find, so
+/// the layer's choice has nothing to go on: the process replaces itself with
+/// the same command and the layer's documented off switch (`NODEVICE_SELECT`).
+/// Setting the variable in-process would need `unsafe` (edition 2024), which
+/// the workspace forbids; a re-exec is safe and happens before anything else.
+#[cfg(target_os = "linux")]
+fn quiet_device_select() {
+    use std::os::unix::process::CommandExt as _;
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() || std::env::var_os("NODEVICE_SELECT").is_some() {
+        return;
+    }
+    let Ok(exe) = std::env::current_exe() else { return };
+    // `exec` returns only on failure; then carry on as we are (the line is only noise).
+    let mut args = std::env::args_os();
+    let mut command = std::process::Command::new(exe);
+    if let Some(name) = args.next() {
+        command.arg0(name);
+    }
+    let _ = command.args(args).env("NODEVICE_SELECT", "1").exec();
+}
+
+#[cfg(not(target_os = "linux"))]
+fn quiet_device_select() {}
+
 fn main() -> ExitCode {
+    quiet_device_select();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("SNOWPACK_LOG").unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,snowpack=info")),

@@ -1212,3 +1212,32 @@ fn every_bad_option_exits_2_naming_it() {
         assert!(!Path::new(out).exists(), "{args:?} wrote its output folder");
     }
 }
+
+/// A clean headless run on a machine without `XDG_RUNTIME_DIR` (CI, servers)
+/// says nothing on stderr that reads as a failure: Mesa's device-select layer
+/// used to make libwayland print "error: XDG_RUNTIME_DIR is invalid or not set"
+/// twice (the binary now switches that layer off there).
+#[test]
+fn a_clean_headless_run_prints_no_error_lines() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("quiet");
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, "[snow]\nextent_m = 4.0\nresolution = 64\ndepth_m = 0.3\n[sim]\nframes = 3\n").expect("write scene");
+    let output = Command::new(env!("CARGO_BIN_EXE_snowpack"))
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("SNOWPACK_LOG")
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .args(["run", "--headless", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.0.join("out"))
+        .output()
+        .expect("run snowpack");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "snowpack run failed: {stderr}");
+    assert!(!stderr.contains("error") && !stderr.contains("XDG_RUNTIME_DIR"), "a clean run printed:\n{stderr}");
+}
