@@ -279,3 +279,28 @@ fn g_turns_the_grass_shell_on_and_it_changes_the_picture() {
     let diff = mean_abs_difference(&bare, &grass);
     assert!(diff > 5.0, "the grass barely changed the picture (mean difference {diff:.2})");
 }
+
+/// The GPU device lost mid-run (the script destroys it, as a driver reset
+/// would): the demo says so and exits with an error naming the loss, without
+/// a panic or a hang.
+#[test]
+fn a_lost_device_is_reported_and_the_demo_exits_with_an_error() {
+    let dir = Temp::new("demo-lost");
+    let Some(x) = Xvfb::start() else { return };
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let script = dir.0.join("script.txt");
+    std::fs::write(&script, "5 lose-device\n").expect("script");
+    let out = Command::new(env!("CARGO_BIN_EXE_snowpack"))
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("SNOWPACK_LOG", "warn,snowpack=info")
+        .args(["--scene".as_ref(), scene.as_os_str(), "--script".as_ref(), script.as_os_str()])
+        .args(["--exit-after-frames", "20", "--window-size", "320x200", "--no-vsync"])
+        .output()
+        .expect("running snowpack");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "the demo exited {:?} after losing its device:\n{stderr}", out.status.code());
+    assert!(stderr.contains("device was lost"), "no word of the lost device:\n{stderr}");
+    assert!(!stderr.contains("panicked"), "a panic was reported:\n{stderr}");
+}

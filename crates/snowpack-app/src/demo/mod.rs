@@ -412,6 +412,10 @@ impl Gfx {
                     self.resize(actual);
                 }
             }
+            ScriptEvent::LoseDevice => {
+                tracing::warn!("the script destroys the GPU device");
+                self.ctx.device.destroy();
+            }
             ScriptEvent::Minimize => {
                 self.restore_size = Some(self.window.inner_size());
                 self.window.set_minimized(true);
@@ -476,6 +480,13 @@ impl Gfx {
         }
     }
 
+    /// Stops drawing, says why in the log and the title; the run then ends with an error.
+    fn device_lost(&mut self, reason: String) {
+        tracing::error!("GPU device lost: {reason}; close the window and start again");
+        self.window.set_title(&format!("snowpack — the GPU device was lost ({reason}); close and restart"));
+        self.lost = Some(reason);
+    }
+
     /// Simulates, draws and presents one frame.
     fn frame(&mut self) -> anyhow::Result<()> {
         let now = Instant::now();
@@ -486,6 +497,12 @@ impl Gfx {
         let dt = elapsed.min(0.1);
         if self.lost.is_some() {
             // Nothing can be drawn without a device; the title says why until the window is closed.
+            return Ok(());
+        }
+        // A lost device can fail the surface first (the frame then returns early below), so
+        // ask before drawing.
+        if let Some(reason) = self.ctx.lost_reason() {
+            self.device_lost(reason);
             return Ok(());
         }
 
@@ -591,11 +608,7 @@ impl Gfx {
         self.session.renderer.after_submit(&self.ctx);
         match self.ctx.check("demo frame") {
             Ok(()) => {}
-            Err(snowpack::SnowError::DeviceLost(reason)) => {
-                tracing::error!("GPU device lost: {reason}; close the window and start again");
-                self.window.set_title(&format!("snowpack — the GPU device was lost ({reason}); close and restart"));
-                self.lost = Some(reason);
-            }
+            Err(snowpack::SnowError::DeviceLost(reason)) => self.device_lost(reason),
             Err(e) => {
                 tracing::error!("{e}");
                 self.panel.status = Some((e.to_string(), true));

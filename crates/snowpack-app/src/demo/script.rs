@@ -10,6 +10,7 @@
 //! 55  wheel 2             # mouse wheel, lines
 //! 60  resize 1 1          # ask the window for an inner size in pixels
 //! 70  minimize            # iconify, and feed the app the zero size a minimised window reports
+//! 75  lose-device         # destroy the GPU device (the demo reports it and exits with an error)
 //! 80  restore             # de-iconify and restore the size from before
 //! 90  screenshot shot.png # write the window's image after this frame
 //! ```
@@ -38,6 +39,9 @@ pub enum ScriptEvent {
     Resize(u32, u32),
     /// Iconify (and a zero-sized surface).
     Minimize,
+    /// Destroys the GPU device, as a driver reset or an unplugged GPU would:
+    /// the demo must say so and exit with an error, never panic or hang.
+    LoseDevice,
     /// De-iconify.
     Restore,
     /// Write the window's image to this file after the frame.
@@ -152,11 +156,12 @@ impl Script {
                 "wheel" => ScriptEvent::Wheel(num(0)?),
                 "resize" => ScriptEvent::Resize(size(0)?, size(1)?),
                 "minimize" => ScriptEvent::Minimize,
+                "lose-device" => ScriptEvent::LoseDevice,
                 "restore" => ScriptEvent::Restore,
                 "screenshot" => ScriptEvent::Screenshot(path.parent().unwrap_or(Path::new("")).join(arg(0)?)),
                 other => {
                     return Err(err(format!(
-                        "unknown event {other:?} (key, key_down, key_up, drag, drag_right, wheel, resize, minimize, restore, screenshot)"
+                        "unknown event {other:?} (key, key_down, key_up, drag, drag_right, wheel, resize, minimize, restore, lose-device, screenshot)"
                     )));
                 }
             };

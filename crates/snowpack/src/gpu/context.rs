@@ -311,11 +311,18 @@ impl GpuContext {
         out
     }
 
+    /// Why the device was lost, once it was (its device-lost callback ran);
+    /// unlike [`Self::check`] this leaves any reported errors in place.
+    #[must_use]
+    pub fn lost_reason(&self) -> Option<String> {
+        self.sink.lost.lock().ok().and_then(|s| s.clone())
+    }
+
     /// Returns the first GPU error reported since the last call (validation,
     /// out of memory) or the device-lost reason, so callers fail instead of
     /// rendering garbage or hanging.
     pub fn check(&self, context: &'static str) -> Result<(), SnowError> {
-        if let Some(reason) = self.sink.lost.lock().ok().and_then(|s| s.clone()) {
+        if let Some(reason) = self.lost_reason() {
             return Err(SnowError::DeviceLost(reason));
         }
         let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
