@@ -170,6 +170,16 @@ pub enum StoreError {
         /// What does not match.
         why: String,
     },
+    /// Tiles asked for by a blocking wait were not loaded in time (a disk that
+    /// hangs or crawls); the wait gives up rather than freeze the caller, and
+    /// the tiles keep loading behind it.
+    #[error("{pending} tile(s) were not loaded from the store within {waited:?}: the disk is too slow or not answering")]
+    TimedOut {
+        /// How long the wait lasted.
+        waited: std::time::Duration,
+        /// Tiles still not loaded when it gave up.
+        pending: usize,
+    },
     /// The streamer's worker thread has stopped (it panicked or never started).
     #[error("the tile store's worker thread has stopped; tiles can no longer be loaded or saved")]
     WorkerGone,
@@ -187,7 +197,7 @@ impl StoreError {
             Self::Io { path, .. } | Self::Corrupt { path, .. } | Self::Version { path, .. } | Self::Mismatch { path, .. } => {
                 (!path.as_os_str().is_empty()).then_some(path.as_path())
             }
-            Self::WorkerGone | Self::NoDisk => None,
+            Self::WorkerGone | Self::NoDisk | Self::TimedOut { .. } => None,
         }
     }
 

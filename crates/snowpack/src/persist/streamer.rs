@@ -22,8 +22,9 @@
 use std::collections::{BTreeSet, HashMap, HashSet, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, TryRecvError};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use super::store::tile_path;
 use super::{StoreError, TileData, TileKey, TileStore};
@@ -37,6 +38,10 @@ const MAX_ERRORS: usize = 1024;
 /// small budget cannot drop a tile the window is waiting for before it
 /// takes it (which would make it wait forever).
 const WANTED_FLOOR_BYTES: usize = 64 << 20;
+/// Longest a blocking wait for tiles ([`TileStreamer::wait_for`]) lasts:
+/// a disk that stops answering must not freeze the window for good.
+pub const WAIT_LIMIT: Duration = Duration::from_secs(30);
+
 /// Most keys remembered as absent from the store (16 bytes each, plus the set's overhead).
 const MAX_ABSENT: usize = 1 << 16;
 
@@ -143,11 +148,13 @@ enum Request {
     /// Lets the tests kill the worker the way a bug would.
     #[cfg(test)]
     Panic,
-    /// Lets the tests hold the worker until `gate` is sent to or dropped.
+    /// Lets the tests hold the worker until `gate` is sent to or dropped;
+    /// `entered` is told when the worker is held.
     #[cfg(test)]
     Pause {
         seq: u64,
         gate: Receiver<()>,
+        entered: Option<Sender<()>>,
     },
 }
 
@@ -459,10 +466,18 @@ impl TileStreamer {
     /// keys together exceed the memory budget, the first may have been
     /// dropped again by the time it returns.
     pub fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
+        self.wait_for_within(keys, WAIT_LIMIT)
+    }
+
+    /// [`Self::wait_for`] giving up after `limit` with
+    /// [`StoreError::TimedOut`]; the tiles keep loading and a later
+    /// [`Self::lookup`] or wait finds them.
+    pub fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
         if self.memory_only {
             return Ok(());
         }
         self.poll();
+        let start = Instant::now();
         let mut waiting: Vec<TileKey> = keys.to_vec();
         loop {
             waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key));
@@ -475,9 +490,11 @@ impl TileStreamer {
             if self.gone {
                 return Err(StoreError::WorkerGone);
             }
-            match self.replies.recv() {
+            let left = limit.saturating_sub(start.elapsed());
+            match self.replies.recv_timeout(left) {
                 Ok(reply) => self.handle(reply),
-                Err(_) => {
+                Err(RecvTimeoutError::Timeout) => return Err(StoreError::TimedOut { waited: start.elapsed(), pending: waiting.len() }),
+                Err(RecvTimeoutError::Disconnected) => {
                     self.worker_gone();
                     return Err(StoreError::WorkerGone);
                 }
@@ -873,7 +890,10 @@ fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
         #[cfg(test)]
         Request::Panic => panic!("the tile worker panics (as a test asked)"),
         #[cfg(test)]
-        Request::Pause { seq, gate } => {
+        Request::Pause { seq, gate, entered } => {
+            if let Some(entered) = entered {
+                let _ = entered.send(());
+            }
             let _ = gate.recv();
             (seq, Outcome::Flushed)
         }
@@ -1024,7 +1044,7 @@ mod tests {
         let a = TileKey::new(0, 0);
         // Hold the worker, as a disk that syncs slowly would, while writes queue up.
         let (release, gate) = mpsc::channel();
-        s.send(|seq| Request::Pause { seq, gate }).expect("send");
+        s.send(|seq| Request::Pause { seq, gate, entered: None }).expect("send");
         s.put(tile(0, 0, 1.0));
         s.put(tile(0, 0, 2.0));
         for col in 1..20 {
@@ -1044,6 +1064,39 @@ mod tests {
         drop(s);
         let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
         assert_eq!(store.read(a).expect("read"), Some(tile(0, 0, 2.0)));
+    }
+
+    /// A blocking wait on a disk that stops answering gives up after its limit
+    /// with `TimedOut` instead of freezing the caller; the load goes on, and
+    /// once the disk answers the tile is there.
+    #[test]
+    fn a_wait_on_a_hung_disk_gives_up_and_the_tile_arrives_later() {
+        let dir = TestDir::new("streamer-hung");
+        {
+            let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            store.write(&tile(3, 4, 5.0)).expect("write");
+        }
+        let mut s = streamer(&dir, 4);
+        let a = TileKey::new(3, 4);
+        // The worker is held, as a disk that hangs would hold it (loads jump the queue,
+        // so the wait starts once the worker is inside the pause).
+        let (release, gate) = mpsc::channel();
+        let (entered, held) = mpsc::channel();
+        s.send(|seq| Request::Pause { seq, gate, entered: Some(entered) }).expect("send");
+        held.recv().expect("the worker is held");
+        let limit = Duration::from_millis(200);
+        match s.wait_for_within(&[a], limit) {
+            Err(StoreError::TimedOut { waited, pending }) => {
+                assert_eq!(pending, 1);
+                assert!(waited >= limit, "gave up after {waited:?}, before its limit");
+            }
+            other => panic!("a wait on a held worker gave {other:?}, not TimedOut"),
+        }
+        assert!(!s.is_ready(a));
+        drop(release);
+        s.wait_for(&[a]).expect("the disk answers again");
+        assert_eq!(s.lookup(a), TileLookup::Ready(Some(tile(3, 4, 5.0))));
+        assert!(WAIT_LIMIT <= Duration::from_secs(60), "the default bound is a bound");
     }
 
     #[test]
