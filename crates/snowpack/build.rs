@@ -10,6 +10,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("WINDOW", &["shared/window.wgsl", "window.wgsl"]),
     ("CAPTURE_SPHERE", &["capture_sphere.wgsl"]),
     ("CAPTURE_MESH", &["capture_mesh.wgsl"]),
+    ("CAPTURE_WHEEL", &["capture_wheel.wgsl"]),
     ("STAMP", &["shared/window.wgsl", "shared/stamp.wgsl", "stamp.wgsl"]),
     ("UPDATE", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "update.wgsl"]),
     ("DISPLAY", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "display.wgsl"]),

@@ -1,7 +1,7 @@
 //! Swept capture (issue 21): the cost of pressing each deformer over its
 //! motion since the last frame against pressing it where it stands, for fast
-//! spheres (capsules), fast turning boxes (sub-steps) and the points
-//! technique's segments, at a 1024² window.
+//! spheres (capsules), fast turning boxes (sub-steps), rolling wheels with
+//! tread (sub-steps) and the points technique's segments, at a 1024² window.
 
 use std::fmt::Write as _;
 
@@ -69,10 +69,31 @@ fn fast_boxes(t: f32) -> Vec<Deformer> {
         .collect()
 }
 
-const SCENARIOS: [Scenario; 3] = [
+/// 64 wheels of 33 cm with block tread rolling on circles at 12 m/s, 15 cm
+/// into the snow: 20 cm a frame, four sub-steps each.
+fn fast_wheels(t: f32) -> Vec<Deformer> {
+    (0..64)
+        .map(|k| {
+            let (a, r) = (k as f32 * 2.399_963, 3.0 + 20.0 * ((k as f32 + 0.5) / 64.0).sqrt());
+            let phase = a + t * 12.0 / r;
+            // Rolling towards growing phase: forward (-sin, cos) = axle x up.
+            Deformer::Wheel {
+                center: Vec3::new(r * phase.cos(), 0.68, r * phase.sin()),
+                axle: Vec3::new(phase.cos(), 0.0, phase.sin()),
+                radius: 0.33,
+                half_width: 0.11,
+                tread: snowpack::deform::wheel::Tread::default(),
+                roll_m: 12.0 * t,
+            }
+        })
+        .collect()
+}
+
+const SCENARIOS: [Scenario; 4] = [
     ("256 spheres of 15 cm at 12 m/s (capsules)", Technique::Depth, "capture", fast_spheres),
     ("64 boxes of 1x2 m at 6 m/s, turning (sub-steps)", Technique::Depth, "capture", fast_boxes),
     ("256 contact points at 12 m/s (segments)", Technique::Points, "stamp", fast_spheres),
+    ("64 wheels of 33 cm with tread at 12 m/s (sub-steps)", Technique::Depth, "capture", fast_wheels),
 ];
 
 /// (median ms of `pass`, median ms of the frame's passes together).
@@ -176,7 +197,8 @@ mod tests {
             let (a, b) = (at(0.0), at(1.0 / 60.0));
             let moved = |p: &Deformer, q: &Deformer| match (p, q) {
                 (Deformer::Sphere { center: c0, .. }, Deformer::Sphere { center: c1, .. })
-                | (Deformer::Box { center: c0, .. }, Deformer::Box { center: c1, .. }) => c0.distance(*c1),
+                | (Deformer::Box { center: c0, .. }, Deformer::Box { center: c1, .. })
+                | (Deformer::Wheel { center: c0, .. }, Deformer::Wheel { center: c1, .. }) => c0.distance(*c1),
                 _ => 0.0,
             };
             assert!(a.iter().zip(&b).all(|(p, q)| moved(p, q) > 0.0625), "{name}");

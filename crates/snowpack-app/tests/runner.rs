@@ -1241,3 +1241,191 @@ fn a_clean_headless_run_prints_no_error_lines() {
     assert!(output.status.success(), "snowpack run failed: {stderr}");
     assert!(!stderr.contains("error") && !stderr.contains("XDG_RUNTIME_DIR"), "a clean run printed:\n{stderr}");
 }
+
+/// A scene with one `[[vehicle]]` (its keys `vehicle`, then `path`) on 30 cm
+/// of snow of 40 kPa over flat ground, in an 8 m window of 512² (1.6 cm texels).
+fn vehicle_scene(vehicle: &str, path: &str, dt_s: f64, frames: u32, snow: &str) -> String {
+    format!(
+        "[snow]\nextent_m = 8.0\nresolution = 512\ndepth_m = 0.3\nhardness_kpa = 40.0\nelevation = 0.0\n{snow}\n[terrain]\nkind = \"flat\"\n\n[window]\ncenter = [0.0, 0.0]\n\n\
+         [[vehicle]]\nwheelbase_m = 2.6\ntrack_m = 1.6\nwheel_radius_m = 0.33\nwheel_width_m = 0.22\n{vehicle}\npath = {path}\n\n[sim]\nframes = {frames}\ndt_s = {dt_s}\n"
+    )
+}
+
+/// Depth below the rest snow (m) along z = `z` for x in `x0..x1`, one sample per texel.
+fn rut_profile(run: &Run, z: f64, x0: f64, x1: f64) -> Vec<(f64, f32)> {
+    let snow = run.grid("snow.npy");
+    let texel = run.meta["texel_m"].as_f64().expect("texel_m");
+    let oz = run.meta["origin_m"][1].as_f64().expect("z");
+    let i = ((z - oz) / texel).floor() as usize;
+    (0..snow.res)
+        .filter_map(|j| {
+            let (x, _) = run.world(i, j);
+            (x0..=x1).contains(&x).then(|| (x, 0.3 - snow.at(i, j)))
+        })
+        .collect()
+}
+
+#[test]
+fn a_fast_vehicle_leaves_continuous_ruts_as_deep_as_its_load_says() {
+    if !gpu_available() {
+        return;
+    }
+    use snowpack::skin::sinking::WheelLoad;
+    // 15 m/s at 30 frames a second: 50 cm a frame, so each frame's wheels
+    // stand 50 cm from the last; a straight line through the window.
+    let path = "[[-12.0, 0.0, 0.0], [12.0, 0.0, 1.6]]";
+    let run_with = |name: &str, mass: f32, snow: &str| {
+        let toml = vehicle_scene(&format!("mass_kg = {mass}\ntread = \"none\""), path, 1.0 / 30.0, 48, snow);
+        run_scene(name, &toml, &[])
+    };
+    let mut floors = Vec::new();
+    for mass in [800.0_f32, 3200.0] {
+        let run = run_with(&format!("vehicle-fast-{mass}"), mass, "");
+        let sink = WheelLoad { mass_kg: mass / 4.0, radius_m: 0.33, width_m: 0.22 }.sinkage_m(0.3, 40.0);
+        for z in [-0.8, 0.8] {
+            let rut = rut_profile(&run, z, -3.5, 3.5);
+            assert!(rut.len() > 400, "{} samples", rut.len());
+            let shallowest = rut.iter().map(|r| r.1).fold(f32::MAX, f32::min);
+            let deepest = rut.iter().map(|r| r.1).fold(f32::MIN, f32::max);
+            println!("{mass} kg, rut at z = {z}: {shallowest:.4} to {deepest:.4} m deep, load model {sink:.4} m");
+            // Continuous: the floor never comes up between frames (the
+            // swept shape of a rolling cylinder is flat along its path).
+            assert!(deepest - shallowest < 0.002, "{mass} kg: rut floor from {shallowest} to {deepest} m deep along z = {z}");
+            // As deep as the load model says (the capture's 16-bit code is 0.1 mm here).
+            assert!((deepest - sink).abs() < 0.002, "{mass} kg: rut {deepest} m deep, load model {sink} m");
+            floors.push(deepest);
+        }
+    }
+    // Four times the mass: deeper ruts.
+    assert!(floors[2] > floors[0] + 0.02 && floors[3] > floors[1] + 0.02, "rut depths {floors:?}");
+    // Unswept, the same frames leave a chain of prints 50 cm apart, the
+    // floor rising by centimetres between them: the test sees gaps.
+    let run = run_with("vehicle-fast-unswept", 800.0, "teleport_m = 0.0\n");
+    let rut = rut_profile(&run, 0.8, -3.5, 3.5);
+    let shallowest = rut.iter().map(|r| r.1).fold(f32::MAX, f32::min);
+    println!("unswept: the floor rises to {shallowest:.4} m deep between prints");
+    assert!(floors[0] - shallowest > 0.03, "unswept ruts are continuous too ({shallowest} vs {} m): the test cannot see gaps", floors[0]);
+}
+
+/// Strength of the period `period_m` in an evenly sampled signal (a DFT bin at that period).
+fn period_power(samples: &[(f64, f32)], period_m: f64) -> f64 {
+    let mean = samples.iter().map(|s| f64::from(s.1)).sum::<f64>() / samples.len() as f64;
+    let (mut re, mut im) = (0.0, 0.0);
+    for &(x, v) in samples {
+        let phase = std::f64::consts::TAU * x / period_m;
+        re += (f64::from(v) - mean) * phase.cos();
+        im += (f64::from(v) - mean) * phase.sin();
+    }
+    (re * re + im * im).sqrt() / samples.len() as f64
+}
+
+/// The strongest period between 4 cm and 40 cm (m), and its amplitude (m).
+fn strongest_period(samples: &[(f64, f32)]) -> (f64, f64) {
+    (0..=720).map(|k| 0.04 + f64::from(k) * 0.0005).map(|p| (p, period_power(samples, p))).fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+}
+
+#[test]
+fn the_tread_prints_its_lug_spacing_along_the_rut_floor_and_slip_smears_it() {
+    if !gpu_available() {
+        return;
+    }
+    // 1.5 m/s in a straight line; block tread, lugs every 10 cm, 3 cm deep.
+    let path = "[[-4.5, 0.0, 0.0], [4.5, 0.0, 6.0]]";
+    let run_with = |name: &str, slip: f32| {
+        let vehicle = format!("mass_kg = 1800.0\ntread = \"blocks\"\ntread_spacing_m = 0.1\ntread_depth_m = 0.03\ntread_fraction = 0.4\nslip = {slip}");
+        run_scene(name, &vehicle_scene(&vehicle, path, 1.0 / 30.0, 180, ""), &[])
+    };
+    let rolling = run_with("vehicle-tread", 0.0);
+    // Along a row of blocks (a quarter of the tyre's width from its centre line), where both axles passed.
+    let rut = rut_profile(&rolling, 0.8 + 0.055, -3.0, 3.0);
+    let (period, amplitude) = strongest_period(&rut);
+    let range = rut.iter().map(|r| r.1).fold(f32::MIN, f32::max) - rut.iter().map(|r| r.1).fold(f32::MAX, f32::min);
+    println!("rolling: strongest period {period:.4} m (lugs every 0.1 m), amplitude {amplitude:.4} m, floor range {range:.4} m");
+    assert!((period - 0.1).abs() < 0.002, "strongest period along the rut {period} m, lugs every 0.1 m");
+    // Grooves as deep as the lugs stand out (blur off in snow.npy; the square wave's fundamental is a fraction of it).
+    assert!(range > 0.025 && range < 0.035, "floor range {range} m for 3 cm lugs");
+    assert!(amplitude > 0.005, "amplitude {amplitude} m");
+    // Spinning (slip 1): the tread slides over the snow while it presses,
+    // and the lugs near the contact fill the ridges between the grooves.
+    let spinning = run_with("vehicle-tread-slip", 1.0);
+    let rut = rut_profile(&spinning, 0.8 + 0.055, -3.0, 3.0);
+    let range_slip = rut.iter().map(|r| r.1).fold(f32::MIN, f32::max) - rut.iter().map(|r| r.1).fold(f32::MAX, f32::min);
+    println!("spinning: floor range {range_slip:.4} m");
+    assert!(range_slip < 0.4 * range, "slip 1 leaves the tread {range_slip} m deep against {range} m rolling");
+}
+
+#[test]
+fn one_vehicle_path_at_30_and_240_frames_a_second_leaves_the_same_ruts() {
+    if !gpu_available() {
+        return;
+    }
+    // A curve at about 4 m/s with some slip, blocks; it stops at 1.8 s, before
+    // either run's last frame (1.967 s and 1.996 s), so both end on the same pose.
+    let path = "[[-5.0, -1.5, 0.0], [-1.0, 0.5, 1.0], [2.5, -0.5, 1.8]]";
+    let vehicle = "mass_kg = 1800.0\ntread = \"blocks\"\ntread_spacing_m = 0.1\ntread_depth_m = 0.03\nslip = 0.1";
+    let at = |fps: u32| {
+        let run = run_scene(&format!("vehicle-{fps}fps"), &vehicle_scene(vehicle, path, 1.0 / f64::from(fps), 2 * fps, ""), &[]);
+        run.grid("snow.npy").data
+    };
+    let (slow, fast) = (at(30), at(240));
+    let res = (slow.len() as f64).sqrt() as usize;
+    let pressed = slow.iter().filter(|h| **h < 0.29).count();
+    let over = slow.iter().zip(&fast).filter(|(a, b)| (*a - *b).abs() > 0.005).count();
+    // The rut's walls and the lugs' edges are vertical faces: a shift far
+    // below a texel (the chords a frame's sub-steps follow lie up to 0.5 mm
+    // inside the curve at 30 frames a second) moves a texel centre from one
+    // side to the other, a difference of a lug's depth or the whole rut in
+    // that texel. So each texel is compared with the other run's range over
+    // its 3x3 neighbourhood (the ruts agree up to a shift within a texel).
+    let beyond = |a: &[f32], b: &[f32]| -> (usize, f32) {
+        let mut count = 0;
+        let mut worst = 0.0_f32;
+        for i in 1..res - 1 {
+            for j in 1..res - 1 {
+                let v = a[i * res + j];
+                let around = (0..9).map(|k| b[(i + k / 3 - 1) * res + j + k % 3 - 1]);
+                let (lo, hi) = around.fold((f32::MAX, f32::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+                let e = (lo - v).max(v - hi).max(0.0);
+                count += usize::from(e > 0.005);
+                worst = worst.max(e);
+            }
+        }
+        (count, worst)
+    };
+    let (a, b) = (beyond(&slow, &fast), beyond(&fast, &slow));
+    let mean = |h: &[f32]| h.iter().map(|x| f64::from(0.3 - x)).sum::<f64>() / h.len() as f64;
+    let (pressed_fast, mean_slow, mean_fast) = (fast.iter().filter(|h| **h < 0.29).count(), mean(&slow), mean(&fast));
+    println!(
+        "{pressed} texels pressed over 1 cm at 30 fps, {pressed_fast} at 240; {over} differ by more than 5 mm texel by texel; \
+         beyond 5 mm of the other run's 3x3 range: {} (worst {:.4} m) and {} (worst {:.4} m); mean depth {mean_slow:.6} and {mean_fast:.6} m",
+        a.0, a.1, b.0, b.1
+    );
+    assert!(pressed > 20_000, "only {pressed} texels pressed");
+    assert!(pressed.abs_diff(pressed_fast) * 100 <= pressed, "{pressed} against {pressed_fast} texels pressed");
+    assert!((mean_slow - mean_fast).abs() < 5e-4, "mean depth {mean_slow} against {mean_fast} m");
+    assert!((a.0 + b.0) * 200 <= pressed, "{} and {} of {pressed} texels beyond 5 mm of the other run's 3x3 range", a.0, b.0);
+}
+
+#[test]
+fn bad_vehicle_values_exit_2_naming_file_and_key() {
+    let ok = "path = [[0.0, 0.0, 0.0], [1.0, 0.0, 1.0]]\n";
+    let cases: &[(&str, String, &str)] = &[
+        ("vehicle-negative-mass", format!("[[vehicle]]\nmass_kg = -5.0\n{ok}"), "[[vehicle]][0].mass_kg"),
+        ("vehicle-zero-radius", format!("[[vehicle]]\nwheel_radius_m = 0.0\n{ok}"), "[[vehicle]][0].wheel_radius_m"),
+        ("vehicle-narrow-track", format!("[[vehicle]]\ntrack_m = 0.1\nwheel_width_m = 0.2\n{ok}"), "[[vehicle]][0].track_m"),
+        ("vehicle-bad-tread", format!("[[vehicle]]\ntread = \"zigzag\"\n{ok}"), "[[vehicle]][0].tread"),
+        ("vehicle-deep-tread", format!("[[vehicle]]\ntread_depth_m = 0.5\nwheel_radius_m = 0.3\n{ok}"), "[[vehicle]][0].tread_depth_m"),
+        ("vehicle-tread-fraction", format!("[[vehicle]]\ntread_fraction = 1.5\n{ok}"), "[[vehicle]][0].tread_fraction"),
+        ("vehicle-zero-spacing", format!("[[vehicle]]\ntread_spacing_m = 0.0\n{ok}"), "[[vehicle]][0].tread_spacing_m"),
+        ("vehicle-slip", format!("[[vehicle]]\nslip = -2.0\n{ok}"), "[[vehicle]][0].slip"),
+        ("vehicle-no-path", "[[vehicle]]\nmass_kg = 1000.0\n".to_owned(), "[[vehicle]][0].path"),
+        ("vehicle-one-key", "[[vehicle]]\npath = [[0.0, 0.0, 0.0]]\n".to_owned(), "[[vehicle]][0].path"),
+        ("vehicle-time-order", "[[vehicle]]\npath = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.5]]\n".to_owned(), "[[vehicle]][0].path"),
+        ("vehicle-path-row", "[[vehicle]]\npath = [[0.0, 0.0], [1.0, 0.0]]\n".to_owned(), "[[vehicle]][0].path[0]"),
+        ("vehicle-wheelbase-type", format!("[[vehicle]]\nwheelbase_m = \"long\"\n{ok}"), "[[vehicle]][0].wheelbase_m"),
+        ("vehicle-unknown", format!("[[vehicle]]\nwheels = 6\n{ok}"), "[[vehicle]][0].wheels"),
+    ];
+    for (name, toml, key) in cases {
+        expect_bad_input(name, toml, key);
+    }
+}

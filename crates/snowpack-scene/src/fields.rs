@@ -172,6 +172,20 @@ impl<'f> Fields<'f> {
         Ok(Some(out))
     }
 
+    /// An array of `[a, b, c]` rows.
+    pub(crate) fn rows3_opt(&mut self, key: &str) -> Result<Option<Vec<[f32; 3]>>, SceneError> {
+        let Some(v) = self.table.remove(key) else { return Ok(None) };
+        let Value::Array(rows) = &v else {
+            return Err(self.err(key, format!("expected an array of [x, z, t] rows, got {}", type_name(&v))));
+        };
+        let mut out = Vec::with_capacity(rows.len());
+        for (k, row) in rows.iter().enumerate() {
+            let n = self.numbers(&format!("{key}[{k}]"), row, 3)?;
+            out.push([n[0], n[1], n[2]]);
+        }
+        Ok(Some(out))
+    }
+
     pub(crate) fn table(&mut self, key: &str) -> Result<Option<Fields<'f>>, SceneError> {
         match self.table.remove(key) {
             None => Ok(None),

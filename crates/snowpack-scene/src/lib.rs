@@ -9,6 +9,7 @@ mod fields;
 pub mod gltf_file;
 mod save;
 mod scene;
+mod vehicle;
 mod world;
 
 pub use error::SceneError;
@@ -17,4 +18,5 @@ pub use scene::{
     RenderSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec,
 };
 pub use snowpack::{RimStyle, Technique};
+pub use vehicle::VehicleSpec;
 pub use world::{CharacterPose, FRICTION, GRAVITY, RESTITUTION, World};

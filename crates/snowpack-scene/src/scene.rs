@@ -409,6 +409,8 @@ pub struct Scene {
     pub window: WindowSpec,
     /// `[[actor]]`.
     pub actors: Vec<ActorSpec>,
+    /// `[[vehicle]]`.
+    pub vehicles: Vec<crate::vehicle::VehicleSpec>,
     /// `[[spawn]]`.
     pub spawns: Vec<SpawnSpec>,
     /// `[[object]]`.
@@ -548,6 +550,13 @@ impl Scene {
                 spec
             }
         };
+
+        // [[vehicle]]
+        let mut vehicles = Vec::new();
+        for mut v in root.tables("vehicle")? {
+            vehicles.push(crate::vehicle::VehicleSpec::parse(&mut v)?);
+            v.finish()?;
+        }
 
         // [[spawn]]
         let mut spawns = Vec::new();
@@ -698,7 +707,7 @@ impl Scene {
             Some(spec) => Some((f64::from(spec.memory_mb) * 1024.0 * 1024.0) as usize),
         };
         let snow = SnowParams { snowfall: snowfall.clone(), tile_memory_bytes, ..snow };
-        Ok(Self { path: path.to_owned(), snow, terrain, window, actors, spawns, objects, snowfall, store, sim, camera, render, source })
+        Ok(Self { path: path.to_owned(), snow, terrain, window, actors, vehicles, spawns, objects, snowfall, store, sim, camera, render, source })
     }
 
     /// Everything that was understood, for `snowpack check-scene`.
@@ -753,6 +762,24 @@ impl Scene {
         let _ = writeln!(s, "actors: {}", self.actors.len());
         for (k, a) in self.actors.iter().enumerate() {
             let _ = writeln!(s, "  [{k}] {:?}, {:?}", a.shape, a.motion);
+        }
+        for v in &self.vehicles {
+            let _ = writeln!(
+                s,
+                "vehicle: {} kg, wheelbase {} m, track {} m, wheels {} m radius x {} m wide (sinking {:.3} m), tread {} every {} m, {} m deep, {} lug, slip {}, path {:?}",
+                v.mass_kg,
+                v.wheelbase_m,
+                v.track_m,
+                v.wheel_radius_m,
+                v.wheel_width_m,
+                v.wheel_load().sinkage_m(self.snow.depth_m, self.snow.hardness_kpa),
+                v.tread.pattern.as_str(),
+                v.tread.spacing_m,
+                v.tread.depth_m,
+                v.tread.lug_fraction,
+                v.slip,
+                v.path
+            );
         }
         for sp in &self.spawns {
             let _ = writeln!(s, "spawn: {} spheres of radius {} m, seed {}", sp.count, sp.radius_m, sp.seed);

@@ -99,6 +99,7 @@ pub struct World {
     terrain: TerrainSource,
     actors: Vec<Actor>,
     bodies: Vec<Body>,
+    vehicles: Vec<crate::vehicle::VehicleState>,
     min: Vec2,
     max: Vec2,
     footsteps: Vec<FootstepEvent>,
@@ -144,6 +145,7 @@ impl World {
             terrain: scene.terrain.clone(),
             actors: Vec::new(),
             bodies: Vec::new(),
+            vehicles: scene.vehicles.iter().map(|v| crate::vehicle::VehicleState::new(v, 0.0)).collect(),
             min: center - Vec2::splat(half),
             max: center + Vec2::splat(half),
             footsteps: Vec::new(),
@@ -447,12 +449,15 @@ impl World {
         }
         out.extend(self.foot_points());
         out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));
+        for v in &self.vehicles {
+            out.extend(v.deformers(&self.terrain, self.snow_depth_m, self.hardness_kpa));
+        }
         out
     }
 
     /// A stable id for each of [`Self::deformers`], in the same order, for
     /// [`snowpack::SnowFrame::with_ids`]: actor i is `i`, the foot points of
-    /// actor i's foot k are `1 << 40 | i << 8 | k`, body b is `2 << 40 | b`;
+    /// actor i's foot k are `1 << 40 | i << 8 | k`, body b is `2 << 40 | b`, wheel k of vehicle v is `3 << 40 | v << 8 | k`;
     /// so each deformer is swept from its own last pose however many feet
     /// are down.
     #[must_use]
@@ -474,6 +479,9 @@ impl World {
             }
         }
         out.extend((0..self.bodies.len() as u64).map(|b| 2 << 40 | b));
+        for v in 0..self.vehicles.len() as u64 {
+            out.extend((0..4).map(|k| 3 << 40 | v << 8 | k));
+        }
         out
     }
 
@@ -512,6 +520,9 @@ impl World {
             self.substep(h);
         }
         self.time += dt;
+        for v in &mut self.vehicles {
+            v.advance(self.time);
+        }
         for a in &mut self.actors {
             if let Some((position, velocity)) = &mut a.steer {
                 *position += *velocity * dt;

@@ -44,6 +44,7 @@ fn uniform_sizes_match_naga() {
         (shaders::UPDATE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
         (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
+        (shaders::CAPTURE_WHEEL, "params", size_of::<CaptureParams>()),
         (shaders::STAMP, "params", size_of::<StampParams>()),
         (shaders::DECAL, "params", size_of::<DecalParams>()),
         (shaders::UPDATE, "params", size_of::<UpdateParams>()),

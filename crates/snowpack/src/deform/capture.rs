@@ -4,7 +4,8 @@
 //! linear in world height between `low_m` (depth 0) and `high_m` (depth 1), so
 //! the depth test keeps the lowest surface per texel. Spheres are impostor
 //! quads writing their exact lower surface; boxes (and meshes in general) are
-//! instanced triangles. Every deformer is swept over its motion since the
+//! instanced triangles; wheels are impostor quads writing their exact tyre,
+//! tread included (see [`super::wheel`]). Every deformer is swept over its motion since the
 //! last frame (see [`super::sweep`]): spheres as capsules, boxes and meshes
 //! in sub-steps. Actors outside the window leave no mark.
 
@@ -17,7 +18,7 @@ use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
 
-/// Uniforms of `capture_sphere.wgsl` and `capture_mesh.wgsl`.
+/// Uniforms of `capture_sphere.wgsl`, `capture_wheel.wgsl` and `capture_mesh.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct CaptureParams {
@@ -54,6 +55,9 @@ pub struct CaptureInstances {
     /// Column-major model matrix per box (and per sub-step of a swept box),
     /// mapping the unit cube to window-local space.
     pub boxes: Vec<[f32; 16]>,
+    /// Per wheel pose (and per sub-step of a swept wheel), window-local:
+    /// see [`super::wheel::instance`].
+    pub wheels: Vec<[f32; 16]>,
     /// World (x, z) of the window's corner (window-local 0, 0), relative to
     /// the floating origin, for meshes given in world space.
     pub corner_m: [f32; 2],
@@ -145,6 +149,24 @@ impl CaptureInstances {
                         out.boxes.extend(poses.iter().map(|&(c, h, q)| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array()));
                     }
                 }
+                (Deformer::Wheel { center, axle, radius, half_width, tread, roll_m }, prev) => {
+                    use super::wheel;
+                    let now = (local(center), axle, roll_m);
+                    let poses = match prev.as_ref().and_then(wheel::pose) {
+                        Some((c, a, roll)) => {
+                            let then = (local(c), a, roll);
+                            match super::sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), params.texel_m) {
+                                0 => vec![now],
+                                n => wheel::wheel_poses(then, now, n),
+                            }
+                        }
+                        None => vec![now],
+                    };
+                    let reach = radius.hypot(half_width);
+                    if !outside(poses[0].0, now.0, reach) && radius > 0.0 && half_width > 0.0 {
+                        out.wheels.extend(poses.iter().map(|&(c, a, roll)| wheel::instance(c, a, radius, half_width, &tread, f64::from(roll))));
+                    }
+                }
                 // Points have no surface to draw; only the stamp pass uses them.
                 (Deformer::Point { .. }, _) => {}
             }
@@ -165,6 +187,7 @@ fn growable(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
 /// Draws deformers into the capture depth target.
 pub struct CapturePass {
     sphere_pipeline: wgpu::RenderPipeline,
+    wheel_pipeline: wgpu::RenderPipeline,
     mesh_pipeline: wgpu::RenderPipeline,
     /// World-space meshes, each vertex between its last and this frame's position.
     swept_pipeline: wgpu::RenderPipeline,
@@ -176,13 +199,15 @@ pub struct CapturePass {
     bind_group: wgpu::BindGroup,
     capsule_instances: wgpu::Buffer,
     box_instances: wgpu::Buffer,
+    wheel_instances: wgpu::Buffer,
     /// Per mesh sub-step: (corner x, corner z, t, 0); entry 0 is t = 1.
     step_instances: wgpu::Buffer,
     /// First entry in `step_instances` and sub-steps of each prepared mesh.
     mesh_steps: Vec<(u32, u32)>,
     cube_vertices: wgpu::Buffer,
     cube_indices: wgpu::Buffer,
-    counts: (u32, u32),
+    /// Capsules, boxes and wheel poses prepared.
+    counts: (u32, u32, u32),
 }
 
 fn depth_state() -> wgpu::DepthStencilState {
@@ -230,6 +255,35 @@ impl CapturePass {
             multisample: wgpu::MultisampleState::default(),
             fragment: Some(wgpu::FragmentState {
                 module: &sphere_module,
+                entry_point: Some("fs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                targets: &[],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let wheel_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("capture wheels"),
+            source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_WHEEL.into()),
+        });
+        let wheel_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("capture wheels"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &wheel_module,
+                entry_point: Some("vs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4],
+                })],
+            },
+            primitive,
+            depth_stencil: Some(depth_state()),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &wheel_module,
                 entry_point: Some("fs_main"),
                 compilation_options: wgpu::PipelineCompilationOptions::default(),
                 targets: &[],
@@ -319,6 +373,7 @@ impl CapturePass {
         });
         Self {
             sphere_pipeline,
+            wheel_pipeline,
             mesh_pipeline,
             swept_pipeline,
             swept_point_pipeline,
@@ -326,11 +381,12 @@ impl CapturePass {
             bind_group,
             capsule_instances: growable(device, "capsule instances", 32 * 64),
             box_instances: growable(device, "box instances", 64 * 64),
+            wheel_instances: growable(device, "wheel instances", 64 * 64),
             step_instances: growable(device, "mesh step instances", 16 * 64),
             mesh_steps: Vec::new(),
             cube_vertices,
             cube_indices,
-            counts: (0, 0),
+            counts: (0, 0, 0),
         }
     }
 
@@ -339,6 +395,7 @@ impl CapturePass {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let capsule_bytes: &[u8] = bytemuck::cast_slice(&inst.capsules);
         let box_bytes: &[u8] = bytemuck::cast_slice(&inst.boxes);
+        let wheel_bytes: &[u8] = bytemuck::cast_slice(&inst.wheels);
         // Entry 0 is every unswept mesh's only draw; then each swept mesh's steps.
         let [cx, cz] = inst.corner_m;
         let mut steps = vec![[cx, cz, 1.0, 0.0]];
@@ -355,6 +412,7 @@ impl CapturePass {
         for (buffer, bytes, label) in [
             (&mut self.capsule_instances, capsule_bytes, "capsule instances"),
             (&mut self.box_instances, box_bytes, "box instances"),
+            (&mut self.wheel_instances, wheel_bytes, "wheel instances"),
             (&mut self.step_instances, step_bytes, "mesh step instances"),
         ] {
             if bytes.len() as u64 > buffer.size() {
@@ -362,7 +420,7 @@ impl CapturePass {
             }
             queue.write_buffer(buffer, 0, bytes);
         }
-        self.counts = (inst.capsules.len() as u32, inst.boxes.len() as u32);
+        self.counts = (inst.capsules.len() as u32, inst.boxes.len() as u32, inst.wheels.len() as u32);
     }
 
     /// Clears the capture target and draws the prepared instances.
@@ -405,6 +463,11 @@ impl CapturePass {
             pass.set_vertex_buffer(1, self.box_instances.slice(..));
             pass.set_index_buffer(self.cube_indices.slice(..), wgpu::IndexFormat::Uint16);
             pass.draw_indexed(0..CUBE_INDICES.len() as u32, 0, 0..self.counts.1);
+        }
+        if self.counts.2 > 0 {
+            pass.set_pipeline(&self.wheel_pipeline);
+            pass.set_vertex_buffer(0, self.wheel_instances.slice(..));
+            pass.draw(0..6, 0..self.counts.2);
         }
         if meshes.is_empty() {
             return;

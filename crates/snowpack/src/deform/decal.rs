@@ -109,6 +109,7 @@ impl DecalRing {
                 Deformer::Sphere { center, radius } => (center, radius),
                 Deformer::Box { center, half_extents, .. } => (center, half_extents.x.max(half_extents.z)),
                 Deformer::Point { position, scale_per_m } => (position, 0.5 / scale_per_m.max(1e-3)),
+                Deformer::Wheel { center, half_width, .. } => (center, half_width),
             };
             let ground = terrain.height_at(at.x, at.z);
             if d.lowest_point() >= ground + depth_m {

@@ -19,6 +19,7 @@ pub mod technique;
 pub mod terrain_bake;
 pub mod traffic;
 pub mod update;
+pub mod wheel;
 pub mod window;
 
 pub use query::{PointAnswers, PointSample, QueryStats, QueryTicket};

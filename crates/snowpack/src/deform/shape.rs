@@ -30,6 +30,27 @@ pub enum Deformer {
         /// Curvature of the footprint (1/m): `1 / 2r` matches a sphere of radius r.
         scale_per_m: f32,
     },
+    /// A wheel: a cylinder with a tread, rolling about its axle (see
+    /// [`super::wheel`]). Captured exactly (an impostor writes the lower
+    /// surface of the tyre, lugs included); swept in sub-steps with its roll,
+    /// so a rolling wheel prints its tread in place and a slipping one
+    /// smears it.
+    Wheel {
+        /// Centre of the wheel (on its axle, midway across its width) in world space (m).
+        center: Vec3,
+        /// Unit direction of the axle. The wheel rolls forward along
+        /// `axle x up` ([`super::wheel::forward`]) as `roll_m` grows.
+        axle: Vec3,
+        /// Outer radius, lugs included (m).
+        radius: f32,
+        /// Half the tyre's width along the axle (m).
+        half_width: f32,
+        /// The tread pattern on the tyre.
+        tread: super::wheel::Tread,
+        /// How far the tread has turned, as arc length at the outer radius
+        /// (m): the distance rolled, times `1 + slip`.
+        roll_m: f32,
+    },
 }
 
 impl Deformer {
@@ -51,6 +72,7 @@ impl Deformer {
                 center.y - extent
             }
             Self::Point { position, .. } => position.y,
+            Self::Wheel { center, axle, radius, half_width, .. } => center.y - super::wheel::extent_below(axle, radius, half_width),
         }
     }
 }

@@ -54,6 +54,8 @@ fn contact(d: &Deformer) -> Option<(glam::Vec3, f32, f32)> {
             Some((center, d.lowest_point(), 0.5 / half))
         }
         Deformer::Point { position, scale_per_m } => Some((position, position.y, scale_per_m)),
+        // The lowest point of the tyre, as round as its narrower dimension.
+        Deformer::Wheel { center, radius, half_width, .. } => Some((center, d.lowest_point(), 0.5 / radius.min(half_width).max(1e-3))),
         Deformer::Sphere { .. } => None,
     }
 }

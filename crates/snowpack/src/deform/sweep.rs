@@ -21,6 +21,10 @@
 //! - meshes (skinned characters, caller meshes): the same sub-steps, each
 //!   vertex interpolated linearly between its two positions
 //!   (`capture_mesh.wgsl`, `vs_swept`);
+//! - wheels: sub-steps of centre, axle and roll, as many as keep the tyre
+//!   and its tread at the contact within a texel between consecutive poses
+//!   ([`super::wheel::wheel_travel`], [`super::wheel::wheel_poses`]); each
+//!   pose an exact impostor (`capture_wheel.wgsl`);
 //! - contact points (the points technique): segments; the footprint is the
 //!   lowest of the paraboloids along the segment, found in closed form
 //!   (`stamp.wgsl`).
@@ -80,7 +84,7 @@ pub fn box_poses(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), steps: u32) -> Ve
 /// Where a deformer is, for the teleport test: its centre (or point).
 fn anchor(d: &Deformer) -> Vec3 {
     match *d {
-        Deformer::Sphere { center, .. } | Deformer::Box { center, .. } => center,
+        Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => center,
         Deformer::Point { position, .. } => position,
     }
 }
@@ -91,6 +95,9 @@ fn same_body(prev: &Deformer, cur: &Deformer) -> bool {
         (Deformer::Sphere { radius: a, .. }, Deformer::Sphere { radius: b, .. }) => a == b,
         (Deformer::Box { half_extents: a, .. }, Deformer::Box { half_extents: b, .. }) => a == b,
         (Deformer::Point { scale_per_m: a, .. }, Deformer::Point { scale_per_m: b, .. }) => a == b,
+        (Deformer::Wheel { radius: r0, half_width: w0, tread: t0, .. }, Deformer::Wheel { radius: r1, half_width: w1, tread: t1, .. }) => {
+            r0 == r1 && w0 == w1 && t0 == t1
+        }
         _ => false,
     }
 }
@@ -141,7 +148,7 @@ impl DeformerHistory {
     pub fn shift(&mut self, delta: Vec3) {
         for d in self.previous.values_mut() {
             match d {
-                Deformer::Sphere { center, .. } | Deformer::Box { center, .. } => *center += delta,
+                Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => *center += delta,
                 Deformer::Point { position, .. } => *position += delta,
             }
         }

@@ -70,9 +70,79 @@ pub fn sinkage_m(pressure_pa: f32, depth_m: f32, hardness_kpa: f32) -> f32 {
     depth_m.max(0.0) * p / (p + h)
 }
 
+/// What a wheel carries and how it meets the snow: the same pressure–sinkage
+/// curve as feet, with the contact patch of a rigid wheel.
+///
+/// A wheel of radius `r` and width `b` sunk `z` into the snow touches it over
+/// the chord `l = 2 sqrt(2 r z - z²)` (`2 r` once `z >= r`), an area `l b`;
+/// its load `m g` then presses `p(z) = m g / (l b)`. The sinkage is where the
+/// snow holds that pressure, `z = D p(z) / (p(z) + H)`: the left side grows
+/// with z and the right side shrinks (a deeper wheel spreads its load over a
+/// longer patch), so there is one root, found by bisection. A heavier load,
+/// a narrower or smaller wheel, or softer snow sinks deeper; never through
+/// the layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WheelLoad {
+    /// Mass resting on this wheel (kg): a vehicle's mass over its wheels.
+    pub mass_kg: f32,
+    /// Outer radius of the wheel (m).
+    pub radius_m: f32,
+    /// Width of the tyre (m).
+    pub width_m: f32,
+}
+
+impl WheelLoad {
+    /// Length of the contact patch (m) at sinkage `z_m`.
+    #[must_use]
+    pub fn patch_length_m(&self, z_m: f32) -> f32 {
+        let (r, z) = (self.radius_m.max(1e-6), z_m.max(0.0));
+        if z >= r { 2.0 * r } else { 2.0 * (2.0 * r * z - z * z).sqrt() }
+    }
+
+    /// Pressure under the wheel (Pa) at sinkage `z_m`.
+    #[must_use]
+    pub fn pressure_pa(&self, z_m: f32) -> f32 {
+        self.mass_kg.max(0.0) * GRAVITY / (self.patch_length_m(z_m) * self.width_m.max(1e-6)).max(1e-9)
+    }
+
+    /// How far the wheel sinks (m) into `depth_m` of snow of `hardness_kpa`.
+    #[must_use]
+    pub fn sinkage_m(&self, depth_m: f32, hardness_kpa: f32) -> f32 {
+        let depth = depth_m.max(0.0);
+        if depth == 0.0 || self.mass_kg <= 0.0 {
+            return 0.0;
+        }
+        // f(z) = z - sinkage(p(z)) rises from below 0 at z = 0 to above 0 at z = depth.
+        let (mut lo, mut hi) = (0.0_f32, depth);
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if mid < sinkage_m(self.pressure_pa(mid), depth, hardness_kpa) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_heavier_or_narrower_wheel_sinks_deeper_and_the_patch_holds_it() {
+        let car = WheelLoad { mass_kg: 1500.0 / 4.0, radius_m: 0.32, width_m: 0.2 };
+        let truck = WheelLoad { mass_kg: 6000.0 / 4.0, ..car };
+        let (z_car, z_truck) = (car.sinkage_m(0.4, 30.0), truck.sinkage_m(0.4, 30.0));
+        assert!(z_car > 0.01 && z_truck > z_car + 0.02 && z_truck < 0.4, "{z_car} {z_truck}");
+        // The root: the snow holds the pressure at that sinkage.
+        assert!((sinkage_m(car.pressure_pa(z_car), 0.4, 30.0) - z_car).abs() < 1e-5);
+        let narrow = WheelLoad { width_m: 0.1, ..car };
+        assert!(narrow.sinkage_m(0.4, 30.0) > z_car);
+        assert!(car.sinkage_m(0.4, 300.0) < z_car, "harder snow");
+        assert_eq!(car.sinkage_m(0.0, 30.0), 0.0);
+    }
 
     #[test]
     fn sinkage_is_half_the_depth_at_the_hardness_and_bounded_by_the_depth() {
