@@ -126,7 +126,7 @@ impl VehicleSpec {
         let h = self.heading_at(t_s);
         let left = Vec2::new(h.y, -h.x);
         let along = if k < 2 { 0.5 } else { -0.5 } * self.wheelbase_m;
-        let side = if k % 2 == 0 { 0.5 } else { -0.5 } * self.track_m;
+        let side = if k.is_multiple_of(2) { 0.5 } else { -0.5 } * self.track_m;
         c + h * along + left * side
     }
 }
