@@ -696,7 +696,11 @@ fn wheel_capture_matches_cpu() {
         let tilt = if k >= 4 { rng.range(-0.5, 0.5) } else { 0.0 };
         let radius = rng.range(0.05 * e, 0.15 * e);
         let axle = Quat::from_euler(glam::EulerRot::YXZ, rng.range(-3.0, 3.0), 0.0, tilt) * Vec3::X;
-        let center = Vec3::new(rng.range(0.1 * e, 0.9 * e), rng.range(-0.3, 0.3) + radius, rng.range(0.1 * e, 0.9 * e));
+        // The bottom within the snow over the terrain under the centre (the
+        // terrain's base is random, so a fixed height could miss the snow).
+        let (x, z) = (rng.range(0.1 * e, 0.9 * e), rng.range(0.1 * e, 0.9 * e));
+        let under = terrain[(z / texel) as usize * params.resolution as usize + (x / texel) as usize];
+        let center = Vec3::new(x, under + rng.range(0.0, 0.9) * params.depth_m + radius, z);
         let tread = Tread { pattern, spacing_m: rng.range(3.0, 8.0) * texel, depth_m: rng.range(0.03, 0.15), lug_fraction: rng.range(0.2, 0.8) };
         let roll_m = rng.range(-100.0, 100.0);
         let wheel = Deformer::Wheel { center, axle, radius, half_width: rng.range(2.0 * texel, 0.05 * e), tread, roll_m };
@@ -745,7 +749,9 @@ fn wheel_capture_matches_cpu() {
     let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::height(w, t + params.depth_m, t)).collect() };
     let (gpu, cpu) = (height(&read_u32(ctx, &res.snow)), height(&snow));
     let pressed = gpu.iter().zip(&terrain).filter(|(h, t)| **h < **t + params.depth_m - 1e-3).count();
-    assert!(pressed > n / 100, "only {pressed} texels pressed; seed {seed}");
+    // Six wheels, each pressing at least a few texels across and along (narrow
+    // ones are two texels wide): enough that a wrong tread or sweep would show.
+    assert!(pressed > 64, "only {pressed} texels pressed; seed {seed}");
     // The same f32 operations on both sides; atan2 and sqrt may round
     // differently, which moves a lug edge only for a texel centre within
     // a rounding error of it.
