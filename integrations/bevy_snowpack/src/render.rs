@@ -140,9 +140,15 @@ fn extract_snow_frame(
     objects: Extract<Query<(Entity, &SnowObject, &GlobalTransform)>>,
 ) {
     frame.dt_s = settings.0.fixed_dt_s.unwrap_or_else(|| time.delta_secs());
-    let placed: Vec<(u64, Deformer)> = deformers.iter().filter_map(|(e, d, t)| d.placed(t).map(|d| (e.to_bits(), d))).collect();
-    frame.ids = placed.iter().map(|(id, _)| *id).collect();
-    frame.deformers = placed.into_iter().map(|(_, d)| d).collect();
+    // Reuses last frame's lists: nothing is allocated once they have grown.
+    frame.deformers.clear();
+    frame.ids.clear();
+    for (e, d, t) in &deformers {
+        if let Some(placed) = d.placed(t) {
+            frame.deformers.push(placed);
+            frame.ids.push(e.to_bits());
+        }
+    }
     frame.center = target.iter().next().map(|t| t.translation().xz());
     frame.requests = query.take_requests();
     frame.meshes = (*meshes).clone();
@@ -171,8 +177,9 @@ fn pose_meshes(ctx: &GpuContext, snow: &mut SnowDeformation, ids: &mut HashMap<u
 
 /// Lays the objects out anew when the set changed, then places each.
 fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Vec<(Entity, ObjectShape, bool)>, objects: &[(Entity, SnowObject, Vec3, Quat)]) {
-    let now: Vec<(Entity, ObjectShape, bool)> = objects.iter().map(|(e, o, ..)| (*e, o.shape.clone(), o.dilate)).collect();
-    if now != *laid_out {
+    let unchanged = laid_out.len() == objects.len()
+        && laid_out.iter().zip(objects).all(|((e, shape, dilate), (f, o, ..))| e == f && *shape == o.shape && *dilate == o.dilate);
+    if !unchanged {
         let list: Vec<snowpack::SnowObject> = objects
             .iter()
             .map(|(e, o, position, rotation)| snowpack::SnowObject {
@@ -186,7 +193,7 @@ fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Ve
         if let Err(e) = snow.set_objects(ctx, &list) {
             tracing::error!("bevy_snowpack: the snow objects cannot be laid out: {e}");
         }
-        *laid_out = now;
+        *laid_out = objects.iter().map(|(e, o, ..)| (*e, o.shape.clone(), o.dilate)).collect();
     }
     for (k, (_, _, position, rotation)) in objects.iter().enumerate() {
         snow.set_object_pose(k, *position, *rotation);
