@@ -1,9 +1,14 @@
 //! Support for tests (this crate's and downstream crates'): one shared GPU
-//! context per process and reproducible random seeds.
+//! context per process, reproducible random seeds, and a disk in memory
+//! that loses power ([`PowerLossDisk`]) for the tile store's crash tests.
 
 use std::sync::OnceLock;
 
 use crate::gpu::GpuContext;
+
+mod power_loss;
+
+pub use power_loss::{PowerLossDisk, Unsynced};
 
 /// The process-wide GPU context for tests, or `None` when there is no adapter.
 ///

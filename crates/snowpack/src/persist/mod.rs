@@ -12,6 +12,8 @@
 //! explains the choices.
 
 pub mod codec;
+#[doc(hidden)]
+pub mod disk;
 pub mod store;
 pub mod streamer;
 

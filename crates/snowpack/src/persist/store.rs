@@ -10,17 +10,20 @@
 //! Every file is written to a unique temporary file beside it, synced,
 //! renamed over the old one and the directory synced, so a crash (or a
 //! kill) leaves each file either its old or its new version, never a mix.
+//! A folder the store creates is synced into its parent before anything is
+//! written in it, so a write that returned survives a power cut.
 //! Temporary files left by a crash are deleted on open. Region folders of
-//! 32×32 tiles keep directories small.
+//! 32×32 tiles keep directories small. All file-system calls go through a
+//! [`Disk`] ([`OsDisk`] unless a test supplies one).
 
 use std::collections::{BTreeSet, HashMap};
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::{Duration, Instant, SystemTime};
 
 use super::codec::{FORMAT_VERSION, decode, encode};
+use super::disk::{DirEntry, Disk, DiskLock, OsDisk};
 use super::{MAX_SIDE, StoreError, TileData, TileKey};
 
 /// Identifies `store.meta`.
@@ -39,8 +42,6 @@ const TEMP_SUFFIX: &str = ".tmp";
 const CORRUPT_SUFFIX: &str = ".corrupt";
 /// Tiles per region folder side is `1 << REGION_SHIFT`.
 const REGION_SHIFT: u32 = 5;
-/// How long `open` waits for a busy lock.
-const LOCK_PATIENCE: Duration = Duration::from_millis(500);
 /// Longest name `write_state` accepts.
 const MAX_STATE_NAME: usize = 64;
 
@@ -70,6 +71,7 @@ struct Entry {
 /// `store.lock` enforces it where the file system supports locks).
 #[derive(Debug)]
 pub struct TileStore {
+    disk: Arc<dyn Disk>,
     dir: PathBuf,
     side: u32,
     config: StoreConfig,
@@ -80,7 +82,7 @@ pub struct TileStore {
     total_bytes: u64,
     evicted: u64,
     /// Held for the lock; released when the store is dropped (or the process dies).
-    _lock: Option<File>,
+    _lock: Option<DiskLock>,
 }
 
 impl TileStore {
@@ -90,57 +92,64 @@ impl TileStore {
     /// (recency from their modification times) and, if the budget is now
     /// smaller than what is stored, the oldest are evicted.
     pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
+        Self::open_on(Arc::new(OsDisk), dir, side, config)
+    }
+
+    /// [`TileStore::open`] on another [`Disk`] than the operating system's
+    /// (a fault-injecting one in tests: `testing::PowerLossDisk`).
+    #[doc(hidden)]
+    pub fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
         let meta_path = dir.join(META_FILE);
         if side == 0 || side > MAX_SIDE {
             return Err(StoreError::Mismatch { path: meta_path, why: format!("tile side {side} is outside 1..={MAX_SIDE}") });
         }
-        fs::create_dir_all(dir).map_err(io_error(dir, "create the store directory"))?;
-        let lock = lock(dir)?;
-        match fs::read(&meta_path) {
+        create_dirs(&*disk, dir)?;
+        let lock = match disk.lock(&dir.join(LOCK_FILE)) {
+            Ok(lock) => lock,
+            Err(source) => {
+                return Err(StoreError::Io { path: dir.join(LOCK_FILE), op: "lock (another TileStore has the store open)", source });
+            }
+        };
+        match disk.read(&meta_path) {
             Ok(bytes) => check_meta(&meta_path, &bytes, side)?,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => atomic_write(&meta_path, &meta_bytes(side))?,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => atomic_write(&*disk, &meta_path, &meta_bytes(side))?,
             Err(e) => {
                 return Err(StoreError::Io { path: meta_path, op: "read", source: e });
             }
         }
         let tiles = dir.join(TILES_DIR);
-        match fs::create_dir(&tiles) {
+        match disk.create_dir(&tiles) {
             Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
                 return Err(StoreError::Io { path: tiles, op: "create the tiles directory", source: e });
             }
-            Ok(()) => sync_dir(dir),
+            Ok(()) => new_entry_synced(&*disk, &tiles, dir)?,
             Err(_) => {}
         }
-        remove_temp_files(dir);
+        if let Ok(entries) = disk.list(dir) {
+            remove_temp_files(&*disk, dir, &entries);
+        }
 
         let mut found = Vec::new();
-        let regions = fs::read_dir(&tiles).map_err(io_error(&tiles, "list"))?;
-        for region in regions.flatten() {
-            let path = region.path();
-            if !path.is_dir() {
+        let regions = disk.list(&tiles).map_err(io_error(&tiles, "list"))?;
+        for region in regions {
+            if !region.is_dir {
                 continue;
             }
-            remove_temp_files(&path);
-            let Ok(files) = fs::read_dir(&path) else {
+            let path = tiles.join(&region.name);
+            let Ok(files) = disk.list(&path) else {
                 tracing::warn!("tile store: cannot list {}; its tiles are not indexed", path.display());
                 continue;
             };
-            for file in files.flatten() {
-                let name = file.file_name();
-                let Some(key) = name.to_str().and_then(parse_tile_name) else {
+            remove_temp_files(&*disk, &path, &files);
+            for file in files {
+                let Some(key) = file.name.to_str().and_then(parse_tile_name) else {
                     continue;
                 };
-                if region_name(key) != region.file_name().to_string_lossy() {
+                if region_name(key) != region.name.to_string_lossy() {
                     continue; // Not where this store puts that tile: not ours.
                 }
-                match file.metadata() {
-                    Ok(meta) if meta.is_file() => {
-                        found.push((meta.modified().unwrap_or(SystemTime::UNIX_EPOCH), key, meta.len()));
-                    }
-                    Ok(_) => {}
-                    Err(e) => {
-                        tracing::warn!("tile store: cannot stat {}: {e}", file.path().display())
-                    }
+                if let Some((len, modified)) = file.file {
+                    found.push((modified, key, len));
                 }
             }
         }
@@ -148,6 +157,7 @@ impl TileStore {
         found.sort_unstable();
 
         let mut store = Self {
+            disk,
             dir: dir.to_owned(),
             side,
             config,
@@ -179,7 +189,7 @@ impl TileStore {
             return Ok(None);
         }
         let path = self.tile_path(key);
-        let bytes = match fs::read(&path) {
+        let bytes = match self.disk.read(&path) {
             Ok(bytes) => bytes,
             Err(e) if e.kind() == io::ErrorKind::NotFound => {
                 // Deleted behind the store's back: as if never written.
@@ -225,7 +235,7 @@ impl TileStore {
         if let Some(region) = path.parent() {
             // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
             // that is an error to report, not a directory to recreate.
-            match fs::create_dir(region) {
+            match self.disk.create_dir(region) {
                 Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
                     return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
                 }
@@ -233,13 +243,13 @@ impl TileStore {
                 // power cut cannot lose the folder under a synced tile.
                 Ok(()) => {
                     if let Some(tiles) = region.parent() {
-                        sync_dir(tiles);
+                        new_entry_synced(&*self.disk, region, tiles)?;
                     }
                 }
                 Err(_) => {}
             }
         }
-        atomic_write(&path, &bytes)?;
+        atomic_write(&*self.disk, &path, &bytes)?;
         self.forget(tile.key);
         self.insert(tile.key, bytes.len() as u64);
         self.enforce_budget(Some(tile.key))
@@ -259,13 +269,13 @@ impl TileStore {
         crc.update(bytes);
         framed.extend_from_slice(&crc.finalize().to_le_bytes());
         framed.extend_from_slice(bytes);
-        atomic_write(&path, &framed)
+        atomic_write(&*self.disk, &path, &framed)
     }
 
     /// Reads a blob written by [`TileStore::write_state`]; `Ok(None)` if there is none.
     pub fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
         let path = self.state_path(name)?;
-        let framed = match fs::read(&path) {
+        let framed = match self.disk.read(&path) {
             Ok(framed) => framed,
             Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
             Err(e) => {
@@ -382,7 +392,7 @@ impl TileStore {
         self.forget(key);
         let mut aside = path.as_os_str().to_owned();
         aside.push(CORRUPT_SUFFIX);
-        if let Err(e) = fs::rename(path, &aside) {
+        if let Err(e) = self.disk.rename(path, Path::new(&aside)) {
             tracing::warn!("tile store: cannot move the corrupt tile {} aside: {e}", path.display());
         }
     }
@@ -397,7 +407,8 @@ impl TileStore {
                 break;
             };
             let path = self.tile_path(key);
-            match fs::remove_file(&path) {
+            // Not synced: a power cut can only bring an evicted tile back.
+            match self.disk.remove_file(&path) {
                 Err(e) if e.kind() != io::ErrorKind::NotFound => {
                     return Err(StoreError::Io { path, op: "delete (evicting to the disk budget)", source: e });
                 }
@@ -407,7 +418,7 @@ impl TileStore {
             self.evicted += 1;
             if let Some(region) = path.parent() {
                 // Best effort: fails (harmlessly) while the region holds other tiles.
-                let _ = fs::remove_dir(region);
+                let _ = self.disk.remove_dir(region);
             }
         }
         Ok(())
@@ -458,48 +469,46 @@ fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Takes the store's advisory lock. Another holder (for longer than
-/// [`LOCK_PATIENCE`]) is an error; a file system without locks (or a
-/// read-only store) goes on unlocked.
-fn lock(dir: &Path) -> Result<Option<File>, StoreError> {
-    let path = dir.join(LOCK_FILE);
-    let file = match OpenOptions::new().create(true).truncate(false).write(true).open(&path) {
-        Ok(file) => file,
-        Err(e) => {
-            tracing::debug!("tile store: no lock file {}: {e}", path.display());
-            return Ok(None);
-        }
-    };
-    // A lock can outlive its holder for a moment: a process spawned while it
-    // was held keeps the locked file open until it execs. So a busy lock is
-    // retried briefly before it counts as another store.
-    let deadline = Instant::now() + LOCK_PATIENCE;
-    loop {
-        match file.try_lock() {
-            Ok(()) => return Ok(Some(file)),
-            Err(fs::TryLockError::WouldBlock) if Instant::now() < deadline => {
-                std::thread::sleep(Duration::from_millis(5));
+/// Creates `dir` and any missing parents (as `create_dir_all`), syncing
+/// each new folder's parent so that the folders survive a power cut along
+/// with what is later synced in them.
+fn create_dirs(disk: &dyn Disk, dir: &Path) -> Result<(), StoreError> {
+    let failed = io_error(dir, "create the store directory");
+    match disk.create_dir(dir) {
+        Ok(()) => {}
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => return Ok(()),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            match dir.parent() {
+                Some(parent) if !parent.as_os_str().is_empty() => create_dirs(disk, parent)?,
+                _ => return Err(failed(e)),
             }
-            Err(fs::TryLockError::WouldBlock) => {
-                return Err(StoreError::Io { path, op: "lock (another TileStore has the store open)", source: io::ErrorKind::WouldBlock.into() });
-            }
-            Err(fs::TryLockError::Error(e)) => {
-                tracing::debug!("tile store: cannot lock {}: {e}", path.display());
-                return Ok(None);
+            match disk.create_dir(dir) {
+                Ok(()) => {}
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => return Ok(()),
+                Err(e) => return Err(failed(e)),
             }
         }
+        Err(e) => return Err(failed(e)),
     }
+    let parent = dir.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    new_entry_synced(disk, dir, parent)
 }
 
-/// Deletes temporary files a crash left in `dir` (best effort).
-fn remove_temp_files(dir: &Path) {
-    let Ok(entries) = fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        if entry.file_name().to_string_lossy().ends_with(TEMP_SUFFIX) {
-            let path = entry.path();
-            match fs::remove_file(&path) {
+/// Syncs `parent` after the folder `new` was created in it. On failure the
+/// folder is removed again (best effort) so that the next attempt creates
+/// and syncs it rather than finding it there and trusting it.
+fn new_entry_synced(disk: &dyn Disk, new: &Path, parent: &Path) -> Result<(), StoreError> {
+    sync_dir(disk, parent).inspect_err(|_| {
+        let _ = disk.remove_dir(new);
+    })
+}
+
+/// Deletes the temporary files a crash left among `entries` of `dir` (best effort).
+fn remove_temp_files(disk: &dyn Disk, dir: &Path, entries: &[DirEntry]) {
+    for entry in entries {
+        if entry.name.to_string_lossy().ends_with(TEMP_SUFFIX) {
+            let path = dir.join(&entry.name);
+            match disk.remove_file(&path) {
                 Ok(()) => tracing::debug!("tile store: removed the leftover {}", path.display()),
                 Err(e) => tracing::warn!("tile store: cannot remove the leftover {}: {e}", path.display()),
             }
@@ -516,44 +525,42 @@ fn io_error(path: &Path, op: &'static str) -> impl FnOnce(io::Error) -> StoreErr
 /// Replaces `path` with `bytes` so that a crash leaves the old or the new
 /// file, never a mix: a unique temporary file in the same directory (rename
 /// is atomic only within a file system), synced, renamed over, and the
-/// directory synced so the rename itself is durable.
-fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
+/// directory synced so the rename itself is durable before this returns.
+fn atomic_write(disk: &dyn Disk, path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let mut temp = path.as_os_str().to_owned();
     temp.push(format!(".{}-{}{TEMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
     let temp = PathBuf::from(temp);
     let written = (|| {
-        let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&temp).map_err(io_error(&temp, "create"))?;
+        let mut file = disk.create(&temp).map_err(io_error(&temp, "create"))?;
         file.write_all(bytes).map_err(io_error(&temp, "write"))?;
-        file.sync_all().map_err(io_error(&temp, "sync"))?;
+        file.sync().map_err(io_error(&temp, "sync"))?;
         drop(file);
-        fs::rename(&temp, path).map_err(io_error(path, "rename into place"))
+        disk.rename(&temp, path).map_err(io_error(path, "rename into place"))
     })();
     if written.is_err() {
         // Best effort; open() deletes leftovers anyway.
-        let _ = fs::remove_file(&temp);
+        let _ = disk.remove_file(&temp);
     }
     written?;
-    if let Some(dir) = path.parent() {
-        sync_dir(dir);
+    match path.parent() {
+        Some(dir) => sync_dir(disk, dir),
+        None => Ok(()),
     }
-    Ok(())
 }
 
-/// Makes a rename in `dir` durable. Best effort: the rename is atomic
-/// either way, so a failure here can only lose the new version to a power
-/// cut (leaving the old one), and some platforms cannot sync directories.
-fn sync_dir(dir: &Path) {
-    #[cfg(unix)]
-    if let Err(e) = File::open(dir).and_then(|d| d.sync_all()) {
-        tracing::debug!("tile store: cannot sync the directory {}: {e}", dir.display());
-    }
-    #[cfg(not(unix))]
-    let _ = dir;
+/// Makes the entries of `dir` durable (a rename or a new folder in it). A
+/// failure is an error: the new entry is in place but could be lost to a
+/// power cut, so the write must not count as done. Platforms that cannot
+/// sync directories at all answer `Ok` ([`Disk::sync_dir`]).
+fn sync_dir(disk: &dyn Disk, dir: &Path) -> Result<(), StoreError> {
+    disk.sync_dir(dir).map_err(io_error(dir, "sync the directory"))
 }
 
 #[cfg(test)]
 mod tests {
+    use std::fs;
+
     use super::*;
     use crate::persist::SnowClock;
     use crate::persist::test_dir::TestDir;
