@@ -6,7 +6,7 @@ use glam::{DVec2, Vec2, Vec3};
 use snowpack::accumulate::Snowfall;
 use snowpack::cpu::query::query as cpu_query;
 use snowpack::deform::query::QueryParams;
-use snowpack::gpu::read_buffer;
+use snowpack::gpu::{ReadbackRing, read_buffer};
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
@@ -219,4 +219,78 @@ fn a_frame_whose_answer_buffers_are_all_busy_skips_its_gather_and_returns() {
     snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
     snow.finish(ctx).expect("finish");
     assert_eq!(snow.point_answers().expect("answers").ticket, next);
+}
+
+/// A readback ring whose every staging buffer is held: three copies arrived
+/// (mapped) and never taken. Fifty frames go on: each finds no free slot,
+/// records no copy (counted in `skipped`) and submits the rest of its work;
+/// nothing waits, and no held buffer is written (a copy into a mapped buffer
+/// would be a validation error). Once taken, the newest held copy is there
+/// byte for byte, and the ring copies again.
+#[test]
+fn a_readback_ring_held_busy_skips_its_copies_and_frames_go_on() {
+    let Some(ctx) = testing::gpu() else { return };
+    const WORDS: u32 = 64;
+    let size = u64::from(WORDS) * 4;
+    let pattern = |frame: u32| -> Vec<u32> { (0..WORDS).map(|k| frame * 1000 + k).collect() };
+    let buffer = |label| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let (source, other_work) = (buffer("ring source"), buffer("the frame's other work"));
+    let mut ring: ReadbackRing<u32> = ReadbackRing::new(&ctx.device, "held", size, 3);
+    // One frame: new data, the ring's copy if it has room, other work, submit, no waiting.
+    let frame = |ring: &mut ReadbackRing<u32>, k: u32| -> bool {
+        ctx.capturing(|| {
+            ctx.queue.write_buffer(&source, 0, bytemuck::cast_slice(&pattern(k)));
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ring frame") });
+            let copied = ring.record_copy(&mut encoder, &source, k);
+            encoder.copy_buffer_to_buffer(&source, 0, &other_work, 0, size);
+            ctx.queue.submit([encoder.finish()]);
+            ring.after_submit();
+            let _ = ctx.device.poll(wgpu::PollType::Poll);
+            copied
+        })
+    };
+    // Waits until the ring's mapping callbacks have run (some thread's poll fires them).
+    let arrive = |ring: &ReadbackRing<u32>| {
+        ctx.wait_idle("ring readback").expect("wait");
+        for _ in 0..100_000 {
+            if !ring.callbacks_pending() {
+                return;
+            }
+            std::thread::yield_now();
+            let _ = ctx.device.poll(wgpu::PollType::Poll);
+        }
+        panic!("a mapping callback never ran");
+    };
+    for k in 0..3 {
+        assert!(frame(&mut ring, k), "frame {k} found no free slot in an empty ring");
+    }
+    arrive(&ring);
+    // Held mapped from here on: nobody takes them.
+    let mut frames = 0;
+    for k in 3..53 {
+        assert!(!frame(&mut ring, k), "frame {k} found a free slot in a held ring");
+        frames += 1;
+    }
+    assert_eq!((frames, ring.skipped()), (50, 50));
+    assert!(ring.in_flight() && !ring.has_free_slot());
+    ctx.check("frames over a held ring").expect("no GPU error: no held buffer was written");
+    // Released: the newest held copy, bit for bit; the older ones are dropped.
+    let (meta, bytes) = ring.take_latest().expect("the held copies have arrived");
+    assert_eq!(meta, 2);
+    assert_eq!(bytes, bytemuck::cast_slice::<u32, u8>(&pattern(2)));
+    assert!(!ring.in_flight() && ring.take_latest().is_none());
+    // And the ring copies again: this frame's data arrives.
+    assert!(frame(&mut ring, 99));
+    arrive(&ring);
+    let (meta, bytes) = ring.take_latest().expect("arrived");
+    assert_eq!((meta, bytes.as_slice()), (99, bytemuck::cast_slice::<u32, u8>(&pattern(99))));
+    assert_eq!(ring.skipped(), 50);
+    ctx.check("the released ring").expect("no GPU error");
 }

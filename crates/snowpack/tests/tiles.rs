@@ -17,7 +17,7 @@ use snowpack::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::tiles::seal::{SealParams, TileSealPass};
 use snowpack::tiles::streaming::{PLANES, TileGrid, plane_stamps, planes};
 use snowpack::tiles::weather::{TileWeatherPass, WeatherParams};
-use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
@@ -708,4 +708,90 @@ fn a_window_jittering_across_a_tile_boundary_never_evicts() {
     assert_eq!(after.evicted, before.evicted, "jitter evicted tiles: {after:?}");
     assert_eq!(after.batched_moves, before.batched_moves, "jitter needed batched moves: {after:?}");
     assert!(after.resident <= after.slots, "{after:?}");
+}
+
+/// The tile copy-out held busy: frames are encoded and submitted but their
+/// readbacks never started (`after_submit` held back, as if the GPU never
+/// finished), so every tile copied out stays in flight, and so do the point
+/// answers. The frames go on without waiting: the window walks away (130
+/// frames in all), and walking back onto tiles still in flight it stays put
+/// (counted in `window_waits`) instead of blocking. Once released, the
+/// copied-out tiles arrive and the trench comes back bit for bit; the held
+/// answers arrive with the newest gathered request's ticket and the right snow.
+#[test]
+fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    let home = d.origin_texel();
+    let start = d.tile_stats().expect("tiles kept");
+    let first_frame = d.frame();
+    // One frame whose readbacks are held: asks for the snow at `ask`, encodes, submits.
+    let held_frame = |d: &mut SnowDeformation, ask: glam::Vec2| {
+        let ticket = d.query_points(&[ask]);
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("held frame") });
+        d.encode(ctx, &mut encoder, &SnowFrame::new(DT, &[]));
+        ctx.queue.submit([encoder.finish()]);
+        ticket
+    };
+    // Away: 20 m along x, a quarter metre a frame; each frame asks about
+    // untouched snow 1.5 m to the side of the window's centre.
+    let ask = |x: f64| glam::Vec2::new(x as f32, 1.5);
+    let mut tickets = Vec::new();
+    let mut frames = 0;
+    for k in 1..=80 {
+        let x = 0.25 * f64::from(k);
+        d.set_center(DVec2::new(x, 0.0));
+        tickets.push(held_frame(&mut d, ask(x)));
+        frames += 1;
+    }
+    let texel = f64::from(d.params().texel_m());
+    let far = [(20.0 / texel).floor() as i64 - 32, -32];
+    assert_eq!(d.origin_texel(), Some(far), "the window did not walk away freely: {:?}", d.tile_stats());
+    let away = d.tile_stats().expect("stats");
+    assert!(away.evicted > start.evicted && away.evicting > 0, "no tile copy-out was held in flight: {away:?}");
+    // Back home, onto the trench's tiles, whose copy-outs are still in flight:
+    // the window waits, frame after frame, and every frame returns.
+    d.set_center(DVec2::ZERO);
+    for _ in 0..50 {
+        tickets.push(held_frame(&mut d, ask(20.0)));
+        frames += 1;
+    }
+    let waiting = d.tile_stats().expect("stats");
+    assert_eq!(d.frame() - first_frame, frames);
+    assert_eq!(d.origin_texel(), Some(far), "the window moved onto tiles still in flight");
+    assert_eq!(waiting.window_waits - away.window_waits, 50, "{waiting:?}");
+    assert_eq!((waiting.evicting, waiting.evicted), (away.evicting, away.evicted), "{waiting:?}");
+    let q = d.query_stats();
+    assert_eq!((q.gathered, q.skipped, q.answered), (3, frames - 3, 0), "{q:?}");
+    assert!(d.point_answers().is_none());
+    assert!(d.take_store_errors().is_empty());
+
+    // Released: the readbacks start and arrive; the window goes home.
+    d.after_submit(ctx);
+    d.finish(ctx).expect("finish");
+    let answers = d.point_answers().expect("the held answers arrive");
+    assert_eq!((answers.ticket, answers.points.clone()), (tickets[2], vec![ask(0.75)]));
+    let sample = answers.samples[0].expect("inside the window");
+    assert!((sample.height_m - 0.5).abs() < 1e-6 && sample.compaction() < 1e-6, "{sample:?}");
+    for _ in 0..600 {
+        if d.origin_texel() == home {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        d.step(ctx, &[], DT).expect("frame");
+    }
+    assert_eq!(d.origin_texel(), home, "the window never got home: {:?}", d.tile_stats());
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.evicting == 0 && stats.restored > start.restored && stats.store.lost == 0, "{stats:?}");
+    let after = d.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the held copy-outs came back");
+    assert!(d.take_store_errors().is_empty());
+    // And the answer ring is free again.
+    let next = d.query_points(&[glam::Vec2::new(0.0, 1.5)]);
+    d.step(ctx, &[], DT).expect("frame");
+    d.finish(ctx).expect("finish");
+    assert_eq!(d.point_answers().expect("answers").ticket, next);
 }

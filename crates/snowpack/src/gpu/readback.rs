@@ -37,6 +37,7 @@ pub struct ReadbackRing<M> {
     size: u64,
     next_seq: u64,
     delivered_seq: Option<u64>,
+    skipped: u64,
 }
 
 impl<M> ReadbackRing<M> {
@@ -54,7 +55,7 @@ impl<M> ReadbackRing<M> {
                 state: SlotState::Free,
             })
             .collect();
-        Self { slots, size, next_seq: 0, delivered_seq: None }
+        Self { slots, size, next_seq: 0, delivered_seq: None, skipped: 0 }
     }
 
     /// Size of each staging buffer in bytes.
@@ -70,7 +71,8 @@ impl<M> ReadbackRing<M> {
     }
 
     /// Records a copy of `size` bytes of `src` into a free slot; returns false
-    /// (and records nothing) when every slot is still in flight.
+    /// (and records nothing, counted in [`Self::skipped`]) when every slot is
+    /// still in flight.
     pub fn record_copy(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, meta: M) -> bool {
         self.record_copy_len(encoder, src, self.size, meta)
     }
@@ -80,6 +82,7 @@ impl<M> ReadbackRing<M> {
     pub fn record_copy_len(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, len: u64, meta: M) -> bool {
         let len = len.min(self.size);
         let Some(slot) = self.slots.iter_mut().find(|s| matches!(s.state, SlotState::Free)) else {
+            self.skipped += 1;
             return false;
         };
         if len > 0 {
@@ -88,6 +91,13 @@ impl<M> ReadbackRing<M> {
         slot.state = SlotState::Recorded { meta, seq: self.next_seq, len };
         self.next_seq += 1;
         true
+    }
+
+    /// Copies not recorded so far because every slot was in flight (the
+    /// data was behind, or the caller has not taken what arrived).
+    #[must_use]
+    pub fn skipped(&self) -> u64 {
+        self.skipped
     }
 
     /// Whether [`Self::record_copy_len`] would find a free slot now (so a
