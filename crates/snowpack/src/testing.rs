@@ -1,14 +1,18 @@
 //! Support for tests (this crate's and downstream crates'): one shared GPU
 //! context per process and reproducible random seeds.
 
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::OnceLock;
 
+#[cfg(not(target_arch = "wasm32"))]
 use crate::gpu::GpuContext;
 
 /// The process-wide GPU context for tests, or `None` when there is no adapter.
 ///
 /// With `SNOWPACK_REQUIRE_GPU=1` (as CI sets it) a missing adapter panics, so
 /// GPU tests fail instead of silently skipping.
+// Tests run natively; a browser's GPU context cannot be shared between threads.
+#[cfg(not(target_arch = "wasm32"))]
 #[must_use]
 pub fn gpu() -> Option<&'static GpuContext> {
     static CONTEXT: OnceLock<Option<GpuContext>> = OnceLock::new();

@@ -8,10 +8,7 @@
 //! (deformation encoded) → panel (egui) → snow rendered into the window →
 //! panel drawn over it → submit, present → readbacks and error check.
 
-pub mod camera;
-pub mod panel;
 pub mod script;
-pub mod session;
 
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -31,11 +28,12 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use self::camera::{CameraMode, CameraRig, MoveInput};
-use self::panel::{Action, PanelState};
+use snowpack_app::BadInput;
+use snowpack_app::camera::{CameraMode, CameraRig, MoveInput};
+use snowpack_app::panel::{self, Action, PanelState};
+use snowpack_app::session::{PlayerBody, Session, WindowFollow};
+
 use self::script::{Script, ScriptEvent};
-use self::session::{PlayerBody, Session, WindowFollow};
-use crate::BadInput;
 
 /// What the command line asked of the demo.
 #[derive(Clone, Debug, Default)]

@@ -10,8 +10,8 @@ use snowpack::render::params::{DebugView, Material, MaterialPreset, sun_from_ang
 use snowpack::render::shell::DetailKind;
 use snowpack::{RimStyle, Technique};
 
-use super::camera::{CameraMode, CameraRig};
-use super::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
+use crate::camera::{CameraMode, CameraRig};
+use crate::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
 
 /// What the panel asks the app to do after this frame.
 #[derive(Clone, Debug, PartialEq)]

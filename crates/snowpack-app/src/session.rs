@@ -128,7 +128,7 @@ impl Session {
         let world = World::new(&scene);
         let snow_params = scene.snow.clone();
         let render_params = scene.render.params;
-        let center = crate::run::window_center(&scene, &world);
+        let center = crate::characters::window_center(&scene, &world);
         let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
@@ -166,7 +166,7 @@ impl Session {
     /// when it holds a save, the window resumes there.
     fn attach_store(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
         if let Some(spec) = self.scene.store.clone() {
-            crate::run::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
+            crate::characters::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
         }
         Ok(())
     }
@@ -205,7 +205,7 @@ impl Session {
     /// Uploads the skinned mesh of every character in the world and places the
     /// scene's objects (fresh deformation).
     fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
-        self.skins = crate::run::register_characters(ctx, &self.world, &mut self.snow)?;
+        self.skins = crate::characters::register_characters(ctx, &self.world, &mut self.snow)?;
         let objects: Vec<_> = self.scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
         self.snow.set_objects(ctx, &objects).context("placing the [[object]]s")?;
         Ok(())
@@ -292,7 +292,7 @@ impl Session {
         match self.follow {
             WindowFollow::Scene => match self.scene.window {
                 WindowSpec::FollowCamera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
-                _ => crate::run::window_center(&self.scene, &self.world),
+                _ => crate::characters::window_center(&self.scene, &self.world),
             },
             WindowFollow::Player => DVec2::new(f64::from(self.player.position.x), f64::from(self.player.position.z)),
             WindowFollow::Camera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
@@ -364,12 +364,12 @@ impl Session {
         if self.physics {
             // Characters on the snow stand in it as the latest answers show it (older trails).
             let answers = self.snow.point_answers();
-            self.world.step_on(dt, &|x, z| crate::run::sole_sample(answers, x, z).map(|s| s.height_m));
+            self.world.step_on(dt, &|x, z| crate::characters::sole_sample(answers, x, z).map(|s| s.height_m));
             for mut step in self.world.take_footsteps() {
-                step.snow_depth_m = crate::run::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
+                step.snow_depth_m = crate::characters::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
                 self.footsteps = (self.footsteps.0 + 1, Some(step));
             }
-            let soles = crate::run::sole_points(&self.world);
+            let soles = crate::characters::sole_points(&self.world);
             self.snow.query_points(&soles);
         }
         if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
@@ -385,7 +385,7 @@ impl Session {
         }
         let deformers = self.deformers();
         let characters = self.world.characters();
-        let poses = crate::run::poses(&self.skins, &characters);
+        let poses = crate::characters::poses(&self.skins, &characters);
         let ids = self.deformer_ids();
         self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses));
         for e in self.snow.take_store_errors() {
@@ -416,7 +416,7 @@ impl Session {
         self.scene.snow = self.snow_params.clone();
         self.scene.render.params = self.render_params;
         self.world = World::new(&self.scene);
-        let center = crate::run::window_center(&self.scene, &self.world);
+        let center = crate::characters::window_center(&self.scene, &self.world);
         let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
         // The old window lets go of its store (flushing it) before the new one opens it.
