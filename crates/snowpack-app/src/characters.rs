@@ -86,4 +86,3 @@ pub fn attach_store(
         other => other.context("attaching the tile store"),
     }
 }
-

@@ -11,8 +11,8 @@ use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SnowDeformation};
 use snowpack_scene::{Scene, Technique, World};
 
 use crate::output::OutputSet;
-use snowpack_app::characters::{attach_store, poses, register_characters, sole_points, sole_sample, window_center};
 use snowpack_app::BadInput;
+use snowpack_app::characters::{attach_store, poses, register_characters, sole_points, sole_sample, window_center};
 
 use crate::npy;
 

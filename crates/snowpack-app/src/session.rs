@@ -111,6 +111,10 @@ pub struct Session {
     pub footsteps: (u64, Option<FootstepEvent>),
     /// The tile store's latest errors (the frame goes on without them).
     pub store_errors: Vec<String>,
+    /// Points (world x, z) asked about every frame besides the characters'
+    /// soles; their answers are in the deformation's `point_answers` (the
+    /// browser build's test reads a trail and untouched snow this way).
+    pub probes: Vec<Vec2>,
     /// The player's fox in the world (actor index), once it has been chosen.
     fox: Option<usize>,
     /// Skinned meshes registered with the deformation, by actor.
@@ -153,6 +157,7 @@ impl Session {
             reset_seed: scene.spawns.first().map_or(7, |s| s.seed),
             footsteps: (0, None),
             store_errors: Vec::new(),
+            probes: Vec::new(),
             fox: None,
             skins: Vec::new(),
             scene,
@@ -369,8 +374,11 @@ impl Session {
                 step.snow_depth_m = crate::characters::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
                 self.footsteps = (self.footsteps.0 + 1, Some(step));
             }
-            let soles = crate::characters::sole_points(&self.world);
-            self.snow.query_points(&soles);
+        }
+        if self.physics || !self.probes.is_empty() {
+            let mut asked = if self.physics { crate::characters::sole_points(&self.world) } else { Vec::new() };
+            asked.extend_from_slice(&self.probes);
+            self.snow.query_points(&asked);
         }
         if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
             && let Some(p) = self.world.actor_position(k)

@@ -72,7 +72,8 @@ fn snow_reads_and_point_answers_need_no_blocking_call() {
         })
         .collect();
     // Each sphere's centre is pressed; a far point is untouched.
-    let mut points: Vec<Vec2> = spheres.iter().map(|d| if let Deformer::Sphere { center, .. } = d { Vec2::new(center.x, center.z) } else { Vec2::ZERO }).collect();
+    let mut points: Vec<Vec2> =
+        spheres.iter().map(|d| if let Deformer::Sphere { center, .. } = d { Vec2::new(center.x, center.z) } else { Vec2::ZERO }).collect();
     points.push(Vec2::new(cx + 7.0, cz + 7.0));
 
     // The browser's loop: ask, encode, submit, `after_submit` (a non-blocking
