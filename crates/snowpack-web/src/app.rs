@@ -338,7 +338,12 @@ impl WebApp {
 
 fn adapter_name(info: &wgpu::AdapterInfo) -> String {
     // Browsers often hide the name; the vendor and architecture are what they tell.
-    if info.name.is_empty() { format!("{} {}", info.driver, info.driver_info).trim().to_owned() } else { info.name.clone() }
+    let driver = format!("{} {}", info.driver, info.driver_info).trim().to_owned();
+    match (info.name.is_empty(), driver.is_empty()) {
+        (false, _) => info.name.clone(),
+        (true, false) => driver,
+        (true, true) => format!("{:?} adapter (the browser names no more)", info.device_type).to_lowercase(),
+    }
 }
 
 impl eframe::App for WebApp {

@@ -523,10 +523,12 @@ fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), StoreError> {
     temp.push(format!(".{}-{}{TEMP_SUFFIX}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
     let temp = PathBuf::from(temp);
     let written = (|| {
-        let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&temp).map_err(io_error(&temp, "create"))?;
-        file.write_all(bytes).map_err(io_error(&temp, "write"))?;
-        file.sync_all().map_err(io_error(&temp, "sync"))?;
-        drop(file);
+        {
+            // Closed before the rename (the block ends it).
+            let mut file = OpenOptions::new().write(true).create(true).truncate(true).open(&temp).map_err(io_error(&temp, "create"))?;
+            file.write_all(bytes).map_err(io_error(&temp, "write"))?;
+            file.sync_all().map_err(io_error(&temp, "sync"))?;
+        }
         fs::rename(&temp, path).map_err(io_error(path, "rename into place"))
     })();
     if written.is_err() {
