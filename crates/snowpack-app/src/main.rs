@@ -23,17 +23,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use snowpack_scene::{Scene, SceneError};
 
-/// A problem with what the user gave us (exit code 2).
-#[derive(Debug)]
-pub struct BadInput(pub String);
-
-impl std::fmt::Display for BadInput {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for BadInput {}
+use snowpack_app::BadInput;
 
 /// Real-time deformable snow on wgpu.
 ///

@@ -5,14 +5,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use glam::DVec2;
 use snowpack::gpu::PassTimings;
 use snowpack::render::{DebugView, IMAGE_FORMAT, MaterialPreset};
-use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SkinnedId, SkinnedPose, SnowDeformation};
-use snowpack_scene::{CharacterPose, Scene, Technique, WindowSpec, World};
+use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SnowDeformation};
+use snowpack_scene::{Scene, Technique, World};
 
 use crate::output::OutputSet;
-use crate::{BadInput, npy};
+use snowpack_app::BadInput;
+use snowpack_app::characters::{attach_store, poses, register_characters, sole_points, sole_sample, window_center};
+
+use crate::npy;
 
 /// Size of `frame.png` without `--size`.
 pub const DEFAULT_FRAME_SIZE: (u32, u32) = (1280, 720);
@@ -68,52 +70,6 @@ pub struct RunReport {
     pub frames: u32,
     /// Wall time of the simulation loop (s).
     pub wall_s: f64,
-}
-
-/// Where the scene's `[window]` puts the window's centre this frame.
-pub fn window_center(scene: &Scene, world: &World) -> DVec2 {
-    match &scene.window {
-        WindowSpec::Center(c) => DVec2::new(f64::from(c[0]), f64::from(c[1])),
-        WindowSpec::FollowCamera => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
-        WindowSpec::FollowActor(i) => world.actor_position(*i).map_or(DVec2::ZERO, |p| DVec2::new(f64::from(p.x), f64::from(p.z))),
-        // A window kind this runner does not know yet: where the camera is.
-        _ => DVec2::new(f64::from(scene.camera.position.x), f64::from(scene.camera.position.z)),
-    }
-}
-
-/// Uploads the skinned mesh of each glTF character in `world`; the result
-/// maps actor index to its mesh.
-pub fn register_characters(ctx: &GpuContext, world: &World, snow: &mut SnowDeformation) -> anyhow::Result<Vec<(usize, SkinnedId)>> {
-    world
-        .gltf_actors()
-        .map(|(k, g)| {
-            let id = snow.add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len()).with_context(|| format!("uploading {}", g.file.display()))?;
-            Ok((k, id))
-        })
-        .collect()
-}
-
-/// How far an answered point may be from a foot to stand for it: a foot
-/// moves a few centimetres in the frame or two an answer takes.
-const SOLE_MATCH_M: f32 = 0.3;
-
-/// Every character's soles (x, z): what the runner and the demo ask the snow
-/// about each frame, for the next frames' placement and footstep depths.
-pub fn sole_points(world: &World) -> Vec<glam::Vec2> {
-    world.soles().into_iter().flat_map(|(_, soles)| soles.into_iter().map(|p| glam::Vec2::new(p.x, p.z))).collect()
-}
-
-/// The answered sample nearest to (x, z), if one is close enough.
-pub fn sole_sample(answers: Option<&snowpack::PointAnswers>, x: f32, z: f32) -> Option<snowpack::PointSample> {
-    answers.and_then(|a| a.nearest(glam::Vec2::new(x, z), SOLE_MATCH_M))
-}
-
-/// This frame's poses for the registered characters.
-pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) -> Vec<SkinnedPose<'a>> {
-    characters
-        .iter()
-        .filter_map(|c| skins.iter().find(|(k, _)| *k == c.actor).map(|(_, id)| SkinnedPose { mesh: *id, joints: &c.joints, model: c.model }))
-        .collect()
 }
 
 /// Runs `scene` headless and writes its outputs.
@@ -263,38 +219,6 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     }
     let files = out.commit()?;
     Ok(RunReport { files, timings, adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()), frames, wall_s })
-}
-
-/// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
-/// with `keep = "memory"`, a memory keeper of its tile size and budget;
-/// `keep = "off"` attaches nothing (the scene's `[snow]` already forgets). A
-/// store that cannot be opened is bad input. `Ok(true)`: a save was loaded.
-pub fn attach_store(
-    ctx: &GpuContext,
-    snow: &mut SnowDeformation,
-    scene: &Scene,
-    spec: &snowpack_scene::StoreSpec,
-    out: &std::path::Path,
-) -> anyhow::Result<bool> {
-    use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
-    use snowpack_scene::StoreKeep;
-    const MIB: f64 = 1024.0 * 1024.0;
-    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize };
-    let streamer = match spec.keep {
-        StoreKeep::Off => return Ok(false),
-        StoreKeep::Memory => TileStreamer::in_memory(spec.tile_texels, memory),
-        StoreKeep::Disk => {
-            let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
-            let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
-            let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| BadInput(format!("{}: [store].path: {e}", scene.path.display())))?;
-            TileStreamer::new(store, memory)
-        }
-    };
-    match snow.attach_store(ctx, streamer) {
-        Err(snowpack::SnowError::Store(e)) => Err(BadInput(format!("{}: [store].path: {e}", scene.path.display())).into()),
-        Err(snowpack::SnowError::InvalidParameter { field, why }) => Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into()),
-        other => other.context("attaching the tile store"),
-    }
 }
 
 /// `meta.json`'s `store`: tile traffic and the keeper's figures (null when

@@ -2,8 +2,10 @@
 //! context per process, reproducible random seeds, and a disk in memory
 //! that loses power ([`PowerLossDisk`]) for the tile store's crash tests.
 
+#[cfg(not(target_arch = "wasm32"))]
 use std::sync::OnceLock;
 
+#[cfg(not(target_arch = "wasm32"))]
 use crate::gpu::GpuContext;
 
 mod power_loss;
@@ -14,6 +16,8 @@ pub use power_loss::{PowerLossDisk, Unsynced};
 ///
 /// With `SNOWPACK_REQUIRE_GPU=1` (as CI sets it) a missing adapter panics, so
 /// GPU tests fail instead of silently skipping.
+// Tests run natively; a browser's GPU context cannot be shared between threads.
+#[cfg(not(target_arch = "wasm32"))]
 #[must_use]
 pub fn gpu() -> Option<&'static GpuContext> {
     static CONTEXT: OnceLock<Option<GpuContext>> = OnceLock::new();

@@ -8,10 +8,7 @@
 //! (deformation encoded) → panel (egui) → snow rendered into the window →
 //! panel drawn over it → submit, present → readbacks and error check.
 
-pub mod camera;
-pub mod panel;
 pub mod script;
-pub mod session;
 
 use std::collections::HashSet;
 use std::path::PathBuf;
@@ -31,11 +28,12 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-use self::camera::{CameraMode, CameraRig, MoveInput};
-use self::panel::{Action, PanelState};
+use snowpack_app::BadInput;
+use snowpack_app::camera::{CameraMode, CameraRig, MoveInput};
+use snowpack_app::panel::{self, Action, PanelState};
+use snowpack_app::session::{PlayerBody, Session, WindowFollow};
+
 use self::script::{Script, ScriptEvent};
-use self::session::{PlayerBody, Session, WindowFollow};
-use crate::BadInput;
 
 /// What the command line asked of the demo.
 #[derive(Clone, Debug, Default)]
@@ -343,33 +341,7 @@ impl Gfx {
     }
 
     fn act(&mut self, action: Action) {
-        let ctx = &self.ctx;
         let result = match action {
-            Action::Reset(count) => self.session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),
-            Action::Rebuild => self.session.rebuild(ctx).map(|()| "rebuilt the window (fresh snow)".to_owned()),
-            Action::Store(keep) => self.session.set_store(ctx, keep).map(|()| match keep {
-                snowpack_scene::StoreKeep::Disk => "trails kept on disk: they stay when the window moves on, and the snow can be saved".to_owned(),
-                snowpack_scene::StoreKeep::Memory => "trails kept in memory: they stay when the window moves on".to_owned(),
-                snowpack_scene::StoreKeep::Off => "trails are forgotten when the window moves on".to_owned(),
-            }),
-            Action::SaveStore => self.session.save_store(ctx),
-            Action::CameraMode(mode) => {
-                self.rig.set_mode(mode, self.session.player.position);
-                if mode == CameraMode::Follow {
-                    self.session.follow = WindowFollow::Player;
-                }
-                Ok(format!("camera: {}", CameraMode::ALL.iter().find(|m| m.0 == mode).map_or("", |m| m.1)))
-            }
-            Action::Load(path) => Scene::load(std::path::Path::new(&path)).map_err(anyhow::Error::from).and_then(|scene| {
-                let camera = snowpack::Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
-                self.session.load(ctx, scene)?;
-                self.rig = CameraRig::from_camera(&camera);
-                self.panel.sphere_count = self.session.sphere_count() as u32;
-                Ok(format!("loaded {path}"))
-            }),
-            Action::PlayerBody(body) => {
-                self.session.set_body(ctx, body).map(|()| format!("player: {}", PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1)))
-            }
             Action::Vsync(on) => {
                 self.panel.vsync = on;
                 self.config.present_mode = if on { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync };
@@ -378,11 +350,7 @@ impl Gfx {
                 }
                 Ok(format!("vsync {}", if on { "on" } else { "off" }))
             }
-            Action::Save(path) => {
-                let camera = self.rig.camera(self.player());
-                let dest = PathBuf::from(&path);
-                self.session.scene_to_save(&camera).save(&dest).map(|()| format!("saved {path}")).map_err(|e| anyhow::anyhow!("saving {path}: {e}"))
-            }
+            other => panel::apply(other, &self.ctx, &mut self.session, &mut self.rig, &mut self.panel),
         };
         match result {
             Ok(msg) => {

@@ -150,6 +150,25 @@ fn error_message(e: &wgpu::Error) -> String {
     }
 }
 
+/// Sends the device's uncaptured errors and its loss to `sink`.
+fn install_handlers(device: &wgpu::Device, sink: &Arc<ErrorSink>) {
+    let errors = Arc::clone(sink);
+    device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+        let message = error_message(&e);
+        tracing::error!("wgpu: {message}");
+        if let Ok(mut list) = errors.errors.lock() {
+            list.push(message);
+        }
+    }));
+    let lost = Arc::clone(sink);
+    device.set_device_lost_callback(move |reason, message| {
+        tracing::error!("GPU device lost ({reason:?}): {message}");
+        if let Ok(mut slot) = lost.lost.lock() {
+            *slot = Some(format!("{reason:?}: {message}"));
+        }
+    });
+}
+
 fn type_rank(t: wgpu::DeviceType) -> u32 {
     match t {
         wgpu::DeviceType::DiscreteGpu => 0,
@@ -258,21 +277,7 @@ impl GpuContext {
         .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
 
         let sink = Arc::new(ErrorSink::default());
-        let errors = Arc::clone(&sink);
-        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            let message = error_message(&e);
-            tracing::error!("wgpu: {message}");
-            if let Ok(mut list) = errors.errors.lock() {
-                list.push(message);
-            }
-        }));
-        let lost = Arc::clone(&sink);
-        device.set_device_lost_callback(move |reason, message| {
-            tracing::error!("GPU device lost ({reason:?}): {message}");
-            if let Ok(mut slot) = lost.lost.lock() {
-                *slot = Some(format!("{reason:?}: {message}"));
-            }
-        });
+        install_handlers(&device, &sink);
         tracing::info!(
             "GPU: {} ({}, {}), timestamps: {}",
             summary.name,
@@ -282,6 +287,19 @@ impl GpuContext {
         );
         let downlevel = adapter.get_downlevel_capabilities().flags;
         Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+    }
+
+    /// Wraps a device the program created for snowpack's use alone (the
+    /// browser demo's, made by its window toolkit) and installs snowpack's
+    /// uncaptured-error and device-lost handlers on it, as
+    /// [`Self::from_adapter`] does: [`Self::check`] then reports every error
+    /// and a lost device without error scopes.
+    #[must_use]
+    pub fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let mut ctx = Self::from_device(device, queue);
+        install_handlers(&ctx.device, &ctx.sink);
+        ctx.owns_handlers = true;
+        ctx
     }
 
     /// Whether per-pass GPU timestamps are available.
@@ -296,7 +314,10 @@ impl GpuContext {
     /// ([`Self::from_device`]) this error scope is how snowpack sees its own
     /// errors without taking the game's.
     pub fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
-        if self.owns_handlers {
+        // In a browser an error scope answers only after the page's event
+        // loop turns, so a blocking pop would hang: there the game's own
+        // handlers see snowpack's errors (or use [`Self::adopt_device`]).
+        if self.owns_handlers || cfg!(target_arch = "wasm32") {
             return work();
         }
         let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);

@@ -203,6 +203,20 @@ pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec
     map_blocking(ctx, &staging)
 }
 
+/// [`read_buffer`] without blocking (see [`MappedRead`]).
+pub fn read_buffer_async(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> MappedRead {
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("async readback"),
+        size: buffer.size(),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
+    ctx.queue.submit([encoder.finish()]);
+    MappedRead::new(&ctx.device, staging)
+}
+
 /// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it and
 /// returns its bytes (blocking; for tests, headless frames and tools).
 pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
@@ -220,8 +234,76 @@ pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<V
     Ok(bytes)
 }
 
-/// A blocking copy of a 4-byte-per-texel 2D texture (a frame, a screenshot)
-/// into CPU memory: [`Self::record`] into an encoder, submit, then [`Self::read`].
+/// The bytes of a `MAP_READ` buffer whose copy has been submitted, as a
+/// future that never blocks: the browser build's readbacks (where
+/// `device.poll` cannot wait) and any async caller's.
+///
+/// On the web the browser runs the mapping callback, which wakes the task.
+/// Natively callbacks run inside `device.poll`, so each poll of the future
+/// makes one non-blocking `device.poll` and, while the copy is not back, asks
+/// to be polled again (an executor's next turn) rather than parking the thread.
+pub struct MappedRead {
+    buffer: wgpu::Buffer,
+    device: wgpu::Device,
+    shared: std::sync::Arc<std::sync::Mutex<MapShared>>,
+}
+
+#[derive(Default)]
+struct MapShared {
+    result: Option<Result<(), wgpu::BufferAsyncError>>,
+    waker: Option<std::task::Waker>,
+}
+
+impl MappedRead {
+    /// Starts mapping all of `buffer` (`MAP_READ`, its copy submitted).
+    #[must_use]
+    pub fn new(device: &wgpu::Device, buffer: wgpu::Buffer) -> Self {
+        let shared = std::sync::Arc::new(std::sync::Mutex::new(MapShared::default()));
+        let done = std::sync::Arc::clone(&shared);
+        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            if let Ok(mut s) = done.lock() {
+                s.result = Some(r);
+                if let Some(w) = s.waker.take() {
+                    w.wake();
+                }
+            }
+        });
+        Self { buffer, device: device.clone(), shared }
+    }
+}
+
+impl std::future::Future for MappedRead {
+    type Output = Result<Vec<u8>, crate::SnowError>;
+
+    fn poll(self: std::pin::Pin<&mut Self>, cx: &mut std::task::Context<'_>) -> std::task::Poll<Self::Output> {
+        use crate::SnowError;
+        if !cfg!(target_arch = "wasm32") {
+            self.device.poll(wgpu::PollType::Poll).map_err(|e| SnowError::Readback(format!("polling the GPU: {e}")))?;
+        }
+        let mut shared = self.shared.lock().map_err(|_| SnowError::Readback("a readback's state was poisoned".to_owned()))?;
+        match shared.result.take() {
+            Some(Ok(())) => {
+                drop(shared);
+                let bytes = self.buffer.slice(..).get_mapped_range().map_err(|e| SnowError::Readback(e.to_string()))?.to_vec();
+                self.buffer.unmap();
+                std::task::Poll::Ready(Ok(bytes))
+            }
+            Some(Err(e)) => std::task::Poll::Ready(Err(SnowError::Readback(e.to_string()))),
+            None => {
+                shared.waker = Some(cx.waker().clone());
+                if !cfg!(target_arch = "wasm32") {
+                    // Natively only a later `device.poll` runs the callback: come back next turn.
+                    cx.waker().wake_by_ref();
+                }
+                std::task::Poll::Pending
+            }
+        }
+    }
+}
+
+/// A copy of a 4-byte-per-texel 2D texture (a frame, a screenshot) into CPU
+/// memory: [`Self::record`] into an encoder, submit, then [`Self::read`]
+/// (blocking) or [`Self::read_async`].
 pub struct TextureReadback {
     staging: wgpu::Buffer,
     size: (u32, u32),
@@ -260,11 +342,22 @@ impl TextureReadback {
     /// by row without padding, 4 bytes each, in the texture's own channel order.
     pub fn read(&self, ctx: &crate::GpuContext) -> Result<Vec<u8>, crate::SnowError> {
         let bytes = map_blocking(ctx, &self.staging)?;
+        Ok(self.unpad(&bytes))
+    }
+
+    /// [`Self::read`] without blocking: the texels once the copy is back
+    /// (see [`MappedRead`]); what the browser build reads its frames with.
+    pub fn read_async(self, ctx: &crate::GpuContext) -> impl std::future::Future<Output = Result<Vec<u8>, crate::SnowError>> + 'static {
+        let mapped = MappedRead::new(&ctx.device, self.staging.clone());
+        async move { Ok(self.unpad(&mapped.await?)) }
+    }
+
+    fn unpad(&self, bytes: &[u8]) -> Vec<u8> {
         let row = self.size.0 as usize * 4;
         let mut out = Vec::with_capacity(row * self.size.1 as usize);
         for y in 0..self.size.1 as usize {
             out.extend_from_slice(&bytes[y * self.padded_row as usize..][..row]);
         }
-        Ok(out)
+        out
     }
 }

@@ -1058,18 +1058,7 @@ impl SnowDeformation {
     }
 
     fn untorus<T: Copy + Default>(&self, toroidal: &[T]) -> Vec<T> {
-        let r = self.params.resolution as usize;
-        let origin = self.window.origin().unwrap_or([0, 0]);
-        let ri = r as i64;
-        let (oc, or) = (origin[0].rem_euclid(ri) as usize, origin[1].rem_euclid(ri) as usize);
-        let mut out = vec![T::default(); r * r];
-        for i in 0..r {
-            let si = (or + i) % r;
-            for j in 0..r {
-                out[i * r + j] = toroidal[si * r + (oc + j) % r];
-            }
-        }
-        out
+        untorus(self.params.resolution, self.window.origin().unwrap_or([0, 0]), toroidal)
     }
 
     /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
@@ -1078,6 +1067,15 @@ impl SnowDeformation {
     pub fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
         let raw = read_buffer(ctx, &self.res.snow)?;
         Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
+    }
+
+    /// [`Self::read_snow_words`] without blocking: the words as the GPU has
+    /// them once the frames submitted so far are done (the browser build's
+    /// path; see [`crate::gpu::readback::MappedRead`]).
+    pub fn read_snow_words_async(&self, ctx: &GpuContext) -> impl std::future::Future<Output = Result<Vec<u32>, SnowError>> + 'static {
+        let mapped = crate::gpu::readback::read_buffer_async(ctx, &self.res.snow);
+        let (resolution, origin) = (self.params.resolution, self.window.origin().unwrap_or([0, 0]));
+        async move { Ok(untorus(resolution, origin, &bytemuck::pod_collect_to_vec::<u8, u32>(&mapped.await?))) }
     }
 
     /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
@@ -1129,4 +1127,19 @@ impl SnowDeformation {
         let normals = crate::cpu::normals::normals_of(&heights, self.params.resolution, self.params.texel_m());
         Ok((heights, normals))
     }
+}
+
+/// A toroidal window buffer (origin texel `origin`) laid out window-local row-major.
+fn untorus<T: Copy + Default>(resolution: u32, origin: [i64; 2], toroidal: &[T]) -> Vec<T> {
+    let r = resolution as usize;
+    let ri = r as i64;
+    let (oc, or) = (origin[0].rem_euclid(ri) as usize, origin[1].rem_euclid(ri) as usize);
+    let mut out = vec![T::default(); r * r];
+    for i in 0..r {
+        let si = (or + i) % r;
+        for j in 0..r {
+            out[i * r + j] = toroidal[si * r + (oc + j) % r];
+        }
+    }
+    out
 }

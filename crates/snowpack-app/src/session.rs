@@ -111,6 +111,10 @@ pub struct Session {
     pub footsteps: (u64, Option<FootstepEvent>),
     /// The tile store's latest errors (the frame goes on without them).
     pub store_errors: Vec<String>,
+    /// Points (world x, z) asked about every frame besides the characters'
+    /// soles; their answers are in the deformation's `point_answers` (the
+    /// browser build's test reads a trail and untouched snow this way).
+    pub probes: Vec<Vec2>,
     /// The player's fox in the world (actor index), once it has been chosen.
     fox: Option<usize>,
     /// Skinned meshes registered with the deformation, by actor.
@@ -128,7 +132,7 @@ impl Session {
         let world = World::new(&scene);
         let snow_params = scene.snow.clone();
         let render_params = scene.render.params;
-        let center = crate::run::window_center(&scene, &world);
+        let center = crate::characters::window_center(&scene, &world);
         let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
@@ -153,6 +157,7 @@ impl Session {
             reset_seed: scene.spawns.first().map_or(7, |s| s.seed),
             footsteps: (0, None),
             store_errors: Vec::new(),
+            probes: Vec::new(),
             fox: None,
             skins: Vec::new(),
             scene,
@@ -166,7 +171,7 @@ impl Session {
     /// when it holds a save, the window resumes there.
     fn attach_store(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
         if let Some(spec) = self.scene.store.clone() {
-            crate::run::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
+            crate::characters::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
         }
         Ok(())
     }
@@ -205,7 +210,7 @@ impl Session {
     /// Uploads the skinned mesh of every character in the world and places the
     /// scene's objects (fresh deformation).
     fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
-        self.skins = crate::run::register_characters(ctx, &self.world, &mut self.snow)?;
+        self.skins = crate::characters::register_characters(ctx, &self.world, &mut self.snow)?;
         let objects: Vec<_> = self.scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
         self.snow.set_objects(ctx, &objects).context("placing the [[object]]s")?;
         Ok(())
@@ -292,7 +297,7 @@ impl Session {
         match self.follow {
             WindowFollow::Scene => match self.scene.window {
                 WindowSpec::FollowCamera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
-                _ => crate::run::window_center(&self.scene, &self.world),
+                _ => crate::characters::window_center(&self.scene, &self.world),
             },
             WindowFollow::Player => DVec2::new(f64::from(self.player.position.x), f64::from(self.player.position.z)),
             WindowFollow::Camera => DVec2::new(f64::from(camera.x), f64::from(camera.z)),
@@ -364,13 +369,16 @@ impl Session {
         if self.physics {
             // Characters on the snow stand in it as the latest answers show it (older trails).
             let answers = self.snow.point_answers();
-            self.world.step_on(dt, &|x, z| crate::run::sole_sample(answers, x, z).map(|s| s.height_m));
+            self.world.step_on(dt, &|x, z| crate::characters::sole_sample(answers, x, z).map(|s| s.height_m));
             for mut step in self.world.take_footsteps() {
-                step.snow_depth_m = crate::run::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
+                step.snow_depth_m = crate::characters::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
                 self.footsteps = (self.footsteps.0 + 1, Some(step));
             }
-            let soles = crate::run::sole_points(&self.world);
-            self.snow.query_points(&soles);
+        }
+        if self.physics || !self.probes.is_empty() {
+            let mut asked = if self.physics { crate::characters::sole_points(&self.world) } else { Vec::new() };
+            asked.extend_from_slice(&self.probes);
+            self.snow.query_points(&asked);
         }
         if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
             && let Some(p) = self.world.actor_position(k)
@@ -385,7 +393,7 @@ impl Session {
         }
         let deformers = self.deformers();
         let characters = self.world.characters();
-        let poses = crate::run::poses(&self.skins, &characters);
+        let poses = crate::characters::poses(&self.skins, &characters);
         let ids = self.deformer_ids();
         self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses));
         for e in self.snow.take_store_errors() {
@@ -416,7 +424,7 @@ impl Session {
         self.scene.snow = self.snow_params.clone();
         self.scene.render.params = self.render_params;
         self.world = World::new(&self.scene);
-        let center = crate::run::window_center(&self.scene, &self.world);
+        let center = crate::characters::window_center(&self.scene, &self.world);
         let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
         // The old window lets go of its store (flushing it) before the new one opens it.

@@ -10,8 +10,12 @@ use snowpack::render::params::{DebugView, Material, MaterialPreset, sun_from_ang
 use snowpack::render::shell::DetailKind;
 use snowpack::{RimStyle, Technique};
 
-use super::camera::{CameraMode, CameraRig};
-use super::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
+use crate::camera::{CameraMode, CameraRig};
+use crate::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
+
+/// In a browser (the `wasm32` build) there is no disk: no disk tile store,
+/// no scene files.
+const WEB: bool = cfg!(target_arch = "wasm32");
 
 /// What the panel asks the app to do after this frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -261,6 +265,10 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                         (StoreKeep::Off, "texels leaving the window are forgotten"),
                     ];
                     for (choice, hint) in hints {
+                        // A browser page has no folder to keep tiles in.
+                        if WEB && choice == StoreKeep::Disk {
+                            continue;
+                        }
                         if ui.radio(keep == choice, choice.as_str()).on_hover_text(hint).clicked() && keep != choice {
                             actions.push(Action::Store(choice));
                         }
@@ -405,6 +413,10 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
             });
 
             egui::CollapsingHeader::new("Scene file").default_open(false).show(ui, |ui| {
+                if WEB {
+                    ui.label("the browser build runs the built-in default scene: a page has no files to load or save");
+                    return;
+                }
                 ui.text_edit_singleline(&mut state.scene_path);
                 ui.horizontal(|ui| {
                     if ui.button("load").clicked() {
@@ -455,4 +467,49 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
         });
     });
     actions
+}
+
+/// Carries out a panel action that needs no window (all but
+/// [`Action::Vsync`], which the window's owner applies; here it only records
+/// the choice) and says what happened in words for the status line.
+pub fn apply(action: Action, ctx: &snowpack::GpuContext, session: &mut Session, rig: &mut CameraRig, state: &mut PanelState) -> anyhow::Result<String> {
+    match action {
+        Action::Reset(count) => session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),
+        Action::Rebuild => session.rebuild(ctx).map(|()| "rebuilt the window (fresh snow)".to_owned()),
+        Action::Store(keep) => session.set_store(ctx, keep).map(|()| match keep {
+            snowpack_scene::StoreKeep::Disk => "trails kept on disk: they stay when the window moves on, and the snow can be saved".to_owned(),
+            snowpack_scene::StoreKeep::Memory => "trails kept in memory: they stay when the window moves on".to_owned(),
+            snowpack_scene::StoreKeep::Off => "trails are forgotten when the window moves on".to_owned(),
+        }),
+        Action::SaveStore => session.save_store(ctx),
+        Action::CameraMode(mode) => {
+            rig.set_mode(mode, session.player.position);
+            if mode == CameraMode::Follow {
+                session.follow = WindowFollow::Player;
+            }
+            Ok(format!("camera: {}", CameraMode::ALL.iter().find(|m| m.0 == mode).map_or("", |m| m.1)))
+        }
+        Action::Load(path) => snowpack_scene::Scene::load(std::path::Path::new(&path)).map_err(anyhow::Error::from).and_then(|scene| {
+            let camera = snowpack::Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
+            session.load(ctx, scene)?;
+            *rig = CameraRig::from_camera(&camera);
+            state.sphere_count = session.sphere_count() as u32;
+            Ok(format!("loaded {path}"))
+        }),
+        Action::PlayerBody(body) => {
+            session.set_body(ctx, body).map(|()| format!("player: {}", PlayerBody::ALL.iter().find(|b| b.0 == body).map_or("", |b| b.1)))
+        }
+        Action::Vsync(on) => {
+            state.vsync = on;
+            Ok(format!("vsync {}", if on { "on" } else { "off" }))
+        }
+        Action::Save(path) => {
+            let camera = rig.camera(session.player.position);
+            session
+                .scene_to_save(&camera)
+                .save(std::path::Path::new(&path))
+                .map(|()| format!("saved {path}"))
+                .map_err(|e| anyhow::anyhow!("saving {path}: {e}"))
+        }
+    }
 }
