@@ -66,6 +66,23 @@ impl PanelState {
     /// Frame times kept for the graph.
     pub const HISTORY: usize = 240;
 
+    /// A visible panel for `session` on `ctx`, whose adapter is `adapter` in
+    /// words, drawing into `surface` pixels.
+    #[must_use]
+    pub fn new(session: &Session, ctx: &snowpack::GpuContext, adapter: String, surface: (u32, u32), vsync: bool) -> Self {
+        Self {
+            visible: true,
+            sphere_count: session.sphere_count() as u32,
+            scene_path: session.scene.path.display().to_string(),
+            status: None,
+            frame_ms: VecDeque::new(),
+            adapter,
+            timestamps: ctx.has_timestamps(),
+            surface,
+            vsync,
+        }
+    }
+
     /// Records one frame's time.
     pub fn push_frame_time(&mut self, ms: f32) {
         if self.frame_ms.len() == Self::HISTORY {

@@ -178,17 +178,7 @@ impl WebApp {
             session.probes = std::iter::once(trail).chain(UNTOUCHED_CANDIDATES.iter().map(|&[x, z]| Vec2::new(x, z))).collect();
             TestRun { frames, trail, captured: false }
         });
-        let panel = PanelState {
-            visible: true,
-            sphere_count: session.sphere_count() as u32,
-            scene_path: session.scene.path.display().to_string(),
-            status: None,
-            frame_ms: std::collections::VecDeque::new(),
-            adapter: format!("{} ({})", adapter_name(&adapter), adapter.backend.to_str()),
-            timestamps: ctx.has_timestamps(),
-            surface: (0, 0),
-            vsync: true,
-        };
+        let panel = PanelState::new(&session, &ctx, format!("{} ({})", adapter_name(&adapter), adapter.backend.to_str()), (0, 0), true);
         log::info!("snowpack on {}", panel.adapter);
         Ok(Self { ctx, adapter, session, rig, panel, target: None, frame: 0, test })
     }

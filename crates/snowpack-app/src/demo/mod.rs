@@ -251,17 +251,8 @@ impl App {
         let max_side = ctx.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, Some(max_side));
         let egui_renderer = egui_wgpu::Renderer::new(&ctx.device, format, egui_wgpu::RendererOptions::default());
-        let panel = PanelState {
-            visible: true,
-            sphere_count: session.sphere_count() as u32,
-            scene_path: session.scene.path.display().to_string(),
-            status: None,
-            frame_ms: std::collections::VecDeque::new(),
-            adapter: format!("{} ({})", ctx.summary.name, ctx.summary.backend),
-            timestamps: ctx.has_timestamps(),
-            surface: (size.width, size.height),
-            vsync: self.opts.vsync,
-        };
+        let adapter = format!("{} ({})", ctx.summary.name, ctx.summary.backend);
+        let panel = PanelState::new(&session, &ctx, adapter, (size.width, size.height), self.opts.vsync);
         Ok(Gfx {
             window,
             surface,

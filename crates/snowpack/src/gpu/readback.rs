@@ -191,22 +191,18 @@ impl<M> ReadbackRing<M> {
 
 /// Copies a whole buffer into a staging buffer and waits for it (blocking).
 pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
-    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("blocking readback"),
-        size: buffer.size(),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
-    ctx.queue.submit([encoder.finish()]);
-    map_blocking(ctx, &staging)
+    map_blocking(ctx, &copy_to_staging(ctx, buffer))
 }
 
 /// [`read_buffer`] without blocking (see [`MappedRead`]).
 pub fn read_buffer_async(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> MappedRead {
+    MappedRead::new(&ctx.device, copy_to_staging(ctx, buffer))
+}
+
+/// A `MAP_READ` copy of all of `buffer`, submitted.
+fn copy_to_staging(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> wgpu::Buffer {
     let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("async readback"),
+        label: Some("readback staging"),
         size: buffer.size(),
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
@@ -214,7 +210,7 @@ pub fn read_buffer_async(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Mapp
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
     encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, buffer.size());
     ctx.queue.submit([encoder.finish()]);
-    MappedRead::new(&ctx.device, staging)
+    staging
 }
 
 /// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it and
