@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The browser demo's end-to-end test: `bash web/test.sh OUT_DIR`.
-# Builds the page (web/build.sh), serves it on localhost, opens it in headless
+# The browser demo's end-to-end test: `bash web/test.sh [--prebuilt] OUT_DIR`.
+# Builds the page (web/build.sh; --prebuilt: web/dist/ is already built, as
+# .ci/run does before it starts the test jobs side by side), serves it on localhost, opens it in headless
 # Chromium through playwright-core, runs 120 frames with a scripted deformer
 # (the player's sphere driven along a line), and writes OUT_DIR/web.png (the
 # app's own frame readback) and OUT_DIR/web.json. Exits non-zero if the page
@@ -8,7 +9,9 @@
 # not differ from untouched snow. Installs what is missing: the wasm32 target
 # and wasm-bindgen-cli (build.sh), Debian's chromium (as root), playwright-core.
 set -euo pipefail
-out="${1:?usage: web/test.sh OUT_DIR}"
+prebuilt=false
+if [ "${1:-}" = --prebuilt ]; then prebuilt=true; shift; fi
+out="${1:?usage: web/test.sh [--prebuilt] OUT_DIR}"
 cd "$(dirname "$0")/.."
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
@@ -25,7 +28,11 @@ fi
 # playwright-core, pinned in web/package-lock.json.
 [ -d web/node_modules/playwright-core ] || (cd web && npm ci --no-audit --no-fund --loglevel=error)
 
-bash web/build.sh
+if $prebuilt; then
+  [ -f web/dist/index.html ] || { echo "web test: --prebuilt, but web/dist/ holds no build (run web/build.sh)" >&2; exit 1; }
+else
+  bash web/build.sh
+fi
 
 log="$out/serve.log"
 node web/serve.mjs web/dist 0 >"$log" 2>&1 &
