@@ -9,7 +9,7 @@ import { mkdir, writeFile } from "node:fs/promises";
 import { join } from "node:path";
 
 const [url, outDir, framesArg] = process.argv.slice(2);
-const frames = Number(framesArg ?? 120);
+const frames = Number(framesArg ?? 60);
 const browserPath = process.env.CHROMIUM ?? "/usr/bin/chromium";
 await mkdir(outDir, { recursive: true });
 

@@ -2,7 +2,7 @@
 # The browser demo's end-to-end test: `bash web/test.sh [--prebuilt] OUT_DIR`.
 # Builds the page (web/build.sh; --prebuilt: web/dist/ is already built, as
 # .ci/run does before it starts the test jobs side by side), serves it on localhost, opens it in headless
-# Chromium through playwright-core, runs 120 frames with a scripted deformer
+# Chromium through playwright-core, runs 60 frames with a scripted deformer
 # (the player's sphere driven along a line), and writes OUT_DIR/web.png (the
 # app's own frame readback) and OUT_DIR/web.json. Exits non-zero if the page
 # logs an error, has no WebGPU adapter, draws a blank frame, or its trail does
@@ -44,4 +44,4 @@ for _ in $(seq 100); do
 done
 url=$(sed -n 's/^serving .* at \(http[^ ]*\)$/\1/p' "$log")
 [ -n "$url" ] || { echo "web test: the server did not start: $(cat "$log")" >&2; exit 1; }
-node web/test.mjs "${url}index.html" "$out" "${SNOWPACK_WEB_FRAMES:-120}"
+node web/test.mjs "${url}index.html" "$out" "${SNOWPACK_WEB_FRAMES:-60}"

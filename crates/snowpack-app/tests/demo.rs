@@ -52,7 +52,7 @@ impl Drop for Xvfb {
 }
 
 /// A small scene so a software rasteriser runs it quickly: 24 spheres dropped
-/// on gentle hills, a 16 m window at 256².
+/// on gentle hills, a 16 m window at 256², a 512² shadow map.
 const SCENE: &str = r#"
 [snow]
 extent_m = 16.0
@@ -72,7 +72,7 @@ radius_m = 0.4
 seed = 9
 
 [render]
-shadow_map_size = 1024
+shadow_map_size = 512
 
 [camera]
 position = [0.0, 7.0, -11.0]
