@@ -2,8 +2,8 @@
 # job, `pool_run DURATIONS` runs them at most $CI_JOBS at a time (default: the
 # number of cores) and fails if any failed.
 #
-# Why: the tests run on software rasterisers, and one test binary keeps two
-# cores only about 1.3 of the time busy (a test waits on a readback, a
+# Why: the tests run on software rasterisers, and one test binary keeps only
+# about 1.3 of two cores busy (a test waits on a readback, a
 # subprocess, an X server, a browser). Binaries in separate processes share no
 # adapter, temporary folder, port or X display, so they run side by side.
 #
