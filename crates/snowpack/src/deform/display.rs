@@ -60,7 +60,7 @@ impl DisplayPass {
     /// Builds the pipeline and binds it to `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "display",
             shaders::DISPLAY,
@@ -72,6 +72,7 @@ impl DisplayPass {
                 layout::storage(4, true),
                 layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<DisplayParams>(device, "display params");
         let bind_group = layout::bind_group(

@@ -190,7 +190,7 @@ impl QueryPass {
     /// Builds the pipeline over `res` with room for a first few hundred points.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "query",
             shaders::QUERY,
@@ -203,6 +203,7 @@ impl QueryPass {
                 layout::storage(5, false),
                 layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<QueryParams>(device, "query params");
         let (points, samples) = buffers(device, INITIAL_CAPACITY);

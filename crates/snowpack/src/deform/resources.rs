@@ -42,6 +42,9 @@ pub struct DeformResources {
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
+    /// [`TerrainParams::kind`] of that terrain, which never changes: the
+    /// window passes' pipelines are built for it ([`Self::terrain_constants`]).
+    pub terrain_kind: u32,
     /// Capture depth target.
     pub capture: wgpu::Texture,
     /// View of `capture`.
@@ -84,7 +87,8 @@ impl DeformResources {
             buffer
         };
         let terrain_params = layout::uniform_buffer::<TerrainParams>(device, "terrain params");
-        queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&TerrainParams::new(terrain)));
+        let terrain_uniform = TerrainParams::new(terrain);
+        queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&terrain_uniform));
         let capture = height_depth_texture(device, "capture depth", res);
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
         Self {
@@ -97,9 +101,18 @@ impl DeformResources {
             fallen: height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 }),
             heightmap,
             terrain_params,
+            terrain_kind: terrain_uniform.kind,
             capture,
             capture_view,
         }
+    }
+
+    /// The `override` constants of the passes that evaluate the ground
+    /// (`shaders/shared/terrain_kind.wgsl`): this window's terrain kind, so
+    /// the driver compiles only that kind's code.
+    #[must_use]
+    pub fn terrain_constants(&self) -> [(&'static str, f64); 1] {
+        [("TERRAIN_KIND", f64::from(self.terrain_kind))]
     }
 
     /// Whether the footprint buffer is allocated (one `u32` per texel).

@@ -78,7 +78,7 @@ impl UpdatePass {
     /// Builds the pipeline and binds it to `res` (without an occlusion depth).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, layout) = layout::compute_pipeline(
+        let (pipeline, layout) = layout::compute_pipeline_with(
             device,
             "update",
             shaders::UPDATE,
@@ -92,6 +92,7 @@ impl UpdatePass {
                 layout::storage(6, false),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());

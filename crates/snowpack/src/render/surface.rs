@@ -41,7 +41,7 @@ impl SurfaceUnpackPass {
     /// Builds the pipeline and the output buffer for the window of `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "surface unpack",
             shaders::SURFACE_UNPACK,
@@ -52,6 +52,7 @@ impl SurfaceUnpackPass {
                 layout::uniform(3, wgpu::ShaderStages::COMPUTE),
                 layout::storage(4, false),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<UnpackParams>(device, "surface unpack params");
         let texels = u64::from(res.resolution) * u64::from(res.resolution);

@@ -66,7 +66,7 @@ impl ExchangePass {
     /// and their key `table` (tile key -> slot).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer, table: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "exchange",
             shaders::EXCHANGE,
@@ -80,6 +80,7 @@ impl ExchangePass {
                 layout::storage(6, true),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
+            &res.terrain_constants(),
         );
         let direction = |label: &str| {
             let params = layout::uniform_buffer::<ExchangeParams>(device, label);

@@ -82,7 +82,7 @@ impl TileRestorePass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "tile restore",
             shaders::TILE_RESTORE,
@@ -94,6 +94,7 @@ impl TileRestorePass {
                 layout::storage(4, true),
                 layout::storage(5, false),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
         let entries = super::input_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);

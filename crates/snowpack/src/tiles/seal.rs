@@ -46,7 +46,7 @@ impl TileSealPass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "tile seal",
             shaders::TILE_SEAL,
@@ -57,6 +57,7 @@ impl TileSealPass {
                 layout::storage(3, true),
                 layout::storage(4, false),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");
         let entries = super::input_buffer(device, "tile seal entries", 64 * 16);

@@ -68,7 +68,7 @@ impl TileWeatherPass {
     /// the terrain description in `res` (the ground under each texel).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipeline, bgl) = layout::compute_pipeline_with(
             device,
             "tile weather",
             shaders::TILE_WEATHER,
@@ -80,6 +80,7 @@ impl TileWeatherPass {
                 layout::storage(4, true),
                 layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
+            &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
         // One entry per slot at most (the owners buffer holds 16 bytes per slot).
