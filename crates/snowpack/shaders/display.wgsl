@@ -42,6 +42,31 @@ struct DisplayParams {
 @group(0) @binding(4) var<storage, read> fallen: array<f32>;
 @group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
 
+// The choices this pipeline is built for, packed as in
+// `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3): `DisplayPass`
+// builds one pipeline per set in use (gpu/specialised.rs); the default reads
+// them from `params`.
+override DISPLAY_VARIANT: u32 = 0xffffffffu;
+
+fn display_variant() -> u32 {
+    if DISPLAY_VARIANT != 0xffffffffu {
+        return DISPLAY_VARIANT;
+    }
+    return params.mode | (min(params.blur, 1u) << 2u) | (min(params.use_fallen, 1u) << 3u);
+}
+
+fn display_mode() -> u32 {
+    return display_variant() & 3u;
+}
+
+fn display_blurs() -> bool {
+    return (display_variant() & 4u) != 0u;
+}
+
+fn display_uses_fallen() -> bool {
+    return (display_variant() & 8u) != 0u;
+}
+
 const RIM_PEAK: f32 = 0.25;
 // Snow within this of the rest height counts as undisturbed (grows rims).
 const UNDISTURBED_M: f32 = 0.001;
@@ -69,7 +94,7 @@ fn point_rim(st: u32, rest: f32) -> f32 {
     let m = sqrt(rest - foot);
     let r = (sqrt(h - foot) - m) / m;
     var t: f32;
-    if params.mode == 1u {
+    if display_mode() == 1u {
         t = 0.5 - 2.0 * r;
     } else {
         t = 2.0 * r - 1.0;
@@ -86,7 +111,7 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
     let s = storage_index(params.origin, params.resolution, i, j);
     let ground = ground_at(i, j);
     var depth = params.depth_m;
-    if params.use_fallen != 0u {
+    if display_uses_fallen() {
         depth += fallen[s];
     }
     let snow_h = snow_word_height(atomicLoad(&snow[s]), ground + depth, ground);
@@ -95,7 +120,7 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
         // push into rims.
         return snow_h;
     }
-    if params.mode == 0u {
+    if display_mode() == 0u {
         let x = clamp((snow_h - ground) / depth, 0.0, 1.0);
         let remapped = x + params.elevation * (hanak_cubic(x) - x);
         return ground + depth * max(remapped, 0.0);
@@ -111,7 +136,7 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
 @compute @workgroup_size(16, 16)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(local_invocation_index) flat: u32) {
     let last = i32(params.resolution) - 1;
-    if params.blur != 0u {
+    if display_blurs() {
         let i0 = i32(wg.y * TILE) - 2;
         let j0 = i32(wg.x * TILE) - 2;
         for (var k = flat; k < SPAN * SPAN; k += TILE * TILE) {
@@ -132,7 +157,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         return;
     }
     var shown: f32;
-    if params.blur != 0u {
+    if display_blurs() {
         let t = lid.y * TILE + lid.x;
         shown = (along_x[t] + 4.0 * along_x[t + TILE] + 6.0 * along_x[t + 2u * TILE] + 4.0 * along_x[t + 3u * TILE] + along_x[t + 4u * TILE]) * (1.0 / 16.0);
     } else {

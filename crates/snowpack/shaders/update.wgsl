@@ -45,6 +45,17 @@ const USE_SKY: u32 = 8u;
 const HAS_STAMPS: u32 = 16u;
 const SKY_BIAS_M: f32 = 0.02;
 
+// The flags this pipeline is built for (`UpdatePass` builds one per set in
+// use, gpu/specialised.rs); the default reads `params.flags`.
+override UPDATE_FLAGS: u32 = 0xffffffffu;
+
+fn update_flags() -> u32 {
+    if UPDATE_FLAGS != 0xffffffffu {
+        return UPDATE_FLAGS;
+    }
+    return params.flags;
+}
+
 @group(0) @binding(0) var<uniform> params: UpdateParams;
 // The depth target is bound as an unfilterable float texture: GLSL has no
 // texelFetch for depth textures, and this binding works on every backend.
@@ -82,14 +93,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ground = texel_ground(terrain_as_built(terrain_params), params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let word = snow[s];
     var lying = 0.0;
-    if (params.flags & USE_FALLEN) != 0u {
+    if (update_flags() & USE_FALLEN) != 0u {
         lying = fallen[s];
     }
     var visible = 1.0;
-    if (params.flags & USE_SKY) != 0u {
+    if (update_flags() & USE_SKY) != 0u {
         visible = sky_visible(i, j, snow_word_height(word, ground + params.depth_m + lying, ground));
     }
-    if (params.flags & USE_FALLEN) != 0u {
+    if (update_flags() & USE_FALLEN) != 0u {
         let before = lying;
         lying = max(before, min(before + params.fall_m * visible, params.max_fallen_m));
         fallen[s] = lying;
@@ -99,7 +110,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if visible > 0.0 {
         deficit -= min(deficit, params.snow_refill_quanta);
     }
-    if (params.flags & USE_CAPTURE) != 0u {
+    if (update_flags() & USE_CAPTURE) != 0u {
         let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
         if d < 1.0 {
             let actor = params.low_m + d * (params.high_m - params.low_m);
@@ -107,13 +118,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     var st = STAMP_EMPTY;
-    if (params.flags & HAS_STAMPS) != 0u {
+    if (update_flags() & HAS_STAMPS) != 0u {
         st = stamps[s];
     }
     if st != STAMP_EMPTY {
         let hq = st >> 16u;
         let fq = st & 0xffffu;
-        if (params.flags & USE_STAMPS) != 0u {
+        if (update_flags() & USE_STAMPS) != 0u {
             deficit = max(deficit, snow_press_quanta(rest, ground, stamp_height(hq, params.low_m, params.high_m)));
         }
         if params.refill_quanta > 0u {

@@ -3,6 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
@@ -47,20 +48,29 @@ impl DisplayParams {
             (Technique::Points | Technique::Combined, RimStyle::Rounded) => 2,
         }
     }
+
+    /// The choices a display pipeline is built for (`DISPLAY_VARIANT` in
+    /// `display.wgsl`): `mode | blur << 2 | use_fallen << 3`.
+    #[must_use]
+    pub fn variant(&self) -> u32 {
+        (self.mode & 3) | (u32::from(self.blur != 0) << 2) | (u32::from(self.use_fallen != 0) << 3)
+    }
 }
 
 /// Writes the displayed height of every texel (upper halves of `res.snow`).
 pub struct DisplayPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per [`DisplayParams::variant`] in use.
+    pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }
 
 impl DisplayPass {
-    /// Builds the pipeline and binds it to `res`.
+    /// Compiles the shader and binds it to `res`; the pipeline for a
+    /// [`DisplayParams::variant`] is built on its first frame.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "display",
             shaders::DISPLAY,
@@ -72,6 +82,7 @@ impl DisplayPass {
                 layout::storage(4, true),
                 layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
+            "DISPLAY_VARIANT",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<DisplayParams>(device, "display params");
@@ -88,13 +99,13 @@ impl DisplayPass {
                 res.terrain_params.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, bind_group }
+        Self { pipelines, params, bind_group }
     }
 
     /// Records this frame's display.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &DisplayParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
-        layout::dispatch(encoder, timer, "display", &self.pipeline, &self.bind_group, (g, g));
+        layout::dispatch(encoder, timer, "display", &self.pipelines.get(params.variant()), &self.bind_group, (g, g));
     }
 }

@@ -3,6 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::gpu::{GpuTimer, layout};
 use crate::height_depth::sky_depth_texture;
 use crate::shaders;
@@ -66,7 +67,8 @@ impl UpdateParams {
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
 pub struct UpdatePass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of [`UpdateParams::flags`] in use.
+    pipelines: SpecialisedPipeline,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -75,10 +77,11 @@ pub struct UpdatePass {
 }
 
 impl UpdatePass {
-    /// Builds the pipeline and binds it to `res` (without an occlusion depth).
+    /// Compiles the shader and binds it to `res` (without an occlusion
+    /// depth); the pipeline for a set of flags is built on its first frame.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, layout) = layout::compute_pipeline_with(
+        let (pipelines, layout) = SpecialisedPipeline::new(
             device,
             "update",
             shaders::UPDATE,
@@ -92,12 +95,13 @@ impl UpdatePass {
                 layout::storage(6, false),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
+            "UPDATE_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = Self::group(device, &layout, &params, res, &no_sky);
-        Self { pipeline, layout, params, bind_group, no_sky }
+        Self { pipelines, layout, params, bind_group, no_sky }
     }
 
     fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, res: &DeformResources, sky: &wgpu::TextureView) -> wgpu::BindGroup {
@@ -128,6 +132,6 @@ impl UpdatePass {
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
-        layout::dispatch(encoder, timer, "update", &self.pipeline, &self.bind_group, (g, g));
+        layout::dispatch(encoder, timer, "update", &self.pipelines.get(params.flags), &self.bind_group, (g, g));
     }
 }
