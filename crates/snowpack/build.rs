@@ -19,7 +19,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("DECAL", &["decal.wgsl"]),
     ("TERRAIN_BAKE", &["terrain_bake.wgsl"]),
     ("TERRAIN_RESOLVE", &["terrain_resolve.wgsl"]),
-    ("TERRAIN_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/terrain.wgsl", "terrain_draw.wgsl"]),
+    ("TERRAIN_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "terrain_draw.wgsl"]),
     ("ACTOR_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "actor_draw.wgsl"]),
     ("SKY", &["shared/frame.wgsl", "sky.wgsl"]),
     ("TONEMAP", &["shared/frame.wgsl", "tonemap.wgsl"]),

@@ -102,7 +102,7 @@ fn window_ao(k: Taps) -> f32 {
 }
 
 fn ground_height(xz: vec2<f32>) -> f32 {
-    return terrain_height(terrain_params, xz.x, xz.y);
+    return terrain_height(terrain_as_built(terrain_params), xz.x, xz.y);
 }
 
 // Undisturbed snow: terrain plus the rest depth.

@@ -102,6 +102,7 @@ impl OcclusionPass {
                 depth: Some((CAPTURE_FORMAT, wgpu::CompareFunction::Less, true)),
                 bias: wgpu::DepthBiasState::default(),
                 cull: false,
+                constants: &[],
             },
         );
         let params = layout::uniform_buffer::<OcclusionParams>(device, "occlusion params");

@@ -68,6 +68,8 @@ pub struct PipelineSpec<'a> {
     pub bias: wgpu::DepthBiasState,
     /// Cull back faces (counter-clockwise front).
     pub cull: bool,
+    /// Values of the shader's `override` constants, by name.
+    pub constants: &'a [(&'a str, f64)],
 }
 
 /// Builds a render pipeline from `spec`.
@@ -83,7 +85,7 @@ pub fn render_pipeline(device: &wgpu::Device, spec: &PipelineSpec<'_>) -> wgpu::
         vertex: wgpu::VertexState {
             module: &module,
             entry_point: Some(spec.vertex),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: spec.constants, ..Default::default() },
             buffers: spec.buffers,
         },
         primitive: wgpu::PrimitiveState {
@@ -103,7 +105,7 @@ pub fn render_pipeline(device: &wgpu::Device, spec: &PipelineSpec<'_>) -> wgpu::
         fragment: spec.fragment.zip(targets.as_ref()).map(|((entry, _), targets)| wgpu::FragmentState {
             module: &module,
             entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: spec.constants, ..Default::default() },
             targets,
         }),
         multiview_mask: None,

@@ -148,6 +148,7 @@ impl ActorPass {
                 lit_layouts: &[lit_layout],
                 shadow_layouts: &[shadow_layout],
                 cull: (true, true),
+                constants: &[],
             },
         );
         Self {

@@ -205,7 +205,7 @@ impl Renderer {
         let res = snow.resources();
         let unpack = surface::SurfaceUnpackPass::new(device, res);
         let ao = AoPass::new(device, &unpack.surface, res.resolution);
-        let terrain = TerrainPass::new(device, &lit_layout, &shadow_layout, params.patch_quads);
+        let terrain = TerrainPass::new(device, &lit_layout, &shadow_layout, params.patch_quads, res.terrain_kind);
         let snow_group = snow_bind_group(device, &terrain, snow, &unpack.surface, &ao);
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);

@@ -46,6 +46,7 @@ impl ObjectDrawPass {
                 lit_layouts: &[lit_layout, &layout],
                 shadow_layouts: &[shadow_layout, &layout],
                 cull: (true, true),
+                constants: &[],
             },
         );
         let info = layout::uniform_buffer::<[u32; 4]>(device, "atlas info");

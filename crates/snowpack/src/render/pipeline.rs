@@ -24,6 +24,8 @@ pub struct DrawSpec<'a> {
     pub shadow_layouts: &'a [&'a wgpu::BindGroupLayout],
     /// Back-face culling of the lit and of the shadow pipeline.
     pub cull: (bool, bool),
+    /// Values of the shader's `override` constants, in both pipelines.
+    pub constants: &'a [(&'a str, f64)],
 }
 
 /// Builds the lit and the shadow pipeline of `spec`.
@@ -41,6 +43,7 @@ pub fn lit_and_shadow(device: &wgpu::Device, spec: &DrawSpec<'_>) -> (wgpu::Rend
             depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Greater, true)),
             bias: wgpu::DepthBiasState::default(),
             cull: spec.cull.0,
+            constants: spec.constants,
         },
     );
     let shadow_label = format!("{} shadow", spec.label);
@@ -56,6 +59,7 @@ pub fn lit_and_shadow(device: &wgpu::Device, spec: &DrawSpec<'_>) -> (wgpu::Rend
             depth: Some((super::shadow::SHADOW_FORMAT, wgpu::CompareFunction::Less, true)),
             bias: wgpu::DepthBiasState { constant: 2, slope_scale: 2.0, clamp: 0.0 },
             cull: spec.cull.1,
+            constants: spec.constants,
         },
     );
     (lit, shadow)

@@ -29,6 +29,7 @@ impl SkinnedDrawPass {
                 lit_layouts: &[lit_layout],
                 shadow_layouts: &[shadow_layout],
                 cull: (false, false),
+                constants: &[],
             },
         );
         Self { lit, shadow }

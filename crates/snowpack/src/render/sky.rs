@@ -31,6 +31,7 @@ impl SkyPass {
                 depth: Some((DEPTH_FORMAT, wgpu::CompareFunction::Always, false)),
                 bias: wgpu::DepthBiasState::default(),
                 cull: false,
+                constants: &[],
             },
         );
         let bind_group = layout::bind_group(device, "sky", &bgl, &[frame.as_entire_binding(), env.as_entire_binding()]);

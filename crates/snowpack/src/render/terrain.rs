@@ -72,9 +72,10 @@ pub struct TerrainPass {
 const INSTANCE_ATTRIBUTES: [wgpu::VertexAttribute; 2] = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4];
 
 impl TerrainPass {
-    /// Builds both pipelines for patches of `quads`² quads.
+    /// Builds both pipelines for patches of `quads`² quads, for a terrain of
+    /// `terrain_kind` (`DeformResources::terrain_kind`).
     #[must_use]
-    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout, quads: u32) -> Self {
+    pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout, quads: u32, terrain_kind: u32) -> Self {
         let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let snow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("terrain snow"),
@@ -101,6 +102,7 @@ impl TerrainPass {
                 lit_layouts: &[lit_layout, &snow_layout],
                 shadow_layouts: &[shadow_layout, &snow_layout],
                 cull: (true, false),
+                constants: &[("TERRAIN_KIND", f64::from(terrain_kind))],
             },
         );
         let index_buffer = |label: &str, q: u32| {

@@ -30,6 +30,7 @@ impl TonemapPass {
                 depth: None,
                 bias: wgpu::DepthBiasState::default(),
                 cull: false,
+                constants: &[],
             },
         );
         Self { pipeline, layout: bgl }
