@@ -32,7 +32,50 @@ pub fn gpu() -> Option<&'static GpuContext> {
             None
         }
     });
+    if let Some(ctx) = ctx {
+        WAIT_AT_TEST_END.with(|armed| {
+            armed.set(Some(ctx));
+        });
+    }
     ctx.as_ref()
+}
+
+/// Waits for the shared context's GPU work when the test's thread ends.
+///
+/// The shared context lives until the process exits, and a test may end
+/// with work still queued (a frame stepped and never read back). On
+/// lavapipe the queue thread can then still be compiling a shader variant
+/// with LLVM while the exit handlers tear LLVM down, and the process
+/// crashes after every test passed. libtest runs each test on a thread of
+/// its own, so this thread-local's destructor runs before the process exits.
+#[cfg(not(target_arch = "wasm32"))]
+struct WaitForGpu(std::cell::Cell<Option<&'static GpuContext>>);
+
+#[cfg(not(target_arch = "wasm32"))]
+impl WaitForGpu {
+    fn set(&self, ctx: Option<&'static GpuContext>) {
+        self.0.set(ctx);
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+impl Drop for WaitForGpu {
+    fn drop(&mut self) {
+        if let Some(ctx) = self.0.take() {
+            // On a thread of its own: wgpu keeps thread-locals of its own,
+            // which this thread may already have destroyed. A lost device
+            // has nothing left to wait for.
+            let waiter = std::thread::spawn(move || {
+                let _ = ctx.device.poll(wgpu::PollType::wait_indefinitely());
+            });
+            let _ = waiter.join();
+        }
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+thread_local! {
+    static WAIT_AT_TEST_END: WaitForGpu = const { WaitForGpu(std::cell::Cell::new(None)) };
 }
 
 /// Whether `SNOWPACK_REQUIRE_GPU` asks for GPU tests to fail rather than skip.

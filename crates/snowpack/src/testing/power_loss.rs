@@ -95,6 +95,11 @@ fn not_found(path: &Path) -> io::Error {
     io::Error::new(io::ErrorKind::NotFound, format!("{} not found (PowerLossDisk)", path.display()))
 }
 
+/// An error of `kind` about `path`, saying which layer refused it.
+fn fault(kind: io::ErrorKind, path: &Path) -> io::Error {
+    io::Error::new(kind, format!("{} (PowerLossDisk)", path.display()))
+}
+
 /// The names along `path` (the root for an empty or absolute one).
 fn names(path: &Path) -> io::Result<Vec<OsString>> {
     let mut out = Vec::new();
@@ -129,7 +134,7 @@ impl Image {
     fn lookup(&self, path: &Path) -> io::Result<Ino> {
         let mut ino = 0;
         for name in names(path)? {
-            let entries = self.entries(ino).ok_or_else(|| io::Error::new(io::ErrorKind::NotADirectory, format!("{} (PowerLossDisk)", path.display())))?;
+            let entries = self.entries(ino).ok_or_else(|| fault(io::ErrorKind::NotADirectory, path))?;
             ino = *entries.get(&name).ok_or_else(|| not_found(path))?;
         }
         Ok(ino)
@@ -143,7 +148,7 @@ impl Image {
         let ino = self.lookup(&Path::new("/").join(dir)).map_err(|_| not_found(path))?;
         match self.nodes[ino] {
             Node::Dir { .. } => Ok((ino, name)),
-            Node::File { .. } => Err(io::Error::new(io::ErrorKind::NotADirectory, format!("{} (PowerLossDisk)", path.display()))),
+            Node::File { .. } => Err(fault(io::ErrorKind::NotADirectory, path)),
         }
     }
 
@@ -328,7 +333,7 @@ impl Disk for PowerLossDisk {
         let ino = image.lookup(path)?;
         match &image.nodes[ino] {
             Node::File { data, .. } => Ok(data.clone()),
-            Node::Dir { .. } => Err(io::Error::new(io::ErrorKind::IsADirectory, format!("{} (PowerLossDisk)", path.display()))),
+            Node::Dir { .. } => Err(fault(io::ErrorKind::IsADirectory, path)),
         }
     }
 
@@ -339,7 +344,7 @@ impl Disk for PowerLossDisk {
         let now = image.clock;
         let ino = match image.entries(dir).and_then(|e| e.get(&name)).copied() {
             Some(ino) if image.is_dir(ino) => {
-                return Err(io::Error::new(io::ErrorKind::IsADirectory, format!("{} (PowerLossDisk)", path.display())));
+                return Err(fault(io::ErrorKind::IsADirectory, path));
             }
             Some(ino) => {
                 if let Node::File { data, modified, .. } = &mut image.nodes[ino] {
@@ -366,7 +371,7 @@ impl Disk for PowerLossDisk {
         if let Some(&there) = image.entries(to_dir).and_then(|e| e.get(&to_name))
             && image.is_dir(there)
         {
-            return Err(io::Error::new(io::ErrorKind::IsADirectory, format!("{} (PowerLossDisk)", to.display())));
+            return Err(fault(io::ErrorKind::IsADirectory, to));
         }
         if from_dir == to_dir {
             image.change(to_dir, vec![(from_name, None), (to_name, Some(ino))]);
@@ -383,7 +388,7 @@ impl Disk for PowerLossDisk {
         image.op()?;
         let ino = image.lookup(path)?;
         if image.is_dir(ino) {
-            return Err(io::Error::new(io::ErrorKind::IsADirectory, format!("{} (PowerLossDisk)", path.display())));
+            return Err(fault(io::ErrorKind::IsADirectory, path));
         }
         let (dir, name) = image.parent(path)?;
         image.change(dir, vec![(name, None)]);
@@ -395,9 +400,9 @@ impl Disk for PowerLossDisk {
         image.op()?;
         let ino = image.lookup(path)?;
         match image.entries(ino) {
-            None => return Err(io::Error::new(io::ErrorKind::NotADirectory, format!("{} (PowerLossDisk)", path.display()))),
+            None => return Err(fault(io::ErrorKind::NotADirectory, path)),
             Some(entries) if !entries.is_empty() => {
-                return Err(io::Error::new(io::ErrorKind::DirectoryNotEmpty, format!("{} (PowerLossDisk)", path.display())));
+                return Err(fault(io::ErrorKind::DirectoryNotEmpty, path));
             }
             Some(_) => {}
         }
@@ -416,7 +421,7 @@ impl Disk for PowerLossDisk {
                 pending.clear();
                 Ok(())
             }
-            Node::File { .. } => Err(io::Error::new(io::ErrorKind::NotADirectory, format!("{} (PowerLossDisk)", path.display()))),
+            Node::File { .. } => Err(fault(io::ErrorKind::NotADirectory, path)),
         }
     }
 
@@ -424,7 +429,7 @@ impl Disk for PowerLossDisk {
         let mut image = self.image();
         image.op()?;
         let ino = image.lookup(dir)?;
-        let entries = image.entries(ino).ok_or_else(|| io::Error::new(io::ErrorKind::NotADirectory, format!("{} (PowerLossDisk)", dir.display())))?;
+        let entries = image.entries(ino).ok_or_else(|| fault(io::ErrorKind::NotADirectory, dir))?;
         Ok(entries
             .iter()
             .map(|(name, &child)| DirEntry {
