@@ -103,7 +103,7 @@ fn point_rim(st: u32, rest: f32) -> f32 {
 }
 
 fn ground_at(i: u32, j: u32) -> f32 {
-    return texel_ground(terrain_as_built(terrain_params), params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+    return texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
 }
 
 // The rimmed (not yet blurred) height of window-local texel (i, j).

@@ -64,7 +64,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if !tile_resident(g, side, n) {
             return;
         }
-        let ground = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
+        let ground = texel_ground(terrain_params, g, params.texel_m);
         var rest = ground + params.depth_m;
         if use_fallen {
             rest += fallen[s];
@@ -82,7 +82,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if !tile_resident(g, side, n) {
             return;
         }
-        let ground = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
+        let ground = texel_ground(terrain_params, g, params.texel_m);
         var rest = ground + params.depth_m;
         if has_stamps {
             stamps[s] = tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))];

@@ -52,7 +52,7 @@ fn shown_at(i: i32, j: i32) -> f32 {
     let last = i32(params.resolution) - 1;
     let ci = u32(clamp(i, 0, last));
     let cj = u32(clamp(j, 0, last));
-    let ground = texel_ground(terrain_as_built(terrain_params), params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
     return snow_word_shown(snow[storage_index(params.origin, params.resolution, ci, cj)], ground);
 }
 
@@ -85,10 +85,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s10 = storage_index(params.origin, res, i + 1u, j);
     let s11 = storage_index(params.origin, res, i + 1u, j + 1u);
     let g = params.origin + vec2<i32>(i32(j), i32(i));
-    let t00 = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
-    let t01 = texel_ground(terrain_as_built(terrain_params), g + vec2<i32>(1, 0), params.texel_m);
-    let t10 = texel_ground(terrain_as_built(terrain_params), g + vec2<i32>(0, 1), params.texel_m);
-    let t11 = texel_ground(terrain_as_built(terrain_params), g + vec2<i32>(1, 1), params.texel_m);
+    let t00 = texel_ground(terrain_params, g, params.texel_m);
+    let t01 = texel_ground(terrain_params, g + vec2<i32>(1, 0), params.texel_m);
+    let t10 = texel_ground(terrain_params, g + vec2<i32>(0, 1), params.texel_m);
+    let t11 = texel_ground(terrain_params, g + vec2<i32>(1, 1), params.texel_m);
     out.terrain_m = bilerp(t00, t01, t10, t11, f);
     var l00 = 0.0;
     var l01 = 0.0;

@@ -29,7 +29,7 @@ fn load(i: i32, j: i32) -> f32 {
     let r = i32(params.resolution) - 1;
     let ci = u32(clamp(i, 0, r));
     let cj = u32(clamp(j, 0, r));
-    let ground = texel_ground(terrain_as_built(terrain_params), params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
     return snow_word_shown(snow[storage_index(params.origin, params.resolution, ci, cj)], ground);
 }
 

@@ -53,7 +53,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let e = entries[gid.y];
     let local = vec2<i32>(i32(gid.x % params.side), i32(gid.x / params.side));
     let g = e.tile * i32(params.side) + local;
-    let ground = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
+    let ground = texel_ground(terrain_params, g, params.texel_m);
     let use_fallen = (params.flags & USE_FALLEN) != 0u;
     var t: TexelState;
     if e.upload == FRESH {

@@ -35,7 +35,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let e = entries[gid.y];
     let g = e.xy * i32(params.side) + vec2<i32>(i32(gid.x % params.side), i32(gid.x / params.side));
-    let ground = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
+    let ground = texel_ground(terrain_params, g, params.texel_m);
     let base = u32(e.z) * params.planes * area + gid.x;
     var lying = 0.0;
     if (params.flags & USE_FALLEN) != 0u {

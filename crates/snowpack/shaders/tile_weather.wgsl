@@ -64,7 +64,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if use_fallen {
         t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
     }
-    let ground = texel_ground(terrain_as_built(terrain_params), g, params.texel_m);
+    let ground = texel_ground(terrain_params, g, params.texel_m);
     t = pass_time(ground, params.depth_m, t, params.fall_m, params.max_fallen_m, params.refill_m, params.quanta, params.low_m, params.high_m, use_fallen);
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
     if stamp_plane {

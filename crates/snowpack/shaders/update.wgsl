@@ -90,7 +90,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let s = storage_index(params.origin, params.resolution, i, j);
-    let ground = texel_ground(terrain_as_built(terrain_params), params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let word = snow[s];
     var lying = 0.0;
     if (update_flags() & USE_FALLEN) != 0u {

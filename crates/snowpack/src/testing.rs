@@ -33,9 +33,7 @@ pub fn gpu() -> Option<&'static GpuContext> {
         }
     });
     if let Some(ctx) = ctx {
-        WAIT_AT_TEST_END.with(|armed| {
-            armed.set(Some(ctx));
-        });
+        WAIT_AT_TEST_END.with(|armed| armed.0.set(Some(ctx)));
     }
     ctx.as_ref()
 }
@@ -50,13 +48,6 @@ pub fn gpu() -> Option<&'static GpuContext> {
 /// its own, so this thread-local's destructor runs before the process exits.
 #[cfg(not(target_arch = "wasm32"))]
 struct WaitForGpu(std::cell::Cell<Option<&'static GpuContext>>);
-
-#[cfg(not(target_arch = "wasm32"))]
-impl WaitForGpu {
-    fn set(&self, ctx: Option<&'static GpuContext>) {
-        self.0.set(ctx);
-    }
-}
 
 #[cfg(not(target_arch = "wasm32"))]
 impl Drop for WaitForGpu {

@@ -100,13 +100,3 @@ fn terrain_height(t: TerrainParams, x: f32, z: f32) -> f32 {
         }
     }
 }
-
-// Terrain height at the centre of global texel g = (column, row) of a grid of
-// `texel_m` texels: what the deformation passes use as the ground under a
-// texel (evaluated where needed rather than stored per texel). CPU twin:
-// `cpu::window::texel_ground`.
-fn texel_ground(tp: TerrainParams, g: vec2<i32>, texel_m: f32) -> f32 {
-    let x = (f32(g.x) + 0.5) * texel_m;
-    let z = (f32(g.y) + 0.5) * texel_m;
-    return terrain_height(tp, x, z);
-}

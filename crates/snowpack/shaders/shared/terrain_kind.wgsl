@@ -14,3 +14,13 @@ fn terrain_as_built(t: TerrainParams) -> TerrainParams {
     }
     return built;
 }
+
+// Terrain height at the centre of global texel g = (column, row) of a grid of
+// `texel_m` texels: what the deformation passes use as the ground under a
+// texel (evaluated where needed rather than stored per texel), for the kind
+// the pipeline is built for. CPU twin: `cpu::window::texel_ground`.
+fn texel_ground(tp: TerrainParams, g: vec2<i32>, texel_m: f32) -> f32 {
+    let x = (f32(g.x) + 0.5) * texel_m;
+    let z = (f32(g.y) + 0.5) * texel_m;
+    return terrain_height(terrain_as_built(tp), x, z);
+}

@@ -9,7 +9,7 @@
 // last the packed footprints where the window has a footprint buffer: 1 to
 // 3 planes (`tiles::planes` in Rust). There is no terrain plane: the passes
 // evaluate the ground of a slot texel from the terrain's source
-// (texel_ground in shared/terrain.wgsl).
+// (texel_ground in shared/terrain_kind.wgsl).
 // Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
 
 const PLANE_SNOW: u32 = 0u;

@@ -13,7 +13,7 @@ pub fn storage_index(origin: [i32; 2], res: u32, i: u32, j: u32) -> usize {
 }
 
 /// Terrain height at the centre of global texel `g` = (column, row): twin of
-/// `texel_ground` in `shared/terrain.wgsl`.
+/// `texel_ground` in `shared/terrain_kind.wgsl`.
 #[must_use]
 pub fn texel_ground(terrain: &TerrainSource, g: [i32; 2], texel_m: f32) -> f32 {
     let x = (g[0] as f32 + 0.5) * texel_m;

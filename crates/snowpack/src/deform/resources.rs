@@ -38,7 +38,7 @@ pub struct DeformResources {
     /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
     /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
     /// passes evaluate the ground at texel centres (`texel_ground` in
-    /// `shared/terrain.wgsl`) instead of reading a per-texel copy.
+    /// `shared/terrain_kind.wgsl`) instead of reading a per-texel copy.
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
