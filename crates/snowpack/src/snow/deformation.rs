@@ -640,8 +640,8 @@ impl SnowDeformation {
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
         self.skinned.push(instance);
-        let radius = mesh.positions.iter().map(|p| p.length()).fold(0.0, f32::max);
-        self.mesh_history.register_skinned(self.skinned.len() - 1, radius);
+        let reach = crate::deform::sweep::JointReach::of_skin(&mesh.positions, &mesh.joints, &mesh.weights, joint_count);
+        self.mesh_history.register_skinned(self.skinned.len() - 1, reach);
         Ok(SkinnedId(self.skinned.len() - 1))
     }
 

@@ -3,7 +3,7 @@
 //! motion (see [`crate::deform::sweep`]): after a frame's capture is
 //! recorded, each mesh's positions are copied into a buffer of its own.
 
-use crate::deform::sweep::{skinned_travel, steps_for};
+use crate::deform::sweep::{JointReach, skinned_travel, steps_for};
 
 /// A copy of one mesh's vertex positions from the frame before.
 struct Previous {
@@ -20,8 +20,8 @@ struct Previous {
 pub struct MeshHistory {
     skinned: Vec<Option<Previous>>,
     /// Per skinned mesh: its joints' world matrices last frame and the
-    /// radius of its bind positions, for the motion bound.
-    joints: Vec<(Vec<glam::Mat4>, f32)>,
+    /// bind positions each joint moves, for the motion bound.
+    joints: Vec<(Vec<glam::Mat4>, Vec<JointReach>)>,
     caller: Vec<Option<Previous>>,
 }
 
@@ -35,13 +35,13 @@ pub enum MeshKey {
 }
 
 impl MeshHistory {
-    /// Records the bind-pose radius of skinned mesh `k` (its largest |position|).
-    pub fn register_skinned(&mut self, k: usize, radius: f32) {
+    /// Records what each joint of skinned mesh `k` moves (its bind positions).
+    pub fn register_skinned(&mut self, k: usize, reach: Vec<JointReach>) {
         if self.joints.len() <= k {
-            self.joints.resize_with(k + 1, || (Vec::new(), 0.0));
+            self.joints.resize_with(k + 1, || (Vec::new(), Vec::new()));
             self.skinned.resize_with(k + 1, || None);
         }
-        self.joints[k] = (Vec::new(), radius);
+        self.joints[k] = (Vec::new(), reach);
     }
 
     fn slot(&mut self, key: MeshKey) -> &mut Option<Previous> {
@@ -70,9 +70,9 @@ impl MeshHistory {
     /// (model x joint), or 0 (first pose, a teleport, sweeping off); keeps
     /// `world` for the next frame.
     pub fn skinned_steps(&mut self, k: usize, world: Vec<glam::Mat4>, texel_m: f32, teleport_m: f32) -> u32 {
-        let Some((last, radius)) = self.joints.get_mut(k) else { return 0 };
+        let Some((last, reach)) = self.joints.get_mut(k) else { return 0 };
         let steps = if last.len() == world.len() && !last.is_empty() {
-            let travel = skinned_travel(last, &world, *radius);
+            let travel = skinned_travel(last, &world, reach);
             if teleport_m > 0.0 && travel <= teleport_m { steps_for(travel, texel_m) } else { 0 }
         } else {
             0
