@@ -32,6 +32,7 @@ struct DisplayParams {
     texel_m: f32,
     blur: u32,        // 1: blur the rimmed height
     _pad: u32,
+    storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
 @group(0) @binding(0) var<uniform> params: DisplayParams;
@@ -108,7 +109,7 @@ fn ground_at(i: u32, j: u32) -> f32 {
 
 // The rimmed (not yet blurred) height of window-local texel (i, j).
 fn rimmed_height(i: u32, j: u32) -> f32 {
-    let s = storage_index(params.origin, params.resolution, i, j);
+    let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let ground = ground_at(i, j);
     var depth = params.depth_m;
     if display_uses_fallen() {
@@ -163,7 +164,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     } else {
         shown = rimmed_height(i, j);
     }
-    let s = storage_index(params.origin, params.resolution, i, j);
+    let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let word = atomicLoad(&snow[s]);
     atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(i, j)));
 }

@@ -12,6 +12,7 @@ struct UnpackParams {
     origin: vec2<i32>,
     resolution: u32,
     texel_m: f32,
+    storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
 @group(0) @binding(0) var<uniform> params: UnpackParams;
@@ -30,7 +31,7 @@ fn load(i: i32, j: i32) -> f32 {
     let ci = u32(clamp(i, 0, r));
     let cj = u32(clamp(j, 0, r));
     let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
-    return snow_word_shown(snow[storage_index(params.origin, params.resolution, ci, cj)], ground);
+    return snow_word_shown(snow[storage_index_wrapped(params.storage_origin, params.resolution, ci, cj)], ground);
 }
 
 @compute @workgroup_size(16, 16)

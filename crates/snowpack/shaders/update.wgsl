@@ -35,6 +35,7 @@ struct UpdateParams {
     sky_low_m: f32,
     sky_high_m: f32,
     _pad: u32,
+    storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
 const USE_CAPTURE: u32 = 1u;
@@ -89,7 +90,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.resolution || j >= params.resolution {
         return;
     }
-    let s = storage_index(params.origin, params.resolution, i, j);
+    let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let word = snow[s];
     var lying = 0.0;

@@ -162,7 +162,7 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             use_fallen: 1,
             texel_m: params.texel_m(),
             blur: 0,
-            _pad: 0,
+            ..DisplayParams::default()
         };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
         display.record(&ctx.queue, &mut encoder, &mut timer, &rp);

@@ -20,6 +20,20 @@ fn storage_index(origin: vec2<i32>, res: u32, i: u32, j: u32) -> u32 {
     return u32(si) * res + u32(sj);
 }
 
+// The same index without a division, for the passes that visit every texel
+// every frame: `wrapped` is the origin already wrapped into 0..res on the CPU
+// (`storage_origin` in src/deform/window.rs) and i, j are below `res`, so one
+// comparison wraps each. A division per texel, by a value the compiler does
+// not know, was the costliest step of the display pass on a SIMD software
+// rasteriser (it divides lane by lane), and is a long sequence on GPUs too.
+// (Wrapping `origin` here instead would branch on uniforms alone, which Mesa's
+// lavapipe answers by recompiling the pipeline whenever the window moves.)
+fn storage_index_wrapped(wrapped: vec2<u32>, res: u32, i: u32, j: u32) -> u32 {
+    let si = wrapped.y + i;
+    let sj = wrapped.x + j;
+    return select(si, si - res, si >= res) * res + select(sj, sj - res, sj >= res);
+}
+
 // Window-local texel (i, j) of the k-th texel of the exposed rectangles
 // (row0, col0, rows, cols; `count` of them used, row-major within each),
 // with z = 1, or z = 0 when k is past them.

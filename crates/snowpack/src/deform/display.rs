@@ -33,8 +33,12 @@ pub struct DisplayParams {
     pub texel_m: f32,
     /// 1: blur the rimmed height (the 5x5 Gaussian); 0: show it as it is.
     pub blur: u32,
-    /// Padding to the WGSL struct's size.
+    /// Padding to the 8-byte alignment of `storage_origin`.
     pub _pad: u32,
+    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// [`DisplayPass::record`] writes it from `origin` and `resolution`, so
+    /// the value given here is not used.
+    pub storage_origin: [u32; 2],
 }
 
 impl DisplayParams {
@@ -104,6 +108,7 @@ impl DisplayPass {
 
     /// Records this frame's display.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &DisplayParams) {
+        let params = &DisplayParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
         layout::dispatch(encoder, timer, "display", &self.pipelines.get(params.variant()), &self.bind_group, (g, g));

@@ -47,8 +47,12 @@ pub struct UpdateParams {
     pub sky_low_m: f32,
     /// Height at occlusion depth 0 (m).
     pub sky_high_m: f32,
-    /// Padding to the 8-byte alignment of `origin`.
+    /// Padding to the 8-byte alignment of `storage_origin`.
     pub _pad: u32,
+    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// [`UpdatePass::record`] writes it from `origin` and `resolution`, so
+    /// the value given here is not used.
+    pub storage_origin: [u32; 2],
 }
 
 impl UpdateParams {
@@ -130,6 +134,7 @@ impl UpdatePass {
 
     /// Records the update for this frame.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
+        let params = &UpdateParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
         layout::dispatch(encoder, timer, "update", &self.pipelines.get(params.flags), &self.bind_group, (g, g));

@@ -71,6 +71,16 @@ impl SlidingWindow {
     }
 }
 
+/// `origin` (a window's global texel of local (0, 0), `[column, row]`)
+/// wrapped into `0..res`: where local (0, 0) lies in the toroidal storage.
+/// The per-texel passes take it (`storage_index_wrapped` in
+/// `shared/window.wgsl`) so that no texel divides; their `record` fills it.
+#[must_use]
+pub fn storage_origin(origin: [i32; 2], res: u32) -> [u32; 2] {
+    let r = i64::from(res.max(1));
+    [i64::from(origin[0]).rem_euclid(r) as u32, i64::from(origin[1]).rem_euclid(r) as u32]
+}
+
 /// The exposed rectangles as a pass's uniforms take them (count, fixed
 /// array) and the 2D workgroup grid of 256 that covers their texels (under
 /// the 65535 per-dimension limit); `None` when there are none.
@@ -244,5 +254,25 @@ mod tests {
         assert_eq!(w.snapped_origin(0.0, 0.0, 0.5), [-8, -8]);
         assert_eq!(w.snapped_origin(0.49, -0.01, 0.5), [-8, -9]);
         assert_eq!(w.snapped_origin(1.0, 0.0, 0.5), [-6, -8]);
+    }
+
+    /// The wrapped origin plus a local texel, wrapped by one comparison (as
+    /// `storage_index_wrapped` does), is the CPU twin's storage index.
+    #[test]
+    fn the_wrapped_origin_gives_every_texel_its_storage_index() {
+        for res in [1u32, 7, 96, 512] {
+            for origin in [[0, 0], [-1, 5], [i32::MIN, i32::MAX], [-300, 299], [1023, -1024]] {
+                let [wx, wy] = storage_origin(origin, res);
+                assert!(wx < res && wy < res);
+                for (i, j) in [(0, 0), (res - 1, 0), (0, res - 1), (res / 2, res - 1)] {
+                    let wrap = |o: u32, k: u32| if o + k >= res { o + k - res } else { o + k };
+                    let index = wrap(wy, i) as usize * res as usize + wrap(wx, j) as usize;
+                    let r = i64::from(res);
+                    let si = (i64::from(origin[1]) + i64::from(i)).rem_euclid(r) as usize;
+                    let sj = (i64::from(origin[0]) + i64::from(j)).rem_euclid(r) as usize;
+                    assert_eq!(index, si * res as usize + sj, "res {res}, origin {origin:?}, texel ({i}, {j})");
+                }
+            }
+        }
     }
 }

@@ -24,6 +24,8 @@ pub struct UnpackParams {
     pub resolution: u32,
     /// Texel size (m).
     pub texel_m: f32,
+    /// `origin` wrapped into the storage ([`crate::deform::window::storage_origin`]).
+    pub storage_origin: [u32; 2],
 }
 
 /// Unpacks the deformation's snow words into [`Self::surface`].
@@ -79,7 +81,8 @@ impl SurfaceUnpackPass {
 
     /// Records the unpack of the window at `origin` (global texel of local (0, 0)).
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i32; 2]) {
-        let p = UnpackParams { origin, resolution: self.resolution, texel_m: self.texel_m };
+        let storage_origin = crate::deform::window::storage_origin(origin, self.resolution);
+        let p = UnpackParams { origin, resolution: self.resolution, texel_m: self.texel_m, storage_origin };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         let g = layout::groups(self.resolution, 16);
         layout::dispatch(encoder, timer, "surface unpack", &self.pipeline, &self.bind_group, (g, g));

@@ -883,6 +883,7 @@ impl SnowDeformation {
                 sky_low_m: sky.map_or(0.0, |s| s.low_m),
                 sky_high_m: sky.map_or(1.0, |s| s.high_m),
                 _pad: 0,
+                storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
             },
         );
         if let Some(tiles) = &mut self.tiles {
@@ -909,6 +910,7 @@ impl SnowDeformation {
                 texel_m: p.texel_m(),
                 blur: u32::from(p.blur),
                 _pad: 0,
+                storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
             },
         );
         if let Some(acc) = &mut self.accumulation {
