@@ -3,8 +3,9 @@
 // It is the rim, then (with `blur`) the separable 5x5 Gaussian (1 4 6 4 1)/16
 // of the rimmed height, clamped at the window's edges, fused in one dispatch:
 // a workgroup computes the rim of its 16x16 texels and a 2-texel apron into
-// workgroup memory, blurs along x there, then along z, and writes only its
-// own texels' words, so no scratch buffer is needed.
+// workgroup memory, blurs along x there, then along z (four outputs per
+// invocation, blur4), and writes only its own texels' words, so no scratch
+// buffer is needed.
 // The rim, mode 0 (depth, decals): Hanák's cubic remap (eq. 4.1),
 //   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
 // applied to the normalised snow depth x and blended in by `elevation`:
@@ -134,37 +135,67 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
     return out;
 }
 
-@compute @workgroup_size(16, 16)
-fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(local_invocation_index) flat: u32) {
-    let last = i32(params.resolution) - 1;
-    if display_blurs() {
-        let i0 = i32(wg.y * TILE) - 2;
-        let j0 = i32(wg.x * TILE) - 2;
-        for (var k = flat; k < SPAN * SPAN; k += TILE * TILE) {
-            let i = clamp(i0 + i32(k / SPAN), 0, last);
-            let j = clamp(j0 + i32(k % SPAN), 0, last);
-            rimmed[k] = rimmed_height(u32(i), u32(j));
-        }
-        workgroupBarrier();
-        for (var k = flat; k < SPAN * TILE; k += TILE * TILE) {
-            let t = (k / TILE) * SPAN + k % TILE;
-            along_x[k] = (rimmed[t] + 4.0 * rimmed[t + 1u] + 6.0 * rimmed[t + 2u] + 4.0 * rimmed[t + 3u] + rimmed[t + 4u]) * (1.0 / 16.0);
-        }
-        workgroupBarrier();
-    }
-    let i = wg.y * TILE + lid.y;
-    let j = wg.x * TILE + lid.x;
-    if i >= params.resolution || j >= params.resolution {
-        return;
-    }
-    var shown: f32;
-    if display_blurs() {
-        let t = lid.y * TILE + lid.x;
-        shown = (along_x[t] + 4.0 * along_x[t + TILE] + 6.0 * along_x[t + 2u * TILE] + 4.0 * along_x[t + 3u * TILE] + along_x[t + 4u * TILE]) * (1.0 / 16.0);
-    } else {
-        shown = rimmed_height(i, j);
-    }
+// The 5-tap Gaussian (1 4 6 4 1)/16 of a[0..8] at taps 0..3 (four outputs
+// from eight inputs: each workgroup-memory value is read about twice, not five
+// times; those reads were most of this pass's time on a SIMD software
+// rasteriser, which gathers them lane by lane).
+fn blur4(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
+    return (a + 4.0 * vec4(a.yzw, b.x) + 6.0 * vec4(a.zw, b.xy) + 4.0 * vec4(a.w, b.xyz) + b) * (1.0 / 16.0);
+}
+
+fn write_shown(i: u32, j: u32, shown: f32) {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let word = atomicLoad(&snow[s]);
     atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(i, j)));
+}
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(local_invocation_index) flat: u32) {
+    if !display_blurs() {
+        let i = wg.y * TILE + lid.y;
+        let j = wg.x * TILE + lid.x;
+        if i < params.resolution && j < params.resolution {
+            write_shown(i, j, rimmed_height(i, j));
+        }
+        return;
+    }
+    let last = i32(params.resolution) - 1;
+    let i0 = i32(wg.y * TILE) - 2;
+    let j0 = i32(wg.x * TILE) - 2;
+    for (var k = flat; k < SPAN * SPAN; k += TILE * TILE) {
+        let i = clamp(i0 + i32(k / SPAN), 0, last);
+        let j = clamp(j0 + i32(k % SPAN), 0, last);
+        rimmed[k] = rimmed_height(u32(i), u32(j));
+    }
+    workgroupBarrier();
+    // Along x: 80 invocations, each four outputs of one row.
+    if flat < SPAN * TILE / 4u {
+        let row = flat / 4u;
+        let c0 = (flat % 4u) * 4u;
+        let r = row * SPAN + c0;
+        let x = blur4(vec4(rimmed[r], rimmed[r + 1u], rimmed[r + 2u], rimmed[r + 3u]), vec4(rimmed[r + 4u], rimmed[r + 5u], rimmed[r + 6u], rimmed[r + 7u]));
+        let o = row * TILE + c0;
+        along_x[o] = x.x;
+        along_x[o + 1u] = x.y;
+        along_x[o + 2u] = x.z;
+        along_x[o + 3u] = x.w;
+    }
+    workgroupBarrier();
+    // Along z: 64 invocations, each four rows of one column, written out.
+    if flat < TILE * TILE / 4u {
+        let c = flat % TILE;
+        let r0 = (flat / TILE) * 4u;
+        let t = r0 * TILE + c;
+        let z = blur4(
+            vec4(along_x[t], along_x[t + TILE], along_x[t + 2u * TILE], along_x[t + 3u * TILE]),
+            vec4(along_x[t + 4u * TILE], along_x[t + 5u * TILE], along_x[t + 6u * TILE], along_x[t + 7u * TILE]),
+        );
+        let i = wg.y * TILE + r0;
+        let j = wg.x * TILE + c;
+        for (var n = 0u; n < 4u; n++) {
+            if i + n < params.resolution && j < params.resolution {
+                write_shown(i + n, j, z[n]);
+            }
+        }
+    }
 }
