@@ -285,9 +285,7 @@ mod tests {
             let joints: Vec<[u16; 4]> = (0..40).map(|k| [(k % 4) as u16, ((k / 4) % 4) as u16, 0, 4]).collect();
             let weights: Vec<[f32; 4]> = (0..40).map(|k| if k % 3 == 0 { [1.0, 0.0, 0.0, 0.0] } else { [0.6, 0.3, 0.1, 0.0] }).collect();
             let pose = |r: &mut dyn FnMut(f32) -> Vec3| -> Vec<glam::Mat4> {
-                (0..joint_count)
-                    .map(|_| glam::Mat4::from_scale_rotation_translation(Vec3::ONE + r(0.05), Quat::from_scaled_axis(r(0.4)), r(2.0)))
-                    .collect()
+                (0..joint_count).map(|_| glam::Mat4::from_scale_rotation_translation(Vec3::ONE + r(0.05), Quat::from_scaled_axis(r(0.4)), r(2.0))).collect()
             };
             let (a, b) = (pose(&mut rvec), pose(&mut rvec));
             let reach = JointReach::of_skin(&positions, &joints, &weights, joint_count);
