@@ -17,6 +17,7 @@ struct StampParams {
     low_m: f32,
     high_m: f32,
     count: u32,
+    storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
 @group(0) @binding(0) var<uniform> params: StampParams;
@@ -72,7 +73,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             let dz = q.y - at.y;
             let h = foot_h + (dx * dx + dz * dz) * scale;
             let packed = (stamp_quantise(h, params.low_m, params.high_m) << 16u) | stamp_quantise(foot_h, params.low_m, params.high_m);
-            let s = storage_index(params.origin, params.resolution, u32(i), u32(j));
+            let s = storage_index_wrapped(params.storage_origin, params.resolution, u32(i), u32(j));
             atomicMin(&stamps[s], packed);
         }
     }

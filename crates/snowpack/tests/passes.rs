@@ -612,7 +612,7 @@ fn stamp_pass_matches_cpu_packing_and_rounding() {
         texel_m: params.texel_m(),
         low_m: -1.5,
         high_m: 3.0,
-        count: 0,
+        ..StampParams::default()
     };
     let points = random_points(&mut rng, 60, params.extent_m);
     let gpu = run_stamps(ctx, &res, &StampParams { count: points.len() as u32, ..sp }, &points);
@@ -643,7 +643,15 @@ fn overlapping_footprints_resolve_to_the_minimum_in_any_order() {
     let seed = testing::seed("stamp order");
     let mut rng = Rng::new(seed);
     let (params, _terrain, res) = setup(ctx, &mut rng, 64);
-    let sp = StampParams { origin: [3, -7], resolution: params.resolution, range_texels: 64, texel_m: params.texel_m(), low_m: -1.5, high_m: 3.0, count: 0 };
+    let sp = StampParams {
+        origin: [3, -7],
+        resolution: params.resolution,
+        range_texels: 64,
+        texel_m: params.texel_m(),
+        low_m: -1.5,
+        high_m: 3.0,
+        ..StampParams::default()
+    };
     // Many points crowded into the middle so every texel sees many footprints.
     let e = params.extent_m;
     let mut points: Vec<[f32; 8]> = (0..400)

@@ -35,6 +35,10 @@ pub struct StampParams {
     pub high_m: f32,
     /// Points to stamp.
     pub count: u32,
+    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// [`StampPass::prepare`] writes it from `origin` and `resolution`, so
+    /// the value given here is not used.
+    pub storage_origin: [u32; 2],
 }
 
 impl StampParams {
@@ -145,6 +149,7 @@ impl StampPass {
         self.count = points.len() as u32;
         let mut p = *params;
         p.count = self.count;
+        p.storage_origin = super::window::storage_origin(p.origin, p.resolution);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         dropped
     }

@@ -825,6 +825,7 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             count: 0,
+            storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
         };
         self.points_last_frame = 0;
         if stamps {
