@@ -58,8 +58,9 @@ pub struct SnowWindowUniform {
     pub resolution: u32,
     /// 1 once the window has been placed (after the deformation's first frame), else 0.
     pub placed: u32,
-    /// Padding.
-    pub _pad: [u32; 2],
+    /// `origin_texel` wrapped into `0..resolution` ([`crate::deform::window::storage_origin`]):
+    /// where local texel (0, 0) is stored, so the shader wraps with no division.
+    pub storage_origin: [u32; 2],
 }
 
 impl SnowWindowUniform {
@@ -84,7 +85,7 @@ impl SnowWindowUniform {
             rest_depth_m: p.depth_m + snow.fallen_m(),
             resolution: p.resolution,
             placed: u32::from(origin.is_some()),
-            _pad: [0; 2],
+            storage_origin: origin.map_or([0; 2], |o| crate::deform::window::storage_origin([o[0] as i32, o[1] as i32], p.resolution)),
         }
     }
 }
