@@ -177,8 +177,11 @@ impl JointReach {
     /// bind positions it moves (a weight above zero).
     #[must_use]
     pub fn of_skin(positions: &[Vec3], joints: &[[u16; 4]], weights: &[[f32; 4]], joint_count: usize) -> Vec<Self> {
+        // The joints a vertex's weights give a share of its position.
+        fn moved_by<'a>(ids: &'a [u16; 4], w: &'a [f32; 4]) -> impl Iterator<Item = usize> + 'a {
+            ids.iter().zip(w).filter(|(_, w)| **w != 0.0).map(|(j, _)| usize::from(*j))
+        }
         let mut boxes = vec![(Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)); joint_count];
-        let moved_by = |ids: &[u16; 4], w: &[f32; 4]| ids.iter().zip(w).filter(|(_, w)| **w != 0.0).map(|(j, _)| usize::from(*j)).collect::<Vec<_>>();
         for ((p, ids), w) in positions.iter().zip(joints).zip(weights) {
             for j in moved_by(ids, w) {
                 if let Some(b) = boxes.get_mut(j) {

@@ -825,7 +825,7 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             count: 0,
-            storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
+            ..StampParams::default()
         };
         self.points_last_frame = 0;
         if stamps {
@@ -883,8 +883,7 @@ impl SnowDeformation {
                 sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
                 sky_low_m: sky.map_or(0.0, |s| s.low_m),
                 sky_high_m: sky.map_or(1.0, |s| s.high_m),
-                _pad: 0,
-                storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
+                ..Default::default()
             },
         );
         if let Some(tiles) = &mut self.tiles {
@@ -910,8 +909,7 @@ impl SnowDeformation {
                 use_fallen: u32::from(snowfall.is_some()),
                 texel_m: p.texel_m(),
                 blur: u32::from(p.blur),
-                _pad: 0,
-                storage_origin: crate::deform::window::storage_origin(origin_i32, p.resolution),
+                ..Default::default()
             },
         );
         if let Some(acc) = &mut self.accumulation {
