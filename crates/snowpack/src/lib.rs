@@ -82,6 +82,7 @@ pub mod gpu;
 pub mod height_depth;
 pub mod persist;
 pub mod render;
+pub mod replicate;
 #[doc(hidden)]
 pub mod shaders;
 pub mod skin;

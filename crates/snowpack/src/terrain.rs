@@ -218,6 +218,21 @@ impl HeightmapTerrain {
         Ok(Self { width, height, heights_m, center_m, size_m })
     }
 
+    /// An FNV-1a digest of the size, placement and heights (their bits): two
+    /// machines with the same heightmap agree on it (the shared-snow world
+    /// identity names terrains by it).
+    #[must_use]
+    pub fn digest(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
+        for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
+            for b in w.to_le_bytes() {
+                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+        h
+    }
+
     /// Pixels per row.
     #[must_use]
     pub fn width(&self) -> u32 {
