@@ -17,3 +17,27 @@ pub mod world;
 
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 pub use world::{WorldIdentity, terrain_identity};
+
+/// What a [`SnowPeer`](crate::replicate) needs of the snow it shares: the
+/// window's clock and place, the tiles it changed, and a way to fold in
+/// tiles from elsewhere. [`crate::SnowDeformation`] implements it on the
+/// GPU; `testing::CpuSnow` on the CPU, for tests without a device.
+pub trait SharedSnow {
+    /// The world clock the snow is at now.
+    fn share_clock(&self) -> ShareClock;
+    /// Sets the clock (on joining a world: the relay's), before the first
+    /// frame or between frames; the window's fresh snow follows it.
+    fn join_clock(&mut self, clock: ShareClock);
+    /// The window's first texel (global texel column, row) and its
+    /// resolution, once it has been placed.
+    fn window(&self) -> Option<([i64; 2], u32)>;
+    /// Tiles the snow changed (a press or a footprint) since the last call,
+    /// as their state at the frame they were read: whole tiles on the global
+    /// grid, texels outside the window untouched. Never waits for the GPU.
+    fn take_changed_tiles(&mut self) -> Vec<SharedTile>;
+    /// Folds `tiles` into the snow where they overlap the window (the
+    /// deeper deficit wins; never written over). Tiles behind the snow's
+    /// clock are caught up first; tiles ahead of it are held until the clock
+    /// reaches them.
+    fn merge_tiles(&mut self, tiles: &[SharedTile]);
+}
