@@ -12,6 +12,7 @@ mod bench_shell;
 mod bench_sweep;
 mod bench_tiles;
 mod demo;
+mod net;
 mod npy;
 mod output;
 mod plot;
@@ -63,6 +64,12 @@ struct DemoArgs {
     /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
     #[arg(long, value_parser = parse_backend)]
     backend: Option<String>,
+    /// Join the shared world of the `snowpack server` at this address (host:port).
+    #[arg(long)]
+    connect: Option<std::net::SocketAddr>,
+    /// Connect token for a server started with --key (made by `snowpack token`).
+    #[arg(long, requires = "connect")]
+    token: Option<PathBuf>,
 }
 
 impl DemoArgs {
@@ -75,6 +82,8 @@ impl DemoArgs {
             vsync: !self.no_vsync,
             backend: self.backend,
             size: self.window_size.unwrap_or((1600, 900)),
+            connect: self.connect,
+            token: self.token,
         }
     }
 }
@@ -112,6 +121,57 @@ enum Command {
         /// Surface material preset: snow, mud or sand.
         #[arg(long)]
         material: Option<String>,
+        /// Join the shared world of the `snowpack server` at this address
+        /// (host:port): send this run's trails, show everyone's. The run exits
+        /// only once the server has acknowledged its last changes (exit 1 if
+        /// it cannot; exit 2 if the server serves another world).
+        #[arg(long)]
+        connect: Option<std::net::SocketAddr>,
+        /// Connect token for a server started with --key (made by `snowpack token`).
+        #[arg(long, requires = "connect")]
+        token: Option<PathBuf>,
+    },
+    /// A dedicated shared-snow server: merges and relays tiles, persists them,
+    /// answers snow-depth queries. Needs no GPU.
+    Server {
+        /// UDP address to listen on (host:port; port 0 picks one, printed at start).
+        #[arg(long)]
+        listen: std::net::SocketAddr,
+        /// Folder of the world's tiles (created when missing; the world resumes from it).
+        #[arg(long)]
+        store: PathBuf,
+        /// The server's private key (32 bytes, or 64 hex digits): clients then
+        /// need a connect token made from it. Without it the server listens on
+        /// loopback only.
+        #[arg(long)]
+        key: Option<PathBuf>,
+        /// Stop after this many seconds (default: run until stopped).
+        #[arg(long)]
+        exit_after_s: Option<f64>,
+    },
+    /// Make a connect token for a server started with --key.
+    Token {
+        /// The server's private key file.
+        #[arg(long)]
+        key: PathBuf,
+        /// The server's address as clients reach it (host:port).
+        #[arg(long)]
+        server: std::net::SocketAddr,
+        /// Where to write the token.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Ask a shared-snow server for the snow depth at points (x,z in metres).
+    Query {
+        /// The server (host:port).
+        #[arg(long)]
+        connect: std::net::SocketAddr,
+        /// Connect token for a server started with --key.
+        #[arg(long)]
+        token: Option<PathBuf>,
+        /// A point, X,Z (repeatable).
+        #[arg(long = "at", value_parser = parse_point, required = true)]
+        at: Vec<(f64, f64)>,
     },
     /// Measure per-pass GPU time and write a report.
     Bench {
@@ -172,14 +232,26 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
             run::print_report(&report, &out);
         }
         Some(Command::Demo(args)) => demo::run(args.options())?,
-        Some(Command::Run { scene, frames, out, headless: _, size, technique, backend, view, material }) => {
+        Some(Command::Run { scene, frames, out, headless: _, size, technique, backend, view, material, connect, token }) => {
             let scene = load_scene(&scene)?;
-            let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend, view, material };
+            let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend, view, material, connect, token };
             let report = run::run_scene(&scene, &opts)?;
             run::print_report(&report, &out);
         }
         Some(Command::Bench { quick, out, only, backend }) => {
             bench::run(quick, &out, only.as_deref(), backend.as_deref())?;
+        }
+        Some(Command::Server { listen, store, key, exit_after_s }) => {
+            net::serve(&net::ServerOptions { listen, store, key, exit_after_s })?;
+        }
+        Some(Command::Token { key, server, out }) => net::make_token(&key, server, &out)?,
+        Some(Command::Query { connect, token, at }) => {
+            for (point, depth) in at.iter().zip(net::query(connect, token.as_deref(), &at)?) {
+                match depth {
+                    Some(d) => println!("depth_m {} {} {d:.6}", point.0, point.1),
+                    None => println!("depth_m {} {} none", point.0, point.1),
+                }
+            }
         }
         Some(Command::CheckScene { file }) => {
             let scene = load_scene(&file)?;
@@ -188,6 +260,14 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+fn parse_point(text: &str) -> Result<(f64, f64), String> {
+    let (x, z) = text.split_once(',').ok_or_else(|| format!("{text:?} is not X,Z"))?;
+    match (x.trim().parse::<f64>(), z.trim().parse::<f64>()) {
+        (Ok(x), Ok(z)) if x.is_finite() && z.is_finite() => Ok((x, z)),
+        _ => Err(format!("{text:?} is not X,Z with finite numbers")),
+    }
 }
 
 /// `--backend`: checked before anything opens, so a typo exits 2 naming the option (clap's usage error).
@@ -235,7 +315,9 @@ fn main() -> ExitCode {
     match main_inner(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            let bad_input = err.chain().any(|e| e.is::<SceneError>() || e.is::<BadInput>());
+            let bad_input = err.chain().any(|e| {
+                e.is::<SceneError>() || e.is::<BadInput>() || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
+            });
             eprintln!("error: {err:#}");
             ExitCode::from(if bad_input { 2 } else { 1 })
         }

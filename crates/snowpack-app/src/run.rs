@@ -36,6 +36,10 @@ pub struct RunOptions {
     pub view: Option<String>,
     /// Material preset override (`[render] material` names).
     pub material: Option<String>,
+    /// A `snowpack server` to share the snow with.
+    pub connect: Option<std::net::SocketAddr>,
+    /// Connect token for a server with a key.
+    pub token: Option<PathBuf>,
 }
 
 /// The scene's render parameters with the command line's view and material applied.
@@ -98,6 +102,10 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         Some(spec) => attach_store(&ctx, &mut snow, scene, spec, &opts.out)?,
         None => false,
     };
+    let mut link = match opts.connect {
+        Some(addr) => Some(crate::net::join(&ctx, &mut snow, addr, opts.token.as_deref(), &scene.path.display().to_string())?),
+        None => None,
+    };
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
     let start = Instant::now();
@@ -126,8 +134,18 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             footsteps.push(step);
         }
         snow.query_points(&sole_points(&world));
+        if let Some(link) = &mut link {
+            link.peer.set_deformers(&crate::net::deformer_positions(&world));
+            link.pump(&mut snow)?;
+        }
     }
     snow.finish(&ctx)?;
+    // Everything this run changed acknowledged by the server, everything it
+    // has for this window merged here, before anything is written.
+    let share = match &mut link {
+        Some(link) => Some(crate::net::settle(&ctx, &mut snow, link)?),
+        None => None,
+    };
     let wall_s = start.elapsed().as_secs_f64();
     if scene.store.as_ref().is_some_and(|spec| spec.keep == snowpack_scene::StoreKeep::Disk && spec.save) {
         snow.save(&ctx).context("saving the snow into [store]")?;
@@ -190,6 +208,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(_, v)| v).sum::<u64>(),
         "gpu_memory_peak_bytes": snow.peak_memory_bytes(),
+        "share": share.map_or(serde_json::Value::Null, |s| s.to_json()),
         "points_dropped": snow.points_dropped(),
         "gpu_memory_by_resource": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });

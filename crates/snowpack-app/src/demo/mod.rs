@@ -52,6 +52,10 @@ pub struct DemoOptions {
     pub backend: Option<String>,
     /// Initial window size (logical pixels).
     pub size: (u32, u32),
+    /// A `snowpack server` to share the snow with.
+    pub connect: Option<std::net::SocketAddr>,
+    /// Connect token for a server with a key.
+    pub token: Option<PathBuf>,
 }
 
 /// Whether a window can be opened here (a display server is named, or the
@@ -186,6 +190,10 @@ struct Gfx {
     lost: Option<String>,
     last: Instant,
     screenshot: Option<PathBuf>,
+    /// The shared world (`--connect`), while linked.
+    link: Option<crate::net::SnowLink>,
+    /// The connect token the link was made with (to join again).
+    link_token: Option<PathBuf>,
 }
 
 struct App {
@@ -253,6 +261,10 @@ impl App {
         let egui_renderer = egui_wgpu::Renderer::new(&ctx.device, format, egui_wgpu::RendererOptions::default());
         let adapter = format!("{} ({})", ctx.summary.name, ctx.summary.backend);
         let panel = PanelState::new(&session, &ctx, adapter, (size.width, size.height), self.opts.vsync);
+        let link = match self.opts.connect {
+            Some(addr) => Some(crate::net::join(&ctx, &mut session.snow, addr, self.opts.token.as_deref(), "demo")?),
+            None => None,
+        };
         Ok(Gfx {
             window,
             surface,
@@ -271,6 +283,8 @@ impl App {
             lost: None,
             last: Instant::now(),
             screenshot: None,
+            link,
+            link_token: self.opts.token.clone(),
         })
     }
 }
@@ -576,7 +590,34 @@ impl Gfx {
         for action in actions {
             self.act(action);
         }
+        self.share();
         Ok(())
+    }
+
+    /// One exchange with the shared world: this frame's deformers reported,
+    /// changed tiles out, tiles from the others merged. A panel change that
+    /// made the snow anew (another depth, resolution, terrain) joins again
+    /// with the new snow; a server that refuses it, or a lost connection,
+    /// is said in the panel and the demo goes on alone.
+    fn share(&mut self) {
+        let Some(link) = &mut self.link else { return };
+        let addr = link.addr();
+        if !self.session.snow.is_sharing() {
+            self.link = None;
+            match crate::net::join(&self.ctx, &mut self.session.snow, addr, self.link_token.as_deref(), "demo") {
+                Ok(l) => self.link = Some(l),
+                Err(e) => self.panel.status = Some((format!("shared snow: {e:#}"), true)),
+            }
+            return;
+        }
+        let mut positions: Vec<[f64; 2]> = self.session.deformers().iter().map(crate::net::deformer_xz).collect();
+        let p = self.session.player.position;
+        positions.push([f64::from(p.x), f64::from(p.z)]);
+        link.peer.set_deformers(&positions);
+        if let Err(e) = link.pump(&mut self.session.snow) {
+            self.panel.status = Some((format!("shared snow: {e}; going on alone"), true));
+            self.link = None;
+        }
     }
 
     fn offscreen_capture(

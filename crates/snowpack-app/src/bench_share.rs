@@ -1,0 +1,196 @@
+//! Shared snow under load: one `snowpack server` (a separate process, as in
+//! production) and many simulated peers on loopback, each a CPU snow window
+//! ([`snowpack::testing::CpuSnow`]) walking and pressing a trail, linked
+//! over renet2 exactly as `snowpack run --connect` is. Measures the server's
+//! CPU time per second of world time, its peak memory, the bytes it sends
+//! and receives, and its CPU time per merged tile. Needs no GPU.
+
+use std::fmt::Write as _;
+use std::io::{BufRead as _, BufReader};
+use std::net::SocketAddr;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use snowpack::replicate::WorldIdentity;
+use snowpack::testing::CpuSnow;
+
+use crate::net::SnowLink;
+
+/// One load measurement.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShareRow {
+    /// Simulated peers.
+    pub peers: usize,
+    /// Seconds of world time they walked (wall time on loopback).
+    pub world_s: f64,
+    /// The server's CPU time (user + system) over the whole run (s).
+    pub server_cpu_s: f64,
+    /// The server's peak resident memory (KiB).
+    pub server_peak_kib: u64,
+    /// Tiles the server merged that changed its copy.
+    pub tiles_merged: u64,
+    /// Tiles the server received.
+    pub tiles_received: u64,
+    /// Snowpack message bytes the server received.
+    pub bytes_in: u64,
+    /// Snowpack message bytes the server sent.
+    pub bytes_out: u64,
+    /// Snowpack message bytes one peer sent per second of walking (mean).
+    pub peer_up_bytes_per_s: f64,
+}
+
+impl ShareRow {
+    /// The server's CPU seconds per second of world time.
+    pub fn cpu_per_world_s(&self) -> f64 {
+        self.server_cpu_s / self.world_s.max(1e-9)
+    }
+
+    /// The server's CPU milliseconds per tile received (merged or not).
+    pub fn cpu_ms_per_tile(&self) -> f64 {
+        1e3 * self.server_cpu_s / (self.tiles_received.max(1) as f64)
+    }
+}
+
+/// The world every simulated peer shares: 6.25 cm texels, 32² tiles, flat
+/// ground, 0.5 m of snow refilling at 1 cm a minute.
+fn world() -> WorldIdentity {
+    WorldIdentity {
+        texel_m: 0.0625,
+        tile_side: crate::net::DEFAULT_TILE_SIDE,
+        terrain: snowpack::replicate::terrain_identity(&snowpack::TerrainSource::Flat { height_m: 0.0 }),
+        depth_m: 0.5,
+        refill_m_per_s: 0.01 / 60.0,
+        snowfall_m_per_s: 0.0,
+        max_fallen_m: 0.0,
+        has_snowfall: false,
+        stamp_range_m: [-0.5, 1.5],
+    }
+}
+
+/// A server started for a measurement: the process, its address, and the
+/// rest of its output once it has stopped.
+type Started = (std::process::Child, SocketAddr, std::sync::mpsc::Receiver<Vec<String>>);
+
+/// Starts `snowpack server` (this executable) on loopback with a fresh
+/// store; stops by itself after `limit_s`.
+fn start_server(store: &std::path::Path, limit_s: f64) -> anyhow::Result<Started> {
+    let exe = std::env::current_exe().context("this executable")?;
+    let mut child = Command::new(exe)
+        .args(["server", "--listen", "127.0.0.1:0", "--store"])
+        .arg(store)
+        .args(["--exit-after-s", &format!("{limit_s}")])
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting snowpack server")?;
+    let stdout = child.stdout.take().context("the server's output")?;
+    let mut lines = BufReader::new(stdout).lines();
+    let first = lines.next().context("the server said nothing")??;
+    let addr = first.split_whitespace().skip_while(|w| *w != "on").nth(1).and_then(|a| a.parse().ok()).context("no address in the server's first line")?;
+    // The rest of its output comes back through the join handle.
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let all: Vec<String> = lines.map_while(Result::ok).collect();
+        let _ = tx.send(all);
+    });
+    Ok((child, addr, rx))
+}
+
+/// A `key=value` field of the server's closing line.
+fn field(line: &str, key: &str) -> Option<f64> {
+    line.split_whitespace().find_map(|w| w.strip_prefix(key).and_then(|r| r.strip_prefix('='))).and_then(|v| v.parse().ok())
+}
+
+/// `peers` peers walk for `seconds` (at 1.4 m/s, each its own way out of a
+/// ring 40 m across, pressing a 25 cm disc 20 cm deep, 30 updates a second).
+pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
+    let store = std::env::temp_dir().join(format!("snowpack-bench-share-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&store);
+    let (mut server, addr, output) = start_server(&store, seconds + 20.0)?;
+    let world = world();
+    let mut walkers = Vec::with_capacity(peers);
+    for k in 0..peers {
+        let angle = std::f64::consts::TAU * k as f64 / peers as f64;
+        let start = [20.0 * angle.cos(), 20.0 * angle.sin()];
+        let dir = [angle.cos(), angle.sin()];
+        let link = SnowLink::connect(addr, None, world.clone(), &format!("walker-{k}"))?;
+        walkers.push((link, CpuSnow::new(world.clone(), 128, [0, 0], 0.0), start, dir));
+    }
+    for (link, snow, ..) in &mut walkers {
+        link.wait_welcomed(snow, Duration::from_secs(30))?;
+    }
+    let tick = 1.0 / 30.0;
+    let begin = Instant::now();
+    let mut t = 0.0;
+    while t < seconds {
+        for (link, snow, start, dir) in &mut walkers {
+            let p = [start[0] + dir[0] * 1.4 * t, start[1] + dir[1] * 1.4 * t];
+            snow.center_on(p[0], p[1]);
+            snow.press_disc(p, 0.25, 2000);
+            snow.step(tick);
+            link.peer.set_deformers(&[p]);
+            link.pump(snow)?;
+        }
+        t += tick;
+        let ahead = Duration::from_secs_f64(t) - begin.elapsed().min(Duration::from_secs_f64(t));
+        std::thread::sleep(ahead);
+    }
+    let walked = begin.elapsed().as_secs_f64();
+    let up: u64 = walkers.iter().map(|(l, ..)| l.peer.stats().bytes_out).sum();
+    drop(walkers);
+    // The server stops by itself and prints its totals.
+    let deadline = Instant::now() + Duration::from_secs_f64(seconds + 60.0);
+    loop {
+        if server.try_wait()?.is_some() {
+            break;
+        }
+        if Instant::now() > deadline {
+            let _ = server.kill();
+            anyhow::bail!("the server did not stop");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let lines = output.recv_timeout(Duration::from_secs(5))?;
+    let closing = lines.iter().rev().find(|l| l.contains("stopped")).context("the server's closing line")?;
+    let _ = std::fs::remove_dir_all(&store);
+    let get = |k: &str| field(closing, k).with_context(|| format!("{k} in {closing:?}"));
+    Ok(ShareRow {
+        peers,
+        world_s: walked,
+        server_cpu_s: get("cpu_s")?,
+        server_peak_kib: get("peak_kib")? as u64,
+        tiles_merged: get("tiles_merged")? as u64,
+        tiles_received: get("tiles_received")? as u64,
+        bytes_in: get("bytes_in")? as u64,
+        bytes_out: get("bytes_out")? as u64,
+        peer_up_bytes_per_s: up as f64 / walked / peers.max(1) as f64,
+    })
+}
+
+/// The report's section.
+pub fn markdown(rows: &[ShareRow]) -> String {
+    let mut md = String::from(
+        "\n## Shared snow: one relay under load\n\n`snowpack server` in its own process, and simulated peers on loopback (CPU snow windows of 128², walking at \
+         1.4 m/s and pressing a 25 cm disc, linked over renet2 like `snowpack run --connect`). CPU time and memory are the server process's \
+         own; bytes are snowpack's messages (renet2 and netcode add their headers). No GPU is involved, so these are not software-adapter figures.\n\n\
+         | peers | world s | server CPU s per world s | server peak memory | tiles received | merged | CPU ms per tile | server bytes in/s | server bytes out/s | bytes/s up per peer |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {:.1} | {:.3} | {:.1} MiB | {} | {} | {:.3} | {:.0} | {:.0} | {:.0} |",
+            r.peers,
+            r.world_s,
+            r.cpu_per_world_s(),
+            r.server_peak_kib as f64 / 1024.0,
+            r.tiles_received,
+            r.tiles_merged,
+            r.cpu_ms_per_tile(),
+            r.bytes_in as f64 / r.world_s,
+            r.bytes_out as f64 / r.world_s,
+            r.peer_up_bytes_per_s
+        );
+    }
+    md
+}

@@ -1,0 +1,517 @@
+//! Shared snow over UDP, with renet2's netcode transport: the dedicated
+//! `snowpack server` (a [`SnowRelay`] that merges on the CPU, persists to a
+//! tile store and never opens a GPU), `snowpack token` (connect tokens for a
+//! server started with `--key`), `snowpack query` (snow depth at points,
+//! from the server's tiles) and [`SnowLink`], the client side of
+//! `snowpack run --connect` and the demo's `--connect`.
+//!
+//! Every snowpack message travels on one reliable, unordered channel: tiles
+//! merge in any order, so nothing waits behind a lost packet, and the
+//! protocol's own acknowledgements and digests repair what a connection that
+//! drops and comes back lost. `docs/multiplayer.md` has the protocol.
+
+use std::collections::VecDeque;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::Context as _;
+use renet2::{ChannelConfig, ConnectionConfig, RenetClient, RenetServer, SendType, ServerEvent};
+use renet2_netcode::{
+    ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
+    ServerSetupConfig,
+};
+use snowpack::persist::{StoreConfig, TileStore};
+use snowpack::replicate::{PeerConfig, RelayConfig, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+use snowpack_app::BadInput;
+
+/// Netcode's protocol id: packets of other programs (or another version of
+/// this protocol) are refused before they reach the relay.
+const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::replicate::message::PROTOCOL_VERSION as u64;
+/// The one channel snowpack's messages travel on.
+const CHANNEL: u8 = 0;
+/// Bytes a connection's channel may hold unacknowledged; the relay paces
+/// itself well below this (a full reliable channel disconnects).
+const CHANNEL_BYTES: usize = 16 << 20;
+/// The server's loop period.
+const TICK: Duration = Duration::from_millis(10);
+/// How long a connect token made by `snowpack token` stays valid (s).
+const TOKEN_LIFETIME_S: u64 = 24 * 3600;
+/// Tile side of the worlds a `snowpack server` serves when its store does not say.
+pub const DEFAULT_TILE_SIDE: u32 = 32;
+
+fn connection_config() -> ConnectionConfig {
+    let channel = ChannelConfig {
+        channel_id: CHANNEL,
+        max_memory_usage_bytes: CHANNEL_BYTES,
+        send_type: SendType::ReliableUnordered { resend_time: Duration::from_millis(150) },
+    };
+    ConnectionConfig::from_shared_channels(vec![channel])
+}
+
+fn unix_now() -> Duration {
+    SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default()
+}
+
+/// A server's private key: 32 bytes, in the file as 64 hexadecimal digits
+/// (whitespace around them ignored) or as the raw bytes.
+fn read_key(path: &Path) -> anyhow::Result<[u8; NETCODE_KEY_BYTES]> {
+    let bytes = std::fs::read(path).map_err(|e| BadInput(format!("--key {}: {e}", path.display())))?;
+    if bytes.len() == NETCODE_KEY_BYTES {
+        let mut key = [0; NETCODE_KEY_BYTES];
+        key.copy_from_slice(&bytes);
+        return Ok(key);
+    }
+    let text = String::from_utf8_lossy(&bytes);
+    let hex = text.trim();
+    let bad = || BadInput(format!("--key {}: a key is 32 bytes, or 64 hexadecimal digits; this file is neither", path.display()));
+    if hex.len() != 2 * NETCODE_KEY_BYTES || !hex.is_ascii() {
+        return Err(bad().into());
+    }
+    let mut key = [0; NETCODE_KEY_BYTES];
+    for (k, byte) in key.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&hex[2 * k..2 * k + 2], 16).map_err(|_| bad())?;
+    }
+    Ok(key)
+}
+
+/// What `snowpack server` was asked for.
+#[derive(Clone, Debug)]
+pub struct ServerOptions {
+    /// Address to listen on (UDP).
+    pub listen: SocketAddr,
+    /// The tile store's folder (created when missing).
+    pub store: PathBuf,
+    /// The private key file: clients then need a connect token made from it.
+    pub key: Option<PathBuf>,
+    /// Stop after this many seconds (tests; default: run until killed).
+    pub exit_after_s: Option<f64>,
+}
+
+/// The world's epoch (Unix seconds) kept in the store, so the world clock
+/// goes on across restarts: time passes (and trails refill) while the
+/// server is down, as it would for a game world.
+fn world_epoch(store: &TileStore) -> anyhow::Result<f64> {
+    const NAME: &str = "epoch";
+    if let Some(bytes) = store.read_state(NAME)? {
+        let raw: [u8; 8] = bytes.as_slice().try_into().map_err(|_| anyhow::anyhow!("{}: the world epoch is damaged", store.dir().display()))?;
+        return Ok(f64::from_le_bytes(raw));
+    }
+    let now = unix_now().as_secs_f64();
+    store.write_state(NAME, &now.to_le_bytes())?;
+    Ok(now)
+}
+
+/// The tile side a store was made with (its `store.meta`), if it exists.
+fn store_side(dir: &Path) -> Option<u32> {
+    // Opening a folder without `store.meta` would make one: ask only existing stores.
+    if !dir.join("store.meta").is_file() {
+        return None;
+    }
+    for side in [8, 16, 32, 64, 128, 256] {
+        if TileStore::open(dir, side, StoreConfig::default()).is_ok() {
+            return Some(side);
+        }
+    }
+    None
+}
+
+/// Runs `snowpack server` until killed (or `exit_after_s`). Creates no GPU
+/// device and loads no graphics library: it merges integers on the CPU.
+/// Everything it acknowledges is on disk first, so killing it at any moment
+/// loses nothing a client was told is kept.
+pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
+    if opts.key.is_none() && !opts.listen.ip().is_loopback() {
+        return Err(BadInput(format!(
+            "--listen {}: without --key the server accepts anyone, so it listens on loopback only (127.0.0.1 or ::1); give --key FILE to listen here",
+            opts.listen
+        ))
+        .into());
+    }
+    let key = opts.key.as_deref().map(read_key).transpose()?;
+    std::fs::create_dir_all(&opts.store).with_context(|| format!("creating the store folder {}", opts.store.display()))?;
+    let side = store_side(&opts.store).unwrap_or(DEFAULT_TILE_SIDE);
+    let store = TileStore::open(&opts.store, side, StoreConfig::default()).with_context(|| format!("opening the tile store {}", opts.store.display()))?;
+    let epoch = world_epoch(&store)?;
+    let mut relay = SnowRelay::with_store(store, RelayConfig::default()).context("resuming the world from the store")?;
+    let socket = UdpSocket::bind(opts.listen).with_context(|| format!("listening on {}", opts.listen))?;
+    let local = socket.local_addr()?;
+    let setup = ServerSetupConfig {
+        current_time: unix_now(),
+        max_token_lifetime: u16::try_from(TOKEN_LIFETIME_S).unwrap_or(u16::MAX),
+        max_clients: 256,
+        protocol_id: PROTOCOL_ID,
+        socket_addresses: vec![vec![local]],
+        authentication: match key {
+            Some(private_key) => ServerAuthentication::Secure { private_key },
+            None => ServerAuthentication::Unsecure,
+        },
+    };
+    let mut transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
+    let mut server = RenetServer::new(connection_config());
+    println!(
+        "snowpack server listening on {local} ({}), tiles in {}",
+        if key.is_some() { "connect tokens required" } else { "no key: loopback only" },
+        opts.store.display()
+    );
+    let started = Instant::now();
+    let mut last = started;
+    let mut backlog: std::collections::HashMap<u64, VecDeque<Vec<u8>>> = std::collections::HashMap::new();
+    let mut last_report = started;
+    loop {
+        let now = Instant::now();
+        server.update(now - last);
+        if let Err(errors) = transport.update(now - last, &mut server) {
+            for e in errors {
+                tracing::debug!("netcode: {e}");
+            }
+        }
+        last = now;
+        let world_s = unix_now().as_secs_f64() - epoch;
+        while let Some(event) = server.get_event() {
+            match event {
+                ServerEvent::ClientConnected { client_id } => {
+                    relay.connect(client_id);
+                    println!("peer {client_id} connected");
+                }
+                ServerEvent::ClientDisconnected { client_id, reason } => {
+                    relay.disconnect(client_id);
+                    backlog.remove(&client_id);
+                    println!("peer {client_id} left: {reason}");
+                }
+            }
+        }
+        for client_id in server.clients_id() {
+            while let Some(bytes) = server.receive_message(client_id, CHANNEL) {
+                relay.receive(client_id, &bytes, world_s);
+            }
+        }
+        relay.update(world_s);
+        // Persisted before anything (acknowledgements included) goes out.
+        if let Err(e) = relay.flush() {
+            eprintln!("snowpack server: {e}");
+        }
+        while let Some((peer, bytes)) = relay.poll_transmit() {
+            backlog.entry(peer).or_default().push_back(bytes);
+        }
+        for (peer, queue) in &mut backlog {
+            while let Some(bytes) = queue.front() {
+                if !server.is_connected(*peer) {
+                    queue.clear();
+                    break;
+                }
+                if !server.can_send_message(*peer, CHANNEL, bytes.len()) {
+                    break;
+                }
+                let bytes = queue.pop_front().unwrap_or_default();
+                server.send_message(*peer, CHANNEL, bytes);
+            }
+        }
+        transport.send_packets(&mut server);
+        if now - last_report >= Duration::from_secs(10) {
+            last_report = now;
+            let s = relay.stats();
+            println!("snowpack server: {} peers, {s}", server.connected_clients());
+        }
+        if opts.exit_after_s.is_some_and(|limit| started.elapsed().as_secs_f64() >= limit) {
+            transport.disconnect_all(&mut server);
+            relay.flush()?;
+            let s = relay.stats();
+            let (cpu_s, peak_kib) = own_usage();
+            println!(
+                "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={}",
+                started.elapsed().as_secs_f64(),
+                s.tiles_received,
+                s.tiles_merged,
+                s.bytes_in,
+                s.bytes_out,
+                s.rejected.total()
+            );
+            return Ok(());
+        }
+        std::thread::sleep(TICK);
+    }
+}
+
+/// This process's CPU time (s, from the scheduler's nanosecond count) and
+/// peak resident memory (KiB); zeros where `/proc` does not say.
+fn own_usage() -> (f64, u64) {
+    let cpu_ns = std::fs::read_to_string("/proc/self/schedstat").ok().and_then(|s| s.split_whitespace().next().and_then(|v| v.parse::<u64>().ok()));
+    let peak = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find_map(|l| l.strip_prefix("VmHWM:").and_then(|v| v.split_whitespace().next().and_then(|n| n.parse::<u64>().ok()))));
+    (cpu_ns.unwrap_or(0) as f64 * 1e-9, peak.unwrap_or(0))
+}
+
+/// `snowpack token`: writes a connect token for the server at `server`
+/// (its public address), made from the server's `--key` file.
+pub fn make_token(key: &Path, server: SocketAddr, out: &Path) -> anyhow::Result<()> {
+    let private_key = read_key(key)?;
+    let client_id = random_id();
+    let token = ConnectToken::generate(unix_now(), PROTOCOL_ID, TOKEN_LIFETIME_S, client_id, 15, 0, vec![server], None, &private_key)
+        .map_err(|e| anyhow::anyhow!("making a connect token: {e}"))?;
+    let mut bytes = Vec::new();
+    token.write(&mut bytes)?;
+    std::fs::write(out, bytes).with_context(|| format!("writing the connect token {}", out.display()))?;
+    println!("wrote a connect token for {server} (client {client_id}, valid {} h) to {}", TOKEN_LIFETIME_S / 3600, out.display());
+    Ok(())
+}
+
+fn random_id() -> u64 {
+    // Unique enough among a server's clients: time, process and a counter, mixed.
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mut x = unix_now().as_nanos() as u64 ^ (u64::from(std::process::id()) << 32) ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    x ^= x >> 33;
+    x = x.wrapping_mul(0xff51_afd7_ed55_8ccd);
+    x ^ (x >> 33)
+}
+
+/// Why a link to a server failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// The server serves another world: bad input (exit 2).
+    #[error("the server at {addr} refused this world: {why}")]
+    Refused {
+        /// The server.
+        addr: SocketAddr,
+        /// What differs, as the server said it.
+        why: String,
+    },
+    /// The connection could not be made or was lost, or a wait ran out.
+    #[error("shared snow at {addr}: {why}")]
+    Lost {
+        /// The server.
+        addr: SocketAddr,
+        /// What happened.
+        why: String,
+    },
+}
+
+/// The client side of shared snow: a renet2 connection to a `snowpack
+/// server` and the [`SnowPeer`] beside the game's snow. [`Self::pump`]
+/// once a frame; it never blocks.
+pub struct SnowLink {
+    addr: SocketAddr,
+    client: RenetClient,
+    transport: NetcodeClientTransport,
+    /// The replication state machine.
+    pub peer: SnowPeer,
+    started: Instant,
+    last: Instant,
+    backlog: VecDeque<Vec<u8>>,
+}
+
+impl SnowLink {
+    /// Starts connecting to `addr` (with the connect token in `token` when the
+    /// server has a key) as a peer of `world`.
+    pub fn connect(addr: SocketAddr, token: Option<&Path>, world: WorldIdentity, name: &str) -> anyhow::Result<Self> {
+        let bind: SocketAddr = if addr.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse()?;
+        let socket = UdpSocket::bind(bind).context("a UDP socket for --connect")?;
+        let authentication = match token {
+            Some(path) => {
+                let bytes = std::fs::read(path).map_err(|e| BadInput(format!("--token {}: {e}", path.display())))?;
+                let connect_token = ConnectToken::read(&mut bytes.as_slice()).map_err(|e| BadInput(format!("--token {}: not a connect token ({e})", path.display())))?;
+                ClientAuthentication::Secure { connect_token }
+            }
+            None => ClientAuthentication::Unsecure { protocol_id: PROTOCOL_ID, client_id: random_id(), socket_id: 0, server_addr: addr, user_data: None },
+        };
+        let transport = NetcodeClientTransport::new(unix_now(), authentication, NativeSocket::new(socket).context("the client's socket")?)
+            .map_err(|e| LinkError::Lost { addr, why: e.to_string() })?;
+        let now = Instant::now();
+        Ok(Self {
+            addr,
+            client: RenetClient::new(connection_config(), false),
+            transport,
+            peer: SnowPeer::new(world, name, PeerConfig::default()),
+            started: now,
+            last: now,
+            backlog: VecDeque::new(),
+        })
+    }
+
+    /// The server's address.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Seconds since the link started (the peer's own clock for its timers).
+    fn now_s(&self) -> f64 {
+        self.started.elapsed().as_secs_f64()
+    }
+
+    /// One exchange: what arrived goes to the peer, the peer takes the
+    /// snow's changed tiles and merges what came in, and its messages go
+    /// out. Never blocks.
+    pub fn pump(&mut self, snow: &mut dyn SharedSnow) -> Result<(), LinkError> {
+        let now = Instant::now();
+        self.client.update(now - self.last);
+        let update = self.transport.update(now - self.last, &mut self.client);
+        self.last = now;
+        if let Err(e) = update {
+            return Err(LinkError::Lost { addr: self.addr, why: e.to_string() });
+        }
+        if self.client.is_disconnected() {
+            let why = self.client.disconnect_reason().map_or_else(|| "disconnected".to_owned(), |r| r.to_string());
+            return Err(LinkError::Lost { addr: self.addr, why });
+        }
+        let mut refused = None;
+        while let Some(bytes) = self.client.receive_message(CHANNEL) {
+            match self.peer.receive(&bytes) {
+                Ok(()) => {}
+                Err(ShareError::Refused { why }) => refused = Some(why),
+                Err(e) => tracing::warn!("shared snow: {e}"),
+            }
+        }
+        if let Some(why) = refused {
+            return Err(LinkError::Refused { addr: self.addr, why });
+        }
+        let now_s = self.now_s();
+        self.peer.update(snow, now_s);
+        while let Some(bytes) = self.peer.poll_transmit() {
+            self.backlog.push_back(bytes);
+        }
+        if self.client.is_connected() {
+            while let Some(bytes) = self.backlog.front() {
+                if !self.client.can_send_message(CHANNEL, bytes.len()) {
+                    break;
+                }
+                let bytes = self.backlog.pop_front().unwrap_or_default();
+                self.client.send_message(CHANNEL, bytes);
+            }
+        }
+        if let Err(e) = self.transport.send_packets(&mut self.client) {
+            tracing::debug!("netcode: {e}");
+        }
+        Ok(())
+    }
+
+    /// Pumps until the server has welcomed this peer (the world clock is
+    /// then the snow's), for at most `limit`.
+    pub fn wait_welcomed(&mut self, snow: &mut dyn SharedSnow, limit: Duration) -> Result<(), LinkError> {
+        let deadline = Instant::now() + limit;
+        while !self.peer.is_welcomed() {
+            self.pump(snow)?;
+            if Instant::now() > deadline {
+                return Err(LinkError::Lost { addr: self.addr, why: format!("no answer from the server within {limit:?}") });
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Ok(())
+    }
+
+    /// Messages waiting for room in the connection.
+    pub fn backlog(&self) -> usize {
+        self.backlog.len()
+    }
+
+    /// Disconnects (the server learns at once instead of by a timeout).
+    pub fn disconnect(&mut self) {
+        self.transport.disconnect();
+    }
+}
+
+impl Drop for SnowLink {
+    fn drop(&mut self) {
+        self.disconnect();
+    }
+}
+
+/// How long a run waits for the server's welcome.
+const CONNECT_LIMIT: Duration = Duration::from_secs(10);
+/// How long a run waits, at its end, for the server to acknowledge its
+/// changes and for its window to hold everything the server has.
+const SETTLE_LIMIT: Duration = Duration::from_secs(30);
+/// Changed tiles go out at most this often (world seconds).
+pub const SHARE_INTERVAL_S: f64 = 0.25;
+
+/// Joins the shared world at `addr`: sharing switched on in `snow`, a link
+/// made, and the server's welcome awaited (its clock is then the snow's).
+pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, addr: SocketAddr, token: Option<&Path>, name: &str) -> anyhow::Result<SnowLink> {
+    snow.enable_sharing(ctx, DEFAULT_TILE_SIDE, SHARE_INTERVAL_S).context("sharing the snow")?;
+    let mut link = SnowLink::connect(addr, token, snow.world_identity(), name)?;
+    link.wait_welcomed(snow, CONNECT_LIMIT)?;
+    Ok(link)
+}
+
+/// World (x, z) of every deformer and character of `world`: the places
+/// where this peer may change the snow (the relay's check).
+pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
+    let mut out: Vec<[f64; 2]> = world.deformers().iter().map(deformer_xz).collect();
+    out.extend(world.characters().iter().map(|c| {
+        let p = c.model.w_axis;
+        [f64::from(p.x), f64::from(p.z)]
+    }));
+    out
+}
+
+/// World (x, z) of a deformer.
+pub fn deformer_xz(d: &snowpack::Deformer) -> [f64; 2] {
+    use snowpack::Deformer;
+    match d {
+        Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => [f64::from(center.x), f64::from(center.z)],
+        Deformer::Point { position, .. } => [f64::from(position.x), f64::from(position.z)],
+    }
+}
+
+/// What a run's link did, for `meta.json`'s `share`.
+#[derive(Clone, Debug)]
+pub struct ShareReport {
+    /// The server.
+    pub addr: SocketAddr,
+    /// Seconds from the link's start to the end of settling.
+    pub linked_s: f64,
+    /// Seconds the end of the run waited for acknowledgements and merges.
+    pub settle_s: f64,
+    /// The peer's counters.
+    pub stats: snowpack::replicate::PeerStats,
+}
+
+impl ShareReport {
+    /// As `meta.json` holds it.
+    pub fn to_json(&self) -> serde_json::Value {
+        let s = &self.stats;
+        serde_json::json!({
+            "server": self.addr.to_string(),
+            "linked_s": self.linked_s,
+            "settle_s": self.settle_s,
+            "bytes_sent": s.bytes_sent,
+            "bytes_received": s.bytes_received,
+            "tiles_sent": s.tiles_sent,
+            "tiles_received": s.tiles_received,
+            "resends": s.resends,
+        })
+    }
+}
+
+/// The end of a connected run: frames that press nothing and let no time
+/// pass, until every change of this run is acknowledged by the server and
+/// everything the server holds for the window is merged into it (exit 1
+/// after [`SETTLE_LIMIT`]).
+pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, link: &mut SnowLink) -> anyhow::Result<ShareReport> {
+    let start = Instant::now();
+    let deadline = start + SETTLE_LIMIT;
+    snow.flush_changed_tiles();
+    loop {
+        snow.step(ctx, &[], 0.0)?;
+        snow.finish(ctx)?;
+        link.pump(snow)?;
+        let quiet = link.peer.unacknowledged() == 0 && link.backlog() == 0 && snow.dirty_tiles() == 0 && link.peer.is_synced() && snow.pending_merges() == 0;
+        if quiet {
+            break;
+        }
+        if Instant::now() > deadline {
+            return Err(LinkError::Lost {
+                addr: link.addr,
+                why: format!(
+                    "the server did not acknowledge this run's changes within {SETTLE_LIMIT:?} ({} unacknowledged, {} unsent)",
+                    link.peer.unacknowledged(),
+                    link.backlog()
+                ),
+            }
+            .into());
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    Ok(ShareReport { addr: link.addr, linked_s: link.started.elapsed().as_secs_f64(), settle_s: start.elapsed().as_secs_f64(), stats: link.peer.stats() })
+}

@@ -1,0 +1,219 @@
+//! Shared snow between real processes on loopback: a `snowpack server`, a
+//! headless run whose sphere ploughs a trail and exits, a second run that
+//! joins later over the same place and must see that trail, a restart of the
+//! server on the same store and a third run that still sees it. Every
+//! process is bounded in time and killed if it overstays.
+
+use std::io::{BufRead as _, BufReader};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+mod common;
+use common::Temp;
+
+/// Longest any one process of these tests may run.
+const PROCESS_LIMIT: Duration = Duration::from_secs(120);
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
+    c.env("SNOWPACK_LOG", "error");
+    c
+}
+
+fn gpu_available() -> bool {
+    snowpack::testing::gpu().is_some()
+}
+
+/// A running `snowpack server`, killed on drop.
+struct Server {
+    child: Child,
+    addr: SocketAddr,
+}
+
+impl Server {
+    fn start(store: &Path) -> Self {
+        let mut child = bin()
+            .args(["server", "--listen", "127.0.0.1:0", "--store"])
+            .arg(store)
+            .args(["--exit-after-s", &PROCESS_LIMIT.as_secs().to_string()])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start snowpack server");
+        let stdout = child.stdout.take().expect("the server's stdout");
+        let mut lines = BufReader::new(stdout).lines();
+        let first = lines.next().expect("the server says where it listens").expect("a line");
+        let addr: SocketAddr = first
+            .split_whitespace()
+            .skip_while(|w| *w != "on")
+            .nth(1)
+            .and_then(|a| a.parse().ok())
+            .unwrap_or_else(|| panic!("no address in the server's first line: {first:?}"));
+        // Keep draining its output so it never blocks on a full pipe.
+        std::thread::spawn(move || for _ in lines.map_while(Result::ok) {});
+        Self { child, addr }
+    }
+
+    fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    fn kill(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).
+fn run_bounded(mut cmd: Command) -> std::process::Output {
+    let child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start snowpack");
+    let id = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(PROCESS_LIMIT) {
+        Ok(out) => out.expect("snowpack's output"),
+        Err(_) => {
+            let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
+            panic!("snowpack ran longer than {PROCESS_LIMIT:?}");
+        }
+    }
+}
+
+/// The scene all three runs share: 8 m of 0.5 m snow at 6.25 cm, window
+/// fixed at the origin, no refill; `actors` is the `[[actor]]` part.
+fn scene(dir: &Path, name: &str, depth_m: f32, actors: &str) -> PathBuf {
+    let path = dir.join(format!("{name}.toml"));
+    let text = format!(
+        "[snow]\nextent_m = 8.0\nresolution = 128\ndepth_m = {depth_m}\nrefill_m_per_s = 0.0\n\n[terrain]\nkind = \"flat\"\nheight_m = 0.0\n\n[window]\ncenter = [0.0, 0.0]\n\n{actors}\n[sim]\nframes = 40\ndt_s = 0.025\n"
+    );
+    std::fs::write(&path, text).expect("write the scene");
+    path
+}
+
+/// A sphere of radius 0.3 m ploughing along z = -1 from x = -3 to x = 3:
+/// its bottom 0.1 m above the ground, so 0.4 m of the 0.5 m is pressed away.
+const PLOUGH: &str = "[[actor]]\nkind = \"sphere\"\nradius_m = 0.3\npath = [[-3.0, 0.4, -1.0, 0.0], [3.0, 0.4, -1.0, 1.0]]\n";
+/// A sphere resting far from the trail, so the joining runs press nothing near it.
+const IDLE: &str = "[[actor]]\nkind = \"sphere\"\nradius_m = 0.2\nposition = [0.0, 2.0, 3.0]\n";
+
+fn load_npy(path: &Path) -> Vec<f32> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+fn run_connected(scene: &Path, out: &Path, addr: SocketAddr) -> std::process::Output {
+    let mut cmd = bin();
+    cmd.args(["run", "--headless", "--scene"]).arg(scene).arg("--out").arg(out).args(["--connect", &addr.to_string()]);
+    run_bounded(cmd)
+}
+
+fn assert_ok(what: &str, out: &std::process::Output) {
+    assert!(out.status.success(), "{what} failed ({}):\n{}\n{}", out.status, String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+}
+
+/// Texel (i, j) of the 128² window at the origin: world x = -4 + (j + 0.5) / 16.
+fn trail_texels() -> impl Iterator<Item = (usize, usize)> {
+    // z = -1 is row 48; x from -2.5 to 2.5 (clear of the ends) is columns 24..104.
+    (24..104).map(|j| (48, j))
+}
+
+#[test]
+fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("shared-snow");
+    let store = dir.0.join("world");
+    let server = Server::start(&store);
+
+    // The server maps no GPU library: it never opens a device.
+    let maps = std::fs::read_to_string(format!("/proc/{}/maps", server.pid())).expect("the server's memory maps");
+    for lib in ["libvulkan", "libEGL", "libGL", "libgbm", "lvp", "swrast", "libLLVM", "dri"] {
+        assert!(!maps.contains(lib), "the server mapped {lib}:\n{}", maps.lines().filter(|l| l.contains(lib)).collect::<Vec<_>>().join("\n"));
+    }
+
+    let first = run_connected(&scene(&dir.0, "plough", 0.5, PLOUGH), &dir.0.join("a"), server.addr);
+    assert_ok("the ploughing run", &first);
+    let a = load_npy(&dir.0.join("a/snow.npy"));
+    for (i, j) in trail_texels() {
+        assert!((a[i * 128 + j] - 0.1).abs() < 0.01, "the plough's own trail at ({i}, {j}): {}", a[i * 128 + j]);
+    }
+
+    let second = run_connected(&scene(&dir.0, "join", 0.5, IDLE), &dir.0.join("b"), server.addr);
+    assert_ok("the joining run", &second);
+    let b = load_npy(&dir.0.join("b/snow.npy"));
+    for (i, j) in trail_texels() {
+        let (ha, hb) = (a[i * 128 + j], b[i * 128 + j]);
+        assert!((ha - hb).abs() <= 1e-3, "the late run's snow at ({i}, {j}) is {hb}, the plough left {ha}");
+    }
+    // Away from the trail, open snow in both.
+    for j in 0..128 {
+        assert!((b[100 * 128 + j] - 0.5).abs() < 1e-3, "open snow at row 100: {}", b[100 * 128 + j]);
+    }
+
+    // The server answers depth queries from its tiles.
+    let query = run_bounded({
+        let mut c = bin();
+        c.args(["query", "--connect", &server.addr.to_string(), "--at", "0.0,-1.0", "--at", "0.0,2.0"]);
+        c
+    });
+    assert_ok("the query", &query);
+    let depths: Vec<f32> = String::from_utf8_lossy(&query.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("depth_m ").and_then(|r| r.split_whitespace().nth(2)).and_then(|d| d.parse().ok()))
+        .collect();
+    assert_eq!(depths.len(), 2, "{}", String::from_utf8_lossy(&query.stdout));
+    assert!((depths[0] - 0.1).abs() < 0.01 && (depths[1] - 0.5).abs() < 1e-3, "server depths {depths:?}");
+
+    // Killed at once (no chance to save): what it acknowledged is on disk.
+    server.kill();
+    let server = Server::start(&store);
+    let third = run_connected(&scene(&dir.0, "again", 0.5, IDLE), &dir.0.join("c"), server.addr);
+    assert_ok("the run after the restart", &third);
+    let c = load_npy(&dir.0.join("c/snow.npy"));
+    for (i, j) in trail_texels() {
+        assert!((a[i * 128 + j] - c[i * 128 + j]).abs() <= 1e-3, "after the restart at ({i}, {j}): {} vs {}", c[i * 128 + j], a[i * 128 + j]);
+    }
+
+    // Another world (deeper snow) is refused, naming what differs, with exit code 2.
+    let other = run_connected(&scene(&dir.0, "other", 0.8, IDLE), &dir.0.join("d"), server.addr);
+    assert_eq!(other.status.code(), Some(2), "{}", String::from_utf8_lossy(&other.stderr));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("snow depth"), "{}", String::from_utf8_lossy(&other.stderr));
+    assert!(!dir.0.join("d/snow.npy").exists(), "a refused run writes nothing");
+}
+
+#[test]
+fn a_server_without_a_key_refuses_to_listen_beyond_loopback() {
+    let dir = Temp::new("shared-open");
+    let out = run_bounded({
+        let mut c = bin();
+        c.args(["server", "--listen", "0.0.0.0:0", "--store"]).arg(dir.0.join("s"));
+        c
+    });
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--key"), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn a_run_that_cannot_reach_its_server_fails_with_exit_1() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("shared-nobody");
+    // A port nobody listens on: bound and dropped.
+    let port = std::net::UdpSocket::bind("127.0.0.1:0").and_then(|s| s.local_addr()).expect("a free port");
+    let out = run_connected(&scene(&dir.0, "alone", 0.5, IDLE), &dir.0.join("o"), port);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+}
