@@ -85,8 +85,13 @@ pub struct PeerStats {
 #[derive(Debug)]
 pub struct SnowPeer {
     world: WorldIdentity,
+    name: String,
     config: PeerConfig,
     welcomed: bool,
+    refused: bool,
+    /// When the last `Hello` went out (`None` until the first update: the
+    /// first is queued by `new`). Resent until answered, as it may be lost.
+    last_hello_s: Option<f64>,
     number: Option<u32>,
     relay_clock: Option<ShareClock>,
     joined: bool,
@@ -107,14 +112,18 @@ pub struct SnowPeer {
 
 impl SnowPeer {
     /// A peer of `world`, named `name` in the relay's logs (cut at 64
-    /// bytes). Its `Hello` is queued.
+    /// bytes). Its `Hello` is queued, and sent again every
+    /// `resend_after_s` until the relay answers.
     #[must_use]
     pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
         let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
         Self {
             world,
+            name: name.to_owned(),
             config,
             welcomed: false,
+            refused: false,
+            last_hello_s: None,
             number: None,
             relay_clock: None,
             joined: false,
@@ -149,6 +158,7 @@ impl SnowPeer {
             }
             Message::Refused { differences } => {
                 self.welcomed = false;
+                self.refused = true;
                 return Err(ShareError::Refused { differences });
             }
             Message::Tiles { tiles, .. } => {
@@ -234,6 +244,14 @@ impl SnowPeer {
         }
         self.trim_replica();
         if !self.welcomed {
+            match self.last_hello_s {
+                None => self.last_hello_s = Some(now_s),
+                Some(at) if !self.refused && now_s - at >= self.config.resend_after_s => {
+                    self.last_hello_s = Some(now_s);
+                    self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+                }
+                Some(_) => {}
+            }
             return;
         }
         if now_s - self.last_presence_s >= self.config.presence_interval_s

@@ -20,8 +20,8 @@ use crate::persist::{SnowClock, TileData, TileKey, TileStore};
 
 use super::ShareError;
 use super::message::{
-    MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILE_SIDE, MAX_TILES, MIN_TILE_SIDE, Message, MessageError, TILES_OVERHEAD_BYTES, decode, decode_world,
-    encode, encode_tile, encode_world, tiles_message,
+    MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILE_SIDE, MAX_TILES, MIN_TILE_SIDE, Message, MessageError, TILES_OVERHEAD_BYTES, decode,
+    decode_world, encode, encode_tile, encode_world, tiles_message,
 };
 use super::tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 use super::world::WorldIdentity;
@@ -1007,7 +1007,12 @@ pub fn tile_to_data(t: &SharedTile) -> TileData {
     TileData {
         key: t.key,
         side: t.side,
-        clock: SnowClock { time_s: t.clock.time_s, refill_m: t.clock.refill_quanta as f64, fallen_m: f64::from(t.clock.fallen_m), stamp_quanta: t.clock.stamp_quanta },
+        clock: SnowClock {
+            time_s: t.clock.time_s,
+            refill_m: t.clock.refill_quanta as f64,
+            fallen_m: f64::from(t.clock.fallen_m),
+            stamp_quanta: t.clock.stamp_quanta,
+        },
         snow_xor_rest: t.deficit.iter().map(|&d| u32::from(d) | flag).collect(),
         stamps: if t.stamps.is_empty() { vec![NO_STAMP; t.texels()] } else { t.stamps.clone() },
         fallen: t.fallen.clone(),
@@ -1017,7 +1022,7 @@ pub fn tile_to_data(t: &SharedTile) -> TileData {
 /// Inverse of [`tile_to_data`]; an error names what does not fit.
 pub fn tile_from_data(d: TileData) -> Result<SharedTile, String> {
     let q = d.clock.refill_m;
-    if !(q >= 0.0 && q < 9_007_199_254_740_992.0 && q.fract() == 0.0) {
+    if !((0.0..9_007_199_254_740_992.0).contains(&q) && q.fract() == 0.0) {
         return Err(format!("refill {q} is not a whole number of quanta"));
     }
     let fallen_m = d.clock.fallen_m as f32;
