@@ -704,3 +704,127 @@ fn the_fuzz_seeds_are_valid_messages_of_every_kind() {
     kinds.sort_unstable();
     assert_eq!(kinds, (1..=9).collect::<Vec<u8>>());
 }
+
+// ---------------------------------------------------------------- late join, pacing and bounds
+
+/// A relay holding `count` tiles of random deficits around the origin, from peer 1.
+fn relay_holding(config: RelayConfig, count: i64, now: f64, rng: &mut Rng) -> SnowRelay {
+    let w = world(16);
+    let mut relay = relay_with_peer(config, now);
+    let tiles: Vec<SharedTile> = (0..count)
+        .map(|k| {
+            let mut t = SharedTile::untouched(TileKey::new(k % 5 - 2, k / 5 - 2), 16, w.clock_at(now), false, false);
+            for d in &mut t.deficit {
+                *d = (rng.next_u64() % 4000) as u16;
+            }
+            t
+        })
+        .collect();
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles }), now);
+    assert_eq!(relay.stats().tiles_merged, count as u64);
+    relay
+}
+
+#[test]
+fn a_late_joiner_receives_its_window_paced_by_its_byte_budget() {
+    let mut rng = Rng::new(testing::seed("a_late_joiner_receives_its_window_paced_by_its_byte_budget"));
+    let config = RelayConfig { send_bytes_per_s: 4000, send_burst_bytes: 4000, ..RelayConfig::default() };
+    let mut relay = relay_holding(config, 20, 1.0, &mut rng);
+    while relay.poll_transmit().is_some() {}
+    let w = world(16);
+    relay.connect(2);
+    let mut snow = CpuSnow::new(w.clone(), 64, [-32, -32], 1.0);
+    let mut peer = SnowPeer::new(w, "late", PeerConfig::default());
+    let mut t = 1.0;
+    let mut first_second = None;
+    while t < 30.0 {
+        t += 0.05;
+        snow.step(0.05);
+        peer.update(&mut snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            relay.receive(2, &b, t);
+        }
+        relay.update(t);
+        while let Some((id, b)) = relay.poll_transmit() {
+            if id == 2 {
+                peer.receive(&b).expect("well-formed");
+            }
+        }
+        if t >= 2.0 && first_second.is_none() {
+            first_second = Some(peer.stats().tiles_received);
+        }
+    }
+    let early = first_second.unwrap_or(0);
+    eprintln!("late join at 4000 B/s: {early} of 20 tiles of random deficits in the first second, all by 30 s");
+    assert!(early > 0 && early < 20, "the backlog is paced: {early} of 20 tiles in the first second at 4000 B/s");
+    for key in relay.tile_keys() {
+        let mine = relay.tile(key).expect("the relay's tile");
+        let theirs = peer.replica_tile(key).unwrap_or_else(|| panic!("the late joiner lacks {key:?}"));
+        let mut caught = mine.clone();
+        caught.catch_up(&theirs.clock, CatchUp::default());
+        assert_eq!(bits(&caught), bits(theirs), "{key:?}");
+    }
+}
+
+#[test]
+fn a_peer_that_never_reads_costs_a_bounded_queue() {
+    let config = RelayConfig { queue_messages: 4, ..RelayConfig::default() };
+    let mut relay = relay_with_peer(config, 1.0);
+    for seq in 0..50 {
+        relay.receive(1, &encode(&Message::Ack { seq }), 1.0);
+        relay.receive(1, &encode(&Message::Tiles { seq, tiles: Vec::new() }), 1.0);
+    }
+    let mut queued = 0;
+    while relay.poll_transmit().is_some() {
+        queued += 1;
+    }
+    assert_eq!(queued, 4);
+    assert_eq!(relay.stats().rejected.outgoing_dropped, 50 - 4 + 1, "the Welcome and 49 Acks dropped");
+}
+
+#[test]
+fn without_a_store_tiles_beyond_memory_are_forgotten_and_counted() {
+    let mut rng = Rng::new(7);
+    let config = RelayConfig { memory_tiles: 8, ..RelayConfig::default() };
+    let mut relay = relay_holding(config, 20, 1.0, &mut rng);
+    relay.update(1.5);
+    let stats = relay.stats();
+    assert_eq!((stats.tiles_in_memory, stats.tiles_forgotten), (8, 12), "{stats:?}");
+    assert_eq!(relay.tile_keys().len(), 8);
+}
+
+#[test]
+fn a_relay_knows_nothing_before_its_first_hello() {
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    assert_eq!(relay.depth_at(0.0, 0.0), None);
+    assert_eq!(relay.clock(10.0), None);
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Presence { window: [0, 0], resolution: 64, deformers: Vec::new() }), 0.0);
+    assert_eq!(relay.stats().rejected.not_welcomed, 1);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned() }), 0.0);
+    assert_eq!(relay.depth_at(0.0, 0.0), Some(0.5));
+    assert_eq!(relay.depth_at(f64::NAN, 0.0), None);
+    assert_eq!(relay.clock(10.0), Some(world(16).clock_at(10.0)));
+}
+
+#[test]
+fn a_lost_hello_is_sent_again_until_answered() {
+    let w = world(16);
+    let mut snow = CpuSnow::new(w.clone(), 32, [0, 0], 0.0);
+    let mut peer = SnowPeer::new(w, "p", PeerConfig::default());
+    assert!(peer.poll_transmit().is_some(), "the first Hello");
+    let mut hellos = 0;
+    for k in 1..=35 {
+        peer.update(&mut snow, f64::from(k) * 0.1);
+        while let Some(b) = peer.poll_transmit() {
+            assert!(matches!(decode(&b), Ok(Message::Hello { .. })), "nothing but Hello before the Welcome");
+            hellos += 1;
+        }
+    }
+    assert_eq!(hellos, 3, "one a second");
+    assert!(matches!(peer.receive(&encode(&Message::Refused { differences: vec!["x".to_owned()] })), Err(ShareError::Refused { .. })));
+    for k in 36..=60 {
+        peer.update(&mut snow, f64::from(k) * 0.1);
+    }
+    assert!(peer.poll_transmit().is_none(), "a refused peer stops asking");
+}

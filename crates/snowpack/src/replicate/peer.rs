@@ -25,6 +25,9 @@ pub struct PeerConfig {
     pub presence_interval_s: f64,
     /// Seconds between two `Digest` messages.
     pub digest_interval_s: f64,
+    /// The least time between two sends of deltas: a tile changed every
+    /// frame in between goes out once, as it is then.
+    pub delta_interval_s: f64,
     /// A delta not acknowledged after this many seconds is sent again
     /// (as the replica's current tiles, which include it).
     pub resend_after_s: f64,
@@ -43,6 +46,7 @@ impl Default for PeerConfig {
         Self {
             presence_interval_s: 0.1,
             digest_interval_s: 1.0,
+            delta_interval_s: 0.1,
             resend_after_s: 1.0,
             max_unacknowledged: 64,
             queue_messages: 1024,
@@ -106,6 +110,7 @@ pub struct SnowPeer {
     deformers: Vec<[f64; 2]>,
     last_presence_s: f64,
     last_digest_s: f64,
+    last_delta_s: f64,
     last_window: Option<([i64; 2], u32)>,
     stats: PeerStats,
 }
@@ -136,6 +141,7 @@ impl SnowPeer {
             deformers: Vec::new(),
             last_presence_s: f64::NEG_INFINITY,
             last_digest_s: f64::NEG_INFINITY,
+            last_delta_s: f64::NEG_INFINITY,
             last_window: None,
             stats: PeerStats::default(),
         }
@@ -267,7 +273,10 @@ impl SnowPeer {
                 self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
             }
         }
-        self.send_tiles(now_s);
+        if !self.to_send.is_empty() && now_s - self.last_delta_s >= self.config.delta_interval_s {
+            self.last_delta_s = now_s;
+            self.send_tiles(now_s);
+        }
         if now_s - self.last_digest_s >= self.config.digest_interval_s
             && let Some((first, resolution)) = window
         {

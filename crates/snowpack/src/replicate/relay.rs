@@ -62,6 +62,9 @@ pub struct RelayConfig {
     /// Bytes a second the relay sends one peer (relayed tiles and the
     /// late join's backlog; small messages are not counted).
     pub send_bytes_per_s: u32,
+    /// The outgoing byte bucket's size. When full it lets one tile through
+    /// whatever its size, so a budget smaller than a tile still progresses.
+    pub send_burst_bytes: u32,
     /// Tiles the relay keeps in memory; beyond it the least recently used
     /// are written to the store and dropped (without a store, dropped and
     /// counted in [`RelayStats::tiles_forgotten`]).
@@ -89,6 +92,7 @@ impl Default for RelayConfig {
             burst_tiles: 512,
             send_interval_s: 0.2,
             send_bytes_per_s: 256 * 1024,
+            send_burst_bytes: 256 * 1024,
             memory_tiles: 16_384,
             queue_messages: 256,
             clock_interval_s: 1.0,
@@ -206,12 +210,17 @@ impl Bucket {
         Self { tokens: burst, at: now }
     }
 
-    /// Takes `amount` tokens if there are that many after refilling at `rate` up to `burst`.
-    fn take(&mut self, now: f64, rate: f64, burst: f64, amount: f64) -> bool {
+    /// Refills at `rate` up to `burst` for the time since the last call; the tokens now.
+    fn refill(&mut self, now: f64, rate: f64, burst: f64) -> f64 {
         let dt = (now - self.at).max(0.0);
         self.tokens = (self.tokens + dt * rate).min(burst);
         self.at = self.at.max(now);
-        if self.tokens >= amount {
+        self.tokens
+    }
+
+    /// Takes `amount` tokens if there are that many after refilling at `rate` up to `burst`.
+    fn take(&mut self, now: f64, rate: f64, burst: f64, amount: f64) -> bool {
+        if self.refill(now, rate, burst) >= amount {
             self.tokens -= amount;
             true
         } else {
@@ -377,7 +386,7 @@ impl SnowRelay {
                 authoritative_until: f64::NEG_INFINITY,
                 in_bytes: Bucket::full(f64::from(c.burst_bytes), now),
                 in_tiles: Bucket::full(f64::from(c.burst_tiles), now),
-                out_bytes: Bucket::full(send_burst(c), now),
+                out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),
                 pending: BTreeSet::new(),
                 last_send_s: f64::NEG_INFINITY,
                 queue: VecDeque::new(),
@@ -817,10 +826,11 @@ impl SnowRelay {
         }
     }
 
-    /// Sends `peer` its pending tiles, nearest its window first, within its byte budget.
+    /// Sends `peer` its pending tiles, nearest its window first, as many
+    /// as its byte budget holds now (the rest wait for the next send).
     fn send_pending(&mut self, peer: PeerId, now: f64) {
-        let (rate, burst) = (f64::from(self.config.send_bytes_per_s), send_burst(&self.config));
-        let keys: Vec<TileKey> = {
+        let (rate, burst) = (f64::from(self.config.send_bytes_per_s), f64::from(self.config.send_burst_bytes));
+        let (keys, mut tokens) = {
             let Some(p) = self.peers.get_mut(&peer) else {
                 return;
             };
@@ -838,12 +848,13 @@ impl SnowRelay {
                 let (dx, dy) = (2 * i128::from(k.col) - c2[0], 2 * i128::from(k.row) - c2[1]);
                 (dx * dx + dy * dy, *k)
             });
-            keys
+            (keys, p.out_bytes.refill(now, rate, burst))
         };
+        // A full bucket always lets one tile through, however large (the
+        // bucket then owes it), so a budget below one tile still progresses.
+        let mut may_overdraw = tokens >= burst;
         let mut batch: Vec<(TileKey, Vec<u8>)> = Vec::new();
-        let mut bytes = TILES_OVERHEAD_BYTES;
-        let mut texels = 0usize;
-        let mut budget_left = true;
+        let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
         for key in keys {
             let Some(tile) = self.tile(key) else {
                 if let Some(p) = self.peers.get_mut(&peer) {
@@ -859,43 +870,44 @@ impl SnowRelay {
                 }
                 continue;
             }
-            if batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS {
-                if !self.send_batch(peer, &mut batch, now, rate, burst) {
-                    budget_left = false;
-                    break;
-                }
-                bytes = TILES_OVERHEAD_BYTES;
-                texels = 0;
+            if !batch.is_empty() && (batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS) {
+                tokens -= self.send_batch(peer, &mut batch) as f64;
+                (bytes, texels) = (TILES_OVERHEAD_BYTES, 0);
             }
+            if (bytes + encoded.len()) as f64 > tokens && !(may_overdraw && batch.is_empty()) {
+                break;
+            }
+            may_overdraw = false;
             bytes += encoded.len();
             texels += tile.texels();
             batch.push((key, encoded));
         }
-        if budget_left && !batch.is_empty() {
-            self.send_batch(peer, &mut batch, now, rate, burst);
+        if !batch.is_empty() {
+            tokens -= self.send_batch(peer, &mut batch) as f64;
+        }
+        if let Some(p) = self.peers.get_mut(&peer) {
+            p.out_bytes.tokens = tokens;
         }
     }
 
-    /// Queues one `Tiles` message of `batch` if the byte budget allows
-    /// (then the tiles leave `pending`); returns whether it did.
-    fn send_batch(&mut self, peer: PeerId, batch: &mut Vec<(TileKey, Vec<u8>)>, now: f64, rate: f64, burst: f64) -> bool {
+    /// Queues one `Tiles` message of `batch` (its tiles leave `pending`);
+    /// returns the message's size.
+    fn send_batch(&mut self, peer: PeerId, batch: &mut Vec<(TileKey, Vec<u8>)>) -> usize {
         let Some(p) = self.peers.get_mut(&peer) else {
-            return false;
+            batch.clear();
+            return 0;
         };
         let parts: Vec<&[u8]> = batch.iter().map(|(_, e)| e.as_slice()).collect();
         let message = tiles_message(p.seq_out, &parts);
-        if !p.out_bytes.take(now, rate, burst, message.len() as f64) {
-            batch.clear();
-            return false;
-        }
         p.seq_out = p.seq_out.wrapping_add(1);
         for (key, _) in batch.iter() {
             p.pending.remove(key);
         }
         self.stats.tiles_sent += batch.len() as u64;
         batch.clear();
+        let len = message.len();
         self.enqueue(peer, message);
-        true
+        len
     }
 
     /// Brings a tile from the store into memory if it is not there.
@@ -950,12 +962,6 @@ impl SnowRelay {
             self.tiles.remove(&key);
         }
     }
-}
-
-/// The relay's outgoing bucket size: at least one largest message, so a
-/// full message is always sendable eventually.
-fn send_burst(c: &RelayConfig) -> f64 {
-    f64::from(c.send_bytes_per_s).max(MAX_MESSAGE_BYTES as f64)
 }
 
 /// Records deformer positions for `p` (non-finite ones dropped), keeping
