@@ -54,4 +54,7 @@ pub enum SnowError {
     /// Saving or loading snow tiles failed (the error names the file).
     #[error("tile store: {0}")]
     Store(#[from] crate::persist::StoreError),
+    /// Sharing snow with a relay failed (refused, malformed, its store).
+    #[error("shared snow: {0}")]
+    Share(#[from] crate::replicate::ShareError),
 }

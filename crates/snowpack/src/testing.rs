@@ -8,8 +8,10 @@ use std::sync::OnceLock;
 #[cfg(not(target_arch = "wasm32"))]
 use crate::gpu::GpuContext;
 
+mod cpu_snow;
 mod power_loss;
 
+pub use cpu_snow::CpuSnow;
 pub use power_loss::{PowerLossDisk, Unsynced};
 
 /// The process-wide GPU context for tests, or `None` when there is no adapter.

@@ -46,7 +46,7 @@ const PLANE_FALLEN: u32 = 4;
 
 /// Deflate level: 6 is zlib's default; higher levels gain little on the
 /// shuffled residuals and cost time on the worker.
-const DEFLATE_LEVEL: u8 = 6;
+pub(crate) const DEFLATE_LEVEL: u8 = 6;
 
 /// Encodes a tile into its file bytes.
 ///
@@ -166,7 +166,7 @@ fn checksum(head: &[u8], payload: &[u8]) -> u32 {
 
 /// Residuals of a row-major plane `side` texels wide: each texel minus its
 /// left neighbour, the first of a row minus the first of the row before.
-fn delta(values: impl Iterator<Item = u32>, side: usize) -> Vec<u32> {
+pub(crate) fn delta(values: impl Iterator<Item = u32>, side: usize) -> Vec<u32> {
     let values: Vec<u32> = values.collect();
     let side = side.max(1);
     let mut out = Vec::with_capacity(values.len());
@@ -184,7 +184,7 @@ fn delta(values: impl Iterator<Item = u32>, side: usize) -> Vec<u32> {
 }
 
 /// Inverse of [`delta`].
-fn undelta(residuals: &[u32], side: usize) -> Vec<u32> {
+pub(crate) fn undelta(residuals: &[u32], side: usize) -> Vec<u32> {
     let side = side.max(1);
     let mut out: Vec<u32> = Vec::with_capacity(residuals.len());
     for (k, &r) in residuals.iter().enumerate() {
@@ -201,14 +201,14 @@ fn undelta(residuals: &[u32], side: usize) -> Vec<u32> {
 }
 
 /// Appends the residuals byte-plane by byte-plane (all lowest bytes first).
-fn shuffle_into(residuals: &[u32], out: &mut Vec<u8>) {
+pub(crate) fn shuffle_into(residuals: &[u32], out: &mut Vec<u8>) {
     for byte in 0..4 {
         out.extend(residuals.iter().map(|r| r.to_le_bytes()[byte]));
     }
 }
 
 /// Inverse of [`shuffle_into`] for one plane.
-fn unshuffle(bytes: &[u8]) -> Vec<u32> {
+pub(crate) fn unshuffle(bytes: &[u8]) -> Vec<u32> {
     let n = bytes.len() / 4;
     (0..n).map(|k| u32::from_le_bytes([bytes[k], bytes[n + k], bytes[2 * n + k], bytes[3 * n + k]])).collect()
 }

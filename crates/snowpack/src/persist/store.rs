@@ -342,6 +342,11 @@ impl TileStore {
         self.index.contains_key(&key)
     }
 
+    /// The keys of every tile on disk (by the index; no I/O), in no particular order.
+    pub fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
+        self.index.keys().copied()
+    }
+
     /// Size of a tile's file, if it is on disk (by the index; no I/O).
     #[must_use]
     pub fn tile_bytes(&self, key: TileKey) -> Option<u64> {

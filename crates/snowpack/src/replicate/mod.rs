@@ -11,14 +11,48 @@
 //! |---|---|
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share |
+//! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
+//! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
+//! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
+//!
+//! Neither side owns a socket: bytes go in through `receive` and come out
+//! of `poll_transmit`, so tests run a whole network in one process.
 
+pub mod message;
+pub mod peer;
+pub mod relay;
 pub mod tile;
 pub mod world;
 
+pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
+pub use peer::{PeerConfig, PeerStats, SnowPeer};
+pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 pub use world::{WorldIdentity, terrain_identity};
 
-/// What a [`SnowPeer`](crate::replicate) needs of the snow it shares: the
+/// What can go wrong sharing snow.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ShareError {
+    /// The relay's world is another: one phrase per difference, "here"
+    /// being this peer's world and "there" the relay's.
+    #[error("the relay refused this world: {}", differences.join("; "))]
+    Refused {
+        /// What differs ("tile side: 32 here, 64 there").
+        differences: Vec<String>,
+    },
+    /// A message that does not decode, or that this side never receives.
+    #[error("malformed message: {0}")]
+    Malformed(#[from] MessageError),
+    /// The relay's tile store failed.
+    #[error("tile store: {0}")]
+    Store(#[from] crate::persist::StoreError),
+    /// The relay's store holds a world that cannot be used.
+    #[error("the relay's store: {0}")]
+    StoreWorld(String),
+}
+
+/// What a [`SnowPeer`] needs of the snow it shares: the
 /// window's clock and place, the tiles it changed, and a way to fold in
 /// tiles from elsewhere. [`crate::SnowDeformation`] implements it on the
 /// GPU; `testing::CpuSnow` on the CPU, for tests without a device.

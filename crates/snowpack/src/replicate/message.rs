@@ -1,0 +1,723 @@
+//! The wire format between a [`SnowPeer`](super::SnowPeer) and a
+//! [`SnowRelay`](super::SnowRelay): one [`Message`] per datagram or frame,
+//! little-endian, written and read by hand so every byte is accounted for.
+//!
+//! Every message starts with a 7-byte header: the magic `SNWP`, the protocol
+//! version (u16, [`PROTOCOL_VERSION`]) and the kind (u8). The body follows;
+//! nothing may follow the body. A message is at most [`MAX_MESSAGE_BYTES`].
+//!
+//! | kind | message | body |
+//! |---|---|---|
+//! | 1 | `Hello` | world, name (u8 length + UTF-8, ≤ 64 bytes) |
+//! | 2 | `Welcome` | peer number (u32), clock |
+//! | 3 | `Refused` | count (u8, ≤ 32), each a u16 length + UTF-8 (≤ 512 bytes) |
+//! | 4 | `Presence` | window first texel (2 × i64), resolution (u32), count (u16, ≤ 256), each x, z (2 × f64) |
+//! | 5 | `Tiles` | seq (u64), count (u8, ≤ 64), each a tile |
+//! | 6 | `Ack` | seq (u64) |
+//! | 7 | `Digest` | clock, window first texel (2 × i64), resolution (u32), count (u16, ≤ 4096), each col, row (i64), digest (u64) |
+//! | 8 | `Want` | count (u16, ≤ 4096), each col, row (i64) |
+//! | 9 | `Clock` | clock |
+//!
+//! A clock is `time_s` (f64), `refill_quanta`, `stamp_quanta` (u64 each),
+//! `fallen_m` (f32): 28 bytes. A world is `texel_m` (f32), `tile_side`
+//! (u32), `depth_m`, `refill_m_per_s`, `snowfall_m_per_s`, `max_fallen_m`
+//! (f32 each), `has_snowfall` (u8, 0 or 1), `stamp_range_m` (2 × f32), the
+//! terrain (u16 length + UTF-8, ≤ 1024 bytes).
+//!
+//! A tile is its key (col, row: i64), side (u32, 8..=256), clock, plane
+//! flags (u8: 1 footprints, 2 snowfall), the compressed length (u32) and
+//! the compressed planes: the deficit widened to u32, then the footprints
+//! and the snowfall's f32 bits when present, each delta-coded and
+//! byte-shuffled as the tile store does ([`crate::persist::codec`]), the
+//! whole deflated. Untouched snow is all zeros and costs a few bytes; the
+//! widened deficit's high bytes are zero runs that deflate to nothing.
+//! Inflating is bounded by the size the side and flags call for, and the
+//! texels of one message by [`MAX_MESSAGE_TEXELS`], so a small message
+//! cannot make the reader allocate much.
+
+use crate::persist::TileKey;
+use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuffle};
+
+use super::tile::{ShareClock, SharedTile};
+use super::world::WorldIdentity;
+
+/// Identifies a snowpack sharing message.
+pub const MAGIC: &[u8; 4] = b"SNWP";
+/// The protocol version this build speaks; a message of another is refused.
+pub const PROTOCOL_VERSION: u16 = 1;
+/// Bytes of the header (magic, version, kind).
+pub const HEADER_BYTES: usize = 7;
+/// The largest message (bytes) either side sends or accepts.
+pub const MAX_MESSAGE_BYTES: usize = 256 * 1024;
+/// The most tiles in one `Tiles` message.
+pub const MAX_TILES: usize = 64;
+/// The smallest tile side on the wire.
+pub const MIN_TILE_SIDE: u32 = 8;
+/// The largest tile side on the wire.
+pub const MAX_TILE_SIDE: u32 = 256;
+/// The most texels (summed over its tiles) one message may carry: bounds
+/// what decoding one message allocates (12 bytes a texel at most, 12 MiB).
+pub const MAX_MESSAGE_TEXELS: usize = 1 << 20;
+/// The longest peer name (bytes).
+pub const MAX_NAME_BYTES: usize = 64;
+/// The longest terrain description (bytes).
+pub const MAX_TERRAIN_BYTES: usize = 1024;
+/// The most phrases in a `Refused`.
+pub const MAX_REFUSED_PHRASES: usize = 32;
+/// The longest phrase in a `Refused` (bytes).
+pub const MAX_PHRASE_BYTES: usize = 512;
+/// The most deformers in a `Presence`.
+pub const MAX_DEFORMERS: usize = 256;
+/// The most entries in a `Digest` or keys in a `Want`.
+pub const MAX_KEYS: usize = 4096;
+
+/// Plane flag of a tile on the wire: footprints present.
+const TILE_STAMPS: u8 = 1;
+/// Plane flag of a tile on the wire: snowfall present.
+const TILE_FALLEN: u8 = 2;
+
+/// One message between a peer and the relay.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Message {
+    /// Peer → relay, first: the world the peer's snow belongs to and a name
+    /// for logs.
+    Hello {
+        /// The peer's world.
+        world: WorldIdentity,
+        /// A name for logs (≤ [`MAX_NAME_BYTES`] bytes).
+        name: String,
+    },
+    /// Relay → peer: the peer is in; its number and the world clock.
+    Welcome {
+        /// The relay's number for the peer (for logs).
+        peer: u32,
+        /// The world clock when the relay answered.
+        clock: ShareClock,
+    },
+    /// Relay → peer: the peer's world is not the relay's. One phrase per
+    /// difference, "here" being the peer's world and "there" the relay's
+    /// ("tile side: 64 here, 32 there").
+    Refused {
+        /// What differs.
+        differences: Vec<String>,
+    },
+    /// Peer → relay, about every 100 ms: where the peer's window is (what it
+    /// wants to receive) and where its deformers are (where it may write).
+    Presence {
+        /// Global texel (column, row) of the window's first texel.
+        window: [i64; 2],
+        /// Texels per window side.
+        resolution: u32,
+        /// Deformer positions (world x, z in m), ≤ [`MAX_DEFORMERS`].
+        deformers: Vec<[f64; 2]>,
+    },
+    /// Either direction: tiles to merge. A peer's carry a sequence number
+    /// the relay acknowledges; the relay's are not acknowledged (digests
+    /// repair what is lost), and their numbers only count.
+    Tiles {
+        /// Sequence number (per sender).
+        seq: u64,
+        /// The tiles, ≤ [`MAX_TILES`].
+        tiles: Vec<SharedTile>,
+    },
+    /// Relay → peer: the `Tiles` message numbered `seq` arrived and was
+    /// judged (each message is acknowledged on its own, even when some of
+    /// its tiles were rejected: a rejection is final, resending cannot
+    /// change it).
+    Ack {
+        /// The acknowledged sequence number.
+        seq: u64,
+    },
+    /// Peer → relay, about every second: the digest ([`SharedTile::digest`])
+    /// of every tile the peer holds over its window, all caught up to
+    /// `clock`. The relay answers with its tiles where they differ or the
+    /// peer lacks them, and a `Want` for tiles it lacks or cannot order.
+    Digest {
+        /// The clock every digested tile was brought to.
+        clock: ShareClock,
+        /// Global texel (column, row) of the window's first texel.
+        window: [i64; 2],
+        /// Texels per window side.
+        resolution: u32,
+        /// (tile, digest) pairs, ≤ [`MAX_KEYS`].
+        entries: Vec<(TileKey, u64)>,
+    },
+    /// Relay → peer: send these tiles (as a `Tiles` message).
+    Want {
+        /// The tiles wanted, ≤ [`MAX_KEYS`].
+        keys: Vec<TileKey>,
+    },
+    /// Relay → peer, periodically: the world clock.
+    Clock {
+        /// The world clock when the relay sent it.
+        clock: ShareClock,
+    },
+}
+
+impl Message {
+    /// The kind byte on the wire.
+    #[must_use]
+    pub fn kind(&self) -> u8 {
+        match self {
+            Self::Hello { .. } => 1,
+            Self::Welcome { .. } => 2,
+            Self::Refused { .. } => 3,
+            Self::Presence { .. } => 4,
+            Self::Tiles { .. } => 5,
+            Self::Ack { .. } => 6,
+            Self::Digest { .. } => 7,
+            Self::Want { .. } => 8,
+            Self::Clock { .. } => 9,
+        }
+    }
+
+    /// A short name of the kind, for logs and errors.
+    #[must_use]
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Self::Hello { .. } => "Hello",
+            Self::Welcome { .. } => "Welcome",
+            Self::Refused { .. } => "Refused",
+            Self::Presence { .. } => "Presence",
+            Self::Tiles { .. } => "Tiles",
+            Self::Ack { .. } => "Ack",
+            Self::Digest { .. } => "Digest",
+            Self::Want { .. } => "Want",
+            Self::Clock { .. } => "Clock",
+        }
+    }
+}
+
+/// What is wrong with a message's bytes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum MessageError {
+    /// The bytes end before the message does.
+    #[error("truncated: {what} needs {needed} more byte(s), {left} left")]
+    Truncated {
+        /// The field being read.
+        what: &'static str,
+        /// Bytes it needs.
+        needed: usize,
+        /// Bytes that were left.
+        left: usize,
+    },
+    /// The bytes do not start with `SNWP`.
+    #[error("not a snowpack sharing message (no SNWP magic)")]
+    BadMagic,
+    /// Another protocol version.
+    #[error("protocol version {found}; this build speaks version {expected}")]
+    BadVersion {
+        /// The version in the message.
+        found: u16,
+        /// The version this build speaks.
+        expected: u16,
+    },
+    /// A kind byte this build does not know.
+    #[error("unknown message kind {0}")]
+    UnknownKind(u8),
+    /// The message is larger than [`MAX_MESSAGE_BYTES`].
+    #[error("oversized: {bytes} bytes, the most is {max}")]
+    Oversized {
+        /// The message's size.
+        bytes: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A count above its cap.
+    #[error("too many {what}: {count}, the most is {max}")]
+    TooMany {
+        /// What is counted.
+        what: &'static str,
+        /// The count in the message.
+        count: usize,
+        /// The cap.
+        max: usize,
+    },
+    /// A tile that cannot be one (side, flags, payload).
+    #[error("bad tile: {0}")]
+    BadTile(String),
+    /// A field with a value it cannot have (text that is not UTF-8, a flag
+    /// that is not 0 or 1).
+    #[error("bad {what}: {why}")]
+    BadValue {
+        /// The field.
+        what: &'static str,
+        /// What is wrong.
+        why: String,
+    },
+    /// A message of a kind the receiver never receives (a relay's `Ack`
+    /// sent to a relay, a peer's `Hello` sent to a peer).
+    #[error("a {0} message is not expected here")]
+    Unexpected(&'static str),
+    /// Bytes follow the message's body.
+    #[error("{0} trailing byte(s) after the message")]
+    TrailingBytes(usize),
+}
+
+/// Encodes a message. The result may exceed [`MAX_MESSAGE_BYTES`] (a
+/// `Tiles` message of incompressible tiles); [`decode`] refuses those, so
+/// senders split tiles over several messages ([`encode_tile`] and
+/// [`tiles_message`] let them do so without encoding a tile twice).
+#[must_use]
+pub fn encode(message: &Message) -> Vec<u8> {
+    let mut w = Writer(Vec::with_capacity(64));
+    w.0.extend_from_slice(MAGIC);
+    w.u16(PROTOCOL_VERSION);
+    w.u8(message.kind());
+    match message {
+        Message::Hello { world, name } => {
+            write_world(&mut w, world);
+            w.text8(name, MAX_NAME_BYTES);
+        }
+        Message::Welcome { peer, clock } => {
+            w.u32(*peer);
+            write_clock(&mut w, clock);
+        }
+        Message::Refused { differences } => {
+            let n = differences.len().min(MAX_REFUSED_PHRASES);
+            w.u8(n as u8);
+            for d in &differences[..n] {
+                w.text16(d, MAX_PHRASE_BYTES);
+            }
+        }
+        Message::Presence { window, resolution, deformers } => {
+            w.i64(window[0]);
+            w.i64(window[1]);
+            w.u32(*resolution);
+            let n = deformers.len().min(MAX_DEFORMERS);
+            w.u16(n as u16);
+            for d in &deformers[..n] {
+                w.f64(d[0]);
+                w.f64(d[1]);
+            }
+        }
+        Message::Tiles { seq, tiles } => {
+            // Beyond MAX_TILES the count byte would lie; the reader refuses it.
+            w.u64(*seq);
+            w.u8(tiles.len().min(255) as u8);
+            for t in tiles.iter().take(255) {
+                w.0.extend_from_slice(&encode_tile(t));
+            }
+        }
+        Message::Ack { seq } => w.u64(*seq),
+        Message::Digest { clock, window, resolution, entries } => {
+            write_clock(&mut w, clock);
+            w.i64(window[0]);
+            w.i64(window[1]);
+            w.u32(*resolution);
+            let n = entries.len().min(MAX_KEYS);
+            w.u16(n as u16);
+            for (key, digest) in &entries[..n] {
+                w.i64(key.col);
+                w.i64(key.row);
+                w.u64(*digest);
+            }
+        }
+        Message::Want { keys } => {
+            let n = keys.len().min(MAX_KEYS);
+            w.u16(n as u16);
+            for key in &keys[..n] {
+                w.i64(key.col);
+                w.i64(key.row);
+            }
+        }
+        Message::Clock { clock } => write_clock(&mut w, clock),
+    }
+    w.0
+}
+
+/// One tile's bytes as they appear inside a `Tiles` message.
+#[must_use]
+pub fn encode_tile(tile: &SharedTile) -> Vec<u8> {
+    let side = tile.side as usize;
+    let mut raw = Vec::with_capacity(4 * (tile.deficit.len() + tile.stamps.len() + tile.fallen.len()));
+    shuffle_into(&delta(tile.deficit.iter().map(|&d| u32::from(d)), side), &mut raw);
+    let mut flags = 0;
+    if !tile.stamps.is_empty() {
+        flags |= TILE_STAMPS;
+        shuffle_into(&delta(tile.stamps.iter().copied(), side), &mut raw);
+    }
+    if !tile.fallen.is_empty() {
+        flags |= TILE_FALLEN;
+        shuffle_into(&delta(tile.fallen.iter().map(|f| f.to_bits()), side), &mut raw);
+    }
+    let packed = miniz_oxide::deflate::compress_to_vec(&raw, DEFLATE_LEVEL);
+    let mut w = Writer(Vec::with_capacity(49 + packed.len()));
+    w.i64(tile.key.col);
+    w.i64(tile.key.row);
+    w.u32(tile.side);
+    write_clock(&mut w, &tile.clock);
+    w.u8(flags);
+    w.u32(u32::try_from(packed.len()).unwrap_or(u32::MAX));
+    w.0.extend_from_slice(&packed);
+    w.0
+}
+
+/// A whole `Tiles` message from tiles already encoded with [`encode_tile`]
+/// (at most [`MAX_TILES`] of them; the caller keeps the total within
+/// [`MAX_MESSAGE_BYTES`] and [`MAX_MESSAGE_TEXELS`]).
+#[must_use]
+pub fn tiles_message(seq: u64, encoded: &[&[u8]]) -> Vec<u8> {
+    let mut w = Writer(Vec::with_capacity(HEADER_BYTES + 9 + encoded.iter().map(|e| e.len()).sum::<usize>()));
+    w.0.extend_from_slice(MAGIC);
+    w.u16(PROTOCOL_VERSION);
+    w.u8(5);
+    w.u64(seq);
+    w.u8(encoded.len().min(255) as u8);
+    for e in encoded.iter().take(255) {
+        w.0.extend_from_slice(e);
+    }
+    w.0
+}
+
+/// Bytes of a `Tiles` message's header and sequence number and count, before the tiles.
+pub const TILES_OVERHEAD_BYTES: usize = HEADER_BYTES + 9;
+
+/// Decodes one message. Never panics; any bytes that are not exactly one
+/// well-formed message within the caps are an error naming what is wrong.
+pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
+    if bytes.len() > MAX_MESSAGE_BYTES {
+        return Err(MessageError::Oversized { bytes: bytes.len(), max: MAX_MESSAGE_BYTES });
+    }
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(MAGIC.len(), "magic")? != MAGIC {
+        return Err(MessageError::BadMagic);
+    }
+    let version = r.u16("protocol version")?;
+    if version != PROTOCOL_VERSION {
+        return Err(MessageError::BadVersion { found: version, expected: PROTOCOL_VERSION });
+    }
+    let kind = r.u8("kind")?;
+    let message = match kind {
+        1 => Message::Hello { world: read_world(&mut r)?, name: r.text8("name", MAX_NAME_BYTES)? },
+        2 => Message::Welcome { peer: r.u32("peer number")?, clock: read_clock(&mut r)? },
+        3 => {
+            let n = usize::from(r.u8("phrase count")?);
+            cap("refusal phrases", n, MAX_REFUSED_PHRASES)?;
+            let mut differences = Vec::with_capacity(n);
+            for _ in 0..n {
+                differences.push(r.text16("refusal phrase", MAX_PHRASE_BYTES)?);
+            }
+            Message::Refused { differences }
+        }
+        4 => {
+            let window = [r.i64("window")?, r.i64("window")?];
+            let resolution = r.u32("resolution")?;
+            let n = usize::from(r.u16("deformer count")?);
+            cap("deformers", n, MAX_DEFORMERS)?;
+            r.need(n * 16, "deformers")?;
+            let mut deformers = Vec::with_capacity(n);
+            for _ in 0..n {
+                deformers.push([r.f64("deformer x")?, r.f64("deformer z")?]);
+            }
+            Message::Presence { window, resolution, deformers }
+        }
+        5 => {
+            let seq = r.u64("sequence number")?;
+            let n = usize::from(r.u8("tile count")?);
+            cap("tiles", n, MAX_TILES)?;
+            let mut tiles = Vec::with_capacity(n);
+            let mut texels = 0usize;
+            for _ in 0..n {
+                let tile = read_tile(&mut r, &mut texels)?;
+                tiles.push(tile);
+            }
+            Message::Tiles { seq, tiles }
+        }
+        6 => Message::Ack { seq: r.u64("sequence number")? },
+        7 => {
+            let clock = read_clock(&mut r)?;
+            let window = [r.i64("window")?, r.i64("window")?];
+            let resolution = r.u32("resolution")?;
+            let n = usize::from(r.u16("digest count")?);
+            cap("digest entries", n, MAX_KEYS)?;
+            r.need(n * 24, "digest entries")?;
+            let mut entries = Vec::with_capacity(n);
+            for _ in 0..n {
+                entries.push((TileKey::new(r.i64("tile column")?, r.i64("tile row")?), r.u64("digest")?));
+            }
+            Message::Digest { clock, window, resolution, entries }
+        }
+        8 => {
+            let n = usize::from(r.u16("key count")?);
+            cap("wanted keys", n, MAX_KEYS)?;
+            r.need(n * 16, "wanted keys")?;
+            let mut keys = Vec::with_capacity(n);
+            for _ in 0..n {
+                keys.push(TileKey::new(r.i64("tile column")?, r.i64("tile row")?));
+            }
+            Message::Want { keys }
+        }
+        9 => Message::Clock { clock: read_clock(&mut r)? },
+        other => return Err(MessageError::UnknownKind(other)),
+    };
+    let left = bytes.len() - r.at;
+    if left > 0 {
+        return Err(MessageError::TrailingBytes(left));
+    }
+    Ok(message)
+}
+
+/// Encodes a world identity alone (the relay's saved world).
+#[must_use]
+pub fn encode_world(world: &WorldIdentity) -> Vec<u8> {
+    let mut w = Writer(Vec::new());
+    write_world(&mut w, world);
+    w.0
+}
+
+/// Decodes [`encode_world`]'s bytes (exactly those, nothing after).
+pub fn decode_world(bytes: &[u8]) -> Result<WorldIdentity, MessageError> {
+    let mut r = Reader { bytes, at: 0 };
+    let world = read_world(&mut r)?;
+    let left = bytes.len() - r.at;
+    if left > 0 {
+        return Err(MessageError::TrailingBytes(left));
+    }
+    Ok(world)
+}
+
+fn cap(what: &'static str, count: usize, max: usize) -> Result<(), MessageError> {
+    if count > max { Err(MessageError::TooMany { what, count, max }) } else { Ok(()) }
+}
+
+fn write_clock(w: &mut Writer, c: &ShareClock) {
+    w.f64(c.time_s);
+    w.u64(c.refill_quanta);
+    w.u64(c.stamp_quanta);
+    w.f32(c.fallen_m);
+}
+
+fn read_clock(r: &mut Reader) -> Result<ShareClock, MessageError> {
+    Ok(ShareClock { time_s: r.f64("clock")?, refill_quanta: r.u64("clock")?, stamp_quanta: r.u64("clock")?, fallen_m: r.f32("clock")? })
+}
+
+fn write_world(w: &mut Writer, world: &WorldIdentity) {
+    w.f32(world.texel_m);
+    w.u32(world.tile_side);
+    w.f32(world.depth_m);
+    w.f32(world.refill_m_per_s);
+    w.f32(world.snowfall_m_per_s);
+    w.f32(world.max_fallen_m);
+    w.u8(u8::from(world.has_snowfall));
+    w.f32(world.stamp_range_m[0]);
+    w.f32(world.stamp_range_m[1]);
+    w.text16(&world.terrain, MAX_TERRAIN_BYTES);
+}
+
+fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
+    let texel_m = r.f32("texel size")?;
+    let tile_side = r.u32("tile side")?;
+    let depth_m = r.f32("snow depth")?;
+    let refill_m_per_s = r.f32("refill")?;
+    let snowfall_m_per_s = r.f32("snowfall rate")?;
+    let max_fallen_m = r.f32("most snowfall kept")?;
+    let has_snowfall = match r.u8("snowfall flag")? {
+        0 => false,
+        1 => true,
+        other => return Err(MessageError::BadValue { what: "snowfall flag", why: format!("{other}, not 0 or 1") }),
+    };
+    let stamp_range_m = [r.f32("footprint range")?, r.f32("footprint range")?];
+    let terrain = r.text16("terrain", MAX_TERRAIN_BYTES)?;
+    Ok(WorldIdentity { texel_m, tile_side, terrain, depth_m, refill_m_per_s, snowfall_m_per_s, max_fallen_m, has_snowfall, stamp_range_m })
+}
+
+/// Reads one tile, adding its texels to `texels` (the message's running
+/// total, capped at [`MAX_MESSAGE_TEXELS`]) before inflating anything.
+fn read_tile(r: &mut Reader, texels: &mut usize) -> Result<SharedTile, MessageError> {
+    let key = TileKey::new(r.i64("tile column")?, r.i64("tile row")?);
+    let side = r.u32("tile side")?;
+    if !(MIN_TILE_SIDE..=MAX_TILE_SIDE).contains(&side) {
+        return Err(MessageError::BadTile(format!("side {side} is outside {MIN_TILE_SIDE}..={MAX_TILE_SIDE}")));
+    }
+    let clock = read_clock(r)?;
+    let flags = r.u8("tile flags")?;
+    if flags & !(TILE_STAMPS | TILE_FALLEN) != 0 {
+        return Err(MessageError::BadTile(format!("plane flags {flags:#x}: only 1 (footprints) and 2 (snowfall) exist")));
+    }
+    let packed_len = r.u32("tile length")? as usize;
+    let packed = r.take(packed_len, "tile planes")?;
+    let n = side as usize * side as usize;
+    *texels += n;
+    if *texels > MAX_MESSAGE_TEXELS {
+        return Err(MessageError::TooMany { what: "texels in one message", count: *texels, max: MAX_MESSAGE_TEXELS });
+    }
+    let planes = 1 + usize::from(flags & TILE_STAMPS != 0) + usize::from(flags & TILE_FALLEN != 0);
+    let expected = 4 * n * planes;
+    // The limit bounds the allocation whatever the compressed stream claims.
+    let raw = miniz_oxide::inflate::decompress_to_vec_with_limit(packed, expected)
+        .map_err(|e| MessageError::BadTile(format!("the planes do not inflate to {expected} bytes: {e}")))?;
+    if raw.len() != expected {
+        return Err(MessageError::BadTile(format!("the planes inflate to {} bytes, a {side}² tile with flags {flags:#x} has {expected}", raw.len())));
+    }
+    let side_us = side as usize;
+    let mut planes = raw.chunks_exact(4 * n).map(|p| undelta(&unshuffle(p), side_us));
+    let wide = planes.next().unwrap_or_default();
+    let mut deficit = Vec::with_capacity(n);
+    for v in wide {
+        deficit.push(u16::try_from(v).map_err(|_| MessageError::BadTile(format!("deficit {v} does not fit 16 bits")))?);
+    }
+    let stamps = if flags & TILE_STAMPS != 0 { planes.next().unwrap_or_default() } else { Vec::new() };
+    let fallen = if flags & TILE_FALLEN != 0 { planes.next().unwrap_or_default().into_iter().map(f32::from_bits).collect() } else { Vec::new() };
+    Ok(SharedTile { key, side, clock, deficit, stamps, fallen })
+}
+
+/// Little-endian output.
+struct Writer(Vec<u8>);
+
+impl Writer {
+    fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    fn u16(&mut self, v: u16) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn i64(&mut self, v: i64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.0.extend_from_slice(&v.to_bits().to_le_bytes());
+    }
+    fn f64(&mut self, v: f64) {
+        self.0.extend_from_slice(&v.to_bits().to_le_bytes());
+    }
+    /// Text with a u8 length, cut at `max` bytes (on a character boundary).
+    fn text8(&mut self, s: &str, max: usize) {
+        let s = cut(s, max.min(255));
+        self.u8(s.len() as u8);
+        self.0.extend_from_slice(s.as_bytes());
+    }
+    /// Text with a u16 length, cut at `max` bytes (on a character boundary).
+    fn text16(&mut self, s: &str, max: usize) {
+        let s = cut(s, max.min(65_535));
+        self.u16(s.len() as u16);
+        self.0.extend_from_slice(s.as_bytes());
+    }
+}
+
+/// The longest prefix of `s` of at most `max` bytes that ends on a character boundary.
+fn cut(s: &str, max: usize) -> &str {
+    let mut end = s.len().min(max);
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    &s[..end]
+}
+
+/// Little-endian input that reports what it ran out on.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn need(&self, n: usize, what: &'static str) -> Result<(), MessageError> {
+        let left = self.bytes.len() - self.at;
+        if n > left { Err(MessageError::Truncated { what, needed: n, left }) } else { Ok(()) }
+    }
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], MessageError> {
+        self.need(n, what)?;
+        let out = &self.bytes[self.at..self.at + n];
+        self.at += n;
+        Ok(out)
+    }
+    fn array<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], MessageError> {
+        let mut out = [0; N];
+        out.copy_from_slice(self.take(N, what)?);
+        Ok(out)
+    }
+    fn u8(&mut self, what: &'static str) -> Result<u8, MessageError> {
+        Ok(self.array::<1>(what)?[0])
+    }
+    fn u16(&mut self, what: &'static str) -> Result<u16, MessageError> {
+        Ok(u16::from_le_bytes(self.array(what)?))
+    }
+    fn u32(&mut self, what: &'static str) -> Result<u32, MessageError> {
+        Ok(u32::from_le_bytes(self.array(what)?))
+    }
+    fn u64(&mut self, what: &'static str) -> Result<u64, MessageError> {
+        Ok(u64::from_le_bytes(self.array(what)?))
+    }
+    fn i64(&mut self, what: &'static str) -> Result<i64, MessageError> {
+        Ok(i64::from_le_bytes(self.array(what)?))
+    }
+    fn f32(&mut self, what: &'static str) -> Result<f32, MessageError> {
+        Ok(f32::from_bits(self.u32(what)?))
+    }
+    fn f64(&mut self, what: &'static str) -> Result<f64, MessageError> {
+        Ok(f64::from_bits(self.u64(what)?))
+    }
+    fn text8(&mut self, what: &'static str, max: usize) -> Result<String, MessageError> {
+        let n = usize::from(self.u8(what)?);
+        self.text(n, what, max)
+    }
+    fn text16(&mut self, what: &'static str, max: usize) -> Result<String, MessageError> {
+        let n = usize::from(self.u16(what)?);
+        self.text(n, what, max)
+    }
+    fn text(&mut self, n: usize, what: &'static str, max: usize) -> Result<String, MessageError> {
+        if n > max {
+            return Err(MessageError::BadValue { what, why: format!("{n} bytes, the most is {max}") });
+        }
+        let bytes = self.take(n, what)?;
+        String::from_utf8(bytes.to_vec()).map_err(|_| MessageError::BadValue { what, why: "not UTF-8".to_owned() })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn world() -> WorldIdentity {
+        WorldIdentity {
+            texel_m: 0.125,
+            tile_side: 16,
+            terrain: "flat at 0 m".to_owned(),
+            depth_m: 0.5,
+            refill_m_per_s: 0.001,
+            snowfall_m_per_s: 0.0,
+            max_fallen_m: 0.0,
+            has_snowfall: false,
+            stamp_range_m: [-1.0, 1.0],
+        }
+    }
+
+    #[test]
+    fn a_hello_round_trips_and_names_what_is_wrong() {
+        let m = Message::Hello { world: world(), name: "ö".repeat(40) };
+        let bytes = encode(&m);
+        let back = decode(&bytes).expect("decodes");
+        // The name is cut at 64 bytes on a character boundary.
+        assert_eq!(back, Message::Hello { world: world(), name: "ö".repeat(32) });
+        assert!(matches!(decode(&bytes[..bytes.len() - 1]), Err(MessageError::Truncated { .. })));
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(decode(&longer), Err(MessageError::TrailingBytes(1)));
+        let mut magic = bytes.clone();
+        magic[0] = b'X';
+        assert_eq!(decode(&magic), Err(MessageError::BadMagic));
+        let mut version = bytes.clone();
+        version[4] = 9;
+        assert!(matches!(decode(&version), Err(MessageError::BadVersion { found: 9, .. })));
+        let mut kind = bytes;
+        kind[6] = 42;
+        assert_eq!(decode(&kind), Err(MessageError::UnknownKind(42)));
+        assert!(matches!(decode(&vec![0; MAX_MESSAGE_BYTES + 1]), Err(MessageError::Oversized { .. })));
+    }
+
+    #[test]
+    fn untouched_tiles_cost_a_few_bytes() {
+        let tile = SharedTile::untouched(TileKey::new(-4, 9), 32, ShareClock::default(), true, false);
+        let bytes = encode_tile(&tile);
+        assert!(bytes.len() < 120, "{} bytes", bytes.len());
+        let m = Message::Tiles { seq: 3, tiles: vec![tile] };
+        assert_eq!(decode(&encode(&m)), Ok(m));
+    }
+}

@@ -1,0 +1,463 @@
+//! [`SnowPeer`]: what a game client runs beside its snow. It keeps a
+//! replica of the tiles it has seen (its own changes merged with the
+//! relay's), sends its changes as numbered deltas until the relay
+//! acknowledges them, folds the relay's tiles into the snow, and every
+//! second sends digests of its replica so anything lost either way is
+//! repaired without a full resend. No sockets: the caller moves bytes
+//! ([`SnowPeer::receive`] in, [`SnowPeer::poll_transmit`] out).
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
+
+use crate::persist::TileKey;
+
+use super::message::{
+    MAX_DEFORMERS, MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILES, Message, MessageError, TILES_OVERHEAD_BYTES, decode, encode, encode_tile,
+    tiles_message,
+};
+use super::tile::{CatchUp, ShareClock, SharedTile};
+use super::world::WorldIdentity;
+use super::{ShareError, SharedSnow};
+
+/// How a peer paces itself and what it keeps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeerConfig {
+    /// Seconds between two `Presence` messages.
+    pub presence_interval_s: f64,
+    /// Seconds between two `Digest` messages.
+    pub digest_interval_s: f64,
+    /// The least time between two sends of deltas: a tile changed every
+    /// frame in between goes out once, as it is then.
+    pub delta_interval_s: f64,
+    /// A delta not acknowledged after this many seconds is sent again
+    /// (as the replica's current tiles, which include it).
+    pub resend_after_s: f64,
+    /// The most deltas in flight; further changes wait (and coalesce).
+    pub max_unacknowledged: usize,
+    /// Messages queued to send; beyond it the oldest is dropped and counted.
+    pub queue_messages: usize,
+    /// Tiles kept in the replica; beyond it those farthest from the window go.
+    pub replica_tiles: usize,
+    /// Received tiles waiting for the next `update`; beyond it the oldest go.
+    pub incoming_tiles: usize,
+}
+
+impl Default for PeerConfig {
+    fn default() -> Self {
+        Self {
+            presence_interval_s: 0.1,
+            digest_interval_s: 1.0,
+            delta_interval_s: 0.1,
+            resend_after_s: 1.0,
+            max_unacknowledged: 64,
+            queue_messages: 1024,
+            replica_tiles: 4096,
+            incoming_tiles: 4096,
+        }
+    }
+}
+
+/// A peer's counters since it was made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PeerStats {
+    /// Bytes received.
+    pub bytes_in: u64,
+    /// Bytes handed out by [`SnowPeer::poll_transmit`].
+    pub bytes_out: u64,
+    /// Messages received.
+    pub messages_in: u64,
+    /// Messages handed out.
+    pub messages_out: u64,
+    /// Tiles sent (resends included).
+    pub tiles_sent: u64,
+    /// Tiles received.
+    pub tiles_received: u64,
+    /// Received tiles that changed the replica.
+    pub tiles_merged: u64,
+    /// Deltas sent again after no acknowledgement.
+    pub resends: u64,
+    /// Messages that did not decode or were not expected.
+    pub malformed: u64,
+    /// Received tiles of another side, or dropped from a full incoming list.
+    pub tiles_dropped: u64,
+    /// Messages dropped from a full outgoing queue.
+    pub outgoing_dropped: u64,
+    /// Tiles too large to send even alone in a message.
+    pub tile_too_large: u64,
+}
+
+/// A game client's side of shared snow: see the module documentation.
+#[derive(Debug)]
+pub struct SnowPeer {
+    world: WorldIdentity,
+    name: String,
+    config: PeerConfig,
+    welcomed: bool,
+    refused: bool,
+    /// When the last `Hello` went out (`None` until the first update: the
+    /// first is queued by `new`). Resent until answered, as it may be lost.
+    last_hello_s: Option<f64>,
+    number: Option<u32>,
+    relay_clock: Option<ShareClock>,
+    joined: bool,
+    replica: HashMap<TileKey, SharedTile>,
+    incoming: VecDeque<SharedTile>,
+    outbox: VecDeque<Vec<u8>>,
+    /// Deltas in flight: sequence number → (when sent, the tiles it held).
+    unacked: BTreeMap<u64, (f64, Vec<TileKey>)>,
+    next_seq: u64,
+    /// Replica tiles to send at the next update (changed, wanted or resent).
+    to_send: BTreeSet<TileKey>,
+    deformers: Vec<[f64; 2]>,
+    last_presence_s: f64,
+    last_digest_s: f64,
+    last_delta_s: f64,
+    last_window: Option<([i64; 2], u32)>,
+    stats: PeerStats,
+}
+
+impl SnowPeer {
+    /// A peer of `world`, named `name` in the relay's logs (cut at 64
+    /// bytes). Its `Hello` is queued, and sent again every
+    /// `resend_after_s` until the relay answers.
+    #[must_use]
+    pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
+        let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
+        Self {
+            world,
+            name: name.to_owned(),
+            config,
+            welcomed: false,
+            refused: false,
+            last_hello_s: None,
+            number: None,
+            relay_clock: None,
+            joined: false,
+            replica: HashMap::new(),
+            incoming: VecDeque::new(),
+            outbox: VecDeque::from([hello]),
+            unacked: BTreeMap::new(),
+            next_seq: 0,
+            to_send: BTreeSet::new(),
+            deformers: Vec::new(),
+            last_presence_s: f64::NEG_INFINITY,
+            last_digest_s: f64::NEG_INFINITY,
+            last_delta_s: f64::NEG_INFINITY,
+            last_window: None,
+            stats: PeerStats::default(),
+        }
+    }
+
+    /// Handles one message from the relay. A `Refused` is
+    /// [`ShareError::Refused`] naming what differs ("here" is this peer's
+    /// world, "there" the relay's); bytes that do not decode, or a message
+    /// a relay never sends, are [`ShareError::Malformed`] (and counted).
+    /// Tiles are kept for the next [`SnowPeer::update`].
+    pub fn receive(&mut self, bytes: &[u8]) -> Result<(), ShareError> {
+        self.stats.bytes_in += bytes.len() as u64;
+        self.stats.messages_in += 1;
+        let message = decode(bytes).inspect_err(|_| self.stats.malformed += 1)?;
+        match message {
+            Message::Welcome { peer, clock } => {
+                self.welcomed = true;
+                self.number = Some(peer);
+                self.relay_clock = Some(clock);
+            }
+            Message::Refused { differences } => {
+                self.welcomed = false;
+                self.refused = true;
+                return Err(ShareError::Refused { differences });
+            }
+            Message::Tiles { tiles, .. } => {
+                self.stats.tiles_received += tiles.len() as u64;
+                for t in tiles {
+                    if t.side != self.world.tile_side {
+                        self.stats.tiles_dropped += 1;
+                        continue;
+                    }
+                    if self.incoming.len() >= self.config.incoming_tiles.max(1) {
+                        self.incoming.pop_front();
+                        self.stats.tiles_dropped += 1;
+                    }
+                    self.incoming.push_back(t);
+                }
+            }
+            Message::Ack { seq } => {
+                self.unacked.remove(&seq);
+            }
+            Message::Want { keys } => {
+                // Only what the replica holds can be sent; the rest is not ours to give.
+                self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+            }
+            Message::Clock { clock } => self.relay_clock = Some(clock),
+            other => {
+                self.stats.malformed += 1;
+                return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())));
+            }
+        }
+        Ok(())
+    }
+
+    /// Where this peer's deformers are now (world x, z in m; at most 256
+    /// are sent): where the relay lets it write.
+    pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {
+        self.deformers = world_xz.iter().take(MAX_DEFORMERS).copied().collect();
+    }
+
+    /// One step, at `now_s` seconds of the caller's clock (only intervals
+    /// matter): joins the relay's clock once welcomed, takes the snow's
+    /// changed tiles into the replica and queues them, re-merges replica
+    /// tiles over texels the window newly exposed, merges received tiles
+    /// into the replica and the snow, resends deltas not acknowledged in
+    /// time, and sends `Presence` and `Digest` when due.
+    pub fn update(&mut self, snow: &mut dyn SharedSnow, now_s: f64) {
+        let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
+        let side = self.world.tile_side;
+        if self.welcomed
+            && !self.joined
+            && let Some(clock) = self.relay_clock
+        {
+            snow.join_clock(clock);
+            self.joined = true;
+        }
+        for t in snow.take_changed_tiles() {
+            if t.side != side || !t.is_consistent() {
+                continue;
+            }
+            self.to_send.insert(t.key);
+            merge_into(&mut self.replica, t, c);
+        }
+        let window = snow.window();
+        if window != self.last_window {
+            if let Some((first, resolution)) = window {
+                let exposed: Vec<SharedTile> = window_keys(first, resolution, side)
+                    .filter(|k| !self.last_window.is_some_and(|(f, r)| tile_inside(*k, side, f, r)))
+                    .filter_map(|k| self.replica.get(&k).cloned())
+                    .collect();
+                if !exposed.is_empty() {
+                    snow.merge_tiles(&exposed);
+                }
+            }
+            self.last_window = window;
+        }
+        if !self.incoming.is_empty() {
+            let incoming: Vec<SharedTile> = self.incoming.drain(..).collect();
+            for t in &incoming {
+                if merge_into(&mut self.replica, t.clone(), c) {
+                    self.stats.tiles_merged += 1;
+                }
+            }
+            snow.merge_tiles(&incoming);
+        }
+        self.trim_replica();
+        if !self.welcomed {
+            match self.last_hello_s {
+                None => self.last_hello_s = Some(now_s),
+                Some(at) if !self.refused && now_s - at >= self.config.resend_after_s => {
+                    self.last_hello_s = Some(now_s);
+                    self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+                }
+                Some(_) => {}
+            }
+            return;
+        }
+        if now_s - self.last_presence_s >= self.config.presence_interval_s
+            && let Some((first, resolution)) = window
+        {
+            self.last_presence_s = now_s;
+            self.push(encode(&Message::Presence { window: first, resolution, deformers: self.deformers.clone() }));
+        }
+        let late: Vec<u64> = self.unacked.iter().filter(|(_, (at, _))| now_s - at >= self.config.resend_after_s).map(|(&s, _)| s).collect();
+        for seq in late {
+            if let Some((_, keys)) = self.unacked.remove(&seq) {
+                self.stats.resends += 1;
+                self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+            }
+        }
+        if !self.to_send.is_empty() && now_s - self.last_delta_s >= self.config.delta_interval_s {
+            self.last_delta_s = now_s;
+            self.send_tiles(now_s);
+        }
+        if now_s - self.last_digest_s >= self.config.digest_interval_s
+            && let Some((first, resolution)) = window
+        {
+            self.last_digest_s = now_s;
+            self.send_digest(snow.share_clock(), first, resolution, c);
+        }
+    }
+
+    /// The next message to send to the relay.
+    pub fn poll_transmit(&mut self) -> Option<Vec<u8>> {
+        let bytes = self.outbox.pop_front()?;
+        self.stats.messages_out += 1;
+        self.stats.bytes_out += bytes.len() as u64;
+        Some(bytes)
+    }
+
+    /// Whether the relay has welcomed this peer into its world.
+    #[must_use]
+    pub fn is_welcomed(&self) -> bool {
+        self.welcomed
+    }
+
+    /// The relay's number for this peer, once welcomed.
+    #[must_use]
+    pub fn peer_number(&self) -> Option<u32> {
+        self.number
+    }
+
+    /// Changes not yet acknowledged by the relay: deltas in flight plus
+    /// tiles waiting to be sent. A headless run waits for 0 before exiting.
+    #[must_use]
+    pub fn unacknowledged(&self) -> usize {
+        self.unacked.len() + self.to_send.len()
+    }
+
+    /// Counters since the peer was made.
+    #[must_use]
+    pub fn stats(&self) -> PeerStats {
+        self.stats
+    }
+
+    /// The replica's copy of a tile (what this peer knows of it).
+    #[must_use]
+    pub fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
+        self.replica.get(&key)
+    }
+
+    fn push(&mut self, bytes: Vec<u8>) {
+        if self.outbox.len() >= self.config.queue_messages.max(1) {
+            self.outbox.pop_front();
+            self.stats.outgoing_dropped += 1;
+        }
+        self.outbox.push_back(bytes);
+    }
+
+    /// Sends the tiles in `to_send` as numbered deltas, as many as the
+    /// in-flight limit allows.
+    fn send_tiles(&mut self, now_s: f64) {
+        while !self.to_send.is_empty() && self.unacked.len() < self.config.max_unacknowledged.max(1) {
+            let mut keys = Vec::new();
+            let mut parts: Vec<Vec<u8>> = Vec::new();
+            let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
+            while let Some(&key) = self.to_send.first() {
+                let Some(tile) = self.replica.get(&key) else {
+                    self.to_send.remove(&key);
+                    continue;
+                };
+                let encoded = encode_tile(tile);
+                if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
+                    self.stats.tile_too_large += 1;
+                    self.to_send.remove(&key);
+                    continue;
+                }
+                if keys.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS {
+                    break;
+                }
+                bytes += encoded.len();
+                texels += tile.texels();
+                self.to_send.remove(&key);
+                keys.push(key);
+                parts.push(encoded);
+            }
+            if keys.is_empty() {
+                break;
+            }
+            let seq = self.next_seq;
+            self.next_seq = self.next_seq.wrapping_add(1);
+            let refs: Vec<&[u8]> = parts.iter().map(Vec::as_slice).collect();
+            self.stats.tiles_sent += keys.len() as u64;
+            self.push(tiles_message(seq, &refs));
+            self.unacked.insert(seq, (now_s, keys));
+        }
+    }
+
+    /// Digests of the replica's tiles over the window (the nearest
+    /// [`MAX_KEYS`]), all brought to one clock: the snow's, or a later
+    /// tile's.
+    fn send_digest(&mut self, snow_clock: ShareClock, first: [i64; 2], resolution: u32, c: CatchUp) {
+        let side = self.world.tile_side;
+        let centre = [first[0] as f64 + f64::from(resolution) / 2.0, first[1] as f64 + f64::from(resolution) / 2.0];
+        let mut keys: Vec<TileKey> = self.replica.keys().copied().filter(|k| overlaps_window(*k, side, first, resolution)).collect();
+        keys.sort_by(|a, b| distance2(*a, side, centre).total_cmp(&distance2(*b, side, centre)).then(a.cmp(b)));
+        keys.truncate(MAX_KEYS);
+        let mut clock = snow_clock;
+        for k in &keys {
+            if let Some(t) = self.replica.get(k) {
+                clock = clock.later(&t.clock);
+            }
+        }
+        let mut entries = Vec::with_capacity(keys.len());
+        for k in keys {
+            if let Some(t) = self.replica.get_mut(&k) {
+                // Catching up loses nothing every copy would not lose too.
+                t.catch_up(&clock, c);
+                entries.push((k, t.digest()));
+            }
+        }
+        self.push(encode(&Message::Digest { clock, window: first, resolution, entries }));
+    }
+
+    /// Keeps the replica within its cap, dropping the tiles farthest from
+    /// the window (tiles waiting to be sent last).
+    fn trim_replica(&mut self) {
+        let cap = self.config.replica_tiles.max(1);
+        if self.replica.len() <= cap {
+            return;
+        }
+        let side = self.world.tile_side;
+        let centre = self.last_window.map_or([0.0, 0.0], |(f, r)| [f[0] as f64 + f64::from(r) / 2.0, f[1] as f64 + f64::from(r) / 2.0]);
+        let mut keys: Vec<TileKey> = self.replica.keys().copied().collect();
+        keys.sort_by(|a, b| {
+            let waiting = |k: &TileKey| self.to_send.contains(k);
+            waiting(a).cmp(&waiting(b)).then(distance2(*b, side, centre).total_cmp(&distance2(*a, side, centre))).then(a.cmp(b))
+        });
+        let excess = self.replica.len() - cap;
+        for k in keys.into_iter().take(excess) {
+            self.replica.remove(&k);
+            self.to_send.remove(&k);
+        }
+    }
+}
+
+/// Merges `t` into the replica (inserting it when new); whether the replica changed.
+fn merge_into(replica: &mut HashMap<TileKey, SharedTile>, t: SharedTile, c: CatchUp) -> bool {
+    match replica.get_mut(&t.key) {
+        Some(mine) => mine.merge(&t, c),
+        None => {
+            replica.insert(t.key, t);
+            true
+        }
+    }
+}
+
+/// The keys of the tiles overlapping a window.
+fn window_keys(first: [i64; 2], resolution: u32, side: u32) -> impl Iterator<Item = TileKey> {
+    let last = [first[0].saturating_add(i64::from(resolution.max(1)) - 1), first[1].saturating_add(i64::from(resolution.max(1)) - 1)];
+    let a = TileKey::containing(first[0], first[1], side);
+    let b = TileKey::containing(last[0], last[1], side);
+    (a.row..=b.row).flat_map(move |row| (a.col..=b.col).map(move |col| TileKey::new(col, row)))
+}
+
+/// Whether tile `k` lies wholly inside the window.
+fn tile_inside(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> bool {
+    let t = k.first_texel(side);
+    let s = i64::from(side);
+    let r = i64::from(resolution);
+    t[0] >= first[0] && t[1] >= first[1] && t[0] + s <= first[0].saturating_add(r) && t[1] + s <= first[1].saturating_add(r)
+}
+
+/// Whether tile `k` overlaps the window.
+fn overlaps_window(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> bool {
+    let t = k.first_texel(side);
+    let s = i64::from(side);
+    let r = i64::from(resolution);
+    t[0] < first[0].saturating_add(r) && t[0].saturating_add(s) > first[0] && t[1] < first[1].saturating_add(r) && t[1].saturating_add(s) > first[1]
+}
+
+/// Squared distance (texels²) from a tile's centre to `centre`.
+fn distance2(k: TileKey, side: u32, centre: [f64; 2]) -> f64 {
+    let t = k.first_texel(side);
+    let h = f64::from(side) / 2.0;
+    let (dx, dz) = (t[0] as f64 + h - centre[0], t[1] as f64 + h - centre[1]);
+    dx * dx + dz * dz
+}

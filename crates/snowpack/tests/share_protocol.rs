@@ -1,0 +1,830 @@
+//! Shared snow without sockets: the merge's algebra, the wire format, and
+//! a relay with peers over a simulated network that loses, duplicates and
+//! reorders messages, all on the CPU (`testing::CpuSnow`).
+
+use std::collections::BTreeMap;
+
+use proptest::prelude::*;
+use snowpack::persist::{StoreConfig, TileKey, TileStore};
+use snowpack::replicate::message::{MIN_TILE_SIDE, encode_world};
+use snowpack::replicate::{
+    CatchUp, Message, NO_STAMP, PeerConfig, RelayConfig, ShareClock, ShareError, SharedSnow, SharedTile, SnowPeer, SnowRelay, WorldIdentity, decode, encode,
+};
+use snowpack::testing::{self, CpuSnow, Rng};
+
+// ---------------------------------------------------------------- helpers
+
+fn world(side: u32) -> WorldIdentity {
+    WorldIdentity {
+        texel_m: 0.125,
+        tile_side: side,
+        terrain: "flat at 0 m".to_owned(),
+        depth_m: 0.5,
+        refill_m_per_s: 0.0005,
+        snowfall_m_per_s: 0.0,
+        max_fallen_m: 0.0,
+        has_snowfall: false,
+        stamp_range_m: [-1.0, 1.0],
+    }
+}
+
+/// A tile's key, side, clock, planes and digest as bits.
+type Bits = (TileKey, u32, [u64; 4], Vec<u16>, Vec<u32>, Vec<u32>, u64);
+
+/// Everything of a tile as bits, so the comparison is bit for bit.
+fn bits(t: &SharedTile) -> Bits {
+    let c = t.clock;
+    (
+        t.key,
+        t.side,
+        [c.time_s.to_bits(), c.refill_quanta, c.stamp_quanta, u64::from(c.fallen_m.to_bits())],
+        t.deficit.clone(),
+        t.stamps.clone(),
+        t.fallen.iter().map(|f| f.to_bits()).collect(),
+        t.digest(),
+    )
+}
+
+/// The merge's catch-up cap for the generated tiles (snowfall values are
+/// multiples of 1/256 up to 1, so every f32 sum in a catch-up is exact).
+const CATCH: CatchUp = CatchUp { max_fallen_m: 1.0 };
+
+fn dyadic() -> impl Strategy<Value = f32> {
+    (0u32..=256).prop_map(|k| k as f32 / 256.0)
+}
+
+fn share_clock() -> impl Strategy<Value = ShareClock> {
+    (0.0f64..1e6, 0u64..3000, 0u64..1000, dyadic()).prop_map(|(time_s, refill_quanta, stamp_quanta, fallen_m)| ShareClock {
+        time_s,
+        refill_quanta,
+        stamp_quanta,
+        fallen_m,
+    })
+}
+
+/// A footprint whose height and foot stay inside the quantised range over
+/// the generated clocks (see `merge_is_not_exact_where_a_footprint_leaves_the_range`).
+fn stamp() -> impl Strategy<Value = u32> {
+    prop_oneof![Just(NO_STAMP), (0u32..64_000, 0u32..64_000).prop_map(|(h, f)| (h << 16) | f)]
+}
+
+/// Tiles of one key and side with random planes (present or not) and clocks.
+fn tiles(count: usize) -> impl Strategy<Value = Vec<SharedTile>> {
+    let one = (share_clock(), any::<bool>(), any::<bool>()).prop_flat_map(|(clock, has_stamps, has_fallen)| {
+        let n = 64;
+        (
+            proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>(), 0u16..500], n),
+            if has_stamps { proptest::collection::vec(stamp(), n).boxed() } else { Just(Vec::new()).boxed() },
+            if has_fallen { proptest::collection::vec(dyadic(), n).boxed() } else { Just(Vec::new()).boxed() },
+        )
+            .prop_map(move |(deficit, stamps, fallen)| SharedTile { key: TileKey::new(3, -2), side: 8, clock, deficit, stamps, fallen })
+    });
+    proptest::collection::vec(one, count)
+}
+
+fn merged(a: &SharedTile, b: &SharedTile) -> SharedTile {
+    let mut m = a.clone();
+    m.merge(b, CATCH);
+    m
+}
+
+// ---------------------------------------------------------------- merge algebra
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn merge_is_commutative_associative_and_idempotent(t in tiles(3)) {
+        let (a, b, c) = (&t[0], &t[1], &t[2]);
+        prop_assert_eq!(bits(&merged(a, b)), bits(&merged(b, a)));
+        prop_assert_eq!(bits(&merged(&merged(a, b), c)), bits(&merged(a, &merged(b, c))));
+        let mut again = a.clone();
+        prop_assert!(!again.merge(a, CATCH), "merging a tile into itself changes nothing");
+        prop_assert_eq!(bits(&again), bits(a));
+        let ab = merged(a, b);
+        let mut twice = ab.clone();
+        prop_assert!(!twice.merge(b, CATCH));
+        prop_assert_eq!(bits(&twice), bits(&ab));
+    }
+
+    #[test]
+    fn catching_up_commutes_with_merging(t in tiles(2), extra in share_clock()) {
+        let (a, b) = (&t[0], &t[1]);
+        let later = a.clock.later(&b.clock);
+        let to = ShareClock {
+            time_s: later.time_s + extra.time_s,
+            refill_quanta: later.refill_quanta + extra.refill_quanta,
+            stamp_quanta: later.stamp_quanta + extra.stamp_quanta,
+            fallen_m: (later.fallen_m + extra.fallen_m).min(1.0),
+        };
+        let mut merge_then = merged(a, b);
+        merge_then.catch_up(&to, CATCH);
+        let (mut x, mut y) = (a.clone(), b.clone());
+        x.catch_up(&to, CATCH);
+        y.catch_up(&to, CATCH);
+        x.merge(&y, CATCH);
+        prop_assert_eq!(bits(&x), bits(&merge_then));
+    }
+}
+
+/// A limit of the merge as `tile.rs` defines it, pinned so a change is
+/// noticed: footprints compare packed (height first), and catching up
+/// drops a footprint whose foot leaves the quantised range, so where a
+/// lower footprint has the higher foot, merging and catching up do not
+/// commute. The generated tiles above keep feet inside the range.
+#[test]
+fn merge_is_not_exact_where_a_footprint_leaves_the_range() {
+    let key = TileKey::new(0, 0);
+    let clock = ShareClock::default();
+    let mut a = SharedTile::untouched(key, 8, clock, true, false);
+    let mut b = a.clone();
+    // `a` is the lower footprint (height first) but its foot is at the top of the range.
+    a.stamps[0] = (100 << 16) | 65_535;
+    b.stamps[0] = (200 << 16) | 10;
+    let to = ShareClock { stamp_quanta: 1, ..clock };
+    let mut merge_then = merged(&a, &b);
+    merge_then.catch_up(&to, CATCH);
+    let (mut x, mut y) = (a, b);
+    x.catch_up(&to, CATCH);
+    y.catch_up(&to, CATCH);
+    x.merge(&y, CATCH);
+    assert_eq!(merge_then.stamps[0], NO_STAMP);
+    assert_eq!(x.stamps[0], (201 << 16) | 11);
+}
+
+// ---------------------------------------------------------------- wire format
+
+fn any_world() -> impl Strategy<Value = WorldIdentity> {
+    (any::<f32>(), any::<u32>(), ".{0,40}", any::<[f32; 4]>(), any::<bool>(), any::<[f32; 2]>()).prop_map(
+        |(texel_m, tile_side, terrain, f, has_snowfall, stamp_range_m)| WorldIdentity {
+            texel_m,
+            tile_side,
+            terrain,
+            depth_m: f[0],
+            refill_m_per_s: f[1],
+            snowfall_m_per_s: f[2],
+            max_fallen_m: f[3],
+            has_snowfall,
+            stamp_range_m,
+        },
+    )
+}
+
+fn any_clock() -> impl Strategy<Value = ShareClock> {
+    (any::<f64>(), any::<u64>(), any::<u64>(), any::<f32>()).prop_map(|(time_s, refill_quanta, stamp_quanta, fallen_m)| ShareClock {
+        time_s,
+        refill_quanta,
+        stamp_quanta,
+        fallen_m,
+    })
+}
+
+fn any_key() -> impl Strategy<Value = TileKey> {
+    (any::<i64>(), any::<i64>()).prop_map(|(c, r)| TileKey::new(c, r))
+}
+
+fn wire_tile() -> impl Strategy<Value = SharedTile> {
+    (any_key(), MIN_TILE_SIDE..=24u32, any_clock(), any::<bool>(), any::<bool>()).prop_flat_map(|(key, side, clock, s, f)| {
+        let n = (side * side) as usize;
+        (
+            proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>()], n),
+            if s { proptest::collection::vec(any::<u32>(), n).boxed() } else { Just(Vec::new()).boxed() },
+            if f { proptest::collection::vec(any::<f32>(), n).boxed() } else { Just(Vec::new()).boxed() },
+        )
+            .prop_map(move |(deficit, stamps, fallen)| SharedTile { key, side, clock, deficit, stamps, fallen })
+    })
+}
+
+fn any_message() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        (any_world(), ".{0,80}").prop_map(|(world, name)| Message::Hello { world, name }),
+        (any::<u32>(), any_clock()).prop_map(|(peer, clock)| Message::Welcome { peer, clock }),
+        proptest::collection::vec(".{0,60}", 0..5).prop_map(|differences| Message::Refused { differences }),
+        (any::<[i64; 2]>(), any::<u32>(), proptest::collection::vec(any::<[f64; 2]>(), 0..20)).prop_map(|(window, resolution, deformers)| Message::Presence {
+            window,
+            resolution,
+            deformers
+        }),
+        (any::<u64>(), proptest::collection::vec(wire_tile(), 0..4)).prop_map(|(seq, tiles)| Message::Tiles { seq, tiles }),
+        any::<u64>().prop_map(|seq| Message::Ack { seq }),
+        (any_clock(), any::<[i64; 2]>(), any::<u32>(), proptest::collection::vec((any_key(), any::<u64>()), 0..30))
+            .prop_map(|(clock, window, resolution, entries)| Message::Digest { clock, window, resolution, entries }),
+        proptest::collection::vec(any_key(), 0..30).prop_map(|keys| Message::Want { keys }),
+        any_clock().prop_map(|clock| Message::Clock { clock }),
+    ]
+}
+
+/// A relay that knows a world and has peer 1 welcomed, for feeding bytes to.
+fn welcomed_relay() -> SnowRelay {
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned() }), 0.0);
+    relay
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn every_message_round_trips(m in any_message()) {
+        let bytes = encode(&m);
+        let back = decode(&bytes).expect("an encoded message decodes");
+        // Bytes, not values: NaNs compare unequal, and long text is cut.
+        prop_assert_eq!(encode(&back), bytes);
+        prop_assert_eq!(back.kind(), m.kind());
+    }
+
+    #[test]
+    fn any_bytes_decode_to_a_message_or_an_error(bytes in proptest::collection::vec(any::<u8>(), 0..512), kind in 1u8..=10) {
+        let _ = decode(&bytes);
+        // And with a valid header, so the bodies are reached.
+        let mut framed = b"SNWP\x01\x00".to_vec();
+        framed.push(kind);
+        framed.extend_from_slice(&bytes);
+        if let Ok(m) = decode(&framed) {
+            prop_assert_eq!(decode(&encode(&m)).map(|m| m.kind()), Ok(kind));
+        }
+        let mut relay = welcomed_relay();
+        relay.receive(1, &framed, 1.0);
+        relay.update(1.5);
+        while relay.poll_transmit().is_some() {}
+    }
+
+    #[test]
+    fn truncated_or_flipped_messages_never_panic(m in any_message(), flips in proptest::collection::vec((any::<usize>(), 0u8..8), 1..4)) {
+        let bytes = encode(&m);
+        for cut in 0..bytes.len() {
+            prop_assert!(decode(&bytes[..cut]).is_err(), "a message cut at {} of {} bytes decoded", cut, bytes.len());
+        }
+        let mut flipped = bytes.clone();
+        for (at, bit) in flips {
+            let k = at % flipped.len();
+            flipped[k] ^= 1 << bit;
+        }
+        let _ = decode(&flipped);
+        let mut relay = welcomed_relay();
+        relay.receive(1, &flipped, 1.0);
+        relay.update(1.5);
+        let mut peer = SnowPeer::new(world(16), "p", PeerConfig::default());
+        let _ = peer.receive(&flipped);
+    }
+}
+
+// ---------------------------------------------------------------- a simulated network
+
+/// Where a message in flight goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum To {
+    Relay(u64),
+    Peer(u64),
+}
+
+/// A network that drops, duplicates and delays (so reorders) messages.
+struct Net {
+    rng: Rng,
+    drop: f32,
+    duplicate: f32,
+    max_delay_s: f32,
+    in_flight: Vec<(f64, To, Vec<u8>)>,
+    /// Peers whose traffic is all lost now.
+    cut: Vec<u64>,
+    last_busy_s: f64,
+}
+
+impl Net {
+    fn send(&mut self, now: f64, to: To, bytes: Vec<u8>) {
+        let peer = match to {
+            To::Relay(p) | To::Peer(p) => p,
+        };
+        // Tiles and Want are the traffic that settles; the rest is periodic.
+        if matches!(bytes.get(6), Some(5 | 8)) {
+            self.last_busy_s = now;
+        }
+        if self.cut.contains(&peer) || self.rng.range(0.0, 1.0) < self.drop {
+            return;
+        }
+        if self.rng.range(0.0, 1.0) < self.duplicate {
+            let delay = f64::from(self.rng.range(0.0, self.max_delay_s));
+            self.in_flight.push((now + delay, to, bytes.clone()));
+        }
+        let delay = f64::from(self.rng.range(0.0, self.max_delay_s));
+        self.in_flight.push((now + delay, to, bytes));
+    }
+
+    fn due(&mut self, now: f64) -> Vec<(To, Vec<u8>)> {
+        let mut due: Vec<(f64, To, Vec<u8>)> = Vec::new();
+        let mut k = 0;
+        while k < self.in_flight.len() {
+            if self.in_flight[k].0 <= now {
+                due.push(self.in_flight.swap_remove(k));
+            } else {
+                k += 1;
+            }
+        }
+        due.sort_by(|a, b| a.0.total_cmp(&b.0));
+        due.into_iter().map(|(_, to, b)| (to, b)).collect()
+    }
+}
+
+struct Player {
+    id: u64,
+    snow: CpuSnow,
+    peer: SnowPeer,
+}
+
+fn pump(relay: &mut SnowRelay, players: &mut [Player], net: &mut Net, now: f64) {
+    for p in players.iter_mut() {
+        while let Some(bytes) = p.peer.poll_transmit() {
+            net.send(now, To::Relay(p.id), bytes);
+        }
+    }
+    relay.update(now);
+    while let Some((id, bytes)) = relay.poll_transmit() {
+        net.send(now, To::Peer(id), bytes);
+    }
+    for (to, bytes) in net.due(now) {
+        match to {
+            To::Relay(id) => relay.receive(id, &bytes, now),
+            To::Peer(id) => {
+                if let Some(p) = players.iter_mut().find(|p| p.id == id) {
+                    p.peer.receive(&bytes).expect("the relay sends well-formed messages of the same world");
+                }
+            }
+        }
+    }
+}
+
+/// Where player `id` walks at time `t` (x, z in m); walking stops at 24 s.
+fn walk(id: u64, t: f64) -> [f64; 2] {
+    let t = t.min(24.0);
+    match id {
+        1 => [-8.0 + 0.7 * t, 0.0],
+        2 => [-8.0 + 0.7 * t, 1.5],
+        _ => [2.0 + 0.5 * (t - 16.0).max(0.0), -1.25],
+    }
+}
+
+#[test]
+fn three_peers_converge_over_a_lossy_network() {
+    let seed = testing::seed("three_peers_converge_over_a_lossy_network");
+    // Players 1 and 2 walk from the start, player 2 is cut off from 8 s to
+    // 14 s, player 3 joins at 16 s; the walks stop at 24 s.
+    let w = world(16);
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    let mut net = Net { rng: Rng::new(seed), drop: 0.1, duplicate: 0.05, max_delay_s: 0.15, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
+    let resolution = 128;
+    let dt = 1.0 / 16.0;
+    let mut players: Vec<Player> = Vec::new();
+    let mut t = 0.0f64;
+    let join = |id: u64, t: f64, relay: &mut SnowRelay| {
+        relay.connect(id);
+        let mut snow = CpuSnow::new(w.clone(), resolution, [0, 0], t);
+        let at = walk(id, t);
+        snow.center_on(at[0], at[1]);
+        Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), PeerConfig::default()) }
+    };
+    players.push(join(1, t, &mut relay));
+    players.push(join(2, t, &mut relay));
+    let mut step = 0u64;
+    loop {
+        t += dt;
+        step += 1;
+        // Player 2 is cut off from 8 s to 14 s, then comes back.
+        net.cut = if (8.0..14.0).contains(&t) { vec![2] } else { Vec::new() };
+        for p in &mut players {
+            let at = walk(p.id, t);
+            p.snow.center_on(at[0], at[1]);
+            if t < 24.0 {
+                let depth = 1200 + ((step * 37 + p.id * 101) % 400) as u16;
+                p.snow.press_disc(at, 0.35, depth);
+                p.peer.set_deformers(&[at]);
+            }
+            p.snow.step(dt);
+            p.peer.update(&mut p.snow, t);
+        }
+        if players.len() == 2 && t >= 16.0 {
+            // The late joiner, at the time the others have just stepped to:
+            // everything pressed so far reaches it from the relay.
+            players.push(join(3, t, &mut relay));
+        }
+        pump(&mut relay, &mut players, &mut net, t);
+        let quiet = t > 24.0 && t - net.last_busy_s > 3.0 && players.iter().all(|p| p.peer.unacknowledged() == 0);
+        if quiet {
+            break;
+        }
+        assert!(t < 120.0, "the network did not settle by {t} s (seed {seed})");
+    }
+
+    // The area every window shares.
+    let lo = [players.iter().map(|p| p.snow.origin()[0]).max().unwrap_or(0), players.iter().map(|p| p.snow.origin()[1]).max().unwrap_or(0)];
+    let hi = [
+        players.iter().map(|p| p.snow.origin()[0] + i64::from(resolution)).min().unwrap_or(0),
+        players.iter().map(|p| p.snow.origin()[1] + i64::from(resolution)).min().unwrap_or(0),
+    ];
+    assert!(hi[0] - lo[0] >= 32 && hi[1] - lo[1] >= 32, "the windows share too little: {lo:?}..{hi:?}");
+    let clock = players[0].snow.share_clock();
+    for p in &players {
+        assert_eq!(p.snow.share_clock(), clock, "one world clock for all (player {})", p.id);
+    }
+    let catch = CatchUp { max_fallen_m: w.max_fallen_m };
+    let mut relay_tiles: BTreeMap<TileKey, Option<SharedTile>> = BTreeMap::new();
+    let (mut pressed, mut compared) = (0usize, 0usize);
+    for row in lo[1]..hi[1] {
+        for col in lo[0]..hi[0] {
+            let key = TileKey::containing(col, row, w.tile_side);
+            let tile = relay_tiles.entry(key).or_insert_with(|| {
+                relay.tile(key).map(|mut t| {
+                    t.catch_up(&clock, catch);
+                    t
+                })
+            });
+            let first = key.first_texel(w.tile_side);
+            let at_relay = tile.as_ref().map_or(0, |t| t.deficit[((row - first[1]) * i64::from(w.tile_side) + (col - first[0])) as usize]);
+            for p in &players {
+                let d = p.snow.deficit_at(col, row).unwrap_or(u16::MAX);
+                assert_eq!(d, at_relay, "texel ({col}, {row}): player {} has {d}, the relay {at_relay} (seed {seed})", p.id);
+            }
+            compared += 1;
+            pressed += usize::from(at_relay > 0);
+        }
+    }
+    let stats = relay.stats();
+    eprintln!(
+        "three peers settled at {t:.1} s: {compared} texels compared, {pressed} pressed; relay merged {} tiles, sent {}, rejected {:?}; resends {:?}",
+        stats.tiles_merged,
+        stats.tiles_sent,
+        stats.rejected,
+        players.iter().map(|p| p.peer.stats().resends).collect::<Vec<_>>()
+    );
+    assert!(pressed > 500, "the walks pressed the shared area ({pressed} texels)");
+    // What was pressed there before the late joiner came (player 1 from
+    // x = 0.8 m to 3.2 m, player 2 beside it) reached it from the relay.
+    let early = (lo[0]..(3.2f64 / 0.125) as i64).filter(|&col| players[2].snow.deficit_at(col, 0).is_some_and(|d| d > 0)).count();
+    assert!(early > 10, "the late joiner has the trail pressed before it came ({early} texels)");
+}
+
+// ---------------------------------------------------------------- security
+
+/// A relay with a welcomed peer 1 whose deformer stands at the origin, at `now`.
+fn relay_with_peer(config: RelayConfig, now: f64) -> SnowRelay {
+    let mut relay = SnowRelay::new(config);
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "honest".to_owned() }), now);
+    relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
+    relay
+}
+
+fn pressed_tile(key: TileKey, clock: ShareClock, deficit: u16) -> SharedTile {
+    let mut t = SharedTile::untouched(key, 16, clock, false, false);
+    t.deficit[5] = deficit;
+    t
+}
+
+fn all_tiles(relay: &SnowRelay) -> Vec<(TileKey, u64)> {
+    relay.tile_keys().into_iter().filter_map(|k| relay.tile(k).map(|t| (k, t.digest()))).collect()
+}
+
+#[test]
+fn forged_deltas_are_rejected_counted_and_change_nothing() {
+    let now = 10.0;
+    let w = world(16);
+    let mut relay = relay_with_peer(RelayConfig::default(), now);
+    let clock = w.clock_at(now);
+    // An honest tile near the deformer is merged.
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 1000)] }), now);
+    assert_eq!(relay.stats().tiles_merged, 1);
+    let before = all_tiles(&relay);
+
+    // Far from the sender's deformers (100 tiles away).
+    relay.receive(1, &encode(&Message::Tiles { seq: 1, tiles: vec![pressed_tile(TileKey::new(100, 0), clock, 1000)] }), now);
+    // Deeper than the snow (6 m of 0.5 m).
+    relay.receive(1, &encode(&Message::Tiles { seq: 2, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 60_000)] }), now);
+    // A clock a minute ahead.
+    relay.receive(1, &encode(&Message::Tiles { seq: 3, tiles: vec![pressed_tile(TileKey::new(-1, 0), w.clock_at(now + 60.0), 1000)] }), now);
+    // Snowfall in a world without any.
+    let mut snowy = pressed_tile(TileKey::new(0, -1), clock, 10);
+    snowy.fallen = vec![0.1; 256];
+    relay.receive(1, &encode(&Message::Tiles { seq: 4, tiles: vec![snowy] }), now);
+    // Tiles before a Hello, from a peer that never connected, and garbage.
+    relay.connect(2);
+    relay.receive(2, &encode(&Message::Tiles { seq: 0, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 2000)] }), now);
+    relay.receive(3, &encode(&Message::Ack { seq: 0 }), now);
+    relay.receive(1, b"SNWP\x01\x00\x05garbage", now);
+    relay.receive(1, &encode(&Message::Ack { seq: 9 }), now);
+
+    let r = relay.stats().rejected;
+    assert_eq!(
+        (r.far_from_deformers, r.too_deep, r.clock_ahead, r.bad_tile, r.not_welcomed, r.unknown_peer, r.malformed, r.unexpected_kind),
+        (1, 1, 1, 1, 1, 1, 1, 1),
+        "{r:?}"
+    );
+    assert_eq!(all_tiles(&relay), before, "rejections change nothing");
+
+    // A flood beyond the tile rate: 40 tiles near the deformer against a bucket of 20.
+    let config = RelayConfig { tiles_per_s: 10, burst_tiles: 20, ..RelayConfig::default() };
+    let mut relay = relay_with_peer(config, now);
+    let flood: Vec<SharedTile> = (0..40).map(|k| pressed_tile(TileKey::new(k % 4 - 2, k / 4 % 4 - 2), clock, 100 + k as u16)).collect();
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles: flood[..20].to_vec() }), now);
+    let kept = all_tiles(&relay);
+    relay.receive(1, &encode(&Message::Tiles { seq: 1, tiles: flood[20..].to_vec() }), now);
+    assert_eq!(relay.stats().rejected.rate_tiles, 20);
+    assert_eq!(all_tiles(&relay), kept, "tiles over the rate change nothing");
+
+    // A flood beyond the byte rate.
+    let config = RelayConfig { bytes_per_s: 1000, burst_bytes: 2000, ..RelayConfig::default() };
+    let mut relay = relay_with_peer(config, now);
+    for seq in 0..50 {
+        relay.receive(1, &encode(&Message::Tiles { seq, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 100 + seq as u16)] }), now);
+    }
+    assert!(relay.stats().rejected.rate_bytes > 0, "{:?}", relay.stats().rejected);
+}
+
+#[test]
+fn deltas_are_accepted_near_where_the_game_server_says_the_deformers_are() {
+    let now = 10.0;
+    let w = world(16);
+    let mut relay = relay_with_peer(RelayConfig::default(), now);
+    // The server says the peer is 100 tiles away, whatever its Presence said.
+    relay.report_deformers(1, &[[100.0 * 16.0 * 0.125 + 1.0, 1.0]]);
+    let clock = w.clock_at(now);
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 1000)] }), now);
+    relay.receive(1, &encode(&Message::Tiles { seq: 1, tiles: vec![pressed_tile(TileKey::new(100, 0), clock, 1000)] }), now);
+    assert_eq!(relay.stats().rejected.far_from_deformers, 1);
+    assert_eq!(relay.tile_keys(), vec![TileKey::new(100, 0)]);
+    let depth = relay.depth_at(100.0 * 2.0 + 5.0 * 0.125 + 0.01, 0.01).expect("a world");
+    // 0.5 m of snow less the 0.1 m pressed (no time has passed to refill it).
+    assert!((depth - 0.4).abs() < 1e-6, "depth {depth}");
+}
+
+#[test]
+fn a_peer_of_another_world_is_refused_naming_the_difference() {
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    relay.connect(2);
+    let mut first = SnowPeer::new(world(64), "first", PeerConfig::default());
+    let mut other = SnowPeer::new(world(32), "other", PeerConfig::default());
+    relay.receive(1, &first.poll_transmit().expect("hello"), 0.0);
+    relay.receive(2, &other.poll_transmit().expect("hello"), 0.0);
+    while let Some((id, bytes)) = relay.poll_transmit() {
+        match id {
+            1 => first.receive(&bytes).expect("welcomed"),
+            _ => match other.receive(&bytes) {
+                Err(e @ ShareError::Refused { .. }) => {
+                    let text = e.to_string();
+                    assert!(text.contains("tile side: 32 here, 64 there"), "{text}");
+                }
+                other => panic!("expected Refused, got {other:?}"),
+            },
+        }
+    }
+    assert!(first.is_welcomed() && !other.is_welcomed());
+    assert_eq!(relay.stats().rejected.refused, 1);
+    assert_eq!(relay.world(), Some(&world(64)));
+}
+
+// ---------------------------------------------------------------- persistence
+
+struct TempDir(std::path::PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+        let dir = std::env::temp_dir().join(format!("snowpack-share-{name}-{}-{nanos}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("a temporary directory");
+        Self(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+#[test]
+fn a_relay_with_a_store_comes_back_bit_for_bit() {
+    let dir = TempDir::new("store");
+    let w = world(16);
+    let config = RelayConfig { memory_tiles: 4, ..RelayConfig::default() };
+    let store = TileStore::open(&dir.0, 16, StoreConfig::default()).expect("open");
+    let mut relay = SnowRelay::with_store(store, config.clone()).expect("relay");
+    relay.connect(1);
+    let now = 5.0;
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "p".to_owned() }), now);
+    relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
+    let mut rng = Rng::new(testing::seed("a_relay_with_a_store_comes_back_bit_for_bit"));
+    let mut sent = Vec::new();
+    for k in 0..12i64 {
+        let mut t = SharedTile::untouched(TileKey::new(k % 4 - 2, k / 4 - 1), 16, w.clock_at(now - k as f64 * 0.1), k % 2 == 0, false);
+        for d in &mut t.deficit {
+            *d = (rng.next_u64() % 5000) as u16;
+        }
+        for s in &mut t.stamps {
+            *s = rng.next_u64() as u32;
+        }
+        sent.push(t);
+    }
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles: sent }), now);
+    relay.update(now + 1.0); // evicts beyond 4 tiles to the store
+    assert!(relay.stats().tiles_evicted > 0, "{:?}", relay.stats());
+    let before: Vec<(TileKey, SharedTile)> = relay.tile_keys().into_iter().filter_map(|k| relay.tile(k).map(|t| (k, t))).collect();
+    assert_eq!(before.len(), 12);
+    relay.flush().expect("flush");
+    drop(relay);
+
+    let store = TileStore::open(&dir.0, 16, StoreConfig::default()).expect("reopen");
+    let again = SnowRelay::with_store(store, config).expect("relay again");
+    assert_eq!(again.world(), Some(&w));
+    for (key, tile) in &before {
+        let back = again.tile(*key).expect("the tile is in the store");
+        assert_eq!(bits(&back), bits(tile), "tile {key:?}");
+    }
+    assert_eq!(encode_world(again.world().expect("world")), encode_world(&w));
+}
+
+// ---------------------------------------------------------------- bandwidth
+
+#[test]
+fn bytes_per_second_of_a_peer_walking() {
+    let w = world(32);
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    let mut snow = CpuSnow::new(w.clone(), 256, [0, 0], 0.0);
+    let mut peer = SnowPeer::new(w, "walker", PeerConfig::default());
+    let dt = 1.0 / 30.0;
+    let seconds = 20.0;
+    let mut t = 0.0;
+    let mut to_relay = 0u64;
+    while t < seconds {
+        t += dt;
+        let at = [-14.0 + 1.4 * t, 0.3];
+        snow.center_on(at[0], at[1]);
+        // Two feet, as a walker presses them.
+        snow.press_disc([at[0], at[1] - 0.15], 0.12, 1500);
+        snow.press_disc([at[0] - 0.3, at[1] + 0.15], 0.12, 1500);
+        peer.set_deformers(&[at]);
+        snow.step(dt);
+        peer.update(&mut snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            to_relay += b.len() as u64;
+            relay.receive(1, &b, t);
+        }
+        relay.update(t);
+        while let Some((_, b)) = relay.poll_transmit() {
+            peer.receive(&b).expect("well-formed");
+        }
+    }
+    let rate = to_relay as f64 / seconds;
+    eprintln!(
+        "a peer walking at 1.4 m/s (32² tiles of 12.5 cm texels, 30 Hz): {rate:.0} B/s to the relay, {} tiles sent, {} merged at the relay",
+        peer.stats().tiles_sent,
+        relay.stats().tiles_merged
+    );
+    assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
+    assert!(rate < 64.0 * 1024.0, "{rate} B/s");
+}
+
+// ---------------------------------------------------------------- fuzz seeds
+
+/// The fuzz target's seed inputs (`fuzz/corpus/share_message/`, written by
+/// hand from the format's table) are well-formed messages of every kind,
+/// so the fuzzer starts from inputs that reach every handler.
+#[test]
+fn the_fuzz_seeds_are_valid_messages_of_every_kind() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus/share_message");
+    let mut kinds = Vec::new();
+    for entry in std::fs::read_dir(&dir).expect("the seed folder") {
+        let path = entry.expect("an entry").path();
+        let bytes = std::fs::read(&path).expect("a seed");
+        let m = decode(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        // Values, not bytes: the seeds' tiles were deflated by another compressor.
+        kinds.push(m.kind());
+        assert_eq!(decode(&encode(&m)).as_ref(), Ok(&m), "{}", path.display());
+    }
+    kinds.sort_unstable();
+    assert_eq!(kinds, (1..=9).collect::<Vec<u8>>());
+}
+
+// ---------------------------------------------------------------- late join, pacing and bounds
+
+/// A relay holding `count` tiles of random deficits around the origin, from peer 1.
+fn relay_holding(config: RelayConfig, count: i64, now: f64, rng: &mut Rng) -> SnowRelay {
+    let w = world(16);
+    let mut relay = relay_with_peer(config, now);
+    let tiles: Vec<SharedTile> = (0..count)
+        .map(|k| {
+            let mut t = SharedTile::untouched(TileKey::new(k % 5 - 2, k / 5 - 2), 16, w.clock_at(now), false, false);
+            for d in &mut t.deficit {
+                *d = (rng.next_u64() % 4000) as u16;
+            }
+            t
+        })
+        .collect();
+    relay.receive(1, &encode(&Message::Tiles { seq: 0, tiles }), now);
+    assert_eq!(relay.stats().tiles_merged, count as u64);
+    relay
+}
+
+#[test]
+fn a_late_joiner_receives_its_window_paced_by_its_byte_budget() {
+    let mut rng = Rng::new(testing::seed("a_late_joiner_receives_its_window_paced_by_its_byte_budget"));
+    let config = RelayConfig { send_bytes_per_s: 4000, send_burst_bytes: 4000, ..RelayConfig::default() };
+    let mut relay = relay_holding(config, 20, 1.0, &mut rng);
+    while relay.poll_transmit().is_some() {}
+    let w = world(16);
+    relay.connect(2);
+    let mut snow = CpuSnow::new(w.clone(), 64, [-32, -32], 1.0);
+    let mut peer = SnowPeer::new(w, "late", PeerConfig::default());
+    let mut t = 1.0;
+    let mut first_second = None;
+    while t < 30.0 {
+        t += 0.05;
+        snow.step(0.05);
+        peer.update(&mut snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            relay.receive(2, &b, t);
+        }
+        relay.update(t);
+        while let Some((id, b)) = relay.poll_transmit() {
+            if id == 2 {
+                peer.receive(&b).expect("well-formed");
+            }
+        }
+        if t >= 2.0 && first_second.is_none() {
+            first_second = Some(peer.stats().tiles_received);
+        }
+    }
+    let early = first_second.unwrap_or(0);
+    eprintln!("late join at 4000 B/s: {early} of 20 tiles of random deficits in the first second, all by 30 s");
+    assert!(early > 0 && early < 20, "the backlog is paced: {early} of 20 tiles in the first second at 4000 B/s");
+    for key in relay.tile_keys() {
+        let mine = relay.tile(key).expect("the relay's tile");
+        let theirs = peer.replica_tile(key).unwrap_or_else(|| panic!("the late joiner lacks {key:?}"));
+        let mut caught = mine.clone();
+        caught.catch_up(&theirs.clock, CatchUp::default());
+        assert_eq!(bits(&caught), bits(theirs), "{key:?}");
+    }
+}
+
+#[test]
+fn a_peer_that_never_reads_costs_a_bounded_queue() {
+    let config = RelayConfig { queue_messages: 4, ..RelayConfig::default() };
+    let mut relay = relay_with_peer(config, 1.0);
+    for seq in 0..50 {
+        relay.receive(1, &encode(&Message::Ack { seq }), 1.0);
+        relay.receive(1, &encode(&Message::Tiles { seq, tiles: Vec::new() }), 1.0);
+    }
+    let mut queued = 0;
+    while relay.poll_transmit().is_some() {
+        queued += 1;
+    }
+    assert_eq!(queued, 4);
+    assert_eq!(relay.stats().rejected.outgoing_dropped, 50 - 4 + 1, "the Welcome and 49 Acks dropped");
+}
+
+#[test]
+fn without_a_store_tiles_beyond_memory_are_forgotten_and_counted() {
+    let mut rng = Rng::new(7);
+    let config = RelayConfig { memory_tiles: 8, ..RelayConfig::default() };
+    let mut relay = relay_holding(config, 20, 1.0, &mut rng);
+    relay.update(1.5);
+    let stats = relay.stats();
+    assert_eq!((stats.tiles_in_memory, stats.tiles_forgotten), (8, 12), "{stats:?}");
+    assert_eq!(relay.tile_keys().len(), 8);
+}
+
+#[test]
+fn a_relay_knows_nothing_before_its_first_hello() {
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    assert_eq!(relay.depth_at(0.0, 0.0), None);
+    assert_eq!(relay.clock(10.0), None);
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Presence { window: [0, 0], resolution: 64, deformers: Vec::new() }), 0.0);
+    assert_eq!(relay.stats().rejected.not_welcomed, 1);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned() }), 0.0);
+    assert_eq!(relay.depth_at(0.0, 0.0), Some(0.5));
+    assert_eq!(relay.depth_at(f64::NAN, 0.0), None);
+    assert_eq!(relay.clock(10.0), Some(world(16).clock_at(10.0)));
+}
+
+#[test]
+fn a_lost_hello_is_sent_again_until_answered() {
+    let w = world(16);
+    let mut snow = CpuSnow::new(w.clone(), 32, [0, 0], 0.0);
+    let mut peer = SnowPeer::new(w, "p", PeerConfig::default());
+    assert!(peer.poll_transmit().is_some(), "the first Hello");
+    let mut hellos = 0;
+    for k in 1..=35 {
+        peer.update(&mut snow, f64::from(k) * 0.1);
+        while let Some(b) = peer.poll_transmit() {
+            assert!(matches!(decode(&b), Ok(Message::Hello { .. })), "nothing but Hello before the Welcome");
+            hellos += 1;
+        }
+    }
+    assert_eq!(hellos, 3, "one a second");
+    assert!(matches!(peer.receive(&encode(&Message::Refused { differences: vec!["x".to_owned()] })), Err(ShareError::Refused { .. })));
+    for k in 36..=60 {
+        peer.update(&mut snow, f64::from(k) * 0.1);
+    }
+    assert!(peer.poll_transmit().is_none(), "a refused peer stops asking");
+}
