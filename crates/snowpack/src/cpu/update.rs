@@ -40,6 +40,15 @@ pub struct UpdateInputs<'a> {
 /// Updates the toroidal `snow` words (`shared/snow_word.wgsl`), `fallen`
 /// (and refills `stamps`) in place.
 pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
+    update_flagged(p, input, snow, stamps, fallen, &mut []);
+}
+
+/// [`update`] that also sets, with [`UpdateParams::SHARE`] in `p.flags`,
+/// the changed-tile flag (`flags`, [`crate::replicate::flags::ShareGrid`])
+/// of every texel whose deficit a press raised above the refilled one.
+pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32], flags: &mut [u32]) {
+    let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
+    let share = p.flags & UpdateParams::SHARE != 0 && !flags.is_empty();
     let r = p.resolution;
     for i in 0..r {
         for j in 0..r {
@@ -62,6 +71,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
             if visible > 0.0 {
                 deficit -= deficit.min(p.snow_refill_quanta);
             }
+            let refilled = deficit;
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
                 let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
@@ -84,6 +94,9 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
             // Never below the terrain.
             deficit = deficit.min(press_quanta(rest, ground, ground));
             snow[s] = (word & 0xffff_0000) | deficit;
+            if share && deficit > refilled {
+                flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
+            }
         }
     }
 }

@@ -11,7 +11,19 @@
 //! |---|---|
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share |
+//! | `flags.rs` | [`flags::ShareGrid`]: the changed-tile flags the stamp and update passes write, and their keys |
+//! | `gather.rs` | [`gather::TileGatherPass`] (`tile_gather.wgsl`): whole tiles copied out of the window |
+//! | `merge.rs` | [`merge::TileMergePass`] (`tile_merge.wgsl`): tiles from elsewhere folded into the window |
+//! | `sharing.rs` | [`sharing::Sharing`]: a window's flags, gathers, merges and their readbacks |
+//!
+//! [`crate::SnowDeformation`] implements [`SharedSnow`] with them
+//! (`snow/share.rs`); `docs/deformation.md` ("Shared snow on the GPU")
+//! gives the order in the frame and the costs.
 
+pub mod flags;
+pub mod gather;
+pub mod merge;
+pub mod sharing;
 pub mod tile;
 pub mod world;
 
