@@ -16,9 +16,12 @@
 // the occlusion map, is no lower (less 2 cm) than what that pixel saw.
 // In place: each texel reads and writes only itself; the displayed half of
 // each word is kept (the display pass rewrites it).
-// With shared snow (SHARE) a texel whose deficit a press raised above the
-// refilled one flags its tile (shared/share_flags.wgsl); refill and
-// snowfall flag nothing (every machine applies them from the world clock).
+// With shared snow (SHARE) a texel whose deficit the captured actors raised
+// above the refilled one flags its tile (shared/share_flags.wgsl). Stored
+// footprints pressing again as snow and footprints refill at their own
+// rates flag nothing: every machine has the same footprints and applies
+// the same refill, and so the same presses (the stamp pass flags the
+// footprints a frame changes). Refill and snowfall flag nothing either.
 // CPU twin: src/cpu/update.rs.
 
 struct UpdateParams {
@@ -128,6 +131,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             deficit = max(deficit, snow_press_quanta(rest, ground, actor));
         }
     }
+    let captured = deficit;
     var st = STAMP_EMPTY;
     if (update_flags() & HAS_STAMPS) != 0u {
         st = stamps[s];
@@ -148,10 +152,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     // Never below the terrain.
-    deficit = min(deficit, snow_press_quanta(rest, ground, ground));
+    let at_ground = snow_press_quanta(rest, ground, ground);
+    deficit = min(deficit, at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
-    // A press raised it (the clamp only lowers, so below `refilled` it did not).
-    if (update_flags() & SHARE) != 0u && deficit > refilled {
+    // The capture raised it (after the clamp, which only lowers).
+    if (update_flags() & SHARE) != 0u && min(captured, at_ground) > refilled {
         atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(i32(j), i32(i)), params.share_side, params.share_keys)], 1u);
     }
 }

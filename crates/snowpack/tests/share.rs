@@ -13,7 +13,7 @@ use snowpack::deform::wheel::{Tread, TreadPattern};
 use snowpack::gpu::{GpuTimer, read_buffer};
 use snowpack::persist::TileKey;
 use snowpack::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
-use snowpack::replicate::merge::{TileMergeParams, TileMergePass, pack_tiles};
+use snowpack::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
 use snowpack::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
 use snowpack::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, Snowfall, Technique, TerrainSource};
@@ -144,7 +144,22 @@ fn tile_merge_matches_cpu() {
             .collect();
         let refs: Vec<&SharedTile> = tiles.iter().collect();
         let packed = pack_tiles(&refs);
-        let gkeys = gpu_keys(&keys);
+        // A history of frames to replay, each tile from a random one of them (or none).
+        let frames = (rng.next_u64() % (HISTORY_FRAMES as u64 + 1)) as usize;
+        let history: Vec<[u32; 4]> = (0..frames)
+            .map(|_| {
+                FrameRecord {
+                    after: ShareClock::default(),
+                    snow_quanta: (rng.next_u64() % 40) as u32,
+                    stamp_quanta: (rng.next_u64() % 60) as u32,
+                    fall_m: if rng.next_u64() % 2 == 0 { 0.0 } else { rng.range(0.0, 0.01) },
+                    stamps_pressed: rng.next_u64() % 4 != 0,
+                }
+                .gpu()
+            })
+            .collect();
+        let gkeys: Vec<[i32; 4]> =
+            gpu_keys(&keys).iter().map(|k| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, 0]).collect();
         let pass = TileMergePass::new(&ctx.device, &w.res, side, count as u32);
         let p = TileMergeParams {
             origin: w.origin,
@@ -155,15 +170,16 @@ fn tile_merge_matches_cpu() {
             texel_m: w.params.texel_m(),
             low_m: rng.range(-2.0, -0.5),
             high_m: rng.range(1.0, 3.0),
+            max_fallen_m: 0.3,
             ..Default::default()
         };
         let mut enc = encoder(ctx);
-        let merged = pass.record(&ctx.queue, &mut enc, &mut timer, p, &gkeys, &packed);
+        let merged = pass.record(&ctx.queue, &mut enc, &mut timer, p, (&gkeys, &history), &packed);
         submit(ctx, enc);
         assert_eq!(merged as usize, count);
-        let cp = TileMergeParams { count: merged, blocks: side.div_ceil(8), ..p };
-        cpu::tile_merge::merge(&cp, &gkeys, &packed, &w.terrain, &mut w.snow, &mut w.stamps, &mut w.fallen);
-        let what = format!("side {side}, origin {:?}, resolution {}; seed {seed}", w.origin, w.params.resolution);
+        let cp = TileMergeParams { count: merged, blocks: side.div_ceil(8), frames: frames as u32, ..p };
+        cpu::tile_merge::merge(&cp, (&gkeys, &history), &packed, &w.terrain, &mut w.snow, &mut w.stamps, &mut w.fallen);
+        let what = format!("side {side}, origin {:?}, resolution {}, {frames} frames; seed {seed}", w.origin, w.params.resolution);
         assert_eq!(read_u32(ctx, &w.res.snow), w.snow, "merged snow words; {what}");
         assert_eq!(read_u32(ctx, &w.res.stamps), w.stamps, "merged footprints; {what}");
         let fallen: Vec<u32> = read_f32(ctx, &w.res.fallen).iter().map(|f| f.to_bits()).collect();
@@ -248,8 +264,11 @@ fn flags_mark_exactly_the_pressed_tiles_and_nothing_else() {
         let mut sent = Vec::new();
         for _ in 0..3 {
             frame(ctx, &mut d, &[], &[], DT);
-            sent.extend(d.take_changed_tiles());
+            let t = d.take_changed_tiles();
+            eprintln!("DEBUG {technique:?} dirty {} sent {:?}", d.dirty_tiles(), keys_of(&t));
+            sent.extend(t);
         }
+        eprintln!("DEBUG expected {expected:?}");
         assert_eq!(keys_of(&sent), expected, "{technique:?}: tiles sent after a sphere's press");
         assert_eq!(d.dirty_tiles(), 0);
         // Refill alone (many frames past the gather interval) flags nothing.
@@ -266,7 +285,7 @@ fn flags_mark_exactly_the_pressed_tiles_and_nothing_else() {
         for _ in 0..12 {
             frame(ctx, &mut d, &[], &[], DT);
         }
-        assert_ne!(deficits(ctx, &d), before, "{technique:?}: the merge changed nothing");
+        assert!(deficits(ctx, &d) != before, "{technique:?}: the merge changed nothing");
         assert_eq!(d.waiting_tiles(), 0);
         assert!(d.take_changed_tiles().is_empty(), "{technique:?}: a merge was sent on");
         assert_eq!(d.dirty_tiles(), 0);
@@ -288,7 +307,10 @@ fn deformer(case: &str, b: bool, k: usize) -> Deformer {
         },
         "points" => {
             let x = if b { CORNER[0] + 6.0 + t } else { CORNER[0] + 2.0 };
-            Deformer::Point { position: Vec3::new(x, 0.12 + t, z), scale_per_m: 1.5 }
+            // Feet stay below the rest height: a footprint replaced by one
+            // whose foot is at rest, and so removed, is where merging
+            // footprints is not exact (docs/deformation.md).
+            Deformer::Point { position: Vec3::new(x, 0.1 + 0.2 * t, z), scale_per_m: 1.5 }
         }
         _ => {
             let axle = if b { Vec3::Z } else { Vec3::X };
@@ -340,8 +362,10 @@ fn merging_two_simulations_equals_one_with_both_presses() {
         if technique.uses_stamps() {
             let (sa, sb, sc) = (footprints(ctx, &a), footprints(ctx, &b), footprints(ctx, &c));
             assert!(sc.iter().any(|&s| s != NO_STAMP), "{case}: no footprints");
-            assert_eq!(sa, sc, "{case}: footprints of A differ from C");
-            assert_eq!(sb, sc, "{case}: footprints of B differ from C");
+            for (name, s) in [("A (B's tiles merged)", &sa), ("B (A's tiles merged)", &sb)] {
+                let diff: Vec<usize> = (0..s.len()).filter(|&k| s[k] != sc[k]).collect();
+                assert!(diff.is_empty(), "{case}: footprints of {name} differ from C at {} texels, first {} ({:#x} vs {:#x})", diff.len(), diff[0], s[diff[0]], sc[diff[0]]);
+            }
         }
     }
 }
@@ -371,20 +395,22 @@ fn the_world_clock_does_not_depend_on_frame_times() {
     let sphere = Deformer::Sphere { center: Vec3::new(CORNER[0] + 4.3, 0.45, CORNER[1] + 3.8), radius: 0.4 };
     frame(ctx, &mut a, &[sphere], &[2], 0.125);
     frame(ctx, &mut b, &[sphere], &[2], 0.125);
-    assert_eq!(deficits(ctx, &a), deficits(ctx, &b), "snow after the same presses at the same world times");
+    let (qa, qb) = (deficits(ctx, &a), deficits(ctx, &b));
+    assert!(qa == qb, "snow after the same presses at the same world times differs at {} texels", qa.iter().zip(&qb).filter(|(x, y)| x != y).count());
     // Joining a clock: frames go on from it as on the machine it came from.
     let mut c = window_of(ctx, Technique::Depth, refill);
     c.join_clock(a.share_clock());
     for d in [&mut a, &mut c] {
-        frame(ctx, d, &[], &[], 0.2);
-        frame(ctx, d, &[], &[], 0.05);
+        frame(ctx, d, &[], &[], 0.1875);
+        frame(ctx, d, &[], &[], 0.0625);
     }
+    frame(ctx, &mut b, &[], &[], 0.25);
     assert_eq!(a.share_clock(), c.share_clock(), "a joined clock goes on like its source");
     // The rate changes: counters go on from the change, on both.
     a.set_refill(0.05);
     b.set_refill(0.05);
     frame(ctx, &mut a, &[], &[], 0.5);
-    for _ in 0..4 {
+    for _ in 0..8 {
         frame(ctx, &mut b, &[], &[], 0.0625);
     }
     frame(ctx, &mut a, &[], &[], 0.25);

@@ -45,7 +45,9 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
 
 /// [`update`] that also sets, with [`UpdateParams::SHARE`] in `p.flags`,
 /// the changed-tile flag (`flags`, [`crate::replicate::flags::ShareGrid`])
-/// of every texel whose deficit a press raised above the refilled one.
+/// of every texel whose deficit the capture raised above the refilled one
+/// (stored footprints press the same on every machine; the stamp pass
+/// flags the footprints it changes).
 pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32], flags: &mut [u32]) {
     let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
     let share = p.flags & UpdateParams::SHARE != 0 && !flags.is_empty();
@@ -79,6 +81,7 @@ pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u3
                     deficit = deficit.max(press_quanta(rest, ground, actor));
                 }
             }
+            let captured = deficit;
             let st = if p.flags & UpdateParams::HAS_STAMPS != 0 { stamps[s] } else { STAMP_EMPTY };
             if st != STAMP_EMPTY {
                 let (hq, fq) = (st >> 16, st & 0xffff);
@@ -92,9 +95,10 @@ pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u3
                 }
             }
             // Never below the terrain.
-            deficit = deficit.min(press_quanta(rest, ground, ground));
+            let at_ground = press_quanta(rest, ground, ground);
+            deficit = deficit.min(at_ground);
             snow[s] = (word & 0xffff_0000) | deficit;
-            if share && deficit > refilled {
+            if share && captured.min(at_ground) > refilled {
                 flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
             }
         }

@@ -1,5 +1,6 @@
-//! Tile merge pass (`tile_merge.wgsl`): tiles from other machines, caught
-//! up to the window's clock, folded into the window by the texel-wise
+//! Tile merge pass (`tile_merge.wgsl`): tiles from other machines, brought
+//! to the window's clock (caught up on the CPU, or by replaying the
+//! window's own last frames), folded into the window by the texel-wise
 //! deeper deficit, deeper snowfall and lower footprint.
 
 use bytemuck::{Pod, Zeroable};
@@ -35,8 +36,39 @@ pub struct TileMergeParams {
     pub low_m: f32,
     /// Footprint quantisation range, high end (m).
     pub high_m: f32,
+    /// Frames in the history ([`TileMergePass::record`] sets it).
+    pub frames: u32,
+    /// The most snowfall a texel keeps (m).
+    pub max_fallen_m: f32,
     /// Padding to 8 bytes.
     pub _pad: u32,
+}
+
+/// Frames of its own a window remembers to replay for tiles gathered then.
+pub const HISTORY_FRAMES: usize = 64;
+
+/// One of the window's frames as the update pass ran it, for the merge
+/// pass to replay on a tile gathered before it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameRecord {
+    /// The world clock after the frame.
+    pub after: super::tile::ShareClock,
+    /// Snow refill (deficit quanta).
+    pub snow_quanta: u32,
+    /// Footprint refill (stamp quanta).
+    pub stamp_quanta: u32,
+    /// Snowfall on open ground (m).
+    pub fall_m: f32,
+    /// Whether the stored footprints pressed the snow (the technique stamps).
+    pub stamps_pressed: bool,
+}
+
+impl FrameRecord {
+    /// As `tile_merge.wgsl`'s `history` holds it.
+    #[must_use]
+    pub fn gpu(&self) -> [u32; 4] {
+        [self.snow_quanta, self.stamp_quanta, self.fall_m.to_bits(), u32::from(self.stamps_pressed)]
+    }
 }
 
 impl TileMergeParams {
@@ -74,6 +106,7 @@ pub struct TileMergePass {
     params: wgpu::Buffer,
     keys: wgpu::Buffer,
     tiles: wgpu::Buffer,
+    history: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     capacity: u32,
 }
@@ -96,11 +129,13 @@ impl TileMergePass {
                 layout::storage(5, false),
                 layout::storage(6, true),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
+                layout::storage(8, true),
             ],
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<TileMergeParams>(device, "tile merge params");
-        let keys = crate::tiles::input_buffer(device, "tile merge keys", u64::from(capacity) * 8);
+        let keys = crate::tiles::input_buffer(device, "tile merge keys", u64::from(capacity) * 16);
+        let history = crate::tiles::input_buffer(device, "tile merge history", HISTORY_FRAMES as u64 * 16);
         let tiles = crate::tiles::input_buffer(device, "tile merge upload", packed_tile_bytes(side) * u64::from(capacity.max(1)));
         let bind_group = layout::bind_group(
             device,
@@ -115,9 +150,10 @@ impl TileMergePass {
                 res.fallen.as_entire_binding(),
                 res.heightmap.as_entire_binding(),
                 res.terrain_params.as_entire_binding(),
+                history.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, keys, tiles, bind_group, capacity }
+        Self { pipeline, params, keys, tiles, history, bind_group, capacity }
     }
 
     /// Tiles one dispatch merges at most.
@@ -129,19 +165,21 @@ impl TileMergePass {
     /// GPU memory held (bytes).
     #[must_use]
     pub fn memory_bytes(&self) -> u64 {
-        self.tiles.size() + self.keys.size()
+        self.tiles.size() + self.keys.size() + self.history.size()
     }
 
     /// Records the merge of packed `tiles` ([`pack_tiles`]) at `keys`
-    /// (distinct; at most [`Self::capacity`], the rest are left out);
-    /// returns how many it merges.
+    /// (`[column, row, first frame of history to replay, 0]`, distinct
+    /// tiles; at most [`Self::capacity`], the rest are left out), replaying
+    /// `history` (at most [`HISTORY_FRAMES`], oldest first, as
+    /// [`FrameRecord::gpu`]); returns how many tiles it merges.
     pub fn record(
         &self,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut GpuTimer,
         params: TileMergeParams,
-        keys: &[[i32; 2]],
+        (keys, history): (&[[i32; 4]], &[[u32; 4]]),
         tiles: &[u32],
     ) -> u32 {
         let area = (params.side as usize) * (params.side as usize);
@@ -150,8 +188,12 @@ impl TileMergePass {
             return 0;
         }
         let blocks = params.side.div_ceil(8);
-        let p = TileMergeParams { count: count as u32, blocks, ..params };
+        let history = &history[..history.len().min(HISTORY_FRAMES)];
+        let p = TileMergeParams { count: count as u32, blocks, frames: history.len() as u32, ..params };
         queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(&keys[..count]));
+        if !history.is_empty() {
+            queue.write_buffer(&self.history, 0, bytemuck::cast_slice(history));
+        }
         queue.write_buffer(&self.tiles, 0, bytemuck::cast_slice(&tiles[..count * area * PACKED_PLANES]));
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         layout::dispatch(encoder, timer, "tile merge", &self.pipeline, &self.bind_group, (blocks * blocks, p.count));

@@ -14,7 +14,7 @@ use crate::persist::TileKey;
 
 use super::flags::ShareGrid;
 use super::gather::{TileGatherParams, TileGatherPass, gpu_keys, packed_tile_bytes, unpack_tiles};
-use super::merge::{TileMergeParams, TileMergePass, pack_tiles};
+use super::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
 use super::tile::{CatchUp, ShareClock, SharedTile};
 
 /// Most tiles gathered, or merged, in one frame.
@@ -70,6 +70,8 @@ pub struct Sharing {
     outbox: Vec<SharedTile>,
     /// Tiles to merge, in arrival order.
     incoming: VecDeque<SharedTile>,
+    /// The window's last frames (at most [`HISTORY_FRAMES`]), oldest first.
+    history: VecDeque<FrameRecord>,
 }
 
 /// Tiles of `side` one dispatch takes: [`MAX_TILES_PER_FRAME`] within
@@ -99,6 +101,7 @@ impl Sharing {
             last_gather_s: None,
             outbox: Vec::new(),
             incoming: VecDeque::new(),
+            history: VecDeque::with_capacity(HISTORY_FRAMES),
         }
     }
 
@@ -144,30 +147,35 @@ impl Sharing {
         }
     }
 
-    /// The tiles ready to merge at `clock`, caught up to it, one per key
-    /// (copies of a key folded together), at most a dispatch's worth; the
-    /// rest stay queued. A tile ahead of `clock` waits for it, unless it is
-    /// more than [`AHEAD_LIMIT_S`] ahead.
-    fn ready(&mut self, clock: &ShareClock, catch: CatchUp) -> Vec<SharedTile> {
+    /// The tiles ready to merge at `clock`, one per key, at most a
+    /// dispatch's worth, each with the first frame of the history the
+    /// merge pass replays on it: a tile whose clock is the clock after one
+    /// of the remembered frames is replayed from the next one (exact where
+    /// the sender ran the same frames); any other is caught up here in one
+    /// step and replays nothing. Further copies of a key and tiles beyond a
+    /// dispatch stay queued for later frames (merging is idempotent, so
+    /// copies merged one after the other end as if merged together). A tile
+    /// ahead of `clock` waits for it, unless it is more than
+    /// [`AHEAD_LIMIT_S`] ahead.
+    fn ready(&mut self, clock: &ShareClock, catch: CatchUp) -> Vec<(SharedTile, i32)> {
         let capacity = self.merge.capacity() as usize;
-        let mut batch: BTreeMap<TileKey, SharedTile> = BTreeMap::new();
+        let frames = self.history.len();
+        let mut batch: BTreeMap<TileKey, (SharedTile, i32)> = BTreeMap::new();
         let mut held = VecDeque::new();
         while let Some(mut tile) = self.incoming.pop_front() {
             let ahead = !clock.covers(&tile.clock);
-            if ahead && tile.clock.time_s <= clock.time_s + AHEAD_LIMIT_S {
+            if (ahead && tile.clock.time_s <= clock.time_s + AHEAD_LIMIT_S) || batch.contains_key(&tile.key) || batch.len() >= capacity {
                 held.push_back(tile);
                 continue;
             }
-            if let Some(mine) = batch.get_mut(&tile.key) {
-                mine.merge(&tile, catch);
-                continue;
-            }
-            if batch.len() >= capacity {
-                held.push_back(tile);
-                continue;
-            }
-            tile.catch_up(clock, catch);
-            batch.insert(tile.key, tile);
+            let first = match self.history.iter().position(|f| f.after == tile.clock) {
+                Some(k) => k + 1,
+                None => {
+                    tile.catch_up(clock, catch);
+                    frames
+                }
+            };
+            batch.insert(tile.key, (tile, first as i32));
         }
         self.incoming = held;
         batch.into_values().collect()
@@ -188,18 +196,20 @@ impl Sharing {
         if tiles.is_empty() {
             return;
         }
-        let keys: Vec<TileKey> = tiles.iter().map(|t| t.key).collect();
-        let refs: Vec<&SharedTile> = tiles.iter().collect();
+        let keys: Vec<[i32; 4]> = tiles.iter().map(|(t, first)| [t.key.col as i32, t.key.row as i32, *first, 0]).collect();
+        let history: Vec<[u32; 4]> = self.history.iter().map(FrameRecord::gpu).collect();
+        let refs: Vec<&SharedTile> = tiles.iter().map(|(t, _)| t).collect();
         let flags = if window.has_stamps { TileMergeParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileMergeParams::USE_FALLEN } else { 0 };
         let params = TileMergeParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..params };
-        self.merge.record(queue, encoder, timer, params, &gpu_keys(&keys), &pack_tiles(&refs));
+        self.merge.record(queue, encoder, timer, params, (&keys, &history), &pack_tiles(&refs));
     }
 
-    /// Records, after this frame's presses, the copy of the changed-tile
-    /// flags out (then clears them) and, when the interval has passed, the
-    /// gather of dirty tiles as they are at `clock`. A step whose readback
-    /// has no free staging buffer is left for a later frame (flags keep
-    /// accumulating; dirty tiles stay dirty).
+    /// Records, after this frame's presses (`frame`, with the clock after
+    /// it), the copy of the changed-tile flags out (then clears them) and,
+    /// when the interval has passed, the gather of dirty tiles as they are
+    /// at that clock. A step whose readback has no free staging buffer is
+    /// left for a later frame (flags keep accumulating; dirty tiles stay
+    /// dirty).
     pub fn record_after_update(
         &mut self,
         queue: &wgpu::Queue,
@@ -207,8 +217,13 @@ impl Sharing {
         timer: &mut GpuTimer,
         res: &DeformResources,
         window: &ShareWindow,
-        clock: &ShareClock,
+        frame: FrameRecord,
     ) {
+        if self.history.len() == HISTORY_FRAMES {
+            self.history.pop_front();
+        }
+        self.history.push_back(frame);
+        let clock = &frame.after;
         if self.flag_ring.has_free_slot() {
             self.flag_ring.record_copy(encoder, &res.share_flags, window.origin);
             encoder.clear_buffer(&res.share_flags, 0, None);

@@ -843,6 +843,7 @@ impl SnowDeformation {
                 texel_m: self.params.texel_m(),
                 low_m: low,
                 high_m: high,
+                max_fallen_m: self.params.snowfall.as_ref().map_or(0.0, |s| s.max_m),
                 ..Default::default()
             };
             let catch = self.catch_up_rule();
@@ -965,9 +966,15 @@ impl SnowDeformation {
         // Shared snow: the flags out, and the dirty tiles as this frame left them.
         if self.sharing.is_some() {
             let share_window = self.share_window(origin);
-            let clock = self.share_clock();
+            let record = crate::replicate::merge::FrameRecord {
+                after: self.share_clock(),
+                snow_quanta: snow_refill_quanta,
+                stamp_quanta: refill_quanta,
+                fall_m,
+                stamps_pressed: stamps && self.res.has_stamps(),
+            };
             if let Some(sharing) = &mut self.sharing {
-                sharing.record_after_update(queue, encoder, &mut self.timer, &self.res, &share_window, &clock);
+                sharing.record_after_update(queue, encoder, &mut self.timer, &self.res, &share_window, record);
             }
         }
         let p = &self.params;
