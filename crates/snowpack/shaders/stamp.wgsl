@@ -7,7 +7,10 @@
 // minimises foot(t) + |q - p(t)|^2 scale (a quadratic in t, solved exactly),
 // over the squares around both ends and between them. The update pass takes
 // the lower of this and the persistent snow; the rim pass raises rims from
-// the stored foot height. CPU twin: src/cpu/stamp.rs.
+// the stored foot height. With shared snow (share_side > 0) a texel whose
+// footprint this lowers flags its tile (shared/share_flags.wgsl): footprints
+// are shared state, and a rim-only footprint changes no deficit, so the
+// update pass cannot see it. CPU twin: src/cpu/stamp.rs.
 
 struct StampParams {
     origin: vec2<i32>,
@@ -18,6 +21,8 @@ struct StampParams {
     high_m: f32,
     count: u32,
     storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
+    share_side: u32, // changed-tile flags' tile side; 0: no flags
+    share_keys: u32, // slots per side of the flags (shared/share_flags.wgsl)
 }
 
 @group(0) @binding(0) var<uniform> params: StampParams;
@@ -26,6 +31,7 @@ struct StampParams {
 // started (the same for a point that is not swept).
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> stamps: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
 
 const SIDE: u32 = 8u;
 
@@ -74,7 +80,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             let h = foot_h + (dx * dx + dz * dz) * scale;
             let packed = (stamp_quantise(h, params.low_m, params.high_m) << 16u) | stamp_quantise(foot_h, params.low_m, params.high_m);
             let s = storage_index_wrapped(params.storage_origin, params.resolution, u32(i), u32(j));
-            atomicMin(&stamps[s], packed);
+            let old = atomicMin(&stamps[s], packed);
+            if params.share_side != 0u && packed < old {
+                atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(j, i), params.share_side, params.share_keys)], 1u);
+            }
         }
     }
 }

@@ -15,7 +15,14 @@
 // reaches the sky when its surface point, projected along the snowfall onto
 // the occlusion map, is no lower (less 2 cm) than what that pixel saw.
 // In place: each texel reads and writes only itself; the displayed half of
-// each word is kept (the display pass rewrites it). CPU twin: src/cpu/update.rs.
+// each word is kept (the display pass rewrites it).
+// With shared snow (SHARE) a texel whose deficit the captured actors raised
+// above the refilled one flags its tile (shared/share_flags.wgsl). Stored
+// footprints pressing again as snow and footprints refill at their own
+// rates flag nothing: every machine has the same footprints and applies
+// the same refill, and so the same presses (the stamp pass flags the
+// footprints a frame changes). Refill and snowfall flag nothing either.
+// CPU twin: src/cpu/update.rs.
 
 struct UpdateParams {
     origin: vec2<i32>,
@@ -36,6 +43,8 @@ struct UpdateParams {
     sky_high_m: f32,
     _pad: u32,
     storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
+    share_side: u32, // changed-tile flags' tile side (with SHARE)
+    share_keys: u32, // slots per side of the flags
 }
 
 const USE_CAPTURE: u32 = 1u;
@@ -44,6 +53,8 @@ const USE_FALLEN: u32 = 4u;
 const USE_SKY: u32 = 8u;
 // The window has a footprint buffer (allocated for points and combined, kept after).
 const HAS_STAMPS: u32 = 16u;
+// Shared snow: flag the tiles of texels a press changed.
+const SHARE: u32 = 32u;
 const SKY_BIAS_M: f32 = 0.02;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
@@ -68,6 +79,7 @@ fn update_flags() -> u32 {
 @group(0) @binding(5) var sky: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
 @group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(8) var<storage, read_write> share_flags: array<atomic<u32>>;
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -111,6 +123,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if visible > 0.0 {
         deficit -= min(deficit, params.snow_refill_quanta);
     }
+    let refilled = deficit;
     if (update_flags() & USE_CAPTURE) != 0u {
         let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
         if d < 1.0 {
@@ -118,6 +131,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             deficit = max(deficit, snow_press_quanta(rest, ground, actor));
         }
     }
+    let captured = deficit;
     var st = STAMP_EMPTY;
     if (update_flags() & HAS_STAMPS) != 0u {
         st = stamps[s];
@@ -138,6 +152,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     // Never below the terrain.
-    deficit = min(deficit, snow_press_quanta(rest, ground, ground));
+    let at_ground = snow_press_quanta(rest, ground, ground);
+    deficit = min(deficit, at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
+    // The capture raised it (after the clamp, which only lowers).
+    if (update_flags() & SHARE) != 0u && min(captured, at_ground) > refilled {
+        atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(i32(j), i32(i)), params.share_side, params.share_keys)], 1u);
+    }
 }

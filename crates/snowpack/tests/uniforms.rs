@@ -11,6 +11,8 @@ use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::deform::update::UpdateParams;
 use snowpack::deform::window::{TerrainParams, WindowParams};
 use snowpack::render::ao::AoParams;
+use snowpack::replicate::gather::TileGatherParams;
+use snowpack::replicate::merge::TileMergeParams;
 use snowpack::render::environment::EnvParams;
 use snowpack::render::frame::FrameUniforms;
 use snowpack::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
@@ -74,6 +76,9 @@ fn uniform_sizes_match_naga() {
         (shaders::TILE_RESTORE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::TILE_WEATHER, "params", size_of::<WeatherParams>()),
         (shaders::TILE_SEAL, "params", size_of::<SealParams>()),
+        (shaders::TILE_GATHER, "params", size_of::<TileGatherParams>()),
+        (shaders::TILE_MERGE, "params", size_of::<TileMergeParams>()),
+        (shaders::TILE_MERGE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::SHELL_VERTICES, "params", size_of::<ShellVertexParams>()),
         (shaders::SHELL_VERTICES, "terrain_params", size_of::<TerrainParams>()),
         (shaders::SHELL_TETRAHEDRA, "params", size_of::<TetraParams>()),

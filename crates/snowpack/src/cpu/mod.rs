@@ -20,6 +20,8 @@ pub mod skinning;
 pub mod snow_sampling;
 pub mod stamp;
 pub mod terrain_bake;
+pub mod tile_gather;
+pub mod tile_merge;
 pub mod tile_restore;
 pub mod tile_seal;
 pub mod tile_weather;

@@ -32,6 +32,15 @@ pub fn unpack(packed: u32, low: f32, high: f32) -> Option<(f32, f32)> {
 /// (window-local x, foot height, window-local z, scale) where the point is
 /// now, then (x, foot, z, 0) where it was swept from.
 pub fn stamp(p: &StampParams, points: &[[f32; 8]], stamps: &mut [u32]) {
+    stamp_flagged(p, points, stamps, &mut []);
+}
+
+/// [`stamp`] that also sets, when `p.share_side > 0`, the changed-tile flag
+/// (`flags`, [`crate::replicate::flags::ShareGrid`]) of every texel whose
+/// footprint it lowered.
+pub fn stamp_flagged(p: &StampParams, points: &[[f32; 8]], stamps: &mut [u32], flags: &mut [u32]) {
+    let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
+    let share = p.share_side != 0 && !flags.is_empty();
     let res = p.resolution as i32;
     let range = p.range_texels as i32;
     for pt in points.iter().take(p.count as usize) {
@@ -61,6 +70,9 @@ pub fn stamp(p: &StampParams, points: &[[f32; 8]], stamps: &mut [u32]) {
                 let h = foot + (dx * dx + dz * dz) * scale;
                 let packed = (quantise(h, p.low_m, p.high_m) << 16) | quantise(foot, p.low_m, p.high_m);
                 let s = storage_index(p.origin, p.resolution, i as u32, j as u32);
+                if share && packed < stamps[s] {
+                    flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
+                }
                 stamps[s] = stamps[s].min(packed);
             }
         }

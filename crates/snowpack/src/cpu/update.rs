@@ -40,6 +40,17 @@ pub struct UpdateInputs<'a> {
 /// Updates the toroidal `snow` words (`shared/snow_word.wgsl`), `fallen`
 /// (and refills `stamps`) in place.
 pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
+    update_flagged(p, input, snow, stamps, fallen, &mut []);
+}
+
+/// [`update`] that also sets, with [`UpdateParams::SHARE`] in `p.flags`,
+/// the changed-tile flag (`flags`, [`crate::replicate::flags::ShareGrid`])
+/// of every texel whose deficit the capture raised above the refilled one
+/// (stored footprints press the same on every machine; the stamp pass
+/// flags the footprints it changes).
+pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32], flags: &mut [u32]) {
+    let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
+    let share = p.flags & UpdateParams::SHARE != 0 && !flags.is_empty();
     let r = p.resolution;
     for i in 0..r {
         for j in 0..r {
@@ -62,6 +73,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
             if visible > 0.0 {
                 deficit -= deficit.min(p.snow_refill_quanta);
             }
+            let refilled = deficit;
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
                 let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
@@ -69,6 +81,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
                     deficit = deficit.max(press_quanta(rest, ground, actor));
                 }
             }
+            let captured = deficit;
             let st = if p.flags & UpdateParams::HAS_STAMPS != 0 { stamps[s] } else { STAMP_EMPTY };
             if st != STAMP_EMPTY {
                 let (hq, fq) = (st >> 16, st & 0xffff);
@@ -82,8 +95,12 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stam
                 }
             }
             // Never below the terrain.
-            deficit = deficit.min(press_quanta(rest, ground, ground));
+            let at_ground = press_quanta(rest, ground, ground);
+            deficit = deficit.min(at_ground);
             snow[s] = (word & 0xffff_0000) | deficit;
+            if share && captured.min(at_ground) > refilled {
+                flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
+            }
         }
     }
 }

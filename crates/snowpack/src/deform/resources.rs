@@ -49,12 +49,27 @@ pub struct DeformResources {
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
+    /// Changed-tile flags of shared snow (`shared/share_flags.wgsl`), one
+    /// `u32` per tile slot, written by the stamp and update passes; a
+    /// 4-byte stand-in that no pass writes until
+    /// [`Self::allocate_share_flags`].
+    pub share_flags: wgpu::Buffer,
 }
 
 fn height_buffer(device: &wgpu::Device, label: &str, texels: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: texels * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// The changed-tile flags: written by passes, copied out and cleared.
+fn flags_buffer(device: &wgpu::Device, slots: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("changed-tile flags"),
+        size: slots.max(1) * 4,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
@@ -104,7 +119,20 @@ impl DeformResources {
             terrain_kind: terrain_uniform.kind,
             capture,
             capture_view,
+            share_flags: flags_buffer(device, 1),
         }
+    }
+
+    /// Allocates the changed-tile flags for `slots` tile slots, all clear,
+    /// when they do not have that many yet; returns whether it did (passes
+    /// bound to the old buffer must then be bound again).
+    pub fn allocate_share_flags(&mut self, device: &wgpu::Device, slots: u32) -> bool {
+        if self.share_flags.size() == u64::from(slots) * 4 {
+            return false;
+        }
+        // wgpu zeroes new buffers: every flag starts clear.
+        self.share_flags = flags_buffer(device, u64::from(slots));
+        true
     }
 
     /// The `override` constants of the passes that evaluate the ground
@@ -145,6 +173,7 @@ impl DeformResources {
             ("fallen", self.fallen.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
+            ("changed-tile flags", self.share_flags.size()),
         ]
     }
 }

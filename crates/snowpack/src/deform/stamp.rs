@@ -39,6 +39,10 @@ pub struct StampParams {
     /// [`StampPass::prepare`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],
+    /// Tile side of the changed-tile flags (texels); 0: no flags are written.
+    pub share_side: u32,
+    /// Slots per side of the flags ([`crate::replicate::flags::ShareGrid`]).
+    pub share_keys: u32,
 }
 
 impl StampParams {
@@ -121,7 +125,7 @@ impl StampPass {
             device,
             "stamp",
             shaders::STAMP,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
+            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false), layout::storage(3, false)],
         );
         let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
         let points = points_buffer(device, 32 * 256);
@@ -130,7 +134,12 @@ impl StampPass {
     }
 
     fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
-        layout::bind_group(device, "stamp", bgl, &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding()])
+        layout::bind_group(
+            device,
+            "stamp",
+            bgl,
+            &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding(), res.share_flags.as_entire_binding()],
+        )
     }
 
     /// Uploads this frame's points, growing the buffer when needed. At most

@@ -53,6 +53,10 @@ pub struct UpdateParams {
     /// [`UpdatePass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],
+    /// Tile side of the changed-tile flags (texels; with [`Self::SHARE`]).
+    pub share_side: u32,
+    /// Slots per side of the flags ([`crate::replicate::flags::ShareGrid`]).
+    pub share_keys: u32,
 }
 
 impl UpdateParams {
@@ -67,6 +71,9 @@ impl UpdateParams {
     /// `flags`: the window has a footprint buffer (refill it; apply it with
     /// [`Self::USE_STAMPS`]). Without it `stamps` is a 4-byte stand-in, never read.
     pub const HAS_STAMPS: u32 = 16;
+    /// Shared snow: flag the tile of every texel whose deficit a press
+    /// raised (`res.share_flags`, [`crate::replicate::flags`]).
+    pub const SHARE: u32 = 32;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
@@ -98,6 +105,7 @@ impl UpdatePass {
                 layout::depth_texture(5),
                 layout::storage(6, false),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
+                layout::storage(8, false),
             ],
             "UPDATE_FLAGS",
             &res.terrain_constants(),
@@ -122,6 +130,7 @@ impl UpdatePass {
                 wgpu::BindingResource::TextureView(sky),
                 res.fallen.as_entire_binding(),
                 res.terrain_params.as_entire_binding(),
+                res.share_flags.as_entire_binding(),
             ],
         )
     }

@@ -189,6 +189,43 @@ impl<M> ReadbackRing<M> {
     }
 }
 
+impl<M> ReadbackRing<M> {
+    /// Returns every copy that has arrived, oldest first, without waiting
+    /// (for data where each copy counts, such as flags cleared after each
+    /// copy, unlike [`Self::take_latest`] which keeps only the newest); call
+    /// `device.poll(PollType::Poll)` before it. Copies that failed to map
+    /// are dropped.
+    pub fn take_arrived(&mut self) -> Vec<(M, Vec<u8>)> {
+        let mut arrived = Vec::new();
+        for slot in &mut self.slots {
+            let state = match &slot.state {
+                SlotState::Mapping { flag, .. } => flag.load(Ordering::Acquire),
+                _ => continue,
+            };
+            if state == MAPPING {
+                continue;
+            }
+            let SlotState::Mapping { meta, seq, len, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
+                continue;
+            };
+            if state == MAPPED {
+                let bytes = if len == 0 { Ok(Vec::new()) } else { slot.buffer.slice(..len).get_mapped_range().map(|view| view.to_vec()) };
+                if len > 0 {
+                    slot.buffer.unmap();
+                }
+                if let Ok(bytes) = bytes {
+                    arrived.push((seq, meta, bytes));
+                }
+            }
+        }
+        arrived.sort_by_key(|(seq, _, _)| *seq);
+        if let Some((seq, _, _)) = arrived.last() {
+            self.delivered_seq = Some(self.delivered_seq.map_or(*seq, |d| d.max(*seq)));
+        }
+        arrived.into_iter().map(|(_, meta, bytes)| (meta, bytes)).collect()
+    }
+}
+
 /// Copies a whole buffer into a staging buffer and waits for it (blocking).
 pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
     map_blocking(ctx, &copy_to_staging(ctx, buffer))

@@ -14,13 +14,25 @@
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
 //! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
 //! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
+//! | `flags.rs` | [`flags::ShareGrid`]: the changed-tile flags the stamp and update passes write, and their keys |
+//! | `gather.rs` | [`gather::TileGatherPass`] (`tile_gather.wgsl`): whole tiles copied out of the window |
+//! | `merge.rs` | [`merge::TileMergePass`] (`tile_merge.wgsl`): tiles from elsewhere folded into the window |
+//! | `sharing.rs` | [`sharing::Sharing`]: a window's flags, gathers, merges and their readbacks |
 //!
 //! Neither side owns a socket: bytes go in through `receive` and come out
 //! of `poll_transmit`, so tests run a whole network in one process.
+//!
+//! [`crate::SnowDeformation`] implements [`SharedSnow`] with them
+//! (`snow/share.rs`); `docs/deformation.md` ("Shared snow on the GPU")
+//! gives the order in the frame and the costs.
 
+pub mod flags;
+pub mod gather;
+pub mod merge;
 pub mod message;
 pub mod peer;
 pub mod relay;
+pub mod sharing;
 pub mod tile;
 pub mod world;
 

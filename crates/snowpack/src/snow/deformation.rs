@@ -83,20 +83,20 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// away, when the window returns; [`Self::attach_store`] keeps them on disk
 /// instead (and makes [`Self::save`] possible).
 pub struct SnowDeformation {
-    params: SnowParams,
-    terrain: TerrainSource,
-    res: DeformResources,
-    window: SlidingWindow,
+    pub(super) params: SnowParams,
+    pub(super) terrain: TerrainSource,
+    pub(super) res: DeformResources,
+    pub(super) window: SlidingWindow,
     center: DVec2,
-    capture_params: CaptureParams,
+    pub(super) capture_params: CaptureParams,
     window_pass: WindowPass,
     capture_pass: CapturePass,
-    stamp_pass: StampPass,
+    pub(super) stamp_pass: StampPass,
     decal_pass: DecalPass,
     decals: DecalRing,
-    update_pass: UpdatePass,
+    pub(super) update_pass: UpdatePass,
     display_pass: DisplayPass,
-    timer: GpuTimer,
+    pub(super) timer: GpuTimer,
     query_pass: QueryPass,
     /// Points asked for the next frame (relative to the floating origin) and their ticket.
     asked: Option<(QueryTicket, Vec<glam::Vec2>)>,
@@ -104,10 +104,14 @@ pub struct SnowDeformation {
     answers: Option<PointAnswers>,
     frame: u64,
     exposed_texels: u64,
-    /// Footprint refill not yet applied, below one stamp quantum (m).
-    stamp_refill_carry_m: f32,
-    /// Refill not yet given to the snow: less than one snow quantum (m).
-    snow_refill_carry_m: f32,
+    /// Snow refill so far, in deficit quanta: the world clock's counter
+    /// ([`Self::share_clock`]); the stamp quanta are `clock.stamp_quanta`.
+    pub(super) snow_quanta: u64,
+    /// Where the refill counters are counted from: they are a function of
+    /// the time since (see [`RefillBase`]).
+    pub(super) refill_base: RefillBase,
+    /// Shared snow ([`Self::enable_sharing`]): flags, gathers, merges.
+    pub(super) sharing: Option<crate::replicate::sharing::Sharing>,
     /// The most GPU memory held after any submitted frame (bytes).
     peak_memory_bytes: u64,
     points_last_frame: usize,
@@ -118,11 +122,11 @@ pub struct SnowDeformation {
     /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
     posed: Vec<usize>,
     /// Objects snow settles on, with their atlas and passes.
-    accumulation: Option<SnowAccumulation>,
+    pub(super) accumulation: Option<SnowAccumulation>,
     /// Snowfall so far on open ground (m), given to texels the window exposes.
-    fallen_total_m: f32,
+    pub(super) fallen_total_m: f32,
     /// Time, refill and snowfall so far: what a tile away from the window missed.
-    clock: SnowClock,
+    pub(super) clock: SnowClock,
     /// The tile keeper (memory by default, or an attached store) and the
     /// resident tiles; `None` when trails are forgotten.
     tiles: Option<TileStreaming>,
@@ -134,6 +138,34 @@ pub struct SnowDeformation {
     history: DeformerHistory,
     /// Last frame's positions of the meshes, to sweep them.
     mesh_history: super::sweep::MeshHistory,
+}
+
+/// Where the cumulative refill counters are counted from: at world time
+/// `t` they are `base + floor(rate * (t - time_s) / quantum)` (f64), so two
+/// machines agree whatever their frame times; set when the rate changes or a
+/// clock is joined or loaded. The world's own base is (0, 0, 0)
+/// ([`crate::replicate::WorldIdentity::clock_at`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct RefillBase {
+    /// World time the counters start from (s).
+    pub time_s: f64,
+    /// Snow quanta at `time_s`.
+    pub snow_quanta: u64,
+    /// Stamp quanta at `time_s`.
+    pub stamp_quanta: u64,
+}
+
+impl RefillBase {
+    /// Quanta counted from `base` by `time_s` at `rate_m_per_s`, `quantum_m` each.
+    pub(super) fn quanta_at(&self, base: u64, time_s: f64, rate_m_per_s: f32, quantum_m: f32) -> u64 {
+        let quantum = f64::from(quantum_m);
+        if quantum <= 0.0 {
+            return base;
+        }
+        // The same expression as `WorldIdentity::clock_at` with a zero base.
+        let refill_m = f64::from(rate_m_per_s.max(0.0)) * (time_s - self.time_s).max(0.0);
+        base + (refill_m / quantum).floor() as u64
+    }
 }
 
 /// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
@@ -270,8 +302,9 @@ impl SnowDeformation {
             res,
             frame: 0,
             exposed_texels: 0,
-            stamp_refill_carry_m: 0.0,
-            snow_refill_carry_m: 0.0,
+            snow_quanta: 0,
+            refill_base: RefillBase::default(),
+            sharing: None,
             peak_memory_bytes: 0,
             points_last_frame: 0,
             points_dropped: 0,
@@ -414,7 +447,9 @@ impl SnowDeformation {
         if let Some(s) = saved {
             self.clock = s.clock;
             self.fallen_total_m = s.fallen_m;
-            self.stamp_refill_carry_m = s.stamp_carry_m;
+            // The refill counters go on from the saved clock.
+            self.snow_quanta = (s.clock.refill_m / f64::from(SNOW_QUANTUM_M)).floor() as u64;
+            self.refill_base = RefillBase { time_s: s.clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: s.clock.stamp_quanta };
             self.center = s.center;
             self.frame = s.frame;
             return Ok(true);
@@ -450,7 +485,7 @@ impl SnowDeformation {
             center: self.center,
             clock: self.clock,
             fallen_m: self.fallen_total_m,
-            stamp_carry_m: self.stamp_refill_carry_m,
+            stamp_carry_m: 0.0,
             frame: self.frame,
         };
         let streamer = tiles.streamer();
@@ -502,9 +537,11 @@ impl SnowDeformation {
         self.floating_origin
     }
 
-    /// Sets the refill rate (m/s); takes effect next frame.
+    /// Sets the refill rate (m/s); takes effect next frame. The refill
+    /// counters go on from now at the new rate.
     pub fn set_refill(&mut self, refill_m_per_s: f32) {
         self.params.refill_m_per_s = refill_m_per_s.max(0.0);
+        self.refill_base = RefillBase { time_s: self.clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta };
     }
 
     /// Sets the rim strength; takes effect next frame.
@@ -749,6 +786,9 @@ impl SnowDeformation {
             if let Some(tiles) = &mut self.tiles {
                 tiles.add_stamp_plane(ctx, &self.res);
             }
+            if let Some(sharing) = &mut self.sharing {
+                sharing.rebind(device, &self.res);
+            }
         }
         let rects = self.window.move_to(origin);
         self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
@@ -792,6 +832,26 @@ impl SnowDeformation {
                 &rects,
             );
         }
+        // Shared snow: tiles from elsewhere, before this frame's presses, so
+        // the update and display see them like the window's own trails.
+        if self.sharing.is_some() {
+            let share_window = self.share_window(origin);
+            let clock = self.share_clock();
+            let (low, high, _) = self.stamp_range();
+            let merge = crate::replicate::merge::TileMergeParams {
+                depth_m: self.params.depth_m,
+                texel_m: self.params.texel_m(),
+                low_m: low,
+                high_m: high,
+                max_fallen_m: self.params.snowfall.as_ref().map_or(0.0, |s| s.max_m),
+                ..Default::default()
+            };
+            let catch = self.catch_up_rule();
+            if let Some(sharing) = &mut self.sharing {
+                sharing.record_merge(queue, encoder, &mut self.timer, &share_window, merge, (&clock, catch));
+            }
+        }
+        let p = &self.params;
         // Snowfall: this frame's depth on open ground, and what the sky sees
         // (drawn while the snowfall is set, even at rate 0, so refill stays
         // out of shelter too).
@@ -825,6 +885,8 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             count: 0,
+            share_side: self.sharing.as_ref().map_or(0, |s| s.grid().side),
+            share_keys: self.sharing.as_ref().map_or(0, |s| s.grid().keys),
             ..StampParams::default()
         };
         self.points_last_frame = 0;
@@ -848,16 +910,19 @@ impl SnowDeformation {
                 }
             }
         }
-        // Footprints refill by whole quanta; the remainder carries to the next frame.
-        let quantum = stamp_params.quantum_m();
+        // Footprints and the snow refill by whole quanta, counted from the
+        // world time (RefillBase): the frame applies what the counters
+        // gained, so machines with different frame times agree.
         let refill_m = p.refill_m_per_s * dt_s.max(0.0);
-        self.stamp_refill_carry_m += refill_m;
-        let refill_quanta = (self.stamp_refill_carry_m / quantum).floor().min(65535.0);
-        self.stamp_refill_carry_m -= refill_quanta * quantum;
-        // So does the snow, by its own quanta (snow_word).
-        self.snow_refill_carry_m += refill_m;
-        let snow_refill_quanta = (self.snow_refill_carry_m / SNOW_QUANTUM_M).floor().min(65535.0);
-        self.snow_refill_carry_m -= snow_refill_quanta * SNOW_QUANTUM_M;
+        let time_after = self.clock.time_s + f64::from(dt_s.max(0.0));
+        let base = self.refill_base;
+        let stamp_total = base.quanta_at(base.stamp_quanta, time_after, p.refill_m_per_s, stamp_params.quantum_m()).max(self.clock.stamp_quanta);
+        let snow_total = base.quanta_at(base.snow_quanta, time_after, p.refill_m_per_s, SNOW_QUANTUM_M).max(self.snow_quanta);
+        // A footprint is gone after 65536 quanta and a deficit after 65535,
+        // so larger steps (a long pause) change nothing more.
+        let refill_quanta = (stamp_total - self.clock.stamp_quanta).min(65_536) as u32;
+        let snow_refill_quanta = (snow_total - self.snow_quanta).min(65_535) as u32;
+        let sharing = self.sharing.as_ref().map(|s| s.grid());
         self.update_pass.record(
             queue,
             encoder,
@@ -866,15 +931,16 @@ impl SnowDeformation {
                 origin: origin_i32,
                 resolution: p.resolution,
                 depth_m: p.depth_m,
-                snow_refill_quanta: snow_refill_quanta as u32,
+                snow_refill_quanta,
                 low_m: self.capture_params.low_m,
                 high_m: self.capture_params.high_m,
                 flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
                     | if stamps { UpdateParams::USE_STAMPS } else { 0 }
                     | if snowfall.is_some() { UpdateParams::USE_FALLEN } else { 0 }
                     | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
-                    | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 },
-                refill_quanta: refill_quanta as u32,
+                    | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 }
+                    | if sharing.is_some() { UpdateParams::SHARE } else { 0 },
+                refill_quanta,
                 fall_m,
                 max_fallen_m,
                 texel_m: p.texel_m(),
@@ -883,17 +949,35 @@ impl SnowDeformation {
                 sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
                 sky_low_m: sky.map_or(0.0, |s| s.low_m),
                 sky_high_m: sky.map_or(1.0, |s| s.high_m),
+                share_side: sharing.map_or(0, |g| g.side),
+                share_keys: sharing.map_or(0, |g| g.keys),
                 ..Default::default()
             },
         );
         if let Some(tiles) = &mut self.tiles {
-            tiles.record_weather(FrameContext::new(ctx, encoder, &mut self.timer), &window, (refill_m, fall_m), refill_quanta as u32);
+            tiles.record_weather(FrameContext::new(ctx, encoder, &mut self.timer), &window, (refill_m, fall_m), refill_quanta);
         }
-        self.clock.time_s += f64::from(dt_s.max(0.0));
+        self.clock.time_s = time_after;
         self.clock.refill_m += f64::from(refill_m);
         self.clock.fallen_m += f64::from(fall_m);
-        self.clock.stamp_quanta += refill_quanta as u64;
+        self.clock.stamp_quanta = stamp_total;
+        self.snow_quanta = snow_total;
         self.fallen_total_m = (self.fallen_total_m + fall_m).min(max_fallen_m);
+        // Shared snow: the flags out, and the dirty tiles as this frame left them.
+        if self.sharing.is_some() {
+            let share_window = self.share_window(origin);
+            let record = crate::replicate::merge::FrameRecord {
+                after: self.share_clock(),
+                snow_quanta: snow_refill_quanta,
+                stamp_quanta: refill_quanta,
+                fall_m,
+                stamps_pressed: stamps && self.res.has_stamps(),
+            };
+            if let Some(sharing) = &mut self.sharing {
+                sharing.record_after_update(queue, encoder, &mut self.timer, &self.res, &share_window, record);
+            }
+        }
+        let p = &self.params;
         self.display_pass.record(
             queue,
             encoder,
@@ -959,6 +1043,9 @@ impl SnowDeformation {
         if let Some(tiles) = &mut self.tiles {
             tiles.after_submit();
         }
+        if let Some(sharing) = &mut self.sharing {
+            sharing.after_submit();
+        }
         self.timer.after_submit();
         // A non-blocking poll runs mapping callbacks that are due; an error
         // here surfaces through `ctx.check` as well.
@@ -969,6 +1056,9 @@ impl SnowDeformation {
     fn collect(&mut self) {
         if let Some(answers) = self.query_pass.take_answers() {
             self.answers = Some(answers);
+        }
+        if let Some(sharing) = &mut self.sharing {
+            sharing.collect(self.params.resolution);
         }
         self.timer.collect();
     }
@@ -981,7 +1071,7 @@ impl SnowDeformation {
         // (a game's loader, parallel tests) may have taken the answers'
         // mapping callbacks and fire them after our poll returned.
         let deadline = std::time::Instant::now() + crate::gpu::context::WAIT_TIMEOUT;
-        while self.query_pass.callbacks_pending() {
+        while self.query_pass.callbacks_pending() || self.sharing.as_ref().is_some_and(crate::replicate::sharing::Sharing::callbacks_pending) {
             if std::time::Instant::now() > deadline {
                 return Err(SnowError::Readback("a point answer's mapping never completed".to_owned()));
             }
@@ -1054,6 +1144,9 @@ impl SnowDeformation {
         }
         if let Some(tiles) = &self.tiles {
             list.push(("resident tiles", tiles.stats().gpu_bytes));
+        }
+        if let Some(sharing) = &self.sharing {
+            list.push(("shared snow", sharing.memory_bytes()));
         }
         list
     }

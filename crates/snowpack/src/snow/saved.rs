@@ -32,7 +32,9 @@ pub struct SavedWindow {
     pub clock: SnowClock,
     /// Snowfall so far on open ground (m), capped as the window uses it.
     pub fallen_m: f32,
-    /// Footprint refill carried below one quantum (m).
+    /// Footprint refill carried below one quantum (m). Refill now follows
+    /// the world clock (cumulative quanta from cumulative time), so windows
+    /// save 0 and a loaded value is not used; the field keeps the format.
     pub stamp_carry_m: f32,
     /// Frames recorded.
     pub frame: u64,

@@ -1,0 +1,278 @@
+//! What a [`crate::SnowDeformation`] keeps to share its snow: the gather
+//! and merge passes, the readbacks of the changed-tile flags and of the
+//! gathered tiles, the dirty tiles, the tiles waiting to be merged and the
+//! gathered ones waiting to be taken. The orchestrator records its steps
+//! at their places in the frame (`docs/deformation.md`, "Shared snow on the
+//! GPU"); nothing here waits for the GPU.
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+
+use crate::deform::resources::DeformResources;
+use crate::gpu::GpuTimer;
+use crate::gpu::readback::ReadbackRing;
+use crate::persist::TileKey;
+
+use super::flags::ShareGrid;
+use super::gather::{TileGatherParams, TileGatherPass, gpu_keys, packed_tile_bytes, unpack_tiles};
+use super::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
+use super::tile::{CatchUp, ShareClock, SharedTile};
+
+/// Most tiles gathered, or merged, in one frame.
+pub const MAX_TILES_PER_FRAME: u32 = 32;
+/// Staging memory one gather or merge dispatch may use (bytes); with large
+/// tiles fewer than [`MAX_TILES_PER_FRAME`] go per frame.
+pub const STAGING_BUDGET_BYTES: u64 = 1 << 20;
+/// A tile this far (s) ahead of the window's clock is merged without
+/// waiting for the clock to reach it (its sender's clock runs ahead).
+pub const AHEAD_LIMIT_S: f64 = 2.0;
+/// Staging buffers per readback ring: a frame or two in flight, and one spare.
+const RING_SLOTS: usize = 3;
+
+/// The window a frame's sharing steps work on.
+#[derive(Clone, Copy, Debug)]
+pub struct ShareWindow {
+    /// Global texel of window-local (0, 0): `[column, row]`.
+    pub origin: [i64; 2],
+    /// Texels per side.
+    pub resolution: u32,
+    /// The window has a footprint buffer.
+    pub has_stamps: bool,
+    /// The window has snowfall.
+    pub use_fallen: bool,
+}
+
+impl ShareWindow {
+    fn gpu_origin(&self) -> [i32; 2] {
+        [self.origin[0] as i32, self.origin[1] as i32]
+    }
+}
+
+/// What a gathered copy is: its tiles and the clock they are at.
+struct Gathered {
+    keys: Vec<TileKey>,
+    clock: ShareClock,
+    planes: (bool, bool),
+}
+
+/// The sharing state of one window.
+pub struct Sharing {
+    grid: ShareGrid,
+    interval_s: f64,
+    gather: TileGatherPass,
+    merge: TileMergePass,
+    flag_ring: ReadbackRing<[i64; 2]>,
+    gather_ring: ReadbackRing<Gathered>,
+    /// Tiles changed and not gathered since.
+    dirty: BTreeSet<TileKey>,
+    /// World time of the last gather.
+    last_gather_s: Option<f64>,
+    /// Gathered tiles not taken yet.
+    outbox: Vec<SharedTile>,
+    /// Tiles to merge, in arrival order.
+    incoming: VecDeque<SharedTile>,
+    /// The window's last frames (at most [`HISTORY_FRAMES`]), oldest first.
+    history: VecDeque<FrameRecord>,
+}
+
+/// Tiles of `side` one dispatch takes: [`MAX_TILES_PER_FRAME`] within
+/// [`STAGING_BUDGET_BYTES`], at least one.
+#[must_use]
+pub fn tiles_per_frame(side: u32) -> u32 {
+    let fit = STAGING_BUDGET_BYTES / packed_tile_bytes(side).max(1);
+    u32::try_from(fit).unwrap_or(u32::MAX).clamp(1, MAX_TILES_PER_FRAME)
+}
+
+impl Sharing {
+    /// Sharing in tiles of `side` texels for the window of `res`, gathering
+    /// changed tiles at most every `interval_s` of world time. The flags
+    /// buffer (`res.share_flags`) must have [`ShareGrid::slots`] slots.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, res: &DeformResources, side: u32, interval_s: f64) -> Self {
+        let grid = ShareGrid::new(res.resolution, side);
+        let capacity = tiles_per_frame(side);
+        Self {
+            grid,
+            interval_s,
+            gather: TileGatherPass::new(device, res, side, capacity),
+            merge: TileMergePass::new(device, res, side, capacity),
+            flag_ring: ReadbackRing::new(device, "changed-tile flags", u64::from(grid.slots()) * 4, RING_SLOTS),
+            gather_ring: ReadbackRing::new(device, "gathered tiles", packed_tile_bytes(side) * u64::from(capacity), RING_SLOTS),
+            dirty: BTreeSet::new(),
+            last_gather_s: None,
+            outbox: Vec::new(),
+            incoming: VecDeque::new(),
+            history: VecDeque::with_capacity(HISTORY_FRAMES),
+        }
+    }
+
+    /// Binds the passes again (the window's buffers were replaced).
+    pub fn rebind(&mut self, device: &wgpu::Device, res: &DeformResources) {
+        let capacity = self.gather.capacity();
+        self.gather = TileGatherPass::new(device, res, self.grid.side, capacity);
+        self.merge = TileMergePass::new(device, res, self.grid.side, capacity);
+    }
+
+    /// The flags' layout (tile side, slots).
+    #[must_use]
+    pub fn grid(&self) -> ShareGrid {
+        self.grid
+    }
+
+    /// Tiles changed and not gathered yet.
+    #[must_use]
+    pub fn dirty_tiles(&self) -> usize {
+        self.dirty.len()
+    }
+
+    /// Tiles waiting to be merged.
+    #[must_use]
+    pub fn waiting_tiles(&self) -> usize {
+        self.incoming.len()
+    }
+
+    /// GPU memory held (bytes), the flags buffer aside (it is the window's).
+    #[must_use]
+    pub fn memory_bytes(&self) -> u64 {
+        self.gather.memory_bytes() + self.merge.memory_bytes() + self.flag_ring.memory_bytes() + self.gather_ring.memory_bytes()
+    }
+
+    /// Queues `tiles` to be merged (tiles of another side are dropped, with a warning).
+    pub fn queue(&mut self, tiles: &[SharedTile]) {
+        for t in tiles {
+            if t.side != self.grid.side || !t.is_consistent() {
+                tracing::warn!("a shared tile of side {} (or with planes of the wrong size) is dropped: this world shares tiles of {}", t.side, self.grid.side);
+                continue;
+            }
+            self.incoming.push_back(t.clone());
+        }
+    }
+
+    /// The tiles ready to merge at `clock`, one per key, at most a
+    /// dispatch's worth, each with the first frame of the history the
+    /// merge pass replays on it: a tile whose clock is the clock after one
+    /// of the remembered frames is replayed from the next one (exact where
+    /// the sender ran the same frames); any other is caught up here in one
+    /// step and replays nothing. Further copies of a key and tiles beyond a
+    /// dispatch stay queued for later frames (merging is idempotent, so
+    /// copies merged one after the other end as if merged together). A tile
+    /// ahead of `clock` waits for it, unless it is more than
+    /// [`AHEAD_LIMIT_S`] ahead.
+    fn ready(&mut self, clock: &ShareClock, catch: CatchUp) -> Vec<(SharedTile, i32)> {
+        let capacity = self.merge.capacity() as usize;
+        let frames = self.history.len();
+        let mut batch: BTreeMap<TileKey, (SharedTile, i32)> = BTreeMap::new();
+        let mut held = VecDeque::new();
+        while let Some(mut tile) = self.incoming.pop_front() {
+            let ahead = !clock.covers(&tile.clock);
+            if (ahead && tile.clock.time_s <= clock.time_s + AHEAD_LIMIT_S) || batch.contains_key(&tile.key) || batch.len() >= capacity {
+                held.push_back(tile);
+                continue;
+            }
+            let first = match self.history.iter().position(|f| f.after == tile.clock) {
+                Some(k) => k + 1,
+                None => {
+                    tile.catch_up(clock, catch);
+                    frames
+                }
+            };
+            batch.insert(tile.key, (tile, first as i32));
+        }
+        self.incoming = held;
+        batch.into_values().collect()
+    }
+
+    /// Records the merge of the tiles ready at `clock` into the window
+    /// (after the window's move, before this frame's presses).
+    pub fn record_merge(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        window: &ShareWindow,
+        params: TileMergeParams,
+        (clock, catch): (&ShareClock, CatchUp),
+    ) {
+        let tiles = self.ready(clock, catch);
+        if tiles.is_empty() {
+            return;
+        }
+        let keys: Vec<[i32; 4]> = tiles.iter().map(|(t, first)| [t.key.col as i32, t.key.row as i32, *first, 0]).collect();
+        let history: Vec<[u32; 4]> = self.history.iter().map(FrameRecord::gpu).collect();
+        let refs: Vec<&SharedTile> = tiles.iter().map(|(t, _)| t).collect();
+        let flags = if window.has_stamps { TileMergeParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileMergeParams::USE_FALLEN } else { 0 };
+        let params = TileMergeParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..params };
+        self.merge.record(queue, encoder, timer, params, (&keys, &history), &pack_tiles(&refs));
+    }
+
+    /// Records, after this frame's presses (`frame`, with the clock after
+    /// it), the copy of the changed-tile flags out (then clears them) and,
+    /// when the interval has passed, the gather of dirty tiles as they are
+    /// at that clock. A step whose readback has no free staging buffer is
+    /// left for a later frame (flags keep accumulating; dirty tiles stay
+    /// dirty).
+    pub fn record_after_update(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut GpuTimer,
+        res: &DeformResources,
+        window: &ShareWindow,
+        frame: FrameRecord,
+    ) {
+        if self.history.len() == HISTORY_FRAMES {
+            self.history.pop_front();
+        }
+        self.history.push_back(frame);
+        let clock = &frame.after;
+        if self.flag_ring.has_free_slot() {
+            self.flag_ring.record_copy(encoder, &res.share_flags, window.origin);
+            encoder.clear_buffer(&res.share_flags, 0, None);
+        }
+        let due = self.last_gather_s.is_none_or(|t| clock.time_s - t >= self.interval_s);
+        if self.dirty.is_empty() || !due || !self.gather_ring.has_free_slot() {
+            return;
+        }
+        let mut keys = Vec::new();
+        while keys.len() < self.gather.capacity() as usize {
+            let Some(key) = self.dirty.pop_first() else { break };
+            keys.push(key);
+        }
+        let flags = if window.has_stamps { TileGatherParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileGatherParams::USE_FALLEN } else { 0 };
+        let params = TileGatherParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..Default::default() };
+        let count = self.gather.record(queue, encoder, timer, params, &gpu_keys(&keys));
+        let bytes = packed_tile_bytes(self.grid.side) * u64::from(count);
+        let meta = Gathered { keys, clock: *clock, planes: (window.has_stamps, window.use_fallen) };
+        self.gather_ring.record_copy_len(encoder, self.gather.packed(), bytes, meta);
+        self.last_gather_s = Some(clock.time_s);
+    }
+
+    /// Maps the copies recorded this frame; call right after submitting it.
+    pub fn after_submit(&mut self) {
+        self.flag_ring.after_submit();
+        self.gather_ring.after_submit();
+    }
+
+    /// Whether a readback's mapping callback has not run yet.
+    #[must_use]
+    pub fn callbacks_pending(&self) -> bool {
+        self.flag_ring.callbacks_pending() || self.gather_ring.callbacks_pending()
+    }
+
+    /// Takes what has come back (after a non-blocking poll): flagged tiles
+    /// become dirty, gathered ones wait in the outbox.
+    pub fn collect(&mut self, resolution: u32) {
+        for (origin, bytes) in self.flag_ring.take_arrived() {
+            let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+            self.dirty.extend(self.grid.flagged(origin, resolution, &flags));
+        }
+        for (meta, bytes) in self.gather_ring.take_arrived() {
+            let packed: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+            self.outbox.extend(unpack_tiles(&meta.keys, self.grid.side, meta.clock, &packed, meta.planes));
+        }
+    }
+
+    /// The gathered tiles since the last call.
+    pub fn take_outbox(&mut self) -> Vec<SharedTile> {
+        std::mem::take(&mut self.outbox)
+    }
+}

@@ -1,0 +1,175 @@
+//! [`SnowDeformation`] as a replica of a shared world: its world clock, its
+//! identity, and [`SharedSnow`] over the GPU's changed-tile flags, gather
+//! and merge passes ([`crate::replicate::sharing`]).
+
+use crate::deform::params::default_tile_texels;
+use crate::deform::stamp::StampPass;
+use crate::deform::update::UpdatePass;
+use crate::error::SnowError;
+use crate::gpu::GpuContext;
+use crate::replicate::flags::ShareGrid;
+use crate::replicate::sharing::{ShareWindow, Sharing};
+use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity, terrain_identity};
+
+use super::deformation::{RefillBase, SnowDeformation};
+
+/// Tile sides [`SnowDeformation::enable_sharing`] accepts (texels).
+pub const SHARE_TILE_SIDES: std::ops::RangeInclusive<u32> = 8..=256;
+
+impl SnowDeformation {
+    /// Shares this window's snow in tiles of `tile_side` texels (8..=256) on
+    /// the global grid: from the next frame the stamp and update passes flag
+    /// the tiles presses change, changed tiles are gathered at most every
+    /// `interval_s` of world time (0.25 s is a good default) for
+    /// [`SharedSnow::take_changed_tiles`], and [`SharedSnow::merge_tiles`]
+    /// folds tiles from elsewhere in. Calling it again changes the side and
+    /// the interval and forgets pending tiles.
+    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), SnowError> {
+        if !SHARE_TILE_SIDES.contains(&tile_side) {
+            return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") });
+        }
+        if !interval_s.is_finite() || interval_s < 0.0 {
+            return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") });
+        }
+        let device = &ctx.device;
+        let grid = ShareGrid::new(self.params.resolution, tile_side);
+        ctx.capturing(|| {
+            self.res.allocate_share_flags(device, grid.slots());
+            // The stamp and update passes write the flags: bind the new buffer.
+            self.stamp_pass = StampPass::new(device, &self.res);
+            self.update_pass = UpdatePass::new(device, &self.res);
+            self.update_pass.bind_sky(device, &self.res, self.accumulation.as_ref().map(crate::accumulate::SnowAccumulation::sky_view));
+            self.sharing = Some(Sharing::new(device, &self.res, tile_side, interval_s));
+        });
+        ctx.check("enabling shared snow")
+    }
+
+    /// Changed tiles flagged and not gathered yet (0 without sharing).
+    #[must_use]
+    pub fn dirty_tiles(&self) -> usize {
+        self.sharing.as_ref().map_or(0, Sharing::dirty_tiles)
+    }
+
+    /// Tiles given to [`SharedSnow::merge_tiles`] and not merged yet (ahead
+    /// of the clock, or beyond a frame's upload).
+    #[must_use]
+    pub fn waiting_tiles(&self) -> usize {
+        self.sharing.as_ref().map_or(0, Sharing::waiting_tiles)
+    }
+
+    /// The world clock now: time, refill and footprint quanta, snowfall.
+    #[must_use]
+    pub fn share_clock(&self) -> ShareClock {
+        ShareClock { time_s: self.clock.time_s, refill_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta, fallen_m: self.fallen_total_m }
+    }
+
+    /// Sets the world clock (joining a world): time, refill counters and
+    /// snowfall; the frames after it go on from there. When the counters are
+    /// the world's own at that time ([`WorldIdentity::clock_at`]), they keep
+    /// being counted from the world's beginning, as on every other machine.
+    pub fn join_clock(&mut self, clock: ShareClock) {
+        let world = self.world_identity().clock_at(clock.time_s);
+        self.clock.time_s = clock.time_s;
+        self.clock.stamp_quanta = clock.stamp_quanta;
+        self.clock.refill_m = f64::from(self.params.refill_m_per_s) * clock.time_s;
+        self.clock.fallen_m = f64::from(clock.fallen_m);
+        self.snow_quanta = clock.refill_quanta;
+        self.fallen_total_m = clock.fallen_m;
+        self.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
+            RefillBase::default()
+        } else {
+            RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
+        };
+    }
+
+    /// The settings another machine must share for its snow to merge with
+    /// this window's; the tile side is the sharing one
+    /// ([`Self::enable_sharing`]), or the default tile side before.
+    #[must_use]
+    pub fn world_identity(&self) -> WorldIdentity {
+        let (low, high, _) = self.stamp_range();
+        let snowfall = self.params.snowfall.as_ref();
+        WorldIdentity {
+            texel_m: self.params.texel_m(),
+            tile_side: self.sharing.as_ref().map_or_else(|| default_tile_texels(self.params.resolution), |s| s.grid().side),
+            terrain: terrain_identity(&self.terrain),
+            depth_m: self.params.depth_m,
+            refill_m_per_s: self.params.refill_m_per_s,
+            snowfall_m_per_s: snowfall.map_or(0.0, |s| s.rate_m_per_s),
+            max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
+            has_snowfall: snowfall.is_some(),
+            stamp_range_m: [low, high],
+        }
+    }
+
+    /// How tiles are caught up in this world.
+    pub(super) fn catch_up_rule(&self) -> CatchUp {
+        CatchUp { max_fallen_m: self.params.snowfall.as_ref().map_or(0.0, |s| s.max_m) }
+    }
+
+    /// The window a frame's sharing steps work on, at `origin`.
+    pub(super) fn share_window(&self, origin: [i64; 2]) -> ShareWindow {
+        ShareWindow { origin, resolution: self.params.resolution, has_stamps: self.res.has_stamps(), use_fallen: self.params.snowfall.is_some() }
+    }
+}
+
+impl SharedSnow for SnowDeformation {
+    fn share_clock(&self) -> ShareClock {
+        Self::share_clock(self)
+    }
+
+    fn join_clock(&mut self, clock: ShareClock) {
+        Self::join_clock(self, clock);
+    }
+
+    fn window(&self) -> Option<([i64; 2], u32)> {
+        self.window.origin().map(|o| (o, self.params.resolution))
+    }
+
+    /// The tiles gathered since the last call (empty without sharing):
+    /// whole tiles as the GPU had them at the frame gathered, stamped with
+    /// that frame's clock.
+    fn take_changed_tiles(&mut self) -> Vec<SharedTile> {
+        self.sharing.as_mut().map(Sharing::take_outbox).unwrap_or_default()
+    }
+
+    /// Queues `tiles`; frames merge them (a bounded number each) once the
+    /// clock reaches theirs. Without sharing enabled, or of another tile
+    /// side, they are dropped with a warning.
+    fn merge_tiles(&mut self, tiles: &[SharedTile]) {
+        match &mut self.sharing {
+            Some(sharing) => sharing.queue(tiles),
+            None if !tiles.is_empty() => tracing::warn!("{} shared tiles dropped: sharing is not enabled (enable_sharing)", tiles.len()),
+            None => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::deform::snow_word::SNOW_QUANTUM_M;
+
+    #[test]
+    fn refill_counters_match_the_world_clock() {
+        let base = RefillBase::default();
+        let rate = 0.013_f32;
+        let world = WorldIdentity {
+            texel_m: 0.0625,
+            tile_side: 16,
+            terrain: String::new(),
+            depth_m: 0.5,
+            refill_m_per_s: rate,
+            snowfall_m_per_s: 0.0,
+            max_fallen_m: 0.0,
+            has_snowfall: false,
+            stamp_range_m: [-1.0, 3.0],
+        };
+        for k in 0..2000 {
+            let t = f64::from(k) * 0.0173;
+            let c = world.clock_at(t);
+            assert_eq!(base.quanta_at(0, t, rate, SNOW_QUANTUM_M), c.refill_quanta, "{t}");
+            assert_eq!(base.quanta_at(0, t, rate, world.stamp_quantum_m()), c.stamp_quanta, "{t}");
+        }
+    }
+}

@@ -1,0 +1,438 @@
+//! Shared snow on the GPU: the gather and merge passes against their CPU
+//! twins, the changed-tile flags, the world clock, and the property that
+//! makes a window a replica: merging two simulations' changed tiles gives
+//! what one simulation with both sets of presses gives, bit for bit.
+
+use std::collections::BTreeSet;
+
+use glam::{DVec2, Quat, Vec3};
+use snowpack::cpu;
+use snowpack::deform::resources::DeformResources;
+use snowpack::deform::snow_word;
+use snowpack::deform::wheel::{Tread, TreadPattern};
+use snowpack::gpu::{GpuTimer, read_buffer};
+use snowpack::persist::TileKey;
+use snowpack::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
+use snowpack::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
+use snowpack::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
+use snowpack::testing::{self, Rng};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, Snowfall, Technique, TerrainSource};
+
+fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
+    bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
+}
+
+/// A window's buffers with footprints and snowfall, random contents, over noise terrain.
+struct Window {
+    params: SnowParams,
+    terrain: TerrainSource,
+    res: DeformResources,
+    origin: [i32; 2],
+    snow: Vec<u32>,
+    stamps: Vec<u32>,
+    fallen: Vec<f32>,
+}
+
+fn random_window(ctx: &GpuContext, rng: &mut Rng) -> Window {
+    let resolution = 32 + (rng.next_u64() % 80) as u32;
+    let params = SnowParams {
+        extent_m: rng.range(4.0, 30.0),
+        resolution,
+        depth_m: rng.range(0.2, 1.0),
+        technique: Technique::Combined,
+        snowfall: Some(Snowfall { max_m: 0.3, ..Snowfall::default() }),
+        ..SnowParams::default()
+    };
+    let terrain = TerrainSource::Noise(NoiseTerrain {
+        seed: rng.next_u64() as u32,
+        base_m: rng.range(-0.5, 0.5),
+        amplitude_m: rng.range(0.1, 0.5),
+        wavelength_m: rng.range(2.0, 20.0),
+    });
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain);
+    let origin = [rng.range(-400.0, 400.0) as i32, rng.range(-400.0, 400.0) as i32];
+    let n = params.texel_count();
+    let snow: Vec<u32> = (0..n).map(|_| (rng.next_u64() as u32 & 0xffff_0000) | snow_word::deficit_quanta(rng.range(0.0, params.depth_m * 1.2))).collect();
+    let stamps: Vec<u32> = (0..n).map(|_| if rng.next_u64() % 3 == 0 { NO_STAMP } else { rng.next_u64() as u32 }).collect();
+    let fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.3)).collect();
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+    ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+    Window { params, terrain, res, origin, snow, stamps, fallen }
+}
+
+/// Distinct random tile keys around the window: inside, across its edges and beyond.
+fn random_keys(rng: &mut Rng, w: &Window, side: u32, count: usize) -> Vec<TileKey> {
+    let s = i64::from(side);
+    let r = i64::from(w.params.resolution);
+    let first = [i64::from(w.origin[0]).div_euclid(s) - 1, i64::from(w.origin[1]).div_euclid(s) - 1];
+    let span = r / s + 3;
+    let mut keys = BTreeSet::new();
+    while keys.len() < count {
+        keys.insert(TileKey::new(first[0] + (rng.next_u64() % span as u64) as i64, first[1] + (rng.next_u64() % span as u64) as i64));
+    }
+    keys.into_iter().collect()
+}
+
+fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) {
+    ctx.queue.submit([encoder.finish()]);
+    ctx.wait_idle("test").expect("GPU error");
+}
+
+fn encoder(ctx: &GpuContext) -> wgpu::CommandEncoder {
+    ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test") })
+}
+
+#[test]
+fn tile_gather_matches_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("tile gather");
+    let mut rng = Rng::new(seed);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    for _ in 0..4 {
+        let w = random_window(ctx, &mut rng);
+        let side = 8 + (rng.next_u64() % 25) as u32;
+        let count = 1 + (rng.next_u64() % 12) as usize;
+        let keys = gpu_keys(&random_keys(&mut rng, &w, side, count));
+        let pass = TileGatherPass::new(&ctx.device, &w.res, side, count as u32);
+        let flags = TileGatherParams::HAS_STAMPS | TileGatherParams::USE_FALLEN;
+        let p = TileGatherParams { origin: w.origin, resolution: w.params.resolution, side, flags, ..Default::default() };
+        let mut enc = encoder(ctx);
+        let gathered = pass.record(&ctx.queue, &mut enc, &mut timer, p, &keys);
+        submit(ctx, enc);
+        assert_eq!(gathered as usize, count);
+        let gpu = read_u32(ctx, pass.packed());
+        let cpu = cpu::tile_gather::gather(&TileGatherParams { count: gathered, blocks: side.div_ceil(8), ..p }, &keys, &w.snow, &w.stamps, &w.fallen);
+        let n = cpu.len();
+        if let Some(k) = (0..n).find(|&k| gpu[k] != cpu[k]) {
+            panic!("gathered tiles differ at {k} of {n} (gpu {:#x}, cpu {:#x}); side {side}, origin {:?}; seed {seed}", gpu[k], cpu[k], w.origin);
+        }
+    }
+}
+
+#[test]
+fn tile_merge_matches_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("tile merge");
+    let mut rng = Rng::new(seed);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    for _ in 0..4 {
+        let mut w = random_window(ctx, &mut rng);
+        let side = 8 + (rng.next_u64() % 25) as u32;
+        let count = 1 + (rng.next_u64() % 12) as usize;
+        let keys = random_keys(&mut rng, &w, side, count);
+        let depth = w.params.depth_m;
+        let tiles: Vec<SharedTile> = keys
+            .iter()
+            .map(|&key| {
+                let mut t = SharedTile::untouched(key, side, ShareClock::default(), rng.next_u64() % 4 != 0, rng.next_u64() % 4 != 0);
+                for d in &mut t.deficit {
+                    *d = if rng.next_u64() % 2 == 0 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, depth * 1.2)) as u16 };
+                }
+                for s in &mut t.stamps {
+                    *s = if rng.next_u64() % 3 == 0 { NO_STAMP } else { rng.next_u64() as u32 };
+                }
+                for f in &mut t.fallen {
+                    *f = rng.range(0.0, 0.3);
+                }
+                t
+            })
+            .collect();
+        let refs: Vec<&SharedTile> = tiles.iter().collect();
+        let packed = pack_tiles(&refs);
+        // A history of frames to replay, each tile from a random one of them (or none).
+        let frames = (rng.next_u64() % (HISTORY_FRAMES as u64 + 1)) as usize;
+        let history: Vec<[u32; 4]> = (0..frames)
+            .map(|_| {
+                FrameRecord {
+                    after: ShareClock::default(),
+                    snow_quanta: (rng.next_u64() % 40) as u32,
+                    stamp_quanta: (rng.next_u64() % 60) as u32,
+                    fall_m: if rng.next_u64() % 2 == 0 { 0.0 } else { rng.range(0.0, 0.01) },
+                    stamps_pressed: rng.next_u64() % 4 != 0,
+                }
+                .gpu()
+            })
+            .collect();
+        let gkeys: Vec<[i32; 4]> =
+            gpu_keys(&keys).iter().map(|k| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, 0]).collect();
+        let pass = TileMergePass::new(&ctx.device, &w.res, side, count as u32);
+        let p = TileMergeParams {
+            origin: w.origin,
+            resolution: w.params.resolution,
+            side,
+            flags: TileMergeParams::HAS_STAMPS | TileMergeParams::USE_FALLEN,
+            depth_m: depth,
+            texel_m: w.params.texel_m(),
+            low_m: rng.range(-2.0, -0.5),
+            high_m: rng.range(1.0, 3.0),
+            max_fallen_m: 0.3,
+            ..Default::default()
+        };
+        let mut enc = encoder(ctx);
+        let merged = pass.record(&ctx.queue, &mut enc, &mut timer, p, (&gkeys, &history), &packed);
+        submit(ctx, enc);
+        assert_eq!(merged as usize, count);
+        let cp = TileMergeParams { count: merged, blocks: side.div_ceil(8), frames: frames as u32, ..p };
+        cpu::tile_merge::merge(&cp, (&gkeys, &history), &packed, &w.terrain, &mut w.snow, &mut w.stamps, &mut w.fallen);
+        let what = format!("side {side}, origin {:?}, resolution {}, {frames} frames; seed {seed}", w.origin, w.params.resolution);
+        assert_eq!(read_u32(ctx, &w.res.snow), w.snow, "merged snow words; {what}");
+        assert_eq!(read_u32(ctx, &w.res.stamps), w.stamps, "merged footprints; {what}");
+        let fallen: Vec<u32> = read_f32(ctx, &w.res.fallen).iter().map(|f| f.to_bits()).collect();
+        assert_eq!(fallen, w.fallen.iter().map(|f| f.to_bits()).collect::<Vec<_>>(), "merged snowfall; {what}");
+    }
+}
+
+// --- Whole windows -----------------------------------------------------------
+
+const SIDE: u32 = 16;
+const DT: f32 = 1.0 / 32.0;
+/// The window's centre: its first texel is at a negative column.
+const CENTER: DVec2 = DVec2::new(-3.0, 4.0);
+/// World (x, z) of the window's corner (CENTER less half the 8 m extent).
+const CORNER: [f32; 2] = [-7.0, 0.0];
+
+fn window_of(ctx: &GpuContext, technique: Technique, refill: f32) -> SnowDeformation {
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.4, refill_m_per_s: refill, technique, range_texels: 32, ..SnowParams::default() };
+    let terrain = TerrainSource::Noise(NoiseTerrain { seed: 11, base_m: 0.0, amplitude_m: 0.1, wavelength_m: 3.0 });
+    let mut d = SnowDeformation::new(ctx, params, terrain, CENTER).expect("deformation");
+    d.enable_sharing(ctx, SIDE, 0.25).expect("sharing");
+    d
+}
+
+fn frame(ctx: &GpuContext, d: &mut SnowDeformation, deformers: &[Deformer], ids: &[u64], dt: f32) {
+    d.step_frame(ctx, &SnowFrame::new(dt, deformers).with_ids(ids)).expect("frame");
+    d.finish(ctx).expect("finish");
+}
+
+fn deficits(ctx: &GpuContext, d: &SnowDeformation) -> Vec<u32> {
+    d.read_snow_words(ctx).expect("snow").iter().map(|w| w & 0xffff).collect()
+}
+
+fn footprints(ctx: &GpuContext, d: &SnowDeformation) -> Vec<u32> {
+    read_u32(ctx, &d.resources().stamps)
+}
+
+/// The tiles holding the window-local texels where `changed` is true.
+fn tiles_where(d: &SnowDeformation, changed: impl Fn(usize) -> bool) -> BTreeSet<TileKey> {
+    let origin = d.origin_texel().expect("placed");
+    let r = d.params().resolution as usize;
+    (0..r * r).filter(|&k| changed(k)).map(|k| TileKey::containing(origin[0] + (k % r) as i64, origin[1] + (k / r) as i64, SIDE)).collect()
+}
+
+fn keys_of(tiles: &[SharedTile]) -> BTreeSet<TileKey> {
+    tiles.iter().map(|t| t.key).collect()
+}
+
+#[test]
+fn flags_mark_exactly_the_pressed_tiles_and_nothing_else() {
+    let Some(ctx) = testing::gpu() else { return };
+    for technique in [Technique::Depth, Technique::Points] {
+        let mut d = window_of(ctx, technique, 0.02);
+        // Placed, untouched: refill alone.
+        for _ in 0..4 {
+            frame(ctx, &mut d, &[], &[], DT);
+        }
+        assert!(d.take_changed_tiles().is_empty(), "{technique:?}: untouched snow sent tiles");
+        let (before, stamps_before) = (deficits(ctx, &d), footprints(ctx, &d));
+        assert!(before.iter().all(|&q| q == 0));
+        // A sphere across tile borders (x = -4.5 m is a border of 16-texel tiles of 6.25 cm).
+        let sphere = Deformer::Sphere { center: Vec3::new(CORNER[0] + 2.5, 0.45, CORNER[1] + 3.1), radius: 0.3 };
+        frame(ctx, &mut d, &[sphere], &[1], DT);
+        let (after, stamps_after) = (deficits(ctx, &d), footprints(ctx, &d));
+        let mut expected = tiles_where(&d, |k| after[k] > 0);
+        if technique == Technique::Points {
+            // Footprints changed by the press flag their tiles too (rims beyond the trail).
+            let r = d.params().resolution as i64;
+            let o = d.origin_texel().expect("placed");
+            let changed: BTreeSet<TileKey> = (0..stamps_after.len())
+                .filter(|&s| stamps_after[s] != stamps_before[s])
+                .map(|s| {
+                    // Toroidal index to the global texel inside the window.
+                    let (sj, si) = (s as i64 % r, s as i64 / r);
+                    TileKey::containing(o[0] + (sj - o[0]).rem_euclid(r), o[1] + (si - o[1]).rem_euclid(r), SIDE)
+                })
+                .collect();
+            expected.extend(changed);
+        }
+        assert!(expected.len() > 1, "{technique:?}: the press touched {} tiles", expected.len());
+        // Gathers come a frame after the flags are back; refill frames meanwhile.
+        let mut sent = Vec::new();
+        for _ in 0..3 {
+            frame(ctx, &mut d, &[], &[], DT);
+            let t = d.take_changed_tiles();
+            eprintln!("DEBUG {technique:?} dirty {} sent {:?}", d.dirty_tiles(), keys_of(&t));
+            sent.extend(t);
+        }
+        eprintln!("DEBUG expected {expected:?}");
+        assert_eq!(keys_of(&sent), expected, "{technique:?}: tiles sent after a sphere's press");
+        assert_eq!(d.dirty_tiles(), 0);
+        // Refill alone (many frames past the gather interval) flags nothing.
+        for _ in 0..12 {
+            frame(ctx, &mut d, &[], &[], DT);
+        }
+        assert!(d.take_changed_tiles().is_empty(), "{technique:?}: refill sent tiles");
+        // A merge changes the snow and flags nothing.
+        let key = *expected.iter().next().expect("a tile");
+        let mut tile = SharedTile::untouched(key, SIDE, d.share_clock(), technique == Technique::Points, false);
+        tile.deficit.iter_mut().for_each(|q| *q = 2000);
+        let before = deficits(ctx, &d);
+        d.merge_tiles(&[tile]);
+        for _ in 0..12 {
+            frame(ctx, &mut d, &[], &[], DT);
+        }
+        assert!(deficits(ctx, &d) != before, "{technique:?}: the merge changed nothing");
+        assert_eq!(d.waiting_tiles(), 0);
+        assert!(d.take_changed_tiles().is_empty(), "{technique:?}: a merge was sent on");
+        assert_eq!(d.dirty_tiles(), 0);
+    }
+}
+
+/// One deformer at frame `k` of a press, for a test case (`b`: the second body).
+fn deformer(case: &str, b: bool, k: usize) -> Deformer {
+    let t = k as f32 * 0.04;
+    // The two bodies overlap for the captures (the merge takes the deeper
+    // press texel by texel), and keep the footprint squares apart for points.
+    let (x, z) = if b { (CORNER[0] + 3.2 + t, CORNER[1] + 4.3) } else { (CORNER[0] + 2.6, CORNER[1] + 3.7 + t) };
+    match case {
+        "sphere" => Deformer::Sphere { center: Vec3::new(x, 0.55, z), radius: 0.45 },
+        "box" => Deformer::Box {
+            center: Vec3::new(x, 0.4, z),
+            half_extents: Vec3::new(0.5, 0.3, 0.25),
+            rotation: Quat::from_rotation_y(if b { 0.7 } else { -0.3 } + t),
+        },
+        "points" => {
+            let x = if b { CORNER[0] + 6.0 + t } else { CORNER[0] + 2.0 };
+            // Feet stay below the rest height: a footprint replaced by one
+            // whose foot is at rest, and so removed, is where merging
+            // footprints is not exact (docs/deformation.md).
+            Deformer::Point { position: Vec3::new(x, 0.1 + 0.2 * t, z), scale_per_m: 1.5 }
+        }
+        _ => {
+            let axle = if b { Vec3::Z } else { Vec3::X };
+            let tread = Tread { pattern: TreadPattern::Chevron, spacing_m: 0.3, depth_m: 0.05, lug_fraction: 0.5 };
+            Deformer::Wheel { center: Vec3::new(x, 0.5, z), axle, radius: 0.42, half_width: 0.2, tread, roll_m: 3.0 * t }
+        }
+    }
+}
+
+#[test]
+fn merging_two_simulations_equals_one_with_both_presses() {
+    let Some(ctx) = testing::gpu() else { return };
+    for case in ["sphere", "box", "points", "wheel"] {
+        let technique = if case == "points" { Technique::Points } else { Technique::Depth };
+        let [mut a, mut b, mut c] = [0; 3].map(|_| window_of(ctx, technique, 0.02));
+        // Presses in two bursts with refill between; then frames for the
+        // flags and gathers to come back (the interval is 0.25 s, 8 frames).
+        for k in 0..36 {
+            let press = (0..4).contains(&k) || (9..12).contains(&k);
+            let (da, db) = (deformer(case, false, k), deformer(case, true, k));
+            if press {
+                frame(ctx, &mut a, &[da], &[1], DT);
+                frame(ctx, &mut b, &[db], &[2], DT);
+                frame(ctx, &mut c, &[da, db], &[1, 2], DT);
+            } else {
+                for d in [&mut a, &mut b, &mut c] {
+                    frame(ctx, d, &[], &[], DT);
+                }
+            }
+        }
+        let (from_a, from_b) = (a.take_changed_tiles(), b.take_changed_tiles());
+        assert!(!from_a.is_empty() && !from_b.is_empty(), "{case}: nothing was sent");
+        assert_eq!(a.dirty_tiles() + b.dirty_tiles(), 0, "{case}: tiles left unsent");
+        a.merge_tiles(&from_b);
+        b.merge_tiles(&from_a);
+        // The merge is recorded at the next frame; refill frames after it.
+        for _ in 0..6 {
+            for d in [&mut a, &mut b, &mut c] {
+                frame(ctx, d, &[], &[], DT);
+            }
+        }
+        assert_eq!(a.share_clock(), c.share_clock());
+        let (qa, qb, qc) = (deficits(ctx, &a), deficits(ctx, &b), deficits(ctx, &c));
+        assert!(qc.iter().filter(|&&q| q > 0).count() > 100, "{case}: the presses left almost nothing");
+        for (name, q) in [("A (B's tiles merged)", &qa), ("B (A's tiles merged)", &qb)] {
+            let diff: Vec<usize> = (0..q.len()).filter(|&k| q[k] != qc[k]).collect();
+            assert!(diff.is_empty(), "{case}: {name} differs from C at {} texels, first {} ({} vs {})", diff.len(), diff[0], q[diff[0]], qc[diff[0]]);
+        }
+        if technique.uses_stamps() {
+            let (sa, sb, sc) = (footprints(ctx, &a), footprints(ctx, &b), footprints(ctx, &c));
+            assert!(sc.iter().any(|&s| s != NO_STAMP), "{case}: no footprints");
+            for (name, s) in [("A (B's tiles merged)", &sa), ("B (A's tiles merged)", &sb)] {
+                let diff: Vec<usize> = (0..s.len()).filter(|&k| s[k] != sc[k]).collect();
+                assert!(diff.is_empty(), "{case}: footprints of {name} differ from C at {} texels, first {} ({:#x} vs {:#x})", diff.len(), diff[0], s[diff[0]], sc[diff[0]]);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_world_clock_does_not_depend_on_frame_times() {
+    let Some(ctx) = testing::gpu() else { return };
+    let refill = 0.0137;
+    let mut a = window_of(ctx, Technique::Depth, refill);
+    let mut b = window_of(ctx, Technique::Depth, refill);
+    let sphere = Deformer::Sphere { center: Vec3::new(CORNER[0] + 4.0, 0.5, CORNER[1] + 4.0), radius: 0.5 };
+    frame(ctx, &mut a, &[sphere], &[1], 0.125);
+    frame(ctx, &mut b, &[sphere], &[1], 0.125);
+    // 2 s each, in different steps (dyadic, so both totals are exact).
+    for _ in 0..16 {
+        frame(ctx, &mut a, &[], &[], 0.125);
+    }
+    for dt in [0.0625, 0.3125, 0.5, 0.03125, 0.09375, 1.0] {
+        frame(ctx, &mut b, &[], &[], dt);
+    }
+    let (ca, cb) = (a.share_clock(), b.share_clock());
+    assert_eq!(ca, cb, "clocks after the same time in different steps");
+    let world = a.world_identity().clock_at(ca.time_s);
+    assert_eq!((ca.refill_quanta, ca.stamp_quanta), (world.refill_quanta, world.stamp_quanta), "the window's counters and the world's");
+    assert!(ca.refill_quanta > 200, "{ca:?}");
+    // The same press at the same world time on both.
+    let sphere = Deformer::Sphere { center: Vec3::new(CORNER[0] + 4.3, 0.45, CORNER[1] + 3.8), radius: 0.4 };
+    frame(ctx, &mut a, &[sphere], &[2], 0.125);
+    frame(ctx, &mut b, &[sphere], &[2], 0.125);
+    let (qa, qb) = (deficits(ctx, &a), deficits(ctx, &b));
+    assert!(qa == qb, "snow after the same presses at the same world times differs at {} texels", qa.iter().zip(&qb).filter(|(x, y)| x != y).count());
+    // Joining a clock: frames go on from it as on the machine it came from.
+    let mut c = window_of(ctx, Technique::Depth, refill);
+    c.join_clock(a.share_clock());
+    for d in [&mut a, &mut c] {
+        frame(ctx, d, &[], &[], 0.1875);
+        frame(ctx, d, &[], &[], 0.0625);
+    }
+    frame(ctx, &mut b, &[], &[], 0.25);
+    assert_eq!(a.share_clock(), c.share_clock(), "a joined clock goes on like its source");
+    // The rate changes: counters go on from the change, on both.
+    a.set_refill(0.05);
+    b.set_refill(0.05);
+    frame(ctx, &mut a, &[], &[], 0.5);
+    for _ in 0..8 {
+        frame(ctx, &mut b, &[], &[], 0.0625);
+    }
+    frame(ctx, &mut a, &[], &[], 0.25);
+    frame(ctx, &mut b, &[], &[], 0.25);
+    assert_eq!(a.share_clock().refill_quanta, b.share_clock().refill_quanta);
+}
+
+#[test]
+fn sharing_rejects_bad_sides_and_counts_its_memory() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 64, ..SnowParams::default() };
+    let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("deformation");
+    let before: u64 = d.memory_bytes().iter().map(|(_, b)| b).sum();
+    for side in [0, 7, 257, 1024] {
+        assert!(d.enable_sharing(ctx, side, 0.25).is_err(), "side {side} accepted");
+    }
+    assert!(d.enable_sharing(ctx, 16, -1.0).is_err());
+    assert!(d.enable_sharing(ctx, 16, f64::NAN).is_err());
+    d.enable_sharing(ctx, 8, 0.25).expect("side 8");
+    d.enable_sharing(ctx, 256, 0.25).expect("side 256");
+    let after: u64 = d.memory_bytes().iter().map(|(_, b)| b).sum();
+    // Flags (2 x 2 slots), two readback rings, the gather's and merge's buffers.
+    assert!(after > before + 3 * 256 * 256 * 3 * 4, "{before} -> {after}");
+    assert_eq!(d.world_identity().tile_side, 256);
+}
