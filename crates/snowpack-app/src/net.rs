@@ -211,7 +211,16 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         if now - last_report >= Duration::from_secs(10) {
             last_report = now;
             let s = relay.stats();
-            println!("snowpack server: {} peers, {s}", server.connected_clients());
+            println!(
+                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused",
+                server.connected_clients(),
+                s.tiles_in_memory,
+                s.tiles_merged,
+                s.tiles_received,
+                s.bytes_in,
+                s.bytes_out,
+                s.rejected.total()
+            );
         }
         if opts.exit_after_s.is_some_and(|limit| started.elapsed().as_secs_f64() >= limit) {
             transport.disconnect_all(&mut server);
@@ -359,7 +368,7 @@ impl SnowLink {
         while let Some(bytes) = self.client.receive_message(CHANNEL) {
             match self.peer.receive(&bytes) {
                 Ok(()) => {}
-                Err(ShareError::Refused { why }) => refused = Some(why),
+                Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
                 Err(e) => tracing::warn!("shared snow: {e}"),
             }
         }
@@ -437,7 +446,7 @@ pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, ad
 /// World (x, z) of every deformer and character of `world`: the places
 /// where this peer may change the snow (the relay's check).
 pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
-    let mut out: Vec<[f64; 2]> = world.deformers().iter().map(deformer_xz).collect();
+    let mut out: Vec<[f64; 2]> = world.deformers().iter().map(deformer_xz).filter(|p| p[0].is_finite()).collect();
     out.extend(world.characters().iter().map(|c| {
         let p = c.model.w_axis;
         [f64::from(p.x), f64::from(p.z)]
@@ -451,6 +460,8 @@ pub fn deformer_xz(d: &snowpack::Deformer) -> [f64; 2] {
     match d {
         Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => [f64::from(center.x), f64::from(center.z)],
         Deformer::Point { position, .. } => [f64::from(position.x), f64::from(position.z)],
+        // A deformer kind added later: no place of its own, so nothing more may change.
+        _ => [f64::NAN, f64::NAN],
     }
 }
 
@@ -475,8 +486,8 @@ impl ShareReport {
             "server": self.addr.to_string(),
             "linked_s": self.linked_s,
             "settle_s": self.settle_s,
-            "bytes_sent": s.bytes_sent,
-            "bytes_received": s.bytes_received,
+            "bytes_sent": s.bytes_out,
+            "bytes_received": s.bytes_in,
             "tiles_sent": s.tiles_sent,
             "tiles_received": s.tiles_received,
             "resends": s.resends,
@@ -491,12 +502,12 @@ impl ShareReport {
 pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, link: &mut SnowLink) -> anyhow::Result<ShareReport> {
     let start = Instant::now();
     let deadline = start + SETTLE_LIMIT;
-    snow.flush_changed_tiles();
     loop {
+        snow.flush_changed_tiles();
         snow.step(ctx, &[], 0.0)?;
         snow.finish(ctx)?;
         link.pump(snow)?;
-        let quiet = link.peer.unacknowledged() == 0 && link.backlog() == 0 && snow.dirty_tiles() == 0 && link.peer.is_synced() && snow.pending_merges() == 0;
+        let quiet = link.peer.unacknowledged() == 0 && link.backlog() == 0 && snow.dirty_tiles() == 0 && link.peer.is_synced() && snow.waiting_tiles() == 0;
         if quiet {
             break;
         }

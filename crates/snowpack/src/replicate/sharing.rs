@@ -246,6 +246,13 @@ impl Sharing {
         self.last_gather_s = Some(clock.time_s);
     }
 
+    /// Lets the next frame gather dirty tiles whatever the interval (the end
+    /// of a run: its last changes go out without waiting for world time to
+    /// pass).
+    pub fn gather_now(&mut self) {
+        self.last_gather_s = None;
+    }
+
     /// Maps the copies recorded this frame; call right after submitting it.
     pub fn after_submit(&mut self) {
         self.flag_ring.after_submit();

@@ -44,6 +44,21 @@ impl SnowDeformation {
         ctx.check("enabling shared snow")
     }
 
+    /// Whether [`Self::enable_sharing`] was called on this window.
+    #[must_use]
+    pub fn is_sharing(&self) -> bool {
+        self.sharing.is_some()
+    }
+
+    /// Lets the next frame gather the changed tiles whatever the interval,
+    /// so a program about to stop sends its last changes without letting
+    /// world time pass.
+    pub fn flush_changed_tiles(&mut self) {
+        if let Some(sharing) = &mut self.sharing {
+            sharing.gather_now();
+        }
+    }
+
     /// Changed tiles flagged and not gathered yet (0 without sharing).
     #[must_use]
     pub fn dirty_tiles(&self) -> usize {
