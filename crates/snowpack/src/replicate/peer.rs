@@ -208,7 +208,9 @@ impl SnowPeer {
     /// changed tiles into the replica and queues them, re-merges replica
     /// tiles over texels the window newly exposed, merges received tiles
     /// into the replica and the snow, resends deltas not acknowledged in
-    /// time, and sends `Presence` and `Digest` when due.
+    /// time, and sends `Presence`, deltas (at most every
+    /// `delta_interval_s`, coalesced per tile) and `Digest` when due.
+    /// Before the relay answers it only resends its `Hello`.
     pub fn update(&mut self, snow: &mut dyn SharedSnow, now_s: f64) {
         let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
         let side = self.world.tile_side;
@@ -443,7 +445,7 @@ fn tile_inside(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> bool 
     let t = k.first_texel(side);
     let s = i64::from(side);
     let r = i64::from(resolution);
-    t[0] >= first[0] && t[1] >= first[1] && t[0] + s <= first[0].saturating_add(r) && t[1] + s <= first[1].saturating_add(r)
+    t[0] >= first[0] && t[1] >= first[1] && t[0].saturating_add(s) <= first[0].saturating_add(r) && t[1].saturating_add(s) <= first[1].saturating_add(r)
 }
 
 /// Whether tile `k` overlaps the window.

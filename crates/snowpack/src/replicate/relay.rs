@@ -413,6 +413,12 @@ impl SnowRelay {
             self.stats.rejected.unknown_peer += 1;
             return;
         };
+        // Refused before the budget is charged: a peer's one oversized
+        // message should not also starve its next ones.
+        if bytes.len() > MAX_MESSAGE_BYTES {
+            self.stats.rejected.oversized += 1;
+            return;
+        }
         if !p.in_bytes.take(now, rate, burst, bytes.len() as f64) {
             self.stats.rejected.rate_bytes += 1;
             return;
