@@ -265,8 +265,16 @@ proptest! {
         let mut relay = welcomed_relay();
         relay.receive(1, &flipped, 1.0);
         relay.update(1.5);
+        // A peer takes the message whole and damaged, then steps its snow.
         let mut peer = SnowPeer::new(world(16), "p", PeerConfig::default());
+        let mut snow = CpuSnow::new(world(16), 32, [-16, -16], 0.0);
+        let _ = peer.receive(&encode(&Message::Welcome { peer: 1, clock: world(16).clock_at(0.5) }));
+        let _ = peer.receive(&bytes);
         let _ = peer.receive(&flipped);
+        peer.update(&mut snow, 1.0);
+        snow.step(1.0);
+        peer.update(&mut snow, 2.0);
+        while peer.poll_transmit().is_some() {}
     }
 }
 
