@@ -428,6 +428,28 @@ fn three_peers_converge_over_a_lossy_network() {
         assert!(t < 120.0, "the network did not settle by {t} s (seed {seed})");
     }
 
+    let (lo, _, compared, pressed) = assert_converged(&relay, &players, &w, seed);
+    let stats = relay.stats();
+    eprintln!(
+        "three peers settled at {t:.1} s: {compared} texels compared, {pressed} pressed; relay merged {} tiles, sent {}, rejected {:?}; resends {:?}",
+        stats.tiles_merged,
+        stats.tiles_sent,
+        stats.rejected,
+        players.iter().map(|p| p.peer.stats().resends).collect::<Vec<_>>()
+    );
+    assert!(pressed > 500, "the walks pressed the shared area ({pressed} texels)");
+    // What was pressed there before the late joiner came (player 1 from
+    // x = 0.8 m to 3.2 m, player 2 beside it) reached it from the relay.
+    let early = (lo[0]..(3.2f64 / 0.125) as i64).filter(|&col| players[2].snow.deficit_at(col, 0).is_some_and(|d| d > 0)).count();
+    assert!(early > 10, "the late joiner has the trail pressed before it came ({early} texels)");
+}
+
+/// Asserts that every player's snow and the relay's tiles (caught up to
+/// the players' one clock) hold the same deficits over the area all
+/// windows share; returns that area (first and past-the-end texel), the
+/// texels compared and those pressed.
+fn assert_converged(relay: &SnowRelay, players: &[Player], w: &WorldIdentity, seed: u64) -> ([i64; 2], [i64; 2], usize, usize) {
+    let resolution = players[0].snow.resolution();
     // The area every window shares.
     let lo = [players.iter().map(|p| p.snow.origin()[0]).max().unwrap_or(0), players.iter().map(|p| p.snow.origin()[1]).max().unwrap_or(0)];
     let hi = [
@@ -436,7 +458,7 @@ fn three_peers_converge_over_a_lossy_network() {
     ];
     assert!(hi[0] - lo[0] >= 32 && hi[1] - lo[1] >= 32, "the windows share too little: {lo:?}..{hi:?}");
     let clock = players[0].snow.share_clock();
-    for p in &players {
+    for p in players {
         assert_eq!(p.snow.share_clock(), clock, "one world clock for all (player {})", p.id);
     }
     let catch = CatchUp { max_fallen_m: w.max_fallen_m };
@@ -453,7 +475,7 @@ fn three_peers_converge_over_a_lossy_network() {
             });
             let first = key.first_texel(w.tile_side);
             let at_relay = tile.as_ref().map_or(0, |t| t.deficit[((row - first[1]) * i64::from(w.tile_side) + (col - first[0])) as usize]);
-            for p in &players {
+            for p in players {
                 let d = p.snow.deficit_at(col, row).unwrap_or(u16::MAX);
                 assert_eq!(d, at_relay, "texel ({col}, {row}): player {} has {d}, the relay {at_relay} (seed {seed})", p.id);
             }
@@ -461,19 +483,7 @@ fn three_peers_converge_over_a_lossy_network() {
             pressed += usize::from(at_relay > 0);
         }
     }
-    let stats = relay.stats();
-    eprintln!(
-        "three peers settled at {t:.1} s: {compared} texels compared, {pressed} pressed; relay merged {} tiles, sent {}, rejected {:?}; resends {:?}",
-        stats.tiles_merged,
-        stats.tiles_sent,
-        stats.rejected,
-        players.iter().map(|p| p.peer.stats().resends).collect::<Vec<_>>()
-    );
-    assert!(pressed > 500, "the walks pressed the shared area ({pressed} texels)");
-    // What was pressed there before the late joiner came (player 1 from
-    // x = 0.8 m to 3.2 m, player 2 beside it) reached it from the relay.
-    let early = (lo[0]..(3.2f64 / 0.125) as i64).filter(|&col| players[2].snow.deficit_at(col, 0).is_some_and(|d| d > 0)).count();
-    assert!(early > 10, "the late joiner has the trail pressed before it came ({early} texels)");
+    ([lo[0], lo[1]], hi, compared, pressed)
 }
 
 // ---------------------------------------------------------------- security
@@ -653,6 +663,77 @@ fn a_relay_with_a_store_comes_back_bit_for_bit() {
         assert_eq!(bits(&back), bits(tile), "tile {key:?}");
     }
     assert_eq!(encode_world(again.world().expect("world")), encode_world(&w));
+}
+
+#[test]
+fn a_restarted_relay_resumes_from_its_store_and_the_peers_catch_it_up() {
+    let seed = testing::seed("a_restarted_relay_resumes_from_its_store_and_the_peers_catch_it_up");
+    let dir = TempDir::new("restart");
+    let w = world(16);
+    let config = RelayConfig { persist_interval_s: 1.0, ..RelayConfig::default() };
+    let open = || SnowRelay::with_store(TileStore::open(&dir.0, 16, StoreConfig::default()).expect("open the store"), config.clone()).expect("relay");
+    let mut relay = Some(open());
+    let mut net = Net { rng: Rng::new(seed), drop: 0.1, duplicate: 0.05, max_delay_s: 0.1, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
+    let mut players: Vec<Player> = (1..=2)
+        .map(|id| {
+            if let Some(r) = relay.as_mut() {
+                r.connect(id);
+            }
+            Player { id, snow: CpuSnow::new(w.clone(), 128, [-64, -64], 0.0), peer: SnowPeer::new(w.clone(), "p", PeerConfig::default()) }
+        })
+        .collect();
+    let dt = 1.0 / 16.0;
+    let mut t = 0.0f64;
+    let mut step = 0u64;
+    // Both walk from 0 s to 12 s; the relay is down from 5 s to 8 s (what is
+    // in flight is lost with it) and comes back from its store.
+    loop {
+        t += dt;
+        step += 1;
+        for p in &mut players {
+            let at = [-3.0 + 0.5 * t.min(12.0), p.id as f64 - 1.5];
+            p.snow.center_on(at[0], at[1]);
+            if t < 12.0 {
+                p.snow.press_disc(at, 0.3, 900 + (step % 300) as u16);
+                p.peer.set_deformers(&[at]);
+            }
+            p.snow.step(dt);
+            p.peer.update(&mut p.snow, t);
+        }
+        match relay.as_mut() {
+            Some(r) if (5.0..8.0).contains(&t) => {
+                r.flush().expect("flush before going down");
+                relay = None;
+                net.in_flight.clear();
+            }
+            Some(r) => pump(r, &mut players, &mut net, t),
+            None if t >= 8.0 => {
+                let mut r = open();
+                assert_eq!(r.world(), Some(&w), "the world comes back from the store");
+                assert!(!r.tile_keys().is_empty(), "and the tiles pressed before it went down");
+                for p in &mut players {
+                    r.connect(p.id);
+                    p.peer.reconnect();
+                }
+                relay = Some(r);
+            }
+            None => {
+                // Down: whatever the peers send is lost.
+                for p in &mut players {
+                    while p.peer.poll_transmit().is_some() {}
+                }
+            }
+        }
+        let quiet = t > 12.0 && t - net.last_busy_s > 3.0 && players.iter().all(|p| p.peer.unacknowledged() == 0);
+        if quiet {
+            break;
+        }
+        assert!(t < 60.0, "the network did not settle by {t} s (seed {seed})");
+    }
+    let relay = relay.expect("the relay is up");
+    let (_, _, compared, pressed) = assert_converged(&relay, &players, &w, seed);
+    eprintln!("after a relay restart: {compared} texels compared, {pressed} pressed, {} tiles read back from the store", relay.stats().tiles_loaded);
+    assert!(pressed > 200, "{pressed}");
 }
 
 // ---------------------------------------------------------------- bandwidth

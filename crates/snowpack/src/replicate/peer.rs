@@ -197,6 +197,22 @@ impl SnowPeer {
         Ok(())
     }
 
+    /// The connection to the relay was made again (to the same relay or to
+    /// one restarted from its store): the peer says `Hello` again, and
+    /// deltas in flight are sent again once it is welcomed. The replica is
+    /// kept, so the digests that follow give the relay whatever it lacks.
+    pub fn reconnect(&mut self) {
+        self.welcomed = false;
+        self.refused = false;
+        self.last_hello_s = None;
+        self.last_presence_s = f64::NEG_INFINITY;
+        self.last_digest_s = f64::NEG_INFINITY;
+        for (_, keys) in std::mem::take(&mut self.unacked).into_values() {
+            self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+        }
+        self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+    }
+
     /// Where this peer's deformers are now (world x, z in m; at most 256
     /// are sent): where the relay lets it write.
     pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {
