@@ -65,7 +65,7 @@ pub struct RelayConfig {
     /// The outgoing byte bucket's size. When full it lets one tile through
     /// whatever its size, so a budget smaller than a tile still progresses.
     pub send_burst_bytes: u32,
-    /// Tiles the relay keeps in memory; beyond it the least recently used
+    /// Tiles the relay keeps in memory; beyond it the least recently merged or loaded
     /// are written to the store and dropped (without a store, dropped and
     /// counted in [`RelayStats::tiles_forgotten`]).
     pub memory_tiles: usize,
@@ -306,7 +306,7 @@ struct Held {
     tile: SharedTile,
     /// Changed since it was last written to the store.
     dirty: bool,
-    /// When it was last used, on the relay's own counter (for eviction).
+    /// When it was last merged into or loaded, on the relay's own counter (for eviction).
     used: u64,
 }
 
@@ -937,7 +937,7 @@ impl SnowRelay {
         }
     }
 
-    /// Drops the least recently used tiles beyond `memory_tiles`, writing
+    /// Drops the least recently merged or loaded tiles beyond `memory_tiles`, writing
     /// changed ones to the store first (a tile whose write fails stays).
     fn trim_memory(&mut self) {
         let cap = self.config.memory_tiles;
