@@ -16,7 +16,7 @@ use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 
 use crate::deform::snow_word::SNOW_QUANTUM_M;
-use crate::persist::{SnowClock, TileData, TileKey, TileStore};
+use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileStore};
 
 use super::ShareError;
 use super::message::{
@@ -1031,24 +1031,26 @@ pub fn tile_to_data(t: &SharedTile) -> TileData {
     }
 }
 
-/// Inverse of [`tile_to_data`]; an error names what does not fit.
-pub fn tile_from_data(d: TileData) -> Result<SharedTile, String> {
+/// Inverse of [`tile_to_data`]. Data that no relay wrote is
+/// [`StoreError::Corrupt`] (naming no file) saying what does not fit.
+pub fn tile_from_data(d: TileData) -> Result<SharedTile, StoreError> {
+    let corrupt = |why: String| StoreError::Corrupt { path: std::path::PathBuf::new(), why };
     let q = d.clock.refill_m;
     if !((0.0..9_007_199_254_740_992.0).contains(&q) && q.fract() == 0.0) {
-        return Err(format!("refill {q} is not a whole number of quanta"));
+        return Err(corrupt(format!("refill {q} is not a whole number of quanta")));
     }
     let fallen_m = d.clock.fallen_m as f32;
     if f64::from(fallen_m).to_bits() != d.clock.fallen_m.to_bits() {
-        return Err(format!("snowfall so far {} is not an f32", d.clock.fallen_m));
+        return Err(corrupt(format!("snowfall so far {} is not an f32", d.clock.fallen_m)));
     }
     let flag = d.snow_xor_rest.first().map_or(0, |v| v & !0xffff);
     if flag != 0 && flag != NO_STAMP_PLANE {
-        return Err(format!("snow plane flags {flag:#x}"));
+        return Err(corrupt(format!("snow plane flags {flag:#x}")));
     }
     let mut deficit = Vec::with_capacity(d.snow_xor_rest.len());
     for &v in &d.snow_xor_rest {
         if v & !0xffff != flag {
-            return Err("snow plane flags differ between texels".to_owned());
+            return Err(corrupt("snow plane flags differ between texels".to_owned()));
         }
         deficit.push((v & 0xffff) as u16);
     }
@@ -1061,7 +1063,7 @@ pub fn tile_from_data(d: TileData) -> Result<SharedTile, String> {
         stamps,
         fallen: d.fallen,
     };
-    if tile.is_consistent() { Ok(tile) } else { Err("planes of the wrong size".to_owned()) }
+    if tile.is_consistent() { Ok(tile) } else { Err(corrupt("planes of the wrong size".to_owned())) }
 }
 
 #[cfg(test)]
@@ -1086,6 +1088,24 @@ mod tests {
             assert_eq!(back, t);
             assert_eq!(back.digest(), t.digest());
         }
+    }
+
+    #[test]
+    fn data_no_relay_wrote_is_corrupt() {
+        let t = SharedTile::untouched(TileKey::new(0, 0), 8, ShareClock::default(), false, false);
+        let why = |d: TileData| match tile_from_data(d) {
+            Err(StoreError::Corrupt { why, .. }) => why,
+            other => panic!("expected Corrupt, got {other:?}"),
+        };
+        let mut half = tile_to_data(&t);
+        half.clock.refill_m = 0.5;
+        assert!(why(half).contains("whole number"));
+        let mut mixed = tile_to_data(&t);
+        mixed.snow_xor_rest[3] = 7;
+        assert!(why(mixed).contains("differ"));
+        let mut flags = tile_to_data(&t);
+        flags.snow_xor_rest[0] |= 1 << 20;
+        assert!(why(flags).contains("flags"));
     }
 
     #[test]
