@@ -1090,6 +1090,14 @@ mod tests {
         }
     }
 
+    /// A server moves its relay to a thread of its own.
+    #[test]
+    fn a_relay_and_a_peer_can_move_between_threads() {
+        fn send<T: Send>() {}
+        send::<SnowRelay>();
+        send::<super::super::SnowPeer>();
+    }
+
     #[test]
     fn data_no_relay_wrote_is_corrupt() {
         let t = SharedTile::untouched(TileKey::new(0, 0), 8, ShareClock::default(), false, false);
