@@ -743,12 +743,17 @@ fn bytes_per_second_of_a_peer_walking() {
     let w = world(32);
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
+    relay.connect(2);
     let mut snow = CpuSnow::new(w.clone(), 256, [0, 0], 0.0);
-    let mut peer = SnowPeer::new(w, "walker", PeerConfig::default());
+    let mut peer = SnowPeer::new(w.clone(), "walker", PeerConfig::default());
+    // A second peer stands still watching the walk (its window, 32 m, covers it).
+    let mut watcher_snow = CpuSnow::new(w.clone(), 256, [-128, -128], 0.0);
+    let mut watcher = SnowPeer::new(w, "watcher", PeerConfig::default());
     let dt = 1.0 / 30.0;
     let seconds = 20.0;
     let mut t = 0.0;
-    let mut to_relay = 0u64;
+    let (mut to_relay, mut to_watcher) = (0u64, 0u64);
+    let mut relay_time = std::time::Duration::ZERO;
     while t < seconds {
         t += dt;
         let at = [-14.0 + 1.4 * t, 0.3];
@@ -758,24 +763,46 @@ fn bytes_per_second_of_a_peer_walking() {
         snow.press_disc([at[0] - 0.3, at[1] + 0.15], 0.12, 1500);
         peer.set_deformers(&[at]);
         snow.step(dt);
+        watcher_snow.step(dt);
         peer.update(&mut snow, t);
+        watcher.update(&mut watcher_snow, t);
+        let started = std::time::Instant::now();
         while let Some(b) = peer.poll_transmit() {
             to_relay += b.len() as u64;
             relay.receive(1, &b, t);
         }
+        while let Some(b) = watcher.poll_transmit() {
+            relay.receive(2, &b, t);
+        }
         relay.update(t);
-        while let Some((_, b)) = relay.poll_transmit() {
-            peer.receive(&b).expect("well-formed");
+        relay_time += started.elapsed();
+        while let Some((id, b)) = relay.poll_transmit() {
+            if id == 1 {
+                peer.receive(&b).expect("well-formed");
+            } else {
+                to_watcher += b.len() as u64;
+                watcher.receive(&b).expect("well-formed");
+            }
         }
     }
-    let rate = to_relay as f64 / seconds;
+    let (rate, watched) = (to_relay as f64 / seconds, to_watcher as f64 / seconds);
+    let stats = relay.stats();
     eprintln!(
-        "a peer walking at 1.4 m/s (32² tiles of 12.5 cm texels, 30 Hz): {rate:.0} B/s to the relay, {} tiles sent, {} merged at the relay",
+        "a peer walking at 1.4 m/s (32² tiles of 12.5 cm texels, 30 Hz): {rate:.0} B/s to the relay ({} tiles), {watched:.0} B/s from it to a watching peer ({} tiles); the relay spent {:.1} µs a received tile",
         peer.stats().tiles_sent,
-        relay.stats().tiles_merged
+        watcher.stats().tiles_received,
+        relay_time.as_secs_f64() * 1e6 / stats.tiles_received.max(1) as f64
     );
-    assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
+    assert_eq!(stats.rejected.total(), 0, "{:?}", stats.rejected);
     assert!(rate < 64.0 * 1024.0, "{rate} B/s");
+    assert!(watched < 64.0 * 1024.0, "{watched} B/s");
+    // Where the walk passed 10 s before the end, the watcher's copy is the relay's.
+    let key = TileKey::containing((0.0f64 / 0.125) as i64, 2, 32);
+    let seen = watcher.replica_tile(key).expect("the watcher saw the walk");
+    let mut merged = relay.tile(key).expect("the relay has the walk");
+    assert!(merged.deepest_m() > 0.1);
+    merged.catch_up(&seen.clock, CatchUp::default());
+    assert_eq!(bits(&merged), bits(seen));
 }
 
 // ---------------------------------------------------------------- fuzz seeds

@@ -308,6 +308,9 @@ struct Held {
     dirty: bool,
     /// When it was last merged into or loaded, on the relay's own counter (for eviction).
     used: u64,
+    /// The tile as [`encode_tile`] writes it, kept between merges: every
+    /// peer interested in a change is sent the same bytes.
+    encoded: Option<Vec<u8>>,
 }
 
 /// The relay: see the module documentation.
@@ -704,8 +707,7 @@ impl SnowRelay {
         let so_far = world.clock_at(now);
         let limit = world.clock_at(now + self.config.max_clock_lead_s);
         let (rate, burst) = (f64::from(self.config.tiles_per_s), f64::from(self.config.burst_tiles));
-        let reach = f64::from(self.config.accept_radius_m) + f64::from(world.tile_side) * f64::from(world.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
-        let oldest = now - self.config.deformer_memory_s;
+        let (reach, oldest) = self.write_reach(&world, now);
         for t in tiles {
             self.stats.tiles_received += 1;
             let Some(p) = self.peers.get_mut(&peer) else {
@@ -736,11 +738,7 @@ impl SnowRelay {
                 self.stats.rejected.too_deep += 1;
                 continue;
             }
-            let first = t.key.first_texel(t.side);
-            let half = f64::from(t.side) / 2.0;
-            let centre = [(first[0] as f64 + half) * f64::from(world.texel_m), (first[1] as f64 + half) * f64::from(world.texel_m)];
-            let near = p.history.iter().filter(|(at, _)| *at >= oldest).flat_map(|(_, ds)| ds).any(|d| (d[0] - centre[0]).hypot(d[1] - centre[1]) <= reach);
-            if !near {
+            if !may_write(p, t.key, &world, reach, oldest) {
                 self.stats.rejected.far_from_deformers += 1;
                 continue;
             }
@@ -757,12 +755,13 @@ impl SnowRelay {
         let changed = match self.tiles.get_mut(&key) {
             Some(held) => {
                 held.used = used;
+                held.encoded = None;
                 let changed = held.tile.merge(t, c);
                 held.dirty |= changed;
                 changed
             }
             None => {
-                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used });
+                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used, encoded: None });
                 true
             }
         };
@@ -784,10 +783,25 @@ impl SnowRelay {
         }
     }
 
+    /// How far from a recent deformer a peer may write (m, the accept
+    /// radius plus a tile's half diagonal), and the oldest position that counts.
+    fn write_reach(&self, world: &WorldIdentity, now: f64) -> (f64, f64) {
+        let half_diagonal = f64::from(world.tile_side) * f64::from(world.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
+        (f64::from(self.config.accept_radius_m) + half_diagonal, now - self.config.deformer_memory_s)
+    }
+
     fn digest_from(&mut self, peer: PeerId, clock: &ShareClock, window: [i64; 2], resolution: u32, entries: &[(TileKey, u64)]) {
         let Some(world) = self.world.clone() else {
             return;
         };
+        let (reach, oldest) = self.write_reach(&world, self.now_s);
+        let Some(p) = self.peers.get(&peer) else {
+            return;
+        };
+        // Only a tile the peer may have written is worth asking for: any
+        // other copy it holds came from the relay, and would be refused.
+        let wanted = |key: TileKey| may_write(p, key, &world, reach, oldest);
+        let may_want: HashSet<TileKey> = entries.iter().map(|&(k, _)| k).filter(|&k| wanted(k)).collect();
         let Some(region) = KeyRect::of_window(window, resolution, world.tile_side, 0) else {
             self.stats.rejected.bad_window += 1;
             return;
@@ -801,7 +815,8 @@ impl SnowRelay {
                 continue;
             }
             match self.tile(key) {
-                None => want.push(key),
+                None if may_want.contains(&key) => want.push(key),
+                None => {}
                 Some(mut mine) => {
                     if clock.covers(&mine.clock) {
                         mine.catch_up(clock, c);
@@ -813,7 +828,9 @@ impl SnowRelay {
                     // digest's clock: which is newer cannot be told, so
                     // each side sends the other its copy.
                     send.push(key);
-                    want.push(key);
+                    if may_want.contains(&key) {
+                        want.push(key);
+                    }
                 }
             }
         }
@@ -862,21 +879,20 @@ impl SnowRelay {
         let mut batch: Vec<(TileKey, Vec<u8>)> = Vec::new();
         let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
         for key in keys {
-            let Some(tile) = self.tile(key) else {
+            let Some((encoded, tile_texels)) = self.encoded(key) else {
                 if let Some(p) = self.peers.get_mut(&peer) {
                     p.pending.remove(&key);
                 }
                 continue;
             };
-            let encoded = encode_tile(&tile);
-            if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
+            if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile_texels > MAX_MESSAGE_TEXELS {
                 self.stats.rejected.tile_too_large += 1;
                 if let Some(p) = self.peers.get_mut(&peer) {
                     p.pending.remove(&key);
                 }
                 continue;
             }
-            if !batch.is_empty() && (batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS) {
+            if !batch.is_empty() && (batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile_texels > MAX_MESSAGE_TEXELS) {
                 tokens -= self.send_batch(peer, &mut batch) as f64;
                 (bytes, texels) = (TILES_OVERHEAD_BYTES, 0);
             }
@@ -885,7 +901,7 @@ impl SnowRelay {
             }
             may_overdraw = false;
             bytes += encoded.len();
-            texels += tile.texels();
+            texels += tile_texels;
             batch.push((key, encoded));
         }
         if !batch.is_empty() {
@@ -916,6 +932,16 @@ impl SnowRelay {
         len
     }
 
+    /// A tile's wire bytes and texels: from the cache for a tile in memory
+    /// (filling it), encoded afresh for one read from the store.
+    fn encoded(&mut self, key: TileKey) -> Option<(Vec<u8>, usize)> {
+        if let Some(held) = self.tiles.get_mut(&key) {
+            let bytes = held.encoded.get_or_insert_with(|| encode_tile(&held.tile));
+            return Some((bytes.clone(), held.tile.texels()));
+        }
+        self.tile(key).map(|t| (encode_tile(&t), t.texels()))
+    }
+
     /// Brings a tile from the store into memory if it is not there.
     fn load(&mut self, key: TileKey) {
         if self.tiles.contains_key(&key) {
@@ -928,7 +954,7 @@ impl SnowRelay {
             Ok(Some(data)) => match tile_from_data(data) {
                 Ok(tile) => {
                     self.stats.tiles_loaded += 1;
-                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter });
+                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None });
                 }
                 Err(_) => self.stats.store_errors += 1,
             },
@@ -968,6 +994,16 @@ impl SnowRelay {
             self.tiles.remove(&key);
         }
     }
+}
+
+/// Whether `p` may write tile `key`: its centre is within `reach` (m) of
+/// one of the peer's deformer positions recorded since `oldest`.
+fn may_write(p: &PeerState, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64) -> bool {
+    let first = key.first_texel(world.tile_side);
+    let half = f64::from(world.tile_side) / 2.0;
+    let texel = f64::from(world.texel_m);
+    let centre = [(first[0] as f64 + half) * texel, (first[1] as f64 + half) * texel];
+    p.history.iter().filter(|(at, _)| *at >= oldest).flat_map(|(_, ds)| ds).any(|d| (d[0] - centre[0]).hypot(d[1] - centre[1]) <= reach)
 }
 
 /// Records deformer positions for `p` (non-finite ones dropped), keeping
