@@ -197,6 +197,22 @@ impl SnowPeer {
         Ok(())
     }
 
+    /// The connection to the relay was made again (to the same relay or to
+    /// one restarted from its store): the peer says `Hello` again, and
+    /// deltas in flight are sent again once it is welcomed. The replica is
+    /// kept, so the digests that follow give the relay whatever it lacks.
+    pub fn reconnect(&mut self) {
+        self.welcomed = false;
+        self.refused = false;
+        self.last_hello_s = None;
+        self.last_presence_s = f64::NEG_INFINITY;
+        self.last_digest_s = f64::NEG_INFINITY;
+        for (_, keys) in std::mem::take(&mut self.unacked).into_values() {
+            self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+        }
+        self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+    }
+
     /// Where this peer's deformers are now (world x, z in m; at most 256
     /// are sent): where the relay lets it write.
     pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {
@@ -208,7 +224,9 @@ impl SnowPeer {
     /// changed tiles into the replica and queues them, re-merges replica
     /// tiles over texels the window newly exposed, merges received tiles
     /// into the replica and the snow, resends deltas not acknowledged in
-    /// time, and sends `Presence` and `Digest` when due.
+    /// time, and sends `Presence`, deltas (at most every
+    /// `delta_interval_s`, coalesced per tile) and `Digest` when due.
+    /// Before the relay answers it only resends its `Hello`.
     pub fn update(&mut self, snow: &mut dyn SharedSnow, now_s: f64) {
         let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
         let side = self.world.tile_side;
@@ -443,7 +461,7 @@ fn tile_inside(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> bool 
     let t = k.first_texel(side);
     let s = i64::from(side);
     let r = i64::from(resolution);
-    t[0] >= first[0] && t[1] >= first[1] && t[0] + s <= first[0].saturating_add(r) && t[1] + s <= first[1].saturating_add(r)
+    t[0] >= first[0] && t[1] >= first[1] && t[0].saturating_add(s) <= first[0].saturating_add(r) && t[1].saturating_add(s) <= first[1].saturating_add(r)
 }
 
 /// Whether tile `k` overlaps the window.

@@ -16,7 +16,7 @@ use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 
 use crate::deform::snow_word::SNOW_QUANTUM_M;
-use crate::persist::{SnowClock, TileData, TileKey, TileStore};
+use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileStore};
 
 use super::ShareError;
 use super::message::{
@@ -65,7 +65,7 @@ pub struct RelayConfig {
     /// The outgoing byte bucket's size. When full it lets one tile through
     /// whatever its size, so a budget smaller than a tile still progresses.
     pub send_burst_bytes: u32,
-    /// Tiles the relay keeps in memory; beyond it the least recently used
+    /// Tiles the relay keeps in memory; beyond it the least recently merged or loaded
     /// are written to the store and dropped (without a store, dropped and
     /// counted in [`RelayStats::tiles_forgotten`]).
     pub memory_tiles: usize,
@@ -306,8 +306,11 @@ struct Held {
     tile: SharedTile,
     /// Changed since it was last written to the store.
     dirty: bool,
-    /// When it was last used, on the relay's own counter (for eviction).
+    /// When it was last merged into or loaded, on the relay's own counter (for eviction).
     used: u64,
+    /// The tile as [`encode_tile`] writes it, kept between merges: every
+    /// peer interested in a change is sent the same bytes.
+    encoded: Option<Vec<u8>>,
 }
 
 /// The relay: see the module documentation.
@@ -413,6 +416,12 @@ impl SnowRelay {
             self.stats.rejected.unknown_peer += 1;
             return;
         };
+        // Refused before the budget is charged: a peer's one oversized
+        // message should not also starve its next ones.
+        if bytes.len() > MAX_MESSAGE_BYTES {
+            self.stats.rejected.oversized += 1;
+            return;
+        }
         if !p.in_bytes.take(now, rate, burst, bytes.len() as f64) {
             self.stats.rejected.rate_bytes += 1;
             return;
@@ -698,8 +707,7 @@ impl SnowRelay {
         let so_far = world.clock_at(now);
         let limit = world.clock_at(now + self.config.max_clock_lead_s);
         let (rate, burst) = (f64::from(self.config.tiles_per_s), f64::from(self.config.burst_tiles));
-        let reach = f64::from(self.config.accept_radius_m) + f64::from(world.tile_side) * f64::from(world.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
-        let oldest = now - self.config.deformer_memory_s;
+        let (reach, oldest) = self.write_reach(&world, now);
         for t in tiles {
             self.stats.tiles_received += 1;
             let Some(p) = self.peers.get_mut(&peer) else {
@@ -730,11 +738,7 @@ impl SnowRelay {
                 self.stats.rejected.too_deep += 1;
                 continue;
             }
-            let first = t.key.first_texel(t.side);
-            let half = f64::from(t.side) / 2.0;
-            let centre = [(first[0] as f64 + half) * f64::from(world.texel_m), (first[1] as f64 + half) * f64::from(world.texel_m)];
-            let near = p.history.iter().filter(|(at, _)| *at >= oldest).flat_map(|(_, ds)| ds).any(|d| (d[0] - centre[0]).hypot(d[1] - centre[1]) <= reach);
-            if !near {
+            if !may_write(p, t.key, &world, reach, oldest) {
                 self.stats.rejected.far_from_deformers += 1;
                 continue;
             }
@@ -751,12 +755,13 @@ impl SnowRelay {
         let changed = match self.tiles.get_mut(&key) {
             Some(held) => {
                 held.used = used;
+                held.encoded = None;
                 let changed = held.tile.merge(t, c);
                 held.dirty |= changed;
                 changed
             }
             None => {
-                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used });
+                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used, encoded: None });
                 true
             }
         };
@@ -778,10 +783,25 @@ impl SnowRelay {
         }
     }
 
+    /// How far from a recent deformer a peer may write (m, the accept
+    /// radius plus a tile's half diagonal), and the oldest position that counts.
+    fn write_reach(&self, world: &WorldIdentity, now: f64) -> (f64, f64) {
+        let half_diagonal = f64::from(world.tile_side) * f64::from(world.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
+        (f64::from(self.config.accept_radius_m) + half_diagonal, now - self.config.deformer_memory_s)
+    }
+
     fn digest_from(&mut self, peer: PeerId, clock: &ShareClock, window: [i64; 2], resolution: u32, entries: &[(TileKey, u64)]) {
         let Some(world) = self.world.clone() else {
             return;
         };
+        let (reach, oldest) = self.write_reach(&world, self.now_s);
+        let Some(p) = self.peers.get(&peer) else {
+            return;
+        };
+        // Only a tile the peer may have written is worth asking for: any
+        // other copy it holds came from the relay, and would be refused.
+        let wanted = |key: TileKey| may_write(p, key, &world, reach, oldest);
+        let may_want: HashSet<TileKey> = entries.iter().map(|&(k, _)| k).filter(|&k| wanted(k)).collect();
         let Some(region) = KeyRect::of_window(window, resolution, world.tile_side, 0) else {
             self.stats.rejected.bad_window += 1;
             return;
@@ -795,7 +815,8 @@ impl SnowRelay {
                 continue;
             }
             match self.tile(key) {
-                None => want.push(key),
+                None if may_want.contains(&key) => want.push(key),
+                None => {}
                 Some(mut mine) => {
                     if clock.covers(&mine.clock) {
                         mine.catch_up(clock, c);
@@ -807,7 +828,9 @@ impl SnowRelay {
                     // digest's clock: which is newer cannot be told, so
                     // each side sends the other its copy.
                     send.push(key);
-                    want.push(key);
+                    if may_want.contains(&key) {
+                        want.push(key);
+                    }
                 }
             }
         }
@@ -856,21 +879,20 @@ impl SnowRelay {
         let mut batch: Vec<(TileKey, Vec<u8>)> = Vec::new();
         let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
         for key in keys {
-            let Some(tile) = self.tile(key) else {
+            let Some((encoded, tile_texels)) = self.encoded(key) else {
                 if let Some(p) = self.peers.get_mut(&peer) {
                     p.pending.remove(&key);
                 }
                 continue;
             };
-            let encoded = encode_tile(&tile);
-            if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
+            if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile_texels > MAX_MESSAGE_TEXELS {
                 self.stats.rejected.tile_too_large += 1;
                 if let Some(p) = self.peers.get_mut(&peer) {
                     p.pending.remove(&key);
                 }
                 continue;
             }
-            if !batch.is_empty() && (batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS) {
+            if !batch.is_empty() && (batch.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile_texels > MAX_MESSAGE_TEXELS) {
                 tokens -= self.send_batch(peer, &mut batch) as f64;
                 (bytes, texels) = (TILES_OVERHEAD_BYTES, 0);
             }
@@ -879,7 +901,7 @@ impl SnowRelay {
             }
             may_overdraw = false;
             bytes += encoded.len();
-            texels += tile.texels();
+            texels += tile_texels;
             batch.push((key, encoded));
         }
         if !batch.is_empty() {
@@ -910,6 +932,16 @@ impl SnowRelay {
         len
     }
 
+    /// A tile's wire bytes and texels: from the cache for a tile in memory
+    /// (filling it), encoded afresh for one read from the store.
+    fn encoded(&mut self, key: TileKey) -> Option<(Vec<u8>, usize)> {
+        if let Some(held) = self.tiles.get_mut(&key) {
+            let bytes = held.encoded.get_or_insert_with(|| encode_tile(&held.tile));
+            return Some((bytes.clone(), held.tile.texels()));
+        }
+        self.tile(key).map(|t| (encode_tile(&t), t.texels()))
+    }
+
     /// Brings a tile from the store into memory if it is not there.
     fn load(&mut self, key: TileKey) {
         if self.tiles.contains_key(&key) {
@@ -922,7 +954,7 @@ impl SnowRelay {
             Ok(Some(data)) => match tile_from_data(data) {
                 Ok(tile) => {
                     self.stats.tiles_loaded += 1;
-                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter });
+                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None });
                 }
                 Err(_) => self.stats.store_errors += 1,
             },
@@ -931,7 +963,7 @@ impl SnowRelay {
         }
     }
 
-    /// Drops the least recently used tiles beyond `memory_tiles`, writing
+    /// Drops the least recently merged or loaded tiles beyond `memory_tiles`, writing
     /// changed ones to the store first (a tile whose write fails stays).
     fn trim_memory(&mut self) {
         let cap = self.config.memory_tiles;
@@ -962,6 +994,16 @@ impl SnowRelay {
             self.tiles.remove(&key);
         }
     }
+}
+
+/// Whether `p` may write tile `key`: its centre is within `reach` (m) of
+/// one of the peer's deformer positions recorded since `oldest`.
+fn may_write(p: &PeerState, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64) -> bool {
+    let first = key.first_texel(world.tile_side);
+    let half = f64::from(world.tile_side) / 2.0;
+    let texel = f64::from(world.texel_m);
+    let centre = [(first[0] as f64 + half) * texel, (first[1] as f64 + half) * texel];
+    p.history.iter().filter(|(at, _)| *at >= oldest).flat_map(|(_, ds)| ds).any(|d| (d[0] - centre[0]).hypot(d[1] - centre[1]) <= reach)
 }
 
 /// Records deformer positions for `p` (non-finite ones dropped), keeping
@@ -1025,24 +1067,26 @@ pub fn tile_to_data(t: &SharedTile) -> TileData {
     }
 }
 
-/// Inverse of [`tile_to_data`]; an error names what does not fit.
-pub fn tile_from_data(d: TileData) -> Result<SharedTile, String> {
+/// Inverse of [`tile_to_data`]. Data that no relay wrote is
+/// [`StoreError::Corrupt`] (naming no file) saying what does not fit.
+pub fn tile_from_data(d: TileData) -> Result<SharedTile, StoreError> {
+    let corrupt = |why: String| StoreError::Corrupt { path: std::path::PathBuf::new(), why };
     let q = d.clock.refill_m;
     if !((0.0..9_007_199_254_740_992.0).contains(&q) && q.fract() == 0.0) {
-        return Err(format!("refill {q} is not a whole number of quanta"));
+        return Err(corrupt(format!("refill {q} is not a whole number of quanta")));
     }
     let fallen_m = d.clock.fallen_m as f32;
     if f64::from(fallen_m).to_bits() != d.clock.fallen_m.to_bits() {
-        return Err(format!("snowfall so far {} is not an f32", d.clock.fallen_m));
+        return Err(corrupt(format!("snowfall so far {} is not an f32", d.clock.fallen_m)));
     }
     let flag = d.snow_xor_rest.first().map_or(0, |v| v & !0xffff);
     if flag != 0 && flag != NO_STAMP_PLANE {
-        return Err(format!("snow plane flags {flag:#x}"));
+        return Err(corrupt(format!("snow plane flags {flag:#x}")));
     }
     let mut deficit = Vec::with_capacity(d.snow_xor_rest.len());
     for &v in &d.snow_xor_rest {
         if v & !0xffff != flag {
-            return Err("snow plane flags differ between texels".to_owned());
+            return Err(corrupt("snow plane flags differ between texels".to_owned()));
         }
         deficit.push((v & 0xffff) as u16);
     }
@@ -1055,7 +1099,7 @@ pub fn tile_from_data(d: TileData) -> Result<SharedTile, String> {
         stamps,
         fallen: d.fallen,
     };
-    if tile.is_consistent() { Ok(tile) } else { Err("planes of the wrong size".to_owned()) }
+    if tile.is_consistent() { Ok(tile) } else { Err(corrupt("planes of the wrong size".to_owned())) }
 }
 
 #[cfg(test)]
@@ -1080,6 +1124,32 @@ mod tests {
             assert_eq!(back, t);
             assert_eq!(back.digest(), t.digest());
         }
+    }
+
+    /// A server moves its relay to a thread of its own.
+    #[test]
+    fn a_relay_and_a_peer_can_move_between_threads() {
+        fn send<T: Send>() {}
+        send::<SnowRelay>();
+        send::<super::super::SnowPeer>();
+    }
+
+    #[test]
+    fn data_no_relay_wrote_is_corrupt() {
+        let t = SharedTile::untouched(TileKey::new(0, 0), 8, ShareClock::default(), false, false);
+        let why = |d: TileData| match tile_from_data(d) {
+            Err(StoreError::Corrupt { why, .. }) => why,
+            other => panic!("expected Corrupt, got {other:?}"),
+        };
+        let mut half = tile_to_data(&t);
+        half.clock.refill_m = 0.5;
+        assert!(why(half).contains("whole number"));
+        let mut mixed = tile_to_data(&t);
+        mixed.snow_xor_rest[3] = 7;
+        assert!(why(mixed).contains("differ"));
+        let mut flags = tile_to_data(&t);
+        flags.snow_xor_rest[0] |= 1 << 20;
+        assert!(why(flags).contains("flags"));
     }
 
     #[test]

@@ -193,17 +193,73 @@ impl SharedSnow for CpuSnow {
             }
             let mut t = t.clone();
             t.catch_up(&self.clock, c);
-            let first = t.key.first_texel(side);
-            let r = i64::from(self.resolution);
-            for i in 0..i64::from(side) {
-                for j in 0..i64::from(side) {
-                    let (wj, wi) = (first[0] + j - self.origin[0], first[1] + i - self.origin[1]);
+            // In i128: a tile may lie anywhere on the i64 grid.
+            let first = [i128::from(t.key.col) * i128::from(side), i128::from(t.key.row) * i128::from(side)];
+            let r = i128::from(self.resolution);
+            for i in 0..i128::from(side) {
+                for j in 0..i128::from(side) {
+                    let (wj, wi) = (first[0] + j - i128::from(self.origin[0]), first[1] + i - i128::from(self.origin[1]));
                     if (0..r).contains(&wj) && (0..r).contains(&wi) {
                         let d = &mut self.deficit[(wi * r + wj) as usize];
-                        *d = (*d).max(t.deficit[(i * i64::from(side) + j) as usize]);
+                        *d = (*d).max(t.deficit[(i * i128::from(side) + j) as usize]);
                     }
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn world() -> WorldIdentity {
+        WorldIdentity {
+            texel_m: 0.125,
+            tile_side: 8,
+            terrain: "flat at 0 m".to_owned(),
+            depth_m: 0.5,
+            refill_m_per_s: 0.001,
+            snowfall_m_per_s: 0.0,
+            max_fallen_m: 0.0,
+            has_snowfall: false,
+            stamp_range_m: [-1.0, 1.0],
+        }
+    }
+
+    #[test]
+    fn presses_refill_by_the_world_clock_and_moving_exposes_fresh_snow() {
+        let mut snow = CpuSnow::new(world(), 16, [0, 0], 0.0);
+        snow.press_disc([1.0, 1.0], 0.2, 100);
+        assert_eq!(snow.deficit_at(8, 8), Some(100));
+        let changed = snow.take_changed_tiles();
+        assert_eq!(changed.iter().map(|t| t.key).collect::<Vec<_>>(), vec![TileKey::new(0, 0), TileKey::new(0, 1), TileKey::new(1, 0), TileKey::new(1, 1)]);
+        assert!(snow.take_changed_tiles().is_empty(), "taken once");
+        snow.step(0.5); // 0.5 mm of refill: 5 quanta
+        assert_eq!(snow.deficit_at(8, 8), Some(95));
+        snow.set_origin([8, 8]);
+        assert_eq!(snow.deficit_at(8, 8), Some(95), "kept where the windows overlap");
+        snow.set_origin([0, 0]);
+        assert_eq!(snow.deficit_at(0, 0), Some(0));
+        assert_eq!(snow.deficit_at(8, 8), Some(95));
+    }
+
+    #[test]
+    fn tiles_ahead_of_the_clock_wait_for_it() {
+        let w = world();
+        let mut snow = CpuSnow::new(w.clone(), 16, [0, 0], 0.0);
+        let mut ahead = SharedTile::untouched(TileKey::new(0, 0), 8, w.clock_at(1.0), false, false);
+        ahead.deficit[0] = 50;
+        snow.merge_tiles(std::slice::from_ref(&ahead));
+        assert_eq!(snow.deficit_at(0, 0), Some(0), "held");
+        snow.step(1.0);
+        assert_eq!(snow.deficit_at(0, 0), Some(50), "merged once the clock reached it");
+        let mut behind = SharedTile::untouched(TileKey::new(0, 0), 8, w.clock_at(0.0), false, false);
+        behind.deficit[1] = 50;
+        snow.merge_tiles(&[behind]);
+        assert_eq!(snow.deficit_at(1, 0), Some(40), "caught up by the 10 quanta it missed");
+        // Anywhere on the grid, without overflow.
+        let far = SharedTile::untouched(TileKey::new(i64::MAX, i64::MIN), 8, w.clock_at(0.0), false, false);
+        snow.merge_tiles(&[far]);
     }
 }
