@@ -14,7 +14,15 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("STAMP", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/share_flags.wgsl", "stamp.wgsl"]),
     (
         "UPDATE",
-        &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "shared/share_flags.wgsl", "update.wgsl"],
+        &[
+            "shared/window.wgsl",
+            "shared/terrain.wgsl",
+            "shared/terrain_kind.wgsl",
+            "shared/stamp.wgsl",
+            "shared/snow_word.wgsl",
+            "shared/share_flags.wgsl",
+            "update.wgsl",
+        ],
     ),
     ("DISPLAY", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "display.wgsl"]),
     ("SURFACE_UNPACK", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/snow_word.wgsl", "surface_unpack.wgsl"]),
@@ -53,10 +61,7 @@ const SHADERS: &[(&str, &[&str])] = &[
     ("TILE_WEATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "tile_weather.wgsl"]),
     ("TILE_SEAL", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "tile_seal.wgsl"]),
     ("TILE_GATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "tile_gather.wgsl"]),
-    (
-        "TILE_MERGE",
-        &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "tile_merge.wgsl"],
-    ),
+    ("TILE_MERGE", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "tile_merge.wgsl"]),
     ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
     ("SHELL_VERTICES", &["shared/terrain.wgsl", "shared/shell.wgsl", "shell_vertices.wgsl"]),
     ("SHELL_TETRAHEDRA", &["shared/shell.wgsl", "shell_tetrahedra.wgsl"]),

@@ -9,9 +9,12 @@ use glam::{DVec2, Quat, Vec3};
 use snowpack::cpu;
 use snowpack::deform::resources::DeformResources;
 use snowpack::deform::snow_word;
+use snowpack::deform::stamp::{StampParams, StampPass};
+use snowpack::deform::update::{UpdateParams, UpdatePass};
 use snowpack::deform::wheel::{Tread, TreadPattern};
 use snowpack::gpu::{GpuTimer, read_buffer};
 use snowpack::persist::TileKey;
+use snowpack::replicate::flags::ShareGrid;
 use snowpack::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
 use snowpack::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
 use snowpack::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
@@ -57,7 +60,7 @@ fn random_window(ctx: &GpuContext, rng: &mut Rng) -> Window {
     let origin = [rng.range(-400.0, 400.0) as i32, rng.range(-400.0, 400.0) as i32];
     let n = params.texel_count();
     let snow: Vec<u32> = (0..n).map(|_| (rng.next_u64() as u32 & 0xffff_0000) | snow_word::deficit_quanta(rng.range(0.0, params.depth_m * 1.2))).collect();
-    let stamps: Vec<u32> = (0..n).map(|_| if rng.next_u64() % 3 == 0 { NO_STAMP } else { rng.next_u64() as u32 }).collect();
+    let stamps: Vec<u32> = (0..n).map(|_| if rng.next_u64().is_multiple_of(3) { NO_STAMP } else { rng.next_u64() as u32 }).collect();
     let fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.3)).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
@@ -129,12 +132,12 @@ fn tile_merge_matches_cpu() {
         let tiles: Vec<SharedTile> = keys
             .iter()
             .map(|&key| {
-                let mut t = SharedTile::untouched(key, side, ShareClock::default(), rng.next_u64() % 4 != 0, rng.next_u64() % 4 != 0);
+                let mut t = SharedTile::untouched(key, side, ShareClock::default(), !rng.next_u64().is_multiple_of(4), !rng.next_u64().is_multiple_of(4));
                 for d in &mut t.deficit {
-                    *d = if rng.next_u64() % 2 == 0 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, depth * 1.2)) as u16 };
+                    *d = if rng.next_u64().is_multiple_of(2) { 0 } else { snow_word::deficit_quanta(rng.range(0.0, depth * 1.2)) as u16 };
                 }
                 for s in &mut t.stamps {
-                    *s = if rng.next_u64() % 3 == 0 { NO_STAMP } else { rng.next_u64() as u32 };
+                    *s = if rng.next_u64().is_multiple_of(3) { NO_STAMP } else { rng.next_u64() as u32 };
                 }
                 for f in &mut t.fallen {
                     *f = rng.range(0.0, 0.3);
@@ -152,14 +155,13 @@ fn tile_merge_matches_cpu() {
                     after: ShareClock::default(),
                     snow_quanta: (rng.next_u64() % 40) as u32,
                     stamp_quanta: (rng.next_u64() % 60) as u32,
-                    fall_m: if rng.next_u64() % 2 == 0 { 0.0 } else { rng.range(0.0, 0.01) },
-                    stamps_pressed: rng.next_u64() % 4 != 0,
+                    fall_m: if rng.next_u64().is_multiple_of(2) { 0.0 } else { rng.range(0.0, 0.01) },
+                    stamps_pressed: !rng.next_u64().is_multiple_of(4),
                 }
                 .gpu()
             })
             .collect();
-        let gkeys: Vec<[i32; 4]> =
-            gpu_keys(&keys).iter().map(|k| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, 0]).collect();
+        let gkeys: Vec<[i32; 4]> = gpu_keys(&keys).iter().map(|k| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, 0]).collect();
         let pass = TileMergePass::new(&ctx.device, &w.res, side, count as u32);
         let p = TileMergeParams {
             origin: w.origin,
@@ -185,6 +187,80 @@ fn tile_merge_matches_cpu() {
         let fallen: Vec<u32> = read_f32(ctx, &w.res.fallen).iter().map(|f| f.to_bits()).collect();
         assert_eq!(fallen, w.fallen.iter().map(|f| f.to_bits()).collect::<Vec<_>>(), "merged snowfall; {what}");
     }
+}
+
+#[test]
+fn stamp_and_update_flags_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("share flags");
+    let mut rng = Rng::new(seed);
+    let mut w = random_window(ctx, &mut rng);
+    let r = w.params.resolution;
+    let grid = ShareGrid::new(r, 8 + (rng.next_u64() % 25) as u32);
+    w.res.allocate_share_flags(&ctx.device, grid.slots());
+    let slots = grid.slots() as usize;
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    // Footprints over empty ones: every texel a square covers is lowered,
+    // so the flags do not depend on a rounding the GPU may do differently.
+    let mut stamps = vec![NO_STAMP; w.params.texel_count()];
+    ctx.queue.write_buffer(&w.res.stamps, 0, bytemuck::cast_slice(&stamps));
+    let e = w.params.extent_m;
+    let points: Vec<[f32; 8]> = (0..6)
+        .map(|_| {
+            let p = [rng.range(-0.2 * e, 1.2 * e), rng.range(-0.5, 1.0), rng.range(-0.2 * e, 1.2 * e), rng.range(0.5, 4.0)];
+            [p[0], p[1], p[2], p[3], p[0] + rng.range(-1.0, 1.0), p[1], p[2] + rng.range(-1.0, 1.0), 0.0]
+        })
+        .collect();
+    let sp = StampParams {
+        origin: w.origin,
+        resolution: r,
+        range_texels: 32,
+        texel_m: w.params.texel_m(),
+        low_m: -1.5,
+        high_m: 3.0,
+        share_side: grid.side,
+        share_keys: grid.keys,
+        ..StampParams::default()
+    };
+    let mut pass = StampPass::new(&ctx.device, &w.res);
+    assert_eq!(pass.prepare(&ctx.device, &ctx.queue, &w.res, &sp, &points), 0);
+    let mut enc = encoder(ctx);
+    pass.record(&mut enc, &mut timer);
+    submit(ctx, enc);
+    let mut flags = vec![0; slots];
+    cpu::stamp::stamp_flagged(&StampParams { count: points.len() as u32, ..sp }, &points, &mut stamps, &mut flags);
+    assert!(flags.iter().any(|&f| f != 0), "no footprint in the window; seed {seed}");
+    assert_eq!(read_u32(ctx, &w.res.share_flags), flags, "stamp flags; seed {seed}");
+    // The update: refill, the footprints pressing again; no capture. Only a
+    // capture flags in the update, so nothing is flagged here, on either side.
+    ctx.queue.write_buffer(&w.res.share_flags, 0, bytemuck::cast_slice(&vec![0u32; slots]));
+    let stamps_gpu = read_u32(ctx, &w.res.stamps);
+    let up = UpdateParams {
+        origin: w.origin,
+        resolution: r,
+        depth_m: w.params.depth_m,
+        snow_refill_quanta: (rng.next_u64() % 50) as u32,
+        low_m: sp.low_m,
+        high_m: sp.high_m,
+        flags: UpdateParams::USE_STAMPS | UpdateParams::HAS_STAMPS | UpdateParams::SHARE,
+        refill_quanta: (rng.next_u64() % 40) as u32,
+        texel_m: w.params.texel_m(),
+        share_side: grid.side,
+        share_keys: grid.keys,
+        ..UpdateParams::default()
+    };
+    let update = UpdatePass::new(&ctx.device, &w.res);
+    let mut enc = encoder(ctx);
+    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    submit(ctx, enc);
+    let terrain = cpu::window::ground_plane(&w.terrain, w.origin, r, w.params.texel_m());
+    let input = cpu::update::UpdateInputs { capture_depth: &[], sky_depth: &[], terrain: &terrain };
+    let (mut snow, mut stamps, mut flags) = (w.snow.clone(), stamps_gpu, vec![0; slots]);
+    cpu::update::update_flagged(&up, &input, &mut snow, &mut stamps, &mut [], &mut flags);
+    assert!(flags.iter().all(|&f| f == 0), "the CPU update flagged footprints; seed {seed}");
+    assert_eq!(read_u32(ctx, &w.res.share_flags), flags, "update flags; seed {seed}");
+    let gpu_snow = read_u32(ctx, &w.res.snow);
+    assert!(gpu_snow.iter().zip(&snow).all(|(a, b)| a & 0xffff == b & 0xffff), "update deficits; seed {seed}");
 }
 
 // --- Whole windows -----------------------------------------------------------
@@ -264,11 +340,8 @@ fn flags_mark_exactly_the_pressed_tiles_and_nothing_else() {
         let mut sent = Vec::new();
         for _ in 0..3 {
             frame(ctx, &mut d, &[], &[], DT);
-            let t = d.take_changed_tiles();
-            eprintln!("DEBUG {technique:?} dirty {} sent {:?}", d.dirty_tiles(), keys_of(&t));
-            sent.extend(t);
+            sent.extend(d.take_changed_tiles());
         }
-        eprintln!("DEBUG expected {expected:?}");
         assert_eq!(keys_of(&sent), expected, "{technique:?}: tiles sent after a sphere's press");
         assert_eq!(d.dirty_tiles(), 0);
         // Refill alone (many frames past the gather interval) flags nothing.
@@ -364,7 +437,14 @@ fn merging_two_simulations_equals_one_with_both_presses() {
             assert!(sc.iter().any(|&s| s != NO_STAMP), "{case}: no footprints");
             for (name, s) in [("A (B's tiles merged)", &sa), ("B (A's tiles merged)", &sb)] {
                 let diff: Vec<usize> = (0..s.len()).filter(|&k| s[k] != sc[k]).collect();
-                assert!(diff.is_empty(), "{case}: footprints of {name} differ from C at {} texels, first {} ({:#x} vs {:#x})", diff.len(), diff[0], s[diff[0]], sc[diff[0]]);
+                assert!(
+                    diff.is_empty(),
+                    "{case}: footprints of {name} differ from C at {} texels, first {} ({:#x} vs {:#x})",
+                    diff.len(),
+                    diff[0],
+                    s[diff[0]],
+                    sc[diff[0]]
+                );
             }
         }
     }
