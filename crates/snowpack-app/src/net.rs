@@ -276,6 +276,94 @@ fn random_id() -> u64 {
     x ^ (x >> 33)
 }
 
+/// `snowpack query`: the snow depth at `points` (world x, z in m) from the
+/// server's merged tiles, `None` where the server knows no world yet.
+pub fn query(addr: SocketAddr, token: Option<&Path>, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
+    use snowpack::replicate::{Message, decode, encode};
+    let mut link = Transport::connect(addr, token)?;
+    let deadline = Instant::now() + CONNECT_LIMIT;
+    let mut sent = false;
+    let mut answers = Vec::with_capacity(points.len());
+    // At most MAX_DEFORMERS points a message: the query goes in chunks.
+    let chunks: Vec<Vec<[f64; 2]>> = points.chunks(snowpack::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
+    while answers.len() < chunks.len() {
+        link.update()?;
+        if link.client.is_connected() && !sent {
+            for (id, chunk) in chunks.iter().enumerate() {
+                link.client.send_message(CHANNEL, encode(&Message::Query { id: id as u32, points: chunk.clone() }));
+            }
+            sent = true;
+        }
+        while let Some(bytes) = link.client.receive_message(CHANNEL) {
+            if let Ok(Message::Depths { id, depths }) = decode(&bytes) {
+                answers.push((id, depths));
+            }
+        }
+        link.send();
+        if Instant::now() > deadline {
+            return Err(LinkError::Lost { addr, why: format!("no answer to the query within {CONNECT_LIMIT:?}") }.into());
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    answers.sort_by_key(|a| a.0);
+    Ok(answers.into_iter().flat_map(|(_, d)| d).map(|d| d.is_finite().then_some(d)).collect())
+}
+
+/// A renet2 client over netcode, without a peer: the connection itself.
+struct Transport {
+    addr: SocketAddr,
+    client: RenetClient,
+    transport: NetcodeClientTransport,
+    last: Instant,
+}
+
+impl Transport {
+    fn connect(addr: SocketAddr, token: Option<&Path>) -> anyhow::Result<Self> {
+        let bind: SocketAddr = if addr.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse()?;
+        let socket = UdpSocket::bind(bind).context("a UDP socket for --connect")?;
+        let authentication = match token {
+            Some(path) => {
+                let bytes = std::fs::read(path).map_err(|e| BadInput(format!("--token {}: {e}", path.display())))?;
+                let connect_token = ConnectToken::read(&mut bytes.as_slice()).map_err(|e| BadInput(format!("--token {}: not a connect token ({e})", path.display())))?;
+                ClientAuthentication::Secure { connect_token }
+            }
+            None => ClientAuthentication::Unsecure { protocol_id: PROTOCOL_ID, client_id: random_id(), socket_id: 0, server_addr: addr, user_data: None },
+        };
+        let transport = NetcodeClientTransport::new(unix_now(), authentication, NativeSocket::new(socket).context("the client's socket")?)
+            .map_err(|e| LinkError::Lost { addr, why: e.to_string() })?;
+        Ok(Self { addr, client: RenetClient::new(connection_config(), false), transport, last: Instant::now() })
+    }
+
+    /// Takes in what arrived; an error once the connection is gone.
+    fn update(&mut self) -> Result<(), LinkError> {
+        let now = Instant::now();
+        self.client.update(now - self.last);
+        let update = self.transport.update(now - self.last, &mut self.client);
+        self.last = now;
+        if let Err(e) = update {
+            return Err(LinkError::Lost { addr: self.addr, why: e.to_string() });
+        }
+        if self.client.is_disconnected() {
+            let why = self.client.disconnect_reason().map_or_else(|| "disconnected".to_owned(), |r| r.to_string());
+            return Err(LinkError::Lost { addr: self.addr, why });
+        }
+        Ok(())
+    }
+
+    /// Sends what was queued.
+    fn send(&mut self) {
+        if let Err(e) = self.transport.send_packets(&mut self.client) {
+            tracing::debug!("netcode: {e}");
+        }
+    }
+}
+
+impl Drop for Transport {
+    fn drop(&mut self) {
+        self.transport.disconnect();
+    }
+}
+
 /// Why a link to a server failed.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
@@ -301,13 +389,10 @@ pub enum LinkError {
 /// server` and the [`SnowPeer`] beside the game's snow. [`Self::pump`]
 /// once a frame; it never blocks.
 pub struct SnowLink {
-    addr: SocketAddr,
-    client: RenetClient,
-    transport: NetcodeClientTransport,
+    net: Transport,
     /// The replication state machine.
     pub peer: SnowPeer,
     started: Instant,
-    last: Instant,
     backlog: VecDeque<Vec<u8>>,
 }
 
@@ -315,33 +400,12 @@ impl SnowLink {
     /// Starts connecting to `addr` (with the connect token in `token` when the
     /// server has a key) as a peer of `world`.
     pub fn connect(addr: SocketAddr, token: Option<&Path>, world: WorldIdentity, name: &str) -> anyhow::Result<Self> {
-        let bind: SocketAddr = if addr.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse()?;
-        let socket = UdpSocket::bind(bind).context("a UDP socket for --connect")?;
-        let authentication = match token {
-            Some(path) => {
-                let bytes = std::fs::read(path).map_err(|e| BadInput(format!("--token {}: {e}", path.display())))?;
-                let connect_token = ConnectToken::read(&mut bytes.as_slice()).map_err(|e| BadInput(format!("--token {}: not a connect token ({e})", path.display())))?;
-                ClientAuthentication::Secure { connect_token }
-            }
-            None => ClientAuthentication::Unsecure { protocol_id: PROTOCOL_ID, client_id: random_id(), socket_id: 0, server_addr: addr, user_data: None },
-        };
-        let transport = NetcodeClientTransport::new(unix_now(), authentication, NativeSocket::new(socket).context("the client's socket")?)
-            .map_err(|e| LinkError::Lost { addr, why: e.to_string() })?;
-        let now = Instant::now();
-        Ok(Self {
-            addr,
-            client: RenetClient::new(connection_config(), false),
-            transport,
-            peer: SnowPeer::new(world, name, PeerConfig::default()),
-            started: now,
-            last: now,
-            backlog: VecDeque::new(),
-        })
+        Ok(Self { net: Transport::connect(addr, token)?, peer: SnowPeer::new(world, name, PeerConfig::default()), started: Instant::now(), backlog: VecDeque::new() })
     }
 
     /// The server's address.
     pub fn addr(&self) -> SocketAddr {
-        self.addr
+        self.net.addr
     }
 
     /// Seconds since the link started (the peer's own clock for its timers).
@@ -353,19 +417,9 @@ impl SnowLink {
     /// snow's changed tiles and merges what came in, and its messages go
     /// out. Never blocks.
     pub fn pump(&mut self, snow: &mut dyn SharedSnow) -> Result<(), LinkError> {
-        let now = Instant::now();
-        self.client.update(now - self.last);
-        let update = self.transport.update(now - self.last, &mut self.client);
-        self.last = now;
-        if let Err(e) = update {
-            return Err(LinkError::Lost { addr: self.addr, why: e.to_string() });
-        }
-        if self.client.is_disconnected() {
-            let why = self.client.disconnect_reason().map_or_else(|| "disconnected".to_owned(), |r| r.to_string());
-            return Err(LinkError::Lost { addr: self.addr, why });
-        }
+        self.net.update()?;
         let mut refused = None;
-        while let Some(bytes) = self.client.receive_message(CHANNEL) {
+        while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
             match self.peer.receive(&bytes) {
                 Ok(()) => {}
                 Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
@@ -373,25 +427,23 @@ impl SnowLink {
             }
         }
         if let Some(why) = refused {
-            return Err(LinkError::Refused { addr: self.addr, why });
+            return Err(LinkError::Refused { addr: self.net.addr, why });
         }
         let now_s = self.now_s();
         self.peer.update(snow, now_s);
         while let Some(bytes) = self.peer.poll_transmit() {
             self.backlog.push_back(bytes);
         }
-        if self.client.is_connected() {
+        if self.net.client.is_connected() {
             while let Some(bytes) = self.backlog.front() {
-                if !self.client.can_send_message(CHANNEL, bytes.len()) {
+                if !self.net.client.can_send_message(CHANNEL, bytes.len()) {
                     break;
                 }
                 let bytes = self.backlog.pop_front().unwrap_or_default();
-                self.client.send_message(CHANNEL, bytes);
+                self.net.client.send_message(CHANNEL, bytes);
             }
         }
-        if let Err(e) = self.transport.send_packets(&mut self.client) {
-            tracing::debug!("netcode: {e}");
-        }
+        self.net.send();
         Ok(())
     }
 
@@ -402,7 +454,7 @@ impl SnowLink {
         while !self.peer.is_welcomed() {
             self.pump(snow)?;
             if Instant::now() > deadline {
-                return Err(LinkError::Lost { addr: self.addr, why: format!("no answer from the server within {limit:?}") });
+                return Err(LinkError::Lost { addr: self.net.addr, why: format!("no answer from the server within {limit:?}") });
             }
             std::thread::sleep(Duration::from_millis(5));
         }
@@ -414,16 +466,6 @@ impl SnowLink {
         self.backlog.len()
     }
 
-    /// Disconnects (the server learns at once instead of by a timeout).
-    pub fn disconnect(&mut self) {
-        self.transport.disconnect();
-    }
-}
-
-impl Drop for SnowLink {
-    fn drop(&mut self) {
-        self.disconnect();
-    }
 }
 
 /// How long a run waits for the server's welcome.
@@ -513,7 +555,7 @@ pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, 
         }
         if Instant::now() > deadline {
             return Err(LinkError::Lost {
-                addr: link.addr,
+                addr: link.addr(),
                 why: format!(
                     "the server did not acknowledge this run's changes within {SETTLE_LIMIT:?} ({} unacknowledged, {} unsent)",
                     link.peer.unacknowledged(),
@@ -524,5 +566,5 @@ pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, 
         }
         std::thread::sleep(Duration::from_millis(5));
     }
-    Ok(ShareReport { addr: link.addr, linked_s: link.started.elapsed().as_secs_f64(), settle_s: start.elapsed().as_secs_f64(), stats: link.peer.stats() })
+    Ok(ShareReport { addr: link.addr(), linked_s: link.started.elapsed().as_secs_f64(), settle_s: start.elapsed().as_secs_f64(), stats: link.peer.stats() })
 }

@@ -152,6 +152,31 @@ pub enum Message {
         /// The world clock when the relay sent it.
         clock: ShareClock,
     },
+    /// Relay → peer: the `Digest` at `clock` matched the relay's tiles over
+    /// the peer's window, and nothing is waiting to be sent to it: the peer
+    /// holds everything the relay has there (a run about to stop waits
+    /// for this).
+    InSync {
+        /// The clock of the digest that matched.
+        clock: ShareClock,
+    },
+    /// Anyone connected → relay (no `Hello` needed): the snow depth at
+    /// these points, from the relay's merged tiles (a game server's
+    /// question: is this player in deep snow?).
+    Query {
+        /// Echoed in the answer.
+        id: u32,
+        /// World (x, z) in m, ≤ [`MAX_DEFORMERS`].
+        points: Vec<[f64; 2]>,
+    },
+    /// Relay → asker: the answer to a `Query`, one depth (m) per point;
+    /// NaN where the relay knows no world yet.
+    Depths {
+        /// The query's id.
+        id: u32,
+        /// Snow depth above the terrain per point (m).
+        depths: Vec<f32>,
+    },
 }
 
 impl Message {
@@ -168,6 +193,9 @@ impl Message {
             Self::Digest { .. } => 7,
             Self::Want { .. } => 8,
             Self::Clock { .. } => 9,
+            Self::InSync { .. } => 10,
+            Self::Query { .. } => 11,
+            Self::Depths { .. } => 12,
         }
     }
 
@@ -184,6 +212,9 @@ impl Message {
             Self::Digest { .. } => "Digest",
             Self::Want { .. } => "Want",
             Self::Clock { .. } => "Clock",
+            Self::InSync { .. } => "InSync",
+            Self::Query { .. } => "Query",
+            Self::Depths { .. } => "Depths",
         }
     }
 }
@@ -322,7 +353,24 @@ pub fn encode(message: &Message) -> Vec<u8> {
                 w.i64(key.row);
             }
         }
-        Message::Clock { clock } => write_clock(&mut w, clock),
+        Message::Clock { clock } | Message::InSync { clock } => write_clock(&mut w, clock),
+        Message::Query { id, points } => {
+            w.u32(*id);
+            let n = points.len().min(MAX_DEFORMERS);
+            w.u16(n as u16);
+            for p in &points[..n] {
+                w.f64(p[0]);
+                w.f64(p[1]);
+            }
+        }
+        Message::Depths { id, depths } => {
+            w.u32(*id);
+            let n = depths.len().min(MAX_DEFORMERS);
+            w.u16(n as u16);
+            for d in &depths[..n] {
+                w.f32(*d);
+            }
+        }
     }
     w.0
 }
@@ -450,6 +498,29 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
             Message::Want { keys }
         }
         9 => Message::Clock { clock: read_clock(&mut r)? },
+        10 => Message::InSync { clock: read_clock(&mut r)? },
+        11 => {
+            let id = r.u32("query id")?;
+            let n = usize::from(r.u16("point count")?);
+            cap("query points", n, MAX_DEFORMERS)?;
+            r.need(n * 16, "query points")?;
+            let mut points = Vec::with_capacity(n);
+            for _ in 0..n {
+                points.push([r.f64("point x")?, r.f64("point z")?]);
+            }
+            Message::Query { id, points }
+        }
+        12 => {
+            let id = r.u32("query id")?;
+            let n = usize::from(r.u16("depth count")?);
+            cap("depths", n, MAX_DEFORMERS)?;
+            r.need(n * 4, "depths")?;
+            let mut depths = Vec::with_capacity(n);
+            for _ in 0..n {
+                depths.push(r.f32("depth")?);
+            }
+            Message::Depths { id, depths }
+        }
         other => return Err(MessageError::UnknownKind(other)),
     };
     let left = bytes.len() - r.at;

@@ -112,6 +112,13 @@ pub struct SnowPeer {
     last_digest_s: f64,
     last_delta_s: f64,
     last_window: Option<([i64; 2], u32)>,
+    /// Changes to the replica or the window so far (a counter): an `InSync`
+    /// answers a digest only if nothing changed since it was made.
+    activity: u64,
+    /// The clock and activity of the last digest sent.
+    last_digest: Option<(ShareClock, u64)>,
+    /// The relay said the last digest matched, and nothing changed since.
+    in_sync: bool,
     stats: PeerStats,
 }
 
@@ -143,6 +150,9 @@ impl SnowPeer {
             last_digest_s: f64::NEG_INFINITY,
             last_delta_s: f64::NEG_INFINITY,
             last_window: None,
+            activity: 0,
+            last_digest: None,
+            in_sync: false,
             stats: PeerStats::default(),
         }
     }
@@ -189,6 +199,9 @@ impl SnowPeer {
                 self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
             }
             Message::Clock { clock } => self.relay_clock = Some(clock),
+            Message::InSync { clock } => {
+                self.in_sync = self.incoming.is_empty() && self.last_digest.is_some_and(|(c, a)| c == clock && a == self.activity);
+            }
             other => {
                 self.stats.malformed += 1;
                 return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())));
@@ -203,6 +216,7 @@ impl SnowPeer {
     /// kept, so the digests that follow give the relay whatever it lacks.
     pub fn reconnect(&mut self) {
         self.welcomed = false;
+        self.in_sync = false;
         self.refused = false;
         self.last_hello_s = None;
         self.last_presence_s = f64::NEG_INFINITY;
@@ -243,9 +257,11 @@ impl SnowPeer {
             }
             self.to_send.insert(t.key);
             merge_into(&mut self.replica, t, c);
+            self.changed();
         }
         let window = snow.window();
         if window != self.last_window {
+            self.changed();
             if let Some((first, resolution)) = window {
                 let exposed: Vec<SharedTile> = window_keys(first, resolution, side)
                     .filter(|k| !self.last_window.is_some_and(|(f, r)| tile_inside(*k, side, f, r)))
@@ -262,6 +278,7 @@ impl SnowPeer {
             for t in &incoming {
                 if merge_into(&mut self.replica, t.clone(), c) {
                     self.stats.tiles_merged += 1;
+                    self.changed();
                 }
             }
             snow.merge_tiles(&incoming);
@@ -301,6 +318,23 @@ impl SnowPeer {
             self.last_digest_s = now_s;
             self.send_digest(snow.share_clock(), first, resolution, c);
         }
+    }
+
+    /// Whether this peer holds everything the relay has over its window and
+    /// the relay has everything it changed: the relay answered its last
+    /// digest with `InSync`, nothing changed since, and no change waits for
+    /// an acknowledgement. A program about to stop (a headless run) pumps
+    /// until this holds.
+    #[must_use]
+    pub fn is_synced(&self) -> bool {
+        self.in_sync && self.unacknowledged() == 0 && self.incoming.is_empty()
+    }
+
+    /// Something changed the replica or the window: the last digest no
+    /// longer describes it.
+    fn changed(&mut self) {
+        self.activity += 1;
+        self.in_sync = false;
     }
 
     /// The next message to send to the relay.
@@ -412,6 +446,7 @@ impl SnowPeer {
                 entries.push((k, t.digest()));
             }
         }
+        self.last_digest = Some((clock, self.activity));
         self.push(encode(&Message::Digest { clock, window: first, resolution, entries }));
     }
 

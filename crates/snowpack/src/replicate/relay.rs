@@ -184,6 +184,8 @@ pub struct RelayStats {
     pub tiles_merged: u64,
     /// Tiles sent to peers.
     pub tiles_sent: u64,
+    /// Depth queries answered.
+    pub queries: u64,
     /// Tiles written to the store.
     pub tiles_persisted: u64,
     /// Tiles read back from the store.
@@ -439,6 +441,12 @@ impl SnowRelay {
         };
         if let Message::Hello { world, .. } = message {
             self.hello(peer, &world, now);
+            return;
+        }
+        if let Message::Query { id, points } = message {
+            self.stats.queries += 1;
+            let depths = points.iter().map(|p| self.depth_at(p[0], p[1]).unwrap_or(f32::NAN)).collect();
+            self.enqueue(peer, encode(&Message::Depths { id, depths }));
             return;
         }
         if p.standing != Standing::Welcomed {
@@ -840,12 +848,17 @@ impl SnowRelay {
                 send.push(key);
             }
         }
+        let mut in_sync = send.is_empty() && want.is_empty();
         if let Some(p) = self.peers.get_mut(&peer) {
             p.pending.extend(send.into_iter().filter(|k| p.interest.is_some_and(|r| r.contains(*k))));
+            in_sync &= p.pending.is_empty();
         }
         want.truncate(MAX_KEYS);
         if !want.is_empty() {
             self.enqueue(peer, encode(&Message::Want { keys: want }));
+        }
+        if in_sync {
+            self.enqueue(peer, encode(&Message::InSync { clock: *clock }));
         }
     }
 
