@@ -36,7 +36,7 @@ const CHANNEL_BYTES: usize = 16 << 20;
 /// The server's loop period.
 const TICK: Duration = Duration::from_millis(10);
 /// How long a connect token made by `snowpack token` stays valid (s).
-const TOKEN_LIFETIME_S: u64 = 24 * 3600;
+const TOKEN_LIFETIME_S: u64 = 12 * 3600;
 /// Tile side of the worlds a `snowpack server` serves when its store does not say.
 pub const DEFAULT_TILE_SIDE: u32 = 32;
 
@@ -138,7 +138,10 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     let local = socket.local_addr()?;
     let setup = ServerSetupConfig {
         current_time: unix_now(),
-        max_token_lifetime: u16::try_from(TOKEN_LIFETIME_S).unwrap_or(u16::MAX),
+        // Netcode rejects tokens that expire before start + this: 0 accepts
+        // every token still valid, so tokens made before a restart (same key)
+        // keep working until they expire.
+        max_token_lifetime: 0,
         max_clients: 256,
         protocol_id: PROTOCOL_ID,
         socket_addresses: vec![vec![local]],
