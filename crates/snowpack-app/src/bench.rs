@@ -326,6 +326,8 @@ pub struct BenchResults {
     pub shell_rows: Vec<crate::bench_shell::ShellRow>,
     /// Swept capture against unswept.
     pub sweep_rows: Vec<crate::bench_sweep::SweepRow>,
+    /// Shared snow: one relay under simulated peers (no GPU).
+    pub share_rows: Vec<crate::bench_share::ShareRow>,
 }
 
 /// Measures everything `--quick` and `--only` ask for.
@@ -351,6 +353,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         store_row: None,
         shell_rows: Vec::new(),
         sweep_rows: Vec::new(),
+        share_rows: Vec::new(),
     };
     for &res in sizes {
         let name = format!("passes-{res}");
@@ -440,6 +443,21 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         );
         results.store_row = Some(row);
         let _ = std::fs::remove_dir_all(&scratch);
+    }
+    // Shared snow: one relay process and simulated peers on loopback (CPU only).
+    if only.is_none_or(|o| "share".contains(o)) {
+        let (peers, seconds) = if quick { (16, 10.0) } else { (64, 60.0) };
+        let row = crate::bench_share::measure_load(peers, seconds).context("shared snow under load")?;
+        println!(
+            "  shared snow: {} peers for {:.0} s: server {:.3} CPU s per world s, {:.1} MiB peak, {:.3} ms CPU per tile, {:.0} B/s out",
+            row.peers,
+            row.world_s,
+            row.cpu_per_world_s(),
+            row.server_peak_kib as f64 / 1024.0,
+            row.cpu_ms_per_tile(),
+            row.bytes_out as f64 / row.world_s
+        );
+        results.share_rows.push(row);
     }
     // Swept capture against unswept (issue 21).
     if only.is_none_or(|o| "sweep".contains(o)) {
@@ -573,6 +591,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.sweep_rows.is_empty() {
         md.push_str(&crate::bench_sweep::markdown(&r.sweep_rows, &r.adapter, r.software));
     }
+    if !r.share_rows.is_empty() {
+        md.push_str(&crate::bench_share::markdown(&r.share_rows));
+    }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
     let stamp = format!("_Measured on {} ({}){}._", r.adapter, r.backend, if r.software { ", a software rasteriser: ratios only" } else { "" });
@@ -659,8 +680,8 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
 }
 
 /// The parts `--only` picks from: a value selects every part whose name contains it.
-const PARTS: [&str; 11] =
-    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "shell", "frames"];
+const PARTS: [&str; 12] =
+    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "shell", "frames", "share"];
 
 /// `--only`'s value, checked before any GPU work: it must select a part.
 fn check_only(only: Option<&str>) -> Result<(), crate::BadInput> {
@@ -857,6 +878,7 @@ mod tests {
                 unswept_frame_ms: 10.0,
                 swept_frame_ms: 10.5,
             }],
+            share_rows: vec![],
         };
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();

@@ -170,9 +170,9 @@ pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
 /// The report's section.
 pub fn markdown(rows: &[ShareRow]) -> String {
     let mut md = String::from(
-        "\n## Shared snow: one relay under load\n\n`snowpack server` in its own process, and simulated peers on loopback (CPU snow windows of 128², walking at \
+        "\n## Shared snow: one relay under load\n\n_Measured on this machine's CPU (no GPU is involved)._\n\n`snowpack server` in its own process, and simulated peers on loopback (CPU snow windows of 128², walking at \
          1.4 m/s and pressing a 25 cm disc, linked over renet2 like `snowpack run --connect`). CPU time and memory are the server process's \
-         own; bytes are snowpack's messages (renet2 and netcode add their headers). No GPU is involved, so these are not software-adapter figures.\n\n\
+         own; bytes are snowpack's messages (renet2 and netcode add their headers).\n\n\
          | peers | world s | server CPU s per world s | server peak memory | tiles received | merged | CPU ms per tile | server bytes in/s | server bytes out/s | bytes/s up per peer |\n\
          |---|---|---|---|---|---|---|---|---|---|\n",
     );

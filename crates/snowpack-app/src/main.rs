@@ -8,6 +8,7 @@ mod bench;
 mod bench_accumulation;
 mod bench_frames;
 mod bench_render;
+mod bench_share;
 mod bench_shell;
 mod bench_sweep;
 mod bench_tiles;

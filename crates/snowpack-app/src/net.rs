@@ -396,6 +396,8 @@ pub struct SnowLink {
     /// The replication state machine.
     pub peer: SnowPeer,
     started: Instant,
+    /// When the server's welcome arrived.
+    welcomed_at: Option<Instant>,
     backlog: VecDeque<Vec<u8>>,
 }
 
@@ -403,7 +405,7 @@ impl SnowLink {
     /// Starts connecting to `addr` (with the connect token in `token` when the
     /// server has a key) as a peer of `world`.
     pub fn connect(addr: SocketAddr, token: Option<&Path>, world: WorldIdentity, name: &str) -> anyhow::Result<Self> {
-        Ok(Self { net: Transport::connect(addr, token)?, peer: SnowPeer::new(world, name, PeerConfig::default()), started: Instant::now(), backlog: VecDeque::new() })
+        Ok(Self { net: Transport::connect(addr, token)?, peer: SnowPeer::new(world, name, PeerConfig::default()), started: Instant::now(), welcomed_at: None, backlog: VecDeque::new() })
     }
 
     /// The server's address.
@@ -434,6 +436,9 @@ impl SnowLink {
         }
         let now_s = self.now_s();
         self.peer.update(snow, now_s);
+        if self.welcomed_at.is_none() && self.peer.is_welcomed() {
+            self.welcomed_at = Some(Instant::now());
+        }
         while let Some(bytes) = self.peer.poll_transmit() {
             self.backlog.push_back(bytes);
         }
@@ -519,6 +524,9 @@ pub struct ShareReport {
     pub linked_s: f64,
     /// Seconds the end of the run waited for acknowledgements and merges.
     pub settle_s: f64,
+    /// Seconds from the server's welcome to holding everything it has over
+    /// the window (for a run that presses little: the late join).
+    pub synced_s: f64,
     /// The peer's counters.
     pub stats: snowpack::replicate::PeerStats,
 }
@@ -531,6 +539,8 @@ impl ShareReport {
             "server": self.addr.to_string(),
             "linked_s": self.linked_s,
             "settle_s": self.settle_s,
+            "synced_s": self.synced_s,
+            "tile_bytes_sent": s.tile_bytes_out,
             "bytes_sent": s.bytes_out,
             "bytes_received": s.bytes_in,
             "tiles_sent": s.tiles_sent,
@@ -569,5 +579,11 @@ pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, 
         }
         std::thread::sleep(Duration::from_millis(5));
     }
-    Ok(ShareReport { addr: link.addr(), linked_s: link.started.elapsed().as_secs_f64(), settle_s: start.elapsed().as_secs_f64(), stats: link.peer.stats() })
+    Ok(ShareReport {
+        addr: link.addr(),
+        linked_s: link.started.elapsed().as_secs_f64(),
+        settle_s: start.elapsed().as_secs_f64(),
+        synced_s: link.welcomed_at.map_or(0.0, |t| t.elapsed().as_secs_f64()),
+        stats: link.peer.stats(),
+    })
 }

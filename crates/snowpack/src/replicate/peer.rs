@@ -83,6 +83,9 @@ pub struct PeerStats {
     pub outgoing_dropped: u64,
     /// Tiles too large to send even alone in a message.
     pub tile_too_large: u64,
+    /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
+    /// is `Hello`, `Presence` and `Digest`).
+    pub tile_bytes_out: u64,
 }
 
 /// A game client's side of shared snow: see the module documentation.
@@ -418,7 +421,9 @@ impl SnowPeer {
             self.next_seq = self.next_seq.wrapping_add(1);
             let refs: Vec<&[u8]> = parts.iter().map(Vec::as_slice).collect();
             self.stats.tiles_sent += keys.len() as u64;
-            self.push(tiles_message(seq, &refs));
+            let message = tiles_message(seq, &refs);
+            self.stats.tile_bytes_out += message.len() as u64;
+            self.push(message);
             self.unacked.insert(seq, (now_s, keys));
         }
     }
