@@ -6,8 +6,9 @@
 // stamps points). In deficit terms the fall raises rest and snow together
 // (the deficit stays), the refill lowers the deficit by whole quanta, and a
 // press raises it to the quantised depth of the press below rest. Footprints
-// refill too: they rise by whole quanta (the CPU carries the remainder of
-// both), and vanish once their foot is back at rest.
+// refill too: they rise by whole quanta (both counts are what the CPU's
+// cumulative counters, functions of world time, gained this frame), and
+// vanish once their foot is back at rest.
 // While it snows (USE_FALLEN), `fallen` grows by fall = rate * dt (up to
 // max_fallen_m) on texels the sky reaches, and trails there get the refill;
 // texels the occlusion render shows under an object (USE_SKY) gain neither,

@@ -516,3 +516,52 @@ fn sharing_rejects_bad_sides_and_counts_its_memory() {
     assert!(after > before + 3 * 256 * 256 * 3 * 4, "{before} -> {after}");
     assert_eq!(d.world_identity().tile_side, 256);
 }
+
+#[test]
+fn tiles_ahead_of_the_clock_wait_for_it_and_older_ones_are_caught_up() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut d = window_of(ctx, Technique::Depth, 0.02);
+    for _ in 0..3 {
+        frame(ctx, &mut d, &[], &[], 0.25);
+    }
+    let origin = d.origin_texel().expect("placed");
+    let key = TileKey::containing(origin[0] + 40, origin[1] + 40, SIDE);
+    let r = d.params().resolution as usize;
+    // Window-local index of the tile's first texel.
+    let first = key.first_texel(SIDE);
+    let at = ((first[1] - origin[1]) as usize) * r + (first[0] - origin[0]) as usize;
+    let world = d.world_identity();
+    let tile_at = |t: f64, q: u16| {
+        let mut tile = SharedTile::untouched(key, SIDE, world.clock_at(t), false, false);
+        tile.deficit.iter_mut().for_each(|x| *x = q);
+        tile
+    };
+    // 1 s ahead: held until the clock gets there, then merged as it is.
+    let now = d.share_clock().time_s;
+    d.merge_tiles(&[tile_at(now + 1.0, 1000)]);
+    frame(ctx, &mut d, &[], &[], 0.25);
+    assert_eq!(d.waiting_tiles(), 1, "a tile ahead was not held");
+    assert_eq!(deficits(ctx, &d)[at], 0);
+    // Merges come before a frame's update: the fourth frame starts at its clock.
+    for _ in 0..4 {
+        frame(ctx, &mut d, &[], &[], 0.25);
+    }
+    assert_eq!(d.waiting_tiles(), 0, "the clock reached the tile");
+    // Merged at its own clock, then this frame's refill: 0.25 s at 0.02 m/s.
+    let q = deficits(ctx, &d)[at];
+    assert!((1000 - 51..=1000 - 49).contains(&q), "{q}");
+    // 3 s ahead: merged at once.
+    let now = d.share_clock().time_s;
+    d.merge_tiles(&[tile_at(now + 3.0, 3000)]);
+    frame(ctx, &mut d, &[], &[], 0.25);
+    assert_eq!(d.waiting_tiles(), 0);
+    assert!(deficits(ctx, &d)[at] >= 2900);
+    // Behind, at a clock no frame of this window ended at: caught up on the CPU.
+    let now = d.share_clock().time_s;
+    // (Deeper than the window's 3000 and not at the terrain: 0.4 m is 4000.)
+    d.merge_tiles(&[tile_at(now - 0.6, 3900)]);
+    frame(ctx, &mut d, &[], &[], 0.25);
+    let expected = i64::from(3900u16) - (world.clock_at(now + 0.25).refill_quanta - world.clock_at(now - 0.6).refill_quanta) as i64;
+    assert_eq!(i64::from(deficits(ctx, &d)[at]), expected);
+    assert!(d.take_changed_tiles().is_empty(), "merges were sent on");
+}

@@ -6,7 +6,8 @@
 //                raises the snow with it
 //   bits 16..31  the displayed height (rims, blur) minus the terrain height,
 //                as an f16: relative precision 2^-11 (0.12 mm at 0.5 m)
-// Refill lowers the deficit by whole quanta (the CPU carries the remainder).
+// Refill lowers the deficit by whole quanta (what the CPU's cumulative
+// refill counter gained this frame).
 // The f16 is encoded here with integer operations, rounding to nearest even
 // and flushing subnormals to zero, so every backend and the CPU twin store
 // the same bits (WGSL leaves the rounding of pack2x16float open), and

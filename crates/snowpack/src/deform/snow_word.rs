@@ -12,7 +12,8 @@
 //! precision, 2^-11 of its height above the terrain (0.12 mm at 0.5 m, 1 mm
 //! at 4 m). Untouched snow is deficit 0 over any terrain, so snowfall, which
 //! raises the rest height, raises untouched snow and trails alike; refill
-//! lowers the deficit by whole quanta (the frame carries the remainder).
+//! lowers the deficit by whole quanta (the frame applies what the world
+//! clock's refill counter gained: `SnowDeformation::share_clock`).
 
 /// Metres per deficit quantum.
 pub const SNOW_QUANTUM_M: f32 = 1e-4;

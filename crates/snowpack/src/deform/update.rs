@@ -21,7 +21,8 @@ pub struct UpdateParams {
     /// Rest depth of snow (m).
     pub depth_m: f32,
     /// Refill this frame in snow quanta ([`super::snow_word::SNOW_QUANTUM_M`]):
-    /// `refill_m_per_s * dt` plus the remainder carried from earlier frames.
+    /// what the cumulative refill counter (a function of world time) gained
+    /// this frame.
     pub snow_refill_quanta: u32,
     /// Capture depth 0 height (m).
     pub low_m: f32,

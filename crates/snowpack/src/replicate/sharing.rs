@@ -74,6 +74,14 @@ pub struct Sharing {
     history: VecDeque<FrameRecord>,
 }
 
+/// Whether tile `key` of `side` has a texel in `window`.
+fn overlaps(window: &ShareWindow, key: TileKey, side: u32) -> bool {
+    let first = key.first_texel(side);
+    let side = i64::from(side);
+    let r = i64::from(window.resolution);
+    (0..2).all(|a| first[a] < window.origin[a].saturating_add(r) && first[a].saturating_add(side) > window.origin[a])
+}
+
 /// Tiles of `side` one dispatch takes: [`MAX_TILES_PER_FRAME`] within
 /// [`STAGING_BUDGET_BYTES`], at least one.
 #[must_use]
@@ -136,14 +144,14 @@ impl Sharing {
         self.gather.memory_bytes() + self.merge.memory_bytes() + self.flag_ring.memory_bytes() + self.gather_ring.memory_bytes()
     }
 
-    /// Queues `tiles` to be merged (tiles of another side are dropped, with a warning).
+    /// Queues `tiles` to be merged (tiles of another side, or with planes
+    /// of the wrong size, are dropped, with a warning).
     pub fn queue(&mut self, tiles: &[SharedTile]) {
-        for t in tiles {
-            if t.side != self.grid.side || !t.is_consistent() {
-                tracing::warn!("a shared tile of side {} (or with planes of the wrong size) is dropped: this world shares tiles of {}", t.side, self.grid.side);
-                continue;
-            }
-            self.incoming.push_back(t.clone());
+        let before = self.incoming.len();
+        self.incoming.extend(tiles.iter().filter(|t| t.side == self.grid.side && t.is_consistent()).cloned());
+        let dropped = tiles.len() - (self.incoming.len() - before);
+        if dropped > 0 {
+            tracing::warn!("{dropped} shared tiles dropped: not of this world's side {} or with planes of the wrong size", self.grid.side);
         }
     }
 
@@ -157,12 +165,18 @@ impl Sharing {
     /// copies merged one after the other end as if merged together). A tile
     /// ahead of `clock` waits for it, unless it is more than
     /// [`AHEAD_LIMIT_S`] ahead.
-    fn ready(&mut self, clock: &ShareClock, catch: CatchUp) -> Vec<(SharedTile, i32)> {
+    fn ready(&mut self, window: &ShareWindow, clock: &ShareClock, catch: CatchUp) -> Vec<(SharedTile, i32)> {
         let capacity = self.merge.capacity() as usize;
         let frames = self.history.len();
         let mut batch: BTreeMap<TileKey, (SharedTile, i32)> = BTreeMap::new();
         let mut held = VecDeque::new();
         while let Some(mut tile) = self.incoming.pop_front() {
+            if !overlaps(window, tile.key, self.grid.side) {
+                // Nothing of it is in the window (the peer merges it again
+                // when the window reaches it), and its key may not fit the
+                // passes' i32 coordinates.
+                continue;
+            }
             let ahead = !clock.covers(&tile.clock);
             if (ahead && tile.clock.time_s <= clock.time_s + AHEAD_LIMIT_S) || batch.contains_key(&tile.key) || batch.len() >= capacity {
                 held.push_back(tile);
@@ -192,7 +206,7 @@ impl Sharing {
         params: TileMergeParams,
         (clock, catch): (&ShareClock, CatchUp),
     ) {
-        let tiles = self.ready(clock, catch);
+        let tiles = self.ready(window, clock, catch);
         if tiles.is_empty() {
             return;
         }
@@ -281,5 +295,25 @@ impl Sharing {
     /// The gathered tiles since the last call.
     pub fn take_outbox(&mut self) -> Vec<SharedTile> {
         std::mem::take(&mut self.outbox)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_tiles_with_a_texel_in_the_window_overlap_it() {
+        let window = ShareWindow { origin: [-20, 5], resolution: 40, has_stamps: false, use_fallen: false };
+        // Columns -20..20, rows 5..45; tiles of 16.
+        assert!(overlaps(&window, TileKey::new(-2, 0), 16)); // columns -32..-16, rows 0..16
+        assert!(!overlaps(&window, TileKey::new(-3, 0), 16)); // ends at column -32
+        assert!(overlaps(&window, TileKey::new(1, 2), 16)); // columns 16..32, rows 32..48
+        assert!(!overlaps(&window, TileKey::new(2, 2), 16)); // starts at column 32
+        assert!(!overlaps(&window, TileKey::new(0, -1), 16)); // rows -16..0
+        assert!(!overlaps(&window, TileKey::new(i64::MAX / 4, 0), 16));
+        assert!(!overlaps(&window, TileKey::new(i64::MIN / 4, 0), 16));
+        assert_eq!(tiles_per_frame(16), MAX_TILES_PER_FRAME);
+        assert_eq!(tiles_per_frame(256), 1);
     }
 }
