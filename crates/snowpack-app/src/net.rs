@@ -559,6 +559,7 @@ pub fn settle(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, 
     let deadline = start + SETTLE_LIMIT;
     loop {
         snow.flush_changed_tiles();
+        link.peer.request_digest();
         snow.step(ctx, &[], 0.0)?;
         snow.finish(ctx)?;
         link.pump(snow)?;

@@ -215,6 +215,10 @@ fn any_message() -> impl Strategy<Value = Message> {
             .prop_map(|(clock, window, resolution, entries)| Message::Digest { clock, window, resolution, entries }),
         proptest::collection::vec(any_key(), 0..30).prop_map(|keys| Message::Want { keys }),
         any_clock().prop_map(|clock| Message::Clock { clock }),
+        any_clock().prop_map(|clock| Message::InSync { clock }),
+        (any::<u32>(), proptest::collection::vec(any::<[f64; 2]>(), 0..20)).prop_map(|(id, points)| Message::Query { id, points }),
+        // Finite depths: NaN (the relay's "no world") never equals itself.
+        (any::<u32>(), proptest::collection::vec(-1e3f32..1e3, 0..20)).prop_map(|(id, depths)| Message::Depths { id, depths }),
     ]
 }
 
@@ -394,7 +398,9 @@ fn three_peers_converge_over_a_lossy_network() {
         let mut snow = CpuSnow::new(w.clone(), resolution, [0, 0], t);
         let at = walk(id, t);
         snow.center_on(at[0], at[1]);
-        Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), PeerConfig::default()) }
+        // Over an unreliable network a game digests every second, not only until synced.
+        let config = PeerConfig { synced_digest_interval_s: 1.0, ..PeerConfig::default() };
+        Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), config) }
     };
     players.push(join(1, t, &mut relay));
     players.push(join(2, t, &mut relay));
@@ -823,7 +829,7 @@ fn the_fuzz_seeds_are_valid_messages_of_every_kind() {
         assert_eq!(decode(&encode(&m)).as_ref(), Ok(&m), "{}", path.display());
     }
     kinds.sort_unstable();
-    assert_eq!(kinds, (1..=9).collect::<Vec<u8>>());
+    assert_eq!(kinds, (1..=12).collect::<Vec<u8>>());
 }
 
 // ---------------------------------------------------------------- late join, pacing and bounds
@@ -948,4 +954,59 @@ fn a_lost_hello_is_sent_again_until_answered() {
         peer.update(&mut snow, f64::from(k) * 0.1);
     }
     assert!(peer.poll_transmit().is_none(), "a refused peer stops asking");
+}
+
+// ---------------------------------------------------------------- in sync, queries
+
+/// A peer presses a trail, the relay acknowledges and answers its digest
+/// with `InSync`; then anyone connected (no `Hello`) asks the relay for the
+/// depth on the trail and beside it and gets the merged tiles' answer.
+#[test]
+fn a_peer_learns_it_is_in_sync_and_anyone_may_ask_the_depth() {
+    let w = world(16);
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    let mut snow = CpuSnow::new(w.clone(), 64, [0, 0], 0.0);
+    let mut peer = SnowPeer::new(w.clone(), "presser", PeerConfig::default());
+    let dt = 1.0 / 30.0;
+    let mut t = 0.0;
+    let mut synced_at = None;
+    while t < 10.0 && synced_at.is_none() {
+        t += dt;
+        if t < 1.0 {
+            // 0.2 m pressed away along z = 2 from x = 2 to 3.4 m.
+            snow.press_disc([2.0 + 1.4 * t, 2.0], 0.3, 2000);
+        }
+        peer.set_deformers(&[[2.0 + 1.4 * t.min(1.0), 2.0]]);
+        if t > 1.0 {
+            // Done pressing: as a run about to stop, ask for a digest soon.
+            peer.request_digest();
+        }
+        snow.step(dt);
+        peer.update(&mut snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            relay.receive(1, &b, t);
+        }
+        relay.update(t);
+        while let Some((_, b)) = relay.poll_transmit() {
+            peer.receive(&b).expect("well-formed");
+        }
+        if t > 1.0 && peer.is_synced() {
+            synced_at = Some(t);
+        }
+    }
+    let synced_at = synced_at.expect("the relay never answered a digest with InSync");
+    assert!(synced_at < 3.0, "in sync only at {synced_at:.2} s");
+    // The refill (0.5 mm/s) is what separates the trail from 0.3 m.
+    relay.connect(9);
+    relay.receive(9, &encode(&Message::Query { id: 5, points: vec![[3.0, 2.0], [3.0, 6.0]] }), t);
+    let answer = std::iter::from_fn(|| relay.poll_transmit()).find(|(id, _)| *id == 9).expect("an answer to the query");
+    match decode(&answer.1) {
+        Ok(Message::Depths { id: 5, depths }) => {
+            assert!((depths[0] - 0.3).abs() < 0.01, "on the trail: {}", depths[0]);
+            assert!((depths[1] - 0.5).abs() < 1e-6, "beside it: {}", depths[1]);
+        }
+        other => panic!("not an answer: {other:?}"),
+    }
+    assert_eq!(relay.stats().queries, 1);
 }

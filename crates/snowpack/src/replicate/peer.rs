@@ -23,8 +23,16 @@ use super::{ShareError, SharedSnow};
 pub struct PeerConfig {
     /// Seconds between two `Presence` messages.
     pub presence_interval_s: f64,
-    /// Seconds between two `Digest` messages.
+    /// Seconds between two `Digest` messages until the relay first answers
+    /// one with `InSync` (after joining or reconnecting): a late joiner
+    /// learns quickly that it holds everything.
     pub digest_interval_s: f64,
+    /// Seconds between two `Digest` messages after that: digests only
+    /// repair what a connection lost, and on a reliable channel (renet2's,
+    /// a game's own) that is rare, while a digest of a window full of
+    /// trails is tens of bytes a tile. Set it to `digest_interval_s` over
+    /// an unreliable channel.
+    pub synced_digest_interval_s: f64,
     /// The least time between two sends of deltas: a tile changed every
     /// frame in between goes out once, as it is then.
     pub delta_interval_s: f64,
@@ -44,8 +52,9 @@ pub struct PeerConfig {
 impl Default for PeerConfig {
     fn default() -> Self {
         Self {
-            presence_interval_s: 0.1,
+            presence_interval_s: 0.25,
             digest_interval_s: 1.0,
+            synced_digest_interval_s: 5.0,
             delta_interval_s: 0.1,
             resend_after_s: 1.0,
             max_unacknowledged: 64,
@@ -122,6 +131,10 @@ pub struct SnowPeer {
     last_digest: Option<(ShareClock, u64)>,
     /// The relay said the last digest matched, and nothing changed since.
     in_sync: bool,
+    /// The relay has answered a digest with `InSync` since the peer joined.
+    synced_once: bool,
+    /// [`SnowPeer::request_digest`] was called.
+    digest_requested: bool,
     stats: PeerStats,
 }
 
@@ -156,6 +169,8 @@ impl SnowPeer {
             activity: 0,
             last_digest: None,
             in_sync: false,
+            synced_once: false,
+            digest_requested: false,
             stats: PeerStats::default(),
         }
     }
@@ -204,6 +219,7 @@ impl SnowPeer {
             Message::Clock { clock } => self.relay_clock = Some(clock),
             Message::InSync { clock } => {
                 self.in_sync = self.incoming.is_empty() && self.last_digest.is_some_and(|(c, a)| c == clock && a == self.activity);
+                self.synced_once |= self.in_sync;
             }
             other => {
                 self.stats.malformed += 1;
@@ -220,6 +236,7 @@ impl SnowPeer {
     pub fn reconnect(&mut self) {
         self.welcomed = false;
         self.in_sync = false;
+        self.synced_once = false;
         self.refused = false;
         self.last_hello_s = None;
         self.last_presence_s = f64::NEG_INFINITY;
@@ -315,10 +332,12 @@ impl SnowPeer {
             self.last_delta_s = now_s;
             self.send_tiles(now_s);
         }
-        if now_s - self.last_digest_s >= self.config.digest_interval_s
+        let digest_every = if self.synced_once && !self.digest_requested { self.config.synced_digest_interval_s } else { self.config.digest_interval_s };
+        if now_s - self.last_digest_s >= digest_every
             && let Some((first, resolution)) = window
         {
             self.last_digest_s = now_s;
+            self.digest_requested = false;
             self.send_digest(snow.share_clock(), first, resolution, c);
         }
     }
@@ -331,6 +350,13 @@ impl SnowPeer {
     #[must_use]
     pub fn is_synced(&self) -> bool {
         self.in_sync && self.unacknowledged() == 0 && self.incoming.is_empty()
+    }
+
+    /// Asks for a digest as soon as `digest_interval_s` has passed since the
+    /// last one, whatever `synced_digest_interval_s` says (a program about
+    /// to stop wants `InSync` soon).
+    pub fn request_digest(&mut self) {
+        self.digest_requested = true;
     }
 
     /// Something changed the replica or the window: the last digest no

@@ -5,7 +5,7 @@
 //! at their places in the frame (`docs/deformation.md`, "Shared snow on the
 //! GPU"); nothing here waits for the GPU.
 
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 
 use crate::deform::resources::DeformResources;
 use crate::gpu::GpuTimer;
@@ -19,6 +19,9 @@ use super::tile::{CatchUp, ShareClock, SharedTile};
 
 /// Most tiles gathered, or merged, in one frame.
 pub const MAX_TILES_PER_FRAME: u32 = 32;
+/// A changed tile is gathered once quiet for an interval, or at the latest
+/// this many intervals after its first change.
+pub const QUIET_LIMIT: f64 = 4.0;
 /// Staging memory one gather or merge dispatch may use (bytes); with large
 /// tiles fewer than [`MAX_TILES_PER_FRAME`] go per frame.
 pub const STAGING_BUDGET_BYTES: u64 = 1 << 20;
@@ -60,10 +63,14 @@ pub struct Sharing {
     interval_s: f64,
     gather: TileGatherPass,
     merge: TileMergePass,
-    flag_ring: ReadbackRing<[i64; 2]>,
+    /// The flags copied out, with the window origin and world time of their frame.
+    flag_ring: ReadbackRing<([i64; 2], f64)>,
     gather_ring: ReadbackRing<Gathered>,
-    /// Tiles changed and not gathered since.
-    dirty: BTreeSet<TileKey>,
+    /// Tiles changed and not gathered since, with the world time they were
+    /// first and last flagged.
+    dirty: BTreeMap<TileKey, (f64, f64)>,
+    /// The next gather takes every dirty tile, quiet or not.
+    gather_all: bool,
     /// World time of the last gather.
     last_gather_s: Option<f64>,
     /// Gathered tiles not taken yet.
@@ -105,7 +112,8 @@ impl Sharing {
             merge: TileMergePass::new(device, res, side, capacity),
             flag_ring: ReadbackRing::new(device, "changed-tile flags", u64::from(grid.slots()) * 4, RING_SLOTS),
             gather_ring: ReadbackRing::new(device, "gathered tiles", packed_tile_bytes(side) * u64::from(capacity), RING_SLOTS),
-            dirty: BTreeSet::new(),
+            dirty: BTreeMap::new(),
+            gather_all: false,
             last_gather_s: None,
             outbox: Vec::new(),
             incoming: VecDeque::new(),
@@ -239,17 +247,27 @@ impl Sharing {
         self.history.push_back(frame);
         let clock = &frame.after;
         if self.flag_ring.has_free_slot() {
-            self.flag_ring.record_copy(encoder, &res.share_flags, window.origin);
+            self.flag_ring.record_copy(encoder, &res.share_flags, (window.origin, clock.time_s));
             encoder.clear_buffer(&res.share_flags, 0, None);
         }
         let due = self.last_gather_s.is_none_or(|t| clock.time_s - t >= self.interval_s);
-        if self.dirty.is_empty() || !due || !self.gather_ring.has_free_slot() {
+        if self.dirty.is_empty() || !(due || self.gather_all) || !self.gather_ring.has_free_slot() {
             return;
         }
-        let mut keys = Vec::new();
-        while keys.len() < self.gather.capacity() as usize {
-            let Some(key) = self.dirty.pop_first() else { break };
-            keys.push(key);
+        // A tile still being pressed waits until it has been quiet for an
+        // interval (a wheel or a paw crosses a tile in a fraction of a
+        // second, and sending each stage of it costs the wire), but never
+        // longer than QUIET_LIMIT intervals after its first change.
+        let now = clock.time_s;
+        let ready = |&(first, last): &(f64, f64)| now - last >= self.interval_s || now - first >= QUIET_LIMIT * self.interval_s;
+        let all = std::mem::take(&mut self.gather_all);
+        let keys: Vec<TileKey> =
+            self.dirty.iter().filter(|(_, t)| all || ready(t)).map(|(k, _)| *k).take(self.gather.capacity() as usize).collect();
+        if keys.is_empty() {
+            return;
+        }
+        for k in &keys {
+            self.dirty.remove(k);
         }
         let flags = if window.has_stamps { TileGatherParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileGatherParams::USE_FALLEN } else { 0 };
         let params = TileGatherParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..Default::default() };
@@ -264,7 +282,7 @@ impl Sharing {
     /// of a run: its last changes go out without waiting for world time to
     /// pass).
     pub fn gather_now(&mut self) {
-        self.last_gather_s = None;
+        self.gather_all = true;
     }
 
     /// Maps the copies recorded this frame; call right after submitting it.
@@ -282,9 +300,11 @@ impl Sharing {
     /// Takes what has come back (after a non-blocking poll): flagged tiles
     /// become dirty, gathered ones wait in the outbox.
     pub fn collect(&mut self, resolution: u32) {
-        for (origin, bytes) in self.flag_ring.take_arrived() {
+        for ((origin, time_s), bytes) in self.flag_ring.take_arrived() {
             let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
-            self.dirty.extend(self.grid.flagged(origin, resolution, &flags));
+            for key in self.grid.flagged(origin, resolution, &flags) {
+                self.dirty.entry(key).and_modify(|t| t.1 = t.1.max(time_s)).or_insert((time_s, time_s));
+            }
         }
         for (meta, bytes) in self.gather_ring.take_arrived() {
             let packed: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
