@@ -336,9 +336,10 @@ fn flags_mark_exactly_the_pressed_tiles_and_nothing_else() {
             expected.extend(changed);
         }
         assert!(expected.len() > 1, "{technique:?}: the press touched {} tiles", expected.len());
-        // Gathers come a frame after the flags are back; refill frames meanwhile.
+        // Gathers come once the tile has been quiet for the interval (0.25 s,
+        // 8 frames) after the flags are back; refill frames meanwhile.
         let mut sent = Vec::new();
-        for _ in 0..3 {
+        for _ in 0..12 {
             frame(ctx, &mut d, &[], &[], DT);
             sent.extend(d.take_changed_tiles());
         }
