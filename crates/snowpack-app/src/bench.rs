@@ -449,13 +449,15 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         let (peers, seconds) = if quick { (16, 10.0) } else { (64, 60.0) };
         let row = crate::bench_share::measure_load(peers, seconds).context("shared snow under load")?;
         println!(
-            "  shared snow: {} peers for {:.0} s: server {:.3} CPU s per world s, {:.1} MiB peak, {:.3} ms CPU per tile, {:.0} B/s out",
+            "  shared snow: {} peers for {:.0} s: server {:.3} CPU s per world s, {:.1} MiB peak, {:.3} ms CPU per tile, {:.0} B/s out; late join {:.0} KB in {:.2} s",
             row.peers,
             row.world_s,
             row.cpu_per_world_s(),
             row.server_peak_kib as f64 / 1024.0,
             row.cpu_ms_per_tile(),
-            row.bytes_out as f64 / row.world_s
+            row.bytes_out as f64 / row.world_s,
+            row.late_join_bytes as f64 / 1e3,
+            row.late_join_s
         );
         results.share_rows.push(row);
     }

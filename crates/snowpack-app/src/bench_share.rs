@@ -38,6 +38,13 @@ pub struct ShareRow {
     pub bytes_out: u64,
     /// Snowpack message bytes one peer sent per second of walking (mean).
     pub peer_up_bytes_per_s: f64,
+    /// A late joiner (a 64 m, 1024² window over the walkers' start) after
+    /// the walk: bytes it received until in sync.
+    pub late_join_bytes: u64,
+    /// Tiles it received.
+    pub late_join_tiles: u64,
+    /// Seconds from its connection to in sync (welcome included).
+    pub late_join_s: f64,
 }
 
 impl ShareRow {
@@ -138,6 +145,20 @@ pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
     let walked = begin.elapsed().as_secs_f64();
     let up: u64 = walkers.iter().map(|(l, ..)| l.peer.stats().bytes_out).sum();
     drop(walkers);
+    // A late joiner over the start of the 64 trails: a window full of them.
+    let joined = Instant::now();
+    let mut late = SnowLink::connect(addr, None, world.clone(), "late")?;
+    let mut snow = CpuSnow::new(world.clone(), 1024, [-512, -512], 0.0);
+    late.wait_welcomed(&mut snow, Duration::from_secs(30))?;
+    while !late.peer.is_synced() {
+        late.peer.request_digest();
+        late.pump(&mut snow)?;
+        anyhow::ensure!(joined.elapsed() < Duration::from_secs(60), "the late joiner was not in sync within a minute");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let late_join_s = joined.elapsed().as_secs_f64();
+    let late_stats = late.peer.stats();
+    drop(late);
     // The server stops by itself and prints its totals.
     let deadline = Instant::now() + Duration::from_secs_f64(seconds + 60.0);
     loop {
@@ -164,6 +185,9 @@ pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
         bytes_in: get("bytes_in")? as u64,
         bytes_out: get("bytes_out")? as u64,
         peer_up_bytes_per_s: up as f64 / walked / peers.max(1) as f64,
+        late_join_bytes: late_stats.bytes_in,
+        late_join_tiles: late_stats.tiles_received,
+        late_join_s,
     })
 }
 
@@ -173,13 +197,13 @@ pub fn markdown(rows: &[ShareRow]) -> String {
         "\n## Shared snow: one relay under load\n\n_Measured on this machine's CPU (no GPU is involved)._\n\n`snowpack server` in its own process, and simulated peers on loopback (CPU snow windows of 128², walking at \
          1.4 m/s and pressing a 25 cm disc, linked over renet2 like `snowpack run --connect`). CPU time and memory are the server process's \
          own; bytes are snowpack's messages (renet2 and netcode add their headers).\n\n\
-         | peers | world s | server CPU s per world s | server peak memory | tiles received | merged | CPU ms per tile | server bytes in/s | server bytes out/s | bytes/s up per peer |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         | peers | world s | server CPU s per world s | server peak memory | tiles received | merged | CPU ms per tile | server bytes in/s | server bytes out/s | bytes/s up per peer | late join: bytes, tiles, s |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let _ = writeln!(
             md,
-            "| {} | {:.1} | {:.3} | {:.1} MiB | {} | {} | {:.3} | {:.0} | {:.0} | {:.0} |",
+            "| {} | {:.1} | {:.3} | {:.1} MiB | {} | {} | {:.3} | {:.0} | {:.0} | {:.0} | {:.0} KB, {}, {:.2} s |",
             r.peers,
             r.world_s,
             r.cpu_per_world_s(),
@@ -189,7 +213,10 @@ pub fn markdown(rows: &[ShareRow]) -> String {
             r.cpu_ms_per_tile(),
             r.bytes_in as f64 / r.world_s,
             r.bytes_out as f64 / r.world_s,
-            r.peer_up_bytes_per_s
+            r.peer_up_bytes_per_s,
+            r.late_join_bytes as f64 / 1e3,
+            r.late_join_tiles,
+            r.late_join_s
         );
     }
     md

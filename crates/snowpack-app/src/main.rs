@@ -316,9 +316,9 @@ fn main() -> ExitCode {
     match main_inner(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            let bad_input = err.chain().any(|e| {
-                e.is::<SceneError>() || e.is::<BadInput>() || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
-            });
+            let bad_input = err
+                .chain()
+                .any(|e| e.is::<SceneError>() || e.is::<BadInput>() || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. })));
             eprintln!("error: {err:#}");
             ExitCode::from(if bad_input { 2 } else { 1 })
         }

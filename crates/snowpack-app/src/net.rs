@@ -108,12 +108,7 @@ fn store_side(dir: &Path) -> Option<u32> {
     if !dir.join("store.meta").is_file() {
         return None;
     }
-    for side in [8, 16, 32, 64, 128, 256] {
-        if TileStore::open(dir, side, StoreConfig::default()).is_ok() {
-            return Some(side);
-        }
-    }
-    None
+    [8, 16, 32, 64, 128, 256].into_iter().find(|&side| TileStore::open(dir, side, StoreConfig::default()).is_ok())
 }
 
 /// Runs `snowpack server` until killed (or `exit_after_s`). Creates no GPU
@@ -273,7 +268,8 @@ fn random_id() -> u64 {
     // Unique enough among a server's clients: time, process and a counter, mixed.
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let mut x = unix_now().as_nanos() as u64 ^ (u64::from(std::process::id()) << 32) ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    let mut x =
+        unix_now().as_nanos() as u64 ^ (u64::from(std::process::id()) << 32) ^ COUNTER.fetch_add(1, Ordering::Relaxed).wrapping_mul(0x9e37_79b9_7f4a_7c15);
     x ^= x >> 33;
     x = x.wrapping_mul(0xff51_afd7_ed55_8ccd);
     x ^ (x >> 33)
@@ -327,7 +323,8 @@ impl Transport {
         let authentication = match token {
             Some(path) => {
                 let bytes = std::fs::read(path).map_err(|e| BadInput(format!("--token {}: {e}", path.display())))?;
-                let connect_token = ConnectToken::read(&mut bytes.as_slice()).map_err(|e| BadInput(format!("--token {}: not a connect token ({e})", path.display())))?;
+                let connect_token =
+                    ConnectToken::read(&mut bytes.as_slice()).map_err(|e| BadInput(format!("--token {}: not a connect token ({e})", path.display())))?;
                 ClientAuthentication::Secure { connect_token }
             }
             None => ClientAuthentication::Unsecure { protocol_id: PROTOCOL_ID, client_id: random_id(), socket_id: 0, server_addr: addr, user_data: None },
@@ -405,7 +402,13 @@ impl SnowLink {
     /// Starts connecting to `addr` (with the connect token in `token` when the
     /// server has a key) as a peer of `world`.
     pub fn connect(addr: SocketAddr, token: Option<&Path>, world: WorldIdentity, name: &str) -> anyhow::Result<Self> {
-        Ok(Self { net: Transport::connect(addr, token)?, peer: SnowPeer::new(world, name, PeerConfig::default()), started: Instant::now(), welcomed_at: None, backlog: VecDeque::new() })
+        Ok(Self {
+            net: Transport::connect(addr, token)?,
+            peer: SnowPeer::new(world, name, PeerConfig::default()),
+            started: Instant::now(),
+            welcomed_at: None,
+            backlog: VecDeque::new(),
+        })
     }
 
     /// The server's address.
@@ -473,7 +476,6 @@ impl SnowLink {
     pub fn backlog(&self) -> usize {
         self.backlog.len()
     }
-
 }
 
 /// How long a run waits for the server's welcome.

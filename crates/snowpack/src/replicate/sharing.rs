@@ -261,8 +261,7 @@ impl Sharing {
         let now = clock.time_s;
         let ready = |&(first, last): &(f64, f64)| now - last >= self.interval_s || now - first >= QUIET_LIMIT * self.interval_s;
         let all = std::mem::take(&mut self.gather_all);
-        let keys: Vec<TileKey> =
-            self.dirty.iter().filter(|(_, t)| all || ready(t)).map(|(k, _)| *k).take(self.gather.capacity() as usize).collect();
+        let keys: Vec<TileKey> = self.dirty.iter().filter(|(_, t)| all || ready(t)).map(|(k, _)| *k).take(self.gather.capacity() as usize).collect();
         if keys.is_empty() {
             return;
         }
