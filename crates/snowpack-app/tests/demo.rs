@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
 mod common;
-use common::Temp;
+use common::{Server, Temp};
 
 /// A private X server for one test, stopped on drop.
 struct Xvfb {
@@ -303,4 +303,40 @@ fn a_lost_device_is_reported_and_the_demo_exits_with_an_error() {
     assert_eq!(out.status.code(), Some(1), "the demo exited {:?} after losing its device:\n{stderr}", out.status.code());
     assert!(stderr.contains("device was lost"), "no word of the lost device:\n{stderr}");
     assert!(!stderr.contains("panicked"), "a panic was reported:\n{stderr}");
+}
+
+/// The demo joins a shared world: its spheres' trails reach the server,
+/// which keeps them in its store (a tile file each) and answers for them.
+#[test]
+fn the_demo_with_connect_sends_its_trails_to_a_server() {
+    let dir = Temp::new("demo-connect");
+    let Some(x) = Xvfb::start() else { return };
+    let store = dir.0.join("world");
+    let server = Server::start(&store, std::time::Duration::from_secs(300));
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let out = Command::new(env!("CARGO_BIN_EXE_snowpack"))
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("SNOWPACK_LOG", "warn")
+        .args(["--scene".as_ref(), scene.as_os_str()])
+        .args(["--exit-after-frames", "120", "--window-size", "480x300", "--no-vsync", "--connect", &server.addr.to_string()])
+        .output()
+        .expect("running snowpack");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "demo exited with {:?}\n{stderr}", out.status.code());
+    assert!(!stderr.contains("shared snow"), "the link failed: {stderr}");
+    // The spheres fell and rolled: their tiles are on the server's disk.
+    let tiles = walk_files(&store.join("tiles"));
+    assert!(tiles.iter().any(|p| p.extension().is_some_and(|e| e == "tile")), "no tile reached the server's store: {tiles:?}");
+}
+
+/// Every file under `dir`, recursively (none if it does not exist).
+fn walk_files(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() { out.extend(walk_files(&path)) } else { out.push(path) }
+    }
+    out
 }

@@ -4,14 +4,13 @@
 //! server on the same store and a third run that still sees it. Every
 //! process is bounded in time and killed if it overstays.
 
-use std::io::{BufRead as _, BufReader};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
 mod common;
-use common::Temp;
+use common::{Server, Temp};
 
 /// Longest any one process of these tests may run.
 const PROCESS_LIMIT: Duration = Duration::from_secs(120);
@@ -24,53 +23,6 @@ fn bin() -> Command {
 
 fn gpu_available() -> bool {
     snowpack::testing::gpu().is_some()
-}
-
-/// A running `snowpack server`, killed on drop.
-struct Server {
-    child: Child,
-    addr: SocketAddr,
-}
-
-impl Server {
-    fn start(store: &Path) -> Self {
-        let mut child = bin()
-            .args(["server", "--listen", "127.0.0.1:0", "--store"])
-            .arg(store)
-            .args(["--exit-after-s", &PROCESS_LIMIT.as_secs().to_string()])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start snowpack server");
-        let stdout = child.stdout.take().expect("the server's stdout");
-        let mut lines = BufReader::new(stdout).lines();
-        let first = lines.next().expect("the server says where it listens").expect("a line");
-        let addr: SocketAddr = first
-            .split_whitespace()
-            .skip_while(|w| *w != "on")
-            .nth(1)
-            .and_then(|a| a.parse().ok())
-            .unwrap_or_else(|| panic!("no address in the server's first line: {first:?}"));
-        // Keep draining its output so it never blocks on a full pipe.
-        std::thread::spawn(move || for _ in lines.map_while(Result::ok) {});
-        Self { child, addr }
-    }
-
-    fn pid(&self) -> u32 {
-        self.child.id()
-    }
-
-    fn kill(mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).
@@ -136,7 +88,7 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
     }
     let dir = Temp::new("shared-snow");
     let store = dir.0.join("world");
-    let server = Server::start(&store);
+    let server = Server::start(&store, PROCESS_LIMIT);
 
     // The server maps no GPU library: it never opens a device.
     let maps = std::fs::read_to_string(format!("/proc/{}/maps", server.pid())).expect("the server's memory maps");
@@ -179,7 +131,7 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
 
     // Killed at once (no chance to save): what it acknowledged is on disk.
     server.kill();
-    let server = Server::start(&store);
+    let server = Server::start(&store, PROCESS_LIMIT);
     let third = run_connected(&scene(&dir.0, "again", 0.5, IDLE), &dir.0.join("c"), server.addr);
     assert_ok("the run after the restart", &third);
     let c = load_npy(&dir.0.join("c/snow.npy"));

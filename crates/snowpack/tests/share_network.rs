@@ -57,7 +57,14 @@ impl Network {
     }
 }
 
-/// Peer ids; the relay is 0.
+/// A window's persistent snow (deficit quanta, window-local rows) and place.
+struct WindowCopy {
+    first: [i64; 2],
+    resolution: u32,
+    deficits: Vec<u32>,
+}
+
+/// A peer: its id, its window, its replication state.
 struct Player {
     id: u64,
     snow: SnowDeformation,
@@ -161,20 +168,24 @@ fn three_gpu_peers_and_a_relay_converge_bit_for_bit_over_a_lossy_network() {
     // the others: every copy is brought to the latest clock (the merge's
     // own rule: refill quanta since, saturating) before comparing.
     let clock = players.iter().map(|p| p.snow.share_clock()).fold(players[0].snow.share_clock(), |a, b| a.later(&b));
-    let words: Vec<(([i64; 2], u32), Vec<u32>)> = players
+    let words: Vec<WindowCopy> = players
         .iter()
         .map(|p| {
             let behind = clock.refill_quanta - p.snow.share_clock().refill_quanta;
             let words = p.snow.read_snow_words(ctx).expect("words");
-            (p.snow.window().expect("placed"), words.iter().map(|w| (w & 0xffff).saturating_sub(behind as u32)).collect())
+            let (first, resolution) = p.snow.window().expect("placed");
+            WindowCopy { first, resolution, deficits: words.iter().map(|w| (w & 0xffff).saturating_sub(behind as u32)).collect() }
         })
         .collect();
-    let lo = [words.iter().map(|w| w.0.0[0]).max().unwrap_or(0), words.iter().map(|w| w.0.0[1]).max().unwrap_or(0)];
-    let hi = [words.iter().map(|w| w.0.0[0] + i64::from(w.0.1)).min().unwrap_or(0), words.iter().map(|w| w.0.0[1] + i64::from(w.0.1)).min().unwrap_or(0)];
+    let lo = [words.iter().map(|w| w.first[0]).max().unwrap_or(0), words.iter().map(|w| w.first[1]).max().unwrap_or(0)];
+    let hi = [
+        words.iter().map(|w| w.first[0] + i64::from(w.resolution)).min().unwrap_or(0),
+        words.iter().map(|w| w.first[1] + i64::from(w.resolution)).min().unwrap_or(0),
+    ];
     let (mut compared, mut pressed) = (0, 0);
     for row in lo[1]..hi[1] {
         for col in lo[0]..hi[0] {
-            let at = |w: &(([i64; 2], u32), Vec<u32>)| w.1[((row - w.0.0[1]) * i64::from(w.0.1) + (col - w.0.0[0])) as usize];
+            let at = |w: &WindowCopy| w.deficits[((row - w.first[1]) * i64::from(w.resolution) + (col - w.first[0])) as usize];
             let first = at(&words[0]);
             for (k, w) in words.iter().enumerate() {
                 assert_eq!(at(w), first, "seed {seed}: peer {} differs from peer 1 at texel ({col}, {row})", k + 1);
