@@ -69,6 +69,7 @@
 //! | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
 //! | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
 //! | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
+//! | [`replicate`] | shared snow: mergeable tiles, their clock, the world identity, the wire messages, [`replicate::SnowPeer`] and [`replicate::SnowRelay`]; the window's changed-tile flags, gather and merge passes (plugs in) |
 //! | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
 //! | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
 
