@@ -37,8 +37,22 @@ const CHANNEL_BYTES: usize = 16 << 20;
 const TICK: Duration = Duration::from_millis(10);
 /// How long a connect token made by `snowpack token` stays valid (s).
 const TOKEN_LIFETIME_S: u64 = 12 * 3600;
+/// Messages kept per connection while its channel is full; beyond it the
+/// oldest go (an acknowledgement lost is a delta resent, a tile lost is
+/// repaired by the next digest), so a client that stops reading costs
+/// bounded memory.
+const MAX_BACKLOG: usize = 1024;
 /// Tile side of the worlds a `snowpack server` serves when its store does not say.
 pub const DEFAULT_TILE_SIDE: u32 = 32;
+
+/// Prints a line on stdout, ignoring a closed stdout: a server whose
+/// output nobody reads any more (a pipe closed, `| head`) goes on serving.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
 
 fn connection_config() -> ConnectionConfig {
     let channel = ChannelConfig {
@@ -147,7 +161,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     };
     let mut transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
     let mut server = RenetServer::new(connection_config());
-    println!(
+    say!(
         "snowpack server listening on {local} ({}), tiles in {}",
         if key.is_some() { "connect tokens required" } else { "no key: loopback only" },
         opts.store.display()
@@ -156,6 +170,8 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     let mut last = started;
     let mut backlog: std::collections::HashMap<u64, VecDeque<Vec<u8>>> = std::collections::HashMap::new();
     let mut last_report = started;
+    let mut last_store_error: Option<Instant> = None;
+    let mut dropped = 0u64;
     loop {
         let now = Instant::now();
         server.update(now - last);
@@ -170,12 +186,12 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             match event {
                 ServerEvent::ClientConnected { client_id } => {
                     relay.connect(client_id);
-                    println!("peer {client_id} connected");
+                    say!("peer {client_id} connected");
                 }
                 ServerEvent::ClientDisconnected { client_id, reason } => {
                     relay.disconnect(client_id);
                     backlog.remove(&client_id);
-                    println!("peer {client_id} left: {reason}");
+                    say!("peer {client_id} left: {reason}");
                 }
             }
         }
@@ -185,12 +201,22 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             }
         }
         relay.update(world_s);
-        // Persisted before anything (acknowledgements included) goes out.
-        if let Err(e) = relay.flush() {
-            eprintln!("snowpack server: {e}");
+        // Persisted before anything (acknowledgements included) goes out. A
+        // store that fails is said (at most every 10 s); the world goes on
+        // in memory.
+        if let Err(e) = relay.flush()
+            && last_store_error.is_none_or(|t| now - t >= Duration::from_secs(10))
+        {
+            last_store_error = Some(now);
+            eprintln!("snowpack server: the tile store failed, tiles are kept in memory only until it works again: {e}");
         }
         while let Some((peer, bytes)) = relay.poll_transmit() {
-            backlog.entry(peer).or_default().push_back(bytes);
+            let queue = backlog.entry(peer).or_default();
+            if queue.len() >= MAX_BACKLOG {
+                queue.pop_front();
+                dropped += 1;
+            }
+            queue.push_back(bytes);
         }
         for (peer, queue) in &mut backlog {
             while let Some(bytes) = queue.front() {
@@ -209,8 +235,8 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         if now - last_report >= Duration::from_secs(10) {
             last_report = now;
             let s = relay.stats();
-            println!(
-                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused",
+            say!(
+                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused, {dropped} messages dropped for slow clients",
                 server.connected_clients(),
                 s.tiles_in_memory,
                 s.tiles_merged,
@@ -225,7 +251,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             relay.flush()?;
             let s = relay.stats();
             let (cpu_s, peak_kib) = own_usage();
-            println!(
+            say!(
                 "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={}",
                 started.elapsed().as_secs_f64(),
                 s.tiles_received,
@@ -443,6 +469,10 @@ impl SnowLink {
             self.welcomed_at = Some(Instant::now());
         }
         while let Some(bytes) = self.peer.poll_transmit() {
+            if self.backlog.len() >= MAX_BACKLOG {
+                // Repaired as the server's are: deltas are resent, digests fill in.
+                self.backlog.pop_front();
+            }
             self.backlog.push_back(bytes);
         }
         if self.net.client.is_connected() {

@@ -169,3 +169,63 @@ fn a_run_that_cannot_reach_its_server_fails_with_exit_1() {
     let out = run_connected(&scene(&dir.0, "alone", 0.5, IDLE), &dir.0.join("o"), port);
     assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// With `--key` the server listens beyond loopback and lets in only clients
+/// with a connect token made from that key: a query with a token is
+/// answered, one without fails (exit 1), a malformed key file is bad input.
+#[test]
+fn a_server_with_a_key_answers_only_clients_with_a_token() {
+    let dir = Temp::new("shared-key");
+    let key = dir.0.join("server.key");
+    std::fs::write(&key, "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n").expect("a key file");
+    let mut child = bin()
+        .args(["server", "--listen", "127.0.0.1:0", "--store"])
+        .arg(dir.0.join("world"))
+        .arg("--key")
+        .arg(&key)
+        .args(["--exit-after-s", "60"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start snowpack server");
+    let mut first = String::new();
+    let mut stdout = std::io::BufReader::new(child.stdout.take().expect("stdout"));
+    std::io::BufRead::read_line(&mut stdout, &mut first).expect("the first line");
+    let addr = first.split_whitespace().skip_while(|w| *w != "on").nth(1).expect("an address").to_owned();
+    assert!(first.contains("connect tokens required"), "{first}");
+    // The server's output is drained: a closed pipe must not matter, but a full one would block it.
+    std::thread::spawn(move || std::io::copy(&mut stdout, &mut std::io::sink()));
+
+    let token = dir.0.join("player.token");
+    let made = run_bounded({
+        let mut c = bin();
+        c.args(["token", "--key"]).arg(&key).args(["--server", &addr, "--out"]).arg(&token);
+        c
+    });
+    assert_ok("making a token", &made);
+    let with = run_bounded({
+        let mut c = bin();
+        c.args(["query", "--connect", &addr, "--token"]).arg(&token).args(["--at", "1,2"]);
+        c
+    });
+    assert_ok("a query with a token", &with);
+    // No world yet: the server knows no depth.
+    assert!(String::from_utf8_lossy(&with.stdout).contains("depth_m 1 2 none"), "{}", String::from_utf8_lossy(&with.stdout));
+    let without = run_bounded({
+        let mut c = bin();
+        c.args(["query", "--connect", &addr, "--at", "1,2"]);
+        c
+    });
+    assert_eq!(without.status.code(), Some(1), "a query without a token: {}", String::from_utf8_lossy(&without.stderr));
+    let _ = child.kill();
+    let _ = child.wait();
+
+    let bad = dir.0.join("bad.key");
+    std::fs::write(&bad, "not a key").expect("a bad key file");
+    let refused = run_bounded({
+        let mut c = bin();
+        c.args(["server", "--listen", "127.0.0.1:0", "--store"]).arg(dir.0.join("w2")).arg("--key").arg(&bad);
+        c
+    });
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("bad.key"), "{}", String::from_utf8_lossy(&refused.stderr));
+}
