@@ -116,15 +116,6 @@ fn world_epoch(store: &TileStore) -> anyhow::Result<f64> {
     Ok(now)
 }
 
-/// The tile side a store was made with (its `store.meta`), if it exists.
-fn store_side(dir: &Path) -> Option<u32> {
-    // Opening a folder without `store.meta` would make one: ask only existing stores.
-    if !dir.join("store.meta").is_file() {
-        return None;
-    }
-    [8, 16, 32, 64, 128, 256].into_iter().find(|&side| TileStore::open(dir, side, StoreConfig::default()).is_ok())
-}
-
 /// Runs `snowpack server` until killed (or `exit_after_s`). Creates no GPU
 /// device and loads no graphics library: it merges integers on the CPU.
 /// Everything it acknowledges is on disk first, so killing it at any moment
@@ -139,7 +130,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     }
     let key = opts.key.as_deref().map(read_key).transpose()?;
     std::fs::create_dir_all(&opts.store).with_context(|| format!("creating the store folder {}", opts.store.display()))?;
-    let side = store_side(&opts.store).unwrap_or(DEFAULT_TILE_SIDE);
+    let side = TileStore::side_in(&opts.store).context("reading the store's description")?.unwrap_or(DEFAULT_TILE_SIDE);
     let store = TileStore::open(&opts.store, side, StoreConfig::default()).with_context(|| format!("opening the tile store {}", opts.store.display()))?;
     let epoch = world_epoch(&store)?;
     let mut relay = SnowRelay::with_store(store, RelayConfig::default()).context("resuming the world from the store")?;
@@ -528,7 +519,7 @@ pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, ad
 /// World (x, z) of every deformer and character of `world`: the places
 /// where this peer may change the snow (the relay's check).
 pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
-    let mut out: Vec<[f64; 2]> = world.deformers().iter().map(deformer_xz).filter(|p| p[0].is_finite()).collect();
+    let mut out: Vec<[f64; 2]> = world.deformers().iter().filter_map(deformer_xz).collect();
     out.extend(world.characters().iter().map(|c| {
         let p = c.model.w_axis;
         [f64::from(p.x), f64::from(p.z)]
@@ -536,14 +527,14 @@ pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
     out
 }
 
-/// World (x, z) of a deformer.
-pub fn deformer_xz(d: &snowpack::Deformer) -> [f64; 2] {
+/// World (x, z) of a deformer; `None` for a kind added later (no place of
+/// its own, so the relay lets it change nothing more).
+pub fn deformer_xz(d: &snowpack::Deformer) -> Option<[f64; 2]> {
     use snowpack::Deformer;
     match d {
-        Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => [f64::from(center.x), f64::from(center.z)],
-        Deformer::Point { position, .. } => [f64::from(position.x), f64::from(position.z)],
-        // A deformer kind added later: no place of its own, so nothing more may change.
-        _ => [f64::NAN, f64::NAN],
+        Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => Some([f64::from(center.x), f64::from(center.z)]),
+        Deformer::Point { position, .. } => Some([f64::from(position.x), f64::from(position.z)]),
+        _ => None,
     }
 }
 

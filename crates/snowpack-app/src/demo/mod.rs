@@ -610,7 +610,7 @@ impl Gfx {
             }
             return;
         }
-        let mut positions: Vec<[f64; 2]> = self.session.deformers().iter().map(crate::net::deformer_xz).filter(|p| p[0].is_finite()).collect();
+        let mut positions: Vec<[f64; 2]> = self.session.deformers().iter().filter_map(crate::net::deformer_xz).collect();
         let p = self.session.player.position;
         positions.push([f64::from(p.x), f64::from(p.z)]);
         link.peer.set_deformers(&positions);

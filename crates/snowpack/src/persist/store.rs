@@ -178,6 +178,18 @@ impl TileStore {
         Ok(store)
     }
 
+    /// The tile side of the store in `dir` (its `store.meta`), without
+    /// opening or locking it; `None` where there is no store yet. A damaged
+    /// or foreign `store.meta` is an error naming it.
+    pub fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
+        let path = dir.join(META_FILE);
+        match std::fs::read(&path) {
+            Ok(bytes) => meta_side(&path, &bytes).map(Some),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+            Err(source) => Err(StoreError::Io { path, op: "read", source }),
+        }
+    }
+
     /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
     ///
     /// A tile that fails to decode is an error naming its file, which is
@@ -457,6 +469,15 @@ fn meta_bytes(side: u32) -> Vec<u8> {
 }
 
 fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
+    let found_side = meta_side(path, bytes)?;
+    if found_side != side {
+        return Err(StoreError::Mismatch { path: path.to_owned(), why: format!("the store holds {found_side}² tiles, {side}² were asked for") });
+    }
+    Ok(())
+}
+
+/// The tile side a `store.meta` records, once its magic, CRC and version check out.
+fn meta_side(path: &Path, bytes: &[u8]) -> Result<u32, StoreError> {
     let field = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     if bytes.len() != 20 || &bytes[..8] != META_MAGIC {
         return Err(StoreError::Corrupt { path: path.to_owned(), why: "not a snowpack store description".to_owned() });
@@ -464,14 +485,11 @@ fn check_meta(path: &Path, bytes: &[u8], side: u32) -> Result<(), StoreError> {
     if crc32fast::hash(&bytes[..16]) != field(16) {
         return Err(StoreError::Corrupt { path: path.to_owned(), why: "bad CRC32".to_owned() });
     }
-    let (version, found_side) = (field(8), field(12));
+    let version = field(8);
     if version != FORMAT_VERSION {
         return Err(StoreError::Version { path: path.to_owned(), found: version, expected: FORMAT_VERSION });
     }
-    if found_side != side {
-        return Err(StoreError::Mismatch { path: path.to_owned(), why: format!("the store holds {found_side}² tiles, {side}² were asked for") });
-    }
-    Ok(())
+    Ok(field(12))
 }
 
 /// Creates `dir` and any missing parents (as `create_dir_all`), syncing
@@ -742,7 +760,9 @@ mod tests {
     #[test]
     fn store_meta_must_match() {
         let dir = TestDir::new("store-meta");
+        assert_eq!(TileStore::side_in(dir.path()).expect("no store yet"), None);
         drop(open(dir.path(), 0));
+        assert_eq!(TileStore::side_in(dir.path()).expect("a store"), Some(SIDE));
         let meta = dir.path().join(META_FILE);
         match TileStore::open(dir.path(), 32, StoreConfig::default()) {
             Err(e @ StoreError::Mismatch { .. }) => {
@@ -763,6 +783,7 @@ mod tests {
             other => panic!("expected Version, got {other:?}"),
         }
         fs::write(&meta, b"garbage").expect("write meta");
+        assert!(matches!(TileStore::side_in(dir.path()), Err(StoreError::Corrupt { .. })));
         assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()), Err(StoreError::Corrupt { .. })));
         assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()), Err(StoreError::Mismatch { .. })));
     }

@@ -17,7 +17,7 @@
 //! | `flags.rs` | [`flags::ShareGrid`]: the changed-tile flags the stamp and update passes write, and their keys |
 //! | `gather.rs` | [`gather::TileGatherPass`] (`tile_gather.wgsl`): whole tiles copied out of the window |
 //! | `merge.rs` | [`merge::TileMergePass`] (`tile_merge.wgsl`): tiles from elsewhere folded into the window |
-//! | `sharing.rs` | [`sharing::Sharing`]: a window's flags, gathers, merges and their readbacks |
+//! | `sharing.rs` | `Sharing` (crate-private): a window's flags, gathers, merges and their readbacks |
 //!
 //! Neither side owns a socket: bytes go in through `receive` and come out
 //! of `poll_transmit`, so tests run a whole network in one process.
@@ -32,7 +32,7 @@ pub mod merge;
 pub mod message;
 pub mod peer;
 pub mod relay;
-pub mod sharing;
+pub(crate) mod sharing;
 pub mod tile;
 pub mod world;
 

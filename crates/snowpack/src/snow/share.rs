@@ -1,6 +1,6 @@
 //! [`SnowDeformation`] as a replica of a shared world: its world clock, its
 //! identity, and [`SharedSnow`] over the GPU's changed-tile flags, gather
-//! and merge passes ([`crate::replicate::sharing`]).
+//! and merge passes (`replicate::sharing`).
 
 use crate::deform::params::default_tile_texels;
 use crate::deform::stamp::StampPass;
