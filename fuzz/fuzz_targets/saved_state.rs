@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::snow::saved::SavedWindow;
+use snowpack::low_level::snow::saved::SavedWindow;
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(state) = SavedWindow::decode(data, std::path::Path::new("fuzz.state")) {

@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::replicate::{Message, PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity, decode, encode};
+use snowpack::low_level::replicate::{Message, PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity, decode, encode};
 
 fn world() -> WorldIdentity {
     WorldIdentity {

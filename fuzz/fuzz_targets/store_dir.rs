@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
+use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
 
 fuzz_target!(|data: &[u8]| {
     let dir = std::env::temp_dir().join(format!("snowpack-fuzz-store-{}", std::process::id()));

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::persist::{decode, encode};
+use snowpack::low_level::persist::{decode, encode};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(tile) = decode(data) {

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
-use snowpack::gpu::timing::median;
+use snowpack::low_level::gpu::timing::median;
 use snowpack::{AdapterRequest, Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 use crate::output::OutputSet;
@@ -132,11 +132,11 @@ pub fn markdown(rows: &[BenchRow], adapter: &str, backend: &str, software: bool,
 }
 
 /// The physical floor of each pass beside its measured time, per window size:
-/// the bytes it must move (`snowpack::deform::traffic`) over the adapter's
+/// the bytes it must move (`snowpack::low_level::deform::traffic`) over the adapter's
 /// memory bandwidth when the adapter is a known GPU.
 #[must_use]
 pub fn floor_markdown(rows: &[BenchRow], adapter: &str) -> String {
-    use snowpack::deform::traffic::{frame_traffic, known_bandwidth_gb_per_s};
+    use snowpack::low_level::deform::traffic::{frame_traffic, known_bandwidth_gb_per_s};
     let bandwidth = known_bandwidth_gb_per_s(adapter);
     let mut md = String::from("\n## The physical floor: bytes each pass must move, against the time it took\n\n");
     match bandwidth {

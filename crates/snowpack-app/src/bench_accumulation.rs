@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 
 use glam::{DVec2, Quat, Vec3};
-use snowpack::accumulate::{ObjectShape, SnowObject, Snowfall};
+use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
 
 /// The three scenes of Dinh's table.

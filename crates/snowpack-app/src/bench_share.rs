@@ -1,6 +1,6 @@
 //! Shared snow under load: one `snowpack server` (a separate process, as in
 //! production) and many simulated peers on loopback, each a CPU snow window
-//! ([`snowpack::testing::CpuSnow`]) walking and pressing a trail, linked
+//! ([`snowpack::low_level::testing::CpuSnow`]) walking and pressing a trail, linked
 //! over renet2 exactly as `snowpack run --connect` is. Measures the server's
 //! CPU time per second of world time, its peak memory, the bytes it sends
 //! and receives, and its CPU time per merged tile. Needs no GPU.
@@ -12,8 +12,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use snowpack::replicate::WorldIdentity;
-use snowpack::testing::CpuSnow;
+use snowpack::low_level::replicate::WorldIdentity;
+use snowpack::low_level::testing::CpuSnow;
 
 use crate::net::SnowLink;
 
@@ -65,7 +65,7 @@ fn world() -> WorldIdentity {
     WorldIdentity {
         texel_m: 0.0625,
         tile_side: crate::net::DEFAULT_TILE_SIDE,
-        terrain: snowpack::replicate::terrain_identity(&snowpack::TerrainSource::Flat { height_m: 0.0 }),
+        terrain: snowpack::low_level::replicate::terrain_identity(&snowpack::TerrainSource::Flat { height_m: 0.0 }),
         depth_m: 0.5,
         refill_m_per_s: 0.01 / 60.0,
         snowfall_m_per_s: 0.0,

@@ -82,7 +82,7 @@ fn fast_wheels(t: f32) -> Vec<Deformer> {
                 axle: Vec3::new(phase.cos(), 0.0, phase.sin()),
                 radius: 0.33,
                 half_width: 0.11,
-                tread: snowpack::deform::wheel::Tread::default(),
+                tread: snowpack::low_level::deform::wheel::Tread::default(),
                 roll_m: 12.0 * t,
             }
         })

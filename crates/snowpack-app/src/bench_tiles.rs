@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
-use snowpack::persist::{StoreConfig, StreamerConfig, TileKey, TileStore, TileStreamer};
+use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileKey, TileStore, TileStreamer};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
 
 /// Texels per side of a tile in every measurement.
@@ -66,7 +66,7 @@ fn terrain() -> TerrainSource {
 }
 
 fn median(v: &[f64]) -> f64 {
-    snowpack::gpu::timing::median(v).unwrap_or(0.0)
+    snowpack::low_level::gpu::timing::median(v).unwrap_or(0.0)
 }
 
 fn streamer(dir: &Path, memory_mb: usize) -> anyhow::Result<TileStreamer> {

@@ -21,13 +21,13 @@ use renet2_netcode::{
     ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
     ServerSetupConfig,
 };
-use snowpack::persist::{StoreConfig, TileStore};
-use snowpack::replicate::{PeerConfig, RelayConfig, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+use snowpack::low_level::persist::{StoreConfig, TileStore};
+use snowpack::low_level::replicate::{PeerConfig, RelayConfig, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack_app::BadInput;
 
 /// Netcode's protocol id: packets of other programs (or another version of
 /// this protocol) are refused before they reach the relay.
-const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::replicate::message::PROTOCOL_VERSION as u64;
+const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::low_level::replicate::message::PROTOCOL_VERSION as u64;
 /// The one channel snowpack's messages travel on.
 const CHANNEL: u8 = 0;
 /// Bytes a connection's channel may hold unacknowledged; the relay paces
@@ -295,13 +295,14 @@ fn random_id() -> u64 {
 /// `snowpack query`: the snow depth at `points` (world x, z in m) from the
 /// server's merged tiles, `None` where the server knows no world yet.
 pub fn query(addr: SocketAddr, token: Option<&Path>, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
-    use snowpack::replicate::{Message, decode, encode};
+    use snowpack::low_level::replicate::{Message, decode, encode};
     let mut link = Transport::connect(addr, token)?;
     let deadline = Instant::now() + CONNECT_LIMIT;
     let mut sent = false;
     let mut answers = Vec::with_capacity(points.len());
     // At most MAX_DEFORMERS points a message: the query goes in chunks.
-    let chunks: Vec<Vec<[f64; 2]>> = points.chunks(snowpack::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
+    let chunks: Vec<Vec<[f64; 2]>> =
+        points.chunks(snowpack::low_level::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
     while answers.len() < chunks.len() {
         link.update()?;
         if link.client.is_connected() && !sent {
@@ -551,7 +552,7 @@ pub struct ShareReport {
     /// the window (for a run that presses little: the late join).
     pub synced_s: f64,
     /// The peer's counters.
-    pub stats: snowpack::replicate::PeerStats,
+    pub stats: snowpack::low_level::replicate::PeerStats,
 }
 
 impl ShareReport {

@@ -6,8 +6,8 @@ use std::collections::VecDeque;
 
 use egui::{Color32, ComboBox, RichText, Slider, Stroke};
 use glam::Vec3;
-use snowpack::render::params::{DebugView, Material, MaterialPreset, sun_from_angles};
-use snowpack::render::shell::DetailKind;
+use snowpack::low_level::render::params::{DebugView, Material, MaterialPreset, sun_from_angles};
+use snowpack::low_level::render::shell::DetailKind;
 use snowpack::{RimStyle, Technique};
 
 use crate::camera::{CameraMode, CameraRig};
@@ -247,7 +247,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
             egui::CollapsingHeader::new("Snowfall").default_open(session.snow_params.snowfall.is_some()).show(ui, |ui| {
                 let mut on = session.snow_params.snowfall.is_some();
                 if ui.checkbox(&mut on, "it snows (toggling rebuilds the window)").changed() {
-                    session.snow_params.snowfall = on.then(snowpack::accumulate::Snowfall::default);
+                    session.snow_params.snowfall = on.then(snowpack::low_level::accumulate::Snowfall::default);
                 }
                 if let Some(f) = &mut session.snow_params.snowfall {
                     ui.add(Slider::new(&mut f.rate_m_per_s, 0.0..=0.05).logarithmic(true).smallest_positive(1e-4).max_decimals(4).text("rate").suffix(" m/s"));

@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec2, Vec3};
-use snowpack::gpu::PassTimings;
-use snowpack::skin::feet::FootstepEvent;
+use snowpack::low_level::gpu::PassTimings;
+use snowpack::low_level::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
 use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec, World};
 
@@ -196,7 +196,7 @@ impl Session {
             StoreKeep::Memory => None,
             StoreKeep::Off => Some(StoreSpec { keep, save: false, ..StoreSpec::default() }),
         };
-        self.snow_params.tile_memory_bytes = (keep != StoreKeep::Off).then_some(snowpack::deform::params::DEFAULT_TILE_MEMORY_BYTES);
+        self.snow_params.tile_memory_bytes = (keep != StoreKeep::Off).then_some(snowpack::low_level::deform::params::DEFAULT_TILE_MEMORY_BYTES);
         self.rebuild(ctx)
     }
 

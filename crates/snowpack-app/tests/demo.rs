@@ -29,7 +29,10 @@ impl Xvfb {
         let mut child = match spawned {
             Ok(c) => c,
             Err(e) => {
-                assert!(!snowpack::testing::gpu_required(), "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb");
+                assert!(
+                    !snowpack::low_level::testing::gpu_required(),
+                    "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb"
+                );
                 eprintln!("skipping the demo test: no Xvfb ({e})");
                 return None;
             }

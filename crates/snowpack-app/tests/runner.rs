@@ -14,7 +14,7 @@ fn bin() -> Command {
 }
 
 fn gpu_available() -> bool {
-    snowpack::testing::gpu().is_some()
+    snowpack::low_level::testing::gpu().is_some()
 }
 
 struct Grid {
@@ -699,7 +699,7 @@ fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
         let prints = prints_at_footsteps(&run, &events, 0.2);
         assert!(prints.len() >= 16, "{hardness} kPa: {} footsteps", prints.len());
         // 6 kg on 35 cm² paws: 4.2 kPa with four paws down, 16.8 with one.
-        let load = snowpack::skin::sinking::FootLoad::default();
+        let load = snowpack::low_level::skin::sinking::FootLoad::default();
         let (least, most) = (load.sinkage_m(4.0, 0.2, hardness), load.sinkage_m(1.0, 0.2, hardness));
         for (print, sink, _) in &prints {
             assert!(
@@ -734,7 +734,7 @@ fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     }
     // Only paws press: nothing away from the path, no snow pressed more than the deepest sinkage.
     let snow = run.grid("snow.npy");
-    let most = snowpack::skin::sinking::FootLoad::default().sinkage_m(1.0, 0.2, 5.0);
+    let most = snowpack::low_level::skin::sinking::FootLoad::default().sinkage_m(1.0, 0.2, 5.0);
     for (k, h) in snow.data.iter().enumerate() {
         let (x, z) = run.world(k / snow.res, k % snow.res);
         if 0.2 - h > 0.005 {
@@ -1270,7 +1270,7 @@ fn a_fast_vehicle_leaves_continuous_ruts_as_deep_as_its_load_says() {
     if !gpu_available() {
         return;
     }
-    use snowpack::skin::sinking::WheelLoad;
+    use snowpack::low_level::skin::sinking::WheelLoad;
     // 15 m/s at 30 frames a second: 50 cm a frame, so each frame's wheels
     // stand 50 cm from the last; a straight line through the window.
     let path = "[[-12.0, 0.0, 0.0], [12.0, 0.0, 1.6]]";

@@ -22,7 +22,7 @@ fn bin() -> Command {
 }
 
 fn gpu_available() -> bool {
-    snowpack::testing::gpu().is_some()
+    snowpack::low_level::testing::gpu().is_some()
 }
 
 /// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).

@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use glam::{Mat4, Quat, Vec3, Vec4};
-use snowpack::skin::skinning::SkinnedMesh;
-use snowpack::skin::{Channel, Clip, Interpolation, Node, Property, Skeleton, Transform};
+use snowpack::low_level::skin::skinning::SkinnedMesh;
+use snowpack::low_level::skin::{Channel, Clip, Interpolation, Node, Property, Skeleton, Transform};
 
 /// A parsed glTF document with its buffers loaded.
 pub struct GltfFile {
@@ -63,9 +63,9 @@ impl GltfFile {
     /// Every triangle primitive of the default scene (or the first) as one
     /// mesh, node transforms and `scale` applied, with normals and, when every
     /// primitive has them, `TEXCOORD_0` UVs (an accumulation object).
-    pub fn object_mesh(&self, scale: f32) -> Result<snowpack::accumulate::ObjectMesh, String> {
+    pub fn object_mesh(&self, scale: f32) -> Result<snowpack::low_level::accumulate::ObjectMesh, String> {
         let scene = self.document.default_scene().or_else(|| self.document.scenes().next()).ok_or("the file has no scene")?;
-        let mut out = snowpack::accumulate::ObjectMesh { uvs: Some(Vec::new()), ..Default::default() };
+        let mut out = snowpack::low_level::accumulate::ObjectMesh { uvs: Some(Vec::new()), ..Default::default() };
         let root = Mat4::from_scale(Vec3::splat(scale));
         let mut stack: Vec<(gltf::Node<'_>, Mat4)> = scene.nodes().map(|n| (n, root)).collect();
         while let Some((node, parent)) = stack.pop() {

@@ -6,16 +6,16 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::render::params::{DebugView, LightParams, Material, MaterialPreset, sun_from_angles};
-use snowpack::render::shell::{DetailKind, ShellSettings};
-use snowpack::render::{EnvironmentMap, RenderParams};
+use snowpack::low_level::render::params::{DebugView, LightParams, Material, MaterialPreset, sun_from_angles};
+use snowpack::low_level::render::shell::{DetailKind, ShellSettings};
+use snowpack::low_level::render::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::{GltfFile, SkinnedModel};
-use snowpack::skin::feet::{DEFAULT_FOOT_PATTERNS, Foot, attach_paws, find_feet, stride_speed};
-use snowpack::skin::sinking::FootLoad;
+use snowpack::low_level::skin::feet::{DEFAULT_FOOT_PATTERNS, Foot, attach_paws, find_feet, stride_speed};
+use snowpack::low_level::skin::sinking::FootLoad;
 
 /// Where the deformation window is centred.
 #[derive(Clone, Debug, PartialEq)]
@@ -235,7 +235,7 @@ pub struct ObjectSpec {
     /// Whether its accumulation is dilated (off for thin, holey objects).
     pub dilate: bool,
     /// The triangle mesh of a `gltf` object (its file, `scale` applied).
-    pub mesh: Option<Arc<snowpack::accumulate::ObjectMesh>>,
+    pub mesh: Option<Arc<snowpack::low_level::accumulate::ObjectMesh>>,
     /// Constant velocity (m/s); its snow goes with it.
     pub velocity: Vec3,
     /// Constant turn about its own x, y and z axes (degrees per second).
@@ -255,10 +255,10 @@ impl ObjectSpec {
 
     /// The library's description of this object.
     #[must_use]
-    pub fn object(&self) -> snowpack::accumulate::SnowObject {
-        use snowpack::accumulate::ObjectShape;
+    pub fn object(&self) -> snowpack::low_level::accumulate::SnowObject {
+        use snowpack::low_level::accumulate::ObjectShape;
         let r = self.rotation_deg * (std::f32::consts::PI / 180.0);
-        snowpack::accumulate::SnowObject {
+        snowpack::low_level::accumulate::SnowObject {
             name: self.name.clone(),
             shape: match (&self.mesh, self.kind.as_str()) {
                 (Some(mesh), _) => ObjectShape::Mesh(Arc::clone(mesh)),
@@ -273,7 +273,7 @@ impl ObjectSpec {
 }
 
 /// `[snowfall]`: the library's snowfall parameters.
-pub type SnowfallSpec = snowpack::accumulate::Snowfall;
+pub type SnowfallSpec = snowpack::low_level::accumulate::Snowfall;
 
 /// `[sim]`.
 #[derive(Clone, Debug, PartialEq)]
@@ -650,7 +650,8 @@ impl Scene {
                 if let Some(key) = unused.iter().find(|k| t.has(k)) {
                     return Err(t.err(key.as_ref(), format!("has no effect with keep = \"{}\"", keep.as_str())));
                 }
-                let tile_default = if keep == StoreKeep::Disk { d.tile_texels } else { snowpack::deform::params::default_tile_texels(snow.resolution) };
+                let tile_default =
+                    if keep == StoreKeep::Disk { d.tile_texels } else { snowpack::low_level::deform::params::default_tile_texels(snow.resolution) };
                 let spec = StoreSpec {
                     keep,
                     path: t.string_opt("path")?.map(|p| base_dir.join(p)),
@@ -659,7 +660,7 @@ impl Scene {
                     disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
                     save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
                 };
-                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
+                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
                     return Err(t.err("tile_texels", why));
                 }
                 t.finish()?;
@@ -823,7 +824,7 @@ impl Scene {
                 let _ = writeln!(
                     s,
                     "store: trails kept in memory (no [store]), tiles of {}², memory {mib} MiB",
-                    snowpack::deform::params::default_tile_texels(self.snow.resolution)
+                    snowpack::low_level::deform::params::default_tile_texels(self.snow.resolution)
                 );
             }
         }

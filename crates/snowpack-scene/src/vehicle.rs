@@ -11,8 +11,8 @@
 //! level.
 
 use glam::{Vec2, Vec3};
-use snowpack::deform::wheel::{Tread, TreadPattern, forward};
-use snowpack::skin::sinking::WheelLoad;
+use snowpack::low_level::deform::wheel::{Tread, TreadPattern, forward};
+use snowpack::low_level::skin::sinking::WheelLoad;
 use snowpack::{Deformer, TerrainSource};
 
 use crate::error::SceneError;

@@ -8,9 +8,9 @@
 use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
-use snowpack::skin::AnimationPlayer;
-use snowpack::skin::feet::{FootTracker, FootstepEvent, mean_feet_down};
-use snowpack::testing::Rng;
+use snowpack::low_level::skin::AnimationPlayer;
+use snowpack::low_level::skin::feet::{FootTracker, FootstepEvent, mean_feet_down};
+use snowpack::low_level::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
 use crate::scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, WindowSpec};

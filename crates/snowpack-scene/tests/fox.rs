@@ -21,7 +21,7 @@ fn the_fox_has_a_skin_and_three_clips() {
     // The bind pose is the rest pose: skinning at rest gives the mesh back.
     let s = &model.skeleton;
     let joints = s.joint_matrices(&s.globals(&s.rest_pose()));
-    let skinned = snowpack::cpu::skinning::skin(&model.mesh, &joints, Mat4::IDENTITY);
+    let skinned = snowpack::low_level::cpu::skinning::skin(&model.mesh, &joints, Mat4::IDENTITY);
     let worst = skinned.iter().zip(&model.mesh.positions).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
     assert!(worst < 0.05, "rest pose moves vertices by {worst} units (of a 79-unit fox)");
 }
@@ -64,14 +64,14 @@ fn a_truncated_file_is_an_error_not_a_panic() {
 fn walk_and_run_have_the_strides_of_a_fox() {
     let model = GltfFile::open(&fox_path()).expect("open").skinned_model().expect("skinned model");
     let s = &model.skeleton;
-    let feet = snowpack::skin::feet::find_feet(s, &model.clips, &snowpack::skin::feet::DEFAULT_FOOT_PATTERNS);
-    let speed = |name: &str| snowpack::skin::feet::stride_speed(s, &model.clips[model.clip(name).expect(name)], &feet) * 0.01;
+    let feet = snowpack::low_level::skin::feet::find_feet(s, &model.clips, &snowpack::low_level::skin::feet::DEFAULT_FOOT_PATTERNS);
+    let speed = |name: &str| snowpack::low_level::skin::feet::stride_speed(s, &model.clips[model.clip(name).expect(name)], &feet) * 0.01;
     let (walk, run) = (speed("Walk"), speed("Run"));
     eprintln!("walk {walk} m/s, run {run} m/s, durations {:?}", model.clips.iter().map(|c| c.duration).collect::<Vec<_>>());
     assert!(walk > 0.5 && walk < 2.0, "walk {walk} m/s");
     assert!(run > 1.5 * walk && run < 8.0, "run {run} m/s vs walk {walk}");
     // Paws down on average: a walk has two or three, a run fewer, standing all four.
-    let down = |name: &str| snowpack::skin::feet::mean_feet_down(s, &model.clips[model.clip(name).expect(name)], &feet);
+    let down = |name: &str| snowpack::low_level::skin::feet::mean_feet_down(s, &model.clips[model.clip(name).expect(name)], &feet);
     let (walk, run, stand) = (down("Walk"), down("Run"), down("Survey"));
     eprintln!("paws down: walk {walk}, run {run}, survey {stand}");
     assert!((2.0..3.2).contains(&walk), "walk: {walk} paws down");

@@ -54,7 +54,7 @@ fn trails_are_kept_in_memory_without_a_store_table_and_keep_chooses() {
     use snowpack_scene::StoreKeep;
     // No [store]: the library's memory keeper, with its default budget.
     let s = parse("[snow]\nresolution = 256\n").expect("valid");
-    assert_eq!((s.store.clone(), s.snow.tile_memory_bytes), (None, Some(snowpack::deform::params::DEFAULT_TILE_MEMORY_BYTES)));
+    assert_eq!((s.store.clone(), s.snow.tile_memory_bytes), (None, Some(snowpack::low_level::deform::params::DEFAULT_TILE_MEMORY_BYTES)));
     assert!(s.describe().contains("store: trails kept in memory (no [store]), tiles of 32²"), "{}", s.describe());
     // A [store] table is a disk store unless `keep` says otherwise.
     let s = parse("[snow]\nresolution = 256\n[store]\n").expect("valid");
@@ -122,10 +122,10 @@ direction = [0.0, -2.0, 0.0]
     assert_eq!(s.snowfall.as_ref().map(|f| f.direction), Some(glam::Vec3::NEG_Y));
     // The window carries the snowfall, with the library's defaults for what the file leaves out.
     assert_eq!(s.snow.snowfall, s.snowfall);
-    assert_eq!(s.snowfall.as_ref().map(|f| f.repose_deg), Some(snowpack::accumulate::Snowfall::default().repose_deg));
+    assert_eq!(s.snowfall.as_ref().map(|f| f.repose_deg), Some(snowpack::low_level::accumulate::Snowfall::default().repose_deg));
     assert!(s.objects[0].dilate);
     let o = s.objects[0].object();
-    assert_eq!(o.shape, snowpack::accumulate::ObjectShape::Box { size_m: glam::Vec3::new(2.0, 0.1, 1.0) });
+    assert_eq!(o.shape, snowpack::low_level::accumulate::ObjectShape::Box { size_m: glam::Vec3::new(2.0, 0.1, 1.0) });
 }
 
 #[test]
@@ -212,7 +212,7 @@ fn every_bad_value_names_the_file_and_the_key() {
 
 #[test]
 fn light_and_render_keys_are_understood() {
-    use snowpack::render::{DebugView, MaterialPreset};
+    use snowpack::low_level::render::{DebugView, MaterialPreset};
     let s = parse(
         r#"
 [light]
@@ -241,7 +241,7 @@ ao_strength = 0.5
 
 #[test]
 fn compacted_snow_keys_are_understood_and_default_to_the_preset() {
-    use snowpack::render::MaterialPreset;
+    use snowpack::low_level::render::MaterialPreset;
     let s = parse("[render]\nmaterial = \"mud\"\n[material]\ncompaction_full = 0.5\npacked_detail = 1.0\npacked_sparkle = 0.25\n").expect("valid");
     let m = s.render.params.material;
     let mud = MaterialPreset::Mud.material();
@@ -283,7 +283,7 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
 
 #[test]
 fn saved_scenes_load_back_the_same() {
-    use snowpack::render::params::{MaterialPreset, sun_from_angles};
+    use snowpack::low_level::render::params::{MaterialPreset, sun_from_angles};
     let dir = std::env::temp_dir().join(format!("snowpack-save-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let mut scene = Scene::default_scene().expect("default");
@@ -296,9 +296,9 @@ fn saved_scenes_load_back_the_same() {
     scene.render.params.material.wrap = 0.3;
     scene.render.params.light.sun_direction = Some(sun_from_angles(12.0, 250.0));
     scene.render.params.light.exposure_ev = -0.5;
-    scene.render.params.shell = snowpack::render::shell::ShellSettings {
+    scene.render.params.shell = snowpack::low_level::render::shell::ShellSettings {
         enabled: true,
-        texture: snowpack::render::shell::DetailKind::Crust,
+        texture: snowpack::low_level::render::shell::DetailKind::Crust,
         texture_size: 32,
         thickness_m: 0.05,
         passes: 6,
@@ -326,7 +326,7 @@ fn saved_scenes_load_back_the_same() {
 
 #[test]
 fn the_shell_table_is_understood() {
-    use snowpack::render::shell::{DetailKind, ShellSettings};
+    use snowpack::low_level::render::shell::{DetailKind, ShellSettings};
     assert!(!parse("").expect("empty").render.params.shell.enabled, "the shell is off without [shell]");
     let on = parse("[shell]\n").expect("shell");
     assert_eq!(on.render.params.shell, ShellSettings { enabled: true, ..ShellSettings::default() });

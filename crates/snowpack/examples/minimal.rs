@@ -10,7 +10,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, Mat4, Vec2, Vec3};
-use snowpack::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
+use snowpack::low_level::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 use winit::application::ApplicationHandler;
 use winit::event::WindowEvent;

@@ -1,6 +1,10 @@
 //! Heights drawn as depth: the depth format of the deformation's capture
 //! (actors seen from below) and of the accumulation's sky occlusion (objects
 //! seen from the sky), both of which the update pass samples.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 /// Format of the capture depth target and the sky occlusion depth: 16-bit
 /// unorm, linear in height over the capture range `[low_m, high_m]`, so one

@@ -4,8 +4,8 @@
 //! time; a chain of GPU passes turns it into the displayed surface (rims,
 //! blur, normals); point queries answer gameplay's questions (snow depth under
 //! a foot) a frame or two late without stalling; the snow is drawn into the
-//! game's own render pass ([`SnowGround`]) or by the full [`Renderer`].
-//! Every compute pass has a CPU twin (the hidden `cpu` module, for tests).
+//! game's own render pass ([`SnowGround`]) or by the full `Renderer` (feature `renderer`).
+//! Every compute pass has a CPU twin (`low_level::cpu`, for tests).
 //!
 //! A game with its own wgpu device:
 //!
@@ -58,54 +58,83 @@
 //!
 //! `docs/integration.md` in the repository walks through adopting it.
 //!
-//! The modules, core first (each uses only those above it, and the neutral
-//! ones; `tests/layering.rs` keeps `deform` and `accumulate` apart):
+//! The crate root is the front door: the context ([`GpuContext`]), the snow
+//! ([`SnowDeformation`], [`SnowParams`], [`SnowFrame`]), what presses it
+//! ([`Deformer`], [`SkinnedMesh`], [`SkinnedPose`]), the terrain under it,
+//! the ground drawn in a game's pass ([`SnowGround`]), point queries, objects
+//! that gather snow ([`SnowObject`]), persistence ([`TileStore`],
+//! [`TileStreamer`]), shared snow ([`SnowPeer`], [`SnowRelay`]) and errors.
 //!
-//! | module | what |
-//! |---|---|
-//! | [`gpu`], [`terrain`], [`error`] | device and readback plumbing, terrain sources, errors |
-//! | [`frame`], [`height_depth`], [`snowfall`] | neutral: the per-frame recording context and window placement plug-ins get, the capture and occlusion depth format, the snowfall settings |
-//! | [`deform`] | the core deformation: the window's resources and passes (window, capture, footprints, update, rims, blur, normals, decals, point queries) |
-//! | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
-//! | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
-//! | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
-//! | [`replicate`] | shared snow: mergeable tiles, their clock, the world identity, the wire messages, [`replicate::SnowPeer`] and [`replicate::SnowRelay`]; the window's changed-tile flags, gather and merge passes (plugs in) |
-//! | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
-//! | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
+//! Features:
+//! - `renderer`: snowpack's own renderer (`Renderer`, `RenderParams`,
+//!   `Camera`, `EnvironmentMap`, `ShellSettings`), as the demo and the
+//!   headless runner draw the snow.
+//! - `low_level` (implies `renderer`): `snowpack::low_level`, the library's
+//!   modules below the front door (passes, their parameters, the CPU twins of
+//!   the shaders, test support) for snowpack's app, tools and tests.
+//!
+//! `docs/architecture.md` in the repository shows the layers, what each
+//! module owns and one frame's path through them.
 
-pub mod accumulate;
-#[doc(hidden)]
-pub mod cpu;
-pub mod deform;
-pub mod error;
-pub mod frame;
-pub mod gpu;
-pub mod height_depth;
-pub mod persist;
-pub mod render;
-pub mod replicate;
-#[doc(hidden)]
-pub mod shaders;
-pub mod skin;
-pub mod snow;
-pub mod snowfall;
-pub mod terrain;
-#[doc(hidden)]
-pub mod testing;
-pub mod tiles;
+/// Declares a function `pub` with the `low_level` feature and `pub(crate)`
+/// without it: the methods of front-door types that the app, the tools and
+/// the tests use but a game does not (reading whole textures back, the
+/// window's GPU resources, the store's tile-level calls).
+macro_rules! low_level_pub {
+    ($(#[$attr:meta])* fn $($rest:tt)*) => {
+        $(#[$attr])*
+        #[cfg(feature = "low_level")]
+        pub fn $($rest)*
+        $(#[$attr])*
+        #[cfg(not(feature = "low_level"))]
+        pub(crate) fn $($rest)*
+    };
+}
 
-// The types a game needs, at the root (docs/integration.md walks through them).
-pub use accumulate::SnowObject;
+// The modules are the crate's own: the front door is the root's re-exports
+// below, and what the app, the Bevy plugin and the tests need beyond it is
+// re-exported by `low_level` (feature `low_level`).
+mod accumulate;
+mod cpu;
+mod deform;
+mod error;
+mod frame;
+mod gpu;
+mod height_depth;
+#[cfg(feature = "low_level")]
+pub mod low_level;
+mod persist;
+mod render;
+mod replicate;
+#[cfg_attr(not(feature = "renderer"), allow(dead_code, reason = "the renderer's shaders are built and validated in every configuration"))]
+mod shaders;
+mod skin;
+mod snow;
+mod snowfall;
+mod terrain;
+#[cfg(any(test, feature = "low_level"))]
+mod testing;
+mod tiles;
+
+// The front door: what a game uses (docs/architecture.md lists it and says why each is here).
+pub use accumulate::{ObjectShape, SnowObject};
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
 pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket};
 pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
-pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
-pub use render::shell::ShellSettings;
-pub use render::{Camera, EnvironmentMap, GroundCamera, RenderParams, Renderer, SnowGround, SnowGroundDescriptor};
+pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
+pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+pub use skin::skinning::SkinnedMesh;
 pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use snowfall::Snowfall;
 pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};
+
+// snowpack's own renderer, for tools and the demo (feature `renderer`).
+#[cfg(feature = "renderer")]
+pub use render::shell::ShellSettings;
+#[cfg(feature = "renderer")]
+pub use render::{Camera, EnvironmentMap, RenderParams, Renderer};

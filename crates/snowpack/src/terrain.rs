@@ -130,10 +130,12 @@ impl TerrainMesh {
         Ok(Self { triangles, grid })
     }
 
-    /// Lowest and highest vertex height (m).
-    #[must_use]
-    pub fn height_range(&self) -> (f32, f32) {
-        self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
+    low_level_pub! {
+        /// Lowest and highest vertex height (m).
+        #[must_use]
+        fn height_range(&self) -> (f32, f32) {
+            self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
+        }
     }
 }
 
@@ -218,19 +220,21 @@ impl HeightmapTerrain {
         Ok(Self { width, height, heights_m, center_m, size_m })
     }
 
-    /// An FNV-1a digest of the size, placement and heights (their bits): two
-    /// machines with the same heightmap agree on it (the shared-snow world
-    /// identity names terrains by it).
-    #[must_use]
-    pub fn digest(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
-        for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
-            for b in w.to_le_bytes() {
-                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+    low_level_pub! {
+        /// An FNV-1a digest of the size, placement and heights (their bits): two
+        /// machines with the same heightmap agree on it (the shared-snow world
+        /// identity names terrains by it).
+        #[must_use]
+        fn digest(&self) -> u64 {
+            let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+            let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
+            for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
+                for b in w.to_le_bytes() {
+                    h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+                }
             }
+            h
         }
-        h
     }
 
     /// Pixels per row.
@@ -245,10 +249,12 @@ impl HeightmapTerrain {
         self.height
     }
 
-    /// Heights in metres, row-major, `width * height` values.
-    #[must_use]
-    pub fn heights_m(&self) -> &[f32] {
-        &self.heights_m
+    low_level_pub! {
+        /// Heights in metres, row-major, `width * height` values.
+        #[must_use]
+        fn heights_m(&self) -> &[f32] {
+            &self.heights_m
+        }
     }
 
     /// World (x, z) of the centre of the covered area (m).
@@ -263,6 +269,7 @@ impl HeightmapTerrain {
         self.size_m
     }
 
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     /// The same grid with other heights (as many, finite): a mesh terrain's
     /// grid as the GPU baked it.
     pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
@@ -311,22 +318,26 @@ impl TerrainSource {
         }
     }
 
-    /// Unit surface normal at world (x, z), by central differences over `eps_m`.
-    #[must_use]
-    pub fn normal_at(&self, x: f32, z: f32, eps_m: f32) -> Vec3 {
-        let dx = self.height_at(x + eps_m, z) - self.height_at(x - eps_m, z);
-        let dz = self.height_at(x, z + eps_m) - self.height_at(x, z - eps_m);
-        Vec3::new(-dx, 2.0 * eps_m, -dz).normalize()
+    low_level_pub! {
+        /// Unit surface normal at world (x, z), by central differences over `eps_m`.
+        #[must_use]
+        fn normal_at(&self, x: f32, z: f32, eps_m: f32) -> Vec3 {
+            let dx = self.height_at(x + eps_m, z) - self.height_at(x - eps_m, z);
+            let dz = self.height_at(x, z + eps_m) - self.height_at(x, z - eps_m);
+            Vec3::new(-dx, 2.0 * eps_m, -dz).normalize()
+        }
     }
 
-    /// Lowest and highest height the terrain can have anywhere (m).
-    #[must_use]
-    pub fn height_bounds(&self) -> (f32, f32) {
-        match self {
-            Self::Flat { height_m } => (*height_m, *height_m),
-            Self::Noise(n) => (n.base_m - n.amplitude_m.abs(), n.base_m + n.amplitude_m.abs()),
-            Self::Heightmap(hm) => hm.height_range(),
-            Self::Mesh(m) => m.height_range(),
+    low_level_pub! {
+        /// Lowest and highest height the terrain can have anywhere (m).
+        #[must_use]
+        fn height_bounds(&self) -> (f32, f32) {
+            match self {
+                Self::Flat { height_m } => (*height_m, *height_m),
+                Self::Noise(n) => (n.base_m - n.amplitude_m.abs(), n.base_m + n.amplitude_m.abs()),
+                Self::Heightmap(hm) => hm.height_range(),
+                Self::Mesh(m) => m.height_range(),
+            }
         }
     }
 }

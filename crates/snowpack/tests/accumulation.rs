@@ -3,8 +3,8 @@
 //! that move. Each test runs the whole deformation frame with snowfall.
 
 use glam::{DVec2, Quat, Vec3};
-use snowpack::accumulate::{ObjectShape, SnowObject, Snowfall};
-use snowpack::testing;
+use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
+use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
 
 const EXTENT_M: f32 = 16.0;
@@ -188,19 +188,19 @@ fn trails_refill_only_where_snow_falls() {
 // ---------------------------------------------------------------------------
 // The accumulation's compute passes against their CPU twins on random inputs.
 
-use snowpack::accumulate::atlas::{AtlasLayout, NO_OWNER};
-use snowpack::accumulate::settle::SettleBuffers;
-use snowpack::accumulate::state::ObjectGpu;
-use snowpack::accumulate::{
+use snowpack::low_level::accumulate::atlas::{AtlasLayout, NO_OWNER};
+use snowpack::low_level::accumulate::settle::SettleBuffers;
+use snowpack::low_level::accumulate::state::ObjectGpu;
+use snowpack::low_level::accumulate::{
     AtlasSurfacePass, IncrementParams, IncrementPass, ScatterParams, ScatterPass, SettleParams, SettlePass, SnowAccumulation, SurfaceParams,
 };
-use snowpack::cpu;
-use snowpack::deform::resources::DeformResources;
-use snowpack::deform::update::{UpdateParams, UpdatePass};
-use snowpack::frame::{FrameContext, WindowFrame};
-use snowpack::gpu::GpuTimer;
-use snowpack::gpu::read_buffer;
-use snowpack::testing::Rng;
+use snowpack::low_level::cpu;
+use snowpack::low_level::deform::resources::DeformResources;
+use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
+use snowpack::low_level::frame::{FrameContext, WindowFrame};
+use snowpack::low_level::gpu::GpuTimer;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::testing::Rng;
 
 fn random_objects(rng: &mut Rng, count: usize, extent: f32) -> Vec<SnowObject> {
     (0..count)
@@ -277,7 +277,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: snowpack::accumulate::occlusion::FOOTPRINT_FORMAT,
+        format: snowpack::low_level::accumulate::occlusion::FOOTPRINT_FORMAT,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
@@ -378,7 +378,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let texels = params.texel_count();
     // Flat ground at 0: the update evaluates it from the source.
     let terrain = vec![0.0_f32; texels];
-    let mut snow: Vec<u32> = terrain.iter().map(|_| snowpack::deform::snow_word::deficit_quanta(rng.range(0.0, params.depth_m))).collect();
+    let mut snow: Vec<u32> = terrain.iter().map(|_| snowpack::low_level::deform::snow_word::deficit_quanta(rng.range(0.0, params.depth_m))).collect();
     let mut fallen: Vec<f32> = (0..texels).map(|_| rng.range(0.0, 0.2)).collect();
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
@@ -427,7 +427,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     // cannot copy depth textures to buffers.
     let r = params.resolution;
     let staging = storage_with(ctx, "sky copy", &vec![0u8; (r * r * 4) as usize]);
-    let (pipeline, bgl) = snowpack::gpu::layout::compute_pipeline(
+    let (pipeline, bgl) = snowpack::low_level::gpu::layout::compute_pipeline(
         &ctx.device,
         "depth to buffer",
         "@group(0) @binding(0) var depth: texture_2d<f32>;
@@ -439,20 +439,20 @@ fn update_with_snowfall_under_objects_matches_cpu() {
                  out[gid.y * d.x + gid.x] = textureLoad(depth, gid.xy, 0).x;
              }
          }",
-        &[snowpack::gpu::layout::depth_texture(0), snowpack::gpu::layout::storage(1, false)],
+        &[snowpack::low_level::gpu::layout::depth_texture(0), snowpack::low_level::gpu::layout::storage(1, false)],
     );
-    let group = snowpack::gpu::layout::bind_group(
+    let group = snowpack::low_level::gpu::layout::bind_group(
         &ctx.device,
         "depth to buffer",
         &bgl,
         &[wgpu::BindingResource::TextureView(acc.sky_view()), staging.as_entire_binding()],
     );
-    snowpack::gpu::layout::dispatch(&mut enc, &mut timer, "depth to buffer", &pipeline, &group, (r.div_ceil(8), r.div_ceil(8)));
+    snowpack::low_level::gpu::layout::dispatch(&mut enc, &mut timer, "depth to buffer", &pipeline, &group, (r.div_ceil(8), r.div_ceil(8)));
     submit(ctx, enc);
     let sky_depth: Vec<f32> = read(ctx, &staging);
     let capture = vec![1.0f32; texels];
     let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
-    let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
+    let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::low_level::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut fallen);
     assert_eq!(read::<u32>(ctx, &res.snow), snow, "snow words; seed {seed}");
     close(&read::<f32>(ctx, &res.fallen), &fallen, 1e-5, "fallen", seed);
@@ -483,7 +483,7 @@ fn a_mesh_object_gathers_snow_and_shelters_the_ground() {
             indices.extend_from_slice(&[a, a + 3, a + 1, a + 1, a + 3, a + 4]);
         }
     }
-    let mesh = snowpack::accumulate::ObjectMesh { positions, normals: vec![], uvs: None, indices };
+    let mesh = snowpack::low_level::accumulate::ObjectMesh { positions, normals: vec![], uvs: None, indices };
     let sheet = object("sheet", ObjectShape::Mesh(std::sync::Arc::new(mesh)), Vec3::new(0.0, 1.0, 0.0), Quat::IDENTITY);
     let mut snow = window(ctx, snowfall(Vec3::NEG_Y), &[sheet]);
     let frames = 100;

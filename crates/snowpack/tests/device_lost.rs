@@ -5,7 +5,7 @@
 //! says so; on Vulkan wgpu reports it only at a poll that waits.
 
 use glam::{DVec2, Vec3};
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource, testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource, low_level::testing};
 
 #[test]
 fn a_destroyed_device_gives_device_lost_to_the_caller() {

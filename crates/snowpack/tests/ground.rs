@@ -2,12 +2,12 @@
 //! a game's own shader (`SNOW_SAMPLING_WGSL`), against the CPU twin.
 
 use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
-use snowpack::cpu::snow_sampling::SampledSurface;
-use snowpack::gpu::read_buffer;
-use snowpack::render::ground::{
+use snowpack::low_level::cpu::snow_sampling::SampledSurface;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::render::ground::{
     GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
 };
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
 
 /// The GPU tests here take turns (on GL a submission holds the adapter's context).
@@ -61,11 +61,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 }
 ";
     let device = &ctx.device;
-    let (pipeline, layout) = snowpack::gpu::layout::compute_pipeline(
+    let (pipeline, layout) = snowpack::low_level::gpu::layout::compute_pipeline(
         device,
         "read depth",
         READ_DEPTH_WGSL,
-        &[snowpack::gpu::layout::depth_texture(0), snowpack::gpu::layout::storage(1, false)],
+        &[snowpack::low_level::gpu::layout::depth_texture(0), snowpack::low_level::gpu::layout::storage(1, false)],
     );
     let values = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("depth values"),
@@ -74,7 +74,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         mapped_at_creation: false,
     });
     let view = texture.create_view(&wgpu::TextureViewDescriptor { aspect: wgpu::TextureAspect::DepthOnly, ..Default::default() });
-    let group = snowpack::gpu::layout::bind_group(device, "read depth", &layout, &[wgpu::BindingResource::TextureView(&view), values.as_entire_binding()]);
+    let group =
+        snowpack::low_level::gpu::layout::bind_group(device, "read depth", &layout, &[wgpu::BindingResource::TextureView(&view), values.as_entire_binding()]);
     let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
     {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
@@ -246,7 +247,7 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
     let params = SnowParams { extent_m: 16.0, resolution: 256, depth_m: 0.5, ..SnowParams::default() };
     let snow = trench(ctx, params, TerrainSource::Flat { height_m: 0.0 });
     let terrain = snow.terrain().clone();
-    let above = snowpack::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
+    let above = snowpack::low_level::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
     let cpu = SampledSurface { window: SnowWindowUniform::new(&snow), above: &above, terrain: &terrain };
 
     // The caller's formats and reverse-Z depth; the grid at one quad per texel.
@@ -483,7 +484,7 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
         heights[worst_k],
         persistent[worst_k]
     );
-    let above = snowpack::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
+    let above = snowpack::low_level::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
     let cpu = SampledSurface { window, above: &above, terrain: snow.terrain() };
     // Compaction from the persistent snow and terrain texels, independently of the twin.
     let res = 128usize;
@@ -580,5 +581,5 @@ fn the_exported_module_validates_in_a_user_shader() {
     assert_eq!(snow_sampling_wgsl(SNOW_SAMPLING_GROUP), SNOW_SAMPLING_WGSL);
     assert_eq!(snow_sampling_wgsl(3).matches("@group(3)").count(), 4);
     // The ground pass is built on the exported module, verbatim.
-    assert!(snowpack::shaders::GROUND.starts_with(SNOW_SAMPLING_WGSL.trim_end()));
+    assert!(snowpack::low_level::shaders::GROUND.starts_with(SNOW_SAMPLING_WGSL.trim_end()));
 }

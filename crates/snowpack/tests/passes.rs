@@ -8,19 +8,19 @@
 //! a texel centre exactly on an edge), so a few such texels are allowed.
 
 use glam::{DVec2, Quat, Vec3};
-use snowpack::cpu;
-use snowpack::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
-use snowpack::deform::display::{DisplayParams, DisplayPass};
-use snowpack::deform::resources::DeformResources;
-use snowpack::deform::snow_word;
-use snowpack::deform::stamp::{StampParams, StampPass};
-use snowpack::deform::update::{UpdateParams, UpdatePass};
-use snowpack::deform::wheel::{Tread, TreadPattern};
-use snowpack::deform::window::{SlidingWindow, WindowParams, WindowPass};
-use snowpack::gpu::GpuTimer;
-use snowpack::gpu::read_buffer;
-use snowpack::render::surface::SurfaceUnpackPass;
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::cpu;
+use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
+use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
+use snowpack::low_level::deform::resources::DeformResources;
+use snowpack::low_level::deform::snow_word;
+use snowpack::low_level::deform::stamp::{StampParams, StampPass};
+use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
+use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
+use snowpack::low_level::deform::window::{SlidingWindow, WindowParams, WindowPass};
+use snowpack::low_level::gpu::GpuTimer;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::render::surface::SurfaceUnpackPass;
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
 
 fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
@@ -177,7 +177,7 @@ fn capture_and_update_match_cpu() {
                 Deformer::Wheel { center, axle, radius, half_width, tread, roll_m } => {
                     let turned = Quat::from_rotation_y(rng.range(-0.4, 0.4)) * axle;
                     let slip = rng.range(-1.0, 2.0);
-                    let rolled = -shift.dot(snowpack::deform::wheel::forward(axle)) * (1.0 + slip);
+                    let rolled = -shift.dot(snowpack::low_level::deform::wheel::forward(axle)) * (1.0 + slip);
                     Deformer::Wheel { center: center + shift, axle: turned, radius, half_width, tread, roll_m: roll_m + rolled }
                 }
                 other => other,
@@ -443,7 +443,7 @@ fn random_terrain_mesh(rng: &mut Rng, platforms: usize) -> Vec<[[f32; 3]; 3]> {
 
 #[test]
 fn terrain_bake_matches_cpu() {
-    use snowpack::deform::terrain_bake::TerrainBakePass;
+    use snowpack::low_level::deform::terrain_bake::TerrainBakePass;
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("terrain bake");
     let mut rng = Rng::new(seed);
@@ -591,7 +591,7 @@ fn points_beyond_the_stamp_maximum_are_reported() {
     let mut rng = Rng::new(testing::seed("stamp overflow"));
     let (params, _terrain, res) = setup(ctx, &mut rng, 32);
     let sp = StampParams { resolution: params.resolution, range_texels: 2, texel_m: params.texel_m(), low_m: -2.0, high_m: 3.0, ..StampParams::default() };
-    let max = snowpack::deform::stamp::MAX_POINTS;
+    let max = snowpack::low_level::deform::stamp::MAX_POINTS;
     let points = vec![[0.0f32; 8]; max + 5];
     let mut pass = StampPass::new(&ctx.device, &res);
     assert_eq!(pass.prepare(&ctx.device, &ctx.queue, &res, &sp, &points), 5);
@@ -722,7 +722,7 @@ fn wheel_capture_matches_cpu() {
         deformers.push(wheel);
         // Even wheels roll in from up to 2 m away with slip from locked (-1) to spinning (+2).
         previous.push((k % 2 == 0).then(|| {
-            let shift = snowpack::deform::wheel::forward(axle) * rng.range(-2.0, 2.0);
+            let shift = snowpack::low_level::deform::wheel::forward(axle) * rng.range(-2.0, 2.0);
             let slip = rng.range(-1.0, 2.0);
             let Deformer::Wheel { radius, half_width, .. } = wheel else { unreachable!() };
             Deformer::Wheel {
@@ -731,7 +731,7 @@ fn wheel_capture_matches_cpu() {
                 radius,
                 half_width,
                 tread,
-                roll_m: roll_m - shift.dot(snowpack::deform::wheel::forward(axle)) * (1.0 + slip),
+                roll_m: roll_m - shift.dot(snowpack::low_level::deform::wheel::forward(axle)) * (1.0 + slip),
             }
         }));
     }

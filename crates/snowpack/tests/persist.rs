@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use snowpack::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, encode};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, encode};
+use snowpack::low_level::testing::{self, Rng};
 
 /// Set (to a store directory) when the test binary runs as the writer child.
 const CHILD_ENV: &str = "SNOWPACK_PERSIST_CHILD_DIR";

@@ -7,8 +7,8 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use snowpack::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
-use snowpack::testing::{self, PowerLossDisk, Rng, Unsynced};
+use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
+use snowpack::low_level::testing::{self, PowerLossDisk, Rng, Unsynced};
 
 const SIDE: u32 = 16;
 /// Inside a folder the store must create, so that its creation is tested too.
@@ -50,7 +50,7 @@ fn state(v: u8) -> Vec<u8> {
     vec![v; 300]
 }
 
-fn open(disk: &PowerLossDisk) -> Result<TileStore, snowpack::persist::StoreError> {
+fn open(disk: &PowerLossDisk) -> Result<TileStore, snowpack::low_level::persist::StoreError> {
     TileStore::open_on(Arc::new(disk.clone()), Path::new(DIR), SIDE, StoreConfig::default())
 }
 

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec2;
 use proptest::prelude::*;
-use snowpack::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
-use snowpack::snow::saved::SavedWindow;
+use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
+use snowpack::low_level::snow::saved::SavedWindow;
 
 /// Bit patterns, so NaNs and signed zeros compare as stored.
 fn tile_bits(t: &TileData) -> (TileKey, u32, [u64; 4], Vec<u32>, Vec<u32>, Vec<u32>) {

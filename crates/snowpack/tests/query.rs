@@ -3,11 +3,11 @@
 //! them.
 
 use glam::{DVec2, Vec2, Vec3};
-use snowpack::accumulate::Snowfall;
-use snowpack::cpu::query::query as cpu_query;
-use snowpack::deform::query::QueryParams;
-use snowpack::gpu::{ReadbackRing, read_buffer};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::accumulate::Snowfall;
+use snowpack::low_level::cpu::query::query as cpu_query;
+use snowpack::low_level::deform::query::QueryParams;
+use snowpack::low_level::gpu::{ReadbackRing, read_buffer};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
@@ -67,7 +67,7 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
         &qp,
         &local,
         // The ground the query evaluates from the terrain's source, per texel.
-        &snowpack::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
+        &snowpack::low_level::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
         &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.snow).expect("snow")),
         &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
     );

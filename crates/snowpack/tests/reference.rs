@@ -14,9 +14,9 @@
 use std::path::PathBuf;
 
 use glam::{DVec2, Vec3};
-use snowpack::render::params::sun_from_angles;
-use snowpack::render::{IMAGE_FORMAT, LightParams};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::render::params::sun_from_angles;
+use snowpack::low_level::render::{IMAGE_FORMAT, LightParams};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 /// Frame size of every reference (small: the suite runs on a software rasteriser).

@@ -2,13 +2,13 @@
 //! checked for cracks between levels of detail and for geomorph continuity.
 
 use glam::{DVec2, Vec3};
-use snowpack::cpu;
-use snowpack::gpu::GpuTimer;
-use snowpack::gpu::read_buffer;
-use snowpack::render::ao::{AoParams, AoPass};
-use snowpack::render::environment::{self, EnvironmentPass};
-use snowpack::render::{DebugView, IMAGE_FORMAT};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::cpu;
+use snowpack::low_level::gpu::GpuTimer;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::render::ao::{AoParams, AoPass};
+use snowpack::low_level::render::environment::{self, EnvironmentPass};
+use snowpack::low_level::render::{DebugView, IMAGE_FORMAT};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
 #[test]

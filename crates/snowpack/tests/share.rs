@@ -6,19 +6,19 @@
 use std::collections::BTreeSet;
 
 use glam::{DVec2, Quat, Vec3};
-use snowpack::cpu;
-use snowpack::deform::resources::DeformResources;
-use snowpack::deform::snow_word;
-use snowpack::deform::stamp::{StampParams, StampPass};
-use snowpack::deform::update::{UpdateParams, UpdatePass};
-use snowpack::deform::wheel::{Tread, TreadPattern};
-use snowpack::gpu::{GpuTimer, read_buffer};
-use snowpack::persist::TileKey;
-use snowpack::replicate::flags::ShareGrid;
-use snowpack::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
-use snowpack::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
-use snowpack::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::cpu;
+use snowpack::low_level::deform::resources::DeformResources;
+use snowpack::low_level::deform::snow_word;
+use snowpack::low_level::deform::stamp::{StampParams, StampPass};
+use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
+use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
+use snowpack::low_level::gpu::{GpuTimer, read_buffer};
+use snowpack::low_level::persist::TileKey;
+use snowpack::low_level::replicate::flags::ShareGrid;
+use snowpack::low_level::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
+use snowpack::low_level::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
+use snowpack::low_level::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, Snowfall, Technique, TerrainSource};
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {

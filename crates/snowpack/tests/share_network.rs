@@ -5,9 +5,9 @@
 //! are equal bit for bit over the area the windows share.
 
 use glam::{DVec2, Vec3};
-use snowpack::persist::TileKey;
-use snowpack::replicate::{PeerConfig, RelayConfig, SharedSnow, SnowPeer, SnowRelay};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::persist::TileKey;
+use snowpack::low_level::replicate::{PeerConfig, RelayConfig, SharedSnow, SnowPeer, SnowRelay};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 /// Texels per tile side.
@@ -191,8 +191,8 @@ fn three_gpu_peers_and_a_relay_converge_bit_for_bit_over_a_lossy_network() {
                 assert_eq!(at(w), first, "seed {seed}: peer {} differs from peer 1 at texel ({col}, {row})", k + 1);
             }
             let key = TileKey::containing(col, row, SIDE);
-            let mut tile = relay.tile(key).unwrap_or_else(|| snowpack::replicate::SharedTile::untouched(key, SIDE, clock, false, false));
-            tile.catch_up(&clock, snowpack::replicate::CatchUp::default());
+            let mut tile = relay.tile(key).unwrap_or_else(|| snowpack::low_level::replicate::SharedTile::untouched(key, SIDE, clock, false, false));
+            tile.catch_up(&clock, snowpack::low_level::replicate::CatchUp::default());
             let local = ((row - key.row * i64::from(SIDE)) * i64::from(SIDE) + (col - key.col * i64::from(SIDE))) as usize;
             assert_eq!(u32::from(tile.deficit[local]), first, "seed {seed}: the relay differs at texel ({col}, {row})");
             compared += 1;

@@ -5,12 +5,12 @@
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
-use snowpack::persist::{StoreConfig, TileKey, TileStore};
-use snowpack::replicate::message::{MIN_TILE_SIDE, encode_world};
-use snowpack::replicate::{
+use snowpack::low_level::persist::{StoreConfig, TileKey, TileStore};
+use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
+use snowpack::low_level::replicate::{
     CatchUp, Message, NO_STAMP, PeerConfig, RelayConfig, ShareClock, ShareError, SharedSnow, SharedTile, SnowPeer, SnowRelay, WorldIdentity, decode, encode,
 };
-use snowpack::testing::{self, CpuSnow, Rng};
+use snowpack::low_level::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DVec2, Vec2, Vec3};
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource, testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource, low_level::testing};
 
 /// A device made the way a game makes it, on the adapter the tests use.
 fn game_device() -> Option<(wgpu::Device, wgpu::Queue)> {

@@ -6,16 +6,16 @@
 use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
-use snowpack::cpu;
-use snowpack::deform::window::TerrainParams;
-use snowpack::gpu::GpuTimer;
-use snowpack::gpu::read_buffer;
-use snowpack::render::IMAGE_FORMAT;
-use snowpack::render::shell::ShellSettings;
-use snowpack::render::shell::count::PeelCountPass;
-use snowpack::render::shell::tetrahedra::{MAX_SHAPE_RATIO, ShellTetraPass, Tetra, TetraParams};
-use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::cpu;
+use snowpack::low_level::deform::window::TerrainParams;
+use snowpack::low_level::gpu::GpuTimer;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::render::IMAGE_FORMAT;
+use snowpack::low_level::render::shell::ShellSettings;
+use snowpack::low_level::render::shell::count::PeelCountPass;
+use snowpack::low_level::render::shell::tetrahedra::{MAX_SHAPE_RATIO, ShellTetraPass, Tetra, TetraParams};
+use snowpack::low_level::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
 /// The tests here take turns on the GPU: on GL, wgpu runs a submission while
@@ -375,13 +375,13 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     };
     let res = snow.resources();
     // The renderer's unpacked surface, which the shell reads.
-    let unpack = snowpack::render::surface::SurfaceUnpackPass::new(&ctx.device, res);
+    let unpack = snowpack::low_level::render::surface::SurfaceUnpackPass::new(&ctx.device, res);
     let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("unpack") });
     let origin = snow.origin_texel().expect("placed");
-    unpack.record(&ctx.queue, &mut enc, &mut snowpack::gpu::GpuTimer::disabled(), [origin[0] as i32, origin[1] as i32]);
+    unpack.record(&ctx.queue, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled(), [origin[0] as i32, origin[1] as i32]);
     ctx.queue.submit([enc.finish()]);
     let surface = SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
-    let faces = snowpack::render::shell::ShellPatch { side, stride: 2 }.faces();
+    let faces = snowpack::low_level::render::shell::ShellPatch { side, stride: 2 }.faces();
     let (gpu, gpu_tetras, gpu_corners) = construct_on_gpu(ctx, &params, &[BaseVertex::default()], &faces, Some(&surface));
     let texels: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("surface"));
     let cpu = cpu::shell_vertices::shell_vertices(&params, &[], &texels, snow.terrain());
@@ -436,7 +436,7 @@ fn flat_and_sliver_tetrahedra_are_skipped_and_every_map_is_finite_and_accurate()
     let Some(ctx) = testing::gpu() else { return };
     let _turn = gpu_turn();
     let side = 5;
-    let faces = snowpack::render::shell::ShellPatch { side, stride: 2 }.faces();
+    let faces = snowpack::low_level::render::shell::ShellPatch { side, stride: 2 }.faces();
     let check = |vertices: &[ShellVertex], faces: &[u32]| {
         let count = vertices.len() as u32;
         let (gpu_tetras, gpu_corners) = tetrahedra_on_gpu(ctx, count, vertices, faces);

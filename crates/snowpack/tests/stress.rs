@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use glam::{DVec2, Vec3};
-use snowpack::testing::{self, Rng};
+use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 fn memory(snow: &SnowDeformation) -> u64 {

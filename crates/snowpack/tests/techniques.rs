@@ -2,7 +2,7 @@
 //! buffer once, on its first frame, and leaves no stale footprints behind.
 
 use glam::{DVec2, Vec3};
-use snowpack::testing;
+use snowpack::low_level::testing;
 use snowpack::{Deformer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 #[test]

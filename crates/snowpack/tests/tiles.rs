@@ -5,18 +5,18 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, Vec3};
-use snowpack::cpu;
-use snowpack::deform::resources::DeformResources;
-use snowpack::deform::window::SlidingWindow;
-use snowpack::gpu::GpuTimer;
-use snowpack::gpu::read_buffer;
-use snowpack::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
-use snowpack::testing::{self, Rng};
-use snowpack::tiles::exchange::{ExchangeParams, ExchangePass};
-use snowpack::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
-use snowpack::tiles::seal::{SealParams, TileSealPass};
-use snowpack::tiles::streaming::{PLANES, TileGrid, plane_stamps, planes};
-use snowpack::tiles::weather::{TileWeatherPass, WeatherParams};
+use snowpack::low_level::cpu;
+use snowpack::low_level::deform::resources::DeformResources;
+use snowpack::low_level::deform::window::SlidingWindow;
+use snowpack::low_level::gpu::GpuTimer;
+use snowpack::low_level::gpu::read_buffer;
+use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+use snowpack::low_level::testing::{self, Rng};
+use snowpack::low_level::tiles::exchange::{ExchangeParams, ExchangePass};
+use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
+use snowpack::low_level::tiles::seal::{SealParams, TileSealPass};
+use snowpack::low_level::tiles::streaming::{PLANES, TileGrid, plane_stamps, planes};
+use snowpack::low_level::tiles::weather::{TileWeatherPass, WeatherParams};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
@@ -73,7 +73,7 @@ fn exchange_matches_cpu() {
         // The short move with a footprint buffer (points) and snowfall (three
         // planes a slot), the jump without either (depth: snow only).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
-        let snowfall = (!jump).then(snowpack::accumulate::Snowfall::default);
+        let snowfall = (!jump).then(snowpack::low_level::accumulate::Snowfall::default);
         let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
         let use_fallen = !jump;
         // Flat at a random height (the rest height the snow words are below).
@@ -438,7 +438,7 @@ fn trail_comes_back_refilled_by_the_time_away() {
     // left below one: the carry when `before` was read and at the end each
     // hold back less than a quantum, and a returning tile's height rounds to
     // the nearest quantum: within two quanta of the exact refill.
-    let quantum = snowpack::deform::snow_word::SNOW_QUANTUM_M;
+    let quantum = snowpack::low_level::deform::snow_word::SNOW_QUANTUM_M;
     assert!(worst < 2.0 * quantum, "restored trail differs from before + refill x {elapsed} s by {worst} m");
     drop(d);
     let _ = std::fs::remove_dir_all(&dir);
@@ -547,7 +547,7 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     drop(d);
     // Damage the tile holding the trail's start, (-0.9, 0) m: one flipped byte.
     let texel = [(-0.9f64 / 0.0625).floor() as i64, 0];
-    let key = snowpack::persist::TileKey { col: texel[0].div_euclid(i64::from(SIDE)), row: 0 };
+    let key = snowpack::low_level::persist::TileKey { col: texel[0].div_euclid(i64::from(SIDE)), row: 0 };
     let path = TileStore::open(&dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store").tile_path(key);
     let mut bytes = std::fs::read(&path).expect("tile file");
     let k = bytes.len() - 3;
@@ -560,7 +560,7 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     let after = loaded.read_snow(ctx).expect("snow");
     let errors = loaded.take_store_errors();
     assert!(
-        errors.iter().any(|e| matches!(e, snowpack::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
+        errors.iter().any(|e| matches!(e, snowpack::low_level::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
         "no corrupt-tile error for {}: {errors:?}",
         path.display()
     );
@@ -589,7 +589,7 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     let Some(ctx) = testing::gpu() else { return };
     let dir = temp_dir("snowfall");
     let rate = 0.1;
-    let snowfall = snowpack::accumulate::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::accumulate::Snowfall::default() };
+    let snowfall = snowpack::low_level::accumulate::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::low_level::accumulate::Snowfall::default() };
     let params =
         SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, snowfall: Some(snowfall.clone()), ..SnowParams::default() };
     let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
@@ -598,7 +598,7 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     let before = d.read_snow(ctx).expect("snow");
     // It snows only while the window is away.
     let t0 = d.clock().time_s;
-    d.set_snowfall(Some(snowpack::accumulate::Snowfall { rate_m_per_s: rate, ..snowfall.clone() })).expect("snowfall");
+    d.set_snowfall(Some(snowpack::low_level::accumulate::Snowfall { rate_m_per_s: rate, ..snowfall.clone() })).expect("snowfall");
     walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.5);
     d.set_snowfall(Some(snowfall)).expect("snowfall stops");
     let snowed = rate * (d.clock().time_s - t0) as f32;
@@ -700,7 +700,7 @@ fn a_window_jittering_across_a_tile_boundary_never_evicts() {
     // One texel either side of a tile boundary, 100 times each way.
     for k in 0..200 {
         let dx = if k % 2 == 0 { texel } else { -texel };
-        let boundary = texel * f64::from(snowpack::deform::params::default_tile_texels(64));
+        let boundary = texel * f64::from(snowpack::low_level::deform::params::default_tile_texels(64));
         d.set_center(DVec2::new(2.0 + boundary + dx, 2.0 + dx));
         d.step(ctx, &[], DT).expect("frame");
     }

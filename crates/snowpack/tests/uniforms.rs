@@ -1,32 +1,32 @@
 //! Each `#[repr(C)]` uniform struct has exactly the size naga computes for its WGSL twin.
 
-use snowpack::accumulate::state::ObjectGpu;
-use snowpack::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
-use snowpack::deform::capture::CaptureParams;
-use snowpack::deform::decal::DecalParams;
-use snowpack::deform::display::DisplayParams;
-use snowpack::deform::query::{QueryParams, RawSample};
-use snowpack::deform::stamp::StampParams;
-use snowpack::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
-use snowpack::deform::update::UpdateParams;
-use snowpack::deform::window::{TerrainParams, WindowParams};
-use snowpack::render::ao::AoParams;
-use snowpack::render::environment::EnvParams;
-use snowpack::render::frame::FrameUniforms;
-use snowpack::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
-use snowpack::render::shell::count::CountParams;
-use snowpack::render::shell::peel::{PeelParams, ShellDrawParams};
-use snowpack::render::shell::tetrahedra::{Tetra, TetraParams};
-use snowpack::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
-use snowpack::render::surface::UnpackParams;
-use snowpack::replicate::gather::TileGatherParams;
-use snowpack::replicate::merge::TileMergeParams;
-use snowpack::shaders;
-use snowpack::skin::skinning::SkinningParams;
-use snowpack::tiles::exchange::ExchangeParams;
-use snowpack::tiles::restore::{RestoreEntry, RestoreParams};
-use snowpack::tiles::seal::SealParams;
-use snowpack::tiles::weather::WeatherParams;
+use snowpack::low_level::accumulate::state::ObjectGpu;
+use snowpack::low_level::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
+use snowpack::low_level::deform::capture::CaptureParams;
+use snowpack::low_level::deform::decal::DecalParams;
+use snowpack::low_level::deform::display::DisplayParams;
+use snowpack::low_level::deform::query::{QueryParams, RawSample};
+use snowpack::low_level::deform::stamp::StampParams;
+use snowpack::low_level::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
+use snowpack::low_level::deform::update::UpdateParams;
+use snowpack::low_level::deform::window::{TerrainParams, WindowParams};
+use snowpack::low_level::render::ao::AoParams;
+use snowpack::low_level::render::environment::EnvParams;
+use snowpack::low_level::render::frame::FrameUniforms;
+use snowpack::low_level::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
+use snowpack::low_level::render::shell::count::CountParams;
+use snowpack::low_level::render::shell::peel::{PeelParams, ShellDrawParams};
+use snowpack::low_level::render::shell::tetrahedra::{Tetra, TetraParams};
+use snowpack::low_level::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
+use snowpack::low_level::render::surface::UnpackParams;
+use snowpack::low_level::replicate::gather::TileGatherParams;
+use snowpack::low_level::replicate::merge::TileMergeParams;
+use snowpack::low_level::shaders;
+use snowpack::low_level::skin::skinning::SkinningParams;
+use snowpack::low_level::tiles::exchange::ExchangeParams;
+use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams};
+use snowpack::low_level::tiles::seal::SealParams;
+use snowpack::low_level::tiles::weather::WeatherParams;
 
 /// Size naga gives the uniform global `name` in `source`.
 fn wgsl_uniform_size(source: &str, name: &str) -> u32 {

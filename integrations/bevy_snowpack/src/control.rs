@@ -6,7 +6,7 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use bevy::prelude::*;
-use snowpack::accumulate::ObjectStats;
+use snowpack::low_level::accumulate::ObjectStats;
 
 #[derive(Default)]
 struct Shared {

@@ -18,8 +18,8 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::RenderDevice;
 use bevy::shader::{Shader, ShaderRef};
 use snowpack::SnowDeformation;
-use snowpack::render::ground::SNOW_SAMPLING_WGSL;
-use snowpack::render::sampling::sampling_layout_entries;
+use snowpack::low_level::render::ground::SNOW_SAMPLING_WGSL;
+use snowpack::low_level::render::sampling::sampling_layout_entries;
 
 use crate::SnowpackSettings;
 
@@ -62,7 +62,7 @@ pub struct SnowGroundExtension {
 impl SnowGroundExtension {
     /// The compacted look, ground and show-through of one of snowpack's materials.
     #[must_use]
-    pub fn from_material(m: &snowpack::render::Material) -> Self {
+    pub fn from_material(m: &snowpack::low_level::render::Material) -> Self {
         Self {
             packed_albedo: m.packed_albedo,
             packed_roughness: m.packed_roughness,
@@ -83,7 +83,7 @@ impl SnowGroundExtension {
 impl Default for SnowGroundExtension {
     /// snowpack's snow preset.
     fn default() -> Self {
-        Self::from_material(&snowpack::render::Material::default())
+        Self::from_material(&snowpack::low_level::render::Material::default())
     }
 }
 

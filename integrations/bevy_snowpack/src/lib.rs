@@ -34,8 +34,8 @@ mod render;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use glam::DVec2;
-use snowpack::accumulate::ObjectShape;
-use snowpack::persist::{StoreConfig, StreamerConfig};
+use snowpack::low_level::accumulate::ObjectShape;
+use snowpack::low_level::persist::{StoreConfig, StreamerConfig};
 use snowpack::{SnowParams, TerrainSource};
 
 pub use control::SnowControl;

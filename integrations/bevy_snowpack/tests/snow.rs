@@ -76,7 +76,7 @@ fn plugin_snow_and_queries_equal_the_library() {
         let (ctx, res, params) = (state.context(), snow.resources(), snow.params().clone());
         let origin = snow.origin_texel().expect("placed");
         let corner = snow.origin_m().expect("placed");
-        let qp = snowpack::deform::query::QueryParams {
+        let qp = snowpack::low_level::deform::query::QueryParams {
             origin: [origin[0] as i32, origin[1] as i32],
             resolution: params.resolution,
             count: points.len() as u32,
@@ -86,10 +86,10 @@ fn plugin_snow_and_queries_equal_the_library() {
             _pad: 0,
         };
         let local: Vec<[f32; 2]> = points.iter().map(|p| [(f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32]).collect();
-        let words = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::gpu::read_buffer(ctx, &res.snow).expect("snow words"));
-        let fallen = bytemuck::pod_collect_to_vec::<u8, f32>(&snowpack::gpu::read_buffer(ctx, &res.fallen).expect("fallen"));
-        let ground = snowpack::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
-        snowpack::cpu::query::query(&qp, &local, &ground, &words, &fallen)
+        let words = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.snow).expect("snow words"));
+        let fallen = bytemuck::pod_collect_to_vec::<u8, f32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.fallen).expect("fallen"));
+        let ground = snowpack::low_level::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
+        snowpack::low_level::cpu::query::query(&qp, &local, &ground, &words, &fallen)
     };
     let frames = state.deformation().frame() as usize;
     let placed = &app.world().resource::<Placed>().0;

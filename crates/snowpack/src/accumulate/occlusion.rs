@@ -2,6 +2,10 @@
 //! direction into a depth target (what the sky sees; the ground's update reads
 //! it) and a footprint target (the atlas texels each pixel covers; the scatter
 //! reads it). See `shaders/occlusion.wgsl`.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};

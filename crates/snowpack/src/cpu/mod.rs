@@ -10,11 +10,14 @@ pub mod environment;
 pub mod exchange;
 pub mod increment;
 pub mod normals;
+#[cfg(feature = "renderer")]
 pub mod peel_count;
 pub mod query;
 pub mod scatter;
 pub mod settle;
+#[cfg(feature = "renderer")]
 pub mod shell_tetrahedra;
+#[cfg(feature = "renderer")]
 pub mod shell_vertices;
 pub mod skinning;
 pub mod snow_sampling;

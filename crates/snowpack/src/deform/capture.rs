@@ -8,6 +8,10 @@
 //! tread included (see [`super::wheel`]). Every deformer is swept over its motion since the
 //! last frame (see [`super::sweep`]): spheres as capsules, boxes and meshes
 //! in sub-steps. Actors outside the window leave no mark.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};

@@ -135,6 +135,7 @@ impl DecalRing {
         }
     }
 
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     /// Decals held, all actors.
     #[must_use]
     pub fn len(&self) -> usize {

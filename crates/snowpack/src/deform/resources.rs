@@ -46,6 +46,7 @@ pub struct DeformResources {
     /// window passes' pipelines are built for it ([`Self::terrain_constants`]).
     pub terrain_kind: u32,
     /// Capture depth target.
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "read by the passes' tests through `low_level`"))]
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,

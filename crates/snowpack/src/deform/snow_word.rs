@@ -14,6 +14,10 @@
 //! raises the rest height, raises untouched snow and trails alike; refill
 //! lowers the deficit by whole quanta (the frame applies what the world
 //! clock's refill counter gained: `SnowDeformation::share_clock`).
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 /// Metres per deficit quantum.
 pub const SNOW_QUANTUM_M: f32 = 1e-4;

@@ -30,6 +30,10 @@
 //!   (`stamp.wgsl`).
 //!
 //! [`SnowParams::teleport_m`]: super::params::SnowParams::teleport_m
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use glam::{Mat3, Quat, Vec3};
 

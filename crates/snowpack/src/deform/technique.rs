@@ -1,5 +1,9 @@
 //! The deformation techniques Wasmut 2019 compares, behind one switch, and
 //! the rim formulas of the points technique.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use std::str::FromStr;
 

@@ -10,6 +10,10 @@
 //! written where a footprint refills, a point rim read where snow is
 //! undisturbed), the stamp pass (its work is per point) and the window pass
 //! (its work is per newly exposed texel, 8 bytes each).
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use super::technique::Technique;
 use crate::SnowParams;

@@ -83,19 +83,23 @@ impl AdapterRequest {
         Self { backends: env("SNOWPACK_BACKEND").or_else(|| env("WGPU_BACKEND")), adapter_name: env("SNOWPACK_ADAPTER") }
     }
 
-    /// This request with `backends` replaced when given (a command-line
-    /// `--backend` over the environment).
-    #[must_use]
-    pub fn with_backends(mut self, backends: Option<&str>) -> Self {
-        if let Some(list) = backends {
-            self.backends = Some(list.to_owned());
+    low_level_pub! {
+        /// This request with `backends` replaced when given (a command-line
+        /// `--backend` over the environment).
+        #[must_use]
+        fn with_backends(mut self, backends: Option<&str>) -> Self {
+            if let Some(list) = backends {
+                self.backends = Some(list.to_owned());
+            }
+            self
         }
-        self
     }
 
-    /// The backends asked for, or every backend.
-    pub fn parse_backends(&self) -> Result<wgpu::Backends, SnowError> {
-        self.backends.as_deref().map_or(Ok(wgpu::Backends::all()), parse_backends)
+    low_level_pub! {
+        /// The backends asked for, or every backend.
+        fn parse_backends(&self) -> Result<wgpu::Backends, SnowError> {
+            self.backends.as_deref().map_or(Ok(wgpu::Backends::all()), parse_backends)
+        }
     }
 }
 
@@ -192,41 +196,45 @@ impl GpuContext {
         Self::choose(instance, None, request)
     }
 
-    /// `desc` with its backends narrowed to `request`'s (for a windowed
-    /// instance, start from `wgpu::InstanceDescriptor::new_with_display_handle`).
-    pub fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
-        if request.backends.is_some() {
-            desc.backends = request.parse_backends()?;
+    low_level_pub! {
+        /// `desc` with its backends narrowed to `request`'s (for a windowed
+        /// instance, start from `wgpu::InstanceDescriptor::new_with_display_handle`).
+        fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
+            if request.backends.is_some() {
+                desc.backends = request.parse_backends()?;
+            }
+            Ok(desc)
         }
-        Ok(desc)
     }
 
-    /// Picks the best adapter of `instance` that can present to `surface`
-    /// (when given) and matches `request`, and creates the device.
-    pub fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
-        let backends = request.parse_backends()?;
-        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
-        if let Some(surface) = surface {
-            adapters.retain(|a| a.is_surface_supported(surface));
+    low_level_pub! {
+        /// Picks the best adapter of `instance` that can present to `surface`
+        /// (when given) and matches `request`, and creates the device.
+        fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
+            let backends = request.parse_backends()?;
+            let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+            if let Some(surface) = surface {
+                adapters.retain(|a| a.is_surface_supported(surface));
+            }
+            let mut filter = String::new();
+            if let Some(list) = &request.backends {
+                filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
+            }
+            if surface.is_some() {
+                filter.push_str(" that can present to the window");
+            }
+            if let Some(name) = &request.adapter_name {
+                let needle = name.to_ascii_lowercase();
+                adapters.retain(|a| a.get_info().name.to_ascii_lowercase().contains(&needle));
+                filter.push_str(&format!(" with SNOWPACK_ADAPTER={name}"));
+            }
+            adapters.sort_by_key(|a| {
+                let info = a.get_info();
+                (type_rank(info.device_type), u32::from(info.backend != wgpu::Backend::Vulkan))
+            });
+            let adapter = adapters.into_iter().next().ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
+            Self::from_adapter(instance, adapter)
         }
-        let mut filter = String::new();
-        if let Some(list) = &request.backends {
-            filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
-        }
-        if surface.is_some() {
-            filter.push_str(" that can present to the window");
-        }
-        if let Some(name) = &request.adapter_name {
-            let needle = name.to_ascii_lowercase();
-            adapters.retain(|a| a.get_info().name.to_ascii_lowercase().contains(&needle));
-            filter.push_str(&format!(" with SNOWPACK_ADAPTER={name}"));
-        }
-        adapters.sort_by_key(|a| {
-            let info = a.get_info();
-            (type_rank(info.device_type), u32::from(info.backend != wgpu::Backend::Vulkan))
-        });
-        let adapter = adapters.into_iter().next().ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
-        Self::from_adapter(instance, adapter)
     }
 
     /// Wraps a device the game already has (shared with its renderer).
@@ -289,17 +297,19 @@ impl GpuContext {
         Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
     }
 
-    /// Wraps a device the program created for snowpack's use alone (the
-    /// browser demo's, made by its window toolkit) and installs snowpack's
-    /// uncaptured-error and device-lost handlers on it, as
-    /// [`Self::from_adapter`] does: [`Self::check`] then reports every error
-    /// and a lost device without error scopes.
-    #[must_use]
-    pub fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
-        let mut ctx = Self::from_device(device, queue);
-        install_handlers(&ctx.device, &ctx.sink);
-        ctx.owns_handlers = true;
-        ctx
+    low_level_pub! {
+        /// Wraps a device the program created for snowpack's use alone (the
+        /// browser demo's, made by its window toolkit) and installs snowpack's
+        /// uncaptured-error and device-lost handlers on it, as
+        /// [`Self::from_adapter`] does: [`Self::check`] then reports every error
+        /// and a lost device without error scopes.
+        #[must_use]
+        fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+            let mut ctx = Self::from_device(device, queue);
+            install_handlers(&ctx.device, &ctx.sink);
+            ctx.owns_handlers = true;
+            ctx
+        }
     }
 
     /// Whether per-pass GPU timestamps are available.
@@ -308,35 +318,39 @@ impl GpuContext {
         self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 
-    /// Runs `work`, catching the GPU errors it causes (validation, out of
-    /// memory) for [`Self::check`] to report. With snowpack's own device the
-    /// uncaptured-error handler catches them already; with a game's device
-    /// ([`Self::from_device`]) this error scope is how snowpack sees its own
-    /// errors without taking the game's.
-    pub fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
-        // In a browser an error scope answers only after the page's event
-        // loop turns, so a blocking pop would hang: there the game's own
-        // handlers see snowpack's errors (or use [`Self::adopt_device`]).
-        if self.owns_handlers || cfg!(target_arch = "wasm32") {
-            return work();
-        }
-        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let out = work();
-        // Native wgpu reports errors as the calls happen, so the futures are ready.
-        for error in [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())].into_iter().flatten() {
-            if let Ok(mut list) = self.sink.errors.lock() {
-                list.push(error_message(&error));
+    low_level_pub! {
+        /// Runs `work`, catching the GPU errors it causes (validation, out of
+        /// memory) for [`Self::check`] to report. With snowpack's own device the
+        /// uncaptured-error handler catches them already; with a game's device
+        /// ([`Self::from_device`]) this error scope is how snowpack sees its own
+        /// errors without taking the game's.
+        fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
+            // In a browser an error scope answers only after the page's event
+            // loop turns, so a blocking pop would hang: there the game's own
+            // handlers see snowpack's errors (or use [`Self::adopt_device`]).
+            if self.owns_handlers || cfg!(target_arch = "wasm32") {
+                return work();
             }
+            let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+            let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+            let out = work();
+            // Native wgpu reports errors as the calls happen, so the futures are ready.
+            for error in [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())].into_iter().flatten() {
+                if let Ok(mut list) = self.sink.errors.lock() {
+                    list.push(error_message(&error));
+                }
+            }
+            out
         }
-        out
     }
 
-    /// Why the device was lost, once it was (its device-lost callback ran);
-    /// unlike [`Self::check`] this leaves any reported errors in place.
-    #[must_use]
-    pub fn lost_reason(&self) -> Option<String> {
-        self.sink.lost.lock().ok().and_then(|s| s.clone())
+    low_level_pub! {
+        /// Why the device was lost, once it was (its device-lost callback ran);
+        /// unlike [`Self::check`] this leaves any reported errors in place.
+        #[must_use]
+        fn lost_reason(&self) -> Option<String> {
+            self.sink.lost.lock().ok().and_then(|s| s.clone())
+        }
     }
 
     /// Returns the first GPU error reported since the last call (validation,

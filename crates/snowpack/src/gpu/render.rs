@@ -1,5 +1,9 @@
 //! Builders for render pipelines and bind-group layout entries, shared by
 //! every draw pass (the renderer's, the ground's, the accumulation's).
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 /// A screen-sized texture drawn into and then read by later passes, and its view.
 #[must_use]

@@ -10,6 +10,10 @@
 //! I/O off the frame's path ([`TileStreamer`], which without a store keeps
 //! tiles in that cache alone: [`TileStreamer::in_memory`]). `docs/persistence.md`
 //! explains the choices.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 pub mod codec;
 #[doc(hidden)]

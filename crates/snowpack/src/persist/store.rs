@@ -95,87 +95,89 @@ impl TileStore {
         Self::open_on(Arc::new(OsDisk), dir, side, config)
     }
 
-    /// [`TileStore::open`] on another [`Disk`] than the operating system's
-    /// (a fault-injecting one in tests: `testing::PowerLossDisk`).
-    #[doc(hidden)]
-    pub fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
-        let meta_path = dir.join(META_FILE);
-        if side == 0 || side > MAX_SIDE {
-            return Err(StoreError::Mismatch { path: meta_path, why: format!("tile side {side} is outside 1..={MAX_SIDE}") });
-        }
-        create_dirs(&*disk, dir)?;
-        let lock = match disk.lock(&dir.join(LOCK_FILE)) {
-            Ok(lock) => lock,
-            Err(source) => {
-                return Err(StoreError::Io { path: dir.join(LOCK_FILE), op: "lock (another TileStore has the store open)", source });
+    low_level_pub! {
+        /// [`TileStore::open`] on another [`Disk`] than the operating system's
+        /// (a fault-injecting one in tests: `testing::PowerLossDisk`).
+        #[doc(hidden)]
+        fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
+            let meta_path = dir.join(META_FILE);
+            if side == 0 || side > MAX_SIDE {
+                return Err(StoreError::Mismatch { path: meta_path, why: format!("tile side {side} is outside 1..={MAX_SIDE}") });
             }
-        };
-        match disk.read(&meta_path) {
-            Ok(bytes) => check_meta(&meta_path, &bytes, side)?,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => atomic_write(&*disk, &meta_path, &meta_bytes(side))?,
-            Err(e) => {
-                return Err(StoreError::Io { path: meta_path, op: "read", source: e });
-            }
-        }
-        let tiles = dir.join(TILES_DIR);
-        match disk.create_dir(&tiles) {
-            Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
-                return Err(StoreError::Io { path: tiles, op: "create the tiles directory", source: e });
-            }
-            Ok(()) => new_entry_synced(&*disk, &tiles, dir)?,
-            Err(_) => {}
-        }
-        if let Ok(entries) = disk.list(dir) {
-            remove_temp_files(&*disk, dir, &entries);
-        }
-
-        let mut found = Vec::new();
-        let regions = disk.list(&tiles).map_err(io_error(&tiles, "list"))?;
-        for region in regions {
-            if !region.is_dir {
-                continue;
-            }
-            let path = tiles.join(&region.name);
-            let Ok(files) = disk.list(&path) else {
-                tracing::warn!("tile store: cannot list {}; its tiles are not indexed", path.display());
-                continue;
+            create_dirs(&*disk, dir)?;
+            let lock = match disk.lock(&dir.join(LOCK_FILE)) {
+                Ok(lock) => lock,
+                Err(source) => {
+                    return Err(StoreError::Io { path: dir.join(LOCK_FILE), op: "lock (another TileStore has the store open)", source });
+                }
             };
-            remove_temp_files(&*disk, &path, &files);
-            for file in files {
-                let Some(key) = file.name.to_str().and_then(parse_tile_name) else {
+            match disk.read(&meta_path) {
+                Ok(bytes) => check_meta(&meta_path, &bytes, side)?,
+                Err(e) if e.kind() == io::ErrorKind::NotFound => atomic_write(&*disk, &meta_path, &meta_bytes(side))?,
+                Err(e) => {
+                    return Err(StoreError::Io { path: meta_path, op: "read", source: e });
+                }
+            }
+            let tiles = dir.join(TILES_DIR);
+            match disk.create_dir(&tiles) {
+                Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
+                    return Err(StoreError::Io { path: tiles, op: "create the tiles directory", source: e });
+                }
+                Ok(()) => new_entry_synced(&*disk, &tiles, dir)?,
+                Err(_) => {}
+            }
+            if let Ok(entries) = disk.list(dir) {
+                remove_temp_files(&*disk, dir, &entries);
+            }
+
+            let mut found = Vec::new();
+            let regions = disk.list(&tiles).map_err(io_error(&tiles, "list"))?;
+            for region in regions {
+                if !region.is_dir {
+                    continue;
+                }
+                let path = tiles.join(&region.name);
+                let Ok(files) = disk.list(&path) else {
+                    tracing::warn!("tile store: cannot list {}; its tiles are not indexed", path.display());
                     continue;
                 };
-                if region_name(key) != region.name.to_string_lossy() {
-                    continue; // Not where this store puts that tile: not ours.
-                }
-                if let Some((len, modified)) = file.file {
-                    found.push((modified, key, len));
+                remove_temp_files(&*disk, &path, &files);
+                for file in files {
+                    let Some(key) = file.name.to_str().and_then(parse_tile_name) else {
+                        continue;
+                    };
+                    if region_name(key) != region.name.to_string_lossy() {
+                        continue; // Not where this store puts that tile: not ours.
+                    }
+                    if let Some((len, modified)) = file.file {
+                        found.push((modified, key, len));
+                    }
                 }
             }
-        }
-        // Oldest first; the key breaks ties (file times are often coarser than writes).
-        found.sort_unstable();
+            // Oldest first; the key breaks ties (file times are often coarser than writes).
+            found.sort_unstable();
 
-        let mut store = Self {
-            disk,
-            dir: dir.to_owned(),
-            side,
-            config,
-            index: HashMap::with_capacity(found.len()),
-            by_age: BTreeSet::new(),
-            clock: 0,
-            total_bytes: 0,
-            evicted: 0,
-            _lock: lock,
-        };
-        for (_, key, bytes) in found {
-            store.insert(key, bytes);
+            let mut store = Self {
+                disk,
+                dir: dir.to_owned(),
+                side,
+                config,
+                index: HashMap::with_capacity(found.len()),
+                by_age: BTreeSet::new(),
+                clock: 0,
+                total_bytes: 0,
+                evicted: 0,
+                _lock: lock,
+            };
+            for (_, key, bytes) in found {
+                store.insert(key, bytes);
+            }
+            if let Err(e) = store.enforce_budget(None) {
+                // The store still works; the next write tries again.
+                tracing::warn!("tile store: over its disk budget: {e}");
+            }
+            Ok(store)
         }
-        if let Err(e) = store.enforce_budget(None) {
-            // The store still works; the next write tries again.
-            tracing::warn!("tile store: over its disk budget: {e}");
-        }
-        Ok(store)
     }
 
     /// The tile side of the store in `dir` (its `store.meta`), without
@@ -190,185 +192,211 @@ impl TileStore {
         }
     }
 
-    /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
-    ///
-    /// A tile that fails to decode is an error naming its file, which is
-    /// renamed to `*.tile.corrupt` (best effort, for inspection) and dropped
-    /// from the index, so the next read answers `Ok(None)` and the caller
-    /// can write fresh snow there.
-    pub fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError> {
-        if !self.index.contains_key(&key) {
-            return Ok(None);
-        }
-        let path = self.tile_path(key);
-        let bytes = match self.disk.read(&path) {
-            Ok(bytes) => bytes,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                // Deleted behind the store's back: as if never written.
-                self.forget(key);
+    low_level_pub! {
+        /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
+        ///
+        /// A tile that fails to decode is an error naming its file, which is
+        /// renamed to `*.tile.corrupt` (best effort, for inspection) and dropped
+        /// from the index, so the next read answers `Ok(None)` and the caller
+        /// can write fresh snow there.
+        fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError> {
+            if !self.index.contains_key(&key) {
                 return Ok(None);
             }
-            Err(e) => {
-                return Err(StoreError::Io { path, op: "read", source: e });
-            }
-        };
-        let tile = decode(&bytes).and_then(|tile| {
-            if tile.key != key || tile.side != self.side {
-                return Err(StoreError::Mismatch {
-                    path: PathBuf::new(),
-                    why: format!("holds tile {:?} of side {}, expected {key:?} of side {}", tile.key, tile.side, self.side),
-                });
-            }
-            Ok(tile)
-        });
-        match tile {
-            Ok(tile) => {
-                self.touch(key);
-                Ok(Some(tile))
-            }
-            Err(e) => {
-                self.quarantine(key, &path);
-                Err(e.at(&path))
+            let path = self.tile_path(key);
+            let bytes = match self.disk.read(&path) {
+                Ok(bytes) => bytes,
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                    // Deleted behind the store's back: as if never written.
+                    self.forget(key);
+                    return Ok(None);
+                }
+                Err(e) => {
+                    return Err(StoreError::Io { path, op: "read", source: e });
+                }
+            };
+            let tile = decode(&bytes).and_then(|tile| {
+                if tile.key != key || tile.side != self.side {
+                    return Err(StoreError::Mismatch {
+                        path: PathBuf::new(),
+                        why: format!("holds tile {:?} of side {}, expected {key:?} of side {}", tile.key, tile.side, self.side),
+                    });
+                }
+                Ok(tile)
+            });
+            match tile {
+                Ok(tile) => {
+                    self.touch(key);
+                    Ok(Some(tile))
+                }
+                Err(e) => {
+                    self.quarantine(key, &path);
+                    Err(e.at(&path))
+                }
             }
         }
     }
 
-    /// Writes a tile, atomically replacing any older version, then evicts the
-    /// least recently touched tiles (never this one) until the total is
-    /// within the disk budget. An error from eviction comes after the tile
-    /// itself was written.
-    pub fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
-        let path = self.tile_path(tile.key);
-        if tile.side != self.side {
-            return Err(StoreError::Mismatch { path, why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) });
-        }
-        tile.validate().map_err(|e| e.at(&path))?;
-        let bytes = encode(tile);
-        if let Some(region) = path.parent() {
-            // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
-            // that is an error to report, not a directory to recreate.
-            match self.disk.create_dir(region) {
-                Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
-                    return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
-                }
-                // A new region folder is an entry in `tiles`: synced, so a
-                // power cut cannot lose the folder under a synced tile.
-                Ok(()) => {
-                    if let Some(tiles) = region.parent() {
-                        new_entry_synced(&*self.disk, region, tiles)?;
+    low_level_pub! {
+        /// Writes a tile, atomically replacing any older version, then evicts the
+        /// least recently touched tiles (never this one) until the total is
+        /// within the disk budget. An error from eviction comes after the tile
+        /// itself was written.
+        fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
+            let path = self.tile_path(tile.key);
+            if tile.side != self.side {
+                return Err(StoreError::Mismatch { path, why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) });
+            }
+            tile.validate().map_err(|e| e.at(&path))?;
+            let bytes = encode(tile);
+            if let Some(region) = path.parent() {
+                // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
+                // that is an error to report, not a directory to recreate.
+                match self.disk.create_dir(region) {
+                    Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
+                        return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
                     }
+                    // A new region folder is an entry in `tiles`: synced, so a
+                    // power cut cannot lose the folder under a synced tile.
+                    Ok(()) => {
+                        if let Some(tiles) = region.parent() {
+                            new_entry_synced(&*self.disk, region, tiles)?;
+                        }
+                    }
+                    Err(_) => {}
                 }
-                Err(_) => {}
             }
+            atomic_write(&*self.disk, &path, &bytes)?;
+            self.forget(tile.key);
+            self.insert(tile.key, bytes.len() as u64);
+            self.enforce_budget(Some(tile.key))
         }
-        atomic_write(&*self.disk, &path, &bytes)?;
-        self.forget(tile.key);
-        self.insert(tile.key, bytes.len() as u64);
-        self.enforce_budget(Some(tile.key))
     }
 
-    /// Writes a small named blob (the saved window, the clock) atomically,
-    /// framed with a magic, the format version and a CRC32. Names are 1 to
-    /// 64 characters of ASCII letters, digits, `-` and `_`.
-    pub fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
-        let path = self.state_path(name)?;
-        let mut framed = Vec::with_capacity(24 + bytes.len());
-        framed.extend_from_slice(STATE_MAGIC);
-        framed.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        framed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
-        let mut crc = crc32fast::Hasher::new();
-        crc.update(&framed);
-        crc.update(bytes);
-        framed.extend_from_slice(&crc.finalize().to_le_bytes());
-        framed.extend_from_slice(bytes);
-        atomic_write(&*self.disk, &path, &framed)
+    low_level_pub! {
+        /// Writes a small named blob (the saved window, the clock) atomically,
+        /// framed with a magic, the format version and a CRC32. Names are 1 to
+        /// 64 characters of ASCII letters, digits, `-` and `_`.
+        fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
+            let path = self.state_path(name)?;
+            let mut framed = Vec::with_capacity(24 + bytes.len());
+            framed.extend_from_slice(STATE_MAGIC);
+            framed.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+            framed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+            let mut crc = crc32fast::Hasher::new();
+            crc.update(&framed);
+            crc.update(bytes);
+            framed.extend_from_slice(&crc.finalize().to_le_bytes());
+            framed.extend_from_slice(bytes);
+            atomic_write(&*self.disk, &path, &framed)
+        }
     }
 
-    /// Reads a blob written by [`TileStore::write_state`]; `Ok(None)` if there is none.
-    pub fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
-        let path = self.state_path(name)?;
-        let framed = match self.disk.read(&path) {
-            Ok(framed) => framed,
-            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
-            Err(e) => {
-                return Err(StoreError::Io { path, op: "read", source: e });
+    low_level_pub! {
+        /// Reads a blob written by [`TileStore::write_state`]; `Ok(None)` if there is none.
+        fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+            let path = self.state_path(name)?;
+            let framed = match self.disk.read(&path) {
+                Ok(framed) => framed,
+                Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+                Err(e) => {
+                    return Err(StoreError::Io { path, op: "read", source: e });
+                }
+            };
+            let corrupt = |why: &str| StoreError::Corrupt { path: path.clone(), why: why.to_owned() };
+            if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
+                return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
             }
-        };
-        let corrupt = |why: &str| StoreError::Corrupt { path: path.clone(), why: why.to_owned() };
-        if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
-            return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
+            let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
+            if version != FORMAT_VERSION {
+                return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
+            }
+            let mut len = [0; 8];
+            len.copy_from_slice(&framed[12..20]);
+            let stored = u32::from_le_bytes([framed[20], framed[21], framed[22], framed[23]]);
+            let payload = &framed[24..];
+            if u64::from_le_bytes(len) != payload.len() as u64 {
+                return Err(corrupt("length mismatch (truncated?)"));
+            }
+            let mut crc = crc32fast::Hasher::new();
+            crc.update(&framed[..20]);
+            crc.update(payload);
+            if crc.finalize() != stored {
+                return Err(corrupt("bad CRC32"));
+            }
+            Ok(Some(payload.to_vec()))
         }
-        let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
-        if version != FORMAT_VERSION {
-            return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
+    }
+
+    low_level_pub! {
+        /// The store's directory.
+        #[must_use]
+        fn dir(&self) -> &Path {
+            &self.dir
         }
-        let mut len = [0; 8];
-        len.copy_from_slice(&framed[12..20]);
-        let stored = u32::from_le_bytes([framed[20], framed[21], framed[22], framed[23]]);
-        let payload = &framed[24..];
-        if u64::from_le_bytes(len) != payload.len() as u64 {
-            return Err(corrupt("length mismatch (truncated?)"));
+    }
+
+    low_level_pub! {
+        /// Texels per tile side.
+        #[must_use]
+        fn side(&self) -> u32 {
+            self.side
         }
-        let mut crc = crc32fast::Hasher::new();
-        crc.update(&framed[..20]);
-        crc.update(payload);
-        if crc.finalize() != stored {
-            return Err(corrupt("bad CRC32"));
+    }
+
+    low_level_pub! {
+        /// Tiles on disk.
+        #[must_use]
+        fn disk_tiles(&self) -> usize {
+            self.index.len()
         }
-        Ok(Some(payload.to_vec()))
     }
 
-    /// The store's directory.
-    #[must_use]
-    pub fn dir(&self) -> &Path {
-        &self.dir
+    low_level_pub! {
+        /// Bytes of tile files on disk (what the budget limits).
+        #[must_use]
+        fn disk_bytes(&self) -> u64 {
+            self.total_bytes
+        }
     }
 
-    /// Texels per tile side.
-    #[must_use]
-    pub fn side(&self) -> u32 {
-        self.side
+    low_level_pub! {
+        /// Tiles deleted to keep within the budget since the store was opened.
+        #[must_use]
+        fn evicted(&self) -> u64 {
+            self.evicted
+        }
     }
 
-    /// Tiles on disk.
-    #[must_use]
-    pub fn disk_tiles(&self) -> usize {
-        self.index.len()
+    low_level_pub! {
+        /// Whether a tile is on disk (by the index; no I/O).
+        #[must_use]
+        fn contains(&self, key: TileKey) -> bool {
+            self.index.contains_key(&key)
+        }
     }
 
-    /// Bytes of tile files on disk (what the budget limits).
-    #[must_use]
-    pub fn disk_bytes(&self) -> u64 {
-        self.total_bytes
+    low_level_pub! {
+        /// The keys of every tile on disk (by the index; no I/O), in no particular order.
+        fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
+            self.index.keys().copied()
+        }
     }
 
-    /// Tiles deleted to keep within the budget since the store was opened.
-    #[must_use]
-    pub fn evicted(&self) -> u64 {
-        self.evicted
+    low_level_pub! {
+        /// Size of a tile's file, if it is on disk (by the index; no I/O).
+        #[must_use]
+        fn tile_bytes(&self, key: TileKey) -> Option<u64> {
+            self.index.get(&key).map(|e| e.bytes)
+        }
     }
 
-    /// Whether a tile is on disk (by the index; no I/O).
-    #[must_use]
-    pub fn contains(&self, key: TileKey) -> bool {
-        self.index.contains_key(&key)
-    }
-
-    /// The keys of every tile on disk (by the index; no I/O), in no particular order.
-    pub fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
-        self.index.keys().copied()
-    }
-
-    /// Size of a tile's file, if it is on disk (by the index; no I/O).
-    #[must_use]
-    pub fn tile_bytes(&self, key: TileKey) -> Option<u64> {
-        self.index.get(&key).map(|e| e.bytes)
-    }
-
-    /// Where a tile's file is (whether or not it exists).
-    #[must_use]
-    pub fn tile_path(&self, key: TileKey) -> PathBuf {
-        tile_path(&self.dir, key)
+    low_level_pub! {
+        /// Where a tile's file is (whether or not it exists).
+        #[must_use]
+        fn tile_path(&self, key: TileKey) -> PathBuf {
+            tile_path(&self.dir, key)
+        }
     }
 
     fn state_path(&self, name: &str) -> Result<PathBuf, StoreError> {

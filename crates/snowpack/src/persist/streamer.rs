@@ -333,170 +333,190 @@ impl TileStreamer {
         Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
     }
 
-    /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
-    #[must_use]
-    pub fn is_memory_only(&self) -> bool {
-        self.memory_only
-    }
-
-    /// Texels per tile side.
-    #[must_use]
-    pub fn side(&self) -> u32 {
-        self.side
-    }
-
-    /// The store's directory (empty for a memory-only streamer).
-    #[must_use]
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    /// Whether [`TileStreamer::lookup`] would answer `Ready` now (the tile is
-    /// in memory or known to be absent, or the worker has stopped). Does not
-    /// drain replies or start a load: call [`TileStreamer::poll`] and
-    /// [`TileStreamer::request`] for that.
-    #[must_use]
-    pub fn is_ready(&self, key: TileKey) -> bool {
-        self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
-    }
-
-    /// Starts loading a tile the window will soon need (non-blocking). Does
-    /// nothing if it is cached, known to be absent, or already loading.
-    pub fn request(&mut self, key: TileKey) {
-        if self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.loading.contains_key(&key) {
-            return;
-        }
-        if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
-            self.loading.insert(key, seq);
+    low_level_pub! {
+        /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
+        #[must_use]
+        fn is_memory_only(&self) -> bool {
+            self.memory_only
         }
     }
 
-    /// A tile's stored state if it is at hand (non-blocking): a copy from
-    /// memory, `Ready(None)` if the store has none, otherwise `Pending` (and
-    /// the load is started). Drains the worker's replies first, as
-    /// [`TileStreamer::poll`] does.
-    pub fn lookup(&mut self, key: TileKey) -> TileLookup {
-        self.poll();
-        if self.memory_only
-            && let Some(cached) = self.remove(key)
-        {
-            // Handed out to the window, which puts it back when it leaves:
-            // the budget holds only tiles away from the GPU.
-            self.stats.hits += 1;
-            return TileLookup::Ready(Some(Arc::unwrap_or_clone(cached.tile)));
+    low_level_pub! {
+        /// Texels per tile side.
+        #[must_use]
+        fn side(&self) -> u32 {
+            self.side
         }
-        if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
-            self.touch(key);
-            // Handed out, it may now make room for others.
-            self.trim(key);
-            self.stats.hits += 1;
-            return TileLookup::Ready(Some((*tile).clone()));
-        }
-        if self.absent.contains(&key) {
-            self.stats.hits += 1;
-            return TileLookup::Ready(None);
-        }
-        if self.memory_only {
-            // Never kept, dropped by the budget, or untouched: fresh snow.
-            self.stats.misses += 1;
-            return TileLookup::Ready(None);
-        }
-        if self.gone {
-            // Nothing will ever arrive: fresh snow rather than waiting forever.
-            return TileLookup::Ready(None);
-        }
-        if !self.loading.contains_key(&key) {
-            self.stats.misses += 1;
-            self.request(key);
-        }
-        TileLookup::Pending
     }
 
-    /// Hands a tile to the store (non-blocking): it becomes the cached,
-    /// newest version at once and is written behind by the worker. A tile of
-    /// the wrong side or with planes of the wrong length is refused with an
-    /// error in [`TileStreamer::take_errors`].
-    pub fn put(&mut self, tile: TileData) {
-        let key = tile.key;
-        let valid = if tile.side == self.side {
-            tile.validate()
-        } else {
-            Err(StoreError::Mismatch { path: PathBuf::new(), why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) })
-        };
-        if let Err(e) = valid {
-            self.report(e.at(&tile_path(&self.dir, key)), false);
-            return;
+    low_level_pub! {
+        /// The store's directory (empty for a memory-only streamer).
+        #[must_use]
+        fn dir(&self) -> &Path {
+            &self.dir
         }
-        self.absent.remove(&key);
-        if self.memory_only {
-            // Nothing to write: the cache is the only copy.
-            if is_untouched(&tile) {
-                self.remove(key);
-            } else {
-                self.insert(key, Cached::new(tile, Dirt::Clean, false));
+    }
+
+    low_level_pub! {
+        /// Whether [`TileStreamer::lookup`] would answer `Ready` now (the tile is
+        /// in memory or known to be absent, or the worker has stopped). Does not
+        /// drain replies or start a load: call [`TileStreamer::poll`] and
+        /// [`TileStreamer::request`] for that.
+        #[must_use]
+        fn is_ready(&self, key: TileKey) -> bool {
+            self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
+        }
+    }
+
+    low_level_pub! {
+        /// Starts loading a tile the window will soon need (non-blocking). Does
+        /// nothing if it is cached, known to be absent, or already loading.
+        fn request(&mut self, key: TileKey) {
+            if self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.loading.contains_key(&key) {
+                return;
             }
-            return;
+            if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
+                self.loading.insert(key, seq);
+            }
         }
-        self.insert(key, Cached::new(tile, Dirt::Failed, false));
-        self.queue_write(key);
     }
 
-    /// Takes the worker's replies into the cache, the statistics and the
-    /// errors (non-blocking). Call once a frame.
-    pub fn poll(&mut self) {
-        if self.memory_only {
-            return;
+    low_level_pub! {
+        /// A tile's stored state if it is at hand (non-blocking): a copy from
+        /// memory, `Ready(None)` if the store has none, otherwise `Pending` (and
+        /// the load is started). Drains the worker's replies first, as
+        /// [`TileStreamer::poll`] does.
+        fn lookup(&mut self, key: TileKey) -> TileLookup {
+            self.poll();
+            if self.memory_only
+                && let Some(cached) = self.remove(key)
+            {
+                // Handed out to the window, which puts it back when it leaves:
+                // the budget holds only tiles away from the GPU.
+                self.stats.hits += 1;
+                return TileLookup::Ready(Some(Arc::unwrap_or_clone(cached.tile)));
+            }
+            if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
+                self.touch(key);
+                // Handed out, it may now make room for others.
+                self.trim(key);
+                self.stats.hits += 1;
+                return TileLookup::Ready(Some((*tile).clone()));
+            }
+            if self.absent.contains(&key) {
+                self.stats.hits += 1;
+                return TileLookup::Ready(None);
+            }
+            if self.memory_only {
+                // Never kept, dropped by the budget, or untouched: fresh snow.
+                self.stats.misses += 1;
+                return TileLookup::Ready(None);
+            }
+            if self.gone {
+                // Nothing will ever arrive: fresh snow rather than waiting forever.
+                return TileLookup::Ready(None);
+            }
+            if !self.loading.contains_key(&key) {
+                self.stats.misses += 1;
+                self.request(key);
+            }
+            TileLookup::Pending
         }
-        loop {
-            match self.replies.try_recv() {
-                Ok(reply) => self.handle(reply),
-                Err(TryRecvError::Empty) => break,
-                Err(TryRecvError::Disconnected) => {
-                    self.worker_gone();
-                    break;
+    }
+
+    low_level_pub! {
+        /// Hands a tile to the store (non-blocking): it becomes the cached,
+        /// newest version at once and is written behind by the worker. A tile of
+        /// the wrong side or with planes of the wrong length is refused with an
+        /// error in [`TileStreamer::take_errors`].
+        fn put(&mut self, tile: TileData) {
+            let key = tile.key;
+            let valid = if tile.side == self.side {
+                tile.validate()
+            } else {
+                Err(StoreError::Mismatch { path: PathBuf::new(), why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) })
+            };
+            if let Err(e) = valid {
+                self.report(e.at(&tile_path(&self.dir, key)), false);
+                return;
+            }
+            self.absent.remove(&key);
+            if self.memory_only {
+                // Nothing to write: the cache is the only copy.
+                if is_untouched(&tile) {
+                    self.remove(key);
+                } else {
+                    self.insert(key, Cached::new(tile, Dirt::Clean, false));
+                }
+                return;
+            }
+            self.insert(key, Cached::new(tile, Dirt::Failed, false));
+            self.queue_write(key);
+        }
+    }
+
+    low_level_pub! {
+        /// Takes the worker's replies into the cache, the statistics and the
+        /// errors (non-blocking). Call once a frame.
+        fn poll(&mut self) {
+            if self.memory_only {
+                return;
+            }
+            loop {
+                match self.replies.try_recv() {
+                    Ok(reply) => self.handle(reply),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => {
+                        self.worker_gone();
+                        break;
+                    }
                 }
             }
         }
     }
 
-    /// Blocks until every key is ready (in memory or known absent): for the
-    /// first placement of the window and for loading a save. Read errors do
-    /// not stop it (those tiles are answered as absent and the errors are in
-    /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
-    /// keys together exceed the memory budget, the first may have been
-    /// dropped again by the time it returns.
-    pub fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
-        self.wait_for_within(keys, WAIT_LIMIT)
+    low_level_pub! {
+        /// Blocks until every key is ready (in memory or known absent): for the
+        /// first placement of the window and for loading a save. Read errors do
+        /// not stop it (those tiles are answered as absent and the errors are in
+        /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
+        /// keys together exceed the memory budget, the first may have been
+        /// dropped again by the time it returns.
+        fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
+            self.wait_for_within(keys, WAIT_LIMIT)
+        }
     }
 
-    /// [`Self::wait_for`] giving up after `limit` with
-    /// [`StoreError::TimedOut`]; the tiles keep loading and a later
-    /// [`Self::lookup`] or wait finds them.
-    pub fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
-        if self.memory_only {
-            return Ok(());
-        }
-        self.poll();
-        let start = Instant::now();
-        let mut waiting: Vec<TileKey> = keys.to_vec();
-        loop {
-            waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key));
-            if waiting.is_empty() {
+    low_level_pub! {
+        /// [`Self::wait_for`] giving up after `limit` with
+        /// [`StoreError::TimedOut`]; the tiles keep loading and a later
+        /// [`Self::lookup`] or wait finds them.
+        fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
+            if self.memory_only {
                 return Ok(());
             }
-            for &key in &waiting {
-                self.request(key);
-            }
-            if self.gone {
-                return Err(StoreError::WorkerGone);
-            }
-            let left = limit.saturating_sub(start.elapsed());
-            match self.replies.recv_timeout(left) {
-                Ok(reply) => self.handle(reply),
-                Err(RecvTimeoutError::Timeout) => return Err(StoreError::TimedOut { waited: start.elapsed(), pending: waiting.len() }),
-                Err(RecvTimeoutError::Disconnected) => {
-                    self.worker_gone();
+            self.poll();
+            let start = Instant::now();
+            let mut waiting: Vec<TileKey> = keys.to_vec();
+            loop {
+                waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key));
+                if waiting.is_empty() {
+                    return Ok(());
+                }
+                for &key in &waiting {
+                    self.request(key);
+                }
+                if self.gone {
                     return Err(StoreError::WorkerGone);
+                }
+                let left = limit.saturating_sub(start.elapsed());
+                match self.replies.recv_timeout(left) {
+                    Ok(reply) => self.handle(reply),
+                    Err(RecvTimeoutError::Timeout) => return Err(StoreError::TimedOut { waited: start.elapsed(), pending: waiting.len() }),
+                    Err(RecvTimeoutError::Disconnected) => {
+                        self.worker_gone();
+                        return Err(StoreError::WorkerGone);
+                    }
                 }
             }
         }
@@ -527,10 +547,12 @@ impl TileStreamer {
         first.map_or(Ok(()), Err)
     }
 
-    /// The errors since the last call, for the game to show or log. A
-    /// corrupt tile is reported here and answered as `Ready(None)`.
-    pub fn take_errors(&mut self) -> Vec<StoreError> {
-        std::mem::take(&mut self.errors)
+    low_level_pub! {
+        /// The errors since the last call, for the game to show or log. A
+        /// corrupt tile is reported here and answered as `Ready(None)`.
+        fn take_errors(&mut self) -> Vec<StoreError> {
+            std::mem::take(&mut self.errors)
+        }
     }
 
     /// The counters now (disk numbers as of the worker's last reply).
@@ -539,32 +561,36 @@ impl TileStreamer {
         StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
     }
 
-    /// Stores a small named blob (blocking, ordered after the writes queued
-    /// before it); see [`TileStore::write_state`]. A memory-only streamer
-    /// has nowhere to put it: [`StoreError::NoDisk`].
-    pub fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
-        if self.memory_only {
-            return Err(StoreError::NoDisk);
-        }
-        let name = name.to_owned();
-        let seq = self.send(|seq| Request::WriteState { seq, name, bytes })?;
-        match self.wait(seq)? {
-            Outcome::StateWritten(result) => result,
-            _ => Err(StoreError::WorkerGone),
+    low_level_pub! {
+        /// Stores a small named blob (blocking, ordered after the writes queued
+        /// before it); see [`TileStore::write_state`]. A memory-only streamer
+        /// has nowhere to put it: [`StoreError::NoDisk`].
+        fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+            if self.memory_only {
+                return Err(StoreError::NoDisk);
+            }
+            let name = name.to_owned();
+            let seq = self.send(|seq| Request::WriteState { seq, name, bytes })?;
+            match self.wait(seq)? {
+                Outcome::StateWritten(result) => result,
+                _ => Err(StoreError::WorkerGone),
+            }
         }
     }
 
-    /// Reads a named blob (blocking, ordered after the writes queued before
-    /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
-    pub fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
-        if self.memory_only {
-            return Ok(None);
-        }
-        let name = name.to_owned();
-        let seq = self.send(|seq| Request::ReadState { seq, name })?;
-        match self.wait(seq)? {
-            Outcome::StateRead(result) => result,
-            _ => Err(StoreError::WorkerGone),
+    low_level_pub! {
+        /// Reads a named blob (blocking, ordered after the writes queued before
+        /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
+        fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+            if self.memory_only {
+                return Ok(None);
+            }
+            let name = name.to_owned();
+            let seq = self.send(|seq| Request::ReadState { seq, name })?;
+            match self.wait(seq)? {
+                Outcome::StateRead(result) => result,
+                _ => Err(StoreError::WorkerGone),
+            }
         }
     }
 

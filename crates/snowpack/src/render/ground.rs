@@ -6,11 +6,14 @@
 //! [`super::Renderer`] owns a whole frame (targets, sky, shadows, tone map);
 //! [`SnowGround`] owns only a pipeline and its bind groups and draws into the
 //! caller's pass, with the caller's formats, depth test and camera.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 
-use super::terrain::grid_indices;
 use crate::gpu::layout;
 use crate::shaders;
 use crate::snow::SnowDeformation;
@@ -321,11 +324,13 @@ impl SnowGround {
         &self.lighting
     }
 
-    /// The snow bindings this pass uses (group 1, visible to vertex and
-    /// fragment shaders), which the caller's own draws may bind too.
-    #[must_use]
-    pub fn sampling(&self) -> &SnowSampling {
-        &self.sampling
+    low_level_pub! {
+        /// The snow bindings this pass uses (group 1, visible to vertex and
+        /// fragment shaders), which the caller's own draws may bind too.
+        #[must_use]
+        fn sampling(&self) -> &SnowSampling {
+            &self.sampling
+        }
     }
 
     /// Writes this frame's camera, lighting and window position. Call after
@@ -353,11 +358,30 @@ impl SnowGround {
         pass.draw_indexed(0..self.index_count, 0, 0..1);
     }
 
-    /// Triangles one [`Self::draw`] draws.
-    #[must_use]
-    pub fn triangles(&self) -> u32 {
-        self.index_count / 3
+    low_level_pub! {
+        /// Triangles one [`Self::draw`] draws.
+        #[must_use]
+        fn triangles(&self) -> u32 {
+            self.index_count / 3
+        }
     }
+}
+
+/// Index list of a `quads`² grid of `(quads + 1)²` vertices numbered row by row.
+#[must_use]
+pub fn grid_indices(quads: u32) -> Vec<u32> {
+    let row = quads + 1;
+    let mut out = Vec::with_capacity((quads * quads * 6) as usize);
+    for z in 0..quads {
+        for x in 0..quads {
+            let a = z * row + x;
+            let (b, c, d) = (a + 1, a + row, a + row + 1);
+            // Counter-clockwise seen from above (+y), one diagonal throughout:
+            // a fully morphed patch then is exactly the next level's grid.
+            out.extend_from_slice(&[a, c, d, a, d, b]);
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -1,5 +1,9 @@
 //! The renderer's targets and its lit-and-shadow pipeline pairs; the
 //! generic builders live in [`crate::gpu::render`] and are re-exported here.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 pub use crate::gpu::render::{PipelineSpec, entry, render_pipeline, screen_target, storage_ro, texture};
 
@@ -11,6 +15,7 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// The two pipelines of a drawn thing, from one shader: lit (`vs_main`,
 /// `fs_main` into the HDR target, reverse-Z) and into the sun's shadow map
 /// (`vs_shadow`, depth only, biased against acne).
+#[cfg(feature = "renderer")]
 pub struct DrawSpec<'a> {
     /// Label of the lit pipeline (the shadow one adds " shadow").
     pub label: &'a str,
@@ -28,6 +33,7 @@ pub struct DrawSpec<'a> {
     pub constants: &'a [(&'a str, f64)],
 }
 
+#[cfg(feature = "renderer")]
 /// Builds the lit and the shadow pipeline of `spec`.
 #[must_use]
 pub fn lit_and_shadow(device: &wgpu::Device, spec: &DrawSpec<'_>) -> (wgpu::RenderPipeline, wgpu::RenderPipeline) {

@@ -2,26 +2,10 @@
 //! (`shaders/terrain_draw.wgsl`), lit in the fragment shader, and drawn again
 //! depth-only into the shadow map.
 
+use super::ground::grid_indices;
 use super::lod::PatchInstance;
 use super::pipeline::{DrawSpec, lit_and_shadow, storage_ro, texture};
 use crate::shaders;
-
-/// Index list of a `quads`² grid of `(quads + 1)²` vertices numbered row by row.
-#[must_use]
-pub fn grid_indices(quads: u32) -> Vec<u32> {
-    let row = quads + 1;
-    let mut out = Vec::with_capacity((quads * quads * 6) as usize);
-    for z in 0..quads {
-        for x in 0..quads {
-            let a = z * row + x;
-            let (b, c, d) = (a + 1, a + row, a + row + 1);
-            // Counter-clockwise seen from above (+y), one diagonal throughout:
-            // a fully morphed patch then is exactly the next level's grid.
-            out.extend_from_slice(&[a, c, d, a, d, b]);
-        }
-    }
-    out
-}
 
 /// Instance buffer that grows as needed.
 struct Instances {
@@ -164,7 +148,7 @@ impl TerrainPass {
 
 #[cfg(test)]
 mod tests {
-    use super::grid_indices;
+    use super::super::ground::grid_indices;
 
     #[test]
     fn grid_triangles_face_up() {

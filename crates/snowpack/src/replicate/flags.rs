@@ -13,6 +13,10 @@
 //! the tile now in its slot; the flags are copied and cleared every frame,
 //! so that happens only in a frame whose copy was skipped because every
 //! staging buffer was in flight, and only for tiles that left the window.)
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use crate::persist::TileKey;
 

@@ -25,6 +25,10 @@
 //! [`crate::SnowDeformation`] implements [`SharedSnow`] with them
 //! (`snow/share.rs`); `docs/deformation.md` ("Shared snow on the GPU")
 //! gives the order in the frame and the costs.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 pub mod flags;
 pub mod gather;

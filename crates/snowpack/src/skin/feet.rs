@@ -1,5 +1,9 @@
 //! Feet of a character: which joints touch the ground, and footstep events
 //! when one touches down (for sounds, particles and gameplay).
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use glam::{Mat4, Vec3};
 

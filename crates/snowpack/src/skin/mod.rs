@@ -3,6 +3,10 @@
 //! with speed and cross-fade, and GPU skinning ([`skinning::SkinningPass`],
 //! CPU twin [`crate::cpu::skinning`]). Reading files is the scene crate's job;
 //! this module takes decoded data.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 pub mod feet;
 pub mod sinking;

@@ -18,6 +18,10 @@
 //! over the gait, not the count at each instant, sets the depth: snow
 //! compacts plastically and does not spring back between steps, and a body
 //! that rose and fell with every change of count would bob.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 /// Standard gravity (m/s²).
 pub const GRAVITY: f32 = 9.81;

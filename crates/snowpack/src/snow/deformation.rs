@@ -6,23 +6,31 @@ use crate::accumulate::{SnowAccumulation, SnowObject};
 use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
-use crate::deform::params::{RANGE_TEXELS, default_tile_texels};
+#[cfg(feature = "low_level")]
+use crate::deform::params::RANGE_TEXELS;
+use crate::deform::params::default_tile_texels;
 use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use crate::deform::resources::DeformResources;
-use crate::deform::snow_word::{self, SNOW_QUANTUM_M};
+use crate::deform::snow_word::SNOW_QUANTUM_M;
+#[cfg(feature = "low_level")]
+use crate::deform::snow_word;
 use crate::deform::stamp::{StampParams, StampPass, contact_points};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, WindowParams, WindowPass};
 use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
-use crate::gpu::{GpuContext, GpuTimer, PassTimings, read_buffer};
+#[cfg(feature = "low_level")]
+use crate::gpu::PassTimings;
+use crate::gpu::{GpuContext, GpuTimer, read_buffer};
 use crate::persist::{SnowClock, StoreError, StreamerConfig, TileStreamer};
 use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
 use crate::snowfall::Snowfall;
 use crate::tiles::streaming::planes;
 use crate::tiles::{TileGrid, TileStats, TileStreaming};
-use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
+#[cfg(feature = "low_level")]
+use crate::RimStyle;
+use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
 use super::saved::{STATE_NAME, SavedWindow};
 
@@ -334,10 +342,12 @@ impl SnowDeformation {
         &self.terrain
     }
 
-    /// The GPU resources, for renderers (`surface`) and tools.
-    #[must_use]
-    pub fn resources(&self) -> &DeformResources {
-        &self.res
+    low_level_pub! {
+        /// The GPU resources, for renderers (`surface`) and tools.
+        #[must_use]
+        fn resources(&self) -> &DeformResources {
+            &self.res
+        }
     }
 
     /// Places `objects` for snow to settle on (replacing any before, and their
@@ -544,6 +554,7 @@ impl SnowDeformation {
         self.refill_base = RefillBase { time_s: self.clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta };
     }
 
+    #[cfg(feature = "low_level")]
     /// Sets the rim strength; takes effect next frame.
     pub fn set_elevation(&mut self, elevation: f32) {
         self.params.elevation = elevation.max(0.0);
@@ -565,18 +576,21 @@ impl SnowDeformation {
         self.params.technique
     }
 
+    #[cfg(feature = "low_level")]
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
     pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
         self.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
         self.params.rim = rim;
     }
 
+    #[cfg(feature = "low_level")]
     /// Contact points stamped in the last frame.
     #[must_use]
     pub fn points_last_frame(&self) -> usize {
         self.points_last_frame
     }
 
+    #[cfg(feature = "low_level")]
     /// Contact points left out so far because a frame brought more than the
     /// stamp pass takes ([`crate::deform::stamp::MAX_POINTS`], about a
     /// million); each time the total doubles a warning says so.
@@ -585,30 +599,37 @@ impl SnowDeformation {
         self.points_dropped
     }
 
-    /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
-    #[must_use]
-    pub fn stamp_range(&self) -> (f32, f32, f32) {
-        let (low, high) = (self.capture_params.low_m, self.capture_params.high_m);
-        (low, high, (high - low) / 65535.0)
+    low_level_pub! {
+        /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
+        #[must_use]
+        fn stamp_range(&self) -> (f32, f32, f32) {
+            let (low, high) = (self.capture_params.low_m, self.capture_params.high_m);
+            (low, high, (high - low) / 65535.0)
+        }
     }
 
+    #[cfg(feature = "low_level")]
     /// The decal ring (each actor's last contacts).
     #[must_use]
     pub fn decals(&self) -> &DecalRing {
         &self.decals
     }
 
-    /// The decal layer (window-local RGBA8: normal x, z, tint, coverage), drawn
-    /// with the decals technique; transparent otherwise. Until the decals
-    /// technique's first frame it is a transparent 1x1 placeholder; that
-    /// frame replaces it with the full layer, so a renderer that bound it
-    /// rebinds when the texture returned here changes (wgpu textures compare
-    /// by identity).
-    #[must_use]
-    pub fn decal_layer(&self) -> &wgpu::Texture {
-        &self.decal_pass.layer
+    low_level_pub! {
+        /// The decal layer (window-local RGBA8: normal x, z, tint, coverage), drawn
+        /// with the decals technique; transparent otherwise. Until the decals
+        /// technique's first frame it is a transparent 1x1 placeholder; that
+        /// frame replaces it with the full layer, so a renderer that bound it
+        /// rebinds when the texture returned here changes (wgpu textures compare
+        /// by identity).
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
+        fn decal_layer(&self) -> &wgpu::Texture {
+            &self.decal_pass.layer
+        }
     }
 
+    #[cfg(feature = "low_level")]
     /// The decal layer read back, window-local row-major; blocking. All
     /// transparent before the decals technique's first frame.
     pub fn read_decals(&self, ctx: &GpuContext) -> Result<Vec<[u8; 4]>, SnowError> {
@@ -637,6 +658,7 @@ impl SnowDeformation {
         Ok(raw.chunks_exact(row as usize).flat_map(|line| line[..(r * 4) as usize].chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]])).collect())
     }
 
+    #[cfg(feature = "low_level")]
     /// Turns the displayed-surface blur on or off.
     pub fn set_blur(&mut self, blur: bool) {
         self.params.blur = blur;
@@ -654,10 +676,12 @@ impl SnowDeformation {
         self.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
     }
 
-    /// Global texel index `[column, row]` of local (0, 0), once placed.
-    #[must_use]
-    pub fn origin_texel(&self) -> Option<[i64; 2]> {
-        self.window.origin()
+    low_level_pub! {
+        /// Global texel index `[column, row]` of local (0, 0), once placed.
+        #[must_use]
+        fn origin_texel(&self) -> Option<[i64; 2]> {
+            self.window.origin()
+        }
     }
 
     /// Frames recorded so far.
@@ -666,6 +690,7 @@ impl SnowDeformation {
         self.frame
     }
 
+    #[cfg(feature = "low_level")]
     /// Texels rewritten by window moves so far (the whole window once, then only new strips).
     #[must_use]
     pub fn exposed_texels(&self) -> u64 {
@@ -682,10 +707,12 @@ impl SnowDeformation {
         Ok(SkinnedId(self.skinned.len() - 1))
     }
 
-    /// The skinned meshes posed in the last encoded frame, in world space
-    /// (what a renderer draws for the characters).
-    pub fn posed_meshes(&self) -> impl Iterator<Item = &SkinnedInstance> + '_ {
-        self.posed.iter().filter_map(|&k| self.skinned.get(k))
+    low_level_pub! {
+        /// The skinned meshes posed in the last encoded frame, in world space
+        /// (what a renderer draws for the characters).
+        fn posed_meshes(&self) -> impl Iterator<Item = &SkinnedInstance> + '_ {
+            self.posed.iter().filter_map(|&k| self.skinned.get(k))
+        }
     }
 
     /// Records one frame of deformation into `encoder`: the one per-frame
@@ -1108,23 +1135,20 @@ impl SnowDeformation {
         self.query_pass.stats()
     }
 
+    #[cfg(feature = "low_level")]
     /// Median GPU time per pass so far (empty without timestamp support).
     #[must_use]
     pub fn timings(&self) -> PassTimings {
         self.timer.medians()
     }
 
+    #[cfg(feature = "low_level")]
     /// Forgets timing samples (call after warm-up).
     pub fn clear_timings(&mut self) {
         self.timer.clear();
     }
 
-    /// Whether per-pass timings are being recorded.
-    #[must_use]
-    pub fn timing_enabled(&self) -> bool {
-        self.timer.enabled()
-    }
-
+    #[cfg(feature = "low_level")]
     /// The most GPU memory [`Self::memory_bytes`] summed to after any frame
     /// so far (bytes): with tiles on their way to the CPU, the copy-out
     /// staging they hold for a frame or two.
@@ -1133,36 +1157,41 @@ impl SnowDeformation {
         self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum())
     }
 
-    /// GPU memory held, by resource (bytes), including the point queries' buffers.
-    #[must_use]
-    pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-        let mut list = self.res.memory_bytes();
-        list.push(("point queries", self.query_pass.memory_bytes()));
-        list.push(("decal layer", self.decal_pass.layer_bytes()));
-        if let Some(acc) = &self.accumulation {
-            list.extend(acc.memory_bytes());
+    low_level_pub! {
+        /// GPU memory held, by resource (bytes), including the point queries' buffers.
+        #[must_use]
+        fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
+            let mut list = self.res.memory_bytes();
+            list.push(("point queries", self.query_pass.memory_bytes()));
+            list.push(("decal layer", self.decal_pass.layer_bytes()));
+            if let Some(acc) = &self.accumulation {
+                list.extend(acc.memory_bytes());
+            }
+            if let Some(tiles) = &self.tiles {
+                list.push(("resident tiles", tiles.stats().gpu_bytes));
+            }
+            if let Some(sharing) = &self.sharing {
+                list.push(("shared snow", sharing.memory_bytes()));
+            }
+            list
         }
-        if let Some(tiles) = &self.tiles {
-            list.push(("resident tiles", tiles.stats().gpu_bytes));
-        }
-        if let Some(sharing) = &self.sharing {
-            list.push(("shared snow", sharing.memory_bytes()));
-        }
-        list
     }
 
     fn untorus<T: Copy + Default>(&self, toroidal: &[T]) -> Vec<T> {
         untorus(self.params.resolution, self.window.origin().unwrap_or([0, 0]), toroidal)
     }
 
-    /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
-    /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
-    /// decode them.
-    pub fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
-        let raw = read_buffer(ctx, &self.res.snow)?;
-        Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
+    low_level_pub! {
+        /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
+        /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
+        /// decode them.
+        fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
+            let raw = read_buffer(ctx, &self.res.snow)?;
+            Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
+        }
     }
 
+    #[cfg(feature = "low_level")]
     /// [`Self::read_snow_words`] without blocking: the words as the GPU has
     /// them once the frames submitted so far are done (the browser build's
     /// path; see [`crate::gpu::readback::MappedRead`]).
@@ -1172,6 +1201,7 @@ impl SnowDeformation {
         async move { Ok(untorus(resolution, origin, &bytemuck::pod_collect_to_vec::<u8, u32>(&mapped.await?))) }
     }
 
+    #[cfg(feature = "low_level")]
     /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
     pub fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words = self.read_snow_words(ctx)?;
@@ -1184,33 +1214,36 @@ impl SnowDeformation {
         Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.params.depth_m + l, g)).collect())
     }
 
-    /// Terrain height (m) at the texel centres, window-local row-major; for
-    /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
-    /// (`texel_ground`), so they agree to rounding: from the terrain's
-    /// description, and for a mesh terrain from the grid the GPU baked (read
-    /// back), which is what the passes sample. No GPU buffer holds the
-    /// terrain per texel.
-    pub fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        let baked;
-        let source = match &self.terrain {
-            TerrainSource::Mesh(mesh) => {
-                let n = (mesh.grid.width() * mesh.grid.height()) as usize;
-                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
-                baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
-                &baked
-            }
-            other => other,
-        };
-        let r = self.params.resolution;
-        let origin = self.window.origin().unwrap_or([0, 0]);
-        let o = [origin[0] as i32, origin[1] as i32];
-        let texel = self.params.texel_m();
-        Ok((0..r)
-            .flat_map(|i| (0..r).map(move |j| (i, j)))
-            .map(|(i, j)| crate::cpu::window::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
-            .collect())
+    low_level_pub! {
+        /// Terrain height (m) at the texel centres, window-local row-major; for
+        /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
+        /// (`texel_ground`), so they agree to rounding: from the terrain's
+        /// description, and for a mesh terrain from the grid the GPU baked (read
+        /// back), which is what the passes sample. No GPU buffer holds the
+        /// terrain per texel.
+        fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+            let baked;
+            let source = match &self.terrain {
+                TerrainSource::Mesh(mesh) => {
+                    let n = (mesh.grid.width() * mesh.grid.height()) as usize;
+                    let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
+                    baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
+                    &baked
+                }
+                other => other,
+            };
+            let r = self.params.resolution;
+            let origin = self.window.origin().unwrap_or([0, 0]);
+            let o = [origin[0] as i32, origin[1] as i32];
+            let texel = self.params.texel_m();
+            Ok((0..r)
+                .flat_map(|i| (0..r).map(move |j| (i, j)))
+                .map(|(i, j)| crate::cpu::window::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
+                .collect())
+        }
     }
 
+    #[cfg(feature = "low_level")]
     /// Displayed height (m) and unit normal per texel, window-local; blocking.
     /// The normals are central differences of the displayed heights, as the
     /// renderer and the point queries compute them.
@@ -1223,6 +1256,7 @@ impl SnowDeformation {
     }
 }
 
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 /// A toroidal window buffer (origin texel `origin`) laid out window-local row-major.
 fn untorus<T: Copy + Default>(resolution: u32, origin: [i64; 2], toroidal: &[T]) -> Vec<T> {
     let r = resolution as usize;

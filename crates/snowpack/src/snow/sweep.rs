@@ -2,6 +2,10 @@
 //! characters and caller meshes), so the capture can sweep each over its
 //! motion (see [`crate::deform::sweep`]): after a frame's capture is
 //! recorded, each mesh's positions are copied into a buffer of its own.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use crate::deform::sweep::{JointReach, skinned_travel, steps_for};
 

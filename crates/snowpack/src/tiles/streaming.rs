@@ -18,6 +18,10 @@
 //! [`TileStats::window_waits`]) while the streamer loads it; the prefetch ring
 //! around the window makes that rare. Only the first placement (start-up, a
 //! loaded save) blocks, as a loading screen would.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;

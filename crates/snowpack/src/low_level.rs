@@ -1,0 +1,82 @@
+//! Below the front door (feature `low_level`): the library's modules as they
+//! are, for snowpack's own app, its scene loader, benchmarks, fuzz targets
+//! and tests, and for a game that replaces a pass or drives one by hand.
+//!
+//! Nothing here is covered by the crate's stability promise: passes, their
+//! parameter structs and their resources change with the implementation.
+//! The root of the crate is the API a game builds on; reach in here only for
+//! what it cannot do, and say why where you do. `docs/architecture.md` says
+//! what each module owns and how one frame passes through them.
+
+/// Snow settling on objects: the object atlas, its passes and state.
+pub mod accumulate {
+    pub use crate::accumulate::*;
+}
+/// The CPU twins of the compute shaders, one per pass, for tests.
+pub mod cpu {
+    pub use crate::cpu::*;
+}
+/// The core deformation: the window's resources and passes.
+pub mod deform {
+    pub use crate::deform::*;
+}
+/// The library's error type.
+pub mod error {
+    pub use crate::error::*;
+}
+/// The per-frame recording context and window placement handed to plug-ins.
+pub mod frame {
+    pub use crate::frame::*;
+}
+/// Device, readback and timing plumbing.
+pub mod gpu {
+    pub use crate::gpu::*;
+}
+/// The capture and occlusion depth format.
+pub mod height_depth {
+    pub use crate::height_depth::*;
+}
+/// The tile store, its codec and disks, and the streamer.
+pub mod persist {
+    pub use crate::persist::*;
+}
+/// snowpack's own renderer (the demo's and the headless runner's), its
+/// parameters, and the ground drawn into a game's pass.
+pub mod render {
+    pub use crate::render::*;
+}
+/// Shared snow: mergeable tiles, their clock, the world identity, the wire
+/// messages, peers and relays, and the window's gather and merge passes.
+pub mod replicate {
+    pub use crate::replicate::*;
+}
+/// Every pass's composed WGSL, validated by naga at build time.
+pub mod shaders {
+    pub use crate::shaders::*;
+}
+/// Skeletons, clips, feet and GPU skinning of characters.
+pub mod skin {
+    pub use crate::skin::*;
+}
+/// [`crate::SnowDeformation`]'s modules: the orchestrator, its saved state
+/// and sharing.
+pub mod snow {
+    pub use crate::snow::*;
+}
+/// The snowfall settings.
+pub mod snowfall {
+    pub use crate::snowfall::*;
+}
+/// Terrain sources and their evaluation.
+pub mod terrain {
+    pub use crate::terrain::*;
+}
+/// Test support: adapters for tests, a seeded random generator, a CPU snow
+/// for protocol tests and a disk that loses power.
+pub mod testing {
+    pub use crate::testing::*;
+}
+/// The resident tiles around the window and their passes.
+pub mod tiles {
+    pub use crate::tiles::*;
+}
