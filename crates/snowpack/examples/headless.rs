@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // Draw it with snowpack's full renderer (a game would draw the ground in its own pass).
     let env = EnvironmentMap::procedural(Vec3::new(0.4, 0.5, -0.3).normalize());
-    let mut renderer = Renderer::new(&ctx, &snow, &env, RenderParams::default(), snowpack::low_level::render::IMAGE_FORMAT)?;
+    let mut renderer = Renderer::new(&ctx, &snow, &env, RenderParams::default(), snowpack::IMAGE_FORMAT)?;
     let camera = Camera { position: Vec3::new(1.0, 3.0, -7.0), target: Vec3::new(0.0, 0.0, 1.0), fov_deg: 55.0 };
     let (width, height) = (640, 400);
     let rgba = renderer.render_image(&ctx, &snow, &[], &camera, (width, height))?;

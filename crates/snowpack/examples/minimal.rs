@@ -10,8 +10,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, Mat4, Vec2, Vec3};
-use snowpack::low_level::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
-use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack::{Deformer, GpuContext, GroundCamera, SnowDeformation, SnowFrame, SnowGround, SnowGroundDescriptor, SnowParams, TerrainSource};
 use winit::application::ApplicationHandler;
 use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, EventLoop};

@@ -126,6 +126,7 @@ pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
+pub use render::sampling::{SnowWindowUniform, sampling_layout_entries};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 pub use skin::skinning::SkinnedMesh;
@@ -137,4 +138,4 @@ pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};
 #[cfg(feature = "renderer")]
 pub use render::shell::ShellSettings;
 #[cfg(feature = "renderer")]
-pub use render::{Camera, EnvironmentMap, RenderParams, Renderer};
+pub use render::{Camera, EnvironmentMap, IMAGE_FORMAT, RenderParams, Renderer};

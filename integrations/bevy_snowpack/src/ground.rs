@@ -18,8 +18,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::RenderDevice;
 use bevy::shader::{Shader, ShaderRef};
 use snowpack::SnowDeformation;
-use snowpack::low_level::render::ground::SNOW_SAMPLING_WGSL;
-use snowpack::low_level::render::sampling::sampling_layout_entries;
+use snowpack::{SNOW_SAMPLING_WGSL, sampling_layout_entries};
 
 use crate::SnowpackSettings;
 

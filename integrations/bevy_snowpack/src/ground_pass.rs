@@ -13,7 +13,7 @@ use bevy::render::render_resource::StoreOp;
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::view::{ExtractedView, Msaa, ViewDepthStencilTexture, ViewTarget};
 use bevy::render::{RenderApp, sync_world::MainEntity};
-use snowpack::low_level::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
+use snowpack::{GroundCamera, SnowGround, SnowGroundDescriptor};
 
 use crate::render::SnowRenderState;
 

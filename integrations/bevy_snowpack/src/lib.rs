@@ -34,9 +34,7 @@ mod render;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use glam::DVec2;
-use snowpack::low_level::accumulate::ObjectShape;
-use snowpack::low_level::persist::{StoreConfig, StreamerConfig};
-use snowpack::{SnowParams, TerrainSource};
+use snowpack::{ObjectShape, SnowParams, StoreConfig, StreamerConfig, TerrainSource};
 
 pub use control::SnowControl;
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};

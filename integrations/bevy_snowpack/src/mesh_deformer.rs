@@ -14,7 +14,7 @@ use std::sync::Arc;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::prelude::*;
-use snowpack::low_level::skin::skinning::SkinnedMesh;
+use snowpack::SkinnedMesh;
 
 use crate::SnowDeformer;
 

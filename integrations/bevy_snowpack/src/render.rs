@@ -9,7 +9,6 @@ use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, RenderStartup};
-use snowpack::low_level::accumulate::ObjectShape;
 use snowpack::low_level::persist::{TileStore, TileStreamer};
 use snowpack::low_level::render::sampling::SnowWindowUniform;
 use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};

@@ -2,6 +2,8 @@
 
 use glam::DVec2;
 
+#[cfg(feature = "low_level")]
+use crate::RimStyle;
 use crate::accumulate::{SnowAccumulation, SnowObject};
 use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
@@ -11,9 +13,9 @@ use crate::deform::params::RANGE_TEXELS;
 use crate::deform::params::default_tile_texels;
 use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use crate::deform::resources::DeformResources;
-use crate::deform::snow_word::SNOW_QUANTUM_M;
 #[cfg(feature = "low_level")]
 use crate::deform::snow_word;
+use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::deform::stamp::{StampParams, StampPass, contact_points};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
@@ -28,8 +30,6 @@ use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
 use crate::snowfall::Snowfall;
 use crate::tiles::streaming::planes;
 use crate::tiles::{TileGrid, TileStats, TileStreaming};
-#[cfg(feature = "low_level")]
-use crate::RimStyle;
 use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
 use super::saved::{STATE_NAME, SavedWindow};
