@@ -5,7 +5,8 @@
 //! blur, normals); point queries answer gameplay's questions (snow depth under
 //! a foot) a frame or two late without stalling; the snow is drawn into the
 //! game's own render pass ([`SnowGround`]) or by the full [`Renderer`].
-//! Every compute pass has a CPU twin (the hidden `cpu` module, for tests).
+//! Every compute pass has a CPU twin (the hidden `cpu` module, for tests;
+//! compiled only for them and the `low_level` feature).
 //!
 //! A game with its own wgpu device:
 //!
@@ -58,22 +59,26 @@
 //!
 //! `docs/integration.md` in the repository walks through adopting it.
 //!
-//! The modules, core first (each uses only those above it, and the neutral
-//! ones; `tests/layering.rs` keeps `deform` and `accumulate` apart):
+//! The modules, lowest layer first: each uses only those of lower layers
+//! and those of its own layer its row in `docs/architecture.md` ("Layers")
+//! names; `tests/layering.rs` reads that table and every module's imports.
 //!
-//! | module | what |
-//! |---|---|
-//! | [`gpu`], [`terrain`], [`error`] | device and readback plumbing, terrain sources, errors |
-//! | [`frame`], [`height_depth`], [`snowfall`] | neutral: the per-frame recording context and window placement plug-ins get, the capture and occlusion depth format, the snowfall settings |
-//! | [`deform`] | the core deformation: the window's resources and passes (window, capture, footprints, update, rims, blur, normals, decals, point queries) |
-//! | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
-//! | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
-//! | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
-//! | [`replicate`] | shared snow: mergeable tiles, their clock, the world identity, the wire messages, [`replicate::SnowPeer`] and [`replicate::SnowRelay`]; the window's changed-tile flags, gather and merge passes (plugs in) |
-//! | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
-//! | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
+//! | layer | module | what |
+//! |---|---|---|
+//! | 0 | [`error`], `shaders` | the error types; the WGSL sources |
+//! | 1 | [`gpu`] | device and adapter, readbacks, timing, pipeline helpers |
+//! | 2 | [`terrain`], [`frame`], [`height_depth`], [`snowfall`] | shared ground: terrain sources and their CPU evaluation, the per-frame recording context and window placement plug-ins get, the capture and occlusion depth format, the snowfall settings |
+//! | 3 | [`deform`] | the core deformation: the window's resources and passes (window, capture, footprints, update, rims, blur, normals, decals, point queries) |
+//! | 3 | [`accumulate`] | snow settling on objects (plugs in; knows nothing of `deform`) |
+//! | 3 | [`skin`] | skeletons, clips and GPU skinning of characters (plugs in) |
+//! | 4 | [`persist`], [`tiles`] | the tile store and streamer; the resident tiles around the window and their passes (plug in) |
+//! | 4 | [`replicate`] | shared snow: mergeable tiles, their clock, the world identity, the wire messages, [`replicate::SnowPeer`] and [`replicate::SnowRelay`]; the window's changed-tile flags, gather and merge passes (plugs in) |
+//! | 5 | [`snow`] | [`SnowDeformation`]: the core passes and the plug-ins recorded in order, save and load |
+//! | 6 | [`render`] | snowpack's renderer and the ground drawn into a game's pass |
+//! | 7 | `cpu`, `testing` | CPU twins of the passes and test support (tests and the `low_level` feature only) |
 
 pub mod accumulate;
+#[cfg(any(test, feature = "low_level"))]
 #[doc(hidden)]
 pub mod cpu;
 pub mod deform;
@@ -90,6 +95,7 @@ pub mod skin;
 pub mod snow;
 pub mod snowfall;
 pub mod terrain;
+#[cfg(any(test, feature = "low_level"))]
 #[doc(hidden)]
 pub mod testing;
 pub mod tiles;

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 
 use crate::gpu::{GpuTimer, layout};
 use crate::height_depth::{CAPTURE_FORMAT, sky_depth_texture};
-use crate::render::pipeline::{PipelineSpec, render_pipeline, storage_ro};
+use crate::gpu::render::{PipelineSpec, render_pipeline, storage_ro};
 use crate::shaders;
 
 use super::atlas::ObjectVertex;
