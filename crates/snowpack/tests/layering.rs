@@ -311,8 +311,7 @@ fn is_cfg_test(t: &[Token], k: usize) -> bool {
 fn parse_tree(t: &[Token], mut k: usize, prefix: &[String], leaves: &mut Vec<(Vec<String>, Option<String>, usize)>) -> usize {
     let mut path = prefix.to_vec();
     let line = t.get(k).map_or(0, |x| x.line);
-    loop {
-        let Some(tok) = t.get(k) else { break };
+    while let Some(tok) = t.get(k) {
         if tok.text == "{" {
             k += 1;
             while k < t.len() && t[k].text != "}" {
@@ -461,10 +460,11 @@ fn check(declared: &Declared, files: &[(String, String)]) -> Vec<String> {
     let mut root_names: BTreeMap<String, String> = BTreeMap::new();
     for (_, _, named) in &per_file {
         for n in named.iter().filter(|n| n.from.is_empty()) {
-            if let (Some(name), Some(first)) = (&n.binds, n.path.first()) {
-                if modules.contains(first) && n.path.len() > 1 {
-                    root_names.insert(name.clone(), first.clone());
-                }
+            if let (Some(name), Some(first)) = (&n.binds, n.path.first())
+                && modules.contains(first)
+                && n.path.len() > 1
+            {
+                root_names.insert(name.clone(), first.clone());
             }
         }
     }
@@ -567,7 +567,8 @@ fn planted(layers: &[(&str, u32, &[&str])], files: &[(&str, &str)]) -> Vec<Strin
 #[test]
 fn a_planted_upward_import_is_reported() {
     let lib = "pub mod gpu;\npub mod render;\npub use render::Renderer;\n";
-    let clean = planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/mod.rs", "pub struct Ctx;\n"), ("render/mod.rs", "use crate::gpu::Ctx;\n")]);
+    let clean =
+        planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/mod.rs", "pub struct Ctx;\n"), ("render/mod.rs", "use crate::gpu::Ctx;\n")]);
     assert!(clean.is_empty(), "{clean:?}");
     for gpu in [
         "pub struct Ctx;\nuse crate::render::Renderer;\n",
@@ -580,7 +581,8 @@ fn a_planted_upward_import_is_reported() {
         assert!(found[0].starts_with("src/gpu/mod.rs:2:") && found[0].contains("upward: `gpu` (layer 0) uses `render` (layer 1)"), "{found:?}");
     }
     // `super` from a submodule resolves upwards, out of its module.
-    let found = planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/readback.rs", "\n\nuse super::super::render::X;\n"), ("render/mod.rs", "")]);
+    let found =
+        planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/readback.rs", "\n\nuse super::super::render::X;\n"), ("render/mod.rs", "")]);
     assert!(found.len() == 1 && found[0].starts_with("src/gpu/readback.rs:3:") && found[0].contains("upward"), "{found:?}");
 }
 

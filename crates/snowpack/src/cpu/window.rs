@@ -1,8 +1,8 @@
 //! CPU twin of `window.wgsl`.
 
 use crate::TerrainSource;
-pub use crate::terrain::texel_ground;
 use crate::deform::window::{TexelRect, WindowParams};
+pub use crate::terrain::texel_ground;
 
 /// Toroidal storage index of window-local texel (i, j).
 #[must_use]
