@@ -95,6 +95,7 @@ macro_rules! low_level_pub {
 // below, and what the app, the Bevy plugin and the tests need beyond it is
 // re-exported by `low_level` (feature `low_level`).
 mod accumulate;
+#[cfg(any(test, feature = "low_level"))]
 mod cpu;
 mod deform;
 mod error;

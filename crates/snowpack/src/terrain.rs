@@ -68,7 +68,7 @@ const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 /// The mesh is drawn from above into a grid (the highest surface per texel
 /// centre wins, as a depth test would choose): on the GPU by
 /// [`crate::deform::terrain_bake::TerrainBakePass`] for the snow window, and on
-/// the CPU by [`crate::cpu::terrain_bake::draw`] for physics and queries (the
+/// the CPU by [`draw_from_above`] for physics and queries (the
 /// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
 /// centre is not on a triangle's edge). Overhangs are invisible from above, which is
 /// right for snow: it lies on the top surface.
@@ -125,7 +125,7 @@ impl TerrainMesh {
         let size_m = [cols as f32 * texel, rows as f32 * texel];
         let center_m = [(lo[0] + hi[0]) * 0.5, (lo[2] + hi[2]) * 0.5];
         let origin = [center_m[0] - size_m[0] * 0.5, center_m[1] - size_m[1] * 0.5];
-        let heights_m = crate::cpu::terrain_bake::draw(&triangles, cols, rows, origin, size_m, lo[1]);
+        let heights_m = draw_from_above(&triangles, cols, rows, origin, size_m, lo[1]);
         let grid = HeightmapTerrain { width: cols, height: rows, heights_m, center_m, size_m };
         Ok(Self { triangles, grid })
     }
@@ -340,6 +340,67 @@ impl TerrainSource {
             }
         }
     }
+}
+
+/// Terrain height at the centre of global texel `g` = (column, row): twin of
+/// `texel_ground` in `shared/terrain_kind.wgsl`.
+#[must_use]
+pub fn texel_ground(terrain: &TerrainSource, g: [i32; 2], texel_m: f32) -> f32 {
+    let x = (g[0] as f32 + 0.5) * texel_m;
+    let z = (g[1] as f32 + 0.5) * texel_m;
+    terrain.height_at(x, z)
+}
+
+/// Draws `triangles` (world positions, three per triangle) into a
+/// `width x height` grid covering `[x0, x0 + size_x] x [z0, z0 + size_z]`;
+/// row `r` lies at larger z than row `r - 1`. Texels no triangle covers keep
+/// `floor_m`. Triangles seen edge-on from above (zero area in x, z) draw nothing.
+#[must_use]
+pub fn draw_from_above(triangles: &[[[f32; 3]; 3]], width: u32, height: u32, origin: [f32; 2], size: [f32; 2], floor_m: f32) -> Vec<f32> {
+    let (w, h) = (width as usize, height as usize);
+    let mut out = vec![floor_m; w * h];
+    let (tx, tz) = (size[0] / width as f32, size[1] / height as f32);
+    for tri in triangles {
+        let [a, b, c] = *tri;
+        // Signed doubled area in (x, z); its sign tells the winding.
+        let area = (b[0] - a[0]) * (c[2] - a[2]) - (c[0] - a[0]) * (b[2] - a[2]);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let min_x = a[0].min(b[0]).min(c[0]);
+        let max_x = a[0].max(b[0]).max(c[0]);
+        let min_z = a[2].min(b[2]).min(c[2]);
+        let max_z = a[2].max(b[2]).max(c[2]);
+        // Texel centres inside the bounding box.
+        let j0 = (((min_x - origin[0]) / tx - 0.5).ceil().max(0.0)) as usize;
+        let j1 = (((max_x - origin[0]) / tx - 0.5).floor()).min(w as f32 - 1.0);
+        let i0 = (((min_z - origin[1]) / tz - 0.5).ceil().max(0.0)) as usize;
+        let i1 = (((max_z - origin[1]) / tz - 0.5).floor()).min(h as f32 - 1.0);
+        if j1 < 0.0 || i1 < 0.0 {
+            continue;
+        }
+        for i in i0..=i1 as usize {
+            let z = origin[1] + (i as f32 + 0.5) * tz;
+            for j in j0..=j1 as usize {
+                let x = origin[0] + (j as f32 + 0.5) * tx;
+                // Barycentric weights; inclusive edges (a shared edge gives the
+                // same height from both sides, so double coverage is harmless).
+                let wa = ((b[0] - x) * (c[2] - z) - (c[0] - x) * (b[2] - z)) / area;
+                let wb = ((c[0] - x) * (a[2] - z) - (a[0] - x) * (c[2] - z)) / area;
+                let wc = 1.0 - wa - wb;
+                let eps = -1e-6;
+                if wa < eps || wb < eps || wc < eps {
+                    continue;
+                }
+                let y = wa * a[1] + wb * b[1] + wc * c[1];
+                let slot = &mut out[i * w + j];
+                if y > *slot {
+                    *slot = y;
+                }
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -1,28 +1,534 @@
-//! The layering of the library's modules, read from its sources: the core
-//! deformation (`src/deform/`) uses nothing of accumulation, persistence,
-//! the tiles, skinning or the orchestrator that plugs them in, and
-//! accumulation (`src/accumulate/`) nothing of the deformation. What both
-//! share lives in neutral modules (`frame`, `height_depth`, `snowfall`).
+//! The layering of the library's modules, read from its sources against the
+//! one declared order: the `## Layers` table of `docs/architecture.md`
+//! (module, layer number, what it owns).
 //!
-//! Only code counts: a doc link to a plug-in is documentation, not a
-//! dependency. A path through the crate root (`crate::SnowDeformation`)
-//! counts as the module it comes from.
+//! A module may use modules of its own layer or of lower layers; it may not
+//! use a module of a higher layer, and the modules of one layer may not use
+//! each other in a cycle. Every module the crate root declares must be in the
+//! table, and every module in the table must exist.
+//!
+//! What counts as a use: `use crate::…` (groups included), `crate::x::…` and
+//! `super::…` paths in code (`super` resolved upwards from the file's module
+//! and any inline `mod` it is in), and a path through a crate-root re-export
+//! (`crate::SnowDeformation`) counts as the module it is re-exported from.
+//! Comments (doc comments included, so doc links), string and character
+//! literals do not count, and neither do items compiled only for this
+//! crate's unit tests (`#[cfg(test)]`): they are not part of the library.
+//! The crate root (`lib.rs` outside inline modules) is above every layer.
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// Module names the core deformation must not name.
-const NOT_IN_DEFORM: &[&str] = &["accumulate", "persist", "skin", "snow", "tiles"];
-/// Module names accumulation must not name.
-const NOT_IN_ACCUMULATE: &[&str] = &["deform", "persist", "skin", "snow", "tiles"];
+/// The document that declares the order.
+const ARCHITECTURE: &str = include_str!("../../../docs/architecture.md");
+/// The heading of the declaring table.
+const LAYERS_HEADING: &str = "## Layers";
+
+/// Each declared module: its layer (0 is the lowest) and the modules of its
+/// own layer it may use.
+type Declared = BTreeMap<String, (u32, BTreeSet<String>)>;
+
+/// Reads the first table under `## Layers` in `markdown`: one row per module,
+/// `` | `module` | 2 · name | what it owns | `a`, `b` | `` (the layer cell
+/// starts with its number; the fourth cell, when there is one, names the
+/// modules of the same layer it uses; a row may name several modules).
+fn declared_layers(markdown: &str) -> Result<Declared, String> {
+    let after = markdown.split_once(&format!("\n{LAYERS_HEADING}\n")).ok_or_else(|| format!("no `{LAYERS_HEADING}` heading"))?.1;
+    let rows = after.lines().skip_while(|l| !l.trim_start().starts_with('|')).take_while(|l| l.trim_start().starts_with('|'));
+    let ticked = |cell: &str| cell.split('`').skip(1).step_by(2).map(str::to_owned).collect::<Vec<_>>();
+    let mut out = Declared::new();
+    for row in rows.skip(2) {
+        let cells: Vec<&str> = row.trim().trim_matches('|').split('|').map(str::trim).collect();
+        let [modules, layer, ..] = cells[..] else { return Err(format!("a row with fewer than two cells: {row}")) };
+        let digits: String = layer.chars().take_while(char::is_ascii_digit).collect();
+        let layer: u32 = digits.parse().map_err(|_| format!("the layer cell does not start with a number: {row}"))?;
+        let beside: BTreeSet<String> = cells.get(3).map(|c| ticked(c)).unwrap_or_default().into_iter().collect();
+        let names = ticked(modules);
+        if names.is_empty() {
+            return Err(format!("a row names no `module`: {row}"));
+        }
+        for name in names {
+            if out.insert(name.clone(), (layer, beside.clone())).is_some() {
+                return Err(format!("`{name}` is declared twice"));
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(format!("no table rows under `{LAYERS_HEADING}`"));
+    }
+    for (name, (layer, beside)) in &out {
+        for b in beside {
+            if out.get(b).map(|d| d.0) != Some(*layer) {
+                return Err(format!("`{name}` lists `{b}` as beside it, which is not a module of layer {layer}"));
+            }
+        }
+    }
+    let edges: Vec<(String, String)> = out.iter().flat_map(|(a, (_, bs))| bs.iter().map(move |b| (a.clone(), b.clone()))).collect();
+    if let Some((a, b)) = edges.iter().find(|(a, b)| route(&edges, b, a).is_some()) {
+        return Err(format!("the uses beside form a cycle: `{a}` uses `{b}` and `{b}` reaches `{a}`"));
+    }
+    Ok(out)
+}
+
+/// A route from `start` to `goal` along `edges`, when there is one.
+fn route(edges: &[(String, String)], start: &str, goal: &str) -> Option<Vec<String>> {
+    let mut seen = BTreeSet::new();
+    let mut stack = vec![vec![start.to_owned()]];
+    while let Some(route) = stack.pop() {
+        let last = route.last().expect("a route has a start").clone();
+        if last == goal {
+            return Some(route);
+        }
+        if !seen.insert(last.clone()) {
+            continue;
+        }
+        for (_, b) in edges.iter().filter(|(a, _)| *a == last) {
+            let mut longer = route.clone();
+            longer.push(b.clone());
+            stack.push(longer);
+        }
+    }
+    None
+}
+
+/// `text` with comments and the insides of string and character literals
+/// replaced by spaces, line breaks kept (so line numbers stay).
+fn code_only(text: &str) -> String {
+    let c: Vec<char> = text.chars().collect();
+    let mut out = String::with_capacity(text.len());
+    let blank = |out: &mut String, ch: char| out.push(if ch == '\n' { '\n' } else { ' ' });
+    let mut k = 0;
+    while k < c.len() {
+        let at = |n: usize| c.get(k + n).copied().unwrap_or('\0');
+        let ident_before = k > 0 && (c[k - 1].is_alphanumeric() || c[k - 1] == '_');
+        if at(0) == '/' && at(1) == '/' {
+            while k < c.len() && c[k] != '\n' {
+                blank(&mut out, c[k]);
+                k += 1;
+            }
+        } else if at(0) == '/' && at(1) == '*' {
+            let mut depth = 0;
+            loop {
+                if k >= c.len() {
+                    break;
+                }
+                if c[k] == '/' && c.get(k + 1) == Some(&'*') {
+                    depth += 1;
+                    out.push_str("  ");
+                    k += 2;
+                } else if c[k] == '*' && c.get(k + 1) == Some(&'/') {
+                    depth -= 1;
+                    out.push_str("  ");
+                    k += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    blank(&mut out, c[k]);
+                    k += 1;
+                }
+            }
+        } else if !ident_before && (at(0) == 'r' || (at(0) == 'b' && at(1) == 'r')) && {
+            let s = if at(0) == 'b' { 2 } else { 1 };
+            let hashes = c[k + s..].iter().take_while(|&&h| h == '#').count();
+            c.get(k + s + hashes) == Some(&'"')
+        } {
+            // A raw string: r"…", r#"…"#, br#"…"#.
+            let s = if at(0) == 'b' { 2 } else { 1 };
+            let hashes = c[k + s..].iter().take_while(|&&h| h == '#').count();
+            let open = s + hashes + 1;
+            out.extend(std::iter::repeat_n(' ', open));
+            k += open;
+            let close: String = std::iter::once('"').chain(std::iter::repeat_n('#', hashes)).collect();
+            while k < c.len() && !c[k..].iter().take(close.len()).copied().eq(close.chars()) {
+                blank(&mut out, c[k]);
+                k += 1;
+            }
+            out.extend(std::iter::repeat_n(' ', close.len().min(c.len() - k)));
+            k += close.len();
+        } else if at(0) == '"' {
+            out.push(' ');
+            k += 1;
+            while k < c.len() && c[k] != '"' {
+                let n = if c[k] == '\\' { 2 } else { 1 };
+                for _ in 0..n.min(c.len() - k) {
+                    blank(&mut out, c[k]);
+                    k += 1;
+                }
+            }
+            out.push(' ');
+            k += 1;
+        } else if at(0) == '\'' && (at(1) == '\\' || (at(1) != '\'' && at(2) == '\'')) {
+            // A character literal ('a', '\n', '\u{..}'), not a lifetime ('a).
+            out.push(' ');
+            k += 1;
+            while k < c.len() && c[k] != '\'' {
+                let n = if c[k] == '\\' { 2 } else { 1 };
+                for _ in 0..n.min(c.len() - k) {
+                    blank(&mut out, c[k]);
+                    k += 1;
+                }
+            }
+            out.push(' ');
+            k += 1;
+        } else {
+            out.push(c[k]);
+            k += 1;
+        }
+    }
+    out
+}
+
+/// A token of code: an identifier, `::`, `=>` or one punctuation character.
+#[derive(Clone, Debug, PartialEq)]
+struct Token {
+    text: String,
+    line: usize,
+}
+
+fn tokens(code: &str) -> Vec<Token> {
+    let c: Vec<char> = code.chars().collect();
+    let mut out = Vec::new();
+    let (mut k, mut line) = (0, 1);
+    while k < c.len() {
+        let ch = c[k];
+        if ch == '\n' {
+            line += 1;
+            k += 1;
+        } else if ch.is_whitespace() {
+            k += 1;
+        } else if ch.is_alphanumeric() || ch == '_' {
+            let start = k;
+            while k < c.len() && (c[k].is_alphanumeric() || c[k] == '_') {
+                k += 1;
+            }
+            out.push(Token { text: c[start..k].iter().collect(), line });
+        } else if (ch == ':' && c.get(k + 1) == Some(&':')) || (ch == '=' && c.get(k + 1) == Some(&'>')) {
+            out.push(Token { text: c[k..k + 2].iter().collect(), line });
+            k += 2;
+        } else {
+            out.push(Token { text: ch.to_string(), line });
+            k += 1;
+        }
+    }
+    out
+}
+
+/// One path a file names: the module it is in and the absolute path it names
+/// (crate-relative segments; a group `crate::{a, b::C}` gives one per leaf),
+/// with the name it binds when it is a `use` leaf (for the root's re-exports).
+#[derive(Clone, Debug, PartialEq)]
+struct Named {
+    line: usize,
+    from: Vec<String>,
+    path: Vec<String>,
+    binds: Option<String>,
+}
+
+/// The module path of a file under `src/` (`render/shell/count.rs` is
+/// `render::shell::count`, `render/mod.rs` is `render`, `lib.rs` the root).
+fn module_of(file: &str) -> Vec<String> {
+    let file = file.strip_suffix(".rs").unwrap_or(file);
+    let mut parts: Vec<String> = file.split('/').map(str::to_owned).collect();
+    if parts.last().is_some_and(|p| p == "mod" || p == "lib" || p == "main") {
+        parts.pop();
+    }
+    parts
+}
+
+/// Index just past the `#[…]` or `#![…]` starting at `k`.
+fn skip_attribute(t: &[Token], mut k: usize) -> usize {
+    k += 1;
+    if t.get(k).is_some_and(|x| x.text == "!") {
+        k += 1;
+    }
+    skip_group(t, k)
+}
+
+/// Index just past the bracketed group opening at `k`.
+fn skip_group(t: &[Token], mut k: usize) -> usize {
+    let mut depth = 0i32;
+    while k < t.len() {
+        match t[k].text.as_str() {
+            "(" | "[" | "{" => depth += 1,
+            ")" | "]" | "}" => {
+                depth -= 1;
+                if depth == 0 {
+                    return k + 1;
+                }
+            }
+            _ => {}
+        }
+        k += 1;
+    }
+    k
+}
+
+/// Index just past the item (or field, variant, match arm or statement)
+/// starting at `k`: at a `;` or `,` outside brackets, or after a `}` that
+/// closes its own group (unless `=>` follows, as after a match arm's pattern);
+/// never past the bracket that closes the enclosing group.
+fn skip_item(t: &[Token], mut k: usize) -> usize {
+    while k < t.len() && t[k].text == "#" {
+        k = skip_attribute(t, k);
+    }
+    let mut depth = 0i32;
+    while k < t.len() {
+        match t[k].text.as_str() {
+            "(" | "[" | "{" => depth += 1,
+            ")" | "]" => {
+                if depth == 0 {
+                    return k;
+                }
+                depth -= 1;
+            }
+            "}" => {
+                if depth == 0 {
+                    return k;
+                }
+                depth -= 1;
+                if depth == 0 && t.get(k + 1).is_none_or(|n| n.text != "=>") {
+                    return k + 1;
+                }
+            }
+            ";" | "," if depth == 0 => return k + 1,
+            _ => {}
+        }
+        k += 1;
+    }
+    k
+}
+
+/// Whether the attribute at `k` is exactly `#[cfg(test)]`.
+fn is_cfg_test(t: &[Token], k: usize) -> bool {
+    let words: Vec<&str> = t[k..t.len().min(k + 7)].iter().map(|x| x.text.as_str()).collect();
+    words == ["#", "[", "cfg", "(", "test", ")", "]"]
+}
+
+/// Parses the use tree or path whose first segment is at `k`; pushes each
+/// leaf's segments (relative, as written) and bound name; returns the index
+/// after it.
+fn parse_tree(t: &[Token], mut k: usize, prefix: &[String], leaves: &mut Vec<(Vec<String>, Option<String>, usize)>) -> usize {
+    let mut path = prefix.to_vec();
+    let line = t.get(k).map_or(0, |x| x.line);
+    while let Some(tok) = t.get(k) {
+        if tok.text == "{" {
+            k += 1;
+            while k < t.len() && t[k].text != "}" {
+                k = parse_tree(t, k, &path, leaves);
+                if t.get(k).is_some_and(|x| x.text == ",") {
+                    k += 1;
+                }
+            }
+            return k + 1;
+        }
+        if tok.text == "*" {
+            path.push("*".to_owned());
+            leaves.push((path, None, line));
+            return k + 1;
+        }
+        if !tok.text.starts_with(|ch: char| ch.is_alphabetic() || ch == '_') {
+            break;
+        }
+        path.push(tok.text.clone());
+        k += 1;
+        if t.get(k).is_some_and(|x| x.text == "::") {
+            k += 1;
+        } else {
+            break;
+        }
+    }
+    let mut binds = path.last().filter(|s| *s != "self").cloned();
+    if path.last().is_some_and(|s| s == "self") {
+        path.pop();
+        binds = path.last().cloned();
+    }
+    if t.get(k).is_some_and(|x| x.text == "as") {
+        binds = t.get(k + 1).map(|x| x.text.clone());
+        k += 2;
+    }
+    leaves.push((path, binds, line));
+    k
+}
+
+/// Every crate path `file` (a path under `src/`) names in `text`, resolved
+/// to absolute segments, and the modules it declares at the crate root.
+/// Items under `#[cfg(test)]` are skipped.
+fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
+    let t = tokens(&code_only(text));
+    let file_module = module_of(file);
+    let mut named = Vec::new();
+    let mut declared = Vec::new();
+    // Inline modules the walk is in: (name, brace depth outside it).
+    let mut inline: Vec<(String, usize)> = Vec::new();
+    let mut depth = 0usize;
+    let mut pending_mod: Option<String> = None;
+    let mut k = 0;
+    while k < t.len() {
+        let here = |inline: &[(String, usize)]| file_module.iter().cloned().chain(inline.iter().map(|(n, _)| n.clone())).collect::<Vec<_>>();
+        let word = t[k].text.as_str();
+        let prev = if k > 0 { t[k - 1].text.as_str() } else { "" };
+        let next = t.get(k + 1).map_or("", |x| x.text.as_str());
+        if word == "#" && is_cfg_test(&t, k) {
+            k = skip_item(&t, skip_attribute(&t, k));
+            continue;
+        }
+        match word {
+            "{" => {
+                if let Some(name) = pending_mod.take() {
+                    inline.push((name, depth));
+                }
+                depth += 1;
+            }
+            "}" => {
+                depth = depth.saturating_sub(1);
+                if inline.last().is_some_and(|(_, d)| *d == depth) {
+                    inline.pop();
+                }
+            }
+            ";" => pending_mod = None,
+            "mod" if next.starts_with(|ch: char| ch.is_alphabetic() || ch == '_') => {
+                if here(&inline).is_empty() {
+                    declared.push(next.to_owned());
+                }
+                pending_mod = Some(next.to_owned());
+                k += 2;
+                continue;
+            }
+            _ => {}
+        }
+        let starts_path = prev != "::" && next == "::";
+        let root_use = here(&inline).is_empty() && prev == "use";
+        if starts_path && (matches!(word, "crate" | "super" | "self") || root_use) {
+            let mut leaves = Vec::new();
+            k = parse_tree(&t, k, &[], &mut leaves);
+            for (rel, binds, line) in leaves {
+                let mut base = here(&inline);
+                let mut segs = rel.into_iter().peekable();
+                match segs.peek().map(String::as_str) {
+                    Some("crate") => {
+                        base.clear();
+                        segs.next();
+                    }
+                    Some("self") => {
+                        segs.next();
+                    }
+                    _ => {}
+                }
+                while segs.peek().is_some_and(|s| s == "super") {
+                    segs.next();
+                    base.pop();
+                }
+                base.extend(segs);
+                named.push(Named { line, from: here(&inline), path: base, binds });
+            }
+            continue;
+        }
+        k += 1;
+    }
+    (named, declared)
+}
+
+/// The layering problems of the crate whose sources are `files` (path under
+/// `src/`, text), against `declared`; empty when it keeps the order. Each
+/// problem names the file and line.
+fn check(declared: &Declared, files: &[(String, String)]) -> Vec<String> {
+    let mut problems = Vec::new();
+    let mut per_file = Vec::new();
+    let mut modules = BTreeSet::new();
+    for (file, text) in files {
+        let (named, mods) = named_paths(file, text);
+        if module_of(file).is_empty() {
+            modules.extend(mods);
+        }
+        per_file.push((file, text, named));
+    }
+    if modules.is_empty() {
+        problems.push("no crate root (lib.rs) among the sources, or it declares no modules".to_owned());
+    }
+    for m in &modules {
+        if !declared.contains_key(m) {
+            problems.push(format!("src/lib.rs declares module `{m}`, which the `{LAYERS_HEADING}` table of docs/architecture.md does not place"));
+        }
+    }
+    for m in declared.keys() {
+        if !modules.contains(m) {
+            problems.push(format!("docs/architecture.md places module `{m}`, which src/lib.rs does not declare"));
+        }
+    }
+    // The root's re-exports: the name bound at the root, and the module it comes from.
+    let mut root_names: BTreeMap<String, String> = BTreeMap::new();
+    for (_, _, named) in &per_file {
+        for n in named.iter().filter(|n| n.from.is_empty()) {
+            if let (Some(name), Some(first)) = (&n.binds, n.path.first())
+                && modules.contains(first)
+                && n.path.len() > 1
+            {
+                root_names.insert(name.clone(), first.clone());
+            }
+        }
+    }
+    // Uses between different modules: (from, to) → where.
+    let mut edges: BTreeMap<(String, String), Vec<String>> = BTreeMap::new();
+    for (file, text, named) in &per_file {
+        let lines: Vec<&str> = text.lines().collect();
+        for n in named {
+            let Some(from) = n.from.first() else { continue };
+            let at = format!("src/{file}:{}: {}", n.line, lines.get(n.line - 1).map_or("", |l| l.trim()));
+            let to = match n.path.first() {
+                None => {
+                    problems.push(format!("{at}\n    names the crate root itself"));
+                    continue;
+                }
+                Some(first) if modules.contains(first) => first.clone(),
+                Some(first) => match root_names.get(first) {
+                    Some(m) => m.clone(),
+                    None => {
+                        problems.push(format!("{at}\n    `crate::{first}` is neither a module nor a re-export of the crate root"));
+                        continue;
+                    }
+                },
+            };
+            if *from != to {
+                let places = edges.entry((from.clone(), to)).or_default();
+                if !places.contains(&at) {
+                    places.push(at);
+                }
+            }
+        }
+    }
+    let layer = |m: &str| declared.get(m).map(|d| d.0);
+    // Uses beside (within one layer): in a cycle, or not declared.
+    let same: Vec<(String, String)> = edges.keys().filter(|(a, b)| layer(a).is_some() && layer(a) == layer(b)).cloned().collect();
+    for ((from, to), places) in &edges {
+        let (Some(lf), Some(lt)) = (layer(from), layer(to)) else { continue };
+        let why = if lt > lf {
+            format!("upward: `{from}` (layer {lf}) uses `{to}` (layer {lt})")
+        } else if lt < lf {
+            continue;
+        } else if let Some(back) = route(&same, to, from) {
+            format!("cycle in layer {lf}: `{from}` uses `{to}`, and {}", back.join(" → "))
+        } else if !declared[from].1.contains(to) {
+            format!("beside: `{from}` uses `{to}` of its own layer ({lf}), which its row in docs/architecture.md does not list")
+        } else {
+            continue;
+        };
+        for at in places {
+            problems.push(format!("{at}\n    {why}"));
+        }
+    }
+    problems
+}
 
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
 }
 
-/// Every `.rs` file under `dir`, with its text.
-fn sources(dir: &Path) -> Vec<(PathBuf, String)> {
+/// Every `.rs` file under `src/`: its path under `src/` (with `/`) and its text.
+fn sources() -> Vec<(String, String)> {
+    let root = src();
     let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
+    let mut stack = vec![root.clone()];
     while let Some(d) = stack.pop() {
         for entry in std::fs::read_dir(&d).unwrap_or_else(|e| panic!("reading {}: {e}", d.display())) {
             let path = entry.expect("directory entry").path();
@@ -30,104 +536,149 @@ fn sources(dir: &Path) -> Vec<(PathBuf, String)> {
                 stack.push(path);
             } else if path.extension().is_some_and(|e| e == "rs") {
                 let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
-                out.push((path, text));
+                let rel = path.strip_prefix(&root).expect("under src").components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
+                out.push((rel, text));
             }
         }
     }
+    out.sort();
     out
 }
 
-/// The code of a line: without a `//` comment (doc comments included).
-fn code(line: &str) -> &str {
-    line.find("//").map_or(line, |k| &line[..k])
-}
-
-fn is_ident(c: char) -> bool {
-    c.is_ascii_alphanumeric() || c == '_'
-}
-
-/// Whether `code` names module `module` as a path segment (`module::`, not
-/// `other_module::` or a field `x.module`), or declares it (`mod module`).
-fn names_module(code: &str, module: &str) -> bool {
-    let segment = format!("{module}::");
-    let starts_path = |k: usize| code[..k].chars().next_back().is_none_or(|c| !is_ident(c) && c != '.');
-    code.match_indices(&segment).any(|(k, _)| starts_path(k))
-        || code.split_whitespace().collect::<Vec<_>>().windows(2).any(|w| w[0] == "mod" && w[1].trim_end_matches(';') == module)
-}
-
-/// Whether `code` has `word` as a whole identifier.
-fn names_word(code: &str, word: &str) -> bool {
-    code.match_indices(word).any(|(k, _)| {
-        let before = code[..k].chars().next_back().is_none_or(|c| !is_ident(c));
-        let after = code[k + word.len()..].chars().next().is_none_or(|c| !is_ident(c));
-        before && after
-    })
-}
-
-/// Names the crate root re-exports from `modules` (`pub use module::{A, B};`
-/// and `pub use module::path::C;`), which code could reach them by.
-fn root_names(modules: &[&str]) -> Vec<String> {
-    let lib = std::fs::read_to_string(src().join("lib.rs")).expect("lib.rs");
-    let mut names = Vec::new();
-    for line in lib.lines().map(code) {
-        let Some(rest) = line.trim().strip_prefix("pub use ") else { continue };
-        let Some((module, items)) = rest.split_once("::") else { continue };
-        if !modules.contains(&module) {
-            continue;
-        }
-        let items = items.rsplit("::").next().unwrap_or(items);
-        names.extend(items.split(|c: char| !is_ident(c)).filter(|w| w.chars().next().is_some_and(|c| c.is_ascii_uppercase())).map(str::to_owned));
-    }
-    names
-}
-
-/// Every line of code under `src/dir` that names one of `modules` or a root
-/// re-export of theirs, as `file:line: text`.
-fn violations(dir: &str, modules: &[&str]) -> Vec<String> {
-    let names = root_names(modules);
-    let files = sources(&src().join(dir));
-    assert!(files.len() >= 5, "only {} files under src/{dir}: the layout changed and this test must follow", files.len());
-    let mut found = Vec::new();
-    for (path, text) in files {
-        for (n, line) in text.lines().enumerate() {
-            let c = code(line);
-            if modules.iter().any(|m| names_module(c, m)) || names.iter().any(|w| names_word(c, w)) {
-                found.push(format!("{}:{}: {}", path.display(), n + 1, line.trim()));
-            }
-        }
-    }
-    found
+fn declared() -> Declared {
+    declared_layers(ARCHITECTURE).unwrap_or_else(|e| panic!("docs/architecture.md: {e}"))
 }
 
 #[test]
-fn the_checks_see_what_they_look_for() {
-    assert!(names_module("use crate::accumulate::SnowAccumulation;", "accumulate"));
-    assert!(names_module("use crate::{accumulate::Snowfall, gpu};", "accumulate"));
-    assert!(names_module("let t = super::tiles::planes(true, false);", "tiles"));
-    assert!(names_module("pub mod tiles;", "tiles"));
-    assert!(names_module("use crate::snow::SnowDeformation;", "snow"));
-    assert!(!names_module("use crate::snowfall::Snowfall;", "snow"));
-    assert!(!names_module("res.snow.as_entire_binding(),", "snow"));
-    assert!(!names_module("use crate::render::skinned::X;", "skin"));
-    assert!(names_word("fn f(d: &crate::SnowDeformation) {}", "SnowDeformation"));
-    assert!(!names_word("SnowDeformations", "SnowDeformation"));
-    assert_eq!(code("let a = 1; // crate::persist"), "let a = 1; ");
-    assert_eq!(code("/// [`crate::persist::TileStreamer`]"), "");
-    let deform_names = root_names(NOT_IN_DEFORM);
-    for name in ["SnowDeformation", "SnowFrame", "TileStreamer", "SnowObject"] {
-        assert!(deform_names.iter().any(|n| n == name), "{name} is not among the root names of the plug-ins: {deform_names:?}");
+fn every_module_keeps_the_declared_order() {
+    let files = sources();
+    assert!(files.len() > 100, "only {} source files: the layout changed and this test must follow", files.len());
+    let problems = check(&declared(), &files);
+    assert!(problems.is_empty(), "the modules break the order declared in docs/architecture.md ({LAYERS_HEADING}):\n{}", problems.join("\n"));
+}
+
+/// The layers and a crate of `files` in a test's own words.
+/// (Each layer entry: module, layer, the modules beside it it may use.)
+fn planted(layers: &[(&str, u32, &[&str])], files: &[(&str, &str)]) -> Vec<String> {
+    let declared = layers.iter().map(|&(m, l, b)| (m.to_owned(), (l, b.iter().map(|&s| s.to_owned()).collect()))).collect();
+    check(&declared, &files.iter().map(|&(f, t)| (f.to_owned(), t.to_owned())).collect::<Vec<_>>())
+}
+
+#[test]
+fn a_planted_upward_import_is_reported() {
+    let lib = "pub mod gpu;\npub mod render;\npub use render::Renderer;\n";
+    let clean =
+        planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/mod.rs", "pub struct Ctx;\n"), ("render/mod.rs", "use crate::gpu::Ctx;\n")]);
+    assert!(clean.is_empty(), "{clean:?}");
+    for gpu in [
+        "pub struct Ctx;\nuse crate::render::Renderer;\n",
+        "pub struct Ctx;\nuse crate::{render::Renderer};\n",
+        "pub struct Ctx;\nfn f(_: &crate::Renderer) {}\n",
+        "pub struct Ctx;\nfn f() { let _ = crate::render::Renderer::new(); }\n",
+    ] {
+        let found = planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/mod.rs", gpu), ("render/mod.rs", "use crate::gpu::Ctx;\n")]);
+        assert_eq!(found.len(), 1, "{gpu}: {found:?}");
+        assert!(found[0].starts_with("src/gpu/mod.rs:2:") && found[0].contains("upward: `gpu` (layer 0) uses `render` (layer 1)"), "{found:?}");
     }
-    assert!(root_names(NOT_IN_ACCUMULATE).iter().any(|n| n == "SnowParams"));
+    // `super` from a submodule resolves upwards, out of its module.
+    let found =
+        planted(&[("gpu", 0, &[]), ("render", 1, &[])], &[("lib.rs", lib), ("gpu/readback.rs", "\n\nuse super::super::render::X;\n"), ("render/mod.rs", "")]);
+    assert!(found.len() == 1 && found[0].starts_with("src/gpu/readback.rs:3:") && found[0].contains("upward"), "{found:?}");
 }
 
 #[test]
-fn core_deformation_knows_nothing_of_its_plug_ins() {
-    let found = violations("deform", NOT_IN_DEFORM);
-    assert!(found.is_empty(), "src/deform/ names accumulation, persistence, the tiles, skinning or the orchestrator:\n{}", found.join("\n"));
+fn a_planted_cycle_is_reported() {
+    let lib = "pub mod persist;\npub mod tiles;\n";
+    let layers: [(&str, u32, &[&str]); 2] = [("persist", 4, &[]), ("tiles", 4, &["persist"])];
+    let tiles = "use crate::persist::TileStore;\n";
+    assert!(planted(&layers, &[("lib.rs", lib), ("tiles/mod.rs", tiles), ("persist/mod.rs", "pub struct TileStore;\n")]).is_empty());
+    let persist = "pub struct TileStore;\nfn f() {\n    super::tiles::planes();\n}\n";
+    let found = planted(&layers, &[("lib.rs", lib), ("tiles/mod.rs", tiles), ("persist/mod.rs", persist)]);
+    assert_eq!(found.len(), 2, "{found:?}");
+    assert!(found.iter().any(|p| p.starts_with("src/persist/mod.rs:3:") && p.contains("cycle in layer 4: `persist` uses `tiles`")), "{found:?}");
+    assert!(found.iter().any(|p| p.starts_with("src/tiles/mod.rs:1:") && p.contains("cycle in layer 4: `tiles` uses `persist`")), "{found:?}");
 }
 
 #[test]
-fn accumulation_knows_nothing_of_the_deformation() {
-    let found = violations("accumulate", NOT_IN_ACCUMULATE);
-    assert!(found.is_empty(), "src/accumulate/ names the deformation or what plugs into it:\n{}", found.join("\n"));
+fn the_real_tree_with_a_planted_import_fails() {
+    let mut files = sources();
+    let gpu = files.iter_mut().find(|(f, _)| f == "gpu/mod.rs").expect("src/gpu/mod.rs");
+    gpu.1.push_str("\nuse crate::SnowDeformation;\n");
+    let found = check(&declared(), &files);
+    assert!(found.iter().any(|p| p.starts_with("src/gpu/mod.rs:") && p.contains("upward: `gpu`") && p.contains("uses `snow`")), "{found:?}");
+    let mut files = sources();
+    let persist = files.iter_mut().find(|(f, _)| f == "persist/mod.rs").expect("src/persist/mod.rs");
+    persist.1.push_str("\nfn planted() { let _ = crate::tiles::streaming::PLANE_SNOW; }\n");
+    let found = check(&declared(), &files);
+    assert!(found.iter().any(|p| p.starts_with("src/persist/mod.rs:") && p.contains("cycle") && p.contains("`persist` uses `tiles`")), "{found:?}");
+}
+
+#[test]
+fn what_is_not_code_does_not_count() {
+    let lib = "pub mod gpu;\npub mod render;\n";
+    let layers: [(&str, u32, &[&str]); 2] = [("gpu", 0, &[]), ("render", 1, &[])];
+    let gpu = r##"
+//! See [`crate::render::Renderer`].
+/// Links to [`crate::render`] and [`super::render::X`].
+/* crate::render::Y /* nested crate::render */ */
+const A: &str = "crate::render::Z";
+const B: &str = r#"use crate::render::W;"#;
+const C: char = '"';
+fn f<'a>(x: &'a str) -> &'a str { x } // crate::render
+#[cfg(test)]
+mod tests {
+    use crate::render::Renderer;
+    fn g() { super::super::render::h(); }
+}
+#[cfg(test)]
+use crate::render::T;
+enum E {
+    #[cfg(test)]
+    Pause { a: crate::render::A },
+    Run,
+}
+"##;
+    let found = planted(&layers, &[("lib.rs", lib), ("gpu/mod.rs", gpu), ("render/mod.rs", "")]);
+    assert!(found.is_empty(), "{found:?}");
+    // ...but code after them does.
+    let found = planted(&layers, &[("lib.rs", lib), ("gpu/mod.rs", &format!("{gpu}fn late() {{ crate::render::x(); }}\n")), ("render/mod.rs", "")]);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].starts_with("src/gpu/mod.rs:21:"), "{found:?}");
+}
+
+#[test]
+fn modules_and_the_table_must_agree() {
+    let found = planted(&[("gpu", 0, &[])], &[("lib.rs", "pub mod gpu;\n#[cfg(any(test, feature = \"low_level\"))]\npub mod extra;\n"), ("gpu/mod.rs", "")]);
+    assert!(found.iter().any(|p| p.contains("declares module `extra`")), "{found:?}");
+    let found = planted(&[("gpu", 0, &[]), ("gone", 1, &[])], &[("lib.rs", "pub mod gpu;\n"), ("gpu/mod.rs", "")]);
+    assert!(found.iter().any(|p| p.contains("places module `gone`")), "{found:?}");
+    let found = planted(&[("gpu", 0, &[])], &[("lib.rs", "pub mod gpu;\n"), ("gpu/mod.rs", "fn f() { crate::Unknown::new(); }\n")]);
+    assert!(found.iter().any(|p| p.contains("`crate::Unknown` is neither")), "{found:?}");
+}
+
+#[test]
+fn the_table_is_read() {
+    let md = "# A\n\n## Layers\n\nText.\n\n| module | layer | owns | beside |\n|---|---|---|---|\n| `error`, `shaders` | 0 · base | x | — |\n| `gpu` | 1 · gpu | y | |\n| `pool` | 1 · gpu | z | `gpu` |\n\n## Next\n| `no` | 9 | z |\n";
+    let layers = declared_layers(md).expect("a table");
+    let none = BTreeSet::new;
+    let expected: Declared = [("error", 0, none()), ("shaders", 0, none()), ("gpu", 1, none()), ("pool", 1, ["gpu".to_owned()].into())]
+        .into_iter()
+        .map(|(m, l, b)| (m.to_owned(), (l, b)))
+        .collect();
+    assert_eq!(layers, expected);
+    assert!(declared_layers("## Layers\n| `a` | x |\n|-|-|\n| `a` | one |\n").is_err(), "a layer that is not a number");
+    assert!(declared_layers("## Layers\n|m|l|\n|-|-|\n| `a` | 1 |\n| `a` | 2 |\n").is_err(), "a module twice");
+    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 2 | | |\n").is_err(), "beside across layers");
+    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 1 | | `a` |\n").is_err(), "a declared cycle");
+    let real = declared();
+    assert!(real.len() >= 16, "{real:?}");
+}
+
+#[test]
+fn an_undeclared_use_beside_is_reported() {
+    let lib = "pub mod deform;\npub mod accumulate;\n";
+    let files = [("lib.rs", lib), ("deform/mod.rs", ""), ("accumulate/occlusion.rs", "\nuse crate::deform::X;\n")];
+    let found = planted(&[("deform", 3, &[]), ("accumulate", 3, &[])], &files);
+    assert!(found.len() == 1 && found[0].starts_with("src/accumulate/occlusion.rs:2:") && found[0].contains("beside: `accumulate` uses `deform`"), "{found:?}");
+    assert!(planted(&[("deform", 3, &[]), ("accumulate", 3, &["deform"])], &files).is_empty());
 }

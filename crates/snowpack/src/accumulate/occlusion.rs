@@ -10,9 +10,9 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
+use crate::gpu::render::{PipelineSpec, render_pipeline, storage_ro};
 use crate::gpu::{GpuTimer, layout};
 use crate::height_depth::{CAPTURE_FORMAT, sky_depth_texture};
-use crate::render::pipeline::{PipelineSpec, render_pipeline, storage_ro};
 use crate::shaders;
 
 use super::atlas::ObjectVertex;

@@ -2,21 +2,7 @@
 
 use glam::Vec3;
 
-/// Direction of equirect coordinates (u, v) (same as `equirect_dir` in `shared/frame.wgsl`).
-#[must_use]
-pub fn equirect_dir(u: f32, v: f32) -> Vec3 {
-    let phi = (u - 0.5) * 2.0 * std::f32::consts::PI;
-    let theta = v * std::f32::consts::PI;
-    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
-}
-
-/// Equirect coordinates (u, v) of a unit direction (same as `dir_equirect`).
-#[must_use]
-pub fn dir_equirect(d: Vec3) -> (f32, f32) {
-    let u = d.x.atan2(-d.z) / (2.0 * std::f32::consts::PI) + 0.5;
-    let v = d.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
-    (u, v)
-}
+pub use crate::render::environment::{dir_equirect, equirect_dir};
 
 /// Box-averages `src` (`sw` x `sh`) into `dw` x `dh`, each texel's luminance clamped to `clamp_luminance`.
 #[must_use]

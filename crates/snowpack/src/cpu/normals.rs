@@ -1,5 +1,6 @@
 //! CPU twin of `surface_unpack.wgsl`.
 
+pub use crate::deform::display::normals_of;
 use crate::deform::snow_word;
 
 use super::window::storage_index;
@@ -19,22 +20,6 @@ pub fn shown_heights(snow: &[u32], terrain: &[f32], origin: [i32; 2], resolution
         for j in 0..resolution {
             let s = storage_index(origin, resolution, i, j);
             out.push(snow_word::shown(snow[s], terrain[s]));
-        }
-    }
-    out
-}
-
-/// Unit normals by central differences of window-local heights (clamped at the edges).
-#[must_use]
-pub fn normals_of(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[f32; 3]> {
-    let r = resolution as i32;
-    let at = |i: i32, j: i32| height[(i.clamp(0, r - 1) * r + j.clamp(0, r - 1)) as usize];
-    let mut out = Vec::with_capacity(height.len());
-    for i in 0..r {
-        for j in 0..r {
-            let dx = at(i, j + 1) - at(i, j - 1);
-            let dz = at(i + 1, j) - at(i - 1, j);
-            out.push(glam::Vec3::new(-dx, 2.0 * texel_m, -dz).normalize().to_array());
         }
     }
     out

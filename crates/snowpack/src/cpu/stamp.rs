@@ -5,8 +5,7 @@ use crate::deform::stamp::StampParams;
 
 use super::window::storage_index;
 
-/// A texel no footprint has touched.
-pub const STAMP_EMPTY: u32 = u32::MAX;
+pub use crate::deform::stamp::STAMP_EMPTY;
 
 /// Height (m) to its 16-bit code over `[low, high]`, rounded to nearest.
 #[must_use]

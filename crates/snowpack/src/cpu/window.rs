@@ -2,6 +2,7 @@
 
 use crate::TerrainSource;
 use crate::deform::window::{TexelRect, WindowParams};
+pub use crate::terrain::texel_ground;
 
 /// Toroidal storage index of window-local texel (i, j).
 #[must_use]
@@ -10,15 +11,6 @@ pub fn storage_index(origin: [i32; 2], res: u32, i: u32, j: u32) -> usize {
     let si = (origin[1] + i as i32).rem_euclid(r) as usize;
     let sj = (origin[0] + j as i32).rem_euclid(r) as usize;
     si * res as usize + sj
-}
-
-/// Terrain height at the centre of global texel `g` = (column, row): twin of
-/// `texel_ground` in `shared/terrain_kind.wgsl`.
-#[must_use]
-pub fn texel_ground(terrain: &TerrainSource, g: [i32; 2], texel_m: f32) -> f32 {
-    let x = (g[0] as f32 + 0.5) * texel_m;
-    let z = (g[1] as f32 + 0.5) * texel_m;
-    terrain.height_at(x, z)
 }
 
 /// The ground under every texel of a window at `origin`, toroidal: what the

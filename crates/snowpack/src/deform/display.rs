@@ -114,3 +114,21 @@ impl DisplayPass {
         layout::dispatch(encoder, timer, "display", &self.pipelines.get(params.variant()), &self.bind_group, (g, g));
     }
 }
+
+/// Unit normals by central differences of window-local displayed heights
+/// (clamped at the edges), as the renderer's surface pass and the point
+/// queries compute them.
+#[must_use]
+pub fn normals_of(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[f32; 3]> {
+    let r = resolution as i32;
+    let at = |i: i32, j: i32| height[(i.clamp(0, r - 1) * r + j.clamp(0, r - 1)) as usize];
+    let mut out = Vec::with_capacity(height.len());
+    for i in 0..r {
+        for j in 0..r {
+            let dx = at(i, j + 1) - at(i, j - 1);
+            let dz = at(i + 1, j) - at(i - 1, j);
+            out.push(glam::Vec3::new(-dx, 2.0 * texel_m, -dz).normalize().to_array());
+        }
+    }
+    out
+}

@@ -17,6 +17,10 @@ use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
 
+/// A texel no footprint has touched, in the packed stamp buffer
+/// (`STAMP_EMPTY` in `shared/stamp.wgsl`).
+pub const STAMP_EMPTY: u32 = u32::MAX;
+
 /// Uniforms of `stamp.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -2,7 +2,7 @@
 //! [`TerrainMesh`] describes (`terrain_bake.wgsl`, depth only), then resolves
 //! depth into metres (`terrain_resolve.wgsl`), producing the heightmap samples
 //! the window pass reads. Runs once when a window is created over mesh terrain.
-//! CPU twin: [`crate::cpu::terrain_bake::draw`].
+//! CPU twin: `cpu::terrain_bake::draw`, which is [`crate::terrain::draw_from_above`].
 
 use bytemuck::{Pod, Zeroable};
 

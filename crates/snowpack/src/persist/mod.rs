@@ -21,8 +21,9 @@ pub mod disk;
 pub mod store;
 pub mod streamer;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+pub use crate::error::StoreError;
 pub use codec::{FORMAT_VERSION, decode, encode};
 pub use store::{StoreConfig, TileStore};
 pub use streamer::{StoreStats, StreamerConfig, TileLookup, TileStreamer};
@@ -132,96 +133,6 @@ impl TileData {
         };
         Err(StoreError::Mismatch { path: PathBuf::new(), why })
     }
-}
-
-/// What can go wrong storing or loading tiles. Every variant but
-/// [`StoreError::WorkerGone`] and [`StoreError::NoDisk`] names the file (errors from [`decode`] alone,
-/// which sees bytes and no file, leave the path empty).
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum StoreError {
-    /// The operating system refused (disk full, read-only, a directory gone).
-    #[error("cannot {op} {}: {source}", shown(path))]
-    Io {
-        /// The file or directory.
-        path: PathBuf,
-        /// What was being done, as a verb phrase ("write", "rename into place").
-        op: &'static str,
-        /// The operating system's error.
-        source: std::io::Error,
-    },
-    /// The file is damaged (bad checksum, truncated, not a tile).
-    #[error("{} is corrupt: {why}", shown(path))]
-    Corrupt {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong with it.
-        why: String,
-    },
-    /// The file was written in a format this build does not read.
-    #[error("{} is format version {found}; this build reads version {expected}", shown(path))]
-    Version {
-        /// The file.
-        path: PathBuf,
-        /// The version in the file.
-        found: u32,
-        /// The version this build reads and writes.
-        expected: u32,
-    },
-    /// A well-formed file or tile that does not fit (another tile side, another key).
-    #[error("{}: {why}", shown(path))]
-    Mismatch {
-        /// The file.
-        path: PathBuf,
-        /// What does not match.
-        why: String,
-    },
-    /// Tiles asked for by a blocking wait were not loaded in time (a disk that
-    /// hangs or crawls); the wait gives up rather than freeze the caller, and
-    /// the tiles keep loading behind it.
-    #[error("{pending} tile(s) were not loaded from the store within {waited:?}: the disk is too slow or not answering")]
-    TimedOut {
-        /// How long the wait lasted.
-        waited: std::time::Duration,
-        /// Tiles still not loaded when it gave up.
-        pending: usize,
-    },
-    /// The streamer's worker thread has stopped (it panicked or never started).
-    #[error("the tile store's worker thread has stopped; tiles can no longer be loaded or saved")]
-    WorkerGone,
-    /// Tiles are kept in memory only ([`TileStreamer::in_memory`]); saving
-    /// needs a disk store.
-    #[error("tiles are kept in memory only; saving needs a disk store (a TileStreamer over a TileStore, attached with attach_store)")]
-    NoDisk,
-}
-
-impl StoreError {
-    /// The file the error is about, when there is one.
-    #[must_use]
-    pub fn path(&self) -> Option<&Path> {
-        match self {
-            Self::Io { path, .. } | Self::Corrupt { path, .. } | Self::Version { path, .. } | Self::Mismatch { path, .. } => {
-                (!path.as_os_str().is_empty()).then_some(path.as_path())
-            }
-            Self::WorkerGone | Self::NoDisk | Self::TimedOut { .. } => None,
-        }
-    }
-
-    /// The same error naming `file` where it named none (errors from
-    /// [`decode`] and [`TileData::validate`] see no file).
-    pub(crate) fn at(mut self, file: &Path) -> Self {
-        if let Self::Io { path, .. } | Self::Corrupt { path, .. } | Self::Version { path, .. } | Self::Mismatch { path, .. } = &mut self
-            && path.as_os_str().is_empty()
-        {
-            file.clone_into(path);
-        }
-        self
-    }
-}
-
-/// How an error shows its path: errors from bytes alone have none.
-fn shown(path: &Path) -> String {
-    if path.as_os_str().is_empty() { "the tile data".to_owned() } else { path.display().to_string() }
 }
 
 /// Temporary directories for this module's unit tests, removed on drop.

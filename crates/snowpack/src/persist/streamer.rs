@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 use super::store::tile_path;
 use super::{StoreError, TileData, TileKey, TileStore};
-use crate::cpu::stamp::STAMP_EMPTY;
+use crate::deform::stamp::STAMP_EMPTY;
 
 /// Most errors kept for [`TileStreamer::take_errors`]; more are logged and
 /// counted but not kept, so a game that never takes them does not grow.

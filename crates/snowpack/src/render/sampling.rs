@@ -13,7 +13,7 @@
 //! All four are in group [`SNOW_SAMPLING_GROUP`] (1); [`snow_sampling_wgsl`]
 //! gives the module for another group. The WGSL file's header documents the
 //! functions (`snow_height`, `snow_normal`, `snow_depth`, `snow_compaction`)
-//! and their conventions; [`crate::cpu::snow_sampling`] is their CPU twin.
+//! and their conventions; `cpu::snow_sampling` is their CPU twin.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")

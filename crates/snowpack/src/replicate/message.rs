@@ -35,6 +35,7 @@
 //! texels of one message by [`MAX_MESSAGE_TEXELS`], so a small message
 //! cannot make the reader allocate much.
 
+pub use crate::error::MessageError;
 use crate::persist::TileKey;
 use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuffle};
 
@@ -217,73 +218,6 @@ impl Message {
             Self::Depths { .. } => "Depths",
         }
     }
-}
-
-/// What is wrong with a message's bytes.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[non_exhaustive]
-pub enum MessageError {
-    /// The bytes end before the message does.
-    #[error("truncated: {what} needs {needed} more byte(s), {left} left")]
-    Truncated {
-        /// The field being read.
-        what: &'static str,
-        /// Bytes it needs.
-        needed: usize,
-        /// Bytes that were left.
-        left: usize,
-    },
-    /// The bytes do not start with `SNWP`.
-    #[error("not a snowpack sharing message (no SNWP magic)")]
-    BadMagic,
-    /// Another protocol version.
-    #[error("protocol version {found}; this build speaks version {expected}")]
-    BadVersion {
-        /// The version in the message.
-        found: u16,
-        /// The version this build speaks.
-        expected: u16,
-    },
-    /// A kind byte this build does not know.
-    #[error("unknown message kind {0}")]
-    UnknownKind(u8),
-    /// The message is larger than [`MAX_MESSAGE_BYTES`].
-    #[error("oversized: {bytes} bytes, the most is {max}")]
-    Oversized {
-        /// The message's size.
-        bytes: usize,
-        /// The limit.
-        max: usize,
-    },
-    /// A count above its cap.
-    #[error("too many {what}: {count}, the most is {max}")]
-    TooMany {
-        /// What is counted.
-        what: &'static str,
-        /// The count in the message.
-        count: usize,
-        /// The cap.
-        max: usize,
-    },
-    /// A tile that cannot be one (side, flags, payload).
-    #[error("bad tile: {0}")]
-    BadTile(String),
-    /// A field with a value it cannot have (text that is not UTF-8, a flag
-    /// that is not 0 or 1).
-    #[error("bad {what}: {why}")]
-    BadValue {
-        /// The field.
-        what: &'static str,
-        /// What is wrong.
-        why: String,
-    },
-    /// A message of a kind the receiver never receives (a relay's `Ack`
-    /// sent to a relay, a peer's `Hello` sent to a peer).
-    #[error("a {0} message is not expected here")]
-    Unexpected(&'static str),
-    /// Bytes follow the message's body.
-    #[error("{0} trailing byte(s) after the message")]
-    TrailingBytes(usize),
 }
 
 /// Encodes a message. The result may exceed [`MAX_MESSAGE_BYTES`] (a

@@ -40,33 +40,12 @@ pub(crate) mod sharing;
 pub mod tile;
 pub mod world;
 
+pub use crate::error::ShareError;
 pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 pub use world::{WorldIdentity, terrain_identity};
-
-/// What can go wrong sharing snow.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ShareError {
-    /// The relay's world is another: one phrase per difference, "here"
-    /// being this peer's world and "there" the relay's.
-    #[error("the relay refused this world: {}", differences.join("; "))]
-    Refused {
-        /// What differs ("tile side: 32 here, 64 there").
-        differences: Vec<String>,
-    },
-    /// A message that does not decode, or that this side never receives.
-    #[error("malformed message: {0}")]
-    Malformed(#[from] MessageError),
-    /// The relay's tile store failed.
-    #[error("tile store: {0}")]
-    Store(#[from] crate::persist::StoreError),
-    /// The relay's store holds a world that cannot be used.
-    #[error("the relay's store: {0}")]
-    StoreWorld(String),
-}
 
 /// What a [`SnowPeer`] needs of the snow it shares: the
 /// window's clock and place, the tiles it changed, and a way to fold in

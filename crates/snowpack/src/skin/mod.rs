@@ -1,7 +1,7 @@
 //! Skinned, animated actors: a node hierarchy with joints, animation clips
 //! (step, linear and cubic-spline keys, as glTF 2.0 defines them), playback
 //! with speed and cross-fade, and GPU skinning ([`skinning::SkinningPass`],
-//! CPU twin [`crate::cpu::skinning`]). Reading files is the scene crate's job;
+//! CPU twin `cpu::skinning`). Reading files is the scene crate's job;
 //! this module takes decoded data.
 #![cfg_attr(
     not(feature = "low_level"),

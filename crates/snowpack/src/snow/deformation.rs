@@ -1238,10 +1238,10 @@ impl SnowDeformation {
             let texel = self.params.texel_m();
             Ok((0..r)
                 .flat_map(|i| (0..r).map(move |j| (i, j)))
-                .map(|(i, j)| crate::cpu::window::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
+                .map(|(i, j)| crate::terrain::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
                 .collect())
         }
-    }
+        }
 
     #[cfg(feature = "low_level")]
     /// Displayed height (m) and unit normal per texel, window-local; blocking.
@@ -1251,7 +1251,7 @@ impl SnowDeformation {
         let words = self.read_snow_words(ctx)?;
         let terrain = self.read_terrain(ctx)?;
         let heights: Vec<f32> = words.iter().zip(&terrain).map(|(&w, &g)| snow_word::shown(w, g)).collect();
-        let normals = crate::cpu::normals::normals_of(&heights, self.params.resolution, self.params.texel_m());
+        let normals = crate::deform::display::normals_of(&heights, self.params.resolution, self.params.texel_m());
         Ok((heights, normals))
     }
 }
