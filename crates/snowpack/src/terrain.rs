@@ -345,6 +345,7 @@ impl TerrainSource {
 /// Terrain height at the centre of global texel `g` = (column, row): twin of
 /// `texel_ground` in `shared/terrain_kind.wgsl`.
 #[must_use]
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 pub fn texel_ground(terrain: &TerrainSource, g: [i32; 2], texel_m: f32) -> f32 {
     let x = (g[0] as f32 + 0.5) * texel_m;
     let z = (g[1] as f32 + 0.5) * texel_m;

@@ -144,6 +144,7 @@ impl DecalRing {
 
     /// Whether no decal is held.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -155,6 +156,7 @@ impl DecalRing {
 
     /// The anchor decal positions are relative to.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     pub fn anchor(&self) -> DVec2 {
         self.anchor
     }

@@ -119,6 +119,7 @@ impl DisplayPass {
 /// (clamped at the edges), as the renderer's surface pass and the point
 /// queries compute them.
 #[must_use]
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 pub fn normals_of(height: &[f32], resolution: u32, texel_m: f32) -> Vec<[f32; 3]> {
     let r = resolution as i32;
     let at = |i: i32, j: i32| height[(i.clamp(0, r - 1) * r + j.clamp(0, r - 1)) as usize];

@@ -710,6 +710,7 @@ impl SnowDeformation {
     low_level_pub! {
         /// The skinned meshes posed in the last encoded frame, in world space
         /// (what a renderer draws for the characters).
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
         fn posed_meshes(&self) -> impl Iterator<Item = &SkinnedInstance> + '_ {
             self.posed.iter().filter_map(|&k| self.skinned.get(k))
         }
@@ -1177,6 +1178,7 @@ impl SnowDeformation {
         }
     }
 
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     fn untorus<T: Copy + Default>(&self, toroidal: &[T]) -> Vec<T> {
         untorus(self.params.resolution, self.window.origin().unwrap_or([0, 0]), toroidal)
     }
@@ -1185,6 +1187,7 @@ impl SnowDeformation {
         /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
         /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
         /// decode them.
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
         fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
             let raw = read_buffer(ctx, &self.res.snow)?;
             Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
@@ -1215,33 +1218,34 @@ impl SnowDeformation {
     }
 
     low_level_pub! {
-        /// Terrain height (m) at the texel centres, window-local row-major; for
-        /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
-        /// (`texel_ground`), so they agree to rounding: from the terrain's
-        /// description, and for a mesh terrain from the grid the GPU baked (read
-        /// back), which is what the passes sample. No GPU buffer holds the
-        /// terrain per texel.
-        fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-            let baked;
-            let source = match &self.terrain {
-                TerrainSource::Mesh(mesh) => {
-                    let n = (mesh.grid.width() * mesh.grid.height()) as usize;
-                    let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
-                    baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
-                    &baked
-                }
-                other => other,
-            };
-            let r = self.params.resolution;
-            let origin = self.window.origin().unwrap_or([0, 0]);
-            let o = [origin[0] as i32, origin[1] as i32];
-            let texel = self.params.texel_m();
-            Ok((0..r)
-                .flat_map(|i| (0..r).map(move |j| (i, j)))
-                .map(|(i, j)| crate::terrain::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
-                .collect())
-        }
-        }
+    /// Terrain height (m) at the texel centres, window-local row-major; for
+    /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
+    /// (`texel_ground`), so they agree to rounding: from the terrain's
+    /// description, and for a mesh terrain from the grid the GPU baked (read
+    /// back), which is what the passes sample. No GPU buffer holds the
+    /// terrain per texel.
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
+    fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let baked;
+        let source = match &self.terrain {
+            TerrainSource::Mesh(mesh) => {
+                let n = (mesh.grid.width() * mesh.grid.height()) as usize;
+                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.res.heightmap)?);
+                baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
+                &baked
+            }
+            other => other,
+        };
+        let r = self.params.resolution;
+        let origin = self.window.origin().unwrap_or([0, 0]);
+        let o = [origin[0] as i32, origin[1] as i32];
+        let texel = self.params.texel_m();
+        Ok((0..r)
+            .flat_map(|i| (0..r).map(move |j| (i, j)))
+            .map(|(i, j)| crate::terrain::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
+            .collect())
+    }
+    }
 
     #[cfg(feature = "low_level")]
     /// Displayed height (m) and unit normal per texel, window-local; blocking.
@@ -1256,8 +1260,8 @@ impl SnowDeformation {
     }
 }
 
-#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 /// A toroidal window buffer (origin texel `origin`) laid out window-local row-major.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 fn untorus<T: Copy + Default>(resolution: u32, origin: [i64; 2], toroidal: &[T]) -> Vec<T> {
     let r = resolution as usize;
     let ri = r as i64;
