@@ -107,7 +107,10 @@ pub mod low_level;
 mod persist;
 mod render;
 mod replicate;
-#[cfg_attr(not(feature = "renderer"), allow(dead_code, reason = "the renderer's shaders are built and validated in every configuration"))]
+#[cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, reason = "every shader is composed and validated in every configuration; the renderer's and `ALL` are used with features")
+)]
 mod shaders;
 mod skin;
 mod snow;
@@ -139,4 +142,4 @@ pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};
 #[cfg(feature = "renderer")]
 pub use render::shell::ShellSettings;
 #[cfg(feature = "renderer")]
-pub use render::{Camera, EnvironmentMap, IMAGE_FORMAT, RenderParams, Renderer};
+pub use render::{Camera, DebugView, EnvironmentMap, IMAGE_FORMAT, LightParams, Material, MaterialPreset, RenderParams, Renderer};

@@ -1,5 +1,9 @@
 //! What a technical artist tunes: the material preset, the light, the level
 //! of detail and the debug view.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use glam::Vec3;
 

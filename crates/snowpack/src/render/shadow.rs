@@ -1,5 +1,9 @@
 //! The sun's shadow map: one orthographic depth map fitted around the part
 //! of the view frustum that receives shadows, stable as the camera turns.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use glam::{Mat4, Vec3};
 

@@ -7,6 +7,10 @@
 //! texel) is the price of the demo renderer's height-field passes, not of the
 //! deformation: a game drawing with [`crate::SnowGround`] or its own shader
 //! samples the packed words and needs none of it.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use bytemuck::{Pod, Zeroable};
 

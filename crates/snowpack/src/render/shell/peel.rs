@@ -13,6 +13,10 @@
 //! `min` blend into a float colour target. WebGPU has no portable `min`
 //! blending of 32-bit floats (it needs `FLOAT32_BLENDABLE`, absent on GL).
 //! The discard comes before the trace, so a finished pixel costs one load.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use crate::gpu::layout;
 use crate::render::pipeline::{HDR_FORMAT, screen_target};

@@ -1,5 +1,9 @@
 //! Shell construction, step 1 of 2 (`shaders/shell_vertices.wgsl`): the base
 //! surface as drawn this frame and its offset copy along the normals.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
 
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
