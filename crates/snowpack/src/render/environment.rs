@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::cpu::environment::{dir_equirect, equirect_dir};
+use crate::cpu::env_prefilter::{dir_equirect, equirect_dir};
 use crate::error::SnowError;
 use crate::gpu::{GpuTimer, layout};
 use crate::shaders;

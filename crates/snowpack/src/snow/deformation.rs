@@ -1218,7 +1218,7 @@ impl SnowDeformation {
         let words = self.read_snow_words(ctx)?;
         let terrain = self.read_terrain(ctx)?;
         let heights: Vec<f32> = words.iter().zip(&terrain).map(|(&w, &g)| snow_word::shown(w, g)).collect();
-        let normals = crate::cpu::normals::normals_of(&heights, self.params.resolution, self.params.texel_m());
+        let normals = crate::cpu::surface_unpack::normals_of(&heights, self.params.resolution, self.params.texel_m());
         Ok((heights, normals))
     }
 }
