@@ -274,8 +274,8 @@ fn capture_and_update_match_cpu() {
     submit(ctx, enc);
 
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
-    let swept = cpu::capture_sphere::swept_triangles(&before, &triangles, steps);
-    cpu::capture_sphere::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
+    let swept = cpu::capture_mesh::swept_triangles(&before, &triangles, steps);
+    cpu::capture_mesh::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
     cpu::capture_sphere::quantise_depths(&mut depth);
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);

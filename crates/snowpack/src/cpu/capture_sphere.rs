@@ -1,12 +1,15 @@
-//! CPU twin of the capture pass (`capture_sphere.wgsl`, `capture_mesh.wgsl`):
-//! the depth each window texel's centre sees looking up from below, by ray
-//! casting the same shapes analytically: spheres swept over the frame as
-//! capsules, boxes and wheels (`capture_wheel.wgsl`, [`wheel_bottom`]) in
-//! the sub-steps [`CaptureInstances`] lists, meshes in the sub-steps
-//! [`swept_triangles`] lists.
+//! CPU twin of the capture pass's spheres (`capture_sphere.wgsl`): the depth
+//! each window texel's centre sees looking up from below, by ray casting the
+//! same shapes analytically. [`capture_depths`] is the whole pass's instanced
+//! shapes: spheres swept over the frame as capsules (here), wheels
+//! (`capture_wheel.wgsl`, [`super::capture_wheel::wheel_bottom`]) in the
+//! sub-steps [`CaptureInstances`] lists, and boxes (`capture_mesh.wgsl`,
+//! whose meshes are [`super::capture_mesh`]).
 
 use glam::{Mat4, Vec3};
 
+use super::capture_mesh::lowest_box_hit;
+use super::capture_wheel::wheel_bottom;
 use crate::deform::capture::{CaptureInstances, CaptureParams};
 
 /// Depth per window-local texel (row-major), 1.0 where nothing was captured.
@@ -97,157 +100,13 @@ pub fn capsule_bottom(p: [f32; 2], a: [f32; 3], b: [f32; 3], r: f32) -> Option<f
     best
 }
 
-/// Height above the centre where the vertical line through `w` (relative to
-/// the centre, `w.y = 0`) enters the cylinder of radius `r` and half width
-/// `hw` around the unit axle `a` (`capture_wheel.wgsl`, `cylinder_entry`).
-fn cylinder_entry(w: Vec3, a: Vec3, r: f32, hw: f32) -> Option<f32> {
-    let wa = w.dot(a);
-    let (mut lo, mut hi) = (f32::NEG_INFINITY, f32::INFINITY);
-    if a.y.abs() < 1e-6 {
-        if wa.abs() > hw {
-            return None;
-        }
-    } else {
-        let (t0, t1) = ((-hw - wa) / a.y, (hw - wa) / a.y);
-        (lo, hi) = (t0.min(t1), t0.max(t1));
-    }
-    let qa = 1.0 - a.y * a.y;
-    let qc = w.length_squared() - wa * wa - r * r;
-    if qa < 1e-6 {
-        if qc > 0.0 {
-            return None;
-        }
-    } else {
-        let qb = -wa * a.y;
-        let disc = qb * qb - qa * qc;
-        if disc < 0.0 {
-            return None;
-        }
-        let s = disc.sqrt();
-        lo = lo.max((-qb - s) / qa);
-        hi = hi.min((-qb + s) / qa);
-    }
-    (lo <= hi).then_some(lo)
-}
-
-/// Whether the tyre point `q` (relative to the centre) of wheel instance `w`
-/// lies on a lug (`capture_wheel.wgsl`, `on_lug`).
-fn on_lug(q: Vec3, w: &[f32; 16]) -> bool {
-    let a = Vec3::new(w[4], w[5], w[6]);
-    let (r, roll, spacing, pattern, fraction) = (w[3], w[8], w[9], (w[11] + 0.5) as u32, w[12]);
-    if pattern == 0 {
-        return true;
-    }
-    let fwd_raw = a.cross(Vec3::Y);
-    if fwd_raw.length_squared() < 1e-12 {
-        return true;
-    }
-    let fwd = fwd_raw.normalize();
-    let down = (Vec3::NEG_Y + a.y * a).normalize();
-    let along = q.dot(a);
-    let perp = q - along * a;
-    let mut s = roll + r * perp.dot(fwd).atan2(perp.dot(down));
-    if pattern == 1 {
-        if along < 0.0 {
-            s += 0.5 * spacing;
-        }
-    } else {
-        s += along.abs();
-    }
-    let phase = s / spacing;
-    phase - phase.floor() < fraction
-}
-
-/// Lowest height, relative to the wheel's centre, of the tyre of wheel
-/// instance `w` ([`crate::deform::wheel::instance`]) along the vertical line
-/// through `rel` (relative to the centre, `rel.y = 0`), tread included, as
-/// `capture_wheel.wgsl` computes it: the outer cylinder where it is hit on a
-/// lug, else the groove floor `depth` further in.
-#[must_use]
-pub fn wheel_bottom(rel: Vec3, w: &[f32; 16]) -> Option<f32> {
-    let a = Vec3::new(w[4], w[5], w[6]);
-    let outer = cylinder_entry(rel, a, w[3], w[7])?;
-    if on_lug(rel + Vec3::new(0.0, outer, 0.0), w) {
-        return Some(outer);
-    }
-    cylinder_entry(rel, a, w[3] - w[10], w[7])
-}
-
-/// The triangles a swept mesh is drawn as (`capture_mesh.wgsl`, `vs_swept`):
-/// each of `steps + 1` sub-steps t = k / steps, every corner at
-/// `mix(previous, current, t)`; `steps = 0` is the current pose alone.
-#[must_use]
-pub fn swept_triangles(previous: &[[[f32; 3]; 3]], current: &[[[f32; 3]; 3]], steps: u32) -> Vec<[[f32; 3]; 3]> {
-    if steps == 0 {
-        return current.to_vec();
-    }
-    let mut out = Vec::with_capacity(current.len() * (steps as usize + 1));
-    for k in 0..=steps {
-        let t = k as f32 / steps as f32;
-        out.extend(previous.iter().zip(current).map(|(a, b)| std::array::from_fn(|v| std::array::from_fn(|c| a[v][c] * (1.0 - t) + b[v][c] * t))));
-    }
-    out
-}
-
 /// Rounds depths to the capture target's 16-bit codes
 /// ([`crate::height_depth::CAPTURE_FORMAT`]), as the GPU stores them:
-/// call after [`capture_depths`] and [`capture_triangles`] (rounding is
+/// call after [`capture_depths`] and [`super::capture_mesh::capture_triangles`] (rounding is
 /// monotonic, so the lowest surface stays the lowest).
 pub fn quantise_depths(depth: &mut [f32]) {
     use crate::height_depth::CAPTURE_CODES;
     for d in depth {
         *d = (*d * CAPTURE_CODES).round() / CAPTURE_CODES;
-    }
-}
-
-/// Lowest world height where the vertical line through (x, z) meets the unit
-/// cube mapped by the inverse model matrix `inv`.
-fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
-    let o = inv.transform_point3(Vec3::new(x, low, z));
-    let d = inv.transform_vector3(Vec3::Y);
-    let (mut t0, mut t1) = (f32::NEG_INFINITY, f32::INFINITY);
-    for axis in 0..3 {
-        let (oa, da) = (o[axis], d[axis]);
-        if da.abs() < 1e-12 {
-            if oa.abs() > 1.0 {
-                return None;
-            }
-            continue;
-        }
-        let (a, b) = ((-1.0 - oa) / da, (1.0 - oa) / da);
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
-    (t0 <= t1 && t1 >= 0.0).then_some(low + t0)
-}
-
-/// Adds world-space triangles to `depth` (window-local texels, as
-/// [`capture_depths`] returns): the lowest surface per texel centre, and each
-/// corner as a point in the texel it lies in, as the GPU draws
-/// [`crate::deform::capture::CaptureMesh`]es.
-pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner: glam::DVec2, p: &CaptureParams, resolution: u32) {
-    // The terrain bake's rasteriser keeps the highest surface; mirror heights to keep the lowest.
-    let mirrored: Vec<[[f32; 3]; 3]> =
-        triangles.iter().map(|t| t.map(|v| [(f64::from(v[0]) - corner.x) as f32, -v[1], (f64::from(v[2]) - corner.y) as f32])).collect();
-    let extent = p.texel_m * resolution as f32;
-    let lowest = super::terrain_bake::draw(&mirrored, resolution, resolution, [0.0, 0.0], [extent, extent], f32::NEG_INFINITY);
-    let range = p.high_m - p.low_m;
-    for (d, y) in depth.iter_mut().zip(lowest) {
-        if y.is_finite() {
-            let v = (-y - p.low_m) / range;
-            // Outside [0, 1] the GPU clips the fragment: no mark.
-            if (0.0..=1.0).contains(&v) {
-                *d = d.min(v);
-            }
-        }
-    }
-    let res = i64::from(resolution);
-    for v in mirrored.iter().flatten() {
-        let (col, row) = ((f64::from(v[0]) / f64::from(p.texel_m)).floor() as i64, (f64::from(v[2]) / f64::from(p.texel_m)).floor() as i64);
-        let depth_of = (-v[1] - p.low_m) / range;
-        if (0..res).contains(&col) && (0..res).contains(&row) && (0.0..=1.0).contains(&depth_of) {
-            let d = &mut depth[(row * res + col) as usize];
-            *d = d.min(depth_of);
-        }
     }
 }

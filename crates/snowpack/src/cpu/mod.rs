@@ -5,8 +5,11 @@
 
 pub mod ao;
 pub mod atlas_surface;
+pub mod capture_mesh;
 pub mod capture_sphere;
+pub mod capture_wheel;
 pub mod display;
+pub mod env_downsample;
 pub mod env_prefilter;
 pub mod exchange;
 pub mod increment;
