@@ -59,13 +59,15 @@ fn main() {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .unwrap_or_else(|e| panic!("WGSL validation error in {name} ({parts:?}):\n{}", e.emit_to_string(&source)));
-        let includes: Vec<String> = parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}.wgsl\")), \"\\n\"")).collect();
+        let includes: Vec<String> =
+            parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}.wgsl\")), \"\\n\"")).collect();
         writeln!(out, "/// WGSL of `shaders/{pass}.wgsl` with its imports: {parts:?}.\npub const {name}: &str = concat!({});", includes.join(", "))
             .expect("write to String");
         names.push(name);
     }
     let list: Vec<String> = names.iter().map(|n| format!("(\"{n}\", {n})")).collect();
-    writeln!(out, "/// Every pass's WGSL, by constant name (in file-name order).\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", ")).expect("write to String");
+    writeln!(out, "/// Every pass's WGSL, by constant name (in file-name order).\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", "))
+        .expect("write to String");
     let out_dir = std::env::var("OUT_DIR").expect("OUT_DIR is set by cargo");
     std::fs::write(Path::new(&out_dir).join("shaders.rs"), out).expect("write shaders.rs");
 }

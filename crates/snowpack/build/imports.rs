@@ -63,7 +63,9 @@ pub fn imports_of(file: &str, text: &str) -> Result<Vec<String>, String> {
 pub fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && name.split('/').all(|part| {
-            !part.is_empty() && part.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_') && !part.starts_with(|c: char| c.is_ascii_digit())
+            !part.is_empty()
+                && part.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_')
+                && !part.starts_with(|c: char| c.is_ascii_digit())
         })
 }
 
@@ -81,7 +83,13 @@ pub fn compose_order(entry: &str, read: &mut dyn FnMut(&str) -> Option<String>) 
     Ok(order)
 }
 
-fn visit(name: &str, importer: Option<&str>, read: &mut dyn FnMut(&str) -> Option<String>, stack: &mut Vec<String>, order: &mut Vec<String>) -> Result<(), String> {
+fn visit(
+    name: &str,
+    importer: Option<&str>,
+    read: &mut dyn FnMut(&str) -> Option<String>,
+    stack: &mut Vec<String>,
+    order: &mut Vec<String>,
+) -> Result<(), String> {
     if order.iter().any(|done| done == name) {
         return Ok(());
     }
