@@ -1,86 +1,56 @@
-//! Composes each pass's WGSL from its file and the shared snippets it needs,
+//! Composes each pass's WGSL from its file and the files it imports,
 //! validates it with naga (so a shader error breaks `cargo build`, not a run),
 //! and writes `shaders.rs` with one `&str` constant per pass.
+//!
+//! Every `.wgsl` file directly in `shaders/` is a pass (or, for
+//! `snow_sampling.wgsl`, the module games import): its constant is the file's
+//! stem upper-cased (`capture_sphere.wgsl` gives `CAPTURE_SPHERE`), and `ALL`
+//! lists them by file name. `shaders/shared/` holds snippets that are only
+//! imported. A file names what it uses at its top, one comment line each:
+//!
+//! ```wgsl
+//! // #import shared/window
+//! // #import shared/terrain
+//! ```
+//!
+//! (the path under `shaders/` without `.wgsl`). Imports are transitive: a
+//! constant is the files it reaches, depth first in the order written, each
+//! once, then the pass's own file, each followed by a newline, joined with
+//! `include_str!` so cargo rebuilds on a change. A missing file, a malformed
+//! directive or an import cycle fails the build with a message naming it.
+//! The resolver is `build/imports.rs`; `docs/rendering.md` ("Shader files")
+//! documents the directive.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// (constant name, files under `shaders/` concatenated in order).
-const SHADERS: &[(&str, &[&str])] = &[
-    ("WINDOW", &["shared/window.wgsl", "window.wgsl"]),
-    ("CAPTURE_SPHERE", &["capture_sphere.wgsl"]),
-    ("CAPTURE_MESH", &["capture_mesh.wgsl"]),
-    ("CAPTURE_WHEEL", &["capture_wheel.wgsl"]),
-    ("STAMP", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/share_flags.wgsl", "stamp.wgsl"]),
-    (
-        "UPDATE",
-        &[
-            "shared/window.wgsl",
-            "shared/terrain.wgsl",
-            "shared/terrain_kind.wgsl",
-            "shared/stamp.wgsl",
-            "shared/snow_word.wgsl",
-            "shared/share_flags.wgsl",
-            "update.wgsl",
-        ],
-    ),
-    ("DISPLAY", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "display.wgsl"]),
-    ("SURFACE_UNPACK", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/snow_word.wgsl", "surface_unpack.wgsl"]),
-    ("QUERY", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/snow_word.wgsl", "query.wgsl"]),
-    ("DECAL", &["decal.wgsl"]),
-    ("TERRAIN_BAKE", &["terrain_bake.wgsl"]),
-    ("TERRAIN_RESOLVE", &["terrain_resolve.wgsl"]),
-    ("TERRAIN_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "terrain_draw.wgsl"]),
-    ("ACTOR_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "actor_draw.wgsl"]),
-    ("SKY", &["shared/frame.wgsl", "sky.wgsl"]),
-    ("TONEMAP", &["shared/frame.wgsl", "tonemap.wgsl"]),
-    ("AO", &["ao.wgsl"]),
-    ("ENV_DOWNSAMPLE", &["env_downsample.wgsl"]),
-    ("ENV_PREFILTER", &["shared/frame.wgsl", "env_prefilter.wgsl"]),
-    ("SKINNING", &["skinning.wgsl"]),
-    ("OCCLUSION", &["shared/objects.wgsl", "occlusion.wgsl"]),
-    ("SCATTER", &["shared/objects.wgsl", "scatter.wgsl"]),
-    ("INCREMENT", &["shared/objects.wgsl", "increment.wgsl"]),
-    ("SETTLE", &["shared/objects.wgsl", "settle.wgsl"]),
-    ("ATLAS_SURFACE", &["shared/objects.wgsl", "atlas_surface.wgsl"]),
-    ("OBJECT_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/objects.wgsl", "object_draw.wgsl"]),
-    (
-        "EXCHANGE",
-        &[
-            "shared/window.wgsl",
-            "shared/terrain.wgsl",
-            "shared/terrain_kind.wgsl",
-            "shared/stamp.wgsl",
-            "shared/snow_word.wgsl",
-            "shared/tiles.wgsl",
-            "shared/tile_table.wgsl",
-            "exchange.wgsl",
-        ],
-    ),
-    ("TILE_RESTORE", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "tile_restore.wgsl"]),
-    ("TILE_WEATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "tile_weather.wgsl"]),
-    ("TILE_SEAL", &["shared/window.wgsl", "shared/stamp.wgsl", "shared/tiles.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "tile_seal.wgsl"]),
-    ("TILE_GATHER", &["shared/window.wgsl", "shared/stamp.wgsl", "tile_gather.wgsl"]),
-    ("TILE_MERGE", &["shared/window.wgsl", "shared/terrain.wgsl", "shared/terrain_kind.wgsl", "shared/stamp.wgsl", "shared/snow_word.wgsl", "tile_merge.wgsl"]),
-    ("SKINNED_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "skinned_draw.wgsl"]),
-    ("SHELL_VERTICES", &["shared/terrain.wgsl", "shared/shell.wgsl", "shell_vertices.wgsl"]),
-    ("SHELL_TETRAHEDRA", &["shared/shell.wgsl", "shell_tetrahedra.wgsl"]),
-    ("SHELL_DRAW", &["shared/frame.wgsl", "shared/lighting.wgsl", "shared/shell.wgsl", "shell_draw.wgsl"]),
-    ("SHELL_RESOLVE", &["shell_resolve.wgsl"]),
-    ("PEEL_COUNT", &["peel_count.wgsl"]),
-    // The module games import (no entry points): `render::ground::SNOW_SAMPLING_WGSL`.
-    ("SNOW_SAMPLING", &["shared/terrain.wgsl", "shared/snow_sampling.wgsl"]),
-    ("GROUND", &["shared/terrain.wgsl", "shared/snow_sampling.wgsl", "ground.wgsl"]),
-];
+#[path = "build/imports.rs"]
+mod imports;
 
 fn main() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
     println!("cargo::rerun-if-changed=shaders");
-    let mut out = String::from("// Generated by build.rs from shaders/*.wgsl.\n");
-    for (name, parts) in SHADERS {
+    let mut passes: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|entry| entry.expect("directory entry of shaders/").path())
+        .filter(|path| path.is_file() && path.extension().is_some_and(|x| x == "wgsl"))
+        .map(|path| path.file_stem().and_then(|s| s.to_str()).map(str::to_string).unwrap_or_else(|| panic!("non-UTF-8 shader name {}", path.display())))
+        .collect();
+    passes.sort();
+    assert!(!passes.is_empty(), "no .wgsl files in {}", dir.display());
+    let mut out = String::from("// Generated by build.rs from shaders/*.wgsl and their `// #import`s.\n");
+    let mut names = Vec::new();
+    for pass in &passes {
+        assert!(
+            imports::valid_name(pass) && !pass.contains('/'),
+            "shaders/{pass}.wgsl: a pass's file name is lower-case letters, digits and `_` (its constant is the name upper-cased)"
+        );
+        let name = pass.to_uppercase();
+        let mut read = |file: &str| std::fs::read_to_string(dir.join(format!("{file}.wgsl"))).ok();
+        let parts = imports::compose_order(pass, &mut read).unwrap_or_else(|e| panic!("shader imports of shaders/{pass}.wgsl: {e}"));
         let mut source = String::new();
-        for part in *parts {
-            let path = dir.join(part);
+        for part in &parts {
+            let path = dir.join(format!("{part}.wgsl"));
             let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
             source.push_str(&text);
             source.push('\n');
@@ -89,12 +59,15 @@ fn main() {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .unwrap_or_else(|e| panic!("WGSL validation error in {name} ({parts:?}):\n{}", e.emit_to_string(&source)));
-        let includes: Vec<String> = parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}\"))")).collect();
-        writeln!(out, "/// WGSL of the `{name}` pass: {parts:?}.\npub const {name}: &str = concat!({}, \"\\n\");", includes.join(", \"\\n\", "))
+        let includes: Vec<String> =
+            parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}.wgsl\")), \"\\n\"")).collect();
+        writeln!(out, "/// WGSL of `shaders/{pass}.wgsl` with its imports: {parts:?}.\npub const {name}: &str = concat!({});", includes.join(", "))
             .expect("write to String");
+        names.push(name);
     }
-    let list: Vec<String> = SHADERS.iter().map(|(n, _)| format!("(\"{n}\", {n})")).collect();
-    writeln!(out, "/// Every pass's WGSL, by constant name.\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", ")).expect("write to String");
+    let list: Vec<String> = names.iter().map(|n| format!("(\"{n}\", {n})")).collect();
+    writeln!(out, "/// Every pass's WGSL, by constant name (in file-name order).\npub const ALL: &[(&str, &str)] = &[{}];", list.join(", "))
+        .expect("write to String");
     let out_dir = std::env::var("OUT_DIR").expect("OUT_DIR is set by cargo");
     std::fs::write(Path::new(&out_dir).join("shaders.rs"), out).expect("write shaders.rs");
 }

@@ -1,5 +1,7 @@
+// #import shared/lighting
+
 // Actors (spheres and boxes): instanced meshes lit like the snow, casting
-// and receiving the sun's shadow. Prepended: shared/frame.wgsl, shared/lighting.wgsl.
+// and receiving the sun's shadow.
 
 struct Vertex {
     @location(0) position: vec3<f32>,

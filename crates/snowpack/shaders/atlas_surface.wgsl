@@ -1,3 +1,5 @@
+// #import shared/objects
+
 // Atlas surface pass: what the renderer draws from the accumulation. Height:
 // dilated (3x3 maximum over the same object's texels, and gutter texels take
 // the largest neighbour of a dilated object) or as it is, per object. Slopes:
@@ -5,7 +7,7 @@
 // another chart replaced by the centre, in metres of height per atlas texel:
 //   dx = (3 (h[+1,-1] - h[-1,-1]) + 10 (h[+1,0] - h[-1,0]) + 3 (h[+1,+1] - h[-1,+1])) / 32.
 // Output per texel: (height, dx, dy, owned ? 1 : 0).
-// CPU twin: src/cpu/atlas_surface.rs. Prepended: shared/objects.wgsl.
+// CPU twin: src/cpu/atlas_surface.rs.
 
 struct SurfaceParams {
     atlas_resolution: u32,

@@ -5,7 +5,7 @@
 // a quad over its footprint (the stadium of the segment's shadow, widened by
 // r) whose fragments write the capsule's analytic lower surface as depth, so
 // the captured height is exact: no tessellation and no sub-steps.
-// CPU twin: src/cpu/capture.rs (capsule_bottom).
+// CPU twin: src/cpu/capture_sphere.rs (capsule_bottom).
 
 struct CaptureParams {
     extent_m: f32,

@@ -4,7 +4,7 @@
 // around its axle, with a tread of raised lugs (surface at r) and grooves
 // between them (at r - depth). A quad over the tyre's footprint writes the
 // lowest surface along each texel centre's vertical line as depth, exactly:
-// no tessellation. CPU twin: src/cpu/capture.rs (wheel_bottom); the tread
+// no tessellation. CPU twin: src/cpu/capture_wheel.rs (wheel_bottom); the tread
 // coordinates are documented in src/deform/wheel.rs.
 
 struct CaptureParams {

@@ -1,3 +1,9 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/stamp
+// #import shared/snow_word
+
 // Display pass: the displayed snow height, written into the upper half of
 // each `snow` word (shared/snow_word.wgsl) as its height above the terrain.
 // It is the rim, then (with `blur`) the separable 5x5 Gaussian (1 4 6 4 1)/16

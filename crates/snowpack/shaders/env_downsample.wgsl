@@ -1,7 +1,7 @@
 // Environment downsample: box-average blocks of the full equirect map into a
 // small one, clamping each texel's luminance first so the sun (lit
 // separately as the directional light) is not counted twice. CPU twin:
-// `cpu/environment.rs`.
+// `cpu/env_downsample.rs`.
 
 struct EnvParams {
     src_w: u32,

@@ -1,8 +1,10 @@
+// #import shared/frame
+
 // Environment prefilter: from the downsampled map, level 0 gets irradiance/pi
 // (cosine convolution) and level k >= 1 radiance convolved with a GGX lobe of
 // roughness k / (levels - 1) (split-sum, n = v = r). Brute force over every
-// source texel with its solid angle. CPU twin: `cpu/environment.rs`.
-// Prepended: shared/frame.wgsl (equirect mapping), env_downsample's params.
+// source texel with its solid angle. CPU twin: `cpu/env_prefilter.rs`.
+// Its params are env_downsample's.
 
 struct EnvParams {
     src_w: u32,

@@ -1,3 +1,10 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/snow_word
+// #import shared/tiles
+// #import shared/tile_table
+
 // Exchange pass: moves texels between the sliding window and the resident
 // tiles when the window moves (with a tile store attached). `stash` copies
 // the texels about to be overwritten (the old window's, at the storage the

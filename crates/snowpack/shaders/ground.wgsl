@@ -1,5 +1,7 @@
+// #import snow_sampling
+
 // SnowGround: the snow surface drawn into a render pass a game owns.
-// Prepended: shared/terrain.wgsl, shared/snow_sampling.wgsl (group 1), which
+// Its import is the snow sampling module (snow_sampling.wgsl, group 1), which
 // this pass uses exactly as a game's shader would.
 //
 // A grid of (quads + 1)^2 quads, fixed in world space (its lines sit on

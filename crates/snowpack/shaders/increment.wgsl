@@ -1,8 +1,10 @@
+// #import shared/objects
+
 // Increment pass: the frame's hits to a depth increment per atlas texel,
 // fresh = hits / HIT_UNIT * volume / area, where volume is what one occlusion
 // pixel receives this frame (rate * dt * pixel area on the ground plane), so
 // the snow that falls is conserved whatever the atlas density. Clears the hits.
-// CPU twin: src/cpu/increment.rs. Prepended: shared/objects.wgsl.
+// CPU twin: src/cpu/increment.rs.
 
 struct IncrementParams {
     atlas_resolution: u32,

@@ -1,10 +1,12 @@
+// #import shared/lighting
+// #import shared/objects
+
 // Accumulation objects drawn with their snow: each vertex is pushed out along
 // its normal by the accumulated depth (bilinear in the atlas, clamped to its
 // chart; zero on box-face borders so the snow meets the edges), and the
 // fragment blends the object's material into fresh snow with a normal bent by
 // the accumulation's Scharr slopes. wgpu has no tessellation; the meshes are
-// dense instead (about 4 cm quads). Prepended: shared/frame.wgsl,
-// shared/lighting.wgsl, shared/objects.wgsl.
+// dense instead (about 4 cm quads).
 
 struct AtlasInfo {
     resolution: u32,

@@ -1,3 +1,5 @@
+// #import shared/objects
+
 // Occlusion pass: the objects seen from the sky, along the snowfall direction
 // (jittered for flutter), by a sheared orthographic projection onto the
 // deformation window: a point p lands where the flake through it meets the
@@ -8,7 +10,6 @@
 // MAX_SPAN a side), as 16-bit integers (a float target is not renderable on
 // GL); cleared to 0xffff where no object is. No culling: the depth
 // test alone picks the sky-facing surface, whatever the winding.
-// Prepended: shared/objects.wgsl.
 
 struct OcclusionParams {
     extent_m: f32,

@@ -1,3 +1,8 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/snow_word
+
 // Point queries: for each asked point (x, z in metres from the window's
 // corner), the snow there, bilinear between texel centres: the persistent
 // snow height, the displayed surface and its normal, the terrain and the rest

@@ -1,9 +1,11 @@
+// #import shared/objects
+
 // Scatter pass (compute; the original drew a quad per pixel with a geometry
 // shader into up to eight targets): every occlusion pixel that sees an object
 // shares one pixel of snow among the atlas texels of its footprint rectangle,
 // with integer atomics (HIT_UNIT per pixel) into one atlas for all objects,
 // times a noise factor 1 + noise (2 hash - 1) that changes every frame.
-// CPU twin: src/cpu/scatter.rs. Prepended: shared/objects.wgsl.
+// CPU twin: src/cpu/scatter.rs.
 
 struct ScatterParams {
     resolution: u32,

@@ -1,3 +1,5 @@
+// #import shared/objects
+
 // Settle pass: the frame's increment blurred 5x5 (Dinh's Gaussian weights,
 // renormalised over the texels of the same object), added to the
 // accumulation, then Dinh's stability (eq. 4.3): a surface whose world normal
@@ -7,7 +9,7 @@
 // thins to its edge instead of ending in a cliff on the texel grid); a
 // surface holds up to c = m * n.y and snow above that falls off gradually,
 //   a <- a - (a - c) * f,   f = 1 - exp(-falloff * dt).
-// CPU twin: src/cpu/settle.rs. Prepended: shared/objects.wgsl.
+// CPU twin: src/cpu/settle.rs.
 
 struct SettleParams {
     atlas_resolution: u32,

@@ -1,3 +1,6 @@
+// #import shared/lighting
+// #import shared/shell
+
 // Shell mapping, drawn: the shell's tetrahedra rasterised (front faces) and
 // the detail volume traced inside each along the view ray with its affine
 // map, at the mip level of the pixel's footprint (sphere tracing with the
@@ -6,7 +9,6 @@
 // peeling of `shell_resolve.wgsl` (Leshonkov & Frolov 2021, section 3.1):
 // `fs_layer` finds the next layer's depth (step 1) and `fs_shade` shades it
 // under a depth test `equal` (step 3), blended front to back.
-// Prepended: shared/frame.wgsl, shared/lighting.wgsl, shared/shell.wgsl.
 
 struct ShellDrawParams {
     dims: vec4<f32>,      // level-0 voxels along u, v, w; w: mip levels

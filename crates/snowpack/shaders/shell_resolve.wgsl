@@ -9,7 +9,6 @@
 //     accumulated so far passes the threshold (0.95).
 //   `fs_composite`: the shell's premultiplied colour over the HDR scene; in
 //     the debug view, the pixels one pass shaded in green (their Figure 3).
-// Prepended: nothing.
 
 struct PeelParams {
     threshold: f32,       // opacity that ends a pixel's peeling

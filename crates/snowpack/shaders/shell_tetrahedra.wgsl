@@ -1,3 +1,5 @@
+// #import shared/shell
+
 // Shell construction, step 2 of 2 (Figure 4): per face of the base mesh, its
 // prism between S_t and S'_t split into three tetrahedra by the vertex-index
 // rule (`prism_corner`), each with its world -> barycentric map and its
@@ -5,7 +7,6 @@
 // four faces, wound counter-clockwise seen from outside, for drawing; one
 // too flat for an accurate map in f32 is marked and drawn as nothing. Data
 // independent: one invocation per face. CPU twin: `src/cpu/shell_tetrahedra.rs`.
-// Prepended: shared/shell.wgsl.
 
 struct TetraParams {
     faces: u32,

@@ -1,9 +1,12 @@
+// #import shared/terrain
+// #import shared/shell
+
 // Shell construction, step 1 of 2 (Figure 4): the base surface S as it is
 // drawn this frame (S_t) and the offset surface S'_t along its normals.
 // Snow mode reads the displayed snow surface at the patch's texels; the
 // shell thins where the snow is pressed below rest, so grass lies flat in a
 // trail. Mesh mode takes positions and normals as given. CPU twin:
-// `src/cpu/shell_vertices.rs`. Prepended: shared/terrain.wgsl, shared/shell.wgsl.
+// `src/cpu/shell_vertices.rs`.
 
 struct ShellVertexParams {
     mode: u32,            // 0 mesh, 1 snow

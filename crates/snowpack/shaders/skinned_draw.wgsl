@@ -1,7 +1,8 @@
+// #import shared/lighting
+
 // Skinned characters in pose: the skinning pass's world positions drawn as
 // they are, flat-shaded from screen-space derivatives (low-poly characters
 // need no smooth normals), lit like the snow, casting and receiving shadows.
-// Prepended: shared/frame.wgsl, shared/lighting.wgsl.
 
 // Fur: a fox's orange, rough.
 const FUR_ALBEDO: vec3<f32> = vec3<f32>(0.55, 0.22, 0.07);

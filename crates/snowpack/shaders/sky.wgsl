@@ -1,5 +1,7 @@
+// #import shared/frame
+
 // The sky behind everything: the full-resolution environment looked up along
-// each pixel's view ray (or a solid colour, for tests). Prepended: shared/frame.wgsl.
+// each pixel's view ray (or a solid colour, for tests).
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> env_full: array<vec4<f32>>;

@@ -1,3 +1,7 @@
+// #import shared/window
+// #import shared/stamp
+// #import shared/share_flags
+
 // Stamp pass (deferred point deformation): one workgroup per contact point
 // writes the footprint h = foot + d^2 * scale over a range x range texel
 // square around it into the toroidal stamp buffer with atomicMin, so the

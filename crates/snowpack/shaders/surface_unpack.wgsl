@@ -1,3 +1,8 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/snow_word
+
 // Surface unpack pass (the renderer's): the displayed height of every texel
 // (terrain + the upper half of its `snow` word, shared/snow_word.wgsl), and
 // its normal by central differences from a 18x18 workgroup-memory tile
@@ -5,8 +10,8 @@
 // window-local for the passes that march or draw the height field:
 //   surface[t] = (bitcast<u32>(height), pack2x16snorm(normal.x, normal.z))
 // with normal.y = sqrt(1 - x^2 - z^2). The deformation does not need it:
-// games sample the snow words directly (shared/snow_sampling.wgsl).
-// CPU twin: src/cpu/normals.rs.
+// games sample the snow words directly (snow_sampling.wgsl).
+// CPU twin: src/cpu/surface_unpack.rs.
 
 struct UnpackParams {
     origin: vec2<i32>,

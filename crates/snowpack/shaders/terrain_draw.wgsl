@@ -1,7 +1,11 @@
+// #import shared/frame
+// #import shared/lighting
+// #import shared/terrain
+// #import shared/terrain_kind
+
 // The snow terrain: CDLOD patches (instanced grids) displaced by the displayed
 // snow surface inside the deformation window and by terrain + rest depth
 // outside it, geomorphed so levels blend without popping or cracks.
-// Prepended: shared/frame.wgsl, shared/lighting.wgsl, shared/terrain.wgsl.
 
 @group(1) @binding(0) var<storage, read> surface: array<vec2<u32>>;
 @group(1) @binding(1) var<storage, read> heightmap: array<f32>;

@@ -1,3 +1,6 @@
+// #import shared/window
+// #import shared/stamp
+
 // Tile gather pass (shared snow): copies whole tiles on the global grid out
 // of the window's toroidal buffers into a packed buffer the CPU reads back
 // (src/replicate/gather.rs). Per tile t, three planes of side*side u32,

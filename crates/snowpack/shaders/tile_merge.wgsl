@@ -1,3 +1,9 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/stamp
+// #import shared/snow_word
+
 // Tile merge pass (shared snow): folds tiles from other machines into the
 // window's toroidal buffers (src/replicate/merge.rs). Tiles are packed as
 // the gather pass writes them (deficit, footprint, snowfall bits: three

@@ -1,3 +1,8 @@
+// #import shared/tiles
+// #import shared/stamp
+// #import shared/terrain
+// #import shared/terrain_kind
+
 // Tile restore pass: makes tiles resident in their slots as the window comes
 // near them. A tile the store held (its heights XOR its rest height, so
 // untouched snow is 0) is copied from the upload buffer and

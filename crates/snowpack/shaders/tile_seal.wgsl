@@ -1,3 +1,7 @@
+// #import shared/tiles
+// #import shared/terrain
+// #import shared/terrain_kind
+
 // Tile seal pass: turns the snow plane of the listed slots into what the
 // store keeps, the snow height's bits XOR the bits of its rest height
 // (ground + depth + the texel's snowfall, added in that order, as

@@ -1,3 +1,8 @@
+// #import shared/tiles
+// #import shared/stamp
+// #import shared/terrain
+// #import shared/terrain_kind
+
 // Tile weather pass: time passes on the resident tiles outside the window.
 // Each frame with refill or snowfall, every texel of a resident tile that the
 // window does not cover gets what the update gives open, untouched ground

@@ -1,6 +1,7 @@
+// #import shared/frame
+
 // Exposure and a filmic tone map (ACES, Narkowicz's fit) from the HDR target
 // to the output, which stores sRGB. Debug views pass through unmapped.
-// Prepended: shared/frame.wgsl.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var hdr: texture_2d<f32>;

@@ -1,3 +1,10 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/stamp
+// #import shared/snow_word
+// #import shared/share_flags
+
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
 //   snow = max(terrain, min(snow + fall + refill capped at rest, max(terrain, actor), max(terrain, stamp)))

@@ -1,3 +1,5 @@
+// #import shared/window
+
 // Window pass: writes fresh snow (deficit 0: at its rest height) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
 // columns), and nothing else; their footprints are cleared (when the window

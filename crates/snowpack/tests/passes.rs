@@ -273,10 +273,10 @@ fn capture_and_update_match_cpu() {
     update.record(&ctx.queue, &mut enc, &mut timer, &up);
     submit(ctx, enc);
 
-    let mut depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
-    let swept = cpu::capture::swept_triangles(&before, &triangles, steps);
-    cpu::capture::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
-    cpu::capture::quantise_depths(&mut depth);
+    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
+    let swept = cpu::capture_mesh::swept_triangles(&before, &triangles, steps);
+    cpu::capture_mesh::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
+    cpu::capture_sphere::quantise_depths(&mut depth);
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
@@ -395,7 +395,7 @@ fn display_and_surface_unpack_match_cpu() {
     let mut enc = encoder(ctx);
     unpack.record(&ctx.queue, &mut enc, &mut timer, origin);
     submit(ctx, enc);
-    let cpu_surface = cpu::normals::normals(&gpu_words, &terrain, origin, params.resolution, params.texel_m());
+    let cpu_surface = cpu::surface_unpack::normals(&gpu_words, &terrain, origin, params.resolution, params.texel_m());
     let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("readback"));
     for (k, (g, c)) in gpu_surface.iter().zip(&cpu_surface).enumerate() {
         let (a, b) = (f32::from_bits(g[0]), f32::from_bits(c[0]));
@@ -756,8 +756,8 @@ fn wheel_capture_matches_cpu() {
     capture.record(&mut enc, &mut timer, &res);
     update.record(&ctx.queue, &mut enc, &mut timer, &up);
     submit(ctx, enc);
-    let mut depth = cpu::capture::capture_depths(&instances, &cparams, params.resolution);
-    cpu::capture::quantise_depths(&mut depth);
+    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture_sphere::quantise_depths(&mut depth);
     let mut stamps = vec![cpu::stamp::STAMP_EMPTY; n];
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);

@@ -61,8 +61,8 @@ fn environment_passes_match_cpu_twin() {
     ctx.queue.submit([encoder.finish()]);
     let small: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &pass.downsampled).expect("read"));
     let pre: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &pass.prefiltered).expect("read"));
-    let cpu_small = cpu::environment::downsample(&env.texels, w, h, environment::DOWNSAMPLED_W, environment::DOWNSAMPLED_H, environment::CLAMP_LUMINANCE);
-    let cpu_pre = cpu::environment::prefilter(
+    let cpu_small = cpu::env_downsample::downsample(&env.texels, w, h, environment::DOWNSAMPLED_W, environment::DOWNSAMPLED_H, environment::CLAMP_LUMINANCE);
+    let cpu_pre = cpu::env_prefilter::prefilter(
         &cpu_small,
         environment::DOWNSAMPLED_W,
         environment::DOWNSAMPLED_H,

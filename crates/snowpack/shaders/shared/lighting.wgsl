@@ -1,3 +1,5 @@
+// #import shared/frame
+
 // Bindings and shading shared by the lit passes (terrain and actors):
 // sun with a PCF shadow map, image-based sky light from the prefiltered
 // environment, GGX specular, a wrapped, tinted diffuse for snow's scattering.

@@ -1,3 +1,5 @@
+// #import shared/window
+
 // Changed-tile flags of shared snow (src/replicate/flags.rs is the CPU twin).
 // One u32 per tile slot; tiles of `side` texels on the global grid map to
 // slots toroidally by key: slot = (row mod keys) * keys + (col mod keys),

@@ -1,3 +1,5 @@
+// #import shared/terrain
+
 // The terrain kind a pass's pipeline is built for (the window passes:
 // `DeformResources::terrain_constants`; the terrain draw: `TerrainPass::new`);
 // 255, the default, reads it from the params. A constant kind lets the driver

@@ -1,6 +1,9 @@
+// #import shared/window
+// #import shared/tiles
+
 // Resident tiles by key (src/deform/tiles.rs): a tile with a slot in the
 // pool is found through the key table, which the including shader declares
-// as `tile_table: array<u32>`. Needs shared/window.wgsl and shared/tiles.wgsl.
+// as `tile_table: array<u32>`.
 
 const NO_SLOT: u32 = 0xffffffffu;
 

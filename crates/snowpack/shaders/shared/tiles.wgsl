@@ -1,3 +1,6 @@
+// #import shared/window
+// #import shared/stamp
+
 // Resident tiles: the GPU's copy of the world's tiles around the sliding
 // window (src/deform/tiles.rs). The world is cut into square tiles of `side`
 // texels on the global texel grid; a tile the window partly covers, or one
@@ -10,7 +13,6 @@
 // 3 planes (`tiles::planes` in Rust). There is no terrain plane: the passes
 // evaluate the ground of a slot texel from the terrain's source
 // (texel_ground in shared/terrain_kind.wgsl).
-// Needs shared/window.wgsl (wrap_index) and shared/stamp.wgsl.
 
 const PLANE_SNOW: u32 = 0u;
 const PLANE_FALLEN: u32 = 1u; // only with snowfall

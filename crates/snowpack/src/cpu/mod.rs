@@ -1,15 +1,18 @@
-//! CPU references of every GPU pass, one file per WGSL file. They mirror the
-//! shaders' arithmetic (same operations, same order) so tests can compare the
-//! GPU's output with them on random inputs.
+//! CPU references of every GPU pass, one file per WGSL file and named after
+//! it (`shaders/X.wgsl` is twinned by `X.rs`; `shaders::tests` checks). They
+//! mirror the shaders' arithmetic (same operations, same order) so tests can
+//! compare the GPU's output with them on random inputs.
 
 pub mod ao;
 pub mod atlas_surface;
-pub mod capture;
+pub mod capture_mesh;
+pub mod capture_sphere;
+pub mod capture_wheel;
 pub mod display;
-pub mod environment;
+pub mod env_downsample;
+pub mod env_prefilter;
 pub mod exchange;
 pub mod increment;
-pub mod normals;
 #[cfg(feature = "renderer")]
 pub mod peel_count;
 pub mod query;
@@ -22,6 +25,7 @@ pub mod shell_vertices;
 pub mod skinning;
 pub mod snow_sampling;
 pub mod stamp;
+pub mod surface_unpack;
 pub mod terrain_bake;
 pub mod tile_gather;
 pub mod tile_merge;

@@ -1,4 +1,4 @@
-//! CPU twin of `shaders/shared/snow_sampling.wgsl`: the same samples of the
+//! CPU twin of `shaders/snow_sampling.wgsl`: the same samples of the
 //! displayed surface (height, normal, depth, compaction) from a blocking read
 //! of the snow words ([`crate::SnowDeformation::read_snow_words`]), same
 //! operations in the same order.

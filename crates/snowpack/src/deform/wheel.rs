@@ -17,7 +17,7 @@
 //! sweep smear the pattern along the rut.
 //!
 //! The capture draws one impostor per sub-step (`capture_wheel.wgsl`, CPU
-//! twin `cpu::capture::wheel_bottom`); the sub-steps are spaced so
+//! twin `cpu::capture_wheel::wheel_bottom`); the sub-steps are spaced so
 //! that neither the tyre nor its tread at the contact moves more than
 //! [`super::sweep::SWEEP_STEP_TEXELS`] texels between them.
 

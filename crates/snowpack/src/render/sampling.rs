@@ -1,5 +1,5 @@
 //! The snow as a game's own shaders see it: the exported WGSL module
-//! ([`SNOW_SAMPLING_WGSL`], `shaders/shared/snow_sampling.wgsl` after
+//! ([`SNOW_SAMPLING_WGSL`], `shaders/snow_sampling.wgsl` after its import
 //! `shaders/shared/terrain.wgsl`), its bind-group layout entries and the bind
 //! group built from a [`SnowDeformation`].
 //!

@@ -1,7 +1,9 @@
+// #import shared/terrain
+
 // snowpack's snow, sampled from a game's own shaders.
 //
 // Exported as `snowpack::render::ground::SNOW_SAMPLING_WGSL`, which is
-// shared/terrain.wgsl followed by this file: paste it (or concatenate it)
+// shared/terrain.wgsl (imported above) followed by this file: paste it (or concatenate it)
 // ahead of your shader. `SnowGround` (ground.wgsl) uses exactly this module.
 //
 // Bindings, all in one group (default 1; `snow_sampling_wgsl(group)` in Rust

@@ -1,4 +1,5 @@
-//! CPU twin of `surface_unpack.wgsl`.
+//! CPU twin of `surface_unpack.wgsl`: the displayed heights and their packed
+//! normals.
 
 pub use crate::deform::display::normals_of;
 use crate::deform::snow_word;
