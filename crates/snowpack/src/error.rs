@@ -66,7 +66,7 @@ pub enum SnowError {
 }
 
 /// What can go wrong storing or loading tiles. Every variant but
-/// [`StoreError::WorkerGone`] and [`StoreError::NoDisk`] names the file (errors from [`decode`](crate::persist::decode) alone,
+/// [`StoreError::WorkerGone`] and [`StoreError::NoDisk`] names the file (errors from `decode` alone,
 /// which sees bytes and no file, leave the path empty).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

@@ -67,8 +67,8 @@ const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 ///
 /// The mesh is drawn from above into a grid (the highest surface per texel
 /// centre wins, as a depth test would choose): on the GPU by
-/// [`crate::deform::terrain_bake::TerrainBakePass`] for the snow window, and on
-/// the CPU by [`draw_from_above`] for physics and queries (the
+/// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
+/// the CPU by `draw_from_above` for physics and queries (the
 /// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
 /// centre is not on a triangle's edge). Overhangs are invisible from above, which is
 /// right for snow: it lies on the top surface.
@@ -94,7 +94,7 @@ impl std::fmt::Debug for TerrainMesh {
 impl TerrainMesh {
     /// Places a grid of about `texel_m` texels over the triangles' extent and
     /// draws them into it on the CPU. The texel grows when the mesh would need
-    /// more than [`MESH_GRID_MAX_SIDE`] texels on a side.
+    /// more than `MESH_GRID_MAX_SIDE` texels on a side.
     pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, SnowError> {
         let bad = |why: String| SnowError::InvalidParameter { field: "terrain mesh", why };
         if triangles.is_empty() {

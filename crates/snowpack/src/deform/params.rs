@@ -29,7 +29,7 @@ pub struct SnowParams {
     pub rim: RimStyle,
     /// Penetration hardness of the snow (kPa): the foot pressure at which a
     /// character placed on the snow sinks half its depth (see
-    /// [`crate::skin::sinking`]). Fresh powder is a few kPa, settled snow tens.
+    /// `crate::skin::sinking`). Fresh powder is a few kPa, settled snow tens.
     pub hardness_kpa: f32,
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
@@ -39,14 +39,14 @@ pub struct SnowParams {
     /// trail is still there when the window comes back (the scene's
     /// `[store]` table). `Some`: kept in memory
     /// ([`crate::persist::TileStreamer::in_memory`], tiles of
-    /// [`default_tile_texels`]); beyond the budget the least recently left
+    /// `default_tile_texels`); beyond the budget the least recently left
     /// tiles are forgotten (fresh snow). `None`: texels leaving the window
     /// are forgotten and no tiles are resident on the GPU. Default
-    /// [`DEFAULT_TILE_MEMORY_BYTES`]. A disk store attached with
+    /// `DEFAULT_TILE_MEMORY_BYTES`. A disk store attached with
     /// [`crate::SnowDeformation::attach_store`] replaces the memory keeper.
     pub tile_memory_bytes: Option<usize>,
     /// Largest distance (m) a deformer may move between two frames and still
-    /// be swept over its motion (see [`crate::deform::sweep`]); a larger
+    /// be swept over its motion (see `crate::deform::sweep`); a larger
     /// jump is a teleport and presses only where it lands. 0 turns sweeping
     /// off (each deformer presses where it stands each frame). Default 4 m
     /// (a vehicle at 120 m/s at 30 frames a second).

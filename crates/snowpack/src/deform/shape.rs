@@ -31,7 +31,7 @@ pub enum Deformer {
         scale_per_m: f32,
     },
     /// A wheel: a cylinder with a tread, rolling about its axle (see
-    /// [`super::wheel`]). Captured exactly (an impostor writes the lower
+    /// `super::wheel`). Captured exactly (an impostor writes the lower
     /// surface of the tyre, lugs included); swept in sub-steps with its roll,
     /// so a rolling wheel prints its tread in place and a slipping one
     /// smears it.
@@ -39,7 +39,7 @@ pub enum Deformer {
         /// Centre of the wheel (on its axle, midway across its width) in world space (m).
         center: Vec3,
         /// Unit direction of the axle. The wheel rolls forward along
-        /// `axle x up` ([`super::wheel::forward`]) as `roll_m` grows.
+        /// `axle x up` (`super::wheel::forward`) as `roll_m` grows.
         axle: Vec3,
         /// Outer radius, lugs included (m).
         radius: f32,

@@ -64,7 +64,7 @@ struct ErrorSink {
 }
 
 /// Which adapter snowpack's own selection ([`GpuContext::new_headless`],
-/// [`GpuContext::choose`]) may pick. The default asks for nothing in
+/// `GpuContext::choose`) may pick. The default asks for nothing in
 /// particular: the best adapter of any backend.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct AdapterRequest {
@@ -106,7 +106,7 @@ impl AdapterRequest {
 /// A wgpu device and queue for snowpack, with error tracking.
 ///
 /// Made by snowpack's own adapter selection ([`Self::new_headless`],
-/// [`Self::choose`]) for the demo, the runner and tools, or around a device
+/// `Self::choose`) for the demo, the runner and tools, or around a device
 /// the game already has ([`Self::from_device`]).
 pub struct GpuContext {
     /// The instance the adapter came from (`None` for a game's device).

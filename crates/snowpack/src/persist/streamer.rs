@@ -48,12 +48,12 @@ const MAX_ABSENT: usize = 1 << 16;
 /// How much memory the streamer's cache may use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StreamerConfig {
-    /// Most bytes of tiles (by [`TileData::memory_bytes`]) to keep in memory;
+    /// Most bytes of tiles (by `TileData::memory_bytes`) to keep in memory;
     /// beyond it the least recently used are dropped. Exceptions: the tile
     /// most recently added is always kept (a budget smaller than one tile
     /// keeps one); tiles loaded because they were asked for
-    /// ([`TileStreamer::request`], [`TileStreamer::lookup`],
-    /// [`TileStreamer::wait_for`]) and not yet handed out by `lookup` are
+    /// (`TileStreamer::request`, `TileStreamer::lookup`,
+    /// `TileStreamer::wait_for`) and not yet handed out by `lookup` are
     /// dropped last, and only beyond the budget or 64 MiB, whichever is
     /// larger, so the window cannot wait forever for tiles that a small
     /// budget keeps dropping. Tiles queued for writing are held by the
@@ -317,14 +317,14 @@ impl TileStreamer {
     }
 
     /// Keeps tiles of `side` texels in memory only: no store, no worker
-    /// thread, no files. [`TileStreamer::lookup`] answers at once: the tile
+    /// thread, no files. `TileStreamer::lookup` answers at once: the tile
     /// put last (handed out once: it leaves the cache, as the window holds it
     /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
     /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
     /// least recently used tiles are dropped and come back as fresh snow
-    /// (each counted in [`StoreStats::lost`]). Untouched tiles (every height
+    /// (each counted in `StoreStats::lost`). Untouched tiles (every height
     /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
-    /// is the same. [`TileStreamer::write_state`] (and so saving) fails:
+    /// is the same. `TileStreamer::write_state` (and so saving) fails:
     /// saving needs a disk store.
     #[must_use]
     pub fn in_memory(side: u32, config: StreamerConfig) -> Self {
@@ -524,7 +524,7 @@ impl TileStreamer {
 
     /// Blocks until every queued write is done, writing again the cached
     /// tiles whose earlier write failed. Returns the first write error of
-    /// this flush; any others are in [`TileStreamer::take_errors`].
+    /// this flush; any others are in `TileStreamer::take_errors`.
     pub fn flush(&mut self) -> Result<(), StoreError> {
         if self.memory_only {
             // Nothing is ever waiting to be written.

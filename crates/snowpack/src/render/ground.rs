@@ -118,7 +118,7 @@ pub struct SnowGroundDescriptor {
 }
 
 impl SnowGroundDescriptor {
-    /// Colour target `color_format`, no depth, one sample, [`DEFAULT_GRID_QUADS`], back faces culled, default lighting.
+    /// Colour target `color_format`, no depth, one sample, `DEFAULT_GRID_QUADS`, back faces culled, default lighting.
     #[must_use]
     pub fn new(color_format: wgpu::TextureFormat) -> Self {
         Self { color_format, depth: None, sample_count: 1, grid_quads: DEFAULT_GRID_QUADS, cull_back_faces: true, lighting: GroundLighting::default() }

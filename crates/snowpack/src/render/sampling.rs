@@ -27,7 +27,7 @@ use crate::shaders;
 use crate::snow::SnowDeformation;
 
 /// WGSL a game prepends to its shader to sample the snow: declares the four
-/// bindings (group [`SNOW_SAMPLING_GROUP`], bindings 0..=3) and the functions
+/// bindings (group `SNOW_SAMPLING_GROUP`, bindings 0..=3) and the functions
 /// `snow_height`, `snow_normal`, `snow_depth`, `snow_compaction` (all taking a
 /// world `vec2<f32>` (x, z)). Validated by naga at build time.
 pub const SNOW_SAMPLING_WGSL: &str = shaders::SNOW_SAMPLING;
@@ -62,7 +62,7 @@ pub struct SnowWindowUniform {
     pub resolution: u32,
     /// 1 once the window has been placed (after the deformation's first frame), else 0.
     pub placed: u32,
-    /// `origin_texel` wrapped into `0..resolution` ([`crate::deform::window::storage_origin`]):
+    /// `origin_texel` wrapped into `0..resolution` (`crate::deform::window::storage_origin`):
     /// where local texel (0, 0) is stored, so the shader wraps with no division.
     pub storage_origin: [u32; 2],
 }

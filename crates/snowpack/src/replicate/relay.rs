@@ -356,7 +356,7 @@ impl SnowRelay {
 
     /// A relay that keeps its tiles in `store`, resuming the world saved
     /// there (if any; tiles are read back when they are needed). The
-    /// store's tile files hold deficits (see [`tile_to_data`]), not the
+    /// store's tile files hold deficits (see `tile_to_data`), not the
     /// heights a [`TileStreamer`](crate::TileStreamer) keeps: give a relay
     /// a directory of its own.
     pub fn with_store(store: TileStore, config: RelayConfig) -> Result<Self, ShareError> {

@@ -14,7 +14,7 @@ pub struct WorldIdentity {
     pub texel_m: f32,
     /// Texels per tile side.
     pub tile_side: u32,
-    /// The terrain, as [`terrain_identity`] describes it.
+    /// The terrain, as `terrain_identity` describes it.
     pub terrain: String,
     /// Rest depth of fresh snow (m).
     pub depth_m: f32,

@@ -68,11 +68,11 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 
 /// A deformation window and the passes that update it.
 ///
-/// Per frame: [`WindowPass`] (newly exposed texels), [`CapturePass`] (actors
-/// from below; techniques depth and combined), [`StampPass`] (contact points'
-/// footprints; points and combined), [`UpdatePass`] (persistent height with
-/// refill), [`DisplayPass`] (Hanák's remap or point rims, then the optional
-/// blur, into the displayed half of each snow word), then [`QueryPass`] (the
+/// Per frame: `WindowPass` (newly exposed texels), `CapturePass` (actors
+/// from below; techniques depth and combined), `StampPass` (contact points'
+/// footprints; points and combined), `UpdatePass` (persistent height with
+/// refill), `DisplayPass` (Hanák's remap or point rims, then the optional
+/// blur, into the displayed half of each snow word), then `QueryPass` (the
 /// points asked with [`Self::query_points`], answered a frame or two later).
 /// Normals are computed where they are used, from the displayed heights.
 ///
@@ -81,7 +81,7 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// bytes a texel) for decals. Switching technique ([`Self::set_technique`])
 /// to one whose buffer is not there yet allocates it at the next encoded
 /// frame (and rebinds the passes and, for the decal layer, renderers that
-/// compare [`Self::decal_layer`]); nothing is freed by switching back. A
+/// compare `Self::decal_layer`); nothing is freed by switching back. A
 /// switch keeps the persistent snow (so trails made by any technique stay)
 /// and the stored footprints (rims come back when points do); it changes
 /// only which deformers write from the next frame on and how rims are shown.
@@ -231,7 +231,7 @@ impl<'a> SnowFrame<'a> {
     }
 
     /// The same frame with a stable id per deformer (see [`Self::ids`]), so
-    /// each is swept from its own last pose (see [`crate::deform::sweep`]).
+    /// each is swept from its own last pose (see `crate::deform::sweep`).
     #[must_use]
     pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
         self.ids = ids;
@@ -248,7 +248,7 @@ pub struct SkinnedId(usize);
 pub struct SkinnedPose<'a> {
     /// The registered mesh.
     pub mesh: SkinnedId,
-    /// Skinning matrix of each joint ([`crate::skin::Skeleton::joint_matrices`]).
+    /// Skinning matrix of each joint (`crate::skin::Skeleton::joint_matrices`).
     pub joints: &'a [glam::Mat4],
     /// Position, heading and scale in the world.
     pub model: glam::Mat4,
