@@ -121,7 +121,7 @@ mod testing;
 mod tiles;
 
 // The front door: what a game uses (docs/architecture.md lists it and says why each is here).
-pub use accumulate::{ObjectShape, SnowObject};
+pub use accumulate::{ObjectShape, ObjectStats, SnowObject};
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
@@ -130,7 +130,7 @@ pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
-pub use render::sampling::{SnowWindowUniform, sampling_layout_entries};
+pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_layout_entries, snow_sampling_wgsl};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 pub use skin::skinning::SkinnedMesh;

@@ -6,7 +6,7 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use bevy::prelude::*;
-use snowpack::low_level::accumulate::ObjectStats;
+use snowpack::ObjectStats;
 
 #[derive(Default)]
 struct Shared {

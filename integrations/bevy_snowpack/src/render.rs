@@ -9,9 +9,7 @@ use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, RenderStartup};
-use snowpack::low_level::persist::{TileStore, TileStreamer};
-use snowpack::low_level::render::sampling::SnowWindowUniform;
-use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
 
 use crate::control::SnowControl;
 use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};
@@ -238,10 +236,9 @@ fn after_submit(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>, c
         control.set_save_result(snow.save(ctx).map(|()| snow.frame()).map_err(|e| e.to_string()));
     }
     if control.take_stats_request() {
-        match snow.accumulation().map(|acc| acc.read_atlas(ctx).map(|atlas| acc.stats(&atlas))) {
-            Some(Ok(stats)) => control.set_object_stats(objects.iter().map(|(e, ..)| *e).zip(stats).collect()),
-            Some(Err(e)) => tracing::error!("bevy_snowpack: reading the objects' snow: {e}"),
-            None => control.set_object_stats(Vec::new()),
+        match snow.read_object_stats(ctx) {
+            Ok(stats) => control.set_object_stats(objects.iter().map(|(e, ..)| *e).zip(stats).collect()),
+            Err(e) => tracing::error!("bevy_snowpack: reading the objects' snow: {e}"),
         }
     }
     let Some(answers) = snow.point_answers() else { return };
