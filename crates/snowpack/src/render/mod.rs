@@ -16,40 +16,19 @@ pub mod ground;
 pub mod pipeline;
 pub mod sampling;
 
-#[cfg(feature = "renderer")]
-pub mod actors;
-#[cfg(feature = "renderer")]
-pub mod ao;
-#[cfg(feature = "renderer")]
-pub mod camera;
-#[cfg(feature = "renderer")]
-pub mod detail;
-#[cfg(feature = "renderer")]
-pub mod environment;
-#[cfg(feature = "renderer")]
-pub mod frame;
-#[cfg(feature = "renderer")]
-pub mod lod;
-#[cfg(feature = "renderer")]
-pub mod objects;
-#[cfg(feature = "renderer")]
-pub mod params;
+/// Declares the modules of snowpack's own renderer, compiled with its feature.
+macro_rules! renderer_modules {
+    ($($module:ident),* $(,)?) => {
+        $(
+            #[cfg(feature = "renderer")]
+            pub mod $module;
+        )*
+    };
+}
+
+renderer_modules!(actors, ao, camera, detail, environment, frame, lod, objects, params, shadow, shell, skinned, sky, surface, terrain, tonemap);
 #[cfg(feature = "renderer")]
 mod renderer;
-#[cfg(feature = "renderer")]
-pub mod shadow;
-#[cfg(feature = "renderer")]
-pub mod shell;
-#[cfg(feature = "renderer")]
-pub mod skinned;
-#[cfg(feature = "renderer")]
-pub mod sky;
-#[cfg(feature = "renderer")]
-pub mod surface;
-#[cfg(feature = "renderer")]
-pub mod terrain;
-#[cfg(feature = "renderer")]
-pub mod tonemap;
 
 pub use ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
 #[cfg(feature = "renderer")]
