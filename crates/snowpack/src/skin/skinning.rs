@@ -44,6 +44,9 @@ impl SkinnedMesh {
         if n == 0 {
             return Err("the mesh has no vertices".into());
         }
+        if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
+        }
         if self.joints.len() != n || self.weights.len() != n {
             return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
         }
