@@ -44,10 +44,6 @@ impl<'f> Fields<'f> {
         SceneError::new(self.file, self.key(key), message)
     }
 
-    pub(crate) fn file(&self) -> &'f Path {
-        self.file
-    }
-
     fn number(&self, key: &str, v: &Value) -> Result<f64, SceneError> {
         let x = match v {
             Value::Float(f) => *f,

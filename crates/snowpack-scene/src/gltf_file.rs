@@ -584,8 +584,9 @@ fn check_uses(document: &gltf::Document) -> Result<(), String> {
     }
     for anim in document.animations() {
         let name = anim.name().map_or_else(|| format!("animation {}", anim.index()), |n| format!("animation {n:?}"));
-        if anim.channels().len() > MAX_ANIMATIONS {
-            return Err(format!("{name} has {} channels; at most {MAX_ANIMATIONS} are supported", anim.channels().len()));
+        let channels = anim.channels().count();
+        if channels > MAX_ANIMATIONS {
+            return Err(format!("{name} has {channels} channels; at most {MAX_ANIMATIONS} are supported"));
         }
         for (k, ch) in anim.channels().enumerate() {
             let sampler = ch.sampler();

@@ -713,6 +713,11 @@ impl Scene {
                 cam
             }
         };
+        if window == WindowSpec::FollowCamera
+            && let Some(why) = texels_overflow([camera.position.x, camera.position.z], &snow)
+        {
+            return Err(SceneError::new(path, "[camera].position", format!("the window follows the camera: {why}")));
+        }
         let render = parse_render(&mut root, &base_dir)?;
         root.finish()?;
         // The window carries the snowfall (its ground gains snow).
@@ -917,7 +922,9 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
 fn read_heightmap_png(file: &Path) -> Result<image::ImageBuffer<image::Luma<u16>, Vec<u16>>, String> {
     use image::ImageDecoder as _;
     use snowpack::low_level::terrain::HEIGHTMAP_MAX_SIDE;
-    let reader = image::ImageReader::open(file).and_then(image::ImageReader::with_guessed_format).map_err(|e| format!("cannot read it: {e}"))?;
+    // By its contents only: a file named .png that is not one says so.
+    let opened = std::fs::File::open(file).map_err(|e| format!("cannot read it: {e}"))?;
+    let reader = image::ImageReader::new(std::io::BufReader::new(opened)).with_guessed_format().map_err(|e| format!("cannot read it: {e}"))?;
     if reader.format() != Some(image::ImageFormat::Png) {
         return Err("it is not a PNG file (heightmaps are 16-bit greyscale PNGs)".into());
     }
