@@ -403,11 +403,7 @@ fn check_graph(document: &gltf::Document) -> Result<(), String> {
             }
             if on_walk[at] {
                 let cycle: Vec<String> = walk[walk.iter().position(|&n| n == at).unwrap_or(0)..].iter().map(|n| n.to_string()).collect();
-                return Err(format!(
-                    "{} is its own ancestor (nodes {} -> {at}): the node graph must be a tree",
-                    node_label(&nodes[at]),
-                    cycle.join(" -> ")
-                ));
+                return Err(format!("{} is its own ancestor (nodes {} -> {at}): the node graph must be a tree", node_label(&nodes[at]), cycle.join(" -> ")));
             }
             on_walk[at] = true;
             walk.push(at);
@@ -517,7 +513,6 @@ fn check_accessor(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<
     }
     Ok(())
 }
-
 
 /// The accessor has one of the shapes its use needs.
 fn expect_type(accessor: &gltf::Accessor<'_>, what: &str, dims: Dimensions, types: &[DataType]) -> Result<(), String> {

@@ -148,11 +148,7 @@ impl Model {
 /// mesh, an accumulation object, a character.
 fn every_use(path: &Path) -> [Result<(), String>; 3] {
     let open = || GltfFile::open(path);
-    [
-        open().and_then(|g| g.world_triangles(1.0).map(drop)),
-        open().and_then(|g| g.object_mesh(1.0).map(drop)),
-        open().and_then(|g| g.skinned_model().map(drop)),
-    ]
+    [open().and_then(|g| g.world_triangles(1.0).map(drop)), open().and_then(|g| g.object_mesh(1.0).map(drop)), open().and_then(|g| g.skinned_model().map(drop))]
 }
 
 /// `model` written as `name`, refused by every use with a message naming the
