@@ -61,13 +61,11 @@ fn exits_2(dir: &Path, name: &str, body: &str, key: &str, words: &[&str]) {
 /// and hang (object).
 fn cyclic_glb() -> Vec<u8> {
     let positions: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0].iter().flat_map(|x| x.to_le_bytes()).collect();
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"byteLength":36}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,1]}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
-"nodes":[{{"name":"a","mesh":0,"children":[1]}},{{"name":"b","children":[0]}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
-    );
-    let mut text = json.into_bytes();
+    let json = r#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":36}],"bufferViews":[{"buffer":0,"byteLength":36}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,0,1]}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+"nodes":[{"name":"a","mesh":0,"children":[1]},{"name":"b","children":[0]}],"scenes":[{"nodes":[0]}],"scene":0}"#;
+    let mut text = json.as_bytes().to_vec();
     while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
