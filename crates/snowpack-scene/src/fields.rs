@@ -8,6 +8,10 @@ use toml::{Table, Value};
 
 use crate::error::SceneError;
 
+/// Largest magnitude of any number in a scene: well inside f32's range, so
+/// that every number stays finite once converted and multiplied a little.
+pub(crate) const MAX_MAGNITUDE: f64 = 1e12;
+
 /// The remaining keys of one table, with its path.
 pub(crate) struct Fields<'f> {
     file: &'f Path,
@@ -40,10 +44,6 @@ impl<'f> Fields<'f> {
         SceneError::new(self.file, self.key(key), message)
     }
 
-    pub(crate) fn file(&self) -> &'f Path {
-        self.file
-    }
-
     fn number(&self, key: &str, v: &Value) -> Result<f64, SceneError> {
         let x = match v {
             Value::Float(f) => *f,
@@ -56,13 +56,20 @@ impl<'f> Fields<'f> {
         Ok(x)
     }
 
+    /// A number as the f32 it is used as: finite as an f64 is not enough
+    /// (`-1e39` is an infinite f32), so every number of a scene is at most
+    /// [`MAX_MAGNITUDE`] in size.
+    fn number_f32(&self, key: &str, v: &Value) -> Result<f32, SceneError> {
+        let x = self.number(key, v)?;
+        if x.abs() > MAX_MAGNITUDE {
+            return Err(self.err(key, format!("{x} is out of range (numbers of a scene are at most {MAX_MAGNITUDE:e} in size)")));
+        }
+        Ok(x as f32)
+    }
+
     pub(crate) fn f32_opt(&mut self, key: &str) -> Result<Option<f32>, SceneError> {
         let Some(v) = self.table.remove(key) else { return Ok(None) };
-        let x = self.number(key, &v)?;
-        if x.abs() > 1e12 {
-            return Err(self.err(key, format!("{x} is out of range")));
-        }
-        Ok(Some(x as f32))
+        self.number_f32(key, &v).map(Some)
     }
 
     pub(crate) fn f32(&mut self, key: &str, default: f32) -> Result<f32, SceneError> {
@@ -127,7 +134,7 @@ impl<'f> Fields<'f> {
         if items.len() != n {
             return Err(self.err(key, format!("expected {n} numbers, got {}", items.len())));
         }
-        items.iter().map(|x| self.number(key, x).map(|x| x as f32)).collect()
+        items.iter().map(|x| self.number_f32(key, x)).collect()
     }
 
     pub(crate) fn vec2_opt(&mut self, key: &str) -> Result<Option<[f32; 2]>, SceneError> {

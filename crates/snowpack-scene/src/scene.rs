@@ -546,6 +546,23 @@ impl Scene {
                         WindowSpec::FollowActor(index)
                     }
                 };
+                match &spec {
+                    WindowSpec::Center(c) => {
+                        if let Some(why) = texels_overflow(*c, &snow) {
+                            return Err(w.err("center", why));
+                        }
+                    }
+                    WindowSpec::FollowActor(index) => {
+                        let (key, points): (&str, Vec<[f32; 2]>) = match &actors[*index].motion {
+                            Motion::Kinematic { position, .. } | Motion::Physics { position, .. } => ("position", vec![[position.x, position.z]]),
+                            Motion::Path(keys) => ("path", keys.iter().map(|k| [k[0], k[2]]).collect()),
+                        };
+                        if let Some(why) = points.into_iter().find_map(|p| texels_overflow(p, &snow)) {
+                            return Err(SceneError::new(path, format!("[[actor]][{index}].{key}"), format!("the window follows this actor: {why}")));
+                        }
+                    }
+                    WindowSpec::FollowCamera => {}
+                }
                 w.finish()?;
                 spec
             }
@@ -582,10 +599,9 @@ impl Scene {
                 let rel = o.string_opt("file")?.ok_or_else(|| o.err("file", "a gltf object needs a file (.glb or .gltf)"))?;
                 let scale = o.positive("scale", 1.0, "")?;
                 let full = base_dir.join(&rel);
-                let mesh = GltfFile::open(&full).and_then(|g| g.object_mesh(scale)).map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
-                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = mesh.validate() {
-                    return Err(o.err("file", format!("{}: {why}", full.display())));
-                }
+                // `open` names the file in its errors; what it is used for does not.
+                let gltf = GltfFile::open(&full).map_err(|why| o.err("file", why))?;
+                let mesh = gltf.object_mesh(scale).map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
                 Some(Arc::new(mesh))
             } else {
                 None
@@ -697,6 +713,11 @@ impl Scene {
                 cam
             }
         };
+        if window == WindowSpec::FollowCamera
+            && let Some(why) = texels_overflow([camera.position.x, camera.position.z], &snow)
+        {
+            return Err(SceneError::new(path, "[camera].position", format!("the window follows the camera: {why}")));
+        }
         let render = parse_render(&mut root, &base_dir)?;
         root.finish()?;
         // The window carries the snowfall (its ground gains snow).
@@ -834,6 +855,25 @@ impl Scene {
     }
 }
 
+/// Why a window centred on world (x, z) = `center` would have texel (or
+/// tile) coordinates outside i32, which the GPU passes index with; `None`
+/// when they fit.
+fn texels_overflow(center: [f32; 2], snow: &SnowParams) -> Option<String> {
+    let texel = f64::from(snow.texel_m());
+    let r = f64::from(snow.resolution);
+    let fits = |x: f32| {
+        let t = (f64::from(x) / texel).floor();
+        t - r >= f64::from(i32::MIN) && t + r <= f64::from(i32::MAX)
+    };
+    if fits(center[0]) && fits(center[1]) {
+        return None;
+    }
+    let limit = (f64::from(i32::MAX) - r) * texel;
+    Some(format!(
+        "{center:?} m is beyond the texel grid: with {texel} m texels the window's texel coordinates are 32-bit, so x and z must be within ±{limit:.0} m"
+    ))
+}
+
 fn load_terrain_mesh(t: &mut Fields<'_>, base_dir: &Path, default_texel: f32) -> Result<TerrainSource, SceneError> {
     let rel = t.string_opt("path")?.ok_or_else(|| t.err("path", "mesh terrain needs a path to a glTF file (.glb or .gltf)"))?;
     let scale = t.positive("scale", 1.0, "")?;
@@ -854,12 +894,8 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
     }
     let center = t.vec2_opt("center")?.unwrap_or([0.0, 0.0]);
     let file = base_dir.join(&rel);
-    let img = image::open(&file).map_err(|e| SceneError::new(t.file(), t.key("path"), format!("cannot load heightmap {}: {e}", file.display())))?;
-    let gray = img.to_luma16();
+    let gray = read_heightmap_png(&file).map_err(|why| t.err("path", format!("heightmap {}: {why}", file.display())))?;
     let (width, height) = gray.dimensions();
-    if width < 2 || height < 2 {
-        return Err(t.err("path", format!("heightmap {} is {width}x{height}; it needs at least 2x2 pixels", file.display())));
-    }
     // Image row 0 is the top of the picture; put it at the far (+z) edge so the
     // map reads like a map seen from above with +z up.
     let mut heights_m = Vec::with_capacity((width * height) as usize);
@@ -878,6 +914,31 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
         t.err(key, format!("heightmap {}: {e}", file.display()))
     })?;
     Ok(TerrainSource::Heightmap(heightmap))
+}
+
+/// A heightmap file as 16-bit grey: a PNG (by its contents, whatever its
+/// name), 8- or 16-bit grey (alpha ignored), 2 to `HEIGHTMAP_MAX_SIDE`
+/// pixels on a side, checked from its header before it is decoded.
+fn read_heightmap_png(file: &Path) -> Result<image::ImageBuffer<image::Luma<u16>, Vec<u16>>, String> {
+    use image::ImageDecoder as _;
+    use snowpack::low_level::terrain::HEIGHTMAP_MAX_SIDE;
+    // By its contents only: a file named .png that is not one says so.
+    let opened = std::fs::File::open(file).map_err(|e| format!("cannot read it: {e}"))?;
+    let reader = image::ImageReader::new(std::io::BufReader::new(opened)).with_guessed_format().map_err(|e| format!("cannot read it: {e}"))?;
+    if reader.format() != Some(image::ImageFormat::Png) {
+        return Err("it is not a PNG file (heightmaps are 16-bit greyscale PNGs)".into());
+    }
+    let decoder = reader.into_decoder().map_err(|e| format!("not a readable PNG: {e}"))?;
+    let (width, height) = decoder.dimensions();
+    if width < 2 || height < 2 || width > HEIGHTMAP_MAX_SIDE || height > HEIGHTMAP_MAX_SIDE {
+        return Err(format!("it is {width}x{height} pixels; a heightmap has 2 to {HEIGHTMAP_MAX_SIDE} on a side"));
+    }
+    let colour = decoder.color_type();
+    if !matches!(colour, image::ColorType::L8 | image::ColorType::L16 | image::ColorType::La8 | image::ColorType::La16) {
+        return Err(format!("its pixels are {colour:?}; a heightmap is 8- or 16-bit greyscale (16-bit for smooth slopes)"));
+    }
+    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| format!("cannot decode it: {e}"))?;
+    Ok(img.to_luma16())
 }
 
 fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneError> {
@@ -900,7 +961,7 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
                 return Err(a.err("file", format!("{} does not exist", full.display())));
             }
             let opened = if builtin { GltfFile::from_bytes(BUILTIN_FOX_GLB, &full) } else { GltfFile::open(&full) };
-            let model = opened.and_then(|g| g.skinned_model()).map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
+            let model = opened.map_err(|why| a.err("file", why))?.skinned_model().map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
             let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();
             if names.is_empty() {
                 return Err(a.err("file", format!("{} has no animations; a gltf actor plays one", full.display())));

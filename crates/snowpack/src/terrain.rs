@@ -54,6 +54,10 @@ pub enum TerrainSource {
     Mesh(Arc<TerrainMesh>),
 }
 
+/// Largest side of a heightmap (pixels): 8192 is the default texture limit
+/// of wgpu's adapters.
+pub const HEIGHTMAP_MAX_SIDE: u32 = 8192;
+
 /// Largest side of the grid a terrain mesh is drawn into (texels). 2048 is
 /// the texture limit every wgpu adapter has, GL ES included.
 pub const MESH_GRID_MAX_SIDE: u32 = 2048;
@@ -115,6 +119,9 @@ impl TerrainMesh {
             }
         }
         let extent = [hi[0] - lo[0], hi[2] - lo[2]];
+        if !(extent[0].is_finite() && extent[1].is_finite() && (hi[1] - lo[1]).is_finite()) {
+            return Err(bad(format!("the mesh spans {lo:?} to {hi:?} m, a size that is not a finite f32")));
+        }
         if extent[0] <= 0.0 || extent[1] <= 0.0 {
             return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()));
         }
@@ -197,13 +204,16 @@ impl HeightmapTerrain {
     /// A heightmap of `width` x `height` pixels, `heights_m` row-major (row
     /// `r` at larger world z than row `r - 1`), covering `size_m` (x, z)
     /// metres centred on world `center_m`. Errors name what is wrong: a zero
-    /// side, a sample count other than `width * height`, a height that is
+    /// side or one above [`HEIGHTMAP_MAX_SIDE`], a sample count other than `width * height`, a height that is
     /// not finite, a size that is not positive and finite, a centre that is
     /// not finite.
     pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, SnowError> {
         let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
         if width == 0 || height == 0 {
             return bad("heightmap", format!("{width}x{height} pixels: both sides must be at least 1"));
+        }
+        if width > HEIGHTMAP_MAX_SIDE || height > HEIGHTMAP_MAX_SIDE {
+            return bad("heightmap", format!("{width}x{height} pixels: at most {HEIGHTMAP_MAX_SIDE} on a side are supported"));
         }
         if heights_m.len() as u64 != u64::from(width) * u64::from(height) {
             return bad("heightmap", format!("{} heights for {width}x{height} pixels (needs {})", heights_m.len(), u64::from(width) * u64::from(height)));

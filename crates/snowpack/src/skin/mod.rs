@@ -73,7 +73,7 @@ pub struct Skeleton {
 }
 
 impl Skeleton {
-    /// Checks the hierarchy's order and the joint table.
+    /// Checks the hierarchy's order, the joint table and that every matrix and rest transform is finite.
     pub fn validate(&self) -> Result<(), String> {
         for (k, n) in self.nodes.iter().enumerate() {
             if n.parent.is_some_and(|p| p >= k) {
@@ -85,6 +85,14 @@ impl Skeleton {
         }
         if let Some(j) = self.joints.iter().find(|&&j| j >= self.nodes.len()) {
             return Err(format!("joint node {j} does not exist"));
+        }
+        if let Some(k) = self.inverse_bind.iter().position(|m| !m.is_finite()) {
+            return Err(format!("the inverse bind matrix of joint {k} is not finite"));
+        }
+        if let Some((k, n)) =
+            self.nodes.iter().enumerate().find(|(_, n)| !(n.rest.translation.is_finite() && n.rest.rotation.is_finite() && n.rest.scale.is_finite()))
+        {
+            return Err(format!("node {k} ({}) has a rest transform that is not finite", n.name));
         }
         Ok(())
     }
@@ -162,7 +170,7 @@ pub struct Channel {
 }
 
 impl Channel {
-    /// Checks key counts and times.
+    /// Checks key counts, that times are finite and non-decreasing, and that values are finite.
     pub fn validate(&self) -> Result<(), String> {
         let per_key = if self.interpolation == Interpolation::CubicSpline { 3 } else { 1 };
         if self.times.is_empty() {
@@ -173,6 +181,9 @@ impl Channel {
         }
         if self.times.windows(2).any(|w| w[1] < w[0]) || self.times.iter().any(|t| !t.is_finite()) {
             return Err("key times must be finite and increasing".into());
+        }
+        if let Some(k) = self.values.iter().position(|v| !v.is_finite()) {
+            return Err(format!("value {k} is not finite"));
         }
         Ok(())
     }

@@ -44,11 +44,17 @@ impl SkinnedMesh {
         if n == 0 {
             return Err("the mesh has no vertices".into());
         }
+        if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
+        }
         if self.joints.len() != n || self.weights.len() != n {
             return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
         }
-        if !self.indices.len().is_multiple_of(3) || self.indices.iter().any(|&i| i as usize >= n) {
-            return Err("triangle indices are not a list of in-range triples".into());
+        if !self.indices.len().is_multiple_of(3) {
+            return Err(format!("{} triangle indices are not whole triples", self.indices.len()));
+        }
+        if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(format!("triangle index {i} is past the {n} vertices"));
         }
         if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
             return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
