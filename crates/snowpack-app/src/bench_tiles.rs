@@ -71,7 +71,7 @@ fn median(v: &[f64]) -> f64 {
 
 fn streamer(dir: &Path, memory_mb: usize) -> anyhow::Result<TileStreamer> {
     let store = TileStore::open(dir, TILE, StoreConfig { disk_budget_bytes: 0 }).with_context(|| format!("opening a bench store in {}", dir.display()))?;
-    Ok(TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_mb << 20 }))
+    Ok(TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_mb << 20, ..StreamerConfig::default() }))
 }
 
 /// A sphere ploughing at the window's centre as it moves along x.

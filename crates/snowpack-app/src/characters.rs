@@ -69,7 +69,7 @@ pub fn attach_store(
     use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
     use snowpack_scene::StoreKeep;
     const MIB: f64 = 1024.0 * 1024.0;
-    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize };
+    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize, ..StreamerConfig::default() };
     let streamer = match spec.keep {
         StoreKeep::Off => return Ok(false),
         StoreKeep::Memory => TileStreamer::in_memory(spec.tile_texels, memory),

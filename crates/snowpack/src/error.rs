@@ -107,15 +107,18 @@ pub enum StoreError {
         /// What does not match.
         why: String,
     },
-    /// Tiles asked for by a blocking wait were not loaded in time (a disk that
-    /// hangs or crawls); the wait gives up rather than freeze the caller, and
-    /// the tiles keep loading behind it.
-    #[error("{pending} tile(s) were not loaded from the store within {waited:?}: the disk is too slow or not answering")]
+    /// A blocking call on the tile store was not answered in time (a disk
+    /// that hangs or crawls): tiles to load (`TileStreamer::wait_for`),
+    /// a flush, a state read or write, or the worker's last writes when the
+    /// streamer is dropped. The call gives up rather than freeze the caller;
+    /// what it asked for stays queued and may still be done if the disk
+    /// answers later. The limit is [`StreamerConfig::wait_limit`](crate::persist::StreamerConfig::wait_limit).
+    #[error("gave up after {waited:?} waiting for {what}: the disk is too slow or not answering")]
     TimedOut {
+        /// What was waited for ("2 tile(s) to load", "the state `window.state` to be written").
+        what: String,
         /// How long the wait lasted.
         waited: std::time::Duration,
-        /// Tiles still not loaded when it gave up.
-        pending: usize,
     },
     /// The streamer's worker thread has stopped (it panicked or never started).
     #[error("the tile store's worker thread has stopped; tiles can no longer be loaded or saved")]

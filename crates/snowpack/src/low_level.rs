@@ -72,7 +72,7 @@ pub mod terrain {
     pub use crate::terrain::*;
 }
 /// Test support: adapters for tests, a seeded random generator, a CPU snow
-/// for protocol tests and a disk that loses power.
+/// for protocol tests, a disk that loses power and one that hangs.
 pub mod testing {
     pub use crate::testing::*;
 }

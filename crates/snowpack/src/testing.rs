@@ -1,6 +1,7 @@
 //! Support for tests (this crate's and downstream crates'): one shared GPU
 //! context per process, reproducible random seeds, and a disk in memory
-//! that loses power ([`PowerLossDisk`]) for the tile store's crash tests.
+//! that loses power ([`PowerLossDisk`]) for the tile store's crash tests,
+//! and one that hangs on demand ([`HeldDisk`]) for its time limits.
 
 #[cfg(not(target_arch = "wasm32"))]
 use std::sync::OnceLock;
@@ -9,9 +10,11 @@ use std::sync::OnceLock;
 use crate::gpu::GpuContext;
 
 mod cpu_snow;
+mod held;
 mod power_loss;
 
 pub use cpu_snow::CpuSnow;
+pub use held::HeldDisk;
 pub use power_loss::{PowerLossDisk, Unsynced};
 
 /// The process-wide GPU context for tests, or `None` when there is no adapter.

@@ -319,7 +319,7 @@ fn temp_dir(name: &str) -> PathBuf {
 /// A streamer over a store in `dir` keeping about `memory_tiles` tiles in memory.
 fn streamer(dir: &Path, memory_tiles: usize) -> TileStreamer {
     let store = TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store opens");
-    TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_tiles * 3 * 4 * (SIDE * SIDE) as usize })
+    TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_tiles * 3 * 4 * (SIDE * SIDE) as usize, ..StreamerConfig::default() })
 }
 
 /// A 4 m window of 64 texels (6.25 cm) over `terrain`, centred on `center`.

@@ -38,14 +38,17 @@ const MAX_ERRORS: usize = 1024;
 /// small budget cannot drop a tile the window is waiting for before it
 /// takes it (which would make it wait forever).
 const WANTED_FLOOR_BYTES: usize = 64 << 20;
-/// Longest a blocking wait for tiles ([`TileStreamer::wait_for`]) lasts:
-/// a disk that stops answering must not freeze the window for good.
+/// The default [`StreamerConfig::wait_limit`]: the longest any blocking call
+/// waits for the worker (tiles to load, a flush, a state read or write, the
+/// last writes when the streamer is dropped). A disk that stops answering
+/// must not freeze the window, a save or the program's exit for good.
 pub const WAIT_LIMIT: Duration = Duration::from_secs(30);
 
 /// Most keys remembered as absent from the store (16 bytes each, plus the set's overhead).
 const MAX_ABSENT: usize = 1 << 16;
 
-/// How much memory the streamer's cache may use.
+/// How much memory the streamer's cache may use, and how long it waits for
+/// the disk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StreamerConfig {
     /// Most bytes of tiles (by `TileData::memory_bytes`) to keep in memory;
@@ -59,12 +62,20 @@ pub struct StreamerConfig {
     /// budget keeps dropping. Tiles queued for writing are held by the
     /// worker until written and are not counted.
     pub memory_budget_bytes: usize,
+    /// The longest a blocking call waits for the worker thread (and so for
+    /// the disk): `TileStreamer::wait_for`, [`TileStreamer::flush`],
+    /// `TileStreamer::write_state` and `TileStreamer::read_state` give up
+    /// after it with [`StoreError::TimedOut`], and dropping the streamer
+    /// stops waiting for the last writes after it (logging an error and
+    /// leaving the worker to finish, or hang, on its own).
+    pub wait_limit: Duration,
 }
 
 impl Default for StreamerConfig {
-    /// 128 MiB: about 2,700 tiles of 64² texels with all three planes.
+    /// 128 MiB: about 2,700 tiles of 64² texels with all three planes; a
+    /// [`WAIT_LIMIT`] (30 s) wait limit.
     fn default() -> Self {
-        Self { memory_budget_bytes: 128 << 20 }
+        Self { memory_budget_bytes: 128 << 20, wait_limit: WAIT_LIMIT }
     }
 }
 
@@ -481,9 +492,10 @@ impl TileStreamer {
         /// not stop it (those tiles are answered as absent and the errors are in
         /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
         /// keys together exceed the memory budget, the first may have been
-        /// dropped again by the time it returns.
+        /// dropped again by the time it returns. Gives up after
+        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`].
         fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
-            self.wait_for_within(keys, WAIT_LIMIT)
+            self.wait_for_within(keys, self.config.wait_limit)
         }
     }
 
@@ -512,7 +524,9 @@ impl TileStreamer {
                 let left = limit.saturating_sub(start.elapsed());
                 match self.replies.recv_timeout(left) {
                     Ok(reply) => self.handle(reply),
-                    Err(RecvTimeoutError::Timeout) => return Err(StoreError::TimedOut { waited: start.elapsed(), pending: waiting.len() }),
+                    Err(RecvTimeoutError::Timeout) => {
+                        return Err(StoreError::TimedOut { what: format!("{} tile(s) to load", waiting.len()), waited: start.elapsed() });
+                    }
                     Err(RecvTimeoutError::Disconnected) => {
                         self.worker_gone();
                         return Err(StoreError::WorkerGone);
@@ -524,7 +538,9 @@ impl TileStreamer {
 
     /// Blocks until every queued write is done, writing again the cached
     /// tiles whose earlier write failed. Returns the first write error of
-    /// this flush; any others are in `TileStreamer::take_errors`.
+    /// this flush; any others are in `TileStreamer::take_errors`. Gives up
+    /// after [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`]
+    /// (the writes stay queued).
     pub fn flush(&mut self) -> Result<(), StoreError> {
         if self.memory_only {
             // Nothing is ever waiting to be written.
@@ -537,10 +553,10 @@ impl TileStreamer {
         }
         let seq = self.send(|seq| Request::Flush { seq })?;
         self.flush_error = Some(None);
-        let waited = self.wait(seq);
+        let waited = self.wait(seq, || "the queued tile writes to finish (flush)".to_owned());
         let first = self.flush_error.take().flatten();
         if let Err(gone) = waited {
-            // The worker stopped mid-flush: that is the answer; keep the write error for later.
+            // The worker stopped or hangs mid-flush: that is the answer; keep the write error for later.
             self.errors.extend(first);
             return Err(gone);
         }
@@ -564,14 +580,16 @@ impl TileStreamer {
     low_level_pub! {
         /// Stores a small named blob (blocking, ordered after the writes queued
         /// before it); see [`TileStore::write_state`]. A memory-only streamer
-        /// has nowhere to put it: [`StoreError::NoDisk`].
+        /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
+        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
+        /// write stays queued and may still be done).
         fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
             if self.memory_only {
                 return Err(StoreError::NoDisk);
             }
-            let name = name.to_owned();
-            let seq = self.send(|seq| Request::WriteState { seq, name, bytes })?;
-            match self.wait(seq)? {
+            let owned = name.to_owned();
+            let seq = self.send(|seq| Request::WriteState { seq, name: owned, bytes })?;
+            match self.wait(seq, || format!("the state `{name}` to be written"))? {
                 Outcome::StateWritten(result) => result,
                 _ => Err(StoreError::WorkerGone),
             }
@@ -581,13 +599,14 @@ impl TileStreamer {
     low_level_pub! {
         /// Reads a named blob (blocking, ordered after the writes queued before
         /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
+        /// Gives up after [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`].
         fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
             if self.memory_only {
                 return Ok(None);
             }
-            let name = name.to_owned();
-            let seq = self.send(|seq| Request::ReadState { seq, name })?;
-            match self.wait(seq)? {
+            let owned = name.to_owned();
+            let seq = self.send(|seq| Request::ReadState { seq, name: owned })?;
+            match self.wait(seq, || format!("the state `{name}` to be read"))? {
                 Outcome::StateRead(result) => result,
                 _ => Err(StoreError::WorkerGone),
             }
@@ -626,16 +645,27 @@ impl TileStreamer {
         }
     }
 
-    /// Blocks for the reply to request `seq`, handling the ones before it.
-    fn wait(&mut self, seq: u64) -> Result<Outcome, StoreError> {
+    /// Blocks for the reply to request `seq`, handling the ones before it,
+    /// for at most [`StreamerConfig::wait_limit`]; then [`StoreError::TimedOut`]
+    /// naming `what` was waited for. A reply that arrives later is handled
+    /// like any other (the answers of blocking calls are then ignored).
+    fn wait(&mut self, seq: u64, what: impl FnOnce() -> String) -> Result<Outcome, StoreError> {
+        let start = Instant::now();
         loop {
-            match self.replies.recv() {
+            let left = self.config.wait_limit.saturating_sub(start.elapsed());
+            match self.replies.recv_timeout(left) {
                 Ok(reply) if reply.seq == seq => {
                     self.take_disk(reply.disk);
                     return Ok(reply.outcome);
                 }
                 Ok(reply) => self.handle(reply),
-                Err(_) => {
+                Err(RecvTimeoutError::Timeout) => {
+                    let waited = start.elapsed();
+                    let what = what();
+                    tracing::error!("tile store: gave up after {waited:?} waiting for {what}");
+                    return Err(StoreError::TimedOut { what, waited });
+                }
+                Err(RecvTimeoutError::Disconnected) => {
                     self.worker_gone();
                     return Err(StoreError::WorkerGone);
                 }
@@ -831,7 +861,11 @@ fn is_untouched(tile: &TileData) -> bool {
 
 impl Drop for TileStreamer {
     /// Writes what is still dirty, lets the worker finish its queue and joins
-    /// it. Errors can no longer reach the game here; they are logged.
+    /// it, waiting at most [`StreamerConfig::wait_limit`]: a worker stuck on
+    /// a hung disk is then left behind (detached, still holding the store
+    /// and its queued writes, which it does if the disk comes back while the
+    /// program runs) with an error logged, so dropping never blocks for
+    /// ever. Errors can no longer reach the game here; they are logged.
     fn drop(&mut self) {
         let failed: Vec<TileKey> = self.cache.iter().filter(|(_, c)| c.dirt == Dirt::Failed).map(|(k, _)| *k).collect();
         for key in failed {
@@ -839,10 +873,31 @@ impl Drop for TileStreamer {
         }
         // Closing the channel ends the worker's loop once the queue is done.
         drop(self.requests.take());
-        if let Some(worker) = self.worker.take()
-            && worker.join().is_err()
-        {
-            tracing::error!("tile store: the worker thread panicked; unwritten tiles are lost");
+        let mut detached = false;
+        if let Some(worker) = self.worker.take() {
+            // The worker's end drops its reply sender: the reply channel
+            // disconnects once its queue is done (or it panicked).
+            let start = Instant::now();
+            let finished = loop {
+                match self.replies.recv_timeout(self.config.wait_limit.saturating_sub(start.elapsed())) {
+                    Ok(reply) => self.handle(reply),
+                    Err(RecvTimeoutError::Disconnected) => break true,
+                    Err(RecvTimeoutError::Timeout) => break false,
+                }
+            };
+            if !finished {
+                tracing::error!(
+                    "tile store: gave up after {:?} waiting for the worker's last writes to {}: the disk is not answering; \
+                     the worker is left to finish on its own and its unwritten tiles may be lost",
+                    start.elapsed(),
+                    self.dir.display()
+                );
+                // Dropping the handle detaches the thread.
+                drop(worker);
+                detached = true;
+            } else if worker.join().is_err() {
+                tracing::error!("tile store: the worker thread panicked; unwritten tiles are lost");
+            }
         }
         // The worker ended because we closed its channel: take its last
         // replies without reporting the closed channel as a failure.
@@ -853,7 +908,7 @@ impl Drop for TileStreamer {
             tracing::warn!("tile store: {error}");
         }
         let unwritten = self.cache.values().filter(|c| c.dirt != Dirt::Clean).count();
-        if unwritten > 0 {
+        if unwritten > 0 && !detached {
             tracing::warn!("tile store: {unwritten} tiles could not be written and are lost");
         }
     }
@@ -951,7 +1006,7 @@ mod tests {
     fn streamer(dir: &TestDir, tiles_in_memory: usize) -> TileStreamer {
         let store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
         let budget = tiles_in_memory * tile(0, 0, 0.0).memory_bytes();
-        TileStreamer::new(store, StreamerConfig { memory_budget_bytes: budget })
+        TileStreamer::new(store, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() })
     }
 
     /// Polls until the lookup is ready (bounded, so a bug fails instead of hanging).
@@ -1112,8 +1167,8 @@ mod tests {
         held.recv().expect("the worker is held");
         let limit = Duration::from_millis(200);
         match s.wait_for_within(&[a], limit) {
-            Err(StoreError::TimedOut { waited, pending }) => {
-                assert_eq!(pending, 1);
+            Err(StoreError::TimedOut { what, waited }) => {
+                assert!(what.contains("1 tile"), "{what}");
                 assert!(waited >= limit, "gave up after {waited:?}, before its limit");
             }
             other => panic!("a wait on a held worker gave {other:?}, not TimedOut"),
@@ -1166,7 +1221,7 @@ mod tests {
         // the cache: whether flush's own poll saw the failure, and so retried
         // the write once more, depended on timing (1 in 60 runs).
         let seq = s.send(|seq| Request::Flush { seq }).expect("send");
-        s.wait(seq).expect("answered");
+        s.wait(seq, || "the test's flush".to_owned()).expect("answered");
         assert_eq!(s.stats().errors, 1);
         assert_eq!(s.take_errors().len(), 1, "the failed write is reported");
         // A flush retries the failed write, which fails again: that error is
@@ -1223,7 +1278,7 @@ mod tests {
 
     fn memory(tiles_in_memory: usize) -> TileStreamer {
         let budget = tiles_in_memory * tile(0, 0, 0.0).memory_bytes();
-        TileStreamer::in_memory(SIDE, StreamerConfig { memory_budget_bytes: budget })
+        TileStreamer::in_memory(SIDE, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() })
     }
 
     #[test]

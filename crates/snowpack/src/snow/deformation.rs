@@ -62,7 +62,7 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
         tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);
         return Ok(None);
     }
-    let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget });
+    let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() });
     TileStreaming::new(ctx, res, streamer, (params.depth_m, params.snowfall.is_some())).map(Some)
 }
 
