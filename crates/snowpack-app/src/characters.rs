@@ -55,10 +55,44 @@ pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) 
         .collect()
 }
 
+/// Creates the deformation window for `scene`. A value the adapter cannot
+/// take (a `resolution` or heightmap beyond its texture or buffer limits,
+/// named in the message) is the user's input: [`BadInput`] naming the file
+/// and key (exit 2). Other failures are the machine's (exit 1).
+pub fn new_window(ctx: &GpuContext, scene: &Scene, params: snowpack::SnowParams, center: DVec2, doing: &'static str) -> anyhow::Result<SnowDeformation> {
+    match SnowDeformation::new(ctx, params, scene.terrain.clone(), center) {
+        Err(snowpack::SnowError::InvalidParameter { field, why }) => {
+            let key = if field == "heightmap" { "[terrain].path".to_owned() } else { format!("[snow].{field}") };
+            Err(BadInput(format!("{}: {key}: {why}", scene.path.display())).into())
+        }
+        other => other.context(doing),
+    }
+}
+
+/// Whether a store error is the machine's fault (the disk failed, hung, or
+/// the worker died: exit 1) rather than the user's (a store of another
+/// tile side or format, a damaged or mismatched save: exit 2).
+#[must_use]
+pub fn machine_fault(e: &snowpack::StoreError) -> bool {
+    use snowpack::StoreError;
+    matches!(e, StoreError::Io { .. } | StoreError::TimedOut { .. } | StoreError::WorkerGone)
+}
+
+/// A store error at `[store].path` of `scene`: [`BadInput`] (exit 2) unless
+/// it is the machine's fault ([`machine_fault`], exit 1); either way the
+/// message names the file and key.
+fn store_error(scene: &Scene, e: snowpack::StoreError) -> anyhow::Error {
+    let key = format!("{}: [store].path", scene.path.display());
+    if machine_fault(&e) { anyhow::Error::new(e).context(key) } else { BadInput(format!("{key}: {e}")).into() }
+}
+
 /// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
 /// with `keep = "memory"`, a memory keeper of its tile size and budget;
 /// `keep = "off"` attaches nothing (the scene's `[snow]` already forgets). A
-/// store that cannot be opened is bad input. `Ok(true)`: a save was loaded.
+/// path that names a file, a store of another tile side or format, or a
+/// damaged or mismatched save is bad input (exit 2); a store the disk
+/// refuses (read-only, failing, not answering) is the machine's (exit 1).
+/// `Ok(true)`: a save was loaded.
 pub fn attach_store(
     ctx: &GpuContext,
     snow: &mut SnowDeformation,
@@ -76,12 +110,15 @@ pub fn attach_store(
         StoreKeep::Disk => {
             let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
             let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
-            let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| BadInput(format!("{}: [store].path: {e}", scene.path.display())))?;
+            if dir.exists() && !dir.is_dir() {
+                return Err(BadInput(format!("{}: [store].path: {} is a file, not a folder", scene.path.display(), dir.display())).into());
+            }
+            let store = TileStore::open(&dir, spec.tile_texels, config).map_err(|e| store_error(scene, e))?;
             TileStreamer::new(store, memory)
         }
     };
     match snow.attach_store(ctx, streamer) {
-        Err(snowpack::SnowError::Store(e)) => Err(BadInput(format!("{}: [store].path: {e}", scene.path.display())).into()),
+        Err(snowpack::SnowError::Store(e)) => Err(store_error(scene, e)),
         Err(snowpack::SnowError::InvalidParameter { field, why }) => Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into()),
         other => other.context("attaching the tile store"),
     }

@@ -25,6 +25,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use snowpack_scene::{Scene, SceneError};
 
+use snowpack::low_level::gpu::context::{GL_CONTEXT_LOCK_PANIC, panic_text};
 use snowpack_app::BadInput;
 
 /// Real-time deformable snow on wgpu.
@@ -313,14 +314,53 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
-    match main_inner(cli) {
+    quiet_gl_lock_panics();
+    // wgpu's GL backend panics when another thread holds its context for
+    // seconds ("Could not lock adapter context"), anywhere a GL call is made,
+    // not only where the library catches it (choosing the adapter): such a
+    // panic is reported as the machine's error, like a lost device.
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| main_inner(cli))).unwrap_or_else(|payload| match panic_text(&*payload) {
+        Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => Err(snowpack::SnowError::GlContextLocked(text.to_owned()).into()),
+        _ => std::panic::resume_unwind(payload),
+    });
+    match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            let bad_input = err
-                .chain()
-                .any(|e| e.is::<SceneError>() || e.is::<BadInput>() || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. })));
             eprintln!("error: {err:#}");
-            ExitCode::from(if bad_input { 2 } else { 1 })
+            ExitCode::from(exit_code(&err))
         }
     }
+}
+
+/// Whose fault an error is: 2 for the user's input (a scene or option, a
+/// value beyond what the adapter can do, a store or save that does not fit),
+/// 1 for the machine's (I/O, the GPU, a lost device, a disk not answering).
+/// `BadInput` is only ever made for the user's input; the library's store
+/// errors that are the machine's fault are never wrapped in it.
+fn exit_code(err: &anyhow::Error) -> u8 {
+    let users = err.chain().any(|e| {
+        e.is::<SceneError>()
+            || e.is::<BadInput>()
+            || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
+            || matches!(e.downcast_ref::<snowpack::SnowError>(), Some(snowpack::SnowError::InvalidParameter { .. } | snowpack::SnowError::UnknownBackend(_)))
+    });
+    let machines = err.chain().any(|e| {
+        e.downcast_ref::<snowpack::StoreError>().is_some_and(snowpack_app::characters::machine_fault)
+            || matches!(e.downcast_ref::<snowpack::SnowError>(), Some(snowpack::SnowError::Store(s)) if snowpack_app::characters::machine_fault(s))
+    });
+    if users && !machines { 2 } else { 1 }
+}
+
+/// The GL context-lock panic is reported as an error by `main`: the default
+/// panic message (and backtrace) for it would only repeat that. Every other
+/// panic is reported as before.
+fn quiet_gl_lock_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if panic_text(info.payload()).is_some_and(|text| text.contains(GL_CONTEXT_LOCK_PANIC)) {
+            tracing::debug!("wgpu's GL backend panicked: {info}");
+        } else {
+            default(info);
+        }
+    }));
 }

@@ -12,7 +12,7 @@ use snowpack_scene::{Scene, Technique, World};
 
 use crate::output::OutputSet;
 use snowpack_app::BadInput;
-use snowpack_app::characters::{attach_store, poses, register_characters, sole_points, sole_sample, window_center};
+use snowpack_app::characters::{attach_store, new_window, poses, register_characters, sole_points, sole_sample, window_center};
 
 use crate::npy;
 
@@ -89,7 +89,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
-    let mut snow = SnowDeformation::new(&ctx, params, scene.terrain.clone(), window_center(scene, &world)).context("creating the deformation window")?;
+    let mut snow = new_window(&ctx, scene, params, window_center(scene, &world), "creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
     match snow.set_objects(&ctx, &objects) {

@@ -133,7 +133,7 @@ impl Session {
         let snow_params = scene.snow.clone();
         let render_params = scene.render.params;
         let center = crate::characters::window_center(&scene, &world);
-        let snow = SnowDeformation::new(ctx, snow_params.clone(), scene.terrain.clone(), center).context("creating the deformation window")?;
+        let snow = crate::characters::new_window(ctx, &scene, snow_params.clone(), center, "creating the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
         let radius = 0.5;
@@ -425,7 +425,7 @@ impl Session {
         self.scene.render.params = self.render_params;
         self.world = World::new(&self.scene);
         let center = crate::characters::window_center(&self.scene, &self.world);
-        let snow = SnowDeformation::new(ctx, self.snow_params.clone(), self.scene.terrain.clone(), center).context("rebuilding the deformation window")?;
+        let snow = crate::characters::new_window(ctx, &self.scene, self.snow_params.clone(), center, "rebuilding the deformation window")?;
         let renderer = Renderer::new(ctx, &snow, &self.env, self.render_params, self.format).context("rebuilding the renderer")?;
         // The old window lets go of its store (flushing it) before the new one opens it.
         self.snow = snow;

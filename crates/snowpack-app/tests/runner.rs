@@ -1103,6 +1103,48 @@ fn bad_store_values_exit_2_naming_file_and_key() {
     expect_bad_input("store-path", "[snow]\nresolution = 128\n[store]\npath = \"store-path.toml\"\n", "path");
 }
 
+/// A resolution the adapter cannot hold (its texture or buffer limits) is
+/// the user's input: exit 2 naming the file, the key and the limit. The
+/// smallest such resolution is found from the same adapter the binary picks.
+#[test]
+fn a_resolution_beyond_the_adapter_exits_2_naming_the_limit() {
+    let Some(ctx) = snowpack::low_level::testing::gpu() else { return };
+    let limits = ctx.device.limits();
+    let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let range = snowpack::low_level::deform::params::RESOLUTION_RANGE;
+    let too_big = (*range.start()..=*range.end()).step_by(16).find(|&r| r > limits.max_texture_dimension_2d || u64::from(r) * u64::from(r) * 4 > buffer_limit);
+    let Some(resolution) = too_big else {
+        eprintln!("skipping: this adapter holds every resolution the scene format allows");
+        return;
+    };
+    let limit = if resolution > limits.max_texture_dimension_2d { "max_texture_dimension_2d" } else { "max_storage_buffer_binding_size" };
+    expect_bad_input("beyond-adapter", &format!("[snow]\nresolution = {resolution}\n"), "[snow].resolution");
+    expect_bad_input("beyond-adapter-limit", &format!("[snow]\nresolution = {resolution}\n"), limit);
+}
+
+/// A store the disk refuses (here a file where its `tiles` folder should be,
+/// as `persist.rs` fails a disk) is the machine's fault: exit 1, naming the
+/// file and key, no panic. (A `[store].path` that is itself a file is the
+/// user's: `bad_store_values_exit_2_naming_file_and_key`.)
+#[test]
+fn a_store_the_disk_refuses_exits_1() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("store-refused");
+    let store = dir.0.join("store");
+    std::fs::create_dir_all(&store).expect("store folder");
+    std::fs::write(store.join("tiles"), b"in the way").expect("a file where the tiles go");
+    let scene = dir.0.join("store-refused.toml");
+    std::fs::write(&scene, format!("[snow]\nresolution = 128\n[store]\npath = {:?}\n", store.display().to_string())).expect("write scene");
+    let output = bin().args(["run", "--headless", "--frames", "2", "--scene"]).arg(&scene).arg("--out").arg(dir.0.join("out")).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "a refused store should exit 1 (the machine's fault), got {:?}: {stderr}", output.status);
+    assert!(stderr.contains("store-refused.toml") && stderr.contains("[store].path"), "the message names the file and key: {stderr}");
+    assert!(stderr.contains("tiles"), "the message names the folder that failed: {stderr}");
+    assert!(!stderr.contains("panicked"), "panic: {stderr}");
+}
+
 #[test]
 fn grass_in_a_shell_over_the_snow_peels_in_passes_that_shade_fewer_pixels() {
     if !gpu_available() {

@@ -32,6 +32,13 @@ pub enum SnowError {
     /// The device was lost (driver reset, GPU removed); it cannot be used again.
     #[error("the GPU device was lost: {0}")]
     DeviceLost(String),
+    /// wgpu's OpenGL backend could not lock the adapter's context (another
+    /// thread held the EGL/WGL context for seconds: a driver or thread
+    /// deadlock); wgpu panics there, and snowpack turns that panic into this
+    /// error where it can ([`crate::GpuContext::new_headless`] and adapter
+    /// selection).
+    #[error("the OpenGL context could not be locked ({0}); another thread holds it; try again, or choose another backend (--backend vulkan)")]
+    GlContextLocked(String),
     /// wgpu reported a validation or out-of-memory error.
     #[error("GPU error in {context}: {message}")]
     Gpu {

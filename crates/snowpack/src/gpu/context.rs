@@ -187,6 +187,33 @@ const NO_ADAPTER_HINT: &str = "install a driver: on Debian/Ubuntu without a GPU,
 `apt-get install mesa-vulkan-drivers` (lavapipe, Vulkan) or `apt-get install libegl1 libgl1-mesa-dri` \
 (llvmpipe, GL); check SNOWPACK_BACKEND / SNOWPACK_ADAPTER if set";
 
+/// What wgpu's GL backend panics with when it cannot lock the adapter's
+/// context (`wgpu-hal`'s `AdapterContext::lock`, after 6 s).
+pub const GL_CONTEXT_LOCK_PANIC: &str = "Could not lock adapter context";
+
+/// The text of a panic's payload, when it is text.
+#[must_use]
+pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> Option<&str> {
+    payload.downcast_ref::<&str>().copied().or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+}
+
+/// Runs `work` (an adapter or device request), turning wgpu's GL
+/// context-lock panic into [`SnowError::GlContextLocked`]; other panics go on.
+///
+/// wgpu's GL backend has no fallible path here: when another thread holds
+/// the EGL (or WGL) context for more than 6 s, `AdapterContext::lock`
+/// panics ("Could not lock adapter context"). A program choosing an adapter
+/// should get an error it can report and exit with, not a panic, so the
+/// requests run under `catch_unwind`. The instance and adapter are
+/// abandoned after such a panic (they are only dropped, never used again),
+/// so state left half-changed by the unwinding cannot be observed.
+fn gl_lock_panics_as_errors<T>(work: impl FnOnce() -> T) -> Result<T, SnowError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)).or_else(|payload| match panic_text(&*payload) {
+        Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => Err(SnowError::GlContextLocked(text.to_owned())),
+        _ => std::panic::resume_unwind(payload),
+    })
+}
+
 impl GpuContext {
     /// Picks an adapter as `request` asks and creates a device without a
     /// surface, for headless runs, tests and the bench.
@@ -212,7 +239,7 @@ impl GpuContext {
         /// (when given) and matches `request`, and creates the device.
         fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
             let backends = request.parse_backends()?;
-            let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+            let mut adapters = gl_lock_panics_as_errors(|| pollster::block_on(instance.enumerate_adapters(backends)))?;
             if let Some(surface) = surface {
                 adapters.retain(|a| a.is_surface_supported(surface));
             }
@@ -276,12 +303,14 @@ impl GpuContext {
         // Ask for what the adapter has: large windows need large storage buffers,
         // and the defaults are below what most adapters offer.
         let required_limits = adapter.limits();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("snowpack"),
-            required_features,
-            required_limits,
-            ..Default::default()
-        }))
+        let (device, queue) = gl_lock_panics_as_errors(|| {
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("snowpack"),
+                required_features,
+                required_limits,
+                ..Default::default()
+            }))
+        })?
         .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
 
         let sink = Arc::new(ErrorSink::default());
@@ -388,5 +417,19 @@ mod tests {
         assert_eq!(parse_backends("GL, vulkan").ok(), Some(wgpu::Backends::GL | wgpu::Backends::VULKAN));
         assert!(matches!(parse_backends("voodoo"), Err(SnowError::UnknownBackend(_))));
         assert!(matches!(parse_backends(" , "), Err(SnowError::UnknownBackend(_))));
+    }
+
+    /// wgpu's exact panic (a `String` from `expect`) becomes an error; any other panic goes on.
+    #[test]
+    fn the_gl_context_lock_panic_becomes_an_error() {
+        let locked =
+            gl_lock_panics_as_errors(|| -> u32 { std::panic::panic_any(format!("{GL_CONTEXT_LOCK_PANIC}. This is most-likely a deadlock.: Timeout")) });
+        match locked {
+            Err(e @ SnowError::GlContextLocked(_)) => assert!(e.to_string().contains("--backend"), "{e}"),
+            other => panic!("the lock panic gave {other:?}"),
+        }
+        assert_eq!(gl_lock_panics_as_errors(|| 7).ok(), Some(7));
+        let other = std::panic::catch_unwind(|| gl_lock_panics_as_errors(|| -> u32 { panic!("something else") }));
+        assert!(other.is_err(), "another panic is not swallowed");
     }
 }

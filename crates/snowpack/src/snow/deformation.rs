@@ -262,15 +262,32 @@ impl SnowDeformation {
         if params.resolution > limits.max_texture_dimension_2d {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
-                why: format!("{} exceeds this adapter's texture limit {}", params.resolution, limits.max_texture_dimension_2d),
+                why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
             });
         }
         let buffer_bytes = params.texel_count() as u64 * 4;
-        if buffer_bytes > limits.max_storage_buffer_binding_size {
+        let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        if buffer_bytes > buffer_limit {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
-                why: format!("{} needs {buffer_bytes} byte buffers, above this adapter's limit", params.resolution),
+                why: format!(
+                    "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                    params.resolution
+                ),
             });
+        }
+        if let TerrainSource::Heightmap(h) = &terrain {
+            let bytes = h.heights_m().len() as u64 * 4;
+            if bytes > buffer_limit {
+                return Err(SnowError::InvalidParameter {
+                    field: "heightmap",
+                    why: format!(
+                        "{}x{} samples need a {bytes} byte buffer, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                        h.width(),
+                        h.height()
+                    ),
+                });
+            }
         }
         let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
         ctx.check("creating the deformation passes")?;
