@@ -65,7 +65,7 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// footprints; points and combined), [`UpdatePass`] (persistent height with
 /// refill), [`DisplayPass`] (Hanák's remap or point rims, then the optional
 /// blur, into the displayed half of each snow word), then [`QueryPass`] (the
-/// points asked with [`Self::query_points`], answered a frame or two later).
+/// points asked with [`SnowFrame::with_queries`], answered a frame or two later).
 /// Normals are computed where they are used, from the displayed heights.
 ///
 /// Buffers exist only for the techniques used so far: the footprint buffer
@@ -98,9 +98,10 @@ pub struct SnowDeformation {
     display_pass: DisplayPass,
     pub(super) timer: GpuTimer,
     query_pass: QueryPass,
-    /// Points asked for the next frame (relative to the floating origin) and their ticket.
-    asked: Option<(QueryTicket, Vec<glam::Vec2>)>,
+    /// Tickets given so far ([`SnowFrame::with_queries`]).
     tickets: u64,
+    /// Frames collect no readback ([`Self::hold_readbacks`]).
+    readbacks_held: bool,
     answers: Option<PointAnswers>,
     frame: u64,
     exposed_texels: u64,
@@ -191,13 +192,17 @@ pub struct SnowFrame<'a> {
     /// ([`Self::with_ids`]); empty (or of another length): deformer k is
     /// the same body as last frame's deformer k.
     pub ids: &'a [u64],
+    /// Points (x, z relative to the floating origin, like deformers) to
+    /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
+    /// `None`: nothing asked.
+    pub queries: Option<&'a [glam::Vec2]>,
 }
 
 impl<'a> SnowFrame<'a> {
     /// A frame of `dt_s` seconds with `deformers` and nothing else.
     #[must_use]
     pub fn new(dt_s: f32, deformers: &'a [Deformer]) -> Self {
-        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[] }
+        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[], queries: None }
     }
 
     /// The same frame with characters in pose.
@@ -227,6 +232,20 @@ impl<'a> SnowFrame<'a> {
     #[must_use]
     pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
         self.ids = ids;
+        self
+    }
+
+    /// The same frame asking for the snow at `points` (world x, z relative
+    /// to the floating origin, like deformers) as this frame leaves it.
+    /// [`SnowDeformation::encode`] returns the request's ticket; the
+    /// answer, tagged with it, arrives a frame or two later in
+    /// [`SnowDeformation::point_answers`], and a frame never waits for it.
+    /// If the GPU is so far behind that every staging buffer is in flight,
+    /// the request is dropped and counted in [`QueryStats::skipped`]: ask
+    /// again (games ask every frame).
+    #[must_use]
+    pub fn with_queries(mut self, points: &'a [glam::Vec2]) -> Self {
+        self.queries = Some(points);
         self
     }
 }
@@ -291,8 +310,8 @@ impl SnowDeformation {
             display_pass: DisplayPass::new(device, &res),
             timer: GpuTimer::new(device, queue),
             query_pass: QueryPass::new(device, &res),
-            asked: None,
             tickets: 0,
+            readbacks_held: false,
             answers: None,
             window: SlidingWindow::new(params.resolution),
             center,
@@ -691,10 +710,22 @@ impl SnowDeformation {
     /// Records one frame of deformation into `encoder`: the one per-frame
     /// entry point. Characters in `frame.poses` are skinned on the GPU (the
     /// `skinning` pass) and their posed meshes press the snow with
-    /// `frame.meshes` and the deformers. Submit the encoder, then call
-    /// [`Self::after_submit`].
-    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) {
+    /// `frame.meshes` and the deformers; the points of
+    /// [`SnowFrame::with_queries`] are gathered, and their ticket returned
+    /// (`None` when the frame asked nothing).
+    ///
+    /// Nothing is called after the submit: the frame's readbacks (point
+    /// answers, timings, tiles leaving the window, shared snow) are mapped
+    /// by wgpu when the encoder is submitted, and the next `encode` takes
+    /// what has arrived (a non-blocking `device.poll`, never a wait).
+    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) -> Option<QueryTicket> {
         use super::sweep::MeshKey;
+        self.collect_arrived(ctx);
+        let queries = frame.queries.map(|points| {
+            self.tickets += 1;
+            (QueryTicket(self.tickets), points)
+        });
+        let ticket = queries.map(|(t, _)| t);
         self.posed.clear();
         self.timer.begin_frame();
         let (texel_m, teleport_m) = (self.params.texel_m(), self.params.teleport_m);
@@ -727,7 +758,7 @@ impl SnowDeformation {
             .collect();
         let meshes: Vec<SweptMesh<'_>> =
             current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
-        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s);
+        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s, queries);
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
         history.age();
@@ -737,24 +768,31 @@ impl SnowDeformation {
         drop(current);
         self.mesh_history = history;
         self.skinned = skinned;
+        // With this frame's copy-outs recorded, before they can be collected and dropped.
+        self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_total());
+        ticket
     }
 
-    /// Records, submits and follows up one frame ([`Self::encode`], submit,
-    /// [`Self::after_submit`]); fails on GPU errors. For programs without an
-    /// encoder of their own.
-    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<(), SnowError> {
+    /// A convenience for headless tools and tests, not a game's frame
+    /// loop: records the frame into an encoder of its own ([`Self::encode`]),
+    /// submits it and takes whatever readbacks have already arrived
+    /// (without waiting); fails on GPU errors. Returns the ticket of the
+    /// frame's point queries, if it asked any.
+    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<Option<QueryTicket>, SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        ctx.capturing(|| {
-            self.encode(ctx, &mut encoder, frame);
+        let ticket = ctx.capturing(|| {
+            let ticket = self.encode(ctx, &mut encoder, frame);
             ctx.queue.submit([encoder.finish()]);
+            ticket
         });
-        self.after_submit(ctx);
-        ctx.check("deformation frame")
+        self.collect_arrived(ctx);
+        ctx.check("deformation frame")?;
+        Ok(ticket)
     }
 
-    /// [`Self::step_frame`] with only `deformers` pressing the snow.
+    /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
     pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
-        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers))
+        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
     }
 
     fn encode_frame(
@@ -765,6 +803,7 @@ impl SnowDeformation {
         meshes: &[SweptMesh<'_>],
         mesh_steps: Vec<u32>,
         dt_s: f32,
+        queries: Option<(QueryTicket, &[glam::Vec2])>,
     ) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
@@ -1016,7 +1055,7 @@ impl SnowDeformation {
             self.decal_pass.prepare(device, queue, &mut self.decals, corner, p.extent_m);
             self.decal_pass.record(encoder, &mut self.timer);
         }
-        if let Some((ticket, points)) = self.asked.take() {
+        if let Some((ticket, points)) = queries {
             let local: Vec<glam::Vec2> =
                 points.iter().map(|p| glam::Vec2::new((f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32)).collect();
             let params = QueryParams {
@@ -1028,39 +1067,44 @@ impl SnowDeformation {
                 use_fallen: u32::from(snowfall.is_some()),
                 _pad: 0,
             };
-            self.query_pass.record(device, queue, encoder, &mut self.timer, &self.res, params, &local, (ticket, self.frame, points));
+            self.query_pass.record(device, queue, encoder, &mut self.timer, &self.res, params, &local, (ticket, self.frame, points.to_vec()));
         }
         self.timer.end_frame(encoder);
         self.frame += 1;
     }
 
-    /// Starts the readbacks of the submitted frame (point answers, timings)
-    /// and collects any that have arrived, without waiting.
-    pub fn after_submit(&mut self, ctx: &GpuContext) {
-        // Before the copy-outs of this frame can be collected and dropped.
-        self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum());
-        self.query_pass.after_submit();
-        if let Some(tiles) = &mut self.tiles {
-            tiles.after_submit();
+    /// Takes the readbacks that have arrived, without waiting (unless held,
+    /// [`Self::hold_readbacks`]).
+    fn collect_arrived(&mut self, ctx: &GpuContext) {
+        if self.readbacks_held {
+            return;
         }
-        if let Some(sharing) = &mut self.sharing {
-            sharing.after_submit();
-        }
-        self.timer.after_submit();
         // A non-blocking poll runs mapping callbacks that are due; an error
         // here surfaces through `ctx.check` as well.
         let _ = ctx.device.poll(wgpu::PollType::Poll);
-        self.collect();
+        self.collect(ctx);
     }
 
-    fn collect(&mut self) {
+    fn collect(&mut self, ctx: &GpuContext) {
         if let Some(answers) = self.query_pass.take_answers() {
             self.answers = Some(answers);
+        }
+        if let Some(tiles) = &mut self.tiles {
+            tiles.collect(ctx);
         }
         if let Some(sharing) = &mut self.sharing {
             sharing.collect(self.params.resolution);
         }
         self.timer.collect();
+    }
+
+    /// For tests: while `held`, frames take none of the readbacks that
+    /// arrive (point answers, timings, tiles leaving the window, shared
+    /// snow), as if the GPU never finished them, so their staging buffers
+    /// stay busy; [`Self::finish`] still waits for and takes them.
+    #[doc(hidden)]
+    pub fn hold_readbacks(&mut self, held: bool) {
+        self.readbacks_held = held;
     }
 
     /// Waits for every outstanding readback (point answers and timings);
@@ -1078,25 +1122,12 @@ impl SnowDeformation {
             std::thread::yield_now();
             let _ = ctx.device.poll(wgpu::PollType::Poll);
         }
-        self.collect();
+        self.collect(ctx);
         Ok(())
     }
 
-    /// Asks for the snow at `points` (world x, z relative to the floating
-    /// origin, like deformers) as the next encoded frame leaves it. The
-    /// answer, tagged with the returned ticket, arrives a frame or two later
-    /// in [`Self::point_answers`]; a frame never waits for it. A later call
-    /// before that frame replaces the request. If the GPU is so far behind
-    /// that every staging buffer is in flight, the request is dropped and
-    /// counted in [`QueryStats::skipped`]: ask again (games ask every frame).
-    pub fn query_points(&mut self, points: &[glam::Vec2]) -> QueryTicket {
-        self.tickets += 1;
-        let ticket = QueryTicket(self.tickets);
-        self.asked = Some((ticket, points.to_vec()));
-        ticket
-    }
-
-    /// The newest answer to [`Self::query_points`] that has come back.
+    /// The newest answer to a frame's [`SnowFrame::with_queries`] that has
+    /// come back (taken at the start of each [`Self::encode`]).
     #[must_use]
     pub fn point_answers(&self) -> Option<&PointAnswers> {
         self.answers.as_ref()
@@ -1130,7 +1161,12 @@ impl SnowDeformation {
     /// staging they hold for a frame or two.
     #[must_use]
     pub fn peak_memory_bytes(&self) -> u64 {
-        self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum())
+        self.peak_memory_bytes.max(self.memory_total())
+    }
+
+    /// [`Self::memory_bytes`] summed.
+    fn memory_total(&self) -> u64 {
+        self.memory_bytes().iter().map(|(_, b)| b).sum()
     }
 
     /// GPU memory held, by resource (bytes), including the point queries' buffers.
