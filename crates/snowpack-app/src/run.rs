@@ -120,8 +120,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         }
         let characters = world.characters();
         let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(&skins, &characters));
-        snow.step_frame(&ctx, &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) })
-            .with_context(|| format!("GPU frame {frame}"))?;
+        snow.step_frame(
+            &ctx,
+            &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) },
+        )
+        .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();
         }

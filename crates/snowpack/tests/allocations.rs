@@ -1,7 +1,10 @@
 //! A frame's heap allocations do not grow with its work: after a warm-up,
-//! `SnowDeformation::encode` with 4,096 moving spheres allocates at most a
-//! few more times per frame than an empty frame does (wgpu's own recording
-//! allocates; snowpack's lists and buffers are reused). Counted with a
+//! `SnowDeformation::encode` with 4,096 moving spheres allocates no more per
+//! frame than with 128, and at most a small constant more than an empty
+//! frame does: each list a frame uploads is one `queue.write_buffer`, whose
+//! staging buffer costs wgpu about ten allocations (the capture's instances;
+//! with points or combined also the stamp pass's points), while snowpack's
+//! own lists and buffers are reused. Counted with a
 //! counting global allocator, so this is a test binary of its own (one
 //! test: nothing else allocates meanwhile). No timings are asserted
 //! (`examples/encode_cost.rs` measures those).
@@ -14,10 +17,13 @@ use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 #[global_allocator]
 static ALLOCATOR: &StatsAlloc<std::alloc::System> = &INSTRUMENTED_SYSTEM;
 
-/// Allocations a frame may make beyond the empty frame's most.
-const SLACK: u64 = 8;
-const WARMUP: u32 = 40;
-const FRAMES: u32 = 60;
+/// Allocations a frame with deformers may make beyond the empty frame's
+/// most: wgpu's staging for up to two uploads, and a few more.
+const SLACK: u64 = 24;
+/// Allocations 4,096 deformers may make beyond 128's most.
+const GROWTH: u64 = 2;
+const WARMUP: u32 = 30;
+const FRAMES: u32 = 40;
 
 /// `count` spheres on a grid over the window, each circling its grid point
 /// and pressing into the snow, so each frame sweeps, captures and stamps them.
@@ -64,8 +70,12 @@ fn a_frame_with_thousands_of_deformers_allocates_as_little_as_an_empty_one() {
     let Some(ctx) = testing::gpu() else { return };
     for technique in [Technique::Depth, Technique::Combined] {
         let (empty_mean, empty_max) = allocations(ctx, technique, 0);
+        let (few_mean, few_max) = allocations(ctx, technique, 128);
         let (mean, max) = allocations(ctx, technique, 4096);
-        eprintln!("{technique:?}: empty frame {empty_mean:.1} allocations (most {empty_max}); 4,096 spheres {mean:.1} (most {max})");
+        eprintln!(
+            "{technique:?}: allocations per frame, mean (most): empty {empty_mean:.1} ({empty_max}), 128 spheres {few_mean:.1} ({few_max}), 4,096 spheres {mean:.1} ({max})"
+        );
+        assert!(max <= few_max + GROWTH, "{technique:?}: a frame of 4,096 spheres made {max} allocations, of 128 at most {few_max}");
         assert!(max <= empty_max + SLACK, "{technique:?}: a frame of 4,096 spheres made {max} allocations, an empty one at most {empty_max}");
     }
 }

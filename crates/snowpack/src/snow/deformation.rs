@@ -10,7 +10,7 @@ use crate::deform::params::{RANGE_TEXELS, default_tile_texels};
 use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use crate::deform::resources::DeformResources;
 use crate::deform::snow_word::{self, SNOW_QUANTUM_M};
-use crate::deform::stamp::{StampParams, StampPass, contact_points};
+use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, WindowParams, WindowPass};
@@ -139,6 +139,24 @@ pub struct SnowDeformation {
     history: DeformerHistory,
     /// Last frame's positions of the meshes, to sweep them.
     mesh_history: super::sweep::MeshHistory,
+    /// The terrain's lowest and highest height (m), found once.
+    terrain_bounds: (f32, f32),
+    /// Lists one frame fills, kept for their memory so that a frame after
+    /// the first allocates nothing for them (however many deformers).
+    scratch: FrameScratch,
+}
+
+/// Lists [`SnowDeformation::encode`] fills each frame, cleared and refilled.
+#[derive(Default)]
+struct FrameScratch {
+    /// Each deformer's pose to sweep from.
+    sweeps: Vec<Option<Deformer>>,
+    /// The capture's instances.
+    instances: CaptureInstances,
+    /// The stamp pass's contact points.
+    points: Vec<[f32; 8]>,
+    /// Sub-steps of each mesh (posed characters, then the caller's).
+    mesh_steps: Vec<u32>,
 }
 
 /// Where the cumulative refill counters are counted from: at world time
@@ -338,6 +356,8 @@ impl SnowDeformation {
             floating_origin: DVec2::ZERO,
             history: DeformerHistory::new(),
             mesh_history: super::sweep::MeshHistory::default(),
+            terrain_bounds: (tmin, tmax),
+            scratch: FrameScratch::default(),
         })
     }
 
@@ -729,7 +749,8 @@ impl SnowDeformation {
         self.posed.clear();
         self.timer.begin_frame();
         let (texel_m, teleport_m) = (self.params.texel_m(), self.params.teleport_m);
-        let mut steps = Vec::new();
+        let mut steps = std::mem::take(&mut self.scratch.mesh_steps);
+        steps.clear();
         for pose in frame.poses {
             let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
             self.skinning.record(FrameContext::new(ctx, encoder, &mut self.timer), instance, pose.joints, pose.model);
@@ -758,7 +779,8 @@ impl SnowDeformation {
             .collect();
         let meshes: Vec<SweptMesh<'_>> =
             current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
-        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s, queries);
+        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, &steps, frame.dt_s, queries);
+        self.scratch.mesh_steps = steps;
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
         history.age();
@@ -801,7 +823,7 @@ impl SnowDeformation {
         encoder: &mut wgpu::CommandEncoder,
         (deformers, ids): (&[Deformer], &[u64]),
         meshes: &[SweptMesh<'_>],
-        mesh_steps: Vec<u32>,
+        mesh_steps: &[u32],
         dt_s: f32,
         queries: Option<(QueryTicket, &[glam::Vec2])>,
     ) {
@@ -849,7 +871,7 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             use_fallen: p.snowfall.is_some(),
-            terrain_m: self.terrain.height_bounds(),
+            terrain_m: self.terrain_bounds,
         };
         if let Some(tiles) = &mut self.tiles {
             tiles.record_move(FrameContext::new(ctx, encoder, &mut self.timer), &window, &self.res, (old, &rects), self.clock);
@@ -908,12 +930,16 @@ impl SnowDeformation {
         let captures = matches!(technique, Technique::Depth | Technique::Combined);
         let stamps = matches!(technique, Technique::Points | Technique::Combined);
         // Each deformer presses over its motion since the last frame.
-        let sweeps = self.history.sweeps(deformers, ids, p.teleport_m);
+        let scratch = &mut self.scratch;
+        self.history.sweeps_into(deformers, ids, p.teleport_m, &mut scratch.sweeps);
         self.history.remember(deformers, ids);
+        let sweeps = &scratch.sweeps;
         if captures {
-            let mut instances = CaptureInstances::swept(deformers, &sweeps, corner, &self.capture_params);
-            instances.mesh_steps = mesh_steps;
-            self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
+            let instances = &mut scratch.instances;
+            instances.fill_swept(deformers, sweeps, corner, &self.capture_params);
+            instances.mesh_steps.clear();
+            instances.mesh_steps.extend_from_slice(mesh_steps);
+            self.capture_pass.prepare(device, queue, &self.capture_params, instances);
             self.capture_pass.record_swept(encoder, &mut self.timer, &self.res, meshes);
         }
         let stamp_params = StampParams {
@@ -930,8 +956,9 @@ impl SnowDeformation {
         };
         self.points_last_frame = 0;
         if stamps {
-            let points = contact_points(deformers, &sweeps, corner, &stamp_params);
-            let dropped = self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
+            let points = &mut scratch.points;
+            contact_points_into(deformers, sweeps, corner, &stamp_params, points);
+            let dropped = self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, points);
             self.stamp_pass.record(encoder, &mut self.timer);
             self.points_last_frame = points.len() - dropped;
             if dropped > 0 {
@@ -1164,9 +1191,14 @@ impl SnowDeformation {
         self.peak_memory_bytes.max(self.memory_total())
     }
 
-    /// [`Self::memory_bytes`] summed.
+    /// [`Self::memory_bytes`] summed (without building the list but for the objects').
     fn memory_total(&self) -> u64 {
-        self.memory_bytes().iter().map(|(_, b)| b).sum()
+        self.res.memory_total()
+            + self.query_pass.memory_bytes()
+            + self.decal_pass.layer_bytes()
+            + self.accumulation.as_ref().map_or(0, |acc| acc.memory_bytes().iter().map(|(_, b)| b).sum())
+            + self.tiles.as_ref().map_or(0, TileStreaming::gpu_bytes)
+            + self.sharing.as_ref().map_or(0, crate::replicate::sharing::Sharing::memory_bytes)
     }
 
     /// GPU memory held, by resource (bytes), including the point queries' buffers.

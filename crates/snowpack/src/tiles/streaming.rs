@@ -943,15 +943,21 @@ impl TileStreaming {
             evicted: self.evicted,
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,
-            gpu_bytes: self.tiles.size()
-                + self.owners_buffer.size()
-                + self.table_buffer.size()
-                + self.weather.memory_bytes()
-                + self.seal.memory_bytes()
-                + self.restore.memory_bytes()
-                + self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>(),
+            gpu_bytes: self.gpu_bytes(),
             memory_only: self.streamer.is_memory_only(),
         }
+    }
+
+    /// [`TileStats::gpu_bytes`] alone.
+    #[must_use]
+    pub fn gpu_bytes(&self) -> u64 {
+        self.tiles.size()
+            + self.owners_buffer.size()
+            + self.table_buffer.size()
+            + self.weather.memory_bytes()
+            + self.seal.memory_bytes()
+            + self.restore.memory_bytes()
+            + self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>()
     }
 }
 
