@@ -779,7 +779,7 @@ impl SnowDeformation {
             .collect();
         let meshes: Vec<SweptMesh<'_>> =
             current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
-        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, &steps, frame.dt_s, queries);
+        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids, frame.dt_s), (&meshes, &steps), queries);
         self.scratch.mesh_steps = steps;
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
@@ -821,10 +821,8 @@ impl SnowDeformation {
         &mut self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        (deformers, ids): (&[Deformer], &[u64]),
-        meshes: &[SweptMesh<'_>],
-        mesh_steps: &[u32],
-        dt_s: f32,
+        (deformers, ids, dt_s): (&[Deformer], &[u64], f32),
+        (meshes, mesh_steps): (&[SweptMesh<'_>], &[u32]),
         queries: Option<(QueryTicket, &[glam::Vec2])>,
     ) {
         let (device, queue) = (&ctx.device, &ctx.queue);

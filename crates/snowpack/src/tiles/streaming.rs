@@ -831,10 +831,11 @@ impl TileStreaming {
 
     /// Hands arrived copy-outs to the streamer; with `wait`, waits for all.
     fn collect_evictions(&mut self, ctx: &GpuContext, wait: bool) {
-        if wait && !self.evictions.is_empty() {
-            if let Err(e) = ctx.wait_idle("reading back tiles for the store") {
-                tracing::warn!("{e}");
-            }
+        if wait
+            && !self.evictions.is_empty()
+            && let Err(e) = ctx.wait_idle("reading back tiles for the store")
+        {
+            tracing::warn!("{e}");
         }
         let area = self.grid.area();
         let side = self.grid.side;
