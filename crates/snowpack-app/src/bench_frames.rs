@@ -69,8 +69,6 @@ pub fn measure(ctx: &GpuContext, technique: Technique, count: usize, mesh_side: 
         snow.encode(ctx, &mut encoder, &snowpack::SnowFrame::new(1.0 / 60.0, &actors));
         renderer.encode(ctx, &mut encoder, &snow, &actors, &camera, &view, SIZE);
         ctx.queue.submit([encoder.finish()]);
-        snow.after_submit(ctx);
-        renderer.after_submit(ctx);
         if frame + 1 == warmup {
             snow.finish(ctx)?;
             renderer.finish(ctx)?;

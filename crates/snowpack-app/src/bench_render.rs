@@ -83,7 +83,6 @@ pub fn measure(ctx: &GpuContext, warmup: u32, frames: u32) -> anyhow::Result<Vec
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bench render") });
             renderer.encode(ctx, &mut encoder, &snow, &actors, &camera, &view, SIZE);
             ctx.queue.submit([encoder.finish()]);
-            renderer.after_submit(ctx);
             if frame + 1 == warmup {
                 renderer.finish(ctx)?;
                 renderer.clear_timings();

@@ -82,7 +82,6 @@ pub fn measure(ctx: &GpuContext, sizes: &[(u32, u32)], textures: &[u32], warmup:
                     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bench shell") });
                     renderer.encode(ctx, &mut encoder, &snow, &[], &camera, &view, size);
                     ctx.queue.submit([encoder.finish()]);
-                    renderer.after_submit(ctx);
                     ctx.wait_idle("a shell bench frame")?;
                     if frame >= warmup {
                         walls.push(start.elapsed().as_secs_f64() * 1e3);

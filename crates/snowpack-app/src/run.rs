@@ -108,6 +108,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     };
     let warmup = frames.min(10) as u64;
     let mut footsteps = Vec::new();
+    // The characters' soles, asked with the next frame.
+    let mut asked: Option<Vec<glam::Vec2>> = None;
     let start = Instant::now();
     for frame in 0..frames {
         snow.set_center(window_center(scene, &world));
@@ -117,9 +119,10 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             snow.set_object_pose(k, position, rotation);
         }
         let characters = world.characters();
+        let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(&skins, &characters));
         snow.step_frame(
             &ctx,
-            &snowpack::SnowFrame::new(scene.sim.dt_s, &world.deformers()).with_ids(&world.deformer_ids()).with_poses(&poses(&skins, &characters)),
+            &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) },
         )
         .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
@@ -133,7 +136,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
             step.snow_depth_m = sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
             footsteps.push(step);
         }
-        snow.query_points(&sole_points(&world));
+        asked = Some(sole_points(&world));
         if let Some(link) = &mut link {
             link.peer.set_deformers(&crate::net::deformer_positions(&world));
             link.pump(&mut snow)?;

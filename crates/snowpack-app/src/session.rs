@@ -357,8 +357,8 @@ impl Session {
             || self.renderer.params().patch_quads != self.render_params.patch_quads
     }
 
-    /// Records one simulation frame (when running) into `encoder`; the
-    /// deformation's [`SnowDeformation::after_submit`] follows the submit.
+    /// Records one simulation frame (when running) into `encoder`; nothing
+    /// is called after the submit (the next frame takes the readbacks).
     pub fn encode_step(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, camera: Vec3) -> bool {
         self.apply_live_params();
         if self.paused && !self.step_once {
@@ -375,11 +375,11 @@ impl Session {
                 self.footsteps = (self.footsteps.0 + 1, Some(step));
             }
         }
-        if self.physics || !self.probes.is_empty() {
+        let asked = (self.physics || !self.probes.is_empty()).then(|| {
             let mut asked = if self.physics { crate::characters::sole_points(&self.world) } else { Vec::new() };
             asked.extend_from_slice(&self.probes);
-            self.snow.query_points(&asked);
-        }
+            asked
+        });
         if let (PlayerBody::Fox, Some(k)) = (self.player.body, self.fox)
             && let Some(p) = self.world.actor_position(k)
         {
@@ -395,7 +395,8 @@ impl Session {
         let characters = self.world.characters();
         let poses = crate::characters::poses(&self.skins, &characters);
         let ids = self.deformer_ids();
-        self.snow.encode(ctx, encoder, &snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses));
+        let frame = snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses) };
+        self.snow.encode(ctx, encoder, &frame);
         for e in self.snow.take_store_errors() {
             self.store_errors.push(e.to_string());
         }

@@ -269,7 +269,7 @@ impl WebApp {
         }
         let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("web frame") });
         let camera = self.rig.camera(self.session.player.position);
-        let stepped = self.session.encode_step(&self.ctx, &mut encoder, camera.position);
+        self.session.encode_step(&self.ctx, &mut encoder, camera.position);
         let Some(target) = self.target(frame, size) else { return };
         let view = target.view.clone();
         let texture = target.texture.clone();
@@ -283,10 +283,6 @@ impl WebApp {
             _ => None,
         };
         self.ctx.queue.submit([encoder.finish()]);
-        if stepped {
-            self.session.snow.after_submit(&self.ctx);
-        }
-        self.session.renderer.after_submit(&self.ctx);
         if let Err(e) = self.ctx.check("web frame") {
             log::error!("{e}");
             self.panel.status = Some((e.to_string(), true));

@@ -7,7 +7,7 @@
 //! ```
 
 use glam::{DVec2, Vec2, Vec3};
-use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::env::args().nth(1).unwrap_or_else(|| "snowpack-headless.png".to_owned());
@@ -29,8 +29,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t = frame as f32 * dt;
         let center = Vec3::new(-5.0 + 5.0 * t, 0.45, 2.0 * (t * 1.5).sin());
         // Ask where the ball is and a point on untouched snow; answers come back a frame or two later.
-        snow.query_points(&[Vec2::new(center.x, center.z), Vec2::new(0.0, -6.0)]);
-        snow.step(&ctx, &[Deformer::Sphere { center, radius: 0.3 }], dt)?;
+        let points = [Vec2::new(center.x, center.z), Vec2::new(0.0, -6.0)];
+        let ball = [Deformer::Sphere { center, radius: 0.3 }];
+        // `step_frame` encodes and submits in one call (no encoder of our own here).
+        snow.step_frame(&ctx, &SnowFrame::new(dt, &ball).with_queries(&points))?;
     }
     snow.finish(&ctx)?;
     if let Some(answers) = snow.point_answers() {

@@ -98,21 +98,21 @@ impl Game {
             self.ball += (to - self.ball).clamp_length_max(0.15);
         }
         let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("game frame") });
-        // Ask for the snow under the ball; the answer arrives a frame or two later.
-        self.snow.query_points(&[Vec2::new(self.ball.x, self.ball.z)]);
         let ball = [Deformer::Sphere { center: self.ball, radius: 0.4 }];
-        self.snow.encode(&self.ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &ball));
-        self.ground.prepare(&self.ctx.queue, &self.snow, &GroundCamera::new(self.view_proj(), EYE));
+        // Ask for the snow under the ball too; the answer arrives a frame or two later.
+        let under_ball = [Vec2::new(self.ball.x, self.ball.z)];
+        // Snow call 1 of 2: the frame's deformation.
+        self.snow.encode(&self.ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &ball).with_queries(&under_ball));
         let frame = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             _ => {
                 self.surface.configure(&self.ctx.device, &self.config);
                 self.ctx.queue.submit([encoder.finish()]);
-                self.snow.after_submit(&self.ctx);
                 return Ok(());
             }
         };
         let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let camera = GroundCamera::new(self.view_proj(), EYE);
         {
             // The game's own pass: its targets, its clear; the snow is one draw in it.
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -132,10 +132,11 @@ impl Game {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            self.ground.draw(&mut pass);
+            // Snow call 2 of 2: the ground, one draw in the game's pass.
+            self.ground.draw(&mut pass, &self.ctx.queue, &self.snow, &camera);
         }
+        // Nothing to call after the submit: readbacks come back by themselves.
         self.ctx.queue.submit([encoder.finish()]);
-        self.snow.after_submit(&self.ctx);
         self.window.pre_present_notify();
         self.ctx.queue.present(frame);
         self.ctx.check("frame")?;

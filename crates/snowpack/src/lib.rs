@@ -17,12 +17,13 @@
 //! let ctx = GpuContext::from_device(device, queue);
 //! let mut snow = SnowDeformation::new(&ctx, SnowParams::default(), TerrainSource::Flat { height_m: 0.0 }, glam::DVec2::ZERO)?;
 //! let ball = [Deformer::Sphere { center: glam::Vec3::new(0.0, 0.3, 0.0), radius: 0.4 }];
-//! snow.query_points(&[glam::Vec2::ZERO]);
 //! let mut encoder = ctx.device.create_command_encoder(&Default::default());
-//! snow.encode(&ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &ball));
-//! ctx.queue.submit([encoder.finish()]);
-//! snow.after_submit(&ctx);
-//! // A frame or two later:
+//! // The frame: what presses the snow, and where the game asks about it.
+//! let frame = SnowFrame::new(1.0 / 60.0, &ball).with_queries(&[glam::Vec2::ZERO]);
+//! snow.encode(&ctx, &mut encoder, &frame);
+//! // ... the game's passes, with `ground.draw(..)` among their draws ...
+//! ctx.queue.submit([encoder.finish()]); // nothing to call after it
+//! // A frame or two later (each `encode` takes the answers that came back):
 //! if let Some(sample) = snow.point_answers().and_then(|a| a.samples[0]) {
 //!     println!("{:.2} m of snow, {:.0}% pressed", sample.depth_m(), 100.0 * sample.compaction());
 //! }
@@ -36,7 +37,7 @@
 //! ```
 //! # fn main() -> Result<(), snowpack::SnowError> {
 //! use glam::{DVec2, Vec2, Vec3};
-//! use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
+//! use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 //!
 //! # if GpuContext::new_headless(&AdapterRequest::from_env()).is_err() && !snowpack::testing::gpu_required() { return Ok(()) }
 //! let ctx = GpuContext::new_headless(&AdapterRequest::from_env())?;
@@ -44,11 +45,12 @@
 //! let mut snow = SnowDeformation::new(&ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
 //! // A ball whose bottom is 0.2 m above the ground presses 0.3 m of the 0.5 m of snow away.
 //! let ball = Deformer::Sphere { center: Vec3::new(1.0, 0.6, 1.0), radius: 0.4 };
-//! let ticket = snow.query_points(&[Vec2::new(1.0, 1.0), Vec2::new(-3.0, -3.0)]);
-//! snow.step(&ctx, &[ball], 1.0 / 60.0)?;
+//! let points = [Vec2::new(1.0, 1.0), Vec2::new(-3.0, -3.0)];
+//! // `step_frame`: encode, submit (a convenience for tools and tests).
+//! let ticket = snow.step_frame(&ctx, &SnowFrame::new(1.0 / 60.0, &[ball]).with_queries(&points))?;
 //! snow.finish(&ctx)?; // a test may wait; a game's frame never does
 //! let answers = snow.point_answers().expect("answered");
-//! assert_eq!(answers.ticket, ticket);
+//! assert_eq!(Some(answers.ticket), ticket);
 //! let (under, away) = (answers.samples[0].unwrap(), answers.samples[1].unwrap());
 //! assert!((under.depth_m() - 0.2).abs() < 0.01 && (under.compaction() - 0.6).abs() < 0.02);
 //! assert!((away.depth_m() - 0.5).abs() < 1e-3 && away.compaction() < 1e-3);

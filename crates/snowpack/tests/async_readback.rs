@@ -6,7 +6,7 @@
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::gpu::readback::{TextureReadback, read_buffer, read_buffer_async};
 use snowpack::low_level::testing::{self, Rng};
-use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 #[test]
 fn async_buffer_and_texture_readbacks_equal_the_blocking_ones() {
@@ -76,12 +76,12 @@ fn snow_reads_and_point_answers_need_no_blocking_call() {
         spheres.iter().map(|d| if let Deformer::Sphere { center, .. } = d { Vec2::new(center.x, center.z) } else { Vec2::ZERO }).collect();
     points.push(Vec2::new(cx + 7.0, cz + 7.0));
 
-    // The browser's loop: ask, encode, submit, `after_submit` (a non-blocking
-    // poll) and go on; never `finish` or a blocking read.
+    // The browser's loop: ask and encode, submit and go on (each encode
+    // takes what came back after a non-blocking poll); never `finish` or a
+    // blocking read.
     let mut answered = None;
     for frame in 0..600 {
-        let ticket = snow.query_points(&points);
-        snow.step(ctx, &spheres, 1.0 / 60.0).expect("frame");
+        let ticket = snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &spheres).with_queries(&points)).expect("frame");
         if let Some(a) = snow.point_answers()
             && frame >= 4
         {

@@ -181,8 +181,14 @@ fn plate(ctx: &GpuContext, view_proj: Mat4) -> Plate {
 }
 
 /// The caller's frame: clear colour (sky) and depth (reverse-Z: 0), draw the
-/// plate (if any), then the snow, into the caller's targets.
-fn caller_frame(ctx: &GpuContext, ground: &SnowGround, plate: Option<&Plate>, color: &wgpu::Texture, depth: &wgpu::Texture) {
+/// plate (if any), then the snow seen by `camera`, into the caller's targets.
+fn caller_frame(
+    ctx: &GpuContext,
+    (ground, snow, camera): (&mut SnowGround, &SnowDeformation, &GroundCamera),
+    plate: Option<&Plate>,
+    color: &wgpu::Texture,
+    depth: &wgpu::Texture,
+) {
     let color_view = color.create_view(&wgpu::TextureViewDescriptor::default());
     let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("caller frame") });
@@ -209,7 +215,7 @@ fn caller_frame(ctx: &GpuContext, ground: &SnowGround, plate: Option<&Plate>, co
             pass.set_bind_group(0, &p.group, &[]);
             pass.draw(0..6, 0..1);
         }
-        ground.draw(&mut pass);
+        ground.draw(&mut pass, &ctx.queue, snow, camera);
     }
     ctx.queue.submit([encoder.finish()]);
 }
@@ -254,10 +260,10 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
     let desc = SnowGroundDescriptor { grid_quads: 256, ..SnowGroundDescriptor::new(COLOR).with_depth(DEPTH, wgpu::CompareFunction::Greater) };
     let mut ground = SnowGround::new(&ctx.device, &snow, &desc);
     let view_proj = top_down();
-    ground.prepare(&ctx.queue, &snow, &GroundCamera::new(view_proj, Vec3::new(0.0, 10.0, 0.0)));
+    let camera = GroundCamera::new(view_proj, Vec3::new(0.0, 10.0, 0.0));
     let (color, depth) = (target(ctx, COLOR), target(ctx, DEPTH));
     let plate = plate(ctx, view_proj);
-    caller_frame(ctx, &ground, Some(&plate), &color, &depth);
+    caller_frame(ctx, (&mut ground, &snow, &camera), Some(&plate), &color, &depth);
     ctx.check("drawing the ground").expect("no GPU error");
     let image = read_texture(ctx, &color);
     let depths = read_depth(ctx, &depth);
@@ -345,8 +351,7 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
     // Steep enough (about 50 degrees down) that the trench's near wall does not hide its floor.
     let eye = Vec3::new(1.0, 5.0, -4.5);
     let view_proj = snowpack::Camera { position: eye, target: Vec3::new(0.0, 0.0, 0.5), fov_deg: 55.0 }.view_proj(1.0);
-    ground.prepare(&ctx.queue, &snow, &GroundCamera::new(view_proj, eye));
-    caller_frame(ctx, &ground, None, &color, &depth);
+    caller_frame(ctx, (&mut ground, &snow, &GroundCamera::new(view_proj, eye)), None, &color, &depth);
     let image = read_texture(ctx, &color);
     eprintln!("perspective frame: {}", save_png("ground-perspective", &image));
     let project = |p: Vec3| {

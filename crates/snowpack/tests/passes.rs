@@ -21,7 +21,7 @@ use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::surface::SurfaceUnpackPass;
 use snowpack::low_level::testing::{self, Rng};
-use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowParams, TerrainSource};
+use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowFrame, SnowParams, TerrainSource};
 
 fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))
@@ -550,8 +550,7 @@ fn window_over_mesh_terrain_samples_the_drawn_mesh() {
         .filter(|k| (k / 64) % 3 == 1 && (k % 64) % 3 == 1)
         .map(|k| glam::Vec2::new((origin.x + (f64::from(k % 64) + 0.5) * t) as f32, (origin.y + (f64::from(k / 64) + 0.5) * t) as f32))
         .collect();
-    snow.query_points(&centres);
-    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &[]).with_queries(&centres)).expect("frame");
     snow.finish(ctx).expect("finish");
     let answers = snow.point_answers().expect("answers");
     let gpu: Vec<f32> = answers.samples.iter().map(|s| s.expect("inside").terrain_m).collect();

@@ -42,8 +42,7 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
     // Points all over the window, a few outside it and some on texel centres and edges.
     let mut points: Vec<Vec2> = (0..500).map(|_| Vec2::new(center.x as f32 + rng.range(-8.5, 8.5), center.y as f32 + rng.range(-8.5, 8.5))).collect();
     points.push(Vec2::new(center.x as f32 + 100.0, center.y as f32));
-    let ticket = snow.query_points(&points);
-    snow.step(ctx, &spheres, 1.0 / 60.0).expect("frame");
+    let ticket = snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &spheres).with_queries(&points)).expect("frame").expect("a ticket");
     snow.finish(ctx).expect("finish");
     let answers = snow.point_answers().expect("answered after a finish");
     assert_eq!(answers.ticket, ticket);
@@ -107,13 +106,16 @@ fn answers_report_the_pressed_snow_within_three_frames() {
     for _ in 0..3 {
         snow.step(ctx, &[sphere], 1.0 / 60.0).expect("frame");
     }
-    let ticket = snow.query_points(&[Vec2::new(101.0, -39.5), Vec2::new(98.0, -42.0), Vec2::ZERO]);
+    let asked = [Vec2::new(101.0, -39.5), Vec2::new(98.0, -42.0), Vec2::ZERO];
+    let mut ticket = None;
     let mut arrived = None;
     for frame in 1..=3 {
-        snow.step(ctx, &[sphere], 1.0 / 60.0).expect("frame");
+        // The first of them asks.
+        let queries = (frame == 1).then_some(&asked[..]);
+        ticket = ticket.or(snow.step_frame(ctx, &SnowFrame { queries, ..SnowFrame::new(1.0 / 60.0, &[sphere]) }).expect("frame"));
         // A GPU that keeps up: this frame's work is done before the next one starts.
         ctx.wait_idle("test").expect("idle");
-        if snow.point_answers().is_some_and(|a| a.ticket == ticket) {
+        if snow.point_answers().is_some_and(|a| Some(a.ticket) == ticket) {
             arrived = Some(frame);
             break;
         }
@@ -145,8 +147,7 @@ fn window_moves_keep_trails_in_world_space() {
     assert_eq!(full, 128 * 128);
     // Slide 3 m in x and 1 m in z: only the new strips are rewritten.
     snow.set_center(DVec2::new(3.0, 1.0));
-    snow.query_points(&[Vec2::new(1.0, 1.0), Vec2::new(4.0, 4.0)]);
-    snow.step(ctx, &[], 0.016).expect("frame");
+    snow.step_frame(ctx, &SnowFrame::new(0.016, &[]).with_queries(&[Vec2::new(1.0, 1.0), Vec2::new(4.0, 4.0)])).expect("frame");
     let texel = 16.0 / 128.0;
     let (dx, dz) = ((3.0 / texel) as u64, (1.0 / texel) as u64);
     assert_eq!(snow.exposed_texels() - full, 128 * 128 - (128 - dx) * (128 - dz));
@@ -170,11 +171,10 @@ fn a_frame_never_waits_for_answers_when_the_gpu_is_behind() {
     let mut last = None;
     for k in 0..asked {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
-        last = Some(snow.query_points(&[Vec2::new(k as f32 * 0.5 - 10.0, 0.0)]));
-        snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[ball(k)]));
+        let asked = [Vec2::new(k as f32 * 0.5 - 10.0, 0.0)];
+        // Never waits: the encode takes whatever has arrived after a non-blocking poll.
+        last = snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[ball(k)]).with_queries(&asked));
         ctx.queue.submit([encoder.finish()]);
-        // Never waits: a non-blocking poll, then whatever has arrived.
-        snow.after_submit(ctx);
     }
     let stats = snow.query_stats();
     eprintln!("after {asked} frames back to back: {stats:?}");
@@ -197,26 +197,26 @@ fn a_frame_whose_answer_buffers_are_all_busy_skips_its_gather_and_returns() {
     let Some(ctx) = testing::gpu() else { return };
     let params = SnowParams { extent_m: 8.0, resolution: 64, depth_m: 0.5, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
-    // Frames submitted while none of their answers has been started back:
+    // Frames submitted while none of their answers is taken back (held):
     // every staging buffer is taken after three, as when the GPU is behind.
     let mut tickets = Vec::new();
+    snow.hold_readbacks(true);
     for k in 0..6 {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("test frame") });
-        tickets.push(snow.query_points(&[Vec2::new(0.1 * k as f32, 0.0)]));
-        snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[]));
+        let asked = [Vec2::new(0.1 * k as f32, 0.0)];
+        tickets.push(snow.encode(ctx, &mut encoder, &SnowFrame::new(1.0 / 60.0, &[]).with_queries(&asked)).expect("a ticket"));
         ctx.queue.submit([encoder.finish()]);
     }
     let stats = snow.query_stats();
     assert_eq!((stats.gathered, stats.skipped, stats.answered), (3, 3, 0), "{stats:?}");
     // Once they come back, the newest gathered request is the answer.
-    snow.after_submit(ctx);
+    snow.hold_readbacks(false);
     snow.finish(ctx).expect("finish");
     let answers = snow.point_answers().expect("answers");
     assert_eq!(answers.ticket, tickets[2]);
     assert_eq!(answers.points, vec![Vec2::new(0.2, 0.0)]);
     // And the ring is free again: the next request is gathered and answered.
-    let next = snow.query_points(&[Vec2::new(1.0, 1.0)]);
-    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    let next = snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &[]).with_queries(&[Vec2::new(1.0, 1.0)])).expect("frame").expect("a ticket");
     snow.finish(ctx).expect("finish");
     assert_eq!(snow.point_answers().expect("answers").ticket, next);
 }
@@ -251,7 +251,6 @@ fn a_readback_ring_held_busy_skips_its_copies_and_frames_go_on() {
             let copied = ring.record_copy(&mut encoder, &source, k);
             encoder.copy_buffer_to_buffer(&source, 0, &other_work, 0, size);
             ctx.queue.submit([encoder.finish()]);
-            ring.after_submit();
             let _ = ctx.device.poll(wgpu::PollType::Poll);
             copied
         })

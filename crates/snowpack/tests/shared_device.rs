@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DVec2, Vec2, Vec3};
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowFrame, SnowParams, TerrainSource, low_level::testing};
 
 /// A device made the way a game makes it, on the adapter the tests use.
 fn game_device() -> Option<(wgpu::Device, wgpu::Queue)> {
@@ -41,8 +41,8 @@ fn snow_on_a_games_device_keeps_the_games_error_handler_and_reports_its_own_erro
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(&ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("a window on the game's device");
     let ball = Deformer::Sphere { center: Vec3::new(0.5, 0.6, 0.5), radius: 0.4 };
-    let ticket = snow.query_points(&[Vec2::new(0.5, 0.5)]);
-    for _ in 0..3 {
+    let ticket = snow.step_frame(&ctx, &SnowFrame::new(1.0 / 60.0, &[ball]).with_queries(&[Vec2::new(0.5, 0.5)])).expect("frame").expect("a ticket");
+    for _ in 0..2 {
         snow.step(&ctx, &[ball], 1.0 / 60.0).expect("frame");
     }
     snow.finish(&ctx).expect("finish");

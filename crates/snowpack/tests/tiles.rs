@@ -711,7 +711,7 @@ fn a_window_jittering_across_a_tile_boundary_never_evicts() {
 }
 
 /// The tile copy-out held busy: frames are encoded and submitted but their
-/// readbacks never started (`after_submit` held back, as if the GPU never
+/// readbacks never taken (`hold_readbacks`, as if the GPU never
 /// finished), so every tile copied out stays in flight, and so do the point
 /// answers. The frames go on without waiting: the window walks away (130
 /// frames in all), and walking back onto tiles still in flight it stays put
@@ -729,12 +729,12 @@ fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
     let first_frame = d.frame();
     // One frame whose readbacks are held: asks for the snow at `ask`, encodes, submits.
     let held_frame = |d: &mut SnowDeformation, ask: glam::Vec2| {
-        let ticket = d.query_points(&[ask]);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("held frame") });
-        d.encode(ctx, &mut encoder, &SnowFrame::new(DT, &[]));
+        let ticket = d.encode(ctx, &mut encoder, &SnowFrame::new(DT, &[]).with_queries(&[ask])).expect("a ticket");
         ctx.queue.submit([encoder.finish()]);
         ticket
     };
+    d.hold_readbacks(true);
     // Away: 20 m along x, a quarter metre a frame; each frame asks about
     // untouched snow 1.5 m to the side of the window's centre.
     let ask = |x: f64| glam::Vec2::new(x as f32, 1.5);
@@ -769,7 +769,7 @@ fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
     assert!(d.take_store_errors().is_empty());
 
     // Released: the readbacks start and arrive; the window goes home.
-    d.after_submit(ctx);
+    d.hold_readbacks(false);
     d.finish(ctx).expect("finish");
     let answers = d.point_answers().expect("the held answers arrive");
     assert_eq!((answers.ticket, answers.points.clone()), (tickets[2], vec![ask(0.75)]));
@@ -790,8 +790,7 @@ fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
     assert_eq!(differ, 0, "{differ} texels changed after the held copy-outs came back");
     assert!(d.take_store_errors().is_empty());
     // And the answer ring is free again.
-    let next = d.query_points(&[glam::Vec2::new(0.0, 1.5)]);
-    d.step(ctx, &[], DT).expect("frame");
+    let next = d.step_frame(ctx, &SnowFrame::new(DT, &[]).with_queries(&[glam::Vec2::new(0.0, 1.5)])).expect("frame").expect("a ticket");
     d.finish(ctx).expect("finish");
     assert_eq!(d.point_answers().expect("answers").ticket, next);
 }

@@ -56,7 +56,7 @@ fn draw_snow_ground(
     let ground = &mut entry.2;
     let world_from_view = extracted.world_from_view.to_matrix();
     let clip_from_world = extracted.clip_from_world.unwrap_or_else(|| extracted.clip_from_view * world_from_view.inverse());
-    ground.prepare(&state.context().queue, &snow, &GroundCamera::new(clip_from_world, extracted.world_from_view.translation()));
+    let camera = GroundCamera::new(clip_from_world, extracted.world_from_view.translation());
     let color = [Some(target.get_color_attachment())];
     let mut pass = ctx.command_encoder().begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("snow ground"),
@@ -66,7 +66,7 @@ fn draw_snow_ground(
         occlusion_query_set: None,
         multiview_mask: None,
     });
-    ground.draw(&mut pass);
+    ground.draw(&mut pass, &state.context().queue, &snow, &camera);
 }
 
 fn new_ground(device: &RenderDevice, snow: &snowpack::SnowDeformation, format: wgpu::TextureFormat, samples: u32) -> SnowGround {

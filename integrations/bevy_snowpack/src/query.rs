@@ -1,5 +1,5 @@
 //! Point queries from the main world: asked in one frame, answered a frame or
-//! two later by the render world's gather (`SnowDeformation::query_points`).
+//! two later by the render world's gather (`SnowFrame::with_queries`).
 
 use std::ops::Range;
 use std::sync::{Arc, Mutex, MutexGuard};

@@ -82,7 +82,7 @@ pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, query: 
         .init_resource::<ExtractedSnowFrame>()
         .add_systems(RenderStartup, create_deformation)
         .add_systems(ExtractSchedule, extract_snow_frame)
-        .add_systems(RenderGraph, (encode_snow.before(camera_driver), after_submit.in_set(RenderGraphSystems::Finish)));
+        .add_systems(RenderGraph, (encode_snow.before(camera_driver), after_frame.in_set(RenderGraphSystems::Finish)));
 }
 
 fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, control: Res<SnowControl>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
@@ -207,30 +207,31 @@ fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRende
         snow.set_center(dvec2(center));
     }
     let requests = std::mem::take(&mut frame.requests);
-    if !requests.is_empty() {
-        // One gather for every caller this frame; the answer is split back by range.
-        let mut points = Vec::new();
-        let mut ranges = Vec::with_capacity(requests.len());
-        for (ticket, p) in requests {
-            ranges.push((ticket, points.len()..points.len() + p.len()));
-            points.extend(p);
-        }
-        let ticket = snow.query_points(&points);
-        in_flight.push((ticket, ranges));
+    // One gather for every caller this frame; the answer is split back by range.
+    let mut points = Vec::new();
+    let mut ranges = Vec::with_capacity(requests.len());
+    for (ticket, p) in requests {
+        ranges.push((ticket, points.len()..points.len() + p.len()));
+        points.extend(p);
     }
     let encoder = render_context.command_encoder();
     let poses: Vec<SkinnedPose<'_>> =
         posed.iter().map(|&(mesh, k)| SkinnedPose { mesh, joints: &frame.meshes.poses[k].joints, model: Mat4::IDENTITY }).collect();
-    snow.encode(ctx, encoder, &SnowFrame::new(frame.dt_s, &frame.deformers).with_ids(&frame.ids).with_poses(&poses));
+    let snow_frame = SnowFrame::new(frame.dt_s, &frame.deformers).with_ids(&frame.ids).with_poses(&poses);
+    let snow_frame = if ranges.is_empty() { snow_frame } else { snow_frame.with_queries(&points) };
+    if let Some(ticket) = snow.encode(ctx, encoder, &snow_frame) {
+        in_flight.push((ticket, ranges));
+    }
     // Written before this frame's submit, so the cameras' draws see the window as encoded.
     ctx.queue.write_buffer(window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(snow)));
 }
 
-fn after_submit(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>, control: Res<SnowControl>) {
+/// After the frame's submit: answers the encode took back handed to
+/// `SnowQuery`, and requests that need the frame submitted.
+fn after_frame(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>, control: Res<SnowControl>) {
     let Some(mut state) = state else { return };
     let SnowRenderState { ctx, snow, in_flight, objects, .. } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
-    snow.after_submit(ctx);
     // Blocking requests, after the frame's submit so they see it.
     if control.take_save_request() {
         control.set_save_result(snow.save(ctx).map(|()| snow.frame()).map_err(|e| e.to_string()));

@@ -7,7 +7,7 @@ mod common;
 
 use bevy::prelude::*;
 use bevy_snowpack::{FootKind, SnowDeformer, SnowFoot, SnowFootstep, SnowQuery, SnowpackSettings};
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 const DT: f32 = 1.0 / 60.0;
 const RADIUS: f32 = 0.4;
@@ -101,10 +101,9 @@ fn plugin_snow_and_queries_equal_the_library() {
     let mut snow = SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), glam::DVec2::ZERO).expect("standalone deformation");
     let last = placed.len() - frames;
     for (k, p) in placed[last..].iter().enumerate() {
-        if k + 1 == frames {
-            snow.query_points(&points);
-        }
-        snow.step(&ctx, &[Deformer::Sphere { center: *p, radius: RADIUS }], DT).expect("standalone step");
+        let ball = [Deformer::Sphere { center: *p, radius: RADIUS }];
+        let frame = SnowFrame::new(DT, &ball);
+        snow.step_frame(&ctx, &if k + 1 == frames { frame.with_queries(&points) } else { frame }).expect("standalone step");
     }
     snow.finish(&ctx).expect("standalone finish");
     let library_snow = snow.read_snow(&ctx).expect("read the library's snow");

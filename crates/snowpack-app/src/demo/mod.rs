@@ -494,7 +494,7 @@ impl Gfx {
         let device = &self.ctx.device;
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
         let camera_now = self.rig.camera(self.player());
-        let stepped = self.session.encode_step(&self.ctx, &mut encoder, camera_now.position);
+        self.session.encode_step(&self.ctx, &mut encoder, camera_now.position);
 
         // The panel (it may change parameters, which apply next frame).
         let raw = self.egui_state.take_egui_input(&self.window);
@@ -515,9 +515,6 @@ impl Gfx {
         if self.hidden {
             // Minimised: the simulation goes on, nothing is drawn.
             self.ctx.queue.submit([encoder.finish()]);
-            if stepped {
-                self.session.snow.after_submit(&self.ctx);
-            }
             for id in &freed {
                 self.egui_renderer.free_texture(id);
             }
@@ -531,17 +528,11 @@ impl Gfx {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
                 self.ctx.queue.submit([encoder.finish()]);
-                if stepped {
-                    self.session.snow.after_submit(&self.ctx);
-                }
                 return Ok(());
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Validation => {
                 self.surface.configure(&self.ctx.device, &self.config);
                 self.ctx.queue.submit([encoder.finish()]);
-                if stepped {
-                    self.session.snow.after_submit(&self.ctx);
-                }
                 return Ok(());
             }
         };
@@ -575,10 +566,6 @@ impl Gfx {
         for id in &freed {
             self.egui_renderer.free_texture(id);
         }
-        if stepped {
-            self.session.snow.after_submit(&self.ctx);
-        }
-        self.session.renderer.after_submit(&self.ctx);
         match self.ctx.check("demo frame") {
             Ok(()) => {}
             Err(snowpack::SnowError::DeviceLost(reason)) => self.device_lost(reason),
@@ -646,7 +633,6 @@ impl Gfx {
         draw_panel(&self.egui_renderer, &mut encoder, &view, jobs, screen);
         let capture = TextureReadback::record(device, &mut encoder, &texture);
         self.ctx.queue.submit(extra.into_iter().chain([encoder.finish()]));
-        self.session.renderer.after_submit(&self.ctx);
         Ok(capture)
     }
 }

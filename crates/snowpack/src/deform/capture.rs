@@ -110,7 +110,20 @@ impl CaptureInstances {
     /// as capsules, boxes in sub-steps.
     #[must_use]
     pub fn swept(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &CaptureParams) -> Self {
-        let mut out = Self { corner_m: [window_corner_m.x as f32, window_corner_m.y as f32], ..Self::default() };
+        let mut out = Self::default();
+        out.fill_swept(deformers, previous, window_corner_m, params);
+        out
+    }
+
+    /// [`Self::swept`] into `self`, reusing its lists' memory (a frame
+    /// after the first allocates nothing unless it has more instances);
+    /// `mesh_steps` is left as it was.
+    pub fn fill_swept(&mut self, deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &CaptureParams) {
+        self.corner_m = [window_corner_m.x as f32, window_corner_m.y as f32];
+        self.capsules.clear();
+        self.boxes.clear();
+        self.wheels.clear();
+        let out = self;
         let extent = f64::from(params.extent_m);
         let local = |c: Vec3| Vec3::new((f64::from(c.x) - window_corner_m.x) as f32, c.y, (f64::from(c.z) - window_corner_m.y) as f32);
         // Whether the square of half-side `reach` around the segment a..b misses the window.
@@ -138,44 +151,51 @@ impl CaptureInstances {
                 }
                 (Deformer::Box { center, half_extents, rotation }, prev) => {
                     let now = (local(center), half_extents, rotation);
-                    let poses = match prev {
+                    // From `then` in `steps` sub-steps (see `box_poses`), or `now` alone.
+                    let (then, steps) = match prev {
                         Some(Deformer::Box { center, half_extents, rotation }) => {
                             let then = (local(center), half_extents, rotation);
-                            match super::sweep::steps_for(super::sweep::box_travel(then, now), params.texel_m) {
-                                0 => vec![now],
-                                n => super::sweep::box_poses(then, now, n),
-                            }
+                            (then, super::sweep::steps_for(super::sweep::box_travel(then, now), params.texel_m))
                         }
-                        _ => vec![now],
+                        _ => (now, 0),
                     };
+                    let first = if steps == 0 { now } else { super::sweep::box_pose(then, now, 0, steps) };
                     let reach = half_extents.length();
-                    if !outside(poses[0].0, now.0, reach) {
-                        out.boxes.extend(poses.iter().map(|&(c, h, q)| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array()));
+                    if !outside(first.0, now.0, reach) {
+                        let matrix = |(c, h, q): (Vec3, Vec3, glam::Quat)| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array();
+                        if steps == 0 {
+                            out.boxes.push(matrix(now));
+                        } else {
+                            out.boxes.extend((0..=steps).map(|k| matrix(super::sweep::box_pose(then, now, k, steps))));
+                        }
                     }
                 }
                 (Deformer::Wheel { center, axle, radius, half_width, tread, roll_m }, prev) => {
                     use super::wheel;
                     let now = (local(center), axle, roll_m);
-                    let poses = match prev.as_ref().and_then(wheel::pose) {
+                    // From `then` in `steps` sub-steps (see `wheel_poses`), or `now` alone.
+                    let (then, steps) = match prev.as_ref().and_then(wheel::pose) {
                         Some((c, a, roll)) => {
                             let then = (local(c), a, roll);
-                            match super::sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), params.texel_m) {
-                                0 => vec![now],
-                                n => wheel::wheel_poses(then, now, n),
-                            }
+                            (then, super::sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), params.texel_m))
                         }
-                        None => vec![now],
+                        None => (now, 0),
                     };
+                    let first = if steps == 0 { now } else { wheel::wheel_pose(then, now, 0, steps) };
                     let reach = radius.hypot(half_width);
-                    if !outside(poses[0].0, now.0, reach) && radius > 0.0 && half_width > 0.0 {
-                        out.wheels.extend(poses.iter().map(|&(c, a, roll)| wheel::instance(c, a, radius, half_width, &tread, f64::from(roll))));
+                    if !outside(first.0, now.0, reach) && radius > 0.0 && half_width > 0.0 {
+                        let instance = |(c, a, roll): wheel::WheelPose| wheel::instance(c, a, radius, half_width, &tread, f64::from(roll));
+                        if steps == 0 {
+                            out.wheels.push(instance(now));
+                        } else {
+                            out.wheels.extend((0..=steps).map(|k| instance(wheel::wheel_pose(then, now, k, steps))));
+                        }
                     }
                 }
                 // Points have no surface to draw; only the stamp pass uses them.
                 (Deformer::Point { .. }, _) => {}
             }
         }
-        out
     }
 }
 
@@ -212,6 +232,11 @@ pub struct CapturePass {
     cube_indices: wgpu::Buffer,
     /// Capsules, boxes and wheel poses prepared.
     counts: (u32, u32, u32),
+    /// This frame's `step_instances`, kept for its memory.
+    step_data: Vec<[f32; 4]>,
+    /// What `params` and `step_instances` last had written, so an unchanged
+    /// frame writes neither.
+    written: (Option<CaptureParams>, Vec<[f32; 4]>),
 }
 
 fn depth_state() -> wgpu::DepthStencilState {
@@ -391,18 +416,25 @@ impl CapturePass {
             cube_vertices,
             cube_indices,
             counts: (0, 0, 0),
+            step_data: Vec::new(),
+            written: (None, Vec::new()),
         }
     }
 
     /// Uploads this frame's instances, growing the instance buffers when needed.
     pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        if self.written.0 != Some(*params) {
+            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+            self.written.0 = Some(*params);
+        }
         let capsule_bytes: &[u8] = bytemuck::cast_slice(&inst.capsules);
         let box_bytes: &[u8] = bytemuck::cast_slice(&inst.boxes);
         let wheel_bytes: &[u8] = bytemuck::cast_slice(&inst.wheels);
         // Entry 0 is every unswept mesh's only draw; then each swept mesh's steps.
         let [cx, cz] = inst.corner_m;
-        let mut steps = vec![[cx, cz, 1.0, 0.0]];
+        let mut steps = std::mem::take(&mut self.step_data);
+        steps.clear();
+        steps.push([cx, cz, 1.0, 0.0]);
         self.mesh_steps.clear();
         for &n in &inst.mesh_steps {
             if n == 0 {
@@ -412,19 +444,30 @@ impl CapturePass {
             self.mesh_steps.push((steps.len() as u32, n));
             steps.extend((0..=n).map(|k| [cx, cz, k as f32 / n as f32, 0.0]));
         }
-        let step_bytes: &[u8] = bytemuck::cast_slice(&steps);
+        // The steps are the same every frame without meshes: written once.
+        let steps_changed = self.written.1 != steps;
+        let step_bytes: &[u8] = if steps_changed { bytemuck::cast_slice(&steps) } else { &[] };
         for (buffer, bytes, label) in [
             (&mut self.capsule_instances, capsule_bytes, "capsule instances"),
             (&mut self.box_instances, box_bytes, "box instances"),
             (&mut self.wheel_instances, wheel_bytes, "wheel instances"),
             (&mut self.step_instances, step_bytes, "mesh step instances"),
         ] {
+            // An empty list draws nothing: its buffer is not read.
+            if bytes.is_empty() {
+                continue;
+            }
             if bytes.len() as u64 > buffer.size() {
                 *buffer = growable(device, label, (bytes.len() as u64).next_power_of_two());
             }
             queue.write_buffer(buffer, 0, bytes);
         }
+        if steps_changed {
+            self.written.1.clear();
+            self.written.1.extend_from_slice(&steps);
+        }
         self.counts = (inst.capsules.len() as u32, inst.boxes.len() as u32, inst.wheels.len() as u32);
+        self.step_data = steps;
     }
 
     /// Clears the capture target and draws the prepared instances.

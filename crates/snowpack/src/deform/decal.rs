@@ -127,6 +127,13 @@ impl DecalRing {
             let n = terrain.normal_at(at.x, at.z, 0.1);
             let rel = here - self.anchor;
             let ring = &mut self.actors[k];
+            if ring.capacity() == 0 {
+                // At its first contact an actor's ring gets its full size
+                // (`per_actor` decals; the pages are touched only as it
+                // fills), so rings never grow frame by frame: many actors
+                // moving alike would otherwise all grow on the same frames.
+                ring.reserve_exact(self.per_actor);
+            }
             if ring.len() == self.per_actor {
                 ring.pop_front();
             }
@@ -175,6 +182,8 @@ pub struct DecalPass {
     layer_view: wgpu::TextureView,
     /// Texels per side of the full layer.
     resolution: u32,
+    /// The ring's decals as last uploaded, kept for its memory.
+    upload: Vec<Decal>,
 }
 
 fn layer_texture(device: &wgpu::Device, side: u32) -> wgpu::Texture {
@@ -303,7 +312,7 @@ impl DecalPass {
         );
         let layer = layer_texture(device, if full { resolution } else { 1 });
         let layer_view = layer.create_view(&wgpu::TextureViewDescriptor::default());
-        Self { pipeline, params, bind_group, instances: instance_buffer(device, 32 * 1024), count: 0, layer, layer_view, resolution }
+        Self { pipeline, params, bind_group, instances: instance_buffer(device, 32 * 1024), count: 0, layer, layer_view, resolution, upload: Vec::new() }
     }
 
     /// Replaces the 1x1 placeholder with the full `resolution`² layer; does
@@ -328,8 +337,10 @@ impl DecalPass {
         let p = DecalParams { corner_m: [corner.x as f32, corner.y as f32], extent_m, _pad: 0.0 };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         if ring.dirty {
-            let decals: Vec<Decal> = ring.iter().copied().collect();
-            let bytes: &[u8] = bytemuck::cast_slice(&decals);
+            let decals = &mut self.upload;
+            decals.clear();
+            decals.extend(ring.iter().copied());
+            let bytes: &[u8] = bytemuck::cast_slice(decals);
             if bytes.len() as u64 > self.instances.size() {
                 self.instances = instance_buffer(device, (bytes.len() as u64).next_power_of_two());
             }

@@ -66,6 +66,8 @@ pub struct DisplayPass {
     /// One pipeline per [`DisplayParams::variant`] in use.
     pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
+    /// The uniforms last written, so an unchanged frame writes none.
+    written: std::cell::Cell<Option<DisplayParams>>,
     bind_group: wgpu::BindGroup,
 }
 
@@ -103,13 +105,16 @@ impl DisplayPass {
                 res.terrain_params.as_entire_binding(),
             ],
         );
-        Self { pipelines, params, bind_group }
+        Self { pipelines, params, written: std::cell::Cell::new(None), bind_group }
     }
 
     /// Records this frame's display.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &DisplayParams) {
         let params = &DisplayParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        if self.written.get() != Some(*params) {
+            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+            self.written.set(Some(*params));
+        }
         let g = layout::groups(params.resolution, 16);
         layout::dispatch(encoder, timer, "display", &self.pipelines.get(params.variant()), &self.bind_group, (g, g));
     }

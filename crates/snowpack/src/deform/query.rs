@@ -59,8 +59,9 @@ pub struct RawSample {
     pub inside: f32,
 }
 
-/// Which request an answer belongs to: the n-th call of
-/// [`crate::SnowDeformation::query_points`].
+/// Which request an answer belongs to: returned by
+/// [`crate::SnowDeformation::encode`] for a frame that asked points
+/// ([`crate::SnowFrame::with_queries`]), counting from 1.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct QueryTicket(pub u64);
 
@@ -274,11 +275,6 @@ impl QueryPass {
         self.ring.record_copy_len(encoder, &self.samples, len, tag);
         self.stats.gathered += 1;
         true
-    }
-
-    /// Requests the mapping of the copies just submitted.
-    pub fn after_submit(&mut self) {
-        self.ring.after_submit();
     }
 
     /// The newest answer that has arrived since the last call, if any.

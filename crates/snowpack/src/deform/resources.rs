@@ -177,4 +177,11 @@ impl DeformResources {
             ("changed-tile flags", self.share_flags.size()),
         ]
     }
+
+    /// [`Self::memory_bytes`] summed, without building the list.
+    #[must_use]
+    pub fn memory_total(&self) -> u64 {
+        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
+        self.snow.size() + self.stamps.size() + self.fallen.size() + self.heightmap.size() + depth + self.share_flags.size()
+    }
 }

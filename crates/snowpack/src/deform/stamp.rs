@@ -81,21 +81,25 @@ fn contact(d: &Deformer) -> Option<(glam::Vec3, f32, f32)> {
 /// dropped.
 #[must_use]
 pub fn contact_points(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &StampParams) -> Vec<[f32; 8]> {
+    let mut points = Vec::new();
+    contact_points_into(deformers, previous, window_corner_m, params, &mut points);
+    points
+}
+
+/// [`contact_points`] into `points` (cleared first), reusing its memory.
+pub fn contact_points_into(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &StampParams, points: &mut Vec<[f32; 8]>) {
     let extent = f64::from(params.texel_m) * f64::from(params.resolution);
     let reach = f64::from(params.texel_m) * f64::from(params.range_texels);
-    deformers
-        .iter()
-        .enumerate()
-        .filter_map(|(k, d)| {
-            let (at, foot, scale) = contact(d)?;
-            let (from, foot0) = previous.get(k).copied().flatten().and_then(|p| contact(&p)).map_or((at, foot), |(at, foot, _)| (at, foot));
-            let (x, z) = (f64::from(at.x) - window_corner_m.x, f64::from(at.z) - window_corner_m.y);
-            let (x0, z0) = (f64::from(from.x) - window_corner_m.x, f64::from(from.z) - window_corner_m.y);
-            let outside = x.max(x0) + reach < 0.0 || x.min(x0) - reach > extent || z.max(z0) + reach < 0.0 || z.min(z0) - reach > extent;
-            (!outside && foot.min(foot0) < params.high_m && scale.is_finite() && scale >= 0.0)
-                .then_some([x as f32, foot, z as f32, scale, x0 as f32, foot0, z0 as f32, 0.0])
-        })
-        .collect()
+    points.clear();
+    points.extend(deformers.iter().enumerate().filter_map(|(k, d)| {
+        let (at, foot, scale) = contact(d)?;
+        let (from, foot0) = previous.get(k).copied().flatten().and_then(|p| contact(&p)).map_or((at, foot), |(at, foot, _)| (at, foot));
+        let (x, z) = (f64::from(at.x) - window_corner_m.x, f64::from(at.z) - window_corner_m.y);
+        let (x0, z0) = (f64::from(from.x) - window_corner_m.x, f64::from(from.z) - window_corner_m.y);
+        let outside = x.max(x0) + reach < 0.0 || x.min(x0) - reach > extent || z.max(z0) + reach < 0.0 || z.min(z0) - reach > extent;
+        (!outside && foot.min(foot0) < params.high_m && scale.is_finite() && scale >= 0.0)
+            .then_some([x as f32, foot, z as f32, scale, x0 as f32, foot0, z0 as f32, 0.0])
+    }));
 }
 
 /// Largest number of points one frame stamps (65535 x 65535 workgroups would
@@ -110,6 +114,8 @@ pub struct StampPass {
     points: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     count: u32,
+    /// The uniforms last written, so an unchanged frame writes none.
+    written: Option<StampParams>,
 }
 
 fn points_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
@@ -134,7 +140,7 @@ impl StampPass {
         let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
         let points = points_buffer(device, 32 * 256);
         let bind_group = Self::bind(device, &bgl, &params, &points, res);
-        Self { pipeline, bgl, params, points, bind_group, count: 0 }
+        Self { pipeline, bgl, params, points, bind_group, count: 0, written: None }
     }
 
     fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
@@ -158,12 +164,17 @@ impl StampPass {
             self.points = points_buffer(device, (bytes.len() as u64).next_power_of_two());
             self.bind_group = Self::bind(device, &self.bgl, &self.params, &self.points, res);
         }
-        queue.write_buffer(&self.points, 0, bytes);
+        if !bytes.is_empty() {
+            queue.write_buffer(&self.points, 0, bytes);
+        }
         self.count = points.len() as u32;
         let mut p = *params;
         p.count = self.count;
         p.storage_origin = super::window::storage_origin(p.origin, p.resolution);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        if self.written != Some(p) {
+            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+            self.written = Some(p);
+        }
         dropped
     }
 

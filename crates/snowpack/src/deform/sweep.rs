@@ -76,13 +76,14 @@ pub fn box_travel(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat)) -> f32 {
 /// frame drew already; drawn again so the sweep does not depend on it).
 #[must_use]
 pub fn box_poses(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), steps: u32) -> Vec<(Vec3, Vec3, Quat)> {
-    let n = steps.max(1);
-    (0..=n)
-        .map(|k| {
-            let t = k as f32 / n as f32;
-            (a.0.lerp(b.0, t), a.1.lerp(b.1, t), a.2.slerp(b.2, t).normalize())
-        })
-        .collect()
+    (0..=steps.max(1)).map(|k| box_pose(a, b, k, steps)).collect()
+}
+
+/// Pose `k` (0 ..= `steps`, 0 being `a`) of [`box_poses`], without the list.
+#[must_use]
+pub fn box_pose(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), k: u32, steps: u32) -> (Vec3, Vec3, Quat) {
+    let t = k as f32 / steps.max(1) as f32;
+    (a.0.lerp(b.0, t), a.1.lerp(b.1, t), a.2.slerp(b.2, t).normalize())
 }
 
 /// Where a deformer is, for the teleport test: its centre (or point).
@@ -106,10 +107,37 @@ fn same_body(prev: &Deformer, cur: &Deformer) -> bool {
     }
 }
 
+/// Hashes a deformer id with one multiplication (ids are the caller's
+/// numbers or indices, not chosen by an adversary): looking thousands of
+/// deformers up each frame costs a few nanoseconds each, not SipHash's tens.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct IdHasher(u64);
+
+impl std::hash::Hasher for IdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, id: u64) {
+        // Fibonacci hashing: the high bits, which the table uses, depend on every bit of the id.
+        self.0 = (self.0.rotate_left(5) ^ id).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
+
 /// The deformers of the last frame, by id, to sweep this frame's from.
 #[derive(Clone, Debug, Default)]
 pub struct DeformerHistory {
-    previous: std::collections::HashMap<u64, Deformer>,
+    /// Last frame's deformers when it gave them ids ([`id_of`]).
+    previous: std::collections::HashMap<u64, Deformer, std::hash::BuildHasherDefault<IdHasher>>,
+    /// Last frame's deformers when it gave no ids: deformer k has id k, so
+    /// they are kept by index (no hashing); `previous` is then empty.
+    by_index: Vec<Deformer>,
 }
 
 /// The id of deformer `k`: `ids[k]` when the caller gave one per deformer, else `k`.
@@ -130,27 +158,40 @@ impl DeformerHistory {
     /// `teleport_m` (`teleport_m <= 0` sweeps nothing).
     #[must_use]
     pub fn sweeps(&self, current: &[Deformer], ids: &[u64], teleport_m: f32) -> Vec<Option<Deformer>> {
-        current
-            .iter()
-            .enumerate()
-            .map(|(k, cur)| {
-                let prev = self.previous.get(&id_of(ids, current.len(), k))?;
-                (teleport_m > 0.0 && same_body(prev, cur) && anchor(prev).distance(anchor(cur)) <= teleport_m).then_some(*prev)
-            })
-            .collect()
+        let mut out = Vec::new();
+        self.sweeps_into(current, ids, teleport_m, &mut out);
+        out
+    }
+
+    /// [`Self::sweeps`] into `out` (cleared first), reusing its memory.
+    pub fn sweeps_into(&self, current: &[Deformer], ids: &[u64], teleport_m: f32, out: &mut Vec<Option<Deformer>>) {
+        out.clear();
+        out.extend(current.iter().enumerate().map(|(k, cur)| {
+            let id = id_of(ids, current.len(), k);
+            let prev = match usize::try_from(id) {
+                Ok(index) if self.previous.is_empty() => self.by_index.get(index)?,
+                _ => self.previous.get(&id)?,
+            };
+            (teleport_m > 0.0 && same_body(prev, cur) && anchor(prev).distance(anchor(cur)) <= teleport_m).then_some(*prev)
+        }));
     }
 
     /// Keeps `current` (with `ids` as in [`Self::sweeps`]) as the previous
     /// frame's deformers; a repeated id keeps its last deformer.
     pub fn remember(&mut self, current: &[Deformer], ids: &[u64]) {
         self.previous.clear();
-        self.previous.extend(current.iter().enumerate().map(|(k, d)| (id_of(ids, current.len(), k), *d)));
+        self.by_index.clear();
+        if ids.len() == current.len() && !current.is_empty() {
+            self.previous.extend(current.iter().enumerate().map(|(k, d)| (id_of(ids, current.len(), k), *d)));
+        } else {
+            self.by_index.extend_from_slice(current);
+        }
     }
 
     /// Moves every remembered deformer by `delta` (m): the floating origin
     /// moved by `-delta`, so positions relative to it shift by `delta`.
     pub fn shift(&mut self, delta: Vec3) {
-        for d in self.previous.values_mut() {
+        for d in self.previous.values_mut().chain(&mut self.by_index) {
             match d {
                 Deformer::Sphere { center, .. } | Deformer::Box { center, .. } | Deformer::Wheel { center, .. } => *center += delta,
                 Deformer::Point { position, .. } => *position += delta,
@@ -161,6 +202,7 @@ impl DeformerHistory {
     /// Forgets the previous frame (the next frame sweeps nothing).
     pub fn clear(&mut self) {
         self.previous.clear();
+        self.by_index.clear();
     }
 }
 

@@ -83,6 +83,8 @@ pub struct UpdatePass {
     pipelines: SpecialisedPipeline,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
+    /// The uniforms last written, so an unchanged frame writes none.
+    written: std::cell::Cell<Option<UpdateParams>>,
     bind_group: wgpu::BindGroup,
     /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
     no_sky: wgpu::TextureView,
@@ -114,7 +116,7 @@ impl UpdatePass {
         let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = Self::group(device, &layout, &params, res, &no_sky);
-        Self { pipelines, layout, params, bind_group, no_sky }
+        Self { pipelines, layout, params, written: std::cell::Cell::new(None), bind_group, no_sky }
     }
 
     fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, res: &DeformResources, sky: &wgpu::TextureView) -> wgpu::BindGroup {
@@ -145,7 +147,10 @@ impl UpdatePass {
     /// Records the update for this frame.
     pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
         let params = &UpdateParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        if self.written.get() != Some(*params) {
+            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+            self.written.set(Some(*params));
+        }
         let g = layout::groups(params.resolution, 16);
         layout::dispatch(encoder, timer, "update", &self.pipelines.get(params.flags), &self.bind_group, (g, g));
     }

@@ -125,13 +125,14 @@ pub fn wheel_travel(a: WheelPose, b: WheelPose, r: f32, w: f32) -> f32 {
 /// axle normalised linear.
 #[must_use]
 pub fn wheel_poses(a: WheelPose, b: WheelPose, steps: u32) -> Vec<WheelPose> {
-    let n = steps.max(1);
-    (0..=n)
-        .map(|k| {
-            let t = k as f32 / n as f32;
-            (a.0.lerp(b.0, t), a.1.lerp(b.1, t).normalize_or(b.1), a.2 + (b.2 - a.2) * t)
-        })
-        .collect()
+    (0..=steps.max(1)).map(|k| wheel_pose(a, b, k, steps)).collect()
+}
+
+/// Pose `k` (0 ..= `steps`, 0 being `a`) of [`wheel_poses`], without the list.
+#[must_use]
+pub fn wheel_pose(a: WheelPose, b: WheelPose, k: u32, steps: u32) -> WheelPose {
+    let t = k as f32 / steps.max(1) as f32;
+    (a.0.lerp(b.0, t), a.1.lerp(b.1, t).normalize_or(b.1), a.2 + (b.2 - a.2) * t)
 }
 
 /// The capture's instance of one wheel pose (`capture_wheel.wgsl`):

@@ -48,12 +48,12 @@ impl SlidingWindow {
     /// newly exposed there (empty when it did not move; at most two).
     pub fn move_to(&mut self, origin: [i64; 2]) -> Vec<TexelRect> {
         let res = self.resolution;
-        let full = vec![[0, 0, res, res]];
-        let Some(old) = self.origin.replace(origin) else { return full };
+        let full = || vec![[0, 0, res, res]];
+        let Some(old) = self.origin.replace(origin) else { return full() };
         let (dx, dz) = (origin[0] - old[0], origin[1] - old[1]);
         let r = i64::from(res);
         if dx.abs() >= r || dz.abs() >= r {
-            return full;
+            return full();
         }
         let mut rects = Vec::new();
         // New columns, all rows.

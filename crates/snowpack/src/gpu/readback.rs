@@ -1,5 +1,10 @@
 //! A ring of staging buffers that brings GPU data back a few frames late
 //! without ever stalling: a frame whose slots are all in flight skips its copy.
+//!
+//! Every readback here is mapped by wgpu when the encoder holding its copy is
+//! submitted (`CommandEncoder::map_buffer_on_submit`), so nothing needs
+//! calling after a submit; what has arrived is taken at the next frame,
+//! after a non-blocking `device.poll`.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
@@ -12,20 +17,71 @@ const MAPPING: u8 = 0;
 const MAPPED: u8 = 1;
 const FAILED: u8 = 2;
 
+/// Where a mapping requested with [`MapFlag::on_submit`] stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapState {
+    /// Not back yet: the encoder is not submitted, or the GPU is not done,
+    /// or no poll has run the callback yet.
+    Pending,
+    /// Mapped: the bytes can be read.
+    Mapped,
+    /// The mapping failed, or the encoder was dropped without being submitted.
+    Failed,
+}
+
+/// The state of one mapping started when its encoder is submitted.
+#[derive(Clone, Debug)]
+pub struct MapFlag(Arc<AtomicU8>);
+
+/// Held by wgpu's mapping callback: dropped without the callback running
+/// (the encoder never submitted), it marks the mapping failed.
+struct MapGuard(Arc<AtomicU8>);
+
+impl Drop for MapGuard {
+    fn drop(&mut self) {
+        let _ = self.0.compare_exchange(MAPPING, FAILED, Ordering::AcqRel, Ordering::Acquire);
+    }
+}
+
+impl MapFlag {
+    /// Asks wgpu to map `buffer[..len]` for reading when `encoder` is
+    /// submitted (after the copies recorded into it so far), and returns
+    /// the flag its callback sets.
+    pub fn on_submit(encoder: &wgpu::CommandEncoder, buffer: &wgpu::Buffer, len: u64) -> Self {
+        let flag = Arc::new(AtomicU8::new(MAPPING));
+        let guard = MapGuard(Arc::clone(&flag));
+        encoder.map_buffer_on_submit(buffer, wgpu::MapMode::Read, ..len, move |result| {
+            guard.0.store(if result.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+        });
+        Self(flag)
+    }
+
+    /// A flag that has already arrived (nothing to map).
+    #[must_use]
+    pub fn arrived() -> Self {
+        Self(Arc::new(AtomicU8::new(MAPPED)))
+    }
+
+    /// Where the mapping stands (callbacks run inside `device.poll` or a submit).
+    #[must_use]
+    pub fn state(&self) -> MapState {
+        match self.0.load(Ordering::Acquire) {
+            MAPPING => MapState::Pending,
+            MAPPED => MapState::Mapped,
+            _ => MapState::Failed,
+        }
+    }
+}
+
 enum SlotState<M> {
     Free,
-    /// Copy recorded into an encoder, not yet submitted.
-    Recorded {
-        meta: M,
-        seq: u64,
-        len: u64,
-    },
-    /// `map_async` requested; the flag turns MAPPED or FAILED in wgpu's callback.
+    /// Copy recorded, mapped when its encoder is submitted; the flag turns
+    /// mapped or failed in wgpu's callback.
     Mapping {
         meta: M,
         seq: u64,
         len: u64,
-        flag: Arc<AtomicU8>,
+        flag: MapFlag,
     },
 }
 
@@ -74,9 +130,10 @@ impl<M> ReadbackRing<M> {
         self.size * self.slots.len() as u64
     }
 
-    /// Records a copy of `size` bytes of `src` into a free slot; returns false
-    /// (and records nothing, counted in [`Self::skipped`]) when every slot is
-    /// still in flight.
+    /// Records a copy of `size` bytes of `src` into a free slot, mapped for
+    /// reading when `encoder` is submitted; returns false (and records
+    /// nothing, counted in [`Self::skipped`]) when every slot is still in
+    /// flight.
     pub fn record_copy(&mut self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, meta: M) -> bool {
         self.record_copy_len(encoder, src, self.size, meta)
     }
@@ -89,10 +146,14 @@ impl<M> ReadbackRing<M> {
             self.skipped += 1;
             return false;
         };
-        if len > 0 {
+        let flag = if len > 0 {
             encoder.copy_buffer_to_buffer(src, 0, &slot.buffer, 0, len);
-        }
-        slot.state = SlotState::Recorded { meta, seq: self.next_seq, len };
+            MapFlag::on_submit(encoder, &slot.buffer, len)
+        } else {
+            // Nothing to map (an empty answer): it has arrived.
+            MapFlag::arrived()
+        };
+        slot.state = SlotState::Mapping { meta, seq: self.next_seq, len, flag };
         self.next_seq += 1;
         true
     }
@@ -111,36 +172,12 @@ impl<M> ReadbackRing<M> {
         self.slots.iter().any(|s| matches!(s.state, SlotState::Free))
     }
 
-    /// Requests mapping of the slots recorded since the last call; call it
-    /// right after the encoder holding the copies was submitted.
-    pub fn after_submit(&mut self) {
-        for slot in &mut self.slots {
-            if !matches!(slot.state, SlotState::Recorded { .. }) {
-                continue;
-            }
-            let SlotState::Recorded { meta, seq, len } = std::mem::replace(&mut slot.state, SlotState::Free) else {
-                continue;
-            };
-            let flag = Arc::new(AtomicU8::new(MAPPING));
-            if len == 0 {
-                // Nothing to map (an empty answer): it has arrived.
-                flag.store(MAPPED, Ordering::Release);
-            } else {
-                let done = Arc::clone(&flag);
-                slot.buffer.slice(..len).map_async(wgpu::MapMode::Read, move |result| {
-                    done.store(if result.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
-                });
-            }
-            slot.state = SlotState::Mapping { meta, seq, len, flag };
-        }
-    }
-
     /// Whether a mapping has been asked for and its callback has not run yet.
     /// Once the GPU is idle this is only the time until some thread's poll
     /// fires the callback (wgpu fires them from whichever poll collected them).
     #[must_use]
     pub fn callbacks_pending(&self) -> bool {
-        self.slots.iter().any(|s| matches!(&s.state, SlotState::Mapping { flag, .. } if flag.load(Ordering::Acquire) == MAPPING))
+        self.slots.iter().any(|s| matches!(&s.state, SlotState::Mapping { flag, .. } if flag.state() == MapState::Pending))
     }
 
     /// Whether any slot is waiting for the GPU.
@@ -155,11 +192,11 @@ impl<M> ReadbackRing<M> {
         let mut best: Option<(usize, u64)> = None;
         for (k, slot) in self.slots.iter_mut().enumerate() {
             let SlotState::Mapping { seq, flag, .. } = &slot.state else { continue };
-            match flag.load(Ordering::Acquire) {
-                MAPPED if best.is_none_or(|(_, s)| *seq > s) => {
+            match flag.state() {
+                MapState::Mapped if best.is_none_or(|(_, s)| *seq > s) => {
                     best = Some((k, *seq));
                 }
-                FAILED => slot.state = SlotState::Free,
+                MapState::Failed => slot.state = SlotState::Free,
                 _ => {}
             }
         }
@@ -168,7 +205,7 @@ impl<M> ReadbackRing<M> {
         // newer than what was delivered before.
         let mut result = None;
         for (k, slot) in self.slots.iter_mut().enumerate() {
-            let arrived = matches!(&slot.state, SlotState::Mapping { flag, .. } if flag.load(Ordering::Acquire) == MAPPED);
+            let arrived = matches!(&slot.state, SlotState::Mapping { flag, .. } if flag.state() == MapState::Mapped);
             if !arrived {
                 continue;
             }
@@ -203,16 +240,16 @@ impl<M> ReadbackRing<M> {
         let mut arrived = Vec::new();
         for slot in &mut self.slots {
             let state = match &slot.state {
-                SlotState::Mapping { flag, .. } => flag.load(Ordering::Acquire),
-                _ => continue,
+                SlotState::Mapping { flag, .. } => flag.state(),
+                SlotState::Free => continue,
             };
-            if state == MAPPING {
+            if state == MapState::Pending {
                 continue;
             }
             let SlotState::Mapping { meta, seq, len, .. } = std::mem::replace(&mut slot.state, SlotState::Free) else {
                 continue;
             };
-            if state == MAPPED {
+            if state == MapState::Mapped {
                 let bytes = if len == 0 { Ok(Vec::new()) } else { slot.buffer.slice(..len).get_mapped_range().map(|view| view.to_vec()) };
                 if len > 0 {
                     slot.buffer.unmap();

@@ -117,7 +117,8 @@ impl GpuTimer {
         Some(wgpu::RenderPassTimestampWrites { query_set, beginning_of_pass_write_index: Some(slot * 2), end_of_pass_write_index: Some(slot * 2 + 1) })
     }
 
-    /// Resolves this frame's timestamps and queues their readback.
+    /// Resolves this frame's timestamps and queues their readback (mapped
+    /// when `encoder` is submitted; [`Self::collect`] takes it later).
     pub fn end_frame(&mut self, encoder: &mut wgpu::CommandEncoder) {
         let (Some(query_set), Some(resolve), Some(ring)) = (&self.query_set, &self.resolve, &mut self.ring) else {
             return;
@@ -128,13 +129,6 @@ impl GpuTimer {
         let count = self.labels.len() as u32 * 2;
         encoder.resolve_query_set(query_set, 0..count, resolve, 0);
         ring.record_copy(encoder, resolve, self.labels.clone());
-    }
-
-    /// Call after submitting the frame's encoder.
-    pub fn after_submit(&mut self) {
-        if let Some(ring) = &mut self.ring {
-            ring.after_submit();
-        }
     }
 
     /// Collects timestamps that have arrived (non-blocking; poll the device first).

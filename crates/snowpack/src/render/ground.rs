@@ -211,7 +211,6 @@ impl GroundParams {
 /// let mut ground = SnowGround::new(device, snow, &desc);
 ///
 /// // Each frame, after the deformation's frame is encoded:
-/// ground.prepare(queue, snow, &GroundCamera::new(view_proj, eye));
 /// let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
 ///     label: Some("game"),
 ///     color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -230,7 +229,7 @@ impl GroundParams {
 ///     multiview_mask: None,
 /// });
 /// // ... the game's own draws ...
-/// ground.draw(&mut pass);
+/// ground.draw(&mut pass, queue, snow, &GroundCamera::new(view_proj, eye));
 /// # }
 /// ```
 pub struct SnowGround {
@@ -243,7 +242,6 @@ pub struct SnowGround {
     index_count: u32,
     lighting: GroundLighting,
     grid_quads: u32,
-    placed: bool,
 }
 
 impl SnowGround {
@@ -310,10 +308,10 @@ impl SnowGround {
                 usage: wgpu::BufferUsages::INDEX,
             })
         };
-        Self { pipeline, frame_group, camera, params, sampling, indices, index_count, lighting: desc.lighting, grid_quads, placed: false }
+        Self { pipeline, frame_group, camera, params, sampling, indices, index_count, lighting: desc.lighting, grid_quads }
     }
 
-    /// Changes the lighting and material from the next [`Self::prepare`] on.
+    /// Changes the lighting and material from the next [`Self::draw`] on.
     pub fn set_lighting(&mut self, lighting: GroundLighting) {
         self.lighting = lighting;
     }
@@ -333,24 +331,23 @@ impl SnowGround {
         }
     }
 
-    /// Writes this frame's camera, lighting and window position. Call after
-    /// the deformation's frame is encoded and before the pass is submitted.
-    pub fn prepare(&mut self, queue: &wgpu::Queue, snow: &SnowDeformation, camera: &GroundCamera) {
+    /// Draws `snow` as its last encoded frame left it into `pass`, seen by
+    /// `camera` (one indexed draw); draws nothing before the window is
+    /// placed (the deformation's first frame). Call after
+    /// [`SnowDeformation::encode`], in a pass of the same submit.
+    ///
+    /// It writes the frame's uniforms (camera, lighting, where the window
+    /// is) with `queue`, which the submit applies before any of its work:
+    /// one camera per ground and submit (a second view in the same submit
+    /// wants a second [`SnowGround`]). Sets its own pipeline and bind groups
+    /// 0 and 1; the caller's later draws set theirs.
+    pub fn draw(&mut self, pass: &mut wgpu::RenderPass<'_>, queue: &wgpu::Queue, snow: &SnowDeformation, camera: &GroundCamera) {
         self.sampling.update(queue, snow);
-        self.placed = snow.origin_m().is_some();
-        let corner = snow.origin_m().unwrap_or_default() - snow.floating_origin();
+        let Some(origin) = snow.origin_m() else { return };
+        let corner = origin - snow.floating_origin();
         let params = GroundParams::new(&self.lighting, self.grid_quads, corner, f64::from(snow.params().extent_m));
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.camera, 0, bytemuck::bytes_of(camera));
-    }
-
-    /// Draws the snow into `pass` (one indexed draw); draws nothing before the
-    /// window is placed (the deformation's first frame). Sets its own
-    /// pipeline and bind groups 0 and 1; the caller's later draws set theirs.
-    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
-        if !self.placed {
-            return;
-        }
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.frame_group, &[]);
         pass.set_bind_group(1, self.sampling.bind_group(), &[]);

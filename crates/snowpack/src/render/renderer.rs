@@ -189,7 +189,6 @@ impl Renderer {
         env_pass.record(&mut encoder, &mut timer);
         timer.end_frame(&mut encoder);
         queue.submit([encoder.finish()]);
-        timer.after_submit();
         ctx.check("environment prefilter")?;
 
         let (lo, hi) = snow.terrain().height_bounds();
@@ -335,7 +334,9 @@ impl Renderer {
     }
 
     /// Records one frame into `encoder`, drawing into `target` (of the output
-    /// format, `size` pixels). Call [`Self::after_submit`] after submitting.
+    /// format, `size` pixels). Nothing is called after the submit: the
+    /// frame's timestamps are mapped when the encoder is submitted and taken
+    /// by the next `encode` (a non-blocking poll).
     #[expect(
         clippy::too_many_arguments,
         reason = "each is a separate thing the caller holds (device, encoder, snow, actors, camera, target); a bundle would be built only to be unpacked"
@@ -351,6 +352,9 @@ impl Renderer {
         size: (u32, u32),
     ) {
         let (device, queue) = (&ctx.device, &ctx.queue);
+        // Timestamps that have come back since the last frame.
+        let _ = device.poll(wgpu::PollType::Poll);
+        self.timer.collect();
         self.ensure_targets(device, size);
         let ground = snow.terrain().height_at(camera.position.x, camera.position.z) + snow.params().depth_m + snow.fallen_m();
         let eye_height = (camera.position.y - ground).max(0.0);
@@ -483,13 +487,6 @@ impl Renderer {
         self.shell.as_ref().filter(|_| self.params.shell.enabled)
     }
 
-    /// Follows up a submitted frame: starts timestamp readbacks, collects any that arrived.
-    pub fn after_submit(&mut self, ctx: &GpuContext) {
-        self.timer.after_submit();
-        let _ = ctx.device.poll(wgpu::PollType::Poll);
-        self.timer.collect();
-    }
-
     /// Renders one frame headless and returns it as sRGB RGBA8 rows (blocking;
     /// the renderer must have been built for [`IMAGE_FORMAT`]).
     pub fn render_image(
@@ -521,7 +518,6 @@ impl Renderer {
         self.encode(ctx, &mut encoder, snow, actors, camera, &view, size);
         let readback = crate::gpu::readback::TextureReadback::record(device, &mut encoder, &texture);
         ctx.queue.submit([encoder.finish()]);
-        self.after_submit(ctx);
         ctx.check("render frame")?;
         readback.read(ctx)
     }

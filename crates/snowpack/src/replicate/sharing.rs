@@ -284,12 +284,6 @@ impl Sharing {
         self.gather_all = true;
     }
 
-    /// Maps the copies recorded this frame; call right after submitting it.
-    pub fn after_submit(&mut self) {
-        self.flag_ring.after_submit();
-        self.gather_ring.after_submit();
-    }
-
     /// Whether a readback's mapping callback has not run yet.
     #[must_use]
     pub fn callbacks_pending(&self) -> bool {

@@ -16,7 +16,7 @@ use crate::deform::resources::DeformResources;
 #[cfg(feature = "low_level")]
 use crate::deform::snow_word;
 use crate::deform::snow_word::SNOW_QUANTUM_M;
-use crate::deform::stamp::{StampParams, StampPass, contact_points};
+use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, WindowParams, WindowPass};
@@ -73,7 +73,7 @@ fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, 
 /// footprints; points and combined), `UpdatePass` (persistent height with
 /// refill), `DisplayPass` (Hanák's remap or point rims, then the optional
 /// blur, into the displayed half of each snow word), then `QueryPass` (the
-/// points asked with [`Self::query_points`], answered a frame or two later).
+/// points asked with `SnowFrame::with_queries`, answered a frame or two later).
 /// Normals are computed where they are used, from the displayed heights.
 ///
 /// Buffers exist only for the techniques used so far: the footprint buffer
@@ -106,9 +106,10 @@ pub struct SnowDeformation {
     display_pass: DisplayPass,
     pub(super) timer: GpuTimer,
     query_pass: QueryPass,
-    /// Points asked for the next frame (relative to the floating origin) and their ticket.
-    asked: Option<(QueryTicket, Vec<glam::Vec2>)>,
+    /// Tickets given so far ([`SnowFrame::with_queries`]).
     tickets: u64,
+    /// Frames collect no readback ([`Self::hold_readbacks`]).
+    readbacks_held: bool,
     answers: Option<PointAnswers>,
     frame: u64,
     exposed_texels: u64,
@@ -146,6 +147,24 @@ pub struct SnowDeformation {
     history: DeformerHistory,
     /// Last frame's positions of the meshes, to sweep them.
     mesh_history: super::sweep::MeshHistory,
+    /// The terrain's lowest and highest height (m), found once.
+    terrain_bounds: (f32, f32),
+    /// Lists one frame fills, kept for their memory so that a frame after
+    /// the first allocates nothing for them (however many deformers).
+    scratch: FrameScratch,
+}
+
+/// Lists [`SnowDeformation::encode`] fills each frame, cleared and refilled.
+#[derive(Default)]
+struct FrameScratch {
+    /// Each deformer's pose to sweep from.
+    sweeps: Vec<Option<Deformer>>,
+    /// The capture's instances.
+    instances: CaptureInstances,
+    /// The stamp pass's contact points.
+    points: Vec<[f32; 8]>,
+    /// Sub-steps of each mesh (posed characters, then the caller's).
+    mesh_steps: Vec<u32>,
 }
 
 /// Where the cumulative refill counters are counted from: at world time
@@ -199,13 +218,17 @@ pub struct SnowFrame<'a> {
     /// ([`Self::with_ids`]); empty (or of another length): deformer k is
     /// the same body as last frame's deformer k.
     pub ids: &'a [u64],
+    /// Points (x, z relative to the floating origin, like deformers) to
+    /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
+    /// `None`: nothing asked.
+    pub queries: Option<&'a [glam::Vec2]>,
 }
 
 impl<'a> SnowFrame<'a> {
     /// A frame of `dt_s` seconds with `deformers` and nothing else.
     #[must_use]
     pub fn new(dt_s: f32, deformers: &'a [Deformer]) -> Self {
-        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[] }
+        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[], queries: None }
     }
 
     /// The same frame with characters in pose.
@@ -235,6 +258,20 @@ impl<'a> SnowFrame<'a> {
     #[must_use]
     pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
         self.ids = ids;
+        self
+    }
+
+    /// The same frame asking for the snow at `points` (world x, z relative
+    /// to the floating origin, like deformers) as this frame leaves it.
+    /// [`SnowDeformation::encode`] returns the request's ticket; the
+    /// answer, tagged with it, arrives a frame or two later in
+    /// [`SnowDeformation::point_answers`], and a frame never waits for it.
+    /// If the GPU is so far behind that every staging buffer is in flight,
+    /// the request is dropped and counted in [`QueryStats::skipped`]: ask
+    /// again (games ask every frame).
+    #[must_use]
+    pub fn with_queries(mut self, points: &'a [glam::Vec2]) -> Self {
+        self.queries = Some(points);
         self
     }
 }
@@ -316,8 +353,8 @@ impl SnowDeformation {
             display_pass: DisplayPass::new(device, &res),
             timer: GpuTimer::new(device, queue),
             query_pass: QueryPass::new(device, &res),
-            asked: None,
             tickets: 0,
+            readbacks_held: false,
             answers: None,
             window: SlidingWindow::new(params.resolution),
             center,
@@ -344,6 +381,8 @@ impl SnowDeformation {
             floating_origin: DVec2::ZERO,
             history: DeformerHistory::new(),
             mesh_history: super::sweep::MeshHistory::default(),
+            terrain_bounds: (tmin, tmax),
+            scratch: FrameScratch::default(),
         })
     }
 
@@ -749,14 +788,27 @@ impl SnowDeformation {
     /// Records one frame of deformation into `encoder`: the one per-frame
     /// entry point. Characters in `frame.poses` are skinned on the GPU (the
     /// `skinning` pass) and their posed meshes press the snow with
-    /// `frame.meshes` and the deformers. Submit the encoder, then call
-    /// [`Self::after_submit`].
-    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) {
+    /// `frame.meshes` and the deformers; the points of
+    /// [`SnowFrame::with_queries`] are gathered, and their ticket returned
+    /// (`None` when the frame asked nothing).
+    ///
+    /// Nothing is called after the submit: the frame's readbacks (point
+    /// answers, timings, tiles leaving the window, shared snow) are mapped
+    /// by wgpu when the encoder is submitted, and the next `encode` takes
+    /// what has arrived (a non-blocking `device.poll`, never a wait).
+    pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) -> Option<QueryTicket> {
         use super::sweep::MeshKey;
+        self.collect_arrived(ctx);
+        let queries = frame.queries.map(|points| {
+            self.tickets += 1;
+            (QueryTicket(self.tickets), points)
+        });
+        let ticket = queries.map(|(t, _)| t);
         self.posed.clear();
         self.timer.begin_frame();
         let (texel_m, teleport_m) = (self.params.texel_m(), self.params.teleport_m);
-        let mut steps = Vec::new();
+        let mut steps = std::mem::take(&mut self.scratch.mesh_steps);
+        steps.clear();
         for pose in frame.poses {
             let Some(instance) = self.skinned.get(pose.mesh.0) else { continue };
             self.skinning.record(FrameContext::new(ctx, encoder, &mut self.timer), instance, pose.joints, pose.model);
@@ -785,7 +837,8 @@ impl SnowDeformation {
             .collect();
         let meshes: Vec<SweptMesh<'_>> =
             current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
-        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids), &meshes, steps, frame.dt_s);
+        self.encode_frame(ctx, encoder, (frame.deformers, frame.ids, frame.dt_s), (&meshes, &steps), queries);
+        self.scratch.mesh_steps = steps;
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
         history.age();
@@ -795,34 +848,40 @@ impl SnowDeformation {
         drop(current);
         self.mesh_history = history;
         self.skinned = skinned;
+        // With this frame's copy-outs recorded, before they can be collected and dropped.
+        self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_total());
+        ticket
     }
 
-    /// Records, submits and follows up one frame ([`Self::encode`], submit,
-    /// [`Self::after_submit`]); fails on GPU errors. For programs without an
-    /// encoder of their own.
-    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<(), SnowError> {
+    /// A convenience for headless tools and tests, not a game's frame
+    /// loop: records the frame into an encoder of its own ([`Self::encode`]),
+    /// submits it and takes whatever readbacks have already arrived
+    /// (without waiting); fails on GPU errors. Returns the ticket of the
+    /// frame's point queries, if it asked any.
+    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<Option<QueryTicket>, SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        ctx.capturing(|| {
-            self.encode(ctx, &mut encoder, frame);
+        let ticket = ctx.capturing(|| {
+            let ticket = self.encode(ctx, &mut encoder, frame);
             ctx.queue.submit([encoder.finish()]);
+            ticket
         });
-        self.after_submit(ctx);
-        ctx.check("deformation frame")
+        self.collect_arrived(ctx);
+        ctx.check("deformation frame")?;
+        Ok(ticket)
     }
 
-    /// [`Self::step_frame`] with only `deformers` pressing the snow.
+    /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
     pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
-        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers))
+        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
     }
 
     fn encode_frame(
         &mut self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        (deformers, ids): (&[Deformer], &[u64]),
-        meshes: &[SweptMesh<'_>],
-        mesh_steps: Vec<u32>,
-        dt_s: f32,
+        (deformers, ids, dt_s): (&[Deformer], &[u64], f32),
+        (meshes, mesh_steps): (&[SweptMesh<'_>], &[u32]),
+        queries: Option<(QueryTicket, &[glam::Vec2])>,
     ) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let p = &self.params;
@@ -868,7 +927,7 @@ impl SnowDeformation {
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
             use_fallen: p.snowfall.is_some(),
-            terrain_m: self.terrain.height_bounds(),
+            terrain_m: self.terrain_bounds,
         };
         if let Some(tiles) = &mut self.tiles {
             tiles.record_move(FrameContext::new(ctx, encoder, &mut self.timer), &window, &self.res, (old, &rects), self.clock);
@@ -927,12 +986,16 @@ impl SnowDeformation {
         let captures = matches!(technique, Technique::Depth | Technique::Combined);
         let stamps = matches!(technique, Technique::Points | Technique::Combined);
         // Each deformer presses over its motion since the last frame.
-        let sweeps = self.history.sweeps(deformers, ids, p.teleport_m);
+        let scratch = &mut self.scratch;
+        self.history.sweeps_into(deformers, ids, p.teleport_m, &mut scratch.sweeps);
         self.history.remember(deformers, ids);
+        let sweeps = &scratch.sweeps;
         if captures {
-            let mut instances = CaptureInstances::swept(deformers, &sweeps, corner, &self.capture_params);
-            instances.mesh_steps = mesh_steps;
-            self.capture_pass.prepare(device, queue, &self.capture_params, &instances);
+            let instances = &mut scratch.instances;
+            instances.fill_swept(deformers, sweeps, corner, &self.capture_params);
+            instances.mesh_steps.clear();
+            instances.mesh_steps.extend_from_slice(mesh_steps);
+            self.capture_pass.prepare(device, queue, &self.capture_params, instances);
             self.capture_pass.record_swept(encoder, &mut self.timer, &self.res, meshes);
         }
         let stamp_params = StampParams {
@@ -949,8 +1012,9 @@ impl SnowDeformation {
         };
         self.points_last_frame = 0;
         if stamps {
-            let points = contact_points(deformers, &sweeps, corner, &stamp_params);
-            let dropped = self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, &points);
+            let points = &mut scratch.points;
+            contact_points_into(deformers, sweeps, corner, &stamp_params, points);
+            let dropped = self.stamp_pass.prepare(device, queue, &self.res, &stamp_params, points);
             self.stamp_pass.record(encoder, &mut self.timer);
             self.points_last_frame = points.len() - dropped;
             if dropped > 0 {
@@ -1074,7 +1138,7 @@ impl SnowDeformation {
             self.decal_pass.prepare(device, queue, &mut self.decals, corner, p.extent_m);
             self.decal_pass.record(encoder, &mut self.timer);
         }
-        if let Some((ticket, points)) = self.asked.take() {
+        if let Some((ticket, points)) = queries {
             let local: Vec<glam::Vec2> =
                 points.iter().map(|p| glam::Vec2::new((f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32)).collect();
             let params = QueryParams {
@@ -1086,39 +1150,44 @@ impl SnowDeformation {
                 use_fallen: u32::from(snowfall.is_some()),
                 _pad: 0,
             };
-            self.query_pass.record(device, queue, encoder, &mut self.timer, &self.res, params, &local, (ticket, self.frame, points));
+            self.query_pass.record(device, queue, encoder, &mut self.timer, &self.res, params, &local, (ticket, self.frame, points.to_vec()));
         }
         self.timer.end_frame(encoder);
         self.frame += 1;
     }
 
-    /// Starts the readbacks of the submitted frame (point answers, timings)
-    /// and collects any that have arrived, without waiting.
-    pub fn after_submit(&mut self, ctx: &GpuContext) {
-        // Before the copy-outs of this frame can be collected and dropped.
-        self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum());
-        self.query_pass.after_submit();
-        if let Some(tiles) = &mut self.tiles {
-            tiles.after_submit();
+    /// Takes the readbacks that have arrived, without waiting (unless held,
+    /// [`Self::hold_readbacks`]).
+    fn collect_arrived(&mut self, ctx: &GpuContext) {
+        if self.readbacks_held {
+            return;
         }
-        if let Some(sharing) = &mut self.sharing {
-            sharing.after_submit();
-        }
-        self.timer.after_submit();
         // A non-blocking poll runs mapping callbacks that are due; an error
         // here surfaces through `ctx.check` as well.
         let _ = ctx.device.poll(wgpu::PollType::Poll);
-        self.collect();
+        self.collect(ctx);
     }
 
-    fn collect(&mut self) {
+    fn collect(&mut self, ctx: &GpuContext) {
         if let Some(answers) = self.query_pass.take_answers() {
             self.answers = Some(answers);
+        }
+        if let Some(tiles) = &mut self.tiles {
+            tiles.collect(ctx);
         }
         if let Some(sharing) = &mut self.sharing {
             sharing.collect(self.params.resolution);
         }
         self.timer.collect();
+    }
+
+    /// For tests: while `held`, frames take none of the readbacks that
+    /// arrive (point answers, timings, tiles leaving the window, shared
+    /// snow), as if the GPU never finished them, so their staging buffers
+    /// stay busy; [`Self::finish`] still waits for and takes them.
+    #[cfg(feature = "low_level")]
+    pub fn hold_readbacks(&mut self, held: bool) {
+        self.readbacks_held = held;
     }
 
     /// Waits for every outstanding readback (point answers and timings);
@@ -1136,25 +1205,12 @@ impl SnowDeformation {
             std::thread::yield_now();
             let _ = ctx.device.poll(wgpu::PollType::Poll);
         }
-        self.collect();
+        self.collect(ctx);
         Ok(())
     }
 
-    /// Asks for the snow at `points` (world x, z relative to the floating
-    /// origin, like deformers) as the next encoded frame leaves it. The
-    /// answer, tagged with the returned ticket, arrives a frame or two later
-    /// in [`Self::point_answers`]; a frame never waits for it. A later call
-    /// before that frame replaces the request. If the GPU is so far behind
-    /// that every staging buffer is in flight, the request is dropped and
-    /// counted in [`QueryStats::skipped`]: ask again (games ask every frame).
-    pub fn query_points(&mut self, points: &[glam::Vec2]) -> QueryTicket {
-        self.tickets += 1;
-        let ticket = QueryTicket(self.tickets);
-        self.asked = Some((ticket, points.to_vec()));
-        ticket
-    }
-
-    /// The newest answer to [`Self::query_points`] that has come back.
+    /// The newest answer to a frame's [`SnowFrame::with_queries`] that has
+    /// come back (taken at the start of each [`Self::encode`]).
     #[must_use]
     pub fn point_answers(&self) -> Option<&PointAnswers> {
         self.answers.as_ref()
@@ -1185,7 +1241,17 @@ impl SnowDeformation {
     /// staging they hold for a frame or two.
     #[must_use]
     pub fn peak_memory_bytes(&self) -> u64 {
-        self.peak_memory_bytes.max(self.memory_bytes().iter().map(|(_, b)| b).sum())
+        self.peak_memory_bytes.max(self.memory_total())
+    }
+
+    /// [`Self::memory_bytes`] summed (without building the list but for the objects').
+    fn memory_total(&self) -> u64 {
+        self.res.memory_total()
+            + self.query_pass.memory_bytes()
+            + self.decal_pass.layer_bytes()
+            + self.accumulation.as_ref().map_or(0, |acc| acc.memory_bytes().iter().map(|(_, b)| b).sum())
+            + self.tiles.as_ref().map_or(0, TileStreaming::gpu_bytes)
+            + self.sharing.as_ref().map_or(0, crate::replicate::sharing::Sharing::memory_bytes)
     }
 
     low_level_pub! {

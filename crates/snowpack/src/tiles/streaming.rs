@@ -24,13 +24,12 @@
 )]
 
 use std::collections::{HashMap, HashSet};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::deform::resources::DeformResources;
 use crate::deform::window::TexelRect;
 use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
+use crate::gpu::readback::{MapFlag, MapState};
 use crate::gpu::{GpuContext, GpuTimer};
 use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileLookup, TileStreamer};
 
@@ -223,12 +222,9 @@ struct Eviction {
     buffer: wgpu::Buffer,
     keys: Vec<TileKey>,
     clock: SnowClock,
-    flag: Option<Arc<AtomicU8>>,
+    /// Its mapping, started when the encoder holding the copy is submitted.
+    flag: MapFlag,
 }
-
-const MAPPING: u8 = 0;
-const MAPPED: u8 = 1;
-const FAILED: u8 = 2;
 
 /// The resident tiles, their passes and the streamer behind them.
 pub struct TileStreaming {
@@ -411,7 +407,6 @@ impl TileStreaming {
     /// it touches can be made resident without waiting for the disk; until
     /// then it stays at `current`. The first placement waits (blocking).
     pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
-        self.collect_evictions(ctx, false);
         self.streamer.poll();
         let here = self.grid.key_of(desired);
         if self.prefetched_at != Some(here) {
@@ -712,7 +707,6 @@ impl TileStreaming {
             let out: Vec<(TileKey, usize)> = batch.iter().map(|k| (*k, self.slots[k])).collect();
             self.record_copy_out(ctx, &mut encoder, res, &out, clock);
             submit(ctx, encoder);
-            self.after_submit();
             for &k in batch {
                 self.release(k);
             }
@@ -788,7 +782,8 @@ impl TileStreaming {
             self.in_flight.insert(key);
         }
         self.evicted += slots.len() as u64;
-        self.evictions.push(Eviction { buffer, keys: slots.iter().map(|s| s.0).collect(), clock, flag: None });
+        let flag = MapFlag::on_submit(encoder, &buffer, size);
+        self.evictions.push(Eviction { buffer, keys: slots.iter().map(|s| s.0).collect(), clock, flag });
     }
 
     /// Records this frame's weather on the resident tiles outside the window
@@ -832,44 +827,33 @@ impl TileStreaming {
         );
     }
 
-    /// Starts reading back the tiles copied out in the submitted frame.
-    pub fn after_submit(&mut self) {
-        let slot_bytes = self.planes() * self.grid.area() * 4;
-        for eviction in &mut self.evictions {
-            if eviction.flag.is_some() {
-                continue;
-            }
-            let flag = Arc::new(AtomicU8::new(MAPPING));
-            let done = Arc::clone(&flag);
-            let used = (eviction.keys.len() * slot_bytes) as u64;
-            eviction.buffer.slice(..used).map_async(wgpu::MapMode::Read, move |r| {
-                done.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
-            });
-            eviction.flag = Some(flag);
-        }
+    /// Hands the copy-outs that have arrived to the streamer, without
+    /// waiting (after a non-blocking `device.poll`); each frame starts with it.
+    pub fn collect(&mut self, ctx: &GpuContext) {
+        self.collect_evictions(ctx, false);
     }
 
     /// Hands arrived copy-outs to the streamer; with `wait`, waits for all.
     fn collect_evictions(&mut self, ctx: &GpuContext, wait: bool) {
-        if wait && !self.evictions.is_empty() {
-            self.after_submit();
-            if let Err(e) = ctx.wait_idle("reading back tiles for the store") {
-                tracing::warn!("{e}");
-            }
+        if wait
+            && !self.evictions.is_empty()
+            && let Err(e) = ctx.wait_idle("reading back tiles for the store")
+        {
+            tracing::warn!("{e}");
         }
         let area = self.grid.area();
         let side = self.grid.side;
         let mut k = 0;
         while k < self.evictions.len() {
-            let state = self.evictions[k].flag.as_ref().map(|f| f.load(Ordering::Acquire));
-            if !matches!(state, Some(MAPPED | FAILED)) {
+            let state = self.evictions[k].flag.state();
+            if state == MapState::Pending {
                 k += 1;
                 continue;
             }
             let eviction = self.evictions.swap_remove(k);
             let used = (eviction.keys.len() * self.planes() * area * 4) as u64;
             let words: Option<Vec<u32>> =
-                if state == Some(MAPPED) { eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok() } else { None };
+                if state == MapState::Mapped { eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok() } else { None };
             for key in &eviction.keys {
                 self.in_flight.remove(key);
             }
@@ -964,15 +948,21 @@ impl TileStreaming {
             evicted: self.evicted,
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,
-            gpu_bytes: self.tiles.size()
-                + self.owners_buffer.size()
-                + self.table_buffer.size()
-                + self.weather.memory_bytes()
-                + self.seal.memory_bytes()
-                + self.restore.memory_bytes()
-                + self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>(),
+            gpu_bytes: self.gpu_bytes(),
             memory_only: self.streamer.is_memory_only(),
         }
+    }
+
+    /// [`TileStats::gpu_bytes`] alone.
+    #[must_use]
+    pub fn gpu_bytes(&self) -> u64 {
+        self.tiles.size()
+            + self.owners_buffer.size()
+            + self.table_buffer.size()
+            + self.weather.memory_bytes()
+            + self.seal.memory_bytes()
+            + self.restore.memory_bytes()
+            + self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>()
     }
 }
 
