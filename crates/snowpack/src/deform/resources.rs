@@ -166,6 +166,7 @@ impl DeformResources {
 
     /// Bytes of GPU memory held, by resource.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
         let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         vec![

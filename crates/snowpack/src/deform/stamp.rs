@@ -80,6 +80,7 @@ fn contact(d: &Deformer) -> Option<(glam::Vec3, f32, f32)> {
 /// point). Points whose foot stays above `high_m` (above any snow) are
 /// dropped.
 #[must_use]
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 pub fn contact_points(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &StampParams) -> Vec<[f32; 8]> {
     let mut points = Vec::new();
     contact_points_into(deformers, previous, window_corner_m, params, &mut points);

@@ -124,6 +124,7 @@ pub fn wheel_travel(a: WheelPose, b: WheelPose, r: f32, w: f32) -> f32 {
 /// evenly spaced poses up to and including `b`; centre and roll linear, the
 /// axle normalised linear.
 #[must_use]
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 pub fn wheel_poses(a: WheelPose, b: WheelPose, steps: u32) -> Vec<WheelPose> {
     (0..=steps.max(1)).map(|k| wheel_pose(a, b, k, steps)).collect()
 }

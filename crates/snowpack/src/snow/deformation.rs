@@ -1257,6 +1257,7 @@ impl SnowDeformation {
     low_level_pub! {
         /// GPU memory held, by resource (bytes), including the point queries' buffers.
         #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
         fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
             let mut list = self.res.memory_bytes();
             list.push(("point queries", self.query_pass.memory_bytes()));
