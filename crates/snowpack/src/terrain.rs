@@ -204,7 +204,7 @@ impl HeightmapTerrain {
     /// A heightmap of `width` x `height` pixels, `heights_m` row-major (row
     /// `r` at larger world z than row `r - 1`), covering `size_m` (x, z)
     /// metres centred on world `center_m`. Errors name what is wrong: a zero
-    /// side or one above [`HEIGHTMAP_MAX_SIDE`], a sample count other than `width * height`, a height that is
+    /// side or one above `HEIGHTMAP_MAX_SIDE`, a sample count other than `width * height`, a height that is
     /// not finite, a size that is not positive and finite, a centre that is
     /// not finite.
     pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, SnowError> {

@@ -48,7 +48,7 @@ pub use state::{ObjectStats, SnowAccumulation};
 pub use surface::{AtlasSurfacePass, SurfaceParams};
 
 /// The snowfall settings the accumulation passes take (defined beside the
-/// ground's use of them, in [`crate::snowfall`]).
+/// ground's use of them, in `crate::snowfall`).
 pub use crate::snowfall::Snowfall;
 
 /// The shape of an accumulation object.

@@ -73,7 +73,7 @@ pub struct StreamerConfig {
 
 impl Default for StreamerConfig {
     /// 128 MiB: about 2,700 tiles of 64² texels with all three planes; a
-    /// [`WAIT_LIMIT`] (30 s) wait limit.
+    /// `WAIT_LIMIT` (30 s) wait limit.
     fn default() -> Self {
         Self { memory_budget_bytes: 128 << 20, wait_limit: WAIT_LIMIT }
     }
