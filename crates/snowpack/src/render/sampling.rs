@@ -61,8 +61,7 @@ pub fn snow_sampling_wgsl_at(group: u32, first_binding: u32) -> String {
 /// The deformation's buffers behind bindings 1..=3 of [`SNOW_SAMPLING_WGSL`]
 /// (terrain parameters, heightmap, snow words), for an engine that builds
 /// the bind group itself (binding 0 is its own [`SnowWindowUniform`]
-/// buffer). They stay the same for the deformation's life unless its
-/// terrain or window is rebuilt (compare them each frame to rebind).
+/// buffer). They are created with the deformation and kept for its life.
 #[must_use]
 pub fn sampling_buffers(snow: &SnowDeformation) -> [wgpu::Buffer; 3] {
     let res = snow.resources();
