@@ -4,6 +4,7 @@
 //! and particles.
 
 use bevy::prelude::*;
+
 use crate::SnowSystems;
 use crate::query::{SnowQuery, SnowTicket};
 

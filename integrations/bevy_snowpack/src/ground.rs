@@ -208,7 +208,8 @@ pub(crate) fn build(app: &mut App) {
     let _ = shaders.insert(VERTEX_SHADER.id(), main);
     let _ = shaders.insert(PREPASS_SHADER.id(), prepass);
     let _ = shaders.insert(FRAGMENT_SHADER.id(), fragment);
-    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default()).add_systems(PostUpdate, grow_ground_bounds.in_set(SnowSystems::Bounds).after(VisibilitySystems::CalculateBounds));
+    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default())
+        .add_systems(PostUpdate, grow_ground_bounds.in_set(SnowSystems::Bounds).after(VisibilitySystems::CalculateBounds));
 }
 
 /// The ground mesh's bounds span the heights the snow can displace it to.

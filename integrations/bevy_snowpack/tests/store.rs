@@ -5,7 +5,7 @@
 mod common;
 
 use bevy::prelude::*;
-use bevy_snowpack::{SnowControl, SnowDeformer, SnowCatcher, SnowQuery, SnowStoreSettings};
+use bevy_snowpack::{SnowCatcher, SnowControl, SnowDeformer, SnowQuery, SnowStoreSettings};
 use snowpack::Snowfall;
 
 /// Updates `app` until `done` gives something, at most `frames` times.
