@@ -9,7 +9,7 @@ use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderStartup};
-use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
+use snowpack::{Deformer, GpuContext, ObjectShape, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
 
 use crate::control::SnowControl;
 use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};

@@ -13,7 +13,7 @@ use crate::{SnowpackSettings, dvec2};
 impl ExtractResource<RenderApp> for SnowpackSettings {
     type Source = Self;
 
-    fn extract_resource(source: &Self) -> Self {
+    fn extract_resource(source: &Self::Source) -> Self {
         source.clone()
     }
 }
