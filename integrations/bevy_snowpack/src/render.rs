@@ -165,8 +165,10 @@ fn extract_snow_frame(
 }
 
 /// Takes the questions and requests the main world made this frame (they are
-/// asked once: the main world's lists are emptied).
+/// asked once: the main world's lists are emptied), and hands the main world
+/// what has arrived from the render world since its `PreUpdate`.
 fn take_requests(mut main_world: ResMut<MainWorld>, mut frame: ResMut<ExtractedSnowFrame>) {
+    crate::systems::receive_in(&mut main_world);
     if let Some(mut query) = main_world.get_resource_mut::<SnowQuery>() {
         // Appended: questions an encode never took (no deformation yet) wait for the next one.
         let asked = query.take_requests();

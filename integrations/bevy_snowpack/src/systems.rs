@@ -83,6 +83,11 @@ impl FromRenderWorld {
     pub(crate) fn new(receiver: Receiver<FromRender>) -> Self {
         Self(SyncCell::new(receiver))
     }
+
+    /// What has arrived so far (taken).
+    pub(crate) fn drain(&mut self) -> Vec<FromRender> {
+        self.0.get().try_iter().collect()
+    }
 }
 
 pub(crate) fn build(app: &mut App) {
@@ -92,7 +97,29 @@ pub(crate) fn build(app: &mut App) {
 
 /// Moves what arrived from the render world into [`SnowQuery`] and [`SnowControl`].
 fn receive_from_render(mut from: ResMut<FromRenderWorld>, mut query: ResMut<SnowQuery>, mut control: ResMut<SnowControl>) {
-    for message in from.0.get().try_iter() {
+    deliver(from.drain(), &mut query, &mut control);
+}
+
+/// Receives in the main world during extraction (the render world's
+/// `take_requests`), too: what the render world's startup reported (a
+/// loaded save) runs in the first update's extraction, before its
+/// `ExtractSchedule`, so it is there once that update returns, as it is for
+/// a game's first `Update`.
+pub(crate) fn receive_in(main_world: &mut World) {
+    let Some(arrived) = main_world.get_resource_mut::<FromRenderWorld>().map(|mut f| f.drain()) else { return };
+    if arrived.is_empty() {
+        return;
+    }
+    main_world.resource_scope(|world, mut query: Mut<SnowQuery>| {
+        if let Some(mut control) = world.get_resource_mut::<SnowControl>() {
+            deliver(arrived, &mut query, &mut control);
+        }
+    });
+}
+
+/// Puts what arrived where the main world reads it.
+fn deliver(arrived: Vec<FromRender>, query: &mut SnowQuery, control: &mut SnowControl) {
+    for message in arrived {
         match message {
             FromRender::Answers(answers) => query.deliver(answers),
             FromRender::LoadedSave(loaded) => control.loaded_save = Some(loaded),
