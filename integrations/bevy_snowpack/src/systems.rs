@@ -18,7 +18,8 @@ use crate::query::{SnowAnswers, SnowQuery};
 ///
 /// Main world:
 /// - [`Self::Receive`] (`PreUpdate`): what the render world read back arrives
-///   ([`SnowQuery`] answers, [`SnowControl`] results). A system after it in the
+///   ([`SnowQuery`] answers, [`SnowControl`] results; what arrives during a
+///   frame's extraction is handed over there). A system after it in the
 ///   same frame sees them.
 /// - [`Self::Gather`] (`PostUpdate`, after transform propagation): the mesh
 ///   deformers' poses are gathered for this frame's extraction. A system that
