@@ -132,7 +132,7 @@ pub use error::SnowError;
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
-pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_layout_entries, snow_sampling_wgsl};
+pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 pub use skin::skinning::SkinnedMesh;

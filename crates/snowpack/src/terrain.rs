@@ -338,16 +338,14 @@ impl TerrainSource {
         }
     }
 
-    low_level_pub! {
-        /// Lowest and highest height the terrain can have anywhere (m).
-        #[must_use]
-        fn height_bounds(&self) -> (f32, f32) {
-            match self {
-                Self::Flat { height_m } => (*height_m, *height_m),
-                Self::Noise(n) => (n.base_m - n.amplitude_m.abs(), n.base_m + n.amplitude_m.abs()),
-                Self::Heightmap(hm) => hm.height_range(),
-                Self::Mesh(m) => m.height_range(),
-            }
+    /// Lowest and highest height the terrain can have anywhere (m).
+    #[must_use]
+    pub fn height_bounds(&self) -> (f32, f32) {
+        match self {
+            Self::Flat { height_m } => (*height_m, *height_m),
+            Self::Noise(n) => (n.base_m - n.amplitude_m.abs(), n.base_m + n.amplitude_m.abs()),
+            Self::Heightmap(hm) => hm.height_range(),
+            Self::Mesh(m) => m.height_range(),
         }
     }
 }

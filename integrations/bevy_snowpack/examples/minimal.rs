@@ -11,7 +11,7 @@ mod cli;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::CascadeShadowConfigBuilder;
 use bevy::prelude::*;
-use bevy_snowpack::{SnowDeformer, SnowGroundPass, SnowpackPlugin, SnowpackSettings};
+use bevy_snowpack::prelude::*;
 
 #[derive(Component)]
 struct Pushed;

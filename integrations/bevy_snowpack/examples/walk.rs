@@ -21,8 +21,7 @@ use bevy::gltf::GltfAssetLabel;
 use bevy::light::CascadeShadowConfigBuilder;
 use bevy::prelude::*;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
-use bevy_snowpack::{FootKind, SnowDeformer, SnowFoot, SnowFootstep, SnowGroundPass, SnowWindowTarget, SnowpackPlugin, SnowpackSettings};
-use snowpack::{NoiseTerrain, SnowParams, TerrainSource};
+use bevy_snowpack::prelude::*;
 
 /// Snow depth (m) on the hills.
 const DEPTH_M: f32 = 0.2;

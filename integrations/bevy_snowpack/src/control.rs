@@ -1,28 +1,19 @@
 //! Requests the main world makes of the render world's deformation that need
 //! a blocking wait there: a save into the disk store, and the snow that has
-//! settled on each [`crate::SnowObject`]. Asked in one frame, answered after
-//! that frame's submit; nothing in the main world waits.
-
-use std::sync::{Arc, Mutex, MutexGuard};
+//! settled on each [`crate::SnowCatcher`]. Asked in one frame, taken by the
+//! render world at that frame's extraction, answered after its submit and
+//! received at the start of a later main-world frame
+//! ([`crate::SnowSystems::Receive`]); nothing in the main world waits.
 
 use bevy::prelude::*;
 use snowpack::ObjectStats;
 
-#[derive(Default)]
-struct Shared {
-    save_requested: bool,
-    save_result: Option<Result<u64, String>>,
-    loaded_save: Option<bool>,
-    stats_requested: bool,
-    stats: Option<Vec<(Entity, ObjectStats)>>,
-}
-
-/// Saves and object readbacks (a resource shared by the main and the render world).
+/// Saves and object readbacks (a main-world resource).
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
-/// # use bevy_snowpack::SnowControl;
-/// fn save_on_key(keys: Res<ButtonInput<KeyCode>>, control: Res<SnowControl>) {
+/// # use bevy_snowpack::prelude::*;
+/// fn save_on_key(keys: Res<ButtonInput<KeyCode>>, mut control: ResMut<SnowControl>) {
 ///     if keys.just_pressed(KeyCode::F5) {
 ///         control.request_save();
 ///     }
@@ -31,65 +22,51 @@ struct Shared {
 ///     }
 /// }
 /// ```
-#[derive(Resource, Clone, Default)]
-pub struct SnowControl(Arc<Mutex<Shared>>);
+#[derive(Resource, Default, Debug)]
+pub struct SnowControl {
+    pub(crate) save_requested: bool,
+    pub(crate) save_result: Option<Result<u64, String>>,
+    pub(crate) loaded_save: Option<bool>,
+    pub(crate) stats_requested: bool,
+    pub(crate) stats: Option<Vec<(Entity, ObjectStats)>>,
+}
 
 impl SnowControl {
-    fn lock(&self) -> MutexGuard<'_, Shared> {
-        // A panic elsewhere while holding the lock leaves plain data behind: keep using it.
-        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
     /// Asks for the whole snow state to be saved into the disk store
     /// ([`crate::SnowStoreSettings`]) after this frame; the result comes
     /// through [`Self::take_save_result`].
-    pub fn request_save(&self) {
-        self.lock().save_requested = true;
+    pub fn request_save(&mut self) {
+        self.save_requested = true;
     }
 
-    /// The last save's result once it has run (taken): the deformation
+    /// The last save's result once it has arrived (taken): the deformation
     /// frame it saved, or the library's error as text (no disk store, a full
     /// or read-only disk).
-    pub fn take_save_result(&self) -> Option<Result<u64, String>> {
-        self.lock().save_result.take()
+    pub fn take_save_result(&mut self) -> Option<Result<u64, String>> {
+        self.save_result.take()
     }
 
     /// Whether the store held a save that the snow was loaded from at
-    /// start; `None` until the deformation exists, `Some(false)` without a
-    /// store or a save.
+    /// start; `None` until the deformation's creation has been received,
+    /// `Some(false)` without a store or a save.
     #[must_use]
     pub fn loaded_save(&self) -> Option<bool> {
-        self.lock().loaded_save
+        self.loaded_save
     }
 
-    /// Asks for the snow on every [`crate::SnowObject`] (read back after this frame).
-    pub fn request_object_stats(&self) {
-        self.lock().stats_requested = true;
+    /// Asks for the snow on every [`crate::SnowCatcher`] (read back after this frame).
+    pub fn request_object_stats(&mut self) {
+        self.stats_requested = true;
     }
 
     /// The snow on each object once read back (taken): depth over its
     /// upward-facing surfaces, by entity.
-    pub fn take_object_stats(&self) -> Option<Vec<(Entity, ObjectStats)>> {
-        self.lock().stats.take()
+    pub fn take_object_stats(&mut self) -> Option<Vec<(Entity, ObjectStats)>> {
+        self.stats.take()
     }
 
-    pub(crate) fn take_save_request(&self) -> bool {
-        std::mem::take(&mut self.lock().save_requested)
-    }
-
-    pub(crate) fn take_stats_request(&self) -> bool {
-        std::mem::take(&mut self.lock().stats_requested)
-    }
-
-    pub(crate) fn set_save_result(&self, result: Result<u64, String>) {
-        self.lock().save_result = Some(result);
-    }
-
-    pub(crate) fn set_loaded_save(&self, loaded: bool) {
-        self.lock().loaded_save = Some(loaded);
-    }
-
-    pub(crate) fn set_object_stats(&self, stats: Vec<(Entity, ObjectStats)>) {
-        self.lock().stats = Some(stats);
+    /// The requests made since the last extraction (taken): (save, object stats).
+    pub(crate) fn take_requests(&mut self) -> (bool, bool) {
+        (std::mem::take(&mut self.save_requested), std::mem::take(&mut self.stats_requested))
     }
 }

@@ -4,8 +4,8 @@
 //! and particles.
 
 use bevy::prelude::*;
-use bevy::transform::TransformSystems;
 
+use crate::SnowSystems;
 use crate::query::{SnowQuery, SnowTicket};
 
 /// What kind of foot made a step.
@@ -60,7 +60,7 @@ pub struct SnowFootstep {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_message::<SnowFootstep>().add_systems(PostUpdate, detect_footsteps.after(TransformSystems::Propagate));
+    app.add_message::<SnowFootstep>().add_systems(PostUpdate, detect_footsteps.in_set(SnowSystems::Footsteps));
 }
 
 /// The request in flight: its ticket, the feet it asked about (in order), and its age in frames.
@@ -71,7 +71,7 @@ struct Asked(Option<(SnowTicket, Vec<Entity>, u32)>);
 const GIVE_UP_FRAMES: u32 = 6;
 
 fn detect_footsteps(
-    query: Res<SnowQuery>,
+    mut query: ResMut<SnowQuery>,
     mut asked: Local<Asked>,
     mut feet: Query<(Entity, &mut SnowFoot, &GlobalTransform)>,
     mut steps: MessageWriter<SnowFootstep>,

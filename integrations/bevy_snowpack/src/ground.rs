@@ -10,17 +10,16 @@ use bevy::camera::visibility::VisibilitySystems;
 use bevy::ecs::system::SystemParamItem;
 use bevy::ecs::system::lifetimeless::SRes;
 use bevy::math::Vec3A;
-use bevy::pbr::{ExtendedMaterial, MaterialExtension, MaterialPlugin};
+use bevy::pbr::{ExtendedMaterial, MATERIAL_BIND_GROUP_INDEX, MaterialExtension, MaterialPlugin};
 use bevy::prelude::*;
 use bevy::render::render_resource::{
     AsBindGroup, AsBindGroupError, BindGroupBuilder, BindGroupLayout, BindGroupLayoutEntry, Buffer, UnpreparedBindingResource,
 };
 use bevy::render::renderer::RenderDevice;
 use bevy::shader::{Shader, ShaderRef};
-use snowpack::SnowDeformation;
-use snowpack::{SNOW_SAMPLING_WGSL, sampling_layout_entries};
+use snowpack::{SnowDeformation, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl_at};
 
-use crate::SnowpackSettings;
+use crate::{SnowSystems, SnowpackSettings};
 
 /// The ground material: Bevy's standard material on a mesh displaced by the snow.
 pub type SnowGroundMaterial = ExtendedMaterial<StandardMaterial, SnowGroundExtension>;
@@ -61,7 +60,7 @@ pub struct SnowGroundExtension {
 impl SnowGroundExtension {
     /// The compacted look, ground and show-through of one of snowpack's materials.
     #[must_use]
-    pub fn from_material(m: &snowpack::low_level::render::Material) -> Self {
+    pub fn from_material(m: &snowpack::Material) -> Self {
         Self {
             packed_albedo: m.packed_albedo,
             packed_roughness: m.packed_roughness,
@@ -82,7 +81,7 @@ impl SnowGroundExtension {
 impl Default for SnowGroundExtension {
     /// snowpack's snow preset.
     fn default() -> Self {
-        Self::from_material(&snowpack::low_level::render::Material::default())
+        Self::from_material(&snowpack::Material::default())
     }
 }
 
@@ -92,8 +91,8 @@ pub struct SnowGpuBuffers([Buffer; 4]);
 
 impl SnowGpuBuffers {
     pub(crate) fn new(snow: &SnowDeformation, window: &wgpu::Buffer) -> Self {
-        let r = snow.resources();
-        Self([window.clone().into(), r.terrain_params.clone().into(), r.heightmap.clone().into(), r.snow.clone().into()])
+        let [terrain_params, heightmap, snow] = sampling_buffers(snow);
+        Self([window.clone().into(), terrain_params.into(), heightmap.into(), snow.into()])
     }
 }
 
@@ -172,19 +171,13 @@ impl MaterialExtension for SnowGroundExtension {
     }
 }
 
-/// snowpack's sampling module with its bindings moved into the material's
-/// group at [`FIRST_BINDING`]..: WGSL has no preprocessor, so a textual
-/// rewrite of its four binding attributes (the module has no others).
-#[must_use]
-pub fn sampling_module() -> String {
-    (0..4).fold(SNOW_SAMPLING_WGSL.to_string(), |s, k| {
-        s.replace(&format!("@group(1) @binding({k})"), &format!("@group(constants::MATERIAL_BIND_GROUP) @binding({})", FIRST_BINDING + k))
-    })
-}
-
-/// A vertex shader's source: its imports, then the sampling module, then its body.
+/// A shader's source: its imports, then the library's sampling module with
+/// its bindings in the material's group at [`FIRST_BINDING`].., then its body.
+/// (The module is plain WGSL with no imports of its own, so it is placed
+/// after the shader's imports rather than imported as a WESL module.)
 fn shader_source(imports: &str, body: &str) -> String {
-    format!("{imports}\n{}\n{body}", sampling_module())
+    let group = u32::try_from(MATERIAL_BIND_GROUP_INDEX).unwrap_or(u32::MAX);
+    format!("{imports}\n{}\n{body}", snow_sampling_wgsl_at(group, FIRST_BINDING))
 }
 
 /// World heights the displaced ground can reach (m): the terrain's range,
@@ -215,7 +208,8 @@ pub(crate) fn build(app: &mut App) {
     let _ = shaders.insert(VERTEX_SHADER.id(), main);
     let _ = shaders.insert(PREPASS_SHADER.id(), prepass);
     let _ = shaders.insert(FRAGMENT_SHADER.id(), fragment);
-    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default()).add_systems(PostUpdate, grow_ground_bounds.after(VisibilitySystems::CalculateBounds));
+    app.add_plugins(MaterialPlugin::<SnowGroundMaterial>::default())
+        .add_systems(PostUpdate, grow_ground_bounds.in_set(SnowSystems::Bounds).after(VisibilitySystems::CalculateBounds));
 }
 
 /// The ground mesh's bounds span the heights the snow can displace it to.

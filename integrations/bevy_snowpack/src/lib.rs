@@ -11,9 +11,14 @@
 //! (depth, shadow) vertex shaders; [`SnowFoot`] entities raise
 //! [`SnowFootstep`] messages.
 //!
+//! Everything a game uses is in the [`prelude`]; the plugin's systems are
+//! in [`SnowSystems`] for ordering a game's own around them; changes to
+//! [`SnowpackSettings`] reach the snow the next frame (those that can change
+//! live: see its docs).
+//!
 //! ```no_run
 //! use bevy::prelude::*;
-//! use bevy_snowpack::{SnowDeformer, SnowpackPlugin, SnowpackSettings};
+//! use bevy_snowpack::prelude::*;
 //!
 //! App::new()
 //!     .add_plugins((DefaultPlugins, SnowpackPlugin::new(SnowpackSettings::default())))
@@ -30,11 +35,16 @@ mod ground_pass;
 mod mesh_deformer;
 mod query;
 mod render;
+mod settings;
+mod systems;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use glam::DVec2;
 use snowpack::{ObjectShape, SnowParams, StoreConfig, StreamerConfig, TerrainSource};
+
+/// The library, for its types beyond the [`prelude`] (`bevy_snowpack::snowpack::ObjectStats`).
+pub use snowpack;
 
 pub use control::SnowControl;
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
@@ -42,8 +52,28 @@ pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 pub use ground_pass::SnowGroundPass;
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
+pub use systems::SnowSystems;
 
-/// What the plugin's deformation is made of.
+/// What a game uses: `use bevy_snowpack::prelude::*;`.
+pub mod prelude {
+    pub use crate::{
+        FootKind, SnowAnswers, SnowCatcher, SnowControl, SnowDeformer, SnowFoot, SnowFootstep, SnowGroundExtension, SnowGroundMaterial, SnowGroundPass,
+        SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin, SnowpackSettings,
+    };
+    pub use snowpack::{HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource};
+}
+
+/// What the plugin's deformation is made of: a resource; change it at any
+/// time and the change reaches the snow at the next frame's extraction.
+///
+/// Applied live: `params.technique`, `params.refill_m_per_s`,
+/// `params.snowfall` (only on a window created with snowfall),
+/// `params.blur`, `params.elevation`, `params.range_texels` and
+/// `params.rim`, `center` (when no [`SnowWindowTarget`] moves the window)
+/// and `fixed_dt_s`. Fixed at start: the window's `extent_m`, `resolution`
+/// and `depth_m`, `hardness_kpa`, `tile_memory_bytes`, `teleport_m`, the
+/// `terrain` and the `store`; changing one of these logs a warning and
+/// leaves the snow as it is (build a new app, or restart, to change them).
 #[derive(Resource, Clone, Debug)]
 pub struct SnowpackSettings {
     /// The window: size and resolution, depth, technique, refill, snowfall,
@@ -136,17 +166,17 @@ impl SnowDeformer {
 /// library's accumulation on its upward surfaces where the sky reaches them,
 /// carried along as the entity moves and turns. Adding or removing one lays
 /// the objects' atlas out anew (their snow so far is lost). Read the snow on
-/// each through [`SnowControl::request_object_stats`]; the atlas itself is
-/// `SnowRenderState::deformation().accumulation()`.
+/// each through [`SnowControl::request_object_stats`]. The library's own
+/// `snowpack::SnowObject` is what this becomes in the render world.
 #[derive(Component, Clone, Debug, PartialEq)]
-pub struct SnowObject {
+pub struct SnowCatcher {
     /// Its shape (a box or a sphere around the entity's origin, or a mesh).
     pub shape: ObjectShape,
     /// Whether its snow is dilated across chart seams (off for thin, holey objects).
     pub dilate: bool,
 }
 
-impl SnowObject {
+impl SnowCatcher {
     /// A box of these side lengths (m).
     #[must_use]
     pub fn cuboid(size_m: Vec3) -> Self {
@@ -181,15 +211,19 @@ impl SnowpackPlugin {
 
 impl Plugin for SnowpackPlugin {
     fn build(&self, app: &mut App) {
-        let query = SnowQuery::default();
-        let control = SnowControl::default();
-        app.insert_resource(self.settings.clone()).insert_resource(query.clone()).insert_resource(control.clone());
+        let (to_main, from_render) = std::sync::mpsc::channel();
+        app.insert_resource(self.settings.clone())
+            .init_resource::<SnowQuery>()
+            .init_resource::<SnowControl>()
+            .insert_resource(systems::FromRenderWorld::new(from_render));
+        systems::build(app);
+        settings::build(app);
         footsteps::build(app);
         ground::build(app);
         ground_pass::build(app);
         mesh_deformer::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
-            render::build(render_app, self.settings.clone(), query, control);
+            render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
         }
     }
 }

@@ -49,7 +49,7 @@ pub(crate) struct MeshDeformerFrame {
 struct Registered(HashMap<Entity, AssetId<Mesh>>);
 
 pub(crate) fn build(app: &mut App) {
-    app.init_resource::<MeshDeformerFrame>().add_systems(PostUpdate, pose_mesh_deformers.after(bevy::transform::TransformSystems::Propagate));
+    app.init_resource::<MeshDeformerFrame>().add_systems(PostUpdate, pose_mesh_deformers.in_set(crate::SnowSystems::Gather));
 }
 
 /// A Bevy mesh as the library's skinned mesh: its own skin when it has

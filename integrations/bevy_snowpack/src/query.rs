@@ -1,8 +1,8 @@
-//! Point queries from the main world: asked in one frame, answered a frame or
-//! two later by the render world's gather (`SnowFrame::with_queries`).
+//! Point queries from the main world: asked in one frame, taken by the render
+//! world at that frame's extraction, answered a frame or two later by its
+//! gather (`SnowFrame::with_queries`) and sent back through a channel.
 
 use std::ops::Range;
-use std::sync::{Arc, Mutex, MutexGuard};
 
 use bevy::prelude::*;
 use snowpack::{PointAnswers, PointSample};
@@ -27,62 +27,60 @@ pub struct SnowAnswers {
 /// Answers kept for callers that have not taken them yet; older ones are dropped.
 const KEPT_ANSWERS: usize = 64;
 
-#[derive(Default)]
-struct Shared {
+/// Asks the snow at points (depth, compaction, normal): a main-world
+/// resource. Answers come a frame or two later (received in
+/// [`crate::SnowSystems::Receive`]); nothing waits. Every request asked in a
+/// frame goes to the GPU in one gather.
+#[derive(Resource, Default, Debug)]
+pub struct SnowQuery {
     next: u64,
     requests: Vec<(SnowTicket, Vec<Vec2>)>,
     answers: Vec<SnowAnswers>,
 }
 
-/// Asks the snow at points (depth, compaction, normal): a resource shared by
-/// the main and the render world. Answers come a frame or two later; nothing
-/// waits. Every request asked in a frame goes to the GPU in one gather.
-#[derive(Resource, Clone, Default)]
-pub struct SnowQuery(Arc<Mutex<Shared>>);
-
 impl SnowQuery {
-    fn lock(&self) -> MutexGuard<'_, Shared> {
-        // A panic elsewhere while holding the lock leaves plain data behind: keep using it.
-        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
     /// Asks about `points` (world x, z); the ticket names the answer.
-    pub fn ask(&self, points: &[Vec2]) -> SnowTicket {
-        let mut s = self.lock();
-        let ticket = SnowTicket(s.next);
-        s.next += 1;
-        s.requests.push((ticket, points.to_vec()));
+    pub fn ask(&mut self, points: &[Vec2]) -> SnowTicket {
+        let ticket = SnowTicket(self.next);
+        self.next += 1;
+        self.requests.push((ticket, points.to_vec()));
         ticket
     }
 
     /// The answer to `ticket` once it has arrived (taken: a second call returns `None`).
-    pub fn take(&self, ticket: SnowTicket) -> Option<SnowAnswers> {
-        let mut s = self.lock();
-        let k = s.answers.iter().position(|a| a.ticket == ticket)?;
-        Some(s.answers.remove(k))
+    pub fn take(&mut self, ticket: SnowTicket) -> Option<SnowAnswers> {
+        let k = self.answers.iter().position(|a| a.ticket == ticket)?;
+        Some(self.answers.remove(k))
     }
 
     /// The newest answer that has arrived, if any, without taking it.
     #[must_use]
-    pub fn latest(&self) -> Option<SnowAnswers> {
-        self.lock().answers.iter().max_by_key(|a| a.ticket).cloned()
+    pub fn latest(&self) -> Option<&SnowAnswers> {
+        self.answers.iter().max_by_key(|a| a.ticket)
     }
 
-    pub(crate) fn take_requests(&self) -> Vec<(SnowTicket, Vec<Vec2>)> {
-        std::mem::take(&mut self.lock().requests)
+    /// The questions asked since the last extraction (taken by the render world).
+    pub(crate) fn take_requests(&mut self) -> Vec<(SnowTicket, Vec<Vec2>)> {
+        std::mem::take(&mut self.requests)
     }
 
-    pub(crate) fn deliver(&self, answers: &PointAnswers, ranges: &[(SnowTicket, Range<usize>)]) {
-        let mut s = self.lock();
-        for (ticket, range) in ranges {
-            s.answers.push(SnowAnswers {
-                ticket: *ticket,
-                frame: answers.frame,
-                points: answers.points[range.clone()].to_vec(),
-                samples: answers.samples[range.clone()].to_vec(),
-            });
-        }
-        let excess = s.answers.len().saturating_sub(KEPT_ANSWERS);
-        s.answers.drain(..excess);
+    /// Answers received from the render world; the oldest beyond [`KEPT_ANSWERS`] are dropped.
+    pub(crate) fn deliver(&mut self, answers: Vec<SnowAnswers>) {
+        self.answers.extend(answers);
+        let excess = self.answers.len().saturating_sub(KEPT_ANSWERS);
+        self.answers.drain(..excess);
     }
+}
+
+/// The library's answer to one combined gather split back into the callers' answers.
+pub(crate) fn split_answers(answers: &PointAnswers, ranges: &[(SnowTicket, Range<usize>)]) -> Vec<SnowAnswers> {
+    ranges
+        .iter()
+        .map(|(ticket, range)| SnowAnswers {
+            ticket: *ticket,
+            frame: answers.frame,
+            points: answers.points[range.clone()].to_vec(),
+            samples: answers.samples[range.clone()].to_vec(),
+        })
+        .collect()
 }

@@ -8,13 +8,15 @@ use std::sync::{Mutex, MutexGuard};
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
-use bevy::render::{Extract, ExtractSchedule, RenderStartup};
-use snowpack::{Deformer, GpuContext, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
+use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderStartup};
+use snowpack::{Deformer, GpuContext, ObjectShape, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
 
 use crate::control::SnowControl;
 use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};
-use crate::query::{SnowQuery, SnowTicket};
-use crate::{SnowDeformer, SnowObject, SnowStoreSettings, SnowWindowTarget, SnowpackSettings, dvec2};
+use crate::query::{SnowQuery, SnowTicket, split_answers};
+use crate::settings::{AppliedSettings, apply_settings};
+use crate::systems::{FromRender, SnowSystems, ToMainWorld};
+use crate::{SnowCatcher, SnowDeformer, SnowStoreSettings, SnowWindowTarget, SnowpackSettings, dvec2};
 
 /// The plugin's deformation in the render world, on Bevy's device and queue.
 /// Tests and tools read it back (`deformation().read_snow(context())`).
@@ -67,33 +69,37 @@ pub(crate) struct ExtractedSnowFrame {
     requests: Vec<(SnowTicket, Vec<Vec2>)>,
     meshes: MeshDeformerFrame,
     /// Every object this frame, by entity, with its pose.
-    objects: Vec<(Entity, SnowObject, Vec3, Quat)>,
+    objects: Vec<(Entity, SnowCatcher, Vec3, Quat)>,
+    /// A save was asked for this frame ([`SnowControl::request_save`]).
+    save_requested: bool,
+    /// The objects' snow was asked for this frame ([`SnowControl::request_object_stats`]).
+    stats_requested: bool,
 }
 
-/// The settings, in the render world.
-#[derive(Resource)]
-struct RenderSettings(SnowpackSettings);
-
-pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, query: SnowQuery, control: SnowControl) {
+pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, to_main: ToMainWorld) {
     render_app
-        .insert_resource(RenderSettings(settings))
-        .insert_resource(query)
-        .insert_resource(control)
+        // Here for the deformation's creation; `ExtractResourcePlugin` replaces it whenever the main world changes it.
+        .insert_resource(settings)
+        .insert_resource(to_main)
         .init_resource::<ExtractedSnowFrame>()
         .add_systems(RenderStartup, create_deformation)
-        .add_systems(ExtractSchedule, extract_snow_frame)
-        .add_systems(RenderGraph, (encode_snow.before(camera_driver), after_frame.in_set(RenderGraphSystems::Finish)));
+        .add_systems(ExtractSchedule, (extract_snow_frame, take_requests).in_set(SnowSystems::Extract))
+        .add_systems(
+            RenderGraph,
+            (apply_settings.before(encode_snow), encode_snow.before(camera_driver), after_frame.in_set(RenderGraphSystems::Finish))
+                .in_set(SnowSystems::Encode),
+        );
 }
 
-fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, control: Res<SnowControl>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+fn create_deformation(mut commands: Commands, settings: Res<SnowpackSettings>, to_main: Res<ToMainWorld>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
     let ctx = GpuContext::from_device(device.wgpu_device().clone(), (**queue).clone());
-    let s = &settings.0;
+    let s = &*settings;
     let created = SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), dvec2(s.center)).and_then(|mut snow| {
         let loaded = match &s.store {
             Some(store) => attach_store(&ctx, &mut snow, store)?,
             None => false,
         };
-        control.set_loaded_save(loaded);
+        to_main.send(FromRender::LoadedSave(loaded));
         Ok(snow)
     });
     match created {
@@ -106,6 +112,7 @@ fn create_deformation(mut commands: Commands, settings: Res<RenderSettings>, con
             });
             ctx.queue.write_buffer(&window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(&snow)));
             commands.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &window));
+            commands.insert_resource(AppliedSettings(s.clone()));
             commands.insert_resource(SnowRenderState {
                 ctx,
                 snow: Mutex::new(snow),
@@ -128,15 +135,14 @@ fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, store: &SnowStoreS
 #[allow(clippy::too_many_arguments, reason = "an extract system: each argument is a main-world query or resource it copies")]
 fn extract_snow_frame(
     mut frame: ResMut<ExtractedSnowFrame>,
-    settings: Res<RenderSettings>,
-    query: Res<SnowQuery>,
+    settings: Extract<Res<SnowpackSettings>>,
     time: Extract<Res<Time>>,
     deformers: Extract<Query<(Entity, &SnowDeformer, &GlobalTransform)>>,
     target: Extract<Query<&GlobalTransform, With<SnowWindowTarget>>>,
     meshes: Extract<Res<MeshDeformerFrame>>,
-    objects: Extract<Query<(Entity, &SnowObject, &GlobalTransform)>>,
+    objects: Extract<Query<(Entity, &SnowCatcher, &GlobalTransform)>>,
 ) {
-    frame.dt_s = settings.0.fixed_dt_s.unwrap_or_else(|| time.delta_secs());
+    frame.dt_s = settings.fixed_dt_s.unwrap_or_else(|| time.delta_secs());
     // Reuses last frame's lists: nothing is allocated once they have grown.
     frame.deformers.clear();
     frame.ids.clear();
@@ -147,7 +153,6 @@ fn extract_snow_frame(
         }
     }
     frame.center = target.iter().next().map(|t| t.translation().xz());
-    frame.requests = query.take_requests();
     frame.meshes = (*meshes).clone();
     frame.objects = objects
         .iter()
@@ -157,6 +162,23 @@ fn extract_snow_frame(
         })
         .collect();
     frame.objects.sort_by_key(|(e, ..)| *e);
+}
+
+/// Takes the questions and requests the main world made this frame (they are
+/// asked once: the main world's lists are emptied), and hands the main world
+/// what has arrived from the render world since its `PreUpdate`.
+fn take_requests(mut main_world: ResMut<MainWorld>, mut frame: ResMut<ExtractedSnowFrame>) {
+    crate::systems::receive_in(&mut main_world);
+    if let Some(mut query) = main_world.get_resource_mut::<SnowQuery>() {
+        // Appended: questions an encode never took (no deformation yet) wait for the next one.
+        let asked = query.take_requests();
+        frame.requests.extend(asked);
+    }
+    if let Some(mut control) = main_world.get_resource_mut::<SnowControl>() {
+        let (save, stats) = control.take_requests();
+        frame.save_requested |= save;
+        frame.stats_requested |= stats;
+    }
 }
 
 /// Registers the meshes new this frame; the poses of every registered one.
@@ -173,7 +195,7 @@ fn pose_meshes(ctx: &GpuContext, snow: &mut SnowDeformation, ids: &mut HashMap<u
 }
 
 /// Lays the objects out anew when the set changed, then places each.
-fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Vec<(Entity, ObjectShape, bool)>, objects: &[(Entity, SnowObject, Vec3, Quat)]) {
+fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Vec<(Entity, ObjectShape, bool)>, objects: &[(Entity, SnowCatcher, Vec3, Quat)]) {
     let unchanged = laid_out.len() == objects.len()
         && laid_out.iter().zip(objects).all(|((e, shape, dilate), (f, o, ..))| e == f && *shape == o.shape && *dilate == o.dilate);
     if !unchanged {
@@ -226,26 +248,26 @@ fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRende
     ctx.queue.write_buffer(window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(snow)));
 }
 
-/// After the frame's submit: answers the encode took back handed to
-/// `SnowQuery`, and requests that need the frame submitted.
-fn after_frame(state: Option<ResMut<SnowRenderState>>, query: Res<SnowQuery>, control: Res<SnowControl>) {
+/// After the frame's submit: the answers the encode took back sent to the
+/// main world, and requests that need the frame submitted.
+fn after_frame(state: Option<ResMut<SnowRenderState>>, mut frame: ResMut<ExtractedSnowFrame>, to_main: Res<ToMainWorld>) {
     let Some(mut state) = state else { return };
     let SnowRenderState { ctx, snow, in_flight, objects, .. } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
     // Blocking requests, after the frame's submit so they see it.
-    if control.take_save_request() {
-        control.set_save_result(snow.save(ctx).map(|()| snow.frame()).map_err(|e| e.to_string()));
+    if std::mem::take(&mut frame.save_requested) {
+        to_main.send(FromRender::Saved(snow.save(ctx).map(|()| snow.frame()).map_err(|e| e.to_string())));
     }
-    if control.take_stats_request() {
+    if std::mem::take(&mut frame.stats_requested) {
         match snow.read_object_stats(ctx) {
-            Ok(stats) => control.set_object_stats(objects.iter().map(|(e, ..)| *e).zip(stats).collect()),
+            Ok(stats) => to_main.send(FromRender::ObjectStats(objects.iter().map(|(e, ..)| *e).zip(stats).collect())),
             Err(e) => tracing::error!("bevy_snowpack: reading the objects' snow: {e}"),
         }
     }
     let Some(answers) = snow.point_answers() else { return };
     if let Some(k) = in_flight.iter().position(|(t, _)| *t == answers.ticket) {
         let (_, ranges) = in_flight.remove(k);
-        query.deliver(answers, &ranges);
+        to_main.send(FromRender::Answers(split_answers(answers, &ranges)));
     }
     // Requests the library skipped (all staging buffers busy) never answer.
     in_flight.retain(|(t, _)| t.0 > answers.ticket.0);

@@ -37,7 +37,7 @@ const LAVAPIPE_22: &str = "Mesa 22.3's lavapipe (Debian 12's) kills its queue th
 /// (The depth technique shows a press with Hanák's remap: a floor at 0.1 m
 /// is drawn at 4 mm, at 0.3 m at 0.29 m.)
 fn render_trench(extension: SnowGroundExtension, floor_m: f32, sun_elevation_deg: f32) -> Option<(f32, f32, Vec<u8>)> {
-    let Some(mut app) = common::headless_app(common::test_settings()) else { return None };
+    let mut app = common::headless_app(common::test_settings())?;
     let captured = Captured::default();
     app.insert_resource(captured.clone());
 

@@ -55,11 +55,11 @@ fn plugin_snow_and_queries_equal_the_library() {
     }
     // Under the path, beside it, and off the trail.
     let points = [Vec2::new(0.0, 0.0), Vec2::new(-1.2, path(16).z), Vec2::new(1.5, 2.0), Vec2::new(-3.0, -3.0)];
-    let ticket = app.world().resource::<SnowQuery>().ask(&points);
+    let ticket = app.world_mut().resource_mut::<SnowQuery>().ask(&points);
     let mut answers = None;
     for _ in 0..8 {
         app.update();
-        answers = app.world().resource::<SnowQuery>().take(ticket);
+        answers = app.world_mut().resource_mut::<SnowQuery>().take(ticket);
         if answers.is_some() {
             break;
         }

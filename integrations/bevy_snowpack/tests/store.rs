@@ -1,11 +1,11 @@
 //! The disk store and the objects: a trench saved through `SnowControl`
 //! comes back in a new app started on the same store, and snow falling on a
-//! `SnowObject` settles on its top at the snowfall's rate.
+//! `SnowCatcher` settles on its top at the snowfall's rate.
 
 mod common;
 
 use bevy::prelude::*;
-use bevy_snowpack::{SnowControl, SnowDeformer, SnowObject, SnowQuery, SnowStoreSettings};
+use bevy_snowpack::{SnowCatcher, SnowControl, SnowDeformer, SnowQuery, SnowStoreSettings};
 use snowpack::Snowfall;
 
 /// Updates `app` until `done` gives something, at most `frames` times.
@@ -29,16 +29,16 @@ fn a_saved_trench_comes_back_in_a_new_app_on_the_same_store() {
             app.update();
         }
         assert_eq!(app.world().resource::<SnowControl>().loaded_save(), Some(false), "a new store holds no save");
-        app.world().resource::<SnowControl>().request_save();
-        let saved = until(&mut app, 5, |app| app.world().resource::<SnowControl>().take_save_result()).expect("the save ran within 5 frames");
+        app.world_mut().resource_mut::<SnowControl>().request_save();
+        let saved = until(&mut app, 5, |app| app.world_mut().resource_mut::<SnowControl>().take_save_result()).expect("the save ran within 5 frames");
         assert!(saved.is_ok(), "saving failed: {saved:?}");
     }
     // A new app on the same store: nothing presses, the trench is loaded.
     let Some(mut app) = common::headless_app(settings) else { return };
     app.update();
     assert_eq!(app.world().resource::<SnowControl>().loaded_save(), Some(true), "the save was not loaded");
-    let ticket = app.world().resource::<SnowQuery>().ask(&[Vec2::new(1.0, -1.0), Vec2::new(-2.0, 2.0)]);
-    let answers = until(&mut app, 8, |app| app.world().resource::<SnowQuery>().take(ticket)).expect("answered within 8 frames");
+    let ticket = app.world_mut().resource_mut::<SnowQuery>().ask(&[Vec2::new(1.0, -1.0), Vec2::new(-2.0, 2.0)]);
+    let answers = until(&mut app, 8, |app| app.world_mut().resource_mut::<SnowQuery>().take(ticket)).expect("answered within 8 frames");
     let (trench, open) = (answers.samples[0].expect("in the window"), answers.samples[1].expect("in the window"));
     assert!((trench.depth_m() - 0.1).abs() < 0.01, "the saved trench holds {} m of snow, want 0.1 m", trench.depth_m());
     assert!((open.depth_m() - 0.4).abs() < 1e-3, "open snow holds {} m, want 0.4 m", open.depth_m());
@@ -54,13 +54,13 @@ fn falling_snow_settles_on_an_object_at_the_snowfall_rate() {
     settings.params.snowfall = Some(fall);
     let Some(mut app) = common::headless_app(settings) else { return };
     // A crate standing on the ground, its top 0.8 m up, well above the snow.
-    let crate_ = app.world_mut().spawn((SnowObject::cuboid(Vec3::new(1.0, 0.8, 1.0)), Transform::from_xyz(0.0, 0.4, 0.0))).id();
+    let crate_ = app.world_mut().spawn((SnowCatcher::cuboid(Vec3::new(1.0, 0.8, 1.0)), Transform::from_xyz(0.0, 0.4, 0.0))).id();
     let frames = 120;
     for _ in 0..frames {
         app.update();
     }
-    app.world().resource::<SnowControl>().request_object_stats();
-    let stats = until(&mut app, 5, |app| app.world().resource::<SnowControl>().take_object_stats()).expect("the stats within 5 frames");
+    app.world_mut().resource_mut::<SnowControl>().request_object_stats();
+    let stats = until(&mut app, 5, |app| app.world_mut().resource_mut::<SnowControl>().take_object_stats()).expect("the stats within 5 frames");
     assert_eq!(stats.len(), 1);
     assert_eq!(stats[0].0, crate_);
     let top = stats[0].1;

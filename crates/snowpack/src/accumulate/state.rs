@@ -41,7 +41,7 @@ pub struct ObjectStats {
     pub mean_m: f32,
     /// Deepest texel (m).
     pub max_m: f32,
-    /// Fraction of the upward area under more than `COVERED_M` of snow.
+    /// Fraction of the upward area under more than 1 mm of snow (`COVERED_M`).
     pub covered_fraction: f32,
 }
 

@@ -44,6 +44,30 @@ pub fn snow_sampling_wgsl(group: u32) -> String {
     SNOW_SAMPLING_WGSL.replace(&format!("@group({SNOW_SAMPLING_GROUP})"), &format!("@group({group})"))
 }
 
+/// [`SNOW_SAMPLING_WGSL`] with its bindings in bind group `group` at
+/// `first_binding..first_binding + 4`, for an engine whose group already
+/// holds other bindings below (Bevy's material group: the standard
+/// material's own come first). Offset [`sampling_layout_entries`]'s binding
+/// numbers the same way. A textual rewrite of the four binding attributes,
+/// like [`snow_sampling_wgsl`].
+#[must_use]
+pub fn snow_sampling_wgsl_at(group: u32, first_binding: u32) -> String {
+    // Highest first, so a binding already moved up is never matched again.
+    (0..4).rev().fold(SNOW_SAMPLING_WGSL.to_string(), |s, k| {
+        s.replace(&format!("@group({SNOW_SAMPLING_GROUP}) @binding({k})"), &format!("@group({group}) @binding({})", first_binding + k))
+    })
+}
+
+/// The deformation's buffers behind bindings 1..=3 of [`SNOW_SAMPLING_WGSL`]
+/// (terrain parameters, heightmap, snow words), for an engine that builds
+/// the bind group itself (binding 0 is its own [`SnowWindowUniform`]
+/// buffer). They are created with the deformation and kept for its life.
+#[must_use]
+pub fn sampling_buffers(snow: &SnowDeformation) -> [wgpu::Buffer; 3] {
+    let res = snow.resources();
+    [res.terrain_params.clone(), res.heightmap.clone(), res.snow.clone()]
+}
+
 /// The `SnowWindow` uniform (binding 0): where the deformation window lies.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

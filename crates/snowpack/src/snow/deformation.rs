@@ -2,13 +2,11 @@
 
 use glam::DVec2;
 
-#[cfg(feature = "low_level")]
 use crate::RimStyle;
 use crate::accumulate::{SnowAccumulation, SnowObject};
 use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
-#[cfg(feature = "low_level")]
 use crate::deform::params::RANGE_TEXELS;
 use crate::deform::params::default_tile_texels;
 use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
@@ -623,7 +621,6 @@ impl SnowDeformation {
         self.refill_base = RefillBase { time_s: self.clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta };
     }
 
-    #[cfg(feature = "low_level")]
     /// Sets the rim strength; takes effect next frame.
     pub fn set_elevation(&mut self, elevation: f32) {
         self.params.elevation = elevation.max(0.0);
@@ -645,7 +642,6 @@ impl SnowDeformation {
         self.params.technique
     }
 
-    #[cfg(feature = "low_level")]
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
     pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
         self.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
@@ -727,7 +723,6 @@ impl SnowDeformation {
         Ok(raw.chunks_exact(row as usize).flat_map(|line| line[..(r * 4) as usize].chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]])).collect())
     }
 
-    #[cfg(feature = "low_level")]
     /// Turns the displayed-surface blur on or off.
     pub fn set_blur(&mut self, blur: bool) {
         self.params.blur = blur;

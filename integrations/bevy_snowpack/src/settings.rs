@@ -1,0 +1,90 @@
+//! Settings that take effect when changed: [`SnowpackSettings`] is extracted
+//! into the render world whenever the main world changes it (Bevy's
+//! `ExtractResourcePlugin`), and the render world applies what changed to
+//! the deformation before the next frame is encoded.
+
+use bevy::prelude::*;
+use bevy::render::RenderApp;
+use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
+
+use crate::render::SnowRenderState;
+use crate::{SnowpackSettings, dvec2};
+
+impl ExtractResource<RenderApp> for SnowpackSettings {
+    type Source = Self;
+
+    fn extract_resource(source: &Self::Source) -> Self {
+        source.clone()
+    }
+}
+
+/// The settings the render world's deformation runs with now.
+#[derive(Resource)]
+pub(crate) struct AppliedSettings(pub SnowpackSettings);
+
+pub(crate) fn build(app: &mut App) {
+    app.add_plugins(ExtractResourcePlugin::<SnowpackSettings>::default());
+}
+
+/// Applies the settings the main world changed (render world, before the frame is encoded).
+pub(crate) fn apply_settings(settings: Res<SnowpackSettings>, applied: Option<ResMut<AppliedSettings>>, state: Option<ResMut<SnowRenderState>>) {
+    let (Some(mut applied), Some(mut state)) = (applied, state) else { return };
+    if !settings.is_changed() {
+        return;
+    }
+    let (new, old) = (&*settings, &applied.0);
+    let snow = state.deformation_mut();
+    let (p, q) = (&new.params, &old.params);
+    if p.technique != q.technique {
+        snow.set_technique(p.technique);
+    }
+    if p.refill_m_per_s != q.refill_m_per_s {
+        snow.set_refill(p.refill_m_per_s);
+    }
+    if p.blur != q.blur {
+        snow.set_blur(p.blur);
+    }
+    if p.elevation != q.elevation {
+        snow.set_elevation(p.elevation);
+    }
+    if p.range_texels != q.range_texels || p.rim != q.rim {
+        snow.set_points(p.range_texels, p.rim);
+    }
+    if p.snowfall != q.snowfall
+        && let Err(e) = snow.set_snowfall(p.snowfall.clone())
+    {
+        tracing::error!("bevy_snowpack: the new snowfall cannot be applied: {e}");
+    }
+    // The window target, when there is one, moves the window every frame anyway.
+    if new.center != old.center {
+        snow.set_center(dvec2(new.center));
+    }
+    let fixed = [
+        ("params.extent_m", p.extent_m != q.extent_m),
+        ("params.resolution", p.resolution != q.resolution),
+        ("params.depth_m", p.depth_m != q.depth_m),
+        ("params.hardness_kpa", p.hardness_kpa != q.hardness_kpa),
+        ("params.tile_memory_bytes", p.tile_memory_bytes != q.tile_memory_bytes),
+        ("params.teleport_m", p.teleport_m != q.teleport_m),
+        ("terrain", new.terrain != old.terrain),
+        ("store", format!("{:?}", new.store) != format!("{:?}", old.store)),
+    ];
+    for (name, changed) in fixed {
+        if changed {
+            tracing::warn!("bevy_snowpack: SnowpackSettings::{name} is fixed when the snow is created; the change is ignored (restart the app to apply it)");
+        }
+    }
+    // What was ignored stays as created, so a later change of it warns again and a change back is silent.
+    let mut now = new.clone();
+    let (created, params) = (&applied.0, &mut now.params);
+    (params.extent_m, params.resolution, params.depth_m) = (created.params.extent_m, created.params.resolution, created.params.depth_m);
+    (params.hardness_kpa, params.tile_memory_bytes, params.teleport_m) =
+        (created.params.hardness_kpa, created.params.tile_memory_bytes, created.params.teleport_m);
+    now.terrain = created.terrain.clone();
+    now.store = created.store.clone();
+    if snow.params().snowfall.is_none() && now.params.snowfall.is_some() {
+        // A window created without snowfall cannot start it (the error above).
+        now.params.snowfall = None;
+    }
+    applied.0 = now;
+}
