@@ -86,8 +86,7 @@ pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, to_main
         .add_systems(ExtractSchedule, (extract_snow_frame, take_requests).in_set(SnowSystems::Extract))
         .add_systems(
             RenderGraph,
-            (apply_settings.before(encode_snow), encode_snow.before(camera_driver), after_frame.in_set(RenderGraphSystems::Finish))
-                .in_set(SnowSystems::Encode),
+            (apply_settings.before(encode_snow), encode_snow.before(camera_driver), after_frame.in_set(RenderGraphSystems::Finish)).in_set(SnowSystems::Encode),
         );
 }
 
