@@ -203,7 +203,7 @@ impl GroundParams {
 /// # fn frame(device: &wgpu::Device, queue: &wgpu::Queue, snow: &snowpack::SnowDeformation,
 /// #          encoder: &mut wgpu::CommandEncoder, color: &wgpu::TextureView, depth: &wgpu::TextureView,
 /// #          view_proj: glam::Mat4, eye: glam::Vec3) {
-/// use snowpack::render::ground::{GroundCamera, SnowGround, SnowGroundDescriptor};
+/// use snowpack::{GroundCamera, SnowGround, SnowGroundDescriptor};
 ///
 /// // Once: the game's formats; reverse-Z depth compares with Greater.
 /// let desc = SnowGroundDescriptor::new(wgpu::TextureFormat::Bgra8UnormSrgb)
