@@ -11,30 +11,14 @@
 
 use std::time::Instant;
 
-use glam::{DVec2, Vec3};
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use glam::DVec2;
+use snowpack::low_level::testing;
+use snowpack::{AdapterRequest, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
 /// Every allocation of the process counted (`stats_alloc`: no unsafe code here).
 #[global_allocator]
 static ALLOCATOR: &StatsAlloc<std::alloc::System> = &INSTRUMENTED_SYSTEM;
-
-/// `count` spheres of 0.3 m on a grid over the middle 48 m of the window,
-/// each circling its grid point (1 m across, about 2 m/s), pressing 0.2 m
-/// into the 0.5 m of snow.
-fn spheres(count: usize, t: f32) -> Vec<Deformer> {
-    let side = (count as f32).sqrt().ceil().max(1.0) as usize;
-    let spacing = 48.0 / side as f32;
-    (0..count)
-        .map(|k| {
-            let (i, j) = ((k / side) as f32, (k % side) as f32);
-            let phase = t * 4.0 + k as f32 * 0.37;
-            let x = -24.0 + (j + 0.5) * spacing + 0.5 * phase.cos();
-            let z = -24.0 + (i + 0.5) * spacing + 0.5 * phase.sin();
-            Deformer::Sphere { center: Vec3::new(x, 0.6, z), radius: 0.3 }
-        })
-        .collect()
-}
 
 /// What one configuration cost per measured frame.
 struct Cost {
@@ -48,7 +32,7 @@ fn measure(ctx: &GpuContext, count: usize, warmup: u32, frames: u32) -> Result<C
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
     let (mut times, mut allocs) = (Vec::new(), Vec::new());
     for frame in 0..warmup + frames {
-        let deformers = spheres(count, frame as f32 / 60.0);
+        let deformers = testing::circling_spheres(count, frame as f32 / 60.0);
         let snow_frame = SnowFrame::new(1.0 / 60.0, &deformers);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("encode cost") });
         let region = Region::new(ALLOCATOR);

@@ -186,3 +186,22 @@ pub fn difference_image(a: &[u8], b: &[u8]) -> Vec<u8> {
         .flat_map(|(p, q)| [p[0].abs_diff(q[0]).saturating_mul(4), p[1].abs_diff(q[1]).saturating_mul(4), p[2].abs_diff(q[2]).saturating_mul(4), 255])
         .collect()
 }
+
+/// `count` spheres of 0.3 m on a grid over the middle 48 m of a window
+/// centred on the origin, each circling its grid point (1 m across, about
+/// 2 m/s at time `t` s) and pressing 0.2 m into 0.5 m of snow: a frame's
+/// worth of moving deformers for the encode benchmark and allocation test.
+#[must_use]
+pub fn circling_spheres(count: usize, t: f32) -> Vec<crate::Deformer> {
+    let side = (count as f32).sqrt().ceil().max(1.0) as usize;
+    let spacing = 48.0 / side as f32;
+    (0..count)
+        .map(|k| {
+            let (i, j) = ((k / side) as f32, (k % side) as f32);
+            let phase = t * 4.0 + k as f32 * 0.37;
+            let x = -24.0 + (j + 0.5) * spacing + 0.5 * phase.cos();
+            let z = -24.0 + (i + 0.5) * spacing + 0.5 * phase.sin();
+            crate::Deformer::Sphere { center: glam::Vec3::new(x, 0.6, z), radius: 0.3 }
+        })
+        .collect()
+}

@@ -9,9 +9,9 @@
 //! test: nothing else allocates meanwhile). No timings are asserted
 //! (`examples/encode_cost.rs` measures those).
 
-use glam::{DVec2, Vec3};
+use glam::DVec2;
 use snowpack::low_level::testing;
-use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, Technique, TerrainSource};
+use snowpack::{GpuContext, SnowDeformation, SnowFrame, SnowParams, Technique, TerrainSource};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
 #[global_allocator]
@@ -25,29 +25,13 @@ const GROWTH: u64 = 2;
 const WARMUP: u32 = 30;
 const FRAMES: u32 = 40;
 
-/// `count` spheres on a grid over the window, each circling its grid point
-/// and pressing into the snow, so each frame sweeps, captures and stamps them.
-fn spheres(count: usize, t: f32) -> Vec<Deformer> {
-    let side = (count as f32).sqrt().ceil().max(1.0) as usize;
-    let spacing = 48.0 / side as f32;
-    (0..count)
-        .map(|k| {
-            let (i, j) = ((k / side) as f32, (k % side) as f32);
-            let phase = t * 4.0 + k as f32 * 0.37;
-            let x = -24.0 + (j + 0.5) * spacing + 0.5 * phase.cos();
-            let z = -24.0 + (i + 0.5) * spacing + 0.5 * phase.sin();
-            Deformer::Sphere { center: Vec3::new(x, 0.6, z), radius: 0.3 }
-        })
-        .collect()
-}
-
 /// (mean, most) allocations per frame of `encode` alone after the warm-up.
 fn allocations(ctx: &GpuContext, technique: Technique, count: usize) -> (f64, u64) {
     let params = SnowParams { extent_m: 64.0, resolution: 256, technique, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
     let mut counts = Vec::new();
     for frame in 0..WARMUP + FRAMES {
-        let deformers = spheres(count, frame as f32 / 60.0);
+        let deformers = testing::circling_spheres(count, frame as f32 / 60.0);
         let snow_frame = SnowFrame::new(1.0 / 60.0, &deformers);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("allocation frame") });
         let region = Region::new(ALLOCATOR);
