@@ -96,7 +96,6 @@ fn route(edges: &[(String, String)], start: &str, goal: &str) -> Option<Vec<Stri
 fn code_only(text: &str) -> String {
     let c: Vec<char> = text.chars().collect();
     let mut out = String::with_capacity(text.len());
-    let blank = |out: &mut String, ch: char| out.push(if ch == '\n' { '\n' } else { ' ' });
     let mut k = 0;
     while k < c.len() {
         let at = |n: usize| c.get(k + n).copied().unwrap_or('\0');
@@ -147,36 +146,37 @@ fn code_only(text: &str) -> String {
             out.extend(std::iter::repeat_n(' ', close.len().min(c.len() - k)));
             k += close.len();
         } else if at(0) == '"' {
-            out.push(' ');
-            k += 1;
-            while k < c.len() && c[k] != '"' {
-                let n = if c[k] == '\\' { 2 } else { 1 };
-                for _ in 0..n.min(c.len() - k) {
-                    blank(&mut out, c[k]);
-                    k += 1;
-                }
-            }
-            out.push(' ');
-            k += 1;
+            k = blank_quoted(&c, k, '"', &mut out);
         } else if at(0) == '\'' && (at(1) == '\\' || (at(1) != '\'' && at(2) == '\'')) {
             // A character literal ('a', '\n', '\u{..}'), not a lifetime ('a).
-            out.push(' ');
-            k += 1;
-            while k < c.len() && c[k] != '\'' {
-                let n = if c[k] == '\\' { 2 } else { 1 };
-                for _ in 0..n.min(c.len() - k) {
-                    blank(&mut out, c[k]);
-                    k += 1;
-                }
-            }
-            out.push(' ');
-            k += 1;
+            k = blank_quoted(&c, k, '\'', &mut out);
         } else {
             out.push(c[k]);
             k += 1;
         }
     }
     out
+}
+
+/// Blanks one character of a comment or literal: a space, or the newline it is.
+fn blank(out: &mut String, ch: char) {
+    out.push(if ch == '\n' { '\n' } else { ' ' });
+}
+
+/// Blanks the literal quoted by `quote` that opens at `c[k]` (escapes
+/// included, newlines kept) into `out`; returns the index after it.
+fn blank_quoted(c: &[char], mut k: usize, quote: char, out: &mut String) -> usize {
+    out.push(' ');
+    k += 1;
+    while k < c.len() && c[k] != quote {
+        let n = if c[k] == '\\' { 2 } else { 1 };
+        for _ in 0..n.min(c.len() - k) {
+            blank(out, c[k]);
+            k += 1;
+        }
+    }
+    out.push(' ');
+    k + 1
 }
 
 /// A token of code: an identifier, `::`, `=>` or one punctuation character.
