@@ -27,6 +27,7 @@ pub fn register_characters(ctx: &GpuContext, world: &World, snow: &mut SnowDefor
         .gltf_actors()
         .map(|(k, g)| {
             let id = snow.add_skinned_mesh(ctx, &g.model.mesh, g.model.skeleton.joints.len()).with_context(|| format!("uploading {}", g.file.display()))?;
+            snow.set_coat(id, g.coat).with_context(|| format!("the snow coat of {}", g.file.display()))?;
             Ok((k, id))
         })
         .collect()

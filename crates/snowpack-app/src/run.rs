@@ -224,6 +224,13 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         let n = acc.layout().resolution as usize;
         out.stage("accumulation.npy", &npy::encode_f32(atlas, &[n, n]))?;
     }
+    // The snow on each glTF character's vertices (DESIGN.md: `actor_snow_K.npy`).
+    for (k, ((_, actor), (_, id))) in world.gltf_actors().zip(&skins).enumerate() {
+        let coat = snow.read_coat(&ctx, *id).context("reading the characters' snow")?;
+        let mesh = &actor.model.mesh;
+        let rows: Vec<f32> = mesh.positions.iter().zip(mesh.vertex_normals()).zip(&coat).flat_map(|((p, n), c)| [p.x, p.y, p.z, n.y, *c]).collect();
+        out.stage(&format!("actor_snow_{k}.npy"), &npy::encode_f32(&rows, &[mesh.positions.len(), 5]))?;
+    }
     out.stage("frame.png", &png)?;
     out.stage("meta.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
     if !footsteps.is_empty() {

@@ -77,6 +77,8 @@ pub struct GltfActor {
     pub placement: Placement,
     /// Weight and sole area for the sinking load model (`mass_kg`, `foot_area_m2`).
     pub load: FootLoad,
+    /// How it gathers and loses snow on its body (the `coat_*` keys).
+    pub coat: snowpack::CoatSettings,
 }
 
 /// A locomotion clip and the speed it is made for.
@@ -116,7 +118,8 @@ impl Placement {
 impl GltfActor {
     /// A character from a loaded model with the defaults of a scene file:
     /// clip 0, scale 1, feet found by [`DEFAULT_FOOT_PATTERNS`], no gaits,
-    /// placed at the path's height, a fox's load. `None` without any foot.
+    /// placed at the path's height, a fox's load, the default snow coat.
+    /// `None` without any foot.
     #[must_use]
     pub fn new(file: PathBuf, model: Arc<SkinnedModel>) -> Option<Self> {
         let mut feet = find_feet(&model.skeleton, &model.clips, &DEFAULT_FOOT_PATTERNS);
@@ -132,6 +135,7 @@ impl GltfActor {
             fade_s: 0.25,
             placement: Placement::Path,
             load: FootLoad::default(),
+            coat: snowpack::CoatSettings::default(),
         })
     }
 
@@ -989,7 +993,8 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
                 foot_area_m2: a.positive("foot_area_m2", defaults.foot_area_m2, " of m²")?,
             };
             let fade_s = a.non_negative("fade_s", 0.25, " of seconds")?;
-            let mut actor = GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet, gaits: Vec::new(), fade_s, placement, load };
+            let coat = parse_coat(a)?;
+            let mut actor = GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet, gaits: Vec::new(), fade_s, placement, load, coat };
             if let Some(names) = a.strings_opt("gaits")? {
                 actor.set_gaits(&names).map_err(|why| a.err("gaits", why))?;
             }
@@ -1020,6 +1025,19 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
         (None, false) => Motion::Kinematic { position, velocity },
     };
     Ok(ActorSpec { shape, motion })
+}
+
+/// The `coat_*` keys of a glTF `[[actor]]`: the snow on its body.
+fn parse_coat(a: &mut Fields<'_>) -> Result<snowpack::CoatSettings, SceneError> {
+    let d = snowpack::CoatSettings::default();
+    Ok(snowpack::CoatSettings {
+        cling_per_s: a.non_negative("coat_cling_per_s", d.cling_per_s, " (1/s)")?,
+        cap_m: a.non_negative("coat_cap_m", d.cap_m, " of metres")?,
+        melt_m_per_s: a.non_negative("coat_melt_m_per_s", d.melt_m_per_s, " of m/s")?,
+        shake_speed_m_per_s: a.non_negative("coat_shake_speed_m_per_s", d.shake_speed_m_per_s, " of m/s")?,
+        shake_per_s: a.non_negative("coat_shake_per_s", d.shake_per_s, " (1/s)")?,
+        wade_radius_m: a.non_negative("coat_wade_radius_m", d.wade_radius_m, " of metres")?,
+    })
 }
 
 fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, SceneError> {

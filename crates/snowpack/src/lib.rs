@@ -135,6 +135,7 @@ pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+pub use skin::coat::CoatSettings;
 pub use skin::skinning::SkinnedMesh;
 pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use snowfall::Snowfall;

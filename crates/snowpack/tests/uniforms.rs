@@ -22,6 +22,7 @@ use snowpack::low_level::render::surface::UnpackParams;
 use snowpack::low_level::replicate::gather::TileGatherParams;
 use snowpack::low_level::replicate::merge::TileMergeParams;
 use snowpack::low_level::shaders;
+use snowpack::low_level::skin::coat::SnowCoatParams;
 use snowpack::low_level::skin::skinning::SkinningParams;
 use snowpack::low_level::tiles::exchange::ExchangeParams;
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams};
@@ -64,6 +65,8 @@ fn uniform_sizes_match_naga() {
         (shaders::ENV_DOWNSAMPLE, "params", size_of::<EnvParams>()),
         (shaders::ENV_PREFILTER, "params", size_of::<EnvParams>()),
         (shaders::SKINNING, "params", size_of::<SkinningParams>()),
+        (shaders::SNOW_COAT, "params", size_of::<SnowCoatParams>()),
+        (shaders::SNOW_COAT, "terrain_params", size_of::<TerrainParams>()),
         (shaders::OCCLUSION, "params", size_of::<OcclusionParams>()),
         (shaders::SCATTER, "params", size_of::<ScatterParams>()),
         (shaders::INCREMENT, "params", size_of::<IncrementParams>()),

@@ -23,6 +23,7 @@ pub mod shell_tetrahedra;
 #[cfg(feature = "renderer")]
 pub mod shell_vertices;
 pub mod skinning;
+pub mod snow_coat;
 pub mod snow_sampling;
 pub mod stamp;
 pub mod surface_unpack;

@@ -1,6 +1,6 @@
 //! Skinned characters (`shaders/skinned_draw.wgsl`): the meshes the
 //! deformation posed this frame ([`crate::SnowDeformation::posed_meshes`]),
-//! drawn lit and into the shadow map.
+//! drawn lit and into the shadow map, with the snow they carry.
 
 use super::pipeline::{DrawSpec, lit_and_shadow};
 use crate::shaders;
@@ -12,13 +12,18 @@ pub struct SkinnedDrawPass {
     shadow: wgpu::RenderPipeline,
 }
 
-const ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+const POSITION: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+/// The snow coat (m a vertex), blended over the fur.
+const COAT: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![1 => Float32];
 
 impl SkinnedDrawPass {
     /// Builds both pipelines.
     #[must_use]
     pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout, shadow_layout: &wgpu::BindGroupLayout) -> Self {
-        let buffers = [Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &ATTRIBUTES })];
+        let buffers = [
+            Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &POSITION }),
+            Some(wgpu::VertexBufferLayout { array_stride: 4, step_mode: wgpu::VertexStepMode::Vertex, attributes: &COAT }),
+        ];
         // Exporters wind triangles either way; cull nothing (the shader faces normals to the eye).
         let (lit, shadow) = lit_and_shadow(
             device,
@@ -40,6 +45,7 @@ impl SkinnedDrawPass {
         pass.set_bind_group(0, group, &[]);
         for m in meshes {
             pass.set_vertex_buffer(0, m.skinned.slice(..));
+            pass.set_vertex_buffer(1, m.coat.slice(..));
             pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..m.index_count, 0, 0..1);
         }

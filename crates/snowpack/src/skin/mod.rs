@@ -1,13 +1,14 @@
 //! Skinned, animated actors: a node hierarchy with joints, animation clips
 //! (step, linear and cubic-spline keys, as glTF 2.0 defines them), playback
-//! with speed and cross-fade, and GPU skinning ([`skinning::SkinningPass`],
-//! CPU twin `cpu::skinning`). Reading files is the scene crate's job;
+//! with speed and cross-fade, GPU skinning ([`skinning::SkinningPass`],
+//! CPU twin `cpu::skinning`) and the snow characters carry ([`coat`]). Reading files is the scene crate's job;
 //! this module takes decoded data.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
+pub mod coat;
 pub mod feet;
 pub mod sinking;
 pub mod skinning;

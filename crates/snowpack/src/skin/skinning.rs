@@ -1,6 +1,7 @@
 //! Skinning pass (`shaders/skinning.wgsl`): a skinned mesh posed by its joint
 //! matrices and placed in the world, into a vertex buffer the capture and the
-//! renderer draw from. One [`SkinnedInstance`] per actor holds its buffers.
+//! renderer draw from, and their normals for the snow coat
+//! ([`super::coat`]). One [`SkinnedInstance`] per actor holds its buffers.
 
 use glam::{Mat4, Vec3};
 
@@ -66,6 +67,24 @@ impl SkinnedMesh {
         }
         Ok(())
     }
+
+    /// Bind-pose vertex normals: the area-weighted sum of the normals of the
+    /// triangles around each vertex (either winding counts the same way as
+    /// long as a mesh is consistent), straight up where a vertex has none.
+    #[must_use]
+    pub fn vertex_normals(&self) -> Vec<Vec3> {
+        let mut sum = vec![Vec3::ZERO; self.positions.len()];
+        for t in self.indices.chunks_exact(3) {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+            let (Some(&pa), Some(&pb), Some(&pc)) = (self.positions.get(a), self.positions.get(b), self.positions.get(c)) else { continue };
+            // The cross product's length is twice the area: larger faces weigh more.
+            let n = (pb - pa).cross(pc - pa);
+            for k in [a, b, c] {
+                sum[k] += n;
+            }
+        }
+        sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
+    }
 }
 
 /// The pass: one pipeline for every skinned instance.
@@ -75,10 +94,18 @@ pub struct SkinningPass {
 }
 
 /// One actor's skinning buffers: the bind pose, its joint matrices this frame
-/// and the skinned world positions (`STORAGE | VERTEX`, 12 bytes a vertex).
+/// and the skinned world positions (`STORAGE | VERTEX`, 12 bytes a vertex),
+/// with their normals and the snow the character carries.
 pub struct SkinnedInstance {
     /// Skinned positions, world space, packed xyz.
     pub skinned: wgpu::Buffer,
+    /// Skinned normals, world space, packed xyz (unit length).
+    pub normals: wgpu::Buffer,
+    /// Snow on each vertex (m, one f32 a vertex; `STORAGE | VERTEX`): the
+    /// snow coat ([`super::coat`]), which a character's material blends in.
+    pub coat: wgpu::Buffer,
+    /// This frame's positions kept for the next frame's speeds (packed xyz).
+    pub(crate) previous: wgpu::Buffer,
     /// Triangle list indices (u32).
     pub indices: wgpu::Buffer,
     /// Number of indices.
@@ -106,6 +133,8 @@ impl SkinningPass {
                 layout::storage(3, true),
                 layout::storage(4, true),
                 layout::storage(5, false),
+                layout::storage(6, true),
+                layout::storage(7, false),
             ],
         );
         Self { pipeline, layout }
@@ -132,12 +161,21 @@ impl SkinningPass {
         let weights = storage("skin weights", bytemuck::cast_slice(&mesh.weights), wgpu::BufferUsages::empty());
         let joints = storage("skin joints", &vec![0u8; joint_count.max(1) * 64], wgpu::BufferUsages::empty());
         let indices = storage("skin indices", bytemuck::cast_slice(&mesh.indices), wgpu::BufferUsages::INDEX);
-        let skinned = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("skinned positions"),
-            size: n * 12,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let rest_normals: Vec<[f32; 4]> = mesh.vertex_normals().iter().map(|n| n.extend(0.0).to_array()).collect();
+        let rest_normals = storage("skin rest normals", bytemuck::cast_slice(&rest_normals), wgpu::BufferUsages::empty());
+        let output = |label: &str, size: u64, extra: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | extra,
+                mapped_at_creation: false,
+            })
+        };
+        let skinned = output("skinned positions", n * 12, wgpu::BufferUsages::VERTEX);
+        let normals = output("skinned normals", n * 12, wgpu::BufferUsages::empty());
+        // Zeroed at creation (wgpu's guarantee): a character starts clean.
+        let coat = output("snow coat", n * 4, wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST);
+        let previous = output("snow coat previous positions", n * 12, wgpu::BufferUsages::COPY_DST);
         let params = layout::uniform_buffer::<SkinningParams>(device, "skinning params");
         let bind_group = layout::bind_group(
             device,
@@ -150,10 +188,15 @@ impl SkinningPass {
                 weights.as_entire_binding(),
                 joints.as_entire_binding(),
                 skinned.as_entire_binding(),
+                rest_normals.as_entire_binding(),
+                normals.as_entire_binding(),
             ],
         );
         Ok(SkinnedInstance {
             skinned,
+            normals,
+            coat,
+            previous,
             indices,
             index_count: mesh.indices.len() as u32,
             vertex_count: n as u32,

@@ -125,9 +125,11 @@ pub struct SnowDeformation {
     /// Contact points left out because a frame brought more than the stamp pass takes.
     points_dropped: u64,
     skinning: SkinningPass,
-    skinned: Vec<SkinnedInstance>,
+    pub(super) skinned: Vec<SkinnedInstance>,
     /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
-    posed: Vec<usize>,
+    pub(super) posed: Vec<usize>,
+    /// The snow the characters carry ([`super::coat`]).
+    pub(super) coats: super::coat::Coats,
     /// Objects snow settles on, with their atlas and passes.
     pub(super) accumulation: Option<SnowAccumulation>,
     /// Snowfall so far on open ground (m), given to texels the window exposes.
@@ -276,7 +278,7 @@ impl<'a> SnowFrame<'a> {
 
 /// A skinned mesh registered with [`SnowDeformation::add_skinned_mesh`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SkinnedId(usize);
+pub struct SkinnedId(pub(super) usize);
 
 /// One character's pose for a frame: which mesh, its joint matrices and its placement.
 #[derive(Clone, Copy, Debug)]
@@ -341,6 +343,7 @@ impl SnowDeformation {
             Some(budget) => keep_in_memory(ctx, &res, &params, budget)?,
             None => None,
         };
+        let coats = super::coat::Coats::new(device, &res.terrain_constants());
         Ok(Self {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),
@@ -371,6 +374,7 @@ impl SnowDeformation {
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
             posed: Vec::new(),
+            coats,
             accumulation: None,
             fallen_total_m: 0.0,
             clock: SnowClock::default(),
@@ -766,6 +770,7 @@ impl SnowDeformation {
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         let instance = self.skinning.instance(&ctx.device, &ctx.queue, mesh, joint_count)?;
         self.skinned.push(instance);
+        self.coats.register();
         let reach = crate::deform::sweep::JointReach::of_skin(&mesh.positions, &mesh.joints, &mesh.weights, joint_count);
         self.mesh_history.register_skinned(self.skinned.len() - 1, reach);
         Ok(SkinnedId(self.skinned.len() - 1))
@@ -833,6 +838,8 @@ impl SnowDeformation {
         let meshes: Vec<SweptMesh<'_>> =
             current.iter().zip(&keys).map(|(&mesh, &key)| SweptMesh { mesh, previous: history.previous(key, u64::from(mesh.vertex_count) * 12) }).collect();
         self.encode_frame(ctx, encoder, (frame.deformers, frame.ids, frame.dt_s), (&meshes, &steps), queries);
+        // The characters' snow, against the ground this frame left.
+        self.record_coats(ctx, encoder, &skinned);
         self.scratch.mesh_steps = steps;
         drop(meshes);
         // This frame's positions are the next frame's previous ones.
@@ -977,6 +984,8 @@ impl SnowDeformation {
             _ => None,
         };
         let max_fallen_m = snowfall.as_ref().map_or(0.0, |s| s.max_m);
+        self.coats.frame = super::coat::CoatFrame { origin: origin_i32, corner_m: [corner.x as f32, corner.y as f32], fall_m, dt_s, sky };
+        let p = &self.params;
         let technique = p.technique;
         let captures = matches!(technique, Technique::Depth | Technique::Combined);
         let stamps = matches!(technique, Technique::Points | Technique::Combined);

@@ -6,6 +6,7 @@
 //! ([`deformation`]) saving the window's own state ([`saved`]) and sharing its snow with
 //! other machines ([`share`]).
 
+mod coat;
 pub mod deformation;
 pub mod saved;
 pub mod share;

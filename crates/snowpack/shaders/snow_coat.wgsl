@@ -1,0 +1,154 @@
+// #import shared/window
+// #import shared/terrain
+// #import shared/terrain_kind
+// #import shared/snow_word
+
+// Snow coat: the snow each vertex of a skinned character carries (m, one f32
+// a vertex), after the frame's skinning and the ground's update. A vertex
+//   - wading: below the snow it stands in gains `cling_per_s` times its depth
+//     under that snow each second, up to `cap_m`. The capture has already
+//     pressed the snow under the body down to it, so the snow waded through is
+//     the highest persistent snow within `wade_radius_m` (the centre and eight
+//     points on a circle), each read as the point queries read it (bilinear
+//     between texel centres, query.wgsl);
+//   - snowfall: facing up and reached by the sky (the objects' occlusion map,
+//     as the ground's update tests it) gains this frame's fall times the up
+//     component of its normal, up to `cap_m`;
+//   - losing it: melts at `melt_m_per_s`, and where it moved faster than
+//     `shake_speed_m_per_s` since the last frame (a jump farther than
+//     `teleport_m` is no motion) loses `1 - exp(-shake_per_s dt)` of it.
+// One thread a vertex. CPU twin: src/cpu/snow_coat.rs.
+
+struct SnowCoatParams {
+    origin: vec2<i32>,
+    resolution: u32,
+    vertex_count: u32,
+    corner_m: vec2<f32>,    // world x, z of the window's corner
+    texel_m: f32,
+    depth_m: f32,
+    dt_s: f32,
+    fall_m: f32,
+    cling_per_s: f32,
+    cap_m: f32,
+    melt_m_per_s: f32,
+    shake_speed_m_per_s: f32,
+    shake_per_s: f32,
+    wade_radius_m: f32,
+    use_fallen: u32,
+    use_sky: u32,
+    has_previous: u32,
+    teleport_m: f32,
+    sky_shear: vec2<f32>,
+    sky_offset_m: vec2<f32>,
+    sky_y0_m: f32,
+    sky_low_m: f32,
+    sky_high_m: f32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: SnowCoatParams;
+@group(0) @binding(1) var<storage, read> positions: array<f32>;
+@group(0) @binding(2) var<storage, read> previous: array<f32>;
+@group(0) @binding(3) var<storage, read> normals: array<f32>;
+@group(0) @binding(4) var<storage, read_write> coat: array<f32>;
+@group(0) @binding(5) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(6) var<storage, read> snow: array<u32>;
+@group(0) @binding(7) var<storage, read> fallen: array<f32>;
+@group(0) @binding(8) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(9) var sky: texture_2d<f32>;
+
+const SKY_BIAS_M: f32 = 0.02;
+// The circle's eight directions (cos, sin of k * 45 degrees).
+const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
+    vec2<f32>(1.0, 0.0), vec2<f32>(0.70710677, 0.70710677), vec2<f32>(0.0, 1.0), vec2<f32>(-0.70710677, 0.70710677),
+    vec2<f32>(-1.0, 0.0), vec2<f32>(-0.70710677, -0.70710677), vec2<f32>(0.0, -1.0), vec2<f32>(0.70710677, -0.70710677),
+);
+
+fn lerp2(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
+    let ab = a + (b - a) * f.x;
+    let cd = c + (d - c) * f.x;
+    return ab + (cd - ab) * f.y;
+}
+
+fn texel_height(g: vec2<i32>, s: u32) -> f32 {
+    let t = texel_ground(terrain_params, g, params.texel_m);
+    var lying = 0.0;
+    if params.use_fallen != 0u {
+        lying = fallen[s];
+    }
+    return snow_word_height(snow[s], t + params.depth_m + lying, t);
+}
+
+// Persistent snow height at window-local point q (m), or -1e30 outside.
+fn height_at(q: vec2<f32>) -> f32 {
+    let uv = q / params.texel_m - vec2<f32>(0.5);
+    let cell = floor(uv);
+    let f = uv - cell;
+    let last = f32(i32(params.resolution) - 2);
+    if cell.x < 0.0 || cell.y < 0.0 || cell.x > last || cell.y > last {
+        return -1e30;
+    }
+    let j = u32(cell.x);
+    let i = u32(cell.y);
+    let res = params.resolution;
+    let g = params.origin + vec2<i32>(i32(j), i32(i));
+    return lerp2(
+        texel_height(g, storage_index(params.origin, res, i, j)),
+        texel_height(g + vec2<i32>(1, 0), storage_index(params.origin, res, i, j + 1u)),
+        texel_height(g + vec2<i32>(0, 1), storage_index(params.origin, res, i + 1u, j)),
+        texel_height(g + vec2<i32>(1, 1), storage_index(params.origin, res, i + 1u, j + 1u)),
+        f,
+    );
+}
+
+// 1 where the sky reaches window-local point q at height h (update.wgsl's test).
+fn sky_reaches(q0: vec2<f32>, h: f32) -> f32 {
+    if params.use_sky == 0u {
+        return 1.0;
+    }
+    let q = q0 + params.sky_shear * (h - params.sky_y0_m) + params.sky_offset_m;
+    let pix = floor(q / params.texel_m);
+    let r = f32(params.resolution);
+    if pix.x < 0.0 || pix.y < 0.0 || pix.x >= r || pix.y >= r {
+        return 1.0;
+    }
+    let seen = textureLoad(sky, vec2<i32>(pix), 0).x;
+    let here = (params.sky_high_m - (h + SKY_BIAS_M)) / (params.sky_high_m - params.sky_low_m);
+    return select(0.0, 1.0, here <= seen);
+}
+
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let v = id.x;
+    if v >= params.vertex_count {
+        return;
+    }
+    let p = vec3<f32>(positions[v * 3u], positions[v * 3u + 1u], positions[v * 3u + 2u]);
+    let n = vec3<f32>(normals[v * 3u], normals[v * 3u + 1u], normals[v * 3u + 2u]);
+    let dt = max(params.dt_s, 0.0);
+    let q = p.xz - params.corner_m;
+    var c = coat[v];
+    // Wading.
+    var top = height_at(q);
+    for (var k = 0u; k < 8u; k++) {
+        top = max(top, height_at(q + RING[k] * params.wade_radius_m));
+    }
+    let under = top - p.y;
+    if under > 0.0 {
+        c = max(c, min(c + params.cling_per_s * under * dt, params.cap_m));
+    }
+    // Snowfall.
+    if params.fall_m > 0.0 && n.y > 0.0 {
+        c = max(c, min(c + params.fall_m * n.y * sky_reaches(q, p.y), params.cap_m));
+    }
+    // Melting and shaking off.
+    c = max(c - params.melt_m_per_s * dt, 0.0);
+    if params.has_previous != 0u && dt > 0.0 {
+        let moved = length(p - vec3<f32>(previous[v * 3u], previous[v * 3u + 1u], previous[v * 3u + 2u]));
+        if moved <= params.teleport_m && moved > params.shake_speed_m_per_s * dt {
+            c = c * exp(-params.shake_per_s * dt);
+        }
+    }
+    coat[v] = c;
+}

@@ -1,0 +1,209 @@
+//! Snow coat pass (`shaders/snow_coat.wgsl`, CPU twin `cpu::snow_coat`): the
+//! snow a skinned character carries, one f32 a vertex beside its skinned
+//! positions ([`super::skinning::SkinnedInstance::coat`]). Wading through
+//! snow cakes the legs, snowfall whitens what faces the sky, and the coat
+//! melts and shakes off where the body moves fast. A character's material
+//! reads the buffer as a per-vertex attribute (`docs/rendering.md`, "Snow on
+//! characters").
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::SnowError;
+use crate::frame::FrameContext;
+use crate::gpu::layout;
+use crate::shaders;
+
+use super::skinning::SkinnedInstance;
+
+/// How a character gathers and loses snow (per skinned mesh; the scene's
+/// `[[actor]]` keys `coat_*`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoatSettings {
+    /// Snow gained wading, per second and per metre the vertex is below the
+    /// snow around it (1/s).
+    pub cling_per_s: f32,
+    /// Most snow a vertex carries (m).
+    pub cap_m: f32,
+    /// Melt (m/s).
+    pub melt_m_per_s: f32,
+    /// Speed above which a vertex shakes its snow off (m/s).
+    pub shake_speed_m_per_s: f32,
+    /// Rate at which a fast vertex loses its snow (1/s: `1 - exp(-rate dt)` a frame).
+    pub shake_per_s: f32,
+    /// Radius around a vertex in which the snow it wades through is read (m):
+    /// wider than a leg, so the trail under it does not hide the snow around.
+    pub wade_radius_m: f32,
+}
+
+impl Default for CoatSettings {
+    fn default() -> Self {
+        Self { cling_per_s: 2.0, cap_m: 0.03, melt_m_per_s: 0.000_2, shake_speed_m_per_s: 4.0, shake_per_s: 1.5, wade_radius_m: 0.25 }
+    }
+}
+
+impl CoatSettings {
+    /// Checks every value; the error names the field.
+    pub fn validate(&self) -> Result<(), SnowError> {
+        let fields = [
+            ("coat_cling_per_s", self.cling_per_s),
+            ("coat_cap_m", self.cap_m),
+            ("coat_melt_m_per_s", self.melt_m_per_s),
+            ("coat_shake_speed_m_per_s", self.shake_speed_m_per_s),
+            ("coat_shake_per_s", self.shake_per_s),
+            ("coat_wade_radius_m", self.wade_radius_m),
+        ];
+        match fields.into_iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+            Some((field, v)) => Err(SnowError::InvalidParameter { field, why: format!("{v} must be zero or positive") }),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Uniforms of the snow coat pass (`SnowCoatParams` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SnowCoatParams {
+    /// Global texel of the window's local (0, 0).
+    pub origin: [i32; 2],
+    /// Window resolution.
+    pub resolution: u32,
+    /// Vertices of the mesh.
+    pub vertex_count: u32,
+    /// World x, z of the window's corner (m).
+    pub corner_m: [f32; 2],
+    /// Texel side (m).
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Frame time (s).
+    pub dt_s: f32,
+    /// This frame's snowfall on open ground (m).
+    pub fall_m: f32,
+    /// [`CoatSettings::cling_per_s`].
+    pub cling_per_s: f32,
+    /// [`CoatSettings::cap_m`].
+    pub cap_m: f32,
+    /// [`CoatSettings::melt_m_per_s`].
+    pub melt_m_per_s: f32,
+    /// [`CoatSettings::shake_speed_m_per_s`].
+    pub shake_speed_m_per_s: f32,
+    /// [`CoatSettings::shake_per_s`].
+    pub shake_per_s: f32,
+    /// [`CoatSettings::wade_radius_m`].
+    pub wade_radius_m: f32,
+    /// 1 when fallen snow raises the rest surface.
+    pub use_fallen: u32,
+    /// 1 when the objects' occlusion map is bound.
+    pub use_sky: u32,
+    /// 1 when `previous` holds last frame's positions.
+    pub has_previous: u32,
+    /// A vertex that moved farther in one frame jumped (no shaking).
+    pub teleport_m: f32,
+    /// Occlusion projection (see `accumulate::OcclusionParams`).
+    pub sky_shear: [f32; 2],
+    /// Occlusion jitter (m).
+    pub sky_offset_m: [f32; 2],
+    /// Occlusion plane height (m).
+    pub sky_y0_m: f32,
+    /// Height at occlusion depth 1 (m).
+    pub sky_low_m: f32,
+    /// Height at occlusion depth 0 (m).
+    pub sky_high_m: f32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
+}
+
+impl SnowCoatParams {
+    /// The settings' part of the uniforms.
+    #[must_use]
+    pub fn with_settings(mut self, s: &CoatSettings) -> Self {
+        self.cling_per_s = s.cling_per_s;
+        self.cap_m = s.cap_m;
+        self.melt_m_per_s = s.melt_m_per_s;
+        self.shake_speed_m_per_s = s.shake_speed_m_per_s;
+        self.shake_per_s = s.shake_per_s;
+        self.wade_radius_m = s.wade_radius_m;
+        self
+    }
+}
+
+/// The window's buffers the coat reads: heights, snow words, fallen snow,
+/// the terrain's uniforms and the occlusion map.
+#[derive(Clone, Copy)]
+pub struct CoatGround<'a> {
+    /// Terrain heightmap (`DeformResources::heightmap`).
+    pub heightmap: &'a wgpu::Buffer,
+    /// Snow words.
+    pub snow: &'a wgpu::Buffer,
+    /// Fallen snow.
+    pub fallen: &'a wgpu::Buffer,
+    /// Terrain uniforms.
+    pub terrain_params: &'a wgpu::Buffer,
+    /// Occlusion depth (a 1x1 stand-in when no objects are set).
+    pub sky: &'a wgpu::TextureView,
+}
+
+/// The pass: one pipeline for every character.
+pub struct SnowCoatPass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: Vec<wgpu::Buffer>,
+}
+
+impl SnowCoatPass {
+    /// Builds the pipeline for a window whose terrain kind `terrain_constants` names.
+    #[must_use]
+    pub fn new(device: &wgpu::Device, terrain_constants: &[(&str, f64)]) -> Self {
+        let (pipeline, layout) = layout::compute_pipeline_with(
+            device,
+            "snow coat",
+            shaders::SNOW_COAT,
+            &[
+                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
+                layout::storage(1, true),
+                layout::storage(2, true),
+                layout::storage(3, true),
+                layout::storage(4, false),
+                layout::storage(5, true),
+                layout::storage(6, true),
+                layout::storage(7, true),
+                layout::uniform(8, wgpu::ShaderStages::COMPUTE),
+                layout::depth_texture(9),
+            ],
+            terrain_constants,
+        );
+        Self { pipeline, layout, params: Vec::new() }
+    }
+
+    /// Records the coat update of the `k`-th character of this frame (its
+    /// skinning already recorded), then keeps its positions for the next
+    /// frame's speeds.
+    pub fn record(&mut self, cx: FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
+        let FrameContext { gpu, encoder, timer } = cx;
+        // One uniform buffer per character slot, kept: each dispatch reads its own.
+        while self.params.len() <= k {
+            self.params.push(layout::uniform_buffer::<SnowCoatParams>(&gpu.device, "snow coat params"));
+        }
+        let params_buffer = &self.params[k];
+        gpu.queue.write_buffer(params_buffer, 0, bytemuck::bytes_of(&SnowCoatParams { vertex_count: instance.vertex_count, ..*params }));
+        let bind_group = layout::bind_group(
+            &gpu.device,
+            "snow coat",
+            &self.layout,
+            &[
+                params_buffer.as_entire_binding(),
+                instance.skinned.as_entire_binding(),
+                instance.previous.as_entire_binding(),
+                instance.normals.as_entire_binding(),
+                instance.coat.as_entire_binding(),
+                ground.heightmap.as_entire_binding(),
+                ground.snow.as_entire_binding(),
+                ground.fallen.as_entire_binding(),
+                ground.terrain_params.as_entire_binding(),
+                wgpu::BindingResource::TextureView(ground.sky),
+            ],
+        );
+        layout::dispatch(encoder, timer, "snow coat", &self.pipeline, &bind_group, (layout::groups(instance.vertex_count, 64), 1));
+        encoder.copy_buffer_to_buffer(&instance.skinned, 0, &instance.previous, 0, u64::from(instance.vertex_count) * 12);
+    }
+}
