@@ -16,7 +16,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::height_depth::CAPTURE_FORMAT;
 use crate::{Deformer, shaders};
 
@@ -471,20 +472,21 @@ impl CapturePass {
     }
 
     /// Clears the capture target and draws the prepared instances.
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources) {
-        self.record_swept(encoder, timer, res, &[]);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources) {
+        self.record_swept(cx, res, &[]);
     }
 
     /// Like [`Self::record`], also drawing world-space `meshes` in their current pose.
-    pub fn record_with_meshes(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
+    pub fn record_with_meshes(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
         let swept: Vec<SweptMesh<'_>> = meshes.iter().map(|&mesh| SweptMesh { mesh, previous: None }).collect();
-        self.record_swept(encoder, timer, res, &swept);
+        self.record_swept(cx, res, &swept);
     }
 
     /// Like [`Self::record`], also drawing world-space `meshes`, mesh k swept
     /// over the sub-steps `prepare` was given in
     /// [`CaptureInstances::mesh_steps`]`[k]` where it has previous positions.
-    pub fn record_swept<'a>(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
+    pub fn record_swept<'a>(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let slot = timer.reserve("capture");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("capture"),

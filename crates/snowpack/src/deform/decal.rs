@@ -9,7 +9,8 @@ use std::collections::VecDeque;
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Vec3};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::{Deformer, TerrainSource, shaders};
 
 /// Format of the decal layer: normal x, z, tint, coverage.
@@ -351,7 +352,8 @@ impl DecalPass {
     }
 
     /// Clears the layer and draws every decal into it.
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+    pub fn record(&self, cx: &mut FrameContext<'_>) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let slot = timer.reserve("decals");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("decals"),

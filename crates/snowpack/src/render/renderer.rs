@@ -20,6 +20,7 @@ use super::terrain::TerrainPass;
 use super::tonemap::TonemapPass;
 use crate::Deformer;
 use crate::error::SnowError;
+use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 use crate::snow::SnowDeformation;
 
@@ -186,7 +187,7 @@ impl Renderer {
 
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("environment prefilter") });
         timer.begin_frame();
-        env_pass.record(&mut encoder, &mut timer);
+        env_pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer));
         timer.end_frame(&mut encoder);
         queue.submit([encoder.finish()]);
         ctx.check("environment prefilter")?;
@@ -389,10 +390,10 @@ impl Renderer {
         self.timer.begin_frame();
         if let Some(origin) = snow.origin_texel() {
             // Window coordinates fit i32 on the GPU (see the deformation's frame).
-            self.unpack.record(queue, encoder, &mut self.timer, [origin[0] as i32, origin[1] as i32]);
+            self.unpack.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), [origin[0] as i32, origin[1] as i32]);
             let sp = snow.params();
             let params = AoParams { resolution: sp.resolution, steps: AoPass::STEPS, texel_m: sp.texel_m(), strength: self.params.ao_strength };
-            self.ao.record(queue, encoder, &mut self.timer, params);
+            self.ao.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), params);
         }
         {
             let slot = self.timer.reserve("shadow");
@@ -439,7 +440,7 @@ impl Renderer {
         if self.params.shell.enabled
             && let Some(shell) = &mut self.shell
         {
-            shell.encode(ctx, encoder, &mut self.timer, &self.lit_group, snow, camera.position, (&targets.depth, &targets.hdr, size));
+            shell.encode(&mut FrameContext::new(ctx, encoder, &mut self.timer), &self.lit_group, snow, camera.position, (&targets.depth, &targets.hdr, size));
         }
         {
             let slot = self.timer.reserve("tonemap");

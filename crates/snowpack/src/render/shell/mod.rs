@@ -18,7 +18,8 @@ pub mod volume;
 use glam::Vec3;
 
 use crate::error::SnowError;
-use crate::gpu::{GpuContext, GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::{GpuContext, layout};
 use crate::snow::SnowDeformation;
 
 use self::count::MAX_PASSES;
@@ -360,12 +361,9 @@ impl ShellRenderer {
 
     /// Records the shell's construction over `snow` and its peeled drawing
     /// into `hdr` (`size` pixels; `scene_depth` holds the scene drawn so far).
-    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and targets, which the renderer owns")]
     pub fn encode(
         &mut self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        cx: &mut FrameContext<'_>,
         lit_group: &wgpu::BindGroup,
         snow: &SnowDeformation,
         camera: Vec3,
@@ -373,7 +371,7 @@ impl ShellRenderer {
     ) {
         self.drawn = false;
         let Some(corner) = snow.origin_m() else { return };
-        let (device, queue) = (&ctx.device, &ctx.queue);
+        let (device, queue) = (cx.device(), cx.queue());
         let p = snow.params();
         let s = &self.settings;
         let origin = self.patch.origin((camera.x, camera.z), (corner.x, corner.y), f64::from(p.texel_m()), p.resolution);
@@ -393,8 +391,8 @@ impl ShellRenderer {
             min_fraction: s.min_fraction,
             tile_m: s.tile_m,
         };
-        self.vertex_pass.record(queue, encoder, timer, &vertex_params);
-        self.tetra_pass.record(queue, encoder, timer, &TetraParams { faces: self.faces, count: self.patch.vertices(), _pad: [0; 2] });
+        self.vertex_pass.record(cx, &vertex_params);
+        self.tetra_pass.record(cx, &TetraParams { faces: self.faces, count: self.patch.vertices(), _pad: [0; 2] });
         let [x, y, z] = self.dims;
         let draw = ShellDrawParams {
             dims: [x as f32, y as f32, z as f32, self.levels as f32],
@@ -419,7 +417,7 @@ impl ShellRenderer {
             threshold: s.opacity,
             debug_pass: s.debug_pass,
         };
-        peel::record(queue, encoder, timer, &self.pipelines, targets, &draw, hdr);
+        peel::record(cx, &self.pipelines, targets, &draw, hdr);
         self.drawn = true;
     }
 

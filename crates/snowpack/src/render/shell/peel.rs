@@ -18,6 +18,7 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
+use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::render::pipeline::{HDR_FORMAT, screen_target};
 use crate::shaders;
@@ -438,15 +439,9 @@ fn colour_pass<'e>(
 }
 
 /// Records the peeling passes and the composite into `hdr`.
-pub fn record(
-    queue: &wgpu::Queue,
-    encoder: &mut wgpu::CommandEncoder,
-    timer: &mut crate::gpu::GpuTimer,
-    pipelines: &PeelPipelines,
-    targets: &PeelTargets,
-    draw: &PeelDraw<'_>,
-    hdr: &wgpu::TextureView,
-) {
+pub fn record(cx: &mut FrameContext<'_>, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
+    let gpu = cx.gpu;
+    let (queue, encoder, timer) = (&gpu.queue, &mut *cx.encoder, &mut *cx.timer);
     let size = targets.size;
     queue.write_buffer(
         &targets.resolve_params,
@@ -493,7 +488,7 @@ pub fn record(
             pass.set_bind_group(0, &targets.resolve_layer, &[]);
             pass.draw(0..3, 0..1);
         }
-        targets.count.record(encoder, &mut untimed, k, size);
+        targets.count.record(&mut FrameContext::new(gpu, encoder, &mut untimed), k, size);
         {
             // Step 3: shade the layer, depth test `equal`, under what is there.
             let mut pass = colour_pass(encoder, "shell shade", &targets.accumulated, false, Some(&targets.peel_depth), None);
