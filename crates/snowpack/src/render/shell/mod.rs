@@ -240,6 +240,30 @@ fn volume_texture(
     texture
 }
 
+/// The detail volume on the GPU: its premultiplied colour and its distance
+/// field (views), and their sampler (repeating across, clamped in height).
+fn detail_textures(device: &wgpu::Device, queue: &wgpu::Queue, volume: &DetailVolume) -> (wgpu::TextureView, wgpu::TextureView, wgpu::Sampler) {
+    // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
+    let premultiplied = |l: &volume::VolumeLevel| {
+        l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect()
+    };
+    let colour = volume_texture(device, queue, volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
+    // Distances in level-0 voxels, whole voxels (0..=255): what sphere tracing needs.
+    let distance =
+        volume_texture(device, queue, volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("shell detail"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        address_mode_w: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    });
+    (colour.create_view(&wgpu::TextureViewDescriptor::default()), distance.create_view(&wgpu::TextureViewDescriptor::default()), sampler)
+}
+
 impl ShellRenderer {
     /// Builds the shell over `snow` with `settings`, reading the renderer's
     /// unpacked `surface` ([`crate::render::surface`]); `lit_layout` is the renderer's group 0.
@@ -253,24 +277,7 @@ impl ShellRenderer {
         settings.validate()?;
         let (device, queue) = (&ctx.device, &ctx.queue);
         let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed)?;
-        // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
-        let premultiplied = |l: &volume::VolumeLevel| {
-            l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect()
-        };
-        let colour = volume_texture(device, queue, &volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
-        // Distances in level-0 voxels, whole voxels (0..=255): what sphere tracing needs.
-        let distance =
-            volume_texture(device, queue, &volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
-        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("shell detail"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            address_mode_w: wgpu::AddressMode::ClampToEdge,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        });
+        let (colour_view, distance_view, sampler) = detail_textures(device, queue, &volume);
         let p = snow.params();
         let patch = ShellPatch::new(&settings, p.resolution, p.texel_m());
         let faces = patch.faces();
@@ -295,8 +302,6 @@ impl ShellRenderer {
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);
         let pipelines = PeelPipelines::new(device, lit_layout);
         let draw_params = layout::uniform_buffer::<ShellDrawParams>(device, "shell draw params");
-        let colour_view = colour.create_view(&wgpu::TextureViewDescriptor::default());
-        let distance_view = distance.create_view(&wgpu::TextureViewDescriptor::default());
         let shell_group = layout::bind_group(
             device,
             "shell",
