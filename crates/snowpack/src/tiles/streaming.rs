@@ -600,35 +600,7 @@ impl TileStreaming {
         if required.len() > g.slot_count() || required.iter().any(|&k| !g.near(k, origin, PREFETCH_MARGIN_TILES)) {
             return false;
         }
-        let wanted: HashSet<TileKey> = required.iter().copied().collect();
-        // Tiles that drifted away from the window go (the table's span), then
-        // the least recently needed, as slots are needed.
-        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
-        for slot in 0..self.owners.len() {
-            if let Some(k) = self.owners[slot]
-                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
-            {
-                evicting.push((k, slot));
-                self.release(k);
-            }
-        }
-        for &k in &required {
-            if let Some(&slot) = self.slots.get(&k) {
-                self.last_needed[slot] = self.moves;
-            }
-        }
-        let missing = required.iter().filter(|k| !self.resident(**k)).count();
-        let free = self.owners.iter().filter(|o| o.is_none()).count();
-        if missing > free {
-            let mut candidates: Vec<(u64, usize)> =
-                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
-            candidates.sort_unstable();
-            for &(_, slot) in candidates.iter().take(missing - free) {
-                let key = self.owners[slot].expect("a candidate has an owner");
-                evicting.push((key, slot));
-                self.release(key);
-            }
-        }
+        let evicting = self.evict_for(&required, origin);
         let stash = self.exchange_params(res, old, origin, true);
         let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
         let mut deferred = Vec::new();
@@ -670,6 +642,44 @@ impl TileStreaming {
             self.release(k);
         }
         true
+    }
+
+    /// Gives up the slots a step to `origin` needs for the `required` tiles:
+    /// tiles that drifted away from the window first (the table's span), then
+    /// the least recently needed; returns the evicted tiles and their slots,
+    /// to copy out.
+    fn evict_for(&mut self, required: &[TileKey], origin: [i64; 2]) -> Vec<(TileKey, usize)> {
+        let g = self.grid;
+        let wanted: HashSet<TileKey> = required.iter().copied().collect();
+        // Tiles that drifted away from the window go (the table's span), then
+        // the least recently needed, as slots are needed.
+        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
+        for slot in 0..self.owners.len() {
+            if let Some(k) = self.owners[slot]
+                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
+            {
+                evicting.push((k, slot));
+                self.release(k);
+            }
+        }
+        for &k in required {
+            if let Some(&slot) = self.slots.get(&k) {
+                self.last_needed[slot] = self.moves;
+            }
+        }
+        let missing = required.iter().filter(|k| !self.resident(**k)).count();
+        let free = self.owners.iter().filter(|o| o.is_none()).count();
+        if missing > free {
+            let mut candidates: Vec<(u64, usize)> =
+                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
+            candidates.sort_unstable();
+            for &(_, slot) in candidates.iter().take(missing - free) {
+                let key = self.owners[slot].expect("a candidate has an owner");
+                evicting.push((key, slot));
+                self.release(key);
+            }
+        }
+        evicting
     }
 
     /// A long move (or the first placement) in batches of its own submits,
