@@ -1,5 +1,5 @@
 //! [`SnowDeformation`], the snow a game drives: the core window
-//! ([`super::core`]) and the plug-ins (characters, objects, tiles, shared
+//! ([`super::core_window`]) and the plug-ins (characters, objects, tiles, shared
 //! snow), each owning its state in its own file; one frame is
 //! [`SnowDeformation::encode`], whose passes [`super::steps`] records in order.
 
@@ -24,7 +24,7 @@ use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
 use super::characters::{Characters, SkinnedId, SkinnedPose};
 use super::clock::SnowTime;
-use super::core::CoreWindow;
+use super::core_window::CoreWindow;
 use super::steps::FrameSteps;
 
 /// A deformation window and the passes that update it.

@@ -1,5 +1,5 @@
 //! The snow a game drives: [`SnowDeformation`] is a small orchestrator over
-//! the core window ([`core`]: the deformation's resources and passes) and
+//! the core window ([`core_window`]: the deformation's resources and passes) and
 //! the plug-ins, each owning its state in its own file: skinned characters
 //! ([`characters`], over [`crate::skin`]), objects snow settles on
 //! ([`objects`], over [`crate::accumulate`]), the tiles kept while the
@@ -11,7 +11,7 @@
 
 pub mod characters;
 pub mod clock;
-pub mod core;
+pub mod core_window;
 pub mod deformation;
 pub mod objects;
 pub mod reads;

@@ -13,7 +13,7 @@ use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentit
 
 use super::SnowDeformation;
 use super::clock::{RefillBase, SnowTime};
-use super::core::CoreWindow;
+use super::core_window::CoreWindow;
 
 /// Tile sides [`SnowDeformation::enable_sharing`] accepts (texels).
 pub const SHARE_TILE_SIDES: std::ops::RangeInclusive<u32> = 8..=256;

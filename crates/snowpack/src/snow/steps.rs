@@ -1,5 +1,5 @@
-//! One frame as a list of steps: [`FrameSteps::record`] records, in order,
-//! the core window's passes ([`super::core`]) and the plug-ins' (tiles,
+//! One frame as a list of steps: `FrameSteps::record` records, in order,
+//! the core window's passes ([`super::core_window`]) and the plug-ins' (tiles,
 //! shared snow, objects) into the frame's [`FrameContext`]. The characters
 //! are skinned before it and remembered after it
 //! ([`super::SnowDeformation::encode`]). A new pass goes in as a step here,
@@ -19,7 +19,7 @@ use crate::tiles::TileStreaming;
 
 use super::SnowFrame;
 use super::clock::{FrameRefill, SnowTime};
-use super::core::CoreWindow;
+use super::core_window::CoreWindow;
 
 /// What a frame's steps change, borrowed apart from the frame's timer (in
 /// the context) and the characters (whose meshes the capture reads).
