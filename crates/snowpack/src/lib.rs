@@ -96,6 +96,22 @@ macro_rules! low_level_pub {
     };
 }
 
+/// Declares a struct whose fields are `pub` with the `low_level` feature and
+/// `pub(crate)` without it: plain data of front-door types that the app, the
+/// tools and the tests build or read field by field, and a game reaches
+/// through the type's constructors, builders and methods.
+macro_rules! low_level_fields {
+    ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
+        $(#[$attr])*
+        #[cfg(feature = "low_level")]
+        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub $field: $ty),* }
+        $(#[$attr])*
+        #[cfg(not(feature = "low_level"))]
+        #[allow(dead_code, reason = "fields that only the app, the tools and the tests read (`low_level`)")]
+        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub(crate) $field: $ty),* }
+    };
+}
+
 // The modules are the crate's own: the front door is the root's re-exports
 // below, and what the app, the Bevy plugin and the tests need beyond it is
 // re-exported by `low_level` (feature `low_level`).

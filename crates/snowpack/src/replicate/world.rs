@@ -6,28 +6,30 @@ use crate::deform::snow_word::SNOW_QUANTUM_M;
 
 use super::tile::ShareClock;
 
-/// The settings that make a world: tiles from machines that agree on all of
-/// them merge; anything else is refused ([`WorldIdentity::differences`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct WorldIdentity {
-    /// Side of a texel (m).
-    pub texel_m: f32,
-    /// Texels per tile side.
-    pub tile_side: u32,
-    /// The terrain, as `terrain_identity` describes it.
-    pub terrain: String,
-    /// Rest depth of fresh snow (m).
-    pub depth_m: f32,
-    /// Trail refill (m/s).
-    pub refill_m_per_s: f32,
-    /// Snowfall on open ground (m/s); 0 without snowfall.
-    pub snowfall_m_per_s: f32,
-    /// The most snowfall a texel keeps (m); 0 without snowfall.
-    pub max_fallen_m: f32,
-    /// Whether tiles carry the snowfall plane.
-    pub has_snowfall: bool,
-    /// The footprint quantisation range (m): low and high.
-    pub stamp_range_m: [f32; 2],
+low_level_fields! {
+    /// The settings that make a world: tiles from machines that agree on all of
+    /// them merge; anything else is refused ([`WorldIdentity::differences`]).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct WorldIdentity {
+        /// Side of a texel (m).
+        texel_m: f32,
+        /// Texels per tile side.
+        tile_side: u32,
+        /// The terrain, as `terrain_identity` describes it.
+        terrain: String,
+        /// Rest depth of fresh snow (m).
+        depth_m: f32,
+        /// Trail refill (m/s).
+        refill_m_per_s: f32,
+        /// Snowfall on open ground (m/s); 0 without snowfall.
+        snowfall_m_per_s: f32,
+        /// The most snowfall a texel keeps (m); 0 without snowfall.
+        max_fallen_m: f32,
+        /// Whether tiles carry the snowfall plane.
+        has_snowfall: bool,
+        /// The footprint quantisation range (m): low and high.
+        stamp_range_m: [f32; 2],
+    }
 }
 
 impl WorldIdentity {

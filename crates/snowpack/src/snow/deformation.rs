@@ -77,33 +77,35 @@ pub struct SnowDeformation {
     peak_memory_bytes: u64,
 }
 
-/// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SnowFrame<'a> {
-    /// Seconds since the last frame (refill and snowfall advance by it).
-    pub dt_s: f32,
-    /// Spheres, boxes and contact points.
-    pub deformers: &'a [Deformer],
-    /// Characters: registered skinned meshes in this frame's pose.
-    pub poses: &'a [SkinnedPose<'a>],
-    /// World-space triangle meshes the caller has already posed this frame
-    /// (recorded into the same encoder before [`SnowDeformation::encode`]).
-    pub meshes: &'a [CaptureMesh<'a>],
-    /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
-    /// upper bound: mesh k is swept over that motion when it has one here,
-    /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
-    /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
-    /// pose presses.
-    pub mesh_travel_m: &'a [f32],
-    /// A stable id per deformer (the same body has the same id every frame),
-    /// to find each one's last pose when the list's length or order changes
-    /// ([`Self::with_ids`]); empty (or of another length): deformer k is
-    /// the same body as last frame's deformer k.
-    pub ids: &'a [u64],
-    /// Points (x, z relative to the floating origin, like deformers) to
-    /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
-    /// `None`: nothing asked.
-    pub queries: Option<&'a [glam::Vec2]>,
+low_level_fields! {
+    /// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
+    #[derive(Clone, Copy, Debug, Default)]
+    pub struct SnowFrame<'a> {
+        /// Seconds since the last frame (refill and snowfall advance by it).
+        dt_s: f32,
+        /// Spheres, boxes and contact points.
+        deformers: &'a [Deformer],
+        /// Characters: registered skinned meshes in this frame's pose.
+        poses: &'a [SkinnedPose<'a>],
+        /// World-space triangle meshes the caller has already posed this frame
+        /// (recorded into the same encoder before [`SnowDeformation::encode`]).
+        meshes: &'a [CaptureMesh<'a>],
+        /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
+        /// upper bound: mesh k is swept over that motion when it has one here,
+        /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
+        /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
+        /// pose presses.
+        mesh_travel_m: &'a [f32],
+        /// A stable id per deformer (the same body has the same id every frame),
+        /// to find each one's last pose when the list's length or order changes
+        /// ([`Self::with_ids`]); empty (or of another length): deformer k is
+        /// the same body as last frame's deformer k.
+        ids: &'a [u64],
+        /// Points (x, z relative to the floating origin, like deformers) to
+        /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
+        /// `None`: nothing asked.
+        queries: Option<&'a [glam::Vec2]>,
+    }
 }
 
 impl<'a> SnowFrame<'a> {
@@ -128,15 +130,21 @@ impl<'a> SnowFrame<'a> {
     }
 
     /// The same frame with the motion of each caller mesh since the last
-    /// frame (see [`Self::mesh_travel_m`]), so they are swept.
+    /// frame, so they are swept: `travel_m[k]` is how far (m) any vertex of
+    /// mesh k moved, an upper bound. Mesh k is swept over that motion when
+    /// it has one here, its vertex buffer has `COPY_SRC` usage and it had as
+    /// many vertices last frame; otherwise only its current pose presses.
     #[must_use]
     pub fn with_mesh_travel(mut self, travel_m: &'a [f32]) -> Self {
         self.mesh_travel_m = travel_m;
         self
     }
 
-    /// The same frame with a stable id per deformer (see [`Self::ids`]), so
-    /// each is swept from its own last pose (see `crate::deform::sweep`).
+    /// The same frame with a stable id per deformer (the same body has the
+    /// same id every frame), so each is swept from its own last pose when
+    /// the list's length or order changes (see `crate::deform::sweep`).
+    /// Without ids (or with another number of them), deformer k is the
+    /// same body as last frame's deformer k.
     #[must_use]
     pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
         self.ids = ids;
@@ -389,7 +397,7 @@ impl SnowDeformation {
         self.core.exposed_texels
     }
 
-    /// Uploads a skinned mesh (a character's) for [`SnowFrame::poses`];
+    /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];
     /// `joint_count` is its skin's.
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
         self.characters.add(ctx, mesh, joint_count)
@@ -461,9 +469,12 @@ impl SnowDeformation {
         Ok(ticket)
     }
 
-    /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
-    pub fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
-        self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
+    low_level_pub! {
+        /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
+            self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
+        }
     }
 
     /// Takes the readbacks that have arrived, without waiting (unless held,
