@@ -401,10 +401,13 @@ impl SnowPeer {
         self.stats
     }
 
-    /// The replica's copy of a tile (what this peer knows of it).
-    #[must_use]
-    pub fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
-        self.replica.get(&key)
+    low_level_pub! {
+        /// The replica's copy of a tile (what this peer knows of it).
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
+            self.replica.get(&key)
+        }
     }
 
     fn push(&mut self, bytes: Vec<u8>) {

@@ -272,10 +272,13 @@ impl SnowDeformation {
         self.time.fallen_m
     }
 
-    /// Time, refill and snowfall so far.
-    #[must_use]
-    pub fn clock(&self) -> SnowClock {
-        self.time.clock
+    low_level_pub! {
+        /// Time, refill and snowfall so far.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn clock(&self) -> SnowClock {
+            self.time.clock
+        }
     }
 
     /// Sets the world (x, z) that deformer and object positions are given

@@ -86,7 +86,7 @@ impl SnowDeformation {
 
     /// Sets the world clock (joining a world): time, refill counters and
     /// snowfall; the frames after it go on from there. When the counters are
-    /// the world's own at that time ([`WorldIdentity::clock_at`]), they keep
+    /// the world's own at that time (its refill from time 0), they keep
     /// being counted from the world's beginning, as on every other machine.
     pub fn join_clock(&mut self, clock: ShareClock) {
         let world = self.world_identity().clock_at(clock.time_s);
