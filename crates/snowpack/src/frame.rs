@@ -1,6 +1,7 @@
-//! What one frame's recording hands to the parts that plug into the core
-//! deformation (accumulation on objects, the tiles kept for the world,
-//! skinning): the GPU handles to record with ([`FrameContext`]) and where
+//! What one frame's recording hands to every pass and to the parts that
+//! plug into the core deformation (accumulation on objects, the tiles kept
+//! for the world, skinning, shared snow): the GPU handles to record with
+//! ([`FrameContext`], the first argument of every pass's `record`) and where
 //! the window is this frame ([`WindowFrame`]). The orchestrator
 //! ([`crate::snow::SnowDeformation`]) makes both; the plug-ins need nothing
 //! else of the deformation, so neither side imports the other.
@@ -9,10 +10,11 @@ use glam::DVec2;
 
 use crate::gpu::{GpuContext, GpuTimer};
 
-/// The handles a plug-in records its part of a frame with: the device and
+/// The handles a pass records its part of a frame with: the device and
 /// queue, the frame's encoder and its timer (each pass reserves a timing
-/// slot). Short-lived: made for one call between the core passes, which
-/// use the same encoder and timer.
+/// slot). Every pass's `record` takes it first, as `&mut FrameContext`, so
+/// one context is made per frame (or per submit, for work recorded outside
+/// a frame) and handed down through the plug-ins to their passes.
 pub struct FrameContext<'a> {
     /// Device and queue (uploads, buffers made on demand).
     pub gpu: &'a GpuContext,
@@ -26,6 +28,24 @@ impl<'a> FrameContext<'a> {
     /// The handles for recording into `encoder`, timed by `timer`.
     pub fn new(gpu: &'a GpuContext, encoder: &'a mut wgpu::CommandEncoder, timer: &'a mut GpuTimer) -> Self {
         Self { gpu, encoder, timer }
+    }
+
+    /// The same device and encoder timed by `timer` instead (for example
+    /// [`GpuTimer::disabled`] for passes that should not take a timing slot).
+    pub fn with_timer<'b>(&'b mut self, timer: &'b mut GpuTimer) -> FrameContext<'b> {
+        FrameContext { gpu: self.gpu, encoder: &mut *self.encoder, timer }
+    }
+
+    /// The device's queue (the passes' uniform uploads).
+    #[must_use]
+    pub fn queue(&self) -> &'a wgpu::Queue {
+        &self.gpu.queue
+    }
+
+    /// The device (buffers and bind groups made on demand).
+    #[must_use]
+    pub fn device(&self) -> &'a wgpu::Device {
+        &self.gpu.device
     }
 }
 

@@ -65,13 +65,16 @@
 //! ([`Deformer`], [`SkinnedMesh`], [`SkinnedPose`]), the terrain under it,
 //! the ground drawn in a game's pass ([`SnowGround`]), point queries, objects
 //! that gather snow ([`SnowObject`]), persistence ([`TileStore`],
-//! [`TileStreamer`]), shared snow ([`SnowPeer`], [`SnowRelay`]) and errors.
+//! [`TileStreamer`]), shared snow ([`SnowPeer`]; the relay a server runs,
+//! `SnowRelay`, with the `relay` feature) and errors.
 //!
 //! Features:
 //! - `renderer`: snowpack's own renderer (`Renderer`, `RenderParams`,
 //!   `Camera`, `EnvironmentMap`, `ShellSettings`), as the demo and the
 //!   headless runner draw the snow.
-//! - `low_level` (implies `renderer`): `snowpack::low_level`, the library's
+//! - `relay`: the relay of shared snow (`SnowRelay`, `RelayConfig`,
+//!   `RelayStats`), for a game's server.
+//! - `low_level` (implies `renderer` and `relay`): `snowpack::low_level`, the library's
 //!   modules below the front door (passes, their parameters, the CPU twins of
 //!   the shaders, test support) for snowpack's app, tools and tests.
 //!
@@ -90,6 +93,22 @@ macro_rules! low_level_pub {
         $(#[$attr])*
         #[cfg(not(feature = "low_level"))]
         pub(crate) fn $($rest)*
+    };
+}
+
+/// Declares a struct whose fields are `pub` with the `low_level` feature and
+/// `pub(crate)` without it: plain data of front-door types that the app, the
+/// tools and the tests build or read field by field, and a game reaches
+/// through the type's constructors, builders and methods.
+macro_rules! low_level_fields {
+    ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
+        $(#[$attr])*
+        #[cfg(feature = "low_level")]
+        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub $field: $ty),* }
+        $(#[$attr])*
+        #[cfg(not(feature = "low_level"))]
+        #[allow(dead_code, reason = "fields that only the app, the tools and the tests read (`low_level`)")]
+        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub(crate) $field: $ty),* }
     };
 }
 
@@ -134,7 +153,10 @@ pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStream
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
-pub use replicate::{PeerConfig, PeerId, PeerStats, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+pub use replicate::{PeerConfig, PeerId, PeerStats, ShareError, SharedSnow, SnowPeer, WorldIdentity};
+// The relay a game's server runs between its players (feature `relay`).
+#[cfg(feature = "relay")]
+pub use replicate::{RelayConfig, RelayStats, SnowRelay};
 pub use skin::coat::CoatSettings;
 pub use skin::skinning::SkinnedMesh;
 pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};

@@ -293,7 +293,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let sp = ScatterParams { resolution: occ, atlas_resolution: n, frame: rng.next_u64() as u32, noise: rng.range(0.0, 1.0) };
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    ScatterPass::new(&ctx.device, &view, &hits_buf).record(&ctx.queue, &mut enc, &mut timer, &sp);
+    ScatterPass::new(&ctx.device, &view, &hits_buf).record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &sp);
     submit(ctx, enc);
     cpu::scatter::scatter(&sp, &footprint, &mut hits);
     let gpu_hits: Vec<u32> = read(ctx, &hits_buf);
@@ -307,7 +307,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let fresh_buf = storage_with(ctx, "fresh", &vec![0u8; texels * 4]);
     let ip = IncrementParams { atlas_resolution: n, volume_m3: rng.range(1e-6, 1e-3), _pad: [0; 2] };
     let mut enc = encoder(ctx);
-    IncrementPass::new(&ctx.device, &normal_area, &hits_buf, &fresh_buf).record(&ctx.queue, &mut enc, &mut timer, n, &ip);
+    IncrementPass::new(&ctx.device, &normal_area, &hits_buf, &fresh_buf).record(&mut FrameContext::new(ctx, &mut enc, &mut timer), n, &ip);
     submit(ctx, enc);
     let mut cpu_hits = gpu_hits.clone();
     let mut fresh = vec![0.0f32; texels];
@@ -336,8 +336,11 @@ fn scatter_increment_settle_and_surface_match_cpu() {
         _pad: [0; 3],
     };
     let mut enc = encoder(ctx);
-    SettlePass::new(&ctx.device, &SettleBuffers { objects: &objects_buf, normal_area: &normal_area, owner: &owner, fresh: &fresh_buf, acc: &acc_buf })
-        .record(&ctx.queue, &mut enc, &mut timer, n, &stp);
+    SettlePass::new(&ctx.device, &SettleBuffers { objects: &objects_buf, normal_area: &normal_area, owner: &owner, fresh: &fresh_buf, acc: &acc_buf }).record(
+        &mut FrameContext::new(ctx, &mut enc, &mut timer),
+        n,
+        &stp,
+    );
     submit(ctx, enc);
     cpu::settle::settle(&stp, &rotations, &bake.normal_area, &bake.owner, &fresh, &mut acc);
     close(&read::<f32>(ctx, &acc_buf), &acc, 1e-5, "settle", seed);
@@ -350,7 +353,7 @@ fn scatter_increment_settle_and_surface_match_cpu() {
     let surface_buf = storage_with(ctx, "surface", &vec![0u8; texels * 16]);
     let sfp = SurfaceParams { atlas_resolution: n, _pad: [0; 3] };
     let mut enc = encoder(ctx);
-    AtlasSurfacePass::new(&ctx.device, &objects_buf, &owner, &acc_buf, &surface_buf).record(&ctx.queue, &mut enc, &mut timer, n, &sfp);
+    AtlasSurfacePass::new(&ctx.device, &objects_buf, &owner, &acc_buf, &surface_buf).record(&mut FrameContext::new(ctx, &mut enc, &mut timer), n, &sfp);
     submit(ctx, enc);
     let dilate: Vec<bool> = objects.iter().map(|o| o.dilate).collect();
     let cpu_surface = cpu::atlas_surface::atlas_surface(&sfp, &dilate, &bake.owner, &acc);
@@ -403,7 +406,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         ..WindowFrame::default()
     };
     acc.upload_poses(&ctx.queue, &window);
-    let sky = acc.record_occlusion(FrameContext::new(ctx, &mut enc, &mut timer), &window, &fall);
+    let sky = acc.record_occlusion(&mut FrameContext::new(ctx, &mut enc, &mut timer), &window, &fall);
     let up = UpdateParams {
         origin: [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32],
         resolution: params.resolution,
@@ -422,7 +425,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         sky_high_m: sky.high_m,
         ..UpdateParams::default()
     };
-    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
     // The occlusion depth, for the CPU: copied by a compute pass, since GL
     // cannot copy depth textures to buffers.
     let r = params.resolution;

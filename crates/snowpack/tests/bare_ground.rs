@@ -8,6 +8,7 @@ use snowpack::low_level::cpu;
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
+use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::testing;
@@ -165,7 +166,7 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             ..DisplayParams::default()
         };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
-        display.record(&ctx.queue, &mut encoder, &mut timer, &rp);
+        display.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), &rp);
         ctx.queue.submit([encoder.finish()]);
         // The displayed height is the upper (f16) half of each word, above the terrain.
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.snow).expect("readback"));

@@ -113,8 +113,9 @@ fn gpu_coat_matches_its_cpu_twin_on_random_poses_and_snow() {
         .with_settings(&settings);
         let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        skinning.record(FrameContext::new(ctx, &mut encoder, &mut timer), &instance, &joints, model);
-        coat_pass.record(FrameContext::new(ctx, &mut encoder, &mut timer), 0, &instance, ground, &p);
+        let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
+        skinning.record(&mut cx, &instance, &joints, model);
+        coat_pass.record(&mut cx, 0, &instance, ground, &p);
         ctx.queue.submit([encoder.finish()]);
         let gpu_positions = vec3s(&read_buffer(ctx, &instance.skinned).expect("positions"));
         let gpu_normals = vec3s(&read_buffer(ctx, &instance.normals).expect("normals"));

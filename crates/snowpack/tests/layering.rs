@@ -15,6 +15,10 @@
 //! literals do not count, and neither do items compiled only for this
 //! crate's unit tests (`#[cfg(test)]`): they are not part of the library.
 //! The crate root (`lib.rs` outside inline modules) is above every layer.
+//!
+//! The same reading holds the library's functions to [`MAX_FUNCTION_LINES`]
+//! lines (from `fn` to the closing brace), so that no pass or orchestrator
+//! grows back into one long function; `tools/long_functions.py` lists them.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -520,6 +524,65 @@ fn check(declared: &Declared, files: &[(String, String)]) -> Vec<String> {
     problems
 }
 
+/// The most lines a function of the library may span (`fn` to its closing brace).
+const MAX_FUNCTION_LINES: usize = 80;
+
+/// Each function with a body in `code` (comments and literals blanked):
+/// its name, the line of `fn` and the line of its closing brace.
+fn functions(code: &str) -> Vec<(String, usize, usize)> {
+    let t = tokens(code);
+    let mut out = Vec::new();
+    for k in 0..t.len().saturating_sub(1) {
+        if t[k].text != "fn" || !t[k + 1].text.starts_with(|c: char| c.is_alphabetic() || c == '_') {
+            continue;
+        }
+        // The body opens at the first `{` outside the signature's brackets;
+        // a `;` first is a declaration without a body. `->` is not a bracket.
+        let mut depth = 0i32;
+        let mut open = None;
+        for j in k + 2..t.len() {
+            match t[j].text.as_str() {
+                "(" | "[" | "<" => depth += 1,
+                ">" if t[j - 1].text == "-" => {}
+                ")" | "]" | ">" => depth -= 1,
+                ";" if depth <= 0 => break,
+                "{" if depth <= 0 => {
+                    open = Some(j);
+                    break;
+                }
+                _ => {}
+            }
+        }
+        let Some(open) = open else { continue };
+        let mut braces = 0;
+        for token in &t[open..] {
+            match token.text.as_str() {
+                "{" => braces += 1,
+                "}" => braces -= 1,
+                _ => continue,
+            }
+            if braces == 0 {
+                out.push((t[k + 1].text.clone(), t[k].line, token.line));
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// `file:line name (N lines)` for each function of `files` longer than `limit` lines.
+fn long_functions(files: &[(String, String)], limit: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    for (file, text) in files {
+        for (name, first, last) in functions(&code_only(text)) {
+            if last - first + 1 > limit {
+                out.push(format!("src/{file}:{first} {name} ({} lines)", last - first + 1));
+            }
+        }
+    }
+    out
+}
+
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
 }
@@ -681,4 +744,22 @@ fn an_undeclared_use_beside_is_reported() {
     let found = planted(&[("deform", 3, &[]), ("accumulate", 3, &[])], &files);
     assert!(found.len() == 1 && found[0].starts_with("src/accumulate/occlusion.rs:2:") && found[0].contains("beside: `accumulate` uses `deform`"), "{found:?}");
     assert!(planted(&[("deform", 3, &[]), ("accumulate", 3, &["deform"])], &files).is_empty());
+}
+
+#[test]
+fn no_function_is_longer_than_the_limit() {
+    let long = long_functions(&sources(), MAX_FUNCTION_LINES);
+    assert!(long.is_empty(), "functions over {MAX_FUNCTION_LINES} lines (split them into steps; tools/long_functions.py lists them):\n{}", long.join("\n"));
+}
+
+#[test]
+fn a_planted_long_function_is_reported() {
+    let body: String = (0..80).map(|k| format!("    let x{k} = {k};\n")).collect();
+    let long = format!("fn long() -> u32 {{\n{body}    0\n}}\n");
+    let files = vec![("planted.rs".to_owned(), format!("fn short() {{}}\n{long}"))];
+    assert_eq!(long_functions(&files, MAX_FUNCTION_LINES), ["src/planted.rs:2 long (83 lines)"]);
+    // Braces in comments and literals, a declaration without a body and
+    // `->` in a signature do not count.
+    let tricky = "trait T { fn f(&self) -> u8; }\nfn g<A: Fn() -> u8>(a: A) -> u8 {\n    // }\n    let s = \"}\";\n    a()\n}\n";
+    assert_eq!(functions(&code_only(tricky)), [("g".to_owned(), 2, 6)]);
 }

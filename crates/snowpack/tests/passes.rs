@@ -17,6 +17,7 @@ use snowpack::low_level::deform::stamp::{StampParams, StampPass};
 use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
 use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
 use snowpack::low_level::deform::window::{SlidingWindow, WindowParams, WindowPass};
+use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::surface::SurfaceUnpackPass;
@@ -99,7 +100,7 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
             ..WindowParams::default()
         };
         let mut enc = encoder(ctx);
-        pass.record(&ctx.queue, &mut enc, &mut timer, p, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), p, &rects);
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
@@ -269,8 +270,8 @@ fn capture_and_update_match_cpu() {
     }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record_swept(&mut enc, &mut timer, &res, &meshes);
-    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    capture.record_swept(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &meshes);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
     submit(ctx, enc);
 
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
@@ -360,7 +361,7 @@ fn display_and_surface_unpack_match_cpu() {
         dp.blur = blur;
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
         let mut enc = encoder(ctx);
-        display.record(&ctx.queue, &mut enc, &mut timer, &dp);
+        display.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &dp);
         submit(ctx, enc);
         let mut cpu_words = snow.clone();
         cpu::display::display(&dp, &terrain, &mut cpu_words, &stamps, &[]);
@@ -393,7 +394,7 @@ fn display_and_surface_unpack_match_cpu() {
     // The renderer's unpack, from the GPU's own words so only that pass is tested.
     let unpack = SurfaceUnpackPass::new(&ctx.device, &res);
     let mut enc = encoder(ctx);
-    unpack.record(&ctx.queue, &mut enc, &mut timer, origin);
+    unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), origin);
     submit(ctx, enc);
     let cpu_surface = cpu::surface_unpack::normals(&gpu_words, &terrain, origin, params.resolution, params.texel_m());
     let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("readback"));
@@ -449,7 +450,7 @@ fn terrain_bake_matches_cpu() {
     let mut rng = Rng::new(seed);
     let mesh = snowpack::TerrainMesh::new(random_terrain_mesh(&mut rng, 4), rng.range(0.05, 0.3)).expect("valid mesh");
     let mut enc = encoder(ctx);
-    let buffer = TerrainBakePass::new(&ctx.device).record(&ctx.device, &mut enc, &mesh);
+    let buffer = TerrainBakePass::new(&ctx.device).bake(&ctx.device, &mut enc, &mesh);
     submit(ctx, enc);
     let gpu = read_f32(ctx, &buffer);
     let cpu = &mesh.grid.heights_m();
@@ -577,7 +578,7 @@ fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points:
     assert_eq!(pass.prepare(&ctx.device, &ctx.queue, res, sp, points), 0, "points left out");
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    pass.record(&mut enc, &mut timer);
+    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer));
     submit(ctx, enc);
     read_u32(ctx, &res.stamps)
 }
@@ -752,8 +753,8 @@ fn wheel_capture_matches_cpu() {
     capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record(&mut enc, &mut timer, &res);
-    update.record(&ctx.queue, &mut enc, &mut timer, &up);
+    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
     submit(ctx, enc);
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
     cpu::capture_sphere::quantise_depths(&mut depth);

@@ -3,6 +3,7 @@
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::cpu;
+use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::ao::{AoParams, AoPass};
@@ -32,7 +33,7 @@ fn ao_matches_cpu_twin() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
     let params = AoParams { resolution: res, steps: AoPass::STEPS, texel_m: texel, strength: 0.9 };
-    pass.record(&ctx.queue, &mut encoder, &mut timer, params);
+    pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), params);
     ctx.queue.submit([encoder.finish()]);
     let gpu: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &pass.ao).expect("read ao"));
     let cpu = cpu::ao::ambient_occlusion(&heights, res, AoPass::STEPS, texel, 0.9);
@@ -57,7 +58,7 @@ fn environment_passes_match_cpu_twin() {
     let pass = EnvironmentPass::new(&ctx.device, &ctx.queue, &env);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    pass.record(&mut encoder, &mut timer);
+    pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer));
     ctx.queue.submit([encoder.finish()]);
     let small: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &pass.downsampled).expect("read"));
     let pre: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &pass.prefiltered).expect("read"));

@@ -8,6 +8,7 @@ use std::collections::{BTreeSet, HashMap};
 use glam::{DVec2, DVec3, Vec3};
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::window::TerrainParams;
+use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::IMAGE_FORMAT;
@@ -98,8 +99,8 @@ fn construct_on_gpu(
     let tetra_pass = ShellTetraPass::new(&ctx.device, &faces_buffer, &vertices, &tetras, &corners);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shell construction") });
     let mut timer = GpuTimer::disabled();
-    vertex_pass.record(&ctx.queue, &mut encoder, &mut timer, params);
-    tetra_pass.record(&ctx.queue, &mut encoder, &mut timer, &TetraParams { faces: face_count, count: params.count, _pad: [0; 2] });
+    vertex_pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), params);
+    tetra_pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), &TetraParams { faces: face_count, count: params.count, _pad: [0; 2] });
     ctx.queue.submit([encoder.finish()]);
     let read = |b: &wgpu::Buffer| read_buffer(ctx, b).expect("readback");
     (bytemuck::pod_collect_to_vec(&read(&vertices)), bytemuck::pod_collect_to_vec(&read(&tetras)), bytemuck::pod_collect_to_vec(&read(&corners)))
@@ -114,7 +115,7 @@ fn tetrahedra_on_gpu(ctx: &GpuContext, count: u32, vertices: &[ShellVertex], fac
     let corners = storage(ctx, "corners", &vec![0u8; face_count as usize * 36 * 4]);
     let pass = ShellTetraPass::new(&ctx.device, &faces_buffer, &vertex_buffer, &tetras, &corners);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shell tetrahedra") });
-    pass.record(&ctx.queue, &mut encoder, &mut GpuTimer::disabled(), &TetraParams { faces: face_count, count, _pad: [0; 2] });
+    pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut GpuTimer::disabled()), &TetraParams { faces: face_count, count, _pad: [0; 2] });
     ctx.queue.submit([encoder.finish()]);
     let read = |b: &wgpu::Buffer| read_buffer(ctx, b).expect("readback");
     (bytemuck::pod_collect_to_vec(&read(&tetras)), bytemuck::pod_collect_to_vec(&read(&corners)))
@@ -378,7 +379,7 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     let unpack = snowpack::low_level::render::surface::SurfaceUnpackPass::new(&ctx.device, res);
     let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("unpack") });
     let origin = snow.origin_texel().expect("placed");
-    unpack.record(&ctx.queue, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled(), [origin[0] as i32, origin[1] as i32]);
+    unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled()), [origin[0] as i32, origin[1] as i32]);
     ctx.queue.submit([enc.finish()]);
     let surface = SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
     let faces = snowpack::low_level::render::shell::ShellPatch { side, stride: 2 }.faces();
@@ -515,7 +516,7 @@ fn peel_count_matches_cpu() {
             wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
         );
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("count") });
-        pass.record(&mut encoder, &mut GpuTimer::disabled(), k, size);
+        pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut GpuTimer::disabled()), k, size);
         ctx.queue.submit([encoder.finish()]);
         cpu_counts.push(cpu::peel_count::peel_count(&depth, k, &mut cpu_mask));
     }

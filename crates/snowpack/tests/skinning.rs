@@ -38,7 +38,7 @@ fn gpu_skinning_matches_the_cpu_on_random_poses() {
         let instance = pass.instance(&ctx.device, &ctx.queue, &mesh, joint_count).expect("valid mesh");
         let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        pass.record(FrameContext::new(ctx, &mut encoder, &mut timer), &instance, &joints, model);
+        pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), &instance, &joints, model);
         ctx.queue.submit([encoder.finish()]);
         let gpu: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &instance.skinned).expect("read"));
         let cpu = cpu::skinning::skin(&mesh, &joints, model);

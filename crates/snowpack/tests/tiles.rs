@@ -8,6 +8,7 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::window::SlidingWindow;
+use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
@@ -129,8 +130,8 @@ fn exchange_matches_cpu() {
         let mut e = encoder(ctx);
         let mut timer = GpuTimer::disabled();
         let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
-        pass.record(&ctx.queue, &mut e, &mut timer, stash, &rects);
-        pass.record(&ctx.queue, &mut e, &mut timer, base, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), stash, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), base, &rects);
         submit(ctx, e);
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
@@ -225,7 +226,7 @@ fn tile_restore_and_weather_match_cpu() {
     let mut restore = TileRestorePass::new(&ctx.device, &res, &tiles_gpu);
     let mut timer = GpuTimer::disabled();
     let mut e = encoder(ctx);
-    restore.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), restore_params, &entries, &upload);
+    restore.record(&mut FrameContext::new(ctx, &mut e, &mut timer), (&res, &tiles_gpu), restore_params, &entries, &upload);
     submit(ctx, e);
     cpu::tile_restore::restore(&restore_params, &entries, &upload, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
@@ -271,7 +272,7 @@ fn tile_restore_and_weather_match_cpu() {
         slots.swap(k, (rng.next_u64() % (k as u64 + 1)) as usize);
     }
     let mut e = encoder(ctx);
-    weather.record(&ctx.queue, &mut e, &mut timer, &wp, &slots);
+    weather.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &wp, &slots);
     submit(ctx, e);
     cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
@@ -290,7 +291,7 @@ fn tile_restore_and_weather_match_cpu() {
     let sp = SealParams { side, planes: PLANES as u32, flags: SealParams::USE_FALLEN, texel_m: 0.125, depth_m: 0.5, ..SealParams::default() };
     let mut seal = TileSealPass::new(&ctx.device, &res, &tiles_gpu);
     let mut e = encoder(ctx);
-    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    seal.record(&mut FrameContext::new(ctx, &mut e, &mut timer), (&res, &tiles_gpu), sp, &seal_entries);
     submit(ctx, e);
     cpu::tile_seal::seal(&sp, &seal_entries, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);
@@ -302,7 +303,7 @@ fn tile_restore_and_weather_match_cpu() {
     let sealed_snow = seal_entries.iter().flat_map(|e| (e[2] as usize * PLANES * area)..(e[2] as usize * PLANES * area + area));
     assert!(sealed_snow.filter(|&k| gpu[k] != before[k]).count() > area, "the seal changed nothing; seed {seed}");
     let mut e = encoder(ctx);
-    seal.record(&ctx.device, &ctx.queue, &mut e, &mut timer, (&res, &tiles_gpu), sp, &seal_entries);
+    seal.record(&mut FrameContext::new(ctx, &mut e, &mut timer), (&res, &tiles_gpu), sp, &seal_entries);
     submit(ctx, e);
     assert_eq!(read_u32(ctx, &tiles_gpu), before, "sealing twice is not the identity; seed {seed}");
 }

@@ -2,7 +2,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Uniforms of `increment.wgsl`.
@@ -47,7 +48,8 @@ impl IncrementPass {
     /// Records the increment.
     /// Only the first `rows` atlas rows are dispatched: charts are packed from
     /// row 0 up ([`super::AtlasLayout::used_rows`]), and the rows above hold nothing.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, rows: u32, params: &IncrementParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, rows: u32, params: &IncrementParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.atlas_resolution, 16);
         let gy = layout::groups(rows.min(params.atlas_resolution), 16);

@@ -10,8 +10,9 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::gpu::render::{PipelineSpec, render_pipeline, storage_ro};
-use crate::gpu::{GpuTimer, layout};
 use crate::height_depth::{CAPTURE_FORMAT, sky_depth_texture};
 use crate::shaders;
 
@@ -134,14 +135,8 @@ impl OcclusionPass {
     }
 
     /// Draws `index_count` indices of the objects' mesh from the sky.
-    pub fn record(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        params: &OcclusionParams,
-        (vertices, indices, index_count): (&wgpu::Buffer, &wgpu::Buffer, u32),
-    ) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &OcclusionParams, (vertices, indices, index_count): (&wgpu::Buffer, &wgpu::Buffer, u32)) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let slot = timer.reserve("occlusion");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -2,7 +2,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Uniforms of `scatter.wgsl`.
@@ -56,7 +57,8 @@ impl ScatterPass {
     }
 
     /// Records the scatter of this frame's occlusion.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &ScatterParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &ScatterParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.resolution, 16);
         layout::dispatch(encoder, timer, "scatter", &self.pipeline, &self.bind_group, (g, g));

@@ -288,8 +288,7 @@ impl SnowAccumulation {
     /// highest snow and the objects, and returns its projection, which the
     /// ground's update uses too. Call [`Self::upload_poses`] first, with the
     /// same window.
-    pub fn record_occlusion(&mut self, cx: FrameContext<'_>, window: &WindowFrame, snowfall: &Snowfall) -> OcclusionParams {
-        let FrameContext { gpu, encoder, timer } = cx;
+    pub fn record_occlusion(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame, snowfall: &Snowfall) -> OcclusionParams {
         let extent_m = window.extent_m;
         let (ground_low_m, ground_high_m) = window.ground_range_m();
         let d = flutter(snowfall.direction, snowfall.flutter_deg, next_unit(&mut self.rng), next_unit(&mut self.rng));
@@ -298,23 +297,16 @@ impl SnowAccumulation {
         let low = ground_low_m - HEIGHT_MARGIN_M;
         let high = ground_high_m.max(self.top_m()) + HEIGHT_MARGIN_M;
         let params = OcclusionParams::new(extent_m, 0.5 * (ground_low_m + ground_high_m), (low, high), d, offset);
-        self.occlusion.record(&gpu.queue, encoder, timer, &params, (&self.occlusion_vertices, &self.occlusion_indices, self.occlusion_index_count));
+        self.occlusion.record(cx, &params, (&self.occlusion_vertices, &self.occlusion_indices, self.occlusion_index_count));
         params
     }
 
     /// Records the atlas passes: scatter and increment when `fall_volume_m3`
     /// (snow per occlusion pixel this frame) is positive, then settle and surface.
-    pub fn record_atlas(&mut self, cx: FrameContext<'_>, snowfall: &Snowfall, fall_volume_m3: f32, dt_s: f32) {
-        let FrameContext { gpu, encoder, timer } = cx;
-        let queue = &gpu.queue;
+    pub fn record_atlas(&mut self, cx: &mut FrameContext<'_>, snowfall: &Snowfall, fall_volume_m3: f32, dt_s: f32) {
         let n = self.layout.resolution;
         if fall_volume_m3 > 0.0 {
-            self.scatter.record(
-                queue,
-                encoder,
-                timer,
-                &ScatterParams { resolution: self.window_resolution, atlas_resolution: n, frame: self.frame, noise: snowfall.noise },
-            );
+            self.scatter.record(cx, &ScatterParams { resolution: self.window_resolution, atlas_resolution: n, frame: self.frame, noise: snowfall.noise });
             self.frame = self.frame.wrapping_add(1);
         }
         // Without snow the increment is zero: written once after the last
@@ -322,23 +314,16 @@ impl SnowAccumulation {
         let rows = self.layout.used_rows();
         let scattered = fall_volume_m3 > 0.0;
         if scattered || self.fresh_dirty {
-            self.increment.record(queue, encoder, timer, rows, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
+            self.increment.record(cx, rows, &IncrementParams { atlas_resolution: n, volume_m3: fall_volume_m3.max(0.0), _pad: [0; 2] });
         }
         self.fresh_dirty = scattered;
-        self.settle.record(queue, encoder, timer, rows, &settle_params(snowfall, n, dt_s));
-        self.surface_pass.record(queue, encoder, timer, rows, &SurfaceParams { atlas_resolution: n, _pad: [0; 3] });
+        self.settle.record(cx, rows, &settle_params(snowfall, n, dt_s));
+        self.surface_pass.record(cx, rows, &SurfaceParams { atlas_resolution: n, _pad: [0; 3] });
     }
 
     /// Records only the surface pass (objects without snowfall).
-    pub fn record_surface(&self, cx: FrameContext<'_>) {
-        let FrameContext { gpu, encoder, timer } = cx;
-        self.surface_pass.record(
-            &gpu.queue,
-            encoder,
-            timer,
-            self.layout.used_rows(),
-            &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] },
-        );
+    pub fn record_surface(&self, cx: &mut FrameContext<'_>) {
+        self.surface_pass.record(cx, self.layout.used_rows(), &SurfaceParams { atlas_resolution: self.layout.resolution, _pad: [0; 3] });
     }
 
     /// The accumulation atlas read back (m per texel, row-major); blocking.

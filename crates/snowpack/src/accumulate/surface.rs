@@ -3,7 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Uniforms of `atlas_surface.wgsl`.
@@ -52,7 +53,8 @@ impl AtlasSurfacePass {
     /// Records the surface.
     /// Only the first `rows` atlas rows are dispatched: charts are packed from
     /// row 0 up ([`super::AtlasLayout::used_rows`]), and the rows above hold nothing.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, rows: u32, params: &SurfaceParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, rows: u32, params: &SurfaceParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.atlas_resolution, 16);
         let gy = layout::groups(rows.min(params.atlas_resolution), 16);

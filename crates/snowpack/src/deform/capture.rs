@@ -16,7 +16,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Mat4, Vec3};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::height_depth::CAPTURE_FORMAT;
 use crate::{Deformer, shaders};
 
@@ -249,11 +250,55 @@ fn depth_state() -> wgpu::DepthStencilState {
     }
 }
 
+/// The unit cube's vertex and index buffers (boxes are drawn as instances of it).
+fn cube_buffers(device: &wgpu::Device) -> (wgpu::Buffer, wgpu::Buffer) {
+    use wgpu::util::DeviceExt as _;
+    let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("cube vertices"),
+        contents: bytemuck::cast_slice(&CUBE_VERTICES),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
+    let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("cube indices"),
+        contents: bytemuck::cast_slice(&CUBE_INDICES),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (vertices, indices)
+}
+
+/// A depth-only capture pipeline: `vertex` (entry point and buffers) of
+/// `module`, with its `fs_main` (no colour target) when `fragment`.
+fn capture_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    (entry, buffers): (&str, &[Option<wgpu::VertexBufferLayout<'_>>]),
+    primitive: wgpu::PrimitiveState,
+    fragment: bool,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState { module, entry_point: Some(entry), compilation_options: wgpu::PipelineCompilationOptions::default(), buffers },
+        primitive,
+        depth_stencil: Some(depth_state()),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: fragment.then(|| wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 impl CapturePass {
     /// Builds both pipelines.
     #[must_use]
     pub fn new(device: &wgpu::Device) -> Self {
-        use wgpu::util::DeviceExt as _;
         let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("capture"),
             entries: &[layout::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
@@ -262,144 +307,53 @@ impl CapturePass {
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("capture"), bind_group_layouts: &[Some(&bgl)], immediate_size: 0 });
         // Seen from below, front and back faces swap; cull nothing and let the depth test choose.
         let primitive = wgpu::PrimitiveState { cull_mode: None, ..Default::default() };
-        let sphere_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("capture spheres"),
-            source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_SPHERE.into()),
-        });
-        let sphere_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("capture spheres"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &sphere_module,
-                entry_point: Some("vs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 32,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
-                })],
-            },
-            primitive,
-            depth_stencil: Some(depth_state()),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &sphere_module,
-                entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let wheel_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("capture wheels"),
-            source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_WHEEL.into()),
-        });
-        let wheel_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("capture wheels"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &wheel_module,
-                entry_point: Some("vs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 64,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4],
-                })],
-            },
-            primitive,
-            depth_stencil: Some(depth_state()),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &wheel_module,
-                entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let mesh_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("capture meshes"),
-            source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_MESH.into()),
-        });
-        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("capture boxes"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &mesh_module,
-                entry_point: Some("vs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                buffers: &[
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 12,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                    }),
-                    Some(wgpu::VertexBufferLayout {
-                        array_stride: 64,
-                        step_mode: wgpu::VertexStepMode::Instance,
-                        attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
-                    }),
-                ],
-            },
-            primitive,
-            depth_stencil: Some(depth_state()),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
-        let swept_pipeline_with = |label: &str, primitive: wgpu::PrimitiveState| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &mesh_module,
-                    entry_point: Some("vs_swept"),
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                    buffers: &[
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: 12,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                        }),
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: 16,
-                            step_mode: wgpu::VertexStepMode::Instance,
-                            attributes: &wgpu::vertex_attr_array![1 => Float32x4],
-                        }),
-                        Some(wgpu::VertexBufferLayout {
-                            array_stride: 12,
-                            step_mode: wgpu::VertexStepMode::Vertex,
-                            attributes: &wgpu::vertex_attr_array![5 => Float32x3],
-                        }),
-                    ],
-                },
-                primitive,
-                depth_stencil: Some(depth_state()),
-                multisample: wgpu::MultisampleState::default(),
-                fragment: None,
-                multiview_mask: None,
-                cache: None,
-            })
+        let module = |label: &str, source: &str| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) })
         };
-        let swept_pipeline = swept_pipeline_with("capture meshes", primitive);
-        let swept_point_pipeline =
-            swept_pipeline_with("capture mesh points", wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive });
+        let pipeline = |label: &str, module: &wgpu::ShaderModule, vertex: (&str, &[Option<wgpu::VertexBufferLayout<'_>>]), primitive, fragment| {
+            capture_pipeline(device, &pipeline_layout, label, module, vertex, primitive, fragment)
+        };
+        let sphere_module = module("capture spheres", shaders::CAPTURE_SPHERE);
+        let sphere_instances = [Some(wgpu::VertexBufferLayout {
+            array_stride: 32,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
+        })];
+        let sphere_pipeline = pipeline("capture spheres", &sphere_module, ("vs_main", &sphere_instances), primitive, true);
+        let wheel_module = module("capture wheels", shaders::CAPTURE_WHEEL);
+        let wheel_instances = [Some(wgpu::VertexBufferLayout {
+            array_stride: 64,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4],
+        })];
+        let wheel_pipeline = pipeline("capture wheels", &wheel_module, ("vs_main", &wheel_instances), primitive, true);
+        let mesh_module = module("capture meshes", shaders::CAPTURE_MESH);
+        let positions =
+            wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &wgpu::vertex_attr_array![0 => Float32x3] };
+        let box_buffers = [
+            Some(positions.clone()),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
+            }),
+        ];
+        let mesh_pipeline = pipeline("capture boxes", &mesh_module, ("vs_main", &box_buffers), primitive, false);
+        let swept_buffers = [
+            Some(positions),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![1 => Float32x4],
+            }),
+            Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &wgpu::vertex_attr_array![5 => Float32x3] }),
+        ];
+        let swept_pipeline = pipeline("capture meshes", &mesh_module, ("vs_swept", &swept_buffers), primitive, false);
+        let points = wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive };
+        let swept_point_pipeline = pipeline("capture mesh points", &mesh_module, ("vs_swept", &swept_buffers), points, false);
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");
         let bind_group = layout::bind_group(device, "capture", &bgl, &[params.as_entire_binding()]);
-        let cube_vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("cube vertices"),
-            contents: bytemuck::cast_slice(&CUBE_VERTICES),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-        let cube_indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("cube indices"),
-            contents: bytemuck::cast_slice(&CUBE_INDICES),
-            usage: wgpu::BufferUsages::INDEX,
-        });
+        let (cube_vertices, cube_indices) = cube_buffers(device);
         Self {
             sphere_pipeline,
             wheel_pipeline,
@@ -471,20 +425,21 @@ impl CapturePass {
     }
 
     /// Clears the capture target and draws the prepared instances.
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources) {
-        self.record_swept(encoder, timer, res, &[]);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources) {
+        self.record_swept(cx, res, &[]);
     }
 
     /// Like [`Self::record`], also drawing world-space `meshes` in their current pose.
-    pub fn record_with_meshes(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
+    pub fn record_with_meshes(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
         let swept: Vec<SweptMesh<'_>> = meshes.iter().map(|&mesh| SweptMesh { mesh, previous: None }).collect();
-        self.record_swept(encoder, timer, res, &swept);
+        self.record_swept(cx, res, &swept);
     }
 
     /// Like [`Self::record`], also drawing world-space `meshes`, mesh k swept
     /// over the sub-steps `prepare` was given in
     /// [`CaptureInstances::mesh_steps`]`[k]` where it has previous positions.
-    pub fn record_swept<'a>(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
+    pub fn record_swept<'a>(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let slot = timer.reserve("capture");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("capture"),

@@ -3,8 +3,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::gpu::specialised::SpecialisedPipeline;
-use crate::gpu::{GpuTimer, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -109,7 +110,8 @@ impl DisplayPass {
     }
 
     /// Records this frame's display.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &DisplayParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &DisplayParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let params = &DisplayParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
         if self.written.get() != Some(*params) {
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));

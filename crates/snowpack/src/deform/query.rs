@@ -8,7 +8,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
-use crate::gpu::{GpuTimer, ReadbackRing, layout};
+use crate::frame::FrameContext;
+use crate::gpu::{ReadbackRing, layout};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -242,18 +243,16 @@ impl QueryPass {
     /// as asked. Grows the buffers for a larger request (answers in flight
     /// from before are then dropped). Returns false, recording nothing, when
     /// every staging buffer is in flight.
-    #[expect(clippy::too_many_arguments, reason = "one request's parts; a struct would only rename them")]
     pub fn record(
         &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        cx: &mut FrameContext<'_>,
         res: &DeformResources,
         params: QueryParams,
         local: &[Vec2],
         tag: (QueryTicket, u64, Vec<Vec2>),
     ) -> bool {
+        let (device, queue) = (cx.device(), cx.queue());
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let count = local.len() as u32;
         if count > self.capacity {
             self.capacity = count.next_power_of_two();

@@ -85,7 +85,7 @@ impl DeformResources {
         let heightmap = if let TerrainSource::Mesh(mesh) = terrain {
             // Any terrain mesh: drawn from above on the GPU into its grid.
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("terrain bake") });
-            let buffer = TerrainBakePass::new(device).record(device, &mut encoder, mesh);
+            let buffer = TerrainBakePass::new(device).bake(device, &mut encoder, mesh);
             queue.submit([encoder.finish()]);
             buffer
         } else {

@@ -12,7 +12,8 @@
 use bytemuck::{Pod, Zeroable};
 use glam::DVec2;
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
@@ -180,7 +181,8 @@ impl StampPass {
     }
 
     /// Records the stamping of the prepared points (nothing when there are none).
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+    pub fn record(&self, cx: &mut FrameContext<'_>) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if self.count == 0 {
             return;
         }

@@ -106,8 +106,10 @@ impl TerrainBakePass {
 
     /// Draws `mesh` into a new storage buffer of `grid.width() * grid.height()`
     /// heights (row-major, row 0 at the smallest z), recorded into `encoder`.
+    /// Not one of a frame's passes (they take a `FrameContext`): it runs once,
+    /// when the window is made, untimed, into an encoder of its own.
     #[must_use]
-    pub fn record(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, mesh: &TerrainMesh) -> wgpu::Buffer {
+    pub fn bake(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, mesh: &TerrainMesh) -> wgpu::Buffer {
         use wgpu::util::DeviceExt as _;
         let grid = &mesh.grid;
         let (low, high) = mesh.height_range();

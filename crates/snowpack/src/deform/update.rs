@@ -3,8 +3,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::gpu::specialised::SpecialisedPipeline;
-use crate::gpu::{GpuTimer, layout};
 use crate::height_depth::sky_depth_texture;
 use crate::shaders;
 
@@ -145,7 +146,8 @@ impl UpdatePass {
     }
 
     /// Records the update for this frame.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &UpdateParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &UpdateParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let params = &UpdateParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
         if self.written.get() != Some(*params) {
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));

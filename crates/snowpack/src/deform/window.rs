@@ -8,7 +8,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::GpuTimer;
+use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::shaders;
 
@@ -201,7 +201,8 @@ impl WindowPass {
     }
 
     /// Records the exposure of `rects` (nothing when empty).
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, mut params: WindowParams, rects: &[TexelRect]) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: WindowParams, rects: &[TexelRect]) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;

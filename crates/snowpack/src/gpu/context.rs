@@ -268,7 +268,7 @@ impl GpuContext {
     ///
     /// snowpack installs no handlers on it: uncaptured errors and device loss
     /// stay with the game's own handlers. snowpack's calls that report GPU
-    /// errors (creating a window, [`crate::SnowDeformation::step`]) catch
+    /// errors (creating a window, [`crate::SnowDeformation::step_frame`]) catch
     /// their own errors in error scopes instead. Work snowpack records into
     /// the game's encoder is validated when the game finishes that encoder.
     ///

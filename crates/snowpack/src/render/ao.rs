@@ -1,6 +1,7 @@
 //! Ambient occlusion of the displayed snow from its height field (`shaders/ao.wgsl`).
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Parameters of the AO pass (`AoParams` in WGSL).
@@ -54,7 +55,8 @@ impl AoPass {
     }
 
     /// Records the pass with `params`.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: AoParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: AoParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let g = layout::groups(self.resolution, 8);
         layout::dispatch(encoder, timer, "ao", &self.pipeline, &self.bind_group, (g, g));

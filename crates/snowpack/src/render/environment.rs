@@ -5,7 +5,8 @@
 use glam::Vec3;
 
 use crate::error::SnowError;
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Direction of equirect coordinates (u, v) (same as `equirect_dir` in `shared/frame.wgsl`).
@@ -233,7 +234,8 @@ impl EnvironmentPass {
     }
 
     /// Records the downsample and the prefilter (once per environment).
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer) {
+    pub fn record(&self, cx: &mut FrameContext<'_>) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let (p, bg) = &self.downsample;
         layout::dispatch(encoder, timer, "env downsample", p, bg, (layout::groups(DOWNSAMPLED_W, 8), layout::groups(DOWNSAMPLED_H, 8)));
         let (p, bg) = &self.prefilter;

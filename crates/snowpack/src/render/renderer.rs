@@ -20,6 +20,7 @@ use super::terrain::TerrainPass;
 use super::tonemap::TonemapPass;
 use crate::Deformer;
 use crate::error::SnowError;
+use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 use crate::snow::SnowDeformation;
 
@@ -102,6 +103,63 @@ pub struct Renderer {
     shell: Option<ShellRenderer>,
 }
 
+/// The layout of the lit passes' frame group: uniforms, the shadow map and
+/// its comparison sampler, the prefiltered environment, the detail texture
+/// and its sampler.
+fn lit_frame_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    let fragment = wgpu::ShaderStages::FRAGMENT;
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("lit frame"),
+        entries: &[
+            layout::uniform(0, wgpu::ShaderStages::VERTEX | fragment),
+            entry(
+                1,
+                fragment,
+                wgpu::BindingType::Texture { sample_type: wgpu::TextureSampleType::Depth, view_dimension: wgpu::TextureViewDimension::D2, multisampled: false },
+            ),
+            entry(2, fragment, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison)),
+            storage_ro(3, fragment),
+            texture(4, fragment, true),
+            entry(5, fragment, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
+        ],
+    })
+}
+
+/// The lit passes' frame group over `frame`, `shadow` and the `prefiltered`
+/// environment, with the detail texture made here.
+fn lit_frame_group(
+    (device, queue): (&wgpu::Device, &wgpu::Queue),
+    lit_layout: &wgpu::BindGroupLayout,
+    frame: &wgpu::Buffer,
+    shadow: &ShadowMap,
+    prefiltered: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    let detail = super::detail::detail_texture(device, queue);
+    let detail_view = detail.create_view(&wgpu::TextureViewDescriptor::default());
+    let detail_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("detail"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    });
+    layout::bind_group(
+        device,
+        "lit frame",
+        lit_layout,
+        &[
+            frame.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&shadow.view),
+            wgpu::BindingResource::Sampler(&shadow.sampler),
+            prefiltered.as_entire_binding(),
+            wgpu::BindingResource::TextureView(&detail_view),
+            wgpu::BindingResource::Sampler(&detail_sampler),
+        ],
+    )
+}
+
 impl Renderer {
     /// Builds every pass for `snow`, lit by `env`, drawing into `output_format`
     /// ([`IMAGE_FORMAT`] for [`Self::render_image`]); prefilters the environment.
@@ -120,26 +178,7 @@ impl Renderer {
         if params.patch_quads < 4 || !params.patch_quads.is_multiple_of(4) {
             return Err(SnowError::InvalidParameter { field: "patch_quads", why: format!("{} is not a positive multiple of 4", params.patch_quads) });
         }
-        let fragment = wgpu::ShaderStages::FRAGMENT;
-        let lit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("lit frame"),
-            entries: &[
-                layout::uniform(0, wgpu::ShaderStages::VERTEX | fragment),
-                entry(
-                    1,
-                    fragment,
-                    wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                ),
-                entry(2, fragment, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison)),
-                storage_ro(3, fragment),
-                texture(4, fragment, true),
-                entry(5, fragment, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
-            ],
-        });
+        let lit_layout = lit_frame_layout(device);
         let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow frame"),
             entries: &[layout::uniform(0, wgpu::ShaderStages::VERTEX)],
@@ -147,30 +186,7 @@ impl Renderer {
         let frame = layout::uniform_buffer::<FrameUniforms>(device, "frame");
         let env_pass = EnvironmentPass::new(device, queue, env);
         let shadow = ShadowMap::new(device, params.shadow_map_size);
-        let detail = super::detail::detail_texture(device, queue);
-        let detail_view = detail.create_view(&wgpu::TextureViewDescriptor::default());
-        let detail_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("detail"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        });
-        let lit_group = layout::bind_group(
-            device,
-            "lit frame",
-            &lit_layout,
-            &[
-                frame.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&shadow.view),
-                wgpu::BindingResource::Sampler(&shadow.sampler),
-                env_pass.prefiltered.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&detail_view),
-                wgpu::BindingResource::Sampler(&detail_sampler),
-            ],
-        );
+        let lit_group = lit_frame_group((device, queue), &lit_layout, &frame, &shadow, &env_pass.prefiltered);
         let shadow_group = layout::bind_group(device, "shadow frame", &shadow_layout, &[frame.as_entire_binding()]);
         let res = snow.resources();
         let unpack = super::surface::SurfaceUnpackPass::new(device, res);
@@ -186,7 +202,7 @@ impl Renderer {
 
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("environment prefilter") });
         timer.begin_frame();
-        env_pass.record(&mut encoder, &mut timer);
+        env_pass.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer));
         timer.end_frame(&mut encoder);
         queue.submit([encoder.finish()]);
         ctx.check("environment prefilter")?;
@@ -351,6 +367,49 @@ impl Renderer {
         target: &wgpu::TextureView,
         size: (u32, u32),
     ) {
+        self.prepare_frame(ctx, snow, actors, camera, size);
+        self.timer.begin_frame();
+        if let Some(origin) = snow.origin_texel() {
+            // Window coordinates fit i32 on the GPU (see the deformation's frame).
+            self.unpack.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), [origin[0] as i32, origin[1] as i32]);
+            let sp = snow.params();
+            let params = AoParams { resolution: sp.resolution, steps: AoPass::STEPS, texel_m: sp.texel_m(), strength: self.params.ao_strength };
+            self.ao.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), params);
+        }
+        self.record_shadow(encoder, snow);
+        if self.params.shell.enabled {
+            self.sync_shell(ctx, snow);
+        }
+        let Some(targets) = &self.targets else { return };
+        {
+            let mut pass = scene_pass(encoder, &mut self.timer, targets, "sky", true);
+            self.sky.draw(&mut pass);
+        }
+        {
+            let mut pass = scene_pass(encoder, &mut self.timer, targets, "terrain", false);
+            self.terrain.draw_lit(&mut pass, &self.lit_group, &self.snow_group);
+        }
+        if self.actors.count() > 0 || snow.posed_meshes().next().is_some() {
+            let mut pass = scene_pass(encoder, &mut self.timer, targets, "actors", false);
+            self.actors.draw_lit(&mut pass, &self.lit_group);
+            self.skinned.draw_lit(&mut pass, &self.lit_group, snow.posed_meshes());
+        }
+        if let Some(acc) = snow.accumulation() {
+            let mut pass = scene_pass(encoder, &mut self.timer, targets, "objects", false);
+            self.objects.draw_lit(&mut pass, &self.lit_group, acc);
+        }
+        if self.params.shell.enabled
+            && let Some(shell) = &mut self.shell
+        {
+            shell.encode(&mut FrameContext::new(ctx, encoder, &mut self.timer), &self.lit_group, snow, camera.position, (&targets.depth, &targets.hdr, size));
+        }
+        self.record_tonemap(encoder, target);
+        self.timer.end_frame(encoder);
+    }
+
+    /// Takes the timestamps that came back, sizes the targets, writes the
+    /// frame's uniforms, and culls and uploads what the frame draws.
+    fn prepare_frame(&mut self, ctx: &GpuContext, snow: &SnowDeformation, actors: &[Deformer], camera: &Camera, size: (u32, u32)) {
         let (device, queue) = (&ctx.device, &ctx.queue);
         // Timestamps that have come back since the last frame.
         let _ = device.poll(wgpu::PollType::Poll);
@@ -385,80 +444,49 @@ impl Renderer {
                 visible.iter().map(super::lod::PatchInstance::level).max().unwrap_or(0),
             ),
         };
+    }
 
-        self.timer.begin_frame();
-        if let Some(origin) = snow.origin_texel() {
-            // Window coordinates fit i32 on the GPU (see the deformation's frame).
-            self.unpack.record(queue, encoder, &mut self.timer, [origin[0] as i32, origin[1] as i32]);
-            let sp = snow.params();
-            let params = AoParams { resolution: sp.resolution, steps: AoPass::STEPS, texel_m: sp.texel_m(), strength: self.params.ao_strength };
-            self.ao.record(queue, encoder, &mut self.timer, params);
-        }
-        {
-            let slot = self.timer.reserve("shadow");
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("shadow"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.shadow.view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: self.timer.render_writes(slot),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.terrain.draw_shadow(&mut pass, &self.shadow_group, &self.snow_group);
-            self.actors.draw_shadow(&mut pass, &self.shadow_group);
-            self.skinned.draw_shadow(&mut pass, &self.shadow_group, snow.posed_meshes());
-            if let Some(acc) = snow.accumulation() {
-                self.objects.draw_shadow(&mut pass, &self.shadow_group, acc);
-            }
-        }
-        if self.params.shell.enabled {
-            self.sync_shell(ctx, snow);
-        }
-        let Some(targets) = &self.targets else { return };
-        {
-            let mut pass = scene_pass(encoder, &mut self.timer, targets, "sky", true);
-            self.sky.draw(&mut pass);
-        }
-        {
-            let mut pass = scene_pass(encoder, &mut self.timer, targets, "terrain", false);
-            self.terrain.draw_lit(&mut pass, &self.lit_group, &self.snow_group);
-        }
-        if self.actors.count() > 0 || snow.posed_meshes().next().is_some() {
-            let mut pass = scene_pass(encoder, &mut self.timer, targets, "actors", false);
-            self.actors.draw_lit(&mut pass, &self.lit_group);
-            self.skinned.draw_lit(&mut pass, &self.lit_group, snow.posed_meshes());
-        }
+    /// The shadow map: terrain, actors, characters and objects from the sun.
+    fn record_shadow(&mut self, encoder: &mut wgpu::CommandEncoder, snow: &SnowDeformation) {
+        let slot = self.timer.reserve("shadow");
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shadow"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.shadow.view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: self.timer.render_writes(slot),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        self.terrain.draw_shadow(&mut pass, &self.shadow_group, &self.snow_group);
+        self.actors.draw_shadow(&mut pass, &self.shadow_group);
+        self.skinned.draw_shadow(&mut pass, &self.shadow_group, snow.posed_meshes());
         if let Some(acc) = snow.accumulation() {
-            let mut pass = scene_pass(encoder, &mut self.timer, targets, "objects", false);
-            self.objects.draw_lit(&mut pass, &self.lit_group, acc);
+            self.objects.draw_shadow(&mut pass, &self.shadow_group, acc);
         }
-        if self.params.shell.enabled
-            && let Some(shell) = &mut self.shell
-        {
-            shell.encode(ctx, encoder, &mut self.timer, &self.lit_group, snow, camera.position, (&targets.depth, &targets.hdr, size));
-        }
-        {
-            let slot = self.timer.reserve("tonemap");
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("tonemap"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: self.timer.render_writes(slot),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.tonemap.draw(&mut pass, &targets.tonemap_group);
-        }
-        self.timer.end_frame(encoder);
+    }
+
+    /// The tonemap of the HDR target into `target`.
+    fn record_tonemap(&mut self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView) {
+        let Some(targets) = &self.targets else { return };
+        let slot = self.timer.reserve("tonemap");
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("tonemap"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: self.timer.render_writes(slot),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        self.tonemap.draw(&mut pass, &targets.tonemap_group);
     }
 
     /// Builds the shell, or rebuilds it when its texture or patch changed;

@@ -68,27 +68,36 @@ pub fn sampling_buffers(snow: &SnowDeformation) -> [wgpu::Buffer; 3] {
     [res.terrain_params.clone(), res.heightmap.clone(), res.snow.clone()]
 }
 
-/// The `SnowWindow` uniform (binding 0): where the deformation window lies.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct SnowWindowUniform {
-    /// World (x, z) of local texel (0, 0)'s outer corner, minus the floating origin (m).
-    pub corner: [f32; 2],
-    /// The deformation's floating origin (m): shader positions are relative to it.
-    pub floating_origin: [f32; 2],
-    /// Global texel index (column, row) of local texel (0, 0).
-    pub origin_texel: [i32; 2],
-    /// Texel size (m).
-    pub texel_m: f32,
-    /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
-    pub rest_depth_m: f32,
-    /// Texels per side.
-    pub resolution: u32,
-    /// 1 once the window has been placed (after the deformation's first frame), else 0.
-    pub placed: u32,
-    /// `origin_texel` wrapped into `0..resolution` (`crate::deform::window::storage_origin`):
-    /// where local texel (0, 0) is stored, so the shader wraps with no division.
-    pub storage_origin: [u32; 2],
+low_level_fields! {
+    /// The `SnowWindow` uniform (binding 0): where the deformation window lies.
+    /// A game's material fills its buffer with [`Self::new`] (its size is
+    /// `size_of::<SnowWindowUniform>()`); the shader reads the fields, so a game's
+    /// code has no need to (the fields are `pub` with `low_level`, for the tests).
+    #[repr(C)]
+    #[cfg_attr(
+        not(feature = "low_level"),
+        allow(dead_code, reason = "the fields are read by the shader through the uniform's bytes; on the CPU only by its twin (`low_level`)")
+    )]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+    pub struct SnowWindowUniform {
+        /// World (x, z) of local texel (0, 0)'s outer corner, minus the floating origin (m).
+        corner: [f32; 2],
+        /// The deformation's floating origin (m): shader positions are relative to it.
+        floating_origin: [f32; 2],
+        /// Global texel index (column, row) of local texel (0, 0).
+        origin_texel: [i32; 2],
+        /// Texel size (m).
+        texel_m: f32,
+        /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
+        rest_depth_m: f32,
+        /// Texels per side.
+        resolution: u32,
+        /// 1 once the window has been placed (after the deformation's first frame), else 0.
+        placed: u32,
+        /// `origin_texel` wrapped into `0..resolution` (`crate::deform::window::storage_origin`):
+        /// where local texel (0, 0) is stored, so the shader wraps with no division.
+        storage_origin: [u32; 2],
+    }
 }
 
 impl SnowWindowUniform {

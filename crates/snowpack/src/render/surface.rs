@@ -15,7 +15,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::deform::resources::DeformResources;
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Uniforms of `surface_unpack.wgsl`.
@@ -84,7 +85,8 @@ impl SurfaceUnpackPass {
     }
 
     /// Records the unpack of the window at `origin` (global texel of local (0, 0)).
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, origin: [i32; 2]) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, origin: [i32; 2]) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let storage_origin = crate::deform::window::storage_origin(origin, self.resolution);
         let p = UnpackParams { origin, resolution: self.resolution, texel_m: self.texel_m, storage_origin };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));

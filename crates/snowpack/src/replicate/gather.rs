@@ -5,7 +5,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::deform::resources::DeformResources;
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::persist::TileKey;
 use crate::shaders;
 
@@ -145,13 +146,14 @@ impl TileGatherPass {
 
     /// Records the gather of `keys` (at most [`Self::capacity`]; the rest
     /// are left out) into [`Self::packed`]; returns how many it gathers.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: TileGatherParams, keys: &[[i32; 2]]) -> u32 {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: TileGatherParams, keys: &[[i32; 2]]) -> u32 {
         let keys = &keys[..keys.len().min(self.capacity as usize)];
         if keys.is_empty() {
             return 0;
         }
         let blocks = params.side.div_ceil(8);
         let p = TileGatherParams { count: keys.len() as u32, blocks, ..params };
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(keys));
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         layout::dispatch(encoder, timer, "tile gather", &self.pipeline, &self.bind_group, (blocks * blocks, p.count));

@@ -6,7 +6,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::deform::resources::DeformResources;
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 use super::gather::{PACKED_PLANES, packed_tile_bytes};
@@ -173,15 +174,7 @@ impl TileMergePass {
     /// tiles; at most [`Self::capacity`], the rest are left out), replaying
     /// `history` (at most [`HISTORY_FRAMES`], oldest first, as
     /// [`FrameRecord::gpu`]); returns how many tiles it merges.
-    pub fn record(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        params: TileMergeParams,
-        (keys, history): (&[[i32; 4]], &[[u32; 4]]),
-        tiles: &[u32],
-    ) -> u32 {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: TileMergeParams, (keys, history): (&[[i32; 4]], &[[u32; 4]]), tiles: &[u32]) -> u32 {
         let area = (params.side as usize) * (params.side as usize);
         let count = keys.len().min(self.capacity as usize).min(tiles.len() / (area * PACKED_PLANES).max(1));
         if count == 0 {
@@ -190,6 +183,7 @@ impl TileMergePass {
         let blocks = params.side.div_ceil(8);
         let history = &history[..history.len().min(HISTORY_FRAMES)];
         let p = TileMergeParams { count: count as u32, blocks, frames: history.len() as u32, ..params };
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(&keys[..count]));
         if !history.is_empty() {
             queue.write_buffer(&self.history, 0, bytemuck::cast_slice(history));

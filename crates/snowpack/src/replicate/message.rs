@@ -230,14 +230,20 @@ pub fn encode(message: &Message) -> Vec<u8> {
     w.0.extend_from_slice(MAGIC);
     w.u16(PROTOCOL_VERSION);
     w.u8(message.kind());
+    write_body(&mut w, message);
+    w.0
+}
+
+/// A message's fields after its header.
+fn write_body(w: &mut Writer, message: &Message) {
     match message {
         Message::Hello { world, name } => {
-            write_world(&mut w, world);
+            write_world(w, world);
             w.text8(name, MAX_NAME_BYTES);
         }
         Message::Welcome { peer, clock } => {
             w.u32(*peer);
-            write_clock(&mut w, clock);
+            write_clock(w, clock);
         }
         Message::Refused { differences } => {
             let n = differences.len().min(MAX_REFUSED_PHRASES);
@@ -267,7 +273,7 @@ pub fn encode(message: &Message) -> Vec<u8> {
         }
         Message::Ack { seq } => w.u64(*seq),
         Message::Digest { clock, window, resolution, entries } => {
-            write_clock(&mut w, clock);
+            write_clock(w, clock);
             w.i64(window[0]);
             w.i64(window[1]);
             w.u32(*resolution);
@@ -287,7 +293,7 @@ pub fn encode(message: &Message) -> Vec<u8> {
                 w.i64(key.row);
             }
         }
-        Message::Clock { clock } | Message::InSync { clock } => write_clock(&mut w, clock),
+        Message::Clock { clock } | Message::InSync { clock } => write_clock(w, clock),
         Message::Query { id, points } => {
             w.u32(*id);
             let n = points.len().min(MAX_DEFORMERS);
@@ -306,7 +312,6 @@ pub fn encode(message: &Message) -> Vec<u8> {
             }
         }
     }
-    w.0
 }
 
 /// One tile's bytes as they appear inside a `Tiles` message.
@@ -383,44 +388,10 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
             }
             Message::Refused { differences }
         }
-        4 => {
-            let window = [r.i64("window")?, r.i64("window")?];
-            let resolution = r.u32("resolution")?;
-            let n = usize::from(r.u16("deformer count")?);
-            cap("deformers", n, MAX_DEFORMERS)?;
-            r.need(n * 16, "deformers")?;
-            let mut deformers = Vec::with_capacity(n);
-            for _ in 0..n {
-                deformers.push([r.f64("deformer x")?, r.f64("deformer z")?]);
-            }
-            Message::Presence { window, resolution, deformers }
-        }
-        5 => {
-            let seq = r.u64("sequence number")?;
-            let n = usize::from(r.u8("tile count")?);
-            cap("tiles", n, MAX_TILES)?;
-            let mut tiles = Vec::with_capacity(n);
-            let mut texels = 0usize;
-            for _ in 0..n {
-                let tile = read_tile(&mut r, &mut texels)?;
-                tiles.push(tile);
-            }
-            Message::Tiles { seq, tiles }
-        }
+        4 => read_presence(&mut r)?,
+        5 => read_tiles(&mut r)?,
         6 => Message::Ack { seq: r.u64("sequence number")? },
-        7 => {
-            let clock = read_clock(&mut r)?;
-            let window = [r.i64("window")?, r.i64("window")?];
-            let resolution = r.u32("resolution")?;
-            let n = usize::from(r.u16("digest count")?);
-            cap("digest entries", n, MAX_KEYS)?;
-            r.need(n * 24, "digest entries")?;
-            let mut entries = Vec::with_capacity(n);
-            for _ in 0..n {
-                entries.push((TileKey::new(r.i64("tile column")?, r.i64("tile row")?), r.u64("digest")?));
-            }
-            Message::Digest { clock, window, resolution, entries }
-        }
+        7 => read_digest(&mut r)?,
         8 => {
             let n = usize::from(r.u16("key count")?);
             cap("wanted keys", n, MAX_KEYS)?;
@@ -433,17 +404,7 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
         }
         9 => Message::Clock { clock: read_clock(&mut r)? },
         10 => Message::InSync { clock: read_clock(&mut r)? },
-        11 => {
-            let id = r.u32("query id")?;
-            let n = usize::from(r.u16("point count")?);
-            cap("query points", n, MAX_DEFORMERS)?;
-            r.need(n * 16, "query points")?;
-            let mut points = Vec::with_capacity(n);
-            for _ in 0..n {
-                points.push([r.f64("point x")?, r.f64("point z")?]);
-            }
-            Message::Query { id, points }
-        }
+        11 => read_query(&mut r)?,
         12 => {
             let id = r.u32("query id")?;
             let n = usize::from(r.u16("depth count")?);
@@ -462,6 +423,62 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
         return Err(MessageError::TrailingBytes(left));
     }
     Ok(message)
+}
+
+/// A `Presence` message's fields.
+fn read_presence(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+    let window = [r.i64("window")?, r.i64("window")?];
+    let resolution = r.u32("resolution")?;
+    let n = usize::from(r.u16("deformer count")?);
+    cap("deformers", n, MAX_DEFORMERS)?;
+    r.need(n * 16, "deformers")?;
+    let mut deformers = Vec::with_capacity(n);
+    for _ in 0..n {
+        deformers.push([r.f64("deformer x")?, r.f64("deformer z")?]);
+    }
+    Ok(Message::Presence { window, resolution, deformers })
+}
+
+/// A `Tiles` message's fields.
+fn read_tiles(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+    let seq = r.u64("sequence number")?;
+    let n = usize::from(r.u8("tile count")?);
+    cap("tiles", n, MAX_TILES)?;
+    let mut tiles = Vec::with_capacity(n);
+    let mut texels = 0usize;
+    for _ in 0..n {
+        let tile = read_tile(r, &mut texels)?;
+        tiles.push(tile);
+    }
+    Ok(Message::Tiles { seq, tiles })
+}
+
+/// A `Digest` message's fields.
+fn read_digest(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+    let clock = read_clock(r)?;
+    let window = [r.i64("window")?, r.i64("window")?];
+    let resolution = r.u32("resolution")?;
+    let n = usize::from(r.u16("digest count")?);
+    cap("digest entries", n, MAX_KEYS)?;
+    r.need(n * 24, "digest entries")?;
+    let mut entries = Vec::with_capacity(n);
+    for _ in 0..n {
+        entries.push((TileKey::new(r.i64("tile column")?, r.i64("tile row")?), r.u64("digest")?));
+    }
+    Ok(Message::Digest { clock, window, resolution, entries })
+}
+
+/// A `Query` message's fields.
+fn read_query(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+    let id = r.u32("query id")?;
+    let n = usize::from(r.u16("point count")?);
+    cap("query points", n, MAX_DEFORMERS)?;
+    r.need(n * 16, "query points")?;
+    let mut points = Vec::with_capacity(n);
+    for _ in 0..n {
+        points.push([r.f64("point x")?, r.f64("point z")?]);
+    }
+    Ok(Message::Query { id, points })
 }
 
 /// Encodes a world identity alone (the relay's saved world).

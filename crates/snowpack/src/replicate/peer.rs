@@ -65,36 +65,38 @@ impl Default for PeerConfig {
     }
 }
 
-/// A peer's counters since it was made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PeerStats {
-    /// Bytes received.
-    pub bytes_in: u64,
-    /// Bytes handed out by [`SnowPeer::poll_transmit`].
-    pub bytes_out: u64,
-    /// Messages received.
-    pub messages_in: u64,
-    /// Messages handed out.
-    pub messages_out: u64,
-    /// Tiles sent (resends included).
-    pub tiles_sent: u64,
-    /// Tiles received.
-    pub tiles_received: u64,
-    /// Received tiles that changed the replica.
-    pub tiles_merged: u64,
-    /// Deltas sent again after no acknowledgement.
-    pub resends: u64,
-    /// Messages that did not decode or were not expected.
-    pub malformed: u64,
-    /// Received tiles of another side, or dropped from a full incoming list.
-    pub tiles_dropped: u64,
-    /// Messages dropped from a full outgoing queue.
-    pub outgoing_dropped: u64,
-    /// Tiles too large to send even alone in a message.
-    pub tile_too_large: u64,
-    /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
-    /// is `Hello`, `Presence` and `Digest`).
-    pub tile_bytes_out: u64,
+low_level_fields! {
+    /// A peer's counters since it was made.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+    pub struct PeerStats {
+        /// Bytes received.
+        bytes_in: u64,
+        /// Bytes handed out by [`SnowPeer::poll_transmit`].
+        bytes_out: u64,
+        /// Messages received.
+        messages_in: u64,
+        /// Messages handed out.
+        messages_out: u64,
+        /// Tiles sent (resends included).
+        tiles_sent: u64,
+        /// Tiles received.
+        tiles_received: u64,
+        /// Received tiles that changed the replica.
+        tiles_merged: u64,
+        /// Deltas sent again after no acknowledgement.
+        resends: u64,
+        /// Messages that did not decode or were not expected.
+        malformed: u64,
+        /// Received tiles of another side, or dropped from a full incoming list.
+        tiles_dropped: u64,
+        /// Messages dropped from a full outgoing queue.
+        outgoing_dropped: u64,
+        /// Tiles too large to send even alone in a message.
+        tile_too_large: u64,
+        /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
+        /// is `Hello`, `Presence` and `Digest`).
+        tile_bytes_out: u64,
+    }
 }
 
 /// A game client's side of shared snow: see the module documentation.
@@ -399,10 +401,13 @@ impl SnowPeer {
         self.stats
     }
 
-    /// The replica's copy of a tile (what this peer knows of it).
-    #[must_use]
-    pub fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
-        self.replica.get(&key)
+    low_level_pub! {
+        /// The replica's copy of a tile (what this peer knows of it).
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
+            self.replica.get(&key)
+        }
     }
 
     fn push(&mut self, bytes: Vec<u8>) {

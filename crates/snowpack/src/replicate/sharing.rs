@@ -8,7 +8,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::deform::resources::DeformResources;
-use crate::gpu::GpuTimer;
+use crate::frame::FrameContext;
 use crate::gpu::readback::ReadbackRing;
 use crate::persist::TileKey;
 
@@ -205,15 +205,7 @@ impl Sharing {
 
     /// Records the merge of the tiles ready at `clock` into the window
     /// (after the window's move, before this frame's presses).
-    pub fn record_merge(
-        &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        window: &ShareWindow,
-        params: TileMergeParams,
-        (clock, catch): (&ShareClock, CatchUp),
-    ) {
+    pub fn record_merge(&mut self, cx: &mut FrameContext<'_>, window: &ShareWindow, params: TileMergeParams, (clock, catch): (&ShareClock, CatchUp)) {
         let tiles = self.ready(window, clock, catch);
         if tiles.is_empty() {
             return;
@@ -223,7 +215,7 @@ impl Sharing {
         let refs: Vec<&SharedTile> = tiles.iter().map(|(t, _)| t).collect();
         let flags = if window.has_stamps { TileMergeParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileMergeParams::USE_FALLEN } else { 0 };
         let params = TileMergeParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..params };
-        self.merge.record(queue, encoder, timer, params, (&keys, &history), &pack_tiles(&refs));
+        self.merge.record(cx, params, (&keys, &history), &pack_tiles(&refs));
     }
 
     /// Records, after this frame's presses (`frame`, with the clock after
@@ -232,23 +224,15 @@ impl Sharing {
     /// at that clock. A step whose readback has no free staging buffer is
     /// left for a later frame (flags keep accumulating; dirty tiles stay
     /// dirty).
-    pub fn record_after_update(
-        &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        res: &DeformResources,
-        window: &ShareWindow,
-        frame: FrameRecord,
-    ) {
+    pub fn record_after_update(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, window: &ShareWindow, frame: FrameRecord) {
         if self.history.len() == HISTORY_FRAMES {
             self.history.pop_front();
         }
         self.history.push_back(frame);
         let clock = &frame.after;
         if self.flag_ring.has_free_slot() {
-            self.flag_ring.record_copy(encoder, &res.share_flags, (window.origin, clock.time_s));
-            encoder.clear_buffer(&res.share_flags, 0, None);
+            self.flag_ring.record_copy(cx.encoder, &res.share_flags, (window.origin, clock.time_s));
+            cx.encoder.clear_buffer(&res.share_flags, 0, None);
         }
         let due = self.last_gather_s.is_none_or(|t| clock.time_s - t >= self.interval_s);
         if self.dirty.is_empty() || !(due || self.gather_all) || !self.gather_ring.has_free_slot() {
@@ -270,10 +254,10 @@ impl Sharing {
         }
         let flags = if window.has_stamps { TileGatherParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileGatherParams::USE_FALLEN } else { 0 };
         let params = TileGatherParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..Default::default() };
-        let count = self.gather.record(queue, encoder, timer, params, &gpu_keys(&keys));
+        let count = self.gather.record(cx, params, &gpu_keys(&keys));
         let bytes = packed_tile_bytes(self.grid.side) * u64::from(count);
         let meta = Gathered { keys, clock: *clock, planes: (window.has_stamps, window.use_fallen) };
-        self.gather_ring.record_copy_len(encoder, self.gather.packed(), bytes, meta);
+        self.gather_ring.record_copy_len(cx.encoder, self.gather.packed(), bytes, meta);
         self.last_gather_s = Some(clock.time_s);
     }
 

@@ -6,28 +6,30 @@ use crate::deform::snow_word::SNOW_QUANTUM_M;
 
 use super::tile::ShareClock;
 
-/// The settings that make a world: tiles from machines that agree on all of
-/// them merge; anything else is refused ([`WorldIdentity::differences`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct WorldIdentity {
-    /// Side of a texel (m).
-    pub texel_m: f32,
-    /// Texels per tile side.
-    pub tile_side: u32,
-    /// The terrain, as `terrain_identity` describes it.
-    pub terrain: String,
-    /// Rest depth of fresh snow (m).
-    pub depth_m: f32,
-    /// Trail refill (m/s).
-    pub refill_m_per_s: f32,
-    /// Snowfall on open ground (m/s); 0 without snowfall.
-    pub snowfall_m_per_s: f32,
-    /// The most snowfall a texel keeps (m); 0 without snowfall.
-    pub max_fallen_m: f32,
-    /// Whether tiles carry the snowfall plane.
-    pub has_snowfall: bool,
-    /// The footprint quantisation range (m): low and high.
-    pub stamp_range_m: [f32; 2],
+low_level_fields! {
+    /// The settings that make a world: tiles from machines that agree on all of
+    /// them merge; anything else is refused ([`WorldIdentity::differences`]).
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct WorldIdentity {
+        /// Side of a texel (m).
+        texel_m: f32,
+        /// Texels per tile side.
+        tile_side: u32,
+        /// The terrain, as `terrain_identity` describes it.
+        terrain: String,
+        /// Rest depth of fresh snow (m).
+        depth_m: f32,
+        /// Trail refill (m/s).
+        refill_m_per_s: f32,
+        /// Snowfall on open ground (m/s); 0 without snowfall.
+        snowfall_m_per_s: f32,
+        /// The most snowfall a texel keeps (m); 0 without snowfall.
+        max_fallen_m: f32,
+        /// Whether tiles carry the snowfall plane.
+        has_snowfall: bool,
+        /// The footprint quantisation range (m): low and high.
+        stamp_range_m: [f32; 2],
+    }
 }
 
 impl WorldIdentity {
@@ -61,25 +63,31 @@ impl WorldIdentity {
         out
     }
 
-    /// The world clock at `time_s` seconds since the world began: the refill
-    /// and snowfall every copy of the snow has had by then.
-    #[must_use]
-    pub fn clock_at(&self, time_s: f64) -> ShareClock {
-        let t = time_s.max(0.0);
-        let refill_m = f64::from(self.refill_m_per_s.max(0.0)) * t;
-        let quantum = f64::from(self.stamp_quantum_m());
-        ShareClock {
-            time_s: t,
-            refill_quanta: (refill_m / f64::from(SNOW_QUANTUM_M)).floor() as u64,
-            stamp_quanta: if quantum > 0.0 { (refill_m / quantum).floor() as u64 } else { 0 },
-            fallen_m: if self.has_snowfall { (f64::from(self.snowfall_m_per_s.max(0.0)) * t).min(f64::from(self.max_fallen_m)) as f32 } else { 0.0 },
+    low_level_pub! {
+        /// The world clock at `time_s` seconds since the world began: the refill
+        /// and snowfall every copy of the snow has had by then.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn clock_at(&self, time_s: f64) -> ShareClock {
+            let t = time_s.max(0.0);
+            let refill_m = f64::from(self.refill_m_per_s.max(0.0)) * t;
+            let quantum = f64::from(self.stamp_quantum_m());
+            ShareClock {
+                time_s: t,
+                refill_quanta: (refill_m / f64::from(SNOW_QUANTUM_M)).floor() as u64,
+                stamp_quanta: if quantum > 0.0 { (refill_m / quantum).floor() as u64 } else { 0 },
+                fallen_m: if self.has_snowfall { (f64::from(self.snowfall_m_per_s.max(0.0)) * t).min(f64::from(self.max_fallen_m)) as f32 } else { 0.0 },
+            }
         }
     }
 
-    /// One footprint quantum (m): the range over 65535 steps.
-    #[must_use]
-    pub fn stamp_quantum_m(&self) -> f32 {
-        (self.stamp_range_m[1] - self.stamp_range_m[0]) / 65_535.0
+    low_level_pub! {
+        /// One footprint quantum (m): the range over 65535 steps.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn stamp_quantum_m(&self) -> f32 {
+            (self.stamp_range_m[1] - self.stamp_range_m[0]) / 65_535.0
+        }
     }
 }
 

@@ -178,8 +178,8 @@ impl SnowCoatPass {
     /// Records the coat update of the `k`-th character of this frame (its
     /// skinning already recorded), then keeps its positions for the next
     /// frame's speeds.
-    pub fn record(&mut self, cx: FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
-        let FrameContext { gpu, encoder, timer } = cx;
+    pub fn record(&mut self, cx: &mut FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
+        let (gpu, encoder, timer) = (cx.gpu, &mut *cx.encoder, &mut *cx.timer);
         // One uniform buffer per character slot, kept: each dispatch reads its own.
         while self.params.len() <= k {
             self.params.push(layout::uniform_buffer::<SnowCoatParams>(&gpu.device, "snow coat params"));

@@ -208,9 +208,8 @@ impl SkinningPass {
     }
 
     /// Records skinning of `instance` with `joints` (one matrix per skin joint) placed by `model`.
-    pub fn record(&self, cx: FrameContext<'_>, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
-        let FrameContext { gpu, encoder, timer } = cx;
-        let queue = &gpu.queue;
+    pub fn record(&self, cx: &mut FrameContext<'_>, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let count = joints.len().min(instance.joint_count as usize);
         let matrices: Vec<[[f32; 4]; 4]> = joints[..count].iter().map(Mat4::to_cols_array_2d).collect();
         queue.write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));

@@ -1,15 +1,26 @@
-//! The snow a game drives: [`SnowDeformation`] puts the core deformation
-//! ([`crate::deform`]) together with what plugs into it: accumulation on
-//! objects ([`crate::accumulate`]), the tiles kept while the window is away
-//! and their save ([`crate::tiles`], [`crate::persist`]) and skinned
-//! characters ([`crate::skin`]), recording each frame's passes in order
-//! ([`deformation`]) saving the window's own state ([`saved`]) and sharing its snow with
-//! other machines ([`share`]).
+//! The snow a game drives: [`SnowDeformation`] is a small orchestrator over
+//! the core window ([`core_window`]: the deformation's resources and passes) and
+//! the plug-ins, each owning its state in its own file: skinned characters
+//! ([`characters`], over [`crate::skin`]), objects snow settles on
+//! ([`objects`], over [`crate::accumulate`]), the tiles kept while the
+//! window is away and their save ([`store`], over [`crate::tiles`] and
+//! [`crate::persist`]), and shared snow ([`share`], over
+//! [`crate::replicate`]). One frame is [`steps`]: the passes in order. The
+//! snow's time is [`clock`], the window's own saved state [`saved`], and
+//! the whole-window readbacks for tools [`reads`].
 
+pub mod characters;
+pub mod clock;
 mod coat;
+pub mod core_window;
 pub mod deformation;
+pub mod objects;
+pub mod reads;
 pub mod saved;
 pub mod share;
+pub mod steps;
+pub mod store;
 pub mod sweep;
 
-pub use deformation::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
+pub use characters::{SkinnedId, SkinnedPose};
+pub use deformation::{SnowDeformation, SnowFrame};

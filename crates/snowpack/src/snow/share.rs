@@ -11,7 +11,9 @@ use crate::replicate::flags::ShareGrid;
 use crate::replicate::sharing::{ShareWindow, Sharing};
 use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity, terrain_identity};
 
-use super::deformation::{RefillBase, SnowDeformation};
+use super::SnowDeformation;
+use super::clock::{RefillBase, SnowTime};
+use super::core_window::CoreWindow;
 
 /// Tile sides [`SnowDeformation::enable_sharing`] accepts (texels).
 pub const SHARE_TILE_SIDES: std::ops::RangeInclusive<u32> = 8..=256;
@@ -32,14 +34,14 @@ impl SnowDeformation {
             return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") });
         }
         let device = &ctx.device;
-        let grid = ShareGrid::new(self.params.resolution, tile_side);
+        let grid = ShareGrid::new(self.core.params.resolution, tile_side);
         ctx.capturing(|| {
-            self.res.allocate_share_flags(device, grid.slots());
+            self.core.res.allocate_share_flags(device, grid.slots());
             // The stamp and update passes write the flags: bind the new buffer.
-            self.stamp_pass = StampPass::new(device, &self.res);
-            self.update_pass = UpdatePass::new(device, &self.res);
-            self.update_pass.bind_sky(device, &self.res, self.accumulation.as_ref().map(crate::accumulate::SnowAccumulation::sky_view));
-            self.sharing = Some(Sharing::new(device, &self.res, tile_side, interval_s));
+            self.core.stamp_pass = StampPass::new(device, &self.core.res);
+            self.core.update_pass = UpdatePass::new(device, &self.core.res);
+            self.core.update_pass.bind_sky(device, &self.core.res, self.accumulation.as_ref().map(crate::accumulate::SnowAccumulation::sky_view));
+            self.sharing = Some(Sharing::new(device, &self.core.res, tile_side, interval_s));
         });
         ctx.check("enabling shared snow")
     }
@@ -79,22 +81,22 @@ impl SnowDeformation {
     /// The world clock now: time, refill and footprint quanta, snowfall.
     #[must_use]
     pub fn share_clock(&self) -> ShareClock {
-        ShareClock { time_s: self.clock.time_s, refill_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta, fallen_m: self.fallen_total_m }
+        self.time.share_clock()
     }
 
     /// Sets the world clock (joining a world): time, refill counters and
     /// snowfall; the frames after it go on from there. When the counters are
-    /// the world's own at that time ([`WorldIdentity::clock_at`]), they keep
+    /// the world's own at that time (its refill from time 0), they keep
     /// being counted from the world's beginning, as on every other machine.
     pub fn join_clock(&mut self, clock: ShareClock) {
         let world = self.world_identity().clock_at(clock.time_s);
-        self.clock.time_s = clock.time_s;
-        self.clock.stamp_quanta = clock.stamp_quanta;
-        self.clock.refill_m = f64::from(self.params.refill_m_per_s) * clock.time_s;
-        self.clock.fallen_m = f64::from(clock.fallen_m);
-        self.snow_quanta = clock.refill_quanta;
-        self.fallen_total_m = clock.fallen_m;
-        self.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
+        self.time.clock.time_s = clock.time_s;
+        self.time.clock.stamp_quanta = clock.stamp_quanta;
+        self.time.clock.refill_m = f64::from(self.core.params.refill_m_per_s) * clock.time_s;
+        self.time.clock.fallen_m = f64::from(clock.fallen_m);
+        self.time.snow_quanta = clock.refill_quanta;
+        self.time.fallen_m = clock.fallen_m;
+        self.time.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
             RefillBase::default()
         } else {
             RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
@@ -107,20 +109,29 @@ impl SnowDeformation {
     #[must_use]
     pub fn world_identity(&self) -> WorldIdentity {
         let (low, high, _) = self.stamp_range();
-        let snowfall = self.params.snowfall.as_ref();
+        let snowfall = self.core.params.snowfall.as_ref();
         WorldIdentity {
-            texel_m: self.params.texel_m(),
-            tile_side: self.sharing.as_ref().map_or_else(|| default_tile_texels(self.params.resolution), |s| s.grid().side),
-            terrain: terrain_identity(&self.terrain),
-            depth_m: self.params.depth_m,
-            refill_m_per_s: self.params.refill_m_per_s,
+            texel_m: self.core.params.texel_m(),
+            tile_side: self.sharing.as_ref().map_or_else(|| default_tile_texels(self.core.params.resolution), |s| s.grid().side),
+            terrain: terrain_identity(&self.core.terrain),
+            depth_m: self.core.params.depth_m,
+            refill_m_per_s: self.core.params.refill_m_per_s,
             snowfall_m_per_s: snowfall.map_or(0.0, |s| s.rate_m_per_s),
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
             has_snowfall: snowfall.is_some(),
             stamp_range_m: [low, high],
         }
     }
+}
 
+impl SnowTime {
+    /// The world clock now: time, refill and footprint quanta, snowfall.
+    pub(super) fn share_clock(&self) -> ShareClock {
+        ShareClock { time_s: self.clock.time_s, refill_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta, fallen_m: self.fallen_m }
+    }
+}
+
+impl CoreWindow {
     /// How tiles are caught up in this world.
     pub(super) fn catch_up_rule(&self) -> CatchUp {
         CatchUp { max_fallen_m: self.params.snowfall.as_ref().map_or(0.0, |s| s.max_m) }
@@ -142,7 +153,7 @@ impl SharedSnow for SnowDeformation {
     }
 
     fn window(&self) -> Option<([i64; 2], u32)> {
-        self.window.origin().map(|o| (o, self.params.resolution))
+        self.core.window.origin().map(|o| (o, self.core.params.resolution))
     }
 
     /// The tiles gathered since the last call (empty without sharing):

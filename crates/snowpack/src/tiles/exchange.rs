@@ -3,7 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -106,7 +107,8 @@ impl ExchangePass {
 
     /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
     /// or the load of `rects`; nothing when empty.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, mut params: ExchangeParams, rects: &[TexelRect]) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: ExchangeParams, rects: &[TexelRect]) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;

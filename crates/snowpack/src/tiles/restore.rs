@@ -3,7 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -129,18 +130,16 @@ impl TileRestorePass {
 
     /// Records the restore of `entries`, whose saved planes are `upload`
     /// (indexed by [`RestoreEntry::upload`]); grows its buffers as needed.
-    #[expect(clippy::too_many_arguments, reason = "a pass's record call takes the frame's GPU handles and its inputs")]
     pub fn record(
         &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        cx: &mut FrameContext<'_>,
         (res, tiles): (&DeformResources, &wgpu::Buffer),
         mut params: RestoreParams,
         entries: &[RestoreEntry],
         upload: &[u32],
     ) {
+        let (device, queue) = (cx.device(), cx.queue());
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {
             return;
         }

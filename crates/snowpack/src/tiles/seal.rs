@@ -3,7 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -90,17 +91,9 @@ impl TileSealPass {
     /// Records the seal of `entries` (`[col, row, slot, 0]`); grows its entry
     /// buffer as needed; nothing when empty. One record per submission (its
     /// uniforms and entries are written through the queue).
-    #[expect(clippy::too_many_arguments, reason = "a pass's record call takes the frame's GPU handles and its inputs")]
-    pub fn record(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
-        (res, tiles): (&DeformResources, &wgpu::Buffer),
-        mut params: SealParams,
-        entries: &[[i32; 4]],
-    ) {
+    pub fn record(&mut self, cx: &mut FrameContext<'_>, (res, tiles): (&DeformResources, &wgpu::Buffer), mut params: SealParams, entries: &[[i32; 4]]) {
+        let (device, queue) = (cx.device(), cx.queue());
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {
             return;
         }

@@ -452,7 +452,7 @@ impl TileStreaming {
     /// entering texels. `clock` is the clock at the start of this frame.
     pub fn record_move(
         &mut self,
-        FrameContext { gpu: ctx, encoder, timer }: FrameContext<'_>,
+        cx: &mut FrameContext<'_>,
         frame @ &WindowFrame { origin, .. }: &WindowFrame,
         res: &DeformResources,
         (old, rects): (Option<[i64; 2]>, &[TexelRect]),
@@ -463,12 +463,12 @@ impl TileStreaming {
         }
         self.moves += 1;
         if let Some(old) = old
-            && self.record_step(ctx, encoder, timer, res, (old, origin, rects), frame, clock)
+            && self.record_step(cx, res, (old, origin, rects), frame, clock)
         {
             return;
         }
         self.batched_moves += 1;
-        self.record_batched(ctx, res, (old, origin), frame, clock);
+        self.record_batched(cx.gpu, res, (old, origin), frame, clock);
     }
 
     fn exchange_params(&self, res: &DeformResources, old: [i64; 2], origin: [i64; 2], stash: bool) -> ExchangeParams {
@@ -584,12 +584,9 @@ impl TileStreaming {
     /// that need a slot are those that keep or receive texels outside the new
     /// window (stash targets, edge tiles) and those its entering texels come
     /// from. `false` (nothing recorded) when they do not fit.
-    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles, the move and the snow's state")]
     fn record_step(
         &mut self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        cx: &mut FrameContext<'_>,
         res: &DeformResources,
         (old, origin, rects): ([i64; 2], [i64; 2], &[TexelRect]),
         frame: &WindowFrame,
@@ -603,35 +600,7 @@ impl TileStreaming {
         if required.len() > g.slot_count() || required.iter().any(|&k| !g.near(k, origin, PREFETCH_MARGIN_TILES)) {
             return false;
         }
-        let wanted: HashSet<TileKey> = required.iter().copied().collect();
-        // Tiles that drifted away from the window go (the table's span), then
-        // the least recently needed, as slots are needed.
-        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
-        for slot in 0..self.owners.len() {
-            if let Some(k) = self.owners[slot]
-                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
-            {
-                evicting.push((k, slot));
-                self.release(k);
-            }
-        }
-        for &k in &required {
-            if let Some(&slot) = self.slots.get(&k) {
-                self.last_needed[slot] = self.moves;
-            }
-        }
-        let missing = required.iter().filter(|k| !self.resident(**k)).count();
-        let free = self.owners.iter().filter(|o| o.is_none()).count();
-        if missing > free {
-            let mut candidates: Vec<(u64, usize)> =
-                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
-            candidates.sort_unstable();
-            for &(_, slot) in candidates.iter().take(missing - free) {
-                let key = self.owners[slot].expect("a candidate has an owner");
-                evicting.push((key, slot));
-                self.release(key);
-            }
-        }
+        let evicting = self.evict_for(&required, origin);
         let stash = self.exchange_params(res, old, origin, true);
         let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
         let mut deferred = Vec::new();
@@ -654,17 +623,17 @@ impl TileStreaming {
         // The evicted tiles were not in the old window (no stashed texels):
         // copied out first, before their slots take stashed or restored texels.
         if !evicting.is_empty() {
-            self.record_copy_out(ctx, encoder, res, &evicting, clock);
+            self.record_copy_out(cx, res, &evicting, clock);
         }
-        self.write_table(&ctx.queue);
-        self.exchange.record(&ctx.queue, encoder, timer, stash, rects);
+        self.write_table(cx.queue());
+        self.exchange.record(cx, stash, rects);
         for (k, slot) in deferred {
             let entry = self.restore_entry(k, slot, &mut upload, clock);
             entries.push(entry);
         }
         let params = self.restore_params(frame);
-        self.restore.record(&ctx.device, &ctx.queue, encoder, timer, (res, &self.tiles), params, &entries, &upload);
-        self.exchange.record(&ctx.queue, encoder, timer, self.exchange_params(res, old, origin, false), rects);
+        self.restore.record(cx, (res, &self.tiles), params, &entries, &upload);
+        self.exchange.record(cx, self.exchange_params(res, old, origin, false), rects);
         // Tiles now wholly inside the window give their slots up (their
         // texels were all loaded or never left): no copy-out. The GPU table
         // keeps them until the next write, after this frame's load.
@@ -673,6 +642,44 @@ impl TileStreaming {
             self.release(k);
         }
         true
+    }
+
+    /// Gives up the slots a step to `origin` needs for the `required` tiles:
+    /// tiles that drifted away from the window first (the table's span), then
+    /// the least recently needed; returns the evicted tiles and their slots,
+    /// to copy out.
+    fn evict_for(&mut self, required: &[TileKey], origin: [i64; 2]) -> Vec<(TileKey, usize)> {
+        let g = self.grid;
+        let wanted: HashSet<TileKey> = required.iter().copied().collect();
+        // Tiles that drifted away from the window go (the table's span), then
+        // the least recently needed, as slots are needed.
+        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
+        for slot in 0..self.owners.len() {
+            if let Some(k) = self.owners[slot]
+                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
+            {
+                evicting.push((k, slot));
+                self.release(k);
+            }
+        }
+        for &k in required {
+            if let Some(&slot) = self.slots.get(&k) {
+                self.last_needed[slot] = self.moves;
+            }
+        }
+        let missing = required.iter().filter(|k| !self.resident(**k)).count();
+        let free = self.owners.iter().filter(|o| o.is_none()).count();
+        if missing > free {
+            let mut candidates: Vec<(u64, usize)> =
+                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
+            candidates.sort_unstable();
+            for &(_, slot) in candidates.iter().take(missing - free) {
+                let key = self.owners[slot].expect("a candidate has an owner");
+                evicting.push((key, slot));
+                self.release(key);
+            }
+        }
+        evicting
     }
 
     /// A long move (or the first placement) in batches of its own submits,
@@ -701,11 +708,12 @@ impl TileStreaming {
             }
             self.write_table(&ctx.queue);
             let mut encoder = new_encoder(ctx);
+            let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             if let Some(old) = old {
-                self.exchange.record(&ctx.queue, &mut encoder, &mut timer, self.exchange_params(res, old, old, true), &full);
+                self.exchange.record(&mut cx, self.exchange_params(res, old, old, true), &full);
             }
             let out: Vec<(TileKey, usize)> = batch.iter().map(|k| (*k, self.slots[k])).collect();
-            self.record_copy_out(ctx, &mut encoder, res, &out, clock);
+            self.record_copy_out(&mut cx, res, &out, clock);
             submit(ctx, encoder);
             for &k in batch {
                 self.release(k);
@@ -729,9 +737,10 @@ impl TileStreaming {
             }
             self.write_table(&ctx.queue);
             let mut encoder = new_encoder(ctx);
+            let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             let params = self.restore_params(frame);
-            self.restore.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), params, &entries, &upload);
-            self.exchange.record(&ctx.queue, &mut encoder, &mut timer, self.exchange_params(res, origin, origin, false), &full);
+            self.restore.record(&mut cx, (res, &self.tiles), params, &entries, &upload);
+            self.exchange.record(&mut cx, self.exchange_params(res, origin, origin, false), &full);
             submit(ctx, encoder);
             for &k in batch {
                 if g.inside(k, origin) {
@@ -762,10 +771,11 @@ impl TileStreaming {
 
     /// Seals the slots of `slots` (snow XOR rest height, `tile_seal.wgsl`)
     /// and copies them into a staging buffer for the store.
-    fn record_copy_out(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, res: &DeformResources, slots: &[(TileKey, usize)], clock: SnowClock) {
-        let device = &ctx.device;
+    fn record_copy_out(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, slots: &[(TileKey, usize)], clock: SnowClock) {
         let entries: Vec<[i32; 4]> = slots.iter().map(|&(k, slot)| [k.col as i32, k.row as i32, slot as i32, 0]).collect();
-        self.seal.record(device, &ctx.queue, encoder, &mut GpuTimer::disabled(), (res, &self.tiles), self.seal_params(res), &entries);
+        let seal = self.seal_params(res);
+        self.seal.record(&mut cx.with_timer(&mut GpuTimer::disabled()), (res, &self.tiles), seal, &entries);
+        let (device, encoder) = (cx.device(), &mut *cx.encoder);
         let slot_bytes = (self.planes() * self.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // Exactly this copy-out's size, dropped once read back: GPU memory
@@ -790,7 +800,7 @@ impl TileStreaming {
     /// at `origin`: `refill_m`, `fall_m` and `quanta` are this frame's.
     pub fn record_weather(
         &mut self,
-        FrameContext { gpu: GpuContext { queue, .. }, encoder, timer }: FrameContext<'_>,
+        cx: &mut FrameContext<'_>,
         frame @ &WindowFrame { origin, .. }: &WindowFrame,
         (refill_m, fall_m): (f32, f32),
         quanta: u32,
@@ -803,9 +813,7 @@ impl TileStreaming {
         self.weather_slots.clear();
         self.weather_slots.extend(self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32));
         self.weather.record(
-            queue,
-            encoder,
-            timer,
+            cx,
             &WeatherParams {
                 origin: [origin[0] as i32, origin[1] as i32],
                 resolution: self.grid.resolution,
@@ -901,8 +909,9 @@ impl TileStreaming {
             self.write_table(&ctx.queue);
             let entries: Vec<[i32; 4]> = batch.iter().map(|k| [k.col as i32, k.row as i32, self.slots[k] as i32, 0]).collect();
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
-            self.exchange.record(&ctx.queue, &mut encoder, &mut timer, stash, &full);
-            self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
+            let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
+            self.exchange.record(&mut cx, stash, &full);
+            self.seal.record(&mut cx, (res, &self.tiles), seal, &entries);
             ctx.queue.submit([encoder.finish()]);
             let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
             let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
@@ -919,7 +928,7 @@ impl TileStreaming {
             } else {
                 // Sealing again gives the resident slots back (XOR is its own inverse).
                 let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile unseal") });
-                self.seal.record(&ctx.device, &ctx.queue, &mut encoder, &mut timer, (res, &self.tiles), seal, &entries);
+                self.seal.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), (res, &self.tiles), seal, &entries);
                 ctx.queue.submit([encoder.finish()]);
             }
         }

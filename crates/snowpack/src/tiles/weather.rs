@@ -3,7 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -103,7 +104,8 @@ impl TileWeatherPass {
 
     /// Records this frame's weather on the listed `slots` (nothing when it
     /// passes no time or lists none).
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &WeatherParams, slots: &[u32]) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &WeatherParams, slots: &[u32]) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         if !params.passes_time() || slots.is_empty() {
             return;
         }

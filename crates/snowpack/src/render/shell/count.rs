@@ -1,7 +1,8 @@
 //! After step 2 of each peeling pass (`shaders/peel_count.wgsl`): the pixels
 //! the pass will shade, counted and marked for the debug view.
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Parameters of [`PeelCountPass`] (`CountParams` in WGSL).
@@ -65,7 +66,8 @@ impl PeelCountPass {
     }
 
     /// Records the count of pass `pass_index` over a `size` target.
-    pub fn record(&self, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, pass_index: u32, size: (u32, u32)) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, pass_index: u32, size: (u32, u32)) {
+        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let k = pass_index as usize;
         layout::dispatch(encoder, timer, "peel count", &self.pipeline, &self.bind_groups[k], (layout::groups(size.0, 8), layout::groups(size.1, 8)));
     }

@@ -18,7 +18,8 @@ pub mod volume;
 use glam::Vec3;
 
 use crate::error::SnowError;
-use crate::gpu::{GpuContext, GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::{GpuContext, layout};
 use crate::snow::SnowDeformation;
 
 use self::count::MAX_PASSES;
@@ -239,6 +240,30 @@ fn volume_texture(
     texture
 }
 
+/// The detail volume on the GPU: its premultiplied colour and its distance
+/// field (views), and their sampler (repeating across, clamped in height).
+fn detail_textures(device: &wgpu::Device, queue: &wgpu::Queue, volume: &DetailVolume) -> (wgpu::TextureView, wgpu::TextureView, wgpu::Sampler) {
+    // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
+    let premultiplied = |l: &volume::VolumeLevel| {
+        l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect()
+    };
+    let colour = volume_texture(device, queue, volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
+    // Distances in level-0 voxels, whole voxels (0..=255): what sphere tracing needs.
+    let distance =
+        volume_texture(device, queue, volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("shell detail"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        address_mode_w: wgpu::AddressMode::ClampToEdge,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    });
+    (colour.create_view(&wgpu::TextureViewDescriptor::default()), distance.create_view(&wgpu::TextureViewDescriptor::default()), sampler)
+}
+
 impl ShellRenderer {
     /// Builds the shell over `snow` with `settings`, reading the renderer's
     /// unpacked `surface` ([`crate::render::surface`]); `lit_layout` is the renderer's group 0.
@@ -252,24 +277,7 @@ impl ShellRenderer {
         settings.validate()?;
         let (device, queue) = (&ctx.device, &ctx.queue);
         let volume = DetailVolume::generate(settings.texture, settings.texture_size, settings.seed)?;
-        // Premultiplied, so trilinear filtering next to empty voxels keeps the colour.
-        let premultiplied = |l: &volume::VolumeLevel| {
-            l.rgba.iter().flat_map(|&[r, g, b, a]| [r, g, b].map(|c| ((u32::from(c) * u32::from(a) + 127) / 255) as u8).into_iter().chain([a])).collect()
-        };
-        let colour = volume_texture(device, queue, &volume, wgpu::TextureFormat::Rgba8Unorm, premultiplied, 4);
-        // Distances in level-0 voxels, whole voxels (0..=255): what sphere tracing needs.
-        let distance =
-            volume_texture(device, queue, &volume, wgpu::TextureFormat::R8Unorm, |l| l.sdf.iter().map(|d| d.round().clamp(0.0, 255.0) as u8).collect(), 1);
-        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("shell detail"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            address_mode_w: wgpu::AddressMode::ClampToEdge,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        });
+        let (colour_view, distance_view, sampler) = detail_textures(device, queue, &volume);
         let p = snow.params();
         let patch = ShellPatch::new(&settings, p.resolution, p.texel_m());
         let faces = patch.faces();
@@ -294,8 +302,6 @@ impl ShellRenderer {
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);
         let pipelines = PeelPipelines::new(device, lit_layout);
         let draw_params = layout::uniform_buffer::<ShellDrawParams>(device, "shell draw params");
-        let colour_view = colour.create_view(&wgpu::TextureViewDescriptor::default());
-        let distance_view = distance.create_view(&wgpu::TextureViewDescriptor::default());
         let shell_group = layout::bind_group(
             device,
             "shell",
@@ -360,12 +366,9 @@ impl ShellRenderer {
 
     /// Records the shell's construction over `snow` and its peeled drawing
     /// into `hdr` (`size` pixels; `scene_depth` holds the scene drawn so far).
-    #[expect(clippy::too_many_arguments, reason = "the frame's GPU handles and targets, which the renderer owns")]
     pub fn encode(
         &mut self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        timer: &mut GpuTimer,
+        cx: &mut FrameContext<'_>,
         lit_group: &wgpu::BindGroup,
         snow: &SnowDeformation,
         camera: Vec3,
@@ -373,7 +376,7 @@ impl ShellRenderer {
     ) {
         self.drawn = false;
         let Some(corner) = snow.origin_m() else { return };
-        let (device, queue) = (&ctx.device, &ctx.queue);
+        let (device, queue) = (cx.device(), cx.queue());
         let p = snow.params();
         let s = &self.settings;
         let origin = self.patch.origin((camera.x, camera.z), (corner.x, corner.y), f64::from(p.texel_m()), p.resolution);
@@ -393,8 +396,8 @@ impl ShellRenderer {
             min_fraction: s.min_fraction,
             tile_m: s.tile_m,
         };
-        self.vertex_pass.record(queue, encoder, timer, &vertex_params);
-        self.tetra_pass.record(queue, encoder, timer, &TetraParams { faces: self.faces, count: self.patch.vertices(), _pad: [0; 2] });
+        self.vertex_pass.record(cx, &vertex_params);
+        self.tetra_pass.record(cx, &TetraParams { faces: self.faces, count: self.patch.vertices(), _pad: [0; 2] });
         let [x, y, z] = self.dims;
         let draw = ShellDrawParams {
             dims: [x as f32, y as f32, z as f32, self.levels as f32],
@@ -419,7 +422,7 @@ impl ShellRenderer {
             threshold: s.opacity,
             debug_pass: s.debug_pass,
         };
-        peel::record(queue, encoder, timer, &self.pipelines, targets, &draw, hdr);
+        peel::record(cx, &self.pipelines, targets, &draw, hdr);
         self.drawn = true;
     }
 

@@ -18,6 +18,7 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
+use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::render::pipeline::{HDR_FORMAT, screen_target};
 use crate::shaders;
@@ -186,41 +187,48 @@ pub struct PeelPipelines {
     composite: wgpu::RenderPipeline,
 }
 
+/// The shell's bind group layouts: its own (parameters, vertices,
+/// tetrahedra, volumes), the two peeling depths, and the resolve's.
+fn peel_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
+    let shell_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("shell"),
+        entries: &[
+            uniform(0),
+            storage_ro(1),
+            storage_ro(2),
+            storage_ro(3),
+            volume_binding(4),
+            volume_binding(5),
+            layout_entry(6, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
+        ],
+    });
+    let depth_layout =
+        device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("shell depths"), entries: &[depth_binding(0), depth_binding(1)] });
+    let resolve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("shell resolve"),
+        entries: &[
+            uniform(0),
+            depth_binding(1),
+            depth_binding(2),
+            layout_entry(
+                3,
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+            ),
+            storage_ro(4),
+        ],
+    });
+    (shell_layout, depth_layout, resolve_layout)
+}
+
 impl PeelPipelines {
     /// Builds the pipelines; `lit_layout` is the renderer's group 0 (frame, shadow map, sky light).
     #[must_use]
     pub fn new(device: &wgpu::Device, lit_layout: &wgpu::BindGroupLayout) -> Self {
-        let shell_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("shell"),
-            entries: &[
-                uniform(0),
-                storage_ro(1),
-                storage_ro(2),
-                storage_ro(3),
-                volume_binding(4),
-                volume_binding(5),
-                layout_entry(6, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
-            ],
-        });
-        let depth_layout =
-            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("shell depths"), entries: &[depth_binding(0), depth_binding(1)] });
-        let resolve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("shell resolve"),
-            entries: &[
-                uniform(0),
-                depth_binding(1),
-                depth_binding(2),
-                layout_entry(
-                    3,
-                    wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                ),
-                storage_ro(4),
-            ],
-        });
+        let (shell_layout, depth_layout, resolve_layout) = peel_layouts(device);
         let draw = device
             .create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("shell draw"), source: wgpu::ShaderSource::Wgsl(shaders::SHELL_DRAW.into()) });
         let resolve = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -438,15 +446,9 @@ fn colour_pass<'e>(
 }
 
 /// Records the peeling passes and the composite into `hdr`.
-pub fn record(
-    queue: &wgpu::Queue,
-    encoder: &mut wgpu::CommandEncoder,
-    timer: &mut crate::gpu::GpuTimer,
-    pipelines: &PeelPipelines,
-    targets: &PeelTargets,
-    draw: &PeelDraw<'_>,
-    hdr: &wgpu::TextureView,
-) {
+pub fn record(cx: &mut FrameContext<'_>, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
+    let gpu = cx.gpu;
+    let (queue, encoder, timer) = (&gpu.queue, &mut *cx.encoder, &mut *cx.timer);
     let size = targets.size;
     queue.write_buffer(
         &targets.resolve_params,
@@ -493,7 +495,7 @@ pub fn record(
             pass.set_bind_group(0, &targets.resolve_layer, &[]);
             pass.draw(0..3, 0..1);
         }
-        targets.count.record(encoder, &mut untimed, k, size);
+        targets.count.record(&mut FrameContext::new(gpu, encoder, &mut untimed), k, size);
         {
             // Step 3: shade the layer, depth test `equal`, under what is there.
             let mut pass = colour_pass(encoder, "shell shade", &targets.accumulated, false, Some(&targets.peel_depth), None);

@@ -6,7 +6,8 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Parameters of [`ShellTetraPass`] (`TetraParams` in WGSL).
@@ -81,7 +82,8 @@ impl ShellTetraPass {
     }
 
     /// Records the pass over `params.faces` faces.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &TetraParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &TetraParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         layout::dispatch(encoder, timer, "shell tetrahedra", &self.pipeline, &self.bind_group, (layout::groups(params.faces, 64), 1));
     }

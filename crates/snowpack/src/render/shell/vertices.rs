@@ -5,7 +5,8 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-use crate::gpu::{GpuTimer, layout};
+use crate::frame::FrameContext;
+use crate::gpu::layout;
 use crate::shaders;
 
 /// Parameters of [`ShellVertexPass`] (`ShellVertexParams` in WGSL).
@@ -123,7 +124,8 @@ impl ShellVertexPass {
     }
 
     /// Records the pass over `params.count` vertices.
-    pub fn record(&self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, params: &ShellVertexParams) {
+    pub fn record(&self, cx: &mut FrameContext<'_>, params: &ShellVertexParams) {
+        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         layout::dispatch(encoder, timer, "shell vertices", &self.pipeline, &self.bind_group, (layout::groups(params.count, 64), 1));
     }

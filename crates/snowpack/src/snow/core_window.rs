@@ -1,0 +1,369 @@
+//! The core window: the deformation's resources and its own passes (window,
+//! capture, stamps, update, display, decals, queries), each recorded by one
+//! step of [`SnowDeformation::encode`](super::SnowDeformation::encode). The
+//! plug-ins (objects, tiles, characters, shared snow) are the orchestrator's;
+//! the core takes from them only what a pass's uniforms need (the sky's
+//! projection, the shared grid), as arguments.
+
+use glam::DVec2;
+
+use crate::accumulate::OcclusionParams;
+use crate::deform::capture::{CaptureParams, CapturePass, SweptMesh};
+use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
+use crate::deform::display::{DisplayParams, DisplayPass};
+use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryTicket};
+use crate::deform::resources::DeformResources;
+use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
+use crate::deform::sweep::DeformerHistory;
+use crate::deform::update::{UpdateParams, UpdatePass};
+use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
+use crate::frame::{FrameContext, WindowFrame};
+use crate::gpu::GpuContext;
+use crate::replicate::flags::ShareGrid;
+use crate::{Deformer, SnowParams, Technique, TerrainSource};
+
+use super::clock::FrameRefill;
+
+/// Margin of the capture depth range beyond the terrain and the snow (m).
+const CAPTURE_MARGIN_M: f32 = 1.0;
+
+/// Top of the capture and footprint height range. Above the snow by the
+/// margin, and high enough that a stored footprint's rim has fallen to zero
+/// below it: the rounded rim ends where `h = foot + 4 (rest - foot)`, at most
+/// `4 rest - 3 low`. A footprint clipped at a lower top would keep a
+/// non-zero rim out to the edge of its range and leave a ridge there.
+fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
+    let low = tmin - CAPTURE_MARGIN_M;
+    let rest = tmax + depth_m;
+    (rest + CAPTURE_MARGIN_M).max(4.0 * rest - 3.0 * low)
+}
+
+/// The deformation window over the terrain and the passes that update it.
+pub(super) struct CoreWindow {
+    pub(super) params: SnowParams,
+    pub(super) terrain: TerrainSource,
+    pub(super) res: DeformResources,
+    pub(super) window: SlidingWindow,
+    /// Where the window is asked to be centred (world m, f64).
+    pub(super) center: DVec2,
+    pub(super) capture_params: CaptureParams,
+    window_pass: WindowPass,
+    capture_pass: CapturePass,
+    pub(super) stamp_pass: StampPass,
+    pub(super) decal_pass: DecalPass,
+    pub(super) decals: DecalRing,
+    pub(super) update_pass: UpdatePass,
+    display_pass: DisplayPass,
+    pub(super) query_pass: QueryPass,
+    /// Tickets given so far ([`super::SnowFrame::with_queries`]).
+    pub(super) tickets: u64,
+    /// The newest point answers taken.
+    pub(super) answers: Option<PointAnswers>,
+    /// Texels rewritten by window moves so far.
+    pub(super) exposed_texels: u64,
+    /// Contact points stamped in the last frame.
+    pub(super) points_last_frame: usize,
+    /// Contact points left out because a frame brought more than the stamp pass takes.
+    pub(super) points_dropped: u64,
+    /// World (x, z) that deformer and object positions are relative to (f64).
+    pub(super) floating_origin: DVec2,
+    /// Last frame's deformers, by index, to sweep this frame's from.
+    pub(super) history: DeformerHistory,
+    /// The terrain's lowest and highest height (m), found once.
+    terrain_bounds: (f32, f32),
+    /// Lists one frame fills, kept for their memory so that a frame after
+    /// the first allocates nothing for them (however many deformers).
+    scratch: FrameScratch,
+}
+
+/// Lists the core's steps fill each frame, cleared and refilled.
+#[derive(Default)]
+struct FrameScratch {
+    /// Each deformer's pose to sweep from.
+    sweeps: Vec<Option<Deformer>>,
+    /// The capture's instances.
+    instances: crate::deform::capture::CaptureInstances,
+    /// The stamp pass's contact points.
+    points: Vec<[f32; 8]>,
+}
+
+impl CoreWindow {
+    /// The window of `params` over `terrain`, centred on `center`, and its passes.
+    pub(super) fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Self {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        let res = DeformResources::new(device, queue, &params, &terrain);
+        let (tmin, tmax) = terrain.height_bounds();
+        // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
+        let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
+        let capture_params =
+            CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m: tmin - CAPTURE_MARGIN_M, high_m: capture_top(tmin, tmax, deepest) };
+        Self {
+            window_pass: WindowPass::new(device, &res),
+            capture_pass: CapturePass::new(device),
+            stamp_pass: StampPass::new(device, &res),
+            decal_pass: DecalPass::new(device, queue, params.resolution, params.technique == Technique::Decals),
+            decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
+            update_pass: UpdatePass::new(device, &res),
+            display_pass: DisplayPass::new(device, &res),
+            query_pass: QueryPass::new(device, &res),
+            tickets: 0,
+            answers: None,
+            window: SlidingWindow::new(params.resolution),
+            center,
+            capture_params,
+            params,
+            terrain,
+            res,
+            exposed_texels: 0,
+            points_last_frame: 0,
+            points_dropped: 0,
+            floating_origin: DVec2::ZERO,
+            history: DeformerHistory::new(),
+            terrain_bounds: (tmin, tmax),
+            scratch: FrameScratch::default(),
+        }
+    }
+
+    /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
+    pub(super) fn stamp_range(&self) -> (f32, f32, f32) {
+        let (low, high) = (self.capture_params.low_m, self.capture_params.high_m);
+        (low, high, (high - low) / 65535.0)
+    }
+
+    /// The window's origin for its centre, snapped to texels.
+    pub(super) fn desired_origin(&self) -> [i64; 2] {
+        self.window.snapped_origin(self.center.x, self.center.y, f64::from(self.params.texel_m()))
+    }
+
+    /// Allocates the footprint buffer the first time the technique uses it
+    /// and rebinds the core passes bound to its 4-byte stand-in; `true`
+    /// when it did, so the plug-ins bound to the resources rebind too.
+    pub(super) fn allocate_stamps(&mut self, ctx: &GpuContext, sky: Option<&wgpu::TextureView>) -> bool {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        if !(self.params.technique.uses_stamps() && self.res.allocate_stamps(device, queue)) {
+            return false;
+        }
+        // Every pass bound to the 4-byte stand-in binds the new buffer.
+        self.window_pass = WindowPass::new(device, &self.res);
+        self.stamp_pass = StampPass::new(device, &self.res);
+        self.display_pass = DisplayPass::new(device, &self.res);
+        self.update_pass = UpdatePass::new(device, &self.res);
+        self.update_pass.bind_sky(device, &self.res, sky);
+        true
+    }
+
+    /// Moves the window to `origin`: the rectangles of texels it exposes
+    /// (counted) and where the window is this frame, with `fallen_m` of
+    /// snowfall so far.
+    pub(super) fn move_to(&mut self, origin: [i64; 2], fallen_m: f32) -> (WindowFrame, Vec<TexelRect>) {
+        let p = &self.params;
+        let texel = f64::from(p.texel_m());
+        let rects = self.window.move_to(origin);
+        self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
+        // Deformers and objects are relative to the floating origin; so is the corner they are placed against.
+        let corner = DVec2::new(origin[0] as f64 * texel, origin[1] as f64 * texel) - self.floating_origin;
+        let window = WindowFrame {
+            origin,
+            corner,
+            resolution: p.resolution,
+            extent_m: p.extent_m,
+            depth_m: p.depth_m,
+            texel_m: p.texel_m(),
+            fallen_m,
+            max_fallen_m: p.snowfall.as_ref().map_or(0.0, |s| s.max_m),
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            use_fallen: p.snowfall.is_some(),
+            terrain_m: self.terrain_bounds,
+        };
+        (window, rects)
+    }
+
+    /// The window pass: fresh snow in the texels a move exposed (when no
+    /// tiles are kept; otherwise the tiles' exchange does it).
+    pub(super) fn record_window(&self, cx: &mut FrameContext<'_>, window: &WindowFrame, rects: &[TexelRect]) {
+        let p = &self.params;
+        let params = WindowParams {
+            origin: gpu_origin(window.origin),
+            resolution: p.resolution,
+            texel_m: p.texel_m(),
+            depth_m: p.depth_m,
+            fallen_m: window.fallen_m,
+            flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 } | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
+            ..WindowParams::default()
+        };
+        self.window_pass.record(cx, params, rects);
+    }
+
+    /// Each deformer's pose to sweep from (its last frame's), then this
+    /// frame's remembered for the next.
+    pub(super) fn sweep(&mut self, deformers: &[Deformer], ids: &[u64]) {
+        self.history.sweeps_into(deformers, ids, self.params.teleport_m, &mut self.scratch.sweeps);
+        self.history.remember(deformers, ids);
+    }
+
+    /// The capture (techniques depth and combined): each deformer's and
+    /// mesh's underside, swept over its motion, into the capture depth.
+    pub(super) fn record_capture(
+        &mut self,
+        cx: &mut FrameContext<'_>,
+        deformers: &[Deformer],
+        corner: DVec2,
+        (meshes, mesh_steps): (&[SweptMesh<'_>], &[u32]),
+    ) {
+        let scratch = &mut self.scratch;
+        let instances = &mut scratch.instances;
+        instances.fill_swept(deformers, &scratch.sweeps, corner, &self.capture_params);
+        instances.mesh_steps.clear();
+        instances.mesh_steps.extend_from_slice(mesh_steps);
+        self.capture_pass.prepare(cx.device(), cx.queue(), &self.capture_params, instances);
+        self.capture_pass.record_swept(cx, &self.res, meshes);
+    }
+
+    /// The stamp pass's uniforms at `origin` (the shared grid's, when the snow is shared).
+    pub(super) fn stamp_params(&self, origin: [i64; 2], share: Option<ShareGrid>) -> StampParams {
+        let p = &self.params;
+        StampParams {
+            origin: gpu_origin(origin),
+            resolution: p.resolution,
+            range_texels: p.range_texels,
+            texel_m: p.texel_m(),
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            count: 0,
+            share_side: share.map_or(0, |g| g.side),
+            share_keys: share.map_or(0, |g| g.keys),
+            ..StampParams::default()
+        }
+    }
+
+    /// The stamps (techniques points and combined): each deformer's contact
+    /// points, swept, as footprints; counts what a frame brought beyond the
+    /// pass's limit.
+    pub(super) fn record_stamps(&mut self, cx: &mut FrameContext<'_>, deformers: &[Deformer], corner: DVec2, stamp_params: &StampParams) {
+        let points = &mut self.scratch.points;
+        contact_points_into(deformers, &self.scratch.sweeps, corner, stamp_params, points);
+        let dropped = self.stamp_pass.prepare(cx.device(), cx.queue(), &self.res, stamp_params, points);
+        self.stamp_pass.record(cx);
+        self.points_last_frame = points.len() - dropped;
+        if dropped > 0 {
+            // Said once per doubling of the total, so a scene that always
+            // brings too many is reported without flooding the log.
+            let before = self.points_dropped;
+            self.points_dropped += dropped as u64;
+            if before == 0 || self.points_dropped.ilog2() > before.ilog2() {
+                tracing::warn!(
+                    "{} contact points this frame, above the stamp pass's {}: {dropped} left out ({} so far; see points_dropped)",
+                    points.len(),
+                    crate::deform::stamp::MAX_POINTS,
+                    self.points_dropped
+                );
+            }
+        }
+    }
+
+    /// The update: the persistent snow pressed by this frame's capture and
+    /// stamps, refilled by `refill`'s quanta, under `sky` (objects'
+    /// shelter) and flagging the tiles of `share` it changes.
+    pub(super) fn record_update(
+        &self,
+        cx: &mut FrameContext<'_>,
+        origin: [i64; 2],
+        refill: &FrameRefill,
+        sky: Option<&OcclusionParams>,
+        share: Option<ShareGrid>,
+    ) {
+        let p = &self.params;
+        let technique = p.technique;
+        let captures = matches!(technique, Technique::Depth | Technique::Combined);
+        let stamps = matches!(technique, Technique::Points | Technique::Combined);
+        let snowfall = p.snowfall.as_ref();
+        let params = UpdateParams {
+            origin: gpu_origin(origin),
+            resolution: p.resolution,
+            depth_m: p.depth_m,
+            snow_refill_quanta: refill.snow_refill_quanta,
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
+                | if stamps { UpdateParams::USE_STAMPS } else { 0 }
+                | if snowfall.is_some() { UpdateParams::USE_FALLEN } else { 0 }
+                | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
+                | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 }
+                | if share.is_some() { UpdateParams::SHARE } else { 0 },
+            refill_quanta: refill.refill_quanta,
+            fall_m: refill.fall_m,
+            max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
+            texel_m: p.texel_m(),
+            sky_shear: sky.map_or([0.0; 2], |s| s.shear),
+            sky_offset_m: sky.map_or([0.0; 2], |s| s.offset_m),
+            sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
+            sky_low_m: sky.map_or(0.0, |s| s.low_m),
+            sky_high_m: sky.map_or(1.0, |s| s.high_m),
+            share_side: share.map_or(0, |g| g.side),
+            share_keys: share.map_or(0, |g| g.keys),
+            ..Default::default()
+        };
+        self.update_pass.record(cx, &params);
+    }
+
+    /// The display: rims, blur and the displayed half of each snow word.
+    pub(super) fn record_display(&self, cx: &mut FrameContext<'_>, origin: [i64; 2]) {
+        let p = &self.params;
+        let params = DisplayParams {
+            origin: gpu_origin(origin),
+            resolution: p.resolution,
+            depth_m: p.depth_m,
+            elevation: p.elevation,
+            mode: DisplayParams::mode_for(p.technique, p.rim),
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            use_fallen: u32::from(p.snowfall.is_some()),
+            texel_m: p.texel_m(),
+            blur: u32::from(p.blur),
+            ..Default::default()
+        };
+        self.display_pass.record(cx, &params);
+    }
+
+    /// The decals: contacts are kept whatever the technique (so switching
+    /// to decals shows the recent ones) and drawn only with decals.
+    pub(super) fn record_decals(&mut self, cx: &mut FrameContext<'_>, deformers: &[Deformer], corner: DVec2) {
+        let p = &self.params;
+        self.decals.observe(deformers, &self.terrain, p.depth_m);
+        if p.technique == Technique::Decals {
+            self.decal_pass.allocate_layer(cx.device());
+            self.decal_pass.prepare(cx.device(), cx.queue(), &mut self.decals, corner, p.extent_m);
+            self.decal_pass.record(cx);
+        }
+    }
+
+    /// The point queries of `frame` (ticket and points, relative to the
+    /// floating origin), gathered at the window at `origin` and copied out.
+    pub(super) fn record_queries(
+        &mut self,
+        cx: &mut FrameContext<'_>,
+        (origin, corner): ([i64; 2], DVec2),
+        (ticket, points): (QueryTicket, &[glam::Vec2]),
+        frame: u64,
+    ) {
+        let p = &self.params;
+        let local: Vec<glam::Vec2> = points.iter().map(|q| glam::Vec2::new((f64::from(q.x) - corner.x) as f32, (f64::from(q.y) - corner.y) as f32)).collect();
+        let params = QueryParams {
+            origin: gpu_origin(origin),
+            resolution: p.resolution,
+            count: 0,
+            texel_m: p.texel_m(),
+            depth_m: p.depth_m,
+            use_fallen: u32::from(p.snowfall.is_some()),
+            _pad: 0,
+        };
+        self.query_pass.record(cx, &self.res, params, &local, (ticket, frame, points.to_vec()));
+    }
+}
+
+/// Window and tile coordinates stay in i64 on the CPU; the GPU needs only
+/// i32 (about 134,000 km of texels at 6.25 cm).
+fn gpu_origin(origin: [i64; 2]) -> [i32; 2] {
+    [origin[0] as i32, origin[1] as i32]
+}

@@ -1,0 +1,182 @@
+//! One frame as a list of steps: `FrameSteps::record` records, in order,
+//! the core window's passes ([`super::core_window`]) and the plug-ins' (tiles,
+//! shared snow, objects) into the frame's [`FrameContext`]. The characters
+//! are skinned before it and remembered after it
+//! ([`super::SnowDeformation::encode`]). A new pass goes in as a step here,
+//! at its place in the list (see `docs/architecture.md`).
+
+use glam::Vec2;
+
+use crate::Technique;
+use crate::accumulate::{OcclusionParams, SnowAccumulation};
+use crate::deform::capture::SweptMesh;
+use crate::deform::query::QueryTicket;
+use crate::deform::window::TexelRect;
+use crate::frame::{FrameContext, WindowFrame};
+use crate::replicate::merge::{FrameRecord, TileMergeParams};
+use crate::replicate::sharing::Sharing;
+use crate::tiles::TileStreaming;
+
+use super::SnowFrame;
+use super::clock::{FrameRefill, SnowTime};
+use super::core_window::CoreWindow;
+
+/// What the frame's steps leave for the characters' snow
+/// ([`super::coat`]): where the window is, this frame's snowfall and the
+/// occlusion's projection.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct GroundAfter {
+    /// The window's placement this frame.
+    pub window: WindowFrame,
+    /// This frame's snowfall on open ground (m).
+    pub fall_m: f32,
+    /// The occlusion's projection, when objects shelter the ground.
+    pub sky: Option<OcclusionParams>,
+}
+
+/// What a frame's steps change, borrowed apart from the frame's timer (in
+/// the context) and the characters (whose meshes the capture reads).
+pub(super) struct FrameSteps<'s> {
+    /// The window and its passes.
+    pub core: &'s mut CoreWindow,
+    /// Time, refill and snowfall so far.
+    pub time: &'s mut SnowTime,
+    /// Objects snow settles on, when there are any.
+    pub accumulation: Option<&'s mut SnowAccumulation>,
+    /// The tiles kept while the window is away, when kept.
+    pub tiles: Option<&'s mut TileStreaming>,
+    /// Shared snow, when enabled.
+    pub sharing: Option<&'s mut Sharing>,
+}
+
+impl FrameSteps<'_> {
+    /// Records one frame: `frame`'s deformers, the pressing `meshes` (with
+    /// their sub-steps) and the point queries (with the frame's number);
+    /// returns what the characters' snow reads of the ground.
+    pub(super) fn record(
+        mut self,
+        cx: &mut FrameContext<'_>,
+        frame: &SnowFrame<'_>,
+        meshes: (&[SweptMesh<'_>], &[u32]),
+        queries: Option<((QueryTicket, &[Vec2]), u64)>,
+    ) -> GroundAfter {
+        let (window, old, rects) = self.place_window(cx);
+        self.record_move(cx, &window, old, &rects);
+        self.record_shared_merge(cx, &window);
+        let sky = self.record_occlusion(cx, &window);
+        let technique = self.core.params.technique;
+        let stamps = matches!(technique, Technique::Points | Technique::Combined);
+        // Each deformer presses over its motion since the last frame.
+        self.core.sweep(frame.deformers, frame.ids);
+        if matches!(technique, Technique::Depth | Technique::Combined) {
+            self.core.record_capture(cx, frame.deformers, window.corner, meshes);
+        }
+        let share = self.sharing.as_ref().map(|s| s.grid());
+        let stamp_params = self.core.stamp_params(window.origin, share);
+        self.core.points_last_frame = 0;
+        if stamps {
+            self.core.record_stamps(cx, frame.deformers, window.corner, &stamp_params);
+        }
+        let refill = self.time.refill(&self.core.params, frame.dt_s, stamp_params.quantum_m());
+        self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share);
+        if let Some(tiles) = &mut self.tiles {
+            tiles.record_weather(cx, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
+        }
+        self.time.advance(&refill, window.max_fallen_m);
+        self.record_shared_flags(cx, &window, &refill, stamps);
+        self.core.record_display(cx, window.origin);
+        self.record_objects(cx, sky.is_some(), refill.fall_m, frame.dt_s);
+        self.core.record_decals(cx, frame.deformers, window.corner);
+        if let Some((asked, number)) = queries {
+            self.core.record_queries(cx, (window.origin, window.corner), asked, number);
+        }
+        GroundAfter { window, fall_m: refill.fall_m, sky }
+    }
+
+    /// Where the window is this frame (with a store it may wait for tiles
+    /// still loading), the footprint buffer when the technique first needs
+    /// it, and the move: this frame's window, the old origin and the
+    /// exposed rectangles.
+    fn place_window(&mut self, cx: &mut FrameContext<'_>) -> (WindowFrame, Option<[i64; 2]>, Vec<TexelRect>) {
+        let desired = self.core.desired_origin();
+        let old = self.core.window.origin();
+        let origin = match &mut self.tiles {
+            Some(tiles) => tiles.plan(cx.gpu, old, desired),
+            None => desired,
+        };
+        let sky = self.accumulation.as_deref().map(SnowAccumulation::sky_view);
+        if self.core.allocate_stamps(cx.gpu, sky) {
+            if let Some(tiles) = &mut self.tiles {
+                tiles.add_stamp_plane(cx.gpu, &self.core.res);
+            }
+            if let Some(sharing) = &mut self.sharing {
+                sharing.rebind(cx.device(), &self.core.res);
+            }
+        }
+        let (window, rects) = self.core.move_to(origin, self.time.fallen_m);
+        (window, old, rects)
+    }
+
+    /// The move's texels: through the tiles when they are kept (stash,
+    /// copy-out, restore, load), else fresh snow in the exposed strips.
+    fn record_move(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame, old: Option<[i64; 2]>, rects: &[TexelRect]) {
+        match &mut self.tiles {
+            Some(tiles) => tiles.record_move(cx, window, &self.core.res, (old, rects), self.time.clock),
+            None => self.core.record_window(cx, window, rects),
+        }
+    }
+
+    /// Shared snow: tiles from elsewhere, before this frame's presses, so
+    /// the update and display see them like the window's own trails.
+    fn record_shared_merge(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame) {
+        let Some(sharing) = &mut self.sharing else { return };
+        let core = &*self.core;
+        let (low, high, _) = core.stamp_range();
+        let merge = TileMergeParams {
+            depth_m: core.params.depth_m,
+            texel_m: core.params.texel_m(),
+            low_m: low,
+            high_m: high,
+            max_fallen_m: window.max_fallen_m,
+            ..Default::default()
+        };
+        sharing.record_merge(cx, &core.share_window(window.origin), merge, (&self.time.share_clock(), core.catch_up_rule()));
+    }
+
+    /// What the sky sees (drawn while the snowfall is set, even at rate 0,
+    /// so refill stays out of shelter too), after the objects' poses are
+    /// uploaded; its projection, for the update.
+    fn record_occlusion(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame) -> Option<OcclusionParams> {
+        let acc = self.accumulation.as_mut()?;
+        acc.upload_poses(cx.queue(), window);
+        let snowfall = self.core.params.snowfall.as_ref()?;
+        Some(acc.record_occlusion(cx, window, snowfall))
+    }
+
+    /// Shared snow after the presses: the changed-tile flags out, and the
+    /// dirty tiles as this frame left them.
+    fn record_shared_flags(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame, refill: &FrameRefill, stamps: bool) {
+        let Some(sharing) = &mut self.sharing else { return };
+        let core = &*self.core;
+        let record = FrameRecord {
+            after: self.time.share_clock(),
+            snow_quanta: refill.snow_refill_quanta,
+            stamp_quanta: refill.refill_quanta,
+            fall_m: refill.fall_m,
+            stamps_pressed: stamps && core.res.has_stamps(),
+        };
+        sharing.record_after_update(cx, &core.res, &core.share_window(window.origin), record);
+    }
+
+    /// Snow settling on objects: with snowfall, what falls on them this
+    /// frame (one occlusion pixel is one window texel of ground), settled;
+    /// without, their surface as it is.
+    fn record_objects(&mut self, cx: &mut FrameContext<'_>, sheltered: bool, fall_m: f32, dt_s: f32) {
+        let Some(acc) = &mut self.accumulation else { return };
+        let p = &self.core.params;
+        match &p.snowfall {
+            Some(s) => acc.record_atlas(cx, s, if sheltered { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
+            None => acc.record_surface(cx),
+        }
+    }
+}
