@@ -10,7 +10,9 @@
 //     pressed the snow under the body down to it, so the snow waded through is
 //     the highest persistent snow within `wade_radius_m` (the centre and eight
 //     points on a circle), each read as the point queries read it (bilinear
-//     between texel centres, query.wgsl);
+//     between texel centres, query.wgsl). No snow is above its rest surface,
+//     so a vertex higher than the rest surface under it plus the radius (a
+//     45-degree rise) reads only the centre: most of a body skips the circle;
 //   - snowfall: facing up and reached by the sky (the objects' occlusion map,
 //     as the ground's update tests it) gains this frame's fall times the up
 //     component of its normal, up to `cap_m`;
@@ -64,35 +66,37 @@ const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
     vec2<f32>(-1.0, 0.0), vec2<f32>(-0.70710677, -0.70710677), vec2<f32>(0.0, -1.0), vec2<f32>(0.70710677, -0.70710677),
 );
 
-fn lerp2(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
-    let ab = a + (b - a) * f.x;
-    let cd = c + (d - c) * f.x;
-    return ab + (cd - ab) * f.y;
-}
-
-fn texel_height(g: vec2<i32>, s: u32) -> f32 {
+// Persistent snow height and rest height of a texel.
+fn texel_height(g: vec2<i32>, s: u32) -> vec2<f32> {
     let t = texel_ground(terrain_params, g, params.texel_m);
     var lying = 0.0;
     if params.use_fallen != 0u {
         lying = fallen[s];
     }
-    return snow_word_height(snow[s], t + params.depth_m + lying, t);
+    let rest = t + params.depth_m + lying;
+    return vec2<f32>(snow_word_height(snow[s], rest, t), rest);
 }
 
-// Persistent snow height at window-local point q (m), or -1e30 outside.
-fn height_at(q: vec2<f32>) -> f32 {
+fn lerp2v(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>, d: vec2<f32>, f: vec2<f32>) -> vec2<f32> {
+    let ab = a + (b - a) * f.x;
+    let cd = c + (d - c) * f.x;
+    return ab + (cd - ab) * f.y;
+}
+
+// Persistent snow height and rest height at window-local point q (m), or -1e30 outside.
+fn height_at(q: vec2<f32>) -> vec2<f32> {
     let uv = q / params.texel_m - vec2<f32>(0.5);
     let cell = floor(uv);
     let f = uv - cell;
     let last = f32(i32(params.resolution) - 2);
     if cell.x < 0.0 || cell.y < 0.0 || cell.x > last || cell.y > last {
-        return -1e30;
+        return vec2<f32>(-1e30);
     }
     let j = u32(cell.x);
     let i = u32(cell.y);
     let res = params.resolution;
     let g = params.origin + vec2<i32>(i32(j), i32(i));
-    return lerp2(
+    return lerp2v(
         texel_height(g, storage_index(params.origin, res, i, j)),
         texel_height(g + vec2<i32>(1, 0), storage_index(params.origin, res, i, j + 1u)),
         texel_height(g + vec2<i32>(0, 1), storage_index(params.origin, res, i + 1u, j)),
@@ -130,9 +134,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let q = p.xz - params.corner_m;
     var c = coat[v];
     // Wading.
-    var top = height_at(q);
-    for (var k = 0u; k < 8u; k++) {
-        top = max(top, height_at(q + RING[k] * params.wade_radius_m));
+    let centre = height_at(q);
+    var top = centre.x;
+    if p.y < centre.y + params.wade_radius_m {
+        for (var k = 0u; k < 8u; k++) {
+            top = max(top, height_at(q + RING[k] * params.wade_radius_m).x);
+        }
     }
     let under = top - p.y;
     if under > 0.0 {

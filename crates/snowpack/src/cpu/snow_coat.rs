@@ -9,7 +9,7 @@ use super::window::storage_index;
 
 const SKY_BIAS_M: f32 = 0.02;
 
-fn lerp2(a: f32, b: f32, c: f32, d: f32, f: Vec2) -> f32 {
+fn lerp2(a: Vec2, b: Vec2, c: Vec2, d: Vec2, f: Vec2) -> Vec2 {
     let ab = a + (b - a) * f.x;
     let cd = c + (d - c) * f.x;
     ab + (cd - ab) * f.y
@@ -29,20 +29,22 @@ pub struct CoatGroundData<'a> {
     pub sky: Option<&'a [f32]>,
 }
 
-fn height_at(p: &SnowCoatParams, g: &CoatGroundData<'_>, q: Vec2) -> f32 {
+/// Persistent snow height and rest height at window-local `q`, or -1e30 outside.
+fn height_at(p: &SnowCoatParams, g: &CoatGroundData<'_>, q: Vec2) -> Vec2 {
     let uv = q / p.texel_m - Vec2::splat(0.5);
     let cell = uv.floor();
     let f = uv - cell;
     let last = (p.resolution as i32 - 2) as f32;
     if cell.x < 0.0 || cell.y < 0.0 || cell.x > last || cell.y > last {
-        return -1e30;
+        return Vec2::splat(-1e30);
     }
     let (j, i) = (cell.x as u32, cell.y as u32);
     let h = |di: u32, dj: u32| {
         let s = storage_index(p.origin, p.resolution, i + di, j + dj);
         let t = g.terrain[s];
         let lying = if p.use_fallen != 0 { g.fallen[s] } else { 0.0 };
-        snow_word::height(g.snow[s], t + p.depth_m + lying, t)
+        let rest = t + p.depth_m + lying;
+        Vec2::new(snow_word::height(g.snow[s], rest, t), rest)
     };
     lerp2(h(0, 0), h(0, 1), h(1, 0), h(1, 1), f)
 }
@@ -82,7 +84,12 @@ pub fn snow_coat(p: &SnowCoatParams, g: &CoatGroundData<'_>, positions: &[Vec3],
             let n = normals[v];
             let q = Vec2::new(pos.x, pos.z) - Vec2::from(p.corner_m);
             let mut c = coat[v];
-            let top = ring.iter().fold(height_at(p, g, q), |top, d| top.max(height_at(p, g, q + *d * p.wade_radius_m)));
+            let centre = height_at(p, g, q);
+            let top = if pos.y < centre.y + p.wade_radius_m {
+                ring.iter().fold(centre.x, |top, d| top.max(height_at(p, g, q + *d * p.wade_radius_m).x))
+            } else {
+                centre.x
+            };
             let under = top - pos.y;
             if under > 0.0 {
                 c = c.max((c + p.cling_per_s * under * dt).min(p.cap_m));
