@@ -1471,3 +1471,94 @@ fn bad_vehicle_values_exit_2_naming_file_and_key() {
         expect_bad_input(name, toml, key);
     }
 }
+
+/// `actor_snow_K.npy` rows: bind-pose x, y, z, bind-pose normal y, snow (m).
+fn actor_snow(run: &Run, k: usize) -> Vec<[f32; 5]> {
+    let path = run.out.join(format!("actor_snow_{k}.npy"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(&bytes[..6], b"\x93NUMPY");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + len]).expect("ascii header");
+    let data: Vec<f32> = bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    assert!(header.contains(&format!("'shape': ({}, 5)", data.len() / 5)), "{header}");
+    data.chunks_exact(5).map(|r| [r[0], r[1], r[2], r[3], r[4]]).collect()
+}
+
+/// The fraction of `rows` carrying more than `min_m` of snow.
+fn snowy(rows: &[&[f32; 5]], min_m: f32) -> f32 {
+    rows.iter().filter(|r| r[4] > min_m).count() as f32 / rows.len().max(1) as f32
+}
+
+#[test]
+fn a_fox_wading_through_deep_snow_comes_out_with_snowy_legs_and_a_clean_back() {
+    if !gpu_available() {
+        return;
+    }
+    // 3 m through 20 cm of snow at the walk's pace; the fox's own units are centimetres.
+    let run = run_scene(
+        "fox-wade",
+        r#"
+[snow]
+extent_m = 8.0
+resolution = 256
+depth_m = 0.2
+[[actor]]
+kind = "gltf"
+file = "builtin:fox"
+animation = "Walk"
+scale = 0.01
+path = [[-1.5, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 3.0]]
+[sim]
+frames = 180
+"#,
+        &["--size", "64x36"],
+    );
+    let rows = actor_snow(&run, 0);
+    assert!(rows.len() > 1000, "{} vertices", rows.len());
+    let height = |r: &[f32; 5]| r[1] * 0.01;
+    let low: Vec<_> = rows.iter().filter(|r| height(r) < 0.08).collect();
+    let back: Vec<_> = rows.iter().filter(|r| height(r) > 0.35).collect();
+    assert!(low.len() > 50 && back.len() > 50, "{} low and {} back vertices", low.len(), back.len());
+    assert!(snowy(&low, 0.001) > 0.9, "only {:.0} % of the vertices under 8 cm carry snow after wading through 20 cm", 100.0 * snowy(&low, 0.001));
+    assert!(snowy(&back, 0.0005) == 0.0, "{:.0} % of the back (above 35 cm, over snow 20 cm deep, no snowfall) carries snow", 100.0 * snowy(&back, 0.0005));
+    for r in &rows {
+        assert!(r[4] >= 0.0 && r[4] <= snowpack::CoatSettings::default().cap_m + 1e-6, "a vertex carries {} m", r[4]);
+    }
+}
+
+#[test]
+fn a_fox_standing_in_snowfall_gets_a_white_back_and_a_clean_belly() {
+    if !gpu_available() {
+        return;
+    }
+    // 5 s of 4 mm/s onto bare ground: 2 cm on what faces straight up.
+    let run = run_scene(
+        "fox-snowfall",
+        r#"
+[snow]
+extent_m = 8.0
+resolution = 128
+depth_m = 0.0
+[snowfall]
+rate_m_per_s = 0.004
+max_m = 0.05
+[[actor]]
+kind = "gltf"
+file = "builtin:fox"
+animation = "Survey"
+scale = 0.01
+position = [0.0, 0.0, 0.0]
+[sim]
+frames = 300
+"#,
+        &["--size", "64x36"],
+    );
+    let rows = actor_snow(&run, 0);
+    let height = |r: &[f32; 5]| r[1] * 0.01;
+    // Above the 2 cm that fell on the ground, so no vertex here wades.
+    let up: Vec<_> = rows.iter().filter(|r| r[3] > 0.7 && height(r) > 0.2).collect();
+    let down: Vec<_> = rows.iter().filter(|r| r[3] < -0.7 && height(r) > 0.2).collect();
+    assert!(up.len() > 20 && down.len() > 20, "{} up and {} down vertices", up.len(), down.len());
+    assert!(snowy(&up, 0.005) > 0.8, "only {:.0} % of the upward faces carry 5 mm after 5 s of 4 mm/s", 100.0 * snowy(&up, 0.005));
+    assert!(snowy(&down, 0.0005) < 0.05, "{:.0} % of the downward faces carry snow", 100.0 * snowy(&down, 0.0005));
+}
