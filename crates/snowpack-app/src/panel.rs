@@ -40,6 +40,27 @@ pub enum Action {
     SaveStore,
 }
 
+/// The snow the characters carry (docs/characters.md): applied to every
+/// character when a slider moves.
+fn coat_controls(ui: &mut egui::Ui, session: &mut Session) {
+    ui.collapsing("snow on the characters", |ui| {
+        let mut coat = session.coat.unwrap_or_default();
+        ui.add(Slider::new(&mut coat.cling_per_s, 0.0..=20.0).text("cling").suffix(" /s"))
+            .on_hover_text("snow gained wading, per second and per metre under the snow around");
+        ui.add(Slider::new(&mut coat.cap_m, 0.0..=0.1).text("most carried").suffix(" m"));
+        ui.add(Slider::new(&mut coat.melt_m_per_s, 0.0..=0.01).logarithmic(true).text("melt").suffix(" m/s"));
+        ui.add(Slider::new(&mut coat.shake_speed_m_per_s, 0.0..=10.0).text("shakes off above").suffix(" m/s"));
+        ui.add(Slider::new(&mut coat.shake_per_s, 0.0..=10.0).text("shake-off rate").suffix(" /s"));
+        ui.add(Slider::new(&mut coat.wade_radius_m, 0.0..=1.0).text("wading reads within").suffix(" m"));
+        if session.coat.unwrap_or_default() != coat || (session.coat.is_none() && ui.button("apply to every character").clicked()) {
+            session.coat = Some(coat);
+            if let Err(e) = session.apply_coat() {
+                tracing::warn!("{e:#}");
+            }
+        }
+    });
+}
+
 /// State the panel keeps between frames.
 pub struct PanelState {
     /// Shown at all (H toggles).
@@ -220,6 +241,7 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 } else {
                     ui.label(format!("the fox walks at {FOX_WALK_M_PER_S} m/s, runs at {FOX_RUN_M_PER_S} m/s with Shift"));
                 }
+                coat_controls(ui, session);
                 ui.add(Slider::new(&mut session.snow_params.hardness_kpa, 0.5..=200.0).logarithmic(true).text("snow hardness").suffix(" kPa"))
                     .on_hover_text("how hard the snow is to press: characters on the snow sink half its depth where their foot pressure equals it");
                 match &session.footsteps.1 {

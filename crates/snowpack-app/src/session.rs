@@ -119,6 +119,9 @@ pub struct Session {
     fox: Option<usize>,
     /// Skinned meshes registered with the deformation, by actor.
     skins: Vec<(usize, SkinnedId)>,
+    /// The panel's snow coat for every character, once edited there
+    /// (until then each keeps its scene's `coat_*` keys).
+    pub coat: Option<snowpack::CoatSettings>,
     env: Arc<EnvironmentMap>,
     format: wgpu::TextureFormat,
     step_once: bool,
@@ -160,6 +163,7 @@ impl Session {
             probes: Vec::new(),
             fox: None,
             skins: Vec::new(),
+            coat: None,
             scene,
         };
         session.attach_store(ctx)?;
@@ -211,6 +215,7 @@ impl Session {
     /// scene's objects (fresh deformation).
     fn register_skins(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
         self.skins = crate::characters::register_characters(ctx, &self.world, &mut self.snow)?;
+        self.apply_coat()?;
         let objects: Vec<_> = self.scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
         self.snow.set_objects(ctx, &objects).context("placing the [[object]]s")?;
         Ok(())
@@ -227,6 +232,9 @@ impl Session {
                 ActorSpec { shape: ShapeSpec::Gltf(fox.clone()), motion: Motion::Kinematic { position: Vec3::new(at.x, 0.0, at.z), velocity: Vec3::ZERO } };
             let k = self.world.add_actor(&spec);
             let id = self.snow.add_skinned_mesh(ctx, &fox.model.mesh, fox.model.skeleton.joints.len()).context("uploading the fox")?;
+            if let Some(coat) = self.coat {
+                self.snow.set_coat(id, coat).context("the fox's snow coat")?;
+            }
             self.skins.push((k, id));
             self.fox = Some(k);
         }
@@ -234,6 +242,16 @@ impl Session {
             self.world.set_enabled(k, self.player.enabled && body == PlayerBody::Fox);
             if let Some(p) = self.world.actor_position(k) {
                 self.player.position = p;
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives every character the panel's snow coat, once it was edited there.
+    pub fn apply_coat(&mut self) -> anyhow::Result<()> {
+        if let Some(coat) = self.coat {
+            for (_, id) in &self.skins {
+                self.snow.set_coat(*id, coat).context("the characters' snow coat")?;
             }
         }
         Ok(())
