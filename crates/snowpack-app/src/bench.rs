@@ -326,6 +326,8 @@ pub struct BenchResults {
     pub shell_rows: Vec<crate::bench_shell::ShellRow>,
     /// Swept capture against unswept.
     pub sweep_rows: Vec<crate::bench_sweep::SweepRow>,
+    /// The snow coat against skinning.
+    pub coat_rows: Vec<crate::bench_coat::CoatRow>,
     /// Shared snow: one relay under simulated peers (no GPU).
     pub share_rows: Vec<crate::bench_share::ShareRow>,
 }
@@ -353,6 +355,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         store_row: None,
         shell_rows: Vec::new(),
         sweep_rows: Vec::new(),
+        coat_rows: Vec::new(),
         share_rows: Vec::new(),
     };
     for &res in sizes {
@@ -479,6 +482,21 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
             );
         }
     }
+    // Snow on the characters (issue 35): the coat against the skinning it follows.
+    if only.is_none_or(|o| "coat".contains(o)) {
+        let (coat_warmup, coat_frames) = if quick { (5, 20) } else { (30, 120) };
+        results.coat_rows = crate::bench_coat::measure(ctx, coat_warmup, coat_frames).context("measuring the snow coat")?;
+        for row in &results.coat_rows {
+            println!(
+                "  coat {:<26} {:>7} vertices: skinning {:.4} ms, snow coat {:.4} ms ({:.2}x)",
+                row.mesh,
+                row.vertices,
+                row.skinning_ms,
+                row.coat_ms,
+                row.ratio()
+            );
+        }
+    }
     // Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
     // sizes and few frames (a software adapter takes seconds a frame at 2560x1600).
     if only.is_none_or(|o| "shell".contains(o)) {
@@ -593,6 +611,9 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.sweep_rows.is_empty() {
         md.push_str(&crate::bench_sweep::markdown(&r.sweep_rows, &r.adapter, r.software));
     }
+    if !r.coat_rows.is_empty() {
+        md.push_str(&crate::bench_coat::markdown(&r.coat_rows, &r.adapter, r.software));
+    }
     if !r.share_rows.is_empty() {
         md.push_str(&crate::bench_share::markdown(&r.share_rows));
     }
@@ -678,12 +699,15 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.sweep_rows.is_empty() {
         files.push(("sweep.csv", crate::bench_sweep::csv(&r.sweep_rows).into_bytes()));
     }
+    if !r.coat_rows.is_empty() {
+        files.push(("coat.csv", crate::bench_coat::csv(&r.coat_rows).into_bytes()));
+    }
     files
 }
 
 /// The parts `--only` picks from: a value selects every part whose name contains it.
-const PARTS: [&str; 12] =
-    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "shell", "frames", "share"];
+const PARTS: [&str; 13] =
+    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "coat", "shell", "frames", "share"];
 
 /// `--only`'s value, checked before any GPU work: it must select a part.
 fn check_only(only: Option<&str>) -> Result<(), crate::BadInput> {
@@ -880,6 +904,7 @@ mod tests {
                 unswept_frame_ms: 10.0,
                 swept_frame_ms: 10.5,
             }],
+            coat_rows: vec![crate::bench_coat::CoatRow { mesh: "the fox".into(), vertices: 1728, skinning_ms: 0.01, coat_ms: 0.002 }],
             share_rows: vec![],
         };
         let files = report_files(&results);
@@ -899,7 +924,8 @@ mod tests {
                 "accumulation.csv",
                 "tiles.csv",
                 "shell.csv",
-                "sweep.csv"
+                "sweep.csv",
+                "coat.csv"
             ]
         );
         for (name, bytes) in files.iter().filter(|f| f.0.ends_with(".png")) {
@@ -944,6 +970,7 @@ mod tests {
             store_row: None,
             shell_rows: vec![],
             sweep_rows: vec![],
+            coat_rows: vec![],
             software: true,
             ..results
         };

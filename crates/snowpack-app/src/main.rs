@@ -6,6 +6,7 @@
 
 mod bench;
 mod bench_accumulation;
+mod bench_coat;
 mod bench_frames;
 mod bench_render;
 mod bench_share;
@@ -183,7 +184,7 @@ enum Command {
         /// Output directory for report.md, the CSV files and the PNG charts.
         #[arg(long, default_value = "snowpack-bench")]
         out: PathBuf,
-        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames or accumulation.
+        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames, accumulation, tiles, share, sweep, shell or coat.
         #[arg(long)]
         only: Option<String>,
         /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).
