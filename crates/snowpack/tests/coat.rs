@@ -73,6 +73,7 @@ fn gpu_coat_matches_its_cpu_twin_on_random_poses_and_snow() {
 
     let skinning = SkinningPass::new(&ctx.device);
     let mut coat_pass = SnowCoatPass::new(&ctx.device, &res.terrain_constants());
+    coat_pass.reserve(&ctx.device, 1);
     let joint_count = 6;
     let n = 1500;
     let mut mesh = SkinnedMesh::default();

@@ -175,16 +175,20 @@ impl SnowCoatPass {
         Self { pipeline, layout, params: Vec::new() }
     }
 
-    /// Records the coat update of the `k`-th character of this frame (its
-    /// skinning already recorded), then keeps its positions for the next
-    /// frame's speeds.
-    pub fn record(&mut self, cx: &mut FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
-        let (gpu, encoder, timer) = (cx.gpu, &mut *cx.encoder, &mut *cx.timer);
-        // One uniform buffer per character slot, kept: each dispatch reads its own.
-        while self.params.len() <= k {
-            self.params.push(layout::uniform_buffer::<SnowCoatParams>(&gpu.device, "snow coat params"));
+    /// Makes sure `characters` characters can be recorded in one frame: one
+    /// uniform buffer each, kept (every dispatch of a frame reads its own).
+    pub fn reserve(&mut self, device: &wgpu::Device, characters: usize) {
+        while self.params.len() < characters {
+            self.params.push(layout::uniform_buffer::<SnowCoatParams>(device, "snow coat params"));
         }
-        let params_buffer = &self.params[k];
+    }
+
+    /// Records the coat update of the `k`-th character of this frame (its
+    /// skinning already recorded; [`Self::reserve`]d for), then keeps its
+    /// positions for the next frame's speeds. Nothing for a `k` not reserved.
+    pub fn record(&self, cx: &mut FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
+        let (gpu, encoder, timer) = (cx.gpu, &mut *cx.encoder, &mut *cx.timer);
+        let Some(params_buffer) = self.params.get(k) else { return };
         gpu.queue.write_buffer(params_buffer, 0, bytemuck::bytes_of(&SnowCoatParams { vertex_count: instance.vertex_count, ..*params }));
         let bind_group = layout::bind_group(
             &gpu.device,

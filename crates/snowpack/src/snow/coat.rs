@@ -81,6 +81,7 @@ impl Characters {
             sky: sky_view.unwrap_or(&self.coats.no_sky),
         };
         let base = frame_params(core, &ground, sky_view.is_some(), dt_s);
+        self.coats.pass.reserve(cx.device(), self.posed.len());
         for (slot, &k) in self.posed.iter().enumerate() {
             let Some(instance) = self.skinned.get(k) else { continue };
             let params = SnowCoatParams { has_previous: u32::from(self.coats.posed_before[k]), ..base.with_settings(&self.coats.settings[k]) };
