@@ -163,13 +163,13 @@ fn figure(leg_top: f32, belly: f32, back: f32) -> Figure {
         base as usize..base as usize + 4
     };
     // A leg: a strip in the x-y plane, subdivided in height so vertices lie below and above the snow.
-    let mut leg = usize::MAX..0;
     let steps = 8;
+    let mut leg_end = 0;
     for k in 0..steps {
         let (y0, y1) = (leg_top * k as f32 / steps as f32, leg_top * (k + 1) as f32 / steps as f32);
-        let r = quad([Vec3::new(-0.03, y0, 0.0), Vec3::new(0.03, y0, 0.0), Vec3::new(0.03, y1, 0.0), Vec3::new(-0.03, y1, 0.0)]);
-        leg = leg.start.min(r.start)..leg.end.max(r.end);
+        leg_end = quad([Vec3::new(-0.03, y0, 0.0), Vec3::new(0.03, y0, 0.0), Vec3::new(0.03, y1, 0.0), Vec3::new(-0.03, y1, 0.0)]).end;
     }
+    let leg = 0..leg_end;
     // (b - a) x (c - a) points down for the belly ((x, 0, 0) x (x, 0, z) = -y) and up for the back.
     let belly = quad([Vec3::new(-0.2, belly, -0.1), Vec3::new(0.2, belly, -0.1), Vec3::new(0.2, belly, 0.1), Vec3::new(-0.2, belly, 0.1)]);
     let back = quad([Vec3::new(-0.2, back, -0.1), Vec3::new(-0.2, back, 0.1), Vec3::new(0.2, back, 0.1), Vec3::new(0.2, back, -0.1)]);

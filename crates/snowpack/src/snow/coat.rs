@@ -95,7 +95,12 @@ impl SnowDeformation {
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
     pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), SnowError> {
         settings.validate()?;
-        let slot = self.characters.coats.settings.get_mut(id.0).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
+        let slot = self
+            .characters
+            .coats
+            .settings
+            .get_mut(id.0)
+            .ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
         *slot = settings;
         Ok(())
     }
