@@ -37,7 +37,9 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_dis
 use bevy::state::app::StatesPlugin;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 use bevy_replicon::prelude::*;
-use bevy_replicon_renet2::netcode::{ClientAuthentication, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication, ServerSetupConfig};
+use bevy_replicon_renet2::netcode::{
+    ClientAuthentication, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication, ServerSetupConfig,
+};
 use bevy_replicon_renet2::renet2::{ConnectionConfig, RenetClient, RenetServer};
 use bevy_replicon_renet2::{RenetChannelsExt, RepliconRenetPlugins};
 use bevy_snowpack::prelude::*;
@@ -92,7 +94,8 @@ impl Cli {
         let Some((mode, rest)) = args.split_first() else { bad("no mode") };
         let mut port = None;
         let mut exit_after_s = 300.0;
-        let mut client = ClientCli { connect: SocketAddr::from((Ipv4Addr::LOCALHOST, 0)), walk: false, exit_after_frames: 0, screenshot: None, probes: Vec::new() };
+        let mut client =
+            ClientCli { connect: SocketAddr::from((Ipv4Addr::LOCALHOST, 0)), walk: false, exit_after_frames: 0, screenshot: None, probes: Vec::new() };
         let mut connect = None;
         let mut it = rest.iter();
         while let Some(arg) = it.next() {
@@ -173,7 +176,12 @@ struct ServerRun {
 
 fn run_server(port: u16, exit_after_s: f64) {
     let exit = App::new()
-        .add_plugins((MinimalPlugins.set(ScheduleRunnerPlugin::run_loop(Duration::from_secs_f64(1.0 / 60.0))), StatesPlugin, RepliconPlugins, RepliconRenetPlugins))
+        .add_plugins((
+            MinimalPlugins.set(ScheduleRunnerPlugin::run_loop(Duration::from_secs_f64(1.0 / 60.0))),
+            StatesPlugin,
+            RepliconPlugins,
+            RepliconRenetPlugins,
+        ))
         .add_plugins(GameProtocol)
         .insert_resource(ServerRun { port, exit_after_s, started: Instant::now(), had_clients: false, empty_since: None, last_report: Instant::now() })
         .add_systems(Startup, listen.map(|r: Result<(), String>| r.unwrap_or_else(|e| fail(&e))))
@@ -362,16 +370,30 @@ fn setup_scene(mut commands: Commands, cli: Res<ClientCli>, assets: Res<AssetSer
                 // Every mesh of the fox's scene presses the snow, skinned in pose: this client's only deformer.
                 SnowDeformer::Mesh,
                 // The model faces +z; the walk goes along +x.
-                Transform::from_translation(fox_at(WALK_FROM_M)).with_rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_2)).with_scale(Vec3::splat(FOX_SCALE)),
+                Transform::from_translation(fox_at(WALK_FROM_M))
+                    .with_rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_2))
+                    .with_scale(Vec3::splat(FOX_SCALE)),
             ))
             .observe(start_fox);
     }
     commands.spawn((DirectionalLight { illuminance: 10_000.0, ..default() }, Transform::from_xyz(-3.0, 6.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y)));
     // Over the path from the side, the whole walk in view.
-    commands.spawn((Camera3d::default(), SnowGroundPass, Tonemapping::AcesFitted, Transform::from_xyz(0.0, 6.5, 6.0).looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::Y)));
+    commands.spawn((
+        Camera3d::default(),
+        SnowGroundPass,
+        Tonemapping::AcesFitted,
+        Transform::from_xyz(0.0, 6.5, 6.0).looking_at(Vec3::new(0.0, 0.0, 0.3), Vec3::Y),
+    ));
 }
 
-fn start_fox(ready: On<WorldInstanceReady>, mut commands: Commands, foxes: Query<&Fox>, children: Query<&Children>, mut players: Query<&mut AnimationPlayer>, animation: Res<FoxAnimation>) {
+fn start_fox(
+    ready: On<WorldInstanceReady>,
+    mut commands: Commands,
+    foxes: Query<&Fox>,
+    children: Query<&Children>,
+    mut players: Query<&mut AnimationPlayer>,
+    animation: Res<FoxAnimation>,
+) {
     let Ok(fox) = foxes.get(ready.entity) else { return };
     for entity in children.iter_descendants(ready.entity) {
         if let Ok(mut player) = players.get_mut(entity) {
@@ -560,9 +582,10 @@ fn script(
             }
             match &cli.screenshot {
                 Some(path) => {
-                    commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path.clone())).observe(
-                        |_: On<ScreenshotCaptured>, mut script: ResMut<Script>| script.shot = Some(script.frames),
-                    );
+                    commands
+                        .spawn(Screenshot::primary_window())
+                        .observe(save_to_disk(path.clone()))
+                        .observe(|_: On<ScreenshotCaptured>, mut script: ResMut<Script>| script.shot = Some(script.frames));
                     script.enter(Phase::Shooting);
                 }
                 None => {

@@ -69,8 +69,8 @@ pub mod prelude {
         SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
         SnowToServer,
     };
-    pub use snowpack::{PeerConfig, RelayConfig};
     pub use snowpack::{HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource};
+    pub use snowpack::{PeerConfig, RelayConfig};
 }
 
 /// What the plugin's deformation is made of: a resource; change it at any

@@ -202,6 +202,7 @@ fn a_late_client_sees_the_trail_of_a_fox_walked_before_it_joined() {
         let d = read(p);
         assert!((d - OPEN_M).abs() < 0.01, "off the path at {p:?} the late client reads {d} m, not open snow ({OPEN_M} m)");
     }
+    println!("late client's probes: {:?}", on_path.iter().chain(&off_path).map(|p| (p, read(p))).collect::<Vec<_>>());
     for p in &on_path {
         let d = read(p);
         assert!(d <= OPEN_M - 0.05, "on the fox's path at {p:?} the late client reads {d} m: no trail (open snow is {OPEN_M} m)");

@@ -96,8 +96,7 @@ fn receive(mut server: ResMut<SnowServer>, mut messages: MessageReader<FromClien
 fn report_owners(mut server: ResMut<SnowServer>, clients: Query<Entity, With<AuthorizedClient>>, owned: Query<(&SnowOwnedBy, &Transform)>) {
     let relay = server.relay_mut();
     for client in &clients {
-        let at: Vec<[f64; 2]> =
-            owned.iter().filter(|(o, _)| o.0 == client).map(|(_, t)| [f64::from(t.translation.x), f64::from(t.translation.z)]).collect();
+        let at: Vec<[f64; 2]> = owned.iter().filter(|(o, _)| o.0 == client).map(|(_, t)| [f64::from(t.translation.x), f64::from(t.translation.z)]).collect();
         relay.report_deformers(peer_of(client), &at);
     }
 }
