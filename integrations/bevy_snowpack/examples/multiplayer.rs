@@ -257,6 +257,9 @@ fn report_server(mut run: ResMut<ServerRun>, snow: Res<SnowServer>, players: Que
         }
     }
     let s = snow.relay().stats();
+    if s.rejected.total() > 0 {
+        println!("server: refused so far: {:?}", s.rejected);
+    }
     println!(
         "server: {} peers, tiles received {} merged {} sent {}, bytes in {} out {}, refused {}",
         s.peers,
@@ -575,9 +578,11 @@ fn script(
             if let Some((wall_s, sent, received)) = script.walked {
                 let n = script.renet_rates.len().max(1) as f64;
                 let (renet_sent, renet_received) = script.renet_rates.iter().fold((0.0, 0.0), |(a, b), (s, r)| (a + s / n, b + r / n));
+                let walked_m = f64::from(WALK_TO_M - WALK_FROM_M);
                 println!(
-                    "wire: walk_s {wall_s:.2} snow_bytes_sent {sent} snow_bytes_received {received} snow_bytes_sent_per_s {:.0} renet_bytes_sent_per_s {renet_sent:.0} renet_bytes_received_per_s {renet_received:.0}",
-                    sent as f64 / wall_s.max(1e-3)
+                    "wire: walk_s {wall_s:.2} walk_m {walked_m:.1} snow_bytes_sent {sent} snow_bytes_received {received} snow_bytes_sent_per_s {:.0} snow_bytes_sent_per_m {:.0} renet_bytes_sent_per_s {renet_sent:.0} renet_bytes_received_per_s {renet_received:.0}",
+                    sent as f64 / wall_s.max(1e-3),
+                    sent as f64 / walked_m
                 );
             }
             match &cli.screenshot {
