@@ -59,8 +59,8 @@ const WALK_M_PER_S: f32 = 1.0;
 /// The walk advances at most this much a frame (s), so the trail is whole however slow the frames.
 const MAX_WALK_STEP_S: f32 = 0.1;
 /// How long a client waits for the server's welcome, and then to be in sync at its end.
-const JOIN_LIMIT: Duration = Duration::from_secs(60);
-const SETTLE_LIMIT: Duration = Duration::from_secs(60);
+const JOIN_LIMIT: Duration = Duration::from_secs(120);
+const SETTLE_LIMIT: Duration = Duration::from_secs(120);
 /// Frames in a row a client must be settled before it reads the snow.
 const SETTLED_FRAMES: u32 = 5;
 
