@@ -14,6 +14,8 @@
 
 #[path = "common/cli.rs"]
 mod cli;
+#[path = "common/gltf.rs"]
+mod gltf;
 
 use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNodeIndex};
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -63,53 +65,13 @@ fn main() {
                 .set(AssetPlugin { file_path: "../../assets".into(), ..default() }),
         )
         .add_plugins((SnowpackPlugin::new(settings), cli::CliPlugin(cli)))
-        .add_plugins(GltfTypesPlugin)
+        .add_plugins(gltf::GltfTypesPlugin)
         .insert_resource(ClearColor(Color::srgb(0.62, 0.74, 0.88)))
         .insert_resource(Clock { scripted, t: 0.0 })
         .add_systems(Startup, setup)
         .add_systems(Update, (tick, walk_fox, drop_balls, report_steps, follow_camera).chain())
         .add_systems(Last, report_screen_points)
         .run();
-}
-
-/// Registers the components a glTF scene's world holds for reflection, which
-/// spawning it needs: Bevy's `reflect_auto_register` (a default feature this
-/// crate leaves off to keep Bevy's build small) would do it.
-struct GltfTypesPlugin;
-
-impl Plugin for GltfTypesPlugin {
-    fn build(&self, app: &mut App) {
-        use bevy::animation::{AnimatedBy, AnimationTargetId};
-        use bevy::camera::primitives::Aabb;
-        use bevy::camera::visibility::{DynamicSkinnedMeshBounds, NoFrustumCulling};
-        use bevy::gltf::{GltfExtras, GltfMaterialExtras, GltfMaterialName, GltfMeshExtras, GltfMeshName, GltfSceneExtras, GltfSceneName};
-        use bevy::mesh::skinning::SkinnedMesh;
-        app.register_type::<Transform>()
-            .register_type::<GlobalTransform>()
-            .register_type::<bevy::transform::components::TransformTreeChanged>()
-            .register_type::<Visibility>()
-            .register_type::<InheritedVisibility>()
-            .register_type::<ViewVisibility>()
-            .register_type::<Name>()
-            .register_type::<ChildOf>()
-            .register_type::<Children>()
-            .register_type::<Mesh3d>()
-            .register_type::<MeshMaterial3d<StandardMaterial>>()
-            .register_type::<SkinnedMesh>()
-            .register_type::<Aabb>()
-            .register_type::<NoFrustumCulling>()
-            .register_type::<DynamicSkinnedMeshBounds>()
-            .register_type::<AnimationPlayer>()
-            .register_type::<AnimationTargetId>()
-            .register_type::<AnimatedBy>()
-            .register_type::<GltfExtras>()
-            .register_type::<GltfSceneExtras>()
-            .register_type::<GltfMeshExtras>()
-            .register_type::<GltfMaterialExtras>()
-            .register_type::<GltfSceneName>()
-            .register_type::<GltfMeshName>()
-            .register_type::<GltfMaterialName>();
-    }
 }
 
 /// The scene's time: real time, or a fixed step a frame when scripted.

@@ -9,7 +9,8 @@
 //! snowpack's own snow ground in its main pass, or [`SnowGroundMaterial`]
 //! draws a ground mesh displaced by the snow in the main and the prepass
 //! (depth, shadow) vertex shaders; [`SnowFoot`] entities raise
-//! [`SnowFootstep`] messages.
+//! [`SnowFootstep`] messages. [`SnowReplicationPlugin`] shares the snow
+//! between a game's server and clients over its bevy_replicon connection.
 //!
 //! Everything a game uses is in the [`prelude`]; the plugin's systems are
 //! in [`SnowSystems`] for ordering a game's own around them; changes to
@@ -35,6 +36,7 @@ mod ground_pass;
 mod mesh_deformer;
 mod query;
 mod render;
+mod replication;
 mod settings;
 mod systems;
 
@@ -52,6 +54,9 @@ pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 pub use ground_pass::SnowGroundPass;
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
+pub use replication::{
+    SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient, SnowToServer,
+};
 pub use systems::SnowSystems;
 
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
@@ -60,7 +65,12 @@ pub mod prelude {
         FootKind, SnowAnswers, SnowCatcher, SnowControl, SnowDeformer, SnowFoot, SnowFootstep, SnowGroundExtension, SnowGroundMaterial, SnowGroundPass,
         SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin, SnowpackSettings,
     };
+    pub use crate::{
+        SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
+        SnowToServer,
+    };
     pub use snowpack::{HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource};
+    pub use snowpack::{PeerConfig, RelayConfig};
 }
 
 /// What the plugin's deformation is made of: a resource; change it at any

@@ -48,6 +48,12 @@ impl SnowRenderState {
         self.snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
+    /// The context and the deformation together (the shared snow's peer
+    /// switches sharing on with both).
+    pub(crate) fn context_and_deformation(&mut self) -> (&GpuContext, &mut SnowDeformation) {
+        (&self.ctx, self.snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner))
+    }
+
     /// snowpack's context over Bevy's device and queue.
     #[must_use]
     pub fn context(&self) -> &GpuContext {

@@ -8,53 +8,9 @@
 
 mod common;
 
-use std::io::{BufRead as _, BufReader};
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 
-/// A private X server for one test, stopped on drop.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Xvfb {
-    fn start() -> Option<Self> {
-        let spawned = Command::new("Xvfb")
-            .args(["-displayfd", "1", "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn();
-        let mut child = match spawned {
-            Ok(c) => c,
-            Err(e) => {
-                assert!(!common::gpu_required(), "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb");
-                eprintln!("skipping the walk example's test: no Xvfb ({e})");
-                return None;
-            }
-        };
-        // Xvfb writes the display number it chose once it accepts connections.
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().expect("piped stdout")).read_line(&mut line).expect("reading Xvfb's display number");
-        let number = line.trim();
-        assert!(!number.is_empty() && number.chars().all(|c| c.is_ascii_digit()), "Xvfb printed {line:?}");
-        Some(Self { child, display: format!(":{number}") })
-    }
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The example binary `cargo test` built next to this test's own.
-fn example(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("the test's path");
-    let dir = exe.parent().and_then(|deps| deps.parent()).expect("target/<profile>/deps");
-    dir.join("examples").join(name)
-}
+use common::{Xvfb, example};
 
 /// Mean luma (0..255) of the 9x9 pixels around (x, y).
 fn patch_luma(image: &image::RgbaImage, x: u32, y: u32) -> f32 {

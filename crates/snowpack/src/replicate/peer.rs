@@ -249,6 +249,20 @@ impl SnowPeer {
         self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
     }
 
+    /// Changes how the peer paces itself and what it keeps, from the next
+    /// [`SnowPeer::update`] on (a game's settings changed while it runs).
+    /// Queues and the replica over their new bounds shrink as they are next
+    /// used.
+    pub fn set_config(&mut self, config: PeerConfig) {
+        self.config = config;
+    }
+
+    /// How the peer paces itself now.
+    #[must_use]
+    pub fn config(&self) -> &PeerConfig {
+        &self.config
+    }
+
     /// Where this peer's deformers are now (world x, z in m; at most 256
     /// are sent): where the relay lets it write.
     pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {

@@ -376,6 +376,19 @@ impl SnowRelay {
         Ok(relay)
     }
 
+    /// Changes how the relay paces and polices its peers, from the next
+    /// message on (a game server's settings changed while it runs); the
+    /// peers' buckets keep what they hold, refilled at the new rates.
+    pub fn set_config(&mut self, config: RelayConfig) {
+        self.config = config;
+    }
+
+    /// How the relay paces and polices its peers now.
+    #[must_use]
+    pub fn config(&self) -> &RelayConfig {
+        &self.config
+    }
+
     /// A peer connected (its messages are accepted from now on).
     pub fn connect(&mut self, peer: PeerId) {
         let now = self.now_s;

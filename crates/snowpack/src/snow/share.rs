@@ -53,7 +53,6 @@ impl SnowDeformation {
         self.sharing.is_some()
     }
 
-    #[cfg(feature = "low_level")]
     /// Lets the next frame gather the changed tiles whatever the interval,
     /// so a program about to stop sends its last changes without letting
     /// world time pass.
@@ -63,14 +62,12 @@ impl SnowDeformation {
         }
     }
 
-    #[cfg(feature = "low_level")]
     /// Changed tiles flagged and not gathered yet (0 without sharing).
     #[must_use]
     pub fn dirty_tiles(&self) -> usize {
         self.sharing.as_ref().map_or(0, Sharing::dirty_tiles)
     }
 
-    #[cfg(feature = "low_level")]
     /// Tiles given to [`SharedSnow::merge_tiles`] and not merged yet (ahead
     /// of the clock, or beyond a frame's upload).
     #[must_use]
