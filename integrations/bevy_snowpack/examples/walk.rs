@@ -130,8 +130,10 @@ fn setup(
         .spawn((
             Fox { walk: nodes[0], run: nodes[1], running: false },
             WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"))),
-            // Every mesh of the fox's scene presses the snow, skinned in pose.
+            // Every mesh of the fox's scene presses the snow, skinned in pose,
+            // and carries the snow it wades through (drawn by SnowCoatMaterial).
             SnowDeformer::Mesh,
+            SnowCoatLook,
             SnowWindowTarget,
             Transform::from_xyz(p.x, snow_top(p.x, p.y) - FOX_SINKAGE_M, p.y).with_scale(Vec3::splat(FOX_SCALE)),
         ))

@@ -29,6 +29,7 @@
 //!     .run();
 //! ```
 
+mod coat;
 mod control;
 mod footsteps;
 mod ground;
@@ -48,6 +49,7 @@ use snowpack::{ObjectShape, SnowParams, StoreConfig, StreamerConfig, TerrainSour
 /// The library, for its types beyond the [`prelude`] (`bevy_snowpack::snowpack::ObjectStats`).
 pub use snowpack;
 
+pub use coat::{COAT_READ_FRAMES, CoatLook, SnowCoat, SnowCoatExtension, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings};
 pub use control::SnowControl;
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
@@ -62,14 +64,17 @@ pub use systems::SnowSystems;
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
 pub mod prelude {
     pub use crate::{
-        FootKind, SnowAnswers, SnowCatcher, SnowControl, SnowDeformer, SnowFoot, SnowFootstep, SnowGroundExtension, SnowGroundMaterial, SnowGroundPass,
-        SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin, SnowpackSettings,
+        FootKind, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer, SnowFoot, SnowFootstep,
+        SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin,
+        SnowpackSettings,
     };
     pub use crate::{
         SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
         SnowToServer,
     };
-    pub use snowpack::{HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource};
+    pub use snowpack::{
+        CoatSettings, HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource,
+    };
     pub use snowpack::{PeerConfig, RelayConfig};
 }
 
@@ -232,6 +237,7 @@ impl Plugin for SnowpackPlugin {
         ground::build(app);
         ground_pass::build(app);
         mesh_deformer::build(app);
+        coat::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
         }

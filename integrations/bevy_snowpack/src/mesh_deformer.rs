@@ -33,6 +33,8 @@ pub(crate) struct MeshRegistration {
 pub(crate) struct MeshPose {
     pub key: u64,
     pub joints: Vec<Mat4>,
+    /// The deformer's [`crate::SnowCoatSettings`], if it has some.
+    pub coat: Option<snowpack::CoatSettings>,
 }
 
 /// What the main world hands the render world about mesh deformers each frame.
@@ -92,7 +94,7 @@ fn normalised(w: [f32; 4]) -> [f32; 4] {
 fn pose_mesh_deformers(
     mut frame: ResMut<MeshDeformerFrame>,
     mut registered: Local<Registered>,
-    deformers: Query<(Entity, &SnowDeformer)>,
+    deformers: Query<(Entity, &SnowDeformer, Option<&crate::SnowCoatSettings>)>,
     children: Query<&Children>,
     meshes: Query<(&Mesh3d, &GlobalTransform, Option<&BevySkinnedMesh>)>,
     joints: Query<&GlobalTransform>,
@@ -101,7 +103,8 @@ fn pose_mesh_deformers(
 ) {
     frame.registrations.clear();
     frame.poses.clear();
-    for (root, _) in deformers.iter().filter(|(_, d)| matches!(d, SnowDeformer::Mesh)) {
+    for (root, _, coat) in deformers.iter().filter(|(_, d, _)| matches!(d, SnowDeformer::Mesh)) {
+        let coat = coat.map(|c| c.0);
         // The entity's own mesh, or (a glTF scene's root) every mesh below it.
         let targets: Vec<Entity> = if meshes.contains(root) { vec![root] } else { children.iter_descendants(root).filter(|&e| meshes.contains(e)).collect() };
         for entity in targets {
@@ -126,7 +129,7 @@ fn pose_mesh_deformers(
                 registered.0.insert(entity, mesh3d.id());
                 frame.registrations.push(MeshRegistration { key, mesh: Arc::new(mesh), joint_count: pose.len() });
             }
-            frame.poses.push(MeshPose { key, joints: pose });
+            frame.poses.push(MeshPose { key, joints: pose, coat });
         }
     }
 }

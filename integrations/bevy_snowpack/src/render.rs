@@ -34,6 +34,8 @@ pub struct SnowRenderState {
     meshes: HashMap<u64, SkinnedId>,
     /// The objects the accumulation was laid out for (entity, shape, dilate), in its order.
     objects: Vec<(Entity, ObjectShape, bool)>,
+    /// The mesh deformers' snow coats: settings applied and readbacks.
+    coats: crate::coat::CoatReadbacks,
 }
 
 impl SnowRenderState {
@@ -125,6 +127,7 @@ fn create_deformation(mut commands: Commands, settings: Res<SnowpackSettings>, t
                 in_flight: Vec::new(),
                 meshes: HashMap::new(),
                 objects: Vec::new(),
+                coats: crate::coat::CoatReadbacks::default(),
             });
         }
         Err(e) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
@@ -224,12 +227,16 @@ fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Ve
     }
 }
 
-fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRenderState>>, mut frame: ResMut<ExtractedSnowFrame>) {
+fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRenderState>>, mut frame: ResMut<ExtractedSnowFrame>, to_main: Res<ToMainWorld>) {
     let Some(mut state) = state else { return };
-    let SnowRenderState { ctx, snow, window, in_flight, meshes, objects } = &mut *state;
+    let SnowRenderState { ctx, snow, window, in_flight, meshes, objects, coats } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
     place_objects(ctx, snow, objects, &frame.objects);
     let posed = pose_meshes(ctx, snow, meshes, &frame.meshes);
+    let posed_keys: Vec<(u64, SkinnedId)> = posed.iter().map(|&(id, k)| (frame.meshes.poses[k].key, id)).collect();
+    for (&(key, id), &(_, k)) in posed_keys.iter().zip(&posed) {
+        coats.apply(snow, key, id, frame.meshes.poses[k].coat);
+    }
     if let Some(center) = frame.center {
         snow.set_center(dvec2(center));
     }
@@ -249,6 +256,7 @@ fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRende
     if let Some(ticket) = snow.encode(ctx, encoder, &snow_frame) {
         in_flight.push((ticket, ranges));
     }
+    coats.record(ctx, encoder, snow, &posed_keys, &to_main);
     // Written before this frame's submit, so the cameras' draws see the window as encoded.
     ctx.queue.write_buffer(window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(snow)));
 }

@@ -63,6 +63,8 @@ pub(crate) enum FromRender {
     Saved(Result<u64, String>),
     /// The snow on each [`crate::SnowCatcher`].
     ObjectStats(Vec<(Entity, ObjectStats)>),
+    /// The snow coat of a mesh deformer's mesh (its entity), one value a vertex.
+    Coat(Entity, Vec<f32>),
 }
 
 /// The render world's end of the channel to the main world.
@@ -97,8 +99,13 @@ pub(crate) fn build(app: &mut App) {
 }
 
 /// Moves what arrived from the render world into [`SnowQuery`] and [`SnowControl`].
-fn receive_from_render(mut from: ResMut<FromRenderWorld>, mut query: ResMut<SnowQuery>, mut control: ResMut<SnowControl>) {
-    deliver(from.drain(), &mut query, &mut control);
+pub(crate) fn receive_from_render(
+    mut from: ResMut<FromRenderWorld>,
+    mut query: ResMut<SnowQuery>,
+    mut control: ResMut<SnowControl>,
+    mut coats: ResMut<crate::coat::ArrivedCoats>,
+) {
+    deliver(from.drain(), &mut query, &mut control, &mut coats);
 }
 
 /// Receives in the main world during extraction (the render world's
@@ -112,20 +119,25 @@ pub(crate) fn receive_in(main_world: &mut World) {
         return;
     }
     main_world.resource_scope(|world, mut query: Mut<SnowQuery>| {
-        if let Some(mut control) = world.get_resource_mut::<SnowControl>() {
-            deliver(arrived, &mut query, &mut control);
-        }
+        world.resource_scope(|world, mut coats: Mut<crate::coat::ArrivedCoats>| {
+            if let Some(mut control) = world.get_resource_mut::<SnowControl>() {
+                deliver(arrived, &mut query, &mut control, &mut coats);
+            }
+        });
     });
 }
 
 /// Puts what arrived where the main world reads it.
-fn deliver(arrived: Vec<FromRender>, query: &mut SnowQuery, control: &mut SnowControl) {
+fn deliver(arrived: Vec<FromRender>, query: &mut SnowQuery, control: &mut SnowControl, coats: &mut crate::coat::ArrivedCoats) {
     for message in arrived {
         match message {
             FromRender::Answers(answers) => query.deliver(answers),
             FromRender::LoadedSave(loaded) => control.loaded_save = Some(loaded),
             FromRender::Saved(result) => control.save_result = Some(result),
             FromRender::ObjectStats(stats) => control.stats = Some(stats),
+            FromRender::Coat(entity, thickness_m) => {
+                coats.0.insert(entity, thickness_m);
+            }
         }
     }
 }
