@@ -66,22 +66,24 @@ pub const MESH_GRID_MAX_SIDE: u32 = 2048;
 /// 256 bytes and the GPU can copy the drawn texture into a tight buffer.
 const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 
-/// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
-/// so cliffs, bridges' decks, roads and sculpted ground all work.
-///
-/// The mesh is drawn from above into a grid (the highest surface per texel
-/// centre wins, as a depth test would choose): on the GPU by
-/// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
-/// the CPU by `draw_from_above` for physics and queries (the
-/// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
-/// centre is not on a triangle's edge). Overhangs are invisible from above, which is
-/// right for snow: it lies on the top surface.
-#[derive(Clone, PartialEq)]
-pub struct TerrainMesh {
-    /// World-space triangles, three corners each.
-    pub triangles: Vec<[[f32; 3]; 3]>,
-    /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
-    pub grid: HeightmapTerrain,
+low_level_fields! {
+    /// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
+    /// so cliffs, bridges' decks, roads and sculpted ground all work.
+    ///
+    /// The mesh is drawn from above into a grid (the highest surface per texel
+    /// centre wins, as a depth test would choose): on the GPU by
+    /// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
+    /// the CPU by `draw_from_above` for physics and queries (the
+    /// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
+    /// centre is not on a triangle's edge). Overhangs are invisible from above, which is
+    /// right for snow: it lies on the top surface.
+    #[derive(Clone, PartialEq)]
+    pub struct TerrainMesh {
+        /// World-space triangles, three corners each.
+        triangles: Vec<[[f32; 3]; 3]>,
+        /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
+        grid: HeightmapTerrain,
+    }
 }
 
 impl std::fmt::Debug for TerrainMesh {
@@ -247,16 +249,20 @@ impl HeightmapTerrain {
         }
     }
 
-    /// Pixels per row.
-    #[must_use]
-    pub fn width(&self) -> u32 {
-        self.width
+    low_level_pub! {
+        /// Pixels per row.
+        #[must_use]
+        fn width(&self) -> u32 {
+            self.width
+        }
     }
 
-    /// Rows.
-    #[must_use]
-    pub fn height(&self) -> u32 {
-        self.height
+    low_level_pub! {
+        /// Rows.
+        #[must_use]
+        fn height(&self) -> u32 {
+            self.height
+        }
     }
 
     low_level_pub! {
@@ -267,16 +273,20 @@ impl HeightmapTerrain {
         }
     }
 
-    /// World (x, z) of the centre of the covered area (m).
-    #[must_use]
-    pub fn center_m(&self) -> [f32; 2] {
-        self.center_m
+    low_level_pub! {
+        /// World (x, z) of the centre of the covered area (m).
+        #[must_use]
+        fn center_m(&self) -> [f32; 2] {
+            self.center_m
+        }
     }
 
-    /// World size (x, z) of the covered area (m).
-    #[must_use]
-    pub fn size_m(&self) -> [f32; 2] {
-        self.size_m
+    low_level_pub! {
+        /// World size (x, z) of the covered area (m).
+        #[must_use]
+        fn size_m(&self) -> [f32; 2] {
+            self.size_m
+        }
     }
 
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
@@ -286,33 +296,37 @@ impl HeightmapTerrain {
         Self::new(self.width, self.height, heights_m, self.center_m, self.size_m)
     }
 
-    /// Lowest and highest sample (m).
-    #[must_use]
-    pub fn height_range(&self) -> (f32, f32) {
-        self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    low_level_pub! {
+        /// Lowest and highest sample (m).
+        #[must_use]
+        fn height_range(&self) -> (f32, f32) {
+            self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+        }
     }
 
-    /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
-    #[must_use]
-    pub fn height_at(&self, x: f32, z: f32) -> f32 {
-        let (w, h) = (self.width as i32, self.height as i32);
-        // Continuous pixel coordinates with pixel centres at integer + 0.5.
-        let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
-        let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
-        let u = u.clamp(0.0, (w - 1) as f32);
-        let v = v.clamp(0.0, (h - 1) as f32);
-        let (u0, v0) = (u.floor(), v.floor());
-        let (fu, fv) = (u - u0, v - v0);
-        let (i0, j0) = (v0 as i32, u0 as i32);
-        let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
-        let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
-        let a = at(i0, j0);
-        let b = at(i0, j1);
-        let c = at(i1, j0);
-        let d = at(i1, j1);
-        let ab = a + (b - a) * fu;
-        let cd = c + (d - c) * fu;
-        ab + (cd - ab) * fv
+    low_level_pub! {
+        /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
+        #[must_use]
+        fn height_at(&self, x: f32, z: f32) -> f32 {
+            let (w, h) = (self.width as i32, self.height as i32);
+            // Continuous pixel coordinates with pixel centres at integer + 0.5.
+            let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
+            let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
+            let u = u.clamp(0.0, (w - 1) as f32);
+            let v = v.clamp(0.0, (h - 1) as f32);
+            let (u0, v0) = (u.floor(), v.floor());
+            let (fu, fv) = (u - u0, v - v0);
+            let (i0, j0) = (v0 as i32, u0 as i32);
+            let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
+            let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
+            let a = at(i0, j0);
+            let b = at(i0, j1);
+            let c = at(i1, j0);
+            let d = at(i1, j1);
+            let ab = a + (b - a) * fu;
+            let cd = c + (d - c) * fu;
+            ab + (cd - ab) * fv
+        }
     }
 }
 

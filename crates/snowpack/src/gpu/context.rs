@@ -103,29 +103,31 @@ impl AdapterRequest {
     }
 }
 
-/// A wgpu device and queue for snowpack, with error tracking.
-///
-/// Made by snowpack's own adapter selection ([`Self::new_headless`],
-/// `Self::choose`) for the demo, the runner and tools, or around a device
-/// the game already has ([`Self::from_device`]).
-pub struct GpuContext {
-    /// The instance the adapter came from (`None` for a game's device).
-    pub instance: Option<wgpu::Instance>,
-    /// The chosen adapter (`None` for a game's device).
-    pub adapter: Option<wgpu::Adapter>,
-    /// The device.
-    pub device: wgpu::Device,
-    /// Its queue.
-    pub queue: wgpu::Queue,
-    /// The adapter, in words.
-    pub summary: AdapterSummary,
-    /// What the adapter can do below full WebGPU (all of it for a game's device,
-    /// which is trusted to be able to run what it asks for).
-    pub downlevel: wgpu::DownlevelFlags,
-    /// Whether snowpack owns the device's error and device-lost handlers;
-    /// a game's device keeps its own.
-    owns_handlers: bool,
-    sink: Arc<ErrorSink>,
+low_level_some_fields! {
+    /// A wgpu device and queue for snowpack, with error tracking.
+    ///
+    /// Made by snowpack's own adapter selection ([`Self::new_headless`],
+    /// `Self::choose`) for the demo, the runner and tools, or around a device
+    /// the game already has ([`Self::from_device`]).
+    pub struct GpuContext {
+        /// The instance the adapter came from (`None` for a game's device).
+        pub(crate) instance: Option<wgpu::Instance>,
+        /// The chosen adapter (`None` for a game's device).
+        pub(crate) adapter: Option<wgpu::Adapter>,
+        /// The device.
+        pub device: wgpu::Device,
+        /// Its queue.
+        pub queue: wgpu::Queue,
+        /// The adapter, in words.
+        pub(crate) summary: AdapterSummary,
+        /// What the adapter can do below full WebGPU (all of it for a game's device,
+        /// which is trusted to be able to run what it asks for).
+        pub(crate) downlevel: wgpu::DownlevelFlags,
+        /// Whether snowpack owns the device's error and device-lost handlers;
+        /// a game's device keeps its own.
+        owns_handlers: bool,
+        sink: Arc<ErrorSink>,
+    }
 }
 
 fn parse_backends(list: &str) -> Result<wgpu::Backends, SnowError> {
@@ -294,36 +296,38 @@ impl GpuContext {
         }
     }
 
-    /// Creates the device on a given adapter, asking for the optional features
-    /// snowpack can use (timestamps) only where the adapter has them.
-    pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
-        let summary = AdapterSummary::from_info(&adapter.get_info());
-        let optional = wgpu::Features::TIMESTAMP_QUERY;
-        let required_features = adapter.features() & optional;
-        // Ask for what the adapter has: large windows need large storage buffers,
-        // and the defaults are below what most adapters offer.
-        let required_limits = adapter.limits();
-        let (device, queue) = gl_lock_panics_as_errors(|| {
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("snowpack"),
-                required_features,
-                required_limits,
-                ..Default::default()
-            }))
-        })?
-        .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
+    low_level_pub! {
+        /// Creates the device on a given adapter, asking for the optional features
+        /// snowpack can use (timestamps) only where the adapter has them.
+        fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
+            let summary = AdapterSummary::from_info(&adapter.get_info());
+            let optional = wgpu::Features::TIMESTAMP_QUERY;
+            let required_features = adapter.features() & optional;
+            // Ask for what the adapter has: large windows need large storage buffers,
+            // and the defaults are below what most adapters offer.
+            let required_limits = adapter.limits();
+            let (device, queue) = gl_lock_panics_as_errors(|| {
+                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                    label: Some("snowpack"),
+                    required_features,
+                    required_limits,
+                    ..Default::default()
+                }))
+            })?
+            .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
 
-        let sink = Arc::new(ErrorSink::default());
-        install_handlers(&device, &sink);
-        tracing::info!(
-            "GPU: {} ({}, {}), timestamps: {}",
-            summary.name,
-            summary.backend,
-            summary.device_type,
-            device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
-        );
-        let downlevel = adapter.get_downlevel_capabilities().flags;
-        Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+            let sink = Arc::new(ErrorSink::default());
+            install_handlers(&device, &sink);
+            tracing::info!(
+                "GPU: {} ({}, {}), timestamps: {}",
+                summary.name,
+                summary.backend,
+                summary.device_type,
+                device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+            );
+            let downlevel = adapter.get_downlevel_capabilities().flags;
+            Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+        }
     }
 
     low_level_pub! {
@@ -341,10 +345,12 @@ impl GpuContext {
         }
     }
 
-    /// Whether per-pass GPU timestamps are available.
-    #[must_use]
-    pub fn has_timestamps(&self) -> bool {
-        self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+    low_level_pub! {
+        /// Whether per-pass GPU timestamps are available.
+        #[must_use]
+        fn has_timestamps(&self) -> bool {
+            self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+        }
     }
 
     low_level_pub! {
@@ -398,12 +404,14 @@ impl GpuContext {
         Err(SnowError::Gpu { context, message })
     }
 
-    /// Waits for all submitted work, with a timeout, then checks for errors.
-    pub fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
-            .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
-        self.check(context)
+    low_level_pub! {
+        /// Waits for all submitted work, with a timeout, then checks for errors.
+        fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
+            self.device
+                .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
+                .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
+            self.check(context)
+        }
     }
 }
 

@@ -180,15 +180,17 @@ impl TileStore {
         }
     }
 
-    /// The tile side of the store in `dir` (its `store.meta`), without
-    /// opening or locking it; `None` where there is no store yet. A damaged
-    /// or foreign `store.meta` is an error naming it.
-    pub fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
-        let path = dir.join(META_FILE);
-        match std::fs::read(&path) {
-            Ok(bytes) => meta_side(&path, &bytes).map(Some),
-            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
-            Err(source) => Err(StoreError::Io { path, op: "read", source }),
+    low_level_pub! {
+        /// The tile side of the store in `dir` (its `store.meta`), without
+        /// opening or locking it; `None` where there is no store yet. A damaged
+        /// or foreign `store.meta` is an error naming it.
+        fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
+            let path = dir.join(META_FILE);
+            match std::fs::read(&path) {
+                Ok(bytes) => meta_side(&path, &bytes).map(Some),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+                Err(source) => Err(StoreError::Io { path, op: "read", source }),
+            }
         }
     }
 

@@ -233,10 +233,13 @@ impl SnowDeformation {
         &self.core.params
     }
 
-    /// The terrain under the snow.
-    #[must_use]
-    pub fn terrain(&self) -> &TerrainSource {
-        &self.core.terrain
+    low_level_pub! {
+        /// The terrain under the snow.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn terrain(&self) -> &TerrainSource {
+            &self.core.terrain
+        }
     }
 
     /// Changes the snowfall (rate, direction, stability) from the next frame
@@ -266,10 +269,12 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// Snowfall so far on open ground (m).
-    #[must_use]
-    pub fn fallen_m(&self) -> f32 {
-        self.time.fallen_m
+    low_level_pub! {
+        /// Snowfall so far on open ground (m).
+        #[must_use]
+        fn fallen_m(&self) -> f32 {
+            self.time.fallen_m
+        }
     }
 
     low_level_pub! {
@@ -298,10 +303,12 @@ impl SnowDeformation {
         self.core.floating_origin = origin;
     }
 
-    /// The floating origin (world m).
-    #[must_use]
-    pub fn floating_origin(&self) -> DVec2 {
-        self.core.floating_origin
+    low_level_pub! {
+        /// The floating origin (world m).
+        #[must_use]
+        fn floating_origin(&self) -> DVec2 {
+            self.core.floating_origin
+        }
     }
 
     /// Sets the refill rate (m/s); takes effect next frame. The refill
@@ -326,10 +333,13 @@ impl SnowDeformation {
         self.core.params.technique = technique;
     }
 
-    /// The technique in use.
-    #[must_use]
-    pub fn technique(&self) -> Technique {
-        self.core.params.technique
+    low_level_pub! {
+        /// The technique in use.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn technique(&self) -> Technique {
+            self.core.params.technique
+        }
     }
 
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
@@ -372,11 +382,13 @@ impl SnowDeformation {
         self.core.center = center;
     }
 
-    /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
-    #[must_use]
-    pub fn origin_m(&self) -> Option<DVec2> {
-        let texel = f64::from(self.core.params.texel_m());
-        self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+    low_level_pub! {
+        /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
+        #[must_use]
+        fn origin_m(&self) -> Option<DVec2> {
+            let texel = f64::from(self.core.params.texel_m());
+            self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+        }
     }
 
     low_level_pub! {

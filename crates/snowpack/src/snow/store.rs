@@ -131,11 +131,14 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// Tile traffic and store figures, when tiles are kept (in memory or in
-    /// an attached store).
-    #[must_use]
-    pub fn tile_stats(&self) -> Option<TileStats> {
-        self.tiles.as_ref().map(TileStreaming::stats)
+    low_level_pub! {
+        /// Tile traffic and store figures, when tiles are kept (in memory or in
+        /// an attached store).
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn tile_stats(&self) -> Option<TileStats> {
+            self.tiles.as_ref().map(TileStreaming::stats)
+        }
     }
 
     /// Store errors since the last call (disk full, read-only, corrupt tiles
