@@ -101,19 +101,19 @@ impl TerrainMesh {
     /// Places a grid of about `texel_m` texels over the triangles' extent and
     /// draws them into it on the CPU. The texel grows when the mesh would need
     /// more than `MESH_GRID_MAX_SIDE` texels on a side.
-    pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, SnowError> {
+    pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, crate::SnowError> {
         let bad = |why: String| SnowError::InvalidParameter { field: "terrain mesh", why };
         if triangles.is_empty() {
-            return Err(bad("the mesh has no triangles".into()));
+            return Err(bad("the mesh has no triangles".into()).into());
         }
         if !(texel_m.is_finite() && texel_m > 0.0) {
-            return Err(bad(format!("texel size must be a positive number of metres, got {texel_m}")));
+            return Err(bad(format!("texel size must be a positive number of metres, got {texel_m}")).into());
         }
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for p in triangles.iter().flatten() {
             if !p.iter().all(|v| v.is_finite()) {
-                return Err(bad(format!("a vertex is not finite: {p:?}")));
+                return Err(bad(format!("a vertex is not finite: {p:?}")).into());
             }
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
@@ -122,10 +122,10 @@ impl TerrainMesh {
         }
         let extent = [hi[0] - lo[0], hi[2] - lo[2]];
         if !(extent[0].is_finite() && extent[1].is_finite() && (hi[1] - lo[1]).is_finite()) {
-            return Err(bad(format!("the mesh spans {lo:?} to {hi:?} m, a size that is not a finite f32")));
+            return Err(bad(format!("the mesh spans {lo:?} to {hi:?} m, a size that is not a finite f32")).into());
         }
         if extent[0] <= 0.0 || extent[1] <= 0.0 {
-            return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()));
+            return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()).into());
         }
         let max_side = (MESH_GRID_MAX_SIDE - MESH_GRID_COLUMN_ALIGN) as f32;
         let texel = texel_m.max(extent[0] / max_side).max(extent[1] / max_side);
@@ -209,8 +209,8 @@ impl HeightmapTerrain {
     /// side or one above `HEIGHTMAP_MAX_SIDE`, a sample count other than `width * height`, a height that is
     /// not finite, a size that is not positive and finite, a centre that is
     /// not finite.
-    pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, SnowError> {
-        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+    pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, crate::SnowError> {
+        let bad = |field: &'static str, why: String| Err(crate::SnowError::from(SnowError::InvalidParameter { field, why }));
         if width == 0 || height == 0 {
             return bad("heightmap", format!("{width}x{height} pixels: both sides must be at least 1"));
         }
@@ -293,7 +293,7 @@ impl HeightmapTerrain {
     /// The same grid with other heights (as many, finite): a mesh terrain's
     /// grid as the GPU baked it.
     pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
-        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m)
+        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m).map_err(Into::into)
     }
 
     low_level_pub! {

@@ -219,10 +219,10 @@ fn gl_lock_panics_as_errors<T>(work: impl FnOnce() -> T) -> Result<T, SnowError>
 impl GpuContext {
     /// Picks an adapter as `request` asks and creates a device without a
     /// surface, for headless runs, tests and the bench.
-    pub fn new_headless(request: &AdapterRequest) -> Result<Self, SnowError> {
+    pub fn new_headless(request: &AdapterRequest) -> Result<Self, crate::SnowError> {
         let desc = Self::instance_descriptor(wgpu::InstanceDescriptor::new_without_display_handle(), request)?;
         let instance = wgpu::Instance::new(desc);
-        Self::choose(instance, None, request)
+        Self::choose(instance, None, request).map_err(Into::into)
     }
 
     low_level_pub! {
@@ -391,9 +391,9 @@ impl GpuContext {
     /// Returns the first GPU error reported since the last call (validation,
     /// out of memory) or the device-lost reason, so callers fail instead of
     /// rendering garbage or hanging.
-    pub fn check(&self, context: &'static str) -> Result<(), SnowError> {
+    pub fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
         if let Some(reason) = self.lost_reason() {
-            return Err(SnowError::DeviceLost(reason));
+            return Err(SnowError::DeviceLost(reason).into());
         }
         let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
         if errors.is_empty() {
@@ -401,7 +401,7 @@ impl GpuContext {
         }
         let message = errors.join("\n");
         errors.clear();
-        Err(SnowError::Gpu { context, message })
+        Err(SnowError::Gpu { context, message }.into())
     }
 
     low_level_pub! {
@@ -410,7 +410,7 @@ impl GpuContext {
             self.device
                 .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
                 .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
-            self.check(context)
+            self.check(context).map_err(Into::into)
         }
     }
 }

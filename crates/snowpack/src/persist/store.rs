@@ -91,8 +91,8 @@ impl TileStore {
     /// version. Leftover temporary files are deleted, the tiles are indexed
     /// (recency from their modification times) and, if the budget is now
     /// smaller than what is stored, the oldest are evicted.
-    pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
-        Self::open_on(Arc::new(OsDisk), dir, side, config)
+    pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, crate::StoreError> {
+        Self::open_on(Arc::new(OsDisk), dir, side, config).map_err(Into::into)
     }
 
     low_level_pub! {

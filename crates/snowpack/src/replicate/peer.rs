@@ -180,11 +180,11 @@ impl SnowPeer {
     }
 
     /// Handles one message from the relay. A `Refused` is
-    /// [`ShareError::Refused`] naming what differs ("here" is this peer's
+    /// [`crate::ShareErrorKind::Refused`] naming what differs ("here" is this peer's
     /// world, "there" the relay's); bytes that do not decode, or a message
-    /// a relay never sends, are [`ShareError::Malformed`] (and counted).
+    /// a relay never sends, are [`crate::ShareErrorKind::Malformed`] (and counted).
     /// Tiles are kept for the next [`SnowPeer::update`].
-    pub fn receive(&mut self, bytes: &[u8]) -> Result<(), ShareError> {
+    pub fn receive(&mut self, bytes: &[u8]) -> Result<(), crate::ShareError> {
         self.stats.bytes_in += bytes.len() as u64;
         self.stats.messages_in += 1;
         let message = decode(bytes).inspect_err(|_| self.stats.malformed += 1)?;
@@ -197,7 +197,7 @@ impl SnowPeer {
             Message::Refused { differences } => {
                 self.welcomed = false;
                 self.refused = true;
-                return Err(ShareError::Refused { differences });
+                return Err(ShareError::Refused { differences }.into());
             }
             Message::Tiles { tiles, .. } => {
                 self.stats.tiles_received += tiles.len() as u64;
@@ -227,7 +227,7 @@ impl SnowPeer {
             }
             other => {
                 self.stats.malformed += 1;
-                return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())));
+                return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())).into());
             }
         }
         Ok(())

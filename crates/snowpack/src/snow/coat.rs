@@ -93,7 +93,7 @@ impl Characters {
 
 impl SnowDeformation {
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
-    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), SnowError> {
+    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), crate::SnowError> {
         settings.validate()?;
         let slot = self
             .characters

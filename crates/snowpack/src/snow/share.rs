@@ -25,12 +25,12 @@ impl SnowDeformation {
     /// `interval_s` of world time (0.25 s is a good default) for a
     /// [`crate::SnowPeer`] to send, and the tiles it receives are folded in. Calling it again changes the side and
     /// the interval and forgets pending tiles.
-    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), SnowError> {
+    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
         if !SHARE_TILE_SIDES.contains(&tile_side) {
-            return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") });
+            return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") }.into());
         }
         if !interval_s.is_finite() || interval_s < 0.0 {
-            return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") });
+            return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") }.into());
         }
         let device = &ctx.device;
         let grid = ShareGrid::new(self.core.params.resolution, tile_side);
