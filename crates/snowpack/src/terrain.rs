@@ -434,7 +434,7 @@ mod tests {
     fn a_heightmap_is_checked_when_made() {
         let ok = |w, h, n: usize| HeightmapTerrain::new(w, h, vec![1.0; n], [0.0, 0.0], [4.0, 4.0]);
         assert!(ok(2, 3, 6).is_ok());
-        let why = |r: Result<HeightmapTerrain, SnowError>| r.expect_err("must be refused").to_string();
+        let why = |r: Result<HeightmapTerrain, crate::SnowError>| r.expect_err("must be refused").to_string();
         assert!(why(ok(0, 3, 0)).contains("at least 1"));
         assert!(why(ok(2, 3, 5)).contains("5 heights for 2x3"));
         assert!(why(HeightmapTerrain::new(1, 2, vec![1.0, f32::NAN], [0.0, 0.0], [1.0, 1.0])).contains("pixel 1"));

@@ -794,7 +794,7 @@ mod tests {
         drop(open(dir.path(), 0));
         assert_eq!(TileStore::side_in(dir.path()).expect("a store"), Some(SIDE));
         let meta = dir.path().join(META_FILE);
-        match TileStore::open(dir.path(), 32, StoreConfig::default()) {
+        match TileStore::open(dir.path(), 32, StoreConfig::default()).map_err(StoreError::from) {
             Err(e @ StoreError::Mismatch { .. }) => {
                 assert_eq!(e.path(), Some(meta.as_path()));
                 assert!(e.to_string().contains("store.meta"), "{e}");
@@ -806,7 +806,7 @@ mod tests {
         let crc = crc32fast::hash(&bytes[..16]);
         bytes[16..20].copy_from_slice(&crc.to_le_bytes());
         fs::write(&meta, &bytes).expect("write meta");
-        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from) {
             Err(StoreError::Version { path, found, expected }) => {
                 assert_eq!((path, found, expected), (meta.clone(), FORMAT_VERSION + 1, FORMAT_VERSION));
             }
@@ -814,15 +814,15 @@ mod tests {
         }
         fs::write(&meta, b"garbage").expect("write meta");
         assert!(matches!(TileStore::side_in(dir.path()), Err(StoreError::Corrupt { .. })));
-        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()), Err(StoreError::Corrupt { .. })));
-        assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()), Err(StoreError::Mismatch { .. })));
+        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Corrupt { .. })));
+        assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Mismatch { .. })));
     }
 
     #[test]
     fn one_store_per_directory() {
         let dir = TestDir::new("store-lock");
         let store = open(dir.path(), 0);
-        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from) {
             // Where the file system has locks, the second open is refused.
             Err(StoreError::Io { source, .. }) => {
                 assert_eq!(source.kind(), io::ErrorKind::WouldBlock)

@@ -1226,7 +1226,7 @@ mod tests {
         assert_eq!(s.take_errors().len(), 1, "the failed write is reported");
         // A flush retries the failed write, which fails again: that error is
         // flush's answer, and is not repeated in take_errors.
-        assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
+        assert!(matches!(s.flush().map_err(StoreError::from), Err(StoreError::Io { .. })));
         assert_eq!(s.stats().errors, 2);
         assert!(s.take_errors().is_empty(), "the error flush returned is not repeated");
         // Still answered from memory, and written once the disk is back.
@@ -1264,7 +1264,7 @@ mod tests {
         let mut s = streamer(&dir, 4);
         s.put(tile(0, 0, 1.0));
         s.send(|_| Request::Panic).expect("send");
-        assert!(matches!(s.flush(), Err(StoreError::WorkerGone)));
+        assert!(matches!(s.flush().map_err(StoreError::from), Err(StoreError::WorkerGone)));
         assert!(matches!(s.wait_for(&[TileKey::new(5, 5)]), Err(StoreError::WorkerGone)));
         assert!(matches!(s.read_state("x"), Err(StoreError::WorkerGone)));
         assert_eq!(s.lookup(TileKey::new(5, 5)), TileLookup::Ready(None));

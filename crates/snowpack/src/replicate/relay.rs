@@ -364,7 +364,9 @@ impl SnowRelay {
             Some(bytes) => {
                 let world = decode_world(&bytes).map_err(|e| ShareError::StoreWorld(format!("the saved world does not decode: {e}")))?;
                 if world.tile_side != store.side() {
-                    return Err(ShareError::StoreWorld(format!("the saved world has {}² tiles, the store holds {}² tiles", world.tile_side, store.side())).into());
+                    return Err(
+                        ShareError::StoreWorld(format!("the saved world has {}² tiles, the store holds {}² tiles", world.tile_side, store.side())).into()
+                    );
                 }
                 Some(world)
             }

@@ -175,7 +175,8 @@ impl SnowDeformation {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
                 why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
-            }.into());
+            }
+            .into());
         }
         let buffer_bytes = params.texel_count() as u64 * 4;
         let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
@@ -186,7 +187,8 @@ impl SnowDeformation {
                     "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
                     params.resolution
                 ),
-            }.into());
+            }
+            .into());
         }
         if let TerrainSource::Heightmap(h) = &terrain {
             let bytes = h.heights_m().len() as u64 * 4;
@@ -198,7 +200,8 @@ impl SnowDeformation {
                         h.width(),
                         h.height()
                     ),
-                }.into());
+                }
+                .into());
             }
         }
         let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
@@ -252,14 +255,17 @@ impl SnowDeformation {
                 return Err(SnowError::InvalidParameter {
                     field: "snowfall",
                     why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into(),
-                }.into());
+                }
+                .into());
             }
         }
         // The footprint quantisation was fixed at creation from `max_m`.
         if let (Some(new), Some(old)) = (&snowfall, &self.core.params.snowfall)
             && new.max_m > old.max_m
         {
-            return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) }.into());
+            return Err(
+                SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) }.into()
+            );
         }
         if snowfall.is_some() {
             self.core.params.snowfall = snowfall;
@@ -490,8 +496,8 @@ impl SnowDeformation {
     low_level_pub! {
         /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
         #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
-            self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ()).map_err(Into::into)
+        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), crate::SnowError> {
+            self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
         }
     }
 

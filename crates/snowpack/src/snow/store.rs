@@ -62,7 +62,8 @@ impl SnowDeformation {
                 return Err(mismatch(format!(
                     "saved with resolution {} and tiles of {}, the window has {} and {side}",
                     s.resolution, s.tile_side, self.core.params.resolution
-                )).into());
+                ))
+                .into());
             }
             if s.texel_m != self.core.params.texel_m() || s.depth_m != self.core.params.depth_m || s.stamp_range_m != [low, high] {
                 return Err(mismatch(format!(
@@ -106,7 +107,8 @@ impl SnowDeformation {
             return Err(SnowError::InvalidParameter {
                 field: "store",
                 why: "saving needs a disk store (attach_store with a TileStreamer over a TileStore); tiles are kept in memory only or not at all".into(),
-            }.into());
+            }
+            .into());
         };
         if let Some(origin) = origin {
             tiles.checkpoint(ctx, &self.core.res, origin, self.time.clock)?;
