@@ -119,7 +119,7 @@ low_level_some_fields! {
         /// Its queue.
         pub queue: wgpu::Queue,
         /// The adapter, in words.
-        pub(crate) summary: AdapterSummary,
+        pub summary: AdapterSummary,
         /// What the adapter can do below full WebGPU (all of it for a game's device,
         /// which is trusted to be able to run what it asks for).
         pub(crate) downlevel: wgpu::DownlevelFlags,

@@ -57,7 +57,7 @@ pub struct EnvironmentMap {
 impl EnvironmentMap {
     /// Decodes a Radiance `.hdr` image. Its size is checked from the header
     /// before anything is decoded (from `DOWNSAMPLED_W` x `DOWNSAMPLED_H` to
-    /// [`ENVIRONMENT_MAX_W`] x [`ENVIRONMENT_MAX_H`]), and every decoded value
+    /// `ENVIRONMENT_MAX_W` x `ENVIRONMENT_MAX_H`), and every decoded value
     /// must be finite.
     pub fn from_hdr(bytes: &[u8]) -> Result<Self, crate::SnowError> {
         use image::ImageDecoder as _;

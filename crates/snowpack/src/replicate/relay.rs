@@ -556,7 +556,7 @@ impl SnowRelay {
         self.world.as_ref()
     }
 
-    /// The world clock at `now_s` ([`WorldIdentity::clock_at`]).
+    /// The world clock at `now_s` (the world identity's clock at that time).
     #[must_use]
     pub fn clock(&self, now_s: f64) -> Option<ShareClock> {
         self.world.as_ref().map(|w| w.clock_at(now_s))
