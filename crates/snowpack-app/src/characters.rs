@@ -61,8 +61,8 @@ pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) 
 /// named in the message) is the user's input: [`BadInput`] naming the file
 /// and key (exit 2). Other failures are the machine's (exit 1).
 pub fn new_window(ctx: &GpuContext, scene: &Scene, params: snowpack::SnowParams, center: DVec2, doing: &'static str) -> anyhow::Result<SnowDeformation> {
-    match SnowDeformation::new(ctx, params, scene.terrain.clone(), center) {
-        Err(snowpack::SnowError::InvalidParameter { field, why }) => {
+    match SnowDeformation::new(ctx, params, scene.terrain.clone(), center).map_err(snowpack::SnowError::into_detail) {
+        Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
             let key = if field == "heightmap" { "[terrain].path".to_owned() } else { format!("[snow].{field}") };
             Err(BadInput(format!("{}: {key}: {why}", scene.path.display())).into())
         }
@@ -74,8 +74,8 @@ pub fn new_window(ctx: &GpuContext, scene: &Scene, params: snowpack::SnowParams,
 /// the worker died: exit 1) rather than the user's (a store of another
 /// tile side or format, a damaged or mismatched save: exit 2).
 #[must_use]
-pub fn machine_fault(e: &snowpack::StoreError) -> bool {
-    use snowpack::StoreError;
+pub fn machine_fault(e: &snowpack::low_level::error::StoreError) -> bool {
+    use snowpack::low_level::error::StoreError;
     matches!(e, StoreError::Io { .. } | StoreError::TimedOut { .. } | StoreError::WorkerGone)
 }
 
@@ -84,7 +84,7 @@ pub fn machine_fault(e: &snowpack::StoreError) -> bool {
 /// message names the file and key.
 fn store_error(scene: &Scene, e: snowpack::StoreError) -> anyhow::Error {
     let key = format!("{}: [store].path", scene.path.display());
-    if machine_fault(&e) { anyhow::Error::new(e).context(key) } else { BadInput(format!("{key}: {e}")).into() }
+    if machine_fault(e.detail()) { anyhow::Error::new(e).context(key) } else { BadInput(format!("{key}: {e}")).into() }
 }
 
 /// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
@@ -118,9 +118,11 @@ pub fn attach_store(
             TileStreamer::new(store, memory)
         }
     };
-    match snow.attach_store(ctx, streamer) {
-        Err(snowpack::SnowError::Store(e)) => Err(store_error(scene, e)),
-        Err(snowpack::SnowError::InvalidParameter { field, why }) => Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into()),
+    match snow.attach_store(ctx, streamer).map_err(snowpack::SnowError::into_detail) {
+        Err(snowpack::low_level::error::SnowError::Store(e)) => Err(store_error(scene, e.into())),
+        Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
+            Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into())
+        }
         other => other.context("attaching the tile store"),
     }
 }

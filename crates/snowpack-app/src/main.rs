@@ -26,6 +26,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use snowpack_scene::{Scene, SceneError};
 
+use snowpack::low_level::error::{SnowError as SnowDetail, StoreError as StoreDetail};
 use snowpack::low_level::gpu::context::{GL_CONTEXT_LOCK_PANIC, panic_text};
 use snowpack_app::BadInput;
 
@@ -321,7 +322,9 @@ fn main() -> ExitCode {
     // not only where the library catches it (choosing the adapter): such a
     // panic is reported as the machine's error, like a lost device.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| main_inner(cli))).unwrap_or_else(|payload| match panic_text(&*payload) {
-        Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => Err(snowpack::SnowError::GlContextLocked(text.to_owned()).into()),
+        Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => {
+            Err(snowpack::SnowError::from(snowpack::low_level::error::SnowError::GlContextLocked(text.to_owned())).into())
+        }
         _ => std::panic::resume_unwind(payload),
     });
     match outcome {
@@ -343,13 +346,24 @@ fn exit_code(err: &anyhow::Error) -> u8 {
         e.is::<SceneError>()
             || e.is::<BadInput>()
             || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
-            || matches!(e.downcast_ref::<snowpack::SnowError>(), Some(snowpack::SnowError::InvalidParameter { .. } | snowpack::SnowError::UnknownBackend(_)))
+            || matches!(snow_detail(e), Some(SnowDetail::InvalidParameter { .. } | SnowDetail::UnknownBackend(_)))
     });
     let machines = err.chain().any(|e| {
-        e.downcast_ref::<snowpack::StoreError>().is_some_and(snowpack_app::characters::machine_fault)
-            || matches!(e.downcast_ref::<snowpack::SnowError>(), Some(snowpack::SnowError::Store(s)) if snowpack_app::characters::machine_fault(s))
+        store_detail(e).is_some_and(snowpack_app::characters::machine_fault)
+            || matches!(snow_detail(e), Some(SnowDetail::Store(s)) if snowpack_app::characters::machine_fault(s))
     });
     if users && !machines { 2 } else { 1 }
+}
+
+/// The library's error in detail, whether the chain holds the front door's
+/// `SnowError` or the detailed enum that low-level calls return.
+fn snow_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a SnowDetail> {
+    e.downcast_ref::<snowpack::SnowError>().map(snowpack::SnowError::detail).or_else(|| e.downcast_ref::<SnowDetail>())
+}
+
+/// The tile store's error in detail (front door's or detailed), as [`snow_detail`].
+fn store_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a StoreDetail> {
+    e.downcast_ref::<snowpack::StoreError>().map(snowpack::StoreError::detail).or_else(|| e.downcast_ref::<StoreDetail>())
 }
 
 /// The GL context-lock panic is reported as an error by `main`: the default

@@ -446,7 +446,7 @@ impl SnowLink {
         self.net.update()?;
         let mut refused = None;
         while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
-            match self.peer.receive(&bytes) {
+            match self.peer.receive(&bytes).map_err(snowpack::ShareError::into_detail) {
                 Ok(()) => {}
                 Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
                 Err(e) => tracing::warn!("shared snow: {e}"),

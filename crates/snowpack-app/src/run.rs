@@ -92,8 +92,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let mut snow = new_window(&ctx, scene, params, window_center(scene, &world), "creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
-    match snow.set_objects(&ctx, &objects) {
-        Err(snowpack::SnowError::InvalidParameter { field, why }) => {
+    match snow.set_objects(&ctx, &objects).map_err(snowpack::SnowError::into_detail) {
+        Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
             return Err(BadInput(format!("{}: [[object]] / [snowfall].{field}: {why}", scene.path.display())).into());
         }
         other => other.context("placing the [[object]]s")?,

@@ -138,7 +138,7 @@ impl GltfFile {
         if out.indices.is_empty() {
             return Err("the file has no triangles".into());
         }
-        if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = out.validate() {
+        if let Err(snowpack::low_level::error::SnowError::InvalidParameter { why, .. }) = out.validate() {
             return Err(why);
         }
         Ok(out)

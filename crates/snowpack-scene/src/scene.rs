@@ -492,7 +492,7 @@ impl Scene {
                     tile_memory_bytes: defaults.tile_memory_bytes,
                     teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
                 };
-                if let Err(snowpack::SnowError::InvalidParameter { field, why }) = snow.validate() {
+                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = snow.validate() {
                     return Err(t.err(field, why));
                 }
                 t.finish()?;
@@ -642,7 +642,7 @@ impl Scene {
                     max_m: s.positive("max_m", d.max_m, " of metres")?,
                     atlas_resolution: s.u32_in("atlas_resolution", d.atlas_resolution, 16..=8192)?,
                 };
-                if let Err(snowpack::SnowError::InvalidParameter { field, why }) = spec.validate() {
+                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = spec.validate() {
                     return Err(s.err(field, why));
                 }
                 s.finish()?;
@@ -680,7 +680,9 @@ impl Scene {
                     disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
                     save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
                 };
-                if let Err(snowpack::SnowError::InvalidParameter { why, .. }) = snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels) {
+                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { why, .. }) =
+                    snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels)
+                {
                     return Err(t.err("tile_texels", why));
                 }
                 t.finish()?;
@@ -910,9 +912,9 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
     }
     let heightmap = HeightmapTerrain::new(width, height, heights_m, center, size).map_err(|e| {
         // The library names its field; the scene names the key that set it.
-        let key = match &e {
-            snowpack::SnowError::InvalidParameter { field: "heightmap size_m", .. } => "size_m",
-            snowpack::SnowError::InvalidParameter { field: "heightmap center_m", .. } => "center",
+        let key = match e.detail() {
+            snowpack::low_level::error::SnowError::InvalidParameter { field: "heightmap size_m", .. } => "size_m",
+            snowpack::low_level::error::SnowError::InvalidParameter { field: "heightmap center_m", .. } => "center",
             _ => "height_scale_m",
         };
         t.err(key, format!("heightmap {}: {e}", file.display()))
@@ -1133,7 +1135,7 @@ fn parse_shell(t: &mut Fields<'_>) -> Result<ShellSettings, SceneError> {
         debug_pass: t.u32_in("debug_pass", d.debug_pass, 0..=16)?,
         seed: u64::from(t.u32_in("seed", d.seed as u32, 0..=u64::from(u32::MAX))?),
     };
-    if let Err(snowpack::SnowError::InvalidParameter { field, why }) = settings.validate() {
+    if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = settings.validate() {
         return Err(t.err(field, why));
     }
     Ok(settings)

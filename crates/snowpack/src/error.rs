@@ -3,8 +3,14 @@
 //! snow ([`ShareError`] and [`MessageError`], re-exported by
 //! [`crate::replicate`]). They live here, at the bottom of the layers, so
 //! that every module can return a [`SnowError`].
+//!
+//! These enums are the errors in detail, as the library builds them; the
+//! front door's errors ([`front`]: `snowpack::SnowError` and its kind) wrap
+//! them.
 
 use std::path::{Path, PathBuf};
+
+pub mod front;
 
 /// Everything that can go wrong in snowpack's library calls.
 #[derive(Debug, thiserror::Error)]

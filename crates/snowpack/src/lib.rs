@@ -112,6 +112,34 @@ macro_rules! low_level_fields {
     };
 }
 
+/// Declares a struct whose fields written `pub(crate)` are `pub` with the
+/// `low_level` feature: the fields a game sets or reads are written `pub`,
+/// the tuning and plumbing beside them `pub(crate)` (a game gets their
+/// defaults from the type's constructor); private fields stay private.
+/// Field by field, in order, so the struct's layout is as written.
+macro_rules! low_level_some_fields {
+    ($(#[$attr:meta])* pub struct $name:ident { $($body:tt)* }) => {
+        low_level_some_fields!(@field [$(#[$attr])*] $name [] [] $($body)*);
+    };
+    // A field written `pub(crate)`: `pub` with the feature.
+    (@field $attrs:tt $name:ident [$($ll:tt)*] [$($no:tt)*] $(#[$fattr:meta])* pub(crate) $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
+        low_level_some_fields!(@field $attrs $name [$($ll)* $(#[$fattr])* pub $field: $ty,] [$($no)* $(#[$fattr])* pub(crate) $field: $ty,] $($($rest)*)?);
+    };
+    // Any other field (`pub`, or private to its module): as written.
+    (@field $attrs:tt $name:ident [$($ll:tt)*] [$($no:tt)*] $(#[$fattr:meta])* $fvis:vis $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
+        low_level_some_fields!(@field $attrs $name [$($ll)* $(#[$fattr])* $fvis $field: $ty,] [$($no)* $(#[$fattr])* $fvis $field: $ty,] $($($rest)*)?);
+    };
+    (@field [$(#[$attr:meta])*] $name:ident [$($ll:tt)*] [$($no:tt)*]) => {
+        $(#[$attr])*
+        #[cfg(feature = "low_level")]
+        pub struct $name { $($ll)* }
+        $(#[$attr])*
+        #[cfg(not(feature = "low_level"))]
+        #[allow(dead_code, reason = "fields that only the app, the tools and the tests read (`low_level`)")]
+        pub struct $name { $($no)* }
+    };
+}
+
 // The modules are the crate's own: the front door is the root's re-exports
 // below, and what the app, the Bevy plugin and the tests need beyond it is
 // re-exported by `low_level` (feature `low_level`).
@@ -147,16 +175,16 @@ pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
 pub use deform::{PointAnswers, PointSample, QueryStats, QueryTicket};
-pub use error::SnowError;
+pub use error::front::{ShareError, ShareErrorKind, SnowError, SnowErrorKind, StoreError, StoreErrorKind};
 pub use gpu::{AdapterRequest, GpuContext};
-pub use persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
+pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
-pub use replicate::{PeerConfig, PeerId, PeerStats, ShareError, SharedSnow, SnowPeer, WorldIdentity};
+pub use replicate::{PeerConfig, SnowPeer, WorldIdentity};
 // The relay a game's server runs between its players (feature `relay`).
 #[cfg(feature = "relay")]
-pub use replicate::{RelayConfig, RelayStats, SnowRelay};
+pub use replicate::{PeerId, RelayConfig, RelayStats, SnowRelay};
 pub use skin::coat::CoatSettings;
 pub use skin::skinning::SkinnedMesh;
 pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};

@@ -66,22 +66,24 @@ pub const MESH_GRID_MAX_SIDE: u32 = 2048;
 /// 256 bytes and the GPU can copy the drawn texture into a tight buffer.
 const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 
-/// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
-/// so cliffs, bridges' decks, roads and sculpted ground all work.
-///
-/// The mesh is drawn from above into a grid (the highest surface per texel
-/// centre wins, as a depth test would choose): on the GPU by
-/// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
-/// the CPU by `draw_from_above` for physics and queries (the
-/// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
-/// centre is not on a triangle's edge). Overhangs are invisible from above, which is
-/// right for snow: it lies on the top surface.
-#[derive(Clone, PartialEq)]
-pub struct TerrainMesh {
-    /// World-space triangles, three corners each.
-    pub triangles: Vec<[[f32; 3]; 3]>,
-    /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
-    pub grid: HeightmapTerrain,
+low_level_fields! {
+    /// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
+    /// so cliffs, bridges' decks, roads and sculpted ground all work.
+    ///
+    /// The mesh is drawn from above into a grid (the highest surface per texel
+    /// centre wins, as a depth test would choose): on the GPU by
+    /// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
+    /// the CPU by `draw_from_above` for physics and queries (the
+    /// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
+    /// centre is not on a triangle's edge). Overhangs are invisible from above, which is
+    /// right for snow: it lies on the top surface.
+    #[derive(Clone, PartialEq)]
+    pub struct TerrainMesh {
+        /// World-space triangles, three corners each.
+        triangles: Vec<[[f32; 3]; 3]>,
+        /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
+        grid: HeightmapTerrain,
+    }
 }
 
 impl std::fmt::Debug for TerrainMesh {
@@ -99,19 +101,19 @@ impl TerrainMesh {
     /// Places a grid of about `texel_m` texels over the triangles' extent and
     /// draws them into it on the CPU. The texel grows when the mesh would need
     /// more than `MESH_GRID_MAX_SIDE` texels on a side.
-    pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, SnowError> {
+    pub fn new(triangles: Vec<[[f32; 3]; 3]>, texel_m: f32) -> Result<Self, crate::SnowError> {
         let bad = |why: String| SnowError::InvalidParameter { field: "terrain mesh", why };
         if triangles.is_empty() {
-            return Err(bad("the mesh has no triangles".into()));
+            return Err(bad("the mesh has no triangles".into()).into());
         }
         if !(texel_m.is_finite() && texel_m > 0.0) {
-            return Err(bad(format!("texel size must be a positive number of metres, got {texel_m}")));
+            return Err(bad(format!("texel size must be a positive number of metres, got {texel_m}")).into());
         }
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for p in triangles.iter().flatten() {
             if !p.iter().all(|v| v.is_finite()) {
-                return Err(bad(format!("a vertex is not finite: {p:?}")));
+                return Err(bad(format!("a vertex is not finite: {p:?}")).into());
             }
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
@@ -120,10 +122,10 @@ impl TerrainMesh {
         }
         let extent = [hi[0] - lo[0], hi[2] - lo[2]];
         if !(extent[0].is_finite() && extent[1].is_finite() && (hi[1] - lo[1]).is_finite()) {
-            return Err(bad(format!("the mesh spans {lo:?} to {hi:?} m, a size that is not a finite f32")));
+            return Err(bad(format!("the mesh spans {lo:?} to {hi:?} m, a size that is not a finite f32")).into());
         }
         if extent[0] <= 0.0 || extent[1] <= 0.0 {
-            return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()));
+            return Err(bad("the mesh has no extent seen from above (all triangles edge-on)".into()).into());
         }
         let max_side = (MESH_GRID_MAX_SIDE - MESH_GRID_COLUMN_ALIGN) as f32;
         let texel = texel_m.max(extent[0] / max_side).max(extent[1] / max_side);
@@ -207,8 +209,8 @@ impl HeightmapTerrain {
     /// side or one above `HEIGHTMAP_MAX_SIDE`, a sample count other than `width * height`, a height that is
     /// not finite, a size that is not positive and finite, a centre that is
     /// not finite.
-    pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, SnowError> {
-        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+    pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, crate::SnowError> {
+        let bad = |field: &'static str, why: String| Err(crate::SnowError::from(SnowError::InvalidParameter { field, why }));
         if width == 0 || height == 0 {
             return bad("heightmap", format!("{width}x{height} pixels: both sides must be at least 1"));
         }
@@ -247,16 +249,20 @@ impl HeightmapTerrain {
         }
     }
 
-    /// Pixels per row.
-    #[must_use]
-    pub fn width(&self) -> u32 {
-        self.width
+    low_level_pub! {
+        /// Pixels per row.
+        #[must_use]
+        fn width(&self) -> u32 {
+            self.width
+        }
     }
 
-    /// Rows.
-    #[must_use]
-    pub fn height(&self) -> u32 {
-        self.height
+    low_level_pub! {
+        /// Rows.
+        #[must_use]
+        fn height(&self) -> u32 {
+            self.height
+        }
     }
 
     low_level_pub! {
@@ -267,52 +273,60 @@ impl HeightmapTerrain {
         }
     }
 
-    /// World (x, z) of the centre of the covered area (m).
-    #[must_use]
-    pub fn center_m(&self) -> [f32; 2] {
-        self.center_m
+    low_level_pub! {
+        /// World (x, z) of the centre of the covered area (m).
+        #[must_use]
+        fn center_m(&self) -> [f32; 2] {
+            self.center_m
+        }
     }
 
-    /// World size (x, z) of the covered area (m).
-    #[must_use]
-    pub fn size_m(&self) -> [f32; 2] {
-        self.size_m
+    low_level_pub! {
+        /// World size (x, z) of the covered area (m).
+        #[must_use]
+        fn size_m(&self) -> [f32; 2] {
+            self.size_m
+        }
     }
 
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     /// The same grid with other heights (as many, finite): a mesh terrain's
     /// grid as the GPU baked it.
     pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
-        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m)
+        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m).map_err(Into::into)
     }
 
-    /// Lowest and highest sample (m).
-    #[must_use]
-    pub fn height_range(&self) -> (f32, f32) {
-        self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    low_level_pub! {
+        /// Lowest and highest sample (m).
+        #[must_use]
+        fn height_range(&self) -> (f32, f32) {
+            self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+        }
     }
 
-    /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
-    #[must_use]
-    pub fn height_at(&self, x: f32, z: f32) -> f32 {
-        let (w, h) = (self.width as i32, self.height as i32);
-        // Continuous pixel coordinates with pixel centres at integer + 0.5.
-        let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
-        let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
-        let u = u.clamp(0.0, (w - 1) as f32);
-        let v = v.clamp(0.0, (h - 1) as f32);
-        let (u0, v0) = (u.floor(), v.floor());
-        let (fu, fv) = (u - u0, v - v0);
-        let (i0, j0) = (v0 as i32, u0 as i32);
-        let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
-        let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
-        let a = at(i0, j0);
-        let b = at(i0, j1);
-        let c = at(i1, j0);
-        let d = at(i1, j1);
-        let ab = a + (b - a) * fu;
-        let cd = c + (d - c) * fu;
-        ab + (cd - ab) * fv
+    low_level_pub! {
+        /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
+        #[must_use]
+        fn height_at(&self, x: f32, z: f32) -> f32 {
+            let (w, h) = (self.width as i32, self.height as i32);
+            // Continuous pixel coordinates with pixel centres at integer + 0.5.
+            let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
+            let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
+            let u = u.clamp(0.0, (w - 1) as f32);
+            let v = v.clamp(0.0, (h - 1) as f32);
+            let (u0, v0) = (u.floor(), v.floor());
+            let (fu, fv) = (u - u0, v - v0);
+            let (i0, j0) = (v0 as i32, u0 as i32);
+            let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
+            let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
+            let a = at(i0, j0);
+            let b = at(i0, j1);
+            let c = at(i1, j0);
+            let d = at(i1, j1);
+            let ab = a + (b - a) * fu;
+            let cd = c + (d - c) * fu;
+            ab + (cd - ab) * fv
+        }
     }
 }
 
@@ -420,7 +434,7 @@ mod tests {
     fn a_heightmap_is_checked_when_made() {
         let ok = |w, h, n: usize| HeightmapTerrain::new(w, h, vec![1.0; n], [0.0, 0.0], [4.0, 4.0]);
         assert!(ok(2, 3, 6).is_ok());
-        let why = |r: Result<HeightmapTerrain, SnowError>| r.expect_err("must be refused").to_string();
+        let why = |r: Result<HeightmapTerrain, crate::SnowError>| r.expect_err("must be refused").to_string();
         assert!(why(ok(0, 3, 0)).contains("at least 1"));
         assert!(why(ok(2, 3, 5)).contains("5 heights for 2x3"));
         assert!(why(HeightmapTerrain::new(1, 2, vec![1.0, f32::NAN], [0.0, 0.0], [1.0, 1.0])).contains("pixel 1"));

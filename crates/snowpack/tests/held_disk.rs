@@ -12,9 +12,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec2;
+use snowpack::low_level::error::SnowError;
 use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer};
 use snowpack::low_level::testing::{self, HeldDisk};
-use snowpack::{SnowDeformation, SnowError, SnowParams, TerrainSource};
+use snowpack::{SnowDeformation, SnowParams, TerrainSource};
 
 const SIDE: u32 = 16;
 /// The streamers' wait limit in these tests.
@@ -135,11 +136,11 @@ fn flush_gives_up_on_a_held_disk_and_writes_once_released() {
     disk.hold();
     s.put(tile(0, 0, 1.0));
     assert!(disk.wait_until_blocked(HUNG), "the tile's write reaches the disk");
-    assert_timed_out("flush", bounded(&disk, "flush", || s.flush()), "flush");
+    assert_timed_out("flush", bounded(&disk, "flush", || s.flush().map_err(snowpack::StoreError::into_detail)), "flush");
     // Still answered from memory while the disk hangs.
     assert_eq!(s.lookup(TileKey::new(0, 0)), TileLookup::Ready(Some(tile(0, 0, 1.0))));
     disk.release();
-    until_ok("flush", || s.flush(), store_timed_out);
+    until_ok("flush", || s.flush().map_err(snowpack::StoreError::into_detail), store_timed_out);
     assert_eq!(s.stats().writes, 1);
     drop(s);
     let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("reopen");
@@ -220,18 +221,18 @@ fn save_and_attach_store_give_up_on_a_held_disk() {
     assert!(!d.attach_store(ctx, held_streamer(dir.path(), &disk, side)).expect("attach"));
     d.step(ctx, &[], 1.0 / 60.0).expect("frame");
     disk.hold();
-    match bounded(&disk, "save", || d.save(ctx)) {
+    match bounded(&disk, "save", || d.save(ctx).map_err(snowpack::SnowError::into_detail)) {
         Err(SnowError::Store(StoreError::TimedOut { .. })) => {}
         other => panic!("a save on a held disk gave {other:?}, not a TimedOut store error"),
     }
     disk.release();
-    until_ok("save", || d.save(ctx), |e| matches!(e, SnowError::Store(StoreError::TimedOut { .. })));
+    until_ok("save", || d.save(ctx).map_err(snowpack::SnowError::into_detail), |e| matches!(e, SnowError::Store(StoreError::TimedOut { .. })));
     drop(d);
 
     let mut loaded = SnowDeformation::new(ctx, params, terrain, DVec2::ZERO).expect("window");
     let streamer = held_streamer(dir.path(), &disk, side);
     disk.hold();
-    match bounded(&disk, "attach_store", || loaded.attach_store(ctx, streamer)) {
+    match bounded(&disk, "attach_store", || loaded.attach_store(ctx, streamer).map_err(snowpack::SnowError::into_detail)) {
         Err(SnowError::Store(StoreError::TimedOut { what, .. })) => assert!(what.contains("window"), "{what}"),
         other => panic!("loading a save from a held disk gave {other:?}, not a TimedOut store error"),
     }

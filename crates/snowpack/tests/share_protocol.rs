@@ -597,7 +597,7 @@ fn a_peer_of_another_world_is_refused_naming_the_difference() {
     while let Some((id, bytes)) = relay.poll_transmit() {
         match id {
             1 => first.receive(&bytes).expect("welcomed"),
-            _ => match other.receive(&bytes) {
+            _ => match other.receive(&bytes).map_err(snowpack::ShareError::into_detail) {
                 Err(e @ ShareError::Refused { .. }) => {
                     let text = e.to_string();
                     assert!(text.contains("tile side: 32 here, 64 there"), "{text}");
@@ -949,7 +949,7 @@ fn a_lost_hello_is_sent_again_until_answered() {
         }
     }
     assert_eq!(hellos, 3, "one a second");
-    assert!(matches!(peer.receive(&encode(&Message::Refused { differences: vec!["x".to_owned()] })), Err(ShareError::Refused { .. })));
+    assert!(peer.receive(&encode(&Message::Refused { differences: vec!["x".to_owned()] })).is_err_and(|e| e.kind() == snowpack::ShareErrorKind::Refused));
     for k in 36..=60 {
         peer.update(&mut snow, f64::from(k) * 0.1);
     }

@@ -59,8 +59,8 @@ fn snow_on_a_games_device_keeps_the_games_error_handler_and_reports_its_own_erro
 
     // An error in work snowpack does on the game's device is snowpack's: caught and returned.
     ctx.capturing(|| drop(invalid_buffer(&ctx.device)));
-    match ctx.check("test") {
-        Err(SnowError::Gpu { message, .. }) => assert!(!message.is_empty()),
+    match ctx.check("test").map_err(SnowError::into_detail) {
+        Err(snowpack::low_level::error::SnowError::Gpu { message, .. }) => assert!(!message.is_empty()),
         other => panic!("expected snowpack's own GPU error, got {other:?}"),
     }
     assert_eq!(games_errors.load(Ordering::SeqCst), 1, "snowpack's error did not reach the game's handler");

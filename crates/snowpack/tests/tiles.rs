@@ -561,7 +561,7 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     let after = loaded.read_snow(ctx).expect("snow");
     let errors = loaded.take_store_errors();
     assert!(
-        errors.iter().any(|e| matches!(e, snowpack::low_level::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
+        errors.iter().any(|e| matches!(e.detail(), snowpack::low_level::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
         "no corrupt-tile error for {}: {errors:?}",
         path.display()
     );

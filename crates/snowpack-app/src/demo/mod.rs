@@ -566,9 +566,9 @@ impl Gfx {
         for id in &freed {
             self.egui_renderer.free_texture(id);
         }
-        match self.ctx.check("demo frame") {
+        match self.ctx.check("demo frame").map_err(snowpack::SnowError::into_detail) {
             Ok(()) => {}
-            Err(snowpack::SnowError::DeviceLost(reason)) => self.device_lost(reason),
+            Err(snowpack::low_level::error::SnowError::DeviceLost(reason)) => self.device_lost(reason),
             Err(e) => {
                 tracing::error!("{e}");
                 self.panel.status = Some((e.to_string(), true));

@@ -101,43 +101,47 @@ impl SnowParams {
         self.extent_m / self.resolution as f32
     }
 
-    /// Number of texels in the window.
-    #[must_use]
-    pub fn texel_count(&self) -> usize {
-        self.resolution as usize * self.resolution as usize
+    low_level_pub! {
+        /// Number of texels in the window.
+        #[must_use]
+        fn texel_count(&self) -> usize {
+            self.resolution as usize * self.resolution as usize
+        }
     }
 
-    /// Checks every value; the error names the offending field.
-    pub fn validate(&self) -> Result<(), SnowError> {
-        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
-        if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
-            return bad("resolution", format!("{} is not a multiple of 16 in {}..={}", self.resolution, RESOLUTION_RANGE.start(), RESOLUTION_RANGE.end()));
+    low_level_pub! {
+        /// Checks every value; the error names the offending field.
+        fn validate(&self) -> Result<(), SnowError> {
+            let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+            if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
+                return bad("resolution", format!("{} is not a multiple of 16 in {}..={}", self.resolution, RESOLUTION_RANGE.start(), RESOLUTION_RANGE.end()));
+            }
+            if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
+                return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
+            }
+            if !(self.depth_m.is_finite() && self.depth_m >= 0.0) {
+                return bad("depth_m", format!("{} must be zero or a positive number of metres", self.depth_m));
+            }
+            if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
+                return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));
+            }
+            if !(self.teleport_m.is_finite() && self.teleport_m >= 0.0) {
+                return bad("teleport_m", format!("{} must be zero or a positive number of metres", self.teleport_m));
+            }
+            if !(self.elevation.is_finite() && self.elevation >= 0.0) {
+                return bad("elevation", format!("{} must be zero or positive", self.elevation));
+            }
+            if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
+                return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
+            }
+            if let Some(s) = &self.snowfall {
+                s.validate()?;
+            }
+            if !RANGE_TEXELS.contains(&self.range_texels) {
+                return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));
+            }
+            Ok(())
         }
-        if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
-            return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
-        }
-        if !(self.depth_m.is_finite() && self.depth_m >= 0.0) {
-            return bad("depth_m", format!("{} must be zero or a positive number of metres", self.depth_m));
-        }
-        if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
-            return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));
-        }
-        if !(self.teleport_m.is_finite() && self.teleport_m >= 0.0) {
-            return bad("teleport_m", format!("{} must be zero or a positive number of metres", self.teleport_m));
-        }
-        if !(self.elevation.is_finite() && self.elevation >= 0.0) {
-            return bad("elevation", format!("{} must be zero or positive", self.elevation));
-        }
-        if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
-            return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
-        }
-        if let Some(s) = &self.snowfall {
-            s.validate()?;
-        }
-        if !RANGE_TEXELS.contains(&self.range_texels) {
-            return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));
-        }
-        Ok(())
     }
 }
 

@@ -144,18 +144,20 @@ impl PointAnswers {
     }
 }
 
-/// Counts of the query pipeline since the window was made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct QueryStats {
-    /// Requests gathered on the GPU.
-    pub gathered: u64,
-    /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
-    pub answered: u64,
-    /// Requests not gathered because every staging buffer was still in flight
-    /// (the GPU was behind): the frame went on; a later request is answered.
-    pub skipped: u64,
-    /// Points the pass holds now (it grows to the largest request).
-    pub capacity: u32,
+low_level_some_fields! {
+    /// Counts of the query pipeline since the window was made.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+    pub struct QueryStats {
+        /// Requests gathered on the GPU.
+        pub(crate) gathered: u64,
+        /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
+        pub(crate) answered: u64,
+        /// Requests not gathered because every staging buffer was still in flight
+        /// (the GPU was behind): the frame went on; a later request is answered.
+        pub skipped: u64,
+        /// Points the pass holds now (it grows to the largest request).
+        pub(crate) capacity: u32,
+    }
 }
 
 /// Gathers asked points on the GPU and brings the answers back through a ring.

@@ -24,24 +24,33 @@ pub enum Technique {
 
 impl Technique {
     /// Every technique, in scene-file spelling.
+    #[cfg(feature = "low_level")]
     pub const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
+    /// Every technique, in scene-file spelling.
+    #[cfg(not(feature = "low_level"))]
+    #[allow(dead_code, reason = "the app's and the tests' list of techniques (`low_level`)")]
+    pub(crate) const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
 
-    /// The scene-file spelling.
-    #[must_use]
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Depth => "depth",
-            Self::Points => "points",
-            Self::Decals => "decals",
-            Self::Combined => "combined",
+    low_level_pub! {
+        /// The scene-file spelling.
+        #[must_use]
+        fn as_str(self) -> &'static str {
+            match self {
+                Self::Depth => "depth",
+                Self::Points => "points",
+                Self::Decals => "decals",
+                Self::Combined => "combined",
+            }
         }
     }
 
-    /// Whether the technique stamps contact points' footprints (and so needs
-    /// the window's footprint buffer).
-    #[must_use]
-    pub fn uses_stamps(self) -> bool {
-        matches!(self, Self::Points | Self::Combined)
+    low_level_pub! {
+        /// Whether the technique stamps contact points' footprints (and so needs
+        /// the window's footprint buffer).
+        #[must_use]
+        fn uses_stamps(self) -> bool {
+            matches!(self, Self::Points | Self::Combined)
+        }
     }
 }
 
@@ -72,12 +81,14 @@ pub enum RimStyle {
 }
 
 impl RimStyle {
-    /// The scene-file spelling.
-    #[must_use]
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Ms16 => "ms16",
-            Self::Rounded => "rounded",
+    low_level_pub! {
+        /// The scene-file spelling.
+        #[must_use]
+        fn as_str(self) -> &'static str {
+            match self {
+                Self::Ms16 => "ms16",
+                Self::Rounded => "rounded",
+            }
         }
     }
 }

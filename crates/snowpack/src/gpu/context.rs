@@ -103,29 +103,31 @@ impl AdapterRequest {
     }
 }
 
-/// A wgpu device and queue for snowpack, with error tracking.
-///
-/// Made by snowpack's own adapter selection ([`Self::new_headless`],
-/// `Self::choose`) for the demo, the runner and tools, or around a device
-/// the game already has ([`Self::from_device`]).
-pub struct GpuContext {
-    /// The instance the adapter came from (`None` for a game's device).
-    pub instance: Option<wgpu::Instance>,
-    /// The chosen adapter (`None` for a game's device).
-    pub adapter: Option<wgpu::Adapter>,
-    /// The device.
-    pub device: wgpu::Device,
-    /// Its queue.
-    pub queue: wgpu::Queue,
-    /// The adapter, in words.
-    pub summary: AdapterSummary,
-    /// What the adapter can do below full WebGPU (all of it for a game's device,
-    /// which is trusted to be able to run what it asks for).
-    pub downlevel: wgpu::DownlevelFlags,
-    /// Whether snowpack owns the device's error and device-lost handlers;
-    /// a game's device keeps its own.
-    owns_handlers: bool,
-    sink: Arc<ErrorSink>,
+low_level_some_fields! {
+    /// A wgpu device and queue for snowpack, with error tracking.
+    ///
+    /// Made by snowpack's own adapter selection ([`Self::new_headless`],
+    /// `Self::choose`) for the demo, the runner and tools, or around a device
+    /// the game already has ([`Self::from_device`]).
+    pub struct GpuContext {
+        /// The instance the adapter came from (`None` for a game's device).
+        pub(crate) instance: Option<wgpu::Instance>,
+        /// The chosen adapter (`None` for a game's device).
+        pub(crate) adapter: Option<wgpu::Adapter>,
+        /// The device.
+        pub device: wgpu::Device,
+        /// Its queue.
+        pub queue: wgpu::Queue,
+        /// The adapter, in words.
+        pub summary: AdapterSummary,
+        /// What the adapter can do below full WebGPU (all of it for a game's device,
+        /// which is trusted to be able to run what it asks for).
+        pub(crate) downlevel: wgpu::DownlevelFlags,
+        /// Whether snowpack owns the device's error and device-lost handlers;
+        /// a game's device keeps its own.
+        owns_handlers: bool,
+        sink: Arc<ErrorSink>,
+    }
 }
 
 fn parse_backends(list: &str) -> Result<wgpu::Backends, SnowError> {
@@ -217,10 +219,10 @@ fn gl_lock_panics_as_errors<T>(work: impl FnOnce() -> T) -> Result<T, SnowError>
 impl GpuContext {
     /// Picks an adapter as `request` asks and creates a device without a
     /// surface, for headless runs, tests and the bench.
-    pub fn new_headless(request: &AdapterRequest) -> Result<Self, SnowError> {
+    pub fn new_headless(request: &AdapterRequest) -> Result<Self, crate::SnowError> {
         let desc = Self::instance_descriptor(wgpu::InstanceDescriptor::new_without_display_handle(), request)?;
         let instance = wgpu::Instance::new(desc);
-        Self::choose(instance, None, request)
+        Self::choose(instance, None, request).map_err(Into::into)
     }
 
     low_level_pub! {
@@ -294,36 +296,38 @@ impl GpuContext {
         }
     }
 
-    /// Creates the device on a given adapter, asking for the optional features
-    /// snowpack can use (timestamps) only where the adapter has them.
-    pub fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
-        let summary = AdapterSummary::from_info(&adapter.get_info());
-        let optional = wgpu::Features::TIMESTAMP_QUERY;
-        let required_features = adapter.features() & optional;
-        // Ask for what the adapter has: large windows need large storage buffers,
-        // and the defaults are below what most adapters offer.
-        let required_limits = adapter.limits();
-        let (device, queue) = gl_lock_panics_as_errors(|| {
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("snowpack"),
-                required_features,
-                required_limits,
-                ..Default::default()
-            }))
-        })?
-        .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
+    low_level_pub! {
+        /// Creates the device on a given adapter, asking for the optional features
+        /// snowpack can use (timestamps) only where the adapter has them.
+        fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
+            let summary = AdapterSummary::from_info(&adapter.get_info());
+            let optional = wgpu::Features::TIMESTAMP_QUERY;
+            let required_features = adapter.features() & optional;
+            // Ask for what the adapter has: large windows need large storage buffers,
+            // and the defaults are below what most adapters offer.
+            let required_limits = adapter.limits();
+            let (device, queue) = gl_lock_panics_as_errors(|| {
+                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                    label: Some("snowpack"),
+                    required_features,
+                    required_limits,
+                    ..Default::default()
+                }))
+            })?
+            .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
 
-        let sink = Arc::new(ErrorSink::default());
-        install_handlers(&device, &sink);
-        tracing::info!(
-            "GPU: {} ({}, {}), timestamps: {}",
-            summary.name,
-            summary.backend,
-            summary.device_type,
-            device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
-        );
-        let downlevel = adapter.get_downlevel_capabilities().flags;
-        Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+            let sink = Arc::new(ErrorSink::default());
+            install_handlers(&device, &sink);
+            tracing::info!(
+                "GPU: {} ({}, {}), timestamps: {}",
+                summary.name,
+                summary.backend,
+                summary.device_type,
+                device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+            );
+            let downlevel = adapter.get_downlevel_capabilities().flags;
+            Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+        }
     }
 
     low_level_pub! {
@@ -341,10 +345,12 @@ impl GpuContext {
         }
     }
 
-    /// Whether per-pass GPU timestamps are available.
-    #[must_use]
-    pub fn has_timestamps(&self) -> bool {
-        self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+    low_level_pub! {
+        /// Whether per-pass GPU timestamps are available.
+        #[must_use]
+        fn has_timestamps(&self) -> bool {
+            self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+        }
     }
 
     low_level_pub! {
@@ -385,9 +391,9 @@ impl GpuContext {
     /// Returns the first GPU error reported since the last call (validation,
     /// out of memory) or the device-lost reason, so callers fail instead of
     /// rendering garbage or hanging.
-    pub fn check(&self, context: &'static str) -> Result<(), SnowError> {
+    pub fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
         if let Some(reason) = self.lost_reason() {
-            return Err(SnowError::DeviceLost(reason));
+            return Err(SnowError::DeviceLost(reason).into());
         }
         let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
         if errors.is_empty() {
@@ -395,15 +401,17 @@ impl GpuContext {
         }
         let message = errors.join("\n");
         errors.clear();
-        Err(SnowError::Gpu { context, message })
+        Err(SnowError::Gpu { context, message }.into())
     }
 
-    /// Waits for all submitted work, with a timeout, then checks for errors.
-    pub fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
-        self.device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
-            .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
-        self.check(context)
+    low_level_pub! {
+        /// Waits for all submitted work, with a timeout, then checks for errors.
+        fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
+            self.device
+                .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
+                .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
+            self.check(context).map_err(Into::into)
+        }
     }
 }
 

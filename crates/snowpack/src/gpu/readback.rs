@@ -268,7 +268,7 @@ impl<M> ReadbackRing<M> {
 }
 
 /// Copies a whole buffer into a staging buffer and waits for it (blocking).
-pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
+pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::error::SnowError> {
     map_blocking(ctx, &copy_to_staging(ctx, buffer))
 }
 
@@ -293,8 +293,8 @@ fn copy_to_staging(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> wgpu::Buff
 
 /// Maps a `MAP_READ` buffer whose copy has been submitted, waits for it and
 /// returns its bytes (blocking; for tests, headless frames and tools).
-pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, crate::SnowError> {
-    use crate::SnowError;
+pub fn map_blocking(ctx: &crate::GpuContext, staging: &wgpu::Buffer) -> Result<Vec<u8>, crate::error::SnowError> {
+    use crate::error::SnowError;
     let (tx, rx) = std::sync::mpsc::channel();
     staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
@@ -347,10 +347,10 @@ impl MappedRead {
 }
 
 impl std::future::Future for MappedRead {
-    type Output = Result<Vec<u8>, crate::SnowError>;
+    type Output = Result<Vec<u8>, crate::error::SnowError>;
 
     fn poll(self: std::pin::Pin<&mut Self>, cx: &mut std::task::Context<'_>) -> std::task::Poll<Self::Output> {
-        use crate::SnowError;
+        use crate::error::SnowError;
         if !cfg!(target_arch = "wasm32") {
             self.device.poll(wgpu::PollType::Poll).map_err(|e| SnowError::Readback(format!("polling the GPU: {e}")))?;
         }
@@ -414,14 +414,14 @@ impl TextureReadback {
 
     /// Waits for the copy (submitted by the caller) and returns the texels row
     /// by row without padding, 4 bytes each, in the texture's own channel order.
-    pub fn read(&self, ctx: &crate::GpuContext) -> Result<Vec<u8>, crate::SnowError> {
+    pub fn read(&self, ctx: &crate::GpuContext) -> Result<Vec<u8>, crate::error::SnowError> {
         let bytes = map_blocking(ctx, &self.staging)?;
         Ok(self.unpad(&bytes))
     }
 
     /// [`Self::read`] without blocking: the texels once the copy is back
     /// (see [`MappedRead`]); what the browser build reads its frames with.
-    pub fn read_async(self, ctx: &crate::GpuContext) -> impl std::future::Future<Output = Result<Vec<u8>, crate::SnowError>> + 'static {
+    pub fn read_async(self, ctx: &crate::GpuContext) -> impl std::future::Future<Output = Result<Vec<u8>, crate::error::SnowError>> + 'static {
         let mapped = MappedRead::new(&ctx.device, self.staging.clone());
         async move { Ok(self.unpad(&mapped.await?)) }
     }

@@ -91,8 +91,8 @@ impl TileStore {
     /// version. Leftover temporary files are deleted, the tiles are indexed
     /// (recency from their modification times) and, if the budget is now
     /// smaller than what is stored, the oldest are evicted.
-    pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
-        Self::open_on(Arc::new(OsDisk), dir, side, config)
+    pub fn open(dir: &Path, side: u32, config: StoreConfig) -> Result<Self, crate::StoreError> {
+        Self::open_on(Arc::new(OsDisk), dir, side, config).map_err(Into::into)
     }
 
     low_level_pub! {
@@ -180,15 +180,17 @@ impl TileStore {
         }
     }
 
-    /// The tile side of the store in `dir` (its `store.meta`), without
-    /// opening or locking it; `None` where there is no store yet. A damaged
-    /// or foreign `store.meta` is an error naming it.
-    pub fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
-        let path = dir.join(META_FILE);
-        match std::fs::read(&path) {
-            Ok(bytes) => meta_side(&path, &bytes).map(Some),
-            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
-            Err(source) => Err(StoreError::Io { path, op: "read", source }),
+    low_level_pub! {
+        /// The tile side of the store in `dir` (its `store.meta`), without
+        /// opening or locking it; `None` where there is no store yet. A damaged
+        /// or foreign `store.meta` is an error naming it.
+        fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
+            let path = dir.join(META_FILE);
+            match std::fs::read(&path) {
+                Ok(bytes) => meta_side(&path, &bytes).map(Some),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+                Err(source) => Err(StoreError::Io { path, op: "read", source }),
+            }
         }
     }
 
@@ -792,7 +794,7 @@ mod tests {
         drop(open(dir.path(), 0));
         assert_eq!(TileStore::side_in(dir.path()).expect("a store"), Some(SIDE));
         let meta = dir.path().join(META_FILE);
-        match TileStore::open(dir.path(), 32, StoreConfig::default()) {
+        match TileStore::open(dir.path(), 32, StoreConfig::default()).map_err(StoreError::from) {
             Err(e @ StoreError::Mismatch { .. }) => {
                 assert_eq!(e.path(), Some(meta.as_path()));
                 assert!(e.to_string().contains("store.meta"), "{e}");
@@ -804,7 +806,7 @@ mod tests {
         let crc = crc32fast::hash(&bytes[..16]);
         bytes[16..20].copy_from_slice(&crc.to_le_bytes());
         fs::write(&meta, &bytes).expect("write meta");
-        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from) {
             Err(StoreError::Version { path, found, expected }) => {
                 assert_eq!((path, found, expected), (meta.clone(), FORMAT_VERSION + 1, FORMAT_VERSION));
             }
@@ -812,15 +814,15 @@ mod tests {
         }
         fs::write(&meta, b"garbage").expect("write meta");
         assert!(matches!(TileStore::side_in(dir.path()), Err(StoreError::Corrupt { .. })));
-        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()), Err(StoreError::Corrupt { .. })));
-        assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()), Err(StoreError::Mismatch { .. })));
+        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Corrupt { .. })));
+        assert!(matches!(TileStore::open(dir.path(), 0, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Mismatch { .. })));
     }
 
     #[test]
     fn one_store_per_directory() {
         let dir = TestDir::new("store-lock");
         let store = open(dir.path(), 0);
-        match TileStore::open(dir.path(), SIDE, StoreConfig::default()) {
+        match TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from) {
             // Where the file system has locks, the second open is refused.
             Err(StoreError::Io { source, .. }) => {
                 assert_eq!(source.kind(), io::ErrorKind::WouldBlock)

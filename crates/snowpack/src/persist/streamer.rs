@@ -65,7 +65,7 @@ pub struct StreamerConfig {
     /// The longest a blocking call waits for the worker thread (and so for
     /// the disk): `TileStreamer::wait_for`, [`TileStreamer::flush`],
     /// `TileStreamer::write_state` and `TileStreamer::read_state` give up
-    /// after it with [`StoreError::TimedOut`], and dropping the streamer
+    /// after it with [`crate::StoreErrorKind::TimedOut`], and dropping the streamer
     /// stops waiting for the last writes after it (logging an error and
     /// leaving the worker to finish, or hang, on its own).
     pub wait_limit: Duration,
@@ -273,7 +273,7 @@ impl TileStreamer {
     /// Starts the worker thread ("snowpack-tiles"), which owns `store`.
     ///
     /// If the thread cannot be started, the streamer answers every lookup
-    /// with fresh snow and every blocking call with [`StoreError::WorkerGone`].
+    /// with fresh snow and every blocking call with [`crate::StoreErrorKind::WorkerGone`].
     #[must_use]
     pub fn new(store: TileStore, config: StreamerConfig) -> Self {
         let (request_tx, request_rx) = mpsc::channel();
@@ -493,7 +493,7 @@ impl TileStreamer {
         /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
         /// keys together exceed the memory budget, the first may have been
         /// dropped again by the time it returns. Gives up after
-        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`].
+        /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
         fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
             self.wait_for_within(keys, self.config.wait_limit)
         }
@@ -501,7 +501,7 @@ impl TileStreamer {
 
     low_level_pub! {
         /// [`Self::wait_for`] giving up after `limit` with
-        /// [`StoreError::TimedOut`]; the tiles keep loading and a later
+        /// [`crate::StoreErrorKind::TimedOut`]; the tiles keep loading and a later
         /// [`Self::lookup`] or wait finds them.
         fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
             if self.memory_only {
@@ -539,9 +539,9 @@ impl TileStreamer {
     /// Blocks until every queued write is done, writing again the cached
     /// tiles whose earlier write failed. Returns the first write error of
     /// this flush; any others are in `TileStreamer::take_errors`. Gives up
-    /// after [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`]
+    /// after [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`]
     /// (the writes stay queued).
-    pub fn flush(&mut self) -> Result<(), StoreError> {
+    pub fn flush(&mut self) -> Result<(), crate::StoreError> {
         if self.memory_only {
             // Nothing is ever waiting to be written.
             return Ok(());
@@ -558,9 +558,9 @@ impl TileStreamer {
         if let Err(gone) = waited {
             // The worker stopped or hangs mid-flush: that is the answer; keep the write error for later.
             self.errors.extend(first);
-            return Err(gone);
+            return Err(gone.into());
         }
-        first.map_or(Ok(()), Err)
+        first.map_or(Ok(()), |e| Err(e.into()))
     }
 
     low_level_pub! {
@@ -581,7 +581,7 @@ impl TileStreamer {
         /// Stores a small named blob (blocking, ordered after the writes queued
         /// before it); see [`TileStore::write_state`]. A memory-only streamer
         /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
-        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
+        /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`] (the
         /// write stays queued and may still be done).
         fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
             if self.memory_only {
@@ -599,7 +599,7 @@ impl TileStreamer {
     low_level_pub! {
         /// Reads a named blob (blocking, ordered after the writes queued before
         /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
-        /// Gives up after [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`].
+        /// Gives up after [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
         fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
             if self.memory_only {
                 return Ok(None);
@@ -646,7 +646,7 @@ impl TileStreamer {
     }
 
     /// Blocks for the reply to request `seq`, handling the ones before it,
-    /// for at most [`StreamerConfig::wait_limit`]; then [`StoreError::TimedOut`]
+    /// for at most [`StreamerConfig::wait_limit`]; then [`crate::StoreErrorKind::TimedOut`]
     /// naming `what` was waited for. A reply that arrives later is handled
     /// like any other (the answers of blocking calls are then ignored).
     fn wait(&mut self, seq: u64, what: impl FnOnce() -> String) -> Result<Outcome, StoreError> {
@@ -1226,7 +1226,7 @@ mod tests {
         assert_eq!(s.take_errors().len(), 1, "the failed write is reported");
         // A flush retries the failed write, which fails again: that error is
         // flush's answer, and is not repeated in take_errors.
-        assert!(matches!(s.flush(), Err(StoreError::Io { .. })));
+        assert!(matches!(s.flush().map_err(StoreError::from), Err(StoreError::Io { .. })));
         assert_eq!(s.stats().errors, 2);
         assert!(s.take_errors().is_empty(), "the error flush returned is not repeated");
         // Still answered from memory, and written once the disk is back.
@@ -1264,7 +1264,7 @@ mod tests {
         let mut s = streamer(&dir, 4);
         s.put(tile(0, 0, 1.0));
         s.send(|_| Request::Panic).expect("send");
-        assert!(matches!(s.flush(), Err(StoreError::WorkerGone)));
+        assert!(matches!(s.flush().map_err(StoreError::from), Err(StoreError::WorkerGone)));
         assert!(matches!(s.wait_for(&[TileKey::new(5, 5)]), Err(StoreError::WorkerGone)));
         assert!(matches!(s.read_state("x"), Err(StoreError::WorkerGone)));
         assert_eq!(s.lookup(TileKey::new(5, 5)), TileLookup::Ready(None));

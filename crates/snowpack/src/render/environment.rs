@@ -57,23 +57,23 @@ pub struct EnvironmentMap {
 impl EnvironmentMap {
     /// Decodes a Radiance `.hdr` image. Its size is checked from the header
     /// before anything is decoded (from `DOWNSAMPLED_W` x `DOWNSAMPLED_H` to
-    /// [`ENVIRONMENT_MAX_W`] x [`ENVIRONMENT_MAX_H`]), and every decoded value
+    /// `ENVIRONMENT_MAX_W` x `ENVIRONMENT_MAX_H`), and every decoded value
     /// must be finite.
-    pub fn from_hdr(bytes: &[u8]) -> Result<Self, SnowError> {
+    pub fn from_hdr(bytes: &[u8]) -> Result<Self, crate::SnowError> {
         use image::ImageDecoder as _;
         let bad = |why: String| SnowError::Environment(why);
         let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Hdr);
         let decoder = reader.into_decoder().map_err(|e| bad(format!("not a readable Radiance HDR image: {e}")))?;
         let (width, height) = decoder.dimensions();
         if width < DOWNSAMPLED_W || height < DOWNSAMPLED_H {
-            return Err(bad(format!("{width}x{height} is smaller than {DOWNSAMPLED_W}x{DOWNSAMPLED_H}")));
+            return Err(bad(format!("{width}x{height} is smaller than {DOWNSAMPLED_W}x{DOWNSAMPLED_H}")).into());
         }
         if width > ENVIRONMENT_MAX_W || height > ENVIRONMENT_MAX_H {
-            return Err(bad(format!("{width}x{height} is larger than {ENVIRONMENT_MAX_W}x{ENVIRONMENT_MAX_H}")));
+            return Err(bad(format!("{width}x{height} is larger than {ENVIRONMENT_MAX_W}x{ENVIRONMENT_MAX_H}")).into());
         }
         let image = image::DynamicImage::from_decoder(decoder).map_err(|e| bad(e.to_string()))?.into_rgb32f();
         if let Some((k, p)) = image.pixels().enumerate().find(|(_, p)| !p.0.iter().all(|c| c.is_finite())) {
-            return Err(bad(format!("pixel ({}, {}) is {:?}, not finite", k as u32 % width, k as u32 / width, p.0)));
+            return Err(bad(format!("pixel ({}, {}) is {:?}, not finite", k as u32 % width, k as u32 / width, p.0)).into());
         }
         let texels = image.pixels().map(|p| [p[0].max(0.0), p[1].max(0.0), p[2].max(0.0), 1.0]).collect();
         Ok(Self { width, height, texels })

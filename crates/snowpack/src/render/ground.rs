@@ -25,15 +25,17 @@ pub use super::sampling::{
 /// Default quads per side of the ground grid.
 pub const DEFAULT_GRID_QUADS: u32 = 256;
 
-/// The caller's camera for one frame: `GroundCamera` in `ground.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GroundCamera {
-    /// World-to-clip matrix (column-major), in the frame the snow's positions are in
-    /// (world, or relative to the deformation's floating origin when one is set).
-    pub view_proj: [[f32; 4]; 4],
-    /// Eye position (xyz); w unused.
-    pub position: [f32; 4],
+low_level_fields! {
+    /// The caller's camera for one frame: `GroundCamera` in `ground.wgsl`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+    pub struct GroundCamera {
+        /// World-to-clip matrix (column-major), in the frame the snow's positions are in
+        /// (world, or relative to the deformation's floating origin when one is set).
+        view_proj: [[f32; 4]; 4],
+        /// Eye position (xyz); w unused.
+        position: [f32; 4],
+    }
 }
 
 impl GroundCamera {
@@ -99,22 +101,24 @@ pub struct GroundDepth {
     pub write: bool,
 }
 
-/// What [`SnowGround`] draws into.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SnowGroundDescriptor {
-    /// Format of the caller's colour attachment.
-    pub color_format: wgpu::TextureFormat,
-    /// The caller's depth attachment, or `None` for a pass without one.
-    pub depth: Option<GroundDepth>,
-    /// Samples per pixel of the caller's attachments (1 unless multisampled).
-    pub sample_count: u32,
-    /// Quads per side of the grid over the window (see [`SnowGround`]).
-    pub grid_quads: u32,
-    /// Cull triangles facing away (the grid is counter-clockwise seen from
-    /// above under a view-projection that keeps handedness); false draws both sides.
-    pub cull_back_faces: bool,
-    /// Light and material.
-    pub lighting: GroundLighting,
+low_level_some_fields! {
+    /// What [`SnowGround`] draws into.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct SnowGroundDescriptor {
+        /// Format of the caller's colour attachment.
+        pub(crate) color_format: wgpu::TextureFormat,
+        /// The caller's depth attachment, or `None` for a pass without one.
+        pub(crate) depth: Option<GroundDepth>,
+        /// Samples per pixel of the caller's attachments (1 unless multisampled).
+        pub sample_count: u32,
+        /// Quads per side of the grid over the window (see [`SnowGround`]).
+        pub(crate) grid_quads: u32,
+        /// Cull triangles facing away (the grid is counter-clockwise seen from
+        /// above under a view-projection that keeps handedness); false draws both sides.
+        pub(crate) cull_back_faces: bool,
+        /// Light and material.
+        pub(crate) lighting: GroundLighting,
+    }
 }
 
 impl SnowGroundDescriptor {

@@ -551,7 +551,7 @@ impl Renderer {
     }
 
     /// Waits for outstanding timestamp readbacks and collects them.
-    pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
+    pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         ctx.wait_idle("finishing render timings")?;
         self.timer.collect();
         Ok(())

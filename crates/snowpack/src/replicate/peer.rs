@@ -18,35 +18,37 @@ use super::tile::{CatchUp, ShareClock, SharedTile};
 use super::world::WorldIdentity;
 use super::{ShareError, SharedSnow};
 
-/// How a peer paces itself and what it keeps.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PeerConfig {
-    /// Seconds between two `Presence` messages.
-    pub presence_interval_s: f64,
-    /// Seconds between two `Digest` messages until the relay first answers
-    /// one with `InSync` (after joining or reconnecting): a late joiner
-    /// learns quickly that it holds everything.
-    pub digest_interval_s: f64,
-    /// Seconds between two `Digest` messages after that: digests only
-    /// repair what a connection lost, and on a reliable channel (renet2's,
-    /// a game's own) that is rare, while a digest of a window full of
-    /// trails is tens of bytes a tile. Set it to `digest_interval_s` over
-    /// an unreliable channel.
-    pub synced_digest_interval_s: f64,
-    /// The least time between two sends of deltas: a tile changed every
-    /// frame in between goes out once, as it is then.
-    pub delta_interval_s: f64,
-    /// A delta not acknowledged after this many seconds is sent again
-    /// (as the replica's current tiles, which include it).
-    pub resend_after_s: f64,
-    /// The most deltas in flight; further changes wait (and coalesce).
-    pub max_unacknowledged: usize,
-    /// Messages queued to send; beyond it the oldest is dropped and counted.
-    pub queue_messages: usize,
-    /// Tiles kept in the replica; beyond it those farthest from the window go.
-    pub replica_tiles: usize,
-    /// Received tiles waiting for the next `update`; beyond it the oldest go.
-    pub incoming_tiles: usize,
+low_level_some_fields! {
+    /// How a peer paces itself and what it keeps.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct PeerConfig {
+        /// Seconds between two `Presence` messages.
+        pub(crate) presence_interval_s: f64,
+        /// Seconds between two `Digest` messages until the relay first answers
+        /// one with `InSync` (after joining or reconnecting): a late joiner
+        /// learns quickly that it holds everything.
+        pub digest_interval_s: f64,
+        /// Seconds between two `Digest` messages after that: digests only
+        /// repair what a connection lost, and on a reliable channel (renet2's,
+        /// a game's own) that is rare, while a digest of a window full of
+        /// trails is tens of bytes a tile. Set it to `digest_interval_s` over
+        /// an unreliable channel.
+        pub synced_digest_interval_s: f64,
+        /// The least time between two sends of deltas: a tile changed every
+        /// frame in between goes out once, as it is then.
+        pub(crate) delta_interval_s: f64,
+        /// A delta not acknowledged after this many seconds is sent again
+        /// (as the replica's current tiles, which include it).
+        pub(crate) resend_after_s: f64,
+        /// The most deltas in flight; further changes wait (and coalesce).
+        pub(crate) max_unacknowledged: usize,
+        /// Messages queued to send; beyond it the oldest is dropped and counted.
+        pub(crate) queue_messages: usize,
+        /// Tiles kept in the replica; beyond it those farthest from the window go.
+        pub(crate) replica_tiles: usize,
+        /// Received tiles waiting for the next `update`; beyond it the oldest go.
+        pub(crate) incoming_tiles: usize,
+    }
 }
 
 impl Default for PeerConfig {
@@ -178,11 +180,11 @@ impl SnowPeer {
     }
 
     /// Handles one message from the relay. A `Refused` is
-    /// [`ShareError::Refused`] naming what differs ("here" is this peer's
+    /// [`crate::ShareErrorKind::Refused`] naming what differs ("here" is this peer's
     /// world, "there" the relay's); bytes that do not decode, or a message
-    /// a relay never sends, are [`ShareError::Malformed`] (and counted).
+    /// a relay never sends, are [`crate::ShareErrorKind::Malformed`] (and counted).
     /// Tiles are kept for the next [`SnowPeer::update`].
-    pub fn receive(&mut self, bytes: &[u8]) -> Result<(), ShareError> {
+    pub fn receive(&mut self, bytes: &[u8]) -> Result<(), crate::ShareError> {
         self.stats.bytes_in += bytes.len() as u64;
         self.stats.messages_in += 1;
         let message = decode(bytes).inspect_err(|_| self.stats.malformed += 1)?;
@@ -195,7 +197,7 @@ impl SnowPeer {
             Message::Refused { differences } => {
                 self.welcomed = false;
                 self.refused = true;
-                return Err(ShareError::Refused { differences });
+                return Err(ShareError::Refused { differences }.into());
             }
             Message::Tiles { tiles, .. } => {
                 self.stats.tiles_received += tiles.len() as u64;
@@ -225,7 +227,7 @@ impl SnowPeer {
             }
             other => {
                 self.stats.malformed += 1;
-                return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())));
+                return Err(ShareError::Malformed(MessageError::Unexpected(other.kind_name())).into());
             }
         }
         Ok(())
@@ -368,11 +370,13 @@ impl SnowPeer {
         self.in_sync && self.unacknowledged() == 0 && self.incoming.is_empty()
     }
 
-    /// Asks for a digest as soon as `digest_interval_s` has passed since the
-    /// last one, whatever `synced_digest_interval_s` says (a program about
-    /// to stop wants `InSync` soon).
-    pub fn request_digest(&mut self) {
-        self.digest_requested = true;
+    low_level_pub! {
+        /// Asks for a digest as soon as `digest_interval_s` has passed since the
+        /// last one, whatever `synced_digest_interval_s` says (a program about
+        /// to stop wants `InSync` soon).
+        fn request_digest(&mut self) {
+            self.digest_requested = true;
+        }
     }
 
     /// Something changed the replica or the window: the last digest no
@@ -396,10 +400,12 @@ impl SnowPeer {
         self.welcomed
     }
 
-    /// The relay's number for this peer, once welcomed.
-    #[must_use]
-    pub fn peer_number(&self) -> Option<u32> {
-        self.number
+    low_level_pub! {
+        /// The relay's number for this peer, once welcomed.
+        #[must_use]
+        fn peer_number(&self) -> Option<u32> {
+            self.number
+        }
     }
 
     /// Changes not yet acknowledged by the relay: deltas in flight plus
@@ -409,10 +415,12 @@ impl SnowPeer {
         self.unacked.len() + self.to_send.len()
     }
 
-    /// Counters since the peer was made.
-    #[must_use]
-    pub fn stats(&self) -> PeerStats {
-        self.stats
+    low_level_pub! {
+        /// Counters since the peer was made.
+        #[must_use]
+        fn stats(&self) -> PeerStats {
+            self.stats
+        }
     }
 
     low_level_pub! {

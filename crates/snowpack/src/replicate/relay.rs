@@ -359,12 +359,14 @@ impl SnowRelay {
     /// store's tile files hold deficits (see `tile_to_data`), not the
     /// heights a [`TileStreamer`](crate::TileStreamer) keeps: give a relay
     /// a directory of its own.
-    pub fn with_store(store: TileStore, config: RelayConfig) -> Result<Self, ShareError> {
+    pub fn with_store(store: TileStore, config: RelayConfig) -> Result<Self, crate::ShareError> {
         let world = match store.read_state(WORLD_STATE)? {
             Some(bytes) => {
                 let world = decode_world(&bytes).map_err(|e| ShareError::StoreWorld(format!("the saved world does not decode: {e}")))?;
                 if world.tile_side != store.side() {
-                    return Err(ShareError::StoreWorld(format!("the saved world has {}² tiles, the store holds {}² tiles", world.tile_side, store.side())));
+                    return Err(
+                        ShareError::StoreWorld(format!("the saved world has {}² tiles, the store holds {}² tiles", world.tile_side, store.side())).into()
+                    );
                 }
                 Some(world)
             }
@@ -567,7 +569,7 @@ impl SnowRelay {
         self.world.as_ref()
     }
 
-    /// The world clock at `now_s` ([`WorldIdentity::clock_at`]).
+    /// The world clock at `now_s` (the world identity's clock at that time).
     #[must_use]
     pub fn clock(&self, now_s: f64) -> Option<ShareClock> {
         self.world.as_ref().map(|w| w.clock_at(now_s))
@@ -604,7 +606,7 @@ impl SnowRelay {
     /// Writes every changed tile to the store (nothing without one). The
     /// first error is returned after trying them all; failed tiles stay
     /// changed and are tried again.
-    pub fn flush(&mut self) -> Result<(), ShareError> {
+    pub fn flush(&mut self) -> Result<(), crate::ShareError> {
         let Some(store) = self.store.get_mut().as_mut() else {
             return Ok(());
         };
@@ -621,7 +623,7 @@ impl SnowRelay {
                 }
             }
         }
-        first.map_or(Ok(()), |e| Err(ShareError::Store(e)))
+        first.map_or(Ok(()), |e| Err(ShareError::Store(e).into()))
     }
 
     /// Takes a new time, ignoring one that is not a number.

@@ -8,7 +8,7 @@ use super::tile::ShareClock;
 
 low_level_fields! {
     /// The settings that make a world: tiles from machines that agree on all of
-    /// them merge; anything else is refused ([`WorldIdentity::differences`]).
+    /// them merge; anything else is refused (the relay names each difference).
     #[derive(Clone, Debug, PartialEq)]
     pub struct WorldIdentity {
         /// Side of a texel (m).
@@ -33,34 +33,36 @@ low_level_fields! {
 }
 
 impl WorldIdentity {
-    /// The differences between `self` (here) and `other` (there), one
-    /// phrase each ("tile side: 32 here, 64 there"); empty when they are
-    /// the same world. Floats compare bit for bit.
-    #[must_use]
-    pub fn differences(&self, other: &Self) -> Vec<String> {
-        let mut out = Vec::new();
-        let mut f = |name: &str, a: f32, b: f32| {
-            if a.to_bits() != b.to_bits() {
-                out.push(format!("{name}: {a} here, {b} there"));
+    low_level_pub! {
+        /// The differences between `self` (here) and `other` (there), one
+        /// phrase each ("tile side: 32 here, 64 there"); empty when they are
+        /// the same world. Floats compare bit for bit.
+        #[must_use]
+        fn differences(&self, other: &Self) -> Vec<String> {
+            let mut out = Vec::new();
+            let mut f = |name: &str, a: f32, b: f32| {
+                if a.to_bits() != b.to_bits() {
+                    out.push(format!("{name}: {a} here, {b} there"));
+                }
+            };
+            f("texel size (m)", self.texel_m, other.texel_m);
+            f("snow depth (m)", self.depth_m, other.depth_m);
+            f("refill (m/s)", self.refill_m_per_s, other.refill_m_per_s);
+            f("snowfall rate (m/s)", self.snowfall_m_per_s, other.snowfall_m_per_s);
+            f("most snowfall kept (m)", self.max_fallen_m, other.max_fallen_m);
+            f("footprint range low (m)", self.stamp_range_m[0], other.stamp_range_m[0]);
+            f("footprint range high (m)", self.stamp_range_m[1], other.stamp_range_m[1]);
+            if self.tile_side != other.tile_side {
+                out.push(format!("tile side: {} here, {} there", self.tile_side, other.tile_side));
             }
-        };
-        f("texel size (m)", self.texel_m, other.texel_m);
-        f("snow depth (m)", self.depth_m, other.depth_m);
-        f("refill (m/s)", self.refill_m_per_s, other.refill_m_per_s);
-        f("snowfall rate (m/s)", self.snowfall_m_per_s, other.snowfall_m_per_s);
-        f("most snowfall kept (m)", self.max_fallen_m, other.max_fallen_m);
-        f("footprint range low (m)", self.stamp_range_m[0], other.stamp_range_m[0]);
-        f("footprint range high (m)", self.stamp_range_m[1], other.stamp_range_m[1]);
-        if self.tile_side != other.tile_side {
-            out.push(format!("tile side: {} here, {} there", self.tile_side, other.tile_side));
+            if self.has_snowfall != other.has_snowfall {
+                out.push(format!("snowfall: {} here, {} there", on_off(self.has_snowfall), on_off(other.has_snowfall)));
+            }
+            if self.terrain != other.terrain {
+                out.push(format!("terrain: {} here, {} there", self.terrain, other.terrain));
+            }
+            out
         }
-        if self.has_snowfall != other.has_snowfall {
-            out.push(format!("snowfall: {} here, {} there", on_off(self.has_snowfall), on_off(other.has_snowfall)));
-        }
-        if self.terrain != other.terrain {
-            out.push(format!("terrain: {} here, {} there", self.terrain, other.terrain));
-        }
-        out
     }
 
     low_level_pub! {

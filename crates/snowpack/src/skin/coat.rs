@@ -42,19 +42,21 @@ impl Default for CoatSettings {
 }
 
 impl CoatSettings {
-    /// Checks every value; the error names the field.
-    pub fn validate(&self) -> Result<(), SnowError> {
-        let fields = [
-            ("coat_cling_per_s", self.cling_per_s),
-            ("coat_cap_m", self.cap_m),
-            ("coat_melt_m_per_s", self.melt_m_per_s),
-            ("coat_shake_speed_m_per_s", self.shake_speed_m_per_s),
-            ("coat_shake_per_s", self.shake_per_s),
-            ("coat_wade_radius_m", self.wade_radius_m),
-        ];
-        match fields.into_iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
-            Some((field, v)) => Err(SnowError::InvalidParameter { field, why: format!("{v} must be zero or positive") }),
-            None => Ok(()),
+    low_level_pub! {
+        /// Checks every value; the error names the field.
+        fn validate(&self) -> Result<(), SnowError> {
+            let fields = [
+                ("coat_cling_per_s", self.cling_per_s),
+                ("coat_cap_m", self.cap_m),
+                ("coat_melt_m_per_s", self.melt_m_per_s),
+                ("coat_shake_speed_m_per_s", self.shake_speed_m_per_s),
+                ("coat_shake_per_s", self.shake_per_s),
+                ("coat_wade_radius_m", self.wade_radius_m),
+            ];
+            match fields.into_iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+                Some((field, v)) => Err(SnowError::InvalidParameter { field, why: format!("{v} must be zero or positive") }),
+                None => Ok(()),
+            }
         }
     }
 }

@@ -38,52 +38,56 @@ pub struct SkinnedMesh {
 }
 
 impl SkinnedMesh {
-    /// Checks that the arrays agree, weights are finite and sum to about 1,
-    /// and every index and joint is in range for `joint_count` joints.
-    pub fn validate(&self, joint_count: usize) -> Result<(), String> {
-        let n = self.positions.len();
-        if n == 0 {
-            return Err("the mesh has no vertices".into());
+    low_level_pub! {
+        /// Checks that the arrays agree, weights are finite and sum to about 1,
+        /// and every index and joint is in range for `joint_count` joints.
+        fn validate(&self, joint_count: usize) -> Result<(), String> {
+            let n = self.positions.len();
+            if n == 0 {
+                return Err("the mesh has no vertices".into());
+            }
+            if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
+                return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
+            }
+            if self.joints.len() != n || self.weights.len() != n {
+                return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
+            }
+            if !self.indices.len().is_multiple_of(3) {
+                return Err(format!("{} triangle indices are not whole triples", self.indices.len()));
+            }
+            if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
+                return Err(format!("triangle index {i} is past the {n} vertices"));
+            }
+            if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
+                return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
+            }
+            if let Some((k, w)) =
+                self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01)
+            {
+                return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
+            }
+            Ok(())
         }
-        if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
-            return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
-        }
-        if self.joints.len() != n || self.weights.len() != n {
-            return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
-        }
-        if !self.indices.len().is_multiple_of(3) {
-            return Err(format!("{} triangle indices are not whole triples", self.indices.len()));
-        }
-        if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
-            return Err(format!("triangle index {i} is past the {n} vertices"));
-        }
-        if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
-            return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
-        }
-        if let Some((k, w)) =
-            self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01)
-        {
-            return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
-        }
-        Ok(())
     }
 
-    /// Bind-pose vertex normals: the area-weighted sum of the normals of the
-    /// triangles around each vertex (either winding counts the same way as
-    /// long as a mesh is consistent), straight up where a vertex has none.
-    #[must_use]
-    pub fn vertex_normals(&self) -> Vec<Vec3> {
-        let mut sum = vec![Vec3::ZERO; self.positions.len()];
-        for t in self.indices.chunks_exact(3) {
-            let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
-            let (Some(&pa), Some(&pb), Some(&pc)) = (self.positions.get(a), self.positions.get(b), self.positions.get(c)) else { continue };
-            // The cross product's length is twice the area: larger faces weigh more.
-            let n = (pb - pa).cross(pc - pa);
-            for k in [a, b, c] {
-                sum[k] += n;
+    low_level_pub! {
+        /// Bind-pose vertex normals: the area-weighted sum of the normals of the
+        /// triangles around each vertex (either winding counts the same way as
+        /// long as a mesh is consistent), straight up where a vertex has none.
+        #[must_use]
+        fn vertex_normals(&self) -> Vec<Vec3> {
+            let mut sum = vec![Vec3::ZERO; self.positions.len()];
+            for t in self.indices.chunks_exact(3) {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+                let (Some(&pa), Some(&pb), Some(&pc)) = (self.positions.get(a), self.positions.get(b), self.positions.get(c)) else { continue };
+                // The cross product's length is twice the area: larger faces weigh more.
+                let n = (pb - pa).cross(pc - pa);
+                for k in [a, b, c] {
+                    sum[k] += n;
+                }
             }
+            sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
         }
-        sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
     }
 }
 

@@ -93,7 +93,7 @@ impl Characters {
 
 impl SnowDeformation {
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
-    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), SnowError> {
+    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), crate::SnowError> {
         settings.validate()?;
         let slot = self
             .characters
@@ -114,9 +114,12 @@ impl SnowDeformation {
         self.characters.skinned.get(id.0).map(|s| &s.coat)
     }
 
-    /// Reads skinned mesh `id`'s coat back (m a vertex); blocks until the GPU is done.
-    pub fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
-        let buffer = self.coat_buffer(id).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
-        Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, buffer)?))
+    low_level_pub! {
+        /// Reads skinned mesh `id`'s coat back (m a vertex); blocks until the GPU is done.
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
+            let buffer = self.coat_buffer(id).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
+            Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, buffer)?))
+        }
     }
 }

@@ -168,14 +168,15 @@ impl<'a> SnowFrame<'a> {
 
 impl SnowDeformation {
     /// Allocates a window of `params` over `terrain`, centred on world (x, z).
-    pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
+    pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, crate::SnowError> {
         params.validate()?;
         let limits = ctx.device.limits();
         if params.resolution > limits.max_texture_dimension_2d {
             return Err(SnowError::InvalidParameter {
                 field: "resolution",
                 why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
-            });
+            }
+            .into());
         }
         let buffer_bytes = params.texel_count() as u64 * 4;
         let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
@@ -186,7 +187,8 @@ impl SnowDeformation {
                     "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
                     params.resolution
                 ),
-            });
+            }
+            .into());
         }
         if let TerrainSource::Heightmap(h) = &terrain {
             let bytes = h.heights_m().len() as u64 * 4;
@@ -198,7 +200,8 @@ impl SnowDeformation {
                         h.width(),
                         h.height()
                     ),
-                });
+                }
+                .into());
             }
         }
         let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
@@ -233,30 +236,36 @@ impl SnowDeformation {
         &self.core.params
     }
 
-    /// The terrain under the snow.
-    #[must_use]
-    pub fn terrain(&self) -> &TerrainSource {
-        &self.core.terrain
+    low_level_pub! {
+        /// The terrain under the snow.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn terrain(&self) -> &TerrainSource {
+            &self.core.terrain
+        }
     }
 
     /// Changes the snowfall (rate, direction, stability) from the next frame
     /// on; `None` stops it. A window created without snowfall has no buffer
     /// for it, so starting snow there is an error.
-    pub fn set_snowfall(&mut self, snowfall: Option<Snowfall>) -> Result<(), SnowError> {
+    pub fn set_snowfall(&mut self, snowfall: Option<Snowfall>) -> Result<(), crate::SnowError> {
         if let Some(s) = &snowfall {
             s.validate()?;
             if self.core.params.snowfall.is_none() {
                 return Err(SnowError::InvalidParameter {
                     field: "snowfall",
                     why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into(),
-                });
+                }
+                .into());
             }
         }
         // The footprint quantisation was fixed at creation from `max_m`.
         if let (Some(new), Some(old)) = (&snowfall, &self.core.params.snowfall)
             && new.max_m > old.max_m
         {
-            return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) });
+            return Err(
+                SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) }.into()
+            );
         }
         if snowfall.is_some() {
             self.core.params.snowfall = snowfall;
@@ -266,10 +275,12 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// Snowfall so far on open ground (m).
-    #[must_use]
-    pub fn fallen_m(&self) -> f32 {
-        self.time.fallen_m
+    low_level_pub! {
+        /// Snowfall so far on open ground (m).
+        #[must_use]
+        fn fallen_m(&self) -> f32 {
+            self.time.fallen_m
+        }
     }
 
     low_level_pub! {
@@ -298,10 +309,12 @@ impl SnowDeformation {
         self.core.floating_origin = origin;
     }
 
-    /// The floating origin (world m).
-    #[must_use]
-    pub fn floating_origin(&self) -> DVec2 {
-        self.core.floating_origin
+    low_level_pub! {
+        /// The floating origin (world m).
+        #[must_use]
+        fn floating_origin(&self) -> DVec2 {
+            self.core.floating_origin
+        }
     }
 
     /// Sets the refill rate (m/s); takes effect next frame. The refill
@@ -326,10 +339,13 @@ impl SnowDeformation {
         self.core.params.technique = technique;
     }
 
-    /// The technique in use.
-    #[must_use]
-    pub fn technique(&self) -> Technique {
-        self.core.params.technique
+    low_level_pub! {
+        /// The technique in use.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn technique(&self) -> Technique {
+            self.core.params.technique
+        }
     }
 
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
@@ -372,11 +388,13 @@ impl SnowDeformation {
         self.core.center = center;
     }
 
-    /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
-    #[must_use]
-    pub fn origin_m(&self) -> Option<DVec2> {
-        let texel = f64::from(self.core.params.texel_m());
-        self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+    low_level_pub! {
+        /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
+        #[must_use]
+        fn origin_m(&self) -> Option<DVec2> {
+            let texel = f64::from(self.core.params.texel_m());
+            self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+        }
     }
 
     low_level_pub! {
@@ -402,8 +420,8 @@ impl SnowDeformation {
 
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];
     /// `joint_count` is its skin's.
-    pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, SnowError> {
-        self.characters.add(ctx, mesh, joint_count)
+    pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, crate::SnowError> {
+        self.characters.add(ctx, mesh, joint_count).map_err(Into::into)
     }
 
     low_level_pub! {
@@ -463,7 +481,7 @@ impl SnowDeformation {
     /// submits it and takes whatever readbacks have already arrived
     /// (without waiting); fails on GPU errors. Returns the ticket of the
     /// frame's point queries, if it asked any.
-    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<Option<QueryTicket>, SnowError> {
+    pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<Option<QueryTicket>, crate::SnowError> {
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
         let ticket = ctx.capturing(|| {
             let ticket = self.encode(ctx, &mut encoder, frame);
@@ -478,7 +496,7 @@ impl SnowDeformation {
     low_level_pub! {
         /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
         #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), SnowError> {
+        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), crate::SnowError> {
             self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
         }
     }
@@ -519,7 +537,7 @@ impl SnowDeformation {
 
     /// Waits for every outstanding readback (point answers and timings);
     /// for the end of a headless run or a test, never in a frame loop.
-    pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
+    pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         ctx.wait_idle("finishing readbacks")?;
         // An idle GPU is not enough: another thread polling the same device
         // (a game's loader, parallel tests) may have taken the answers'
@@ -527,7 +545,7 @@ impl SnowDeformation {
         let deadline = std::time::Instant::now() + crate::gpu::context::WAIT_TIMEOUT;
         while self.core.query_pass.callbacks_pending() || self.sharing.as_ref().is_some_and(crate::replicate::sharing::Sharing::callbacks_pending) {
             if std::time::Instant::now() > deadline {
-                return Err(SnowError::Readback("a point answer's mapping never completed".to_owned()));
+                return Err(SnowError::Readback("a point answer's mapping never completed".to_owned()).into());
             }
             std::thread::yield_now();
             let _ = ctx.device.poll(wgpu::PollType::Poll);

@@ -3,7 +3,7 @@
 //! [`SnowDeformation`]. Its frame steps (occlusion, atlas) are in [`super::steps`].
 
 use crate::accumulate::{SnowAccumulation, SnowObject};
-use crate::error::SnowError;
+
 use crate::gpu::GpuContext;
 use crate::snowfall::Snowfall;
 
@@ -12,7 +12,7 @@ use super::SnowDeformation;
 impl SnowDeformation {
     /// Places `objects` for snow to settle on (replacing any before, and their
     /// snow): lays out their atlas and builds the accumulation passes.
-    pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), SnowError> {
+    pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), crate::SnowError> {
         if objects.is_empty() {
             self.accumulation = None;
             self.core.update_pass.bind_sky(&ctx.device, &self.core.res, None);
@@ -37,7 +37,7 @@ impl SnowDeformation {
     /// The snow on each object (in [`Self::set_objects`] order): read back
     /// from the GPU, so this blocks; for a save, a test or a debug panel, not
     /// every frame. Empty without objects.
-    pub fn read_object_stats(&self, ctx: &GpuContext) -> Result<Vec<crate::accumulate::ObjectStats>, SnowError> {
+    pub fn read_object_stats(&self, ctx: &GpuContext) -> Result<Vec<crate::accumulate::ObjectStats>, crate::SnowError> {
         match &self.accumulation {
             Some(acc) => Ok(acc.stats(&acc.read_atlas(ctx)?)),
             None => Ok(Vec::new()),

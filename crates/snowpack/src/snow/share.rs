@@ -22,16 +22,15 @@ impl SnowDeformation {
     /// Shares this window's snow in tiles of `tile_side` texels (8..=256) on
     /// the global grid: from the next frame the stamp and update passes flag
     /// the tiles presses change, changed tiles are gathered at most every
-    /// `interval_s` of world time (0.25 s is a good default) for
-    /// [`SharedSnow::take_changed_tiles`], and [`SharedSnow::merge_tiles`]
-    /// folds tiles from elsewhere in. Calling it again changes the side and
+    /// `interval_s` of world time (0.25 s is a good default) for a
+    /// [`crate::SnowPeer`] to send, and the tiles it receives are folded in. Calling it again changes the side and
     /// the interval and forgets pending tiles.
-    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), SnowError> {
+    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
         if !SHARE_TILE_SIDES.contains(&tile_side) {
-            return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") });
+            return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") }.into());
         }
         if !interval_s.is_finite() || interval_s < 0.0 {
-            return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") });
+            return Err(SnowError::InvalidParameter { field: "interval_s", why: format!("{interval_s} is not a time of 0 s or more") }.into());
         }
         let device = &ctx.device;
         let grid = ShareGrid::new(self.core.params.resolution, tile_side);
@@ -75,29 +74,33 @@ impl SnowDeformation {
         self.sharing.as_ref().map_or(0, Sharing::waiting_tiles)
     }
 
-    /// The world clock now: time, refill and footprint quanta, snowfall.
-    #[must_use]
-    pub fn share_clock(&self) -> ShareClock {
-        self.time.share_clock()
+    low_level_pub! {
+        /// The world clock now: time, refill and footprint quanta, snowfall.
+        #[must_use]
+        fn share_clock(&self) -> ShareClock {
+            self.time.share_clock()
+        }
     }
 
-    /// Sets the world clock (joining a world): time, refill counters and
-    /// snowfall; the frames after it go on from there. When the counters are
-    /// the world's own at that time (its refill from time 0), they keep
-    /// being counted from the world's beginning, as on every other machine.
-    pub fn join_clock(&mut self, clock: ShareClock) {
-        let world = self.world_identity().clock_at(clock.time_s);
-        self.time.clock.time_s = clock.time_s;
-        self.time.clock.stamp_quanta = clock.stamp_quanta;
-        self.time.clock.refill_m = f64::from(self.core.params.refill_m_per_s) * clock.time_s;
-        self.time.clock.fallen_m = f64::from(clock.fallen_m);
-        self.time.snow_quanta = clock.refill_quanta;
-        self.time.fallen_m = clock.fallen_m;
-        self.time.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
-            RefillBase::default()
-        } else {
-            RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
-        };
+    low_level_pub! {
+        /// Sets the world clock (joining a world): time, refill counters and
+        /// snowfall; the frames after it go on from there. When the counters are
+        /// the world's own at that time (its refill from time 0), they keep
+        /// being counted from the world's beginning, as on every other machine.
+        fn join_clock(&mut self, clock: ShareClock) {
+            let world = self.world_identity().clock_at(clock.time_s);
+            self.time.clock.time_s = clock.time_s;
+            self.time.clock.stamp_quanta = clock.stamp_quanta;
+            self.time.clock.refill_m = f64::from(self.core.params.refill_m_per_s) * clock.time_s;
+            self.time.clock.fallen_m = f64::from(clock.fallen_m);
+            self.time.snow_quanta = clock.refill_quanta;
+            self.time.fallen_m = clock.fallen_m;
+            self.time.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
+                RefillBase::default()
+            } else {
+                RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
+            };
+        }
     }
 
     /// The settings another machine must share for its snow to merge with

@@ -45,9 +45,9 @@ impl SnowDeformation {
     /// first frame, once. When the store holds a save ([`Self::save`]), the
     /// window's clock, snowfall and position are loaded from it and `true`
     /// returned.
-    pub fn attach_store(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, SnowError> {
+    pub fn attach_store(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, crate::SnowError> {
         if self.frame > 0 || self.store_attached {
-            return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() });
+            return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() }.into());
         }
         let side = streamer.side();
         let saved = match streamer.read_state(STATE_NAME)? {
@@ -62,7 +62,8 @@ impl SnowDeformation {
                 return Err(mismatch(format!(
                     "saved with resolution {} and tiles of {}, the window has {} and {side}",
                     s.resolution, s.tile_side, self.core.params.resolution
-                )));
+                ))
+                .into());
             }
             if s.texel_m != self.core.params.texel_m() || s.depth_m != self.core.params.depth_m || s.stamp_range_m != [low, high] {
                 return Err(mismatch(format!(
@@ -73,7 +74,7 @@ impl SnowDeformation {
                     self.core.params.texel_m(),
                     self.core.params.depth_m,
                     [low, high]
-                )));
+                )).into());
             }
         }
         // The memory keeper's resident tiles go first: two rings need not coexist.
@@ -99,14 +100,15 @@ impl SnowDeformation {
     /// [`Self::attach_store`] loads. Blocking (a save point, not a frame).
     /// Saving needs a disk store: with tiles kept in memory only (the
     /// default) or not at all it is an error naming `store`.
-    pub fn save(&mut self, ctx: &GpuContext) -> Result<(), SnowError> {
+    pub fn save(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         let (low, high, _) = self.stamp_range();
         let origin = self.core.window.origin();
         let Some(tiles) = self.tiles.as_mut().filter(|t| !t.is_memory_only()) else {
             return Err(SnowError::InvalidParameter {
                 field: "store",
                 why: "saving needs a disk store (attach_store with a TileStreamer over a TileStore); tiles are kept in memory only or not at all".into(),
-            });
+            }
+            .into());
         };
         if let Some(origin) = origin {
             tiles.checkpoint(ctx, &self.core.res, origin, self.time.clock)?;
@@ -131,16 +133,19 @@ impl SnowDeformation {
         Ok(())
     }
 
-    /// Tile traffic and store figures, when tiles are kept (in memory or in
-    /// an attached store).
-    #[must_use]
-    pub fn tile_stats(&self) -> Option<TileStats> {
-        self.tiles.as_ref().map(TileStreaming::stats)
+    low_level_pub! {
+        /// Tile traffic and store figures, when tiles are kept (in memory or in
+        /// an attached store).
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn tile_stats(&self) -> Option<TileStats> {
+            self.tiles.as_ref().map(TileStreaming::stats)
+        }
     }
 
     /// Store errors since the last call (disk full, read-only, corrupt tiles
     /// replaced by fresh snow): the frame goes on; the game decides what to tell.
-    pub fn take_store_errors(&mut self) -> Vec<StoreError> {
-        self.tiles.as_mut().map(TileStreaming::take_errors).unwrap_or_default()
+    pub fn take_store_errors(&mut self) -> Vec<crate::StoreError> {
+        self.tiles.as_mut().map(TileStreaming::take_errors).unwrap_or_default().into_iter().map(Into::into).collect()
     }
 }

@@ -113,9 +113,9 @@ impl DetailVolume {
     ///
     /// # Errors
     /// If `size` is not a power of two in 8..=512.
-    pub fn generate(kind: DetailKind, size: u32, seed: u64) -> Result<Self, crate::SnowError> {
+    pub fn generate(kind: DetailKind, size: u32, seed: u64) -> Result<Self, crate::error::SnowError> {
         if !size.is_power_of_two() || !(8..=512).contains(&size) {
-            return Err(crate::SnowError::InvalidParameter {
+            return Err(crate::error::SnowError::InvalidParameter {
                 field: "texture_size",
                 why: format!("detail volume size {size} is not a power of two in 8..=512"),
             });
