@@ -156,6 +156,14 @@ enum Request {
         seq: u64,
         name: String,
     },
+    BeginSaves {
+        seq: u64,
+    },
+    Commit {
+        seq: u64,
+        name: String,
+        bytes: Vec<u8>,
+    },
     /// Lets the tests kill the worker the way a bug would.
     #[cfg(test)]
     Panic,
@@ -752,6 +760,40 @@ impl TileStreamer {
     }
 
     low_level_pub! {
+        /// From now on the store writes tiles for the next save, beside the
+        /// saved ones ([`TileStore::begin_saves`]): a crash before
+        /// [`Self::commit_save`] returns leaves the last complete save, every
+        /// tile and state of it. Ordered after the writes queued before it;
+        /// nothing for a memory-only streamer.
+        fn begin_saves(&mut self) {
+            if !self.memory_only {
+                // A stopped worker is reported by the next call that waits.
+                let _ = self.send(|seq| Request::BeginSaves { seq });
+            }
+        }
+    }
+
+    low_level_pub! {
+        /// Completes a save with the named state `bytes` ([`TileStore::commit`]):
+        /// blocking, ordered after the writes queued before it, so call it once
+        /// [`Self::flush`] has written the save's tiles. A memory-only streamer
+        /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
+        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
+        /// commit stays queued and may still be done: the save is then complete).
+        fn commit_save(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+            if self.memory_only {
+                return Err(StoreError::NoDisk);
+            }
+            let owned = name.to_owned();
+            let seq = self.send(|seq| Request::Commit { seq, name: owned, bytes })?;
+            match self.wait(seq, || format!("the save with `{name}` to be committed"))? {
+                Outcome::StateWritten(result) => result,
+                _ => Err(StoreError::WorkerGone),
+            }
+        }
+    }
+
+    low_level_pub! {
         /// Reads a named blob (blocking, ordered after the writes queued before
         /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
         /// Gives up after [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`].
@@ -1144,6 +1186,11 @@ fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
         Request::Flush { seq } => (seq, Outcome::Flushed),
         Request::WriteState { seq, name, bytes } => (seq, Outcome::StateWritten(store.write_state(&name, &bytes))),
         Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
+        Request::BeginSaves { seq } => {
+            store.begin_saves();
+            (seq, Outcome::Flushed)
+        }
+        Request::Commit { seq, name, bytes } => (seq, Outcome::StateWritten(store.commit(&[(&name, &bytes)]))),
         #[cfg(test)]
         Request::Panic => panic!("the tile worker panics (as a test asked)"),
         #[cfg(test)]
