@@ -563,6 +563,11 @@ impl TileStreamer {
         (TileLookup::Pending, None)
     }
 
+    /// Whether fresh snow (or what the window made there) stands in for `key`.
+    pub(crate) fn stands_in(&self, key: TileKey) -> bool {
+        self.stand_ins.contains_key(&key)
+    }
+
     /// Takes the held `made` tile of stand-in `key`, leaving it stood in for.
     fn stand_in_made(&mut self, key: TileKey) -> Option<TileData> {
         let made = self.stand_ins.get_mut(&key).and_then(|s| s.made.take());

@@ -556,7 +556,13 @@ impl TileStreaming {
     fn restore_entry(&mut self, key: TileKey, slot: usize, upload: &mut Vec<u32>, clock: SnowClock) -> RestoreEntry {
         let area = self.grid.area();
         let (saved, made) = match self.streamer.take_for_restore(key) {
-            (TileLookup::Ready(saved), made) => (saved, made),
+            (TileLookup::Ready(saved), made) => {
+                if made.is_none() && self.streamer.stands_in(key) {
+                    // Its read failed: fresh snow (or what the window made here) stands in.
+                    self.stood_in += 1;
+                }
+                (saved, made)
+            }
             // `plan` saw it ready, but handing out the tiles before it let
             // the memory cache drop it: read it again rather than lose it
             // to fresh snow (blocking; counted). Not for the tiles the first
