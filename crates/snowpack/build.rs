@@ -28,7 +28,11 @@ use std::path::Path;
 mod imports;
 
 fn main() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    // Read when the script runs, not when it was compiled: a build script
+    // compiled in another checkout (a shared or copied target directory)
+    // would otherwise compose that checkout's shaders.
+    let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR for build scripts");
+    let dir = Path::new(&manifest).join("shaders");
     println!("cargo::rerun-if-changed=shaders");
     let mut passes: Vec<String> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))

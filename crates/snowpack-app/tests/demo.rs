@@ -262,7 +262,7 @@ fn the_player_walks_out_of_the_window_and_the_tile_store_keeps_the_snow() {
     assert!(evicted > 0, "walking 8 m (two tiles) out of a 16 m window evicted no tile: {line}");
     assert!(line.contains(", 0 errors"), "{line}");
     // [store] save defaults to true: the snow was saved on the way out.
-    assert!(dir.0.join("store").join("window.state").exists(), "no saved window state in the store folder");
+    assert!(dir.0.join("store").join("save.commit").exists(), "no save (window state and generation) in the store folder");
     assert!(run.stdout.contains("saved the snow into"), "{}", run.stdout);
 }
 

@@ -2,6 +2,7 @@
 // #import shared/stamp
 // #import shared/terrain
 // #import shared/terrain_kind
+// #import shared/snow_word
 
 // Tile restore pass: makes tiles resident in their slots as the window comes
 // near them. A tile the store held (its heights XOR its rest height, so
@@ -12,6 +13,11 @@
 // bit-exact). A tile never seen gets fresh snow with the snowfall so far, as
 // the window pass gives new texels. Terrain is evaluated here with the same
 // code as the window pass, so it matches it bit for bit.
+// An entry may also carry a second saved tile to merge (`merge`): what the
+// window made in a tile's place while the disk was late with it. Both are
+// brought up to now, then folded texel by texel with shared snow's merge
+// (TexelCopy::merge in src/replicate/tile.rs): the deeper deficit, the lower
+// footprint, the deeper snowfall; a texel one copy dominates keeps its bits.
 // CPU twin: src/cpu/tile_restore.rs.
 
 struct RestoreParams {
@@ -37,6 +43,10 @@ struct RestoreEntry {
     fall_m: f32,         // time away: snowfall on open ground (m)
     quanta: u32,         // time away: footprint refill (stamp quanta)
     elapsed: u32,        // 1 when any time counted
+    merge: u32,          // first u32 of a second tile's planes to merge in, or FRESH (none)
+    merge_refill_m: f32, // its time away, as above
+    merge_fall_m: f32,
+    merge_quanta: u32,
 }
 
 const FRESH: u32 = 0xffffffffu;
@@ -48,6 +58,42 @@ const USE_FALLEN: u32 = 2u;
 @group(0) @binding(3) var<storage, read> entries: array<RestoreEntry>;
 @group(0) @binding(4) var<storage, read> upload: array<u32>;
 @group(0) @binding(5) var<storage, read_write> tiles: array<u32>;
+
+// Texel `i` of the saved planes at `at` in `upload`, brought up to now.
+fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f32, quanta: u32) -> TexelState {
+    var t: TexelState;
+    // Saved heights are XOR their rest height (0 where untouched): the
+    // rest is recomputed here from the same terrain, so they come back exactly.
+    t.stamp = upload[at + area + i];
+    t.fallen = bitcast<f32>(upload[at + 2u * area + i]);
+    t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
+    if refill_m > 0.0 || fall_m > 0.0 || quanta > 0u {
+        t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (params.flags & USE_FALLEN) != 0u);
+    }
+    return t;
+}
+
+// Two copies of a texel at one clock, merged by the deficit below each one's
+// rest height (TexelCopy::merge); a copy that wins on every plane keeps its bits.
+fn merge_texels(ground: f32, a: TexelState, b: TexelState) -> TexelState {
+    let da = snow_press_quanta(ground + params.depth_m + a.fallen, ground, a.snow);
+    let db = snow_press_quanta(ground + params.depth_m + b.fallen, ground, b.snow);
+    var out: TexelState;
+    out.fallen = a.fallen;
+    if bitcast<u32>(b.fallen) > bitcast<u32>(a.fallen) && b.fallen >= 0.0 {
+        out.fallen = b.fallen;
+    }
+    out.stamp = min(a.stamp, b.stamp);
+    let d = max(da, db);
+    if d == da && bitcast<u32>(out.fallen) == bitcast<u32>(a.fallen) {
+        out.snow = a.snow;
+    } else if d == db && bitcast<u32>(out.fallen) == bitcast<u32>(b.fallen) {
+        out.snow = b.snow;
+    } else {
+        out.snow = snow_word_height(d, ground + params.depth_m + out.fallen, ground);
+    }
+    return out;
+}
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -66,14 +112,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         t.snow = ground + params.depth_m + params.fallen_m;
         t.stamp = STAMP_EMPTY;
     } else {
-        // Saved heights are XOR their rest height (0 where untouched): the
-        // rest is recomputed here from the same terrain, so they come back exactly.
-        t.stamp = upload[e.upload + area + gid.x];
-        t.fallen = bitcast<f32>(upload[e.upload + 2u * area + gid.x]);
-        t.snow = bitcast<f32>(upload[e.upload + gid.x] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
-        if e.elapsed != 0u {
-            t = pass_time(ground, params.depth_m, t, e.fall_m, params.max_fallen_m, e.refill_m, e.quanta, params.low_m, params.high_m, use_fallen);
-        }
+        t = saved_texel(e.upload, area, gid.x, ground, e.refill_m, e.fall_m, e.quanta);
+    }
+    if e.merge != FRESH {
+        t = merge_texels(ground, t, saved_texel(e.merge, area, gid.x, ground, e.merge_refill_m, e.merge_fall_m, e.merge_quanta));
     }
     let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);

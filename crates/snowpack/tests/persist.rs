@@ -13,8 +13,9 @@ use snowpack::low_level::testing::{self, Rng};
 
 /// Set (to a store directory) when the test binary runs as the writer child.
 const CHILD_ENV: &str = "SNOWPACK_PERSIST_CHILD_DIR";
-/// The writer child's test.
-const CHILD_TEST: &str = "killed_writer_child";
+/// The test that starts the writer child; run again with [`CHILD_ENV`] set,
+/// it is the child (no helper is registered as a test of its own).
+const PARENT_TEST: &str = "a_store_killed_while_saving_keeps_whole_tiles";
 /// What the child prints once every tile has a complete first version.
 const STARTED: &str = "snowpack-persist-child: started";
 /// Tiles the child rewrites.
@@ -74,13 +75,8 @@ fn child_keys() -> impl Iterator<Item = TileKey> {
 }
 
 /// The child half of `a_store_killed_while_saving_keeps_whole_tiles`: writes
-/// versions 1, 2, 3, ... of every tile until it is killed. Returns at once
-/// when not started as the child.
-#[test]
-fn killed_writer_child() {
-    let Some(dir) = std::env::var_os(CHILD_ENV) else {
-        return;
-    };
+/// versions 1, 2, 3, ... of every tile in `dir` until it is killed.
+fn killed_writer_child(dir: &std::ffi::OsStr) {
     let mut store = TileStore::open(Path::new(&dir), SIDE, StoreConfig::default()).expect("child: open");
     let start = Instant::now();
     // Bounded, so an orphaned child does not write forever.
@@ -101,13 +97,18 @@ fn killed_writer_child() {
 
 #[test]
 fn a_store_killed_while_saving_keeps_whole_tiles() {
+    if let Some(dir) = std::env::var_os(CHILD_ENV) {
+        // Started by this test below: be the writer child.
+        killed_writer_child(&dir);
+        return;
+    }
     let seed = testing::seed("a_store_killed_while_saving_keeps_whole_tiles");
     let mut rng = Rng::new(seed);
     let exe = std::env::current_exe().expect("the test binary");
     for round in 0..5 {
         let dir = TestDir::new("killed");
         let mut child = Command::new(&exe)
-            .args(["--exact", CHILD_TEST, "--nocapture", "--test-threads=1"])
+            .args(["--exact", PARENT_TEST, "--nocapture", "--test-threads=1"])
             .env(CHILD_ENV, dir.path())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

@@ -179,11 +179,33 @@ proptest! {
         }
         match TileStore::open(&dir, 16, StoreConfig::default()) {
             Ok(mut store) => {
+                // Each damaged tile is an error naming its file (set aside), then absent.
+                let mut seen = std::collections::HashSet::new();
                 for &(col, row, _) in &junk_tiles {
-                    let _ = store.read(TileKey { col, row });
+                    let key = TileKey { col, row };
+                    let read = store.read(key);
+                    if seen.insert(key) && key != t.key {
+                        let e = read.expect_err("junk in a tile's file reads as an error");
+                        let file = store.tile_path(key);
+                        prop_assert_eq!(e.path(), Some(file.as_path()), "{}", e);
+                    } else {
+                        prop_assert!(matches!(read, Ok(None)), "a damaged tile set aside reads as absent: {:?}", read.map(|t| t.map(|t| t.key)));
+                    }
                 }
-                let _ = store.read(t.key);
-                let _ = store.read_state("window");
+                // The undamaged tile and state read back as written.
+                if !seen.contains(&t.key) {
+                    let back = store.read(t.key).map_err(|e| TestCaseError::fail(format!("the undamaged tile: {e}")))?;
+                    prop_assert_eq!(back.map(|b| tile_bits(&b)), Some(tile_bits(&t)), "the undamaged tile reads back bit for bit");
+                }
+                match (&state, store.read_state("window")) {
+                    (None, Ok(back)) => prop_assert_eq!(back.as_deref(), Some(&b"a state"[..])),
+                    (None, Err(e)) => return Err(TestCaseError::fail(format!("the undamaged state: {e}"))),
+                    (Some(_), Ok(back)) => prop_assert!(false, "a damaged state read as {:?}", back),
+                    (Some(_), Err(e)) => {
+                        let file = dir.join("window.state");
+                        prop_assert_eq!(e.path(), Some(file.as_path()), "{}", e);
+                    }
+                }
                 // Still usable: a fresh tile writes and reads back.
                 let fresh = TileData { key: TileKey { col: 100, row: 100 }, ..t.clone() };
                 if store.write(&fresh).is_ok() {

@@ -101,6 +101,31 @@ fn hilly_snow(ctx: &snowpack::GpuContext) -> (SnowDeformation, Vec<Deformer>) {
     (snow, actors)
 }
 
+/// What a frame shows: the fraction of pixels that are not `background`
+/// (magenta), the number of distinct colours (5 bits a channel) among them,
+/// and the standard deviation of their luminance.
+fn frame_content(image: &[u8], background: bool) -> (f64, usize, f64) {
+    let pixels: Vec<&[u8]> = image.chunks_exact(4).filter(|p| !(background && p[0] > 200 && p[1] < 40 && p[2] > 200)).collect();
+    let colours: std::collections::HashSet<[u8; 3]> = pixels.iter().map(|p| [p[0] >> 3, p[1] >> 3, p[2] >> 3]).collect();
+    let lum: Vec<f64> = pixels.iter().map(|p| p[..3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0).collect();
+    let n = lum.len().max(1) as f64;
+    let mean = lum.iter().sum::<f64>() / n;
+    let spread = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt();
+    (pixels.len() as f64 / (image.len() / 4) as f64, colours.len(), spread)
+}
+
+/// Fails on a blank, uniform or mostly empty frame: snow over hills, shaded
+/// by its normals, covers most of the view in many colours.
+fn assert_shows_snow(image: &[u8], background: bool, what: &str) {
+    let (covered, colours, spread) = frame_content(image, background);
+    eprintln!("{what}: {:.0}% of the frame drawn, {colours} colours, luminance spread {spread:.1}/255", covered * 100.0);
+    assert!(
+        covered > 0.5 && colours > 50 && spread > 5.0,
+        "{what}: the frame is blank or nearly ({:.0}% drawn, {colours} colours, spread {spread:.1})",
+        covered * 100.0
+    );
+}
+
 fn renderer(ctx: &snowpack::GpuContext, snow: &SnowDeformation, params: RenderParams) -> Renderer {
     let env = EnvironmentMap::procedural(Vec3::new(0.5, 0.6, 0.4).normalize());
     Renderer::new(ctx, snow, &env, RenderParams { shadow_map_size: 1024, ..params }, IMAGE_FORMAT).expect("renderer")
@@ -118,6 +143,7 @@ fn no_cracks_between_levels_seen_from_above() {
     for eye in [Vec3::new(0.0, 14.0, 0.0), Vec3::new(9.0, 12.0, -7.0)] {
         let camera = Camera { position: eye, target: eye - Vec3::Y, fov_deg: 100.0 };
         let image = r.render_image(ctx, &snow, &actors, &camera, size).expect("frame");
+        assert_shows_snow(&image, true, &format!("from {eye}"));
         let stats = r.stats();
         assert!(stats.levels.1 > stats.levels.0, "only level {:?} in view: no seams to check", stats.levels);
         // Normals never show magenta (x and z would have to be 1 and y -1); the background does.
@@ -134,9 +160,10 @@ fn small_camera_steps_change_the_frame_little() {
     let size = (240, 160);
     let at = |dz: f32| Camera { position: Vec3::new(0.0, 6.0, -14.0 + dz), target: Vec3::new(0.0, 0.0, 4.0 + dz), fov_deg: 60.0 };
     let base = r.render_image(ctx, &snow, &actors, &at(0.0), size).expect("frame");
+    assert_shows_snow(&base, false, "the first frame");
     // Sweep 2 cm steps across a metre, so vertices cross morph ranges on the way.
     let mut worst = 0.0f64;
-    let mut previous = base;
+    let mut previous = base.clone();
     for k in 1..=50 {
         let image = r.render_image(ctx, &snow, &actors, &at(k as f32 * 0.02), size).expect("frame");
         worst = worst.max(testing::mean_abs_difference(&previous, &image));
@@ -145,6 +172,11 @@ fn small_camera_steps_change_the_frame_little() {
     // A 2 cm step moves the hills a fraction of a pixel; a popping level or a
     // crack would change whole patches at once.
     assert!(worst < 2.0, "a 2 cm camera step changed the frame by {worst:.2}/255 on average");
+    // ...while the metre of steps does move the view: frames that do not
+    // follow the camera (or show nothing) would pass the bound above.
+    let moved = testing::mean_abs_difference(&base, &previous);
+    eprintln!("2 cm steps: at most {worst:.2}/255; the whole metre: {moved:.2}/255");
+    assert!(moved > 2.0 * worst.max(0.25), "a metre of camera steps changed the frame by only {moved:.2}/255 (steps: {worst:.2})");
 }
 
 /// Mean of the 8-bit RGB channels of pixel `k`.

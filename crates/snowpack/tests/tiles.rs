@@ -178,34 +178,48 @@ fn tile_restore_and_weather_match_cpu() {
     // Restore: every slot, a third fresh, the rest saved with or without time away.
     let mut entries = Vec::new();
     let mut upload = Vec::new();
+    // One saved tile's planes at the end of `upload`: heights stored XOR
+    // their rest height (terrain + depth + fallen), footprints empty or a
+    // foot a few hundred quanta deep; returns where they start.
+    let push_saved = |rng: &mut Rng, upload: &mut Vec<u32>, tile: [i32; 2]| {
+        let at = upload.len() as u32;
+        let fallen = floats(rng, area, 0.0, 0.2);
+        for (k, lying) in fallen.iter().enumerate() {
+            let g = [tile[0] * side as i32 + (k as i32 % side as i32), tile[1] * side as i32 + (k as i32 / side as i32)];
+            let ground = terrain.height_at((g[0] as f32 + 0.5) * 0.125, (g[1] as f32 + 0.5) * 0.125);
+            let rest = ground + 0.5 + f32::from_bits(*lying);
+            upload.push(rng.range(ground - 0.2, rest).to_bits() ^ rest.to_bits());
+        }
+        upload.extend((0..area).map(|_| {
+            if rng.next_u64().is_multiple_of(2) {
+                u32::MAX
+            } else {
+                let foot = 30000 + (rng.next_u64() % 3000) as u32;
+                ((foot + 200) << 16) | foot
+            }
+        }));
+        upload.extend(fallen);
+        at
+    };
     for slot in 0..grid.slot_count() {
         let tile = [(rng.next_u64() % 200) as i32 - 100, (rng.next_u64() % 200) as i32 - 100];
         let mut e = RestoreEntry { tile, slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
         if !rng.next_u64().is_multiple_of(3) {
-            e.upload = upload.len() as u32;
-            // Heights are stored XOR their rest height (terrain + depth + fallen).
-            let fallen = floats(&mut rng, area, 0.0, 0.2);
-            for (k, lying) in fallen.iter().enumerate() {
-                let g = [tile[0] * side as i32 + (k as i32 % side as i32), tile[1] * side as i32 + (k as i32 / side as i32)];
-                let ground = terrain.height_at((g[0] as f32 + 0.5) * 0.125, (g[1] as f32 + 0.5) * 0.125);
-                let rest = ground + 0.5 + f32::from_bits(*lying);
-                upload.push(rng.range(ground - 0.2, rest).to_bits() ^ rest.to_bits());
-            }
-            // Footprints: empty, or a foot a few hundred quanta deep.
-            upload.extend((0..area).map(|_| {
-                if rng.next_u64().is_multiple_of(2) {
-                    u32::MAX
-                } else {
-                    let foot = 30000 + (rng.next_u64() % 3000) as u32;
-                    ((foot + 200) << 16) | foot
-                }
-            }));
-            upload.extend(fallen);
+            e.upload = push_saved(&mut rng, &mut upload, tile);
             if rng.next_u64().is_multiple_of(2) {
                 e.elapsed = 1;
                 e.refill_m = rng.range(0.0, 0.3);
                 e.fall_m = rng.range(0.0, 0.1);
                 e.quanta = (rng.next_u64() % 1000) as u32;
+            }
+        }
+        // Half of them merge a second tile in (what the window made while the disk was late).
+        if rng.next_u64().is_multiple_of(2) {
+            e.merge = push_saved(&mut rng, &mut upload, tile);
+            if rng.next_u64().is_multiple_of(2) {
+                e.merge_refill_m = rng.range(0.0, 0.3);
+                e.merge_fall_m = rng.range(0.0, 0.1);
+                e.merge_quanta = (rng.next_u64() % 1000) as u32;
             }
         }
         entries.push(e);

@@ -1,13 +1,16 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use crate::TerrainSource;
+use crate::deform::snow_word::{height, press_quanta};
+use crate::replicate::tile::TexelCopy;
 use crate::tiles::restore::{RestoreEntry, RestoreParams};
 
 use super::stamp::STAMP_EMPTY;
 use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_texel};
 
 /// Writes each entry's tile into its slot: the saved planes in `upload`
-/// brought up to now, or fresh snow over `terrain`.
+/// brought up to now, or fresh snow over `terrain`; with a second tile to
+/// merge, both up to now and folded by [`merge_texels`].
 pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terrain: &TerrainSource, tiles: &mut [u32]) {
     let side = p.side as i32;
     let area = (p.side * p.side) as usize;
@@ -18,17 +21,43 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
         for k in 0..area {
             let g = [e.tile[0] * side + (k as i32 % side), e.tile[1] * side + (k as i32 / side)];
             let ground = super::window::texel_ground(terrain, g, p.texel_m);
-            let t = if e.upload == RestoreEntry::FRESH {
-                TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 } }
-            } else {
-                let u = e.upload as usize;
+            let saved = |at: u32, time: TimePassed| {
+                let u = at as usize;
                 let fallen = f32::from_bits(upload[u + 2 * area + k]);
                 let rest = ground + p.depth_m + fallen;
                 let saved = TexelState { snow: f32::from_bits(upload[u + k] ^ rest.to_bits()), stamp: upload[u + area + k], fallen };
-                if e.elapsed != 0 { pass_time(ground, &c, saved, &TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta }) } else { saved }
+                if time.refill_m > 0.0 || time.fall_m > 0.0 || time.quanta > 0 { pass_time(ground, &c, saved, &time) } else { saved }
             };
+            let mut t = if e.upload == RestoreEntry::FRESH {
+                TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 } }
+            } else {
+                saved(e.upload, TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
+            };
+            if e.merge != RestoreEntry::FRESH {
+                let other = saved(e.merge, TimePassed { fall_m: e.merge_fall_m, refill_m: e.merge_refill_m, quanta: e.merge_quanta });
+                t = merge_texels(ground, p.depth_m, t, other);
+            }
             let planes = p.planes as usize;
             write_texel(tiles, slot, SlotLayout { area, planes, use_fallen }, k, t);
         }
     }
+}
+
+/// Two copies of a texel brought to one clock, merged by shared snow's rule
+/// ([`TexelCopy::merge`]: the deeper deficit below each one's rest height, the
+/// lower footprint, the deeper snowfall); a copy that wins on every plane
+/// keeps its bits. `merge_texels` in `tile_restore.wgsl`.
+#[must_use]
+pub fn merge_texels(ground: f32, depth_m: f32, a: TexelState, b: TexelState) -> TexelState {
+    let copy = |t: TexelState| TexelCopy { deficit: press_quanta(ground + depth_m + t.fallen, ground, t.snow), stamp: t.stamp, fallen_m: t.fallen };
+    let (ca, cb) = (copy(a), copy(b));
+    let m = ca.merge(cb);
+    let snow = if m.deficit == ca.deficit && m.fallen_m.to_bits() == a.fallen.to_bits() {
+        a.snow
+    } else if m.deficit == cb.deficit && m.fallen_m.to_bits() == b.fallen.to_bits() {
+        b.snow
+    } else {
+        height(m.deficit, ground + depth_m + m.fallen_m, ground)
+    };
+    TexelState { snow, stamp: m.stamp, fallen: m.fallen_m }
 }

@@ -4,7 +4,9 @@
 //! DIR/store.meta                     magic, format version, tile side, CRC32
 //! DIR/store.lock                     held (advisory lock) while a TileStore has DIR open
 //! DIR/{name}.state                   named blobs (`write_state`), framed with a CRC32
+//! DIR/save.commit                    the last complete save: its generation and states (`commit`)
 //! DIR/tiles/r{col>>5}_{row>>5}/{col}_{row}.tile
+//! DIR/tiles/r{col>>5}_{row>>5}/{col}_{row}.g{N}.tile   a tile written for save N, not yet committed
 //! ```
 //!
 //! Every file is written to a unique temporary file beside it, synced,
@@ -12,7 +14,16 @@
 //! kill) leaves each file either its old or its new version, never a mix.
 //! A folder the store creates is synced into its parent before anything is
 //! written in it, so a write that returned survives a power cut.
-//! Temporary files left by a crash are deleted on open. Region folders of
+//! Temporary files left by a crash are deleted on open.
+//!
+//! Saves ([`TileStore::begin_saves`]): from then on a tile is written beside
+//! its saved version, as generation `N` of the save being made, and the save
+//! is made whole by one atomic write, `save.commit`, naming generation `N`
+//! and holding the states saved with it; the generation's files then replace
+//! their saved versions. On open, files of a committed generation finish
+//! replacing theirs and files of a later one (written after the last save)
+//! are deleted, so a crash at any moment leaves the last complete save:
+//! every tile and state from the same save. Region folders of
 //! 32×32 tiles keep directories small. All file-system calls go through a
 //! [`Disk`] ([`OsDisk`] unless a test supplies one).
 
@@ -30,6 +41,10 @@ use super::{MAX_SIDE, StoreError, TileData, TileKey};
 const META_MAGIC: &[u8; 8] = b"SNOWSTOR";
 /// Identifies a `.state` file.
 const STATE_MAGIC: &[u8; 8] = b"SNOWSTAT";
+/// Identifies `save.commit`.
+const SAVE_MAGIC: &[u8; 8] = b"SNOWSAVE";
+/// The record of the last complete save.
+const SAVE_FILE: &str = "save.commit";
 /// The store's description file.
 const META_FILE: &str = "store.meta";
 /// The file locked while a store is open.
@@ -62,6 +77,10 @@ struct Entry {
     bytes: u64,
     /// When it was last read or written, on the store's own clock.
     touched: u64,
+    /// The save generation its file was written for and that has not
+    /// replaced the saved version yet (`{col}_{row}.g{N}.tile`); `None`: the
+    /// plain file.
+    generation: Option<u64>,
 }
 
 /// Tiles on disk, one file each, with an index of their sizes and recency
@@ -81,6 +100,10 @@ pub struct TileStore {
     clock: u64,
     total_bytes: u64,
     evicted: u64,
+    /// The generation of the last complete save (0: none).
+    committed: u64,
+    /// Tiles are written for the next save (generation `committed + 1`).
+    saving: bool,
     /// Held for the lock; released when the store is dropped (or the process dies).
     _lock: Option<DiskLock>,
 }
@@ -129,8 +152,15 @@ impl TileStore {
             if let Ok(entries) = disk.list(dir) {
                 remove_temp_files(&*disk, dir, &entries);
             }
+            let save_path = dir.join(SAVE_FILE);
+            let committed = match disk.read(&save_path) {
+                Ok(bytes) => Some(decode_save(&save_path, &bytes)?.0),
+                Err(e) if e.kind() == io::ErrorKind::NotFound => None,
+                Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
+            };
 
-            let mut found = Vec::new();
+            let mut found = HashMap::new();
+            let mut generations = Vec::new();
             let regions = disk.list(&tiles).map_err(io_error(&tiles, "list"))?;
             for region in regions {
                 if !region.is_dir {
@@ -143,18 +173,48 @@ impl TileStore {
                 };
                 remove_temp_files(&*disk, &path, &files);
                 for file in files {
-                    let Some(key) = file.name.to_str().and_then(parse_tile_name) else {
+                    let Some((key, generation)) = file.name.to_str().and_then(parse_tile_name) else {
                         continue;
                     };
                     if region_name(key) != region.name.to_string_lossy() {
                         continue; // Not where this store puts that tile: not ours.
                     }
                     if let Some((len, modified)) = file.file {
-                        found.push((modified, key, len));
+                        match generation {
+                            None => {
+                                found.insert(key, (modified, len));
+                            }
+                            Some(g) => generations.push((g, key, len, modified)),
+                        }
                     }
                 }
             }
+            // Tiles written for a save: a committed one's replace their saved
+            // versions (a crash cut that short), a later one's are deleted
+            // (written after the last complete save). Oldest generation first.
+            generations.sort_unstable();
+            let mut touched_regions = BTreeSet::new();
+            for (g, key, len, modified) in generations {
+                let from = generation_path(dir, key, g);
+                if committed.is_some_and(|c| g <= c) {
+                    let to = tile_path(dir, key);
+                    disk.rename(&from, &to).map_err(io_error(&to, "replace the saved tile (finishing a save)"))?;
+                    found.insert(key, (modified, len));
+                } else {
+                    match disk.remove_file(&from) {
+                        Err(e) if e.kind() != io::ErrorKind::NotFound => return Err(StoreError::Io { path: from, op: "delete (not part of a complete save)", source: e }),
+                        _ => {}
+                    }
+                }
+                touched_regions.insert(from.parent().map(Path::to_owned).unwrap_or_default());
+            }
+            // Durable before anything new is written: a deleted file of an
+            // unfinished save must not come back once that generation is committed.
+            for region in &touched_regions {
+                sync_dir(&*disk, region)?;
+            }
             // Oldest first; the key breaks ties (file times are often coarser than writes).
+            let mut found: Vec<(std::time::SystemTime, TileKey, u64)> = found.into_iter().map(|(key, (modified, len))| (modified, key, len)).collect();
             found.sort_unstable();
 
             let mut store = Self {
@@ -167,10 +227,12 @@ impl TileStore {
                 clock: 0,
                 total_bytes: 0,
                 evicted: 0,
+                committed: committed.unwrap_or(0),
+                saving: committed.is_some(),
                 _lock: lock,
             };
             for (_, key, bytes) in found {
-                store.insert(key, bytes);
+                store.insert(key, bytes, None);
             }
             if let Err(e) = store.enforce_budget(None) {
                 // The store still works; the next write tries again.
@@ -205,7 +267,7 @@ impl TileStore {
             if !self.index.contains_key(&key) {
                 return Ok(None);
             }
-            let path = self.tile_path(key);
+            let path = self.live_path(key);
             let bytes = match self.disk.read(&path) {
                 Ok(bytes) => bytes,
                 Err(e) if e.kind() == io::ErrorKind::NotFound => {
@@ -251,6 +313,9 @@ impl TileStore {
             }
             tile.validate().map_err(|e| e.at(&path))?;
             let bytes = encode(tile);
+            // While saving, beside the saved version, for the next save.
+            let generation = self.saving.then_some(self.committed + 1);
+            let path = generation.map_or(path, |g| generation_path(&self.dir, tile.key, g));
             if let Some(region) = path.parent() {
                 // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
                 // that is an error to report, not a directory to recreate.
@@ -270,7 +335,7 @@ impl TileStore {
             }
             atomic_write(&*self.disk, &path, &bytes)?;
             self.forget(tile.key);
-            self.insert(tile.key, bytes.len() as u64);
+            self.insert(tile.key, bytes.len() as u64, generation);
             self.enforce_budget(Some(tile.key))
         }
     }
@@ -295,9 +360,22 @@ impl TileStore {
     }
 
     low_level_pub! {
-        /// Reads a blob written by [`TileStore::write_state`]; `Ok(None)` if there is none.
+        /// Reads a blob written by [`TileStore::commit`] with the last complete
+        /// save, or else by [`TileStore::write_state`]; `Ok(None)` if there is none.
         fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
             let path = self.state_path(name)?;
+            // The last complete save's states first (read from disk each time:
+            // what is there is the answer).
+            let save_path = self.dir.join(SAVE_FILE);
+            match self.disk.read(&save_path) {
+                Ok(bytes) => {
+                    if let Some((_, bytes)) = decode_save(&save_path, &bytes)?.1.into_iter().find(|(n, _)| n == name) {
+                        return Ok(Some(bytes));
+                    }
+                }
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
+            }
             let framed = match self.disk.read(&path) {
                 Ok(framed) => framed,
                 Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
@@ -327,6 +405,56 @@ impl TileStore {
                 return Err(corrupt("bad CRC32"));
             }
             Ok(Some(payload.to_vec()))
+        }
+    }
+
+    low_level_pub! {
+        /// From now on tiles are written for the next save (beside their saved
+        /// versions, which stay as they are until [`TileStore::commit`]), so a
+        /// crash before the save is complete leaves the last complete one. A
+        /// store that holds a save is in this mode from when it is opened.
+        fn begin_saves(&mut self) {
+            self.saving = true;
+        }
+    }
+
+    low_level_pub! {
+        /// Completes a save: one atomic write of `save.commit` (the new
+        /// generation and `states`, named blobs as for
+        /// [`TileStore::write_state`], CRC-checked) makes every tile written
+        /// since the last save part of it; then those files replace their
+        /// saved versions (a crash meanwhile is finished on open). Before it
+        /// returns, a crash leaves the old save; once it has returned, the new
+        /// one. Call once every tile of the save is written.
+        fn commit(&mut self, states: &[(&str, &[u8])]) -> Result<(), StoreError> {
+            for (name, _) in states {
+                self.state_path(name)?;
+            }
+            let generation = self.committed + 1;
+            atomic_write(&*self.disk, &self.dir.join(SAVE_FILE), &encode_save(generation, states))?;
+            self.committed = generation;
+            self.saving = true;
+            // Best effort: what is not done here, open does.
+            let mut regions = BTreeSet::new();
+            let written: Vec<(TileKey, u64)> = self.index.iter().filter_map(|(k, e)| e.generation.map(|g| (*k, g))).collect();
+            for (key, g) in written {
+                let to = tile_path(&self.dir, key);
+                match self.disk.rename(&generation_path(&self.dir, key, g), &to) {
+                    Ok(()) => {
+                        if let Some(entry) = self.index.get_mut(&key) {
+                            entry.generation = None;
+                        }
+                        regions.insert(to.parent().map(Path::to_owned).unwrap_or_default());
+                    }
+                    Err(e) => tracing::warn!("tile store: {} stays beside its saved version until the store is opened again: {e}", to.display()),
+                }
+            }
+            for region in regions {
+                if let Err(e) = sync_dir(&*self.disk, &region) {
+                    tracing::warn!("tile store: {e}");
+                }
+            }
+            Ok(())
         }
     }
 
@@ -414,25 +542,34 @@ impl TileStore {
     }
 
     /// Indexes a tile as just touched.
-    fn insert(&mut self, key: TileKey, bytes: u64) {
+    fn insert(&mut self, key: TileKey, bytes: u64, generation: Option<u64>) {
         self.clock += 1;
-        self.index.insert(key, Entry { bytes, touched: self.clock });
+        self.index.insert(key, Entry { bytes, touched: self.clock, generation });
         self.by_age.insert((self.clock, key));
         self.total_bytes += bytes;
     }
 
     fn touch(&mut self, key: TileKey) {
-        if let Some(bytes) = self.forget(key) {
-            self.insert(key, bytes);
+        if let Some(entry) = self.forget(key) {
+            self.insert(key, entry.bytes, entry.generation);
         }
     }
 
-    /// Drops a tile from the index, returning its size.
-    fn forget(&mut self, key: TileKey) -> Option<u64> {
+    /// Drops a tile from the index, returning its entry.
+    fn forget(&mut self, key: TileKey) -> Option<Entry> {
         let entry = self.index.remove(&key)?;
         self.by_age.remove(&(entry.touched, key));
         self.total_bytes -= entry.bytes;
-        Some(entry.bytes)
+        Some(entry)
+    }
+
+    /// The file holding a tile's newest version: the one written for the
+    /// next save, if any, else the plain one.
+    fn live_path(&self, key: TileKey) -> PathBuf {
+        match self.index.get(&key).and_then(|e| e.generation) {
+            Some(g) => generation_path(&self.dir, key, g),
+            None => tile_path(&self.dir, key),
+        }
     }
 
     fn quarantine(&mut self, key: TileKey, path: &Path) {
@@ -453,13 +590,17 @@ impl TileStore {
             let Some(&(_, key)) = self.by_age.iter().find(|(_, k)| Some(*k) != keep) else {
                 break;
             };
-            let path = self.tile_path(key);
+            let path = self.live_path(key);
             // Not synced: a power cut can only bring an evicted tile back.
             match self.disk.remove_file(&path) {
                 Err(e) if e.kind() != io::ErrorKind::NotFound => {
                     return Err(StoreError::Io { path, op: "delete (evicting to the disk budget)", source: e });
                 }
                 _ => {}
+            }
+            if path != self.tile_path(key) {
+                // Its saved version goes too (best effort), or it would come back.
+                let _ = self.disk.remove_file(&self.tile_path(key));
             }
             self.forget(key);
             self.evicted += 1;
@@ -482,10 +623,79 @@ fn region_name(key: TileKey) -> String {
     format!("r{}_{}", key.col >> REGION_SHIFT, key.row >> REGION_SHIFT)
 }
 
-/// `{col}_{row}.tile` back to its key.
-fn parse_tile_name(name: &str) -> Option<TileKey> {
-    let (col, row) = name.strip_suffix(".tile")?.split_once('_')?;
-    Some(TileKey { col: col.parse().ok()?, row: row.parse().ok()? })
+/// Where tile `key`'s version written for save generation `g` lives until committed.
+fn generation_path(dir: &Path, key: TileKey, g: u64) -> PathBuf {
+    dir.join(TILES_DIR).join(region_name(key)).join(format!("{}_{}.g{g}.tile", key.col, key.row))
+}
+
+/// `{col}_{row}.tile` (generation `None`) or `{col}_{row}.g{N}.tile` back to its key.
+fn parse_tile_name(name: &str) -> Option<(TileKey, Option<u64>)> {
+    let stem = name.strip_suffix(".tile")?;
+    let (stem, generation) = match stem.rsplit_once(".g") {
+        Some((stem, g)) => (stem, Some(g.parse().ok()?)),
+        None => (stem, None),
+    };
+    let (col, row) = stem.split_once('_')?;
+    Some((TileKey { col: col.parse().ok()?, row: row.parse().ok()? }, generation))
+}
+
+/// `save.commit`: magic, format version, generation, state count, then each
+/// state's name length, name, byte length and bytes; CRC32 of all that last.
+fn encode_save(generation: u64, states: &[(&str, &[u8])]) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(SAVE_MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&generation.to_le_bytes());
+    out.extend_from_slice(&(states.len() as u32).to_le_bytes());
+    for (name, bytes) in states {
+        out.extend_from_slice(&(name.len() as u32).to_le_bytes());
+        out.extend_from_slice(name.as_bytes());
+        out.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+        out.extend_from_slice(bytes);
+    }
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// Named state blobs, as `save.commit` holds them.
+type NamedStates = Vec<(String, Vec<u8>)>;
+
+/// The generation and states of a `save.commit`, once its magic, CRC, version and lengths check out.
+fn decode_save(path: &Path, bytes: &[u8]) -> Result<(u64, NamedStates), StoreError> {
+    let corrupt = |why: &str| StoreError::Corrupt { path: path.to_owned(), why: why.to_owned() };
+    if bytes.len() < 28 || &bytes[..8] != SAVE_MAGIC {
+        return Err(corrupt("not a snowpack save record (no SNOWSAVE magic or too short)"));
+    }
+    let (body, crc) = bytes.split_at(bytes.len() - 4);
+    if crc32fast::hash(body).to_le_bytes() != crc {
+        return Err(corrupt("bad CRC32"));
+    }
+    let mut at = 8;
+    let mut take = |n: usize| -> Result<&[u8], StoreError> {
+        let field = body.get(at..at + n).ok_or_else(|| corrupt("length mismatch"))?;
+        at += n;
+        Ok(field)
+    };
+    let u32_at = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    let u64_at = |b: &[u8]| u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
+    let version = u32_at(take(4)?);
+    if version != FORMAT_VERSION {
+        return Err(StoreError::Version { path: path.to_owned(), found: version, expected: FORMAT_VERSION });
+    }
+    let generation = u64_at(take(8)?);
+    let count = u32_at(take(4)?);
+    let mut states = Vec::new();
+    for _ in 0..count {
+        let name_len = u32_at(take(4)?) as usize;
+        let name = String::from_utf8(take(name_len)?.to_vec()).map_err(|_| corrupt("a state name is not UTF-8"))?;
+        let len = usize::try_from(u64_at(take(8)?)).map_err(|_| corrupt("length mismatch"))?;
+        states.push((name, take(len)?.to_vec()));
+    }
+    if at != body.len() {
+        return Err(corrupt("length mismatch (bytes after the last state)"));
+    }
+    Ok((generation, states))
 }
 
 fn meta_bytes(side: u32) -> Vec<u8> {
@@ -664,6 +874,62 @@ mod tests {
         short.stamps.pop();
         assert!(matches!(store.write(&short), Err(StoreError::Mismatch { .. })));
         assert_eq!(store.disk_tiles(), 1);
+    }
+
+    /// While saving, tiles are written beside their saved versions: until the
+    /// commit, reopening finds the last save (the later files deleted); after
+    /// it, the new one (the files in place).
+    #[test]
+    fn tiles_written_after_a_save_belong_to_the_next_one() {
+        let dir = TestDir::new("store-saves");
+        let (a, b) = (TileKey::new(0, 0), TileKey::new(-40, 3));
+        {
+            let mut store = open(dir.path(), 0);
+            store.begin_saves();
+            store.write(&tile(0, 0, 1.0)).expect("write");
+            store.commit(&[("window", b"one")]).expect("commit the first save");
+            store.write(&tile(0, 0, 2.0)).expect("write for the next save");
+            store.write(&tile(-40, 3, 2.0)).expect("write for the next save");
+            // The newest version is what reads back meanwhile.
+            assert_eq!(store.read(a).expect("read"), Some(tile(0, 0, 2.0)));
+            assert_eq!(store.read_state("window").expect("state"), Some(b"one".to_vec()));
+        }
+        // Not committed: the store holds the first save, whole.
+        {
+            let mut store = open(dir.path(), 0);
+            assert_eq!(store.read(a).expect("read"), Some(tile(0, 0, 1.0)));
+            assert_eq!(store.read(b).expect("read"), None);
+            assert_eq!(store.disk_tiles(), 1);
+            assert_eq!(store.read_state("window").expect("state"), Some(b"one".to_vec()));
+            // Opened holding a save, it saves on: this write belongs to the next one.
+            store.write(&tile(-40, 3, 3.0)).expect("write");
+            store.commit(&[("window", b"two")]).expect("commit the second save");
+            assert!(!store.live_path(b).to_string_lossy().contains(".g"), "committed files are in place");
+        }
+        let mut store = open(dir.path(), 0);
+        assert_eq!(store.read(a).expect("read"), Some(tile(0, 0, 1.0)));
+        assert_eq!(store.read(b).expect("read"), Some(tile(-40, 3, 3.0)));
+        assert_eq!(store.read_state("window").expect("state"), Some(b"two".to_vec()));
+        let leftovers: Vec<_> = walk(dir.path()).into_iter().filter(|p| p.to_string_lossy().contains(".g")).collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+        // A damaged save record is an error naming it.
+        fs::write(dir.path().join(SAVE_FILE), b"SNOWSAVE and then nonsense").expect("damage");
+        drop(store);
+        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Corrupt { path, .. }) if path.ends_with(SAVE_FILE)));
+    }
+
+    /// Every file under `dir`.
+    fn walk(dir: &Path) -> Vec<PathBuf> {
+        let mut out = Vec::new();
+        for entry in fs::read_dir(dir).into_iter().flatten().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                out.extend(walk(&path));
+            } else {
+                out.push(path);
+            }
+        }
+        out
     }
 
     #[test]

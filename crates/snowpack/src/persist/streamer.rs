@@ -156,6 +156,14 @@ enum Request {
         seq: u64,
         name: String,
     },
+    BeginSaves {
+        seq: u64,
+    },
+    Commit {
+        seq: u64,
+        name: String,
+        bytes: Vec<u8>,
+    },
     /// Lets the tests kill the worker the way a bug would.
     #[cfg(test)]
     Panic,
@@ -229,6 +237,21 @@ impl Cached {
     }
 }
 
+/// A tile the window made fresh in place of the stored one, which the disk
+/// did not give in time (late, hung) or could not read (failing): the stored
+/// version is merged into what the window made there (shared snow's merge,
+/// on the GPU: `tile_restore.wgsl`), never replaced by it or written over.
+#[derive(Default)]
+struct StandIn {
+    /// What the window made in the tile's place, handed back by `put` and
+    /// not merged yet; not written (that would replace the stored version).
+    made: Option<TileData>,
+    /// When it was handed back (`tick`), so the oldest go first beyond the budget.
+    since: u64,
+    /// Why the stored version could not be read, the last time it was tried.
+    read_error: Option<String>,
+}
+
 /// Streams tiles between the deformation window and a [`TileStore`] on a
 /// worker thread, with a bounded memory cache; or, made with
 /// [`TileStreamer::in_memory`], keeps them in that cache alone. See the
@@ -266,6 +289,13 @@ pub struct TileStreamer {
     errors: Vec<StoreError>,
     /// While `flush` waits: where the first write error goes, for it to return.
     flush_error: Option<Option<StoreError>>,
+    /// Tiles the window stood in for with fresh snow ([`StandIn`]).
+    stand_ins: HashMap<TileKey, StandIn>,
+    /// Bytes of the stand-ins' `made` tiles.
+    made_bytes: usize,
+    /// Keys whose last read failed (I/O, not a damaged file): answered as
+    /// fresh snow, stood in for, read again when next needed.
+    unreadable: HashSet<TileKey>,
     stats: StoreStats,
 }
 
@@ -323,6 +353,9 @@ impl TileStreamer {
             unwritten: HashMap::new(),
             errors: Vec::new(),
             flush_error: None,
+            stand_ins: HashMap::new(),
+            made_bytes: 0,
+            unreadable: HashSet::new(),
             stats,
         }
     }
@@ -375,7 +408,7 @@ impl TileStreamer {
         /// [`TileStreamer::request`] for that.
         #[must_use]
         fn is_ready(&self, key: TileKey) -> bool {
-            self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.gone
+            self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.unreadable.contains(&key) || self.gone
         }
     }
 
@@ -416,6 +449,12 @@ impl TileStreamer {
             }
             if self.absent.contains(&key) {
                 self.stats.hits += 1;
+                return TileLookup::Ready(None);
+            }
+            if self.unreadable.remove(&key) {
+                // Its read failed (reported): fresh snow stands in for it, and
+                // the stored version is merged in once it can be read.
+                self.stand_ins.entry(key).or_default();
                 return TileLookup::Ready(None);
             }
             if self.memory_only {
@@ -461,8 +500,132 @@ impl TileStreamer {
                 }
                 return;
             }
+            if let Some(stand_in) = self.stand_ins.get_mut(&key) {
+                // Not written: that would replace the stored version, which is
+                // merged in when the window next restores the tile (or at a save).
+                self.tick += 1;
+                stand_in.since = self.tick;
+                self.made_bytes += tile.memory_bytes();
+                if let Some(old) = stand_in.made.replace(tile) {
+                    self.made_bytes -= old.memory_bytes();
+                }
+                self.trim_stand_ins(key);
+                return;
+            }
             self.insert(key, Cached::new(tile, Dirt::Failed, false));
             self.queue_write(key);
+        }
+    }
+
+    /// Fresh snow stands in for `key`, whose stored version the window could
+    /// not get in time (a late or hung disk) or could not read: from now on
+    /// what the window makes there is not written over the stored version
+    /// but kept, and the two are merged when the window next restores the
+    /// tile ([`Self::take_for_restore`]) or at a save. The load goes on.
+    /// Returns what the window made there before, if it was handed back and
+    /// is not merged yet: to restore in place of fresh snow. Nothing to do
+    /// for a memory-only streamer or a tile known to be absent.
+    pub(crate) fn stand_in(&mut self, key: TileKey) -> Option<TileData> {
+        if self.memory_only || self.absent.contains(&key) {
+            return None;
+        }
+        let made = self.stand_ins.entry(key).or_default().made.take();
+        if let Some(made) = &made {
+            self.made_bytes -= made.memory_bytes();
+        }
+        self.request(key);
+        made
+    }
+
+    /// What the window restores for `key`: as [`Self::lookup`], and for a
+    /// tile it stood in for ([`Self::stand_in`]), what it made there meanwhile
+    /// to merge with the stored version once that is here (the tile is then
+    /// an ordinary one again). While the stored version cannot be read, what
+    /// the window made comes back alone (`Ready`, still stood in for); while
+    /// it is loading, `Pending`.
+    pub(crate) fn take_for_restore(&mut self, key: TileKey) -> (TileLookup, Option<TileData>) {
+        self.poll();
+        if !self.stand_ins.contains_key(&key) {
+            return (self.lookup(key), None);
+        }
+        if self.cache.contains_key(&key) {
+            let made = self.stand_ins.remove(&key).and_then(|s| s.made);
+            if let Some(made) = &made {
+                self.made_bytes -= made.memory_bytes();
+            }
+            return (self.lookup(key), made);
+        }
+        if self.gone || self.unreadable.remove(&key) {
+            // Read again the next time the tile is needed.
+            return (TileLookup::Ready(self.stand_in_made(key)), None);
+        }
+        self.request(key);
+        (TileLookup::Pending, None)
+    }
+
+    /// Whether fresh snow (or what the window made there) stands in for `key`.
+    pub(crate) fn stands_in(&self, key: TileKey) -> bool {
+        self.stand_ins.contains_key(&key)
+    }
+
+    /// Takes the held `made` tile of stand-in `key`, leaving it stood in for.
+    fn stand_in_made(&mut self, key: TileKey) -> Option<TileData> {
+        let made = self.stand_ins.get_mut(&key).and_then(|s| s.made.take());
+        if let Some(made) = &made {
+            self.made_bytes -= made.memory_bytes();
+        }
+        made
+    }
+
+    /// The tiles stood in for whose `made` version is held, waiting for a
+    /// merge (a save merges them: `TileStreaming::checkpoint`).
+    pub(crate) fn stand_ins_made(&self) -> Vec<TileKey> {
+        let mut keys: Vec<TileKey> = self.stand_ins.iter().filter(|(_, s)| s.made.is_some()).map(|(k, _)| *k).collect();
+        keys.sort_unstable_by_key(|k| (k.row, k.col));
+        keys
+    }
+
+    /// Why stand-in `key`'s stored version cannot be merged now: its last
+    /// read failed (after [`Self::wait_for`], which tries it again). A save
+    /// stops there rather than write over it.
+    pub(crate) fn stand_in_error(&self, key: TileKey) -> Option<StoreError> {
+        let stand_in = self.stand_ins.get(&key)?;
+        if !self.unreadable.contains(&key) && !self.gone {
+            return None;
+        }
+        let why = stand_in.read_error.clone().unwrap_or_else(|| "the tile store's worker has stopped".to_owned());
+        Some(StoreError::Io {
+            path: tile_path(&self.dir, key),
+            op: "read (what the window made in this tile's place is kept in memory and not saved over it)",
+            source: std::io::Error::other(why),
+        })
+    }
+
+    /// A stand-in resolved: the store has no version of it (never written,
+    /// or set aside as damaged), so what the window made is the tile.
+    fn resolve_absent(&mut self, key: TileKey) {
+        let Some(stand_in) = self.stand_ins.remove(&key) else { return };
+        if let Some(made) = stand_in.made {
+            self.made_bytes -= made.memory_bytes();
+            self.insert(key, Cached::new(made, Dirt::Failed, false));
+            self.queue_write(key);
+        }
+    }
+
+    /// Drops the oldest held `made` tiles (never `keep`'s) while they exceed
+    /// the memory budget (or the floor of tiles waited for, if larger): a
+    /// disk failing for long must not grow memory without bound. Each is
+    /// lost (counted); its stored version stays as it was.
+    fn trim_stand_ins(&mut self, keep: TileKey) {
+        let allowance = self.config.memory_budget_bytes.max(WANTED_FLOOR_BYTES);
+        while self.made_bytes > allowance {
+            let oldest = self.stand_ins.iter().filter(|(k, s)| **k != keep && s.made.is_some()).min_by_key(|(_, s)| s.since).map(|(k, _)| *k);
+            let Some(victim) = oldest else { break };
+            if let Some(made) = self.stand_ins.remove(&victim).and_then(|s| s.made) {
+                self.made_bytes -= made.memory_bytes();
+            }
+            tracing::warn!("tile store: what the window made at tile {victim:?} while its stored version could not be read was dropped from memory");
+            self.stats.lost += 1;
         }
     }
 
@@ -488,9 +651,10 @@ impl TileStreamer {
 
     low_level_pub! {
         /// Blocks until every key is ready (in memory or known absent): for the
-        /// first placement of the window and for loading a save. Read errors do
-        /// not stop it (those tiles are answered as absent and the errors are in
-        /// [`TileStreamer::take_errors`]); only a stopped worker does. If the
+        /// first placement of the window and for loading a save. A tile whose
+        /// read failed before is read again. Read errors do not stop it (those
+        /// tiles are answered as fresh snow standing in for them, and the
+        /// errors are in [`TileStreamer::take_errors`]); only a stopped worker does. If the
         /// keys together exceed the memory budget, the first may have been
         /// dropped again by the time it returns. Gives up after
         /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
@@ -508,10 +672,14 @@ impl TileStreamer {
                 return Ok(());
             }
             self.poll();
+            // A blocking wait is when a failed read is tried again (once).
+            for key in keys {
+                self.unreadable.remove(key);
+            }
             let start = Instant::now();
             let mut waiting: Vec<TileKey> = keys.to_vec();
             loop {
-                waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key));
+                waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key) && !self.unreadable.contains(key));
                 if waiting.is_empty() {
                     return Ok(());
                 }
@@ -590,6 +758,40 @@ impl TileStreamer {
             let owned = name.to_owned();
             let seq = self.send(|seq| Request::WriteState { seq, name: owned, bytes })?;
             match self.wait(seq, || format!("the state `{name}` to be written"))? {
+                Outcome::StateWritten(result) => result,
+                _ => Err(StoreError::WorkerGone),
+            }
+        }
+    }
+
+    low_level_pub! {
+        /// From now on the store writes tiles for the next save, beside the
+        /// saved ones ([`TileStore::begin_saves`]): a crash before
+        /// [`Self::commit_save`] returns leaves the last complete save, every
+        /// tile and state of it. Ordered after the writes queued before it;
+        /// nothing for a memory-only streamer.
+        fn begin_saves(&mut self) {
+            if !self.memory_only {
+                // A stopped worker is reported by the next call that waits.
+                let _ = self.send(|seq| Request::BeginSaves { seq });
+            }
+        }
+    }
+
+    low_level_pub! {
+        /// Completes a save with the named state `bytes` ([`TileStore::commit`]):
+        /// blocking, ordered after the writes queued before it, so call it once
+        /// [`Self::flush`] has written the save's tiles. A memory-only streamer
+        /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
+        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
+        /// commit stays queued and may still be done: the save is then complete).
+        fn commit_save(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+            if self.memory_only {
+                return Err(StoreError::NoDisk);
+            }
+            let owned = name.to_owned();
+            let seq = self.send(|seq| Request::Commit { seq, name: owned, bytes })?;
+            match self.wait(seq, || format!("the save with `{name}` to be committed"))? {
                 Outcome::StateWritten(result) => result,
                 _ => Err(StoreError::WorkerGone),
             }
@@ -694,18 +896,29 @@ impl TileStreamer {
                 let stale = self.cache.contains_key(&key) || self.unwritten.get(&key).is_some_and(|&w| w > seq);
                 let tile = match result {
                     Ok(tile) => tile,
-                    Err(e) => {
-                        if matches!(e, StoreError::Corrupt { .. } | StoreError::Version { .. } | StoreError::Mismatch { .. }) {
-                            self.stats.corrupt += 1;
-                        }
+                    Err(e) if matches!(e, StoreError::Corrupt { .. } | StoreError::Version { .. } | StoreError::Mismatch { .. }) => {
+                        self.stats.corrupt += 1;
                         self.report(e, false);
                         // Fresh snow: the store has set the bad file aside.
                         None
+                    }
+                    Err(e) => {
+                        // Not read, but maybe still there: answered as fresh snow
+                        // that stands in for it (never written over it).
+                        if !stale {
+                            if let Some(stand_in) = self.stand_ins.get_mut(&key) {
+                                stand_in.read_error = Some(e.to_string());
+                            }
+                            self.unreadable.insert(key);
+                        }
+                        self.report(e, false);
+                        return;
                     }
                 };
                 if stale {
                     return;
                 }
+                self.unreadable.remove(&key);
                 match tile {
                     Some(tile) => {
                         // Answered from a write still queued: dirty until its reply.
@@ -713,7 +926,10 @@ impl TileStreamer {
                             Some(w) if self.unwritten.get(&key) == Some(&w) => Dirt::Queued(w),
                             _ => Dirt::Clean,
                         };
-                        self.insert(key, Cached::new(tile, dirt, true));
+                        // A stand-in's stored version waits for its merge without
+                        // holding memory beyond the budget.
+                        let wanted = !self.stand_ins.contains_key(&key);
+                        self.insert(key, Cached::new(tile, dirt, wanted));
                     }
                     None => {
                         if self.absent.len() >= MAX_ABSENT {
@@ -721,6 +937,7 @@ impl TileStreamer {
                             self.absent.clear();
                         }
                         self.absent.insert(key);
+                        self.resolve_absent(key);
                     }
                 }
             }
@@ -907,6 +1124,12 @@ impl Drop for TileStreamer {
         for error in self.errors.drain(..) {
             tracing::warn!("tile store: {error}");
         }
+        let held = self.stand_ins.values().filter(|s| s.made.is_some()).count();
+        if held > 0 {
+            tracing::warn!(
+                "tile store: {held} tiles the window made while their stored versions were late or unreadable were never merged and are lost; the stored versions are as they were"
+            );
+        }
         let unwritten = self.cache.values().filter(|c| c.dirt != Dirt::Clean).count();
         if unwritten > 0 && !detached {
             tracing::warn!("tile store: {unwritten} tiles could not be written and are lost");
@@ -968,6 +1191,11 @@ fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
         Request::Flush { seq } => (seq, Outcome::Flushed),
         Request::WriteState { seq, name, bytes } => (seq, Outcome::StateWritten(store.write_state(&name, &bytes))),
         Request::ReadState { seq, name } => (seq, Outcome::StateRead(store.read_state(&name))),
+        Request::BeginSaves { seq } => {
+            store.begin_saves();
+            (seq, Outcome::Flushed)
+        }
+        Request::Commit { seq, name, bytes } => (seq, Outcome::StateWritten(store.commit(&[(&name, &bytes)]))),
         #[cfg(test)]
         Request::Panic => panic!("the tile worker panics (as a test asked)"),
         #[cfg(test)]
@@ -1178,6 +1406,46 @@ mod tests {
         s.wait_for(&[a]).expect("the disk answers again");
         assert_eq!(s.lookup(a), TileLookup::Ready(Some(tile(3, 4, 5.0))));
         assert!(WAIT_LIMIT <= Duration::from_secs(60), "the default bound is a bound");
+    }
+
+    /// Fresh snow the window stood in for a late tile with is never written
+    /// over the stored tile: it is held until the stored version is here and
+    /// both go to the restore to merge; where the store has none, it is the tile.
+    #[test]
+    fn a_stand_in_is_held_for_its_merge_not_written_over_the_stored_tile() {
+        let dir = TestDir::new("streamer-stand-in");
+        let (stored, never) = (TileKey::new(1, 1), TileKey::new(2, 1));
+        {
+            let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+            store.write(&tile(1, 1, 1.0)).expect("write");
+        }
+        let mut s = streamer(&dir, 8);
+        // The disk is late: the window stands in for both tiles, then hands back what it made there.
+        let (release, gate) = mpsc::channel();
+        let (entered, held) = mpsc::channel();
+        s.send(|seq| Request::Pause { seq, gate, entered: Some(entered) }).expect("send");
+        held.recv().expect("the worker is held");
+        assert_eq!(s.stand_in(stored), None, "nothing made there yet");
+        assert_eq!(s.stand_in(never), None);
+        s.put(tile(1, 1, 7.0));
+        s.put(tile(2, 1, 8.0));
+        assert_eq!(s.stand_ins_made(), vec![stored, never]);
+        assert_eq!(s.take_for_restore(stored), (TileLookup::Pending, None), "the stored version is still loading");
+        drop(release);
+        s.wait_for(&[stored, never]).expect("the disk answers");
+        s.flush().expect("flush");
+        // The store has no version of `never`: what the window made is the tile, written.
+        assert_eq!(s.stats().writes, 1);
+        assert_eq!(s.stand_ins_made(), vec![stored]);
+        // Both versions of `stored` go to the restore, which merges them; then it is an ordinary tile.
+        assert_eq!(s.take_for_restore(stored), (TileLookup::Ready(Some(tile(1, 1, 1.0))), Some(tile(1, 1, 7.0))));
+        assert!(s.stand_ins_made().is_empty());
+        assert_eq!(s.take_for_restore(stored), (TileLookup::Ready(Some(tile(1, 1, 1.0))), None));
+        assert!(s.take_errors().is_empty());
+        drop(s);
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("reopen");
+        assert_eq!(store.read(stored).expect("read"), Some(tile(1, 1, 1.0)), "never written over");
+        assert_eq!(store.read(never).expect("read"), Some(tile(2, 1, 8.0)));
     }
 
     #[test]

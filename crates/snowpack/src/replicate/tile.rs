@@ -168,33 +168,35 @@ impl SharedTile {
             theirs_owned = o;
             &theirs_owned
         };
+        if !theirs.stamps.is_empty() && self.stamps.is_empty() {
+            self.stamps = vec![NO_STAMP; self.texels()];
+        }
+        if !theirs.fallen.is_empty() && self.fallen.is_empty() {
+            self.fallen = vec![0.0; self.texels()];
+        }
         let mut changed = false;
-        for (a, &b) in self.deficit.iter_mut().zip(&theirs.deficit) {
-            if b > *a {
-                *a = b;
+        for k in 0..self.texels() {
+            // A plane one side lacks is the merge's identity.
+            let mine = TexelCopy {
+                deficit: u32::from(self.deficit[k]),
+                stamp: self.stamps.get(k).copied().unwrap_or(NO_STAMP),
+                fallen_m: self.fallen.get(k).copied().unwrap_or(0.0),
+            };
+            let other = TexelCopy {
+                deficit: u32::from(theirs.deficit[k]),
+                stamp: theirs.stamps.get(k).copied().unwrap_or(NO_STAMP),
+                fallen_m: theirs.fallen.get(k).copied().unwrap_or(0.0),
+            };
+            let merged = mine.merge(other);
+            if merged.deficit != mine.deficit || merged.stamp != mine.stamp || merged.fallen_m.to_bits() != mine.fallen_m.to_bits() {
                 changed = true;
-            }
-        }
-        if !theirs.stamps.is_empty() {
-            if self.stamps.is_empty() {
-                self.stamps = vec![NO_STAMP; self.texels()];
-            }
-            for (a, &b) in self.stamps.iter_mut().zip(&theirs.stamps) {
-                if b < *a {
-                    *a = b;
-                    changed = true;
+                // Both deficits are u16: so is their maximum.
+                self.deficit[k] = merged.deficit as u16;
+                if let Some(s) = self.stamps.get_mut(k) {
+                    *s = merged.stamp;
                 }
-            }
-        }
-        if !theirs.fallen.is_empty() {
-            if self.fallen.is_empty() {
-                self.fallen = vec![0.0; self.texels()];
-            }
-            for (a, &b) in self.fallen.iter_mut().zip(&theirs.fallen) {
-                // Bit patterns of non-negative floats order as the floats do.
-                if b.to_bits() > a.to_bits() && b >= 0.0 {
-                    *a = b;
-                    changed = true;
+                if let Some(f) = self.fallen.get_mut(k) {
+                    *f = merged.fallen_m;
                 }
             }
         }
@@ -236,6 +238,34 @@ impl SharedTile {
         let lying = self.fallen.get(k).copied().unwrap_or(0.0);
         let d = f32::from(self.deficit.get(k).copied().unwrap_or(0)) * SNOW_QUANTUM_M;
         (depth_m + lying - d).max(0.0)
+    }
+}
+
+/// One texel of a copy of the snow, brought to a common clock with the
+/// other copies it merges with: the deficit below its rest height (quanta),
+/// its packed footprint, the snowfall lying there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelCopy {
+    /// Rest height minus the persistent snow height ([`SNOW_QUANTUM_M`] steps).
+    pub deficit: u32,
+    /// Packed footprint ([`NO_STAMP`]: none).
+    pub stamp: u32,
+    /// Snowfall lying (m).
+    pub fallen_m: f32,
+}
+
+impl TexelCopy {
+    /// The merge of two copies of a texel, the rule every copy of the snow
+    /// converges by: the deeper deficit, the lower footprint, the deeper
+    /// snowfall (commutative, associative, idempotent). [`SharedTile::merge`]
+    /// folds shared tiles with it; the tile restore pass folds a stored tile
+    /// into what the window made in its place while the disk was late
+    /// (`tile_restore.wgsl` runs the same rule, `cpu::tile_restore` is its twin).
+    #[must_use]
+    pub fn merge(self, other: Self) -> Self {
+        // Bit patterns of non-negative floats order as the floats do.
+        let fallen_m = if other.fallen_m.to_bits() > self.fallen_m.to_bits() && other.fallen_m >= 0.0 { other.fallen_m } else { self.fallen_m };
+        Self { deficit: self.deficit.max(other.deficit), stamp: self.stamp.min(other.stamp), fallen_m }
     }
 }
 

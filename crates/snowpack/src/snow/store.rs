@@ -54,6 +54,8 @@ impl SnowDeformation {
             Some(bytes) => Some(SavedWindow::decode(&bytes, &streamer.dir().join(STATE_NAME))?),
             None => None,
         };
+        // Tiles given up from now on belong to the next save: a crash leaves the last one whole.
+        streamer.begin_saves();
         let (low, high, _) = self.stamp_range();
         if let Some(s) = &saved {
             let path = streamer.dir().join(STATE_NAME);
@@ -128,8 +130,9 @@ impl SnowDeformation {
         };
         let streamer = tiles.streamer();
         streamer.flush()?;
-        // The state goes last: a save is complete once it is there.
-        streamer.write_state(STATE_NAME, state.encode())?;
+        // The state goes last, in the save's one atomic commit: a save is
+        // complete, every tile with it, once it is there.
+        streamer.commit_save(STATE_NAME, state.encode())?;
         Ok(())
     }
 

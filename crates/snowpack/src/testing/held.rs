@@ -1,6 +1,8 @@
-//! A disk that hangs on demand: while held, every operation blocks until it
-//! is released, as a network share or a dying drive that stops answering.
-//! For the tests that every blocking call of the tile store gives up.
+//! A disk that hangs or fails on demand: while held, every operation blocks
+//! until it is released, as a network share or a dying drive that stops
+//! answering; while failing, every operation fails with an I/O error. For
+//! the tests that every blocking call of the tile store gives up, and that
+//! no trail is lost to a late or failing disk.
 
 use std::path::Path;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
@@ -15,6 +17,8 @@ struct Hold {
     held: bool,
     /// Operations blocked now.
     blocked: usize,
+    /// Operations fail while this is set.
+    failing: bool,
 }
 
 #[derive(Debug, Default)]
@@ -28,11 +32,14 @@ impl Shared {
         self.hold.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// Blocks while the disk is held.
-    fn pass(&self) {
+    /// Blocks while the disk is held; an error while it fails.
+    fn pass(&self) -> io::Result<()> {
         let mut hold = self.lock();
+        if hold.failing {
+            return Err(io::Error::other("the disk fails (as the test asked)"));
+        }
         if !hold.held {
-            return;
+            return Ok(());
         }
         hold.blocked += 1;
         self.changed.notify_all();
@@ -41,12 +48,14 @@ impl Shared {
         }
         hold.blocked -= 1;
         self.changed.notify_all();
+        Ok(())
     }
 }
 
 /// A [`Disk`] over another (the operating system's by default) whose
 /// operations block while it is held ([`HeldDisk::hold`]) until it is
-/// released ([`HeldDisk::release`]); writes to an open file block too.
+/// released ([`HeldDisk::release`]), and fail while it fails
+/// ([`HeldDisk::fail`]); writes to an open file too.
 /// Clones share one hold.
 #[derive(Clone)]
 pub struct HeldDisk {
@@ -85,6 +94,12 @@ impl HeldDisk {
         self.shared.changed.notify_all();
     }
 
+    /// From now on (`true`) every operation fails with an I/O error, until
+    /// called with `false`.
+    pub fn fail(&self, failing: bool) {
+        self.shared.lock().failing = failing;
+    }
+
     /// Operations blocked now.
     #[must_use]
     pub fn blocked(&self) -> usize {
@@ -115,60 +130,60 @@ struct HeldFile {
 
 impl DiskFile for HeldFile {
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.write_all(bytes)
     }
 
     fn sync(&mut self) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.sync()
     }
 }
 
 impl Disk for HeldDisk {
     fn create_dir(&self, path: &Path) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.create_dir(path)
     }
 
     fn read(&self, path: &Path) -> io::Result<Vec<u8>> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.read(path)
     }
 
     fn create(&self, path: &Path) -> io::Result<Box<dyn DiskFile>> {
-        self.shared.pass();
+        self.shared.pass()?;
         let inner = self.inner.create(path)?;
         Ok(Box::new(HeldFile { inner, shared: Arc::clone(&self.shared) }))
     }
 
     fn rename(&self, from: &Path, to: &Path) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.rename(from, to)
     }
 
     fn remove_file(&self, path: &Path) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.remove_file(path)
     }
 
     fn remove_dir(&self, path: &Path) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.remove_dir(path)
     }
 
     fn sync_dir(&self, path: &Path) -> io::Result<()> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.sync_dir(path)
     }
 
     fn list(&self, dir: &Path) -> io::Result<Vec<DirEntry>> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.list(dir)
     }
 
     fn lock(&self, path: &Path) -> io::Result<Option<DiskLock>> {
-        self.shared.pass();
+        self.shared.pass()?;
         self.inner.lock(path)
     }
 }

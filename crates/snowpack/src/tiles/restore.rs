@@ -44,9 +44,10 @@ impl RestoreParams {
     pub const USE_FALLEN: u32 = 2;
 }
 
-/// One tile made resident (`RestoreEntry` in `tile_restore.wgsl`).
+/// One tile made resident (`RestoreEntry` in `tile_restore.wgsl`). The
+/// default restores fresh snow into slot 0 with nothing to merge.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct RestoreEntry {
     /// Tile coordinates `[column, row]`.
     pub tile: [i32; 2],
@@ -62,11 +63,39 @@ pub struct RestoreEntry {
     pub quanta: u32,
     /// 1 when any time counted (0: restored bit for bit).
     pub elapsed: u32,
+    /// First u32 of a second tile's planes to merge in (what the window made
+    /// in this tile's place while the disk was late with it), or
+    /// [`RestoreEntry::FRESH`]: none.
+    pub merge: u32,
+    /// Refill of the time the second tile was away (m).
+    pub merge_refill_m: f32,
+    /// Snowfall of the time the second tile was away (m).
+    pub merge_fall_m: f32,
+    /// Footprint refill of the time the second tile was away (stamp quanta).
+    pub merge_quanta: u32,
 }
 
 impl RestoreEntry {
-    /// No saved planes: fresh snow.
+    /// No saved planes: fresh snow (for `upload`), nothing to merge (for `merge`).
     pub const FRESH: u32 = u32::MAX;
+}
+
+impl Default for RestoreEntry {
+    fn default() -> Self {
+        Self {
+            tile: [0; 2],
+            slot: 0,
+            upload: Self::FRESH,
+            refill_m: 0.0,
+            fall_m: 0.0,
+            quanta: 0,
+            elapsed: 0,
+            merge: Self::FRESH,
+            merge_refill_m: 0.0,
+            merge_fall_m: 0.0,
+            merge_quanta: 0,
+        }
+    }
 }
 
 /// Writes restored or fresh tiles into their slots.

@@ -202,6 +202,14 @@ pub struct TileStats {
     pub restored: u64,
     /// Tiles made resident with fresh snow (never seen before).
     pub fresh: u64,
+    /// Tiles the window stood in for with fresh snow (or what it had made
+    /// there before) because the disk did not give the stored version in time
+    /// or could not read it; what it makes there is merged with the stored
+    /// version later, never written over it.
+    pub stood_in: u64,
+    /// Restores that merged a stored tile into what the window had made in
+    /// its place (shared snow's merge: the deeper deficit wins).
+    pub merged: u64,
     /// Tiles copied out of the GPU for the store.
     pub evicted: u64,
     /// Tiles on their way back from the GPU.
@@ -258,10 +266,17 @@ pub struct TileStreaming {
     in_flight: HashSet<TileKey>,
     prefetched_at: Option<TileKey>,
     errors: Vec<StoreError>,
+    /// Tiles the first placement gave up waiting for this frame: stood in
+    /// for at once, not waited for again one by one.
+    gave_up: HashSet<TileKey>,
+    /// The last frame's restore uniforms, for the merges a save does.
+    restore_base: RestoreParams,
     window_waits: u64,
     blocking_loads: u64,
     restored: u64,
     fresh: u64,
+    stood_in: u64,
+    merged: u64,
     evicted: u64,
 }
 
@@ -365,10 +380,14 @@ impl TileStreaming {
             in_flight: HashSet::new(),
             prefetched_at: None,
             errors: Vec::new(),
+            gave_up: HashSet::new(),
+            restore_base: RestoreParams::default(),
             window_waits: 0,
             blocking_loads: 0,
             restored: 0,
             fresh: 0,
+            stood_in: 0,
+            merged: 0,
             evicted: 0,
         };
         ctx.check("creating the resident tiles")?;
@@ -408,6 +427,7 @@ impl TileStreaming {
     /// then it stays at `current`. The first placement waits (blocking).
     pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
         self.streamer.poll();
+        self.gave_up.clear();
         let here = self.grid.key_of(desired);
         if self.prefetched_at != Some(here) {
             self.prefetched_at = Some(here);
@@ -427,7 +447,9 @@ impl TileStreaming {
                 self.collect_evictions(ctx, true);
             }
             if let Err(e) = self.streamer.wait_for(&needed) {
+                // Fresh snow stands in for what did not come (see `restore_entry`).
                 self.errors.push(e);
+                self.gave_up.extend(needed.iter().copied().filter(|&k| !self.streamer.is_ready(k)));
             }
             return desired;
         }
@@ -489,8 +511,8 @@ impl TileStreaming {
         }
     }
 
-    fn restore_params(&self, frame: &WindowFrame) -> RestoreParams {
-        RestoreParams {
+    fn restore_params(&mut self, frame: &WindowFrame) -> RestoreParams {
+        self.restore_base = RestoreParams {
             side: self.grid.side,
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
             planes: self.planes() as u32,
@@ -501,7 +523,8 @@ impl TileStreaming {
             low_m: frame.low_m,
             high_m: frame.high_m,
             ..RestoreParams::default()
-        }
+        };
+        self.restore_base
     }
 
     fn assign(&mut self, key: TileKey, slot: usize) {
@@ -528,43 +551,64 @@ impl TileStreaming {
     }
 
     /// The restore entry of `key` into `slot`, from the streamer (saved
-    /// planes appended to `upload`) or fresh.
+    /// planes appended to `upload`) or fresh; with what the window made in
+    /// the tile's place while the disk was late to merge in, where there is.
     fn restore_entry(&mut self, key: TileKey, slot: usize, upload: &mut Vec<u32>, clock: SnowClock) -> RestoreEntry {
         let area = self.grid.area();
-        let saved = match self.streamer.lookup(key) {
-            TileLookup::Ready(saved) => saved,
+        let (saved, made) = match self.streamer.take_for_restore(key) {
+            (TileLookup::Ready(saved), made) => {
+                if made.is_none() && self.streamer.stands_in(key) {
+                    // Its read failed: fresh snow (or what the window made here) stands in.
+                    self.stood_in += 1;
+                }
+                (saved, made)
+            }
             // `plan` saw it ready, but handing out the tiles before it let
             // the memory cache drop it: read it again rather than lose it
-            // to fresh snow (blocking; counted).
-            TileLookup::Pending => {
-                self.blocking_loads += 1;
-                if let Err(e) = self.streamer.wait_for(&[key]) {
-                    self.errors.push(e);
+            // to fresh snow (blocking; counted). Not for the tiles the first
+            // placement already gave up on: one wait each would add up.
+            (TileLookup::Pending, _) => {
+                if !self.gave_up.contains(&key) {
+                    self.blocking_loads += 1;
+                    if let Err(e) = self.streamer.wait_for(&[key]) {
+                        self.errors.push(e);
+                    }
                 }
-                match self.streamer.lookup(key) {
-                    TileLookup::Ready(saved) => saved,
-                    TileLookup::Pending => None,
+                match self.streamer.take_for_restore(key) {
+                    (TileLookup::Ready(saved), made) => (saved, made),
+                    (TileLookup::Pending, _) => {
+                        // The disk is late: fresh snow (or what the window made
+                        // here before) stands in; the stored version is merged
+                        // in later, never written over.
+                        self.stood_in += 1;
+                        (self.streamer.stand_in(key), None)
+                    }
                 }
             }
         };
-        let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, upload: RestoreEntry::FRESH, ..RestoreEntry::default() };
+        let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, ..RestoreEntry::default() };
+        let usable = |tile: &TileData| tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area;
+        // Appends a tile's planes to `upload`; its offset and time away.
+        let push = |tile: &TileData, upload: &mut Vec<u32>| {
+            let at = upload.len() as u32;
+            upload.extend_from_slice(&tile.snow_xor_rest);
+            upload.extend_from_slice(&tile.stamps);
+            if tile.fallen.len() == area {
+                upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
+            } else {
+                upload.extend(std::iter::repeat_n(0, area));
+            }
+            let refill = (clock.refill_m - tile.clock.refill_m).max(0.0);
+            let fall = (clock.fallen_m - tile.clock.fallen_m).max(0.0);
+            let quanta = clock.stamp_quanta.saturating_sub(tile.clock.stamp_quanta);
+            (at, refill as f32, fall as f32, quanta.min(u64::from(u32::MAX)) as u32)
+        };
         match saved {
-            Some(tile) if tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area => {
-                entry.upload = upload.len() as u32;
-                upload.extend_from_slice(&tile.snow_xor_rest);
-                upload.extend_from_slice(&tile.stamps);
-                if tile.fallen.len() == area {
-                    upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
-                } else {
-                    upload.extend(std::iter::repeat_n(0, area));
-                }
-                let refill = (clock.refill_m - tile.clock.refill_m).max(0.0);
-                let fall = (clock.fallen_m - tile.clock.fallen_m).max(0.0);
-                let quanta = clock.stamp_quanta.saturating_sub(tile.clock.stamp_quanta);
-                entry.refill_m = refill as f32;
-                entry.fall_m = fall as f32;
-                entry.quanta = quanta.min(u64::from(u32::MAX)) as u32;
-                entry.elapsed = u32::from(refill > 0.0 || fall > 0.0 || quanta > 0);
+            Some(tile) if usable(&tile) => {
+                let (at, refill_m, fall_m, quanta) = push(&tile, upload);
+                entry.upload = at;
+                (entry.refill_m, entry.fall_m, entry.quanta) = (refill_m, fall_m, quanta);
+                entry.elapsed = u32::from(refill_m > 0.0 || fall_m > 0.0 || quanta > 0);
                 self.restored += 1;
             }
             Some(tile) => {
@@ -575,6 +619,11 @@ impl TileStreaming {
                 self.fresh += 1;
             }
             None => self.fresh += 1,
+        }
+        if let Some(made) = made.filter(|t| usable(t)) {
+            let (at, refill_m, fall_m, quanta) = push(&made, upload);
+            (entry.merge, entry.merge_refill_m, entry.merge_fall_m, entry.merge_quanta) = (at, refill_m, fall_m, quanta);
+            self.merged += 1;
         }
         entry
     }
@@ -933,6 +982,94 @@ impl TileStreaming {
             }
         }
         self.write_table(&ctx.queue);
+        self.settle_stand_ins(ctx, res, origin, clock)
+    }
+
+    /// Merges the tiles the window stood in for (the disk was late or could
+    /// not read them) and has made since with their stored versions, so that
+    /// a save writes the merge and never what the window made over the stored
+    /// version: waits for the stored versions, restores each with a merge
+    /// (into its own slot if resident, a borrowed one otherwise), loads the
+    /// merged texels into the window where it covers them, and hands the
+    /// merged tiles to the streamer as ordinary writes. Blocking. Fails, and
+    /// keeps what the window made in memory, when a stored version cannot be
+    /// read or does not come within the wait limit.
+    fn settle_stand_ins(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock) -> Result<(), SnowError> {
+        if self.streamer.stand_ins_made().is_empty() {
+            return Ok(());
+        }
+        self.streamer.wait_for(&self.streamer.stand_ins_made())?;
+        // Those the store turned out not to have are ordinary tiles by now.
+        let owed = self.streamer.stand_ins_made();
+        if let Some(e) = owed.iter().find_map(|&k| self.streamer.stand_in_error(k)) {
+            return Err(e.into());
+        }
+        let full = [[0, 0, res.resolution, res.resolution]];
+        let load = self.exchange_params(res, origin, origin, false);
+        let seal = self.seal_params(res);
+        let mut timer = GpuTimer::disabled();
+        let room = self.owners.iter().filter(|o| o.is_none()).count().clamp(1, BATCH_TILES);
+        for batch in owed.chunks(room) {
+            let (mut entries, mut upload, mut borrowed) = (Vec::new(), Vec::<u32>::new(), Vec::new());
+            for &k in batch {
+                let slot = if let Some(&slot) = self.slots.get(&k) {
+                    slot
+                } else {
+                    let slot = self.free_slot().expect("a batch fits the free slots");
+                    self.assign(k, slot);
+                    borrowed.push(k);
+                    slot
+                };
+                entries.push(self.restore_entry(k, slot, &mut upload, clock));
+            }
+            // Only this batch in the table: the load leaves every other texel of the window as it is.
+            let mut table = vec![NO_SLOT; self.table.len()];
+            for &k in batch {
+                table[self.grid.table_entry(k)] = self.slots[&k] as u32;
+            }
+            ctx.queue.write_buffer(&self.table_buffer, 0, bytemuck::cast_slice(&table));
+            let sealed: Vec<[i32; 4]> = entries.iter().map(|e| [e.tile[0], e.tile[1], e.slot as i32, 0]).collect();
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile merge for a save") });
+            {
+                let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
+                self.restore.record(&mut cx, (res, &self.tiles), self.restore_base, &entries, &upload);
+                self.exchange.record(&mut cx, load, &full);
+                self.seal.record(&mut cx, (res, &self.tiles), seal, &sealed);
+            }
+            ctx.queue.submit([encoder.finish()]);
+            let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+            let slot_words = self.planes() * self.grid.area();
+            for e in &entries {
+                let key = TileKey::new(i64::from(e.tile[0]), i64::from(e.tile[1]));
+                let slot = e.slot as usize;
+                let planes = &words[slot * slot_words..(slot + 1) * slot_words];
+                self.streamer.put(tile_from_planes(key, self.grid.side, clock, planes, (self.use_fallen, self.has_stamps)));
+            }
+            // Sealing again gives the resident slots back; the borrowed ones go.
+            let resident: Vec<[i32; 4]> = sealed.iter().copied().filter(|e| !borrowed.contains(&TileKey::new(i64::from(e[0]), i64::from(e[1])))).collect();
+            if !resident.is_empty() {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile unseal") });
+                self.seal.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), (res, &self.tiles), seal, &resident);
+                ctx.queue.submit([encoder.finish()]);
+            }
+            for k in borrowed {
+                self.release(k);
+            }
+        }
+        self.write_table(&ctx.queue);
+        // A stored version dropped from memory and not read again in time: not merged, not saved.
+        if let Some(&k) = self.streamer.stand_ins_made().first() {
+            return Err(StoreError::Io {
+                path: self.streamer.dir().to_path_buf(),
+                op: "merge before saving",
+                source: std::io::Error::other(format!(
+                    "the stored version of tile ({}, {}) did not come back in time; what the window made there is kept in memory",
+                    k.col, k.row
+                )),
+            }
+            .into());
+        }
         Ok(())
     }
 
@@ -954,6 +1091,8 @@ impl TileStreaming {
             window_waits: self.window_waits,
             restored: self.restored,
             fresh: self.fresh,
+            stood_in: self.stood_in,
+            merged: self.merged,
             evicted: self.evicted,
             evicting: self.in_flight.len(),
             blocking_loads: self.blocking_loads,

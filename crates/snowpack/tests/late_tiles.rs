@@ -1,0 +1,228 @@
+//! No trail is lost to a slow disk. A tile the disk gives after the window
+//! gave up waiting for it (or cannot read for a while) is merged into what
+//! the window made there meanwhile (shared snow's merge: the deeper deficit
+//! wins), never replaced by fresh snow and never written over the saved one.
+//!
+//! End to end through `SnowDeformation`, on a `testing::HeldDisk`: a trail
+//! (A) is saved; a new window loads the save while the disk is late, hung or
+//! failing, so fresh snow stands in for A's tile, and a second trail (B) is
+//! pressed in the same tile. Both trails must be there after walking away and
+//! back, and after a save and a reload.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
+use snowpack::low_level::testing::{self, HeldDisk};
+use snowpack::low_level::error::SnowError;
+use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+
+/// Tiles of 1 m (16 texels of 1/16 m); the window is 4 m, 4×4 tiles.
+const SIDE: u32 = 16;
+/// The streamers' wait limit here: the window gives up on the disk after it.
+const LIMIT: Duration = Duration::from_millis(300);
+/// Trail A (saved first) and trail B (pressed while the disk is late), both
+/// in tile (-1, -1), 0.7 m apart.
+const A: Vec2 = Vec2::new(-0.75, -0.75);
+const B: Vec2 = Vec2::new(-0.25, -0.25);
+/// Snow depth left under a trail's centre is about 0.1 m; untouched, 0.5 m.
+const PRESSED: f32 = 0.25;
+
+struct TestDir(PathBuf);
+
+impl TestDir {
+    fn new(name: &str) -> Self {
+        let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+        let dir = std::env::temp_dir().join(format!("snowpack-late-{name}-{}-{nanos}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("create a test directory");
+        Self(dir)
+    }
+
+    fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn window(ctx: &GpuContext) -> SnowDeformation {
+    let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, refill_m_per_s: 0.0, blur: false, ..SnowParams::default() };
+    SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window")
+}
+
+/// A window over the store in `dir` on `disk`, its save loaded (if any).
+fn attached(ctx: &GpuContext, dir: &Path, disk: &HeldDisk) -> (SnowDeformation, bool) {
+    let store = TileStore::open_on(Arc::new(disk.clone()), dir, SIDE, StoreConfig::default()).expect("open");
+    let mut d = window(ctx);
+    let loaded = d.attach_store(ctx, TileStreamer::new(store, StreamerConfig { wait_limit: LIMIT, ..StreamerConfig::default() })).expect("attach");
+    (d, loaded)
+}
+
+/// Presses a trail: a ball 0.25 m across sunk to 0.1 m above the ground at `at`.
+fn press(ctx: &GpuContext, d: &mut SnowDeformation, at: Vec2) {
+    let ball = Deformer::Sphere { center: Vec3::new(at.x, 0.35, at.y), radius: 0.25 };
+    for _ in 0..3 {
+        d.step(ctx, &[ball], 1.0 / 60.0).expect("frame");
+    }
+}
+
+/// Snow depth at A and B.
+fn depths(ctx: &GpuContext, d: &mut SnowDeformation) -> [f32; 2] {
+    let points = [A, B];
+    let ticket = d.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &[]).with_queries(&points)).expect("frame").expect("a ticket");
+    d.finish(ctx).expect("finish");
+    let answers = d.point_answers().expect("answered");
+    assert_eq!(answers.ticket, ticket);
+    let depth = |k: usize| answers.samples[k].expect("inside the window").depth_m();
+    [depth(0), depth(1)]
+}
+
+/// Moves the window's centre to `to` and steps until the window is there
+/// (it waits while tiles it needs are loading), within a bound.
+fn walk(ctx: &GpuContext, d: &mut SnowDeformation, to: DVec2) {
+    d.set_center(to);
+    let start = Instant::now();
+    loop {
+        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
+        let origin = d.origin_m().expect("placed");
+        if (origin + DVec2::splat(2.0) - to).length() < 0.5 {
+            return;
+        }
+        assert!(start.elapsed() < Duration::from_secs(30), "the window never reached {to} (at {origin})");
+    }
+}
+
+/// Saves on a disk that works: its many synced writes can take longer than
+/// [`LIMIT`] on a loaded machine, so only `TimedOut` is retried (bounded).
+fn save(ctx: &GpuContext, d: &mut SnowDeformation, what: &str) {
+    let start = Instant::now();
+    loop {
+        match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+            Ok(()) => return,
+            Err(SnowError::Store(StoreError::TimedOut { .. })) if start.elapsed() < Duration::from_secs(30) => {}
+            Err(e) => panic!("{what}: a save on a disk that works: {e}"),
+        }
+    }
+}
+
+/// Saves trail A into `dir` on a disk that works.
+fn save_trail_a(ctx: &GpuContext, dir: &Path, disk: &HeldDisk) {
+    let (mut d, loaded) = attached(ctx, dir, disk);
+    assert!(!loaded);
+    press(ctx, &mut d, A);
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a < PRESSED && b > 0.45, "trail A pressed: depths {a} at A, {b} at B");
+    save(ctx, &mut d, "trail A");
+}
+
+/// After the fault: both trails there on walking away and back, then after
+/// a save and a reload on a working disk.
+fn both_trails_survive(ctx: &GpuContext, dir: &Path, disk: &HeldDisk, mut d: SnowDeformation, what: &str) {
+    walk(ctx, &mut d, DVec2::new(30.0, 0.0));
+    walk(ctx, &mut d, DVec2::ZERO);
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a < PRESSED && b < PRESSED, "{what}: after walking away and back, depths {a} at A and {b} at B: a trail is gone");
+    let stats = d.tile_stats().expect("tiles");
+    assert!(stats.merged >= 1, "{what}: no stored tile was merged with what the window made: {stats:?}");
+    save(ctx, &mut d, what);
+    drop(d);
+    let (mut again, loaded) = attached(ctx, dir, disk);
+    assert!(loaded, "{what}: the save loads");
+    let [a, b] = depths(ctx, &mut again);
+    assert!(a < PRESSED && b < PRESSED, "{what}: after a save and a reload, depths {a} at A and {b} at B: a trail is gone");
+    assert!(again.take_store_errors().is_empty(), "{what}: the reload reports no error");
+}
+
+/// While the window stands in fresh snow for A's tile, B is pressed there: A
+/// is not shown (the disk has not given it), B is.
+fn press_b_while_a_is_missing(ctx: &GpuContext, d: &mut SnowDeformation, what: &str) {
+    press(ctx, d, B);
+    let [a, b] = depths(ctx, d);
+    assert!(a > 0.45 && b < PRESSED, "{what}: fresh snow stands in for A's tile and takes B: depths {a} at A, {b} at B");
+}
+
+/// A disk that answers after the window gave up: the tile arrives while
+/// the window's stand-in for it is on the GPU.
+#[test]
+fn a_late_tile_is_merged_with_what_the_window_made_meanwhile() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = TestDir::new("slow");
+    let disk = HeldDisk::default();
+    save_trail_a(ctx, dir.path(), &disk);
+    let (mut d, loaded) = attached(ctx, dir.path(), &disk);
+    assert!(loaded);
+    disk.hold();
+    press_b_while_a_is_missing(ctx, &mut d, "slow disk");
+    let stats = d.tile_stats().expect("tiles");
+    assert!(stats.stood_in >= 1, "the window gave up on the disk: {stats:?}");
+    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(snowpack::StoreError::into_detail).collect();
+    assert!(errors.iter().any(|e| matches!(e, StoreError::TimedOut { .. })), "the wait that gave up is reported: {errors:?}");
+    // The disk answers: A's tile arrives late, while the window still stands in for it.
+    disk.release();
+    for _ in 0..10 {
+        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    }
+    both_trails_survive(ctx, dir.path(), &disk, d, "slow disk");
+}
+
+/// A disk that hangs: a save meanwhile gives up (the program exits 1 with
+/// it) and writes nothing over the stored tile; once the disk answers,
+/// nothing is lost.
+#[test]
+fn a_hung_disk_loses_no_trail_and_a_save_meanwhile_gives_up() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = TestDir::new("hung");
+    let disk = HeldDisk::default();
+    save_trail_a(ctx, dir.path(), &disk);
+    let (mut d, _) = attached(ctx, dir.path(), &disk);
+    disk.hold();
+    press_b_while_a_is_missing(ctx, &mut d, "hung disk");
+    match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+        Err(SnowError::Store(StoreError::TimedOut { .. })) => {}
+        other => panic!("a save while the disk hangs gave {other:?}, not TimedOut"),
+    }
+    disk.release();
+    both_trails_survive(ctx, dir.path(), &disk, d, "hung disk");
+}
+
+/// A disk that fails: the errors reach the game, B stays in memory (not
+/// written over A, which the disk cannot read), a save meanwhile fails
+/// naming the tile; once the disk works, the save merges A in.
+#[test]
+fn a_failing_disk_keeps_the_trail_in_memory_and_merges_once_it_works() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = TestDir::new("failing");
+    let disk = HeldDisk::default();
+    save_trail_a(ctx, dir.path(), &disk);
+    let (mut d, _) = attached(ctx, dir.path(), &disk);
+    disk.fail(true);
+    press_b_while_a_is_missing(ctx, &mut d, "failing disk");
+    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(snowpack::StoreError::into_detail).collect();
+    assert!(
+        errors.iter().any(|e| matches!(e, StoreError::Io { op: "read", .. }) && e.path().is_some_and(|p| p.extension().is_some_and(|x| x == "tile"))),
+        "the failed reads are reported, naming the tile files: {errors:?}"
+    );
+    // Away and back while it still fails: B comes back from memory; A cannot.
+    walk(ctx, &mut d, DVec2::new(30.0, 0.0));
+    walk(ctx, &mut d, DVec2::ZERO);
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a > 0.45 && b < PRESSED, "while the disk fails, B is kept in memory: depths {a} at A, {b} at B");
+    match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+        Err(SnowError::Store(e @ StoreError::Io { .. })) => {
+            assert!(e.path().is_some_and(|p| p.extension().is_some_and(|x| x == "tile")), "the save names the tile it could not read: {e}");
+        }
+        other => panic!("a save while the disk fails gave {other:?}, not an I/O error"),
+    }
+    disk.fail(false);
+    // The save reads A, merges it into the window and the store.
+    save(ctx, &mut d, "failing disk, once it works");
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a < PRESSED && b < PRESSED, "once the disk works, the save merges A in: depths {a} at A, {b} at B");
+    both_trails_survive(ctx, dir.path(), &disk, d, "failing disk");
+}
