@@ -45,7 +45,7 @@ pub struct GltfFile {
 impl GltfFile {
     /// Reads `path`; the error says what is wrong in words.
     pub fn open(path: &Path) -> Result<Self, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let bytes = crate::read::bounded(path, crate::read::MAX_GLTF_BYTES).map_err(|why| format!("cannot read {}: {why}", path.display()))?;
         Self::from_bytes(&bytes, path)
     }
 
@@ -64,7 +64,8 @@ impl GltfFile {
                 }
                 gltf::buffer::Source::Uri(uri) => {
                     let file = dir.join(uri);
-                    std::fs::read(&file).map_err(|e| format!("{}: cannot read buffer {}: {e}", path.display(), file.display()))?
+                    crate::read::bounded(&file, crate::read::MAX_GLTF_BYTES)
+                        .map_err(|why| format!("{}: cannot read buffer {}: {why}", path.display(), file.display()))?
                 }
             };
             if data.len() < buffer.length() {

@@ -485,3 +485,68 @@ fn hdr_skies_of_the_wrong_size_or_not_hdr_are_refused() {
     std::fs::write(d.join("cut.hdr"), &bytes[..bytes.len() / 2]).expect("write");
     scene_refuses(d, &light("cut.hdr"), "[light].environment", &["cut.hdr"]);
 }
+
+/// Found by fuzzing (issue 34): a scene may name any path, and `/dev/zero`
+/// read for ever (allocating as it went) and a named pipe blocked the load
+/// until something wrote to it. Every file a scene names, and the scene
+/// itself, must be a regular file, refused quickly otherwise.
+#[cfg(unix)]
+#[test]
+fn devices_and_pipes_are_refused_quickly_wherever_a_scene_names_a_file() {
+    let dir = Temp::new("devices");
+    let d = &dir.0;
+    let fifo = d.join("pipe.glb");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo runs");
+    assert!(made.success(), "mkfifo {}", fifo.display());
+    for file in ["/dev/zero", fifo.to_str().expect("utf-8 path")] {
+        let uses = [
+            (format!("[terrain]\nkind = \"mesh\"\npath = \"{file}\"\n"), "[terrain].path"),
+            (format!("[terrain]\nkind = \"heightmap\"\npath = \"{file}\"\n"), "[terrain].path"),
+            (format!("[[object]]\nname = \"o\"\nkind = \"gltf\"\nfile = \"{file}\"\n"), "[[object]][0].file"),
+            (format!("[light]\nenvironment = \"{file}\"\n"), "[light].environment"),
+        ];
+        for (body, key) in uses {
+            scene_refuses(d, &body, key, &[file, "not a regular file"]);
+        }
+        // A character is looked up first: not a file, so it does not exist as one.
+        scene_refuses(d, &format!("[[actor]]\nkind = \"gltf\"\nfile = \"{file}\"\n"), "[[actor]][0].file", &[file]);
+        let path = PathBuf::from(file);
+        let err = within_seconds(file, move || Scene::load(&path)).expect_err("a device or a pipe as the scene file");
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        // A glTF file whose buffer is the device or the pipe.
+        let mut m = Model::new();
+        m.json["buffers"] = json!([{"byteLength": m.bin.len(), "uri": file}]);
+        let text = serde_json::to_vec(&m.json).expect("json");
+        std::fs::write(d.join("outside.gltf"), text).expect("write");
+        let path = d.join("outside.gltf");
+        let err = within_seconds("a buffer on a device", move || GltfFile::open(&path).err()).expect("refused");
+        assert!(err.contains("not a regular file"), "{err}");
+    }
+}
+
+/// Found by fuzzing (issue 34): an object metres across by the billion (a
+/// glTF vertex at 1e30 m, or a box of 1e38 m: finite, so loaded) overflowed
+/// the texel size of its chart in the accumulation atlas: a panic in a debug
+/// build, a wrapped tiny chart and rectangles outside the atlas in release.
+/// Laid out now, every chart lies inside the atlas with its gutter.
+#[test]
+fn vast_objects_are_laid_out_inside_the_accumulation_atlas() {
+    use snowpack::low_level::accumulate::AtlasLayout;
+    use snowpack::low_level::accumulate::atlas::GUTTER;
+    let dir = Temp::new("vast-objects");
+    let mut m = Model::new();
+    let p = m.attribute("POSITION");
+    m.poke(p, 12, &1e30f32.to_le_bytes());
+    m.write(&dir.0, "vast.glb");
+    let body = "[[object]]\nname = \"mesh\"\nkind = \"gltf\"\nfile = \"vast.glb\"\n\n[[object]]\nname = \"box\"\nsize_m = [1e38, 1.0, 1.0]\n";
+    let s = scene(&dir.0, body).expect("finite objects load");
+    let objects: Vec<_> = s.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
+    let resolution = 1024;
+    let layout = within_seconds("atlas layout", move || AtlasLayout::new(&objects, resolution, 0.0625)).expect("vast objects still fit, coarsely");
+    for c in &layout.charts {
+        let [x, y, w, h] = c.rect;
+        assert!(x >= GUTTER && y >= GUTTER, "chart {:?} starts inside its gutter", c.rect);
+        assert!(u64::from(x) + u64::from(w) + u64::from(GUTTER) <= u64::from(resolution), "chart {:?} runs past the atlas", c.rect);
+        assert!(u64::from(y) + u64::from(h) + u64::from(GUTTER) <= u64::from(resolution), "chart {:?} runs past the atlas", c.rect);
+    }
+}

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# One fuzz target for a bounded time, as CI runs it (a job of .ci/run's pool;
+# docs/ci.md, "Fuzzing"):
+#   bash .ci/fuzz.sh TARGET SEED FUZZ_TARGET_DIR
+# The targets must be built (`cd fuzz && CARGO_TARGET_DIR=FUZZ_TARGET_DIR
+# cargo +nightly fuzz build --dev -s none`). The corpus is kept between runs in
+# FUZZ_TARGET_DIR/corpus/TARGET, which the checkout's seeds (fuzz/corpus/TARGET)
+# are read beside; nothing is written into the checkout. A crash, a unit
+# slower than 10 s or one over 2 GiB fails, printing the input's path, the
+# command that replays it and, when small, the input itself (base64).
+# SNOWPACK_FUZZ_SECONDS sets the time (default 20 s).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+[ $# -eq 3 ] || { echo "usage: bash .ci/fuzz.sh TARGET SEED FUZZ_TARGET_DIR" >&2; exit 2; }
+target=$1 seed=$2 dir=$3
+seconds=${SNOWPACK_FUZZ_SECONDS:-20}
+host=$(rustc +nightly -vV | sed -n 's/^host: //p')
+fuzzer="$dir/$host/debug/$target"
+[ -x "$fuzzer" ] || { echo "fuzz target $target is not built ($fuzzer)"; exit 1; }
+[ -d "fuzz/corpus/$target" ] || { echo "fuzz target $target has no seed corpus (fuzz/corpus/$target)"; exit 1; }
+
+# The largest input tried: a file of that kind as users hand it, small enough
+# that thousands run in a job. Without it libFuzzer stays at the largest seed
+# (170 bytes for the heightmaps). The other targets keep libFuzzer's choice.
+max_len=()
+case $target in
+  gltf_model) max_len=(-max_len=262144) ;;
+  hdr_sky) max_len=(-max_len=65536) ;;
+  heightmap | scene_world) max_len=(-max_len=16384) ;;
+esac
+
+kept="$dir/corpus/$target"
+artifacts="$dir/artifacts/$target"
+mkdir -p "$kept" "$artifacts"
+# New inputs accumulate in the kept corpus; past 1,000 it is merged down to
+# the inputs that still add coverage (each run adds a few dozen).
+if [ "$(find "$kept" -type f | wc -l)" -gt 1000 ]; then
+  rm -rf "$kept.merged" && mkdir -p "$kept.merged"
+  "$fuzzer" -merge=1 -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" "$kept.merged" "$kept" >/dev/null 2>&1
+  rm -rf "$kept" && mv "$kept.merged" "$kept"
+fi
+
+echo "fuzz $target: seed $seed, ${seconds} s, kept corpus $kept ($(find "$kept" -type f | wc -l) inputs) and fuzz/corpus/$target"
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+before=$(date +%s)
+if "$fuzzer" "$kept" "fuzz/corpus/$target" -seed="$seed" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" \
+     -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
+  tail -n 6 "$log"
+  exit 0
+fi
+tail -n 60 "$log"
+input=$(find "$artifacts" -type f -newermt "@$before" -printf '%T@ %p\n' | sort -n | tail -n 1 | cut -d' ' -f2-)
+echo "fuzz target $target FAILED with seed $seed"
+if [ -n "$input" ]; then
+  echo "its input: $input"
+  echo "replay it: (cd fuzz && cargo +nightly fuzz run --dev -s none $target '$input')"
+  if [ "$(stat -c %s "$input")" -le 65536 ]; then
+    echo "the input, base64 (base64 -d > input on another machine):"
+    base64 -w 100 "$input"
+  fi
+fi
+echo "the run again: bash .ci/fuzz.sh $target $seed '$dir' (a time-bounded run follows the seed only as far as timing allows)"
+exit 1
