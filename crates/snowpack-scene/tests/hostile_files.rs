@@ -525,7 +525,7 @@ fn devices_and_pipes_are_refused_quickly_wherever_a_scene_names_a_file() {
 }
 
 /// Found by fuzzing (issue 34): an object metres across by the billion (a
-/// glTF vertex at 1e30 m, or a box of 1e38 m: finite, so loaded) overflowed
+/// glTF vertex at 1e30 m, or a box of 1e12 m: within what a scene accepts) overflowed
 /// the texel size of its chart in the accumulation atlas: a panic in a debug
 /// build, a wrapped tiny chart and rectangles outside the atlas in release.
 /// Laid out now, every chart lies inside the atlas with its gutter.
@@ -538,7 +538,7 @@ fn vast_objects_are_laid_out_inside_the_accumulation_atlas() {
     let p = m.attribute("POSITION");
     m.poke(p, 12, &1e30f32.to_le_bytes());
     m.write(&dir.0, "vast.glb");
-    let body = "[[object]]\nname = \"mesh\"\nkind = \"gltf\"\nfile = \"vast.glb\"\n\n[[object]]\nname = \"box\"\nsize_m = [1e38, 1.0, 1.0]\n";
+    let body = "[[object]]\nname = \"mesh\"\nkind = \"gltf\"\nfile = \"vast.glb\"\n\n[[object]]\nname = \"box\"\nsize_m = [1e12, 1.0, 1.0]\n";
     let s = scene(&dir.0, body).expect("finite objects load");
     let objects: Vec<_> = s.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
     let resolution = 1024;
