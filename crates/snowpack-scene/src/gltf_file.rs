@@ -5,9 +5,10 @@
 //! ([`GltfFile::from_bytes`]): its node graph is a forest no deeper than
 //! [`MAX_DEPTH`], its counts are within the limits below, every accessor lies
 //! inside its buffer view and buffer and has the type its use needs, and every
-//! node transform is finite. What is read from it is checked as it is
-//! converted (finite positions, indices and joints in range, key times finite
-//! and non-decreasing, one inverse bind matrix per joint).
+//! node transform is finite, its rotation a unit quaternion once normalised.
+//! What is read from it is checked as it is converted (finite positions,
+//! indices and joints in range, key times finite and non-decreasing, rotation
+//! keys that normalise to unit quaternions, one inverse bind matrix per joint).
 
 use std::path::Path;
 
@@ -359,6 +360,13 @@ fn check_document(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), 
         let m = node.transform().matrix();
         if !m.iter().flatten().all(|x| x.is_finite()) {
             return Err(format!("{} has a transform that is not finite", node_label(&node)));
+        }
+        // A rotation of length 0 (or one whose square leaves f32) normalises to NaN or to nothing.
+        let unit = |q: [f32; 4]| (Quat::from_array(q).normalize().length() - 1.0).abs() < 1e-3;
+        if let gltf::scene::Transform::Decomposed { rotation, .. } = node.transform()
+            && !unit(rotation)
+        {
+            return Err(format!("{} has the rotation {rotation:?}, which is not a rotation (it does not normalise to a unit quaternion)", node_label(&node)));
         }
     }
     for accessor in document.accessors() {

@@ -550,3 +550,47 @@ fn vast_objects_are_laid_out_inside_the_accumulation_atlas() {
         assert!(u64::from(y) + u64::from(h) + u64::from(GUTTER) <= u64::from(resolution), "chart {:?} runs past the atlas", c.rect);
     }
 }
+
+/// Found by fuzzing (issue 34): a rotation key of (0, 0, 0, 1e-38), finite
+/// but of a length whose square is 0 in f32, normalised to NaN, and the
+/// character's NaN joints and feet reached the capture. Such keys and node
+/// rotations are refused; a cubic spline between good keys that passes
+/// through 0 (keys q and -q, flat tangents, halfway) poses the identity
+/// rather than NaN.
+#[test]
+fn rotations_that_do_not_normalise_are_refused_and_splines_through_zero_stay_finite() {
+    let dir = Temp::new("rotations");
+    let add_rotation = |m: &mut Model, values: &[f32], interpolation: &str| {
+        let times = m.json["animations"][0]["samplers"][0]["input"].clone();
+        let out = m.accessor(&f32s(values), 5126, values.len() / 4, "VEC4");
+        let samplers = m.json["animations"][0]["samplers"].as_array_mut().expect("samplers");
+        samplers.push(json!({"input": times, "output": out, "interpolation": interpolation}));
+        let sampler = samplers.len() - 1;
+        let channels = m.json["animations"][0]["channels"].as_array_mut().expect("channels");
+        channels.push(json!({"sampler": sampler, "target": {"node": 1, "path": "rotation"}}));
+    };
+    for (name, key) in [("tiny.glb", [0.0, 0.0, 0.0, 1e-38]), ("zero.glb", [0.0; 4]), ("vast.glb", [0.0, 0.0, 1e30, 1e30])] {
+        let mut m = Model::new();
+        add_rotation(&mut m, &[[0.0, 0.0, 0.0, 1.0], key].concat(), "LINEAR");
+        let path = m.write(&dir.0, name);
+        let err = GltfFile::open(&path).expect("opens").skinned_model().expect_err(name);
+        assert!(err.contains("rotation key 1") && err.contains("not a rotation"), "{name}: {err}");
+        let mut m = Model::new();
+        m.json["nodes"][1]["rotation"] = json!(key);
+        // A vast rotation already overflows the node's matrix.
+        refused(&dir.0, &format!("node-{name}"), &m, if name == "vast.glb" { "not finite" } else { "not a rotation" });
+    }
+
+    let mut m = Model::new();
+    let (flat, q, minus_q) = ([0.0; 4], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, -1.0]);
+    add_rotation(&mut m, &[flat, q, flat, flat, minus_q, flat].concat(), "CUBICSPLINE");
+    m.write(&dir.0, "spline.glb");
+    let s = scene(&dir.0, "[[actor]]\nkind = \"gltf\"\nfile = \"spline.glb\"\nfeet = [\"bone\"]\nposition = [0.0, 0.0, 0.0]\n").expect("good keys load");
+    let mut world = snowpack_scene::World::new(&s);
+    for step in 0..8 {
+        for c in world.characters() {
+            assert!(c.joints.iter().chain(&c.nodes).all(|j| j.is_finite()), "step {step}: joints or nodes are not finite");
+        }
+        world.step(0.125);
+    }
+}
