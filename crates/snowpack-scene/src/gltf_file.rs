@@ -117,7 +117,13 @@ impl GltfFile {
                         None => out.normals.clear(),
                     }
                     match (reader.read_tex_coords(0), out.uvs.as_mut()) {
-                        (Some(uv), Some(list)) => list.extend(uv.into_f32().map(glam::Vec2::from)),
+                        (Some(uv), Some(list)) => {
+                            let start = list.len();
+                            list.extend(uv.into_f32().map(glam::Vec2::from));
+                            if let Some(k) = list[start..].iter().position(|u| !u.is_finite()) {
+                                return Err(format!("{}: TEXCOORD_0 {k} is {}, not finite", mesh_label(&mesh), list[start + k]));
+                            }
+                        }
                         _ => out.uvs = None,
                     }
                     let indices: Vec<u32> = match reader.read_indices() {

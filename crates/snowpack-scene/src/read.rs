@@ -21,19 +21,19 @@ pub(crate) const MAX_SKY_BYTES: u64 =
 
 /// The contents of `path`, if it is a regular file (symbolic links followed)
 /// of at most `limit` bytes; otherwise why not, in words (the caller names
-/// the file and what it is for).
+/// the file and what it is for: "cannot read x.glb: {why}").
 pub(crate) fn bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read it: {e}"))?;
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
     if !meta.is_file() {
         return Err("it is not a regular file (a folder, a device or a pipe)".into());
     }
     if meta.len() > limit {
         return Err(format!("it is {} bytes; at most {limit} are read", meta.len()));
     }
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot read it: {e}"))?;
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     // The length can change between the look and the read: never more than the limit.
     let mut bytes = Vec::with_capacity(meta.len() as usize);
-    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read it: {e}"))?;
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| e.to_string())?;
     if bytes.len() as u64 > limit {
         return Err(format!("it grew past {limit} bytes while it was read"));
     }

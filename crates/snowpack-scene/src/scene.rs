@@ -925,7 +925,7 @@ fn read_heightmap_png(file: &Path) -> Result<image::ImageBuffer<image::Luma<u16>
     use image::ImageDecoder as _;
     use snowpack::low_level::terrain::HEIGHTMAP_MAX_SIDE;
     // By its contents only: a file named .png that is not one says so.
-    let bytes = crate::read::bounded(file, crate::read::MAX_HEIGHTMAP_BYTES)?;
+    let bytes = crate::read::bounded(file, crate::read::MAX_HEIGHTMAP_BYTES).map_err(|why| format!("cannot read it: {why}"))?;
     let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| format!("cannot read it: {e}"))?;
     if reader.format() != Some(image::ImageFormat::Png) {
         return Err("it is not a PNG file (heightmaps are 16-bit greyscale PNGs)".into());

@@ -594,3 +594,21 @@ fn rotations_that_do_not_normalise_are_refused_and_splines_through_zero_stay_fin
         world.step(0.125);
     }
 }
+
+/// Found by fuzzing (issue 34): an object's UVs were read unchecked, so a NaN
+/// texture coordinate reached the atlas (which charted around it) and a saved
+/// scene no longer equalled itself. An object's `TEXCOORD_0` must be finite;
+/// the terrain and characters do not read UVs.
+#[test]
+fn an_object_whose_uvs_are_not_finite_is_refused() {
+    let dir = Temp::new("uvs");
+    let mut m = Model::new();
+    let uv = m.accessor(&f32s(&[0.0, 0.0, 1.0, f32::NAN, 0.0, 1.0]), 5126, 3, "VEC2");
+    m.json["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uv);
+    let path = m.write(&dir.0, "uv.glb");
+    let g = GltfFile::open(&path).expect("the file itself is well formed");
+    let err = g.object_mesh(1.0).expect_err("a NaN UV");
+    assert!(err.contains("TEXCOORD_0 1") && err.contains("not finite"), "{err}");
+    g.world_triangles(1.0).expect("a terrain reads no UVs");
+    scene_refuses(&dir.0, "[[object]]\nname = \"o\"\nkind = \"gltf\"\nfile = \"uv.glb\"\n", "[[object]][0].file", &["uv.glb", "TEXCOORD_0"]);
+}
