@@ -53,6 +53,15 @@ impl GltfFile {
     /// Parses the contents of a file; `path` names it in errors and anchors
     /// external buffers.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, String> {
+        // The gltf crate subtracts the 12-byte header from the GLB's stated
+        // length unchecked: a length under 12 panics where overflow is checked
+        // (debug builds, the dev profile) (found by fuzzing, issue 34).
+        if let Some(&[a, b, c, d]) = bytes.strip_prefix(b"glTF").and_then(|rest| rest.get(4..8))
+            && u32::from_le_bytes([a, b, c, d]) < 12
+        {
+            let length = u32::from_le_bytes([a, b, c, d]);
+            return Err(format!("{} is not valid glTF 2.0: its GLB header gives a length of {length} bytes, less than the header's 12", path.display()));
+        }
         let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("{} is not valid glTF 2.0: {e}", path.display()))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut blob = gltf.blob;

@@ -358,7 +358,14 @@ fn truncated_and_garbage_files_are_refused() {
     let glb = Model::new().glb();
     std::fs::write(dir.0.join("cut.glb"), &glb[..glb.len() - 20]).expect("write");
     std::fs::write(dir.0.join("noise.glb"), (0..4000u32).map(|k| (k.wrapping_mul(2_654_435_761) >> 24) as u8).collect::<Vec<_>>()).expect("write");
-    for name in ["cut.glb", "noise.glb"] {
+    // Found by fuzzing (issue 34): a GLB header whose length is under its own
+    // 12 bytes made the gltf crate subtract past zero (a panic in debug builds).
+    for length in [0u32, 11] {
+        let mut short = glb.clone();
+        short[8..12].copy_from_slice(&length.to_le_bytes());
+        std::fs::write(dir.0.join(format!("short-{length}.glb")), short).expect("write");
+    }
+    for name in ["cut.glb", "noise.glb", "short-0.glb", "short-11.glb"] {
         let err = GltfFile::open(&dir.0.join(name)).err().unwrap_or_else(|| panic!("{name} accepted"));
         assert!(err.contains(name), "{err}");
     }
