@@ -1,7 +1,7 @@
 //! Reading the files a scene names: regular files only, and no more than a
 //! limit each, so a path to `/dev/zero`, a named pipe or a device cannot make
-//! a load read for ever or allocate without bound (found while fuzzing the
-//! loaders, issue 34).
+//! a load read for ever or allocate without bound (found while writing the
+//! loaders' fuzz targets, issue 34).
 
 use std::io::Read as _;
 use std::path::Path;

@@ -493,10 +493,11 @@ fn hdr_skies_of_the_wrong_size_or_not_hdr_are_refused() {
     scene_refuses(d, &light("cut.hdr"), "[light].environment", &["cut.hdr"]);
 }
 
-/// Found by fuzzing (issue 34): a scene may name any path, and `/dev/zero`
-/// read for ever (allocating as it went) and a named pipe blocked the load
-/// until something wrote to it. Every file a scene names, and the scene
-/// itself, must be a regular file, refused quickly otherwise.
+/// Found while writing the fuzz targets (issue 34): a scene may name any
+/// path, and `/dev/zero` read for ever (allocating as it went) and a named
+/// pipe blocked the load until something wrote to it. Every file a scene
+/// names, and the scene itself, must be a regular file, refused quickly
+/// otherwise.
 #[cfg(unix)]
 #[test]
 fn devices_and_pipes_are_refused_quickly_wherever_a_scene_names_a_file() {
@@ -532,10 +533,10 @@ fn devices_and_pipes_are_refused_quickly_wherever_a_scene_names_a_file() {
 }
 
 /// Found by fuzzing (issue 34): an object metres across by the billion (a
-/// glTF vertex at 1e30 m, or a box of 1e12 m: within what a scene accepts) overflowed
-/// the texel size of its chart in the accumulation atlas: a panic in a debug
-/// build, a wrapped tiny chart and rectangles outside the atlas in release.
-/// Laid out now, every chart lies inside the atlas with its gutter.
+/// glTF vertex at 1e30 m, or a box of 1e12 m, within what a scene accepts)
+/// overflowed the texel size of its chart in the accumulation atlas: a panic
+/// in a debug build, a wrapped tiny chart and rectangles outside the atlas in
+/// release. Laid out now, every chart lies inside the atlas with its gutter.
 #[test]
 fn vast_objects_are_laid_out_inside_the_accumulation_atlas() {
     use snowpack::low_level::accumulate::AtlasLayout;
