@@ -22,11 +22,15 @@ fuzzer="$dir/$host/debug/$target"
 # The largest input tried: a file of that kind as users hand it, small enough
 # that thousands run in a job. Without it libFuzzer stays at the largest seed
 # (170 bytes for the heightmaps). The other targets keep libFuzzer's choice.
+# The scene targets start from the schema's words (fuzz/scene.dict).
 max_len=()
+dict=()
 case $target in
   gltf_model) max_len=(-max_len=262144) ;;
   hdr_sky) max_len=(-max_len=65536) ;;
-  heightmap | scene_world) max_len=(-max_len=16384) ;;
+  heightmap) max_len=(-max_len=16384) ;;
+  scene_world) max_len=(-max_len=16384) dict=(-dict=fuzz/scene.dict) ;;
+  scene_parse) dict=(-dict=fuzz/scene.dict) ;;
 esac
 
 kept="$dir/corpus/$target"
@@ -34,17 +38,19 @@ artifacts="$dir/artifacts/$target"
 mkdir -p "$kept" "$artifacts"
 # New inputs accumulate in the kept corpus; past 1,000 it is merged down to
 # the inputs that still add coverage (each run adds a few dozen).
-if [ "$(find "$kept" -type f | wc -l)" -gt 1000 ]; then
+inputs=$(find "$kept" -type f | wc -l)
+if [ "$inputs" -gt 1000 ]; then
   rm -rf "$kept.merged" && mkdir -p "$kept.merged"
   "$fuzzer" -merge=1 -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" "$kept.merged" "$kept" >/dev/null 2>&1
   rm -rf "$kept" && mv "$kept.merged" "$kept"
+  echo "fuzz $target: the kept corpus merged from $inputs to $(find "$kept" -type f | wc -l) inputs"
 fi
 
 echo "fuzz $target: seed $seed, ${seconds} s, kept corpus $kept ($(find "$kept" -type f | wc -l) inputs) and fuzz/corpus/$target"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 before=$(date +%s)
-if "$fuzzer" "$kept" "fuzz/corpus/$target" -seed="$seed" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" \
+if "$fuzzer" "$kept" "fuzz/corpus/$target" -seed="$seed" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" "${dict[@]}" \
      -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
   tail -n 6 "$log"
   exit 0

@@ -1,5 +1,6 @@
 """Writes the seed corpus of the file fuzz targets (issue 34) into
-fuzz/corpus/: gltf_model, heightmap, hdr_sky and scene_world. Seeds are the
+fuzz/corpus/: gltf_model, heightmap, hdr_sky and scene_world; and
+fuzz/scene.dict, the scene schema's words for the scene targets. Seeds are the
 shipped assets (the fox, the built-in sky downscaled to 64x32, the scenes)
 and small hand-made edge cases, a few of them refused on purpose so the
 fuzzer starts on both sides of each check. The crash inputs fuzzing found
@@ -359,6 +360,33 @@ dt_s = 0.5
 }
 
 
+def scene_dictionary():
+    """fuzz/scene.dict, the words of the scene schema for libFuzzer (-dict):
+    tables, `key = ` at a line's start, the choices' values, a few numbers at
+    the limits and the files the corpus can name. Read from the scene crate's
+    sources, so it follows the schema."""
+    import glob, re
+    src = "".join(open(f).read() for f in sorted(glob.glob(os.path.join(REPO, "crates", "snowpack-scene", "src", "*.rs"))))
+    keys = set(re.findall(r'\.(?:f32|positive|non_negative|u32_in|bool|vec2|vec3|string|strings|rows4|choice|table|tables)\w*\("([a-z_0-9]+)"', src))
+    keys |= set(re.findall(r'err\("([a-z_0-9]+)"', src))
+    tables = set(re.findall(r'root\.table\("([a-z_]+)"\)', src))
+    arrays = set(re.findall(r'root\.tables\("([a-z_]+)"\)', src))
+    values = {"builtin:fox", "builtin", "procedural", "actor:0", "camera"}
+    for group in re.findall(r'&\[((?:"[a-z_:]+",?\s*)+)\]', src):
+        values |= set(re.findall(r'"([a-z_:]+)"', group))
+    words = [f"[{t}]\n" for t in sorted(tables)] + [f"[[{t}]]\n" for t in sorted(arrays)]
+    words += [f"\n{k} = " for k in sorted(keys - tables - arrays)] + [f'"{v}"' for v in sorted(values)]
+    words += [" = [", "0.0, ", "1e12", "-1e12", "3e38", "1e-38", "true", "false", "]\n"]
+    words += ["../fuzz/corpus/gltf_model/grid.glb", "../fuzz/corpus/gltf_model/skinned.glb", "../fuzz/corpus/heightmap/grey16-8x6.png",
+              "../fuzz/corpus/hdr_sky/mondello-64x32.hdr", "assets/mound.gltf", "../assets/Fox.glb"]
+
+    def quoted(word):
+        return '"' + "".join({"\\": "\\\\", '"': '\\"', "\n": "\\x0A"}.get(c, c) for c in word) + '"'
+    header = ["# The words of the scene schema for scene_parse and scene_world (libFuzzer", "# -dict), written by fuzz/make_seeds.py from crates/snowpack-scene/src."]
+    with open(os.path.join(FUZZ, "scene.dict"), "w") as f:
+        f.write("\n".join(header + [quoted(w) for w in words]) + "\n")
+
+
 def scene_seeds():
     for name in sorted(os.listdir(os.path.join(REPO, "scenes"))):
         if name.endswith(".toml"):
@@ -376,3 +404,4 @@ if __name__ == "__main__":
     heightmap_seeds()
     hdr_seeds()
     scene_seeds()
+    scene_dictionary()
