@@ -36,14 +36,17 @@ esac
 kept="$dir/corpus/$target"
 artifacts="$dir/artifacts/$target"
 mkdir -p "$kept" "$artifacts"
-# New inputs accumulate in the kept corpus; past 1,000 it is merged down to
-# the inputs that still add coverage (each run adds a few dozen).
+# New inputs accumulate in the kept corpus (each run adds tens to hundreds);
+# past 1,000 and twice its size after the last merge, it is merged down to
+# the inputs that still add coverage.
 inputs=$(find "$kept" -type f | wc -l)
-if [ "$inputs" -gt 1000 ]; then
+merged=$(cat "$kept.size" 2>/dev/null || echo 0)
+if [ "$inputs" -gt 1000 ] && [ "$inputs" -gt $((2 * merged)) ]; then
   rm -rf "$kept.merged" && mkdir -p "$kept.merged"
   "$fuzzer" -merge=1 -timeout=10 -rss_limit_mb=2048 "${max_len[@]}" "$kept.merged" "$kept" >/dev/null 2>&1
   rm -rf "$kept" && mv "$kept.merged" "$kept"
-  echo "fuzz $target: the kept corpus merged from $inputs to $(find "$kept" -type f | wc -l) inputs"
+  find "$kept" -type f | wc -l >"$kept.size"
+  echo "fuzz $target: the kept corpus merged from $inputs to $(cat "$kept.size") inputs"
 fi
 
 echo "fuzz $target: seed $seed, ${seconds} s, kept corpus $kept ($(find "$kept" -type f | wc -l) inputs) and fuzz/corpus/$target"
