@@ -40,5 +40,5 @@ fuzz_target!(|data: &[u8]| {
     for (k, (a, b)) in heights.iter().zip(back.heights_m()).enumerate() {
         assert!((a - b).abs() <= SCALE_M / 65535.0, "pixel {k}: {a} m read back as {b} m");
     }
-    common::build_world(&scene);
+    common::build_world(&scene, true);
 });

@@ -15,7 +15,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/fuzz.toml");
     match Scene::parse(text, &path) {
-        Ok(scene) => common::build_world(&scene),
+        Ok(scene) => common::build_world(&scene, true),
         Err(err) => assert!(err.to_string().contains("fuzz.toml"), "the error does not name the scene: {err}"),
     }
 });

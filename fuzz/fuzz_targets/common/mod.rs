@@ -46,13 +46,16 @@ pub fn assert_names(err: &SceneError, file: &str, table: &str) {
 }
 
 /// What the program builds from a loaded scene before it touches the GPU:
-/// the saved scene parses back to the same scene; the `World` is built and
-/// stepped; each frame's deformers are finite and become the capture's
-/// window-local instances; the objects are laid out (and baked) in their
-/// accumulation atlas. Stops where `SnowDeformation::new` needs a device.
-pub fn build_world(scene: &Scene) {
+/// the saved scene parses back to the same scene (when `save` is set: it loads
+/// every file again); the `World` is built and stepped; each frame's
+/// deformers are finite and become the capture's window-local instances; the
+/// objects are laid out (and baked) in their accumulation atlas. Stops where
+/// `SnowDeformation::new` needs a device.
+pub fn build_world(scene: &Scene, save: bool) {
     scene.snow.validate().expect("a loaded scene's [snow] validates");
-    round_trip(scene);
+    if save {
+        round_trip(scene);
+    }
 
     let mut world = World::new(scene);
     let (tmin, tmax) = scene.terrain.height_bounds();
