@@ -38,7 +38,7 @@ artifacts="$dir/artifacts/$target"
 mkdir -p "$kept" "$artifacts"
 # New inputs accumulate in the kept corpus (each run adds tens to hundreds).
 # libFuzzer runs every input once before its time limit starts counting
-# (gltf_model does about 20 a second), so past 300 inputs and twice its size
+# (gltf_model does about 40 a second), so past 300 inputs and twice its size
 # after the last merge, the kept corpus is merged down to the inputs that
 # still add coverage.
 inputs=$(find "$kept" -type f | wc -l)
