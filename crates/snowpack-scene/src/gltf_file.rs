@@ -387,7 +387,28 @@ fn check_document(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), 
     for accessor in document.accessors() {
         check_accessor(&accessor, buffers).map_err(|why| format!("accessor {}: {why}", accessor.index()))?;
     }
+    check_channel_targets(document)?;
     check_uses(document)
+}
+
+/// Every animation channel targets a node of the file and a known property.
+/// The gltf crate validates an animation's samplers but not its channels'
+/// targets, then unwraps both when asked for them: a misspelt `path` or a
+/// node past the last panicked, in every build (found by fuzzing, issue 34).
+fn check_channel_targets(document: &gltf::Document) -> Result<(), String> {
+    let nodes = document.nodes().len();
+    for (a, anim) in document.as_json().animations.iter().enumerate() {
+        for (k, channel) in anim.channels.iter().enumerate() {
+            let target = &channel.target;
+            if target.node.value() >= nodes {
+                return Err(format!("animation {a} channel {k} targets node {}, but the file has {nodes} nodes", target.node.value()));
+            }
+            if let gltf::json::validation::Checked::Invalid = target.path {
+                return Err(format!("animation {a} channel {k} has a target path that is not translation, rotation, scale or weights"));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The node graph is a forest: no node is its own ancestor, none has two

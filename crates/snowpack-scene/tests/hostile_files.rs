@@ -352,6 +352,20 @@ fn animation_keys_that_are_not_finite_or_go_back_or_miss_values_are_refused() {
     assert!(skinned(&m, "inf-value.glb").contains("not finite"));
 }
 
+/// Found by fuzzing (issue 34): the gltf crate validates an animation's
+/// samplers but not its channels' targets, and unwrapped a misspelt `path`
+/// (a panic in every build); a target node past the last did the same.
+#[test]
+fn animation_channels_with_an_unknown_path_or_node_are_refused() {
+    let dir = Temp::new("targets");
+    let mut m = Model::new();
+    m.json["animations"][0]["channels"][0]["target"]["path"] = json!("rot\tion");
+    refused(&dir.0, "path.glb", &m, "target path");
+    let mut m = Model::new();
+    m.json["animations"][0]["channels"][0]["target"]["node"] = json!(99);
+    refused(&dir.0, "node.glb", &m, "targets node 99");
+}
+
 #[test]
 fn truncated_and_garbage_files_are_refused() {
     let dir = Temp::new("garbage");
