@@ -62,11 +62,14 @@ impl GltfFile {
             let length = u32::from_le_bytes([a, b, c, d]);
             return Err(format!("{} is not valid glTF 2.0: its GLB header gives a length of {length} bytes, less than the header's 12", path.display()));
         }
-        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("{} is not valid glTF 2.0: {e}", path.display()))?;
+        let not_gltf = |e: gltf::Error| format!("{} is not valid glTF 2.0: {e}", path.display());
+        let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
+        check_before_validation(gltf.document.as_json()).map_err(|why| format!("{} is not valid glTF 2.0: {why}", path.display()))?;
+        let document = gltf::Document::from_json(gltf.document.into_json()).map_err(not_gltf)?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut blob = gltf.blob;
         let mut buffers = Vec::new();
-        for buffer in gltf.document.buffers() {
+        for buffer in document.buffers() {
             let data = match buffer.source() {
                 gltf::buffer::Source::Bin => blob.take().ok_or_else(|| format!("{}: the binary chunk is missing", path.display()))?,
                 gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
@@ -83,8 +86,8 @@ impl GltfFile {
             }
             buffers.push(data);
         }
-        check_document(&gltf.document, &buffers).map_err(|why| format!("{}: {why}", path.display()))?;
-        Ok(Self { document: gltf.document, buffers })
+        check_document(&document, &buffers).map_err(|why| format!("{}: {why}", path.display()))?;
+        Ok(Self { document, buffers })
     }
 
     /// Every triangle of the default scene (or the first), in world space,
@@ -352,6 +355,23 @@ fn node_label(node: &gltf::Node<'_>) -> String {
         Some(n) => format!("node {} ({n:?})", node.index()),
         None => format!("node {}", node.index()),
     }
+}
+
+/// What the gltf crate's own validation indexes unchecked: a primitive's
+/// `POSITION` accessor past the last panicked inside it (found by fuzzing,
+/// issue 34).
+fn check_before_validation(root: &gltf::json::Root) -> Result<(), String> {
+    use gltf::json::validation::Checked;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.get(&Checked::Valid(gltf::json::mesh::Semantic::Positions))
+                && index.value() >= root.accessors.len()
+            {
+                return Err(format!("mesh {m} primitive {p}: POSITION is accessor {}, but the file has {}", index.value(), root.accessors.len()));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Everything about the file that does not depend on its use: see the module docs.

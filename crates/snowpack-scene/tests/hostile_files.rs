@@ -366,6 +366,17 @@ fn animation_channels_with_an_unknown_path_or_node_are_refused() {
     refused(&dir.0, "node.glb", &m, "targets node 99");
 }
 
+/// Found by fuzzing (issue 34): the gltf crate's own validation indexed a
+/// primitive's `POSITION` accessor unchecked, a panic in every build when it
+/// named an accessor past the last.
+#[test]
+fn a_position_accessor_past_the_last_is_refused() {
+    let dir = Temp::new("position-index");
+    let mut m = Model::new();
+    m.json["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(40);
+    refused(&dir.0, "position.glb", &m, "POSITION is accessor 40");
+}
+
 #[test]
 fn truncated_and_garbage_files_are_refused() {
     let dir = Temp::new("garbage");
