@@ -61,6 +61,8 @@ if "$fuzzer" "$kept" "fuzz/corpus/$target" -seed="$seed" -max_total_time="$secon
   exit 0
 fi
 tail -n 60 "$log"
+# The panic's message, which a deep stack pushes out of the tail above.
+grep -m 1 -A 1 "panicked at" "$log" || true
 input=$(find "$artifacts" -type f -newermt "@$before" -printf '%T@ %p\n' | sort -n | tail -n 1 | cut -d' ' -f2-)
 echo "fuzz target $target FAILED with seed $seed"
 if [ -n "$input" ]; then
