@@ -5,9 +5,10 @@
 //! ([`GltfFile::from_bytes`]): its node graph is a forest no deeper than
 //! [`MAX_DEPTH`], its counts are within the limits below, every accessor lies
 //! inside its buffer view and buffer and has the type its use needs, and every
-//! node transform is finite. What is read from it is checked as it is
-//! converted (finite positions, indices and joints in range, key times finite
-//! and non-decreasing, one inverse bind matrix per joint).
+//! node transform is finite, its rotation a unit quaternion once normalised.
+//! What is read from it is checked as it is converted (finite positions,
+//! indices and joints in range, key times finite and non-decreasing, rotation
+//! keys that normalise to unit quaternions, one inverse bind matrix per joint).
 
 use std::path::Path;
 
@@ -45,18 +46,30 @@ pub struct GltfFile {
 impl GltfFile {
     /// Reads `path`; the error says what is wrong in words.
     pub fn open(path: &Path) -> Result<Self, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let bytes = crate::read::bounded(path, crate::read::MAX_GLTF_BYTES).map_err(|why| format!("cannot read {}: {why}", path.display()))?;
         Self::from_bytes(&bytes, path)
     }
 
     /// Parses the contents of a file; `path` names it in errors and anchors
     /// external buffers.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, String> {
-        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("{} is not valid glTF 2.0: {e}", path.display()))?;
+        // The gltf crate subtracts the 12-byte header from the GLB's stated
+        // length unchecked: a length under 12 panics where overflow is checked
+        // (debug builds, the dev profile) (found by fuzzing, issue 34).
+        if let Some(&[a, b, c, d]) = bytes.strip_prefix(b"glTF").and_then(|rest| rest.get(4..8))
+            && u32::from_le_bytes([a, b, c, d]) < 12
+        {
+            let length = u32::from_le_bytes([a, b, c, d]);
+            return Err(format!("{} is not valid glTF 2.0: its GLB header gives a length of {length} bytes, less than the header's 12", path.display()));
+        }
+        let not_gltf = |e: gltf::Error| format!("{} is not valid glTF 2.0: {e}", path.display());
+        let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
+        check_before_validation(gltf.document.as_json()).map_err(|why| format!("{} is not valid glTF 2.0: {why}", path.display()))?;
+        let document = gltf::Document::from_json(gltf.document.into_json()).map_err(not_gltf)?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut blob = gltf.blob;
         let mut buffers = Vec::new();
-        for buffer in gltf.document.buffers() {
+        for buffer in document.buffers() {
             let data = match buffer.source() {
                 gltf::buffer::Source::Bin => blob.take().ok_or_else(|| format!("{}: the binary chunk is missing", path.display()))?,
                 gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
@@ -64,7 +77,8 @@ impl GltfFile {
                 }
                 gltf::buffer::Source::Uri(uri) => {
                     let file = dir.join(uri);
-                    std::fs::read(&file).map_err(|e| format!("{}: cannot read buffer {}: {e}", path.display(), file.display()))?
+                    crate::read::bounded(&file, crate::read::MAX_GLTF_BYTES)
+                        .map_err(|why| format!("{}: cannot read buffer {}: {why}", path.display(), file.display()))?
                 }
             };
             if data.len() < buffer.length() {
@@ -72,8 +86,8 @@ impl GltfFile {
             }
             buffers.push(data);
         }
-        check_document(&gltf.document, &buffers).map_err(|why| format!("{}: {why}", path.display()))?;
-        Ok(Self { document: gltf.document, buffers })
+        check_document(&document, &buffers).map_err(|why| format!("{}: {why}", path.display()))?;
+        Ok(Self { document, buffers })
     }
 
     /// Every triangle of the default scene (or the first), in world space,
@@ -115,7 +129,13 @@ impl GltfFile {
                         None => out.normals.clear(),
                     }
                     match (reader.read_tex_coords(0), out.uvs.as_mut()) {
-                        (Some(uv), Some(list)) => list.extend(uv.into_f32().map(glam::Vec2::from)),
+                        (Some(uv), Some(list)) => {
+                            let start = list.len();
+                            list.extend(uv.into_f32().map(glam::Vec2::from));
+                            if let Some(k) = list[start..].iter().position(|u| !u.is_finite()) {
+                                return Err(format!("{}: TEXCOORD_0 {k} is {}, not finite", mesh_label(&mesh), list[start + k]));
+                            }
+                        }
                         _ => out.uvs = None,
                     }
                     let indices: Vec<u32> = match reader.read_indices() {
@@ -337,6 +357,23 @@ fn node_label(node: &gltf::Node<'_>) -> String {
     }
 }
 
+/// What the gltf crate's own validation indexes unchecked: a primitive's
+/// `POSITION` accessor past the last panicked inside it (found by fuzzing,
+/// issue 34).
+fn check_before_validation(root: &gltf::json::Root) -> Result<(), String> {
+    use gltf::json::validation::Checked;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.get(&Checked::Valid(gltf::json::mesh::Semantic::Positions))
+                && index.value() >= root.accessors.len()
+            {
+                return Err(format!("mesh {m} primitive {p}: POSITION is accessor {}, but the file has {}", index.value(), root.accessors.len()));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Everything about the file that does not depend on its use: see the module docs.
 fn check_document(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), String> {
     let node_count = document.nodes().len();
@@ -359,11 +396,39 @@ fn check_document(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), 
         if !m.iter().flatten().all(|x| x.is_finite()) {
             return Err(format!("{} has a transform that is not finite", node_label(&node)));
         }
+        // A rotation of length 0 (or one whose square leaves f32) normalises to NaN or to nothing.
+        let unit = |q: [f32; 4]| (Quat::from_array(q).normalize().length() - 1.0).abs() < 1e-3;
+        if let gltf::scene::Transform::Decomposed { rotation, .. } = node.transform()
+            && !unit(rotation)
+        {
+            return Err(format!("{} has the rotation {rotation:?}, which is not a rotation (it does not normalise to a unit quaternion)", node_label(&node)));
+        }
     }
     for accessor in document.accessors() {
         check_accessor(&accessor, buffers).map_err(|why| format!("accessor {}: {why}", accessor.index()))?;
     }
+    check_channel_targets(document)?;
     check_uses(document)
+}
+
+/// Every animation channel targets a node of the file and a known property.
+/// The gltf crate validates an animation's samplers but not its channels'
+/// targets, then unwraps both when asked for them: a misspelt `path` or a
+/// node past the last panicked, in every build (found by fuzzing, issue 34).
+fn check_channel_targets(document: &gltf::Document) -> Result<(), String> {
+    let nodes = document.nodes().len();
+    for (a, anim) in document.as_json().animations.iter().enumerate() {
+        for (k, channel) in anim.channels.iter().enumerate() {
+            let target = &channel.target;
+            if target.node.value() >= nodes {
+                return Err(format!("animation {a} channel {k} targets node {}, but the file has {nodes} nodes", target.node.value()));
+            }
+            if let gltf::json::validation::Checked::Invalid = target.path {
+                return Err(format!("animation {a} channel {k} has a target path that is not translation, rotation, scale or weights"));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The node graph is a forest: no node is its own ancestor, none has two

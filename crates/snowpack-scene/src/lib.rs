@@ -7,6 +7,7 @@
 mod error;
 mod fields;
 pub mod gltf_file;
+mod read;
 mod save;
 mod scene;
 mod vehicle;

@@ -450,7 +450,9 @@ fn rotation_from_deg(deg: Vec3) -> Quat {
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::new(path, "", format!("cannot read the scene file: {e}")))?;
+        let bytes =
+            crate::read::bounded(path, crate::read::MAX_SCENE_BYTES).map_err(|why| SceneError::new(path, "", format!("cannot read the scene file: {why}")))?;
+        let text = String::from_utf8(bytes).map_err(|e| SceneError::new(path, "", format!("the scene file is not UTF-8 text: {e}")))?;
         Self::parse(&text, path)
     }
 
@@ -929,8 +931,8 @@ fn read_heightmap_png(file: &Path) -> Result<image::ImageBuffer<image::Luma<u16>
     use image::ImageDecoder as _;
     use snowpack::low_level::terrain::HEIGHTMAP_MAX_SIDE;
     // By its contents only: a file named .png that is not one says so.
-    let opened = std::fs::File::open(file).map_err(|e| format!("cannot read it: {e}"))?;
-    let reader = image::ImageReader::new(std::io::BufReader::new(opened)).with_guessed_format().map_err(|e| format!("cannot read it: {e}"))?;
+    let bytes = crate::read::bounded(file, crate::read::MAX_HEIGHTMAP_BYTES).map_err(|why| format!("cannot read it: {why}"))?;
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| format!("cannot read it: {e}"))?;
     if reader.format() != Some(image::ImageFormat::Png) {
         return Err("it is not a PNG file (heightmaps are 16-bit greyscale PNGs)".into());
     }
@@ -1072,7 +1074,8 @@ fn parse_render(root: &mut Fields<'_>, base_dir: &Path) -> Result<RenderSpec, Sc
                 "procedural" => EnvironmentSpec::Procedural,
                 file => {
                     let path = base_dir.join(file);
-                    let bytes = std::fs::read(&path).map_err(|e| l.err("environment", format!("cannot read {}: {e}", path.display())))?;
+                    let bytes = crate::read::bounded(&path, crate::read::MAX_SKY_BYTES)
+                        .map_err(|why| l.err("environment", format!("cannot read {}: {why}", path.display())))?;
                     let map = EnvironmentMap::from_hdr(&bytes).map_err(|e| l.err("environment", format!("{}: {e}", path.display())))?;
                     EnvironmentSpec::File(path, Arc::new(map))
                 }

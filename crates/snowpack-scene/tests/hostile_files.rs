@@ -352,13 +352,45 @@ fn animation_keys_that_are_not_finite_or_go_back_or_miss_values_are_refused() {
     assert!(skinned(&m, "inf-value.glb").contains("not finite"));
 }
 
+/// Found by fuzzing (issue 34): the gltf crate validates an animation's
+/// samplers but not its channels' targets, and unwrapped a misspelt `path`
+/// (a panic in every build); a target node past the last did the same.
+#[test]
+fn animation_channels_with_an_unknown_path_or_node_are_refused() {
+    let dir = Temp::new("targets");
+    let mut m = Model::new();
+    m.json["animations"][0]["channels"][0]["target"]["path"] = json!("rot\tion");
+    refused(&dir.0, "path.glb", &m, "target path");
+    let mut m = Model::new();
+    m.json["animations"][0]["channels"][0]["target"]["node"] = json!(99);
+    refused(&dir.0, "node.glb", &m, "targets node 99");
+}
+
+/// Found by fuzzing (issue 34): the gltf crate's own validation indexed a
+/// primitive's `POSITION` accessor unchecked, a panic in every build when it
+/// named an accessor past the last.
+#[test]
+fn a_position_accessor_past_the_last_is_refused() {
+    let dir = Temp::new("position-index");
+    let mut m = Model::new();
+    m.json["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(40);
+    refused(&dir.0, "position.glb", &m, "POSITION is accessor 40");
+}
+
 #[test]
 fn truncated_and_garbage_files_are_refused() {
     let dir = Temp::new("garbage");
     let glb = Model::new().glb();
     std::fs::write(dir.0.join("cut.glb"), &glb[..glb.len() - 20]).expect("write");
     std::fs::write(dir.0.join("noise.glb"), (0..4000u32).map(|k| (k.wrapping_mul(2_654_435_761) >> 24) as u8).collect::<Vec<_>>()).expect("write");
-    for name in ["cut.glb", "noise.glb"] {
+    // Found by fuzzing (issue 34): a GLB header whose length is under its own
+    // 12 bytes made the gltf crate subtract past zero (a panic in debug builds).
+    for length in [0u32, 11] {
+        let mut short = glb.clone();
+        short[8..12].copy_from_slice(&length.to_le_bytes());
+        std::fs::write(dir.0.join(format!("short-{length}.glb")), short).expect("write");
+    }
+    for name in ["cut.glb", "noise.glb", "short-0.glb", "short-11.glb"] {
         let err = GltfFile::open(&dir.0.join(name)).err().unwrap_or_else(|| panic!("{name} accepted"));
         assert!(err.contains(name), "{err}");
     }
@@ -484,4 +516,132 @@ fn hdr_skies_of_the_wrong_size_or_not_hdr_are_refused() {
     let bytes = std::fs::read(d.join("ok.hdr")).expect("read");
     std::fs::write(d.join("cut.hdr"), &bytes[..bytes.len() / 2]).expect("write");
     scene_refuses(d, &light("cut.hdr"), "[light].environment", &["cut.hdr"]);
+}
+
+/// Found while writing the fuzz targets (issue 34): a scene may name any
+/// path, and `/dev/zero` read for ever (allocating as it went) and a named
+/// pipe blocked the load until something wrote to it. Every file a scene
+/// names, and the scene itself, must be a regular file, refused quickly
+/// otherwise.
+#[cfg(unix)]
+#[test]
+fn devices_and_pipes_are_refused_quickly_wherever_a_scene_names_a_file() {
+    let dir = Temp::new("devices");
+    let d = &dir.0;
+    let fifo = d.join("pipe.glb");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo runs");
+    assert!(made.success(), "mkfifo {}", fifo.display());
+    for file in ["/dev/zero", fifo.to_str().expect("utf-8 path")] {
+        let uses = [
+            (format!("[terrain]\nkind = \"mesh\"\npath = \"{file}\"\n"), "[terrain].path"),
+            (format!("[terrain]\nkind = \"heightmap\"\npath = \"{file}\"\n"), "[terrain].path"),
+            (format!("[[object]]\nname = \"o\"\nkind = \"gltf\"\nfile = \"{file}\"\n"), "[[object]][0].file"),
+            (format!("[light]\nenvironment = \"{file}\"\n"), "[light].environment"),
+        ];
+        for (body, key) in uses {
+            scene_refuses(d, &body, key, &[file, "not a regular file"]);
+        }
+        // A character is looked up first: not a file, so it does not exist as one.
+        scene_refuses(d, &format!("[[actor]]\nkind = \"gltf\"\nfile = \"{file}\"\n"), "[[actor]][0].file", &[file]);
+        let path = PathBuf::from(file);
+        let err = within_seconds(file, move || Scene::load(&path)).expect_err("a device or a pipe as the scene file");
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        // A glTF file whose buffer is the device or the pipe.
+        let mut m = Model::new();
+        m.json["buffers"] = json!([{"byteLength": m.bin.len(), "uri": file}]);
+        let text = serde_json::to_vec(&m.json).expect("json");
+        std::fs::write(d.join("outside.gltf"), text).expect("write");
+        let path = d.join("outside.gltf");
+        let err = within_seconds("a buffer on a device", move || GltfFile::open(&path).err()).expect("refused");
+        assert!(err.contains("not a regular file"), "{err}");
+    }
+}
+
+/// Found by fuzzing (issue 34): an object metres across by the billion (a
+/// glTF vertex at 1e30 m, or a box of 1e12 m, within what a scene accepts)
+/// overflowed the texel size of its chart in the accumulation atlas: a panic
+/// in a debug build, a wrapped tiny chart and rectangles outside the atlas in
+/// release. Laid out now, every chart lies inside the atlas with its gutter.
+#[test]
+fn vast_objects_are_laid_out_inside_the_accumulation_atlas() {
+    use snowpack::low_level::accumulate::AtlasLayout;
+    use snowpack::low_level::accumulate::atlas::GUTTER;
+    let dir = Temp::new("vast-objects");
+    let mut m = Model::new();
+    let p = m.attribute("POSITION");
+    m.poke(p, 12, &1e30f32.to_le_bytes());
+    m.write(&dir.0, "vast.glb");
+    let body = "[[object]]\nname = \"mesh\"\nkind = \"gltf\"\nfile = \"vast.glb\"\n\n[[object]]\nname = \"box\"\nsize_m = [1e12, 1.0, 1.0]\n";
+    let s = scene(&dir.0, body).expect("finite objects load");
+    let objects: Vec<_> = s.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
+    let resolution = 1024;
+    let layout = within_seconds("atlas layout", move || AtlasLayout::new(&objects, resolution, 0.0625)).expect("vast objects still fit, coarsely");
+    for c in &layout.charts {
+        let [x, y, w, h] = c.rect;
+        assert!(x >= GUTTER && y >= GUTTER, "chart {:?} starts inside its gutter", c.rect);
+        assert!(u64::from(x) + u64::from(w) + u64::from(GUTTER) <= u64::from(resolution), "chart {:?} runs past the atlas", c.rect);
+        assert!(u64::from(y) + u64::from(h) + u64::from(GUTTER) <= u64::from(resolution), "chart {:?} runs past the atlas", c.rect);
+    }
+}
+
+/// Found by fuzzing (issue 34): a rotation key of (0, 0, 0, 1e-38), finite
+/// but of a length whose square is 0 in f32, normalised to NaN, and the
+/// character's NaN joints and feet reached the capture. Such keys and node
+/// rotations are refused; a cubic spline between good keys that passes
+/// through 0 (keys q and -q, flat tangents, halfway) poses the identity
+/// rather than NaN.
+#[test]
+fn rotations_that_do_not_normalise_are_refused_and_splines_through_zero_stay_finite() {
+    let dir = Temp::new("rotations");
+    let add_rotation = |m: &mut Model, values: &[f32], interpolation: &str| {
+        let times = m.json["animations"][0]["samplers"][0]["input"].clone();
+        let out = m.accessor(&f32s(values), 5126, values.len() / 4, "VEC4");
+        let samplers = m.json["animations"][0]["samplers"].as_array_mut().expect("samplers");
+        samplers.push(json!({"input": times, "output": out, "interpolation": interpolation}));
+        let sampler = samplers.len() - 1;
+        let channels = m.json["animations"][0]["channels"].as_array_mut().expect("channels");
+        channels.push(json!({"sampler": sampler, "target": {"node": 1, "path": "rotation"}}));
+    };
+    for (name, key) in [("tiny.glb", [0.0, 0.0, 0.0, 1e-38]), ("zero.glb", [0.0; 4]), ("vast.glb", [0.0, 0.0, 1e30, 1e30])] {
+        let mut m = Model::new();
+        add_rotation(&mut m, &[[0.0, 0.0, 0.0, 1.0], key].concat(), "LINEAR");
+        let path = m.write(&dir.0, name);
+        let err = GltfFile::open(&path).expect("opens").skinned_model().expect_err(name);
+        assert!(err.contains("rotation key 1") && err.contains("not a rotation"), "{name}: {err}");
+        let mut m = Model::new();
+        m.json["nodes"][1]["rotation"] = json!(key);
+        // A vast rotation already overflows the node's matrix.
+        refused(&dir.0, &format!("node-{name}"), &m, if name == "vast.glb" { "not finite" } else { "not a rotation" });
+    }
+
+    let mut m = Model::new();
+    let (flat, q, minus_q) = ([0.0; 4], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, -1.0]);
+    add_rotation(&mut m, &[flat, q, flat, flat, minus_q, flat].concat(), "CUBICSPLINE");
+    m.write(&dir.0, "spline.glb");
+    let s = scene(&dir.0, "[[actor]]\nkind = \"gltf\"\nfile = \"spline.glb\"\nfeet = [\"bone\"]\nposition = [0.0, 0.0, 0.0]\n").expect("good keys load");
+    let mut world = snowpack_scene::World::new(&s);
+    for step in 0..8 {
+        for c in world.characters() {
+            assert!(c.joints.iter().chain(&c.nodes).all(|j| j.is_finite()), "step {step}: joints or nodes are not finite");
+        }
+        world.step(0.125);
+    }
+}
+
+/// Found by fuzzing (issue 34): an object's UVs were read unchecked, so a NaN
+/// texture coordinate reached the atlas (which charted around it) and a saved
+/// scene no longer equalled itself. An object's `TEXCOORD_0` must be finite;
+/// the terrain and characters do not read UVs.
+#[test]
+fn an_object_whose_uvs_are_not_finite_is_refused() {
+    let dir = Temp::new("uvs");
+    let mut m = Model::new();
+    let uv = m.accessor(&f32s(&[0.0, 0.0, 1.0, f32::NAN, 0.0, 1.0]), 5126, 3, "VEC2");
+    m.json["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uv);
+    let path = m.write(&dir.0, "uv.glb");
+    let g = GltfFile::open(&path).expect("the file itself is well formed");
+    let err = g.object_mesh(1.0).expect_err("a NaN UV");
+    assert!(err.contains("TEXCOORD_0 1") && err.contains("not finite"), "{err}");
+    g.world_triangles(1.0).expect("a terrain reads no UVs");
+    scene_refuses(&dir.0, "[[object]]\nname = \"o\"\nkind = \"gltf\"\nfile = \"uv.glb\"\n", "[[object]][0].file", &["uv.glb", "TEXCOORD_0"]);
 }

@@ -234,8 +234,11 @@ impl AtlasLayout {
         let texels = |density: f32| -> Vec<[u32; 2]> {
             maps.iter()
                 .map(|(_, m)| {
+                    // Saturating: a chart metres across by the billion (a finite but vast
+                    // mesh) is wider than any atlas at this density, never a wrapped small
+                    // one; the bisection below then finds a density at which it fits.
                     let e = m.extent_m() * density;
-                    [e.x.ceil().max(2.0) as u32 + 2 * GUTTER, e.y.ceil().max(2.0) as u32 + 2 * GUTTER]
+                    [(e.x.ceil().max(2.0) as u32).saturating_add(2 * GUTTER), (e.y.ceil().max(2.0) as u32).saturating_add(2 * GUTTER)]
                 })
                 .collect()
         };

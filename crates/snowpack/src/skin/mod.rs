@@ -171,7 +171,8 @@ pub struct Channel {
 }
 
 impl Channel {
-    /// Checks key counts, that times are finite and non-decreasing, and that values are finite.
+    /// Checks key counts, that times are finite and non-decreasing, that values
+    /// are finite, and that rotation keys normalise to unit quaternions.
     pub fn validate(&self) -> Result<(), String> {
         let per_key = if self.interpolation == Interpolation::CubicSpline { 3 } else { 1 };
         if self.times.is_empty() {
@@ -185,6 +186,15 @@ impl Channel {
         }
         if let Some(k) = self.values.iter().position(|v| !v.is_finite()) {
             return Err(format!("value {k} is not finite"));
+        }
+        // A key of length 0 (or one whose length squared leaves f32: 1e-38,
+        // 1e20) normalises to NaN or to nothing, and NaN joints reach the
+        // capture (found by fuzzing, issue 34). Cubic tangents may be anything.
+        if self.property == Property::Rotation {
+            let unit = |v: Vec4| (Quat::from_vec4(v).normalize().length() - 1.0).abs() < 1e-3;
+            if let Some(k) = (0..self.times.len()).find(|&k| !unit(self.value(k))) {
+                return Err(format!("rotation key {k} is {}, not a rotation (it does not normalise to a unit quaternion)", self.value(k)));
+            }
         }
         Ok(())
     }
@@ -250,7 +260,8 @@ impl Clip {
             let v = c.sample(t);
             match c.property {
                 Property::Translation => local.translation = v.truncate(),
-                Property::Rotation => local.rotation = Quat::from_vec4(v).normalize(),
+                // A cubic spline between valid keys can still pass through 0.
+                Property::Rotation => local.rotation = Quat::from_vec4(v.normalize_or(Vec4::W)),
                 Property::Scale => local.scale = v.truncate(),
             }
         }
