@@ -14,9 +14,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::error::SnowError;
 use snowpack::low_level::persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 use snowpack::low_level::testing::{self, HeldDisk};
-use snowpack::low_level::error::SnowError;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 /// Tiles of 1 m (16 texels of 1/16 m); the window is 4 m, 4×4 tiles.

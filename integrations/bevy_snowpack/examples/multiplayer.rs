@@ -500,7 +500,7 @@ fn script(
     match script.phase {
         Phase::Joining => {
             if sharing.is_welcomed() {
-                println!("client: welcomed as peer {:?} after {} frames", sharing.peer_number(), script.frames);
+                println!("client: welcomed after {} frames", script.frames);
                 if cli.walk {
                     script.walk_start = Some((Instant::now(), sharing.bytes_sent(), sharing.bytes_received()));
                     script.enter(Phase::Walking);

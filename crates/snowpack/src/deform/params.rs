@@ -38,7 +38,7 @@ pub struct SnowParams {
     /// Memory budget (bytes) for the snow of tiles the window has left, so a
     /// trail is still there when the window comes back (the scene's
     /// `[store]` table). `Some`: kept in memory
-    /// ([`crate::persist::TileStreamer::in_memory`], tiles of
+    /// (`TileStreamer::in_memory`, tiles of
     /// `default_tile_texels`); beyond the budget the least recently left
     /// tiles are forgotten (fresh snow). `None`: texels leaving the window
     /// are forgotten and no tiles are resident on the GPU. Default

@@ -1,6 +1,6 @@
 //! The front door's errors: opaque structs with a small kind a program
 //! branches on and a message that says what and where. The enums in
-//! [`super`] hold the details (`snowpack::low_level::error`, for the app and
+//! the parent module hold the details (`snowpack::low_level::error`, for the app and
 //! the tests that match on them); the library builds those, and `?` or
 //! `.into()` wraps them at the front door.
 

@@ -388,20 +388,22 @@ impl GpuContext {
         }
     }
 
-    /// Returns the first GPU error reported since the last call (validation,
-    /// out of memory) or the device-lost reason, so callers fail instead of
-    /// rendering garbage or hanging.
-    pub fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
-        if let Some(reason) = self.lost_reason() {
-            return Err(SnowError::DeviceLost(reason).into());
+    low_level_pub! {
+        /// Returns the first GPU error reported since the last call (validation,
+        /// out of memory) or the device-lost reason, so callers fail instead of
+        /// rendering garbage or hanging.
+        fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
+            if let Some(reason) = self.lost_reason() {
+                return Err(SnowError::DeviceLost(reason).into());
+            }
+            let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
+            if errors.is_empty() {
+                return Ok(());
+            }
+            let message = errors.join("\n");
+            errors.clear();
+            Err(SnowError::Gpu { context, message }.into())
         }
-        let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
-        if errors.is_empty() {
-            return Ok(());
-        }
-        let message = errors.join("\n");
-        errors.clear();
-        Err(SnowError::Gpu { context, message }.into())
     }
 
     low_level_pub! {

@@ -915,7 +915,9 @@ mod tests {
         // A damaged save record is an error naming it.
         fs::write(dir.path().join(SAVE_FILE), b"SNOWSAVE and then nonsense").expect("damage");
         drop(store);
-        assert!(matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Corrupt { path, .. }) if path.ends_with(SAVE_FILE)));
+        assert!(
+            matches!(TileStore::open(dir.path(), SIDE, StoreConfig::default()).map_err(StoreError::from), Err(StoreError::Corrupt { path, .. }) if path.ends_with(SAVE_FILE))
+        );
     }
 
     /// Every file under `dir`.

@@ -254,7 +254,7 @@ struct StandIn {
 
 /// Streams tiles between the deformation window and a [`TileStore`] on a
 /// worker thread, with a bounded memory cache; or, made with
-/// [`TileStreamer::in_memory`], keeps them in that cache alone. See the
+/// `TileStreamer::in_memory` (`low_level`), keeps them in that cache alone. See the
 /// module docs for the ordering, write-behind and memory-only policies.
 pub struct TileStreamer {
     side: u32,
@@ -360,21 +360,23 @@ impl TileStreamer {
         }
     }
 
-    /// Keeps tiles of `side` texels in memory only: no store, no worker
-    /// thread, no files. `TileStreamer::lookup` answers at once: the tile
-    /// put last (handed out once: it leaves the cache, as the window holds it
-    /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
-    /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
-    /// least recently used tiles are dropped and come back as fresh snow
-    /// (each counted in `StoreStats::lost`). Untouched tiles (every height
-    /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
-    /// is the same. `TileStreamer::write_state` (and so saving) fails:
-    /// saving needs a disk store.
-    #[must_use]
-    pub fn in_memory(side: u32, config: StreamerConfig) -> Self {
-        // A channel whose sender is gone: nothing is ever asked or answered.
-        let (_, replies) = mpsc::channel();
-        Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
+    low_level_pub! {
+        /// Keeps tiles of `side` texels in memory only: no store, no worker
+        /// thread, no files. `TileStreamer::lookup` answers at once: the tile
+        /// put last (handed out once: it leaves the cache, as the window holds it
+        /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
+        /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
+        /// least recently used tiles are dropped and come back as fresh snow
+        /// (each counted in `StoreStats::lost`). Untouched tiles (every height
+        /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
+        /// is the same. `TileStreamer::write_state` (and so saving) fails:
+        /// saving needs a disk store.
+        #[must_use]
+        fn in_memory(side: u32, config: StreamerConfig) -> Self {
+            // A channel whose sender is gone: nothing is ever asked or answered.
+            let (_, replies) = mpsc::channel();
+            Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
+        }
     }
 
     low_level_pub! {
@@ -739,10 +741,12 @@ impl TileStreamer {
         }
     }
 
-    /// The counters now (disk numbers as of the worker's last reply).
-    #[must_use]
-    pub fn stats(&self) -> StoreStats {
-        StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
+    low_level_pub! {
+        /// The counters now (disk numbers as of the worker's last reply).
+        #[must_use]
+        fn stats(&self) -> StoreStats {
+            StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
+        }
     }
 
     low_level_pub! {

@@ -320,10 +320,13 @@ impl SnowGround {
         self.lighting = lighting;
     }
 
-    /// The lighting and material in use.
-    #[must_use]
-    pub fn lighting(&self) -> &GroundLighting {
-        &self.lighting
+    low_level_pub! {
+        /// The lighting and material in use.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn lighting(&self) -> &GroundLighting {
+            &self.lighting
+        }
     }
 
     low_level_pub! {

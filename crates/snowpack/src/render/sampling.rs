@@ -49,7 +49,7 @@ pub fn snow_sampling_wgsl(group: u32) -> String {
 /// holds other bindings below (Bevy's material group: the standard
 /// material's own come first). Offset [`sampling_layout_entries`]'s binding
 /// numbers the same way. A textual rewrite of the four binding attributes,
-/// like [`snow_sampling_wgsl`].
+/// like `snow_sampling_wgsl` (with `low_level`).
 #[must_use]
 pub fn snow_sampling_wgsl_at(group: u32, first_binding: u32) -> String {
     // Highest first, so a binding already moved up is never matched again.

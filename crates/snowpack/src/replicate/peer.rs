@@ -259,10 +259,13 @@ impl SnowPeer {
         self.config = config;
     }
 
-    /// How the peer paces itself now.
-    #[must_use]
-    pub fn config(&self) -> &PeerConfig {
-        &self.config
+    low_level_pub! {
+        /// How the peer paces itself now.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn config(&self) -> &PeerConfig {
+            &self.config
+        }
     }
 
     /// Where this peer's deformers are now (world x, z in m; at most 256
@@ -370,13 +373,11 @@ impl SnowPeer {
         self.in_sync && self.unacknowledged() == 0 && self.incoming.is_empty()
     }
 
-    low_level_pub! {
-        /// Asks for a digest as soon as `digest_interval_s` has passed since the
-        /// last one, whatever `synced_digest_interval_s` says (a program about
-        /// to stop wants `InSync` soon).
-        fn request_digest(&mut self) {
-            self.digest_requested = true;
-        }
+    /// Asks for a digest as soon as `digest_interval_s` has passed since the
+    /// last one, whatever `synced_digest_interval_s` says (a program about
+    /// to stop wants `InSync` soon).
+    pub fn request_digest(&mut self) {
+        self.digest_requested = true;
     }
 
     /// Something changed the replica or the window: the last digest no
@@ -415,12 +416,11 @@ impl SnowPeer {
         self.unacked.len() + self.to_send.len()
     }
 
-    low_level_pub! {
-        /// Counters since the peer was made.
-        #[must_use]
-        fn stats(&self) -> PeerStats {
-            self.stats
-        }
+    /// Counters since the peer was made (printed with `{:?}`; their fields
+    /// are public with `low_level`).
+    #[must_use]
+    pub fn stats(&self) -> PeerStats {
+        self.stats
     }
 
     low_level_pub! {

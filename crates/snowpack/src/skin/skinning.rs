@@ -38,36 +38,35 @@ pub struct SkinnedMesh {
 }
 
 impl SkinnedMesh {
-    low_level_pub! {
-        /// Checks that the arrays agree, weights are finite and sum to about 1,
-        /// and every index and joint is in range for `joint_count` joints.
-        fn validate(&self, joint_count: usize) -> Result<(), String> {
-            let n = self.positions.len();
-            if n == 0 {
-                return Err("the mesh has no vertices".into());
-            }
-            if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
-                return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
-            }
-            if self.joints.len() != n || self.weights.len() != n {
-                return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
-            }
-            if !self.indices.len().is_multiple_of(3) {
-                return Err(format!("{} triangle indices are not whole triples", self.indices.len()));
-            }
-            if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
-                return Err(format!("triangle index {i} is past the {n} vertices"));
-            }
-            if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
-                return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
-            }
-            if let Some((k, w)) =
-                self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01)
-            {
-                return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
-            }
-            Ok(())
+    /// Checks that the arrays agree, weights are finite and sum to about 1,
+    /// and every index and joint is in range for `joint_count` joints (what
+    /// [`crate::SnowDeformation::add_skinned_mesh`] refuses, checked before).
+    pub fn validate(&self, joint_count: usize) -> Result<(), String> {
+        let n = self.positions.len();
+        if n == 0 {
+            return Err("the mesh has no vertices".into());
         }
+        if let Some(k) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {k} is at {}, not a finite position", self.positions[k]));
+        }
+        if self.joints.len() != n || self.weights.len() != n {
+            return Err(format!("{n} positions but {} joint and {} weight sets", self.joints.len(), self.weights.len()));
+        }
+        if !self.indices.len().is_multiple_of(3) {
+            return Err(format!("{} triangle indices are not whole triples", self.indices.len()));
+        }
+        if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(format!("triangle index {i} is past the {n} vertices"));
+        }
+        if let Some(j) = self.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
+            return Err(format!("a vertex names joint {j}, the skin has {joint_count}"));
+        }
+        if let Some((k, w)) =
+            self.weights.iter().enumerate().find(|(_, w)| !w.iter().all(|x| x.is_finite() && *x >= 0.0) || (w.iter().sum::<f32>() - 1.0).abs() > 0.01)
+        {
+            return Err(format!("vertex {k} has weights {w:?}; they must be non-negative and sum to 1"));
+        }
+        Ok(())
     }
 
     low_level_pub! {

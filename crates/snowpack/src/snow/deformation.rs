@@ -157,7 +157,7 @@ impl<'a> SnowFrame<'a> {
     /// answer, tagged with it, arrives a frame or two later in
     /// [`SnowDeformation::point_answers`], and a frame never waits for it.
     /// If the GPU is so far behind that every staging buffer is in flight,
-    /// the request is dropped and counted in [`QueryStats::skipped`]: ask
+    /// the request is dropped and counted (`query_stats`, with `low_level`): ask
     /// again (games ask every frame).
     #[must_use]
     pub fn with_queries(mut self, points: &'a [glam::Vec2]) -> Self {
@@ -561,10 +561,13 @@ impl SnowDeformation {
         self.core.answers.as_ref()
     }
 
-    /// Requests gathered, answered and skipped so far.
-    #[must_use]
-    pub fn query_stats(&self) -> QueryStats {
-        self.core.query_pass.stats()
+    low_level_pub! {
+        /// Requests gathered, answered and skipped so far.
+        #[must_use]
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+        fn query_stats(&self) -> QueryStats {
+            self.core.query_pass.stats()
+        }
     }
 
     #[cfg(feature = "low_level")]

@@ -67,7 +67,7 @@ impl SnowDeformation {
         self.sharing.as_ref().map_or(0, Sharing::dirty_tiles)
     }
 
-    /// Tiles given to [`SharedSnow::merge_tiles`] and not merged yet (ahead
+    /// Tiles given to the shared snow (`SnowPeer::update`) and not merged yet (ahead
     /// of the clock, or beyond a frame's upload).
     #[must_use]
     pub fn waiting_tiles(&self) -> usize {

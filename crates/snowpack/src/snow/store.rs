@@ -39,7 +39,7 @@ pub(super) fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &S
 impl SnowDeformation {
     /// Attaches a tile store: from now on texels leaving the window are kept
     /// through `streamer` (in memory, then on disk; or in memory alone for
-    /// [`TileStreamer::in_memory`]) and come back when the window returns,
+    /// `TileStreamer::in_memory`) and come back when the window returns,
     /// brought up to the time then. It replaces the memory keeper the window
     /// was created with ([`SnowParams::tile_memory_bytes`]). Call before the
     /// first frame, once. When the store holds a save ([`Self::save`]), the

@@ -13,7 +13,7 @@ use bevy::prelude::*;
 use bevy::render::renderer::RenderGraph;
 use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderApp};
 use bevy_replicon::prelude::*;
-use snowpack::{PeerStats, ShareError, SnowPeer};
+use snowpack::{PeerStats, ShareErrorKind, SnowPeer};
 
 use super::{SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
 use crate::render::SnowRenderState;
@@ -55,7 +55,6 @@ pub struct SnowSharing {
 #[derive(Clone, Debug, Default)]
 struct PeerStatus {
     welcomed: bool,
-    peer_number: Option<u32>,
     unacknowledged: usize,
     synced: bool,
     waiting_tiles: usize,
@@ -69,12 +68,6 @@ impl SnowSharing {
     #[must_use]
     pub fn is_welcomed(&self) -> bool {
         self.status.welcomed
-    }
-
-    /// The relay's number for this client, once welcomed.
-    #[must_use]
-    pub fn peer_number(&self) -> Option<u32> {
-        self.status.peer_number
     }
 
     /// Changes not yet acknowledged by the server (deltas in flight and tiles waiting to go).
@@ -303,8 +296,9 @@ fn step_peer(state: Option<ResMut<SnowRenderState>>, mut peer: ResMut<PeerState>
     for bytes in frame.inbox.drain(..) {
         match p.receive(&bytes) {
             Ok(()) => {}
-            Err(ShareError::Refused { differences }) => {
-                let why = differences.join("; ");
+            Err(e) if e.kind() == ShareErrorKind::Refused => {
+                // The message lists what differs (depth, tile side, terrain...).
+                let why = e.to_string();
                 tracing::error!("bevy_snowpack: the server refused this client's snow: {why}");
                 peer.refused = Some(why);
             }
@@ -321,7 +315,6 @@ fn step_peer(state: Option<ResMut<SnowRenderState>>, mut peer: ResMut<PeerState>
     let messages: Vec<Vec<u8>> = std::iter::from_fn(|| p.poll_transmit()).collect();
     let status = PeerStatus {
         welcomed: p.is_welcomed(),
-        peer_number: p.peer_number(),
         unacknowledged: p.unacknowledged(),
         synced: p.is_synced(),
         waiting_tiles: snow.waiting_tiles(),
