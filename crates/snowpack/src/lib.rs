@@ -171,19 +171,19 @@ mod tiles;
 
 // The front door: what a game uses (docs/architecture.md lists it and says why each is here).
 pub use accumulate::{ObjectShape, ObjectStats, SnowObject};
+#[cfg(feature = "low_level")]
+pub use deform::QueryStats;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
 pub use deform::{PointAnswers, PointSample, QueryTicket};
-#[cfg(feature = "low_level")]
-pub use deform::QueryStats;
 pub use error::front::{ShareError, ShareErrorKind, SnowError, SnowErrorKind, StoreError, StoreErrorKind};
 pub use gpu::{AdapterRequest, GpuContext};
 pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
-pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl_at};
 #[cfg(feature = "low_level")]
 pub use render::sampling::snow_sampling_wgsl;
+pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerStats, SnowPeer, WorldIdentity};
 // The relay a game's server runs between its players (feature `relay`).

@@ -22,6 +22,6 @@ pub mod update;
 pub mod wheel;
 pub mod window;
 
-pub use query::{PointAnswers, PointSample, QueryTicket};
 #[cfg(feature = "low_level")]
 pub use query::QueryStats;
+pub use query::{PointAnswers, PointSample, QueryTicket};
