@@ -889,94 +889,101 @@ impl TileStreamer {
         self.take_disk(reply.disk);
         let seq = reply.seq;
         match reply.outcome {
-            Outcome::Loaded { key, result, queued } => {
-                self.stats.loads += 1;
-                if self.loading.get(&key) == Some(&seq) {
-                    self.loading.remove(&key);
-                }
-                // The cache holds the newest version whenever it holds one;
-                // a write queued after this load also makes it stale (its
-                // tile was put, then dropped from memory: load it again).
-                let stale = self.cache.contains_key(&key) || self.unwritten.get(&key).is_some_and(|&w| w > seq);
-                let tile = match result {
-                    Ok(tile) => tile,
-                    Err(e) if matches!(e, StoreError::Corrupt { .. } | StoreError::Version { .. } | StoreError::Mismatch { .. }) => {
-                        self.stats.corrupt += 1;
-                        self.report(e, false);
-                        // Fresh snow: the store has set the bad file aside.
-                        None
-                    }
-                    Err(e) => {
-                        // Not read, but maybe still there: answered as fresh snow
-                        // that stands in for it (never written over it).
-                        if !stale {
-                            if let Some(stand_in) = self.stand_ins.get_mut(&key) {
-                                stand_in.read_error = Some(e.to_string());
-                            }
-                            self.unreadable.insert(key);
-                        }
-                        self.report(e, false);
-                        return;
-                    }
-                };
-                if stale {
-                    return;
-                }
-                self.unreadable.remove(&key);
-                match tile {
-                    Some(tile) => {
-                        // Answered from a write still queued: dirty until its reply.
-                        let dirt = match queued {
-                            Some(w) if self.unwritten.get(&key) == Some(&w) => Dirt::Queued(w),
-                            _ => Dirt::Clean,
-                        };
-                        // A stand-in's stored version waits for its merge without
-                        // holding memory beyond the budget.
-                        let wanted = !self.stand_ins.contains_key(&key);
-                        self.insert(key, Cached::new(tile, dirt, wanted));
-                    }
-                    None => {
-                        if self.absent.len() >= MAX_ABSENT {
-                            // Forgetting only costs a load each if asked again.
-                            self.absent.clear();
-                        }
-                        self.absent.insert(key);
-                        self.resolve_absent(key);
-                    }
-                }
-            }
-            Outcome::Written { key, result } => {
-                if self.unwritten.get(&key) == Some(&seq) {
-                    self.unwritten.remove(&key);
-                }
-                let cached = self.cache.get_mut(&key);
-                match result {
-                    Ok(bytes) => {
-                        self.stats.writes += 1;
-                        self.stats.bytes_written += bytes;
-                        if let Some(cached) = cached
-                            && cached.dirt == Dirt::Queued(seq)
-                        {
-                            cached.dirt = Dirt::Clean;
-                        }
-                    }
-                    Err(e) => {
-                        match cached {
-                            Some(cached) if cached.dirt == Dirt::Queued(seq) => cached.dirt = Dirt::Failed,
-                            // A newer version is in memory or queued: this one no longer matters.
-                            Some(_) => {}
-                            None if self.unwritten.contains_key(&key) => {}
-                            None => {
-                                tracing::warn!("tile store: tile {key:?} was dropped from memory and its write failed");
-                                self.stats.lost += 1;
-                            }
-                        }
-                        self.report(e, true);
-                    }
-                }
-            }
+            Outcome::Loaded { key, result, queued } => self.loaded(seq, key, result, queued),
+            Outcome::Written { key, result } => self.written(seq, key, result),
             // Answers to blocking calls arrive only while they wait.
             Outcome::Flushed | Outcome::StateWritten(_) | Outcome::StateRead(_) => {}
+        }
+    }
+
+    /// A load's reply (`seq`): the tile into the cache, or fresh snow, or a
+    /// stand-in kept for a tile the disk could not read.
+    fn loaded(&mut self, seq: u64, key: TileKey, result: Result<Option<TileData>, StoreError>, queued: Option<u64>) {
+        self.stats.loads += 1;
+        if self.loading.get(&key) == Some(&seq) {
+            self.loading.remove(&key);
+        }
+        // The cache holds the newest version whenever it holds one;
+        // a write queued after this load also makes it stale (its
+        // tile was put, then dropped from memory: load it again).
+        let stale = self.cache.contains_key(&key) || self.unwritten.get(&key).is_some_and(|&w| w > seq);
+        let tile = match result {
+            Ok(tile) => tile,
+            Err(e) if matches!(e, StoreError::Corrupt { .. } | StoreError::Version { .. } | StoreError::Mismatch { .. }) => {
+                self.stats.corrupt += 1;
+                self.report(e, false);
+                // Fresh snow: the store has set the bad file aside.
+                None
+            }
+            Err(e) => {
+                // Not read, but maybe still there: answered as fresh snow
+                // that stands in for it (never written over it).
+                if !stale {
+                    if let Some(stand_in) = self.stand_ins.get_mut(&key) {
+                        stand_in.read_error = Some(e.to_string());
+                    }
+                    self.unreadable.insert(key);
+                }
+                self.report(e, false);
+                return;
+            }
+        };
+        if stale {
+            return;
+        }
+        self.unreadable.remove(&key);
+        match tile {
+            Some(tile) => {
+                // Answered from a write still queued: dirty until its reply.
+                let dirt = match queued {
+                    Some(w) if self.unwritten.get(&key) == Some(&w) => Dirt::Queued(w),
+                    _ => Dirt::Clean,
+                };
+                // A stand-in's stored version waits for its merge without
+                // holding memory beyond the budget.
+                let wanted = !self.stand_ins.contains_key(&key);
+                self.insert(key, Cached::new(tile, dirt, wanted));
+            }
+            None => {
+                if self.absent.len() >= MAX_ABSENT {
+                    // Forgetting only costs a load each if asked again.
+                    self.absent.clear();
+                }
+                self.absent.insert(key);
+                self.resolve_absent(key);
+            }
+        }
+    }
+
+    /// A write's reply (`seq`): the cached version clean, or failed (kept dirty), or lost.
+    fn written(&mut self, seq: u64, key: TileKey, result: Result<u64, StoreError>) {
+        if self.unwritten.get(&key) == Some(&seq) {
+            self.unwritten.remove(&key);
+        }
+        let cached = self.cache.get_mut(&key);
+        match result {
+            Ok(bytes) => {
+                self.stats.writes += 1;
+                self.stats.bytes_written += bytes;
+                if let Some(cached) = cached
+                    && cached.dirt == Dirt::Queued(seq)
+                {
+                    cached.dirt = Dirt::Clean;
+                }
+            }
+            Err(e) => {
+                match cached {
+                    Some(cached) if cached.dirt == Dirt::Queued(seq) => cached.dirt = Dirt::Failed,
+                    // A newer version is in memory or queued: this one no longer matters.
+                    Some(_) => {}
+                    None if self.unwritten.contains_key(&key) => {}
+                    None => {
+                        tracing::warn!("tile store: tile {key:?} was dropped from memory and its write failed");
+                        self.stats.lost += 1;
+                    }
+                }
+                self.report(e, true);
+            }
         }
     }
 
