@@ -51,16 +51,19 @@ struct DisplayParams {
 @group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
 
 // The choices this pipeline is built for, packed as in
-// `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3): `DisplayPass`
-// builds one pipeline per set in use (gpu/specialised.rs); the default reads
-// them from `params`.
+// `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3 | bare << 4):
+// `DisplayPass` builds one pipeline per set in use (gpu/specialised.rs); the
+// default reads them from `params`. No branch here tests uniforms alone:
+// Mesa 22's lavapipe compiles such a shader again, with the uniforms'
+// values inlined, at every dispatch, and keeps each copy (docs/deformation.md).
 override DISPLAY_VARIANT: u32 = 0xffffffffu;
 
 fn display_variant() -> u32 {
     if DISPLAY_VARIANT != 0xffffffffu {
         return DISPLAY_VARIANT;
     }
-    return params.mode | (min(params.blur, 1u) << 2u) | (min(params.use_fallen, 1u) << 3u);
+    let bare = params.use_fallen == 0u && params.depth_m <= 0.0;
+    return params.mode | (min(params.blur, 1u) << 2u) | (min(params.use_fallen, 1u) << 3u) | (u32(bare) << 4u);
 }
 
 fn display_mode() -> u32 {
@@ -73,6 +76,11 @@ fn display_blurs() -> bool {
 
 fn display_uses_fallen() -> bool {
     return (display_variant() & 8u) != 0u;
+}
+
+// No snow without snowfall (depth_m 0): the rest height is the ground.
+fn display_bare() -> bool {
+    return (display_variant() & 16u) != 0u;
 }
 
 const RIM_PEAK: f32 = 0.25;
@@ -123,9 +131,10 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
         depth += fallen[s];
     }
     let snow_h = snow_word_height(atomicLoad(&snow[s]), ground + depth, ground);
-    if depth <= 0.0 {
+    if display_bare() || (display_uses_fallen() && depth <= 0.0) {
         // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
-        // push into rims.
+        // push into rims. Without snowfall that is the pipeline's choice;
+        // with it, this texel's.
         return snow_h;
     }
     if display_mode() == 0u {

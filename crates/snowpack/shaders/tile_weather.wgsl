@@ -32,6 +32,20 @@ struct WeatherParams {
 const USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: WeatherParams;
+
+// The flags this pipeline is built for (one pipeline per set in use,
+// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
+// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
+// every dispatch, uniforms inlined, and keeps every copy
+// (docs/deformation.md, "Branches on uniforms").
+override WEATHER_FLAGS: u32 = 0xffffffffu;
+
+fn weather_flags() -> u32 {
+    if WEATHER_FLAGS != 0xffffffffu {
+        return WEATHER_FLAGS;
+    }
+    return params.flags;
+}
 @group(0) @binding(1) var<storage, read> owners: array<vec4<i32>>; // (col, row, resident, 0) per slot
 @group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
@@ -57,7 +71,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let base = slot * params.planes * area + gid.x;
-    let use_fallen = (params.flags & USE_FALLEN) != 0u;
+    let use_fallen = (weather_flags() & USE_FALLEN) != 0u;
     var t: TexelState;
     t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
     let stamp_plane = has_stamp_plane(params.planes, use_fallen);

@@ -19,6 +19,11 @@ pub const DECAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 pub const FOOTPRINT_SIDE: u32 = 64;
 /// Contacts kept per actor by default (Wasmut keeps 1000).
 pub const DEFAULT_PER_ACTOR: usize = 1000;
+/// Most contacts kept over all actors (2 MiB of [`Decal`]s): each actor
+/// keeps its `per_actor` while they fit, an equal share when more actors
+/// than that press the snow. A crowd of 16,384 would otherwise hold 500 MiB
+/// of contacts, filling as it walks (the stress test measured it).
+pub const DECAL_BUDGET: usize = 1 << 16;
 
 /// Uniforms of `decal.wgsl`.
 #[repr(C)]
@@ -84,6 +89,9 @@ pub fn footprint_texture(side: u32) -> Vec<[u8; 4]> {
 #[derive(Clone, Debug)]
 pub struct DecalRing {
     per_actor: usize,
+    /// Contacts each actor keeps now: `per_actor`, or the actors' equal
+    /// share of [`DECAL_BUDGET`].
+    kept: usize,
     anchor: DVec2,
     actors: Vec<VecDeque<Decal>>,
     last: Vec<Option<DVec2>>,
@@ -94,7 +102,33 @@ impl DecalRing {
     /// An empty ring keeping `per_actor` contacts per actor.
     #[must_use]
     pub fn new(per_actor: usize, anchor: DVec2) -> Self {
-        Self { per_actor: per_actor.max(1), anchor, actors: Vec::new(), last: Vec::new(), dirty: false }
+        let per_actor = per_actor.max(1);
+        Self { per_actor, kept: per_actor, anchor, actors: Vec::new(), last: Vec::new(), dirty: false }
+    }
+
+    /// Contacts each actor keeps now (`per_actor`, or fewer when many
+    /// actors share [`DECAL_BUDGET`]).
+    #[must_use]
+    pub fn kept_per_actor(&self) -> usize {
+        self.kept
+    }
+
+    /// Makes room for `actors` actors within [`DECAL_BUDGET`]: each keeps
+    /// its share, its oldest contacts dropped and its ring's memory given
+    /// back when the share shrinks.
+    fn make_room(&mut self, actors: usize) {
+        self.actors.resize_with(actors, VecDeque::new);
+        self.last.resize(actors, None);
+        self.kept = (DECAL_BUDGET / actors.max(1)).clamp(1, self.per_actor);
+        for ring in &mut self.actors {
+            if ring.len() > self.kept {
+                ring.drain(..ring.len() - self.kept);
+                self.dirty = true;
+            }
+            if ring.capacity() > self.kept {
+                ring.shrink_to(self.kept);
+            }
+        }
     }
 
     /// Records this frame's contacts: an actor whose lowest point is below the
@@ -102,8 +136,7 @@ impl DecalRing {
     /// radius since its last one. `deformers[k]` is actor k in every frame.
     pub fn observe(&mut self, deformers: &[Deformer], terrain: &TerrainSource, depth_m: f32) {
         if self.actors.len() < deformers.len() {
-            self.actors.resize_with(deformers.len(), VecDeque::new);
-            self.last.resize(deformers.len(), None);
+            self.make_room(deformers.len());
         }
         for (k, d) in deformers.iter().enumerate() {
             let (at, radius) = match *d {
@@ -130,12 +163,12 @@ impl DecalRing {
             let ring = &mut self.actors[k];
             if ring.capacity() == 0 {
                 // At its first contact an actor's ring gets its full size
-                // (`per_actor` decals; the pages are touched only as it
-                // fills), so rings never grow frame by frame: many actors
-                // moving alike would otherwise all grow on the same frames.
-                ring.reserve_exact(self.per_actor);
+                // (`kept` decals; the pages are touched only as it fills),
+                // so rings never grow frame by frame: many actors moving
+                // alike would otherwise all grow on the same frames.
+                ring.reserve_exact(self.kept);
             }
-            if ring.len() == self.per_actor {
+            if ring.len() >= self.kept {
                 ring.pop_front();
             }
             ring.push_back(Decal { place: [rel.x as f32, rel.y as f32, radius * 1.15, yaw], normal: [n.x, n.y, n.z, 1.0] });
@@ -378,5 +411,50 @@ impl DecalPass {
             pass.set_vertex_buffer(0, self.instances.slice(..));
             pass.draw(0..4, 0..self.count);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// `count` spheres pressing the snow (0.5 m deep on flat ground), each
+    /// a radius further along x than at `step - 1`: a new contact each step.
+    fn walkers(count: usize, step: usize) -> Vec<Deformer> {
+        (0..count).map(|k| Deformer::Sphere { center: Vec3::new(step as f32 * 0.3, 0.3, k as f32), radius: 0.3 }).collect()
+    }
+
+    fn observe(ring: &mut DecalRing, count: usize, steps: std::ops::Range<usize>) {
+        let terrain = TerrainSource::Flat { height_m: 0.0 };
+        for step in steps {
+            ring.observe(&walkers(count, step), &terrain, 0.5);
+        }
+    }
+
+    #[test]
+    fn a_few_actors_keep_their_last_contacts() {
+        let mut ring = DecalRing::new(DEFAULT_PER_ACTOR, DVec2::ZERO);
+        observe(&mut ring, 3, 0..1500);
+        assert_eq!(ring.kept_per_actor(), DEFAULT_PER_ACTOR);
+        assert_eq!(ring.len(), 3 * DEFAULT_PER_ACTOR);
+        // The newest are kept: actor 0's last decal is at its last step.
+        let last = ring.actors[0].back().expect("decals").place[0];
+        assert!((last - 1499.0 * 0.3).abs() < 1e-2, "{last}");
+    }
+
+    #[test]
+    fn a_crowd_shares_the_budget() {
+        let mut ring = DecalRing::new(DEFAULT_PER_ACTOR, DVec2::ZERO);
+        observe(&mut ring, 16, 0..1200);
+        assert_eq!(ring.len(), 16 * DEFAULT_PER_ACTOR);
+        // A crowd joins: the first sixteen give up their oldest contacts.
+        observe(&mut ring, 16_384, 1200..1210);
+        assert_eq!(ring.kept_per_actor(), DECAL_BUDGET / 16_384);
+        assert!(ring.len() <= DECAL_BUDGET, "{} decals", ring.len());
+        assert!(ring.actors.iter().all(|r| r.len() <= ring.kept_per_actor() && r.capacity() <= DEFAULT_PER_ACTOR));
+        assert!(ring.actors[0].capacity() < DEFAULT_PER_ACTOR, "the early rings kept their memory");
+        let last = ring.actors[0].back().expect("decals").place[0];
+        assert!((last - 1209.0 * 0.3).abs() < 1e-2, "{last}");
     }
 }

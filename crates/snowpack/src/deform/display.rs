@@ -55,10 +55,12 @@ impl DisplayParams {
     }
 
     /// The choices a display pipeline is built for (`DISPLAY_VARIANT` in
-    /// `display.wgsl`): `mode | blur << 2 | use_fallen << 3`.
+    /// `display.wgsl`): `mode | blur << 2 | use_fallen << 3 | bare << 4`,
+    /// where bare is no snow at all (`depth_m` 0 and no snowfall).
     #[must_use]
     pub fn variant(&self) -> u32 {
-        (self.mode & 3) | (u32::from(self.blur != 0) << 2) | (u32::from(self.use_fallen != 0) << 3)
+        let bare = self.use_fallen == 0 && self.depth_m <= 0.0;
+        (self.mode & 3) | (u32::from(self.blur != 0) << 2) | (u32::from(self.use_fallen != 0) << 3) | (u32::from(bare) << 4)
     }
 }
 

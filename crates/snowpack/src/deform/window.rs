@@ -10,6 +10,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -175,7 +176,8 @@ impl TerrainParams {
 
 /// Writes fresh, untouched snow into newly exposed texels (`window.wgsl`).
 pub struct WindowPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of [`WindowParams::flags`] in use.
+    pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }
@@ -184,11 +186,13 @@ impl WindowPass {
     /// Builds the pipeline and binds it to `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "window",
             shaders::WINDOW,
             &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false), layout::storage(2, false), layout::storage(3, false)],
+            "WINDOW_FLAGS",
+            &[],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");
         let bind_group = layout::bind_group(
@@ -197,7 +201,7 @@ impl WindowPass {
             &bgl,
             &[params.as_entire_binding(), res.snow.as_entire_binding(), res.stamps.as_entire_binding(), res.fallen.as_entire_binding()],
         );
-        Self { pipeline, params, bind_group }
+        Self { pipelines, params, bind_group }
     }
 
     /// Records the exposure of `rects` (nothing when empty).
@@ -207,7 +211,7 @@ impl WindowPass {
         params.rect_count = count;
         params.rects = fixed;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        layout::dispatch(encoder, timer, "window", &self.pipeline, &self.bind_group, grid);
+        layout::dispatch(encoder, timer, "window", &self.pipelines.get(params.flags), &self.bind_group, grid);
     }
 }
 

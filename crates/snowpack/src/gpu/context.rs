@@ -61,6 +61,9 @@ impl AdapterSummary {
 struct ErrorSink {
     errors: Mutex<Vec<String>>,
     lost: Mutex<Option<String>>,
+    /// Set when a guarded call was interrupted by wgpu's GL context-lock
+    /// panic ([`GpuContext::guarded`]); the context counts as lost from then on.
+    gl_locked: Mutex<Option<String>>,
 }
 
 /// Which adapter snowpack's own selection ([`GpuContext::new_headless`],
@@ -384,8 +387,47 @@ impl GpuContext {
         /// unlike [`Self::check`] this leaves any reported errors in place.
         #[must_use]
         fn lost_reason(&self) -> Option<String> {
-            self.sink.lost.lock().ok().and_then(|s| s.clone())
+            self.sink.lost.lock().ok().and_then(|s| s.clone()).or_else(|| self.gl_lock_reason())
         }
+    }
+
+    /// Why the context counts as lost after wgpu's GL context-lock panic
+    /// interrupted a guarded call, once it has.
+    fn gl_lock_reason(&self) -> Option<String> {
+        self.sink.gl_locked.lock().ok().and_then(|s| s.clone())
+    }
+
+    /// Runs a front-door call's GPU work, turning wgpu's GL context-lock
+    /// panic into [`SnowError::DeviceLost`].
+    ///
+    /// wgpu's GL backend panics ("Could not lock adapter context") when a
+    /// call waits more than 6 s for the context another thread holds; on a
+    /// software rasteriser a submission runs in the submitting thread,
+    /// context held, so one long frame of another thread is enough. The
+    /// interrupted call leaves wgpu's state unknown, so the context counts
+    /// as lost from then on: [`Self::check`] reports it, and every later
+    /// guarded call fails at once with the same reason instead of waiting
+    /// 6 s again. Other panics go on. (The panic's message is still printed
+    /// by the panic hook, which is the program's, not the library's.)
+    pub(crate) fn guarded<T, E: From<SnowError>>(&self, work: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+        if let Some(reason) = self.gl_lock_reason() {
+            return Err(SnowError::DeviceLost(reason).into());
+        }
+        // Unwind safety: after the lock panic nothing the work touched is
+        // used again by snowpack's guarded calls, which fail at once above.
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)).unwrap_or_else(|payload| match panic_text(&*payload) {
+            Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => {
+                let reason = format!(
+                    "the OpenGL context could not be locked in the middle of a call ({text}): another thread held it for over 6 s; \
+                     the call was cut short, so make a new context (or choose another backend, --backend vulkan)"
+                );
+                if let Ok(mut slot) = self.sink.gl_locked.lock() {
+                    slot.get_or_insert(reason.clone());
+                }
+                Err(SnowError::DeviceLost(reason).into())
+            }
+            _ => std::panic::resume_unwind(payload),
+        })
     }
 
     low_level_pub! {
@@ -409,10 +451,12 @@ impl GpuContext {
     low_level_pub! {
         /// Waits for all submitted work, with a timeout, then checks for errors.
         fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
-            self.device
-                .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
-                .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
-            self.check(context).map_err(Into::into)
+            self.guarded(|| {
+                self.device
+                    .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
+                    .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
+                self.check(context).map_err(Into::into)
+            })
         }
     }
 }

@@ -269,7 +269,7 @@ impl<M> ReadbackRing<M> {
 
 /// Copies a whole buffer into a staging buffer and waits for it (blocking).
 pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, crate::error::SnowError> {
-    map_blocking(ctx, &copy_to_staging(ctx, buffer))
+    ctx.guarded(|| map_blocking(ctx, &copy_to_staging(ctx, buffer)))
 }
 
 /// [`read_buffer`] without blocking (see [`MappedRead`]).
@@ -415,7 +415,7 @@ impl TextureReadback {
     /// Waits for the copy (submitted by the caller) and returns the texels row
     /// by row without padding, 4 bytes each, in the texture's own channel order.
     pub fn read(&self, ctx: &crate::GpuContext) -> Result<Vec<u8>, crate::error::SnowError> {
-        let bytes = map_blocking(ctx, &self.staging)?;
+        let bytes = ctx.guarded(|| map_blocking(ctx, &self.staging))?;
         Ok(self.unpad(&bytes))
     }
 

@@ -170,6 +170,10 @@ impl Renderer {
         params: RenderParams,
         output_format: wgpu::TextureFormat,
     ) -> Result<Self, SnowError> {
+        ctx.guarded(|| Self::build(ctx, snow, env, params, output_format))
+    }
+
+    fn build(ctx: &GpuContext, snow: &SnowDeformation, env: &EnvironmentMap, params: RenderParams, output_format: wgpu::TextureFormat) -> Result<Self, SnowError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let flags = ctx.downlevel;
         if !flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
@@ -525,6 +529,10 @@ impl Renderer {
         camera: &Camera,
         size: (u32, u32),
     ) -> Result<Vec<u8>, SnowError> {
+        ctx.guarded(|| self.render_image_unguarded(ctx, snow, actors, camera, size))
+    }
+
+    fn render_image_unguarded(&mut self, ctx: &GpuContext, snow: &SnowDeformation, actors: &[Deformer], camera: &Camera, size: (u32, u32)) -> Result<Vec<u8>, SnowError> {
         let device = &ctx.device;
         if self.image.as_ref().is_none_or(|(_, s)| *s != size) {
             let texture = device.create_texture(&wgpu::TextureDescriptor {
@@ -552,6 +560,10 @@ impl Renderer {
 
     /// Waits for outstanding timestamp readbacks and collects them.
     pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| self.finish_unguarded(ctx))
+    }
+
+    fn finish_unguarded(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         ctx.wait_idle("finishing render timings")?;
         self.timer.collect();
         Ok(())

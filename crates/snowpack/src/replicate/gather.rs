@@ -8,6 +8,7 @@ use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::persist::TileKey;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use super::tile::{ShareClock, SharedTile};
@@ -76,7 +77,8 @@ pub fn unpack_tiles(keys: &[TileKey], side: u32, clock: ShareClock, packed: &[u3
 
 /// Copies whole tiles out of the window.
 pub struct TileGatherPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
     keys: wgpu::Buffer,
     packed: wgpu::Buffer,
@@ -89,7 +91,7 @@ impl TileGatherPass {
     /// tiles of `side` a dispatch.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, side: u32, capacity: u32) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "tile gather",
             shaders::TILE_GATHER,
@@ -101,6 +103,8 @@ impl TileGatherPass {
                 layout::storage(4, true),
                 layout::storage(5, false),
             ],
+            "GATHER_FLAGS",
+            &[],
         );
         let params = layout::uniform_buffer::<TileGatherParams>(device, "tile gather params");
         let keys = crate::tiles::input_buffer(device, "tile gather keys", u64::from(capacity) * 8);
@@ -123,7 +127,7 @@ impl TileGatherPass {
                 packed.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, keys, packed, bind_group, capacity }
+        Self { pipelines, params, keys, packed, bind_group, capacity }
     }
 
     /// Tiles one dispatch gathers at most.
@@ -156,7 +160,7 @@ impl TileGatherPass {
         let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(keys));
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-        layout::dispatch(encoder, timer, "tile gather", &self.pipeline, &self.bind_group, (blocks * blocks, p.count));
+        layout::dispatch(encoder, timer, "tile gather", &self.pipelines.get(p.flags), &self.bind_group, (blocks * blocks, p.count));
         p.count
     }
 }

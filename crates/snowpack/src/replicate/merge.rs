@@ -8,6 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use super::gather::{PACKED_PLANES, packed_tile_bytes};
@@ -103,7 +104,8 @@ pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
 
 /// Folds uploaded tiles into the window.
 pub struct TileMergePass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
     keys: wgpu::Buffer,
     tiles: wgpu::Buffer,
@@ -117,7 +119,7 @@ impl TileMergePass {
     /// tiles of `side` a dispatch.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, side: u32, capacity: u32) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "tile merge",
             shaders::TILE_MERGE,
@@ -132,6 +134,7 @@ impl TileMergePass {
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
                 layout::storage(8, true),
             ],
+            "MERGE_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<TileMergeParams>(device, "tile merge params");
@@ -154,7 +157,7 @@ impl TileMergePass {
                 history.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, keys, tiles, history, bind_group, capacity }
+        Self { pipelines, params, keys, tiles, history, bind_group, capacity }
     }
 
     /// Tiles one dispatch merges at most.
@@ -190,7 +193,7 @@ impl TileMergePass {
         }
         queue.write_buffer(&self.tiles, 0, bytemuck::cast_slice(&tiles[..count * area * PACKED_PLANES]));
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-        layout::dispatch(encoder, timer, "tile merge", &self.pipeline, &self.bind_group, (blocks * blocks, p.count));
+        layout::dispatch(encoder, timer, "tile merge", &self.pipelines.get(p.flags), &self.bind_group, (blocks * blocks, p.count));
         p.count
     }
 }

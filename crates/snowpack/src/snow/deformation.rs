@@ -204,9 +204,11 @@ impl SnowDeformation {
                 .into());
             }
         }
-        let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
-        ctx.check("creating the deformation passes")?;
-        Ok(this)
+        ctx.guarded(|| {
+            let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
+            ctx.check("creating the deformation passes")?;
+            Ok(this)
+        })
     }
 
     fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
@@ -421,7 +423,7 @@ impl SnowDeformation {
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];
     /// `joint_count` is its skin's.
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, crate::SnowError> {
-        self.characters.add(ctx, mesh, joint_count).map_err(Into::into)
+        ctx.guarded(|| self.characters.add(ctx, mesh, joint_count).map_err(Into::into))
     }
 
     low_level_pub! {
@@ -482,15 +484,17 @@ impl SnowDeformation {
     /// (without waiting); fails on GPU errors. Returns the ticket of the
     /// frame's point queries, if it asked any.
     pub fn step_frame(&mut self, ctx: &GpuContext, frame: &SnowFrame<'_>) -> Result<Option<QueryTicket>, crate::SnowError> {
-        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
-        let ticket = ctx.capturing(|| {
-            let ticket = self.encode(ctx, &mut encoder, frame);
-            ctx.queue.submit([encoder.finish()]);
-            ticket
-        });
-        self.collect_arrived(ctx);
-        ctx.check("deformation frame")?;
-        Ok(ticket)
+        ctx.guarded(|| {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snow frame") });
+            let ticket = ctx.capturing(|| {
+                let ticket = self.encode(ctx, &mut encoder, frame);
+                ctx.queue.submit([encoder.finish()]);
+                ticket
+            });
+            self.collect_arrived(ctx);
+            ctx.check("deformation frame")?;
+            Ok(ticket)
+        })
     }
 
     low_level_pub! {
@@ -538,6 +542,10 @@ impl SnowDeformation {
     /// Waits for every outstanding readback (point answers and timings);
     /// for the end of a headless run or a test, never in a frame loop.
     pub fn finish(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| self.finish_readbacks(ctx))
+    }
+
+    fn finish_readbacks(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         ctx.wait_idle("finishing readbacks")?;
         // An idle GPU is not enough: another thread polling the same device
         // (a game's loader, parallel tests) may have taken the answers'

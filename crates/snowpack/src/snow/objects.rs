@@ -13,6 +13,10 @@ impl SnowDeformation {
     /// Places `objects` for snow to settle on (replacing any before, and their
     /// snow): lays out their atlas and builds the accumulation passes.
     pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| self.set_objects_unguarded(ctx, objects))
+    }
+
+    fn set_objects_unguarded(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), crate::SnowError> {
         if objects.is_empty() {
             self.accumulation = None;
             self.core.update_pass.bind_sky(&ctx.device, &self.core.res, None);
@@ -38,6 +42,10 @@ impl SnowDeformation {
     /// from the GPU, so this blocks; for a save, a test or a debug panel, not
     /// every frame. Empty without objects.
     pub fn read_object_stats(&self, ctx: &GpuContext) -> Result<Vec<crate::accumulate::ObjectStats>, crate::SnowError> {
+        ctx.guarded(|| self.read_object_stats_unguarded(ctx))
+    }
+
+    fn read_object_stats_unguarded(&self, ctx: &GpuContext) -> Result<Vec<crate::accumulate::ObjectStats>, crate::SnowError> {
         match &self.accumulation {
             Some(acc) => Ok(acc.stats(&acc.read_atlas(ctx)?)),
             None => Ok(Vec::new()),

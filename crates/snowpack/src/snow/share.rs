@@ -26,6 +26,10 @@ impl SnowDeformation {
     /// [`crate::SnowPeer`] to send, and the tiles it receives are folded in. Calling it again changes the side and
     /// the interval and forgets pending tiles.
     pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| self.enable_sharing_unguarded(ctx, tile_side, interval_s))
+    }
+
+    fn enable_sharing_unguarded(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
         if !SHARE_TILE_SIDES.contains(&tile_side) {
             return Err(SnowError::InvalidParameter { field: "tile_side", why: format!("{tile_side} is outside 8..=256 texels") }.into());
         }

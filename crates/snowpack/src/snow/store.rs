@@ -45,7 +45,11 @@ impl SnowDeformation {
     /// first frame, once. When the store holds a save ([`Self::save`]), the
     /// window's clock, snowfall and position are loaded from it and `true`
     /// returned.
-    pub fn attach_store(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, crate::SnowError> {
+    pub fn attach_store(&mut self, ctx: &GpuContext, streamer: TileStreamer) -> Result<bool, crate::SnowError> {
+        ctx.guarded(|| self.attach_store_unguarded(ctx, streamer))
+    }
+
+    fn attach_store_unguarded(&mut self, ctx: &GpuContext, mut streamer: TileStreamer) -> Result<bool, crate::SnowError> {
         if self.frame > 0 || self.store_attached {
             return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() }.into());
         }
@@ -103,6 +107,10 @@ impl SnowDeformation {
     /// Saving needs a disk store: with tiles kept in memory only (the
     /// default) or not at all it is an error naming `store`.
     pub fn save(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| self.save_unguarded(ctx))
+    }
+
+    fn save_unguarded(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
         let (low, high, _) = self.stamp_range();
         let origin = self.core.window.origin();
         let Some(tiles) = self.tiles.as_mut().filter(|t| !t.is_memory_only()) else {

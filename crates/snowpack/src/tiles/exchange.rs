@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -57,7 +58,8 @@ struct Direction {
 
 /// Stashes leaving texels into their tiles and loads entering ones from theirs.
 pub struct ExchangePass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     stash: Direction,
     load: Direction,
 }
@@ -67,7 +69,7 @@ impl ExchangePass {
     /// and their key `table` (tile key -> slot).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer, table: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "exchange",
             shaders::EXCHANGE,
@@ -81,6 +83,7 @@ impl ExchangePass {
                 layout::storage(6, true),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
+            "EXCHANGE_FLAGS",
             &res.terrain_constants(),
         );
         let direction = |label: &str| {
@@ -102,7 +105,7 @@ impl ExchangePass {
             );
             Direction { params, bind_group }
         };
-        Self { pipeline, stash: direction("exchange stash"), load: direction("exchange load") }
+        Self { pipelines, stash: direction("exchange stash"), load: direction("exchange load") }
     }
 
     /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
@@ -116,6 +119,6 @@ impl ExchangePass {
         let direction = if stash { &self.stash } else { &self.load };
         queue.write_buffer(&direction.params, 0, bytemuck::bytes_of(&params));
         let label = if stash { "tile stash" } else { "tile load" };
-        layout::dispatch(encoder, timer, label, &self.pipeline, &direction.bind_group, grid);
+        layout::dispatch(encoder, timer, label, &self.pipelines.get(params.flags), &direction.bind_group, grid);
     }
 }

@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -100,7 +101,8 @@ impl Default for RestoreEntry {
 
 /// Writes restored or fresh tiles into their slots.
 pub struct TileRestorePass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     bgl: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     entries: wgpu::Buffer,
@@ -112,7 +114,7 @@ impl TileRestorePass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "tile restore",
             shaders::TILE_RESTORE,
@@ -124,13 +126,14 @@ impl TileRestorePass {
                 layout::storage(4, true),
                 layout::storage(5, false),
             ],
+            "RESTORE_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
         let entries = super::input_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);
         let upload = super::input_buffer(device, "tile upload", 16);
         let bind_group = Self::group(device, &bgl, &params, &entries, &upload, res, tiles);
-        Self { pipeline, bgl, params, entries, upload, bind_group }
+        Self { pipelines, bgl, params, entries, upload, bind_group }
     }
 
     fn group(
@@ -190,7 +193,7 @@ impl TileRestorePass {
             queue.write_buffer(&self.upload, 0, bytemuck::cast_slice(upload));
         }
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile restore", &self.pipeline, &self.bind_group, (groups, params.count));
+        layout::dispatch(encoder, timer, "tile restore", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its upload and entry buffers).

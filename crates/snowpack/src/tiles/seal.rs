@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -36,7 +37,8 @@ impl SealParams {
 
 /// Seals the snow plane of listed slots, `[col, row, slot, 0]` each.
 pub struct TileSealPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     bgl: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     entries: wgpu::Buffer,
@@ -47,7 +49,7 @@ impl TileSealPass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "tile seal",
             shaders::TILE_SEAL,
@@ -58,12 +60,13 @@ impl TileSealPass {
                 layout::storage(3, true),
                 layout::storage(4, false),
             ],
+            "SEAL_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");
         let entries = super::input_buffer(device, "tile seal entries", 64 * 16);
         let bind_group = Self::group(device, &bgl, &params, &entries, res, tiles);
-        Self { pipeline, bgl, params, entries, bind_group }
+        Self { pipelines, bgl, params, entries, bind_group }
     }
 
     fn group(
@@ -106,7 +109,7 @@ impl TileSealPass {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(entries));
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile seal", &self.pipeline, &self.bind_group, (groups, params.count));
+        layout::dispatch(encoder, timer, "tile seal", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its entry list).

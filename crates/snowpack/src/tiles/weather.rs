@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -58,7 +59,8 @@ impl WeatherParams {
 
 /// Lets time pass on resident tiles the window does not cover.
 pub struct TileWeatherPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of flags in use.
+    pipelines: SpecialisedPipeline,
     params: wgpu::Buffer,
     slots: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -69,7 +71,7 @@ impl TileWeatherPass {
     /// the terrain description in `res` (the ground under each texel).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "tile weather",
             shaders::TILE_WEATHER,
@@ -81,6 +83,7 @@ impl TileWeatherPass {
                 layout::storage(4, true),
                 layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
+            "WEATHER_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
@@ -99,7 +102,7 @@ impl TileWeatherPass {
                 res.terrain_params.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, slots, bind_group }
+        Self { pipelines, params, slots, bind_group }
     }
 
     /// Records this frame's weather on the listed `slots` (nothing when it
@@ -113,7 +116,7 @@ impl TileWeatherPass {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile weather", &self.pipeline, &self.bind_group, (groups, params.count));
+        layout::dispatch(encoder, timer, "tile weather", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its slot list).
