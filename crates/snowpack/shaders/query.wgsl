@@ -38,6 +38,21 @@ struct Sample {
 }
 
 @group(0) @binding(0) var<uniform> params: QueryParams;
+
+// Whether the rest height includes snowfall, as this pipeline is built
+// (`QueryPass` builds one per value in use, gpu/specialised.rs); the default
+// reads `params.use_fallen`.
+// Built in, no branch tests a uniform alone: Mesa 22's lavapipe compiles
+// such a shader again at every dispatch, uniforms inlined, and keeps every
+// copy (docs/deformation.md, "Branches on uniforms").
+override QUERY_USE_FALLEN: u32 = 0xffffffffu;
+
+fn query_uses_fallen() -> bool {
+    if QUERY_USE_FALLEN != 0xffffffffu {
+        return QUERY_USE_FALLEN != 0u;
+    }
+    return params.use_fallen != 0u;
+}
 @group(0) @binding(1) var<storage, read> points: array<vec2<f32>>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
@@ -99,7 +114,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var l01 = 0.0;
     var l10 = 0.0;
     var l11 = 0.0;
-    if params.use_fallen != 0u {
+    if query_uses_fallen() {
         l00 = fallen[s00];
         l01 = fallen[s01];
         l10 = fallen[s10];

@@ -59,6 +59,21 @@ struct SnowCoatParams {
 @group(0) @binding(8) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(9) var sky: texture_2d<f32>;
 
+// The inputs this pipeline is built for, `use_fallen | use_sky << 1`
+// (`SnowCoatPass` builds one per set in use, gpu/specialised.rs); the
+// default reads them from `params`. Built in, no branch tests a uniform
+// alone: Mesa 22's lavapipe compiles such a shader again at every dispatch,
+// uniforms inlined, and keeps every copy (docs/deformation.md, "Branches on
+// uniforms").
+override COAT_INPUTS: u32 = 0xffffffffu;
+
+fn coat_inputs() -> u32 {
+    if COAT_INPUTS != 0xffffffffu {
+        return COAT_INPUTS;
+    }
+    return min(params.use_fallen, 1u) | (min(params.use_sky, 1u) << 1u);
+}
+
 const SKY_BIAS_M: f32 = 0.02;
 // The circle's eight directions (cos, sin of k * 45 degrees).
 const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
@@ -70,7 +85,7 @@ const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
 fn texel_height(g: vec2<i32>, s: u32) -> vec2<f32> {
     let t = texel_ground(terrain_params, g, params.texel_m);
     var lying = 0.0;
-    if params.use_fallen != 0u {
+    if (coat_inputs() & 1u) != 0u {
         lying = fallen[s];
     }
     let rest = t + params.depth_m + lying;
@@ -107,7 +122,7 @@ fn height_at(q: vec2<f32>) -> vec2<f32> {
 
 // 1 where the sky reaches window-local point q at height h (update.wgsl's test).
 fn sky_reaches(q0: vec2<f32>, h: f32) -> f32 {
-    if params.use_sky == 0u {
+    if (coat_inputs() & 2u) == 0u {
         return 1.0;
     }
     let q = q0 + params.sky_shear * (h - params.sky_y0_m) + params.sky_offset_m;

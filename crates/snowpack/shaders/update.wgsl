@@ -63,6 +63,10 @@ const USE_SKY: u32 = 8u;
 const HAS_STAMPS: u32 = 16u;
 // Shared snow: flag the tiles of texels a press changed.
 const SHARE: u32 = 32u;
+// Footprints refill this frame (refill_quanta > 0): a flag, so that no
+// branch tests a uniform alone (Mesa 22's lavapipe compiles such a shader
+// again at every dispatch and keeps every copy; docs/deformation.md).
+const REFILLS: u32 = 64u;
 const SKY_BIAS_M: f32 = 0.02;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
@@ -150,7 +154,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (update_flags() & USE_STAMPS) != 0u {
             deficit = max(deficit, snow_press_quanta(rest, ground, stamp_height(hq, params.low_m, params.high_m)));
         }
-        if params.refill_quanta > 0u {
+        if (update_flags() & REFILLS) != 0u {
             let foot = fq + params.refill_quanta;
             if foot > 65535u || stamp_height(foot, params.low_m, params.high_m) >= rest {
                 stamps[s] = STAMP_EMPTY;

@@ -8,7 +8,7 @@
 //!
 //! GL only (Vulkan has no context lock): on another backend the test says
 //! so and returns; `.ci/run` runs the library's tests on GL as well. It owns
-//! its context, which it leaves unusable, and takes about 20 s.
+//! its context, which it leaves unusable, and takes about 15 s.
 
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -31,7 +31,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 /// How long the other thread's submission is made to take (s): well over
 /// wgpu's 6 s lock timeout, so that a machine three times faster than the
 /// calibration found it still holds the context long enough.
-const HOLD_S: f64 = 20.0;
+const HOLD_S: f64 = 14.0;
 
 /// One dispatch of [`BUSY`] on `ctx`'s device.
 struct Busy {
@@ -52,27 +52,41 @@ impl Busy {
             compilation_options: wgpu::PipelineCompilationOptions::default(),
             cache: None,
         });
-        let out = device.create_buffer(&wgpu::BufferDescriptor { label: Some("busy out"), size: 256 * 256 * 4, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false });
-        let iterations =
-            device.create_buffer(&wgpu::BufferDescriptor { label: Some("busy iterations"), size: 16, usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
+        let out = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("busy out"),
+            size: 256 * 256 * 4,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let iterations = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("busy iterations"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("busy"),
             layout: &pipeline.get_bind_group_layout(0),
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: out.as_entire_binding() }, wgpu::BindGroupEntry { binding: 1, resource: iterations.as_entire_binding() }],
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: out.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: iterations.as_entire_binding() },
+            ],
         });
         Self { pipeline, bind_group, iterations }
     }
 
-    /// Submits one dispatch of `iterations` steps; on GL (llvmpipe) the
-    /// submit returns when the work is done.
-    fn submit(&self, ctx: &GpuContext, iterations: u32) {
+    /// Submits `dispatches` dispatches of `iterations` steps in one
+    /// submission; on GL (llvmpipe) the submit returns when the work is done.
+    fn submit(&self, ctx: &GpuContext, iterations: u32, dispatches: u32) {
         ctx.queue.write_buffer(&self.iterations, 0, bytemuck::cast_slice(&[iterations, 0, 0, 0]));
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("busy") });
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("busy"), timestamp_writes: None });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.dispatch_workgroups(32, 32, 1);
+            for _ in 0..dispatches {
+                pass.dispatch_workgroups(32, 32, 1);
+            }
         }
         ctx.queue.submit([encoder.finish()]);
     }
@@ -92,23 +106,28 @@ fn a_frame_that_cannot_lock_the_gl_context_fails_with_an_error() {
     snow.step_frame(&ctx, &snowpack::SnowFrame::new(1.0 / 60.0, &ball)).expect("a frame while nothing holds the context");
     ctx.wait_idle("before the calibration").expect("idle");
 
-    // Calibrate: a short dispatch's time (the submit is the work on GL),
-    // then the iterations for HOLD_S.
+    // Calibrate: dispatches of doubling length (the submit is the work on
+    // GL) until one takes half a second, then enough of that one in a
+    // single submission for HOLD_S (a dispatch's time does not grow in
+    // proportion to its iterations; the submission's grows with its
+    // dispatches).
     let busy = Busy::new(&ctx);
-    busy.submit(&ctx, 8);
-    let probe = 2000;
-    let start = Instant::now();
-    busy.submit(&ctx, probe);
-    let per_iteration = start.elapsed().as_secs_f64() / f64::from(probe);
-    let iterations = (HOLD_S / per_iteration).clamp(f64::from(probe), 2e9) as u32;
-    eprintln!("{probe} iterations took {:.2} s; the other thread submits {iterations}", per_iteration * f64::from(probe));
+    let (mut probe, mut took) = (1000_u32, 0.0);
+    while took < 0.5 && probe < 1 << 30 {
+        probe *= 2;
+        let start = Instant::now();
+        busy.submit(&ctx, probe, 1);
+        took = start.elapsed().as_secs_f64();
+    }
+    let dispatches = (HOLD_S / took).ceil() as u32;
+    eprintln!("{probe} iterations took {took:.2} s; the other thread submits {dispatches} of them");
 
     let (started, wait_started) = mpsc::channel();
     let outcome = std::thread::scope(|scope| {
         let holder = scope.spawn(|| {
             started.send(()).expect("the frame's thread waits for this");
             let start = Instant::now();
-            busy.submit(&ctx, iterations);
+            busy.submit(&ctx, probe, dispatches);
             start.elapsed()
         });
         wait_started.recv().expect("the other thread started");

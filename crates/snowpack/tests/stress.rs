@@ -13,8 +13,9 @@
 //!   with a crowd's contacts (500 MiB for 16,384 actors) and Mesa 22's
 //!   lavapipe keeping a compiled copy of a shader at every dispatch when
 //!   one of its branches tests uniforms alone (docs/PERFORMANCE.md,
-//!   "Stress"). `.ci/run` runs these tests on the system's lavapipe, on
-//!   llvmpipe's GL and on lavapipe from Mesa 25.
+//!   "Stress"). `.ci/run` runs these tests on the system's adapter (Debian
+//!   12's lavapipe, the driver that keeps those copies); the figures on
+//!   llvmpipe's GL and on lavapipe from Mesa 25 are in the same section.
 //!
 //! Prints the wall time per frame and the memory figures (software
 //! adapters: ratios only).
@@ -54,7 +55,7 @@ fn heap_bytes() -> i64 {
 const HEAP_BOUND: i64 = 2 << 20;
 
 /// Most the resident memory may grow after warm-up (bytes): measured
-/// within MEASURED on Mesa 22's lavapipe and GL and on Mesa 25's lavapipe
+/// within 1 MiB on Mesa 22's lavapipe and GL and on Mesa 25's lavapipe
 /// (docs/PERFORMANCE.md, "Stress"). A tile of the points' window (64 KiB)
 /// kept each frame, or a decal ring per actor filling, would pass it within
 /// the 150 frames after warm-up.

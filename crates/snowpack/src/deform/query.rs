@@ -9,6 +9,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
 use crate::frame::FrameContext;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::gpu::{ReadbackRing, layout};
 use crate::shaders;
 
@@ -163,7 +164,8 @@ low_level_some_fields! {
 /// Gathers asked points on the GPU and brings the answers back through a ring.
 #[doc(hidden)]
 pub struct QueryPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline with snowfall in the rest height, one without (as used).
+    pipelines: SpecialisedPipeline,
     bgl: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     points: wgpu::Buffer,
@@ -194,7 +196,7 @@ impl QueryPass {
     /// Builds the pipeline over `res` with room for a first few hundred points.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "query",
             shaders::QUERY,
@@ -207,13 +209,14 @@ impl QueryPass {
                 layout::storage(5, false),
                 layout::uniform(6, wgpu::ShaderStages::COMPUTE),
             ],
+            "QUERY_USE_FALLEN",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<QueryParams>(device, "query params");
         let (points, samples) = buffers(device, INITIAL_CAPACITY);
         let bind_group = Self::bind(device, &bgl, &params, &points, &samples, res);
         let ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
-        Self { pipeline, bgl, params, points, samples, bind_group, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
+        Self { pipelines, bgl, params, points, samples, bind_group, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
     }
 
     fn bind(
@@ -271,7 +274,7 @@ impl QueryPass {
         if count > 0 {
             queue.write_buffer(&self.points, 0, bytemuck::cast_slice(local));
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&QueryParams { count, ..params }));
-            layout::dispatch(encoder, timer, "query", &self.pipeline, &self.bind_group, (layout::groups(count, 64), 1));
+            layout::dispatch(encoder, timer, "query", &self.pipelines.get(u32::from(params.use_fallen != 0)), &self.bind_group, (layout::groups(count, 64), 1));
         }
         self.ring.record_copy_len(encoder, &self.samples, len, tag);
         self.stats.gathered += 1;

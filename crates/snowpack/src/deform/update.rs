@@ -76,6 +76,11 @@ impl UpdateParams {
     /// Shared snow: flag the tile of every texel whose deficit a press
     /// raised (`res.share_flags`, [`crate::replicate::flags`]).
     pub const SHARE: u32 = 32;
+    /// Footprints refill this frame (`refill_quanta > 0`): set by
+    /// [`UpdatePass::record`] so that no branch of the shader tests a
+    /// uniform alone (Mesa 22's lavapipe compiles such a shader again at
+    /// every dispatch and keeps every copy).
+    pub const REFILLS: u32 = 64;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
@@ -148,7 +153,12 @@ impl UpdatePass {
     /// Records the update for this frame.
     pub fn record(&self, cx: &mut FrameContext<'_>, params: &UpdateParams) {
         let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        let params = &UpdateParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
+        let refills = if params.refill_quanta > 0 { UpdateParams::REFILLS } else { 0 };
+        let params = &UpdateParams {
+            storage_origin: super::window::storage_origin(params.origin, params.resolution),
+            flags: (params.flags & !UpdateParams::REFILLS) | refills,
+            ..*params
+        };
         if self.written.get() != Some(*params) {
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
             self.written.set(Some(*params));

@@ -173,7 +173,13 @@ impl Renderer {
         ctx.guarded(|| Self::build(ctx, snow, env, params, output_format))
     }
 
-    fn build(ctx: &GpuContext, snow: &SnowDeformation, env: &EnvironmentMap, params: RenderParams, output_format: wgpu::TextureFormat) -> Result<Self, SnowError> {
+    fn build(
+        ctx: &GpuContext,
+        snow: &SnowDeformation,
+        env: &EnvironmentMap,
+        params: RenderParams,
+        output_format: wgpu::TextureFormat,
+    ) -> Result<Self, SnowError> {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let flags = ctx.downlevel;
         if !flags.contains(wgpu::DownlevelFlags::VERTEX_STORAGE) {
@@ -532,7 +538,14 @@ impl Renderer {
         ctx.guarded(|| self.render_image_unguarded(ctx, snow, actors, camera, size))
     }
 
-    fn render_image_unguarded(&mut self, ctx: &GpuContext, snow: &SnowDeformation, actors: &[Deformer], camera: &Camera, size: (u32, u32)) -> Result<Vec<u8>, SnowError> {
+    fn render_image_unguarded(
+        &mut self,
+        ctx: &GpuContext,
+        snow: &SnowDeformation,
+        actors: &[Deformer],
+        camera: &Camera,
+        size: (u32, u32),
+    ) -> Result<Vec<u8>, SnowError> {
         let device = &ctx.device;
         if self.image.as_ref().is_none_or(|(_, s)| *s != size) {
             let texture = device.create_texture(&wgpu::TextureDescriptor {

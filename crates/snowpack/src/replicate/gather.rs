@@ -7,8 +7,8 @@ use bytemuck::{Pod, Zeroable};
 use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::persist::TileKey;
 use crate::gpu::specialised::SpecialisedPipeline;
+use crate::persist::TileKey;
 use crate::shaders;
 
 use super::tile::{ShareClock, SharedTile};

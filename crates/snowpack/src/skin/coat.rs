@@ -11,6 +11,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 use super::skinning::SkinnedInstance;
@@ -116,6 +117,13 @@ pub struct SnowCoatParams {
 }
 
 impl SnowCoatParams {
+    /// The inputs a coat pipeline is built for (`COAT_INPUTS` in
+    /// `snow_coat.wgsl`): `use_fallen | use_sky << 1`.
+    #[must_use]
+    pub fn inputs(&self) -> u32 {
+        u32::from(self.use_fallen != 0) | (u32::from(self.use_sky != 0) << 1)
+    }
+
     /// The settings' part of the uniforms.
     #[must_use]
     pub fn with_settings(mut self, s: &CoatSettings) -> Self {
@@ -147,7 +155,8 @@ pub struct CoatGround<'a> {
 
 /// The pass: one pipeline for every character.
 pub struct SnowCoatPass {
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per set of inputs in use ([`SnowCoatParams::inputs`]).
+    pipelines: SpecialisedPipeline,
     layout: wgpu::BindGroupLayout,
     params: Vec<wgpu::Buffer>,
 }
@@ -155,8 +164,8 @@ pub struct SnowCoatPass {
 impl SnowCoatPass {
     /// Builds the pipeline for a window whose terrain kind `terrain_constants` names.
     #[must_use]
-    pub fn new(device: &wgpu::Device, terrain_constants: &[(&str, f64)]) -> Self {
-        let (pipeline, layout) = layout::compute_pipeline_with(
+    pub fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
+        let (pipelines, layout) = SpecialisedPipeline::new(
             device,
             "snow coat",
             shaders::SNOW_COAT,
@@ -172,9 +181,10 @@ impl SnowCoatPass {
                 layout::uniform(8, wgpu::ShaderStages::COMPUTE),
                 layout::depth_texture(9),
             ],
+            "COAT_INPUTS",
             terrain_constants,
         );
-        Self { pipeline, layout, params: Vec::new() }
+        Self { pipelines, layout, params: Vec::new() }
     }
 
     /// Makes sure `characters` characters can be recorded in one frame: one
@@ -209,7 +219,7 @@ impl SnowCoatPass {
                 wgpu::BindingResource::TextureView(ground.sky),
             ],
         );
-        layout::dispatch(encoder, timer, "snow coat", &self.pipeline, &bind_group, (layout::groups(instance.vertex_count, 64), 1));
+        layout::dispatch(encoder, timer, "snow coat", &self.pipelines.get(params.inputs()), &bind_group, (layout::groups(instance.vertex_count, 64), 1));
         encoder.copy_buffer_to_buffer(&instance.skinned, 0, &instance.previous, 0, u64::from(instance.vertex_count) * 12);
     }
 }

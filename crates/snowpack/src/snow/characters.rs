@@ -44,7 +44,7 @@ pub(super) struct Characters {
 
 impl Characters {
     /// No characters yet.
-    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&str, f64)]) -> Self {
+    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
         Self {
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),

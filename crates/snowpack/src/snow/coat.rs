@@ -27,7 +27,7 @@ pub(super) struct Coats {
 
 impl Coats {
     /// No characters yet; the pass for a window whose terrain kind `terrain_constants` names.
-    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&str, f64)]) -> Self {
+    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
         Self {
             pass: SnowCoatPass::new(device, terrain_constants),
             settings: Vec::new(),
