@@ -19,13 +19,17 @@
 //! `include_str!` so cargo rebuilds on a change. A missing file, a malformed
 //! directive or an import cycle fails the build with a message naming it.
 //! The resolver is `build/imports.rs`; `docs/rendering.md` ("Shader files")
-//! documents the directive.
+//! documents the directive. A shader with a branch on uniforms alone fails
+//! the build too (`build/uniform_branches.rs`; docs/deformation.md,
+//! "Branches on uniforms").
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 #[path = "build/imports.rs"]
 mod imports;
+#[path = "build/uniform_branches.rs"]
+mod uniform_branches;
 
 fn main() {
     // Read when the script runs, not when it was compiled: a build script
@@ -63,6 +67,18 @@ fn main() {
         naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
             .validate(&module)
             .unwrap_or_else(|e| panic!("WGSL validation error in {name} ({parts:?}):\n{}", e.emit_to_string(&source)));
+        let findings: Vec<String> = uniform_branches::find(&module, &source)
+            .into_iter()
+            .filter(|f| !uniform_branches::ALLOWED.iter().any(|(shader, function, _)| *shader == name && *function == f.function))
+            .map(|f| format!("  fn {} (line {} of the composed source): {}", f.function, f.line, f.text))
+            .collect();
+        assert!(
+            findings.is_empty(),
+            "shaders/{pass}.wgsl ({parts:?}) branches on uniforms alone (Mesa 22's lavapipe compiles such a shader again at every \
+             dispatch and keeps every copy; make the choice an `override` constant, a select, or test the invocation's value first; \
+             docs/deformation.md, \"Branches on uniforms\"):\n{}",
+            findings.join("\n")
+        );
         let includes: Vec<String> =
             parts.iter().map(|p| format!("include_str!(concat!(env!(\"CARGO_MANIFEST_DIR\"), \"/shaders/{p}.wgsl\")), \"\\n\"")).collect();
         writeln!(out, "/// WGSL of `shaders/{pass}.wgsl` with its imports: {parts:?}.\npub const {name}: &str = concat!({});", includes.join(", "))

@@ -21,10 +21,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let i = id.y * params.width + id.x;
     let bit = 1u << params.pass_index;
-    var mask = shaded[i];
-    if params.pass_index == 0u {
-        mask = 0u;
-    }
+    // The first pass starts the mask afresh: a select, not a branch on a
+    // uniform alone (Mesa 22's lavapipe compiles such a shader again at
+    // every dispatch and keeps every copy; docs/deformation.md).
+    var mask = select(shaded[i], 0u, params.pass_index == 0u);
     if textureLoad(peel_depth, vec2<i32>(id.xy), 0).r > 0.0 {
         atomicAdd(&counts[params.pass_index], 1u);
         mask |= bit;

@@ -48,11 +48,12 @@ fn fs_extend(@builtin(position) pos: vec4<f32>) -> @builtin(frag_depth) f32 {
 @fragment
 fn fs_composite(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let p = vec2<i32>(pos.xy);
-    var c = textureLoad(accumulated, p, 0);
-    if params.debug_pass > 0u {
-        let bit = (shaded[u32(p.y) * params.width + u32(p.x)] >> (params.debug_pass - 1u)) & 1u;
-        // Over the shaded result: green where this pass shaded, dimmed elsewhere.
-        c = select(vec4<f32>(0.0, 0.0, 0.0, 0.5), vec4<f32>(0.0, 0.6, 0.0, 0.6), bit == 1u);
-    }
-    return c;
+    let c = textureLoad(accumulated, p, 0);
+    // A debug pass shows over the shaded result: green where that pass
+    // shaded, dimmed elsewhere. Chosen by a select: with a branch on the
+    // uniform alone, Mesa 22's lavapipe compiles this shader again at every
+    // draw and keeps every copy (docs/deformation.md, "Branches on uniforms").
+    let bit = (shaded[u32(p.y) * params.width + u32(p.x)] >> (params.debug_pass - 1u)) & 1u;
+    let shown = select(vec4<f32>(0.0, 0.0, 0.0, 0.5), vec4<f32>(0.0, 0.6, 0.0, 0.6), bit == 1u);
+    return select(c, shown, params.debug_pass > 0u);
 }

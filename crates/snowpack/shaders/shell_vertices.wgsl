@@ -1,4 +1,5 @@
 // #import shared/terrain
+// #import shared/terrain_kind
 // #import shared/shell
 
 // Shell construction, step 1 of 2 (Figure 4): the base surface S as it is
@@ -35,6 +36,20 @@ struct BaseVertex {
 @group(0) @binding(2) var<storage, read> surface: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(4) var<uniform> terrain_params: TerrainParams;
+
+// The mode this pipeline is built for (`ShellVertexPass` builds one per
+// mode in use, gpu/specialised.rs); the default reads `params.mode`. Built
+// in, no branch tests a uniform alone: Mesa 22's lavapipe compiles such a
+// shader again at every dispatch and keeps every copy (docs/deformation.md,
+// "Branches on uniforms").
+override SHELL_MODE: u32 = 0xffffffffu;
+
+fn shell_mode() -> u32 {
+    if SHELL_MODE != 0xffffffffu {
+        return SHELL_MODE;
+    }
+    return params.mode;
+}
 @group(0) @binding(5) var<storage, read_write> vertices: array<ShellVertex>;
 
 // cos and sin of the texture's turn (0.5 rad), as in the CPU twin.
@@ -52,7 +67,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if k >= params.count {
         return;
     }
-    if params.mode == 0u {
+    if shell_mode() == 0u {
         let v = base[k];
         let top = v.position.xyz + v.normal.xyz * params.thickness_m;
         vertices[k] = ShellVertex(v.position, vec4<f32>(top, v.normal.w));
@@ -66,7 +81,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let z = params.corner.y + (f32(row) + 0.5) * params.texel_m;
     let y = bitcast<f32>(texel.x);
     let n = unpack_normal(texel.y);
-    let rest = terrain_height(terrain_params, x, z) + params.depth_m;
+    let rest = terrain_height_built(terrain_params, x, z) + params.depth_m;
     let pressed = max(rest - y, 0.0);
     let fraction = clamp(1.0 - pressed / params.flatten_m, params.min_fraction, 1.0);
     let p = vec3<f32>(x, y, z);

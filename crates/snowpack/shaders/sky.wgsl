@@ -23,13 +23,15 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
-    if frame.background.w > 0.5 {
-        return vec4<f32>(frame.background.rgb, 1.0);
-    }
+    // A solid background instead of the sky, by a select: with a branch on
+    // the uniform alone, Mesa 22's lavapipe compiles this shader again at
+    // every draw and keeps every copy (docs/deformation.md, "Branches on
+    // uniforms").
+    let solid = frame.background.w > 0.5;
     // Reverse-Z: depth 1 is the near plane.
     let near = frame.inv_view_proj * vec4<f32>(in.ndc, 1.0, 1.0);
     let d = normalize(near.xyz / near.w - frame.camera.xyz);
     let b = equirect_taps(dir_equirect(d), frame.env_info.x, frame.env_info.y, 0u);
     let c = bilinear_mix(b, env_full[b.i00].rgb, env_full[b.i01].rgb, env_full[b.i10].rgb, env_full[b.i11].rgb);
-    return vec4<f32>(c * frame.sun_color.w, 1.0);
+    return vec4<f32>(select(c * frame.sun_color.w, frame.background.rgb, solid), 1.0);
 }

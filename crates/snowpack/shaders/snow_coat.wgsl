@@ -161,16 +161,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         c = max(c, min(c + params.cling_per_s * under * dt, params.cap_m));
     }
     // Snowfall.
-    if params.fall_m > 0.0 && n.y > 0.0 {
+    // The vertex's test first: a branch on uniforms alone would have Mesa
+    // 22's lavapipe compile this shader again at every dispatch.
+    if n.y > 0.0 && params.fall_m > 0.0 {
         c = max(c, min(c + params.fall_m * n.y * sky_reaches(q, p.y), params.cap_m));
     }
     // Melting and shaking off.
     c = max(c - params.melt_m_per_s * dt, 0.0);
-    if params.has_previous != 0u && dt > 0.0 {
-        let moved = length(p - vec3<f32>(previous[v * 3u], previous[v * 3u + 1u], previous[v * 3u + 2u]));
-        if moved <= params.teleport_m && moved > params.shake_speed_m_per_s * dt {
-            c = c * exp(-params.shake_per_s * dt);
-        }
+    // Without last frame's positions `previous` holds no positions (it is
+    // read, not used); the vertex's test comes first, as above.
+    let moved = length(p - vec3<f32>(previous[v * 3u], previous[v * 3u + 1u], previous[v * 3u + 2u]));
+    if moved <= params.teleport_m && moved > params.shake_speed_m_per_s * dt && params.has_previous != 0u && dt > 0.0 {
+        c = c * exp(-params.shake_per_s * dt);
     }
     coat[v] = c;
 }

@@ -78,7 +78,9 @@ fn snow_rest_height(world_xz: vec2<f32>) -> f32 {
 fn snow_inside(world_xz: vec2<f32>) -> bool {
     let extent = f32(snow_window.resolution) * snow_window.texel_m;
     let q = world_xz - snow_window.corner;
-    return snow_window.placed != 0u && all(q >= vec2<f32>(0.0)) && all(q <= vec2<f32>(extent));
+    // The point's tests first: a branch on the uniform alone has Mesa 22's
+    // lavapipe compile the shader again at every draw and keep every copy.
+    return all(q >= vec2<f32>(0.0)) && all(q <= vec2<f32>(extent)) && snow_window.placed != 0u;
 }
 
 // The four texels around a point inside the window and the bilinear weights.

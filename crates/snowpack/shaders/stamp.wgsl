@@ -85,7 +85,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             let packed = (stamp_quantise(h, params.low_m, params.high_m) << 16u) | stamp_quantise(foot_h, params.low_m, params.high_m);
             let s = storage_index_wrapped(params.storage_origin, params.resolution, u32(i), u32(j));
             let old = atomicMin(&stamps[s], packed);
-            if params.share_side != 0u && packed < old {
+            // The texel's test first (a branch on a uniform alone has Mesa
+            // 22's lavapipe compile this shader again at every dispatch).
+            if packed < old && params.share_side != 0u {
                 atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(j, i), params.share_side, params.share_keys)], 1u);
             }
         }

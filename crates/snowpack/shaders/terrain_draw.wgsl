@@ -28,14 +28,14 @@ struct VsOut {
 
 // Same as `lod_bonus` in src/render/lod.rs: detail is shifted closer by up
 // to `bonus` metres over the deformation window, fading out over `margin`.
+// None before the window is placed. No branch in this file tests uniforms alone: Mesa 22's lavapipe compiles such a
+// shader again at every draw, uniforms inlined, and keeps every copy
+// (docs/deformation.md, "Branches on uniforms"); a select chooses instead.
 fn lod_bonus(xz: vec2<f32>) -> f32 {
-    if frame.window_info.y == 0u {
-        return 0.0;
-    }
     let lo = frame.window.xy;
     let hi = lo + vec2<f32>(frame.window.z);
     let q = max(max(lo - xz, xz - hi), vec2<f32>(0.0));
-    return frame.lod.x * clamp(1.0 - length(q) / frame.lod.y, 0.0, 1.0);
+    return select(frame.lod.x * clamp(1.0 - length(q) / frame.lod.y, 0.0, 1.0), 0.0, frame.window_info.y == 0u);
 }
 
 fn lod_distance(xz: vec2<f32>) -> f32 {
@@ -51,12 +51,9 @@ fn window_texel(xz: vec2<f32>) -> vec2<f32> {
 // 1 well inside the window, falling to 0 over its outermost 4 texels, so the
 // displayed surface joins the undeformed snow outside without a step.
 fn window_weight(t: vec2<f32>) -> f32 {
-    if frame.window_info.y == 0u {
-        return 0.0;
-    }
     let last = f32(frame.window_info.x - 1u);
     let edge = min(min(t.x, t.y), min(last - t.x, last - t.y));
-    return clamp(edge / 4.0, 0.0, 1.0);
+    return select(clamp(edge / 4.0, 0.0, 1.0), 0.0, frame.window_info.y == 0u);
 }
 
 struct Taps {
@@ -106,7 +103,7 @@ fn window_ao(k: Taps) -> f32 {
 }
 
 fn ground_height(xz: vec2<f32>) -> f32 {
-    return terrain_height(terrain_as_built(terrain_params), xz.x, xz.y);
+    return terrain_height_built(terrain_params, xz.x, xz.y);
 }
 
 // Undisturbed snow: terrain plus the rest depth.
@@ -212,7 +209,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
 
     // Decals (the decal technique's footprints): premultiplied normal x, z, tint, coverage.
     var tint = 1.0;
-    if frame.window_info.w != 0u && w > 0.0 {
+    if w > 0.0 && frame.window_info.w != 0u {
         let r = i32(frame.window_info.x) - 1;
         let texel = clamp(vec2<i32>(floor(t + 0.5)), vec2<i32>(0), vec2<i32>(r));
         let decal = textureLoad(decal_layer, texel, 0);
@@ -240,35 +237,24 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let s = Surface(in.world, n, albedo, roughness, ao, frame.scatter.rgb, frame.scatter.a, sparkle);
     var colour = shade(s);
 
-    switch frame.window_info.z {
-        case VIEW_NORMALS: {
-            colour = n * 0.5 + 0.5;
-        }
-        case VIEW_AO: {
-            colour = vec3<f32>(ao);
-        }
-        case VIEW_LOD: {
-            colour = lod_colour(in.level) * (0.35 + 0.65 * max(dot(n, frame.sun.xyz), 0.0));
-        }
-        case VIEW_WIREFRAME: {
-            let f = abs(fract(in.grid - 0.5) - 0.5) / max(grid_w, vec2<f32>(1e-5));
-            // Fade the lines where quads shrink below ~5 pixels, so distant
-            // levels show their colour instead of a moire of lines.
-            let density = max(grid_w.x, grid_w.y);
-            let line = (1.0 - clamp(min(f.x, f.y), 0.0, 1.0)) * clamp(1.0 - (density - 0.2) / 0.15, 0.15, 1.0);
-            // Patch borders stay visible at any distance: the quadtree's layout.
-            let in_patch = in.grid / in.quads;
-            let pf = abs(fract(in_patch - 0.5) - 0.5) / max(grid_w / in.quads, vec2<f32>(1e-6));
-            let border = 1.0 - clamp(min(pf.x, pf.y) - 0.5, 0.0, 1.0);
-            colour = mix(colour, lod_colour(in.level) * 2.0, max(line, border));
-        }
-        case VIEW_DEFORMATION: {
-            // Red: pressed below rest (fraction of the depth); blue: raised (rims).
-            let signed_depth = (rest - h) / max(frame.snow.x, 1e-4);
-            let base = vec3<f32>(0.12);
-            colour = base + vec3<f32>(max(signed_depth, 0.0), 0.0, max(-signed_depth * 4.0, 0.0));
-        }
-        default: {}
-    }
+    // The debug views, chosen by selects (see the top of `lod_bonus`): each
+    // costs a few operations a pixel.
+    let view = frame.window_info.z;
+    // Wireframe: fade the lines where quads shrink below ~5 pixels, so
+    // distant levels show their colour instead of a moire of lines; patch
+    // borders stay visible at any distance (the quadtree's layout).
+    let f = abs(fract(in.grid - 0.5) - 0.5) / max(grid_w, vec2<f32>(1e-5));
+    let density = max(grid_w.x, grid_w.y);
+    let line = (1.0 - clamp(min(f.x, f.y), 0.0, 1.0)) * clamp(1.0 - (density - 0.2) / 0.15, 0.15, 1.0);
+    let in_patch = in.grid / in.quads;
+    let pf = abs(fract(in_patch - 0.5) - 0.5) / max(grid_w / in.quads, vec2<f32>(1e-6));
+    let border = 1.0 - clamp(min(pf.x, pf.y) - 0.5, 0.0, 1.0);
+    // Deformation: red pressed below rest (fraction of the depth), blue raised (rims).
+    let signed_depth = (rest - h) / max(frame.snow.x, 1e-4);
+    colour = select(colour, n * 0.5 + 0.5, view == VIEW_NORMALS);
+    colour = select(colour, vec3<f32>(ao), view == VIEW_AO);
+    colour = select(colour, lod_colour(in.level) * (0.35 + 0.65 * max(dot(n, frame.sun.xyz), 0.0)), view == VIEW_LOD);
+    colour = select(colour, mix(colour, lod_colour(in.level) * 2.0, max(line, border)), view == VIEW_WIREFRAME);
+    colour = select(colour, vec3<f32>(0.12) + vec3<f32>(max(signed_depth, 0.0), 0.0, max(-signed_depth * 4.0, 0.0)), view == VIEW_DEFORMATION);
     return vec4<f32>(colour, 1.0);
 }

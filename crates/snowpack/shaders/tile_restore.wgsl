@@ -51,6 +51,9 @@ struct RestoreEntry {
 
 const FRESH: u32 = 0xffffffffu;
 const USE_FALLEN: u32 = 2u;
+// The slots have a footprint plane (`has_stamp_plane` of the params' planes,
+// set by `TileRestorePass::record`: a flag, so no branch tests uniforms alone).
+const STAMP_PLANE: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: RestoreParams;
 
@@ -133,7 +136,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
-    if has_stamp_plane(params.planes, use_fallen) {
+    if (restore_flags() & STAMP_PLANE) != 0u {
         tiles[base + plane_stamps(params.planes) * area] = t.stamp;
     }
     if (restore_flags() & USE_FALLEN) != 0u {

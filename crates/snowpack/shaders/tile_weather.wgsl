@@ -30,6 +30,9 @@ struct WeatherParams {
 }
 
 const USE_FALLEN: u32 = 2u;
+// The slots have a footprint plane (`has_stamp_plane` of the params' planes,
+// set by `TileWeatherPass::record`: a flag, so no branch tests uniforms alone).
+const STAMP_PLANE: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: WeatherParams;
 
@@ -74,7 +77,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let use_fallen = (weather_flags() & USE_FALLEN) != 0u;
     var t: TexelState;
     t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
-    let stamp_plane = has_stamp_plane(params.planes, use_fallen);
+    let stamp_plane = (weather_flags() & STAMP_PLANE) != 0u;
     t.stamp = STAMP_EMPTY;
     if stamp_plane {
         t.stamp = tiles[base + plane_stamps(params.planes) * area];

@@ -24,8 +24,10 @@ fn aces(x: vec3<f32>) -> vec3<f32> {
 @fragment
 fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
     let c = textureLoad(hdr, vec2<i32>(pos.xy), 0).rgb;
-    if frame.window_info.z != VIEW_LIT && frame.window_info.z != VIEW_WIREFRAME {
-        return vec4<f32>(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
-    }
-    return vec4<f32>(aces(c * frame.snow.w), 1.0);
+    // Debug views other than the wireframe show their colours as they are.
+    // No branch here tests uniforms alone: Mesa 22's lavapipe compiles such a
+// shader again at every draw, uniforms inlined, and keeps every copy
+// (docs/deformation.md, "Branches on uniforms"); a select chooses instead.
+    let debug = (frame.window_info.z != VIEW_LIT) & (frame.window_info.z != VIEW_WIREFRAME);
+    return vec4<f32>(select(aces(c * frame.snow.w), clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)), debug), 1.0);
 }

@@ -94,7 +94,8 @@ fn construct_on_gpu(
     let corners = storage(ctx, "corners", &vec![0u8; face_count as usize * 36 * 4]);
     let dummy_surface = storage(ctx, "surface", &[0u8; 16]);
     let dummy_terrain = buffer(ctx, "terrain params", bytemuck::bytes_of(&TerrainParams::default()), wgpu::BufferUsages::UNIFORM);
-    let fallback = SnowSurface { surface: &dummy_surface, heightmap: &dummy_surface, terrain_params: &dummy_terrain };
+    let fallback =
+        SnowSurface { surface: &dummy_surface, heightmap: &dummy_surface, terrain_params: &dummy_terrain, terrain_constants: [("TERRAIN_KIND", 0.0)] };
     let vertex_pass = ShellVertexPass::new(&ctx.device, &base_buffer, snow.unwrap_or(&fallback), &vertices);
     let tetra_pass = ShellTetraPass::new(&ctx.device, &faces_buffer, &vertices, &tetras, &corners);
     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("shell construction") });
@@ -381,7 +382,8 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     let origin = snow.origin_texel().expect("placed");
     unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled()), [origin[0] as i32, origin[1] as i32]);
     ctx.queue.submit([enc.finish()]);
-    let surface = SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params };
+    let surface =
+        SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params, terrain_constants: res.terrain_constants() };
     let faces = snowpack::low_level::render::shell::ShellPatch { side, stride: 2 }.faces();
     let (gpu, gpu_tetras, gpu_corners) = construct_on_gpu(ctx, &params, &[BaseVertex::default()], &faces, Some(&surface));
     let texels: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("surface"));

@@ -136,16 +136,11 @@ fn shade(s: Surface) -> vec3<f32> {
 
 // What an actor (sphere, box, character) shows in the debug views: its
 // normal, or a neutral grey where the view is about the snow.
+// No branch here tests uniforms alone: Mesa 22's lavapipe compiles such a
+// shader again at every draw, uniforms inlined, and keeps every copy
+// (docs/deformation.md, "Branches on uniforms"); a select chooses instead.
 fn actor_debug_colour(lit: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    switch frame.window_info.z {
-        case VIEW_NORMALS: {
-            return n * 0.5 + 0.5;
-        }
-        case VIEW_AO, VIEW_DEFORMATION: {
-            return vec3<f32>(0.5);
-        }
-        default: {
-            return lit;
-        }
-    }
+    let view = frame.window_info.z;
+    let grey = select(lit, vec3<f32>(0.5), (view == VIEW_AO) | (view == VIEW_DEFORMATION));
+    return select(grey, n * 0.5 + 0.5, view == VIEW_NORMALS);
 }

@@ -88,7 +88,13 @@ fn heightmap_at(t: TerrainParams, x: f32, z: f32) -> f32 {
 }
 
 fn terrain_height(t: TerrainParams, x: f32, z: f32) -> f32 {
-    switch t.kind {
+    return terrain_height_of_kind(t.kind, t, x, z);
+}
+
+// `terrain_height` for a kind given apart from `t` (a pipeline's constant:
+// shared/terrain_kind.wgsl).
+fn terrain_height_of_kind(kind: u32, t: TerrainParams, x: f32, z: f32) -> f32 {
+    switch kind {
         case 1u: {
             return t.base_m + t.amplitude_m * fbm(x / t.wavelength_m, z / t.wavelength_m, t.seed);
         }

@@ -9,12 +9,21 @@
 
 override TERRAIN_KIND: u32 = 255u;
 
-fn terrain_as_built(t: TerrainParams) -> TerrainParams {
-    var built = t;
+// The kind this pipeline is built for (the params' without the constant).
+// Read through the constant, not by overwriting the params' field, so no
+// branch on the terrain tests a uniform alone (Mesa 22's lavapipe compiles
+// such a shader again at every dispatch and keeps every copy;
+// docs/deformation.md, "Branches on uniforms").
+fn terrain_kind(t: TerrainParams) -> u32 {
     if TERRAIN_KIND != 255u {
-        built.kind = TERRAIN_KIND;
+        return TERRAIN_KIND;
     }
-    return built;
+    return t.kind;
+}
+
+// `terrain_height` for the kind this pipeline is built for.
+fn terrain_height_built(t: TerrainParams, x: f32, z: f32) -> f32 {
+    return terrain_height_of_kind(terrain_kind(t), t, x, z);
 }
 
 // Terrain height at the centre of global texel g = (column, row) of a grid of
@@ -24,5 +33,5 @@ fn terrain_as_built(t: TerrainParams) -> TerrainParams {
 fn texel_ground(tp: TerrainParams, g: vec2<i32>, texel_m: f32) -> f32 {
     let x = (f32(g.x) + 0.5) * texel_m;
     let z = (f32(g.y) + 0.5) * texel_m;
-    return terrain_height(terrain_as_built(tp), x, z);
+    return terrain_height_built(tp, x, z);
 }

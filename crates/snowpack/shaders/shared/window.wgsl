@@ -41,12 +41,11 @@ fn rect_texel(k_in: u32, rects: array<vec4<u32>, 2>, count: u32) -> vec3<u32> {
     var k = k_in;
     var rect = rects[0];
     if k >= rect.z * rect.w {
-        if count < 2u {
-            return vec3<u32>(0u);
-        }
         k -= rect.z * rect.w;
         rect = rects[1];
-        if k >= rect.z * rect.w {
+        // Past the last rectangle; `count` tested with `k`, never alone
+        // (a branch on a uniform alone: docs/deformation.md).
+        if k >= rect.z * rect.w || count < 2u {
             return vec3<u32>(0u);
         }
     }

@@ -108,8 +108,8 @@ impl DecalRing {
 
     /// Contacts each actor keeps now (`per_actor`, or fewer when many
     /// actors share [`DECAL_BUDGET`]).
-    #[must_use]
-    pub fn kept_per_actor(&self) -> usize {
+    #[cfg(test)]
+    fn kept_per_actor(&self) -> usize {
         self.kept
     }
 

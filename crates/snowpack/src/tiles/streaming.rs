@@ -61,6 +61,13 @@ pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
     1 + use_fallen as usize + has_stamps as usize
 }
 
+/// Whether a slot of `planes` planes has a footprint plane (as
+/// `shared/tiles.wgsl`'s `has_stamp_plane`).
+#[must_use]
+pub const fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
+    planes > 1 + use_fallen as u32
+}
+
 /// Plane of the packed footprints in a slot of `planes` planes: the last
 /// (only where the window has a footprint buffer).
 #[must_use]

@@ -49,6 +49,9 @@ pub struct WeatherParams {
 impl WeatherParams {
     /// The world has snowfall.
     pub const USE_FALLEN: u32 = 2;
+    /// The slots have a footprint plane: set by [`TileWeatherPass::record`]
+    /// from `planes`, so that the shader's choice is a flag.
+    pub const STAMP_PLANE: u32 = 4;
 
     /// Whether this frame changes anything outside the window.
     #[must_use]
@@ -112,7 +115,9 @@ impl TileWeatherPass {
         if !params.passes_time() || slots.is_empty() {
             return;
         }
-        let params = WeatherParams { count: slots.len() as u32, ..*params };
+        let fallen = params.flags & WeatherParams::USE_FALLEN != 0;
+        let stamps = if super::streaming::has_stamp_plane(params.planes, fallen) { WeatherParams::STAMP_PLANE } else { 0 };
+        let params = WeatherParams { count: slots.len() as u32, flags: (params.flags & !WeatherParams::STAMP_PLANE) | stamps, ..*params };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);

@@ -298,7 +298,7 @@ impl ShellRenderer {
         let corners = storage("shell corners", u64::from(face_count) * 3 * u64::from(CORNERS_PER_TETRA) * 4);
         let res = snow.resources();
         let vertex_pass =
-            ShellVertexPass::new(device, &base, &SnowSurface { surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params }, &vertices);
+            ShellVertexPass::new(device, &base, &SnowSurface { surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params, terrain_constants: res.terrain_constants() }, &vertices);
         let tetra_pass = ShellTetraPass::new(device, &face_buffer, &vertices, &tetras, &corners);
         let pipelines = PeelPipelines::new(device, lit_layout);
         let draw_params = layout::uniform_buffer::<ShellDrawParams>(device, "shell draw params");

@@ -7,6 +7,7 @@
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::gpu::specialised::SpecialisedPipeline;
 use crate::shaders;
 
 /// Parameters of [`ShellVertexPass`] (`ShellVertexParams` in WGSL).
@@ -79,12 +80,16 @@ pub struct SnowSurface<'a> {
     pub heightmap: &'a wgpu::Buffer,
     /// Terrain parameters (uniform).
     pub terrain_params: &'a wgpu::Buffer,
+    /// The terrain kind the pipeline is built for
+    /// (`DeformResources::terrain_constants`).
+    pub terrain_constants: [(&'static str, f64); 1],
 }
 
 /// Transforms the base surface and builds the offset surface, one invocation per vertex.
 pub struct ShellVertexPass {
     params: wgpu::Buffer,
-    pipeline: wgpu::ComputePipeline,
+    /// One pipeline per [`ShellVertexParams::mode`] in use.
+    pipelines: SpecialisedPipeline,
     bind_group: wgpu::BindGroup,
 }
 
@@ -93,7 +98,7 @@ impl ShellVertexPass {
     /// snow mode) and `snow`, writing `vertices`.
     #[must_use]
     pub fn new(device: &wgpu::Device, base: &wgpu::Buffer, snow: &SnowSurface<'_>, vertices: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let (pipelines, bgl) = SpecialisedPipeline::new(
             device,
             "shell vertices",
             shaders::SHELL_VERTICES,
@@ -105,6 +110,8 @@ impl ShellVertexPass {
                 layout::uniform(4, wgpu::ShaderStages::COMPUTE),
                 layout::storage(5, false),
             ],
+            "SHELL_MODE",
+            &snow.terrain_constants,
         );
         let params = layout::uniform_buffer::<ShellVertexParams>(device, "shell vertex params");
         let bind_group = layout::bind_group(
@@ -120,13 +127,13 @@ impl ShellVertexPass {
                 vertices.as_entire_binding(),
             ],
         );
-        Self { params, pipeline, bind_group }
+        Self { params, pipelines, bind_group }
     }
 
     /// Records the pass over `params.count` vertices.
     pub fn record(&self, cx: &mut FrameContext<'_>, params: &ShellVertexParams) {
         let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        layout::dispatch(encoder, timer, "shell vertices", &self.pipeline, &self.bind_group, (layout::groups(params.count, 64), 1));
+        layout::dispatch(encoder, timer, "shell vertices", &self.pipelines.get(params.mode), &self.bind_group, (layout::groups(params.count, 64), 1));
     }
 }
