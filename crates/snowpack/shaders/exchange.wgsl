@@ -4,6 +4,7 @@
 // #import shared/snow_word
 // #import shared/tiles
 // #import shared/tile_table
+// #import shared/pass_flags
 
 // Exchange pass: moves texels between the sliding window and the resident
 // tiles when the window moves (with a tile store attached). `stash` copies
@@ -36,19 +37,6 @@ const HAS_STAMPS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: ExchangeParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override EXCHANGE_FLAGS: u32 = 0xffffffffu;
-
-fn exchange_flags() -> u32 {
-    if EXCHANGE_FLAGS != 0xffffffffu {
-        return EXCHANGE_FLAGS;
-    }
-    return params.flags;
-}
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
 // Tile key -> slot (shared/tiles.wgsl).
 @group(0) @binding(2) var<storage, read> tile_table: array<u32>;
@@ -71,11 +59,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let j = texel.y;
     let res = i32(params.resolution);
     let s = storage_index(params.origin, params.resolution, i, j);
-    let use_fallen = (exchange_flags() & USE_FALLEN) != 0u;
-    let has_stamps = (exchange_flags() & HAS_STAMPS) != 0u;
+    let use_fallen = (pass_flags() & USE_FALLEN) != 0u;
+    let has_stamps = (pass_flags() & HAS_STAMPS) != 0u;
     let n = params.keys_per_side;
     let side = params.side;
-    if (exchange_flags() & STASH) != 0u {
+    if (pass_flags() & STASH) != 0u {
         // The old window's texel at this storage: congruent to it, inside the old window.
         let sj = i32(s % params.resolution);
         let si = i32(s / params.resolution);

@@ -1,5 +1,6 @@
 // #import shared/window
 // #import shared/stamp
+// #import shared/pass_flags
 
 // Tile gather pass (shared snow): copies whole tiles on the global grid out
 // of the window's toroidal buffers into a packed buffer the CPU reads back
@@ -27,19 +28,6 @@ const GATHER_USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: TileGatherParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override GATHER_FLAGS: u32 = 0xffffffffu;
-
-fn gather_flags() -> u32 {
-    if GATHER_FLAGS != 0xffffffffu {
-        return GATHER_FLAGS;
-    }
-    return params.flags;
-}
 @group(0) @binding(1) var<storage, read> keys: array<vec2<i32>>; // tile (column, row)
 @group(0) @binding(2) var<storage, read> snow: array<u32>;
 @group(0) @binding(3) var<storage, read> stamps: array<u32>;
@@ -65,10 +53,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     if local.x >= 0 && local.y >= 0 && local.x < r && local.y < r {
         let s = storage_index(params.origin, params.resolution, u32(local.y), u32(local.x));
         deficit = snow[s] & 0xffffu;
-        if (gather_flags() & GATHER_HAS_STAMPS) != 0u {
+        if (pass_flags() & GATHER_HAS_STAMPS) != 0u {
             stamp = stamps[s];
         }
-        if (gather_flags() & GATHER_USE_FALLEN) != 0u {
+        if (pass_flags() & GATHER_USE_FALLEN) != 0u {
             lying = fallen[s];
         }
     }

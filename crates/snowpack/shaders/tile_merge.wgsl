@@ -3,6 +3,7 @@
 // #import shared/terrain_kind
 // #import shared/stamp
 // #import shared/snow_word
+// #import shared/pass_flags
 
 // Tile merge pass (shared snow): folds tiles from other machines into the
 // window's toroidal buffers (src/replicate/merge.rs). Tiles are packed as
@@ -52,19 +53,6 @@ const MERGE_USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: TileMergeParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override MERGE_FLAGS: u32 = 0xffffffffu;
-
-fn merge_flags() -> u32 {
-    if MERGE_FLAGS != 0xffffffffu {
-        return MERGE_FLAGS;
-    }
-    return params.flags;
-}
 // Per tile: (column, row, first frame of `history` to replay, 0).
 @group(0) @binding(1) var<storage, read> keys: array<vec4<i32>>;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
@@ -96,10 +84,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let area = params.side * params.side;
     let k = t * 3u * area + y * params.side + x;
     let ground = texel_ground(terrain_params, g, params.texel_m);
-    let use_fallen = (merge_flags() & MERGE_USE_FALLEN) != 0u;
+    let use_fallen = (pass_flags() & MERGE_USE_FALLEN) != 0u;
     var d = tiles[k];
     var st = STAMP_EMPTY;
-    if (merge_flags() & MERGE_HAS_STAMPS) != 0u {
+    if (pass_flags() & MERGE_HAS_STAMPS) != 0u {
         st = tiles[k + area];
     }
     var l = 0.0;
@@ -138,7 +126,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let word = snow[s];
     let deficit = min(max(word & 0xffffu, d), snow_press_quanta(rest, ground, ground));
     snow[s] = (word & 0xffff0000u) | deficit;
-    if (merge_flags() & MERGE_HAS_STAMPS) != 0u {
+    if (pass_flags() & MERGE_HAS_STAMPS) != 0u {
         let incoming = st;
         if incoming < stamps[s] {
             if stamp_height(incoming & 0xffffu, params.low_m, params.high_m) >= rest {

@@ -3,6 +3,7 @@
 // #import shared/terrain
 // #import shared/terrain_kind
 // #import shared/snow_word
+// #import shared/pass_flags
 
 // Tile restore pass: makes tiles resident in their slots as the window comes
 // near them. A tile the store held (its heights XOR its rest height, so
@@ -51,25 +52,12 @@ struct RestoreEntry {
 
 const FRESH: u32 = 0xffffffffu;
 const USE_FALLEN: u32 = 2u;
-// The slots have a footprint plane (`has_stamp_plane` of the params' planes,
+// The slots have a footprint plane (a plane left over in the params' planes,
 // set by `TileRestorePass::record`: a flag, so no branch tests uniforms alone).
 const STAMP_PLANE: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: RestoreParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override RESTORE_FLAGS: u32 = 0xffffffffu;
-
-fn restore_flags() -> u32 {
-    if RESTORE_FLAGS != 0xffffffffu {
-        return RESTORE_FLAGS;
-    }
-    return params.flags;
-}
 @group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read> entries: array<RestoreEntry>;
@@ -85,7 +73,7 @@ fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f
     t.fallen = bitcast<f32>(upload[at + 2u * area + i]);
     t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
     if refill_m > 0.0 || fall_m > 0.0 || quanta > 0u {
-        t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (restore_flags() & USE_FALLEN) != 0u);
+        t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (pass_flags() & USE_FALLEN) != 0u);
     }
     return t;
 }
@@ -122,7 +110,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let local = vec2<i32>(i32(gid.x % params.side), i32(gid.x / params.side));
     let g = e.tile * i32(params.side) + local;
     let ground = texel_ground(terrain_params, g, params.texel_m);
-    let use_fallen = (restore_flags() & USE_FALLEN) != 0u;
+    let use_fallen = (pass_flags() & USE_FALLEN) != 0u;
     var t: TexelState;
     if e.upload == FRESH {
         t.fallen = select(0.0, params.fallen_m, use_fallen);
@@ -136,10 +124,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
-    if (restore_flags() & STAMP_PLANE) != 0u {
+    if (pass_flags() & STAMP_PLANE) != 0u {
         tiles[base + plane_stamps(params.planes) * area] = t.stamp;
     }
-    if (restore_flags() & USE_FALLEN) != 0u {
+    if (pass_flags() & USE_FALLEN) != 0u {
         tiles[base + PLANE_FALLEN * area] = bitcast<u32>(t.fallen);
     }
 }

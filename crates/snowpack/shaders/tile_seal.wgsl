@@ -1,6 +1,7 @@
 // #import shared/tiles
 // #import shared/terrain
 // #import shared/terrain_kind
+// #import shared/pass_flags
 
 // Tile seal pass: turns the snow plane of the listed slots into what the
 // store keeps, the snow height's bits XOR the bits of its rest height
@@ -27,19 +28,6 @@ const USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: SealParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override SEAL_FLAGS: u32 = 0xffffffffu;
-
-fn seal_flags() -> u32 {
-    if SEAL_FLAGS != 0xffffffffu {
-        return SEAL_FLAGS;
-    }
-    return params.flags;
-}
 @group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(2) var<storage, read> heightmap: array<f32>;
 @group(0) @binding(3) var<storage, read> entries: array<vec4<i32>>; // (col, row, slot, 0)
@@ -56,7 +44,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ground = texel_ground(terrain_params, g, params.texel_m);
     let base = u32(e.z) * params.planes * area + gid.x;
     var lying = 0.0;
-    if (seal_flags() & USE_FALLEN) != 0u {
+    if (pass_flags() & USE_FALLEN) != 0u {
         lying = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
     }
     tiles[base + PLANE_SNOW * area] ^= bitcast<u32>(ground + params.depth_m + lying);

@@ -2,6 +2,7 @@
 // #import shared/stamp
 // #import shared/terrain
 // #import shared/terrain_kind
+// #import shared/pass_flags
 
 // Tile weather pass: time passes on the resident tiles outside the window.
 // Each frame with refill or snowfall, every texel of a resident tile that the
@@ -30,25 +31,12 @@ struct WeatherParams {
 }
 
 const USE_FALLEN: u32 = 2u;
-// The slots have a footprint plane (`has_stamp_plane` of the params' planes,
+// The slots have a footprint plane (a plane left over in the params' planes,
 // set by `TileWeatherPass::record`: a flag, so no branch tests uniforms alone).
 const STAMP_PLANE: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: WeatherParams;
 
-// The flags this pipeline is built for (one pipeline per set in use,
-// gpu/specialised.rs); the default reads `params.flags`. Built in, no branch
-// tests a uniform alone: Mesa 22's lavapipe compiles such a shader again at
-// every dispatch, uniforms inlined, and keeps every copy
-// (docs/deformation.md, "Branches on uniforms").
-override WEATHER_FLAGS: u32 = 0xffffffffu;
-
-fn weather_flags() -> u32 {
-    if WEATHER_FLAGS != 0xffffffffu {
-        return WEATHER_FLAGS;
-    }
-    return params.flags;
-}
 @group(0) @binding(1) var<storage, read> owners: array<vec4<i32>>; // (col, row, resident, 0) per slot
 @group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
@@ -74,10 +62,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let base = slot * params.planes * area + gid.x;
-    let use_fallen = (weather_flags() & USE_FALLEN) != 0u;
+    let use_fallen = (pass_flags() & USE_FALLEN) != 0u;
     var t: TexelState;
     t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
-    let stamp_plane = (weather_flags() & STAMP_PLANE) != 0u;
+    let stamp_plane = (pass_flags() & STAMP_PLANE) != 0u;
     t.stamp = STAMP_EMPTY;
     if stamp_plane {
         t.stamp = tiles[base + plane_stamps(params.planes) * area];

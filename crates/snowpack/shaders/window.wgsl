@@ -1,4 +1,5 @@
 // #import shared/window
+// #import shared/pass_flags
 
 // Window pass: writes fresh snow (deficit 0: at its rest height) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
@@ -25,20 +26,6 @@ struct WindowParams {
 
 const WORKGROUP: u32 = 256u;
 
-// The flags this pipeline is built for (`WindowPass` builds one per set in
-// use, gpu/specialised.rs); the default reads `params.flags`. Built in, no
-// branch tests a uniform alone: Mesa 22's lavapipe compiles such a shader
-// again at every dispatch, with the uniforms' values inlined, and keeps
-// every copy (docs/deformation.md, "Branches on uniforms").
-override WINDOW_FLAGS: u32 = 0xffffffffu;
-
-fn window_flags() -> u32 {
-    if WINDOW_FLAGS != 0xffffffffu {
-        return WINDOW_FLAGS;
-    }
-    return params.flags;
-}
-
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let texel = rect_texel(gid.x + gid.y * groups.x * WORKGROUP, params.rects, params.rect_count);
@@ -51,10 +38,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     // Untouched: no deficit below the rest height. The displayed half is
     // written by the display pass later in the frame.
     snow[s] = 0u;
-    if (window_flags() & 1u) != 0u {
+    if (pass_flags() & 1u) != 0u {
         fallen[s] = params.fallen_m;
     }
-    if (window_flags() & 2u) != 0u {
+    if (pass_flags() & 2u) != 0u {
         stamps[s] = 0xffffffffu; // no footprint yet
     }
 }

@@ -22,11 +22,6 @@ fn plane_stamps(planes: u32) -> u32 {
     return planes - 1u;
 }
 
-// Whether a slot of `planes` planes has a footprint plane.
-fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
-    return planes > 1u + select(0u, 1u, use_fallen);
-}
-
 // Tile index of global texel coordinate g (floor division).
 fn tile_coord(g: i32, side: u32) -> i32 {
     let local = wrap_index(g, i32(side));

@@ -67,7 +67,7 @@ pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePasse
 
 /// How a slot is laid out: texels per plane, planes, and whether it has the
 /// snowfall plane (the footprint plane is there when a plane is left over:
-/// `shared/tiles.wgsl`'s `has_stamp_plane`).
+/// the passes' `STAMP_PLANE` flag, `tiles::streaming::with_stamp_plane_flag`).
 #[derive(Clone, Copy, Debug)]
 pub struct SlotLayout {
     /// Texels per plane.

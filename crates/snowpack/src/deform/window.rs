@@ -191,7 +191,7 @@ impl WindowPass {
             "window",
             shaders::WINDOW,
             &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false), layout::storage(2, false), layout::storage(3, false)],
-            "WINDOW_FLAGS",
+            "PASS_FLAGS",
             &[],
         );
         let params = layout::uniform_buffer::<WindowParams>(device, "window params");

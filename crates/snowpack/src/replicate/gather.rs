@@ -103,7 +103,7 @@ impl TileGatherPass {
                 layout::storage(4, true),
                 layout::storage(5, false),
             ],
-            "GATHER_FLAGS",
+            "PASS_FLAGS",
             &[],
         );
         let params = layout::uniform_buffer::<TileGatherParams>(device, "tile gather params");

@@ -134,7 +134,7 @@ impl TileMergePass {
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
                 layout::storage(8, true),
             ],
-            "MERGE_FLAGS",
+            "PASS_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<TileMergeParams>(device, "tile merge params");

@@ -83,7 +83,7 @@ impl ExchangePass {
                 layout::storage(6, true),
                 layout::uniform(7, wgpu::ShaderStages::COMPUTE),
             ],
-            "EXCHANGE_FLAGS",
+            "PASS_FLAGS",
             &res.terrain_constants(),
         );
         let direction = |label: &str| {

@@ -46,14 +46,6 @@ impl RestoreParams {
     /// The slots have a footprint plane: set by [`TileRestorePass::record`]
     /// from `planes`, so that the shader's choice is a flag.
     pub const STAMP_PLANE: u32 = 4;
-
-    /// `flags` with [`Self::STAMP_PLANE`] as `planes` says.
-    #[must_use]
-    pub fn with_plane_flag(self) -> Self {
-        let fallen = self.flags & Self::USE_FALLEN != 0;
-        let stamps = if super::streaming::has_stamp_plane(self.planes, fallen) { Self::STAMP_PLANE } else { 0 };
-        Self { flags: (self.flags & !Self::STAMP_PLANE) | stamps, ..self }
-    }
 }
 
 /// One tile made resident (`RestoreEntry` in `tile_restore.wgsl`). The
@@ -137,7 +129,7 @@ impl TileRestorePass {
                 layout::storage(4, true),
                 layout::storage(5, false),
             ],
-            "RESTORE_FLAGS",
+            "PASS_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
@@ -177,11 +169,11 @@ impl TileRestorePass {
         &mut self,
         cx: &mut FrameContext<'_>,
         (res, tiles): (&DeformResources, &wgpu::Buffer),
-        params: RestoreParams,
+        mut params: RestoreParams,
         entries: &[RestoreEntry],
         upload: &[u32],
     ) {
-        let mut params = params.with_plane_flag();
+        params.flags = super::streaming::with_stamp_plane_flag(params.flags, params.planes, (RestoreParams::USE_FALLEN, RestoreParams::STAMP_PLANE));
         let (device, queue) = (cx.device(), cx.queue());
         let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {

@@ -60,7 +60,7 @@ impl TileSealPass {
                 layout::storage(3, true),
                 layout::storage(4, false),
             ],
-            "SEAL_FLAGS",
+            "PASS_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");

@@ -61,11 +61,15 @@ pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
     1 + use_fallen as usize + has_stamps as usize
 }
 
-/// Whether a slot of `planes` planes has a footprint plane (as
-/// `shared/tiles.wgsl`'s `has_stamp_plane`).
+/// A tile pass's `flags` with its footprint-plane bit set where a slot of
+/// `planes` planes has one (a plane left over after the snow and, with
+/// `use_fallen` set in `flags`, the snowfall): the shader's choice as a
+/// flag, so that no branch tests uniforms alone (docs/deformation.md).
+/// `(use_fallen, stamp_plane)` are the pass's bits.
 #[must_use]
-pub const fn has_stamp_plane(planes: u32, use_fallen: bool) -> bool {
-    planes > 1 + use_fallen as u32
+pub(crate) const fn with_stamp_plane_flag(flags: u32, planes: u32, (use_fallen, stamp_plane): (u32, u32)) -> u32 {
+    let has_plane = planes > 1 + (flags & use_fallen != 0) as u32;
+    (flags & !stamp_plane) | if has_plane { stamp_plane } else { 0 }
 }
 
 /// Plane of the packed footprints in a slot of `planes` planes: the last

@@ -86,7 +86,7 @@ impl TileWeatherPass {
                 layout::storage(4, true),
                 layout::uniform(5, wgpu::ShaderStages::COMPUTE),
             ],
-            "WEATHER_FLAGS",
+            "PASS_FLAGS",
             &res.terrain_constants(),
         );
         let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
@@ -115,9 +115,8 @@ impl TileWeatherPass {
         if !params.passes_time() || slots.is_empty() {
             return;
         }
-        let fallen = params.flags & WeatherParams::USE_FALLEN != 0;
-        let stamps = if super::streaming::has_stamp_plane(params.planes, fallen) { WeatherParams::STAMP_PLANE } else { 0 };
-        let params = WeatherParams { count: slots.len() as u32, flags: (params.flags & !WeatherParams::STAMP_PLANE) | stamps, ..*params };
+        let flags = super::streaming::with_stamp_plane_flag(params.flags, params.planes, (WeatherParams::USE_FALLEN, WeatherParams::STAMP_PLANE));
+        let params = WeatherParams { count: slots.len() as u32, flags, ..*params };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);
