@@ -110,7 +110,7 @@ pub fn attach_store(
         StoreKeep::Memory => TileStreamer::in_memory(spec.tile_texels, memory),
         StoreKeep::Disk => {
             let dir = spec.path.clone().unwrap_or_else(|| out.join("store"));
-            let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64 };
+            let config = StoreConfig { disk_budget_bytes: (f64::from(spec.disk_mb) * MIB) as u64, ..StoreConfig::default() };
             if dir.exists() && !dir.is_dir() {
                 return Err(BadInput(format!("{}: [store].path: {} is a file, not a folder", scene.path.display(), dir.display())).into());
             }

@@ -152,6 +152,24 @@ enum Command {
         /// Stop after this many seconds (default: run until stopped).
         #[arg(long)]
         exit_after_s: Option<f64>,
+        /// The world is this scene's `[snow]` and `[terrain]` (tiles of 32²):
+        /// a peer of another world is refused, the first one too, and a store
+        /// keeping another world is bad input. Without it the world is the
+        /// store's, or the first peer's.
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Most bytes of tile files the store keeps (suffix K, M or G for
+        /// KiB, MiB, GiB; 0 = unlimited): past it new tiles are refused and
+        /// kept trails stay.
+        #[arg(long, value_parser = parse_bytes, default_value = "1G")]
+        disk_budget: u64,
+        /// Top speed (m/s) a peer's deformers may move between two of its
+        /// reports (60 fits vehicles; raise it for projectiles).
+        #[arg(long, default_value_t = 60.0, value_parser = parse_speed)]
+        max_speed: f64,
+        /// The world's bounds, X0,Z0,X1,Z1 (m): tiles beyond are refused.
+        #[arg(long, value_parser = parse_bounds)]
+        bounds: Option<[f64; 4]>,
     },
     /// Make a connect token for a server started with --key.
     Token {
@@ -173,6 +191,10 @@ enum Command {
         /// Connect token for a server started with --key.
         #[arg(long)]
         token: Option<PathBuf>,
+        /// The scene whose world to ask about (`[snow]`, `[terrain]`): the
+        /// server answers peers of its own world only (another: exit 2).
+        #[arg(long)]
+        scene: PathBuf,
         /// A point, X,Z (repeatable).
         #[arg(long = "at", value_parser = parse_point, required = true)]
         at: Vec<(f64, f64)>,
@@ -245,12 +267,22 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench { quick, out, only, backend }) => {
             bench::run(quick, &out, only.as_deref(), backend.as_deref())?;
         }
-        Some(Command::Server { listen, store, key, exit_after_s }) => {
-            net::serve(&net::ServerOptions { listen, store, key, exit_after_s })?;
+        Some(Command::Server { listen, store, key, exit_after_s, scene, disk_budget, max_speed, bounds }) => {
+            net::serve(&net::ServerOptions {
+                listen,
+                store,
+                key,
+                exit_after_s,
+                scene,
+                disk_budget_bytes: disk_budget,
+                max_speed_m_per_s: max_speed,
+                bounds_m: bounds,
+            })?;
         }
         Some(Command::Token { key, server, out }) => net::make_token(&key, server, &out)?,
-        Some(Command::Query { connect, token, at }) => {
-            for (point, depth) in at.iter().zip(net::query(connect, token.as_deref(), &at)?) {
+        Some(Command::Query { connect, token, scene, at }) => {
+            let world = net::scene_world(&scene)?;
+            for (point, depth) in at.iter().zip(net::query(connect, token.as_deref(), &world, &at)?) {
                 match depth {
                     Some(d) => println!("depth_m {} {} {d:.6}", point.0, point.1),
                     None => println!("depth_m {} {} none", point.0, point.1),
@@ -264,6 +296,41 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--disk-budget`: bytes, or KiB, MiB, GiB with a suffix K, M, G.
+fn parse_bytes(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let (digits, unit) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (&t[..i], c.to_ascii_uppercase()),
+        _ => (t, 'B'),
+    };
+    let shift = match unit {
+        'B' => 0,
+        'K' => 10,
+        'M' => 20,
+        'G' => 30,
+        _ => return Err(format!("{text:?}: a size is a whole number with an optional K, M or G")),
+    };
+    let n: u64 = digits.parse().map_err(|_| format!("{text:?}: a size is a whole number with an optional K, M or G"))?;
+    n.checked_mul(1 << shift).ok_or_else(|| format!("{text:?} is too large"))
+}
+
+/// `--max-speed`: a positive number of m/s.
+fn parse_speed(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{text:?} is not a positive speed (m/s)")),
+    }
+}
+
+/// `--bounds`: X0,Z0,X1,Z1 with X0 < X1 and Z0 < Z1.
+fn parse_bounds(text: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = text.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| format!("{text:?} is not X0,Z0,X1,Z1"))?;
+    match v.as_slice() {
+        &[x0, z0, x1, z1] if v.iter().all(|x| x.is_finite()) && x0 < x1 && z0 < z1 => Ok([x0, z0, x1, z1]),
+        _ => Err(format!("{text:?} is not X0,Z0,X1,Z1 with X0 < X1 and Z0 < Z1")),
+    }
 }
 
 fn parse_point(text: &str) -> Result<(f64, f64), String> {

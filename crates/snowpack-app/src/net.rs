@@ -21,8 +21,8 @@ use renet2_netcode::{
     ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
     ServerSetupConfig,
 };
-use snowpack::low_level::persist::{StoreConfig, TileStore};
-use snowpack::low_level::replicate::{PeerConfig, RelayConfig, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
+use snowpack::low_level::persist::{StoreConfig, TileStore, WhenFull};
+use snowpack::low_level::replicate::{PeerConfig, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack_app::BadInput;
 
 /// Netcode's protocol id: packets of other programs (or another version of
@@ -32,7 +32,7 @@ const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::low_level::replicate:
 const CHANNEL: u8 = 0;
 /// Bytes a connection's channel may hold unacknowledged; the relay paces
 /// itself well below this (a full reliable channel disconnects).
-const CHANNEL_BYTES: usize = 16 << 20;
+const CHANNEL_BYTES: usize = 4 << 20;
 /// The server's loop period.
 const TICK: Duration = Duration::from_millis(10);
 /// How long a connect token made by `snowpack token` stays valid (s).
@@ -42,6 +42,12 @@ const TOKEN_LIFETIME_S: u64 = 12 * 3600;
 /// repaired by the next digest), so a client that stops reading costs
 /// bounded memory.
 const MAX_BACKLOG: usize = 1024;
+/// Bytes the server keeps for one client while its channel is full: a
+/// client that stops reading is disconnected past it, so it costs at most
+/// this plus its channel ([`CHANNEL_BYTES`]).
+pub const MAX_BACKLOG_BYTES: usize = 4 << 20;
+/// Clients a server takes at once.
+const MAX_CLIENTS: usize = 256;
 /// Tile side of the worlds a `snowpack server` serves when its store does not say.
 pub const DEFAULT_TILE_SIDE: u32 = 32;
 
@@ -100,6 +106,126 @@ pub struct ServerOptions {
     pub key: Option<PathBuf>,
     /// Stop after this many seconds (tests; default: run until killed).
     pub exit_after_s: Option<f64>,
+    /// The scene file whose `[snow]` and `[terrain]` make the world: the
+    /// server's, checked against its store, never a peer's. Without it the
+    /// world is the store's, or the first accepted peer's.
+    pub scene: Option<PathBuf>,
+    /// Bytes of tile files the store may hold; past it new tiles are
+    /// refused and kept ones stay (0: unlimited).
+    pub disk_budget_bytes: u64,
+    /// Top speed (m/s) of a peer's own deformers between two reports.
+    pub max_speed_m_per_s: f64,
+    /// The world's bounds `[x0, z0, x1, z1]` (m): tiles beyond are refused.
+    pub bounds_m: Option<[f64; 4]>,
+}
+
+/// The world of a scene file: its `[snow]` and `[terrain]`, shared in tiles
+/// of [`DEFAULT_TILE_SIDE`]² (as `snowpack run --connect` shares them).
+/// Found on the CPU: no GPU is opened.
+pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
+    let scene = snowpack_scene::Scene::load(path)?;
+    if scene.snow.resolution % DEFAULT_TILE_SIDE != 0 {
+        return Err(BadInput(format!(
+            "{}: [snow].resolution: {} is not a multiple of the shared tile side {DEFAULT_TILE_SIDE}",
+            path.display(),
+            scene.snow.resolution
+        ))
+        .into());
+    }
+    Ok(snowpack::SnowDeformation::world_identity_for(&scene.snow, &scene.terrain, DEFAULT_TILE_SIDE))
+}
+
+/// The scene key a difference between two worlds is about.
+fn scene_key(difference: &str) -> &'static str {
+    let name = difference.split(':').next().unwrap_or_default();
+    match name {
+        "texel size (m)" => "[snow].extent_m / [snow].resolution",
+        "snow depth (m)" => "[snow].depth_m",
+        "refill (m/s)" => "[snow].refill_m_per_s",
+        "snowfall rate (m/s)" => "[snowfall].rate_m_per_s",
+        "most snowfall kept (m)" => "[snowfall].max_m",
+        "snowfall" => "[snowfall]",
+        "terrain" => "[terrain]",
+        "tile side" => "the tile side",
+        _ => "[terrain] heights and [snow].depth_m (the footprint range)",
+    }
+}
+
+/// A store whose saved world is not the scene's: bad input naming both,
+/// and each scene key that differs.
+fn store_mismatch(store: &Path, scene: &Path, differences: &str) -> anyhow::Error {
+    let listed: Vec<String> = differences
+        .split("; ")
+        .map(|d| format!("{}: {}", scene_key(d), d.replace(" here", " in the store").replace(" there", " in the scene")))
+        .collect();
+    BadInput(format!(
+        "--store {}: it keeps another world than --scene {}: {} (start the server on a fresh --store, or with the scene that made it)",
+        store.display(),
+        scene.display(),
+        listed.join("; ")
+    ))
+    .into()
+}
+
+/// Opens the server's store and relay: the world pinned from the scene
+/// (checked against the store's) when there is one.
+fn open_relay(opts: &ServerOptions) -> anyhow::Result<(SnowRelay, f64)> {
+    let world = opts.scene.as_deref().map(scene_world).transpose()?;
+    std::fs::create_dir_all(&opts.store).with_context(|| format!("creating the store folder {}", opts.store.display()))?;
+    let stored = TileStore::side_in(&opts.store).context("reading the store's description")?;
+    let side = match (&world, stored) {
+        (Some(w), Some(s)) if s != w.tile_side => {
+            let scene = opts.scene.as_deref().unwrap_or(Path::new(""));
+            return Err(store_mismatch(&opts.store, scene, &format!("tile side: {s} here, {} there", w.tile_side)));
+        }
+        (Some(w), _) => w.tile_side,
+        (None, s) => s.unwrap_or(DEFAULT_TILE_SIDE),
+    };
+    let config = StoreConfig { disk_budget_bytes: opts.disk_budget_bytes, when_full: WhenFull::RefuseNew };
+    let store = TileStore::open(&opts.store, side, config).with_context(|| format!("opening the tile store {}", opts.store.display()))?;
+    let epoch = world_epoch(&store)?;
+    let relay_config = RelayConfig { max_speed_m_per_s: opts.max_speed_m_per_s, bounds_m: opts.bounds_m, ..RelayConfig::default() };
+    let mut relay = SnowRelay::with_store(store, relay_config).context("resuming the world from the store")?;
+    if let (Some(world), Some(scene)) = (world, opts.scene.as_deref()) {
+        match relay.pin_world(world).map_err(snowpack::ShareError::into_detail) {
+            Ok(()) => {}
+            Err(ShareError::StoreWorld(differences)) => return Err(store_mismatch(&opts.store, scene, &differences)),
+            Err(e) => return Err(e).context("saving the scene's world in the store"),
+        }
+    }
+    Ok((relay, epoch))
+}
+
+/// The relay's work and refusals, as `key=value` fields.
+fn stats_fields(s: &RelayStats) -> String {
+    let r = &s.rejected;
+    format!(
+        "distance_tests={} window_keys_walked={} queries={} tile_bytes_in_memory={} refused_far={} refused_teleports={} refused_world={} \
+         refused_not_welcomed={} refused_rate_bytes={} refused_rate_tiles={} refused_rate_window={} refused_rate_query={} refused_bad_window={} \
+         refused_out_of_bounds={} refused_disk_full={} refused_bad_footprint={} refused_bad_tile={} refused_too_deep={} refused_malformed={} \
+         refused_oversized={} outgoing_dropped={}",
+        s.distance_tests,
+        s.window_keys_walked,
+        s.queries,
+        s.tile_bytes_in_memory,
+        r.far_from_deformers,
+        r.teleports,
+        r.refused,
+        r.not_welcomed,
+        r.rate_bytes,
+        r.rate_tiles,
+        r.rate_window,
+        r.rate_query,
+        r.bad_window,
+        r.out_of_bounds,
+        r.disk_full,
+        r.bad_footprint,
+        r.bad_tile,
+        r.too_deep,
+        r.malformed,
+        r.oversized,
+        r.outgoing_dropped
+    )
 }
 
 /// The world's epoch (Unix seconds) kept in the store, so the world clock
@@ -129,11 +255,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         .into());
     }
     let key = opts.key.as_deref().map(read_key).transpose()?;
-    std::fs::create_dir_all(&opts.store).with_context(|| format!("creating the store folder {}", opts.store.display()))?;
-    let side = TileStore::side_in(&opts.store).context("reading the store's description")?.unwrap_or(DEFAULT_TILE_SIDE);
-    let store = TileStore::open(&opts.store, side, StoreConfig::default()).with_context(|| format!("opening the tile store {}", opts.store.display()))?;
-    let epoch = world_epoch(&store)?;
-    let mut relay = SnowRelay::with_store(store, RelayConfig::default()).context("resuming the world from the store")?;
+    let (mut relay, epoch) = open_relay(opts)?;
     let socket = UdpSocket::bind(opts.listen).with_context(|| format!("listening on {}", opts.listen))?;
     let local = socket.local_addr()?;
     let setup = ServerSetupConfig {
@@ -142,7 +264,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         // every token still valid, so tokens made before a restart (same key)
         // keep working until they expire.
         max_token_lifetime: 0,
-        max_clients: 256,
+        max_clients: MAX_CLIENTS,
         protocol_id: PROTOCOL_ID,
         socket_addresses: vec![vec![local]],
         authentication: match key {
@@ -153,16 +275,21 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     let mut transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
     let mut server = RenetServer::new(connection_config());
     say!(
-        "snowpack server listening on {local} ({}), tiles in {}",
+        "snowpack server listening on {local} ({}), tiles in {}, world {}",
         if key.is_some() { "connect tokens required" } else { "no key: loopback only" },
-        opts.store.display()
+        opts.store.display(),
+        match (&opts.scene, relay.world().is_some()) {
+            (Some(scene), _) => format!("of {}", scene.display()),
+            (None, true) => "kept in the store".to_owned(),
+            (None, false) => "from the first peer".to_owned(),
+        }
     );
     let started = Instant::now();
     let mut last = started;
-    let mut backlog: std::collections::HashMap<u64, VecDeque<Vec<u8>>> = std::collections::HashMap::new();
+    let mut backlog: std::collections::HashMap<u64, Backlog> = std::collections::HashMap::new();
     let mut last_report = started;
     let mut last_store_error: Option<Instant> = None;
-    let mut dropped = 0u64;
+    let mut work = TickWork::default();
     loop {
         let now = Instant::now();
         server.update(now - last);
@@ -186,12 +313,14 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
                 }
             }
         }
+        let before = relay.stats();
         for client_id in server.clients_id() {
             while let Some(bytes) = server.receive_message(client_id, CHANNEL) {
                 relay.receive(client_id, &bytes, world_s);
             }
         }
         relay.update(world_s);
+        work.tick(&before, &relay.stats());
         // Persisted before anything (acknowledgements included) goes out. A
         // store that fails is said (at most every 10 s); the world goes on
         // in memory.
@@ -202,39 +331,36 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             eprintln!("snowpack server: the tile store failed, tiles are kept in memory only until it works again: {e}");
         }
         while let Some((peer, bytes)) = relay.poll_transmit() {
-            let queue = backlog.entry(peer).or_default();
-            if queue.len() >= MAX_BACKLOG {
-                queue.pop_front();
-                dropped += 1;
-            }
-            queue.push_back(bytes);
+            backlog.entry(peer).or_default().push(bytes, &mut work);
         }
         for (peer, queue) in &mut backlog {
-            while let Some(bytes) = queue.front() {
-                if !server.is_connected(*peer) {
-                    queue.clear();
-                    break;
-                }
-                if !server.can_send_message(*peer, CHANNEL, bytes.len()) {
-                    break;
-                }
-                let bytes = queue.pop_front().unwrap_or_default();
-                server.send_message(*peer, CHANNEL, bytes);
+            if queue.bytes > MAX_BACKLOG_BYTES {
+                // It stopped reading: what it is owed is more than it may cost.
+                say!("peer {peer} disconnected: {} bytes waiting for it, over {MAX_BACKLOG_BYTES}", queue.bytes);
+                server.disconnect(*peer);
+                relay.disconnect(*peer);
+                queue.clear();
+                work.slow_disconnects += 1;
+                continue;
             }
+            queue.send(*peer, &mut server);
         }
+        backlog.retain(|peer, _| server.is_connected(*peer));
         transport.send_packets(&mut server);
         if now - last_report >= Duration::from_secs(10) {
             last_report = now;
             let s = relay.stats();
             say!(
-                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused, {dropped} messages dropped for slow clients",
+                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused, {} messages dropped for slow clients; {}",
                 server.connected_clients(),
                 s.tiles_in_memory,
                 s.tiles_merged,
                 s.tiles_received,
                 s.bytes_in,
                 s.bytes_out,
-                s.rejected.total()
+                s.rejected.total(),
+                work.dropped,
+                stats_fields(&s)
             );
         }
         if opts.exit_after_s.is_some_and(|limit| started.elapsed().as_secs_f64() >= limit) {
@@ -243,17 +369,88 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             let s = relay.stats();
             let (cpu_s, peak_kib) = own_usage();
             say!(
-                "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={}",
+                "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={} \
+                 messages_in={} max_tick_bytes_in={} max_tick_distance_tests={} max_tick_window_keys={} slow_disconnects={} backlog_dropped={} {}",
                 started.elapsed().as_secs_f64(),
                 s.tiles_received,
                 s.tiles_merged,
                 s.bytes_in,
                 s.bytes_out,
-                s.rejected.total()
+                s.rejected.total(),
+                s.messages_in,
+                work.max_bytes_in,
+                work.max_distance_tests,
+                work.max_window_keys,
+                work.slow_disconnects,
+                work.dropped,
+                stats_fields(&s)
             );
             return Ok(());
         }
         std::thread::sleep(TICK);
+    }
+}
+
+/// What the server owes one client while its channel is full.
+#[derive(Default)]
+struct Backlog {
+    queue: VecDeque<Vec<u8>>,
+    /// Bytes in `queue`.
+    bytes: usize,
+}
+
+impl Backlog {
+    fn push(&mut self, message: Vec<u8>, work: &mut TickWork) {
+        if self.queue.len() >= MAX_BACKLOG
+            && let Some(old) = self.queue.pop_front()
+        {
+            self.bytes -= old.len();
+            work.dropped += 1;
+        }
+        self.bytes += message.len();
+        self.queue.push_back(message);
+    }
+
+    fn clear(&mut self) {
+        self.queue.clear();
+        self.bytes = 0;
+    }
+
+    /// Moves messages into the client's channel while it has room.
+    fn send(&mut self, peer: u64, server: &mut RenetServer) {
+        while let Some(bytes) = self.queue.front() {
+            if !server.is_connected(peer) {
+                self.clear();
+                return;
+            }
+            if !server.can_send_message(peer, CHANNEL, bytes.len()) {
+                return;
+            }
+            let bytes = self.queue.pop_front().unwrap_or_default();
+            self.bytes -= bytes.len();
+            server.send_message(peer, CHANNEL, bytes);
+        }
+    }
+}
+
+/// The server's work per tick (one pass of its loop), at its largest: what
+/// the closing line reports, so tests can bound it without timing anything.
+#[derive(Default)]
+struct TickWork {
+    max_bytes_in: u64,
+    max_distance_tests: u64,
+    max_window_keys: u64,
+    /// Clients disconnected for not reading.
+    slow_disconnects: u64,
+    /// Messages dropped from full backlogs.
+    dropped: u64,
+}
+
+impl TickWork {
+    fn tick(&mut self, before: &RelayStats, after: &RelayStats) {
+        self.max_bytes_in = self.max_bytes_in.max(after.bytes_in - before.bytes_in);
+        self.max_distance_tests = self.max_distance_tests.max(after.distance_tests - before.distance_tests);
+        self.max_window_keys = self.max_window_keys.max(after.window_keys_walked - before.window_keys_walked);
     }
 }
 
@@ -293,27 +490,35 @@ fn random_id() -> u64 {
 }
 
 /// `snowpack query`: the snow depth at `points` (world x, z in m) from the
-/// server's merged tiles, `None` where the server knows no world yet.
-pub fn query(addr: SocketAddr, token: Option<&Path>, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
+/// server's merged tiles. The server answers peers of its world only: the
+/// query says hello as a peer of `world` first (refused: exit 2).
+pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
     use snowpack::low_level::replicate::{Message, decode, encode};
     let mut link = Transport::connect(addr, token)?;
     let deadline = Instant::now() + CONNECT_LIMIT;
-    let mut sent = false;
+    let (mut hello, mut welcomed, mut sent) = (false, false, false);
     let mut answers = Vec::with_capacity(points.len());
     // At most MAX_DEFORMERS points a message: the query goes in chunks.
     let chunks: Vec<Vec<[f64; 2]>> =
         points.chunks(snowpack::low_level::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
     while answers.len() < chunks.len() {
         link.update()?;
-        if link.client.is_connected() && !sent {
+        if link.client.is_connected() && !hello {
+            link.client.send_message(CHANNEL, encode(&Message::Hello { world: world.clone(), name: "snowpack query".to_owned() }));
+            hello = true;
+        }
+        if welcomed && !sent {
             for (id, chunk) in chunks.iter().enumerate() {
                 link.client.send_message(CHANNEL, encode(&Message::Query { id: id as u32, points: chunk.clone() }));
             }
             sent = true;
         }
         while let Some(bytes) = link.client.receive_message(CHANNEL) {
-            if let Ok(Message::Depths { id, depths }) = decode(&bytes) {
-                answers.push((id, depths));
+            match decode(&bytes) {
+                Ok(Message::Welcome { .. }) => welcomed = true,
+                Ok(Message::Refused { differences }) => return Err(LinkError::Refused { addr, why: differences.join("; ") }.into()),
+                Ok(Message::Depths { id, depths }) => answers.push((id, depths)),
+                _ => {}
             }
         }
         link.send();
@@ -336,7 +541,14 @@ struct Transport {
 
 impl Transport {
     fn connect(addr: SocketAddr, token: Option<&Path>) -> anyhow::Result<Self> {
-        let bind: SocketAddr = if addr.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse()?;
+        // A server on loopback is reached from loopback: nothing else need hear this socket.
+        let bind: SocketAddr = match (addr.is_ipv4(), addr.ip().is_loopback()) {
+            (true, true) => "127.0.0.1:0",
+            (true, false) => "0.0.0.0:0",
+            (false, true) => "[::1]:0",
+            (false, false) => "[::]:0",
+        }
+        .parse()?;
         let socket = UdpSocket::bind(bind).context("a UDP socket for --connect")?;
         let authentication = match token {
             Some(path) => {

@@ -254,7 +254,7 @@ fn the_disk_budget_keeps_the_newest_tiles() {
     let tile = |k: i64| version(TileKey::new(k % 10, k / 10), k as u32 + 1);
     let largest = (0..100).map(|k| encode(&tile(k)).len() as u64).max().unwrap_or(0);
     let budget = 20 * largest;
-    let mut store = TileStore::open(dir.path(), SIDE, StoreConfig { disk_budget_bytes: budget }).expect("open");
+    let mut store = TileStore::open(dir.path(), SIDE, StoreConfig { disk_budget_bytes: budget, ..StoreConfig::default() }).expect("open");
     for k in 0..100 {
         store.write(&tile(k)).expect("write");
         assert!(store.disk_bytes() <= budget, "after tile {k}: {} > {budget}", store.disk_bytes());

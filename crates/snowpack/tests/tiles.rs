@@ -333,7 +333,7 @@ fn temp_dir(name: &str) -> PathBuf {
 
 /// A streamer over a store in `dir` keeping about `memory_tiles` tiles in memory.
 fn streamer(dir: &Path, memory_tiles: usize) -> TileStreamer {
-    let store = TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store opens");
+    let store = TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: 0, ..StoreConfig::default() }).expect("store opens");
     TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_tiles * 3 * 4 * (SIDE * SIDE) as usize, ..StreamerConfig::default() })
 }
 
@@ -563,7 +563,7 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     // Damage the tile holding the trail's start, (-0.9, 0) m: one flipped byte.
     let texel = [(-0.9f64 / 0.0625).floor() as i64, 0];
     let key = snowpack::low_level::persist::TileKey { col: texel[0].div_euclid(i64::from(SIDE)), row: 0 };
-    let path = TileStore::open(&dir, SIDE, StoreConfig { disk_budget_bytes: 0 }).expect("store").tile_path(key);
+    let path = TileStore::open(&dir, SIDE, StoreConfig { disk_budget_bytes: 0, ..StoreConfig::default() }).expect("store").tile_path(key);
     let mut bytes = std::fs::read(&path).expect("tile file");
     let k = bytes.len() - 3;
     bytes[k] ^= 0x40;

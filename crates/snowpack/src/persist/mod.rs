@@ -25,7 +25,7 @@ use std::path::PathBuf;
 
 pub use crate::error::StoreError;
 pub use codec::{FORMAT_VERSION, decode, encode};
-pub use store::{StoreConfig, TileStore};
+pub use store::{DEFAULT_DISK_BUDGET_BYTES, StoreConfig, TileStore, WhenFull};
 pub use streamer::{StoreStats, StreamerConfig, TileLookup, TileStreamer};
 
 /// The largest tile side the format accepts (the whole default window).

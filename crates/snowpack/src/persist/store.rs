@@ -60,14 +60,42 @@ const REGION_SHIFT: u32 = 5;
 /// Longest name `write_state` accepts.
 const MAX_STATE_NAME: usize = 64;
 
-/// How the store may use the disk.
+/// The disk budget of [`StoreConfig::default`]: 1 GiB of tile files (some
+/// 200,000 tiles of 32² texels as a relay keeps them, a few thousand of a
+/// game's 64² height tiles).
+pub const DEFAULT_DISK_BUDGET_BYTES: u64 = 1 << 30;
+
+/// What a store does when a write would take it past its disk budget.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WhenFull {
+    /// Deletes the least recently touched tiles (they come back as fresh
+    /// snow): a game's store, a cache of the world around its player.
+    #[default]
+    EvictOldest,
+    /// Keeps every tile and refuses to write a new one
+    /// ([`StoreError::Io`] of kind [`io::ErrorKind::StorageFull`]); tiles
+    /// already kept may still be rewritten. A server's store, whose
+    /// tiles are other players' trails.
+    RefuseNew,
+}
+
+/// How the store may use the disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StoreConfig {
-    /// Most bytes of tile files to keep (0 = unlimited). Beyond it the least
-    /// recently touched tiles are deleted. `store.meta` and state blobs are
-    /// not counted, and the tile just written is never deleted, so a budget
-    /// smaller than one tile keeps exactly one.
+    /// Most bytes of tile files to keep (0 = unlimited; default
+    /// [`DEFAULT_DISK_BUDGET_BYTES`]). Beyond it, `when_full` says what
+    /// goes. `store.meta` and state blobs are not counted, and the tile just
+    /// written is never deleted, so a budget smaller than one tile keeps
+    /// exactly one.
     pub disk_budget_bytes: u64,
+    /// What a write past the budget does.
+    pub when_full: WhenFull,
+}
+
+impl Default for StoreConfig {
+    fn default() -> Self {
+        Self { disk_budget_bytes: DEFAULT_DISK_BUDGET_BYTES, when_full: WhenFull::EvictOldest }
+    }
 }
 
 /// What the index knows of a tile on disk.
@@ -232,6 +260,7 @@ impl TileStore {
             }
             tile.validate().map_err(|e| e.at(&path))?;
             let bytes = encode(tile);
+            self.refuse_if_full(tile.key, bytes.len() as u64, &path)?;
             // While saving, beside the saved version, for the next save.
             let generation = self.saving.then_some(self.committed + 1);
             let path = generation.map_or(path, |g| generation_path(&self.dir, tile.key, g));
@@ -426,6 +455,15 @@ impl TileStore {
     }
 
     low_level_pub! {
+        /// Whether a new tile may still be written: always, unless the store
+        /// refuses new tiles ([`WhenFull::RefuseNew`]) and its budget is spent.
+        fn has_room(&self) -> bool {
+            let budget = self.config.disk_budget_bytes;
+            self.config.when_full == WhenFull::EvictOldest || budget == 0 || self.total_bytes < budget
+        }
+    }
+
+    low_level_pub! {
         /// The keys of every tile on disk (by the index; no I/O), in no particular order.
         fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
             self.index.keys().copied()
@@ -500,10 +538,21 @@ impl TileStore {
         }
     }
 
-    /// Deletes the least recently touched tiles (never `keep`) until the
-    /// total is within the budget.
-    fn enforce_budget(&mut self, keep: Option<TileKey>) -> Result<(), StoreError> {
+    /// With [`WhenFull::RefuseNew`], refuses a tile not yet kept whose
+    /// `len` bytes would take the store past its budget.
+    fn refuse_if_full(&self, key: TileKey, len: u64, path: &Path) -> Result<(), StoreError> {
         let budget = self.config.disk_budget_bytes;
+        if self.config.when_full != WhenFull::RefuseNew || budget == 0 || self.index.contains_key(&key) || self.total_bytes + len <= budget {
+            return Ok(());
+        }
+        let why = format!("the store's disk budget of {budget} bytes is spent ({} bytes kept); new tiles are refused, kept ones stay", self.total_bytes);
+        Err(StoreError::Io { path: path.to_owned(), op: "write a new tile to", source: io::Error::new(io::ErrorKind::StorageFull, why) })
+    }
+
+    /// Deletes the least recently touched tiles (never `keep`) until the
+    /// total is within the budget (never, when the store refuses new tiles instead).
+    fn enforce_budget(&mut self, keep: Option<TileKey>) -> Result<(), StoreError> {
+        let budget = if self.config.when_full == WhenFull::RefuseNew { 0 } else { self.config.disk_budget_bytes };
         while budget > 0 && self.total_bytes > budget {
             // At most two steps: only `keep` is skipped.
             let Some(&(_, key)) = self.by_age.iter().find(|(_, k)| Some(*k) != keep) else {
@@ -876,7 +925,7 @@ mod tests {
     }
 
     fn open(dir: &Path, budget: u64) -> TileStore {
-        TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: budget }).expect("open the store")
+        TileStore::open(dir, SIDE, StoreConfig { disk_budget_bytes: budget, ..StoreConfig::default() }).expect("open the store")
     }
 
     #[test]
@@ -984,6 +1033,34 @@ mod tests {
         let mut store = open(dir.path(), 0);
         assert_eq!(store.disk_tiles(), keys.len());
         assert!(store.read(TileKey::new(-33, 5)).expect("read").is_some());
+    }
+
+    /// A server's store: filled to its budget, it refuses new tiles and
+    /// keeps every old one (across a reopen too); a kept tile still updates.
+    #[test]
+    fn a_store_that_refuses_new_tiles_keeps_the_old_ones() {
+        let dir = TestDir::new("store-refuse");
+        let size = encode(&tile(0, 0, 1.0)).len() as u64;
+        let config = StoreConfig { disk_budget_bytes: 3 * size + size / 2, when_full: WhenFull::RefuseNew };
+        let mut store = TileStore::open(dir.path(), SIDE, config).expect("open");
+        for col in 0..3 {
+            store.write(&tile(col, 0, 1.0)).expect("write");
+        }
+        assert!(store.has_room(), "half a tile of the budget is left");
+        let refused = store.write(&tile(3, 0, 1.0)).expect_err("past the budget");
+        assert!(matches!(&refused, StoreError::Io { source, .. } if source.kind() == io::ErrorKind::StorageFull), "{refused}");
+        assert!(refused.to_string().contains("disk budget"), "{refused}");
+        assert!(!store.contains(TileKey::new(3, 0)) && !store.tile_path(TileKey::new(3, 0)).exists());
+        store.write(&tile(1, 0, 2.0)).expect("a kept tile is rewritten");
+        assert_eq!(store.evicted(), 0);
+        drop(store);
+        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig { disk_budget_bytes: size, when_full: WhenFull::RefuseNew }).expect("reopen");
+        assert_eq!(store.disk_tiles(), 3, "a smaller budget on reopening deletes nothing");
+        for col in 0..3 {
+            let back = store.read(TileKey::new(col, 0)).expect("read").expect("kept");
+            assert_eq!(back, tile(col, 0, if col == 1 { 2.0 } else { 1.0 }));
+        }
+        assert!(!store.has_room());
     }
 
     #[test]

@@ -34,6 +34,7 @@ pub mod flags;
 pub mod gather;
 pub mod merge;
 pub mod message;
+pub mod motion;
 pub mod peer;
 pub mod relay;
 pub(crate) mod sharing;

@@ -19,6 +19,7 @@ use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileStore};
 
 use super::ShareError;
+use super::motion::{MotionHistory, MotionWork};
 use super::message::{
     MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILE_SIDE, MAX_TILES, MIN_TILE_SIDE, Message, MessageError, TILES_OVERHEAD_BYTES, decode,
     decode_world, encode, encode_tile, encode_world, tiles_message,
@@ -80,6 +81,33 @@ pub struct RelayConfig {
     pub max_clock_lead_s: f64,
     /// How long (s) a reported deformer position lets its peer write near it.
     pub deformer_memory_s: f64,
+    /// How fast (m/s) a peer's own deformers may move between two of its
+    /// reports; a position farther from the last accepted one is refused
+    /// (counted in [`RelayRejections::teleports`]) and lets the peer write
+    /// nothing there. 60 m/s fits vehicles; raise it for projectiles. Not
+    /// applied to positions a game server reports ([`SnowRelay::report_deformers`]).
+    pub max_speed_m_per_s: f64,
+    /// Tiles a second a peer's window changes may make the relay walk (a
+    /// token bucket; the first window of up to [`MAX_INTEREST_TILES`] always fits).
+    pub window_keys_per_s: u32,
+    /// The window bucket's size.
+    pub burst_window_keys: u32,
+    /// Points a second a peer may ask the depth of (`Query`, a token bucket).
+    pub query_points_per_s: u32,
+    /// The query bucket's size.
+    pub burst_query_points: u32,
+    /// Bytes of tiles the relay keeps in memory (their planes and cached
+    /// encodings); beyond it, as beyond `memory_tiles`, the least recently
+    /// used go to the store.
+    pub memory_bytes: usize,
+    /// Bytes queued for one peer; beyond it the oldest messages are dropped
+    /// (with `queue_messages`, whichever comes first).
+    pub queue_bytes: usize,
+    /// The world's bounds in metres, `[x0, z0, x1, z1]`: tiles not within
+    /// them are refused ([`RelayRejections::out_of_bounds`]). Whatever this
+    /// says, tiles whose texels do not fit in i32 (where no window can be)
+    /// are refused.
+    pub bounds_m: Option<[f64; 4]>,
 }
 
 impl Default for RelayConfig {
@@ -99,6 +127,14 @@ impl Default for RelayConfig {
             persist_interval_s: 5.0,
             max_clock_lead_s: 5.0,
             deformer_memory_s: 30.0,
+            max_speed_m_per_s: 60.0,
+            window_keys_per_s: 4 * MAX_INTEREST_TILES as u32,
+            burst_window_keys: 2 * MAX_INTEREST_TILES as u32,
+            query_points_per_s: 1024,
+            burst_query_points: 4096,
+            memory_bytes: 256 << 20,
+            queue_bytes: 4 << 20,
+            bounds_m: None,
         }
     }
 }
@@ -138,6 +174,20 @@ pub struct RelayRejections {
     pub outgoing_dropped: u64,
     /// Tiles too large to send in one message even alone.
     pub tile_too_large: u64,
+    /// Deformer positions farther from the peer's last ones than its top speed allows.
+    pub teleports: u64,
+    /// Tiles outside the world's bounds.
+    pub out_of_bounds: u64,
+    /// New tiles refused because the store's disk budget is spent (tiles
+    /// already kept still merge).
+    pub disk_full: u64,
+    /// Window changes over the peer's window rate.
+    pub rate_window: u64,
+    /// `Query`s over the peer's query rate.
+    pub rate_query: u64,
+    /// Tiles whose footprint plane holds a footprint no deformer makes
+    /// (its foot above its top).
+    pub bad_footprint: u64,
 }
 
 impl RelayRejections {
@@ -160,6 +210,12 @@ impl RelayRejections {
             + self.clock_ahead
             + self.outgoing_dropped
             + self.tile_too_large
+            + self.teleports
+            + self.out_of_bounds
+            + self.disk_full
+            + self.rate_window
+            + self.rate_query
+            + self.bad_footprint
     }
 }
 
@@ -198,6 +254,16 @@ pub struct RelayStats {
     pub store_errors: u64,
     /// What was refused, by cause.
     pub rejected: RelayRejections,
+    /// Distance tests (or grid look-ups) made judging where peers may write
+    /// and how far their deformers moved: the police's work, bounded per
+    /// message by the message's size.
+    pub distance_tests: u64,
+    /// Tile keys walked for window changes.
+    pub window_keys_walked: u64,
+    /// Bytes of tiles in memory now.
+    pub tile_bytes_in_memory: usize,
+    /// Bytes queued for peers now (not yet handed out).
+    pub queued_bytes: usize,
 }
 
 /// A token bucket.
@@ -283,24 +349,23 @@ struct PeerState {
     standing: Standing,
     /// Tiles the peer is sent (its window plus one tile of margin).
     interest: Option<KeyRect>,
-    /// Recent deformer positions, oldest first: (when, positions).
-    history: VecDeque<(f64, Vec<[f64; 2]>)>,
+    /// Where its deformers were, in a grid hash.
+    history: MotionHistory,
     /// Until when `report_deformers` overrides the peer's own `Presence`.
     authoritative_until: f64,
     in_bytes: Bucket,
     in_tiles: Bucket,
     out_bytes: Bucket,
+    window_keys: Bucket,
+    query_points: Bucket,
+    /// Bytes in `queue`.
+    queued: usize,
     /// Tiles to send at the next send (coalesced).
     pending: BTreeSet<TileKey>,
     last_send_s: f64,
     queue: VecDeque<Vec<u8>>,
     seq_out: u64,
 }
-
-/// Snapshots of deformer positions kept per peer (at least 0.25 s apart).
-const MAX_SNAPSHOTS: usize = 128;
-/// The least time between two kept snapshots (later ones replace the newest).
-const SNAPSHOT_SPACING_S: f64 = 0.25;
 
 /// A tile in the relay's memory.
 #[derive(Debug)]
@@ -313,6 +378,8 @@ struct Held {
     /// The tile as [`encode_tile`] writes it, kept between merges: every
     /// peer interested in a change is sent the same bytes.
     encoded: Option<Vec<u8>>,
+    /// Bytes counted for it in [`SnowRelay::stats`]'s `tile_bytes_in_memory`.
+    bytes: usize,
 }
 
 /// The relay: see the module documentation.
@@ -332,6 +399,8 @@ pub struct SnowRelay {
     /// The peer `poll_transmit` served last (round robin).
     last_served: Option<PeerId>,
     stats: RelayStats,
+    /// When the relay last logged that its store's disk budget is spent.
+    last_full_warning_s: f64,
 }
 
 impl SnowRelay {
@@ -351,6 +420,7 @@ impl SnowRelay {
             last_persist_s: 0.0,
             last_served: None,
             stats: RelayStats::default(),
+            last_full_warning_s: f64::NEG_INFINITY,
         }
     }
 
@@ -378,6 +448,29 @@ impl SnowRelay {
         Ok(relay)
     }
 
+    /// Makes `world` the relay's before any peer says hello: a peer of
+    /// another world is refused, the first one included, and no peer ever
+    /// redefines it. A relay whose store holds another world refuses it
+    /// ([`ShareError::StoreWorld`], naming each difference, "here" being the
+    /// store's and "there" `world`); otherwise the world is saved there.
+    pub fn pin_world(&mut self, world: WorldIdentity) -> Result<(), crate::ShareError> {
+        let mut problems = world_problems(&world);
+        if let Some(side) = self.store.get_mut().as_ref().map(TileStore::side).filter(|&s| s != world.tile_side) {
+            problems.push(format!("tile side: {side} here (the store's tiles), {} there", world.tile_side));
+        }
+        if let Some(saved) = &self.world {
+            problems.extend(saved.differences(&world));
+        }
+        if !problems.is_empty() {
+            return Err(ShareError::StoreWorld(problems.join("; ")).into());
+        }
+        if let Some(store) = self.store.get_mut().as_ref() {
+            store.write_state(WORLD_STATE, &encode_world(&world)).map_err(ShareError::Store)?;
+        }
+        self.world = Some(world);
+        Ok(())
+    }
+
     /// Changes how the relay paces and polices its peers, from the next
     /// message on (a game server's settings changed while it runs); the
     /// peers' buckets keep what they hold, refilled at the new rates.
@@ -402,11 +495,14 @@ impl SnowRelay {
                 number,
                 standing: Standing::New,
                 interest: None,
-                history: VecDeque::new(),
+                history: MotionHistory::default(),
                 authoritative_until: f64::NEG_INFINITY,
                 in_bytes: Bucket::full(f64::from(c.burst_bytes), now),
                 in_tiles: Bucket::full(f64::from(c.burst_tiles), now),
                 out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),
+                window_keys: Bucket::full(f64::from(c.burst_window_keys.max(MAX_INTEREST_TILES as u32)), now),
+                query_points: Bucket::full(f64::from(c.burst_query_points), now),
+                queued: 0,
                 pending: BTreeSet::new(),
                 last_send_s: f64::NEG_INFINITY,
                 queue: VecDeque::new(),
@@ -458,17 +554,13 @@ impl SnowRelay {
             self.hello(peer, &world, now);
             return;
         }
-        if let Message::Query { id, points } = message {
-            self.stats.queries += 1;
-            let depths = points.iter().map(|p| self.depth_at(p[0], p[1]).unwrap_or(f32::NAN)).collect();
-            self.enqueue(peer, encode(&Message::Depths { id, depths }));
-            return;
-        }
+        // Queries too: only a peer of this world may read it.
         if p.standing != Standing::Welcomed {
             self.stats.rejected.not_welcomed += 1;
             return;
         }
         match message {
+            Message::Query { id, points } => self.query(peer, id, &points, now),
             Message::Presence { window, resolution, deformers } => self.presence(peer, window, resolution, &deformers, now),
             Message::Tiles { seq, tiles } => {
                 self.tiles_from(peer, &tiles, now);
@@ -514,7 +606,9 @@ impl SnowRelay {
         let after = start.map_or(self.peers.range(..), |s| self.peers.range((std::ops::Bound::Excluded(s), std::ops::Bound::Unbounded)));
         let before = start.map(|s| self.peers.range(..=s));
         let id = after.chain(before.into_iter().flatten()).find(|(_, p)| !p.queue.is_empty()).map(|(&id, _)| id)?;
-        let bytes = self.peers.get_mut(&id)?.queue.pop_front()?;
+        let p = self.peers.get_mut(&id)?;
+        let bytes = p.queue.pop_front()?;
+        p.queued -= bytes.len();
         self.last_served = Some(id);
         self.stats.messages_out += 1;
         self.stats.bytes_out += bytes.len() as u64;
@@ -527,13 +621,14 @@ impl SnowRelay {
     pub fn report_deformers(&mut self, peer: PeerId, world_xz: &[[f64; 2]]) {
         let now = self.now_s;
         let memory = self.config.deformer_memory_s;
+        let reach = self.world.as_ref().map_or(0.0, |w| self.write_reach(w, now).0);
         if let Some(p) = self.peers.get_mut(&peer) {
             if p.authoritative_until < now {
                 // The peer's own claims stop counting once a server speaks for it.
                 p.history.clear();
             }
             p.authoritative_until = now + memory;
-            remember(p, world_xz, now, memory);
+            p.history.authoritative(world_xz, now, reach, memory);
         }
     }
 
@@ -600,7 +695,13 @@ impl SnowRelay {
     /// Counters since the relay was made.
     #[must_use]
     pub fn stats(&self) -> RelayStats {
-        RelayStats { peers: self.peers.len(), tiles_in_memory: self.tiles.len(), ..self.stats }
+        RelayStats {
+            peers: self.peers.len(),
+            tiles_in_memory: self.tiles.len(),
+            tile_bytes_in_memory: self.tiles.values().map(|h| h.bytes).sum(),
+            queued_bytes: self.peers.values().map(|p| p.queued).sum(),
+            ..self.stats
+        }
     }
 
     /// Writes every changed tile to the store (nothing without one). The
@@ -611,17 +712,25 @@ impl SnowRelay {
             return Ok(());
         };
         let mut first = None;
-        for held in self.tiles.values_mut().filter(|h| h.dirty) {
+        let mut refused = Vec::new();
+        for (key, held) in self.tiles.iter_mut().filter(|(_, h)| h.dirty) {
             match store.write(&tile_to_data(&held.tile)) {
                 Ok(()) => {
                     held.dirty = false;
                     self.stats.tiles_persisted += 1;
                 }
+                Err(e) if is_full(&e) => refused.push(*key),
                 Err(e) => {
                     self.stats.store_errors += 1;
                     first.get_or_insert(e);
                 }
             }
+        }
+        // New tiles past the disk budget: never kept, so never acknowledged
+        // as kept (tiles in the same tick beat them to the last bytes).
+        for key in refused {
+            self.tiles.remove(&key);
+            self.stats.rejected.disk_full += 1;
         }
         first.map_or(Ok(()), |e| Err(ShareError::Store(e).into()))
     }
@@ -637,11 +746,15 @@ impl SnowRelay {
     /// Queues `bytes` for `peer`, dropping its oldest message when full.
     fn enqueue(&mut self, peer: PeerId, bytes: Vec<u8>) {
         let cap = self.config.queue_messages.max(1);
+        let cap_bytes = self.config.queue_bytes;
         if let Some(p) = self.peers.get_mut(&peer) {
-            if p.queue.len() >= cap {
-                p.queue.pop_front();
+            while !p.queue.is_empty() && (p.queue.len() >= cap || p.queued + bytes.len() > cap_bytes) {
+                if let Some(old) = p.queue.pop_front() {
+                    p.queued -= old.len();
+                }
                 self.stats.rejected.outgoing_dropped += 1;
             }
+            p.queued += bytes.len();
             p.queue.push_back(bytes);
         }
     }
@@ -690,24 +803,39 @@ impl SnowRelay {
     }
 
     fn presence(&mut self, peer: PeerId, window: [i64; 2], resolution: u32, deformers: &[[f64; 2]], now: f64) {
-        let Some(side) = self.world.as_ref().map(|w| w.tile_side) else {
+        let Some(world) = self.world.clone() else {
             return;
         };
-        let Some(rect) = KeyRect::of_window(window, resolution, side, 1) else {
+        let Some(rect) = KeyRect::of_window(window, resolution, world.tile_side, 1) else {
             self.stats.rejected.bad_window += 1;
             return;
         };
-        let memory = self.config.deformer_memory_s;
+        let (reach, _) = self.write_reach(&world, now);
+        let c = &self.config;
+        let (memory, speed) = (c.deformer_memory_s, c.max_speed_m_per_s);
+        let (rate, burst) = (f64::from(c.window_keys_per_s), f64::from(c.burst_window_keys.max(MAX_INTEREST_TILES as u32)));
         let Some(p) = self.peers.get_mut(&peer) else {
             return;
         };
         if p.authoritative_until < now {
-            remember(p, deformers, now, memory);
+            let work = p.history.report(deformers, now, speed, reach, memory);
+            self.count(work);
         }
-        let old = p.interest.replace(rect);
-        if old == Some(rect) {
+        let Some(p) = self.peers.get_mut(&peer) else {
+            return;
+        };
+        if p.interest == Some(rect) {
             return;
         }
+        // A change walks the new window's keys: paced, so flipping between
+        // two far windows costs the flipper, not everyone.
+        let walk = rect.keys().count() as f64;
+        if !p.window_keys.take(now, rate, burst, walk) {
+            self.stats.rejected.rate_window += 1;
+            return;
+        }
+        self.stats.window_keys_walked += walk as u64;
+        let old = p.interest.replace(rect);
         // Newly covered tiles the relay has are sent (all of them on the
         // first Presence: the late join), paced by the byte budget.
         let store = self.store.get_mut();
@@ -720,6 +848,27 @@ impl SnowRelay {
             }
         }
         p.pending.retain(|k| rect.contains(*k));
+    }
+
+    /// Adds the police's work to the counters.
+    fn count(&mut self, work: MotionWork) {
+        self.stats.distance_tests += work.distance_tests;
+        self.stats.rejected.teleports += work.teleports;
+    }
+
+    /// Answers a `Query` within the peer's query rate.
+    fn query(&mut self, peer: PeerId, id: u32, points: &[[f64; 2]], now: f64) {
+        let (rate, burst) = (f64::from(self.config.query_points_per_s), f64::from(self.config.burst_query_points));
+        let Some(p) = self.peers.get_mut(&peer) else {
+            return;
+        };
+        if !p.query_points.take(now, rate, burst, points.len().max(1) as f64) {
+            self.stats.rejected.rate_query += 1;
+            return;
+        }
+        self.stats.queries += 1;
+        let depths = points.iter().map(|p| self.depth_at(p[0], p[1]).unwrap_or(f32::NAN)).collect();
+        self.enqueue(peer, encode(&Message::Depths { id, depths }));
     }
 
     fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64) {
@@ -738,6 +887,15 @@ impl SnowRelay {
             };
             if t.side != world.tile_side || !t.is_consistent() || (!world.has_snowfall && !t.fallen.is_empty()) {
                 self.stats.rejected.bad_tile += 1;
+                continue;
+            }
+            if !in_bounds(t.key, &world, self.config.bounds_m) {
+                self.stats.rejected.out_of_bounds += 1;
+                continue;
+            }
+            // A packed footprint is (top << 16) | foot, its foot never above its top.
+            if t.stamps.iter().any(|&s| s != NO_STAMP && (s & 0xffff) > (s >> 16)) {
+                self.stats.rejected.bad_footprint += 1;
                 continue;
             }
             if !p.in_tiles.take(now, rate, burst, 1.0) {
@@ -761,12 +919,43 @@ impl SnowRelay {
                 self.stats.rejected.too_deep += 1;
                 continue;
             }
-            if !may_write(p, t.key, &world, reach, oldest) {
+            let mut work = MotionWork::default();
+            let allowed = may_write(p, t.key, &world, reach, oldest, &mut work);
+            self.count(work);
+            if !allowed {
                 self.stats.rejected.far_from_deformers += 1;
+                continue;
+            }
+            if !self.has_room_for(t.key) {
                 continue;
             }
             self.merge_in(peer, t, c);
         }
+    }
+
+    /// Whether tile `key` may be merged: one the relay keeps (in memory or
+    /// in its store) always; a new one only while the store has room
+    /// (refused and counted otherwise, with a warning at most every 10 s).
+    fn has_room_for(&mut self, key: TileKey) -> bool {
+        if self.tiles.contains_key(&key) {
+            return true;
+        }
+        let Some(store) = self.store.get_mut().as_ref() else {
+            return true;
+        };
+        if store.contains(key) || store.has_room() {
+            return true;
+        }
+        self.stats.rejected.disk_full += 1;
+        if self.now_s - self.last_full_warning_s >= 10.0 {
+            self.last_full_warning_s = self.now_s;
+            tracing::warn!(
+                "snow relay: the store {} is at its disk budget: new tiles are refused ({} so far), kept trails stay and still merge",
+                store.dir().display(),
+                self.stats.rejected.disk_full
+            );
+        }
+        false
     }
 
     /// Merges an accepted tile from `sender` and marks it for the peers that need it.
@@ -781,10 +970,11 @@ impl SnowRelay {
                 held.encoded = None;
                 let changed = held.tile.merge(t, c);
                 held.dirty |= changed;
+                held.bytes = held_bytes(&held.tile, None);
                 changed
             }
             None => {
-                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used, encoded: None });
+                self.tiles.insert(key, Held { tile: t.clone(), dirty: true, used, encoded: None, bytes: held_bytes(t, None) });
                 true
             }
         };
@@ -818,17 +1008,25 @@ impl SnowRelay {
             return;
         };
         let (reach, oldest) = self.write_reach(&world, self.now_s);
-        let Some(p) = self.peers.get(&peer) else {
-            return;
-        };
-        // Only a tile the peer may have written is worth asking for: any
-        // other copy it holds came from the relay, and would be refused.
-        let wanted = |key: TileKey| may_write(p, key, &world, reach, oldest);
-        let may_want: HashSet<TileKey> = entries.iter().map(|&(k, _)| k).filter(|&k| wanted(k)).collect();
+        // The region first: entries outside it cost one comparison each.
         let Some(region) = KeyRect::of_window(window, resolution, world.tile_side, 0) else {
             self.stats.rejected.bad_window += 1;
             return;
         };
+        let Some(p) = self.peers.get_mut(&peer) else {
+            return;
+        };
+        // Only a tile the peer may have written is worth asking for: any
+        // other copy it holds came from the relay, and would be refused.
+        let mut work = MotionWork::default();
+        let mut seen = HashSet::with_capacity(entries.len());
+        let may_want: HashSet<TileKey> = entries
+            .iter()
+            .map(|&(k, _)| k)
+            .filter(|&k| region.contains(k) && seen.insert(k))
+            .filter(|&k| may_write(p, k, &world, reach, oldest, &mut work))
+            .collect();
+        self.count(work);
         let c = CatchUp { max_fallen_m: world.max_fallen_m };
         let mut listed = HashSet::with_capacity(entries.len());
         let mut send = Vec::new();
@@ -964,8 +1162,9 @@ impl SnowRelay {
     /// (filling it), encoded afresh for one read from the store.
     fn encoded(&mut self, key: TileKey) -> Option<(Vec<u8>, usize)> {
         if let Some(held) = self.tiles.get_mut(&key) {
-            let bytes = held.encoded.get_or_insert_with(|| encode_tile(&held.tile));
-            return Some((bytes.clone(), held.tile.texels()));
+            let bytes = held.encoded.get_or_insert_with(|| encode_tile(&held.tile)).clone();
+            held.bytes = held_bytes(&held.tile, Some(&bytes));
+            return Some((bytes, held.tile.texels()));
         }
         self.tile(key).map(|t| (encode_tile(&t), t.texels()))
     }
@@ -982,7 +1181,8 @@ impl SnowRelay {
             Ok(Some(data)) => match tile_from_data(data) {
                 Ok(tile) => {
                     self.stats.tiles_loaded += 1;
-                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None });
+                    let bytes = held_bytes(&tile, None);
+                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None, bytes });
                 }
                 Err(_) => self.stats.store_errors += 1,
             },
@@ -994,31 +1194,39 @@ impl SnowRelay {
     /// Drops the least recently merged or loaded tiles beyond `memory_tiles`, writing
     /// changed ones to the store first (a tile whose write fails stays).
     fn trim_memory(&mut self) {
-        let cap = self.config.memory_tiles;
-        if self.tiles.len() <= cap {
+        let (cap, cap_bytes) = (self.config.memory_tiles, self.config.memory_bytes);
+        let mut bytes: usize = self.tiles.values().map(|h| h.bytes).sum();
+        if self.tiles.len() <= cap && bytes <= cap_bytes {
             return;
         }
         let mut by_use: Vec<(u64, TileKey)> = self.tiles.iter().map(|(k, h)| (h.used, *k)).collect();
         by_use.sort_unstable();
-        let excess = self.tiles.len() - cap;
         let store = self.store.get_mut();
-        for (_, key) in by_use.into_iter().take(excess) {
+        for (_, key) in by_use {
+            if self.tiles.len() <= cap && bytes <= cap_bytes {
+                break;
+            }
             let Some(held) = self.tiles.get(&key) else {
                 continue;
             };
             match store.as_mut() {
                 Some(store) => {
                     if held.dirty {
-                        if store.write(&tile_to_data(&held.tile)).is_err() {
-                            self.stats.store_errors += 1;
-                            continue;
+                        match store.write(&tile_to_data(&held.tile)) {
+                            Ok(()) => self.stats.tiles_persisted += 1,
+                            // A new tile past the budget is dropped, as at its merge.
+                            Err(e) if is_full(&e) => self.stats.rejected.disk_full += 1,
+                            Err(_) => {
+                                self.stats.store_errors += 1;
+                                continue;
+                            }
                         }
-                        self.stats.tiles_persisted += 1;
                     }
                     self.stats.tiles_evicted += 1;
                 }
                 None => self.stats.tiles_forgotten += 1,
             }
+            bytes -= held.bytes;
             self.tiles.remove(&key);
         }
     }
@@ -1026,29 +1234,40 @@ impl SnowRelay {
 
 /// Whether `p` may write tile `key`: its centre is within `reach` (m) of
 /// one of the peer's deformer positions recorded since `oldest`.
-fn may_write(p: &PeerState, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64) -> bool {
+/// (A fixed number of grid look-ups, counted in `work`.)
+fn may_write(p: &mut PeerState, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64, work: &mut MotionWork) -> bool {
     let first = key.first_texel(world.tile_side);
     let half = f64::from(world.tile_side) / 2.0;
     let texel = f64::from(world.texel_m);
     let centre = [(first[0] as f64 + half) * texel, (first[1] as f64 + half) * texel];
-    p.history.iter().filter(|(at, _)| *at >= oldest).flat_map(|(_, ds)| ds).any(|d| (d[0] - centre[0]).hypot(d[1] - centre[1]) <= reach)
+    p.history.near(centre, reach, oldest, work)
 }
 
-/// Records deformer positions for `p` (non-finite ones dropped), keeping
-/// snapshots at least [`SNAPSHOT_SPACING_S`] apart for `memory` seconds.
-fn remember(p: &mut PeerState, positions: &[[f64; 2]], now: f64, memory: f64) {
-    let positions: Vec<[f64; 2]> = positions.iter().filter(|d| d[0].is_finite() && d[1].is_finite()).take(super::message::MAX_DEFORMERS).copied().collect();
-    // The newest snapshot follows the deformers until it is a spacing
-    // apart from the one before it; then a new one starts.
-    let n = p.history.len();
-    let replace = n >= 2 && now - p.history[n - 2].0 < SNAPSHOT_SPACING_S;
-    match p.history.back_mut() {
-        Some(last) if replace => *last = (now, positions),
-        _ => p.history.push_back((now, positions)),
+/// Whether tile `key` lies where a window can be (its texels fit in i32,
+/// as every window's do) and, with `bounds_m`, overlaps those bounds.
+fn in_bounds(key: TileKey, world: &WorldIdentity, bounds_m: Option<[f64; 4]>) -> bool {
+    let side = i64::from(world.tile_side);
+    let first = key.first_texel(world.tile_side);
+    let fits = |v: i64| v >= i64::from(i32::MIN) && v.saturating_add(side) <= i64::from(i32::MAX);
+    if !(fits(first[0]) && fits(first[1])) {
+        return false;
     }
-    while p.history.front().is_some_and(|(at, _)| *at < now - memory) || p.history.len() > MAX_SNAPSHOTS {
-        p.history.pop_front();
-    }
+    let Some([x0, z0, x1, z1]) = bounds_m else {
+        return true;
+    };
+    let texel = f64::from(world.texel_m);
+    let (a, b) = ([first[0] as f64 * texel, first[1] as f64 * texel], [(first[0] + side) as f64 * texel, (first[1] + side) as f64 * texel]);
+    a[0] < x1 && b[0] > x0 && a[1] < z1 && b[1] > z0
+}
+
+/// Whether a store refused a write because its disk budget is spent.
+fn is_full(e: &StoreError) -> bool {
+    matches!(e, StoreError::Io { source, .. } if source.kind() == std::io::ErrorKind::StorageFull)
+}
+
+/// Bytes a tile held in memory costs: its planes and its cached encoding.
+fn held_bytes(t: &SharedTile, encoded: Option<&Vec<u8>>) -> usize {
+    96 + 2 * t.deficit.len() + 4 * t.stamps.len() + 4 * t.fallen.len() + encoded.map_or(0, Vec::len)
 }
 
 /// What makes a world unusable by a relay (a tile side off the wire's

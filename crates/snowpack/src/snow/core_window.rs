@@ -38,6 +38,15 @@ fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
     (rest + CAPTURE_MARGIN_M).max(4.0 * rest - 3.0 * low)
 }
 
+/// The capture and footprint height range (low, high) of a window of
+/// `params` over terrain whose heights span `tmin..=tmax`: one formula for
+/// the window and for a world's identity made without one.
+pub(super) fn capture_range(params: &SnowParams, (tmin, tmax): (f32, f32)) -> (f32, f32) {
+    // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
+    let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
+    (tmin - CAPTURE_MARGIN_M, capture_top(tmin, tmax, deepest))
+}
+
 /// The deformation window over the terrain and the passes that update it.
 pub(super) struct CoreWindow {
     pub(super) params: SnowParams,
@@ -93,10 +102,8 @@ impl CoreWindow {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let res = DeformResources::new(device, queue, &params, &terrain);
         let (tmin, tmax) = terrain.height_bounds();
-        // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
-        let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
-        let capture_params =
-            CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m: tmin - CAPTURE_MARGIN_M, high_m: capture_top(tmin, tmax, deepest) };
+        let (low_m, high_m) = capture_range(&params, (tmin, tmax));
+        let capture_params = CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m, high_m };
         Self {
             window_pass: WindowPass::new(device, &res),
             capture_pass: CapturePass::new(device),

@@ -126,6 +126,28 @@ impl SnowDeformation {
             stamp_range_m: [low, high],
         }
     }
+
+    /// The world identity a window of `params` over `terrain` has once it
+    /// shares tiles of `tile_side`², found without a GPU: what a dedicated
+    /// server (`snowpack server --scene`) serves and checks its peers
+    /// against. Equal, field for field, to [`Self::world_identity`] of such
+    /// a window after [`Self::enable_sharing`] with that side.
+    #[must_use]
+    pub fn world_identity_for(params: &crate::SnowParams, terrain: &crate::TerrainSource, tile_side: u32) -> WorldIdentity {
+        let (low, high) = super::core_window::capture_range(params, terrain.height_bounds());
+        let snowfall = params.snowfall.as_ref();
+        WorldIdentity {
+            texel_m: params.texel_m(),
+            tile_side,
+            terrain: terrain_identity(terrain),
+            depth_m: params.depth_m,
+            refill_m_per_s: params.refill_m_per_s,
+            snowfall_m_per_s: snowfall.map_or(0.0, |s| s.rate_m_per_s),
+            max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
+            has_snowfall: snowfall.is_some(),
+            stamp_range_m: [low, high],
+        }
+    }
 }
 
 impl SnowTime {
