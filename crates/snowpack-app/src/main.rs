@@ -4,6 +4,7 @@
 //! Exit codes: 0 success, 2 bad input (scene file, command line), 1 anything
 //! else (no GPU, a GPU error, an I/O failure).
 
+mod attack;
 mod bench;
 mod bench_accumulation;
 mod bench_coat;
@@ -214,6 +215,23 @@ enum Command {
         #[arg(long, value_parser = parse_backend)]
         backend: Option<String>,
     },
+    /// Clients for the hostile-client test (tests/server_attack.rs): an
+    /// honest CPU peer pressing a trail, or every abuse the server refuses.
+    #[command(hide = true)]
+    Attack {
+        /// The server (host:port).
+        #[arg(long)]
+        connect: std::net::SocketAddr,
+        /// The scene whose world the clients join.
+        #[arg(long)]
+        scene: PathBuf,
+        /// honest or hostile.
+        #[arg(long)]
+        role: String,
+        /// How long the hostile clients go on (s); the honest peer's wait for its acknowledgements.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+    },
     /// Parse and validate a scene file and print what was understood.
     CheckScene {
         /// The scene file.
@@ -289,6 +307,7 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
                 }
             }
         }
+        Some(Command::Attack { connect, scene, role, seconds }) => attack::run(connect, &scene, &role, seconds)?,
         Some(Command::CheckScene { file }) => {
             let scene = load_scene(&file)?;
             println!("{}", scene.describe());

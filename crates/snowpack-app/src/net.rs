@@ -29,10 +29,10 @@ use snowpack_app::BadInput;
 /// this protocol) are refused before they reach the relay.
 const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::low_level::replicate::message::PROTOCOL_VERSION as u64;
 /// The one channel snowpack's messages travel on.
-const CHANNEL: u8 = 0;
+pub(crate) const CHANNEL: u8 = 0;
 /// Bytes a connection's channel may hold unacknowledged; the relay paces
 /// itself well below this (a full reliable channel disconnects).
-const CHANNEL_BYTES: usize = 4 << 20;
+const CHANNEL_BYTES: usize = 1 << 20;
 /// The server's loop period.
 const TICK: Duration = Duration::from_millis(10);
 /// How long a connect token made by `snowpack token` stays valid (s).
@@ -45,7 +45,7 @@ const MAX_BACKLOG: usize = 1024;
 /// Bytes the server keeps for one client while its channel is full: a
 /// client that stops reading is disconnected past it, so it costs at most
 /// this plus its channel ([`CHANNEL_BYTES`]).
-pub const MAX_BACKLOG_BYTES: usize = 4 << 20;
+pub const MAX_BACKLOG_BYTES: usize = 1 << 20;
 /// Clients a server takes at once.
 const MAX_CLIENTS: usize = 256;
 /// Tile side of the worlds a `snowpack server` serves when its store does not say.
@@ -532,15 +532,15 @@ pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, poin
 }
 
 /// A renet2 client over netcode, without a peer: the connection itself.
-struct Transport {
+pub(crate) struct Transport {
     addr: SocketAddr,
-    client: RenetClient,
+    pub(crate) client: RenetClient,
     transport: NetcodeClientTransport,
     last: Instant,
 }
 
 impl Transport {
-    fn connect(addr: SocketAddr, token: Option<&Path>) -> anyhow::Result<Self> {
+    pub(crate) fn connect(addr: SocketAddr, token: Option<&Path>) -> anyhow::Result<Self> {
         // A server on loopback is reached from loopback: nothing else need hear this socket.
         let bind: SocketAddr = match (addr.is_ipv4(), addr.ip().is_loopback()) {
             (true, true) => "127.0.0.1:0",
@@ -565,7 +565,7 @@ impl Transport {
     }
 
     /// Takes in what arrived; an error once the connection is gone.
-    fn update(&mut self) -> Result<(), LinkError> {
+    pub(crate) fn update(&mut self) -> Result<(), LinkError> {
         let now = Instant::now();
         self.client.update(now - self.last);
         let update = self.transport.update(now - self.last, &mut self.client);
@@ -581,7 +581,7 @@ impl Transport {
     }
 
     /// Sends what was queued.
-    fn send(&mut self) {
+    pub(crate) fn send(&mut self) {
         if let Err(e) = self.transport.send_packets(&mut self.client) {
             tracing::debug!("netcode: {e}");
         }

@@ -115,10 +115,10 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
         assert!((b[100 * 128 + j] - 0.5).abs() < 1e-3, "open snow at row 100: {}", b[100 * 128 + j]);
     }
 
-    // The server answers depth queries from its tiles.
+    // The server answers depth queries from its tiles, to peers of its world.
     let query = run_bounded({
         let mut c = bin();
-        c.args(["query", "--connect", &server.addr.to_string(), "--at", "0.0,-1.0", "--at", "0.0,2.0"]);
+        c.args(["query", "--connect", &server.addr.to_string(), "--scene"]).arg(dir.0.join("join.toml")).args(["--at", "0.0,-1.0", "--at", "0.0,2.0"]);
         c
     });
     assert_ok("the query", &query);
@@ -202,17 +202,18 @@ fn a_server_with_a_key_answers_only_clients_with_a_token() {
         c
     });
     assert_ok("making a token", &made);
+    let world = scene(&dir.0, "keyed", 0.5, IDLE);
     let with = run_bounded({
         let mut c = bin();
-        c.args(["query", "--connect", &addr, "--token"]).arg(&token).args(["--at", "1,2"]);
+        c.args(["query", "--connect", &addr, "--token"]).arg(&token).arg("--scene").arg(&world).args(["--at", "1,2"]);
         c
     });
     assert_ok("a query with a token", &with);
-    // No world yet: the server knows no depth.
-    assert!(String::from_utf8_lossy(&with.stdout).contains("depth_m 1 2 none"), "{}", String::from_utf8_lossy(&with.stdout));
+    // The query's hello gave the server its world (no --scene): fresh snow there.
+    assert!(String::from_utf8_lossy(&with.stdout).contains("depth_m 1 2 0.500000"), "{}", String::from_utf8_lossy(&with.stdout));
     let without = run_bounded({
         let mut c = bin();
-        c.args(["query", "--connect", &addr, "--at", "1,2"]);
+        c.args(["query", "--connect", &addr, "--scene"]).arg(&world).args(["--at", "1,2"]);
         c
     });
     assert_eq!(without.status.code(), Some(1), "a query without a token: {}", String::from_utf8_lossy(&without.stderr));

@@ -31,17 +31,25 @@ pub struct Server {
     child: Child,
     /// Where it listens.
     pub addr: SocketAddr,
+    /// Its output after the first line, as it comes.
+    output: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 }
 
 #[allow(dead_code, reason = "each test binary uses its own part of common")]
 impl Server {
     /// Starts one on a free loopback port over `store`; it stops by itself after `limit`.
     pub fn start(store: &Path, limit: Duration) -> Self {
+        Self::start_with(store, limit, &[])
+    }
+
+    /// As [`Server::start`], with more options (`--scene FILE`, `--disk-budget N`).
+    pub fn start_with(store: &Path, limit: Duration, options: &[&std::ffi::OsStr]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_snowpack"))
             .env("SNOWPACK_LOG", "error")
             .args(["server", "--listen", "127.0.0.1:0", "--store"])
             .arg(store)
             .args(["--exit-after-s", &limit.as_secs().to_string()])
+            .args(options)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -56,8 +64,30 @@ impl Server {
             .and_then(|a| a.parse().ok())
             .unwrap_or_else(|| panic!("no address in the server's first line: {first:?}"));
         // Keep draining its output so it never blocks on a full pipe.
-        std::thread::spawn(move || for _ in lines.map_while(Result::ok) {});
-        Self { child, addr }
+        let output = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let sink = std::sync::Arc::clone(&output);
+        std::thread::spawn(move || {
+            for line in lines.map_while(Result::ok) {
+                sink.lock().expect("the output lock").push(line);
+            }
+        });
+        Self { child, addr, output }
+    }
+
+    /// Waits (at most `limit`, then kills it) for it to stop by itself; its output after the first line.
+    pub fn wait(mut self, limit: Duration) -> Vec<String> {
+        let deadline = std::time::Instant::now() + limit;
+        while self.child.try_wait().ok().flatten().is_none() {
+            if std::time::Instant::now() > deadline {
+                let _ = self.child.kill();
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = self.child.wait();
+        // The reader thread ends with the pipe; give it a moment to take the last line.
+        std::thread::sleep(Duration::from_millis(200));
+        self.output.lock().expect("the output lock").clone()
     }
 
     /// Its process id.

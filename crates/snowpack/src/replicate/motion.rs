@@ -19,7 +19,7 @@ pub const MOVE_SLACK_M: f64 = 1.0;
 pub const REORDER: usize = 8;
 
 /// How many grid cells span the reach: the grid cell is `reach / CELLS_PER_REACH`.
-/// Judging a tile looks up `(2 CELLS_PER_REACH + 3)²` cells, and a position
+/// Judging a tile looks up `(2 CELLS_PER_REACH + 1)²` cells, and a position
 /// counts as anywhere in its cell, so the reach is generous by at most
 /// `√2 / CELLS_PER_REACH` of itself.
 const CELLS_PER_REACH: f64 = 4.0;
@@ -124,7 +124,8 @@ impl MotionHistory {
         }
         self.fit_cells(reach);
         let c = self.cell_m;
-        let k = CELLS_PER_REACH as i64 + 1;
+        // A position within the reach is at most CELLS_PER_REACH cells away on each axis.
+        let k = CELLS_PER_REACH as i64;
         let (ci, cj) = ((centre[0] / c).floor(), (centre[1] / c).floor());
         if !(ci.abs() < 4e18 && cj.abs() < 4e18) {
             return false;
@@ -272,7 +273,7 @@ mod tests {
         assert!(h.len() <= MAX_REMEMBERED);
         let mut w = MotionWork::default();
         assert!(!h.near([500.0, 500.0], reach, 0.0, &mut w));
-        let side = 2 * (CELLS_PER_REACH as u64 + 1) + 1;
+        let side = 2 * CELLS_PER_REACH as u64 + 1;
         assert_eq!(w.distance_tests, side * side);
         // Near, with the cell's slack at most √2 / 4 of the reach.
         assert!(h.near([reach + 2.5, 0.0], reach, 0.0, &mut w));

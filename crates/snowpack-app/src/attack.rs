@@ -1,0 +1,234 @@
+//! `snowpack attack` (hidden; for the hostile-client test,
+//! `tests/server_attack.rs`): clients of a `snowpack server` built from the
+//! library's own message types. `--role honest` is one well-behaved peer
+//! (a CPU snow window, no GPU) pressing a trail; `--role hostile` is every
+//! kind of abuse `docs/multiplayer.md` ("What the relay refuses") lists,
+//! each on connections of its own. Both print what they did as
+//! `key=value` lines for the test to read.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use snowpack::low_level::persist::TileKey;
+use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
+use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
+use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, WorldIdentity, decode, encode};
+use snowpack::low_level::testing::CpuSnow;
+
+use crate::net::{CHANNEL, SnowLink, Transport};
+
+/// Where the honest peer's trail runs: z = -1 m, x from -3 m to 3 m.
+pub const TRAIL: ([f64; 2], [f64; 2]) = ([-3.0, -1.0], [3.0, -1.0]);
+/// How deep (m) the honest peer presses.
+const PRESS_M: f64 = 0.4;
+/// Where the forger claims its deformers are, honestly at first.
+const FORGER_HOME: [f64; 2] = [0.0, 40.0];
+/// Where it forges trails: far from anything it reported (and 200 m from
+/// the honest trail), and where it teleports to.
+pub const FORGED: [[f64; 2]; 2] = [[200.0, 200.0], [-150.0, 120.0]];
+
+/// The honest peer: walks the trail at 1.4 m/s pressing a 0.3 m disc, then
+/// waits until the server has acknowledged everything (at most `limit`).
+pub fn honest(addr: SocketAddr, world: &WorldIdentity, limit: Duration) -> anyhow::Result<()> {
+    let mut link = SnowLink::connect(addr, None, world.clone(), "honest")?;
+    let mut snow = CpuSnow::new(world.clone(), 256, [-128, -128], 0.0);
+    link.wait_welcomed(&mut snow, Duration::from_secs(20))?;
+    let deficit = (PRESS_M / 1e-4).round() as u16;
+    let (a, b) = TRAIL;
+    let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+    let (tick, speed) = (1.0 / 30.0, 1.4);
+    let begin = Instant::now();
+    let mut t = 0.0;
+    while t * speed <= length + 0.2 {
+        let s = (t * speed / length).min(1.0);
+        let p = [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s];
+        link.peer.set_deformers(&[p]);
+        snow.press_disc(p, 0.3, deficit);
+        snow.step(tick);
+        link.pump(&mut snow)?;
+        t += tick;
+        std::thread::sleep(Duration::from_secs_f64(t).saturating_sub(begin.elapsed()));
+    }
+    let deadline = Instant::now() + limit;
+    while link.peer.unacknowledged() > 0 || link.backlog() > 0 {
+        anyhow::ensure!(Instant::now() < deadline, "the server did not acknowledge the honest trail within {limit:?}");
+        link.pump(&mut snow)?;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let s = link.peer.stats();
+    println!("honest tiles_sent={} resends={} walked_s={:.2}", s.tiles_sent, s.resends, begin.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// A raw client: the connection and what it has been told.
+struct Raw {
+    net: Transport,
+    welcome: Option<ShareClock>,
+    refused: Option<String>,
+    seq: u64,
+}
+
+impl Raw {
+    fn connect(addr: SocketAddr) -> anyhow::Result<Self> {
+        Ok(Self { net: Transport::connect(addr, None)?, welcome: None, refused: None, seq: 0 })
+    }
+
+    /// Exchanges packets and reads (and drops) what arrived.
+    fn pump(&mut self) -> anyhow::Result<()> {
+        self.net.update()?;
+        while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
+            match decode(&bytes) {
+                Ok(Message::Welcome { clock, .. }) => self.welcome = Some(clock),
+                Ok(Message::Refused { differences }) => self.refused = Some(differences.join("; ")),
+                _ => {}
+            }
+        }
+        self.net.send();
+        Ok(())
+    }
+
+    /// Sends `m` if the connection has room for it (a full channel would
+    /// end it): as fast as the connection goes, no faster.
+    fn send(&mut self, m: &Message) {
+        let bytes = encode(m);
+        if self.net.client.is_connected() && self.net.client.can_send_message(CHANNEL, bytes.len()) {
+            self.net.client.send_message(CHANNEL, bytes);
+        }
+    }
+
+    /// Pumps until `done` or `limit`.
+    fn pump_until(&mut self, limit: Duration, done: impl Fn(&Self) -> bool) -> anyhow::Result<bool> {
+        let deadline = Instant::now() + limit;
+        while Instant::now() < deadline {
+            self.pump()?;
+            if done(self) {
+                return Ok(true);
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Ok(false)
+    }
+
+    /// Connects and says hello as a peer of `world`; the clock it was welcomed at.
+    fn join(addr: SocketAddr, world: &WorldIdentity, name: &str) -> anyhow::Result<(Self, ShareClock)> {
+        let mut raw = Self::connect(addr)?;
+        raw.pump_until(Duration::from_secs(10), |r| r.net.client.is_connected())?;
+        raw.send(&Message::Hello { world: world.clone(), name: name.to_owned() });
+        raw.pump_until(Duration::from_secs(10), |r| r.welcome.is_some() || r.refused.is_some())?;
+        let clock = raw.welcome.with_context(|| format!("{name} was not welcomed ({:?})", raw.refused))?;
+        Ok((raw, clock))
+    }
+
+    /// A `Tiles` message of pressed tiles (every texel `PRESS_M` deep) at `keys`.
+    fn forge(&mut self, world: &WorldIdentity, clock: ShareClock, keys: &[TileKey]) {
+        let deficit = (PRESS_M / 1e-4).round() as u16;
+        let tiles = keys
+            .iter()
+            .map(|&key| {
+                let mut t = SharedTile::untouched(key, world.tile_side, clock, false, world.has_snowfall);
+                t.deficit.fill(deficit);
+                t
+            })
+            .collect();
+        let seq = self.seq;
+        self.seq += 1;
+        self.send(&Message::Tiles { seq, tiles });
+    }
+}
+
+/// The keys of the 3 × 3 tiles around world (x, z).
+fn keys_around(world: &WorldIdentity, p: [f64; 2]) -> Vec<TileKey> {
+    let texel = f64::from(world.texel_m);
+    let c = TileKey::containing((p[0] / texel).floor() as i64, (p[1] / texel).floor() as i64, world.tile_side);
+    (-1..=1).flat_map(|dr| (-1..=1).map(move |dc| TileKey::new(c.col + dc, c.row + dr))).collect()
+}
+
+/// Every abuse at once for `seconds`, then a summary line. `other` is a
+/// world that differs from the server's.
+pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, seconds: f64) -> anyhow::Result<()> {
+    // Another world: refused, naming what differs.
+    let mut stranger = Raw::connect(addr)?;
+    stranger.pump_until(Duration::from_secs(10), |r| r.net.client.is_connected())?;
+    stranger.send(&Message::Hello { world: other.clone(), name: "stranger".to_owned() });
+    // Queries before and after being refused: answered with nothing.
+    stranger.send(&Message::Query { id: 1, points: vec![[0.0, 0.0]] });
+    stranger.pump_until(Duration::from_secs(10), |r| r.refused.is_some())?;
+    stranger.send(&Message::Query { id: 2, points: vec![[0.0, 0.0]] });
+    println!("stranger refused={:?}", stranger.refused.clone().unwrap_or_default());
+
+    let (mut forger, clock) = Raw::join(addr, world, "forger")?;
+    let (mut flooder, _) = Raw::join(addr, world, "flooder")?;
+    let (mut mute, _) = Raw::join(addr, world, "mute")?;
+    // Many connections: each says hello and stays.
+    let mut crowd = Vec::new();
+    for _ in 0..48 {
+        let mut c = Raw::connect(addr)?;
+        c.pump()?;
+        crowd.push((c, false));
+    }
+    // The forger's first report is honest (a first report may be anywhere).
+    forger.send(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![FORGER_HOME] });
+    forger.pump_until(Duration::from_millis(300), |_| false)?;
+    // The mute client asks for everything around the trail, then never reads
+    // (nor acknowledges) again: what it is owed piles up at the server.
+    let big = 3968u32;
+    mute.send(&Message::Presence { window: [-(i64::from(big) / 2); 2], resolution: big, deformers: Vec::new() });
+    mute.pump()?;
+
+    let texel = f64::from(world.texel_m);
+    let begin = Instant::now();
+    let mut frame = 0u64;
+    let mut counts = [0u64; 4];
+    while begin.elapsed().as_secs_f64() < seconds {
+        frame += 1;
+        let now_clock = ShareClock { time_s: clock.time_s + begin.elapsed().as_secs_f64(), ..clock };
+        // The forger reports itself at home, then teleports to where it forges.
+        let at = if frame % 2 == 0 { FORGER_HOME } else { FORGED[(frame / 2 % 2) as usize] };
+        forger.send(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![at] });
+        for p in FORGED {
+            forger.forge(world, now_clock, &keys_around(world, p));
+            counts[0] += 9;
+        }
+        // The flooder: the largest digests, and windows flipping between two
+        // far places as fast as it may.
+        let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
+        flooder.send(&Message::Digest { clock: now_clock, window: [0, 0], resolution: 2048, entries });
+        let side = world.tile_side;
+        let far = if frame % 2 == 0 { 0 } else { 1 << 20 };
+        let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
+        let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
+        flooder.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
+        flooder.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
+        counts[1] += 1;
+        forger.pump()?;
+        flooder.pump()?;
+        for (k, (c, said)) in crowd.iter_mut().enumerate() {
+            if !*said && c.net.client.is_connected() {
+                c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
+                *said = true;
+            }
+            c.pump()?;
+        }
+        // The mute client holds its socket open without a packet in or out.
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
+    println!("hostile forged_tiles={} flood_rounds={} crowd={} crowd_welcomed={welcomed}", counts[0], counts[1], crowd.len());
+    drop(mute);
+    Ok(())
+}
+
+/// `snowpack attack`: the world from `scene`, and the role's clients.
+pub fn run(addr: SocketAddr, scene: &Path, role: &str, seconds: f64) -> anyhow::Result<()> {
+    let world = crate::net::scene_world(scene)?;
+    match role {
+        "honest" => honest(addr, &world, Duration::from_secs_f64(seconds.max(1.0))),
+        "hostile" => {
+            let other = WorldIdentity { depth_m: world.depth_m + 0.3, ..world.clone() };
+            hostile(addr, &world, &other, seconds)
+        }
+        _ => Err(snowpack_app::BadInput(format!("--role {role}: honest or hostile")).into()),
+    }
+}
