@@ -161,6 +161,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     let (mut forger, clock) = Raw::join(addr, world, "forger")?;
     let (mut flooder, _) = Raw::join(addr, world, "flooder")?;
     let (mut mute, _) = Raw::join(addr, world, "mute")?;
+    let (mut feeder, _) = Raw::join(addr, world, "feeder")?;
     // Many connections: each says hello and stays.
     let mut crowd = Vec::new();
     for _ in 0..48 {
@@ -170,7 +171,15 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     }
     // The forger's first report is honest (a first report may be anywhere).
     forger.send(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![FORGER_HOME] });
+    // The feeder tramples within the rules (16 × 16 deformers reported
+    // 5 m apart, tiles near them) with tiles that do not compress, all in
+    // the mute client's window: what the mute client is owed grows fast.
+    let feed: Vec<[f64; 2]> = (0..16).flat_map(|i| (0..16).map(move |j| [20.0 + 5.0 * f64::from(i), 20.0 + 5.0 * f64::from(j)])).collect();
+    feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
     forger.pump_until(Duration::from_millis(300), |_| false)?;
+    feeder.pump()?;
+    let feed_keys: Vec<TileKey> = (10..48).flat_map(|col| (10..48).map(move |row| TileKey::new(col, row))).collect();
+    let mut noise = 0x9e37_79b9_7f4a_7c15u64;
     // The mute client asks for everything around the trail, then never reads
     // (nor acknowledges) again: what it is owed piles up at the server.
     let big = 3968u32;
@@ -202,8 +211,25 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         flooder.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
         flooder.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
         counts[1] += 1;
+        feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
+        let tiles = (0..4)
+            .map(|k| {
+                let key = feed_keys[(frame as usize * 4 + k) % feed_keys.len()];
+                let mut t = SharedTile::untouched(key, world.tile_side, now_clock, false, world.has_snowfall);
+                for d in &mut t.deficit {
+                    noise ^= noise << 13;
+                    noise ^= noise >> 7;
+                    noise ^= noise << 17;
+                    *d = (noise % 4000) as u16;
+                }
+                t
+            })
+            .collect();
+        feeder.send(&Message::Tiles { seq: frame, tiles });
+        counts[2] += 4;
         forger.pump()?;
         flooder.pump()?;
+        feeder.pump()?;
         for (k, (c, said)) in crowd.iter_mut().enumerate() {
             if !*said && c.net.client.is_connected() {
                 c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
@@ -215,7 +241,13 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         std::thread::sleep(Duration::from_millis(10));
     }
     let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
-    println!("hostile forged_tiles={} flood_rounds={} crowd={} crowd_welcomed={welcomed}", counts[0], counts[1], crowd.len());
+    println!(
+        "hostile forged_tiles={} flood_rounds={} fed_tiles={} crowd={} crowd_welcomed={welcomed}",
+        counts[0],
+        counts[1],
+        counts[2],
+        crowd.len()
+    );
     drop(mute);
     Ok(())
 }

@@ -101,7 +101,7 @@ fn the_server_refuses_every_abuse_and_keeps_the_honest_trail() {
         c.args(["attack", "--connect", &server.addr.to_string(), "--scene"]).arg(&world).args(["--role", role, "--seconds", seconds]);
         std::thread::spawn(move || run_bounded(c))
     };
-    let hostile = attack("hostile", "10");
+    let hostile = attack("hostile", "12");
     let honest = attack("honest", "60");
     let (hostile, honest) = (hostile.join().expect("the hostile process"), honest.join().expect("the honest process"));
     assert!(hostile.status.success(), "{}", text(&hostile));

@@ -534,6 +534,16 @@ fn forged_deltas_are_rejected_counted_and_change_nothing() {
     let mut snowy = pressed_tile(TileKey::new(0, -1), clock, 10);
     snowy.fallen = vec![0.1; 256];
     relay.receive(1, &encode(&Message::Tiles { seq: 4, tiles: vec![snowy] }), now);
+    // A footprint whose foot is above its top (no deformer packs that).
+    let mut odd = pressed_tile(TileKey::new(0, 1), clock, 10);
+    odd.stamps = vec![NO_STAMP; 256];
+    odd.stamps[3] = (5 << 16) | 9;
+    relay.receive(1, &encode(&Message::Tiles { seq: 5, tiles: vec![odd] }), now);
+    // Where no window can be: texels beyond i32.
+    relay.receive(1, &encode(&Message::Tiles { seq: 6, tiles: vec![pressed_tile(TileKey::new(1 << 40, 0), clock, 10)] }), now);
+    // The deformer jumps 200 m in 0.1 s and presses there: refused twice.
+    relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[201.0, 1.0]] }), now + 0.1);
+    relay.receive(1, &encode(&Message::Tiles { seq: 7, tiles: vec![pressed_tile(TileKey::new(100, 0), clock, 1000)] }), now + 0.1);
     // Tiles before a Hello, from a peer that never connected, and garbage.
     relay.connect(2);
     relay.receive(2, &encode(&Message::Tiles { seq: 0, tiles: vec![pressed_tile(TileKey::new(0, 0), clock, 2000)] }), now);
@@ -544,9 +554,10 @@ fn forged_deltas_are_rejected_counted_and_change_nothing() {
     let r = relay.stats().rejected;
     assert_eq!(
         (r.far_from_deformers, r.too_deep, r.clock_ahead, r.bad_tile, r.not_welcomed, r.unknown_peer, r.malformed, r.unexpected_kind),
-        (1, 1, 1, 1, 1, 1, 1, 1),
+        (2, 1, 1, 1, 1, 1, 1, 1),
         "{r:?}"
     );
+    assert_eq!((r.bad_footprint, r.out_of_bounds, r.teleports), (1, 1, 1), "{r:?}");
     assert_eq!(all_tiles(&relay), before, "rejections change nothing");
 
     // A flood beyond the tile rate: 40 tiles near the deformer against a bucket of 20.
@@ -649,7 +660,9 @@ fn a_relay_with_a_store_comes_back_bit_for_bit() {
             *d = (rng.next_u64() % 5000) as u16;
         }
         for s in &mut t.stamps {
-            *s = rng.next_u64() as u32;
+            // A packed footprint: (top << 16) | foot, the foot never above the top.
+            let (a, b) = (rng.next_u64() as u16, rng.next_u64() as u16);
+            *s = (u32::from(a.max(b)) << 16) | u32::from(a.min(b));
         }
         sent.push(t);
     }
@@ -959,10 +972,11 @@ fn a_lost_hello_is_sent_again_until_answered() {
 // ---------------------------------------------------------------- in sync, queries
 
 /// A peer presses a trail, the relay acknowledges and answers its digest
-/// with `InSync`; then anyone connected (no `Hello`) asks the relay for the
-/// depth on the trail and beside it and gets the merged tiles' answer.
+/// with `InSync`; then a peer of the world asks the relay for the depth on
+/// the trail and beside it and gets the merged tiles' answer. A query before
+/// an accepted `Hello` is refused (counted) and answered with nothing.
 #[test]
-fn a_peer_learns_it_is_in_sync_and_anyone_may_ask_the_depth() {
+fn a_peer_learns_it_is_in_sync_and_peers_of_the_world_may_ask_the_depth() {
     let w = world(16);
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
@@ -999,7 +1013,12 @@ fn a_peer_learns_it_is_in_sync_and_anyone_may_ask_the_depth() {
     assert!(synced_at < 3.0, "in sync only at {synced_at:.2} s");
     // The refill (0.5 mm/s) is what separates the trail from 0.3 m.
     relay.connect(9);
-    relay.receive(9, &encode(&Message::Query { id: 5, points: vec![[3.0, 2.0], [3.0, 6.0]] }), t);
+    let query = encode(&Message::Query { id: 5, points: vec![[3.0, 2.0], [3.0, 6.0]] });
+    relay.receive(9, &query, t);
+    assert_eq!((relay.stats().queries, relay.stats().rejected.not_welcomed), (0, 1));
+    assert!(std::iter::from_fn(|| relay.poll_transmit()).all(|(id, _)| id != 9), "a query before the Hello is answered");
+    relay.receive(9, &encode(&Message::Hello { world: w.clone(), name: "asker".to_owned() }), t);
+    relay.receive(9, &query, t);
     let answer = std::iter::from_fn(|| relay.poll_transmit()).find(|(id, _)| *id == 9).expect("an answer to the query");
     match decode(&answer.1) {
         Ok(Message::Depths { id: 5, depths }) => {

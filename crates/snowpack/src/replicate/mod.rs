@@ -13,6 +13,7 @@
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share |
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
 //! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
+//! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
 //! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
 //! | `flags.rs` | [`flags::ShareGrid`]: the changed-tile flags the stamp and update passes write, and their keys |
 //! | `gather.rs` | [`gather::TileGatherPass`] (`tile_gather.wgsl`): whole tiles copied out of the window |

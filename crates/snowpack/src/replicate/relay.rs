@@ -1,12 +1,15 @@
-//! [`SnowRelay`]: what a server runs. It learns the world from the first
-//! peer (or its store), merges the tiles peers send into its own copy,
+//! [`SnowRelay`]: what a server runs. Its world is pinned by the server
+//! ([`SnowRelay::pin_world`]), or else learnt from its store or the first
+//! peer, and never redefined; it merges the tiles peers send into its own copy,
 //! relays merged tiles to the peers whose windows overlap them, answers
 //! digests so lost messages are repaired, and keeps the tiles in a
 //! [`TileStore`] when it has one. CPU only; no sockets (the caller moves
 //! bytes: [`SnowRelay::receive`] in, [`SnowRelay::poll_transmit`] out).
 //!
 //! A relay trusts no peer: a peer's tile is merged only near where that
-//! peer's deformers were in the last 30 s, only if it is no deeper than the
+//! peer's deformers were in the last 30 s (positions held to a top speed,
+//! `motion.rs`), only inside the world, only while the store has room for
+//! a new tile, only if it is no deeper than the
 //! snow there and holds no more snowfall than has fallen, only if its
 //! clock is not ahead of the world's by more than 5 s, and only within the
 //! peer's byte and tile rates. Everything refused is counted
