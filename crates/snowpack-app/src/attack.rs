@@ -19,8 +19,8 @@ use snowpack::low_level::testing::CpuSnow;
 
 use crate::net::{CHANNEL, SnowLink, Transport};
 
-/// Where the honest peer's trail runs: z = -1 m, x from -3 m to 3 m.
-pub const TRAIL: ([f64; 2], [f64; 2]) = ([-3.0, -1.0], [3.0, -1.0]);
+/// Where the honest peer's trail runs: x from -3 m to 3 m (at the z given).
+const TRAIL_X: [f64; 2] = [-3.0, 3.0];
 /// How deep (m) the honest peer presses.
 const PRESS_M: f64 = 0.4;
 /// Where the forger claims its deformers are, honestly at first.
@@ -29,14 +29,14 @@ const FORGER_HOME: [f64; 2] = [0.0, 40.0];
 /// the honest trail), and where it teleports to.
 pub const FORGED: [[f64; 2]; 2] = [[200.0, 200.0], [-150.0, 120.0]];
 
-/// The honest peer: walks the trail at 1.4 m/s pressing a 0.3 m disc, then
-/// waits until the server has acknowledged everything (at most `limit`).
-pub fn honest(addr: SocketAddr, world: &WorldIdentity, limit: Duration) -> anyhow::Result<()> {
+/// The honest peer: walks the trail at `z` at 1.4 m/s pressing a 0.3 m
+/// disc, then waits until the server has acknowledged everything (at most `limit`).
+pub fn honest(addr: SocketAddr, world: &WorldIdentity, z: f64, limit: Duration) -> anyhow::Result<()> {
     let mut link = SnowLink::connect(addr, None, world.clone(), "honest")?;
     let mut snow = CpuSnow::new(world.clone(), 256, [-128, -128], 0.0);
     link.wait_welcomed(&mut snow, Duration::from_secs(20))?;
     let deficit = (PRESS_M / 1e-4).round() as u16;
-    let (a, b) = TRAIL;
+    let (a, b) = ([TRAIL_X[0], z], [TRAIL_X[1], z]);
     let length = (b[0] - a[0]).hypot(b[1] - a[1]);
     let (tick, speed) = (1.0 / 30.0, 1.4);
     let begin = Instant::now();
@@ -253,10 +253,10 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
 }
 
 /// `snowpack attack`: the world from `scene`, and the role's clients.
-pub fn run(addr: SocketAddr, scene: &Path, role: &str, seconds: f64) -> anyhow::Result<()> {
+pub fn run(addr: SocketAddr, scene: &Path, role: &str, seconds: f64, trail_z: f64) -> anyhow::Result<()> {
     let world = crate::net::scene_world(scene)?;
     match role {
-        "honest" => honest(addr, &world, Duration::from_secs_f64(seconds.max(1.0))),
+        "honest" => honest(addr, &world, trail_z, Duration::from_secs_f64(seconds.max(1.0))),
         "hostile" => {
             let other = WorldIdentity { depth_m: world.depth_m + 0.3, ..world.clone() };
             hostile(addr, &world, &other, seconds)

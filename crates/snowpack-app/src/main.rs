@@ -231,6 +231,9 @@ enum Command {
         /// How long the hostile clients go on (s); the honest peer's wait for its acknowledgements.
         #[arg(long, default_value_t = 10.0)]
         seconds: f64,
+        /// The z (m) of the honest peer's trail (x from -3 to 3).
+        #[arg(long, default_value_t = -1.0, allow_negative_numbers = true)]
+        trail_z: f64,
     },
     /// Parse and validate a scene file and print what was understood.
     CheckScene {
@@ -307,7 +310,7 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
                 }
             }
         }
-        Some(Command::Attack { connect, scene, role, seconds }) => attack::run(connect, &scene, &role, seconds)?,
+        Some(Command::Attack { connect, scene, role, seconds, trail_z }) => attack::run(connect, &scene, &role, seconds, trail_z)?,
         Some(Command::CheckScene { file }) => {
             let scene = load_scene(&file)?;
             println!("{}", scene.describe());

@@ -179,3 +179,56 @@ fn a_server_on_a_store_of_another_world_is_refused() {
     let again = serve(&world);
     assert!(again.status.success(), "{}", text(&again));
 }
+
+/// A server's store filled to its budget refuses new tiles and keeps the
+/// old ones: a trail kept before the budget shrank is still there after a
+/// restart with `--disk-budget 1`, a new trail is refused (counted), and the
+/// store's tile files are the same ones.
+#[test]
+fn a_store_at_its_budget_refuses_new_tiles_and_keeps_the_old() {
+    let dir = Temp::new("server-budget");
+    let store = dir.0.join("store");
+    let world = scene(&dir.0, "world", 0.5);
+    let honest = |addr: std::net::SocketAddr, z: &str| {
+        let mut c = bin();
+        c.args(["attack", "--connect", &addr.to_string(), "--scene"]).arg(&world).args(["--role", "honest", "--seconds", "60", "--trail-z", z]);
+        run_bounded(c)
+    };
+    let tiles = || {
+        let mut files: Vec<PathBuf> = Vec::new();
+        let mut stack = vec![store.join("tiles")];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+                if e.path().is_dir() {
+                    stack.push(e.path());
+                } else {
+                    files.push(e.path());
+                }
+            }
+        }
+        files.sort();
+        files
+    };
+    let server = Server::start_with(&store, Duration::from_secs(60), &["--scene".as_ref(), world.as_os_str()]);
+    let first = honest(server.addr, "-1");
+    assert!(first.status.success(), "{}", text(&first));
+    server.kill();
+    let kept = tiles();
+    assert!(!kept.is_empty(), "the first trail was stored");
+
+    let server = Server::start_with(&store, Duration::from_secs(SERVER_S / 2), &["--scene".as_ref(), world.as_os_str(), "--disk-budget".as_ref(), "1".as_ref()]);
+    let second = honest(server.addr, "2");
+    assert!(second.status.success(), "{}", text(&second));
+    let points = [[-2.0, -1.0], [0.0, -1.0], [2.0, -1.0], [-2.0, 2.0], [0.0, 2.0], [2.0, 2.0]];
+    let got = query(server.addr, &world, &points);
+    let d = depths(&got);
+    assert_eq!(d.len(), points.len(), "{}", text(&got));
+    for (p, depth) in points.iter().zip(&d) {
+        let want = if p[1] < 0.0 { 0.1 } else { 0.5 };
+        assert!((depth - want).abs() < 0.01, "at {p:?}: {depth} m, not {want}");
+    }
+    let lines = server.wait(Duration::from_secs(SERVER_S + 60));
+    let closing = lines.iter().rev().find(|l| l.contains("stopped after")).expect("the closing line");
+    assert!(field(closing, "refused_disk_full") >= 1, "{closing}");
+    assert_eq!(tiles(), kept, "the store's tiles changed");
+}

@@ -1019,7 +1019,11 @@ fn a_peer_learns_it_is_in_sync_and_peers_of_the_world_may_ask_the_depth() {
     assert!(std::iter::from_fn(|| relay.poll_transmit()).all(|(id, _)| id != 9), "a query before the Hello is answered");
     relay.receive(9, &encode(&Message::Hello { world: w.clone(), name: "asker".to_owned() }), t);
     relay.receive(9, &query, t);
-    let answer = std::iter::from_fn(|| relay.poll_transmit()).find(|(id, _)| *id == 9).expect("an answer to the query");
+    // After its Welcome, the answer.
+    let answer = std::iter::from_fn(|| relay.poll_transmit())
+        .filter(|(id, _)| *id == 9)
+        .find(|(_, b)| matches!(decode(b), Ok(Message::Depths { .. })))
+        .expect("an answer to the query");
     match decode(&answer.1) {
         Ok(Message::Depths { id: 5, depths }) => {
             assert!((depths[0] - 0.3).abs() < 0.01, "on the trail: {}", depths[0]);

@@ -1402,6 +1402,61 @@ mod tests {
         assert!(why(flags).contains("flags"));
     }
 
+    fn pinned_world() -> WorldIdentity {
+        WorldIdentity {
+            texel_m: 0.0625,
+            tile_side: 32,
+            terrain: "flat at 0 m".to_owned(),
+            depth_m: 0.5,
+            refill_m_per_s: 0.0,
+            snowfall_m_per_s: 0.0,
+            max_fallen_m: 0.0,
+            has_snowfall: false,
+            stamp_range_m: [-1.0, 3.0],
+        }
+    }
+
+    /// A pinned world: the first peer of another is refused, and the world stays.
+    #[test]
+    fn a_pinned_world_is_never_a_peers() {
+        let w = pinned_world();
+        let mut relay = SnowRelay::new(RelayConfig::default());
+        relay.pin_world(w.clone()).expect("pinned");
+        relay.connect(1);
+        let other = WorldIdentity { depth_m: 0.8, ..w.clone() };
+        relay.receive(1, &encode(&Message::Hello { world: other, name: "first".to_owned() }), 0.0);
+        let (_, answer) = relay.poll_transmit().expect("an answer");
+        match decode(&answer) {
+            Ok(Message::Refused { differences }) => assert_eq!(differences, ["snow depth (m): 0.8 here, 0.5 there"]),
+            other => panic!("not refused: {other:?}"),
+        }
+        assert_eq!(relay.world(), Some(&w));
+        assert_eq!(relay.stats().rejected.refused, 1);
+    }
+
+    /// A store keeps its world: pinning another is an error naming each difference.
+    #[test]
+    fn pinning_another_world_than_the_stores_fails() {
+        let dir = std::env::temp_dir().join(format!("snowpack-relay-pin-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let w = pinned_world();
+        {
+            let store = TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store");
+            let mut relay = SnowRelay::with_store(store, RelayConfig::default()).expect("relay");
+            relay.pin_world(w.clone()).expect("a fresh store takes the world");
+        }
+        let store = TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store");
+        let mut relay = SnowRelay::with_store(store, RelayConfig::default()).expect("relay");
+        assert_eq!(relay.world(), Some(&w));
+        match relay.pin_world(WorldIdentity { depth_m: 0.8, ..w.clone() }).map_err(crate::ShareError::into_detail) {
+            Err(ShareError::StoreWorld(why)) => assert_eq!(why, "snow depth (m): 0.5 here, 0.8 there"),
+            other => panic!("not refused: {other:?}"),
+        }
+        relay.pin_world(w).expect("the same world");
+        drop(relay);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn key_rects_are_bounded() {
         assert!(KeyRect::of_window([0, 0], 0, 16, 1).is_none());
