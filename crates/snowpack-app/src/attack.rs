@@ -145,6 +145,18 @@ fn keys_around(world: &WorldIdentity, p: [f64; 2]) -> Vec<TileKey> {
     (-1..=1).flat_map(|dr| (-1..=1).map(move |dc| TileKey::new(c.col + dc, c.row + dr))).collect()
 }
 
+/// A tile of pressed snow that does not compress: deficits of xorshift noise, below the snow's depth.
+fn noisy_tile(world: &WorldIdentity, clock: ShareClock, key: TileKey, noise: &mut u64) -> SharedTile {
+    let mut t = SharedTile::untouched(key, world.tile_side, clock, false, world.has_snowfall);
+    for d in &mut t.deficit {
+        *noise ^= *noise << 13;
+        *noise ^= *noise >> 7;
+        *noise ^= *noise << 17;
+        *d = (*noise % 4000) as u16;
+    }
+    t
+}
+
 /// Every abuse at once for `seconds`, then a summary line. `other` is a
 /// world that differs from the server's.
 pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, seconds: f64) -> anyhow::Result<()> {
@@ -194,7 +206,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         frame += 1;
         let now_clock = ShareClock { time_s: clock.time_s + begin.elapsed().as_secs_f64(), ..clock };
         // The forger reports itself at home, then teleports to where it forges.
-        let at = if frame % 2 == 0 { FORGER_HOME } else { FORGED[(frame / 2 % 2) as usize] };
+        let at = if frame.is_multiple_of(2) { FORGER_HOME } else { FORGED[(frame / 2 % 2) as usize] };
         forger.send(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![at] });
         for p in FORGED {
             forger.forge(world, now_clock, &keys_around(world, p));
@@ -205,26 +217,15 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
         flooder.send(&Message::Digest { clock: now_clock, window: [0, 0], resolution: 2048, entries });
         let side = world.tile_side;
-        let far = if frame % 2 == 0 { 0 } else { 1 << 20 };
+        let far = if frame.is_multiple_of(2) { 0 } else { 1 << 20 };
         let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
         let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
         flooder.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
         flooder.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
         counts[1] += 1;
         feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
-        let tiles = (0..4)
-            .map(|k| {
-                let key = feed_keys[(frame as usize * 4 + k) % feed_keys.len()];
-                let mut t = SharedTile::untouched(key, world.tile_side, now_clock, false, world.has_snowfall);
-                for d in &mut t.deficit {
-                    noise ^= noise << 13;
-                    noise ^= noise >> 7;
-                    noise ^= noise << 17;
-                    *d = (noise % 4000) as u16;
-                }
-                t
-            })
-            .collect();
+        let keys = (0..4).map(|k| feed_keys[(frame as usize * 4 + k) % feed_keys.len()]);
+        let tiles = keys.map(|key| noisy_tile(world, now_clock, key, &mut noise)).collect();
         feeder.send(&Message::Tiles { seq: frame, tiles });
         counts[2] += 4;
         forger.pump()?;
@@ -241,13 +242,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         std::thread::sleep(Duration::from_millis(10));
     }
     let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
-    println!(
-        "hostile forged_tiles={} flood_rounds={} fed_tiles={} crowd={} crowd_welcomed={welcomed}",
-        counts[0],
-        counts[1],
-        counts[2],
-        crowd.len()
-    );
+    println!("hostile forged_tiles={} flood_rounds={} fed_tiles={} crowd={} crowd_welcomed={welcomed}", counts[0], counts[1], counts[2], crowd.len());
     drop(mute);
     Ok(())
 }

@@ -70,7 +70,8 @@ fn median(v: &[f64]) -> f64 {
 }
 
 fn streamer(dir: &Path, memory_mb: usize) -> anyhow::Result<TileStreamer> {
-    let store = TileStore::open(dir, TILE, StoreConfig { disk_budget_bytes: 0, ..StoreConfig::default() }).with_context(|| format!("opening a bench store in {}", dir.display()))?;
+    let store = TileStore::open(dir, TILE, StoreConfig { disk_budget_bytes: 0, ..StoreConfig::default() })
+        .with_context(|| format!("opening a bench store in {}", dir.display()))?;
     Ok(TileStreamer::new(store, StreamerConfig { memory_budget_bytes: memory_mb << 20, ..StreamerConfig::default() }))
 }
 

@@ -154,10 +154,8 @@ fn scene_key(difference: &str) -> &'static str {
 /// A store whose saved world is not the scene's: bad input naming both,
 /// and each scene key that differs.
 fn store_mismatch(store: &Path, scene: &Path, differences: &str) -> anyhow::Error {
-    let listed: Vec<String> = differences
-        .split("; ")
-        .map(|d| format!("{}: {}", scene_key(d), d.replace(" here", " in the store").replace(" there", " in the scene")))
-        .collect();
+    let listed: Vec<String> =
+        differences.split("; ").map(|d| format!("{}: {}", scene_key(d), d.replace(" here", " in the store").replace(" there", " in the scene"))).collect();
     BadInput(format!(
         "--store {}: it keeps another world than --scene {}: {} (start the server on a fresh --store, or with the scene that made it)",
         store.display(),

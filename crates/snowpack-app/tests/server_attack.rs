@@ -143,15 +143,8 @@ fn the_server_refuses_every_abuse_and_keeps_the_honest_trail() {
     assert!(f("max_tick_distance_tests") <= 4 * f("max_tick_bytes_in"), "{closing}");
     assert!(f("max_tick_window_keys") <= 4 * 16_384, "{closing}");
     // Every abuse was met.
-    for key in [
-        "refused_world",
-        "refused_not_welcomed",
-        "refused_far",
-        "refused_teleports",
-        "refused_rate_bytes",
-        "refused_rate_window",
-        "refused_rate_query",
-    ] {
+    for key in ["refused_world", "refused_not_welcomed", "refused_far", "refused_teleports", "refused_rate_bytes", "refused_rate_window", "refused_rate_query"]
+    {
         assert!(f(key) >= 1, "{key} = 0: {closing}");
     }
     assert!(f("refused_world") >= 2, "the query and the stranger: {closing}");
@@ -216,7 +209,8 @@ fn a_store_at_its_budget_refuses_new_tiles_and_keeps_the_old() {
     let kept = tiles();
     assert!(!kept.is_empty(), "the first trail was stored");
 
-    let server = Server::start_with(&store, Duration::from_secs(SERVER_S / 2), &["--scene".as_ref(), world.as_os_str(), "--disk-budget".as_ref(), "1".as_ref()]);
+    let server =
+        Server::start_with(&store, Duration::from_secs(SERVER_S / 2), &["--scene".as_ref(), world.as_os_str(), "--disk-budget".as_ref(), "1".as_ref()]);
     let second = honest(server.addr, "2");
     assert!(second.status.success(), "{}", text(&second));
     let points = [[-2.0, -1.0], [0.0, -1.0], [2.0, -1.0], [-2.0, 2.0], [0.0, 2.0], [2.0, 2.0]];

@@ -22,11 +22,11 @@ use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileStore};
 
 use super::ShareError;
-use super::motion::{MotionHistory, MotionWork};
 use super::message::{
     MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILE_SIDE, MAX_TILES, MIN_TILE_SIDE, Message, MessageError, TILES_OVERHEAD_BYTES, decode,
     decode_world, encode, encode_tile, encode_world, tiles_message,
 };
+use super::motion::{MotionHistory, MotionWork};
 use super::tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 use super::world::WorldIdentity;
 
