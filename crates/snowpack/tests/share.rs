@@ -519,6 +519,21 @@ fn sharing_rejects_bad_sides_and_counts_its_memory() {
     assert_eq!(d.world_identity().tile_side, 256);
 }
 
+/// What `snowpack server --scene` serves, found without a GPU, is the world
+/// a window of the same settings has once it shares tiles: field for field
+/// (a hilly terrain and snowfall widen the footprint range).
+#[test]
+fn a_world_found_without_a_gpu_is_the_windows() {
+    let Some(ctx) = testing::gpu() else { return };
+    let terrain = TerrainSource::Noise(NoiseTerrain { seed: 7, base_m: 0.3, amplitude_m: 1.5, wavelength_m: 9.0 });
+    for snowfall in [None, Some(Snowfall::default())] {
+        let params = SnowParams { extent_m: 8.0, resolution: 64, depth_m: 0.4, snowfall, ..SnowParams::default() };
+        let mut d = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("deformation");
+        d.enable_sharing(ctx, 32, 0.25).expect("sharing");
+        assert_eq!(SnowDeformation::world_identity_for(&params, &terrain, 32), d.world_identity());
+    }
+}
+
 #[test]
 fn tiles_ahead_of_the_clock_wait_for_it_and_older_ones_are_caught_up() {
     let Some(ctx) = testing::gpu() else { return };

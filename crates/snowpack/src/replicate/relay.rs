@@ -729,8 +729,8 @@ impl SnowRelay {
                 }
             }
         }
-        // New tiles past the disk budget: never kept, so never acknowledged
-        // as kept (tiles in the same tick beat them to the last bytes).
+        // New tiles past the disk budget (others of the same tick took the
+        // last bytes) are dropped, as they would have been at their merge.
         for key in refused {
             self.tiles.remove(&key);
             self.stats.rejected.disk_full += 1;
