@@ -146,6 +146,29 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
     assert!(!dir.0.join("d/snow.npy").exists(), "a refused run writes nothing");
 }
 
+/// `snowpack server --scene`: the world is the scene's. The first run to
+/// connect, of another world, is refused with exit 2 naming the difference;
+/// a run of the scene's world (found here on the GPU, there on the CPU) is
+/// welcomed and its trail kept.
+#[test]
+fn a_server_with_a_scene_refuses_a_first_run_of_another_world() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("shared-scene");
+    let world = scene(&dir.0, "plough", 0.5, PLOUGH);
+    let server = Server::start_with(&dir.0.join("world"), PROCESS_LIMIT, &["--scene".as_ref(), world.as_os_str()]);
+    let other = run_connected(&scene(&dir.0, "other", 0.8, IDLE), &dir.0.join("o"), server.addr);
+    assert_eq!(other.status.code(), Some(2), "{}", String::from_utf8_lossy(&other.stderr));
+    assert!(String::from_utf8_lossy(&other.stderr).contains("snow depth (m): 0.8 here, 0.5 there"), "{}", String::from_utf8_lossy(&other.stderr));
+    let run = run_connected(&world, &dir.0.join("a"), server.addr);
+    assert_ok("the run of the scene's world", &run);
+    let a = load_npy(&dir.0.join("a/snow.npy"));
+    for (i, j) in trail_texels() {
+        assert!((a[i * 128 + j] - 0.1).abs() < 0.01, "the trail at ({i}, {j}): {}", a[i * 128 + j]);
+    }
+}
+
 #[test]
 fn a_server_without_a_key_refuses_to_listen_beyond_loopback() {
     let dir = Temp::new("shared-open");
