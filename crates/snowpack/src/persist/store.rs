@@ -73,7 +73,7 @@ pub enum WhenFull {
     #[default]
     EvictOldest,
     /// Keeps every tile and refuses to write a new one
-    /// ([`StoreError::Io`] of kind [`io::ErrorKind::StorageFull`]); tiles
+    /// (an I/O error, of kind `std::io::ErrorKind::StorageFull`); tiles
     /// already kept may still be rewritten. A server's store, whose
     /// tiles are other players' trails.
     RefuseNew,
@@ -83,7 +83,7 @@ pub enum WhenFull {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StoreConfig {
     /// Most bytes of tile files to keep (0 = unlimited; default
-    /// [`DEFAULT_DISK_BUDGET_BYTES`]). Beyond it, `when_full` says what
+    /// 1 GiB, `DEFAULT_DISK_BUDGET_BYTES`). Beyond it, `when_full` says what
     /// goes. `store.meta` and state blobs are not counted, and the tile just
     /// written is never deleted, so a budget smaller than one tile keeps
     /// exactly one.
