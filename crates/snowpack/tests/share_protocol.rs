@@ -922,6 +922,29 @@ fn a_peer_that_never_reads_costs_a_bounded_queue() {
     assert_eq!(relay.stats().rejected.outgoing_dropped, 50 - 4 + 1, "the Welcome and 49 Acks dropped");
 }
 
+/// Bytes, not counts: tiles in memory past `memory_bytes` leave it, and a
+/// peer's queue never holds more than `queue_bytes` (oldest dropped).
+#[test]
+fn memory_and_queues_are_bounded_in_bytes() {
+    let mut rng = Rng::new(11);
+    // A 16² tile with its deficits costs a little over 512 bytes.
+    let config = RelayConfig { memory_bytes: 4 * 1024, queue_bytes: 3 * 1024, ..RelayConfig::default() };
+    let mut relay = relay_holding(config, 20, 1.0, &mut rng);
+    relay.update(1.5);
+    let stats = relay.stats();
+    assert!(stats.tile_bytes_in_memory <= 4 * 1024 && stats.tiles_in_memory >= 4, "{stats:?}");
+    assert_eq!(stats.tiles_in_memory as u64 + stats.tiles_forgotten, 20, "{stats:?}");
+    // A second peer whose window holds every tile, never polled: its queue stays under 3 KiB.
+    relay.connect(2);
+    relay.receive(2, &encode(&Message::Hello { world: world(16), name: "slow".to_owned() }), 2.0);
+    relay.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), 2.0);
+    for k in 0..40 {
+        relay.receive(2, &encode(&Message::Query { id: k, points: vec![[0.5, 0.5]; 100] }), 2.0);
+        assert!(relay.stats().queued_bytes <= 3 * 1024, "{:?}", relay.stats());
+    }
+    assert!(relay.stats().rejected.outgoing_dropped > 0);
+}
+
 #[test]
 fn without_a_store_tiles_beyond_memory_are_forgotten_and_counted() {
     let mut rng = Rng::new(7);
