@@ -389,7 +389,7 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         measure_tiles(ctx, quick, &mut results)?;
     }
     if only.is_none_or(|o| "share".contains(o)) {
-        measure_share(ctx, quick, &mut results)?;
+        measure_share(quick, &mut results)?;
     }
     if only.is_none_or(|o| "sweep".contains(o)) {
         measure_sweep(ctx, quick, &mut results)?;
@@ -493,7 +493,7 @@ fn measure_tiles(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> a
 }
 
 /// Shared snow: one relay process and simulated peers on loopback (CPU only).
-fn measure_share(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+fn measure_share(quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
     let (peers, seconds) = if quick { (16, 10.0) } else { (64, 60.0) };
     let row = crate::bench_share::measure_load(peers, seconds).context("shared snow under load")?;
     println!(

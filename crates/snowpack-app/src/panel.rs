@@ -206,17 +206,17 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
                 ui.colored_label(if *error { Color32::LIGHT_RED } else { Color32::LIGHT_GREEN }, msg);
             }
 
-            egui::CollapsingHeader::new("Simulation").default_open(true).show(ui, |ui| simulation_section(ui, session, state, actions));
+            egui::CollapsingHeader::new("Simulation").default_open(true).show(ui, |ui| simulation_section(ui, session, state, &mut actions));
 
             egui::CollapsingHeader::new("Snowfall").default_open(session.snow_params.snowfall.is_some()).show(ui, |ui| snowfall_section(ui, session));
 
             egui::CollapsingHeader::new("Open world (tile store)")
                 .default_open(session.scene.store.is_some())
-                .show(ui, |ui| open_world_section(ui, session, actions));
+                .show(ui, |ui| open_world_section(ui, session, &mut actions));
 
             egui::CollapsingHeader::new("Technique").default_open(true).show(ui, |ui| technique_section(ui, session));
 
-            egui::CollapsingHeader::new("Deformation").default_open(true).show(ui, |ui| deformation_section(ui, session, actions));
+            egui::CollapsingHeader::new("Deformation").default_open(true).show(ui, |ui| deformation_section(ui, session, &mut actions));
 
             egui::CollapsingHeader::new("Material").default_open(false).show(ui, |ui| material_ui(ui, &mut session.render_params.material));
 
@@ -228,21 +228,18 @@ pub fn show(ui: &mut egui::Ui, session: &mut Session, rig: &mut CameraRig, state
 
             egui::CollapsingHeader::new("Debug view (V)").default_open(false).show(ui, |ui| debug_view_section(ui, session));
 
-            egui::CollapsingHeader::new("Camera (Tab)").default_open(false).show(ui, |ui| camera_section(ui, rig, state, actions));
+            egui::CollapsingHeader::new("Camera (Tab)").default_open(false).show(ui, |ui| camera_section(ui, rig, state, &mut actions));
 
-            egui::CollapsingHeader::new("Scene file").default_open(false).show(ui, |ui| scene_file_section(ui, state, actions));
+            egui::CollapsingHeader::new("Scene file").default_open(false).show(ui, |ui| scene_file_section(ui, state, &mut actions));
 
             egui::CollapsingHeader::new("Timings").default_open(true).show(ui, |ui| timings_section(ui, session, state));
 
-            egui::CollapsingHeader::new("Keys").default_open(false).show(ui, |ui| keys_section(ui));
+            egui::CollapsingHeader::new("Keys").default_open(false).show(ui, keys_section);
         });
     });
     actions
 }
 
-/// Carries out a panel action that needs no window (all but
-/// [`Action::Vsync`], which the window's owner applies; here it only records
-/// the choice) and says what happened in words for the status line.
 /// The panel's "Simulation" section.
 fn simulation_section(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState, actions: &mut Vec<Action>) {
     ui.horizontal(|ui| {
@@ -545,6 +542,9 @@ fn keys_section(ui: &mut egui::Ui) {
     ui.label("follow: WASD drives the player (Shift: the fox runs), right drag turns, wheel zoom · F sphere/fox");
 }
 
+/// Carries out a panel action that needs no window (all but
+/// [`Action::Vsync`], which the window's owner applies; here it only records
+/// the choice) and says what happened in words for the status line.
 pub fn apply(action: Action, ctx: &snowpack::GpuContext, session: &mut Session, rig: &mut CameraRig, state: &mut PanelState) -> anyhow::Result<String> {
     match action {
         Action::Reset(count) => session.reset(ctx, count).map(|()| format!("reset: fresh snow, {count} spheres")),

@@ -489,8 +489,8 @@ fn parse_terrain(root: &mut Fields<'_>, base_dir: &Path, snow: &SnowParams) -> R
                     amplitude_m: t.non_negative("amplitude_m", 4.0, " of metres")?,
                     wavelength_m: t.positive("wavelength_m", 32.0, " of metres")?,
                 }),
-                "heightmap" => load_heightmap(&mut t, &base_dir, snow.extent_m)?,
-                _ => load_terrain_mesh(&mut t, &base_dir, snow.texel_m())?,
+                "heightmap" => load_heightmap(&mut t, base_dir, snow.extent_m)?,
+                _ => load_terrain_mesh(&mut t, base_dir, snow.texel_m())?,
             };
             t.finish()?;
             terrain
@@ -502,7 +502,7 @@ fn parse_terrain(root: &mut Fields<'_>, base_dir: &Path, snow: &SnowParams) -> R
 fn parse_actors(root: &mut Fields<'_>, base_dir: &Path) -> Result<Vec<ActorSpec>, SceneError> {
     let mut actors = Vec::new();
     for mut a in root.tables("actor")? {
-        actors.push(parse_actor(&mut a, &base_dir)?);
+        actors.push(parse_actor(&mut a, base_dir)?);
         a.finish()?;
     }
     Ok(actors)
@@ -533,7 +533,7 @@ fn parse_window(root: &mut Fields<'_>, path: &Path, snow: &SnowParams, actors: &
             };
             match &spec {
                 WindowSpec::Center(c) => {
-                    if let Some(why) = texels_overflow(*c, &snow) {
+                    if let Some(why) = texels_overflow(*c, snow) {
                         return Err(w.err("center", why));
                     }
                 }
@@ -542,7 +542,7 @@ fn parse_window(root: &mut Fields<'_>, path: &Path, snow: &SnowParams, actors: &
                         Motion::Kinematic { position, .. } | Motion::Physics { position, .. } => ("position", vec![[position.x, position.z]]),
                         Motion::Path(keys) => ("path", keys.iter().map(|k| [k[0], k[2]]).collect()),
                     };
-                    if let Some(why) = points.into_iter().find_map(|p| texels_overflow(p, &snow)) {
+                    if let Some(why) = points.into_iter().find_map(|p| texels_overflow(p, snow)) {
                         return Err(SceneError::new(path, format!("[[actor]][{index}].{key}"), format!("the window follows this actor: {why}")));
                     }
                 }

@@ -481,8 +481,7 @@ impl Gfx {
 
         self.steer(dt);
 
-        let device = &self.ctx.device;
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
+        let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
         let camera_now = self.rig.camera(self.player());
         self.session.encode_step(&self.ctx, &mut encoder, camera_now.position);
 
@@ -500,6 +499,7 @@ impl Gfx {
             self.ctx.queue.submit([encoder.finish()]);
             return Ok(());
         };
+        let device = &self.ctx.device;
         let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
         let size = (self.config.width, self.config.height);
         let camera = self.rig.camera(self.player());
@@ -569,7 +569,7 @@ impl Gfx {
                 self.egui_renderer.update_texture(&self.ctx.device, &self.ctx.queue, *id, delta);
             }
         }
-        let freed = std::mem::take(&mut output.textures_delta.free);
+        let freed = std::mem::take(&mut output.textures_delta.free).into_iter().collect();
         output.textures_delta.clear();
         (actions, output, freed)
     }
