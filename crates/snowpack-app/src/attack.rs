@@ -157,18 +157,35 @@ fn noisy_tile(world: &WorldIdentity, clock: ShareClock, key: TileKey, noise: &mu
     t
 }
 
-/// Every abuse at once for `seconds`, then a summary line. `other` is a
-/// world that differs from the server's.
-pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, seconds: f64) -> anyhow::Result<()> {
-    // Another world: refused, naming what differs.
+/// Another world says hello first: refused, naming what differs; its
+/// queries before and after are answered with nothing.
+fn stranger(addr: SocketAddr, other: &WorldIdentity) -> anyhow::Result<()> {
     let mut stranger = Raw::connect(addr)?;
     stranger.pump_until(Duration::from_secs(10), |r| r.net.client.is_connected())?;
     stranger.send(&Message::Hello { world: other.clone(), name: "stranger".to_owned() });
-    // Queries before and after being refused: answered with nothing.
     stranger.send(&Message::Query { id: 1, points: vec![[0.0, 0.0]] });
     stranger.pump_until(Duration::from_secs(10), |r| r.refused.is_some())?;
     stranger.send(&Message::Query { id: 2, points: vec![[0.0, 0.0]] });
     println!("stranger refused={:?}", stranger.refused.clone().unwrap_or_default());
+    Ok(())
+}
+
+/// The crowd: each connection says hello once connected, then keeps reading.
+fn greet(crowd: &mut [(Raw, bool)], world: &WorldIdentity) -> anyhow::Result<()> {
+    for (k, (c, said)) in crowd.iter_mut().enumerate() {
+        if !*said && c.net.client.is_connected() {
+            c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
+            *said = true;
+        }
+        c.pump()?;
+    }
+    Ok(())
+}
+
+/// Every abuse at once for `seconds`, then a summary line. `other` is a
+/// world that differs from the server's.
+pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, seconds: f64) -> anyhow::Result<()> {
+    stranger(addr, other)?;
 
     let (mut forger, clock) = Raw::join(addr, world, "forger")?;
     let (mut flooder, _) = Raw::join(addr, world, "flooder")?;
@@ -231,13 +248,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         forger.pump()?;
         flooder.pump()?;
         feeder.pump()?;
-        for (k, (c, said)) in crowd.iter_mut().enumerate() {
-            if !*said && c.net.client.is_connected() {
-                c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
-                *said = true;
-            }
-            c.pump()?;
-        }
+        greet(&mut crowd, world)?;
         // The mute client holds its socket open without a packet in or out.
         std::thread::sleep(Duration::from_millis(10));
     }

@@ -254,23 +254,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     }
     let key = opts.key.as_deref().map(read_key).transpose()?;
     let (mut relay, epoch) = open_relay(opts)?;
-    let socket = UdpSocket::bind(opts.listen).with_context(|| format!("listening on {}", opts.listen))?;
-    let local = socket.local_addr()?;
-    let setup = ServerSetupConfig {
-        current_time: unix_now(),
-        // Netcode rejects tokens that expire before start + this: 0 accepts
-        // every token still valid, so tokens made before a restart (same key)
-        // keep working until they expire.
-        max_token_lifetime: 0,
-        max_clients: MAX_CLIENTS,
-        protocol_id: PROTOCOL_ID,
-        socket_addresses: vec![vec![local]],
-        authentication: match key {
-            Some(private_key) => ServerAuthentication::Secure { private_key },
-            None => ServerAuthentication::Unsecure,
-        },
-    };
-    let mut transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
+    let (mut transport, local) = listen(opts.listen, key)?;
     let mut server = RenetServer::new(connection_config());
     say!(
         "snowpack server listening on {local} ({}), tiles in {}, world {}",
@@ -298,19 +282,7 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         }
         last = now;
         let world_s = unix_now().as_secs_f64() - epoch;
-        while let Some(event) = server.get_event() {
-            match event {
-                ServerEvent::ClientConnected { client_id } => {
-                    relay.connect(client_id);
-                    say!("peer {client_id} connected");
-                }
-                ServerEvent::ClientDisconnected { client_id, reason } => {
-                    relay.disconnect(client_id);
-                    backlog.remove(&client_id);
-                    say!("peer {client_id} left: {reason}");
-                }
-            }
-        }
+        take_events(&mut server, &mut relay, &mut backlog);
         let before = relay.stats();
         for client_id in server.clients_id() {
             while let Some(bytes) = server.receive_message(client_id, CHANNEL) {
@@ -328,65 +300,80 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
             last_store_error = Some(now);
             eprintln!("snowpack server: the tile store failed, tiles are kept in memory only until it works again: {e}");
         }
-        while let Some((peer, bytes)) = relay.poll_transmit() {
-            backlog.entry(peer).or_default().push(bytes, &mut work);
-        }
-        for (peer, queue) in &mut backlog {
-            if queue.bytes > MAX_BACKLOG_BYTES {
-                // It stopped reading: what it is owed is more than it may cost.
-                say!("peer {peer} disconnected: {} bytes waiting for it, over {MAX_BACKLOG_BYTES}", queue.bytes);
-                server.disconnect(*peer);
-                relay.disconnect(*peer);
-                queue.clear();
-                work.slow_disconnects += 1;
-                continue;
-            }
-            queue.send(*peer, &mut server);
-        }
-        backlog.retain(|peer, _| server.is_connected(*peer));
+        deliver(&mut server, &mut relay, &mut backlog, &mut work);
         transport.send_packets(&mut server);
         if now - last_report >= Duration::from_secs(10) {
             last_report = now;
-            let s = relay.stats();
-            say!(
-                "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused, {} messages dropped for slow clients; {}",
-                server.connected_clients(),
-                s.tiles_in_memory,
-                s.tiles_merged,
-                s.tiles_received,
-                s.bytes_in,
-                s.bytes_out,
-                s.rejected.total(),
-                work.dropped,
-                stats_fields(&s)
-            );
+            say!("{}", work.report(&server, &relay.stats()));
         }
         if opts.exit_after_s.is_some_and(|limit| started.elapsed().as_secs_f64() >= limit) {
             transport.disconnect_all(&mut server);
             relay.flush()?;
-            let s = relay.stats();
-            let (cpu_s, peak_kib) = own_usage();
-            say!(
-                "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={} \
-                 messages_in={} max_tick_bytes_in={} max_tick_distance_tests={} max_tick_window_keys={} slow_disconnects={} backlog_dropped={} {}",
-                started.elapsed().as_secs_f64(),
-                s.tiles_received,
-                s.tiles_merged,
-                s.bytes_in,
-                s.bytes_out,
-                s.rejected.total(),
-                s.messages_in,
-                work.max_bytes_in,
-                work.max_distance_tests,
-                work.max_window_keys,
-                work.slow_disconnects,
-                work.dropped,
-                stats_fields(&s)
-            );
+            say!("{}", work.closing(started, &relay.stats()));
             return Ok(());
         }
         std::thread::sleep(TICK);
     }
+}
+
+/// The server's socket and netcode transport on `addr` (secured with `key`).
+fn listen(addr: SocketAddr, key: Option<[u8; NETCODE_KEY_BYTES]>) -> anyhow::Result<(NetcodeServerTransport, SocketAddr)> {
+    let socket = UdpSocket::bind(addr).with_context(|| format!("listening on {addr}"))?;
+    let local = socket.local_addr()?;
+    let setup = ServerSetupConfig {
+        current_time: unix_now(),
+        // Netcode rejects tokens that expire before start + this: 0 accepts
+        // every token still valid, so tokens made before a restart (same key)
+        // keep working until they expire.
+        max_token_lifetime: 0,
+        max_clients: MAX_CLIENTS,
+        protocol_id: PROTOCOL_ID,
+        socket_addresses: vec![vec![local]],
+        authentication: match key {
+            Some(private_key) => ServerAuthentication::Secure { private_key },
+            None => ServerAuthentication::Unsecure,
+        },
+    };
+    let transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
+    Ok((transport, local))
+}
+
+/// Clients that came and went, told to the relay.
+fn take_events(server: &mut RenetServer, relay: &mut SnowRelay, backlog: &mut std::collections::HashMap<u64, Backlog>) {
+    while let Some(event) = server.get_event() {
+        match event {
+            ServerEvent::ClientConnected { client_id } => {
+                relay.connect(client_id);
+                say!("peer {client_id} connected");
+            }
+            ServerEvent::ClientDisconnected { client_id, reason } => {
+                relay.disconnect(client_id);
+                backlog.remove(&client_id);
+                say!("peer {client_id} left: {reason}");
+            }
+        }
+    }
+}
+
+/// The relay's messages into each client's backlog and channel; a client
+/// owed more than [`MAX_BACKLOG_BYTES`] (it stopped reading) is disconnected.
+fn deliver(server: &mut RenetServer, relay: &mut SnowRelay, backlog: &mut std::collections::HashMap<u64, Backlog>, work: &mut TickWork) {
+    while let Some((peer, bytes)) = relay.poll_transmit() {
+        backlog.entry(peer).or_default().push(bytes, work);
+    }
+    for (peer, queue) in backlog.iter_mut() {
+        if queue.bytes > MAX_BACKLOG_BYTES {
+            // It stopped reading: what it is owed is more than it may cost.
+            say!("peer {peer} disconnected: {} bytes waiting for it, over {MAX_BACKLOG_BYTES}", queue.bytes);
+            server.disconnect(*peer);
+            relay.disconnect(*peer);
+            queue.clear();
+            work.slow_disconnects += 1;
+            continue;
+        }
+        queue.send(*peer, server);
+    }
+    backlog.retain(|peer, _| server.is_connected(*peer));
 }
 
 /// What the server owes one client while its channel is full.
@@ -445,6 +432,44 @@ struct TickWork {
 }
 
 impl TickWork {
+    /// The line said every 10 s.
+    fn report(&self, server: &RenetServer, s: &RelayStats) -> String {
+        format!(
+            "snowpack server: {} peers, {} tiles in memory, {} merged of {} received, {} bytes in, {} out, {} refused, {} messages dropped for slow clients; {}",
+            server.connected_clients(),
+            s.tiles_in_memory,
+            s.tiles_merged,
+            s.tiles_received,
+            s.bytes_in,
+            s.bytes_out,
+            s.rejected.total(),
+            self.dropped,
+            stats_fields(s)
+        )
+    }
+
+    /// The closing line: totals, peak memory, the busiest tick's work.
+    fn closing(&self, started: Instant, s: &RelayStats) -> String {
+        let (cpu_s, peak_kib) = own_usage();
+        format!(
+            "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={} \
+             messages_in={} max_tick_bytes_in={} max_tick_distance_tests={} max_tick_window_keys={} slow_disconnects={} backlog_dropped={} {}",
+            started.elapsed().as_secs_f64(),
+            s.tiles_received,
+            s.tiles_merged,
+            s.bytes_in,
+            s.bytes_out,
+            s.rejected.total(),
+            s.messages_in,
+            self.max_bytes_in,
+            self.max_distance_tests,
+            self.max_window_keys,
+            self.slow_disconnects,
+            self.dropped,
+            stats_fields(s)
+        )
+    }
+
     fn tick(&mut self, before: &RelayStats, after: &RelayStats) {
         self.max_bytes_in = self.max_bytes_in.max(after.bytes_in - before.bytes_in);
         self.max_distance_tests = self.max_distance_tests.max(after.distance_tests - before.distance_tests);
