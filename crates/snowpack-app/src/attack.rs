@@ -68,15 +68,20 @@ struct Raw {
     welcome: Option<ShareClock>,
     refused: Option<String>,
     seq: u64,
+    /// Why the connection ended, once it has (the server may drop an abuser).
+    lost: Option<String>,
 }
 
 impl Raw {
     fn connect(addr: SocketAddr) -> anyhow::Result<Self> {
-        Ok(Self { net: Transport::connect(addr, None)?, welcome: None, refused: None, seq: 0 })
+        Ok(Self { net: Transport::connect(addr, None)?, welcome: None, refused: None, seq: 0, lost: None })
     }
 
     /// Exchanges packets and reads (and drops) what arrived.
     fn pump(&mut self) -> anyhow::Result<()> {
+        if self.lost.is_some() {
+            return Ok(());
+        }
         self.net.update()?;
         while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
             match decode(&bytes) {
@@ -93,8 +98,16 @@ impl Raw {
     /// end it): as fast as the connection goes, no faster.
     fn send(&mut self, m: &Message) {
         let bytes = encode(m);
-        if self.net.client.is_connected() && self.net.client.can_send_message(CHANNEL, bytes.len()) {
+        if self.lost.is_none() && self.net.client.is_connected() && self.net.client.can_send_message(CHANNEL, bytes.len()) {
             self.net.client.send_message(CHANNEL, bytes);
+        }
+    }
+
+    /// Pumps, noting (not failing on) a connection the server ended: an
+    /// abuser may be dropped, and the attack goes on with the others.
+    fn pump_on(&mut self) {
+        if let Err(e) = self.pump() {
+            self.lost = Some(e.to_string());
         }
     }
 
@@ -177,7 +190,7 @@ fn greet(crowd: &mut [(Raw, bool)], world: &WorldIdentity) -> anyhow::Result<()>
             c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
             *said = true;
         }
-        c.pump()?;
+        c.pump_on();
     }
     Ok(())
 }
@@ -195,7 +208,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     let mut crowd = Vec::new();
     for _ in 0..48 {
         let mut c = Raw::connect(addr)?;
-        c.pump()?;
+        c.pump_on();
         crowd.push((c, false));
     }
     // The forger's first report is honest (a first report may be anywhere).
@@ -206,14 +219,14 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     let feed: Vec<[f64; 2]> = (0..16).flat_map(|i| (0..16).map(move |j| [20.0 + 5.0 * f64::from(i), 20.0 + 5.0 * f64::from(j)])).collect();
     feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
     forger.pump_until(Duration::from_millis(300), |_| false)?;
-    feeder.pump()?;
+    feeder.pump_on();
     let feed_keys: Vec<TileKey> = (10..48).flat_map(|col| (10..48).map(move |row| TileKey::new(col, row))).collect();
     let mut noise = 0x9e37_79b9_7f4a_7c15u64;
     // The mute client asks for everything around the trail, then never reads
     // (nor acknowledges) again: what it is owed piles up at the server.
     let big = 3968u32;
     mute.send(&Message::Presence { window: [-(i64::from(big) / 2); 2], resolution: big, deformers: Vec::new() });
-    mute.pump()?;
+    mute.pump_on();
 
     let texel = f64::from(world.texel_m);
     let begin = Instant::now();
@@ -245,14 +258,19 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         let tiles = keys.map(|key| noisy_tile(world, now_clock, key, &mut noise)).collect();
         feeder.send(&Message::Tiles { seq: frame, tiles });
         counts[2] += 4;
-        forger.pump()?;
-        flooder.pump()?;
-        feeder.pump()?;
+        forger.pump_on();
+        flooder.pump_on();
+        feeder.pump_on();
         greet(&mut crowd, world)?;
         // The mute client holds its socket open without a packet in or out.
         std::thread::sleep(Duration::from_millis(10));
     }
     let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
+    for (who, raw) in [("forger", &forger), ("flooder", &flooder), ("feeder", &feeder)].into_iter().chain(crowd.iter().map(|(c, _)| ("crowd", c))) {
+        if let Some(why) = &raw.lost {
+            println!("lost {who}: {why}");
+        }
+    }
     println!("hostile forged_tiles={} flood_rounds={} fed_tiles={} crowd={} crowd_welcomed={welcomed}", counts[0], counts[1], counts[2], crowd.len());
     drop(mute);
     Ok(())
