@@ -842,6 +842,8 @@ fn the_fuzz_seeds_are_valid_messages_of_every_kind() {
         assert_eq!(decode(&encode(&m)).as_ref(), Ok(&m), "{}", path.display());
     }
     kinds.sort_unstable();
+    // Some kinds have more than one seed (the largest digest, want and presence too).
+    kinds.dedup();
     assert_eq!(kinds, (1..=12).collect::<Vec<u8>>());
 }
 
