@@ -10,7 +10,7 @@
 //! commutative, associative and idempotent. `docs/multiplayer.md` says why
 //! and where it is not exact.
 
-use crate::deform::snow_word::SNOW_QUANTUM_M;
+use crate::SNOW_QUANTUM_M;
 use crate::persist::TileKey;
 
 /// A footprint texel with no footprint (`shared/stamp.wgsl`'s `STAMP_EMPTY`).
