@@ -21,13 +21,15 @@ use renet2_netcode::{
     ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
     ServerSetupConfig,
 };
-use snowpack::low_level::persist::{StoreConfig, TileStore};
-use snowpack::low_level::replicate::{PeerConfig, RelayConfig, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack_app::BadInput;
+use snowpack_share::persist::{StoreConfig, TileStore};
+#[cfg(feature = "gpu")]
+use snowpack_share::replicate::{PeerConfig, ShareError, SharedSnow, SnowPeer, WorldIdentity};
+use snowpack_share::replicate::{RelayConfig, SnowRelay};
 
 /// Netcode's protocol id: packets of other programs (or another version of
 /// this protocol) are refused before they reach the relay.
-const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::low_level::replicate::message::PROTOCOL_VERSION as u64;
+const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack_share::replicate::message::PROTOCOL_VERSION as u64;
 /// The one channel snowpack's messages travel on.
 const CHANNEL: u8 = 0;
 /// Bytes a connection's channel may hold unacknowledged; the relay paces
@@ -295,14 +297,13 @@ fn random_id() -> u64 {
 /// `snowpack query`: the snow depth at `points` (world x, z in m) from the
 /// server's merged tiles, `None` where the server knows no world yet.
 pub fn query(addr: SocketAddr, token: Option<&Path>, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
-    use snowpack::low_level::replicate::{Message, decode, encode};
+    use snowpack_share::replicate::{Message, decode, encode};
     let mut link = Transport::connect(addr, token)?;
     let deadline = Instant::now() + CONNECT_LIMIT;
     let mut sent = false;
     let mut answers = Vec::with_capacity(points.len());
     // At most MAX_DEFORMERS points a message: the query goes in chunks.
-    let chunks: Vec<Vec<[f64; 2]>> =
-        points.chunks(snowpack::low_level::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
+    let chunks: Vec<Vec<[f64; 2]>> = points.chunks(snowpack_share::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
     while answers.len() < chunks.len() {
         link.update()?;
         if link.client.is_connected() && !sent {
@@ -386,6 +387,7 @@ impl Drop for Transport {
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
     /// The server serves another world: bad input (exit 2).
+    #[cfg(feature = "gpu")]
     #[error("the server at {addr} refused this world: {why}")]
     Refused {
         /// The server.
@@ -403,6 +405,7 @@ pub enum LinkError {
     },
 }
 
+#[cfg(feature = "gpu")]
 /// The client side of shared snow: a renet2 connection to a `snowpack
 /// server` and the [`SnowPeer`] beside the game's snow. [`Self::pump`]
 /// once a frame; it never blocks.
@@ -416,6 +419,7 @@ pub struct SnowLink {
     backlog: VecDeque<Vec<u8>>,
 }
 
+#[cfg(feature = "gpu")]
 impl SnowLink {
     /// Starts connecting to `addr` (with the connect token in `token` when the
     /// server has a key) as a peer of `world`.
@@ -446,7 +450,7 @@ impl SnowLink {
         self.net.update()?;
         let mut refused = None;
         while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
-            match self.peer.receive(&bytes).map_err(snowpack::ShareError::into_detail) {
+            match self.peer.receive(&bytes).map_err(snowpack_share::ShareError::into_detail) {
                 Ok(()) => {}
                 Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
                 Err(e) => tracing::warn!("shared snow: {e}"),
@@ -502,12 +506,15 @@ impl SnowLink {
 
 /// How long a run waits for the server's welcome.
 const CONNECT_LIMIT: Duration = Duration::from_secs(10);
+#[cfg(feature = "gpu")]
 /// How long a run waits, at its end, for the server to acknowledge its
 /// changes and for its window to hold everything the server has.
 const SETTLE_LIMIT: Duration = Duration::from_secs(30);
+#[cfg(feature = "gpu")]
 /// Changed tiles go out at most this often (world seconds).
 pub const SHARE_INTERVAL_S: f64 = 0.25;
 
+#[cfg(feature = "gpu")]
 /// Joins the shared world at `addr`: sharing switched on in `snow`, a link
 /// made, and the server's welcome awaited (its clock is then the snow's).
 pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, addr: SocketAddr, token: Option<&Path>, name: &str) -> anyhow::Result<SnowLink> {
@@ -517,6 +524,7 @@ pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, ad
     Ok(link)
 }
 
+#[cfg(feature = "gpu")]
 /// World (x, z) of every deformer and character of `world`: the places
 /// where this peer may change the snow (the relay's check).
 pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
@@ -528,6 +536,7 @@ pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
     out
 }
 
+#[cfg(feature = "gpu")]
 /// World (x, z) of a deformer; `None` for a kind added later (no place of
 /// its own, so the relay lets it change nothing more).
 pub fn deformer_xz(d: &snowpack::Deformer) -> Option<[f64; 2]> {
@@ -539,6 +548,7 @@ pub fn deformer_xz(d: &snowpack::Deformer) -> Option<[f64; 2]> {
     }
 }
 
+#[cfg(feature = "gpu")]
 /// What a run's link did, for `meta.json`'s `share`.
 #[derive(Clone, Debug)]
 pub struct ShareReport {
@@ -552,9 +562,10 @@ pub struct ShareReport {
     /// the window (for a run that presses little: the late join).
     pub synced_s: f64,
     /// The peer's counters.
-    pub stats: snowpack::low_level::replicate::PeerStats,
+    pub stats: snowpack_share::PeerStats,
 }
 
+#[cfg(feature = "gpu")]
 impl ShareReport {
     /// As `meta.json` holds it.
     pub fn to_json(&self) -> serde_json::Value {
@@ -574,6 +585,7 @@ impl ShareReport {
     }
 }
 
+#[cfg(feature = "gpu")]
 /// The end of a connected run: frames that press nothing and let no time
 /// pass, until every change of this run is acknowledged by the server and
 /// everything the server holds for the window is merged into it (exit 1

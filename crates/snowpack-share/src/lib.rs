@@ -85,12 +85,9 @@ pub mod replicate;
 #[cfg(any(test, feature = "low_level"))]
 pub mod testing;
 
-/// Metres per deficit quantum: the persistent snow, tiles and the world
-/// clock's refill count in it (snowpack's `deform::snow_word` packs it).
-pub const SNOW_QUANTUM_M: f32 = 1e-4;
-
 pub use error::front::{ShareError, ShareErrorKind, StoreError, StoreErrorKind};
 pub use persist::{StoreConfig, TileData, TileKey, TileStore};
+pub use replicate::tile::SNOW_QUANTUM_M;
 pub use replicate::{
     CatchUp, Message, PeerConfig, PeerId, PeerStats, RelayConfig, RelayRejections, RelayStats, ShareClock, SharedSnow, SharedTile, SnowPeer, SnowRelay,
     WorldIdentity,
