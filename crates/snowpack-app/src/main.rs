@@ -58,6 +58,10 @@ use snowpack_share::error::StoreError as StoreDetail;
 /// otherwise the default scene headless into snowpack-out/.
 #[derive(Parser, Debug)]
 #[command(name = "snowpack", version, about, args_conflicts_with_subcommands = true)]
+#[cfg_attr(
+    not(feature = "gpu"),
+    command(about = "snowpack's shared-snow server, built without a GPU: server, token and query.", long_about = None)
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

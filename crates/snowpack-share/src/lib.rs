@@ -34,7 +34,7 @@
 //!
 //! Feature `low_level` (snowpack's `low_level` turns it on) shows in the
 //! docs what snowpack's app, tools and tests use beyond a game's API, and
-//! adds [`testing`]'s support for tests.
+//! adds `testing`'s support for tests.
 
 /// Declares a function `pub` and, without the `low_level` feature, hidden
 /// from the docs: the calls that snowpack's app, tools and tests use (and
