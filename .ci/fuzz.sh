@@ -31,6 +31,9 @@ case $target in
   heightmap) max_len=(-max_len=16384) ;;
   scene_world) max_len=(-max_len=16384) dict=(-dict=fuzz/scene.dict) ;;
   scene_parse) dict=(-dict=fuzz/scene.dict) ;;
+  # The largest message a relay accepts (MAX_MESSAGE_BYTES), one byte past it
+  # refused; the seeds hold the largest digest, want and presence.
+  share_message) max_len=(-max_len=262145) ;;
 esac
 
 kept="$dir/corpus/$target"

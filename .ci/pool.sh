@@ -1,5 +1,5 @@
 # A pool of CI jobs, sourced by .ci/run: `pool_add NAME 'COMMAND'` queues a
-# job, `pool_run DURATIONS` runs them at most $CI_JOBS at a time (default: the
+# job, `pool_run DURATIONS [KNOWN]` runs them at most $CI_JOBS at a time (default: the
 # number of cores) and fails if any failed.
 #
 # Why: the tests run on software rasterisers, and one test binary keeps only
@@ -8,7 +8,9 @@
 # adapter, temporary folder, port or X display, so they run side by side.
 #
 # Jobs start longest first, by the durations the last run on this machine wrote
-# to DURATIONS (unknown jobs first), so that a long job does not start last.
+# to DURATIONS (unknown jobs first), so that a long job does not start last. A
+# machine that has none yet (a fresh one: the run that matters most) orders
+# them by KNOWN, the durations committed beside this file (.ci/durations.txt).
 # Each job's output is captured and printed whole when it ends, under a line
 # with its name, result and time.
 
@@ -21,14 +23,15 @@ pool_add() {
 }
 
 pool_run() {
-  local durations=$1 jobs=${CI_JOBS:-$(nproc)} logs i name secs
+  local durations=$1 jobs=${CI_JOBS:-$(nproc)} logs i name secs order_from=$1
+  [ -s "$durations" ] || order_from=${2:-$1}
   logs=$(mktemp -d)
   # Known durations, longest first; a job never seen before counts as longest.
   local order=()
   while read -r _ i; do order+=("$i"); done < <(
     for i in "${!pool_names[@]}"; do
       name=${pool_names[$i]}
-      secs=$(awk -F '\t' -v n="$name" '$2 == n { print $1 }' "$durations" 2>/dev/null | tail -n 1 || true)
+      secs=$(awk -F '\t' -v n="$name" '$2 == n { print $1 }' "$order_from" 2>/dev/null | tail -n 1 || true)
       echo "${secs:-999999} $i"
     done | sort -k1,1nr -k2,2n
   )

@@ -2,7 +2,9 @@
 fuzz/corpus/: gltf_model, heightmap, hdr_sky and scene_world; and
 fuzz/scene.dict, the scene schema's words for the scene targets. Seeds are the
 shipped assets (the fox, the built-in sky downscaled to 64x32, the scenes)
-and small hand-made edge cases, a few of them refused on purpose so the
+and small hand-made edge cases, and for share_message the largest messages
+a peer may send (a digest and a want of MAX_KEYS keys, a presence of
+MAX_DEFORMERS deformers), which libFuzzer's growth never reaches in a job, a few of them refused on purpose so the
 fuzzer starts on both sides of each check. The crash inputs fuzzing found
 are kept beside them (crash-*). Run from anywhere:
     python3 fuzz/make_seeds.py
@@ -395,6 +397,29 @@ def scene_seeds():
         put("scene_world", name, text)
 
 
+# ---------------------------------------------------------------- shared snow's messages
+
+# replicate/message.rs: the header, the limits.
+SHARE_HEADER = b"SNWP" + struct.pack("<H", 1)
+MAX_KEYS = 4096
+MAX_DEFORMERS = 256
+
+
+def share_seeds():
+    """The largest well-formed messages of each list kind: the work a relay
+    does per byte is what these reach (issue 46)."""
+    clock = open(os.path.join(CORPUS, "share_message", "seed-digest"), "rb").read()[7:55]
+    keys = [(c - 32, r - 32) for r in range(64) for c in range(64)][:MAX_KEYS]
+    digest = SHARE_HEADER + b"\x07" + clock + struct.pack("<H", len(keys))
+    digest += b"".join(struct.pack("<qqQ", c, r, (c * 2654435761 + r * 40503) & (2**64 - 1)) for c, r in keys)
+    put("share_message", "seed-digest-max", digest)
+    want = SHARE_HEADER + b"\x08" + struct.pack("<H", len(keys)) + b"".join(struct.pack("<qq", c, r) for c, r in keys)
+    put("share_message", "seed-want-max", want)
+    presence = SHARE_HEADER + b"\x04" + struct.pack("<qqIH", -64, -64, 128, MAX_DEFORMERS)
+    presence += b"".join(struct.pack("<dd", 0.5 * i, -0.25 * i) for i in range(MAX_DEFORMERS))
+    put("share_message", "seed-presence-max", presence)
+
+
 if __name__ == "__main__":
     # Files are overwritten, never removed: the crash inputs that fuzzing
     # found (named crash-*) sit beside the seeds.
@@ -405,3 +430,4 @@ if __name__ == "__main__":
     hdr_seeds()
     scene_seeds()
     scene_dictionary()
+    share_seeds()

@@ -1,16 +1,18 @@
 #!/usr/bin/env python3
 """Lists the functions longer than a limit in a tree of Rust sources.
 
-Usage: long_functions.py [DIR] [--limit N]
+Usage: long_functions.py [DIR...] [--limit N]
 
-DIR defaults to crates/snowpack/src, N to 80. A function's length is its
+DIR defaults to every crate's src/ and examples/ (crates/*, and the Bevy
+plugin, integrations/bevy_snowpack), N to 80. A function's length is its
 lines from the line of `fn` to the line of its closing brace, both counted;
 a function nested in another (or in a closure) counts for both. Comments and
 the insides of string and character literals are blanked first, so a brace in
 them does not count. Prints `LINES PATH:LINE NAME`, longest first, then the
 count; exits 1 when there is one, so it can gate a CI run.
 
-crates/snowpack/tests/function_length.rs holds the same limit as a test.
+crates/snowpack/tests/layering.rs (`no_function_is_longer_than_the_limit`)
+holds the same limit over the same folders as a test.
 """
 import os
 import re
@@ -119,9 +121,15 @@ def main():
         i = args.index("--limit")
         limit = int(args[i + 1])
         del args[i:i + 2]
-    root = args[0] if args else "crates/snowpack/src"
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if not args:
+        crates = [os.path.join("crates", c) for c in sorted(os.listdir(os.path.join(repo, "crates")))]
+        crates.append(os.path.join("integrations", "bevy_snowpack"))
+        args = [os.path.join(c, d) for c in crates for d in ("src", "examples") if os.path.isdir(os.path.join(repo, c, d))]
+        os.chdir(repo)
     long = []
-    for dirpath, _, names in os.walk(root):
+    walked = [(dirpath, names) for root in args for dirpath, _, names in os.walk(root)]
+    for dirpath, names in walked:
         for name in sorted(names):
             if not name.endswith(".rs"):
                 continue
@@ -134,7 +142,7 @@ def main():
                     long.append((lines, f"{path}:{first}", fn))
     for lines, where, fn in sorted(long, key=lambda t: (-t[0], t[1])):
         print(f"{lines:5} {where} {fn}")
-    print(f"{len(long)} function(s) over {limit} lines under {root}")
+    print(f"{len(long)} function(s) over {limit} lines under {', '.join(args)}")
     sys.exit(1 if long else 0)
 
 

@@ -332,32 +332,39 @@ pub struct BenchResults {
     pub share_rows: Vec<crate::bench_share::ShareRow>,
 }
 
+impl BenchResults {
+    /// Nothing measured yet, on `ctx`'s adapter, `frames` a size.
+    fn empty(ctx: &GpuContext, frames: u32) -> Self {
+        Self {
+            adapter: ctx.summary.name.clone(),
+            backend: ctx.summary.backend.to_string(),
+            software: ctx.summary.is_software(),
+            frames,
+            rows: Vec::new(),
+            counts: Vec::new(),
+            technique_rows: Vec::new(),
+            cpu_rows: Vec::new(),
+            ranges: Vec::new(),
+            render_rows: Vec::new(),
+            render_frames: 0,
+            frame_rows: Vec::new(),
+            accum_rows: Vec::new(),
+            move_rows: Vec::new(),
+            store_row: None,
+            shell_rows: Vec::new(),
+            sweep_rows: Vec::new(),
+            coat_rows: Vec::new(),
+            share_rows: Vec::new(),
+        }
+    }
+}
+
 /// Measures everything `--quick` and `--only` ask for.
 pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow::Result<BenchResults> {
     let (warmup, frames) = if quick { (10, 30) } else { (60, 300) };
     let sizes: &[u32] = if quick { &[1024, 2048] } else { &[512, 1024, 2048, 4096] };
     let spheres = 256;
-    let mut results = BenchResults {
-        adapter: ctx.summary.name.clone(),
-        backend: ctx.summary.backend.to_string(),
-        software: ctx.summary.is_software(),
-        frames,
-        rows: Vec::new(),
-        counts: Vec::new(),
-        technique_rows: Vec::new(),
-        cpu_rows: Vec::new(),
-        ranges: Vec::new(),
-        render_rows: Vec::new(),
-        render_frames: 0,
-        frame_rows: Vec::new(),
-        accum_rows: Vec::new(),
-        move_rows: Vec::new(),
-        store_row: None,
-        shell_rows: Vec::new(),
-        sweep_rows: Vec::new(),
-        coat_rows: Vec::new(),
-        share_rows: Vec::new(),
-    };
+    let mut results = BenchResults::empty(ctx, frames);
     for &res in sizes {
         let name = format!("passes-{res}");
         if only.is_some_and(|o| !name.contains(o)) {
@@ -369,181 +376,225 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
         println!("  {res:>5}²  {}  | CPU record {:.3} ms", line.join("  "), row.cpu_record_ms);
         results.rows.push(row);
     }
-    // Techniques against actor count (Wasmut Tables 1-2) and points against
-    // range (Table 4), at 1024².
     if only.is_none_or(|o| "techniques".contains(o)) {
-        results.counts = if quick { vec![128, 1024, 4096] } else { vec![128, 256, 512, 1024, 4096, 16384] };
-        for technique in Technique::ALL {
-            let (mut cells, mut cpu) = (Vec::new(), Vec::new());
-            for &n in &results.counts {
-                let config = Config { resolution: 1024, spheres: n, technique, range_texels: 64 };
-                let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
-                cells.push(row.passes.iter().map(|p| p.1).sum::<f64>());
-                cpu.push(row.cpu_record_ms);
-            }
-            println!("  {:<9} {}", technique.as_str(), cells.iter().map(|c| format!("{c:.3}")).collect::<Vec<_>>().join("  "));
-            results.technique_rows.push((technique.as_str().to_owned(), cells));
-            results.cpu_rows.push((technique.as_str().to_owned(), cpu));
-        }
-        for range in [32, 64, 96, 128] {
-            let config = Config { resolution: 1024, spheres: 1024, technique: Technique::Points, range_texels: range };
-            let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("points at range {range}"))?;
-            let stamp = row.passes.iter().find(|p| p.0 == "stamp").map_or(0.0, |p| p.1);
-            results.ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
-        }
+        measure_techniques(ctx, quick, warmup, frames, &mut results)?;
     }
-    // The renderer at 1920x1080 against camera distance (issue: rendering performance).
     if only.is_none_or(|o| "render".contains(o)) {
-        let (render_warmup, render_frames) = if quick { (3, 10) } else { (20, 100) };
-        results.render_rows = crate::bench_render::measure(ctx, render_warmup, render_frames).context("measuring the renderer")?;
-        results.render_frames = render_frames;
-        for row in &results.render_rows {
-            let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
-            println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
-        }
+        measure_render(ctx, quick, &mut results)?;
     }
-    // Accumulation against map size (Dinh 2021, section 6.2).
     if only.is_none_or(|o| "accumulation".contains(o)) {
-        let (acc_warmup, acc_frames) = if quick { (5, 15) } else { (60, 300) };
-        for scenario in crate::bench_accumulation::SCENARIOS {
-            for atlas in [512, 1024, 2048] {
-                let row = crate::bench_accumulation::measure(ctx, scenario, atlas, acc_warmup, acc_frames)
-                    .with_context(|| format!("accumulation: {scenario} at {atlas}²"))?;
-                println!(
-                    "  accumulation {scenario:<13} {atlas:>4}²: accumulation {:.3} ms, support {:.3} ms, frame {:.3} ms",
-                    row.accumulation_ms, row.support_ms, row.frame_ms
-                );
-                results.accum_rows.push(row);
-            }
-        }
+        measure_accumulation(ctx, quick, &mut results)?;
     }
-    // Open worlds: window moves with and without the tile store, store size and latency.
     if only.is_none_or(|o| "tiles".contains(o)) {
-        let scratch = std::env::temp_dir().join(format!("snowpack-bench-tiles-{}", std::process::id()));
-        let (tile_warmup, tile_frames) = if quick { (10, 40) } else { (60, 300) };
-        let sizes: &[u32] = if quick { &[512, 1024] } else { &[512, 1024, 2048] };
-        for &resolution in sizes {
-            for store in [false, true] {
-                let row = crate::bench_tiles::measure_move(ctx, resolution, store, tile_warmup, tile_frames, &scratch)
-                    .with_context(|| format!("window moves at {resolution}², store {store}"))?;
-                println!(
-                    "  window move {resolution:>4}² store {:<3}: move {:.3} ms, frame {:.3} ms GPU, record {:.3} ms CPU, wall {:.2} ms",
-                    if store { "yes" } else { "no" },
-                    row.move_gpu_ms,
-                    row.frame_gpu_ms,
-                    row.record_cpu_ms,
-                    row.wall_ms
-                );
-                results.move_rows.push(row);
-            }
-        }
-        let row = crate::bench_tiles::measure_store(ctx, if quick { 100.0 } else { 500.0 }, &scratch).context("tile store size and latency")?;
-        println!(
-            "  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile",
-            row.bytes_per_km_with_trail / 1e3,
-            row.bytes_per_km_untouched / 1e3,
-            row.restore_ms
-        );
-        results.store_row = Some(row);
-        let _ = std::fs::remove_dir_all(&scratch);
+        measure_tiles(ctx, quick, &mut results)?;
     }
-    // Shared snow: one relay process and simulated peers on loopback (CPU only).
     if only.is_none_or(|o| "share".contains(o)) {
-        let (peers, seconds) = if quick { (16, 10.0) } else { (64, 60.0) };
-        let row = crate::bench_share::measure_load(peers, seconds).context("shared snow under load")?;
-        println!(
-            "  shared snow: {} peers for {:.0} s: server {:.3} CPU s per world s, {:.1} MiB peak, {:.3} ms CPU per tile, {:.0} B/s out; late join {:.0} KB in {:.2} s",
-            row.peers,
-            row.world_s,
-            row.cpu_per_world_s(),
-            row.server_peak_kib as f64 / 1024.0,
-            row.cpu_ms_per_tile(),
-            row.bytes_out as f64 / row.world_s,
-            row.late_join_bytes as f64 / 1e3,
-            row.late_join_s
-        );
-        results.share_rows.push(row);
+        measure_share(quick, &mut results)?;
     }
-    // Swept capture against unswept (issue 21).
     if only.is_none_or(|o| "sweep".contains(o)) {
-        let (sweep_warmup, sweep_frames) = if quick { (5, 20) } else { (30, 120) };
-        results.sweep_rows = crate::bench_sweep::measure(ctx, sweep_warmup, sweep_frames).context("measuring swept capture")?;
-        for row in &results.sweep_rows {
-            println!(
-                "  sweep {:<48} {}: unswept {:.3} ms, swept {:.3} ms ({:.2}x); frame {:.3} against {:.3} ms ({:.2}x)",
-                row.scenario,
-                row.pass,
-                row.unswept_ms,
-                row.swept_ms,
-                row.ratio(),
-                row.unswept_frame_ms,
-                row.swept_frame_ms,
-                row.frame_ratio()
-            );
-        }
+        measure_sweep(ctx, quick, &mut results)?;
     }
-    // Snow on the characters (issue 35): the coat against the skinning it follows.
     if only.is_none_or(|o| "coat".contains(o)) {
-        let (coat_warmup, coat_frames) = if quick { (5, 20) } else { (30, 120) };
-        results.coat_rows = crate::bench_coat::measure(ctx, coat_warmup, coat_frames).context("measuring the snow coat")?;
-        for row in &results.coat_rows {
-            println!(
-                "  coat {:<26} {:>7} vertices: skinning {:.4} ms, snow coat {:.4} ms ({:.2}x)",
-                row.mesh,
-                row.vertices,
-                row.skinning_ms,
-                row.coat_ms,
-                row.ratio()
-            );
-        }
+        measure_coat(ctx, quick, &mut results)?;
     }
-    // Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
-    // sizes and few frames (a software adapter takes seconds a frame at 2560x1600).
     if only.is_none_or(|o| "shell".contains(o)) {
-        let (shell_warmup, shell_frames) = if quick { (1, 3) } else { (10, 60) };
-        let textures: &[u32] = if quick { &[32, 128] } else { &[16, 32, 64, 128, 256] };
-        results.shell_rows =
-            crate::bench_shell::measure(ctx, &crate::bench_shell::SIZES, textures, shell_warmup, shell_frames).context("measuring the shell")?;
-        for row in &results.shell_rows {
-            println!(
-                "  shell {}x{} texture {:>3} {:<9}: {:.2} FPS, shell {:.2} ms GPU, pixels per pass {:?}",
-                row.size.0,
-                row.size.1,
-                row.texture,
-                if row.lod { "with mips" } else { "level 0" },
-                row.fps(),
-                row.shell_gpu_ms,
-                row.pass_pixels
-            );
-        }
+        measure_shell(ctx, quick, &mut results)?;
     }
-    // Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
-    // two counts only (a software adapter takes seconds a frame).
     if only.is_none_or(|o| "frames".contains(o)) {
-        let (frame_warmup, frame_frames) = if quick { (2, 3) } else { (30, 100) };
-        let mut configs: Vec<(Technique, usize, u32, u32)> = Vec::new();
-        let techniques = [Technique::Points, Technique::Depth, Technique::Decals];
-        let counts: &[usize] = if quick { &[128, 1024] } else { &[128, 256, 512, 1024] };
-        for t in techniques {
-            configs.extend(counts.iter().map(|&n| (t, n, 32, 64)));
-            if !quick {
-                configs.extend(counts.iter().map(|&n| (t, n, 128, 64)));
-                configs.extend([32, 64, 128, 256].iter().map(|&n| (t, n, 512, 64)));
-            }
-        }
-        if !quick {
-            for range in [32, 96, 128] {
-                configs.extend(counts.iter().map(|&n| (Technique::Points, n, 32, range)));
-            }
-        }
-        for (technique, n, side, range) in configs {
-            let row = crate::bench_frames::measure(ctx, technique, n, side, range, frame_warmup, frame_frames)
-                .with_context(|| format!("a frame of {} with {n} spheres of {side}² vertices", technique.as_str()))?;
-            println!("  frame {:<8} {n:>5} spheres {side:>3}² range {range:>3}: {:.1} FPS", technique.as_str(), row.fps());
-            results.frame_rows.push(row);
-        }
+        measure_frames(ctx, quick, &mut results)?;
     }
     Ok(results)
+}
+
+/// Techniques against actor count (Wasmut Tables 1-2) and points against
+/// range (Table 4), at 1024².
+fn measure_techniques(ctx: &GpuContext, quick: bool, warmup: u32, frames: u32, results: &mut BenchResults) -> anyhow::Result<()> {
+    results.counts = if quick { vec![128, 1024, 4096] } else { vec![128, 256, 512, 1024, 4096, 16384] };
+    for technique in Technique::ALL {
+        let (mut cells, mut cpu) = (Vec::new(), Vec::new());
+        for &n in &results.counts {
+            let config = Config { resolution: 1024, spheres: n, technique, range_texels: 64 };
+            let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("{} with {n} spheres", technique.as_str()))?;
+            cells.push(row.passes.iter().map(|p| p.1).sum::<f64>());
+            cpu.push(row.cpu_record_ms);
+        }
+        println!("  {:<9} {}", technique.as_str(), cells.iter().map(|c| format!("{c:.3}")).collect::<Vec<_>>().join("  "));
+        results.technique_rows.push((technique.as_str().to_owned(), cells));
+        results.cpu_rows.push((technique.as_str().to_owned(), cpu));
+    }
+    for range in [32, 64, 96, 128] {
+        let config = Config { resolution: 1024, spheres: 1024, technique: Technique::Points, range_texels: range };
+        let row = measure(ctx, config, warmup, frames / 2).with_context(|| format!("points at range {range}"))?;
+        let stamp = row.passes.iter().find(|p| p.0 == "stamp").map_or(0.0, |p| p.1);
+        results.ranges.push((range, stamp, row.passes.iter().map(|p| p.1).sum::<f64>()));
+    }
+    Ok(())
+}
+
+/// The renderer at 1920x1080 against camera distance (issue: rendering performance).
+fn measure_render(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (render_warmup, render_frames) = if quick { (3, 10) } else { (20, 100) };
+    results.render_rows = crate::bench_render::measure(ctx, render_warmup, render_frames).context("measuring the renderer")?;
+    results.render_frames = render_frames;
+    for row in &results.render_rows {
+        let line: Vec<String> = row.passes.iter().map(|(n, ms)| format!("{n} {ms:.3}")).collect();
+        println!("  render at {:>6} m: {:>7} triangles  {}", row.distance_m, row.triangles, line.join("  "));
+    }
+    Ok(())
+}
+
+/// Accumulation against map size (Dinh 2021, section 6.2).
+fn measure_accumulation(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (acc_warmup, acc_frames) = if quick { (5, 15) } else { (60, 300) };
+    for scenario in crate::bench_accumulation::SCENARIOS {
+        for atlas in [512, 1024, 2048] {
+            let row = crate::bench_accumulation::measure(ctx, scenario, atlas, acc_warmup, acc_frames)
+                .with_context(|| format!("accumulation: {scenario} at {atlas}²"))?;
+            println!(
+                "  accumulation {scenario:<13} {atlas:>4}²: accumulation {:.3} ms, support {:.3} ms, frame {:.3} ms",
+                row.accumulation_ms, row.support_ms, row.frame_ms
+            );
+            results.accum_rows.push(row);
+        }
+    }
+    Ok(())
+}
+
+/// Open worlds: window moves with and without the tile store, store size and latency.
+fn measure_tiles(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let scratch = std::env::temp_dir().join(format!("snowpack-bench-tiles-{}", std::process::id()));
+    let (tile_warmup, tile_frames) = if quick { (10, 40) } else { (60, 300) };
+    let sizes: &[u32] = if quick { &[512, 1024] } else { &[512, 1024, 2048] };
+    for &resolution in sizes {
+        for store in [false, true] {
+            let row = crate::bench_tiles::measure_move(ctx, resolution, store, tile_warmup, tile_frames, &scratch)
+                .with_context(|| format!("window moves at {resolution}², store {store}"))?;
+            println!(
+                "  window move {resolution:>4}² store {:<3}: move {:.3} ms, frame {:.3} ms GPU, record {:.3} ms CPU, wall {:.2} ms",
+                if store { "yes" } else { "no" },
+                row.move_gpu_ms,
+                row.frame_gpu_ms,
+                row.record_cpu_ms,
+                row.wall_ms
+            );
+            results.move_rows.push(row);
+        }
+    }
+    let row = crate::bench_tiles::measure_store(ctx, if quick { 100.0 } else { 500.0 }, &scratch).context("tile store size and latency")?;
+    println!(
+        "  tile store: {:.0} KB/km with a trail, {:.0} KB/km untouched, restore {:.2} ms a tile",
+        row.bytes_per_km_with_trail / 1e3,
+        row.bytes_per_km_untouched / 1e3,
+        row.restore_ms
+    );
+    results.store_row = Some(row);
+    let _ = std::fs::remove_dir_all(&scratch);
+    Ok(())
+}
+
+/// Shared snow: one relay process and simulated peers on loopback (CPU only).
+fn measure_share(quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (peers, seconds) = if quick { (16, 10.0) } else { (64, 60.0) };
+    let row = crate::bench_share::measure_load(peers, seconds).context("shared snow under load")?;
+    println!(
+        "  shared snow: {} peers for {:.0} s: server {:.3} CPU s per world s, {:.1} MiB peak, {:.3} ms CPU per tile, {:.0} B/s out; late join {:.0} KB in {:.2} s",
+        row.peers,
+        row.world_s,
+        row.cpu_per_world_s(),
+        row.server_peak_kib as f64 / 1024.0,
+        row.cpu_ms_per_tile(),
+        row.bytes_out as f64 / row.world_s,
+        row.late_join_bytes as f64 / 1e3,
+        row.late_join_s
+    );
+    results.share_rows.push(row);
+    Ok(())
+}
+
+/// Swept capture against unswept (issue 21).
+fn measure_sweep(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (sweep_warmup, sweep_frames) = if quick { (5, 20) } else { (30, 120) };
+    results.sweep_rows = crate::bench_sweep::measure(ctx, sweep_warmup, sweep_frames).context("measuring swept capture")?;
+    for row in &results.sweep_rows {
+        println!(
+            "  sweep {:<48} {}: unswept {:.3} ms, swept {:.3} ms ({:.2}x); frame {:.3} against {:.3} ms ({:.2}x)",
+            row.scenario,
+            row.pass,
+            row.unswept_ms,
+            row.swept_ms,
+            row.ratio(),
+            row.unswept_frame_ms,
+            row.swept_frame_ms,
+            row.frame_ratio()
+        );
+    }
+    Ok(())
+}
+
+/// Snow on the characters (issue 35): the coat against the skinning it follows.
+fn measure_coat(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (coat_warmup, coat_frames) = if quick { (5, 20) } else { (30, 120) };
+    results.coat_rows = crate::bench_coat::measure(ctx, coat_warmup, coat_frames).context("measuring the snow coat")?;
+    for row in &results.coat_rows {
+        println!(
+            "  coat {:<26} {:>7} vertices: skinning {:.4} ms, snow coat {:.4} ms ({:.2}x)",
+            row.mesh,
+            row.vertices,
+            row.skinning_ms,
+            row.coat_ms,
+            row.ratio()
+        );
+    }
+    Ok(())
+}
+
+/// Shell mapping: Leshonkov and Frolov's Figure 5. Quick: two texture
+/// sizes and few frames (a software adapter takes seconds a frame at 2560x1600).
+fn measure_shell(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (shell_warmup, shell_frames) = if quick { (1, 3) } else { (10, 60) };
+    let textures: &[u32] = if quick { &[32, 128] } else { &[16, 32, 64, 128, 256] };
+    results.shell_rows = crate::bench_shell::measure(ctx, &crate::bench_shell::SIZES, textures, shell_warmup, shell_frames).context("measuring the shell")?;
+    for row in &results.shell_rows {
+        println!(
+            "  shell {}x{} texture {:>3} {:<9}: {:.2} FPS, shell {:.2} ms GPU, pixels per pass {:?}",
+            row.size.0,
+            row.size.1,
+            row.texture,
+            if row.lod { "with mips" } else { "level 0" },
+            row.fps(),
+            row.shell_gpu_ms,
+            row.pass_pixels
+        );
+    }
+    Ok(())
+}
+
+/// Whole frames at 1600x900 against Wasmut's Tables 1-4. Quick: Table 1 at
+/// two counts only (a software adapter takes seconds a frame).
+fn measure_frames(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (frame_warmup, frame_frames) = if quick { (2, 3) } else { (30, 100) };
+    let mut configs: Vec<(Technique, usize, u32, u32)> = Vec::new();
+    let techniques = [Technique::Points, Technique::Depth, Technique::Decals];
+    let counts: &[usize] = if quick { &[128, 1024] } else { &[128, 256, 512, 1024] };
+    for t in techniques {
+        configs.extend(counts.iter().map(|&n| (t, n, 32, 64)));
+        if !quick {
+            configs.extend(counts.iter().map(|&n| (t, n, 128, 64)));
+            configs.extend([32, 64, 128, 256].iter().map(|&n| (t, n, 512, 64)));
+        }
+    }
+    if !quick {
+        for range in [32, 96, 128] {
+            configs.extend(counts.iter().map(|&n| (Technique::Points, n, 32, range)));
+        }
+    }
+    for (technique, n, side, range) in configs {
+        let row = crate::bench_frames::measure(ctx, technique, n, side, range, frame_warmup, frame_frames)
+            .with_context(|| format!("a frame of {} with {n} spheres of {side}² vertices", technique.as_str()))?;
+        println!("  frame {:<8} {n:>5} spheres {side:>3}² range {range:>3}: {:.1} FPS", technique.as_str(), row.fps());
+        results.frame_rows.push(row);
+    }
+    Ok(())
 }
 
 /// The report's files from `r`: `report.md`, and for what was measured
@@ -575,6 +626,51 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     let chart = |title: String, x_label: &str, y_label: &str, series: Vec<Series>| {
         render_png(&Chart { title, x_label: x_label.into(), y_label: y_label.into(), log_x: true, series }, 960, 540)
     };
+    let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", report_markdown(r).into_bytes())];
+    if !r.rows.is_empty() {
+        let mut csv = String::from("resolution,spheres,pass,median_ms\n");
+        for row in &r.rows {
+            for (n, ms) in &row.passes {
+                let _ = writeln!(csv, "{},{},{n},{ms}", row.resolution, row.spheres);
+            }
+            let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
+        }
+        files.push(("passes.csv", csv.into_bytes()));
+        let series = by_pass(r.rows.iter().map(|row| (f64::from(row.resolution), row.passes.as_slice())).collect());
+        files.push(("passes.png", chart(format!("GPU ms per pass against window side, {}{tag}", r.adapter), "texels per side", "ms", series)));
+    }
+    if !r.technique_rows.is_empty() {
+        let mut csv = String::from("technique,spheres,gpu_ms,cpu_record_ms\n");
+        for ((name, gpu), (_, cpu)) in r.technique_rows.iter().zip(&r.cpu_rows) {
+            for ((n, g), c) in r.counts.iter().zip(gpu).zip(cpu) {
+                let _ = writeln!(csv, "{name},{n},{g},{c}");
+            }
+        }
+        for (range, stamp, total) in &r.ranges {
+            let _ = writeln!(csv, "points-range-{range},1024,{total},");
+            let _ = writeln!(csv, "points-range-{range}-stamp,1024,{stamp},");
+        }
+        files.push(("techniques.csv", csv.into_bytes()));
+        files.push(("techniques.png", chart(format!("GPU ms per frame at 1024² against spheres{tag}"), "spheres", "ms", per_count(&r.technique_rows))));
+        files.push(("cpu_record.png", chart(format!("CPU ms to record a frame against spheres{tag}"), "spheres", "ms", per_count(&r.cpu_rows))));
+    }
+    if !r.render_rows.is_empty() {
+        let mut csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
+        for row in &r.render_rows {
+            for (n, ms) in &row.passes {
+                let _ = writeln!(csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
+            }
+        }
+        files.push(("render.csv", csv.into_bytes()));
+        let series = by_pass(r.render_rows.iter().map(|row| (f64::from(row.distance_m), row.passes.as_slice())).collect());
+        files.push(("render.png", chart(format!("Render ms per pass at 1920x1080 against camera distance{tag}"), "camera distance (m)", "ms", series)));
+    }
+    report_tables(r, &mut files);
+    files
+}
+
+/// `report.md`: every table measured, each with the adapter under its heading.
+fn report_markdown(r: &BenchResults) -> String {
     let mut md = if r.rows.is_empty() {
         let mut md = format!("Adapter: **{}** ({}).\n", r.adapter, r.backend);
         if r.software {
@@ -628,46 +724,11 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
         })
         .collect::<Vec<_>>()
         .join("\n");
-    let md = format!("# snowpack bench\n\n{stamp}\n\n{md}\n");
-    let mut files: Vec<(&'static str, Vec<u8>)> = vec![("report.md", md.into_bytes())];
-    if !r.rows.is_empty() {
-        let mut csv = String::from("resolution,spheres,pass,median_ms\n");
-        for row in &r.rows {
-            for (n, ms) in &row.passes {
-                let _ = writeln!(csv, "{},{},{n},{ms}", row.resolution, row.spheres);
-            }
-            let _ = writeln!(csv, "{},{},cpu_record,{}", row.resolution, row.spheres, row.cpu_record_ms);
-        }
-        files.push(("passes.csv", csv.into_bytes()));
-        let series = by_pass(r.rows.iter().map(|row| (f64::from(row.resolution), row.passes.as_slice())).collect());
-        files.push(("passes.png", chart(format!("GPU ms per pass against window side, {}{tag}", r.adapter), "texels per side", "ms", series)));
-    }
-    if !r.technique_rows.is_empty() {
-        let mut csv = String::from("technique,spheres,gpu_ms,cpu_record_ms\n");
-        for ((name, gpu), (_, cpu)) in r.technique_rows.iter().zip(&r.cpu_rows) {
-            for ((n, g), c) in r.counts.iter().zip(gpu).zip(cpu) {
-                let _ = writeln!(csv, "{name},{n},{g},{c}");
-            }
-        }
-        for (range, stamp, total) in &r.ranges {
-            let _ = writeln!(csv, "points-range-{range},1024,{total},");
-            let _ = writeln!(csv, "points-range-{range}-stamp,1024,{stamp},");
-        }
-        files.push(("techniques.csv", csv.into_bytes()));
-        files.push(("techniques.png", chart(format!("GPU ms per frame at 1024² against spheres{tag}"), "spheres", "ms", per_count(&r.technique_rows))));
-        files.push(("cpu_record.png", chart(format!("CPU ms to record a frame against spheres{tag}"), "spheres", "ms", per_count(&r.cpu_rows))));
-    }
-    if !r.render_rows.is_empty() {
-        let mut csv = String::from("camera_distance_m,patches,terrain_triangles,pass,median_ms\n");
-        for row in &r.render_rows {
-            for (n, ms) in &row.passes {
-                let _ = writeln!(csv, "{},{},{},{n},{ms}", row.distance_m, row.patches, row.triangles);
-            }
-        }
-        files.push(("render.csv", csv.into_bytes()));
-        let series = by_pass(r.render_rows.iter().map(|row| (f64::from(row.distance_m), row.passes.as_slice())).collect());
-        files.push(("render.png", chart(format!("Render ms per pass at 1920x1080 against camera distance{tag}"), "camera distance (m)", "ms", series)));
-    }
+    format!("# snowpack bench\n\n{stamp}\n\n{md}\n")
+}
+
+/// The CSV files of the frame, accumulation, tile, shell, sweep and coat measurements, for those measured.
+fn report_tables(r: &BenchResults, files: &mut Vec<(&'static str, Vec<u8>)>) {
     if !r.frame_rows.is_empty() {
         let mut csv = String::from("technique,spheres,mesh_vertices_per_side,range_texels,deform_ms,render_ms,fps\n");
         for f in &r.frame_rows {
@@ -702,7 +763,6 @@ pub fn report_files(r: &BenchResults) -> Vec<(&'static str, Vec<u8>)> {
     if !r.coat_rows.is_empty() {
         files.push(("coat.csv", crate::bench_coat::csv(&r.coat_rows).into_bytes()));
     }
-    files
 }
 
 /// The parts `--only` picks from: a value selects every part whose name contains it.
@@ -817,8 +877,8 @@ mod tests {
         assert!(hanak_markdown(&row, "llvmpipe", true).contains("software: ratios only"));
     }
 
-    #[test]
-    fn a_synthetic_result_set_gives_every_table_and_csv() {
+    /// Results as a full run on an H100 would give them, every part measured.
+    fn synthetic_results() -> BenchResults {
         let row = |resolution: u32| BenchRow {
             resolution,
             spheres: 256,
@@ -827,7 +887,7 @@ mod tests {
             memory_bytes: 8 << 20,
             memory_parts: vec![("snow".into(), 4 << 20), ("terrain".into(), 4 << 20)],
         };
-        let results = BenchResults {
+        let mut results = BenchResults {
             adapter: "NVIDIA H100 80GB HBM3".into(),
             backend: "vulkan".into(),
             software: false,
@@ -853,60 +913,77 @@ mod tests {
                 deform_ms: 1.0,
                 render_ms: 4.0,
             }],
-            accum_rows: vec![crate::bench_accumulation::AccumRow {
-                scenario: "both".into(),
-                atlas: 2048,
-                objects: 208,
-                occlusion_triangles: 60_000,
-                atlas_used: 0.9,
-                accumulation_ms: 0.5,
-                support_ms: 0.25,
-                frame_ms: 2.0,
-                wall_ms: 2.5,
-                memory_bytes: 100 << 20,
-            }],
-            move_rows: vec![crate::bench_tiles::MoveRow {
-                resolution: 1024,
-                store: true,
-                move_gpu_ms: 0.1,
-                frame_gpu_ms: 1.0,
-                record_cpu_ms: 0.2,
-                wall_ms: 1.5,
-                resident_bytes: 21 << 20,
-            }],
-            store_row: Some(crate::bench_tiles::StoreRow {
-                trail_m: 500.0,
-                swath_m: 16.0,
-                bytes_per_km_with_trail: 2e6,
-                bytes_per_km_untouched: 1e6,
-                mean_tile_bytes: 5000.0,
-                restore_ms: 0.5,
-                teleport_wait_frames: 3,
-                teleport_ms: 50.0,
-            }),
-            shell_rows: [false, true]
-                .map(|lod| crate::bench_shell::ShellRow {
-                    size: (800, 800),
-                    texture: 64,
-                    lod,
-                    frame_ms: 20.0,
-                    shell_gpu_ms: 5.0,
-                    pass_ms: vec![2.0, 1.0],
-                    pass_pixels: vec![1000, 300],
-                    tetrahedra: 1000,
-                })
-                .to_vec(),
-            sweep_rows: vec![crate::bench_sweep::SweepRow {
-                scenario: "balls",
-                pass: "capture",
-                unswept_ms: 0.5,
-                swept_ms: 0.6,
-                unswept_frame_ms: 10.0,
-                swept_frame_ms: 10.5,
-            }],
-            coat_rows: vec![crate::bench_coat::CoatRow { mesh: "the fox".into(), vertices: 1728, skinning_ms: 0.01, coat_ms: 0.002 }],
+            accum_rows: vec![],
+            move_rows: vec![],
+            store_row: None,
+            shell_rows: vec![],
+            sweep_rows: vec![],
+            coat_rows: vec![],
             share_rows: vec![],
         };
+        add_synthetic_world_rows(&mut results);
+        results
+    }
+
+    /// The accumulation, tile, shell, sweep and coat rows of [`synthetic_results`].
+    fn add_synthetic_world_rows(results: &mut BenchResults) {
+        results.accum_rows = vec![crate::bench_accumulation::AccumRow {
+            scenario: "both".into(),
+            atlas: 2048,
+            objects: 208,
+            occlusion_triangles: 60_000,
+            atlas_used: 0.9,
+            accumulation_ms: 0.5,
+            support_ms: 0.25,
+            frame_ms: 2.0,
+            wall_ms: 2.5,
+            memory_bytes: 100 << 20,
+        }];
+        results.move_rows = vec![crate::bench_tiles::MoveRow {
+            resolution: 1024,
+            store: true,
+            move_gpu_ms: 0.1,
+            frame_gpu_ms: 1.0,
+            record_cpu_ms: 0.2,
+            wall_ms: 1.5,
+            resident_bytes: 21 << 20,
+        }];
+        results.store_row = Some(crate::bench_tiles::StoreRow {
+            trail_m: 500.0,
+            swath_m: 16.0,
+            bytes_per_km_with_trail: 2e6,
+            bytes_per_km_untouched: 1e6,
+            mean_tile_bytes: 5000.0,
+            restore_ms: 0.5,
+            teleport_wait_frames: 3,
+            teleport_ms: 50.0,
+        });
+        results.shell_rows = [false, true]
+            .map(|lod| crate::bench_shell::ShellRow {
+                size: (800, 800),
+                texture: 64,
+                lod,
+                frame_ms: 20.0,
+                shell_gpu_ms: 5.0,
+                pass_ms: vec![2.0, 1.0],
+                pass_pixels: vec![1000, 300],
+                tetrahedra: 1000,
+            })
+            .to_vec();
+        results.sweep_rows = vec![crate::bench_sweep::SweepRow {
+            scenario: "balls",
+            pass: "capture",
+            unswept_ms: 0.5,
+            swept_ms: 0.6,
+            unswept_frame_ms: 10.0,
+            swept_frame_ms: 10.5,
+        }];
+        results.coat_rows = vec![crate::bench_coat::CoatRow { mesh: "the fox".into(), vertices: 1728, skinning_ms: 0.01, coat_ms: 0.002 }];
+    }
+
+    #[test]
+    fn a_synthetic_result_set_gives_every_table_and_csv() {
+        let results = synthetic_results();
         let files = report_files(&results);
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
         assert_eq!(

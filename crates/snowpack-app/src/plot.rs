@@ -151,6 +151,29 @@ fn tick_label(v: f64) -> String {
     s
 }
 
+/// The title at the top left from `left`; one too wide for the canvas breaks
+/// before its last parenthesis.
+fn draw_title(cv: &mut Canvas, title: &str, left: i64, ink: [u8; 3]) {
+    let fits = |t: &str| left + text_width(t) <= i64::from(cv.width) - 4;
+    match title.rfind(" (").filter(|_| !fits(title)) {
+        Some(k) => {
+            cv.text(left, 4, &title[..k], ink);
+            cv.text(left, 22, title[k..].trim_start(), ink);
+        }
+        None => {
+            cv.text(left, 12, title, ink);
+        }
+    }
+}
+
+/// Round y ticks up to `y_max`: a step of 1, 2 or 5 times a power of ten,
+/// and how many steps (five or fewer).
+fn y_ticks(y_max: f64) -> (f64, u32) {
+    let magnitude = 10f64.powf((y_max / 5.0).log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0].into_iter().map(|m| m * magnitude).find(|s| y_max / s <= 5.0).unwrap_or(10.0 * magnitude);
+    (step, (y_max / step).ceil().max(1.0) as u32)
+}
+
 /// The chart as a PNG of `width` x `height` pixels. Points that are not
 /// finite (or not positive on a log axis) are left out.
 #[must_use]
@@ -162,17 +185,7 @@ pub fn render_png(chart: &Chart, width: u32, height: u32) -> Vec<u8> {
     let usable = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && (!chart.log_x || x > 0.0);
     let points: Vec<(f64, f64)> = chart.series.iter().flat_map(|s| s.points.iter().copied().filter(usable)).collect();
     let (left, right, top, bottom) = (90i64, i64::from(width) - 200, 50i64, i64::from(height) - 60);
-    // A title too wide for the image breaks before its last parenthesis.
-    let fits = |t: &str| left + text_width(t) <= i64::from(width) - 4;
-    match chart.title.rfind(" (").filter(|_| !fits(&chart.title)) {
-        Some(k) => {
-            cv.text(left, 4, &chart.title[..k], INK);
-            cv.text(left, 22, chart.title[k..].trim_start(), INK);
-        }
-        None => {
-            cv.text(left, 12, &chart.title, INK);
-        }
-    }
+    draw_title(&mut cv, &chart.title, left, INK);
     cv.text(left - 60, top - 24, &chart.y_label, INK);
     let xl = chart.x_label.as_str();
     cv.text((left + right) / 2 - text_width(xl) / 2, bottom + 34, xl, INK);
@@ -186,9 +199,7 @@ pub fn render_png(chart: &Chart, width: u32, height: u32) -> Vec<u8> {
     }
     // Round y ticks: a step of 1, 2 or 5 times a power of ten, five or fewer of them.
     let y_max = if points.is_empty() || y1 <= 0.0 { 1.0 } else { y1 };
-    let magnitude = 10f64.powf((y_max / 5.0).log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0].into_iter().map(|m| m * magnitude).find(|s| y_max / s <= 5.0).unwrap_or(10.0 * magnitude);
-    let ticks = (y_max / step).ceil().max(1.0) as u32;
+    let (step, ticks) = y_ticks(y_max);
     let y1 = step * f64::from(ticks);
     let (y0, xs, ys) = (0.0, (right - left) as f64 / (x1 - x0), (bottom - top) as f64 / y1);
     let px = |x: f64| left as f64 + (fx(x) - x0) * xs;

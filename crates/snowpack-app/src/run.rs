@@ -84,7 +84,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     };
     let render_params = render_params(scene, opts)?;
     let frames = opts.frames.unwrap_or(scene.sim.frames);
-    let (width, height) = opts.size.unwrap_or(DEFAULT_FRAME_SIZE);
+    let size = opts.size.unwrap_or(DEFAULT_FRAME_SIZE);
 
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
@@ -106,42 +106,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         Some(addr) => Some(crate::net::join(&ctx, &mut snow, addr, opts.token.as_deref(), &scene.path.display().to_string())?),
         None => None,
     };
-    let warmup = frames.min(10) as u64;
-    let mut footsteps = Vec::new();
-    // The characters' soles, asked with the next frame.
-    let mut asked: Option<Vec<glam::Vec2>> = None;
     let start = Instant::now();
-    for frame in 0..frames {
-        snow.set_center(window_center(scene, &world));
-        let t = frame as f32 * scene.sim.dt_s;
-        for (k, o) in scene.objects.iter().enumerate() {
-            let (position, rotation) = o.pose_at(t);
-            snow.set_object_pose(k, position, rotation);
-        }
-        let characters = world.characters();
-        let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(&skins, &characters));
-        snow.step_frame(
-            &ctx,
-            &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) },
-        )
-        .with_context(|| format!("GPU frame {frame}"))?;
-        if u64::from(frame) + 1 == warmup {
-            snow.clear_timings();
-        }
-        // Characters on the snow stand in it as the latest answers show it (older trails).
-        let answers = snow.point_answers();
-        world.step_on(scene.sim.dt_s, &|x, z| sole_sample(answers, x, z).map(|s| s.height_m));
-        for mut step in world.take_footsteps() {
-            // Answered a frame or two late: the snow the foot stepped into.
-            step.snow_depth_m = sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
-            footsteps.push(step);
-        }
-        asked = Some(sole_points(&world));
-        if let Some(link) = &mut link {
-            link.peer.set_deformers(&crate::net::deformer_positions(&world));
-            link.pump(&mut snow)?;
-        }
-    }
+    let footsteps = simulate(&ctx, scene, &mut world, &mut snow, &skins, frames, link.as_mut())?;
     snow.finish(&ctx)?;
     // Everything this run changed acknowledged by the server, everything it
     // has for this window merged here, before anything is written.
@@ -157,31 +123,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         tracing::warn!("tile store: {e}");
     }
 
-    let res = scene.snow.resolution as usize;
-    let snow_h = snow.read_snow(&ctx)?;
-    let terrain_h = snow.read_terrain(&ctx)?;
-    let (surface_h, normals) = snow.read_surface(&ctx)?;
-    drop(normals);
     let accumulation = snow.accumulation().map(|acc| acc.read_atlas(&ctx).map(|atlas| (acc.stats(&atlas), atlas))).transpose()?;
-    let env = scene.render.environment_map();
-    let mut renderer = Renderer::new(&ctx, &snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
-    let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
-    let rgba = renderer.render_image(&ctx, &snow, &world.deformers(), &camera, (width, height)).context("rendering frame.png")?;
-    renderer.finish(&ctx)?;
-    let image = image::RgbaImage::from_raw(width, height, rgba).context("frame size")?;
-    let mut png = Vec::new();
-    image::DynamicImage::ImageRgba8(image).to_rgb8().write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).context("encoding frame.png")?;
-    let stats = renderer.stats();
-    let render_timings = renderer.timings();
-    let shell = match renderer.shell() {
-        Some(shell) => serde_json::json!({
-            "tetrahedra": shell.tetrahedra(),
-            "pass_pixels": shell.pass_pixels(&ctx).context("reading the shell's pass counts")?,
-            "gpu_memory_bytes": shell.memory_bytes(),
-        }),
-        None => serde_json::Value::Null,
-    };
-
+    let (png, render_meta) = render_frame(&ctx, scene, &snow, &world, render_params, size)?;
     let timings = snow.timings();
     let origin = snow.origin_m().unwrap_or_default();
     let meta = serde_json::json!({
@@ -198,16 +141,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "objects": object_meta(&snow, accumulation.as_ref().map(|(stats, _)| stats.as_slice())),
         "fallen_m": snow.fallen_m(),
         "store": store_meta(&snow, resumed),
-        "render": {
-            "size": [width, height],
-            "patches": stats.patches,
-            "terrain_triangles": stats.terrain_triangles,
-            "shadow_patches": stats.shadow_patches,
-            "actors": stats.actors,
-            "timings_ms": render_timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
-            "gpu_memory_bytes": renderer.memory_bytes(),
-            "shell": shell,
-        },
+        "render": render_meta,
         // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
         "gpu_memory_bytes": snow.memory_bytes().iter().map(|(_, v)| v).sum::<u64>(),
         "gpu_memory_peak_bytes": snow.peak_memory_bytes(),
@@ -216,23 +150,143 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "gpu_memory_by_resource": snow.memory_bytes().iter().map(|(k, v)| (k.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
     });
 
+    let outputs = Outputs { snow: &snow, world: &world, skins: &skins, accumulation: accumulation.as_ref().map(|(_, atlas)| atlas.as_slice()) };
+    let files = stage_outputs(&ctx, scene, opts, &outputs, &png, &meta, &footsteps)?;
+    Ok(RunReport { files, timings, adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()), frames, wall_s })
+}
+
+/// Simulates `frames` frames: actors move, objects turn, the snow is pressed,
+/// characters stand in the answers of the frame before, and the snow is
+/// shared over `link`. Returns the footsteps, with the depth stepped into.
+fn simulate(
+    ctx: &GpuContext,
+    scene: &Scene,
+    world: &mut World,
+    snow: &mut SnowDeformation,
+    skins: &[(usize, snowpack::SkinnedId)],
+    frames: u32,
+    mut link: Option<&mut crate::net::SnowLink>,
+) -> anyhow::Result<Vec<snowpack::low_level::skin::feet::FootstepEvent>> {
+    let warmup = frames.min(10) as u64;
+    let mut footsteps = Vec::new();
+    // The characters' soles, asked with the next frame.
+    let mut asked: Option<Vec<glam::Vec2>> = None;
+    for frame in 0..frames {
+        snow.set_center(window_center(scene, world));
+        let t = frame as f32 * scene.sim.dt_s;
+        for (k, o) in scene.objects.iter().enumerate() {
+            let (position, rotation) = o.pose_at(t);
+            snow.set_object_pose(k, position, rotation);
+        }
+        let characters = world.characters();
+        let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(skins, &characters));
+        snow.step_frame(
+            ctx,
+            &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) },
+        )
+        .with_context(|| format!("GPU frame {frame}"))?;
+        if u64::from(frame) + 1 == warmup {
+            snow.clear_timings();
+        }
+        // Characters on the snow stand in it as the latest answers show it (older trails).
+        let answers = snow.point_answers();
+        world.step_on(scene.sim.dt_s, &|x, z| sole_sample(answers, x, z).map(|s| s.height_m));
+        for mut step in world.take_footsteps() {
+            // Answered a frame or two late: the snow the foot stepped into.
+            step.snow_depth_m = sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
+            footsteps.push(step);
+        }
+        asked = Some(sole_points(world));
+        if let Some(link) = link.as_deref_mut() {
+            link.peer.set_deformers(&crate::net::deformer_positions(world));
+            link.pump(snow)?;
+        }
+    }
+    Ok(footsteps)
+}
+
+/// `frame.png` from the scene's camera, and `meta.json`'s `render`.
+fn render_frame(
+    ctx: &GpuContext,
+    scene: &Scene,
+    snow: &SnowDeformation,
+    world: &World,
+    render_params: snowpack::RenderParams,
+    (width, height): (u32, u32),
+) -> anyhow::Result<(Vec<u8>, serde_json::Value)> {
+    let env = scene.render.environment_map();
+    let mut renderer = Renderer::new(ctx, snow, &env, render_params, IMAGE_FORMAT).context("creating the renderer")?;
+    let camera = Camera { position: scene.camera.position, target: scene.camera.target, fov_deg: scene.camera.fov_deg };
+    let rgba = renderer.render_image(ctx, snow, &world.deformers(), &camera, (width, height)).context("rendering frame.png")?;
+    renderer.finish(ctx)?;
+    let image = image::RgbaImage::from_raw(width, height, rgba).context("frame size")?;
+    let mut png = Vec::new();
+    image::DynamicImage::ImageRgba8(image).to_rgb8().write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).context("encoding frame.png")?;
+    let stats = renderer.stats();
+    let render_timings = renderer.timings();
+    let shell = match renderer.shell() {
+        Some(shell) => serde_json::json!({
+            "tetrahedra": shell.tetrahedra(),
+            "pass_pixels": shell.pass_pixels(ctx).context("reading the shell's pass counts")?,
+            "gpu_memory_bytes": shell.memory_bytes(),
+        }),
+        None => serde_json::Value::Null,
+    };
+
+    let meta = serde_json::json!({
+        "size": [width, height],
+        "patches": stats.patches,
+        "terrain_triangles": stats.terrain_triangles,
+        "shadow_patches": stats.shadow_patches,
+        "actors": stats.actors,
+        "timings_ms": render_timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
+        "gpu_memory_bytes": renderer.memory_bytes(),
+        "shell": shell,
+    });
+    Ok((png, meta))
+}
+
+/// What [`stage_outputs`] reads the arrays from.
+struct Outputs<'a> {
+    snow: &'a SnowDeformation,
+    world: &'a World,
+    skins: &'a [(usize, snowpack::SkinnedId)],
+    /// The accumulation atlas, when the scene has objects.
+    accumulation: Option<&'a [f32]>,
+}
+
+/// Writes the run's files (DESIGN.md) into `opts.out` all at once.
+fn stage_outputs(
+    ctx: &GpuContext,
+    scene: &Scene,
+    opts: &RunOptions,
+    o: &Outputs<'_>,
+    png: &[u8],
+    meta: &serde_json::Value,
+    footsteps: &[snowpack::low_level::skin::feet::FootstepEvent],
+) -> anyhow::Result<Vec<PathBuf>> {
+    let (snow, world, skins) = (o.snow, o.world, o.skins);
+    let res = scene.snow.resolution as usize;
+    let snow_h = snow.read_snow(ctx)?;
+    let terrain_h = snow.read_terrain(ctx)?;
+    let (surface_h, _normals) = snow.read_surface(ctx)?;
     let mut out = OutputSet::new(&opts.out)?;
     out.stage("snow.npy", &npy::encode_f32(&snow_h, &[res, res]))?;
     out.stage("surface.npy", &npy::encode_f32(&surface_h, &[res, res]))?;
     out.stage("terrain.npy", &npy::encode_f32(&terrain_h, &[res, res]))?;
-    if let (Some(acc), Some((_, atlas))) = (snow.accumulation(), &accumulation) {
+    if let (Some(acc), Some(atlas)) = (snow.accumulation(), o.accumulation) {
         let n = acc.layout().resolution as usize;
         out.stage("accumulation.npy", &npy::encode_f32(atlas, &[n, n]))?;
     }
     // The snow on each glTF character's vertices (DESIGN.md: `actor_snow_K.npy`).
-    for (k, ((_, actor), (_, id))) in world.gltf_actors().zip(&skins).enumerate() {
-        let coat = snow.read_coat(&ctx, *id).context("reading the characters' snow")?;
+    for (k, ((_, actor), (_, id))) in world.gltf_actors().zip(skins).enumerate() {
+        let coat = snow.read_coat(ctx, *id).context("reading the characters' snow")?;
         let mesh = &actor.model.mesh;
         let rows: Vec<f32> = mesh.positions.iter().zip(mesh.vertex_normals()).zip(&coat).flat_map(|((p, n), c)| [p.x, p.y, p.z, n.y, *c]).collect();
         out.stage(&format!("actor_snow_{k}.npy"), &npy::encode_f32(&rows, &[mesh.positions.len(), 5]))?;
     }
-    out.stage("frame.png", &png)?;
-    out.stage("meta.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
+    out.stage("frame.png", png)?;
+    out.stage("meta.json", serde_json::to_string_pretty(meta)?.as_bytes())?;
     if !footsteps.is_empty() {
         let steps: Vec<serde_json::Value> = footsteps
             .iter()
@@ -247,7 +301,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         out.stage("footsteps.json", serde_json::to_string_pretty(&steps)?.as_bytes())?;
     }
     let files = out.commit()?;
-    Ok(RunReport { files, timings, adapter: (ctx.summary.name.clone(), ctx.summary.backend.clone()), frames, wall_s })
+    Ok(files)
 }
 
 /// `meta.json`'s `store`: tile traffic and the keeper's figures (null when

@@ -206,24 +206,7 @@ impl GltfFile {
     /// every animation: what a `kind = "gltf"` actor needs.
     pub fn skinned_model(&self) -> Result<SkinnedModel, String> {
         let scene = self.document.default_scene().or_else(|| self.document.scenes().next()).ok_or("the file has no scene")?;
-        // Nodes in depth-first order, so parents come before children.
-        let mut nodes = Vec::new();
-        let mut index_of = vec![None; self.document.nodes().len()];
-        let mut stack: Vec<(gltf::Node<'_>, Option<usize>)> = scene.nodes().map(|n| (n, None)).collect();
-        stack.reverse();
-        while let Some((node, parent)) = stack.pop() {
-            let k = nodes.len();
-            index_of[node.index()] = Some(k);
-            let (t, r, s) = node.transform().decomposed();
-            nodes.push(Node {
-                name: node.name().unwrap_or("").to_owned(),
-                parent,
-                rest: Transform { translation: Vec3::from(t), rotation: Quat::from_array(r).normalize(), scale: Vec3::from(s) },
-            });
-            for child in node.children().collect::<Vec<_>>().into_iter().rev() {
-                stack.push((child, Some(k)));
-            }
-        }
+        let (nodes, index_of) = self.scene_nodes(&scene);
         let skinned_node = self
             .document
             .nodes()
@@ -241,12 +224,46 @@ impl GltfFile {
             Some(m) => m.map(|c| Mat4::from_cols_array_2d(&c)).collect(),
             None => vec![Mat4::IDENTITY; joints.len()],
         };
+        let out = self.skinned_mesh(&mesh)?;
+        out.validate(joints.len()).map_err(|why| format!("mesh {:?}: {why}", mesh.name().unwrap_or("")))?;
+        let skeleton = Skeleton { nodes, joints, inverse_bind };
+        skeleton.validate()?;
+        let clips = self.clips(&index_of)?;
+        Ok(SkinnedModel { mesh: out, skeleton, clips })
+    }
+
+    /// The scene's nodes in depth-first order (parents before children), and
+    /// each document node's index among them (`None` outside the scene).
+    fn scene_nodes(&self, scene: &gltf::Scene<'_>) -> (Vec<Node>, Vec<Option<usize>>) {
+        let mut nodes = Vec::new();
+        let mut index_of = vec![None; self.document.nodes().len()];
+        let mut stack: Vec<(gltf::Node<'_>, Option<usize>)> = scene.nodes().map(|n| (n, None)).collect();
+        stack.reverse();
+        while let Some((node, parent)) = stack.pop() {
+            let k = nodes.len();
+            index_of[node.index()] = Some(k);
+            let (t, r, s) = node.transform().decomposed();
+            nodes.push(Node {
+                name: node.name().unwrap_or("").to_owned(),
+                parent,
+                rest: Transform { translation: Vec3::from(t), rotation: Quat::from_array(r).normalize(), scale: Vec3::from(s) },
+            });
+            for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+                stack.push((child, Some(k)));
+            }
+        }
+        (nodes, index_of)
+    }
+
+    /// The triangle primitives of a skinned mesh, joined: positions, joints, renormalised weights, indices.
+    fn skinned_mesh(&self, mesh: &gltf::Mesh<'_>) -> Result<SkinnedMesh, String> {
+        let buffers = |b: gltf::Buffer<'_>| self.buffers.get(b.index()).map(Vec::as_slice);
         let mut out = SkinnedMesh::default();
         for prim in mesh.primitives() {
             if prim.mode() != gltf::mesh::Mode::Triangles {
                 continue;
             }
-            gather_budget(&prim, out.positions.len(), &mesh)?;
+            gather_budget(&prim, out.positions.len(), mesh)?;
             let reader = prim.reader(buffers);
             let name = mesh.name().unwrap_or("");
             let positions: Vec<Vec3> =
@@ -275,9 +292,12 @@ impl GltfFile {
             out.joints.extend(ids);
             out.weights.extend(weights);
         }
-        out.validate(joints.len()).map_err(|why| format!("mesh {:?}: {why}", mesh.name().unwrap_or("")))?;
-        let skeleton = Skeleton { nodes, joints, inverse_bind };
-        skeleton.validate()?;
+        Ok(out)
+    }
+
+    /// The document's animations as clips over the scene's nodes (`index_of` from [`Self::scene_nodes`]).
+    fn clips(&self, index_of: &[Option<usize>]) -> Result<Vec<Clip>, String> {
+        let buffers = |b: gltf::Buffer<'_>| self.buffers.get(b.index()).map(Vec::as_slice);
         let mut clips = Vec::new();
         for (k, anim) in self.document.animations().enumerate() {
             let name = anim.name().map_or_else(|| format!("animation {k}"), str::to_owned);
@@ -311,7 +331,7 @@ impl GltfFile {
             let duration = channels.iter().filter_map(|c| c.times.last().copied()).fold(0.0f32, f32::max);
             clips.push(Clip { name, duration, channels });
         }
-        Ok(SkinnedModel { mesh: out, skeleton, clips })
+        Ok(clips)
     }
 }
 

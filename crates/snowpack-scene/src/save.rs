@@ -79,20 +79,7 @@ impl Scene {
             }
         }
 
-        let p = &self.snow;
-        let mut snow = Table::new();
-        snow.insert("extent_m".into(), float(p.extent_m));
-        snow.insert("resolution".into(), Value::Integer(i64::from(p.resolution)));
-        snow.insert("depth_m".into(), float(p.depth_m));
-        snow.insert("technique".into(), Value::String(p.technique.as_str().into()));
-        snow.insert("refill_m_per_s".into(), float(p.refill_m_per_s));
-        snow.insert("elevation".into(), float(p.elevation));
-        snow.insert("blur".into(), Value::Boolean(p.blur));
-        snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
-        snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
-        snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
-        snow.insert("teleport_m".into(), float(p.teleport_m));
-        root.insert("snow".into(), Value::Table(snow));
+        root.insert("snow".into(), Value::Table(self.snow_table()));
 
         if self.spawns.is_empty() {
             root.remove("spawn");
@@ -123,6 +110,33 @@ impl Scene {
         camera.insert("fov_deg".into(), float(self.camera.fov_deg));
         root.insert("camera".into(), Value::Table(camera));
 
+        self.insert_render(&mut root);
+
+        let mut text = format!("# snowpack scene, saved from {}\n", self.path.display());
+        text.push_str(&toml::to_string(&root).unwrap_or_default());
+        text
+    }
+
+    /// `[snow]` as the scene now has it.
+    fn snow_table(&self) -> Table {
+        let p = &self.snow;
+        let mut snow = Table::new();
+        snow.insert("extent_m".into(), float(p.extent_m));
+        snow.insert("resolution".into(), Value::Integer(i64::from(p.resolution)));
+        snow.insert("depth_m".into(), float(p.depth_m));
+        snow.insert("technique".into(), Value::String(p.technique.as_str().into()));
+        snow.insert("refill_m_per_s".into(), float(p.refill_m_per_s));
+        snow.insert("elevation".into(), float(p.elevation));
+        snow.insert("blur".into(), Value::Boolean(p.blur));
+        snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
+        snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
+        snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
+        snow.insert("teleport_m".into(), float(p.teleport_m));
+        snow
+    }
+
+    /// `[light]`, `[render]`, `[material]` and (when on or present) `[shell]` as the scene now has them.
+    fn insert_render(&self, root: &mut Table) {
         let r = &self.render.params;
         let mut light = Table::new();
         if let Some(sun) = r.light.sun_direction {
@@ -160,10 +174,6 @@ impl Scene {
         if r.shell.enabled || root.contains_key("shell") {
             root.insert("shell".into(), Value::Table(shell_table(&r.shell)));
         }
-
-        let mut text = format!("# snowpack scene, saved from {}\n", self.path.display());
-        text.push_str(&toml::to_string(&root).unwrap_or_default());
-        text
     }
 
     /// Writes [`Self::to_toml`] to `dest` atomically (a temporary file renamed

@@ -443,6 +443,281 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
+/// `[snow]`: the window's parameters (`tile_memory_bytes` and `snowfall` are set from `[store]` and `[snowfall]` later).
+fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
+    let defaults = SnowParams::default();
+    Ok(match root.table("snow")? {
+        None => defaults,
+        Some(mut t) => {
+            let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| s.parse::<Technique>().map_err(|why| t.err("technique", why)))?;
+            let rim = t.string_opt("rim")?.map_or(Ok(RimStyle::Rounded), |s| s.parse::<RimStyle>().map_err(|why| t.err("rim", why)))?;
+            let snow = SnowParams {
+                extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
+                resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
+                depth_m: t.non_negative("depth_m", defaults.depth_m, " of metres")?,
+                refill_m_per_s: t.non_negative("refill_m_per_s", defaults.refill_m_per_s, " (m/s)")?,
+                elevation: t.non_negative("elevation", defaults.elevation, "")?,
+                blur: t.bool("blur", defaults.blur)?,
+                technique,
+                range_texels: t.u32_in("range_texels", 64, 32..=128)?,
+                rim,
+                hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
+                snowfall: None,
+                tile_memory_bytes: defaults.tile_memory_bytes,
+                teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
+            };
+            if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = snow.validate() {
+                return Err(t.err(field, why));
+            }
+            t.finish()?;
+            snow
+        }
+    })
+}
+
+/// `[terrain]`: flat unless it says otherwise; files are read relative to `base_dir`.
+fn parse_terrain(root: &mut Fields<'_>, base_dir: &Path, snow: &SnowParams) -> Result<TerrainSource, SceneError> {
+    Ok(match root.table("terrain")? {
+        None => TerrainSource::Flat { height_m: 0.0 },
+        Some(mut t) => {
+            let kind = t.choice("kind", "flat", &["flat", "noise", "heightmap", "mesh"])?;
+            let terrain = match kind.as_str() {
+                "flat" => TerrainSource::Flat { height_m: t.f32("height_m", 0.0)? },
+                "noise" => TerrainSource::Noise(NoiseTerrain {
+                    seed: t.u32_in("seed", 1, 0..=u64::from(u32::MAX))?,
+                    base_m: t.f32("height_m", 0.0)?,
+                    amplitude_m: t.non_negative("amplitude_m", 4.0, " of metres")?,
+                    wavelength_m: t.positive("wavelength_m", 32.0, " of metres")?,
+                }),
+                "heightmap" => load_heightmap(&mut t, base_dir, snow.extent_m)?,
+                _ => load_terrain_mesh(&mut t, base_dir, snow.texel_m())?,
+            };
+            t.finish()?;
+            terrain
+        }
+    })
+}
+
+/// `[[actor]]` tables, in order.
+fn parse_actors(root: &mut Fields<'_>, base_dir: &Path) -> Result<Vec<ActorSpec>, SceneError> {
+    let mut actors = Vec::new();
+    for mut a in root.tables("actor")? {
+        actors.push(parse_actor(&mut a, base_dir)?);
+        a.finish()?;
+    }
+    Ok(actors)
+}
+
+/// `[window]`: where the window sits or what it follows, checked against the texel range.
+fn parse_window(root: &mut Fields<'_>, path: &Path, snow: &SnowParams, actors: &[ActorSpec]) -> Result<WindowSpec, SceneError> {
+    Ok(match root.table("window")? {
+        None => WindowSpec::Center([0.0, 0.0]),
+        Some(mut w) => {
+            let center = w.vec2_opt("center")?;
+            let follow = w.string_opt("follow")?;
+            let spec = match (center, follow) {
+                (Some(_), Some(_)) => return Err(w.err("follow", "give either center or follow, not both")),
+                (Some(c), None) => WindowSpec::Center(c),
+                (None, None) => WindowSpec::Center([0.0, 0.0]),
+                (None, Some(f)) if f == "camera" => WindowSpec::FollowCamera,
+                (None, Some(f)) => {
+                    let index = f
+                        .strip_prefix("actor:")
+                        .and_then(|n| n.parse::<usize>().ok())
+                        .ok_or_else(|| w.err("follow", format!("{f:?} is neither \"camera\" nor \"actor:N\"")))?;
+                    if index >= actors.len() {
+                        return Err(w.err("follow", format!("actor:{index} does not exist (the scene has {} [[actor]] tables)", actors.len())));
+                    }
+                    WindowSpec::FollowActor(index)
+                }
+            };
+            match &spec {
+                WindowSpec::Center(c) => {
+                    if let Some(why) = texels_overflow(*c, snow) {
+                        return Err(w.err("center", why));
+                    }
+                }
+                WindowSpec::FollowActor(index) => {
+                    let (key, points): (&str, Vec<[f32; 2]>) = match &actors[*index].motion {
+                        Motion::Kinematic { position, .. } | Motion::Physics { position, .. } => ("position", vec![[position.x, position.z]]),
+                        Motion::Path(keys) => ("path", keys.iter().map(|k| [k[0], k[2]]).collect()),
+                    };
+                    if let Some(why) = points.into_iter().find_map(|p| texels_overflow(p, snow)) {
+                        return Err(SceneError::new(path, format!("[[actor]][{index}].{key}"), format!("the window follows this actor: {why}")));
+                    }
+                }
+                WindowSpec::FollowCamera => {}
+            }
+            w.finish()?;
+            spec
+        }
+    })
+}
+
+/// `[[vehicle]]` tables, in order.
+fn parse_vehicles(root: &mut Fields<'_>) -> Result<Vec<crate::vehicle::VehicleSpec>, SceneError> {
+    let mut vehicles = Vec::new();
+    for mut v in root.tables("vehicle")? {
+        vehicles.push(crate::vehicle::VehicleSpec::parse(&mut v)?);
+        v.finish()?;
+    }
+    Ok(vehicles)
+}
+
+/// `[[spawn]]` tables, in order.
+fn parse_spawns(root: &mut Fields<'_>) -> Result<Vec<SpawnSpec>, SceneError> {
+    let mut spawns = Vec::new();
+    for mut s in root.tables("spawn")? {
+        s.choice("kind", "sphere", &["sphere"])?;
+        spawns.push(SpawnSpec {
+            count: s.u32_in("count", 256, 0..=100_000)?,
+            radius_m: s.positive("radius_m", 1.0, " of metres")?,
+            seed: u64::from(s.u32_in("seed", 7, 0..=u64::from(u32::MAX))?),
+        });
+        s.finish()?;
+    }
+    Ok(spawns)
+}
+
+/// `[[object]]` tables, in order; names are unique.
+fn parse_objects(root: &mut Fields<'_>, base_dir: &Path) -> Result<Vec<ObjectSpec>, SceneError> {
+    let mut objects: Vec<ObjectSpec> = Vec::new();
+    for mut o in root.tables("object")? {
+        let name = o.string_opt("name")?.ok_or_else(|| o.err("name", "every [[object]] needs a name"))?;
+        if objects.iter().any(|x| x.name == name) {
+            return Err(o.err("name", format!("{name:?} is used by another [[object]]")));
+        }
+        let kind = o.choice("kind", "box", &["box", "sphere", "gltf"])?;
+        let mesh = if kind == "gltf" {
+            let rel = o.string_opt("file")?.ok_or_else(|| o.err("file", "a gltf object needs a file (.glb or .gltf)"))?;
+            let scale = o.positive("scale", 1.0, "")?;
+            let full = base_dir.join(&rel);
+            // `open` names the file in its errors; what it is used for does not.
+            let gltf = GltfFile::open(&full).map_err(|why| o.err("file", why))?;
+            let mesh = gltf.object_mesh(scale).map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
+            Some(Arc::new(mesh))
+        } else {
+            None
+        };
+        let position = o.vec3("position", Vec3::ZERO)?;
+        let size_m = o.vec3("size_m", Vec3::ONE)?;
+        if size_m.min_element() <= 0.0 {
+            return Err(o.err("size_m", format!("every side must be positive, got {size_m}")));
+        }
+        let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
+        let dilate = o.bool("dilate", true)?;
+        let velocity = o.vec3("velocity", Vec3::ZERO)?;
+        let spin_deg_per_s = o.vec3("spin_deg_per_s", Vec3::ZERO)?;
+        o.finish()?;
+        objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate, mesh, velocity, spin_deg_per_s });
+    }
+    Ok(objects)
+}
+
+/// `[snowfall]`, when the scene has it.
+fn parse_snowfall(root: &mut Fields<'_>) -> Result<Option<SnowfallSpec>, SceneError> {
+    Ok(match root.table("snowfall")? {
+        None => None,
+        Some(mut s) => {
+            let d = SnowfallSpec::default();
+            let direction = s.vec3("direction", d.direction)?;
+            if direction.length() < 1e-6 {
+                return Err(s.err("direction", "must not be the zero vector"));
+            }
+            let spec = SnowfallSpec {
+                direction: direction.normalize(),
+                rate_m_per_s: s.non_negative("rate_m_per_s", d.rate_m_per_s, " (m/s)")?,
+                flutter_deg: s.non_negative("flutter_deg", d.flutter_deg, " degrees")?,
+                noise: s.non_negative("noise", d.noise, "")?,
+                repose_deg: s.non_negative("repose_deg", d.repose_deg, " degrees")?,
+                falloff_per_s: s.non_negative("falloff_per_s", d.falloff_per_s, " (1/s)")?,
+                max_m: s.positive("max_m", d.max_m, " of metres")?,
+                atlas_resolution: s.u32_in("atlas_resolution", d.atlas_resolution, 16..=8192)?,
+            };
+            if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = spec.validate() {
+                return Err(s.err(field, why));
+            }
+            s.finish()?;
+            Some(spec)
+        }
+    })
+}
+
+/// `[store]`, when the scene has it: how trails are kept, checked against `[snow]`'s tile grid.
+fn parse_store(root: &mut Fields<'_>, base_dir: &Path, snow: &SnowParams) -> Result<Option<StoreSpec>, SceneError> {
+    Ok(match root.table("store")? {
+        None => None,
+        Some(mut t) => {
+            let d = StoreSpec::default();
+            let keep = match t.choice("keep", "disk", &["disk", "memory", "off"])?.as_str() {
+                "memory" => StoreKeep::Memory,
+                "off" => StoreKeep::Off,
+                _ => StoreKeep::Disk,
+            };
+            // Keys that mean nothing for this kind of keeping are mistakes, not defaults.
+            let only_disk: &[&str] = &["path", "disk_mb", "save"];
+            let unused: &[&str] = match keep {
+                StoreKeep::Disk => &[],
+                StoreKeep::Memory => only_disk,
+                StoreKeep::Off => &["path", "disk_mb", "save", "tile_texels", "memory_mb"],
+            };
+            if let Some(key) = unused.iter().find(|k| t.has(k)) {
+                return Err(t.err(key.as_ref(), format!("has no effect with keep = \"{}\"", keep.as_str())));
+            }
+            let tile_default = if keep == StoreKeep::Disk { d.tile_texels } else { snowpack::low_level::deform::params::default_tile_texels(snow.resolution) };
+            let spec = StoreSpec {
+                keep,
+                path: t.string_opt("path")?.map(|p| base_dir.join(p)),
+                tile_texels: t.u32_in("tile_texels", tile_default, 16..=256)?,
+                memory_mb: t.non_negative("memory_mb", d.memory_mb, " of MiB")?,
+                disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
+                save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
+            };
+            if let Err(snowpack::low_level::error::SnowError::InvalidParameter { why, .. }) =
+                snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels)
+            {
+                return Err(t.err("tile_texels", why));
+            }
+            t.finish()?;
+            Some(spec)
+        }
+    })
+}
+
+/// `[sim]`: frames and time step.
+fn parse_sim(root: &mut Fields<'_>) -> Result<SimSpec, SceneError> {
+    Ok(match root.table("sim")? {
+        None => SimSpec { frames: 120, dt_s: 1.0 / 60.0 },
+        Some(mut s) => {
+            let sim = SimSpec { frames: s.u32_in("frames", 120, 1..=1_000_000)?, dt_s: s.positive("dt_s", 1.0 / 60.0, " of seconds")? };
+            if sim.dt_s > 1.0 {
+                return Err(s.err("dt_s", format!("{} s per frame is more than 1 s", sim.dt_s)));
+            }
+            s.finish()?;
+            sim
+        }
+    })
+}
+
+/// `[camera]`: position, target and field of view.
+fn parse_camera(root: &mut Fields<'_>) -> Result<CameraSpec, SceneError> {
+    Ok(match root.table("camera")? {
+        None => CameraSpec { position: Vec3::new(0.0, 10.0, -20.0), target: Vec3::ZERO, fov_deg: 60.0 },
+        Some(mut c) => {
+            let cam = CameraSpec {
+                position: c.vec3("position", Vec3::new(0.0, 10.0, -20.0))?,
+                target: c.vec3("target", Vec3::ZERO)?,
+                fov_deg: c.positive("fov_deg", 60.0, " degrees")?,
+            };
+            if cam.fov_deg >= 180.0 {
+                return Err(c.err("fov_deg", format!("{} must be below 180 degrees", cam.fov_deg)));
+            }
+            c.finish()?;
+            cam
+        }
+    })
+}
+
 fn rotation_from_deg(deg: Vec3) -> Quat {
     Quat::from_euler(glam::EulerRot::XYZ, deg.x.to_radians(), deg.y.to_radians(), deg.z.to_radians())
 }
@@ -472,255 +747,17 @@ impl Scene {
         let mut root = Fields::new(path, "", table);
         let base_dir = path.parent().map(Path::to_owned).unwrap_or_default();
 
-        // [snow]
-        let defaults = SnowParams::default();
-        let snow = match root.table("snow")? {
-            None => defaults,
-            Some(mut t) => {
-                let technique = t.string_opt("technique")?.map_or(Ok(Technique::Depth), |s| s.parse::<Technique>().map_err(|why| t.err("technique", why)))?;
-                let rim = t.string_opt("rim")?.map_or(Ok(RimStyle::Rounded), |s| s.parse::<RimStyle>().map_err(|why| t.err("rim", why)))?;
-                let snow = SnowParams {
-                    extent_m: t.positive("extent_m", defaults.extent_m, " of metres")?,
-                    resolution: t.u32_in("resolution", defaults.resolution, 0..=u64::from(u32::MAX))?,
-                    depth_m: t.non_negative("depth_m", defaults.depth_m, " of metres")?,
-                    refill_m_per_s: t.non_negative("refill_m_per_s", defaults.refill_m_per_s, " (m/s)")?,
-                    elevation: t.non_negative("elevation", defaults.elevation, "")?,
-                    blur: t.bool("blur", defaults.blur)?,
-                    technique,
-                    range_texels: t.u32_in("range_texels", 64, 32..=128)?,
-                    rim,
-                    hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
-                    snowfall: None,
-                    tile_memory_bytes: defaults.tile_memory_bytes,
-                    teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
-                };
-                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = snow.validate() {
-                    return Err(t.err(field, why));
-                }
-                t.finish()?;
-                snow
-            }
-        };
-
-        // [terrain]
-        let terrain = match root.table("terrain")? {
-            None => TerrainSource::Flat { height_m: 0.0 },
-            Some(mut t) => {
-                let kind = t.choice("kind", "flat", &["flat", "noise", "heightmap", "mesh"])?;
-                let terrain = match kind.as_str() {
-                    "flat" => TerrainSource::Flat { height_m: t.f32("height_m", 0.0)? },
-                    "noise" => TerrainSource::Noise(NoiseTerrain {
-                        seed: t.u32_in("seed", 1, 0..=u64::from(u32::MAX))?,
-                        base_m: t.f32("height_m", 0.0)?,
-                        amplitude_m: t.non_negative("amplitude_m", 4.0, " of metres")?,
-                        wavelength_m: t.positive("wavelength_m", 32.0, " of metres")?,
-                    }),
-                    "heightmap" => load_heightmap(&mut t, &base_dir, snow.extent_m)?,
-                    _ => load_terrain_mesh(&mut t, &base_dir, snow.texel_m())?,
-                };
-                t.finish()?;
-                terrain
-            }
-        };
-
-        // [[actor]]
-        let mut actors = Vec::new();
-        for mut a in root.tables("actor")? {
-            actors.push(parse_actor(&mut a, &base_dir)?);
-            a.finish()?;
-        }
-
-        // [window]
-        let window = match root.table("window")? {
-            None => WindowSpec::Center([0.0, 0.0]),
-            Some(mut w) => {
-                let center = w.vec2_opt("center")?;
-                let follow = w.string_opt("follow")?;
-                let spec = match (center, follow) {
-                    (Some(_), Some(_)) => return Err(w.err("follow", "give either center or follow, not both")),
-                    (Some(c), None) => WindowSpec::Center(c),
-                    (None, None) => WindowSpec::Center([0.0, 0.0]),
-                    (None, Some(f)) if f == "camera" => WindowSpec::FollowCamera,
-                    (None, Some(f)) => {
-                        let index = f
-                            .strip_prefix("actor:")
-                            .and_then(|n| n.parse::<usize>().ok())
-                            .ok_or_else(|| w.err("follow", format!("{f:?} is neither \"camera\" nor \"actor:N\"")))?;
-                        if index >= actors.len() {
-                            return Err(w.err("follow", format!("actor:{index} does not exist (the scene has {} [[actor]] tables)", actors.len())));
-                        }
-                        WindowSpec::FollowActor(index)
-                    }
-                };
-                match &spec {
-                    WindowSpec::Center(c) => {
-                        if let Some(why) = texels_overflow(*c, &snow) {
-                            return Err(w.err("center", why));
-                        }
-                    }
-                    WindowSpec::FollowActor(index) => {
-                        let (key, points): (&str, Vec<[f32; 2]>) = match &actors[*index].motion {
-                            Motion::Kinematic { position, .. } | Motion::Physics { position, .. } => ("position", vec![[position.x, position.z]]),
-                            Motion::Path(keys) => ("path", keys.iter().map(|k| [k[0], k[2]]).collect()),
-                        };
-                        if let Some(why) = points.into_iter().find_map(|p| texels_overflow(p, &snow)) {
-                            return Err(SceneError::new(path, format!("[[actor]][{index}].{key}"), format!("the window follows this actor: {why}")));
-                        }
-                    }
-                    WindowSpec::FollowCamera => {}
-                }
-                w.finish()?;
-                spec
-            }
-        };
-
-        // [[vehicle]]
-        let mut vehicles = Vec::new();
-        for mut v in root.tables("vehicle")? {
-            vehicles.push(crate::vehicle::VehicleSpec::parse(&mut v)?);
-            v.finish()?;
-        }
-
-        // [[spawn]]
-        let mut spawns = Vec::new();
-        for mut s in root.tables("spawn")? {
-            s.choice("kind", "sphere", &["sphere"])?;
-            spawns.push(SpawnSpec {
-                count: s.u32_in("count", 256, 0..=100_000)?,
-                radius_m: s.positive("radius_m", 1.0, " of metres")?,
-                seed: u64::from(s.u32_in("seed", 7, 0..=u64::from(u32::MAX))?),
-            });
-            s.finish()?;
-        }
-
-        // [[object]]
-        let mut objects: Vec<ObjectSpec> = Vec::new();
-        for mut o in root.tables("object")? {
-            let name = o.string_opt("name")?.ok_or_else(|| o.err("name", "every [[object]] needs a name"))?;
-            if objects.iter().any(|x| x.name == name) {
-                return Err(o.err("name", format!("{name:?} is used by another [[object]]")));
-            }
-            let kind = o.choice("kind", "box", &["box", "sphere", "gltf"])?;
-            let mesh = if kind == "gltf" {
-                let rel = o.string_opt("file")?.ok_or_else(|| o.err("file", "a gltf object needs a file (.glb or .gltf)"))?;
-                let scale = o.positive("scale", 1.0, "")?;
-                let full = base_dir.join(&rel);
-                // `open` names the file in its errors; what it is used for does not.
-                let gltf = GltfFile::open(&full).map_err(|why| o.err("file", why))?;
-                let mesh = gltf.object_mesh(scale).map_err(|why| o.err("file", format!("{}: {why}", full.display())))?;
-                Some(Arc::new(mesh))
-            } else {
-                None
-            };
-            let position = o.vec3("position", Vec3::ZERO)?;
-            let size_m = o.vec3("size_m", Vec3::ONE)?;
-            if size_m.min_element() <= 0.0 {
-                return Err(o.err("size_m", format!("every side must be positive, got {size_m}")));
-            }
-            let rotation_deg = o.vec3("rotation_deg", Vec3::ZERO)?;
-            let dilate = o.bool("dilate", true)?;
-            let velocity = o.vec3("velocity", Vec3::ZERO)?;
-            let spin_deg_per_s = o.vec3("spin_deg_per_s", Vec3::ZERO)?;
-            o.finish()?;
-            objects.push(ObjectSpec { name, kind, position, size_m, rotation_deg, dilate, mesh, velocity, spin_deg_per_s });
-        }
-
-        // [snowfall]
-        let snowfall = match root.table("snowfall")? {
-            None => None,
-            Some(mut s) => {
-                let d = SnowfallSpec::default();
-                let direction = s.vec3("direction", d.direction)?;
-                if direction.length() < 1e-6 {
-                    return Err(s.err("direction", "must not be the zero vector"));
-                }
-                let spec = SnowfallSpec {
-                    direction: direction.normalize(),
-                    rate_m_per_s: s.non_negative("rate_m_per_s", d.rate_m_per_s, " (m/s)")?,
-                    flutter_deg: s.non_negative("flutter_deg", d.flutter_deg, " degrees")?,
-                    noise: s.non_negative("noise", d.noise, "")?,
-                    repose_deg: s.non_negative("repose_deg", d.repose_deg, " degrees")?,
-                    falloff_per_s: s.non_negative("falloff_per_s", d.falloff_per_s, " (1/s)")?,
-                    max_m: s.positive("max_m", d.max_m, " of metres")?,
-                    atlas_resolution: s.u32_in("atlas_resolution", d.atlas_resolution, 16..=8192)?,
-                };
-                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = spec.validate() {
-                    return Err(s.err(field, why));
-                }
-                s.finish()?;
-                Some(spec)
-            }
-        };
-
-        // [store]
-        let store = match root.table("store")? {
-            None => None,
-            Some(mut t) => {
-                let d = StoreSpec::default();
-                let keep = match t.choice("keep", "disk", &["disk", "memory", "off"])?.as_str() {
-                    "memory" => StoreKeep::Memory,
-                    "off" => StoreKeep::Off,
-                    _ => StoreKeep::Disk,
-                };
-                // Keys that mean nothing for this kind of keeping are mistakes, not defaults.
-                let only_disk: &[&str] = &["path", "disk_mb", "save"];
-                let unused: &[&str] = match keep {
-                    StoreKeep::Disk => &[],
-                    StoreKeep::Memory => only_disk,
-                    StoreKeep::Off => &["path", "disk_mb", "save", "tile_texels", "memory_mb"],
-                };
-                if let Some(key) = unused.iter().find(|k| t.has(k)) {
-                    return Err(t.err(key.as_ref(), format!("has no effect with keep = \"{}\"", keep.as_str())));
-                }
-                let tile_default =
-                    if keep == StoreKeep::Disk { d.tile_texels } else { snowpack::low_level::deform::params::default_tile_texels(snow.resolution) };
-                let spec = StoreSpec {
-                    keep,
-                    path: t.string_opt("path")?.map(|p| base_dir.join(p)),
-                    tile_texels: t.u32_in("tile_texels", tile_default, 16..=256)?,
-                    memory_mb: t.non_negative("memory_mb", d.memory_mb, " of MiB")?,
-                    disk_mb: t.non_negative("disk_mb", d.disk_mb, " of MiB")?,
-                    save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
-                };
-                if let Err(snowpack::low_level::error::SnowError::InvalidParameter { why, .. }) =
-                    snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels)
-                {
-                    return Err(t.err("tile_texels", why));
-                }
-                t.finish()?;
-                Some(spec)
-            }
-        };
-
-        // [sim]
-        let sim = match root.table("sim")? {
-            None => SimSpec { frames: 120, dt_s: 1.0 / 60.0 },
-            Some(mut s) => {
-                let sim = SimSpec { frames: s.u32_in("frames", 120, 1..=1_000_000)?, dt_s: s.positive("dt_s", 1.0 / 60.0, " of seconds")? };
-                if sim.dt_s > 1.0 {
-                    return Err(s.err("dt_s", format!("{} s per frame is more than 1 s", sim.dt_s)));
-                }
-                s.finish()?;
-                sim
-            }
-        };
-
-        // [camera]
-        let camera = match root.table("camera")? {
-            None => CameraSpec { position: Vec3::new(0.0, 10.0, -20.0), target: Vec3::ZERO, fov_deg: 60.0 },
-            Some(mut c) => {
-                let cam = CameraSpec {
-                    position: c.vec3("position", Vec3::new(0.0, 10.0, -20.0))?,
-                    target: c.vec3("target", Vec3::ZERO)?,
-                    fov_deg: c.positive("fov_deg", 60.0, " degrees")?,
-                };
-                if cam.fov_deg >= 180.0 {
-                    return Err(c.err("fov_deg", format!("{} must be below 180 degrees", cam.fov_deg)));
-                }
-                c.finish()?;
-                cam
-            }
-        };
+        let snow = parse_snow(&mut root)?;
+        let terrain = parse_terrain(&mut root, &base_dir, &snow)?;
+        let actors = parse_actors(&mut root, &base_dir)?;
+        let window = parse_window(&mut root, path, &snow, &actors)?;
+        let vehicles = parse_vehicles(&mut root)?;
+        let spawns = parse_spawns(&mut root)?;
+        let objects = parse_objects(&mut root, &base_dir)?;
+        let snowfall = parse_snowfall(&mut root)?;
+        let store = parse_store(&mut root, &base_dir, &snow)?;
+        let sim = parse_sim(&mut root)?;
+        let camera = parse_camera(&mut root)?;
         if window == WindowSpec::FollowCamera
             && let Some(why) = texels_overflow([camera.position.x, camera.position.z], &snow)
         {
@@ -762,7 +799,30 @@ impl Scene {
             p.hardness_kpa,
             p.teleport_m
         );
-        let terrain = match &self.terrain {
+        let terrain = self.describe_terrain();
+        let _ = writeln!(s, "terrain: {terrain}");
+        let _ = writeln!(s, "window: {:?}", self.window);
+        let _ = writeln!(s, "actors: {}", self.actors.len());
+        for (k, a) in self.actors.iter().enumerate() {
+            let _ = writeln!(s, "  [{k}] {:?}, {:?}", a.shape, a.motion);
+        }
+        self.describe_things(&mut s);
+        if let Some(f) = &self.snowfall {
+            let _ = writeln!(
+                s,
+                "snowfall: direction {}, {} m/s, flutter {} deg, noise {}, repose {} deg, falloff {}/s, at most {} m, atlas {}²",
+                f.direction, f.rate_m_per_s, f.flutter_deg, f.noise, f.repose_deg, f.falloff_per_s, f.max_m, f.atlas_resolution
+            );
+        }
+        self.describe_store(&mut s);
+        let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
+        let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);
+        s
+    }
+
+    /// The terrain line of [`Self::describe`].
+    fn describe_terrain(&self) -> String {
+        match &self.terrain {
             TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
             TerrainSource::Noise(n) => format!("noise, seed {}, height {} m, amplitude {} m, wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m),
             TerrainSource::Heightmap(h) => {
@@ -786,13 +846,11 @@ impl Scene {
             ),
             // A terrain kind added to the library after this describer.
             other => format!("{other:?}"),
-        };
-        let _ = writeln!(s, "terrain: {terrain}");
-        let _ = writeln!(s, "window: {:?}", self.window);
-        let _ = writeln!(s, "actors: {}", self.actors.len());
-        for (k, a) in self.actors.iter().enumerate() {
-            let _ = writeln!(s, "  [{k}] {:?}, {:?}", a.shape, a.motion);
         }
+    }
+
+    /// The vehicles, spawns and objects of [`Self::describe`], a line each.
+    fn describe_things(&self, s: &mut String) {
         for v in &self.vehicles {
             let _ = writeln!(
                 s,
@@ -829,13 +887,10 @@ impl Scene {
                 let _ = writeln!(s, "  moving at {} m/s, turning {} deg/s", o.velocity, o.spin_deg_per_s);
             }
         }
-        if let Some(f) = &self.snowfall {
-            let _ = writeln!(
-                s,
-                "snowfall: direction {}, {} m/s, flutter {} deg, noise {}, repose {} deg, falloff {}/s, at most {} m, atlas {}²",
-                f.direction, f.rate_m_per_s, f.flutter_deg, f.noise, f.repose_deg, f.falloff_per_s, f.max_m, f.atlas_resolution
-            );
-        }
+    }
+
+    /// The store line of [`Self::describe`].
+    fn describe_store(&self, s: &mut String) {
         match &self.store {
             Some(t) if t.keep == StoreKeep::Disk => {
                 let at = t.path.as_ref().map_or("store/ in the output folder".to_owned(), |p| p.display().to_string());
@@ -857,9 +912,6 @@ impl Scene {
                 );
             }
         }
-        let _ = writeln!(s, "sim: {} frames of {} s", self.sim.frames, self.sim.dt_s);
-        let _ = write!(s, "camera: at {} looking at {}, fov {} deg", self.camera.position, self.camera.target, self.camera.fov_deg);
-        s
     }
 }
 
@@ -961,49 +1013,7 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
             ShapeSpec::Box { size_m, rotation: rotation_from_deg(a.vec3("rotation_deg", Vec3::ZERO)?) }
         }
         "point" => ShapeSpec::Point { scale_per_m: a.positive("scale_per_m", 1.0, " (1/m)")? },
-        _ => {
-            let file = a.string_opt("file")?.ok_or_else(|| a.err("file", "a gltf actor needs a file"))?;
-            let builtin = file == BUILTIN_FOX;
-            let full = if builtin { PathBuf::from(BUILTIN_FOX) } else { base_dir.join(&file) };
-            if !builtin && !full.is_file() {
-                return Err(a.err("file", format!("{} does not exist", full.display())));
-            }
-            let opened = if builtin { GltfFile::from_bytes(BUILTIN_FOX_GLB, &full) } else { GltfFile::open(&full) };
-            let model = opened.map_err(|why| a.err("file", why))?.skinned_model().map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
-            let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();
-            if names.is_empty() {
-                return Err(a.err("file", format!("{} has no animations; a gltf actor plays one", full.display())));
-            }
-            let clip = match a.string_opt("animation")? {
-                None => 0,
-                Some(name) => model
-                    .clip(&name)
-                    .ok_or_else(|| a.err("animation", format!("{name:?} is not an animation of {} (it has {})", full.display(), names.join(", "))))?,
-            };
-            let scale = a.positive("scale", 1.0, "")?;
-            let speed = a.non_negative("animation_speed", 1.0, "")?;
-            let patterns = a.strings_opt("feet")?.unwrap_or_else(|| DEFAULT_FOOT_PATTERNS.iter().map(|p| (*p).to_owned()).collect());
-            let pattern_refs: Vec<&str> = patterns.iter().map(String::as_str).collect();
-            let mut feet = find_feet(&model.skeleton, &model.clips, &pattern_refs);
-            attach_paws(&mut feet, &model.skeleton, &model.clips, &model.mesh);
-            if feet.is_empty() {
-                return Err(a.err("feet", format!("no joint of {} matches {patterns:?}", full.display())));
-            }
-            let placement_name = a.choice("placement", "path", &Placement::ALL.map(|(_, s)| s))?;
-            let placement = Placement::ALL.iter().find(|(_, s)| *s == placement_name).map_or(Placement::Path, |(p, _)| *p);
-            let defaults = FootLoad::default();
-            let load = FootLoad {
-                mass_kg: a.positive("mass_kg", defaults.mass_kg, " of kg")?,
-                foot_area_m2: a.positive("foot_area_m2", defaults.foot_area_m2, " of m²")?,
-            };
-            let fade_s = a.non_negative("fade_s", 0.25, " of seconds")?;
-            let coat = parse_coat(a)?;
-            let mut actor = GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet, gaits: Vec::new(), fade_s, placement, load, coat };
-            if let Some(names) = a.strings_opt("gaits")? {
-                actor.set_gaits(&names).map_err(|why| a.err("gaits", why))?;
-            }
-            ShapeSpec::Gltf(actor)
-        }
+        _ => ShapeSpec::Gltf(parse_gltf_actor(a, base_dir)?),
     };
     let position = a.vec3("position", Vec3::new(0.0, 1.0, 0.0))?;
     let velocity = a.vec3("velocity", Vec3::ZERO)?;
@@ -1029,6 +1039,49 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
         (None, false) => Motion::Kinematic { position, velocity },
     };
     Ok(ActorSpec { shape, motion })
+}
+
+/// A glTF `[[actor]]`: its file (or the built-in fox), clip, feet, gaits, load and coat.
+fn parse_gltf_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<GltfActor, SceneError> {
+    let file = a.string_opt("file")?.ok_or_else(|| a.err("file", "a gltf actor needs a file"))?;
+    let builtin = file == BUILTIN_FOX;
+    let full = if builtin { PathBuf::from(BUILTIN_FOX) } else { base_dir.join(&file) };
+    if !builtin && !full.is_file() {
+        return Err(a.err("file", format!("{} does not exist", full.display())));
+    }
+    let opened = if builtin { GltfFile::from_bytes(BUILTIN_FOX_GLB, &full) } else { GltfFile::open(&full) };
+    let model = opened.map_err(|why| a.err("file", why))?.skinned_model().map_err(|why| a.err("file", format!("{}: {why}", full.display())))?;
+    let names: Vec<&str> = model.clips.iter().map(|c| c.name.as_str()).collect();
+    if names.is_empty() {
+        return Err(a.err("file", format!("{} has no animations; a gltf actor plays one", full.display())));
+    }
+    let clip = match a.string_opt("animation")? {
+        None => 0,
+        Some(name) => {
+            model.clip(&name).ok_or_else(|| a.err("animation", format!("{name:?} is not an animation of {} (it has {})", full.display(), names.join(", "))))?
+        }
+    };
+    let scale = a.positive("scale", 1.0, "")?;
+    let speed = a.non_negative("animation_speed", 1.0, "")?;
+    let patterns = a.strings_opt("feet")?.unwrap_or_else(|| DEFAULT_FOOT_PATTERNS.iter().map(|p| (*p).to_owned()).collect());
+    let pattern_refs: Vec<&str> = patterns.iter().map(String::as_str).collect();
+    let mut feet = find_feet(&model.skeleton, &model.clips, &pattern_refs);
+    attach_paws(&mut feet, &model.skeleton, &model.clips, &model.mesh);
+    if feet.is_empty() {
+        return Err(a.err("feet", format!("no joint of {} matches {patterns:?}", full.display())));
+    }
+    let placement_name = a.choice("placement", "path", &Placement::ALL.map(|(_, s)| s))?;
+    let placement = Placement::ALL.iter().find(|(_, s)| *s == placement_name).map_or(Placement::Path, |(p, _)| *p);
+    let defaults = FootLoad::default();
+    let load =
+        FootLoad { mass_kg: a.positive("mass_kg", defaults.mass_kg, " of kg")?, foot_area_m2: a.positive("foot_area_m2", defaults.foot_area_m2, " of m²")? };
+    let fade_s = a.non_negative("fade_s", 0.25, " of seconds")?;
+    let coat = parse_coat(a)?;
+    let mut actor = GltfActor { file: full, model: Arc::new(model), clip, scale, speed, feet, gaits: Vec::new(), fade_s, placement, load, coat };
+    if let Some(names) = a.strings_opt("gaits")? {
+        actor.set_gaits(&names).map_err(|why| a.err("gaits", why))?;
+    }
+    Ok(actor)
 }
 
 /// The `coat_*` keys of a glTF `[[actor]]`: the snow on its body.

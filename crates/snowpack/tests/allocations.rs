@@ -35,8 +35,10 @@ fn allocations(ctx: &GpuContext, technique: Technique, count: usize) -> (f64, u6
         let snow_frame = SnowFrame::new(1.0 / 60.0, &deformers);
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("allocation frame") });
         let region = Region::new(ALLOCATOR);
-        let _ = snow.encode(ctx, &mut encoder, &snow_frame);
+        let ticket = snow.encode(ctx, &mut encoder, &snow_frame);
         let change = region.change();
+        // The frame asked no points, so `encode` hands back no query ticket.
+        assert!(ticket.is_none(), "frame {frame}: a query ticket for a frame that asked nothing");
         if frame >= WARMUP {
             counts.push((change.allocations + change.reallocations) as u64);
         }

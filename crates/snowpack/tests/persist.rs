@@ -219,33 +219,77 @@ fn a_failing_disk_is_an_error_not_a_panic() {
     assert_eq!(streamer.lookup(kept), TileLookup::Ready(Some(version(kept, 1))));
     assert_eq!(ready(&mut streamer, TileKey::new(500, 500)), None);
     drop(streamer);
+}
 
-    // Without root, a read-only directory must fail the same way.
-    #[cfg(unix)]
-    if !writes_ignore_permissions() {
-        use std::os::unix::fs::PermissionsExt;
-        let dir = TestDir::new("read-only");
-        let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
-        store.write(&version(kept, 1)).expect("write");
-        let region = store.tile_path(kept).parent().map(Path::to_owned).expect("region");
-        let tiles = dir.path().join("tiles");
-        let mode = |p: &Path, m| fs::set_permissions(p, fs::Permissions::from_mode(m)).expect("chmod");
-        mode(&region, 0o555);
-        mode(&tiles, 0o555);
-        let mut streamer = TileStreamer::new(store, StreamerConfig::default());
-        streamer.put(version(kept, 2)); // same region
-        streamer.put(version(TileKey::new(100, 100), 1)); // a new region
-        let flushed = streamer.flush();
-        let errors = streamer.take_errors();
-        let stats = streamer.stats();
-        let still = streamer.lookup(kept);
-        drop(streamer);
-        mode(&region, 0o755);
-        mode(&tiles, 0o755);
-        assert!(flushed.as_ref().is_err_and(|e| e.kind() == snowpack::StoreErrorKind::Io), "{flushed:?}");
-        assert!(!errors.is_empty() && stats.errors >= 2, "{errors:?}");
-        assert_eq!(still, TileLookup::Ready(Some(version(kept, 2))));
+/// Set (to "1") when the test binary runs as the unprivileged child of
+/// [`a_read_only_directory_fails_the_flush_and_keeps_the_tiles`].
+#[cfg(unix)]
+const UNPRIVILEGED_ENV: &str = "SNOWPACK_PERSIST_UNPRIVILEGED";
+/// What that child prints once the read-only case has run (not skipped).
+#[cfg(unix)]
+const READ_ONLY_RAN: &str = "snowpack-persist: the read-only case ran";
+
+/// A directory made read-only (chmod 0o555) fails the streamer's flush with an
+/// I/O error and the tiles stay readable from memory. Root ignores
+/// permissions, and CI runs as root: there the test binary runs this test
+/// again as `nobody` (setpriv, from a copy of the binary any user may run),
+/// so the case runs everywhere and never skips.
+#[cfg(unix)]
+#[test]
+fn a_read_only_directory_fails_the_flush_and_keeps_the_tiles() {
+    if writes_ignore_permissions() {
+        assert!(std::env::var_os(UNPRIVILEGED_ENV).is_none(), "the unprivileged child still ignores permissions");
+        return run_unprivileged("a_read_only_directory_fails_the_flush_and_keeps_the_tiles");
     }
+    use std::os::unix::fs::PermissionsExt;
+    let kept = TileKey::new(0, 0);
+    let dir = TestDir::new("read-only");
+    let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("open");
+    store.write(&version(kept, 1)).expect("write");
+    let region = store.tile_path(kept).parent().map(Path::to_owned).expect("region");
+    let tiles = dir.path().join("tiles");
+    let mode = |p: &Path, m| fs::set_permissions(p, fs::Permissions::from_mode(m)).expect("chmod");
+    mode(&region, 0o555);
+    mode(&tiles, 0o555);
+    let mut streamer = TileStreamer::new(store, StreamerConfig::default());
+    streamer.put(version(kept, 2)); // same region
+    streamer.put(version(TileKey::new(100, 100), 1)); // a new region
+    let flushed = streamer.flush();
+    let errors = streamer.take_errors();
+    let stats = streamer.stats();
+    let still = streamer.lookup(kept);
+    drop(streamer);
+    mode(&region, 0o755);
+    mode(&tiles, 0o755);
+    assert!(flushed.as_ref().is_err_and(|e| e.kind() == snowpack::StoreErrorKind::Io), "{flushed:?}");
+    assert!(!errors.is_empty() && stats.errors >= 2, "{errors:?}");
+    assert_eq!(still, TileLookup::Ready(Some(version(kept, 2))));
+    eprintln!("{READ_ONLY_RAN}");
+}
+
+/// Runs the test `name` of this binary again as user and group 65534
+/// (nobody), from a copy of the binary in a directory any user may read, and
+/// asserts that it passed and ran its case.
+#[cfg(unix)]
+fn run_unprivileged(name: &str) {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = TestDir::new("unprivileged");
+    fs::set_permissions(dir.path(), fs::Permissions::from_mode(0o755)).expect("chmod the copy's directory");
+    let exe = dir.path().join("persist-test");
+    fs::copy(std::env::current_exe().expect("the test binary"), &exe).expect("copy the test binary");
+    fs::set_permissions(&exe, fs::Permissions::from_mode(0o755)).expect("chmod the copy");
+    let out = Command::new("setpriv")
+        .args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+        .arg(&exe)
+        .args([name, "--exact", "--nocapture", "--test-threads=1"])
+        .env(UNPRIVILEGED_ENV, "1")
+        .current_dir(dir.path())
+        .output()
+        .unwrap_or_else(|e| panic!("running the read-only case as nobody needs setpriv (util-linux): {e}"));
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "the read-only case as nobody failed:\n{text}");
+    assert!(text.contains(READ_ONLY_RAN), "the read-only case as nobody did not run:\n{text}");
+    eprintln!("ran as nobody (uid 65534) under root: {READ_ONLY_RAN}");
 }
 
 #[test]
@@ -317,7 +361,7 @@ fn writes_ignore_permissions() -> bool {
     let _ = fs::set_permissions(&locked, fs::Permissions::from_mode(0o755));
     let ignored = probe.unwrap_or(true);
     if ignored {
-        eprintln!("running as root (or permissions are not enforced): the chmod 0o555 case is skipped");
+        eprintln!("running as root (or permissions are not enforced): the chmod 0o555 case runs as nobody");
     }
     ignored
 }

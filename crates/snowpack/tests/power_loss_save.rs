@@ -142,5 +142,8 @@ fn a_power_cut_at_any_point_of_a_save_leaves_the_old_save_or_the_new_one() {
         }
     }
     eprintln!("{cuts} power cuts recovered: {as_old} as the old save, {as_new} as the new one");
+    // A cut after each of the save's operations (and before the first), each crashed three ways.
+    assert_eq!(cuts, 3 * (total + 1), "every cut point of the save was tried");
+    assert!(total >= 8, "the save took only {total} disk operations: the cuts cover too little");
     assert!(as_old > 0 && as_new > 0, "the cuts reach both sides of the commit");
 }

@@ -479,63 +479,27 @@ impl Gfx {
             return Ok(());
         }
 
-        // Input: the camera, and the player in follow mode.
-        let movement = self.input.movement();
-        self.rig.fly(movement, dt);
-        if self.rig.mode == CameraMode::Follow {
-            let (f, r) = self.rig.ground_axes();
-            let dir = f * movement.forward + r * movement.right;
-            self.session.drive_player(dir, movement.fast, dt);
-        } else {
-            // The keys move the camera: a steered fox stands still.
-            self.session.drive_player(Vec2::ZERO, false, dt);
-        }
+        self.steer(dt);
 
-        let device = &self.ctx.device;
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
+        let mut encoder = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("demo frame") });
         let camera_now = self.rig.camera(self.player());
         self.session.encode_step(&self.ctx, &mut encoder, camera_now.position);
 
-        // The panel (it may change parameters, which apply next frame).
-        let raw = self.egui_state.take_egui_input(&self.window);
-        let mut actions = Vec::new();
-        let (session, rig, panel) = (&mut self.session, &mut self.rig, &mut self.panel);
-        let mut output = self.egui_ctx.run_ui(raw, |ui| actions = panel::show(ui, session, rig, panel));
-        self.egui_state.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
-        // Texture uploads apply even when nothing is drawn (the font atlas must not be lost);
-        // frees wait until the frame that last used them is submitted.
-        for (id, deltas) in &output.textures_delta.set {
-            for delta in deltas {
-                self.egui_renderer.update_texture(device, &self.ctx.queue, *id, delta);
-            }
-        }
-        let freed = std::mem::take(&mut output.textures_delta.free);
-        output.textures_delta.clear();
+        let (actions, output, freed) = self.run_panel();
 
         if self.hidden {
             // Minimised: the simulation goes on, nothing is drawn.
             self.ctx.queue.submit([encoder.finish()]);
-            for id in &freed {
-                self.egui_renderer.free_texture(id);
-            }
-            for action in actions {
-                self.act(action);
-            }
+            self.release(&freed, actions);
             return Ok(());
         }
 
-        let frame = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                self.ctx.queue.submit([encoder.finish()]);
-                return Ok(());
-            }
-            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Validation => {
-                self.surface.configure(&self.ctx.device, &self.config);
-                self.ctx.queue.submit([encoder.finish()]);
-                return Ok(());
-            }
+        let Some(frame) = self.acquire() else {
+            // No texture this time (the surface is reconfigured when it must be): the simulation still runs.
+            self.ctx.queue.submit([encoder.finish()]);
+            return Ok(());
         };
+        let device = &self.ctx.device;
         let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
         let size = (self.config.width, self.config.height);
         let camera = self.rig.camera(self.player());
@@ -563,9 +527,6 @@ impl Gfx {
         }
         self.window.pre_present_notify();
         self.ctx.queue.present(frame);
-        for id in &freed {
-            self.egui_renderer.free_texture(id);
-        }
         match self.ctx.check("demo frame").map_err(snowpack::SnowError::into_detail) {
             Ok(()) => {}
             Err(snowpack::low_level::error::SnowError::DeviceLost(reason)) => self.device_lost(reason),
@@ -574,11 +535,66 @@ impl Gfx {
                 self.panel.status = Some((e.to_string(), true));
             }
         }
+        self.release(&freed, actions);
+        self.share();
+        Ok(())
+    }
+
+    /// Input: the camera, and the player in follow mode.
+    fn steer(&mut self, dt: f32) {
+        let movement = self.input.movement();
+        self.rig.fly(movement, dt);
+        if self.rig.mode == CameraMode::Follow {
+            let (f, r) = self.rig.ground_axes();
+            let dir = f * movement.forward + r * movement.right;
+            self.session.drive_player(dir, movement.fast, dt);
+        } else {
+            // The keys move the camera: a steered fox stands still.
+            self.session.drive_player(Vec2::ZERO, false, dt);
+        }
+    }
+
+    /// The panel (it may change parameters, which apply next frame): its
+    /// actions, egui's output, and the textures to free once this frame is submitted.
+    fn run_panel(&mut self) -> (Vec<Action>, egui::FullOutput, Vec<egui::TextureId>) {
+        let raw = self.egui_state.take_egui_input(&self.window);
+        let mut actions = Vec::new();
+        let (session, rig, panel) = (&mut self.session, &mut self.rig, &mut self.panel);
+        let mut output = self.egui_ctx.run_ui(raw, |ui| actions = panel::show(ui, session, rig, panel));
+        self.egui_state.handle_platform_output(&self.window, std::mem::take(&mut output.platform_output));
+        // Texture uploads apply even when nothing is drawn (the font atlas must not be lost);
+        // frees wait until the frame that last used them is submitted.
+        for (id, deltas) in &output.textures_delta.set {
+            for delta in deltas {
+                self.egui_renderer.update_texture(&self.ctx.device, &self.ctx.queue, *id, delta);
+            }
+        }
+        let freed = std::mem::take(&mut output.textures_delta.free).into_iter().collect();
+        output.textures_delta.clear();
+        (actions, output, freed)
+    }
+
+    /// The surface's next texture; `None` when there is none this frame
+    /// (timed out or occluded, or outdated or lost, and then reconfigured).
+    fn acquire(&mut self) -> Option<wgpu::SurfaceTexture> {
+        match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => Some(t),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => None,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Validation => {
+                self.surface.configure(&self.ctx.device, &self.config);
+                None
+            }
+        }
+    }
+
+    /// After a frame is submitted: the textures it last used freed, the panel's actions applied.
+    fn release(&mut self, freed: &[egui::TextureId], actions: Vec<Action>) {
+        for id in freed {
+            self.egui_renderer.free_texture(id);
+        }
         for action in actions {
             self.act(action);
         }
-        self.share();
-        Ok(())
     }
 
     /// One exchange with the shared world: this frame's deformers reported,
