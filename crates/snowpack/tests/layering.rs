@@ -677,8 +677,6 @@ fn the_share_crate_keeps_its_declared_order() {
     let declared = declared_layers(ARCHITECTURE, SHARE_LAYERS_HEADING).unwrap_or_else(|e| panic!("docs/architecture.md: {e}"));
     let problems = check(&declared, &files);
     assert!(problems.is_empty(), "snowpack-share breaks the order declared in docs/architecture.md ({SHARE_LAYERS_HEADING}):\n{}", problems.join("\n"));
-    let long = long_functions(&files, MAX_FUNCTION_LINES);
-    assert!(long.is_empty(), "snowpack-share's functions over {MAX_FUNCTION_LINES} lines:\n{}", long.join("\n"));
 }
 
 #[test]
