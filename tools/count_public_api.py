@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Counts the public items reachable from a crate's root in rustdoc's JSON output.
 
-Usage: count_public_api.py DOC.json [--trait-items]
+Usage: count_public_api.py DOC.json [DEP.json ...] [--trait-items]
 
 DOC.json is what `cargo rustdoc -p snowpack --lib -- -Z unstable-options
 --output-format json` writes (RUSTC_BOOTSTRAP=1 on a stable toolchain). Items
@@ -9,72 +9,101 @@ are followed from the root: module items, re-exports (a glob re-export of a
 module counts its items), struct fields, enum variants and their fields,
 inherent impl items and trait items; trait impls only with --trait-items.
 An item reached twice is counted once.
+
+rustdoc's JSON does not inline a re-export of another crate's item (snowpack's
+`TileStore`, `SnowPeer`, the store's and sharing's errors are snowpack-share's):
+give that crate's JSON as DEP.json (`cargo rustdoc -p snowpack-share --lib`,
+the same way) and such a re-export is followed into it, by the item's path.
+Without it, the tool says how many re-exports it could not follow.
 """
 import json, sys, collections
-doc = json.load(open(sys.argv[1]))
-index = doc["index"]
-root = str(doc["root"])
+args = [a for a in sys.argv[1:] if not a.startswith("--")]
+docs = [json.load(open(p)) for p in args]
+doc = docs[0]
+# Each crate's items by path, for re-exports into it: {crate name: {path tuple: (doc number, id)}}.
+by_path = {}
+for n, d in enumerate(docs[1:], start=1):
+    name = d["index"][str(d["root"])]["name"]
+    by_path[name] = {tuple(p["path"]): (n, i) for i, p in d["paths"].items() if p["crate_id"] == 0 and i in d["index"]}
 seen = set()
 kinds = collections.Counter()
-root_names = []
-stack = [root]
+unfollowed = []
+stack = [(0, str(doc["root"]))]
 def kind_of(item):
     return next(iter(item["inner"])) if isinstance(item["inner"], dict) else item["inner"]
-def push(i):
-    if i is not None and str(i) in index and str(i) not in seen:
-        stack.append(str(i))
+def resolve(n, i):
+    """(doc number, id) of `i` as seen from doc `n`: itself, or another crate's item by path."""
+    d = docs[n]
+    if str(i) in d["index"]:
+        return (n, str(i))
+    path = d["paths"].get(str(i))
+    if path is not None:
+        crate = d["external_crates"].get(str(path["crate_id"]), {}).get("name")
+        found = by_path.get(crate, {}).get(tuple(path["path"]))
+        if found is not None:
+            return found
+        unfollowed.append("::".join(path["path"]))
+    return None
+def push(n, i):
+    r = resolve(n, i) if i is not None else None
+    if r is not None and r not in seen:
+        stack.append(r)
 while stack:
-    i = stack.pop()
-    if i in seen: continue
-    seen.add(i)
+    n, i = stack.pop()
+    if (n, i) in seen: continue
+    seen.add((n, i))
+    index = docs[n]["index"]
     item = index[i]
     k = kind_of(item)
     inner = item["inner"][k] if isinstance(item["inner"], dict) else None
     if k == "use":
         tgt = inner.get("id")
-        if tgt is not None and str(tgt) in index:
-            t = index[str(tgt)]
+        r = resolve(n, tgt) if tgt is not None else None
+        if r is not None:
+            t = docs[r[0]]["index"][r[1]]
             if inner.get("is_glob") and kind_of(t) == "module":
-                for c in t["inner"]["module"]["items"]: push(c)
+                for c in t["inner"]["module"]["items"]: push(r[0], c)
             else:
-                push(tgt)
+                push(*r)
         continue
     if k == "impl":
         if inner.get("trait") is None or "--trait-items" in sys.argv:
-            for c in inner["items"]: push(c)
+            for c in inner["items"]: push(n, c)
         continue
     # "default" is the visibility of enum variants and trait items.
     if item.get("visibility") not in ("public", "default"):
         continue
     kinds[k] += 1
     if k == "module":
-        for c in inner["items"]: push(c)
+        for c in inner["items"]: push(n, c)
     elif k == "struct":
         sk = inner["kind"]
         if isinstance(sk, dict):
             if "plain" in sk:
-                for f in sk["plain"]["fields"]: push(f)
+                for f in sk["plain"]["fields"]: push(n, f)
             elif "tuple" in sk:
                 for f in sk["tuple"]:
-                    push(f)
-        for c in inner.get("impls", []): push(c)
+                    push(n, f)
+        for c in inner.get("impls", []): push(n, c)
     elif k == "enum":
-        for v in inner["variants"]: push(v)
-        for c in inner.get("impls", []): push(c)
+        for v in inner["variants"]: push(n, v)
+        for c in inner.get("impls", []): push(n, c)
     elif k == "variant":
         vk = inner["kind"]
         if isinstance(vk, dict):
             if "struct" in vk:
-                for f in vk["struct"]["fields"]: push(f)
+                for f in vk["struct"]["fields"]: push(n, f)
             elif "tuple" in vk:
-                for f in vk["tuple"]: push(f)
+                for f in vk["tuple"]: push(n, f)
     elif k == "union":
-        for f in inner.get("fields", []): push(f)
-        for c in inner.get("impls", []): push(c)
+        for f in inner.get("fields", []): push(n, f)
+        for c in inner.get("impls", []): push(n, c)
     elif k == "trait":
-        for c in inner["items"]: push(c)
-        for c in inner.get("implementations", []): push(c)
+        for c in inner["items"]: push(n, c)
+        for c in inner.get("implementations", []): push(n, c)
 total = sum(kinds.values())
 print(f"public items reachable from the root: {total}")
 for k, n in kinds.most_common():
     print(f"  {k}: {n}")
+if unfollowed:
+    print(f"re-exports of other crates' items not followed (give their JSON): {len(set(unfollowed))}: {', '.join(sorted(set(unfollowed)))}")

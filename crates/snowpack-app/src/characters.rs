@@ -70,14 +70,8 @@ pub fn new_window(ctx: &GpuContext, scene: &Scene, params: snowpack::SnowParams,
     }
 }
 
-/// Whether a store error is the machine's fault (the disk failed, hung, or
-/// the worker died: exit 1) rather than the user's (a store of another
-/// tile side or format, a damaged or mismatched save: exit 2).
-#[must_use]
-pub fn machine_fault(e: &snowpack::low_level::error::StoreError) -> bool {
-    use snowpack::low_level::error::StoreError;
-    matches!(e, StoreError::Io { .. } | StoreError::TimedOut { .. } | StoreError::WorkerGone)
-}
+// The server-only binary needs it too, so it is the library root's.
+pub use crate::machine_fault;
 
 /// A store error at `[store].path` of `scene`: [`BadInput`] (exit 2) unless
 /// it is the machine's fault ([`machine_fault`], exit 1); either way the

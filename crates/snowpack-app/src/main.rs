@@ -3,33 +3,56 @@
 //!
 //! Exit codes: 0 success, 2 bad input (scene file, command line), 1 anything
 //! else (no GPU, a GPU error, an I/O failure).
+//!
+//! Built without the `gpu` feature (`--no-default-features --features
+//! server`) it has only the commands that need no GPU: `server`, `token`
+//! and `query`, on snowpack-share alone.
 
+#[cfg(feature = "gpu")]
 mod attack;
+#[cfg(feature = "gpu")]
 mod bench;
+#[cfg(feature = "gpu")]
 mod bench_accumulation;
+#[cfg(feature = "gpu")]
 mod bench_coat;
+#[cfg(feature = "gpu")]
 mod bench_frames;
+#[cfg(feature = "gpu")]
 mod bench_render;
+#[cfg(feature = "gpu")]
 mod bench_share;
+#[cfg(feature = "gpu")]
 mod bench_shell;
+#[cfg(feature = "gpu")]
 mod bench_sweep;
+#[cfg(feature = "gpu")]
 mod bench_tiles;
+#[cfg(feature = "gpu")]
 mod demo;
 mod net;
+#[cfg(feature = "gpu")]
 mod npy;
+#[cfg(feature = "gpu")]
 mod output;
+#[cfg(feature = "gpu")]
 mod plot;
+#[cfg(feature = "gpu")]
 mod run;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+#[cfg(feature = "gpu")]
 use snowpack_scene::{Scene, SceneError};
 
-use snowpack::low_level::error::{SnowError as SnowDetail, StoreError as StoreDetail};
+#[cfg(feature = "gpu")]
+use snowpack::low_level::error::SnowError as SnowDetail;
+#[cfg(feature = "gpu")]
 use snowpack::low_level::gpu::context::{GL_CONTEXT_LOCK_PANIC, panic_text};
 use snowpack_app::BadInput;
+use snowpack_share::error::StoreError as StoreDetail;
 
 /// Real-time deformable snow on wgpu.
 ///
@@ -37,15 +60,21 @@ use snowpack_app::BadInput;
 /// otherwise the default scene headless into snowpack-out/.
 #[derive(Parser, Debug)]
 #[command(name = "snowpack", version, about, args_conflicts_with_subcommands = true)]
+#[cfg_attr(
+    not(feature = "gpu"),
+    command(about = "snowpack's shared-snow server, built without a GPU: server, token and query.", long_about = None)
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
     /// The demo's options (when no command is given).
+    #[cfg(feature = "gpu")]
     #[command(flatten)]
     demo: DemoArgs,
 }
 
 /// Options of the interactive demo.
+#[cfg(feature = "gpu")]
 #[derive(clap::Args, Clone, Debug, Default)]
 struct DemoArgs {
     /// Scene file to open (default: the built-in default scene).
@@ -77,6 +106,7 @@ struct DemoArgs {
     token: Option<PathBuf>,
 }
 
+#[cfg(feature = "gpu")]
 impl DemoArgs {
     fn options(self) -> demo::DemoOptions {
         demo::DemoOptions {
@@ -96,8 +126,10 @@ impl DemoArgs {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Open the interactive demo (a window with a control panel).
+    #[cfg(feature = "gpu")]
     Demo(DemoArgs),
     /// Run a scene and write snow.npy, surface.npy, terrain.npy, frame.png and meta.json.
+    #[cfg(feature = "gpu")]
     Run {
         /// The scene file (TOML; see docs/scene.md).
         #[arg(long)]
@@ -201,6 +233,7 @@ enum Command {
         at: Vec<(f64, f64)>,
     },
     /// Measure per-pass GPU time and write a report.
+    #[cfg(feature = "gpu")]
     Bench {
         /// Fewer sizes and frames (minutes on a software adapter).
         #[arg(long)]
@@ -217,6 +250,7 @@ enum Command {
     },
     /// Clients for the hostile-client test (tests/server_attack.rs): an
     /// honest CPU peer pressing a trail, or every abuse the server refuses.
+    #[cfg(feature = "gpu")]
     #[command(hide = true)]
     Attack {
         /// The server (host:port).
@@ -236,12 +270,14 @@ enum Command {
         trail_z: f64,
     },
     /// Parse and validate a scene file and print what was understood.
+    #[cfg(feature = "gpu")]
     CheckScene {
         /// The scene file.
         file: PathBuf,
     },
 }
 
+#[cfg(feature = "gpu")]
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
     let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("{text:?} is not WxH"))?;
     let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|v| (1..=16384).contains(v));
@@ -251,12 +287,20 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
     }
 }
 
+#[cfg(feature = "gpu")]
 fn load_scene(path: &std::path::Path) -> anyhow::Result<Scene> {
     Ok(Scene::load(path)?)
 }
 
 fn main_inner(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        #[cfg(not(feature = "gpu"))]
+        None => {
+            return Err(
+                BadInput("this snowpack was built without a GPU (feature `gpu` off): its commands are server, token and query (see --help)".into()).into()
+            );
+        }
+        #[cfg(feature = "gpu")]
         None => {
             if demo::display_available() {
                 match demo::run(cli.demo.clone().options()) {
@@ -278,13 +322,16 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
             let report = run::run_scene(&scene, &run::RunOptions { out: out.clone(), backend: cli.demo.backend, ..Default::default() })?;
             run::print_report(&report, &out);
         }
+        #[cfg(feature = "gpu")]
         Some(Command::Demo(args)) => demo::run(args.options())?,
+        #[cfg(feature = "gpu")]
         Some(Command::Run { scene, frames, out, headless: _, size, technique, backend, view, material, connect, token }) => {
             let scene = load_scene(&scene)?;
             let opts = run::RunOptions { frames, out: out.clone(), size, technique, backend, view, material, connect, token };
             let report = run::run_scene(&scene, &opts)?;
             run::print_report(&report, &out);
         }
+        #[cfg(feature = "gpu")]
         Some(Command::Bench { quick, out, only, backend }) => {
             bench::run(quick, &out, only.as_deref(), backend.as_deref())?;
         }
@@ -310,7 +357,9 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
                 }
             }
         }
+        #[cfg(feature = "gpu")]
         Some(Command::Attack { connect, scene, role, seconds, trail_z }) => attack::run(connect, &scene, &role, seconds, trail_z)?,
+        #[cfg(feature = "gpu")]
         Some(Command::CheckScene { file }) => {
             let scene = load_scene(&file)?;
             println!("{}", scene.describe());
@@ -363,6 +412,7 @@ fn parse_point(text: &str) -> Result<(f64, f64), String> {
     }
 }
 
+#[cfg(feature = "gpu")]
 /// `--backend`: checked before anything opens, so a typo exits 2 naming the option (clap's usage error).
 fn parse_backend(list: &str) -> Result<String, String> {
     snowpack::AdapterRequest { backends: Some(list.to_owned()), adapter_name: None }.parse_backends().map(|_| list.to_owned()).map_err(|e| e.to_string())
@@ -377,7 +427,7 @@ fn parse_backend(list: &str) -> Result<String, String> {
 /// the same command and the layer's documented off switch (`NODEVICE_SELECT`).
 /// Setting the variable in-process would need `unsafe` (edition 2024), which
 /// the workspace forbids; a re-exec is safe and happens before anything else.
-#[cfg(target_os = "linux")]
+#[cfg(all(target_os = "linux", feature = "gpu"))]
 fn quiet_device_select() {
     use std::os::unix::process::CommandExt as _;
     if std::env::var_os("XDG_RUNTIME_DIR").is_some() || std::env::var_os("NODEVICE_SELECT").is_some() {
@@ -393,7 +443,8 @@ fn quiet_device_select() {
     let _ = command.args(args).env("NODEVICE_SELECT", "1").exec();
 }
 
-#[cfg(not(target_os = "linux"))]
+// Elsewhere, and without a GPU (nothing lists adapters), there is nothing to quieten.
+#[cfg(not(all(target_os = "linux", feature = "gpu")))]
 fn quiet_device_select() {}
 
 fn main() -> ExitCode {
@@ -405,11 +456,15 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    #[cfg(not(feature = "gpu"))]
+    let outcome = main_inner(cli);
+    #[cfg(feature = "gpu")]
     quiet_gl_lock_panics();
     // wgpu's GL backend panics when another thread holds its context for
     // seconds ("Could not lock adapter context"), anywhere a GL call is made,
     // not only where the library catches it (choosing the adapter): such a
     // panic is reported as the machine's error, like a lost device.
+    #[cfg(feature = "gpu")]
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| main_inner(cli))).unwrap_or_else(|payload| match panic_text(&*payload) {
         Some(text) if text.contains(GL_CONTEXT_LOCK_PANIC) => {
             Err(snowpack::SnowError::from(snowpack::low_level::error::SnowError::GlContextLocked(text.to_owned())).into())
@@ -431,19 +486,40 @@ fn main() -> ExitCode {
 /// `BadInput` is only ever made for the user's input; the library's store
 /// errors that are the machine's fault are never wrapped in it.
 fn exit_code(err: &anyhow::Error) -> u8 {
-    let users = err.chain().any(|e| {
-        e.is::<SceneError>()
-            || e.is::<BadInput>()
-            || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
-            || matches!(snow_detail(e), Some(SnowDetail::InvalidParameter { .. } | SnowDetail::UnknownBackend(_)))
-    });
-    let machines = err.chain().any(|e| {
-        store_detail(e).is_some_and(snowpack_app::characters::machine_fault)
-            || matches!(snow_detail(e), Some(SnowDetail::Store(s)) if snowpack_app::characters::machine_fault(s))
-    });
+    let users = err.chain().any(|e| e.is::<BadInput>() || gpu_users_fault(e));
+    let machines = err.chain().any(|e| store_detail(e).is_some_and(snowpack_app::machine_fault) || gpu_machines_fault(e));
     if users && !machines { 2 } else { 1 }
 }
 
+/// The user's errors that only the GPU commands make: a scene, a world the
+/// server refuses, a snow parameter or backend.
+#[cfg(feature = "gpu")]
+fn gpu_users_fault(e: &(dyn std::error::Error + 'static)) -> bool {
+    e.is::<SceneError>()
+        || matches!(e.downcast_ref::<net::LinkError>(), Some(net::LinkError::Refused { .. }))
+        || matches!(snow_detail(e), Some(SnowDetail::InvalidParameter { .. } | SnowDetail::UnknownBackend(_)))
+}
+
+/// The machine's errors that only the GPU commands make: a store error
+/// inside the library's own error.
+#[cfg(feature = "gpu")]
+fn gpu_machines_fault(e: &(dyn std::error::Error + 'static)) -> bool {
+    matches!(snow_detail(e), Some(SnowDetail::Store(s)) if snowpack_app::machine_fault(s))
+}
+
+/// Without a GPU there are no scenes, snow parameters or refused worlds.
+#[cfg(not(feature = "gpu"))]
+fn gpu_users_fault(_: &(dyn std::error::Error + 'static)) -> bool {
+    false
+}
+
+/// Without a GPU there is no library error around a store error.
+#[cfg(not(feature = "gpu"))]
+fn gpu_machines_fault(_: &(dyn std::error::Error + 'static)) -> bool {
+    false
+}
+
+#[cfg(feature = "gpu")]
 /// The library's error in detail, whether the chain holds the front door's
 /// `SnowError` or the detailed enum that low-level calls return.
 fn snow_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a SnowDetail> {
@@ -452,9 +528,10 @@ fn snow_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a SnowD
 
 /// The tile store's error in detail (front door's or detailed), as [`snow_detail`].
 fn store_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a StoreDetail> {
-    e.downcast_ref::<snowpack::StoreError>().map(snowpack::StoreError::detail).or_else(|| e.downcast_ref::<StoreDetail>())
+    e.downcast_ref::<snowpack_share::StoreError>().map(snowpack_share::StoreError::detail).or_else(|| e.downcast_ref::<StoreDetail>())
 }
 
+#[cfg(feature = "gpu")]
 /// The GL context-lock panic is reported as an error by `main`: the default
 /// panic message (and backtrace) for it would only repeat that. Every other
 /// panic is reported as before.

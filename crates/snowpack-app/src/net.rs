@@ -21,13 +21,15 @@ use renet2_netcode::{
     ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
     ServerSetupConfig,
 };
-use snowpack::low_level::persist::{StoreConfig, TileStore, WhenFull};
-use snowpack::low_level::replicate::{PeerConfig, RelayConfig, RelayStats, ShareError, SharedSnow, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack_app::BadInput;
+use snowpack_share::persist::{StoreConfig, TileStore, WhenFull};
+#[cfg(feature = "gpu")]
+use snowpack_share::replicate::{PeerConfig, SharedSnow, SnowPeer};
+use snowpack_share::replicate::{RelayConfig, RelayStats, ShareError, SnowRelay, WorldIdentity};
 
 /// Netcode's protocol id: packets of other programs (or another version of
 /// this protocol) are refused before they reach the relay.
-const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack::low_level::replicate::message::PROTOCOL_VERSION as u64;
+const PROTOCOL_ID: u64 = 0x736e_6f77_7061_636b ^ snowpack_share::replicate::message::PROTOCOL_VERSION as u64;
 /// The one channel snowpack's messages travel on.
 pub(crate) const CHANNEL: u8 = 0;
 /// Bytes a connection's channel may hold unacknowledged; the relay paces
@@ -122,6 +124,7 @@ pub struct ServerOptions {
 /// The world of a scene file: its `[snow]` and `[terrain]`, shared in tiles
 /// of [`DEFAULT_TILE_SIDE`]² (as `snowpack run --connect` shares them).
 /// Found on the CPU: no GPU is opened.
+#[cfg(feature = "gpu")]
 pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
     let scene = snowpack_scene::Scene::load(path)?;
     if scene.snow.resolution % DEFAULT_TILE_SIDE != 0 {
@@ -133,6 +136,20 @@ pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
         .into());
     }
     Ok(snowpack::SnowDeformation::world_identity_for(&scene.snow, &scene.terrain, DEFAULT_TILE_SIDE))
+}
+
+/// A scene's world needs the scene loader (heightmaps, meshes, the window's
+/// parameters), which the server-only build leaves out with the GPU stack:
+/// bad input saying how to serve a scene's world from this build.
+#[cfg(not(feature = "gpu"))]
+pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
+    Err(BadInput(format!(
+        "--scene {}: this snowpack is the server-only build (no GPU stack, no scene loader); \
+         pin the world into the store once with the full build (`snowpack server --scene FILE --store DIR`), \
+         then serve that store with this build: a store's world is never redefined by a peer",
+        path.display()
+    ))
+    .into())
 }
 
 /// The scene key a difference between two worlds is about.
@@ -185,7 +202,7 @@ fn open_relay(opts: &ServerOptions) -> anyhow::Result<(SnowRelay, f64)> {
     let relay_config = RelayConfig { max_speed_m_per_s: opts.max_speed_m_per_s, bounds_m: opts.bounds_m, ..RelayConfig::default() };
     let mut relay = SnowRelay::with_store(store, relay_config).context("resuming the world from the store")?;
     if let (Some(world), Some(scene)) = (world, opts.scene.as_deref()) {
-        match relay.pin_world(world).map_err(snowpack::ShareError::into_detail) {
+        match relay.pin_world(world).map_err(snowpack_share::ShareError::into_detail) {
             Ok(()) => {}
             Err(ShareError::StoreWorld(differences)) => return Err(store_mismatch(&opts.store, scene, &differences)),
             Err(e) => return Err(e).context("saving the scene's world in the store"),
@@ -516,14 +533,13 @@ fn random_id() -> u64 {
 /// server's merged tiles. The server answers peers of its world only: the
 /// query says hello as a peer of `world` first (refused: exit 2).
 pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
-    use snowpack::low_level::replicate::{Message, decode, encode};
+    use snowpack_share::replicate::{Message, decode, encode};
     let mut link = Transport::connect(addr, token)?;
     let deadline = Instant::now() + CONNECT_LIMIT;
     let (mut hello, mut welcomed, mut sent) = (false, false, false);
     let mut answers = Vec::with_capacity(points.len());
     // At most MAX_DEFORMERS points a message: the query goes in chunks.
-    let chunks: Vec<Vec<[f64; 2]>> =
-        points.chunks(snowpack::low_level::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
+    let chunks: Vec<Vec<[f64; 2]>> = points.chunks(snowpack_share::replicate::message::MAX_DEFORMERS).map(|c| c.iter().map(|p| [p.0, p.1]).collect()).collect();
     while answers.len() < chunks.len() {
         link.update()?;
         if link.client.is_connected() && !hello {
@@ -638,6 +654,7 @@ pub enum LinkError {
     },
 }
 
+#[cfg(feature = "gpu")]
 /// The client side of shared snow: a renet2 connection to a `snowpack
 /// server` and the [`SnowPeer`] beside the game's snow. [`Self::pump`]
 /// once a frame; it never blocks.
@@ -651,6 +668,7 @@ pub struct SnowLink {
     backlog: VecDeque<Vec<u8>>,
 }
 
+#[cfg(feature = "gpu")]
 impl SnowLink {
     /// Starts connecting to `addr` (with the connect token in `token` when the
     /// server has a key) as a peer of `world`.
@@ -681,7 +699,7 @@ impl SnowLink {
         self.net.update()?;
         let mut refused = None;
         while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
-            match self.peer.receive(&bytes).map_err(snowpack::ShareError::into_detail) {
+            match self.peer.receive(&bytes).map_err(snowpack_share::ShareError::into_detail) {
                 Ok(()) => {}
                 Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
                 Err(e) => tracing::warn!("shared snow: {e}"),
@@ -737,12 +755,15 @@ impl SnowLink {
 
 /// How long a run waits for the server's welcome.
 const CONNECT_LIMIT: Duration = Duration::from_secs(10);
+#[cfg(feature = "gpu")]
 /// How long a run waits, at its end, for the server to acknowledge its
 /// changes and for its window to hold everything the server has.
 const SETTLE_LIMIT: Duration = Duration::from_secs(30);
+#[cfg(feature = "gpu")]
 /// Changed tiles go out at most this often (world seconds).
 pub const SHARE_INTERVAL_S: f64 = 0.25;
 
+#[cfg(feature = "gpu")]
 /// Joins the shared world at `addr`: sharing switched on in `snow`, a link
 /// made, and the server's welcome awaited (its clock is then the snow's).
 pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, addr: SocketAddr, token: Option<&Path>, name: &str) -> anyhow::Result<SnowLink> {
@@ -752,6 +773,7 @@ pub fn join(ctx: &snowpack::GpuContext, snow: &mut snowpack::SnowDeformation, ad
     Ok(link)
 }
 
+#[cfg(feature = "gpu")]
 /// World (x, z) of every deformer and character of `world`: the places
 /// where this peer may change the snow (the relay's check).
 pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
@@ -763,6 +785,7 @@ pub fn deformer_positions(world: &snowpack_scene::World) -> Vec<[f64; 2]> {
     out
 }
 
+#[cfg(feature = "gpu")]
 /// World (x, z) of a deformer; `None` for a kind added later (no place of
 /// its own, so the relay lets it change nothing more).
 pub fn deformer_xz(d: &snowpack::Deformer) -> Option<[f64; 2]> {
@@ -774,6 +797,7 @@ pub fn deformer_xz(d: &snowpack::Deformer) -> Option<[f64; 2]> {
     }
 }
 
+#[cfg(feature = "gpu")]
 /// What a run's link did, for `meta.json`'s `share`.
 #[derive(Clone, Debug)]
 pub struct ShareReport {
@@ -787,9 +811,10 @@ pub struct ShareReport {
     /// the window (for a run that presses little: the late join).
     pub synced_s: f64,
     /// The peer's counters.
-    pub stats: snowpack::low_level::replicate::PeerStats,
+    pub stats: snowpack_share::PeerStats,
 }
 
+#[cfg(feature = "gpu")]
 impl ShareReport {
     /// As `meta.json` holds it.
     pub fn to_json(&self) -> serde_json::Value {
@@ -809,6 +834,7 @@ impl ShareReport {
     }
 }
 
+#[cfg(feature = "gpu")]
 /// The end of a connected run: frames that press nothing and let no time
 /// pass, until every change of this run is acknowledged by the server and
 /// everything the server holds for the window is merged into it (exit 1

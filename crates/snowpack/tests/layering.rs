@@ -19,6 +19,12 @@
 //! The same reading holds the library's functions to [`MAX_FUNCTION_LINES`]
 //! lines (from `fn` to the closing brace), so that no pass or orchestrator
 //! grows back into one long function; `tools/long_functions.py` lists them.
+//!
+//! The shared-snow crate (`crates/snowpack-share`) is read the same way
+//! against its own table (`## snowpack-share's layers`), and its code must
+//! name no GPU, windowing or image crate (nor snowpack): a server builds it
+//! alone. Its manifest lacking them keeps it so; this names the line that
+//! would need them.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -27,17 +33,22 @@ use std::path::{Path, PathBuf};
 const ARCHITECTURE: &str = include_str!("../../../docs/architecture.md");
 /// The heading of the declaring table.
 const LAYERS_HEADING: &str = "## Layers";
+/// The heading of the shared-snow crate's table.
+const SHARE_LAYERS_HEADING: &str = "## snowpack-share's layers";
+/// Crates the shared-snow crate's code may not name: the GPU, windowing and
+/// image stacks, and snowpack (which depends on it).
+const NOT_IN_SHARE: [&str; 8] = ["wgpu", "naga", "winit", "image", "egui", "bytemuck", "glam", "snowpack"];
 
 /// Each declared module: its layer (0 is the lowest) and the modules of its
 /// own layer it may use.
 type Declared = BTreeMap<String, (u32, BTreeSet<String>)>;
 
-/// Reads the first table under `## Layers` in `markdown`: one row per module,
+/// Reads the first table under `heading` in `markdown`: one row per module,
 /// `` | `module` | 2 · name | what it owns | `a`, `b` | `` (the layer cell
 /// starts with its number; the fourth cell, when there is one, names the
 /// modules of the same layer it uses; a row may name several modules).
-fn declared_layers(markdown: &str) -> Result<Declared, String> {
-    let after = markdown.split_once(&format!("\n{LAYERS_HEADING}\n")).ok_or_else(|| format!("no `{LAYERS_HEADING}` heading"))?.1;
+fn declared_layers(markdown: &str, heading: &str) -> Result<Declared, String> {
+    let after = markdown.split_once(&format!("\n{heading}\n")).ok_or_else(|| format!("no `{heading}` heading"))?.1;
     let rows = after.lines().skip_while(|l| !l.trim_start().starts_with('|')).take_while(|l| l.trim_start().starts_with('|'));
     let ticked = |cell: &str| cell.split('`').skip(1).step_by(2).map(str::to_owned).collect::<Vec<_>>();
     let mut out = Declared::new();
@@ -58,7 +69,7 @@ fn declared_layers(markdown: &str) -> Result<Declared, String> {
         }
     }
     if out.is_empty() {
-        return Err(format!("no table rows under `{LAYERS_HEADING}`"));
+        return Err(format!("no table rows under `{heading}`"));
     }
     for (name, (layer, beside)) in &out {
         for b in beside {
@@ -587,9 +598,19 @@ fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
 }
 
+/// The shared-snow crate's directory.
+fn share_crate() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../snowpack-share")
+}
+
 /// Every `.rs` file under `src/`: its path under `src/` (with `/`) and its text.
 fn sources() -> Vec<(String, String)> {
-    let root = src();
+    sources_in(&src())
+}
+
+/// Every `.rs` file under `root`: its path under `root` (with `/`) and its text.
+fn sources_in(root: &Path) -> Vec<(String, String)> {
+    let root = root.to_path_buf();
     let mut out = Vec::new();
     let mut stack = vec![root.clone()];
     while let Some(d) = stack.pop() {
@@ -609,7 +630,80 @@ fn sources() -> Vec<(String, String)> {
 }
 
 fn declared() -> Declared {
-    declared_layers(ARCHITECTURE).unwrap_or_else(|e| panic!("docs/architecture.md: {e}"))
+    declared_layers(ARCHITECTURE, LAYERS_HEADING).unwrap_or_else(|e| panic!("docs/architecture.md: {e}"))
+}
+
+/// Each place in `files` (path under `src/`, text) whose code names one of
+/// [`NOT_IN_SHARE`] (`wgpu::…`, `use image::…`, `extern crate winit`):
+/// `src/file:line: the line`, and the crate.
+fn gpu_names(files: &[(String, String)]) -> Vec<String> {
+    let mut out = Vec::new();
+    for (file, text) in files {
+        let t = tokens(&code_only(text));
+        let lines: Vec<&str> = text.lines().collect();
+        for k in 0..t.len() {
+            let word = t[k].text.as_str();
+            let prev = if k > 0 { t[k - 1].text.as_str() } else { "" };
+            let next = t.get(k + 1).map_or("", |x| x.text.as_str());
+            if NOT_IN_SHARE.contains(&word) && ((prev != "::" && next == "::") || prev == "crate") {
+                let line = t[k].line;
+                out.push(format!("src/{file}:{line}: {}\n    names `{word}`", lines.get(line - 1).map_or("", |l| l.trim())));
+            }
+        }
+    }
+    out
+}
+
+/// The crates a manifest's `[dependencies]` tables (target-specific ones
+/// included) list, by their names as written.
+fn manifest_dependencies(manifest: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut in_deps = false;
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            in_deps = line.trim_end_matches(']').ends_with("dependencies") && !line.contains("dev-dependencies") && !line.contains("build-dependencies");
+        } else if in_deps && let Some((name, _)) = line.split_once('=') {
+            let name = name.trim();
+            out.push(name.split('.').next().unwrap_or(name).to_owned());
+        }
+    }
+    out
+}
+
+#[test]
+fn the_share_crate_keeps_its_declared_order() {
+    let files = sources_in(&share_crate().join("src"));
+    assert!(files.len() >= 10, "only {} source files in snowpack-share: the layout changed and this test must follow", files.len());
+    let declared = declared_layers(ARCHITECTURE, SHARE_LAYERS_HEADING).unwrap_or_else(|e| panic!("docs/architecture.md: {e}"));
+    let problems = check(&declared, &files);
+    assert!(problems.is_empty(), "snowpack-share breaks the order declared in docs/architecture.md ({SHARE_LAYERS_HEADING}):\n{}", problems.join("\n"));
+}
+
+#[test]
+fn the_share_crate_names_no_gpu_code() {
+    let names = gpu_names(&sources_in(&share_crate().join("src")));
+    assert!(names.is_empty(), "snowpack-share names the GPU, windowing or image stack (a server builds it alone):\n{}", names.join("\n"));
+    let manifest = std::fs::read_to_string(share_crate().join("Cargo.toml")).expect("snowpack-share's Cargo.toml");
+    let deps = manifest_dependencies(&manifest);
+    assert!(deps.contains(&"thiserror".to_owned()), "the manifest's dependencies were not read: {deps:?}");
+    let gpu: Vec<&String> = deps.iter().filter(|d| NOT_IN_SHARE.contains(&d.as_str())).collect();
+    assert!(gpu.is_empty(), "snowpack-share's Cargo.toml depends on {gpu:?}");
+}
+
+#[test]
+fn a_planted_gpu_name_in_the_share_crate_is_reported() {
+    let files = [
+        ("replicate/relay.rs".to_owned(), "//! wgpu::Device in a comment\nuse std::io;\nuse wgpu::Device;\nfn f() { let _ = \"image::open\"; }\n".to_owned()),
+        ("persist/codec.rs".to_owned(), "fn g() -> glam::Vec2 { glam::Vec2::ZERO }\nfn h() { let wgpu = 1; let _ = wgpu; }\n".to_owned()),
+    ];
+    let names = gpu_names(&files);
+    assert_eq!(names.len(), 3, "{names:#?}");
+    assert!(names[0].starts_with("src/replicate/relay.rs:3: use wgpu::Device;") && names[0].ends_with("names `wgpu`"), "{}", names[0]);
+    assert!(names[1].starts_with("src/persist/codec.rs:1:") && names[2].starts_with("src/persist/codec.rs:1:"), "{names:#?}");
+    let deps = manifest_dependencies(
+        "[package]\nname = \"x\"\n[dependencies]\nthiserror.workspace = true\nwgpu = \"30\"\n[dev-dependencies]\nimage = \"1\"\n[target.'cfg(unix)'.dependencies]\nwinit = { version = \"0.30\" }\n",
+    );
+    assert_eq!(deps, ["thiserror", "wgpu", "winit"]);
 }
 
 #[test]
@@ -722,17 +816,17 @@ fn modules_and_the_table_must_agree() {
 #[test]
 fn the_table_is_read() {
     let md = "# A\n\n## Layers\n\nText.\n\n| module | layer | owns | beside |\n|---|---|---|---|\n| `error`, `shaders` | 0 · base | x | — |\n| `gpu` | 1 · gpu | y | |\n| `pool` | 1 · gpu | z | `gpu` |\n\n## Next\n| `no` | 9 | z |\n";
-    let layers = declared_layers(md).expect("a table");
+    let layers = declared_layers(md, LAYERS_HEADING).expect("a table");
     let none = BTreeSet::new;
     let expected: Declared = [("error", 0, none()), ("shaders", 0, none()), ("gpu", 1, none()), ("pool", 1, ["gpu".to_owned()].into())]
         .into_iter()
         .map(|(m, l, b)| (m.to_owned(), (l, b)))
         .collect();
     assert_eq!(layers, expected);
-    assert!(declared_layers("## Layers\n| `a` | x |\n|-|-|\n| `a` | one |\n").is_err(), "a layer that is not a number");
-    assert!(declared_layers("## Layers\n|m|l|\n|-|-|\n| `a` | 1 |\n| `a` | 2 |\n").is_err(), "a module twice");
-    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 2 | | |\n").is_err(), "beside across layers");
-    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 1 | | `a` |\n").is_err(), "a declared cycle");
+    assert!(declared_layers("## Layers\n| `a` | x |\n|-|-|\n| `a` | one |\n", LAYERS_HEADING).is_err(), "a layer that is not a number");
+    assert!(declared_layers("## Layers\n|m|l|\n|-|-|\n| `a` | 1 |\n| `a` | 2 |\n", LAYERS_HEADING).is_err(), "a module twice");
+    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 2 | | |\n", LAYERS_HEADING).is_err(), "beside across layers");
+    assert!(declared_layers("## Layers\n|m|l|o|b|\n|-|-|-|-|\n| `a` | 1 | | `b` |\n| `b` | 1 | | `a` |\n", LAYERS_HEADING).is_err(), "a declared cycle");
     let real = declared();
     assert!(real.len() >= 16, "{real:?}");
 }

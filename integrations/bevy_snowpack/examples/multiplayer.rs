@@ -20,7 +20,16 @@
 //!   until the server has acknowledged its changes and it holds everything
 //!   the server has over its window, prints `probe X Z depth_m D` per
 //!   `--probe`, takes the screenshot and exits.
+//!
+//! Built with `--no-default-features --features server` the example is the
+//! server alone (no renderer, wgpu or window in the plugin); its client
+//! needs the default features (`multiplayer`, `gltf`).
+#![cfg_attr(
+    not(all(feature = "multiplayer", feature = "gltf")),
+    allow(dead_code, unused_imports, reason = "built with the server's features alone, the client's half is left out")
+)]
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 #[path = "common/gltf.rs"]
 mod gltf;
 
@@ -28,13 +37,18 @@ use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::path::PathBuf;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 use bevy::animation::graph::{AnimationGraph, AnimationGraphHandle, AnimationNodeIndex};
 use bevy::app::ScheduleRunnerPlugin;
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 use bevy::core_pipeline::tonemapping::Tonemapping;
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 use bevy::gltf::GltfAssetLabel;
 use bevy::prelude::*;
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
 use bevy::state::app::StatesPlugin;
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 use bevy_replicon::prelude::*;
 use bevy_replicon_renet2::netcode::{
@@ -298,8 +312,15 @@ fn stop_server(mut run: ResMut<ServerRun>, clients: Query<(), With<ConnectedClie
     }
 }
 
+/// Built without `multiplayer` and `gltf` the example is the server alone.
+#[cfg(not(all(feature = "multiplayer", feature = "gltf")))]
+fn run_client(_: ClientCli) {
+    bad("this build of the example is the server alone; its client needs the features `multiplayer` and `gltf` (the default ones)")
+}
+
 // ---------------------------------------------------------------- client
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn snow_settings() -> SnowpackSettings {
     SnowpackSettings {
         // 12 m of 4.7 cm texels around the origin: the whole walk, and a margin of open snow.
@@ -311,6 +332,7 @@ fn snow_settings() -> SnowpackSettings {
     }
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn run_client(cli: ClientCli) {
     let exit = App::new()
         .add_plugins(
@@ -332,6 +354,7 @@ fn run_client(cli: ClientCli) {
     std::process::exit(if exit == AppExit::Success { 0 } else { 1 });
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn connect(mut commands: Commands, channels: Res<RepliconChannels>, cli: Res<ClientCli>) -> Result<(), String> {
     let socket = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| format!("a UDP socket: {e}"))?;
     let now = unix_now();
@@ -349,18 +372,22 @@ fn connect(mut commands: Commands, channels: Res<RepliconChannels>, cli: Res<Cli
     Ok(())
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 #[derive(Component)]
 struct Fox {
     walk: AnimationNodeIndex,
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 #[derive(Resource)]
 struct FoxAnimation(Handle<AnimationGraph>);
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn fox_at(x: f32) -> Vec3 {
     Vec3::new(x, FOX_SOLE_M, 0.0)
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn setup_scene(mut commands: Commands, cli: Res<ClientCli>, assets: Res<AssetServer>, mut graphs: ResMut<Assets<AnimationGraph>>) {
     if cli.walk {
         // Fox.glb's clip 1 is the walk.
@@ -389,6 +416,7 @@ fn setup_scene(mut commands: Commands, cli: Res<ClientCli>, assets: Res<AssetSer
     ));
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 fn start_fox(
     ready: On<WorldInstanceReady>,
     mut commands: Commands,
@@ -406,6 +434,7 @@ fn start_fox(
     }
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Phase {
     Joining,
@@ -416,6 +445,7 @@ enum Phase {
     Shooting,
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 /// The client's run, phase by phase.
 #[derive(Resource)]
 struct Script {
@@ -435,6 +465,7 @@ struct Script {
     shot: Option<u32>,
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 impl Script {
     fn new() -> Self {
         Self {
@@ -457,6 +488,7 @@ impl Script {
     }
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 /// Walks the fox while the script says so, and tells the server where it is.
 fn walk(
     time: Res<Time>,
@@ -480,6 +512,7 @@ fn walk(
     moves.write(FoxAt(transform.translation.to_array()));
 }
 
+#[cfg(all(feature = "multiplayer", feature = "gltf"))]
 #[allow(clippy::too_many_arguments, reason = "the script reads each of the client's parts")]
 fn script(
     mut commands: Commands,

@@ -28,56 +28,102 @@
 //!     })
 //!     .run();
 //! ```
+//!
+//! Cargo features (Bevy's guidelines: the plugin forces no windowing
+//! backend or image format on a game; its examples turn theirs on):
+//!
+//! | feature | default | what |
+//! |---|---|---|
+//! | `render` | yes | the snow in the render world: [`SnowpackPlugin`], the ground, materials, passes, deformers, queries (snowpack, wgpu, Bevy's render, core-pipeline and PBR crates) |
+//! | `gltf` | yes | Bevy's glTF loader and animations, for skinned characters from glTF |
+//! | `multiplayer` | yes | shared snow over bevy_replicon, server and clients (implies `render` and `server`) |
+//! | `server` | no | the relay alone: `SnowReplicationPlugin`'s server half on snowpack-share, without bevy_render, bevy_pbr, wgpu or winit |
 
+#[cfg(feature = "render")]
 mod coat;
+#[cfg(feature = "render")]
 mod control;
+#[cfg(feature = "render")]
 mod footsteps;
+#[cfg(feature = "render")]
 mod ground;
+#[cfg(feature = "render")]
 mod ground_pass;
+#[cfg(feature = "render")]
 mod mesh_deformer;
+#[cfg(feature = "render")]
 mod query;
+#[cfg(feature = "render")]
 mod render;
+#[cfg(feature = "server")]
 mod replication;
+#[cfg(feature = "render")]
 mod settings;
+#[cfg(feature = "render")]
 mod systems;
 
+#[cfg(feature = "render")]
 use bevy::prelude::*;
+#[cfg(feature = "render")]
 use bevy::render::RenderApp;
+#[cfg(feature = "render")]
 use glam::DVec2;
+#[cfg(feature = "render")]
 use snowpack::{ObjectShape, SnowParams, StoreConfig, StreamerConfig, TerrainSource};
 
 /// The library, for its types beyond the [`prelude`] (`bevy_snowpack::snowpack::ObjectStats`).
+#[cfg(feature = "render")]
 pub use snowpack;
+/// Shared snow without a GPU (the relay, the peer's and relay's settings,
+/// the tile store): what the `server` feature builds on.
+pub use snowpack_share;
 
+#[cfg(feature = "render")]
 pub use coat::{COAT_READ_FRAMES, CoatLook, SnowCoat, SnowCoatExtension, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings};
+#[cfg(feature = "render")]
 pub use control::SnowControl;
+#[cfg(feature = "render")]
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
+#[cfg(feature = "render")]
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
+#[cfg(feature = "render")]
 pub use ground_pass::SnowGroundPass;
+#[cfg(feature = "render")]
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
+#[cfg(feature = "render")]
 pub use render::SnowRenderState;
+#[cfg(feature = "multiplayer")]
+pub use replication::SnowSharing;
+#[cfg(feature = "server")]
 pub use replication::{
-    SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient, SnowToServer,
+    SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
 };
+#[cfg(feature = "render")]
 pub use systems::SnowSystems;
 
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
 pub mod prelude {
+    #[cfg(feature = "multiplayer")]
+    pub use crate::SnowSharing;
+    #[cfg(feature = "render")]
     pub use crate::{
         FootKind, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer, SnowFoot, SnowFootstep,
         SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin,
         SnowpackSettings,
     };
+    #[cfg(feature = "server")]
     pub use crate::{
-        SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
-        SnowToServer,
+        SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
     };
+    #[cfg(feature = "render")]
     pub use snowpack::{
         CoatSettings, HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource,
     };
-    pub use snowpack::{PeerConfig, RelayConfig};
+    #[cfg(feature = "server")]
+    pub use snowpack_share::{PeerConfig, RelayConfig};
 }
 
+#[cfg(feature = "render")]
 /// What the plugin's deformation is made of: a resource; change it at any
 /// time and the change reaches the snow at the next frame's extraction.
 ///
@@ -106,6 +152,7 @@ pub struct SnowpackSettings {
     pub store: Option<SnowStoreSettings>,
 }
 
+#[cfg(feature = "render")]
 /// A disk store for the snow that leaves the window: the library's tile
 /// store (`docs/persistence.md`). A save in `dir` ([`SnowControl::request_save`])
 /// is loaded when the app starts again with the same window settings.
@@ -121,6 +168,7 @@ pub struct SnowStoreSettings {
     pub memory: StreamerConfig,
 }
 
+#[cfg(feature = "render")]
 impl SnowStoreSettings {
     /// A store in `dir` with tiles of 64 texels, no disk budget and 128 MiB of memory.
     #[must_use]
@@ -129,6 +177,7 @@ impl SnowStoreSettings {
     }
 }
 
+#[cfg(feature = "render")]
 impl Default for SnowpackSettings {
     fn default() -> Self {
         Self {
@@ -141,6 +190,7 @@ impl Default for SnowpackSettings {
     }
 }
 
+#[cfg(feature = "render")]
 /// Something that presses the snow, placed by the entity's `GlobalTransform`
 /// (its translation and rotation; its scale scales the shape).
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
@@ -163,6 +213,7 @@ pub enum SnowDeformer {
     Mesh,
 }
 
+#[cfg(feature = "render")]
 impl SnowDeformer {
     /// The library's deformer for this shape placed at `transform`; `None`
     /// for [`Self::Mesh`], which presses as a posed mesh instead.
@@ -177,6 +228,7 @@ impl SnowDeformer {
     }
 }
 
+#[cfg(feature = "render")]
 /// An object snow settles on while it falls (`params.snowfall`): the
 /// library's accumulation on its upward surfaces where the sky reaches them,
 /// carried along as the entity moves and turns. Adding or removing one lays
@@ -191,6 +243,7 @@ pub struct SnowCatcher {
     pub dilate: bool,
 }
 
+#[cfg(feature = "render")]
 impl SnowCatcher {
     /// A box of these side lengths (m).
     #[must_use]
@@ -205,10 +258,12 @@ impl SnowCatcher {
     }
 }
 
+#[cfg(feature = "render")]
 /// The deformation window follows this entity (its x, z); one per app.
 #[derive(Component, Clone, Copy, Debug, Default)]
 pub struct SnowWindowTarget;
 
+#[cfg(feature = "render")]
 /// Adds deformable snow to an app (see the crate docs). Needs Bevy's render
 /// plugins (`DefaultPlugins`, or the render, core-pipeline and PBR plugins).
 pub struct SnowpackPlugin {
@@ -216,6 +271,7 @@ pub struct SnowpackPlugin {
     pub settings: SnowpackSettings,
 }
 
+#[cfg(feature = "render")]
 impl SnowpackPlugin {
     /// The plugin with these settings.
     #[must_use]
@@ -224,6 +280,7 @@ impl SnowpackPlugin {
     }
 }
 
+#[cfg(feature = "render")]
 impl Plugin for SnowpackPlugin {
     fn build(&self, app: &mut App) {
         let (to_main, from_render) = std::sync::mpsc::channel();
@@ -244,6 +301,7 @@ impl Plugin for SnowpackPlugin {
     }
 }
 
+#[cfg(feature = "render")]
 /// The window's centre as the library takes it.
 pub(crate) fn dvec2(v: Vec2) -> DVec2 {
     DVec2::new(f64::from(v.x), f64::from(v.y))

@@ -19,8 +19,8 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-/// Metres per deficit quantum.
-pub const SNOW_QUANTUM_M: f32 = 1e-4;
+/// Metres per deficit quantum (the shared-snow crate's: tiles and their clock count in it).
+pub use snowpack_share::SNOW_QUANTUM_M;
 /// Quanta per metre (the shaders multiply by it: exact, where a division is not).
 pub const SNOW_QUANTA_PER_M: f32 = 10_000.0;
 /// The deepest press below the rest height a texel holds (m).

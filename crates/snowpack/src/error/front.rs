@@ -2,11 +2,15 @@
 //! branches on and a message that says what and where. The enums in
 //! the parent module hold the details (`snowpack::low_level::error`, for the app and
 //! the tests that match on them); the library builds those, and `?` or
-//! `.into()` wraps them at the front door.
+//! `.into()` wraps them at the front door. The store's and sharing's
+//! opaque errors are the shared-snow crate's (`snowpack_share::error::front`),
+//! re-exported here.
 
 use std::fmt;
 
-use super::{ShareError as ShareDetail, SnowError as SnowDetail, StoreError as StoreDetail};
+pub use snowpack_share::error::front::{ShareError, ShareErrorKind, StoreError, StoreErrorKind};
+
+use super::{SnowError as SnowDetail, StoreError as StoreDetail};
 
 /// Declares an opaque error around a detailed enum: `Display`, `Debug`,
 /// `source` and the conversions both ways, and with `low_level` the
@@ -117,89 +121,12 @@ impl From<StoreDetail> for SnowError {
 
 impl From<StoreError> for SnowError {
     fn from(e: StoreError) -> Self {
-        SnowDetail::Store(*e.0).into()
+        SnowDetail::Store(e.into()).into()
     }
 }
 
 impl From<ShareError> for SnowError {
     fn from(e: ShareError) -> Self {
-        SnowDetail::Share(*e.0).into()
+        SnowDetail::Share(e.into()).into()
     }
 }
-
-/// What can go wrong storing or loading tiles; the message names the file.
-pub struct StoreError(Box<StoreDetail>);
-
-/// What kind of [`StoreError`] it is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum StoreErrorKind {
-    /// The operating system refused (disk full, read-only, a directory gone).
-    Io,
-    /// A file that cannot be used: damaged, written in another format
-    /// version, or of another world (tile side, key).
-    Invalid,
-    /// The disk did not answer in time; what was asked stays queued.
-    TimedOut,
-    /// The store's worker thread has stopped; tiles can no longer be loaded or saved.
-    WorkerGone,
-    /// Tiles are kept in memory only; saving needs a disk store.
-    NoDisk,
-}
-
-impl StoreError {
-    /// What kind of error it is.
-    #[must_use]
-    pub fn kind(&self) -> StoreErrorKind {
-        match *self.0 {
-            StoreDetail::Io { .. } => StoreErrorKind::Io,
-            StoreDetail::Corrupt { .. } | StoreDetail::Version { .. } | StoreDetail::Mismatch { .. } => StoreErrorKind::Invalid,
-            StoreDetail::TimedOut { .. } => StoreErrorKind::TimedOut,
-            StoreDetail::WorkerGone => StoreErrorKind::WorkerGone,
-            StoreDetail::NoDisk => StoreErrorKind::NoDisk,
-        }
-    }
-}
-
-opaque_error!(StoreError, StoreDetail, "store error");
-
-impl From<super::MessageError> for ShareError {
-    fn from(e: super::MessageError) -> Self {
-        ShareDetail::Malformed(e).into()
-    }
-}
-
-impl From<StoreDetail> for ShareError {
-    fn from(e: StoreDetail) -> Self {
-        ShareDetail::Store(e).into()
-    }
-}
-
-/// What can go wrong sharing snow.
-pub struct ShareError(Box<ShareDetail>);
-
-/// What kind of [`ShareError`] it is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum ShareErrorKind {
-    /// The relay's world is another (the message lists the differences).
-    Refused,
-    /// A message that does not decode, or that this side never receives.
-    Malformed,
-    /// The relay's tile store failed or holds a world that cannot be used.
-    Store,
-}
-
-impl ShareError {
-    /// What kind of error it is.
-    #[must_use]
-    pub fn kind(&self) -> ShareErrorKind {
-        match *self.0 {
-            ShareDetail::Refused { .. } => ShareErrorKind::Refused,
-            ShareDetail::Malformed(_) => ShareErrorKind::Malformed,
-            ShareDetail::Store(_) | ShareDetail::StoreWorld(_) => ShareErrorKind::Store,
-        }
-    }
-}
-
-opaque_error!(ShareError, ShareDetail, "sharing error");

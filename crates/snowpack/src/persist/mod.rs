@@ -10,159 +10,27 @@
 //! I/O off the frame's path ([`TileStreamer`], which without a store keeps
 //! tiles in that cache alone: [`TileStreamer::in_memory`]). `docs/persistence.md`
 //! explains the choices.
+//!
+//! The tile type, the codec, the disk and the store are the shared-snow
+//! crate's (`snowpack_share::persist`: a server without a GPU keeps its
+//! tiles with them), re-exported here at their old paths; the streamer is
+//! this crate's.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-pub mod codec;
 #[doc(hidden)]
-pub mod disk;
-pub mod store;
+pub use snowpack_share::persist::disk;
+pub use snowpack_share::persist::{codec, store};
 pub mod streamer;
 
-use std::path::PathBuf;
-
 pub use crate::error::StoreError;
-pub use codec::{FORMAT_VERSION, decode, encode};
-pub use store::{DEFAULT_DISK_BUDGET_BYTES, StoreConfig, TileStore, WhenFull};
+pub use snowpack_share::persist::{DEFAULT_DISK_BUDGET_BYTES, WhenFull};
+pub use snowpack_share::persist::{FORMAT_VERSION, MAX_SIDE, SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
 pub use streamer::{StoreStats, StreamerConfig, TileLookup, TileStreamer};
 
-/// The largest tile side the format accepts (the whole default window).
-pub const MAX_SIDE: u32 = 1024;
-
-/// Global tile coordinates: tile (col, row) holds global texels
-/// `col*side .. (col+1)*side` (x) and `row*side .. (row+1)*side` (z).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct TileKey {
-    /// Tile column (global texel column divided by `side`, rounded down).
-    pub col: i64,
-    /// Tile row (global texel row divided by `side`, rounded down; row = +z).
-    pub row: i64,
-}
-
-impl TileKey {
-    /// The tile at column `col`, row `row`.
-    #[must_use]
-    pub const fn new(col: i64, row: i64) -> Self {
-        Self { col, row }
-    }
-
-    /// The tile holding global texel (`texel_col`, `texel_row`). Rounds
-    /// towards negative infinity, so texel -1 is in tile -1, not 0.
-    #[must_use]
-    pub fn containing(texel_col: i64, texel_row: i64, side: u32) -> Self {
-        let side = i64::from(side.max(1));
-        Self { col: texel_col.div_euclid(side), row: texel_row.div_euclid(side) }
-    }
-
-    /// Global texel `[column, row]` of the tile's first texel.
-    #[must_use]
-    pub fn first_texel(self, side: u32) -> [i64; 2] {
-        let side = i64::from(side);
-        [self.col.saturating_mul(side), self.row.saturating_mul(side)]
-    }
-}
-
-/// The simulation clock a tile's contents are current at (cumulative
-/// counters since the world began), so a returning tile can be caught up
-/// with the refill and snowfall it missed while it was away.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SnowClock {
-    /// Simulated seconds.
-    pub time_s: f64,
-    /// Refill so far (m): the sum of `refill_m_per_s * dt`.
-    pub refill_m: f64,
-    /// Snowfall so far on open ground (m).
-    pub fallen_m: f64,
-    /// Stamp quanta issued so far (the stamp encoding's clock).
-    pub stamp_quanta: u64,
-}
-
-/// One tile's persistent state, row-major (row = +z), `side*side` texels per plane.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TileData {
-    /// Where the tile is.
-    pub key: TileKey,
-    /// Texels per side.
-    pub side: u32,
-    /// The clock the contents are current at.
-    pub clock: SnowClock,
-    /// The snow surface height's f32 bits XOR its rest height's (terrain +
-    /// depth + this texel's snowfall, f32 adds in that order): 0 where the
-    /// snow is untouched, so untouched tiles compress to almost nothing,
-    /// and the height comes back bit for bit where the GPU recomputes the
-    /// rest (the tile restore pass).
-    pub snow_xor_rest: Vec<u32>,
-    /// Packed footprints (`shared/stamp.wgsl`).
-    pub stamps: Vec<u32>,
-    /// Snowfall so far per texel (m); empty when the world has no snowfall.
-    pub fallen: Vec<f32>,
-}
-
-impl TileData {
-    /// Texels per plane (`side²`).
-    #[must_use]
-    pub fn texels(&self) -> usize {
-        let side = self.side as usize;
-        side * side
-    }
-
-    /// Bytes of the planes (4 per texel per plane present); the streamer's
-    /// memory budget counts this. The struct itself (about 100 bytes) is left
-    /// out, so budgets are simple multiples of a tile.
-    #[must_use]
-    pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.snow_xor_rest.as_slice()) + std::mem::size_of_val(self.stamps.as_slice()) + std::mem::size_of_val(self.fallen.as_slice())
-    }
-
-    /// Checks that `side` is in `1..=`[`MAX_SIDE`] and the planes hold
-    /// `side²` texels each (`fallen` may be empty). The error is a
-    /// [`StoreError::Mismatch`] without a path.
-    pub fn validate(&self) -> Result<(), StoreError> {
-        let why = if self.side == 0 || self.side > MAX_SIDE {
-            format!("tile side {} is outside 1..={MAX_SIDE}", self.side)
-        } else if self.snow_xor_rest.len() != self.texels() {
-            format!("snow holds {} texels, a {}² tile needs {}", self.snow_xor_rest.len(), self.side, self.texels())
-        } else if self.stamps.len() != self.texels() {
-            format!("stamps holds {} texels, a {}² tile needs {}", self.stamps.len(), self.side, self.texels())
-        } else if !self.fallen.is_empty() && self.fallen.len() != self.texels() {
-            format!("fallen holds {} texels, a {}² tile needs {} (or none)", self.fallen.len(), self.side, self.texels())
-        } else {
-            return Ok(());
-        };
-        Err(StoreError::Mismatch { path: PathBuf::new(), why })
-    }
-}
-
-/// Temporary directories for this module's unit tests, removed on drop.
+/// Temporary directories for the streamer's unit tests (the shared-snow
+/// crate's `testing::TestDir`).
 #[cfg(test)]
-pub(crate) mod test_dir {
-    use std::path::{Path, PathBuf};
-    use std::sync::atomic::{AtomicU64, Ordering};
-
-    /// A fresh, empty directory under the system's temporary directory.
-    pub(crate) struct TestDir(PathBuf);
-
-    impl TestDir {
-        pub(crate) fn new(name: &str) -> Self {
-            static COUNTER: AtomicU64 = AtomicU64::new(0);
-            let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
-            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let dir = std::env::temp_dir().join(format!("snowpack-{name}-{}-{nanos}-{n}", std::process::id()));
-            std::fs::create_dir_all(&dir).expect("create a test directory");
-            Self(dir)
-        }
-
-        pub(crate) fn path(&self) -> &Path {
-            &self.0
-        }
-    }
-
-    impl Drop for TestDir {
-        fn drop(&mut self) {
-            // Best effort: a leftover directory under /tmp is harmless.
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-}
+pub(crate) use snowpack_share::testing as test_dir;

@@ -9,12 +9,8 @@
 //!
 //! | file | what |
 //! |---|---|
-//! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
-//! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share |
-//! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
-//! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
-//! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
-//! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
+//! | `tile`, `world`, `message`, `relay`, `motion`, `peer` | the shared-snow crate's (`snowpack_share::replicate`, no GPU), re-exported here: [`SharedTile`] and [`ShareClock`], [`WorldIdentity`], the wire format ([`Message`], [`encode`], [`decode`]), [`SnowRelay`] (what a server runs, holding each peer's deformers to a top speed in `motion`'s grid hash), [`SnowPeer`] (what a game client runs beside its [`SharedSnow`]) |
+//! | this file | [`terrain_identity`]: a terrain as a world's identity names it |
 //! | `flags.rs` | [`flags::ShareGrid`]: the changed-tile flags the stamp and update passes write, and their keys |
 //! | `gather.rs` | [`gather::TileGatherPass`] (`tile_gather.wgsl`): whole tiles copied out of the window |
 //! | `merge.rs` | [`merge::TileMergePass`] (`tile_merge.wgsl`): tiles from elsewhere folded into the window |
@@ -34,41 +30,30 @@
 pub mod flags;
 pub mod gather;
 pub mod merge;
-pub mod message;
-pub mod motion;
-pub mod peer;
-pub mod relay;
 pub(crate) mod sharing;
-pub mod tile;
-pub mod world;
+pub use snowpack_share::replicate::{message, motion, peer, relay, tile, world};
 
+use crate::TerrainSource;
 pub use crate::error::ShareError;
 pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
+pub use snowpack_share::replicate::SharedSnow;
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
-pub use world::{WorldIdentity, terrain_identity};
+pub use world::WorldIdentity;
 
-/// What a [`SnowPeer`] needs of the snow it shares: the
-/// window's clock and place, the tiles it changed, and a way to fold in
-/// tiles from elsewhere. [`crate::SnowDeformation`] implements it on the
-/// GPU; `testing::CpuSnow` on the CPU, for tests without a device.
-pub trait SharedSnow {
-    /// The world clock the snow is at now.
-    fn share_clock(&self) -> ShareClock;
-    /// Sets the clock (on joining a world: the relay's), before the first
-    /// frame or between frames; the window's fresh snow follows it.
-    fn join_clock(&mut self, clock: ShareClock);
-    /// The window's first texel (global texel column, row) and its
-    /// resolution, once it has been placed.
-    fn window(&self) -> Option<([i64; 2], u32)>;
-    /// Tiles the snow changed (a press or a footprint) since the last call,
-    /// as their state at the frame they were read: whole tiles on the global
-    /// grid, texels outside the window untouched. Never waits for the GPU.
-    fn take_changed_tiles(&mut self) -> Vec<SharedTile>;
-    /// Folds `tiles` into the snow where they overlap the window (the
-    /// deeper deficit wins; never written over). Tiles behind the snow's
-    /// clock are caught up first; tiles ahead of it are held until the clock
-    /// reaches them.
-    fn merge_tiles(&mut self, tiles: &[SharedTile]);
+/// A short description of `terrain` that two machines with the same
+/// terrain agree on: its kind and parameters, and for sampled terrains an
+/// FNV-1a digest of the heights. [`WorldIdentity`]'s terrain is this
+/// (here rather than beside it: the shared-snow crate knows no terrain).
+#[must_use]
+pub fn terrain_identity(terrain: &TerrainSource) -> String {
+    match terrain {
+        TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
+        TerrainSource::Noise(n) => {
+            format!("noise seed {} base {} m amplitude {} m wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m)
+        }
+        TerrainSource::Heightmap(h) => format!("heightmap {:016x}", h.digest()),
+        TerrainSource::Mesh(m) => format!("mesh of {} triangles {:016x}", m.triangles.len(), m.grid.digest()),
+    }
 }

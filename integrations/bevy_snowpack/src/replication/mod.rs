@@ -17,14 +17,16 @@
 //! write only near the server's positions of its own entities (its peer's
 //! own claims are then not used).
 
+#[cfg(feature = "multiplayer")]
 mod client;
 mod server;
 
 use bevy::prelude::*;
 use bevy_replicon::prelude::*;
 use serde::{Deserialize, Serialize};
-use snowpack::{PeerConfig, RelayConfig};
+use snowpack_share::{PeerConfig, RelayConfig};
 
+#[cfg(feature = "multiplayer")]
 pub use client::SnowSharing;
 pub use server::SnowServer;
 
@@ -78,6 +80,7 @@ impl Plugin for SnowReplicationPlugin {
             // They name no entity, so they need not wait for the replication of one.
             .make_message_independent::<SnowToClient>();
         server::build(app);
+        #[cfg(feature = "multiplayer")]
         client::build(app);
     }
 }

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use bevy::prelude::*;
 use bevy_replicon::prelude::*;
-use snowpack::{PeerId, SnowRelay};
+use snowpack_share::{PeerId, SnowRelay};
 
 use super::{SnowDepthUnder, SnowOwnedBy, SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
 

@@ -1,8 +1,7 @@
 //! A world's identity: the settings two machines must share for their snow
 //! to merge. A peer of another world is refused, naming what differs.
 
-use crate::TerrainSource;
-use crate::deform::snow_word::SNOW_QUANTUM_M;
+use crate::SNOW_QUANTUM_M;
 
 use super::tile::ShareClock;
 
@@ -95,19 +94,4 @@ impl WorldIdentity {
 
 fn on_off(b: bool) -> &'static str {
     if b { "on" } else { "off" }
-}
-
-/// A short description of `terrain` that two machines with the same
-/// terrain agree on: its kind and parameters, and for sampled terrains an
-/// FNV-1a digest of the heights.
-#[must_use]
-pub fn terrain_identity(terrain: &TerrainSource) -> String {
-    match terrain {
-        TerrainSource::Flat { height_m } => format!("flat at {height_m} m"),
-        TerrainSource::Noise(n) => {
-            format!("noise seed {} base {} m amplitude {} m wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m)
-        }
-        TerrainSource::Heightmap(h) => format!("heightmap {:016x}", h.digest()),
-        TerrainSource::Mesh(m) => format!("mesh of {} triangles {:016x}", m.triangles.len(), m.grid.digest()),
-    }
 }

@@ -10,8 +10,11 @@
 //! commutative, associative and idempotent. `docs/multiplayer.md` says why
 //! and where it is not exact.
 
-use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::persist::TileKey;
+
+/// Metres per deficit quantum: the persistent snow, tiles and the world
+/// clock's refill count in it (snowpack's `deform::snow_word` packs it).
+pub const SNOW_QUANTUM_M: f32 = 1e-4;
 
 /// A footprint texel with no footprint (`shared/stamp.wgsl`'s `STAMP_EMPTY`).
 pub const NO_STAMP: u32 = u32::MAX;

@@ -18,7 +18,7 @@
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 
-use crate::deform::snow_word::SNOW_QUANTUM_M;
+use crate::SNOW_QUANTUM_M;
 use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileStore};
 
 use super::ShareError;
@@ -430,7 +430,7 @@ impl SnowRelay {
     /// A relay that keeps its tiles in `store`, resuming the world saved
     /// there (if any; tiles are read back when they are needed). The
     /// store's tile files hold deficits (see `tile_to_data`), not the
-    /// heights a [`TileStreamer`](crate::TileStreamer) keeps: give a relay
+    /// heights snowpack's `TileStreamer` keeps: give a relay
     /// a directory of its own.
     pub fn with_store(store: TileStore, config: RelayConfig) -> Result<Self, crate::ShareError> {
         let world = match store.read_state(WORLD_STATE)? {

@@ -583,7 +583,8 @@ impl TileStore {
 
 /// Where tile `key` of the store in `dir` lives. Arithmetic shifts keep
 /// negative coordinates in their own regions (-1 >> 5 is -1).
-pub(crate) fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
+#[doc(hidden)]
+pub fn tile_path(dir: &Path, key: TileKey) -> PathBuf {
     dir.join(TILES_DIR).join(region_name(key)).join(format!("{}_{}.tile", key.col, key.row))
 }
 

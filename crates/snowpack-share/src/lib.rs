@@ -1,0 +1,94 @@
+//! snowpack-share: the CPU core of snowpack's shared snow, without a GPU.
+//!
+//! One world's trails on every player's machine: the snow of a tile is a
+//! deficit below its rest height, copies brought to the same world clock
+//! merge texel by texel ([`SharedTile::merge`]), and the wire format carries
+//! them between a game's clients ([`SnowPeer`]) and its server
+//! ([`SnowRelay`], which keeps the world's tiles in a [`TileStore`]).
+//!
+//! This crate depends on no GPU, windowing or image crate: a dedicated
+//! server (`snowpack server`, bevy_snowpack's `server` feature) builds it
+//! alone. The `snowpack` crate's GPU side (gathering changed tiles from the
+//! window, merging tiles into it, streaming tiles in and out) builds on it
+//! and re-exports what it exported before at the same paths
+//! (`snowpack::SnowRelay`, `snowpack::low_level::replicate::tile`, ...).
+//!
+//! A relay owns no socket: bytes go in through `receive` and come out of
+//! `poll_transmit`, over whatever transport the game uses.
+//!
+//! ```
+//! use snowpack_share::{RelayConfig, SnowRelay};
+//!
+//! let mut relay = SnowRelay::new(RelayConfig::default());
+//! // A datagram that is not a message is refused and counted, never a panic.
+//! relay.receive(1, b"not a message", 0.0);
+//! let stats = relay.stats();
+//! assert_eq!((stats.messages_in, stats.rejected.total(), stats.peers), (1, 1, 0));
+//! ```
+//!
+//! | module | what |
+//! |---|---|
+//! | [`replicate`] | tiles and their clock, the world identity, the wire messages, peers and relays |
+//! | [`persist`] | the tile type, its compressed file format, the crash-safe store on disk |
+//! | [`error`] | the errors in detail; the opaque ones at the root |
+//!
+//! Feature `low_level` (snowpack's `low_level` turns it on) shows in the
+//! docs what snowpack's app, tools and tests use beyond a game's API, and
+//! adds `testing`'s support for tests.
+
+/// Declares a function `pub` and, without the `low_level` feature, hidden
+/// from the docs: the calls that snowpack's app, tools and tests use (and
+/// snowpack's GPU side, across the crate boundary) but a game does not.
+macro_rules! low_level_pub {
+    ($(#[$attr:meta])* fn $($rest:tt)*) => {
+        $(#[$attr])*
+        #[cfg_attr(not(feature = "low_level"), doc(hidden))]
+        pub fn $($rest)*
+    };
+}
+
+/// Declares a struct whose fields are `pub` and, without the `low_level`
+/// feature, hidden from the docs: plain data that snowpack builds or reads
+/// field by field, and a game reaches through the type's methods.
+macro_rules! low_level_fields {
+    ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
+        $(#[$attr])*
+        pub struct $name $(<$lt>)? { $($(#[$fattr])* #[cfg_attr(not(feature = "low_level"), doc(hidden))] pub $field: $ty),* }
+    };
+}
+
+/// Declares a struct whose fields written `pub(crate)` are `pub` and,
+/// without the `low_level` feature, hidden from the docs: the tuning beside
+/// the fields a game sets (written `pub`); private fields stay private.
+/// Field by field, in order, so the struct's layout is as written.
+macro_rules! low_level_some_fields {
+    ($(#[$attr:meta])* pub struct $name:ident { $($body:tt)* }) => {
+        low_level_some_fields!(@field [$(#[$attr])*] $name [] $($body)*);
+    };
+    // A field written `pub(crate)`: `pub`, hidden from the docs without the feature.
+    (@field $attrs:tt $name:ident [$($out:tt)*] $(#[$fattr:meta])* pub(crate) $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
+        low_level_some_fields!(@field $attrs $name [$($out)* $(#[$fattr])* #[cfg_attr(not(feature = "low_level"), doc(hidden))] pub $field: $ty,] $($($rest)*)?);
+    };
+    // Any other field (`pub`, or private to its module): as written.
+    (@field $attrs:tt $name:ident [$($out:tt)*] $(#[$fattr:meta])* $fvis:vis $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
+        low_level_some_fields!(@field $attrs $name [$($out)* $(#[$fattr])* $fvis $field: $ty,] $($($rest)*)?);
+    };
+    (@field [$(#[$attr:meta])*] $name:ident [$($out:tt)*]) => {
+        $(#[$attr])*
+        pub struct $name { $($out)* }
+    };
+}
+
+pub mod error;
+pub mod persist;
+pub mod replicate;
+#[cfg(any(test, feature = "low_level"))]
+pub mod testing;
+
+pub use error::front::{ShareError, ShareErrorKind, StoreError, StoreErrorKind};
+pub use persist::{StoreConfig, TileData, TileKey, TileStore};
+pub use replicate::tile::SNOW_QUANTUM_M;
+pub use replicate::{
+    CatchUp, Message, PeerConfig, PeerId, PeerStats, RelayConfig, RelayRejections, RelayStats, ShareClock, SharedSnow, SharedTile, SnowPeer, SnowRelay,
+    WorldIdentity,
+};
