@@ -38,10 +38,11 @@ const FOX_SCALE: f32 = 0.01;
 /// How far the fox's paws sink into the snow (its model's soles are at its
 /// origin) until the snow has answered (`SnowResistance::floor_m`).
 const FOX_SINKAGE_M: f32 = 0.07;
-/// Seconds of walking out before the fox turns back along its trail.
-const OUT_S: f32 = 2.0;
-/// The fox's walking speed on firm ground (m/s); the snow's speed factor scales it.
-const WALK_M_PER_S: f32 = 1.2;
+/// Seconds of walking out before the fox turns back along its trail
+/// (counted from when its scene is in the world).
+const OUT_S: f32 = 1.5;
+/// The fox's trotting speed on firm ground (m/s); the snow's speed factor scales it.
+const WALK_M_PER_S: f32 = 2.0;
 /// A fixed step when the run is scripted (`--exit-after-frames`).
 const SCRIPTED_DT_S: f32 = 1.0 / 30.0;
 const BALL_RADIUS_M: f32 = 0.3;
@@ -88,6 +89,9 @@ struct Clock {
 #[derive(Component)]
 struct Fox {
     walk: AnimationNodeIndex,
+    /// Seconds walked since its scene came into the world (it waits for it:
+    /// without its mesh it would press nothing).
+    walked_s: Option<f32>,
     /// How far along its path it is (m).
     s: f32,
     /// Speeds measured from its positions frame to frame (m/s): out in fresh
@@ -139,7 +143,7 @@ fn setup(
     let (p, _) = fox_path(0.0);
     commands
         .spawn((
-            Fox { walk: nodes[0], s: 0.0, fresh: Vec::new(), trail: Vec::new(), last: None, turned_at: None },
+            Fox { walk: nodes[0], walked_s: None, s: 0.0, fresh: Vec::new(), trail: Vec::new(), last: None, turned_at: None },
             // The snow holds it back: a 6 kg fox on 35 cm² paws.
             FeelsSnow::fox(),
             WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"))),
@@ -180,13 +184,14 @@ fn setup(
 fn start_fox(
     ready: On<WorldInstanceReady>,
     mut commands: Commands,
-    foxes: Query<&Fox>,
+    mut foxes: Query<&mut Fox>,
     children: Query<&Children>,
     mut players: Query<&mut AnimationPlayer>,
     names: Query<&Name>,
     animations: Res<FoxAnimations>,
 ) {
-    let Ok(fox) = foxes.get(ready.entity) else { return };
+    let Ok(mut fox) = foxes.get_mut(ready.entity) else { return };
+    fox.walked_s = Some(0.0);
     for entity in children.iter_descendants(ready.entity) {
         if let Ok(mut player) = players.get_mut(entity) {
             player.play(fox.walk).repeat();
@@ -213,7 +218,9 @@ fn tick(time: Res<Time>, mut clock: ResMut<Clock>) {
 fn walk_fox(clock: Res<Clock>, time: Res<Time>, mut fox: Single<(&mut Fox, &mut Transform, &SnowResistance)>) {
     let dt = if clock.scripted { SCRIPTED_DT_S } else { time.delta_secs() };
     let (fox, transform, resistance) = &mut *fox;
-    let out = clock.t < OUT_S;
+    let Some(walked_s) = fox.walked_s else { return };
+    fox.walked_s = Some(walked_s + dt);
+    let out = walked_s < OUT_S;
     if !out && fox.turned_at.is_none() {
         fox.turned_at = Some(fox.s);
     }
@@ -230,7 +237,7 @@ fn walk_fox(clock: Res<Clock>, time: Res<Time>, mut fox: Single<(&mut Fox, &mut 
         // Out once the snow has answered; back once well inside its trail (a few frames after the turn).
         if out && resistance.floor_m.is_some() {
             fox.fresh.push(speed);
-        } else if fox.turned_at.is_some_and(|turned| fox.s < turned - 0.15 && fox.s > 0.15) {
+        } else if fox.turned_at.is_some_and(|turned| fox.s < turned - 0.2 && fox.s > 0.2) {
             fox.trail.push(speed);
         }
     }
@@ -283,6 +290,7 @@ fn follow_camera(fox: Single<&Transform, (With<Fox>, Without<Camera3d>)>, mut ca
 /// At the screenshot: where on screen a ball's trench and untouched snow
 /// are (physical pixels), the footsteps so far and the fox's mean speeds
 /// (fresh snow, its trail), for the tests to read.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system: each argument is a query or resource it reads")]
 fn report_screen_points(
     cli: Res<cli::Cli>,
     clock: Res<Clock>,

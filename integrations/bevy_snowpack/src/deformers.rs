@@ -110,7 +110,11 @@ pub(crate) fn placed_wheel(rotation: Quat, translation: Vec3, radius: f32, half_
 }
 
 /// Rolls each wheel by its motion and sets where its load holds it.
-fn drive_wheels(mut commands: Commands, settings: Res<SnowpackSettings>, mut wheels: Query<(Entity, &mut SnowWheel, &GlobalTransform, Option<&mut SnowDeformer>)>) {
+fn drive_wheels(
+    mut commands: Commands,
+    settings: Res<SnowpackSettings>,
+    mut wheels: Query<(Entity, &mut SnowWheel, &GlobalTransform, Option<&mut SnowDeformer>)>,
+) {
     for (entity, mut wheel, transform, deformer) in &mut wheels {
         let (_, rotation, translation) = transform.to_scale_rotation_translation();
         // The library's wheel rolls forward along `axle x up`.
@@ -147,7 +151,8 @@ mod tests {
         // Not known yet: it does not press.
         assert!(placed_wheel(Quat::IDENTITY, Vec3::ZERO, 0.3, 0.1, 0.0, f32::INFINITY).is_none());
         // Placed on the terrain at 0.3 m, held at 0.25 m by its load: it presses from 0.25 m.
-        let Some(snowpack::Deformer::Wheel { center, axle, roll_m, .. }) = placed_wheel(Quat::from_rotation_y(0.5), Vec3::new(1.0, 0.3, 2.0), 0.3, 0.1, 1.5, 0.25)
+        let Some(snowpack::Deformer::Wheel { center, axle, roll_m, .. }) =
+            placed_wheel(Quat::from_rotation_y(0.5), Vec3::new(1.0, 0.3, 2.0), 0.3, 0.1, 1.5, 0.25)
         else {
             panic!("a wheel")
         };
@@ -155,7 +160,9 @@ mod tests {
         assert!(axle.y.abs() < 1e-6 && (axle.length() - 1.0).abs() < 1e-6);
         assert_eq!(roll_m, 1.5);
         // Above the snow: where its transform puts it.
-        let Some(snowpack::Deformer::Wheel { center, .. }) = placed_wheel(Quat::IDENTITY, Vec3::new(0.0, 2.0, 0.0), 0.3, 0.1, 0.0, 0.25) else { panic!("a wheel") };
+        let Some(snowpack::Deformer::Wheel { center, .. }) = placed_wheel(Quat::IDENTITY, Vec3::new(0.0, 2.0, 0.0), 0.3, 0.1, 0.0, 0.25) else {
+            panic!("a wheel")
+        };
         assert_eq!(center.y, 2.0);
     }
 }

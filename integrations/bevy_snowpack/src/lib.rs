@@ -243,7 +243,9 @@ impl SnowDeformer {
             Self::Sphere { radius } => Some(snowpack::Deformer::Sphere { center: translation, radius: radius * largest }),
             Self::Box { half_extents } => Some(snowpack::Deformer::Box { center: translation, half_extents: half_extents * scale.abs(), rotation }),
             Self::Point { scale_per_m } => Some(snowpack::Deformer::Point { position: translation, scale_per_m }),
-            Self::Wheel { radius, half_width, roll_m, lowest_m } => deformers::placed_wheel(rotation, translation, radius * largest, half_width * largest, roll_m, lowest_m),
+            Self::Wheel { radius, half_width, roll_m, lowest_m } => {
+                deformers::placed_wheel(rotation, translation, radius * largest, half_width * largest, roll_m, lowest_m)
+            }
             Self::Capsule { .. } | Self::Mesh => None,
         }
     }

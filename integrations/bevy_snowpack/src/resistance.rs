@@ -81,10 +81,11 @@ impl FeelsSnow {
     }
 
     /// A fox: 6 kg on 35 cm² paws (fur included), two down on average,
-    /// steps landing 0.4 m ahead of its origin (beyond its front paws).
+    /// the snow asked 0.6 m ahead of its origin (beyond its chest and front
+    /// paws, which press the snow in front of its origin).
     #[must_use]
     pub fn fox() -> Self {
-        Self { feet_down: 2.0, reach_m: 0.4, ..Self::walker(6.0, 0.0035) }
+        Self { feet_down: 2.0, reach_m: 0.6, ..Self::walker(6.0, 0.0035) }
     }
 
     /// The same walker with `feet_down` feet sharing its weight.
@@ -264,13 +265,11 @@ fn points_around(p: Vec2, heading: Vec2, reach: f32) -> [Vec2; POINTS] {
 /// What the sensing system reads and writes of each entity.
 type Sensing = (Entity, &'static GlobalTransform, Option<&'static mut FeelsSnow>, Option<&'static mut SnowWheel>, Option<&'static mut SnowResistance>);
 
+/// The entities that sense the snow: walkers and wheels.
+type SensingFilter = Or<(With<FeelsSnow>, With<SnowWheel>)>;
+
 /// Reads the answers for the sensing entities and asks again.
-fn sense_snow(
-    mut query: ResMut<SnowQuery>,
-    mut asked: Local<Asked>,
-    settings: Res<SnowpackSettings>,
-    mut sensing: Query<Sensing, Or<(With<FeelsSnow>, With<SnowWheel>)>>,
-) {
+fn sense_snow(mut query: ResMut<SnowQuery>, mut asked: Local<Asked>, settings: Res<SnowpackSettings>, mut sensing: Query<Sensing, SensingFilter>) {
     if let Some((_, _, age)) = &mut asked.0 {
         *age += 1;
         if *age > GIVE_UP_FRAMES {
@@ -289,7 +288,7 @@ fn sense_snow(
             }
             let (Some(feels), Some(mut resistance)) = (feels, resistance) else { continue };
             let wheel = wheel.as_deref();
-            let easiest = samples[1..].iter().flatten().map(|s| resist(s, &*feels, wheel, hardness_kpa)).min_by(|a, b| a.sinkage_m.total_cmp(&b.sinkage_m));
+            let easiest = samples[1..].iter().flatten().map(|s| resist(s, &feels, wheel, hardness_kpa)).min_by(|a, b| a.sinkage_m.total_cmp(&b.sinkage_m));
             if let Some(easiest) = easiest {
                 *resistance = easiest;
             }

@@ -161,7 +161,10 @@ fn every_deformer_kind_presses_what_it_should() {
     let Some(mut app) = app_with(settings, ()) else { return };
     let world = app.world_mut();
     // A capsule lying along x, its bottom 0.15 m above the ground.
-    world.spawn((SnowDeformer::Capsule { radius: 0.2, half_length: 0.3 }, Transform::from_xyz(-2.0, 0.35, -2.0).with_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2))));
+    world.spawn((
+        SnowDeformer::Capsule { radius: 0.2, half_length: 0.3 },
+        Transform::from_xyz(-2.0, 0.35, -2.0).with_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+    ));
     // A contact point 0.2 m above the ground.
     world.spawn((SnowDeformer::Point { scale_per_m: 2.5 }, Transform::from_xyz(2.0, 0.2, -2.0)));
     // A wheel carrying 200 kg, placed on the ground (as a game's physics without snow would), rolling along +z.
