@@ -178,7 +178,7 @@ pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
 pub use deform::{PointAnswers, PointSample, QueryTicket};
 pub use error::front::{ShareError, ShareErrorKind, SnowError, SnowErrorKind, StoreError, StoreErrorKind};
-pub use gpu::{AdapterRequest, GpuContext};
+pub use gpu::{AdapterRequest, GpuContext, PassTimings};
 pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer, WhenFull};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 #[cfg(feature = "low_level")]

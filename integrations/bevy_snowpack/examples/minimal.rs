@@ -23,7 +23,7 @@ fn main() {
             primary_window: Some(Window { title: "bevy_snowpack minimal".into(), resolution: (960, 540).into(), ..default() }),
             ..default()
         }))
-        .add_plugins((SnowpackPlugin::new(SnowpackSettings::default()), cli::CliPlugin(cli)))
+        .add_plugins((SnowpackPlugin::default(), cli::CliPlugin(cli)))
         .add_systems(Startup, setup)
         .add_systems(Update, push)
         .run();

@@ -1,8 +1,12 @@
-//! The glTF fox walks, then runs, over snowy hills under a Bevy camera while
-//! balls drop out of the sky and roll: the fox's skinned mesh presses its
-//! paws into the snow in pose (`SnowDeformer::Mesh`), its paw bones raise
-//! footstep messages, and the balls carve trenches. The snow ground is drawn
-//! by snowpack's `SnowGroundPass` in the camera's main pass.
+//! The glTF fox walks out over snowy hills, turns and walks back in its own
+//! trail, under a Bevy camera while balls drop out of the sky and roll: the
+//! fox's skinned mesh presses its paws into the snow in pose
+//! (`SnowDeformer::Mesh`), its paw bones raise footstep messages, and the
+//! balls carve trenches. The snow holds the fox back (`FeelsSnow`,
+//! `SnowResistance`): it wades slowly through the 0.4 m of fresh snow and
+//! walks faster in the trail it packed, at the floor the snow gives it. The
+//! snow ground is drawn by snowpack's `SnowGroundPass` in the camera's main
+//! pass.
 //!
 //! ```text
 //! cargo run --release --example walk [-- --exit-after-frames N] [--screenshot FILE]
@@ -10,7 +14,9 @@
 //!
 //! With `--exit-after-frames` the scene advances a fixed 1/30 s a frame
 //! (the same picture on any machine); at the screenshot it prints where a
-//! ball's trench and untouched snow are on screen, for the tests.
+//! ball's trench and untouched snow are on screen and the fox's speeds
+//! measured from its positions frame to frame (in fresh snow, and back in
+//! its trail), for the tests.
 
 #[path = "common/cli.rs"]
 mod cli;
@@ -26,15 +32,17 @@ use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 use bevy_snowpack::prelude::*;
 
 /// Snow depth (m) on the hills.
-const DEPTH_M: f32 = 0.2;
+const DEPTH_M: f32 = 0.4;
 /// The fox's model is in centimetres.
 const FOX_SCALE: f32 = 0.01;
-/// How far the fox's paws sink into the snow (its model's soles are at its origin).
+/// How far the fox's paws sink into the snow (its model's soles are at its
+/// origin) until the snow has answered (`SnowResistance::floor_m`).
 const FOX_SINKAGE_M: f32 = 0.07;
-/// Seconds of walking before the fox breaks into a run.
-const WALK_S: f32 = 2.5;
-const WALK_M_PER_S: f32 = 1.0;
-const RUN_M_PER_S: f32 = 3.2;
+/// Seconds of walking out before the fox turns back along its trail
+/// (counted from when its scene is in the world).
+const OUT_S: f32 = 1.5;
+/// The fox's trotting speed on firm ground (m/s); the snow's speed factor scales it.
+const WALK_M_PER_S: f32 = 2.0;
 /// A fixed step when the run is scripted (`--exit-after-frames`).
 const SCRIPTED_DT_S: f32 = 1.0 / 30.0;
 const BALL_RADIUS_M: f32 = 0.3;
@@ -47,13 +55,10 @@ fn terrain() -> TerrainSource {
 fn main() {
     let cli = cli::Cli::parse();
     let scripted = cli.exit_after_frames.is_some();
-    let settings = SnowpackSettings {
-        params: SnowParams { extent_m: 24.0, resolution: 512, depth_m: DEPTH_M, refill_m_per_s: 0.0, ..SnowParams::default() },
-        terrain: terrain(),
-        center: Vec2::ZERO,
-        fixed_dt_s: scripted.then_some(SCRIPTED_DT_S),
-        store: None,
-    };
+    let mut snow = SnowpackPlugin::default().with_window(24.0, 512).with_depth(DEPTH_M).with_refill(0.0).with_terrain(terrain());
+    if scripted {
+        snow = snow.with_fixed_dt(SCRIPTED_DT_S);
+    }
     App::new()
         .add_plugins(
             DefaultPlugins
@@ -64,7 +69,7 @@ fn main() {
                 // The fox lives in the repository's assets folder (relative to this crate's manifest).
                 .set(AssetPlugin { file_path: "../../assets".into(), ..default() }),
         )
-        .add_plugins((SnowpackPlugin::new(settings), cli::CliPlugin(cli)))
+        .add_plugins((snow, cli::CliPlugin(cli)))
         .add_plugins(gltf::GltfTypesPlugin)
         .insert_resource(ClearColor(Color::srgb(0.62, 0.74, 0.88)))
         .insert_resource(Clock { scripted, t: 0.0 })
@@ -84,8 +89,18 @@ struct Clock {
 #[derive(Component)]
 struct Fox {
     walk: AnimationNodeIndex,
-    run: AnimationNodeIndex,
-    running: bool,
+    /// Seconds walked since its scene came into the world (it waits for it:
+    /// without its mesh it would press nothing).
+    walked_s: Option<f32>,
+    /// How far along its path it is (m).
+    s: f32,
+    /// Speeds measured from its positions frame to frame (m/s): out in fresh
+    /// snow once the snow has answered, and back in its own trail.
+    fresh: Vec<f32>,
+    trail: Vec<f32>,
+    /// Where it was last frame (x, z), and the farthest it went out (m along its path).
+    last: Option<Vec2>,
+    turned_at: Option<f32>,
 }
 
 /// A ball: falls, lands in the snow, rolls to a stop.
@@ -102,9 +117,9 @@ struct FoxAnimations(Handle<AnimationGraph>);
 #[derive(Resource, Default)]
 struct Steps(u32);
 
-/// Where the fox is at time `t` (s): along a gentle curve, walking, then running.
-fn fox_path(t: f32) -> (Vec2, Vec2) {
-    let s = if t < WALK_S { t * WALK_M_PER_S } else { WALK_S * WALK_M_PER_S + (t - WALK_S) * RUN_M_PER_S };
+/// Where the fox is `s` metres along its path: a gentle curve, and the
+/// direction of growing `s`.
+fn fox_path(s: f32) -> (Vec2, Vec2) {
     let at = |s: f32| Vec2::new(-5.0 + s, 1.5 * (s * 0.25).sin());
     let p = at(s);
     (p, (at(s + 0.01) - p).normalize())
@@ -123,12 +138,14 @@ fn setup(
     mut materials: ResMut<Assets<StandardMaterial>>,
 ) {
     // Fox.glb's clips: 0 survey, 1 walk, 2 run.
-    let (graph, nodes) = AnimationGraph::from_clips([1, 2].map(|k| assets.load(GltfAssetLabel::Animation(k).from_asset("Fox.glb"))));
+    let (graph, nodes) = AnimationGraph::from_clips([assets.load(GltfAssetLabel::Animation(1).from_asset("Fox.glb"))]);
     commands.insert_resource(FoxAnimations(graphs.add(graph)));
     let (p, _) = fox_path(0.0);
     commands
         .spawn((
-            Fox { walk: nodes[0], run: nodes[1], running: false },
+            Fox { walk: nodes[0], walked_s: None, s: 0.0, fresh: Vec::new(), trail: Vec::new(), last: None, turned_at: None },
+            // The snow holds it back: a 6 kg fox on 35 cm² paws.
+            FeelsSnow::fox(),
             WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"))),
             // Every mesh of the fox's scene presses the snow, skinned in pose,
             // and carries the snow it wades through (drawn by SnowCoatMaterial).
@@ -167,13 +184,14 @@ fn setup(
 fn start_fox(
     ready: On<WorldInstanceReady>,
     mut commands: Commands,
-    foxes: Query<&Fox>,
+    mut foxes: Query<&mut Fox>,
     children: Query<&Children>,
     mut players: Query<&mut AnimationPlayer>,
     names: Query<&Name>,
     animations: Res<FoxAnimations>,
 ) {
-    let Ok(fox) = foxes.get(ready.entity) else { return };
+    let Ok(mut fox) = foxes.get_mut(ready.entity) else { return };
+    fox.walked_s = Some(0.0);
     for entity in children.iter_descendants(ready.entity) {
         if let Ok(mut player) = players.get_mut(entity) {
             player.play(fox.walk).repeat();
@@ -194,19 +212,36 @@ fn tick(time: Res<Time>, mut clock: ResMut<Clock>) {
     clock.t += if clock.scripted { SCRIPTED_DT_S } else { time.delta_secs() };
 }
 
-fn walk_fox(clock: Res<Clock>, mut fox: Single<(&mut Fox, &mut Transform)>, mut players: Query<&mut AnimationPlayer>) {
-    let (fox, transform) = &mut *fox;
-    let (p, heading) = fox_path(clock.t);
-    transform.translation = Vec3::new(p.x, snow_top(p.x, p.y) - FOX_SINKAGE_M, p.y);
-    // The model faces +z.
-    transform.rotation = Quat::from_rotation_y(heading.x.atan2(heading.y));
-    if clock.t >= WALK_S && !fox.running {
-        fox.running = true;
-        for mut player in &mut players {
-            player.stop_all();
-            player.play(fox.run).repeat();
+/// The fox walks out along its path for `OUT_S`, then back along it, at its
+/// walking speed times the snow's speed factor, its paws at the floor the
+/// snow gives it; its speed is measured from its positions.
+fn walk_fox(clock: Res<Clock>, time: Res<Time>, mut fox: Single<(&mut Fox, &mut Transform, &SnowResistance)>) {
+    let dt = if clock.scripted { SCRIPTED_DT_S } else { time.delta_secs() };
+    let (fox, transform, resistance) = &mut *fox;
+    let Some(walked_s) = fox.walked_s else { return };
+    fox.walked_s = Some(walked_s + dt);
+    let out = walked_s < OUT_S;
+    if !out && fox.turned_at.is_none() {
+        fox.turned_at = Some(fox.s);
+    }
+    let step = WALK_M_PER_S * resistance.speed_factor * dt;
+    fox.s += if out { step } else { -step };
+    let (p, heading) = fox_path(fox.s);
+    let floor = resistance.floor_m.unwrap_or(snow_top(p.x, p.y) - FOX_SINKAGE_M);
+    transform.translation = Vec3::new(p.x, floor, p.y);
+    // The model faces +z; walking back it faces the other way.
+    let facing = if out { heading } else { -heading };
+    transform.rotation = Quat::from_rotation_y(facing.x.atan2(facing.y));
+    if let Some(last) = fox.last {
+        let speed = p.distance(last) / dt;
+        // Out once the snow has answered; back once well inside its trail (a few frames after the turn).
+        if out && resistance.floor_m.is_some() {
+            fox.fresh.push(speed);
+        } else if fox.turned_at.is_some_and(|turned| fox.s < turned - 0.2 && fox.s > 0.2) {
+            fox.trail.push(speed);
         }
     }
+    fox.last = Some(p);
 }
 
 /// Gravity until a ball meets the snow, then it settles into it and rolls downhill to a stop.
@@ -246,14 +281,16 @@ fn report_steps(mut steps: MessageReader<SnowFootstep>, mut count: ResMut<Steps>
 
 /// The camera looks down on the fox's path from the side the balls roll to,
 /// following the fox along x.
-fn follow_camera(clock: Res<Clock>, mut camera: Single<&mut Transform, With<Camera3d>>) {
-    let (p, _) = fox_path(clock.t.min(WALK_S + 0.5));
-    let focus = Vec3::new(p.x + 0.5, terrain().height_at(p.x + 0.5, 1.8), 1.8);
+fn follow_camera(fox: Single<&Transform, (With<Fox>, Without<Camera3d>)>, mut camera: Single<&mut Transform, With<Camera3d>>) {
+    let p = fox.translation.xz();
+    let focus = Vec3::new(p.x + 1.5, terrain().height_at(p.x + 1.5, 1.8), 1.8);
     **camera = Transform::from_translation(focus + Vec3::new(0.0, 3.2, 4.8)).looking_at(focus, Vec3::Y);
 }
 
 /// At the screenshot: where on screen a ball's trench and untouched snow
-/// are (physical pixels), and the footsteps so far, for the tests to read.
+/// are (physical pixels), the footsteps so far and the fox's mean speeds
+/// (fresh snow, its trail), for the tests to read.
+#[allow(clippy::too_many_arguments, reason = "a Bevy system: each argument is a query or resource it reads")]
 fn report_screen_points(
     cli: Res<cli::Cli>,
     clock: Res<Clock>,
@@ -262,6 +299,7 @@ fn report_screen_points(
     camera: Single<(&Camera, &GlobalTransform)>,
     window: Single<&Window>,
     steps: Res<Steps>,
+    fox: Single<&Fox>,
 ) {
     *frames += 1;
     if cli.screenshot.is_none() || *frames != cli.exit_after_frames.unwrap_or(120) {
@@ -277,8 +315,10 @@ fn report_screen_points(
     let trench = trench.map(|t| Vec3::new(t.x, snow_top(t.x, t.z) - 0.5 * DEPTH_M, t.z));
     let fresh = Vec2::new(-1.5, -1.0);
     let fresh = Vec3::new(fresh.x, snow_top(fresh.x, fresh.y), fresh.y);
+    let mean = |v: &[f32]| if v.is_empty() { f32::NAN } else { v.iter().sum::<f32>() / v.len() as f32 };
+    let speeds = format!("fox m/s fresh {:.3} over {} trail {:.3} over {}", mean(&fox.fresh), fox.fresh.len(), mean(&fox.trail), fox.trail.len());
     match (trench.and_then(pixel), pixel(fresh)) {
-        (Some(t), Some(f)) => println!("walk: trench pixel {:.0} {:.0} fresh pixel {:.0} {:.0} footsteps {}", t.x, t.y, f.x, f.y, steps.0),
-        _ => println!("walk: no trench on screen yet, footsteps {}", steps.0),
+        (Some(t), Some(f)) => println!("walk: trench pixel {:.0} {:.0} fresh pixel {:.0} {:.0} footsteps {} {speeds}", t.x, t.y, f.x, f.y, steps.0),
+        _ => println!("walk: no trench on screen yet, footsteps {} {speeds}", steps.0),
     }
 }

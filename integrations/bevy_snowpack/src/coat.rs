@@ -24,14 +24,17 @@ use crate::systems::{FromRender, ToMainWorld};
 
 /// How a mesh deformer's meshes gather and lose snow: put it on the
 /// [`SnowDeformer::Mesh`](crate::SnowDeformer) entity (the library's defaults
-/// without it). Changes reach the snow at the next frame.
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq)]
-pub struct SnowCoatSettings(pub CoatSettings);
+/// without it). Changes reach the snow at the next frame. The library's
+/// settings are opaque to reflection (`reflect_clone` copies them).
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq)]
+#[reflect(Component, Clone, Debug, Default, PartialEq)]
+pub struct SnowCoatSettings(#[reflect(ignore, clone)] pub CoatSettings);
 
 /// The snow on a mesh deformer's mesh: one thickness a vertex (m), in the
 /// mesh's vertex order. Inserted on the mesh entity and refreshed every
 /// [`COAT_READ_FRAMES`] frames, a frame or two after the GPU wrote it.
-#[derive(Component, Clone, Debug, Default, PartialEq)]
+#[derive(Component, Reflect, Clone, Debug, Default, PartialEq)]
+#[reflect(Component, Clone, Debug, Default, PartialEq)]
 pub struct SnowCoat {
     /// Snow on each vertex (m).
     pub thickness_m: Vec<f32>,
@@ -56,7 +59,8 @@ impl SnowCoat {
 /// [`SnowCoatMaterial`]s with the same settings, and their vertex colours
 /// carry the coat (the material reads them; a mesh asset shared with other
 /// entities shows the coat of one of them).
-#[derive(Component, Clone, Copy, Debug, Default)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default)]
+#[reflect(Component, Clone, Debug, Default)]
 pub struct SnowCoatLook;
 
 /// Frames between two readbacks of the coats (10 a second at 60 Hz).
@@ -109,6 +113,9 @@ pub(crate) fn build(app: &mut App) {
     // The handle is a constant id; inserting cannot fail for it.
     let _ = shaders.insert(FRAGMENT_SHADER.id(), fragment);
     app.add_plugins(MaterialPlugin::<SnowCoatMaterial>::default())
+        .register_type::<SnowCoatSettings>()
+        .register_type::<SnowCoat>()
+        .register_type::<SnowCoatLook>()
         .init_resource::<ArrivedCoats>()
         .add_systems(PreUpdate, apply_coats.in_set(SnowSystems::Receive).after(crate::systems::receive_from_render))
         .add_systems(PostUpdate, swap_materials.in_set(SnowSystems::Gather));

@@ -9,7 +9,8 @@ use crate::SnowSystems;
 use crate::query::{SnowQuery, SnowTicket};
 
 /// What kind of foot made a step.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[reflect(Clone, Debug, Default, PartialEq, Hash)]
 pub enum FootKind {
     /// An animal's paw.
     #[default]
@@ -20,7 +21,9 @@ pub enum FootKind {
 
 /// A foot whose steps on the snow are reported: put it on the entity whose
 /// origin is the sole (a paw bone, or a child placed at the sole).
-#[derive(Component, Clone, Copy, Debug)]
+#[derive(Component, Reflect, Clone, Copy, Debug)]
+#[reflect(Component, Clone, Debug)]
+#[require(Transform)]
 pub struct SnowFoot {
     /// Paw or foot, copied into the messages.
     pub kind: FootKind,
@@ -105,7 +108,7 @@ fn detect_footsteps(
     if asked.0.is_none() {
         let (entities, points): (Vec<Entity>, Vec<Vec2>) = feet.iter().map(|(e, _, t)| (e, t.translation().xz())).unzip();
         if !entities.is_empty() {
-            asked.0 = Some((query.ask(&points), entities, 0));
+            asked.0 = Some((query.ask_quietly(&points), entities, 0));
         }
     }
 }

@@ -18,7 +18,8 @@ use snowpack::{GroundCamera, SnowGround, SnowGroundDescriptor};
 use crate::render::SnowRenderState;
 
 /// Draw snowpack's own snow ground in this camera's main pass.
-#[derive(Component, Clone, Copy, Debug, Default, ExtractComponent)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, ExtractComponent)]
+#[reflect(Component, Clone, Debug, Default)]
 #[extract_app(RenderApp)]
 pub struct SnowGroundPass;
 
@@ -28,7 +29,7 @@ pub struct SnowGroundPass;
 struct Grounds(HashMap<MainEntity, (wgpu::TextureFormat, u32, SnowGround)>);
 
 pub(crate) fn build(app: &mut App) {
-    app.add_plugins(ExtractComponentPlugin::<SnowGroundPass>::default());
+    app.add_plugins(ExtractComponentPlugin::<SnowGroundPass>::default()).register_type::<SnowGroundPass>();
     if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
         render_app.init_resource::<Grounds>().add_systems(Core3d, draw_snow_ground.after(main_opaque_pass_3d).before(main_transparent_pass_3d));
     }

@@ -9,7 +9,10 @@
 //! snowpack's own snow ground in its main pass, or [`SnowGroundMaterial`]
 //! draws a ground mesh displaced by the snow in the main and the prepass
 //! (depth, shadow) vertex shaders; [`SnowFoot`] entities raise
-//! [`SnowFootstep`] messages. [`SnowReplicationPlugin`] shares the snow
+//! [`SnowFootstep`] messages; [`FeelsSnow`] entities get a
+//! [`SnowResistance`] (how much the snow under them holds them back);
+//! [`SnowpackDiagnosticsPlugin`] puts the snow's GPU time and memory into
+//! Bevy's `DiagnosticsStore`. [`SnowReplicationPlugin`] shares the snow
 //! between a game's server and clients over its bevy_replicon connection.
 //!
 //! Everything a game uses is in the [`prelude`]; the plugin's systems are
@@ -22,7 +25,7 @@
 //! use bevy_snowpack::prelude::*;
 //!
 //! App::new()
-//!     .add_plugins((DefaultPlugins, SnowpackPlugin::new(SnowpackSettings::default())))
+//!     .add_plugins((DefaultPlugins, SnowpackPlugin::default().with_depth(0.4)))
 //!     .add_systems(Startup, |mut commands: Commands| {
 //!         commands.spawn((SnowDeformer::Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.6, 0.0)));
 //!     })
@@ -44,6 +47,10 @@ mod coat;
 #[cfg(feature = "render")]
 mod control;
 #[cfg(feature = "render")]
+mod deformers;
+#[cfg(feature = "render")]
+mod diagnostics;
+#[cfg(feature = "render")]
 mod footsteps;
 #[cfg(feature = "render")]
 mod ground;
@@ -57,6 +64,8 @@ mod query;
 mod render;
 #[cfg(feature = "server")]
 mod replication;
+#[cfg(feature = "render")]
+mod resistance;
 #[cfg(feature = "render")]
 mod settings;
 #[cfg(feature = "render")]
@@ -81,7 +90,11 @@ pub use snowpack_share;
 #[cfg(feature = "render")]
 pub use coat::{COAT_READ_FRAMES, CoatLook, SnowCoat, SnowCoatExtension, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings};
 #[cfg(feature = "render")]
-pub use control::SnowControl;
+pub use control::{SnowControl, SnowObjectStats, SnowSaved};
+#[cfg(feature = "render")]
+pub use deformers::SnowWheel;
+#[cfg(feature = "render")]
+pub use diagnostics::SnowpackDiagnosticsPlugin;
 #[cfg(feature = "render")]
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 #[cfg(feature = "render")]
@@ -89,7 +102,7 @@ pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 #[cfg(feature = "render")]
 pub use ground_pass::SnowGroundPass;
 #[cfg(feature = "render")]
-pub use query::{SnowAnswers, SnowQuery, SnowTicket};
+pub use query::{SnowAnswered, SnowAnswers, SnowQuery, SnowTicket};
 #[cfg(feature = "render")]
 pub use render::SnowRenderState;
 #[cfg(feature = "multiplayer")]
@@ -99,6 +112,8 @@ pub use replication::{
     SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
 };
 #[cfg(feature = "render")]
+pub use resistance::{FeelsSnow, SnowResistance};
+#[cfg(feature = "render")]
 pub use systems::SnowSystems;
 
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
@@ -107,9 +122,9 @@ pub mod prelude {
     pub use crate::SnowSharing;
     #[cfg(feature = "render")]
     pub use crate::{
-        FootKind, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer, SnowFoot, SnowFootstep,
-        SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin,
-        SnowpackSettings,
+        FeelsSnow, FootKind, SnowAnswered, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer,
+        SnowFoot, SnowFootstep, SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowObjectStats, SnowQuery, SnowResistance, SnowSaved,
+        SnowStoreSettings, SnowSystems, SnowTicket, SnowWheel, SnowWindowTarget, SnowpackDiagnosticsPlugin, SnowpackPlugin, SnowpackSettings,
     };
     #[cfg(feature = "server")]
     pub use crate::{
@@ -135,12 +150,21 @@ pub mod prelude {
 /// and `depth_m`, `hardness_kpa`, `tile_memory_bytes`, `teleport_m`, the
 /// `terrain` and the `store`; changing one of these logs a warning and
 /// leaves the snow as it is (build a new app, or restart, to change them).
-#[derive(Resource, Clone, Debug)]
+///
+/// Reflected (inspectors, scenes): `center`, `fixed_dt_s` and the store's
+/// folder and tile side; `params` and `terrain` are the library's types,
+/// which do not implement `Reflect` (snowpack does not depend on Bevy), so
+/// reflection carries them opaquely: `reflect_clone` copies them, a
+/// dynamic value or a serialized one leaves them out.
+#[derive(Resource, Reflect, Clone, Debug)]
+#[reflect(Resource, Clone, Debug, Default)]
 pub struct SnowpackSettings {
     /// The window: size and resolution, depth, technique, refill, snowfall,
     /// tile memory (see `snowpack::SnowParams`).
+    #[reflect(ignore, clone)]
     pub params: SnowParams,
     /// The terrain under the snow.
+    #[reflect(ignore, clone, default = "flat_terrain")]
     pub terrain: TerrainSource,
     /// Where the window starts (world x, z in m); [`SnowWindowTarget`] moves it.
     pub center: Vec2,
@@ -156,16 +180,25 @@ pub struct SnowpackSettings {
 /// A disk store for the snow that leaves the window: the library's tile
 /// store (`docs/persistence.md`). A save in `dir` ([`SnowControl::request_save`])
 /// is loaded when the app starts again with the same window settings.
-#[derive(Clone, Debug)]
+#[derive(Reflect, Clone, Debug)]
+#[reflect(Clone, Debug)]
 pub struct SnowStoreSettings {
     /// The store's folder (created when missing; one app at a time).
     pub dir: std::path::PathBuf,
     /// Side of a stored tile (texels; the window's resolution need not be a multiple).
     pub tile_texels: u32,
-    /// Disk budget (least recently used tiles go beyond it).
+    /// Disk budget (least recently used tiles go beyond it; the library's type, opaque to reflection).
+    #[reflect(ignore, clone)]
     pub disk: StoreConfig,
-    /// Memory the streamer keeps tiles in before and after the disk.
+    /// Memory the streamer keeps tiles in before and after the disk (the library's type, opaque to reflection).
+    #[reflect(ignore, clone)]
     pub memory: StreamerConfig,
+}
+
+/// The terrain a reflected value without one gets: flat ground at 0 m.
+#[cfg(feature = "render")]
+fn flat_terrain() -> TerrainSource {
+    TerrainSource::Flat { height_m: 0.0 }
 }
 
 #[cfg(feature = "render")]
@@ -182,7 +215,7 @@ impl Default for SnowpackSettings {
     fn default() -> Self {
         Self {
             params: SnowParams { extent_m: 32.0, resolution: 512, depth_m: 0.4, ..SnowParams::default() },
-            terrain: TerrainSource::Flat { height_m: 0.0 },
+            terrain: flat_terrain(),
             center: Vec2::ZERO,
             fixed_dt_s: None,
             store: None,
@@ -192,8 +225,14 @@ impl Default for SnowpackSettings {
 
 #[cfg(feature = "render")]
 /// Something that presses the snow, placed by the entity's `GlobalTransform`
-/// (its translation and rotation; its scale scales the shape).
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
+/// (its translation and rotation; its scale scales the shape). Every kind
+/// the library presses with is here: an analytic sphere or box, a capsule
+/// and any mesh (pressed by their triangles, skinned meshes in pose), a
+/// contact point of the points technique, and a wheel ([`SnowWheel`] keeps
+/// one rolling with its load).
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Clone, Debug, PartialEq)]
+#[require(Transform)]
 pub enum SnowDeformer {
     /// A sphere around the entity's origin.
     Sphere {
@@ -204,6 +243,42 @@ pub enum SnowDeformer {
     Box {
         /// Half the box's size along the entity's axes (m) before scaling.
         half_extents: Vec3,
+    },
+    /// A capsule along the entity's local y axis, centred on its origin
+    /// (Bevy's `Capsule3d`): pressed by its triangles, like [`Self::Mesh`],
+    /// so a lying, rolling or tumbling capsule presses what it covers.
+    Capsule {
+        /// Radius of its hemispheres and cylinder (m) before scaling.
+        radius: f32,
+        /// Half the length of its cylinder (m) before scaling.
+        half_length: f32,
+    },
+    /// A contact point of the points technique (`Technique::Points` or
+    /// `Combined`; the depth technique ignores it): the footprint
+    /// `h = origin.y + d² · scale_per_m` around the entity's origin, the
+    /// foot's lowest point.
+    Point {
+        /// Curvature of the footprint (1/m): `1 / 2r` matches a sphere of radius r.
+        scale_per_m: f32,
+    },
+    /// A tyre with the library's default tread (blocks 12 cm apart, 2 cm
+    /// deep) rolling about the entity's local x axis (kept horizontal),
+    /// centred on its origin. [`SnowWheel`] writes this each frame from its
+    /// motion and load; a game may also drive it by hand.
+    Wheel {
+        /// Outer radius (m) before scaling.
+        radius: f32,
+        /// Half the tyre's width (m) before scaling.
+        half_width: f32,
+        /// How far the tread has turned, as arc length (m): the distance
+        /// rolled, times `1 + slip`.
+        roll_m: f32,
+        /// The lowest the tyre's bottom goes (world y, m): where the load
+        /// holds it on the snow. The wheel presses from its transform or from
+        /// this, whichever is higher; `f32::NEG_INFINITY`: from its
+        /// transform; not finite and positive: it does not press (its load
+        /// is not known yet).
+        lowest_m: f32,
     },
     /// The entity's own mesh (`Mesh3d`) in its current pose, or, on an
     /// entity without one (a glTF scene's root), every mesh below it.
@@ -216,14 +291,20 @@ pub enum SnowDeformer {
 #[cfg(feature = "render")]
 impl SnowDeformer {
     /// The library's deformer for this shape placed at `transform`; `None`
-    /// for [`Self::Mesh`], which presses as a posed mesh instead.
+    /// for [`Self::Mesh`] and [`Self::Capsule`], which press as posed meshes
+    /// instead, and for a wheel whose load is not known yet.
     #[must_use]
     pub fn placed(&self, transform: &GlobalTransform) -> Option<snowpack::Deformer> {
         let (scale, rotation, translation) = transform.to_scale_rotation_translation();
+        let largest = scale.abs().max_element();
         match *self {
-            Self::Sphere { radius } => Some(snowpack::Deformer::Sphere { center: translation, radius: radius * scale.abs().max_element() }),
+            Self::Sphere { radius } => Some(snowpack::Deformer::Sphere { center: translation, radius: radius * largest }),
             Self::Box { half_extents } => Some(snowpack::Deformer::Box { center: translation, half_extents: half_extents * scale.abs(), rotation }),
-            Self::Mesh => None,
+            Self::Point { scale_per_m } => Some(snowpack::Deformer::Point { position: translation, scale_per_m }),
+            Self::Wheel { radius, half_width, roll_m, lowest_m } => {
+                deformers::placed_wheel(rotation, translation, radius * largest, half_width * largest, roll_m, lowest_m)
+            }
+            Self::Capsule { .. } | Self::Mesh => None,
         }
     }
 }
@@ -235,9 +316,13 @@ impl SnowDeformer {
 /// the objects' atlas out anew (their snow so far is lost). Read the snow on
 /// each through [`SnowControl::request_object_stats`]. The library's own
 /// `snowpack::SnowObject` is what this becomes in the render world.
-#[derive(Component, Clone, Debug, PartialEq)]
+#[derive(Component, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Component, Clone, Debug, PartialEq)]
+#[require(Transform)]
 pub struct SnowCatcher {
-    /// Its shape (a box or a sphere around the entity's origin, or a mesh).
+    /// Its shape (a box or a sphere around the entity's origin, or a mesh;
+    /// the library's type, opaque to reflection).
+    #[reflect(ignore, clone, default = "unit_cube")]
     pub shape: ObjectShape,
     /// Whether its snow is dilated across chart seams (off for thin, holey objects).
     pub dilate: bool,
@@ -258,16 +343,38 @@ impl SnowCatcher {
     }
 }
 
+/// The shape a reflected [`SnowCatcher`] without one gets: a 1 m cube.
+#[cfg(feature = "render")]
+fn unit_cube() -> ObjectShape {
+    ObjectShape::Box { size_m: Vec3::ONE }
+}
+
 #[cfg(feature = "render")]
 /// The deformation window follows this entity (its x, z); one per app.
-#[derive(Component, Clone, Copy, Debug, Default)]
+#[derive(Component, Reflect, Clone, Copy, Debug, Default)]
+#[reflect(Component, Clone, Debug, Default)]
+#[require(Transform)]
 pub struct SnowWindowTarget;
 
 #[cfg(feature = "render")]
 /// Adds deformable snow to an app (see the crate docs). Needs Bevy's render
 /// plugins (`DefaultPlugins`, or the render, core-pipeline and PBR plugins).
+///
+/// `SnowpackPlugin::default()` is a 32 m window of 512 texels in 0.4 m of
+/// snow on flat ground at 0 m; the builders change what a game needs:
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_snowpack::prelude::*;
+/// let snow = SnowpackPlugin::default()
+///     .with_window(24.0, 512)
+///     .with_depth(0.2)
+///     .with_terrain(TerrainSource::Noise(NoiseTerrain { seed: 11, base_m: 0.0, amplitude_m: 1.2, wavelength_m: 20.0 }));
+/// App::new().add_plugins((DefaultPlugins, snow));
+/// ```
+#[derive(Default)]
 pub struct SnowpackPlugin {
-    /// The deformation's settings.
+    /// The deformation's settings (the [`SnowpackSettings`] resource it inserts).
     pub settings: SnowpackSettings,
 }
 
@@ -277,6 +384,69 @@ impl SnowpackPlugin {
     #[must_use]
     pub fn new(settings: SnowpackSettings) -> Self {
         Self { settings }
+    }
+
+    /// All the settings at once.
+    #[must_use]
+    pub fn with_settings(mut self, settings: SnowpackSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// The library's parameters whole (window, depth, technique, refill, snowfall...).
+    #[must_use]
+    pub fn with_params(mut self, params: SnowParams) -> Self {
+        self.settings.params = params;
+        self
+    }
+
+    /// A window of `extent_m` metres a side and `resolution` texels a side.
+    #[must_use]
+    pub fn with_window(mut self, extent_m: f32, resolution: u32) -> Self {
+        (self.settings.params.extent_m, self.settings.params.resolution) = (extent_m, resolution);
+        self
+    }
+
+    /// Untouched snow this deep (m).
+    #[must_use]
+    pub fn with_depth(mut self, depth_m: f32) -> Self {
+        self.settings.params.depth_m = depth_m;
+        self
+    }
+
+    /// Trails fill in at this rate (m/s); 0 keeps them.
+    #[must_use]
+    pub fn with_refill(mut self, refill_m_per_s: f32) -> Self {
+        self.settings.params.refill_m_per_s = refill_m_per_s;
+        self
+    }
+
+    /// The terrain under the snow.
+    #[must_use]
+    pub fn with_terrain(mut self, terrain: TerrainSource) -> Self {
+        self.settings.terrain = terrain;
+        self
+    }
+
+    /// Where the window starts (world x, z in m).
+    #[must_use]
+    pub fn with_center(mut self, center: Vec2) -> Self {
+        self.settings.center = center;
+        self
+    }
+
+    /// Steps the snow by `dt_s` each frame (deterministic replays and tests).
+    #[must_use]
+    pub fn with_fixed_dt(mut self, dt_s: f32) -> Self {
+        self.settings.fixed_dt_s = Some(dt_s);
+        self
+    }
+
+    /// Keeps the trails that leave the window on disk.
+    #[must_use]
+    pub fn with_store(mut self, store: SnowStoreSettings) -> Self {
+        self.settings.store = Some(store);
+        self
     }
 }
 
@@ -288,6 +458,7 @@ impl Plugin for SnowpackPlugin {
             .init_resource::<SnowQuery>()
             .init_resource::<SnowControl>()
             .insert_resource(systems::FromRenderWorld::new(from_render));
+        register_types(app);
         systems::build(app);
         settings::build(app);
         footsteps::build(app);
@@ -295,10 +466,34 @@ impl Plugin for SnowpackPlugin {
         ground_pass::build(app);
         mesh_deformer::build(app);
         coat::build(app);
+        control::build(app);
+        query::build(app);
+        deformers::build(app);
+        resistance::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
         }
     }
+}
+
+/// The public components and resources of the plugin's core in Bevy's type
+/// registry (Bevy is built without `reflect_auto_register`), for inspectors
+/// and scenes; the coat's and the ground pass's register with their modules.
+#[cfg(feature = "render")]
+fn register_types(app: &mut App) {
+    app.register_type::<SnowpackSettings>()
+        .register_type::<SnowStoreSettings>()
+        .register_type::<SnowDeformer>()
+        .register_type::<SnowWheel>()
+        .register_type::<SnowCatcher>()
+        .register_type::<SnowWindowTarget>()
+        .register_type::<FeelsSnow>()
+        .register_type::<SnowResistance>()
+        .register_type::<SnowFoot>()
+        .register_type::<FootKind>()
+        .register_type::<SnowQuery>()
+        .register_type::<SnowTicket>()
+        .register_type::<SnowControl>();
 }
 
 #[cfg(feature = "render")]

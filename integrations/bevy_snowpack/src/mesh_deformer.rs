@@ -1,4 +1,5 @@
-//! Meshes that press the snow in their current pose: [`SnowDeformer::Mesh`].
+//! Meshes that press the snow in their current pose: [`SnowDeformer::Mesh`],
+//! and [`SnowDeformer::Capsule`] as the triangles of Bevy's `Capsule3d`.
 //!
 //! Each mesh entity under a `SnowDeformer::Mesh` is registered once with the
 //! library as a skinned mesh (`SnowDeformation::add_skinned_mesh`): a Bevy
@@ -46,9 +47,13 @@ pub(crate) struct MeshDeformerFrame {
     pub poses: Vec<MeshPose>,
 }
 
-/// Which mesh asset each mesh entity was registered with.
+/// Which mesh asset each mesh entity was registered with, and the size
+/// (radius and half length, as bits) each capsule's was made for.
 #[derive(Default)]
-struct Registered(HashMap<Entity, AssetId<Mesh>>);
+struct Registered(HashMap<Entity, AssetId<Mesh>>, HashMap<Entity, [u32; 2]>);
+
+/// Triangles of a capsule's mesh around its circumference (Bevy's default is 32).
+const CAPSULE_LONGITUDES: u32 = 24;
 
 pub(crate) fn build(app: &mut App) {
     app.init_resource::<MeshDeformerFrame>().add_systems(PostUpdate, pose_mesh_deformers.in_set(crate::SnowSystems::Gather));
@@ -103,6 +108,11 @@ fn pose_mesh_deformers(
 ) {
     frame.registrations.clear();
     frame.poses.clear();
+    for (root, deformer, coat) in &deformers {
+        if let SnowDeformer::Capsule { radius, half_length } = *deformer {
+            pose_capsule(&mut frame, &mut registered.1, root, (radius, half_length), coat.map(|c| c.0), joints.get(root).ok());
+        }
+    }
     for (root, _, coat) in deformers.iter().filter(|(_, d, _)| matches!(d, SnowDeformer::Mesh)) {
         let coat = coat.map(|c| c.0);
         // The entity's own mesh, or (a glTF scene's root) every mesh below it.
@@ -132,6 +142,32 @@ fn pose_mesh_deformers(
             frame.poses.push(MeshPose { key, joints: pose, coat });
         }
     }
+}
+
+/// A capsule deformer: its mesh registered once per size (a skin of one
+/// joint, the entity's transform), its pose every frame.
+fn pose_capsule(
+    frame: &mut MeshDeformerFrame,
+    registered: &mut HashMap<Entity, [u32; 2]>,
+    entity: Entity,
+    (radius, half_length): (f32, f32),
+    coat: Option<snowpack::CoatSettings>,
+    transform: Option<&GlobalTransform>,
+) {
+    let Some(transform) = transform else { return };
+    let key = entity.to_bits();
+    let size = [radius.to_bits(), half_length.to_bits()];
+    if registered.get(&entity) != Some(&size) {
+        registered.insert(entity, size);
+        if !(radius > 0.0 && half_length >= 0.0 && radius.is_finite() && half_length.is_finite()) {
+            tracing::warn!("bevy_snowpack: the capsule of {entity} (radius {radius}, half length {half_length}) does not press the snow");
+            return;
+        }
+        let mesh = Capsule3d::new(radius, 2.0 * half_length).mesh().longitudes(CAPSULE_LONGITUDES).build();
+        let Some(mesh) = library_mesh(&mesh, false) else { return };
+        frame.registrations.push(MeshRegistration { key, mesh: Arc::new(mesh), joint_count: 1 });
+    }
+    frame.poses.push(MeshPose { key, joints: vec![transform.to_matrix()], coat });
 }
 
 #[cfg(test)]

@@ -133,8 +133,8 @@ fn deliver(arrived: Vec<FromRender>, query: &mut SnowQuery, control: &mut SnowCo
         match message {
             FromRender::Answers(answers) => query.deliver(answers),
             FromRender::LoadedSave(loaded) => control.loaded_save = Some(loaded),
-            FromRender::Saved(result) => control.save_result = Some(result),
-            FromRender::ObjectStats(stats) => control.stats = Some(stats),
+            FromRender::Saved(result) => control.arrive_save(result),
+            FromRender::ObjectStats(stats) => control.arrive_stats(stats),
             FromRender::Coat(entity, thickness_m) => {
                 coats.0.insert(entity, thickness_m);
             }

@@ -2,7 +2,11 @@
 //! beside the tests) opens a window on a private X server (Xvfb, which
 //! `.ci/run` installs), runs 120 scripted frames on the software adapter and
 //! writes Bevy's screenshot. Where it says a ball's trench is, the picture
-//! must differ from untouched snow; the fox's paws must have reported steps.
+//! must differ from untouched snow; the fox's paws must have reported steps;
+//! and the fox, held back by the snow (`SnowResistance`), must have walked
+//! slower out through the 0.4 m of fresh snow than back in its own packed
+//! trail (its speeds measured from its positions frame to frame, at the
+//! scripted 1/30 s a frame: no wall time).
 //!
 //! Without Xvfb this test skips, unless `SNOWPACK_REQUIRE_GPU` is set (CI).
 
@@ -46,10 +50,12 @@ fn walk_example_leaves_visible_trails_and_footsteps() {
     assert!(out.status.success(), "walk exited with {}\nstdout:\n{stdout}\nstderr:\n{stderr}", out.status);
     let report = stdout.lines().find(|l| l.starts_with("walk: ")).unwrap_or_else(|| panic!("no report line in\n{stdout}\n{stderr}"));
     let words: Vec<&str> = report.split_whitespace().collect();
-    // walk: trench pixel X Y fresh pixel X Y footsteps N
+    // walk: trench pixel X Y fresh pixel X Y footsteps N fox m/s fresh A over n trail B over m
     assert_eq!(words.get(1..3), Some(&["trench", "pixel"][..]), "no trench on screen: {report}");
+    assert_eq!(words.get(11..14), Some(&["fox", "m/s", "fresh"][..]), "no fox speeds: {report}");
     let number = |k: usize| words[k].parse::<f32>().unwrap_or_else(|e| panic!("{report}: word {k}: {e}"));
     let (trench, fresh, steps) = ((number(3), number(4)), (number(7), number(8)), number(10));
+    let (fresh_speed, fresh_frames, trail_speed, trail_frames) = (number(14), number(16), number(18), number(20));
 
     let image = image::open(&shot).unwrap_or_else(|e| panic!("{}: {e}", shot.display())).to_rgba8();
     let inside = |(x, y): (f32, f32)| x >= 4.0 && y >= 4.0 && x < image.width() as f32 - 4.0 && y < image.height() as f32 - 4.0;
@@ -62,5 +68,9 @@ fn walk_example_leaves_visible_trails_and_footsteps() {
     assert!((trench_luma - fresh_luma).abs() > 10.0, "the trench ({trench_luma:.1}) looks like untouched snow ({fresh_luma:.1})");
     // Four paws, about 4 s of walking and running: many steps.
     assert!(steps >= 8.0, "only {steps} footsteps from the fox's paws");
+    // The snow holds the fox back: over 10 frames each way, slower wading out than walking back in its trail.
+    assert!(fresh_frames >= 10.0 && trail_frames >= 10.0, "too few frames measured: {report}");
+    assert!(fresh_speed > 0.05, "the fox did not move out: {report}");
+    assert!(trail_speed > 1.3 * fresh_speed, "the fox walked {trail_speed} m/s in its trail and {fresh_speed} m/s in fresh snow: {report}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -162,6 +162,21 @@ impl GpuTimer {
         self.samples.clear();
     }
 
+    /// The newest GPU time per pass (the last frame whose timestamps came
+    /// back), in first-seen order; the count is the samples kept so far.
+    #[must_use]
+    pub fn latest(&self) -> PassTimings {
+        let passes = self
+            .order
+            .iter()
+            .filter_map(|label| {
+                let s = self.samples.get(label)?;
+                Some(((*label).to_owned(), *s.last()?, s.len()))
+            })
+            .collect();
+        PassTimings { passes }
+    }
+
     /// Median GPU time per pass over the collected samples, in first-seen order.
     #[must_use]
     pub fn medians(&self) -> PassTimings {

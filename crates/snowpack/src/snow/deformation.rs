@@ -12,9 +12,7 @@ use crate::deform::params::RANGE_TEXELS;
 use crate::deform::query::{PointAnswers, QueryStats, QueryTicket};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
-#[cfg(feature = "low_level")]
-use crate::gpu::PassTimings;
-use crate::gpu::{GpuContext, GpuTimer};
+use crate::gpu::{GpuContext, GpuTimer, PassTimings};
 use crate::persist::SnowClock;
 use crate::replicate::sharing::Sharing;
 use crate::skin::skinning::{SkinnedInstance, SkinnedMesh};
@@ -576,6 +574,27 @@ impl SnowDeformation {
         fn query_stats(&self) -> QueryStats {
             self.core.query_pass.stats()
         }
+    }
+
+    /// GPU time of each pass in the newest frame whose timestamps came
+    /// back (a frame or two ago; empty without timestamp support): what a
+    /// game's profiler overlay shows (bevy_snowpack's diagnostics).
+    #[must_use]
+    pub fn last_timings(&self) -> PassTimings {
+        self.timer.latest()
+    }
+
+    /// GPU memory the snow holds now (bytes): the window's buffers, the
+    /// point queries', the resident tiles, the objects' and the shared snow's.
+    #[must_use]
+    pub fn gpu_memory_bytes(&self) -> u64 {
+        self.memory_total()
+    }
+
+    /// Tiles resident on the GPU around the window (0 without a store or memory keeper).
+    #[must_use]
+    pub fn resident_tiles(&self) -> usize {
+        self.tiles.as_ref().map_or(0, |t| t.stats().resident)
     }
 
     #[cfg(feature = "low_level")]

@@ -1,0 +1,369 @@
+//! Snow the game can feel: [`FeelsSnow`] entities get a [`SnowResistance`]
+//! from the snow under them (asked through [`SnowQuery`] like the
+//! footsteps): a speed factor for walkers, a rolling resistance for wheels.
+//!
+//! The snow is asked where the entity's next steps land (see
+//! [`FeelsSnow`]). Both figures start from the library's pressure–sinkage curve (`docs/characters.md`,
+//! `skin/sinking.rs` in snowpack): a load pressing `p` into untouched snow
+//! of depth `D` and penetration hardness `H` sinks `z = D p / (p + H)`, so the
+//! snow holds `p(z) = H z / (D − z)` at sinkage `z`. Snow already pressed by
+//! `s` (a trail: its depth below the untouched height) gives way only for
+//! the rest, `max(0, z − s)`: in a trail a walker or a wheel sinks only as
+//! far as the load pressing the trail did not.
+//!
+//! - Walkers: the terrain coefficient of snow of Richmond, Potter and
+//!   Santee (2015, for the Pandolf equation), `η = 0.0005 z³ + 0.0001 z² +
+//!   0.1072 z + 1.2604` with `z` the sinkage in cm (firm ground is `η = 1`);
+//!   in the Pandolf equation the cost of walking at speed `V` on level
+//!   ground grows as `η V²`, so at the same effort the speed scales as
+//!   `1 / √η` (our derivation): the speed factor.
+//! - Wheels: Bekker's compaction resistance, the work of pressing the rut
+//!   per metre rolled, `R = b ∫ p dz` over the new sinkage, with the
+//!   library's curve for `p` instead of Bekker's `k zⁿ` (our derivation):
+//!   `R = b H [(s − z) + D ln((D − s) / (D − z))]` for `z > s`, else 0.
+//!
+//! `docs/bevy.md` ("Snow the game can feel") has the sources and figures.
+
+use bevy::prelude::*;
+use snowpack::PointSample;
+
+use crate::deformers::SnowWheel;
+use crate::query::{SnowQuery, SnowTicket};
+use crate::{SnowSystems, SnowpackSettings};
+
+/// Standard gravity (m/s²).
+const GRAVITY: f32 = 9.81;
+
+/// Put on a character or a vehicle's wheel that the snow should hold back:
+/// the plugin keeps its [`SnowResistance`] up to date (a frame or two
+/// behind, like every answer from the snow). On a walker it says what
+/// presses the snow under its feet; on an entity with a [`SnowWheel`] the
+/// wheel's own load and size are used.
+///
+/// The snow is asked where the next steps land: `reach_m` ahead of the
+/// entity along its motion (and a quarter of that to each side), beyond
+/// the footprint it is making now (its own fresh print would read as a
+/// trail); the most packed of the three is where it steps. A wheel is
+/// asked at least its radius ahead, beyond its contact patch.
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Clone, Debug, PartialEq, Default)]
+#[require(Transform, SnowResistance)]
+pub struct FeelsSnow {
+    /// The walker's mass (kg).
+    pub mass_kg: f32,
+    /// Area of one foot's sole (m²).
+    pub foot_area_m2: f32,
+    /// Feet sharing the weight on average over the gait (1 for a person walking,
+    /// about 2 for a trotting four-legged animal).
+    pub feet_down: f32,
+    /// How far ahead of the entity's origin its next steps land (m): beyond its own feet.
+    pub reach_m: f32,
+    /// Where it was last frame.
+    #[reflect(ignore)]
+    last: Option<Vec2>,
+    /// The direction it last moved in (x, z; zero before it has moved).
+    #[reflect(ignore)]
+    heading: Vec2,
+}
+
+impl Default for FeelsSnow {
+    /// A person: 75 kg on a 300 cm² boot sole, one foot at a time, steps landing 0.5 m ahead.
+    fn default() -> Self {
+        Self::walker(75.0, 0.03)
+    }
+}
+
+impl FeelsSnow {
+    /// A walker of `mass_kg` on feet of `foot_area_m2`, one foot at a time, steps landing 0.5 m ahead.
+    #[must_use]
+    pub fn walker(mass_kg: f32, foot_area_m2: f32) -> Self {
+        Self { mass_kg, foot_area_m2, feet_down: 1.0, reach_m: 0.5, last: None, heading: Vec2::ZERO }
+    }
+
+    /// A fox: 6 kg on 35 cm² paws (fur included), two down on average,
+    /// the snow asked 0.6 m ahead of its origin (beyond its chest and front
+    /// paws, which press the snow in front of its origin).
+    #[must_use]
+    pub fn fox() -> Self {
+        Self { feet_down: 2.0, reach_m: 0.6, ..Self::walker(6.0, 0.0035) }
+    }
+
+    /// The same walker with `feet_down` feet sharing its weight.
+    #[must_use]
+    pub fn with_feet_down(mut self, feet_down: f32) -> Self {
+        self.feet_down = feet_down;
+        self
+    }
+
+    /// The same walker with its steps landing `reach_m` ahead.
+    #[must_use]
+    pub fn with_reach(mut self, reach_m: f32) -> Self {
+        self.reach_m = reach_m;
+        self
+    }
+
+    /// Pressure under each foot (Pa).
+    #[must_use]
+    pub fn pressure_pa(&self) -> f32 {
+        self.mass_kg.max(0.0) * GRAVITY / (self.feet_down.max(1.0) * self.foot_area_m2.max(1e-6))
+    }
+
+    /// The direction it last moved in (x, z; zero before it has moved).
+    #[must_use]
+    pub fn heading(&self) -> Vec2 {
+        self.heading
+    }
+}
+
+/// How the snow under a [`FeelsSnow`] entity holds it back (inserted with
+/// it; updated in [`SnowSystems::Footsteps`] when an answer arrives).
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Clone, Debug, PartialEq, Default)]
+pub struct SnowResistance {
+    /// Multiply a walker's speed on firm ground by this (0 to 1): `1 / √η`.
+    /// 1 for a wheel (its resistance is a force, below).
+    pub speed_factor: f32,
+    /// The terrain coefficient `η` of the Pandolf equation (1 on firm ground).
+    pub terrain_coefficient: f32,
+    /// Snow depth where it steps (m).
+    pub depth_m: f32,
+    /// How much of that snow is pressed already (0 untouched, 1 to the ground).
+    pub packed: f32,
+    /// How far a step (or the wheel) sinks into it now (m).
+    pub sinkage_m: f32,
+    /// Where the feet (or the tyre's bottom) come to rest (world y, m): the
+    /// snow's height where it steps minus [`Self::sinkage_m`]; `None` until
+    /// the snow has answered.
+    pub floor_m: Option<f32>,
+    /// A wheel's compaction resistance (N) against its rolling; 0 for walkers.
+    pub rolling_resistance_n: f32,
+    /// That resistance over the wheel's load (`R / (m g)`).
+    pub rolling_coefficient: f32,
+}
+
+impl Default for SnowResistance {
+    /// Nothing holds it back (no answer yet, or no snow).
+    fn default() -> Self {
+        Self {
+            speed_factor: 1.0,
+            terrain_coefficient: 1.0,
+            depth_m: 0.0,
+            packed: 0.0,
+            sinkage_m: 0.0,
+            floor_m: None,
+            rolling_resistance_n: 0.0,
+            rolling_coefficient: 0.0,
+        }
+    }
+}
+
+/// Sinkage (m) of `pressure_pa` into `depth_m` of untouched snow of
+/// `hardness_kpa`: the library's `D p / (p + H)`.
+#[must_use]
+pub(crate) fn sinkage_m(pressure_pa: f32, depth_m: f32, hardness_kpa: f32) -> f32 {
+    let (p, h) = (pressure_pa.max(0.0), hardness_kpa.max(1e-6) * 1000.0);
+    depth_m.max(0.0) * p / (p + h)
+}
+
+/// Sinkage (m) of a rigid wheel (the library's `WheelLoad::sinkage_m`): its
+/// load over the contact chord `2 √(2 r z − z²)` times its width is the
+/// pressure, and the sinkage is where the snow holds it (bisection).
+#[must_use]
+pub(crate) fn wheel_sinkage_m(load_kg: f32, radius_m: f32, width_m: f32, depth_m: f32, hardness_kpa: f32) -> f32 {
+    let depth = depth_m.max(0.0);
+    if depth == 0.0 || load_kg <= 0.0 {
+        return 0.0;
+    }
+    let r = radius_m.max(1e-6);
+    let pressure = |z: f32| {
+        let chord = if z >= r { 2.0 * r } else { 2.0 * (2.0 * r * z - z * z).max(0.0).sqrt() };
+        load_kg * GRAVITY / (chord * width_m.max(1e-6)).max(1e-9)
+    };
+    let (mut lo, mut hi) = (0.0_f32, depth);
+    for _ in 0..48 {
+        let mid = 0.5 * (lo + hi);
+        if mid < sinkage_m(pressure(mid), depth, hardness_kpa) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// Richmond, Potter and Santee's terrain coefficient of snow at a sinkage
+/// of `sinkage_m`, ramped from firm ground's 1 over the first 2 cm of snow
+/// depth (their fit starts at packed snow's 1.26).
+#[must_use]
+pub(crate) fn terrain_coefficient(sinkage_m: f32, depth_m: f32) -> f32 {
+    let z = 100.0 * sinkage_m.max(0.0);
+    let snow = 0.0005 * z * z * z + 0.0001 * z * z + 0.1072 * z + 1.2604;
+    1.0 + (snow - 1.0) * (depth_m / 0.02).clamp(0.0, 1.0)
+}
+
+/// Bekker's compaction resistance (N) of a wheel `width_m` wide sinking to
+/// `sinkage_m` below the untouched snow of `depth_m`, where the snow is
+/// already pressed `pressed_m`, with the library's `p(z) = H z / (D − z)`.
+#[must_use]
+pub(crate) fn compaction_resistance_n(width_m: f32, sinkage_m: f32, pressed_m: f32, depth_m: f32, hardness_kpa: f32) -> f32 {
+    let (d, s) = (depth_m.max(0.0), pressed_m.max(0.0));
+    let z = sinkage_m.min(d - 1e-6);
+    if z <= s || d <= 0.0 {
+        return 0.0;
+    }
+    let h = hardness_kpa.max(0.0) * 1000.0;
+    width_m.max(0.0) * h * ((s - z) + d * ((d - s) / (d - z)).ln())
+}
+
+/// The resistance of one answered point for a walker or a wheel.
+fn resist(sample: &PointSample, walker: &FeelsSnow, wheel: Option<&SnowWheel>, hardness_kpa: f32) -> SnowResistance {
+    let rest_depth = (sample.rest_m - sample.terrain_m).max(0.0);
+    let (depth_m, pressed) = (sample.depth_m().max(0.0), sample.sinkage_m().max(0.0));
+    let packed = sample.compaction();
+    match wheel {
+        Some(w) => {
+            let z = w.sinkage_m(rest_depth, hardness_kpa);
+            let r = compaction_resistance_n(w.width_m, z, pressed, rest_depth, hardness_kpa);
+            let weight = (w.load_kg * GRAVITY).max(1e-6);
+            let sinkage_m = (z - pressed).max(0.0);
+            let floor_m = Some(sample.height_m - sinkage_m);
+            SnowResistance { depth_m, packed, sinkage_m, floor_m, rolling_resistance_n: r, rolling_coefficient: r / weight, ..SnowResistance::default() }
+        }
+        None => {
+            let sinkage_m = (sinkage_m(walker.pressure_pa(), rest_depth, hardness_kpa) - pressed).max(0.0);
+            let eta = terrain_coefficient(sinkage_m, depth_m);
+            let floor_m = Some(sample.height_m - sinkage_m);
+            SnowResistance { speed_factor: eta.sqrt().recip(), terrain_coefficient: eta, depth_m, packed, sinkage_m, floor_m, ..SnowResistance::default() }
+        }
+    }
+}
+
+pub(crate) fn build(app: &mut App) {
+    app.add_systems(PostUpdate, sense_snow.in_set(SnowSystems::Footsteps));
+}
+
+/// The request in flight: its ticket, the entities it asked about
+/// ([`POINTS`] points each), its age in frames.
+#[derive(Default)]
+struct Asked(Option<(SnowTicket, Vec<Entity>, u32)>);
+
+/// A request unanswered for this many frames was skipped by the GPU side (busy staging): ask anew.
+const GIVE_UP_FRAMES: u32 = 6;
+
+/// Points asked per entity: under it, and ahead of it in the middle and to each side.
+const POINTS: usize = 4;
+
+/// The points asked for an entity at `p` heading along `heading` (a unit
+/// vector, or zero before it has moved): its origin, and `reach` ahead with
+/// a quarter of that to each side.
+fn points_around(p: Vec2, heading: Vec2, reach: f32) -> [Vec2; POINTS] {
+    let ahead = p + heading * reach;
+    let side = heading.perp() * 0.25 * reach;
+    [p, ahead, ahead + side, ahead - side]
+}
+
+/// What the sensing system reads and writes of each entity.
+type Sensing = (Entity, &'static GlobalTransform, Option<&'static mut FeelsSnow>, Option<&'static mut SnowWheel>, Option<&'static mut SnowResistance>);
+
+/// The entities that sense the snow: walkers and wheels.
+type SensingFilter = Or<(With<FeelsSnow>, With<SnowWheel>)>;
+
+/// Reads the answers for the sensing entities and asks again.
+fn sense_snow(mut query: ResMut<SnowQuery>, mut asked: Local<Asked>, settings: Res<SnowpackSettings>, mut sensing: Query<Sensing, SensingFilter>) {
+    if let Some((_, _, age)) = &mut asked.0 {
+        *age += 1;
+        if *age > GIVE_UP_FRAMES {
+            asked.0 = None;
+        }
+    }
+    let hardness_kpa = settings.params.hardness_kpa;
+    if let Some((ticket, entities, _)) = &asked.0
+        && let Some(answers) = query.take(*ticket)
+    {
+        for (entity, samples) in entities.iter().zip(answers.samples.chunks(POINTS)) {
+            let Ok((_, _, feels, mut wheel, resistance)) = sensing.get_mut(*entity) else { continue };
+            // The origin's snow places a wheel; the most packed point ahead is where a walker steps.
+            if let (Some(w), Some(s)) = (wheel.as_deref_mut(), samples[0]) {
+                w.snow_under = Some((s.terrain_m, s.rest_m));
+            }
+            let (Some(feels), Some(mut resistance)) = (feels, resistance) else { continue };
+            let wheel = wheel.as_deref();
+            let easiest = samples[1..].iter().flatten().map(|s| resist(s, &feels, wheel, hardness_kpa)).min_by(|a, b| a.sinkage_m.total_cmp(&b.sinkage_m));
+            if let Some(easiest) = easiest {
+                *resistance = easiest;
+            }
+        }
+        asked.0 = None;
+    }
+    let mut entities = Vec::new();
+    let mut points = Vec::new();
+    for (entity, transform, feels, wheel, _) in &mut sensing {
+        let p = transform.translation().xz();
+        let reach = match (&feels, &wheel) {
+            (Some(f), Some(w)) => f.reach_m.max(w.radius_m),
+            (Some(f), None) => f.reach_m,
+            (None, _) => 0.0,
+        };
+        let heading = match feels {
+            Some(mut f) => {
+                if let Some(moved) = f.last.map(|last| p - last).filter(|m| m.length() > 1e-4) {
+                    f.heading = moved.normalize();
+                }
+                f.last = Some(p);
+                f.heading
+            }
+            None => Vec2::ZERO,
+        };
+        entities.push(entity);
+        points.extend(points_around(p, heading, reach));
+    }
+    if asked.0.is_none() && !entities.is_empty() {
+        asked.0 = Some((query.ask_quietly(&points), entities, 0));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use snowpack::low_level::skin::sinking::{WheelLoad, sinkage_m as library_sinkage_m};
+
+    #[test]
+    fn the_sinkage_is_the_librarys() {
+        for (p, d, h) in [(8408.0, 0.4, 10.0), (24_525.0, 0.3, 5.0), (100.0, 0.0, 10.0)] {
+            assert!((sinkage_m(p, d, h) - library_sinkage_m(p, d, h)).abs() < 1e-6);
+        }
+        let car = WheelLoad { mass_kg: 375.0, radius_m: 0.32, width_m: 0.2 };
+        let ours = wheel_sinkage_m(375.0, 0.32, 0.2, 0.4, 30.0);
+        assert!((ours - car.sinkage_m(0.4, 30.0)).abs() < 1e-5, "{ours} vs {}", car.sinkage_m(0.4, 30.0));
+    }
+
+    #[test]
+    fn deep_fresh_snow_holds_a_walker_back_more_than_a_trail() {
+        // Richmond et al.'s coefficient: packed snow 1.26, 10 cm of sinkage 2.43.
+        assert!((terrain_coefficient(0.0, 0.4) - 1.2604).abs() < 1e-4);
+        assert!((terrain_coefficient(0.1, 0.4) - (0.5 + 0.01 + 1.072 + 1.2604)).abs() < 1e-3);
+        assert_eq!(terrain_coefficient(0.0, 0.0), 1.0);
+        let fox = FeelsSnow::fox();
+        let fresh = PointSample { height_m: 0.4, surface_m: 0.4, terrain_m: 0.0, rest_m: 0.4, normal: Vec3::Y };
+        let trail = PointSample { height_m: 0.2, surface_m: 0.2, ..fresh };
+        let (a, b) = (resist(&fresh, &fox, None, 10.0), resist(&trail, &fox, None, 10.0));
+        // 8.4 kPa into 0.4 m of 10 kPa snow: 18 cm; the trail pressed 20 cm already.
+        assert!((a.sinkage_m - 0.4 * 8408.57 / 18_408.57).abs() < 1e-3, "{a:?}");
+        assert_eq!(b.sinkage_m, 0.0);
+        assert!(a.speed_factor < 0.5 && b.speed_factor > 0.85 && b.speed_factor < 0.9, "{a:?} {b:?}");
+    }
+
+    #[test]
+    fn a_wheel_rolls_harder_in_fresh_snow_and_not_at_all_in_its_rut() {
+        let wheel = SnowWheel::new(0.32, 0.2, 375.0);
+        let z = wheel.sinkage_m(0.4, 10.0);
+        let fresh = compaction_resistance_n(0.2, z, 0.0, 0.4, 10.0);
+        // The integral by the midpoint rule.
+        let steps = 10_000;
+        let numeric: f32 = (0..steps).map(|k| (k as f32 + 0.5) * z / steps as f32).map(|zz| 0.2 * 10_000.0 * zz / (0.4 - zz) * z / steps as f32).sum();
+        assert!((fresh - numeric).abs() < 1e-3 * numeric, "{fresh} vs {numeric}");
+        assert!(fresh > 0.0);
+        assert_eq!(compaction_resistance_n(0.2, z, z, 0.4, 10.0), 0.0);
+        assert!(compaction_resistance_n(0.2, z, 0.5 * z, 0.4, 10.0) < fresh);
+    }
+}
