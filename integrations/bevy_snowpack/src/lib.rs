@@ -38,8 +38,11 @@ mod mesh_deformer;
 mod query;
 mod render;
 mod replication;
+mod material_extension;
 mod settings;
 mod systems;
+mod terrain_asset;
+mod world_switch;
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -54,6 +57,8 @@ pub use control::SnowControl;
 pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 pub use ground_pass::SnowGroundPass;
+pub use material_extension::{SnowCoverBindings, SnowCoverExtension, SnowCoverMaterial, snow_cover_lift};
+pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, heightmap_from_image, triangles_from_mesh};
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
 pub use replication::{
@@ -68,6 +73,7 @@ pub mod prelude {
         SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowQuery, SnowStoreSettings, SnowSystems, SnowTicket, SnowWindowTarget, SnowpackPlugin,
         SnowpackSettings,
     };
+    pub use crate::{SnowCoverExtension, SnowCoverMaterial, SnowTerrainAsset, SnowTerrainStatus};
     pub use crate::{
         SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
         SnowToServer,
@@ -85,10 +91,13 @@ pub mod prelude {
 /// `params.snowfall` (only on a window created with snowfall),
 /// `params.blur`, `params.elevation`, `params.range_texels` and
 /// `params.rim`, `center` (when no [`SnowWindowTarget`] moves the window)
-/// and `fixed_dt_s`. Fixed at start: the window's `extent_m`, `resolution`
-/// and `depth_m`, `hardness_kpa`, `tile_memory_bytes`, `teleport_m`, the
-/// `terrain` and the `store`; changing one of these logs a warning and
-/// leaves the snow as it is (build a new app, or restart, to change them).
+/// and `fixed_dt_s`. What sizes the snow makes a new snow world instead:
+/// the window's `extent_m`, `resolution` and `depth_m`, `hardness_kpa`,
+/// `tile_memory_bytes`, `teleport_m`, the `terrain` and the `store`. The
+/// old world's snow is saved to its store first (when it has one of its
+/// own), the new one loads its store's save, and the materials bind the new
+/// world; going back to a world's settings brings its trails back. Queries
+/// in flight across the change are not answered.
 #[derive(Resource, Clone, Debug)]
 pub struct SnowpackSettings {
     /// The window: size and resolution, depth, technique, refill, snowfall,
@@ -238,6 +247,9 @@ impl Plugin for SnowpackPlugin {
         ground_pass::build(app);
         mesh_deformer::build(app);
         coat::build(app);
+        material_extension::build(app);
+        terrain_asset::build(app);
+        world_switch::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
         }
