@@ -57,7 +57,8 @@ fn main() {
     let cli = cli::Cli::parse();
     let scripted = cli.exit_after_frames.is_some();
     let settings = SnowpackSettings {
-        params: SnowParams { extent_m: SIZE_M, resolution: 256, depth_m: 0.25, refill_m_per_s: 0.0, ..SnowParams::default() },
+        // No rim remap (`elevation` 0): a trail pressed to the ground shows the ground, the game's own material.
+        params: SnowParams { extent_m: SIZE_M, resolution: 256, depth_m: 0.25, refill_m_per_s: 0.0, elevation: 0.0, ..SnowParams::default() },
         fixed_dt_s: scripted.then_some(SCRIPTED_DT_S),
         ..SnowpackSettings::default()
     };
@@ -182,11 +183,7 @@ fn setup(
         Transform::from_xyz(-6.0, 5.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
         CascadeShadowConfigBuilder { maximum_distance: 50.0, ..default() }.build(),
     ));
-    commands.spawn((
-        Camera3d::default(),
-        Tonemapping::AcesFitted,
-        Transform::from_xyz(0.0, 14.0, 19.0).looking_at(Vec3::new(0.0, 1.0, 1.0), Vec3::Y),
-    ));
+    commands.spawn((Camera3d::default(), Tonemapping::AcesFitted, Transform::from_xyz(0.0, 14.0, 19.0).looking_at(Vec3::new(0.0, 1.0, 1.0), Vec3::Y)));
 }
 
 /// The balls roll along their loops, their bottoms 5 cm into the ground under the snow.

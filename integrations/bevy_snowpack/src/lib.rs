@@ -34,11 +34,11 @@ mod control;
 mod footsteps;
 mod ground;
 mod ground_pass;
+mod material_extension;
 mod mesh_deformer;
 mod query;
 mod render;
 mod replication;
-mod material_extension;
 mod settings;
 mod systems;
 mod terrain_asset;
@@ -58,13 +58,13 @@ pub use footsteps::{FootKind, SnowFoot, SnowFootstep};
 pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 pub use ground_pass::SnowGroundPass;
 pub use material_extension::{SnowCoverBindings, SnowCoverExtension, SnowCoverMaterial, snow_cover_lift};
-pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, heightmap_from_image, triangles_from_mesh};
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
 pub use replication::{
     SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient, SnowToServer,
 };
 pub use systems::SnowSystems;
+pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, heightmap_from_image, triangles_from_mesh};
 
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
 pub mod prelude {

@@ -153,9 +153,18 @@ impl CoverTexture {
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
                     buffer: &words,
-                    layout: wgpu::TexelCopyBufferLayout { offset: u64::from(row) * u64::from(r) * 4, bytes_per_row: (rows > 1).then_some(r * 4), rows_per_image: None },
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: u64::from(row) * u64::from(r) * 4,
+                        bytes_per_row: (rows > 1).then_some(r * 4),
+                        rows_per_image: None,
+                    },
                 },
-                wgpu::TexelCopyTextureInfo { texture: &self.texture, mip_level: 0, origin: wgpu::Origin3d { x: 0, y: row, z: 0 }, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: row, z: 0 },
+                    aspect: wgpu::TextureAspect::All,
+                },
                 wgpu::Extent3d { width: r, height: rows, depth_or_array_layers: 1 },
             );
         }

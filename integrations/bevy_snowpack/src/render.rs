@@ -98,9 +98,13 @@ pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, to_main
         .insert_resource(to_main)
         .init_resource::<ExtractedSnowFrame>()
         .add_systems(RenderStartup, create_deformation)
-        .add_systems(Render, crate::world_switch::switch_world
+        .add_systems(
+            Render,
+            crate::world_switch::switch_world
                 .run_if(resource_changed::<SnowpackSettings>)
-                .after(RenderSystems::ExtractCommands).before(RenderSystems::PrepareAssets))
+                .after(RenderSystems::ExtractCommands)
+                .before(RenderSystems::PrepareAssets),
+        )
         .add_systems(ExtractSchedule, (extract_snow_frame, take_requests).in_set(SnowSystems::Extract))
         .add_systems(
             RenderGraph,

@@ -106,7 +106,9 @@ pub enum TerrainAssetError {
         why: String,
     },
     /// The heightmap's pixel format is not one a height can be read from.
-    #[error("terrain heightmap {asset}: unsupported pixel format {format:?} (R8Unorm, R16Unorm, R16Uint or R32Float; load a grayscale PNG with `expand_grayscale: false`)")]
+    #[error(
+        "terrain heightmap {asset}: unsupported pixel format {format:?} (R8Unorm, R16Unorm, R16Uint or R32Float; load a grayscale PNG with `expand_grayscale: false`)"
+    )]
     UnsupportedFormat {
         /// The image's path or id.
         asset: String,
@@ -141,7 +143,14 @@ pub enum TerrainAssetError {
 
 /// The heights of a heightmap image, as the library's terrain (see
 /// [`SnowTerrainAsset::Heightmap`]); `asset` names it in errors.
-pub fn heightmap_from_image(image: &Image, asset: &str, center: Vec2, size_m: Vec2, height_scale_m: f32, base_m: f32) -> Result<HeightmapTerrain, TerrainAssetError> {
+pub fn heightmap_from_image(
+    image: &Image,
+    asset: &str,
+    center: Vec2,
+    size_m: Vec2,
+    height_scale_m: f32,
+    base_m: f32,
+) -> Result<HeightmapTerrain, TerrainAssetError> {
     let format = image.texture_descriptor.format;
     let bad = |why: String| TerrainAssetError::BadImage { asset: asset.to_owned(), why };
     let bytes = match format {
@@ -259,7 +268,12 @@ fn convert(asset: &SnowTerrainAsset, inputs: &TerrainInputs, window_texel_m: f32
 }
 
 /// Converts the terrain asset once it has loaded and sets it as the snow's terrain.
-pub(crate) fn apply_terrain_asset(asset: Option<Res<SnowTerrainAsset>>, mut status: ResMut<SnowTerrainStatus>, mut settings: ResMut<SnowpackSettings>, inputs: TerrainInputs) {
+pub(crate) fn apply_terrain_asset(
+    asset: Option<Res<SnowTerrainAsset>>,
+    mut status: ResMut<SnowTerrainStatus>,
+    mut settings: ResMut<SnowpackSettings>,
+    inputs: TerrainInputs,
+) {
     let Some(asset) = asset else { return };
     if asset.is_changed() {
         status.set_if_neq(SnowTerrainStatus::Waiting);

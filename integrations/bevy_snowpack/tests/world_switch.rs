@@ -32,7 +32,8 @@ fn depths(app: &mut App) -> (f32, f32) {
 
 /// A box pressed into the snow at `at`, its bottom `floor_m` above the ground at `ground_m`, then taken away.
 fn press(app: &mut App, at: Vec2, ground_m: f32, floor_m: f32) {
-    let pressing = app.world_mut().spawn((SnowDeformer::Box { half_extents: Vec3::splat(0.4) }, Transform::from_xyz(at.x, ground_m + floor_m + 0.4, at.y))).id();
+    let pressing =
+        app.world_mut().spawn((SnowDeformer::Box { half_extents: Vec3::splat(0.4) }, Transform::from_xyz(at.x, ground_m + floor_m + 0.4, at.y))).id();
     for _ in 0..5 {
         app.update();
     }
