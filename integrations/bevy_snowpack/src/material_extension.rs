@@ -148,7 +148,7 @@ impl CoverTexture {
         let [_, _, words] = sampling_buffers(snow);
         let r = self.resolution;
         // Rows in one copy where their bytes meet the copy alignment, else a copy a row.
-        let rows = if (r * 4) % wgpu::COPY_BYTES_PER_ROW_ALIGNMENT == 0 { r } else { 1 };
+        let rows = if (r * 4).is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) { r } else { 1 };
         for row in (0..r).step_by(rows as usize) {
             encoder.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {

@@ -120,20 +120,20 @@ fn create_deformation(world: &mut World) {
     let settings = world.resource::<SnowpackSettings>().clone();
     match create_world(ctx, &settings, world.resource::<ToMainWorld>(), 0, Vec::new()) {
         Ok(state) => state.insert_into(world, settings),
-        Err((_, e)) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
+        Err(e) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
     }
 }
 
 /// A snow world made from `s`: the deformation on `ctx`, its store attached
 /// (a save loaded, reported to the main world), the meshes of an earlier
-/// world registered again. On error the context comes back for another try.
+/// world registered again.
 pub(crate) fn create_world(
     ctx: GpuContext,
     s: &SnowpackSettings,
     to_main: &ToMainWorld,
     generation: u64,
     registrations: Vec<MeshRegistration>,
-) -> Result<SnowRenderState, (GpuContext, snowpack::SnowError)> {
+) -> Result<SnowRenderState, snowpack::SnowError> {
     let created = SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), dvec2(s.center)).and_then(|mut snow| {
         let loaded = match &s.store {
             Some(store) => attach_store(&ctx, &mut snow, store)?,
@@ -141,10 +141,7 @@ pub(crate) fn create_world(
         };
         Ok((snow, loaded))
     });
-    let (mut snow, loaded) = match created {
-        Ok(created) => created,
-        Err(e) => return Err((ctx, e)),
-    };
+    let (mut snow, loaded) = created?;
     to_main.send(FromRender::LoadedSave(loaded));
     let mut meshes = HashMap::new();
     for MeshRegistration { key, mesh, joint_count } in &registrations {

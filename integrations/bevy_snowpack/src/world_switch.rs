@@ -60,15 +60,15 @@ pub(crate) fn switch_world(world: &mut World) {
     );
     let (ctx, registrations, generation) = state.retire(save);
     let to_main = world.resource::<ToMainWorld>();
-    let created = create_world(ctx, &new, to_main, generation + 1, registrations.clone());
+    let created = create_world(fresh(&ctx), &new, to_main, generation + 1, registrations.clone());
     let (state, settings) = match created {
         Ok(state) => (state, new),
-        Err((ctx, e)) => {
+        Err(e) => {
             // The old world again (from its save, where it has a store): the game goes on.
             tracing::error!("bevy_snowpack: the new snow world cannot be made, the old one goes on: {e}");
-            match create_world(fresh(&ctx), &old, to_main, generation + 1, registrations) {
+            match create_world(ctx, &old, to_main, generation + 1, registrations) {
                 Ok(state) => (state, old),
-                Err((_, e)) => {
+                Err(e) => {
                     tracing::error!("bevy_snowpack: nor can the old snow world be made again: {e}");
                     return;
                 }
