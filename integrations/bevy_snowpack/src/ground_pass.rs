@@ -24,9 +24,9 @@ use crate::render::SnowRenderState;
 pub struct SnowGroundPass;
 
 /// One ground per camera (each has its own camera uniform), with the target
-/// format and sample count its pipeline was made for.
+/// format, sample count and snow world (`SnowRenderState::generation`) it was made for.
 #[derive(Resource, Default)]
-struct Grounds(HashMap<MainEntity, (wgpu::TextureFormat, u32, SnowGround)>);
+struct Grounds(HashMap<MainEntity, (wgpu::TextureFormat, u32, u64, SnowGround)>);
 
 pub(crate) fn build(app: &mut App) {
     app.add_plugins(ExtractComponentPlugin::<SnowGroundPass>::default()).register_type::<SnowGroundPass>();
@@ -50,11 +50,13 @@ fn draw_snow_ground(
     let snow = state.deformation();
     let format = target.main_texture_format();
     let samples = msaa.map_or(1, Msaa::samples);
-    let entry = grounds.0.entry(*main).or_insert_with(|| (format, samples, new_ground(&device, &snow, format, samples)));
-    if (entry.0, entry.1) != (format, samples) {
-        *entry = (format, samples, new_ground(&device, &snow, format, samples));
+    let made_for = (format, samples, state.generation);
+    let entry = grounds.0.entry(*main).or_insert_with(|| (format, samples, made_for.2, new_ground(&device, &snow, format, samples)));
+    // A new snow world has new buffers: its ground is made again.
+    if (entry.0, entry.1, entry.2) != made_for {
+        *entry = (format, samples, made_for.2, new_ground(&device, &snow, format, samples));
     }
-    let ground = &mut entry.2;
+    let ground = &mut entry.3;
     let world_from_view = extracted.world_from_view.to_matrix();
     let clip_from_world = extracted.clip_from_world.unwrap_or_else(|| extracted.clip_from_view * world_from_view.inverse());
     let camera = GroundCamera::new(clip_from_world, extracted.world_from_view.translation());

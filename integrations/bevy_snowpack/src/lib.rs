@@ -57,6 +57,8 @@ mod ground;
 #[cfg(feature = "render")]
 mod ground_pass;
 #[cfg(feature = "render")]
+mod material_extension;
+#[cfg(feature = "render")]
 mod mesh_deformer;
 #[cfg(feature = "render")]
 mod query;
@@ -70,6 +72,10 @@ mod resistance;
 mod settings;
 #[cfg(feature = "render")]
 mod systems;
+#[cfg(feature = "render")]
+mod terrain_asset;
+#[cfg(feature = "render")]
+mod world_switch;
 
 #[cfg(feature = "render")]
 use bevy::prelude::*;
@@ -102,6 +108,8 @@ pub use ground::{SnowGroundExtension, SnowGroundMaterial, snow_height_range};
 #[cfg(feature = "render")]
 pub use ground_pass::SnowGroundPass;
 #[cfg(feature = "render")]
+pub use material_extension::{SnowCoverBindings, SnowCoverExtension, SnowCoverMaterial, snow_cover_lift};
+#[cfg(feature = "render")]
 pub use query::{SnowAnswered, SnowAnswers, SnowQuery, SnowTicket};
 #[cfg(feature = "render")]
 pub use render::SnowRenderState;
@@ -115,6 +123,8 @@ pub use replication::{
 pub use resistance::{FeelsSnow, SnowResistance};
 #[cfg(feature = "render")]
 pub use systems::SnowSystems;
+#[cfg(feature = "render")]
+pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, heightmap_from_image, triangles_from_mesh};
 
 /// What a game uses: `use bevy_snowpack::prelude::*;`.
 pub mod prelude {
@@ -126,6 +136,8 @@ pub mod prelude {
         SnowFoot, SnowFootstep, SnowGroundExtension, SnowGroundMaterial, SnowGroundPass, SnowObjectStats, SnowQuery, SnowResistance, SnowSaved,
         SnowStoreSettings, SnowSystems, SnowTicket, SnowWheel, SnowWindowTarget, SnowpackDiagnosticsPlugin, SnowpackPlugin, SnowpackSettings,
     };
+    #[cfg(feature = "render")]
+    pub use crate::{SnowCoverExtension, SnowCoverMaterial, SnowTerrainAsset, SnowTerrainStatus};
     #[cfg(feature = "server")]
     pub use crate::{
         SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
@@ -146,10 +158,13 @@ pub mod prelude {
 /// `params.snowfall` (only on a window created with snowfall),
 /// `params.blur`, `params.elevation`, `params.range_texels` and
 /// `params.rim`, `center` (when no [`SnowWindowTarget`] moves the window)
-/// and `fixed_dt_s`. Fixed at start: the window's `extent_m`, `resolution`
-/// and `depth_m`, `hardness_kpa`, `tile_memory_bytes`, `teleport_m`, the
-/// `terrain` and the `store`; changing one of these logs a warning and
-/// leaves the snow as it is (build a new app, or restart, to change them).
+/// and `fixed_dt_s`. What sizes the snow makes a new snow world instead:
+/// the window's `extent_m`, `resolution` and `depth_m`, `hardness_kpa`,
+/// `tile_memory_bytes`, `teleport_m`, the `terrain` and the `store`. The
+/// old world's snow is saved to its store first (when it has one of its
+/// own), the new one loads its store's save, and the materials bind the new
+/// world; going back to a world's settings brings its trails back. Queries
+/// in flight across the change are not answered.
 ///
 /// Reflected (inspectors, scenes): `center`, `fixed_dt_s` and the store's
 /// folder and tile side; `params` and `terrain` are the library's types,
@@ -470,6 +485,9 @@ impl Plugin for SnowpackPlugin {
         query::build(app);
         deformers::build(app);
         resistance::build(app);
+        material_extension::build(app);
+        terrain_asset::build(app);
+        world_switch::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
         }

@@ -8,10 +8,11 @@ use std::sync::{Mutex, MutexGuard};
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
-use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderStartup};
+use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderStartup, RenderSystems};
 use snowpack::{Deformer, GpuContext, ObjectShape, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, TileStore, TileStreamer};
 
 use crate::control::SnowControl;
+use crate::material_extension::CoverTexture;
 use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};
 use crate::query::{SnowQuery, SnowTicket, split_answers};
 use crate::settings::{AppliedSettings, apply_settings};
@@ -36,6 +37,12 @@ pub struct SnowRenderState {
     objects: Vec<(Entity, ObjectShape, bool)>,
     /// The mesh deformers' snow coats: settings applied and readbacks.
     coats: crate::coat::CoatReadbacks,
+    /// Every mesh deformer registered so far, so a rebuilt world registers them again.
+    registrations: Vec<MeshRegistration>,
+    /// Which snow world this is (0 the first); draws made for an older one are made again.
+    pub(crate) generation: u64,
+    /// The snow words as a texture, for [`crate::SnowCoverMaterial`].
+    cover: CoverTexture,
 }
 
 impl SnowRenderState {
@@ -91,6 +98,13 @@ pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, to_main
         .insert_resource(to_main)
         .init_resource::<ExtractedSnowFrame>()
         .add_systems(RenderStartup, create_deformation)
+        .add_systems(
+            Render,
+            crate::world_switch::switch_world
+                .run_if(resource_changed::<SnowpackSettings>)
+                .after(RenderSystems::ExtractCommands)
+                .before(RenderSystems::PrepareAssets),
+        )
         .add_systems(ExtractSchedule, (extract_snow_frame, take_requests).in_set(SnowSystems::Extract))
         .add_systems(
             RenderGraph,
@@ -98,39 +112,97 @@ pub(crate) fn build(render_app: &mut SubApp, settings: SnowpackSettings, to_main
         );
 }
 
-fn create_deformation(mut commands: Commands, settings: Res<SnowpackSettings>, to_main: Res<ToMainWorld>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
-    let ctx = GpuContext::from_device(device.wgpu_device().clone(), (**queue).clone());
-    let s = &*settings;
+fn create_deformation(world: &mut World) {
+    let ctx = {
+        let (device, queue) = (world.resource::<RenderDevice>(), world.resource::<RenderQueue>());
+        GpuContext::from_device(device.wgpu_device().clone(), (**queue).clone())
+    };
+    let settings = world.resource::<SnowpackSettings>().clone();
+    match create_world(ctx, &settings, world.resource::<ToMainWorld>(), 0, Vec::new()) {
+        Ok(state) => state.insert_into(world, settings),
+        Err(e) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
+    }
+}
+
+/// A snow world made from `s`: the deformation on `ctx`, its store attached
+/// (a save loaded, reported to the main world), the meshes of an earlier
+/// world registered again.
+pub(crate) fn create_world(
+    ctx: GpuContext,
+    s: &SnowpackSettings,
+    to_main: &ToMainWorld,
+    generation: u64,
+    registrations: Vec<MeshRegistration>,
+) -> Result<SnowRenderState, snowpack::SnowError> {
     let created = SnowDeformation::new(&ctx, s.params.clone(), s.terrain.clone(), dvec2(s.center)).and_then(|mut snow| {
         let loaded = match &s.store {
             Some(store) => attach_store(&ctx, &mut snow, store)?,
             None => false,
         };
-        to_main.send(FromRender::LoadedSave(loaded));
-        Ok(snow)
+        Ok((snow, loaded))
     });
-    match created {
-        Ok(snow) => {
-            let window = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("bevy_snowpack window"),
-                size: std::mem::size_of::<SnowWindowUniform>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            ctx.queue.write_buffer(&window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(&snow)));
-            commands.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &window));
-            commands.insert_resource(AppliedSettings(s.clone()));
-            commands.insert_resource(SnowRenderState {
-                ctx,
-                snow: Mutex::new(snow),
-                window,
-                in_flight: Vec::new(),
-                meshes: HashMap::new(),
-                objects: Vec::new(),
-                coats: crate::coat::CoatReadbacks::default(),
-            });
+    let (mut snow, loaded) = created?;
+    to_main.send(FromRender::LoadedSave(loaded));
+    let mut meshes = HashMap::new();
+    for MeshRegistration { key, mesh, joint_count } in &registrations {
+        match snow.add_skinned_mesh(&ctx, mesh, *joint_count) {
+            Ok(id) => {
+                meshes.insert(*key, id);
+            }
+            Err(e) => tracing::error!("bevy_snowpack: a mesh deformer cannot be registered in the new snow world: {e}"),
         }
-        Err(e) => tracing::error!("bevy_snowpack: cannot create the snow: {e}"),
+    }
+    let window = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bevy_snowpack window"),
+        size: std::mem::size_of::<SnowWindowUniform>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(&window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(&snow)));
+    let cover = CoverTexture::new(&ctx.device, &snow);
+    Ok(SnowRenderState {
+        ctx,
+        snow: Mutex::new(snow),
+        window,
+        in_flight: Vec::new(),
+        meshes,
+        objects: Vec::new(),
+        coats: crate::coat::CoatReadbacks::default(),
+        registrations,
+        generation,
+        cover,
+    })
+}
+
+impl SnowRenderState {
+    /// Puts this world in the render world with what the materials bind, made from `settings`.
+    pub(crate) fn insert_into(self, world: &mut World, settings: SnowpackSettings) {
+        let snow = self.snow.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        world.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &self.window));
+        drop(snow);
+        world.insert_resource(self.cover.bindings(&self.window));
+        world.insert_resource(AppliedSettings(settings));
+        world.insert_resource(self);
+    }
+
+    /// Ends this world: its snow saved to its disk store when `save` (the
+    /// store's files closed once it is dropped); gives back what the next
+    /// world needs: the context, the mesh registrations and the generation.
+    pub(crate) fn retire(self, save: bool) -> (GpuContext, Vec<MeshRegistration>, u64) {
+        let Self { ctx, snow, registrations, generation, .. } = self;
+        let mut snow = snow.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if save && let Err(e) = snow.save(&ctx) {
+            tracing::error!("bevy_snowpack: the old snow world could not be saved to its store: {e}");
+        }
+        drop(snow);
+        (ctx, registrations, generation)
+    }
+
+    /// Which snow world this is: 0 for the first, one more for each rebuild
+    /// ([`crate::SnowpackSettings`] changed where it cannot change live).
+    #[must_use]
+    pub fn generation(&self) -> u64 {
+        self.generation
     }
 }
 
@@ -189,12 +261,20 @@ fn take_requests(mut main_world: ResMut<MainWorld>, mut frame: ResMut<ExtractedS
     }
 }
 
-/// Registers the meshes new this frame; the poses of every registered one.
-fn pose_meshes(ctx: &GpuContext, snow: &mut SnowDeformation, ids: &mut HashMap<u64, SkinnedId>, frame: &MeshDeformerFrame) -> Vec<(SkinnedId, usize)> {
-    for MeshRegistration { key, mesh, joint_count } in &frame.registrations {
+/// Registers the meshes new this frame (kept in `kept` for a rebuilt world); the poses of every registered one.
+fn pose_meshes(
+    ctx: &GpuContext,
+    snow: &mut SnowDeformation,
+    ids: &mut HashMap<u64, SkinnedId>,
+    kept: &mut Vec<MeshRegistration>,
+    frame: &MeshDeformerFrame,
+) -> Vec<(SkinnedId, usize)> {
+    for registration in &frame.registrations {
+        let MeshRegistration { key, mesh, joint_count } = registration;
         match snow.add_skinned_mesh(ctx, mesh, *joint_count) {
             Ok(id) => {
                 ids.insert(*key, id);
+                kept.push(registration.clone());
             }
             Err(e) => tracing::error!("bevy_snowpack: a mesh deformer cannot be registered: {e}"),
         }
@@ -229,10 +309,10 @@ fn place_objects(ctx: &GpuContext, snow: &mut SnowDeformation, laid_out: &mut Ve
 
 fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRenderState>>, mut frame: ResMut<ExtractedSnowFrame>, to_main: Res<ToMainWorld>) {
     let Some(mut state) = state else { return };
-    let SnowRenderState { ctx, snow, window, in_flight, meshes, objects, coats } = &mut *state;
+    let SnowRenderState { ctx, snow, window, in_flight, meshes, objects, coats, registrations, cover, .. } = &mut *state;
     let snow = snow.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
     place_objects(ctx, snow, objects, &frame.objects);
-    let posed = pose_meshes(ctx, snow, meshes, &frame.meshes);
+    let posed = pose_meshes(ctx, snow, meshes, registrations, &frame.meshes);
     let posed_keys: Vec<(u64, SkinnedId)> = posed.iter().map(|&(id, k)| (frame.meshes.poses[k].key, id)).collect();
     for (&(key, id), &(_, k)) in posed_keys.iter().zip(&posed) {
         coats.apply(snow, key, id, frame.meshes.poses[k].coat);
@@ -257,6 +337,7 @@ fn encode_snow(mut render_context: RenderContext, state: Option<ResMut<SnowRende
         in_flight.push((ticket, ranges));
     }
     coats.record(ctx, encoder, snow, &posed_keys, &to_main);
+    cover.record(encoder, snow);
     // Written before this frame's submit, so the cameras' draws see the window as encoded.
     ctx.queue.write_buffer(window, 0, bytemuck::bytes_of(&SnowWindowUniform::new(snow)));
 }

@@ -1,7 +1,8 @@
 //! Settings that take effect when changed: [`SnowpackSettings`] is extracted
 //! into the render world whenever the main world changes it (Bevy's
 //! `ExtractResourcePlugin`), and the render world applies what changed to
-//! the deformation before the next frame is encoded.
+//! the deformation before the next frame is encoded; what sizes the world
+//! makes a new one (`crate::world_switch`).
 
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -59,22 +60,8 @@ pub(crate) fn apply_settings(settings: Res<SnowpackSettings>, applied: Option<Re
     if new.center != old.center {
         snow.set_center(dvec2(new.center));
     }
-    let fixed = [
-        ("params.extent_m", p.extent_m != q.extent_m),
-        ("params.resolution", p.resolution != q.resolution),
-        ("params.depth_m", p.depth_m != q.depth_m),
-        ("params.hardness_kpa", p.hardness_kpa != q.hardness_kpa),
-        ("params.tile_memory_bytes", p.tile_memory_bytes != q.tile_memory_bytes),
-        ("params.teleport_m", p.teleport_m != q.teleport_m),
-        ("terrain", new.terrain != old.terrain),
-        ("store", format!("{:?}", new.store) != format!("{:?}", old.store)),
-    ];
-    for (name, changed) in fixed {
-        if changed {
-            tracing::warn!("bevy_snowpack: SnowpackSettings::{name} is fixed when the snow is created; the change is ignored (restart the app to apply it)");
-        }
-    }
-    // What was ignored stays as created, so a later change of it warns again and a change back is silent.
+    // What sizes the world is applied by a new world (`crate::world_switch`, earlier in the frame); where
+    // that failed the old world goes on, and its values stay here so a later change tries again.
     let mut now = new.clone();
     let (created, params) = (&applied.0, &mut now.params);
     (params.extent_m, params.resolution, params.depth_m) = (created.params.extent_m, created.params.resolution, created.params.depth_m);
