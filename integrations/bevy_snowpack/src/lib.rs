@@ -57,7 +57,8 @@ pub use ground_pass::SnowGroundPass;
 pub use query::{SnowAnswers, SnowQuery, SnowTicket};
 pub use render::SnowRenderState;
 pub use replication::{
-    SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient, SnowToServer,
+    SnowDepthUnder, SnowOwnedBy, SnowRelayStore, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
+    SnowToServer,
 };
 pub use systems::SnowSystems;
 
@@ -69,8 +70,8 @@ pub mod prelude {
         SnowpackSettings,
     };
     pub use crate::{
-        SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing, SnowToClient,
-        SnowToServer,
+        SnowDepthUnder, SnowOwnedBy, SnowRelayStore, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowSharing,
+        SnowToClient, SnowToServer,
     };
     pub use snowpack::{
         CoatSettings, HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource,
