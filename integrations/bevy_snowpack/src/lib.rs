@@ -117,7 +117,7 @@ pub use render::SnowRenderState;
 pub use replication::SnowSharing;
 #[cfg(feature = "server")]
 pub use replication::{
-    SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
+    SnowDepthUnder, SnowOwnedBy, SnowRelayStore, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
 };
 #[cfg(feature = "render")]
 pub use resistance::{FeelsSnow, SnowResistance};
@@ -140,7 +140,8 @@ pub mod prelude {
     pub use crate::{SnowCoverExtension, SnowCoverMaterial, SnowTerrainAsset, SnowTerrainStatus};
     #[cfg(feature = "server")]
     pub use crate::{
-        SnowDepthUnder, SnowOwnedBy, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient, SnowToServer,
+        SnowDepthUnder, SnowOwnedBy, SnowRelayStore, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient,
+        SnowToServer,
     };
     #[cfg(feature = "render")]
     pub use snowpack::{

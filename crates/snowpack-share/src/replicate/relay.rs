@@ -40,6 +40,9 @@ pub const MAX_INTEREST_TILES: usize = 16_384;
 /// The state name the relay's world is saved under in its store.
 pub const WORLD_STATE: &str = "world";
 
+/// The state name the world's epoch (f64 Unix seconds, little-endian) is saved under ([`SnowRelay::world_epoch`]).
+pub const EPOCH_STATE: &str = "epoch";
+
 /// Marks, in a stored tile's snow plane, a tile without a footprint plane
 /// (bit 16 of every texel; the deficit takes bits 0..16). The store's
 /// format always has a footprint plane, so this keeps "none" apart from
@@ -472,6 +475,23 @@ impl SnowRelay {
         }
         self.world = Some(world);
         Ok(())
+    }
+
+    /// When the world began (s since the Unix epoch), so its clock goes on
+    /// across restarts: read from the relay's store (the `epoch` state,
+    /// where `snowpack server` keeps it too), or `now_unix_s` written there
+    /// the first time. Without a store, `now_unix_s`. World time is then
+    /// the Unix time less this.
+    pub fn world_epoch(&mut self, now_unix_s: f64) -> Result<f64, crate::ShareError> {
+        let Some(store) = self.store.get_mut().as_ref() else {
+            return Ok(now_unix_s);
+        };
+        if let Some(bytes) = store.read_state(EPOCH_STATE).map_err(ShareError::Store)? {
+            let raw: [u8; 8] = bytes.as_slice().try_into().map_err(|_| ShareError::StoreWorld(format!("the world epoch is {} bytes, not 8", bytes.len())))?;
+            return Ok(f64::from_le_bytes(raw));
+        }
+        store.write_state(EPOCH_STATE, &now_unix_s.to_le_bytes()).map_err(ShareError::Store)?;
+        Ok(now_unix_s)
     }
 
     /// Changes how the relay paces and polices its peers, from the next
@@ -1454,6 +1474,19 @@ mod tests {
         }
         relay.pin_world(w).expect("the same world");
         drop(relay);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The world's epoch is written once and read back after a restart.
+    #[test]
+    fn the_world_epoch_is_kept_in_the_store() {
+        let dir = std::env::temp_dir().join(format!("snowpack-relay-epoch-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let open =
+            || SnowRelay::with_store(TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store"), RelayConfig::default()).expect("relay");
+        assert_eq!(SnowRelay::new(RelayConfig::default()).world_epoch(7.0).expect("no store"), 7.0);
+        assert_eq!(open().world_epoch(100.0).expect("epoch"), 100.0);
+        assert_eq!(open().world_epoch(250.0).expect("epoch"), 100.0, "the epoch was not kept");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

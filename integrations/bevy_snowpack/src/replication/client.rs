@@ -1,5 +1,7 @@
 //! The client's side: a `SnowPeer` in the render world beside the plugin's
 //! deformation (it reads the frame's changed tiles and queues merges there).
+//! It shares while the app is a connected client, or a listen server (its
+//! messages then reach its own relay through replicon's local messages).
 //! What the server sent is taken from the main world at extraction; what the
 //! peer makes comes back through a channel and is written as replicon
 //! messages in the main world's `PostUpdate`.
@@ -13,7 +15,7 @@ use bevy::prelude::*;
 use bevy::render::renderer::RenderGraph;
 use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderApp};
 use bevy_replicon::prelude::*;
-use snowpack::{PeerStats, ShareErrorKind, SnowPeer};
+use snowpack::{PeerStats, ShareErrorKind, SnowPeer, WorldIdentity};
 
 use super::{SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
 use crate::render::SnowRenderState;
@@ -49,6 +51,8 @@ pub struct SnowSharing {
     bytes_received: u64,
     messages_sent: u64,
     messages_received: u64,
+    /// The app has a render world with a peer (a client, or a listen server).
+    pub(super) local_snow: bool,
 }
 
 /// What the render world's peer reports each frame.
@@ -61,6 +65,7 @@ struct PeerStatus {
     dirty_tiles: usize,
     stats: PeerStats,
     refused: Option<String>,
+    world: Option<WorldIdentity>,
 }
 
 impl SnowSharing {
@@ -108,6 +113,14 @@ impl SnowSharing {
     #[must_use]
     pub fn stats(&self) -> PeerStats {
         self.status.stats
+    }
+
+    /// This app's snow's world (once it shares): what the server must serve
+    /// for it to join, and what a listen server serves when its settings
+    /// name no world.
+    #[must_use]
+    pub fn world(&self) -> Option<&WorldIdentity> {
+        self.status.world.as_ref()
     }
 
     /// Why the server refused this client (its world differs: depth, tile side, terrain...), if it did.
@@ -163,6 +176,8 @@ struct PeerState {
     failed: bool,
     /// Why the server refused this client, once it has.
     refused: Option<String>,
+    /// The peer's world (the snow's, with the sharing tile side).
+    world: Option<WorldIdentity>,
 }
 
 /// What the peer takes from the main world each frame.
@@ -182,7 +197,7 @@ pub(super) fn build(app: &mut App) {
         .configure_sets(PreUpdate, SnowReplicationSystems::Receive.after(ClientSystems::Receive))
         .configure_sets(PostUpdate, SnowReplicationSystems::Send.before(ClientSystems::Send))
         .add_systems(PreUpdate, receive.in_set(SnowReplicationSystems::Receive))
-        .add_systems(PostUpdate, send.in_set(SnowReplicationSystems::Send).run_if(in_state(ClientState::Connected)));
+        .add_systems(PostUpdate, send.in_set(SnowReplicationSystems::Send).run_if(in_state(ClientState::Connected).or_else(in_state(ServerState::Running))));
     // A server without Bevy's renderer has no render world, and no peer.
     if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
         render_app
@@ -192,6 +207,9 @@ pub(super) fn build(app: &mut App) {
             .add_systems(ExtractSchedule, (extract_deformers, take_inbox).chain().in_set(SnowSystems::Extract))
             .add_systems(RenderGraph, step_peer.after(SnowSystems::Encode).in_set(SnowReplicationSystems::Peer));
     }
+    // The plugin's snow (added before this plugin) in a render world: a client, or a listen server.
+    let local_snow = app.get_sub_app(RenderApp).is_some() && app.world().contains_resource::<crate::SnowpackSettings>();
+    app.world_mut().resource_mut::<SnowSharing>().local_snow = local_snow;
 }
 
 /// What the server sent, for the render world; what the peer made, for the server.
@@ -232,9 +250,12 @@ fn extract_deformers(mut frame: ResMut<ExtractedPeerFrame>, deformers: Extract<Q
 }
 
 /// Takes what the server sent (the main world's inbox is emptied), the
-/// connection's state, a sync request and the settings.
+/// connection's state (a listen server is connected to itself), a sync
+/// request and the settings.
 fn take_inbox(mut main_world: ResMut<MainWorld>, mut frame: ResMut<ExtractedPeerFrame>) {
-    frame.connected = main_world.get_resource::<State<ClientState>>().is_some_and(|s| *s.get() == ClientState::Connected);
+    let client = main_world.get_resource::<State<ClientState>>().is_some_and(|s| *s.get() == ClientState::Connected);
+    let listen_server = main_world.get_resource::<State<ServerState>>().is_some_and(|s| *s.get() == ServerState::Running);
+    frame.connected = client || listen_server;
     frame.settings = main_world.get_resource::<SnowReplicationSettings>().cloned();
     if let Some(mut sharing) = main_world.get_resource_mut::<SnowSharing>() {
         // Appended: messages a frame without a deformation never took wait for the next one.
@@ -265,7 +286,9 @@ fn step_peer(state: Option<ResMut<SnowRenderState>>, mut peer: ResMut<PeerState>
             peer.failed = true;
             return;
         }
-        peer.peer = Some(SnowPeer::new(snow.world_identity(), &settings.peer_name, settings.peer.clone()));
+        let world = snow.world_identity();
+        peer.peer = Some(SnowPeer::new(world.clone(), &settings.peer_name, settings.peer.clone()));
+        peer.world = Some(world);
         peer.started = Some(Instant::now());
         peer.applied = Some(settings.clone());
         peer.connected = true;
@@ -276,22 +299,8 @@ fn step_peer(state: Option<ResMut<SnowRenderState>>, mut peer: ResMut<PeerState>
         p.reconnect();
         peer.connected = true;
     }
-    if let Some(applied) = peer.applied.as_mut()
-        && *applied != settings
-    {
-        if applied.peer != settings.peer {
-            p.set_config(settings.peer.clone());
-        }
-        for (name, changed) in [
-            ("tile_side", applied.tile_side != settings.tile_side),
-            ("gather_interval_s", applied.gather_interval_s != settings.gather_interval_s),
-            ("peer_name", applied.peer_name != settings.peer_name),
-        ] {
-            if changed {
-                tracing::warn!("bevy_snowpack: SnowReplicationSettings::{name} is fixed once the client has joined; the change is ignored");
-            }
-        }
-        applied.peer = settings.peer.clone();
+    if let Some(applied) = peer.applied.as_mut() {
+        apply_settings(applied, &settings, p);
     }
     for bytes in frame.inbox.drain(..) {
         match p.receive(&bytes) {
@@ -321,7 +330,35 @@ fn step_peer(state: Option<ResMut<SnowRenderState>>, mut peer: ResMut<PeerState>
         dirty_tiles: snow.dirty_tiles(),
         stats: p.stats(),
         refused: peer.refused.clone(),
+        world: peer.world.clone(),
     };
     // A main world that has gone (the app is closing) is not an error.
     let _ = to_main.0.send((messages, status));
+}
+
+/// What changed in the settings since the peer applied them: its pacing is
+/// applied, the settings fixed once joined warn, the server's own are
+/// nothing to the peer.
+fn apply_settings(applied: &mut SnowReplicationSettings, settings: &SnowReplicationSettings, p: &mut SnowPeer) {
+    if *applied == *settings {
+        return;
+    }
+    if applied.peer != settings.peer {
+        p.set_config(settings.peer.clone());
+    }
+    for (name, changed) in [
+        ("tile_side", applied.tile_side != settings.tile_side),
+        ("gather_interval_s", applied.gather_interval_s != settings.gather_interval_s),
+        ("peer_name", applied.peer_name != settings.peer_name),
+    ] {
+        if changed {
+            tracing::warn!("bevy_snowpack: SnowReplicationSettings::{name} is fixed once the client has joined; the change is ignored");
+        }
+    }
+    *applied = SnowReplicationSettings {
+        tile_side: applied.tile_side,
+        gather_interval_s: applied.gather_interval_s,
+        peer_name: applied.peer_name.clone(),
+        ..settings.clone()
+    };
 }
