@@ -745,6 +745,90 @@ fn walk(
     }
 }
 
+/// Joining: waits for the server's welcome and this client's player, then walks or holds.
+fn join(cli: &ClientCli, script: &mut Script, sharing: &SnowSharing, own: Option<Vec3>) {
+    if sharing.is_welcomed() && own.is_some() {
+        println!("client: welcomed after {} frames", script.frames);
+        if cli.walk {
+            script.walk_start = Some((Instant::now(), sharing.bytes_sent(), sharing.bytes_received()));
+            script.enter(Phase::Walking);
+        } else {
+            script.enter(Phase::Holding);
+        }
+    } else if script.phase_started.elapsed() > JOIN_LIMIT {
+        fail(&format!("no welcome and player from {:?} within {JOIN_LIMIT:?}", cli.connect));
+    }
+}
+
+/// Settling: waits until the server acknowledged this client's changes and it
+/// holds everything the server has over its window, then asks the probes.
+fn settle(cli: &ClientCli, script: &mut Script, sharing: &mut SnowSharing, query: &mut SnowQuery) {
+    sharing.request_sync();
+    script.settled_frames = if sharing.is_settled() { script.settled_frames + 1 } else { 0 };
+    if script.settled_frames >= SETTLED_FRAMES {
+        let s = sharing.stats();
+        println!(
+            "client: in sync after {:.1} s of settling: tiles sent {} received {} merged {}",
+            script.phase_started.elapsed().as_secs_f64(),
+            s.tiles_sent,
+            s.tiles_received,
+            s.tiles_merged
+        );
+        script.ticket = (!cli.probes.is_empty()).then(|| query.ask(&cli.probes));
+        script.enter(Phase::Probing);
+    } else if script.phase_started.elapsed() > SETTLE_LIMIT {
+        fail(&format!(
+            "not in sync with the server within {SETTLE_LIMIT:?}: {} unacknowledged, {} tiles waiting, {} not gathered, synced {}",
+            sharing.unacknowledged(),
+            sharing.waiting_tiles(),
+            sharing.dirty_tiles(),
+            sharing.is_synced()
+        ));
+    }
+}
+
+/// Where each player's fox is on the screenshot: its feet and its back.
+fn print_foxes(players: &Query<(&Player, &Transform)>, me: Option<&Me>, on_screen: &dyn Fn(Vec3) -> Option<Vec2>) {
+    for (player, t) in players {
+        let (Some(feet), Some(back)) = (on_screen(t.translation), on_screen(t.translation + Vec3::Y * FOX_BACK_M)) else { continue };
+        let own = me.is_some_and(|me| me.0 == player.id);
+        println!(
+            "fox {} at {:.2} {:.2} feet {:.0} {:.0} back {:.0} {:.0} own {own}",
+            player.id, t.translation.x, t.translation.z, feet.x, feet.y, back.x, back.y
+        );
+    }
+}
+
+/// What the walk sent and received (`wire: ...`), for the tests and docs/bevy.md.
+fn print_wire(script: &Script) {
+    if let Some((wall_s, sent, received)) = script.walked {
+        let n = script.renet_rates.len().max(1) as f64;
+        let (renet_sent, renet_received) = script.renet_rates.iter().fold((0.0, 0.0), |(a, b), (s, r)| (a + s / n, b + r / n));
+        let walked_m = f64::from(WALK_TO_M - WALK_FROM_M);
+        println!(
+            "wire: walk_s {wall_s:.2} walk_m {walked_m:.1} snow_bytes_sent {sent} snow_bytes_received {received} snow_bytes_sent_per_s {:.0} snow_bytes_sent_per_m {:.0} renet_bytes_sent_per_s {renet_sent:.0} renet_bytes_received_per_s {renet_received:.0}",
+            sent as f64 / wall_s.max(1e-3),
+            sent as f64 / walked_m
+        );
+    }
+}
+
+/// Takes the screenshot (then exits a few frames later), or exits now without one.
+fn shoot_or_exit(commands: &mut Commands, cli: &ClientCli, script: &mut Script, exit: &mut MessageWriter<AppExit>) {
+    match &cli.screenshot {
+        Some(path) => {
+            commands
+                .spawn(Screenshot::primary_window())
+                .observe(save_to_disk(path.clone()))
+                .observe(|_: On<ScreenshotCaptured>, mut script: ResMut<Script>| script.shot = Some(script.frames));
+            script.enter(Phase::Shooting);
+        }
+        None => {
+            exit.write(AppExit::Success);
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments, reason = "the script reads each of the client's parts")]
 fn script(
     mut commands: Commands,
@@ -766,19 +850,7 @@ fn script(
     }
     let own = own_position(me.as_deref(), &players);
     match script.phase {
-        Phase::Joining => {
-            if sharing.is_welcomed() && own.is_some() {
-                println!("client: welcomed after {} frames", script.frames);
-                if cli.walk {
-                    script.walk_start = Some((Instant::now(), sharing.bytes_sent(), sharing.bytes_received()));
-                    script.enter(Phase::Walking);
-                } else {
-                    script.enter(Phase::Holding);
-                }
-            } else if script.phase_started.elapsed() > JOIN_LIMIT {
-                fail(&format!("no welcome and player from {:?} within {JOIN_LIMIT:?}", cli.connect));
-            }
-        }
+        Phase::Joining => join(&cli, &mut script, &sharing, own),
         Phase::Walking => {
             if let Some(renet) = renet.as_deref() {
                 let info = renet.network_info();
@@ -796,30 +868,7 @@ fn script(
                 script.enter(Phase::Settling);
             }
         }
-        Phase::Settling => {
-            sharing.request_sync();
-            script.settled_frames = if sharing.is_settled() { script.settled_frames + 1 } else { 0 };
-            if script.settled_frames >= SETTLED_FRAMES {
-                let s = sharing.stats();
-                println!(
-                    "client: in sync after {:.1} s of settling: tiles sent {} received {} merged {}",
-                    script.phase_started.elapsed().as_secs_f64(),
-                    s.tiles_sent,
-                    s.tiles_received,
-                    s.tiles_merged
-                );
-                script.ticket = (!cli.probes.is_empty()).then(|| query.ask(&cli.probes));
-                script.enter(Phase::Probing);
-            } else if script.phase_started.elapsed() > SETTLE_LIMIT {
-                fail(&format!(
-                    "not in sync with the server within {SETTLE_LIMIT:?}: {} unacknowledged, {} tiles waiting, {} not gathered, synced {}",
-                    sharing.unacknowledged(),
-                    sharing.waiting_tiles(),
-                    sharing.dirty_tiles(),
-                    sharing.is_synced()
-                ));
-            }
-        }
+        Phase::Settling => settle(&cli, &mut script, &mut sharing, &mut query),
         Phase::Probing => {
             let answers = match script.ticket {
                 Some(ticket) => match query.take(ticket) {
@@ -843,37 +892,9 @@ fn script(
                     println!("pixel {} {} at {:.0} {:.0}", p.x, p.y, v.x, v.y);
                 }
             }
-            // Where each player's fox is on the screenshot: its feet and its back.
-            for (player, t) in &players {
-                let (Some(feet), Some(back)) = (on_screen(t.translation), on_screen(t.translation + Vec3::Y * FOX_BACK_M)) else { continue };
-                let own = me.as_ref().is_some_and(|me| me.0 == player.id);
-                println!(
-                    "fox {} at {:.2} {:.2} feet {:.0} {:.0} back {:.0} {:.0} own {own}",
-                    player.id, t.translation.x, t.translation.z, feet.x, feet.y, back.x, back.y
-                );
-            }
-            if let Some((wall_s, sent, received)) = script.walked {
-                let n = script.renet_rates.len().max(1) as f64;
-                let (renet_sent, renet_received) = script.renet_rates.iter().fold((0.0, 0.0), |(a, b), (s, r)| (a + s / n, b + r / n));
-                let walked_m = f64::from(WALK_TO_M - WALK_FROM_M);
-                println!(
-                    "wire: walk_s {wall_s:.2} walk_m {walked_m:.1} snow_bytes_sent {sent} snow_bytes_received {received} snow_bytes_sent_per_s {:.0} snow_bytes_sent_per_m {:.0} renet_bytes_sent_per_s {renet_sent:.0} renet_bytes_received_per_s {renet_received:.0}",
-                    sent as f64 / wall_s.max(1e-3),
-                    sent as f64 / walked_m
-                );
-            }
-            match &cli.screenshot {
-                Some(path) => {
-                    commands
-                        .spawn(Screenshot::primary_window())
-                        .observe(save_to_disk(path.clone()))
-                        .observe(|_: On<ScreenshotCaptured>, mut script: ResMut<Script>| script.shot = Some(script.frames));
-                    script.enter(Phase::Shooting);
-                }
-                None => {
-                    exit.write(AppExit::Success);
-                }
-            }
+            print_foxes(&players, me.as_deref(), &on_screen);
+            print_wire(&script);
+            shoot_or_exit(&mut commands, &cli, &mut script, &mut exit);
         }
         Phase::Shooting => {
             // Exit a couple of frames after the capture so the file is written.
