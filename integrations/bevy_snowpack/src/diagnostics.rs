@@ -19,10 +19,10 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::render::{Render, RenderApp, RenderSystems};
 
-use crate::render::SnowRenderState;
 #[cfg(feature = "multiplayer")]
 use crate::SnowSharing;
 use crate::SnowSystems;
+use crate::render::SnowRenderState;
 
 /// Adds the snow's diagnostics (after [`crate::SnowpackPlugin`]):
 ///

@@ -55,7 +55,8 @@ impl SnowServer {
     pub fn open(world: WorldIdentity, settings: &SnowReplicationSettings) -> Result<Self, ShareError> {
         let mut relay = match &settings.store {
             Some(store) => {
-                let tiles = TileStore::open(&store.dir, settings.tile_side, store.config).map_err(|e| ShareError::from(snowpack_share::error::StoreError::from(e)))?;
+                let tiles =
+                    TileStore::open(&store.dir, settings.tile_side, store.config).map_err(|e| ShareError::from(snowpack_share::error::StoreError::from(e)))?;
                 SnowRelay::with_store(tiles, settings.relay.clone())?
             }
             None => SnowRelay::new(settings.relay.clone()),
