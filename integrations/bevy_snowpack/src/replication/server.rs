@@ -18,7 +18,9 @@ use bevy::prelude::*;
 use bevy_replicon::prelude::*;
 use snowpack_share::{PeerId, ShareError, SnowRelay, TileStore, WorldIdentity};
 
-use super::{SnowDepthUnder, SnowOwnedBy, SnowReplicationSettings, SnowReplicationSystems, SnowSharing, SnowToClient, SnowToServer};
+#[cfg(feature = "multiplayer")]
+use super::SnowSharing;
+use super::{SnowDepthUnder, SnowOwnedBy, SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
 
 /// The relay's peer id of a listen server's own snow (`ClientId::Server`).
 /// No client entity has these bits: an entity's index is never `u32::MAX`.
@@ -139,13 +141,17 @@ struct StartState {
 fn start(
     mut commands: Commands,
     settings: Res<SnowReplicationSettings>,
-    sharing: Option<Res<SnowSharing>>,
+    #[cfg(feature = "multiplayer")] sharing: Option<Res<SnowSharing>>,
     clients: Query<Entity, With<AuthorizedClient>>,
     mut state: Local<StartState>,
 ) {
-    let local = sharing.as_deref().and_then(SnowSharing::world);
-    let Some(world) = settings.world.clone().or_else(|| local.cloned()) else {
-        if sharing.as_ref().is_some_and(|s| s.local_snow) {
+    // A listen server's own snow (a build with the client half) says its world.
+    #[cfg(feature = "multiplayer")]
+    let (local, local_snow) = (sharing.as_deref().and_then(SnowSharing::world).cloned(), sharing.as_ref().is_some_and(|s| s.local_snow));
+    #[cfg(not(feature = "multiplayer"))]
+    let (local, local_snow): (Option<WorldIdentity>, bool) = (None, false);
+    let Some(world) = settings.world.clone().or(local) else {
+        if local_snow {
             // A listen server: its snow says its world within a frame or two.
             return;
         }
