@@ -9,41 +9,16 @@
 //! under the bounds `docs/multiplayer.md` ("What the relay refuses") states.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 use std::time::Duration;
 
 mod common;
-use common::{Server, Temp};
+use common::{Server, Temp, bin, run_bounded};
 
-/// Longest any one process of these tests may run.
-const PROCESS_LIMIT: Duration = Duration::from_secs(120);
 /// How long the server runs before it stops by itself and prints its totals.
 const SERVER_S: u64 = 40;
 /// The server's peak resident memory may not pass this (KiB) under the attack.
 const PEAK_KIB_BOUND: u64 = 96 * 1024;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
-    c.env("SNOWPACK_LOG", "error");
-    c
-}
-
-/// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).
-fn run_bounded(mut cmd: Command) -> Output {
-    let child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start snowpack");
-    let id = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    match rx.recv_timeout(PROCESS_LIMIT) {
-        Ok(out) => out.expect("snowpack's output"),
-        Err(_) => {
-            let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
-            panic!("snowpack ran longer than {PROCESS_LIMIT:?}");
-        }
-    }
-}
 
 /// 8 m of `depth_m` snow at 6.25 cm on flat ground, no refill (tiles of 32², 2 m).
 fn scene(dir: &Path, name: &str, depth_m: f32) -> PathBuf {

@@ -6,40 +6,13 @@
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::Duration;
+use std::process::Stdio;
 
 mod common;
-use common::{Server, Temp};
-
-/// Longest any one process of these tests may run.
-const PROCESS_LIMIT: Duration = Duration::from_secs(120);
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
-    c.env("SNOWPACK_LOG", "error");
-    c
-}
+use common::{PROCESS_LIMIT, Server, Temp, bin, run_bounded};
 
 fn gpu_available() -> bool {
     snowpack::low_level::testing::gpu().is_some()
-}
-
-/// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).
-fn run_bounded(mut cmd: Command) -> std::process::Output {
-    let child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start snowpack");
-    let id = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    match rx.recv_timeout(PROCESS_LIMIT) {
-        Ok(out) => out.expect("snowpack's output"),
-        Err(_) => {
-            let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
-            panic!("snowpack ran longer than {PROCESS_LIMIT:?}");
-        }
-    }
 }
 
 /// The scene all three runs share: 8 m of 0.5 m snow at 6.25 cm, window

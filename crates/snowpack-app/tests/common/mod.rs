@@ -108,3 +108,33 @@ impl Drop for Server {
         let _ = self.child.wait();
     }
 }
+
+/// Longest any one process of the network tests may run.
+#[allow(dead_code, reason = "each test binary uses its own part of common")]
+pub const PROCESS_LIMIT: Duration = Duration::from_secs(120);
+
+/// The `snowpack` binary cargo built for these tests, logging errors only.
+#[allow(dead_code, reason = "each test binary uses its own part of common")]
+pub fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_snowpack"));
+    c.env("SNOWPACK_LOG", "error");
+    c
+}
+
+/// Runs `cmd` to completion within [`PROCESS_LIMIT`] (killed past it).
+#[allow(dead_code, reason = "each test binary uses its own part of common")]
+pub fn run_bounded(mut cmd: Command) -> std::process::Output {
+    let child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("start snowpack");
+    let id = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    match rx.recv_timeout(PROCESS_LIMIT) {
+        Ok(out) => out.expect("snowpack's output"),
+        Err(_) => {
+            let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
+            panic!("snowpack ran longer than {PROCESS_LIMIT:?}");
+        }
+    }
+}
