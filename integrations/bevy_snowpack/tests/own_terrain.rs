@@ -18,7 +18,7 @@ use bevy_snowpack::{
     SnowCoverExtension, SnowCoverMaterial, SnowDeformer, SnowQuery, SnowTerrainAsset, SnowTerrainStatus, SnowpackSettings, TerrainAssetError,
     heightmap_from_image, snow_cover_lift, triangles_from_mesh,
 };
-use common::{Xvfb, example};
+use common::{Xvfb, example, patch_luma};
 use snowpack::TerrainSource;
 
 /// The test's landscape: 8 m square, 65 pixels a side, 3 m for a value of 1.
@@ -229,20 +229,6 @@ fn a_bad_terrain_image_in_the_app_is_reported_not_a_panic() {
     let status = app.world().resource::<SnowTerrainStatus>().clone();
     assert!(matches!(&status, SnowTerrainStatus::Failed(why) if why.contains("Rgba8Unorm")), "{status:?}");
     assert_eq!(app.world().resource::<SnowpackSettings>().terrain, TerrainSource::Flat { height_m: 0.0 }, "the terrain changed");
-}
-
-/// Mean luma (0..255) of the 9x9 pixels around (x, y).
-fn patch_luma(image: &image::RgbaImage, x: u32, y: u32) -> f32 {
-    let mut sum = 0.0;
-    let mut n = 0.0;
-    for py in y.saturating_sub(4)..=(y + 4).min(image.height() - 1) {
-        for px in x.saturating_sub(4)..=(x + 4).min(image.width() - 1) {
-            let [r, g, b, _] = image.get_pixel(px, py).0;
-            sum += 0.2126 * f32::from(r) + 0.7152 * f32::from(g) + 0.0722 * f32::from(b);
-            n += 1.0;
-        }
-    }
-    sum / n
 }
 
 #[test]

@@ -14,21 +14,7 @@ mod common;
 
 use std::process::Command;
 
-use common::{Xvfb, example};
-
-/// Mean luma (0..255) of the 9x9 pixels around (x, y).
-fn patch_luma(image: &image::RgbaImage, x: u32, y: u32) -> f32 {
-    let mut sum = 0.0;
-    let mut n = 0.0;
-    for py in y.saturating_sub(4)..=(y + 4).min(image.height() - 1) {
-        for px in x.saturating_sub(4)..=(x + 4).min(image.width() - 1) {
-            let [r, g, b, _] = image.get_pixel(px, py).0;
-            sum += 0.2126 * f32::from(r) + 0.7152 * f32::from(g) + 0.0722 * f32::from(b);
-            n += 1.0;
-        }
-    }
-    sum / n
-}
+use common::{Xvfb, example, patch_luma};
 
 #[test]
 fn walk_example_leaves_visible_trails_and_footsteps() {

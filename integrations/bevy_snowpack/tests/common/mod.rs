@@ -123,3 +123,18 @@ pub fn example(name: &str) -> PathBuf {
     let dir = exe.parent().and_then(|deps| deps.parent()).expect("target/<profile>/deps");
     dir.join("examples").join(name)
 }
+
+#[allow(dead_code, reason = "each test file uses its own subset of these helpers")]
+/// Mean luma (0..255) of the 9x9 pixels around (x, y).
+pub fn patch_luma(image: &image::RgbaImage, x: u32, y: u32) -> f32 {
+    let mut sum = 0.0;
+    let mut n = 0.0;
+    for py in y.saturating_sub(4)..=(y + 4).min(image.height() - 1) {
+        for px in x.saturating_sub(4)..=(x + 4).min(image.width() - 1) {
+            let [r, g, b, _] = image.get_pixel(px, py).0;
+            sum += 0.2126 * f32::from(r) + 0.7152 * f32::from(g) + 0.0722 * f32::from(b);
+            n += 1.0;
+        }
+    }
+    sum / n
+}
