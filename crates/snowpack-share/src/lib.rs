@@ -90,5 +90,5 @@ pub use persist::{StoreConfig, TileData, TileKey, TileStore};
 pub use replicate::tile::SNOW_QUANTUM_M;
 pub use replicate::{
     CatchUp, Message, PeerConfig, PeerId, PeerStats, RelayConfig, RelayRejections, RelayStats, ShareClock, SharedSnow, SharedTile, SnowPeer, SnowRelay,
-    WorldIdentity,
+    WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain,
 };

@@ -534,6 +534,34 @@ fn a_world_found_without_a_gpu_is_the_windows() {
     }
 }
 
+/// A dedicated server that knows no `SnowParams` (snowpack-share alone, as
+/// the Bevy example's server-only build) finds the same world from the
+/// plain numbers, for flat and noise terrain, with and without snowfall.
+#[test]
+fn a_world_made_from_plain_numbers_is_the_librarys() {
+    use snowpack::low_level::replicate::world::{WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain};
+    let noise = NoiseTerrain { seed: 7, base_m: 0.3, amplitude_m: -1.5, wavelength_m: 9.0 };
+    let terrains = [
+        (TerrainSource::Flat { height_m: 0.0 }, WorldTerrain::flat(0.0)),
+        (TerrainSource::Flat { height_m: -2.25 }, WorldTerrain::flat(-2.25)),
+        (TerrainSource::Noise(noise.clone()), WorldTerrain::noise(noise.seed, noise.base_m, noise.amplitude_m, noise.wavelength_m)),
+    ];
+    for (source, terrain) in &terrains {
+        for snowfall in [None, Some(Snowfall::default())] {
+            let params = SnowParams { extent_m: 12.0, resolution: 256, depth_m: 0.5, refill_m_per_s: 0.001, snowfall, ..SnowParams::default() };
+            let snow = WorldSnow {
+                texel_m: params.extent_m / params.resolution as f32,
+                depth_m: params.depth_m,
+                refill_m_per_s: params.refill_m_per_s,
+                snowfall: params.snowfall.as_ref().map(|s| WorldSnowfall { rate_m_per_s: s.rate_m_per_s, max_m: s.max_m }),
+            };
+            let plain = WorldIdentity::new(&snow, terrain, 32);
+            assert_eq!(SnowDeformation::world_identity_for(&params, source, 32), plain, "{source:?}");
+            assert!(plain.differences(&SnowDeformation::world_identity_for(&params, source, 32)).is_empty());
+        }
+    }
+}
+
 #[test]
 fn tiles_ahead_of_the_clock_wait_for_it_and_older_ones_are_caught_up() {
     let Some(ctx) = testing::gpu() else { return };

@@ -3,7 +3,8 @@
 //! reach Bevy's `DiagnosticsStore`; answers and save results come to
 //! observers as events (and still to `take`); every deformer kind presses
 //! what it should: a capsule, a contact point, a wheel held on the snow by
-//! its load (with a rolling resistance), a deformer gets its `Transform`.
+//! its load (with a rolling resistance), a deformer gets its `Transform`;
+//! the plugin's sources use the library's front door alone.
 
 mod common;
 
@@ -196,4 +197,26 @@ fn every_deformer_kind_presses_what_it_should() {
     assert!(floor > 0.05 && floor < 0.35, "a 200 kg wheel in 0.4 m of 10 kPa snow: floor {floor}");
     assert!((rut - floor).abs() < 0.015, "rut floor {rut} m, want {floor} m");
     assert!(resisted > 10.0, "rolling resistance {resisted} N in fresh snow");
+}
+
+/// The plugin is built on the library's front door: nothing in `src/` names
+/// `snowpack::low_level`, which only its tests turn on (a dev-dependency).
+/// A build of the library alone would refuse such a path; this is that
+/// check without a second build of the plugin (docs/ci.md, "A cold run").
+#[test]
+fn the_plugin_uses_the_librarys_front_door_alone() {
+    let mut offenders = Vec::new();
+    let mut dirs = vec![std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/src"))];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).expect("the plugin's sources") {
+            let path = entry.expect("a directory entry").path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs" || e == "wgsl") {
+                let text = std::fs::read_to_string(&path).expect("a source file");
+                offenders.extend(text.lines().enumerate().filter(|(_, l)| l.contains("low_level")).map(|(n, l)| format!("{}:{}: {l}", path.display(), n + 1)));
+            }
+        }
+    }
+    assert!(offenders.is_empty(), "the plugin reaches below the library's front door:\n{}", offenders.join("\n"));
 }

@@ -18,7 +18,8 @@ use bevy_snowpack::{
     SnowCoverExtension, SnowCoverMaterial, SnowDeformer, SnowQuery, SnowTerrainAsset, SnowTerrainStatus, SnowpackSettings, TerrainAssetError,
     heightmap_from_image, snow_cover_lift, triangles_from_mesh,
 };
-use common::{Xvfb, example, patch_luma};
+use common::xvfb::Xvfb;
+use common::{example, patch_luma};
 use snowpack::TerrainSource;
 
 /// The test's landscape: 8 m square, 65 pixels a side, 3 m for a value of 1.

@@ -14,7 +14,8 @@ mod common;
 
 use std::process::Command;
 
-use common::{Xvfb, example, patch_luma};
+use common::xvfb::Xvfb;
+use common::{example, patch_luma};
 
 #[test]
 fn walk_example_leaves_visible_trails_and_footsteps() {

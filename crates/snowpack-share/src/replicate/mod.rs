@@ -10,7 +10,7 @@
 //! | file | what |
 //! |---|---|
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
-//! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share |
+//! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share ([`WorldSnow`] and [`WorldTerrain`] make one without a GPU) |
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
 //! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
 //! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
@@ -36,7 +36,7 @@ pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
-pub use world::WorldIdentity;
+pub use world::{WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain};
 
 /// What a [`SnowPeer`] needs of the snow it shares: the
 /// window's clock and place, the tiles it changed, and a way to fold in

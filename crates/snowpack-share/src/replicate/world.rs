@@ -92,6 +92,110 @@ impl WorldIdentity {
     }
 }
 
+/// Margin of the footprint (capture) height range beyond the terrain and the snow (m).
+const FOOTPRINT_MARGIN_M: f32 = 1.0;
+
+/// The footprint quantisation range (low, high) in m over terrain whose
+/// heights span `tmin..=tmax`, under snow at most `deepest_m` deep (the rest
+/// depth plus the most snowfall kept): the window's capture range and a
+/// world's [`WorldIdentity`] alike, so that a world found without a window
+/// is the window's.
+///
+/// The top is above the snow by the margin, and high enough that a stored
+/// footprint's rim has fallen to zero below it: the rounded rim ends where
+/// `h = foot + 4 (rest - foot)`, at most `4 rest - 3 low`. A footprint
+/// clipped at a lower top would keep a non-zero rim out to the edge of its
+/// range and leave a ridge there.
+#[must_use]
+pub fn footprint_range_m(deepest_m: f32, (tmin, tmax): (f32, f32)) -> (f32, f32) {
+    let low = tmin - FOOTPRINT_MARGIN_M;
+    let rest = tmax + deepest_m;
+    (low, (rest + FOOTPRINT_MARGIN_M).max(4.0 * rest - 3.0 * low))
+}
+
+/// The snow of a world as [`WorldIdentity::new`] takes it: the settings
+/// every machine of the world agrees on, without the GPU library's types
+/// (a dedicated server knows its world from these; snowpack's
+/// `SnowDeformation::world_identity_for` gives the same identity from a
+/// `SnowParams`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldSnow {
+    /// Side of a texel (m): the window's extent over its resolution.
+    pub texel_m: f32,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Trail refill (m/s).
+    pub refill_m_per_s: f32,
+    /// Snowfall on open ground; `None` without it.
+    pub snowfall: Option<WorldSnowfall>,
+}
+
+/// Snowfall in a [`WorldSnow`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldSnowfall {
+    /// Rate on open ground (m/s).
+    pub rate_m_per_s: f32,
+    /// The most snowfall a texel keeps (m).
+    pub max_m: f32,
+}
+
+/// The ground under a world's snow, as two machines agree on it: a
+/// description (the kind and its parameters, or a digest of sampled
+/// heights) and the span of its heights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldTerrain {
+    description: String,
+    heights_m: (f32, f32),
+}
+
+impl WorldTerrain {
+    /// Flat ground at `height_m`.
+    #[must_use]
+    pub fn flat(height_m: f32) -> Self {
+        Self { description: format!("flat at {height_m} m"), heights_m: (height_m, height_m) }
+    }
+
+    /// snowpack's value-noise terrain (`NoiseTerrain`) of these parameters.
+    #[must_use]
+    pub fn noise(seed: u32, base_m: f32, amplitude_m: f32, wavelength_m: f32) -> Self {
+        Self {
+            description: format!("noise seed {seed} base {base_m} m amplitude {amplitude_m} m wavelength {wavelength_m} m"),
+            heights_m: (base_m - amplitude_m.abs(), base_m + amplitude_m.abs()),
+        }
+    }
+
+    /// Any other ground: `description` is what machines compare (snowpack's
+    /// `terrain_identity`, a digest of a heightmap's or a mesh's heights),
+    /// `heights_m` the lowest and highest height (m).
+    #[must_use]
+    pub fn described(description: String, heights_m: (f32, f32)) -> Self {
+        Self { description, heights_m }
+    }
+}
+
+impl WorldIdentity {
+    /// The world of `snow` over `terrain`, shared in tiles of `tile_side`
+    /// texels. No GPU and no window: what a dedicated server pins
+    /// ([`crate::SnowRelay::pin_world`]).
+    #[must_use]
+    pub fn new(snow: &WorldSnow, terrain: &WorldTerrain, tile_side: u32) -> Self {
+        let fall = snow.snowfall;
+        let deepest = snow.depth_m + fall.map_or(0.0, |f| f.max_m);
+        let (low, high) = footprint_range_m(deepest, terrain.heights_m);
+        Self {
+            texel_m: snow.texel_m,
+            tile_side,
+            terrain: terrain.description.clone(),
+            depth_m: snow.depth_m,
+            refill_m_per_s: snow.refill_m_per_s,
+            snowfall_m_per_s: fall.map_or(0.0, |f| f.rate_m_per_s),
+            max_fallen_m: fall.map_or(0.0, |f| f.max_m),
+            has_snowfall: fall.is_some(),
+            stamp_range_m: [low, high],
+        }
+    }
+}
+
 fn on_off(b: bool) -> &'static str {
     if b { "on" } else { "off" }
 }

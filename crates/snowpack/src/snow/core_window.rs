@@ -24,27 +24,13 @@ use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
 use super::clock::FrameRefill;
 
-/// Margin of the capture depth range beyond the terrain and the snow (m).
-const CAPTURE_MARGIN_M: f32 = 1.0;
-
-/// Top of the capture and footprint height range. Above the snow by the
-/// margin, and high enough that a stored footprint's rim has fallen to zero
-/// below it: the rounded rim ends where `h = foot + 4 (rest - foot)`, at most
-/// `4 rest - 3 low`. A footprint clipped at a lower top would keep a
-/// non-zero rim out to the edge of its range and leave a ridge there.
-fn capture_top(tmin: f32, tmax: f32, depth_m: f32) -> f32 {
-    let low = tmin - CAPTURE_MARGIN_M;
-    let rest = tmax + depth_m;
-    (rest + CAPTURE_MARGIN_M).max(4.0 * rest - 3.0 * low)
-}
-
 /// The capture and footprint height range (low, high) of a window of
-/// `params` over terrain whose heights span `tmin..=tmax`: one formula for
-/// the window and for a world's identity made without one.
-pub(super) fn capture_range(params: &SnowParams, (tmin, tmax): (f32, f32)) -> (f32, f32) {
+/// `params` over terrain whose heights span `tmin..=tmax`: snowpack-share's
+/// formula, one for the window and for a world's identity made without one.
+pub(super) fn capture_range(params: &SnowParams, terrain_m: (f32, f32)) -> (f32, f32) {
     // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
     let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
-    (tmin - CAPTURE_MARGIN_M, capture_top(tmin, tmax, deepest))
+    snowpack_share::replicate::world::footprint_range_m(deepest, terrain_m)
 }
 
 /// The deformation window over the terrain and the passes that update it.

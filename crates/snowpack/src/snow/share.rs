@@ -9,6 +9,7 @@ use crate::error::SnowError;
 use crate::gpu::GpuContext;
 use crate::replicate::flags::ShareGrid;
 use crate::replicate::sharing::{ShareWindow, Sharing};
+use crate::replicate::world::{WorldSnow, WorldSnowfall, WorldTerrain};
 use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity, terrain_identity};
 
 use super::SnowDeformation;
@@ -134,19 +135,13 @@ impl SnowDeformation {
     /// a window after [`Self::enable_sharing`] with that side.
     #[must_use]
     pub fn world_identity_for(params: &crate::SnowParams, terrain: &crate::TerrainSource, tile_side: u32) -> WorldIdentity {
-        let (low, high) = super::core_window::capture_range(params, terrain.height_bounds());
-        let snowfall = params.snowfall.as_ref();
-        WorldIdentity {
+        let snow = WorldSnow {
             texel_m: params.texel_m(),
-            tile_side,
-            terrain: terrain_identity(terrain),
             depth_m: params.depth_m,
             refill_m_per_s: params.refill_m_per_s,
-            snowfall_m_per_s: snowfall.map_or(0.0, |s| s.rate_m_per_s),
-            max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
-            has_snowfall: snowfall.is_some(),
-            stamp_range_m: [low, high],
-        }
+            snowfall: params.snowfall.as_ref().map(|s| WorldSnowfall { rate_m_per_s: s.rate_m_per_s, max_m: s.max_m }),
+        };
+        WorldIdentity::new(&snow, &WorldTerrain::described(terrain_identity(terrain), terrain.height_bounds()), tile_side)
     }
 }
 

@@ -13,11 +13,17 @@
 //! - a listen server (`host`) walking its own fox, and a late client that
 //!   sees its trail and its fox.
 //!
+//! The server is the package's own binary, or where `MULTIPLAYER_SERVER_EXE`
+//! names one, that binary: `.ci/run` builds the server alone (`cargo build
+//! -p multiplayer --no-default-features --features server`, no renderer
+//! compiled in) and runs these tests with it.
+//!
 //! Without Xvfb these tests skip, unless `SNOWPACK_REQUIRE_GPU` is set
 //! (CI). Every wait is bounded; the processes are killed when a test fails.
 //! The tests run one at a time (each runs two renderers on lavapipe).
 
-mod common;
+#[path = "../../../tests/common/xvfb.rs"]
+mod xvfb;
 
 use std::collections::HashMap;
 use std::io::{BufRead as _, BufReader, Write as _};
@@ -28,7 +34,7 @@ use std::sync::Mutex;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
-use common::{Xvfb, example};
+use xvfb::Xvfb;
 
 /// The example's snow depth (m).
 const OPEN_M: f32 = 0.5;
@@ -128,11 +134,14 @@ impl Drop for Process {
     }
 }
 
-/// A test's X server, folder and example binary.
+/// A test's X server, folder and the example's binaries.
 struct Rig {
     x: Xvfb,
     dir: PathBuf,
+    /// The players' (and a listen server's) binary: this package's.
     exe: PathBuf,
+    /// The dedicated server's: `MULTIPLAYER_SERVER_EXE`, or this package's.
+    server_exe: PathBuf,
 }
 
 impl Rig {
@@ -141,13 +150,21 @@ impl Rig {
         let dir = std::env::temp_dir().join(format!("bevy_snowpack_{name}_{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).expect("a temporary folder");
-        Some(Self { x, dir, exe: example("multiplayer") })
+        let exe = PathBuf::from(env!("CARGO_BIN_EXE_multiplayer"));
+        let server_exe = std::env::var_os("MULTIPLAYER_SERVER_EXE").map_or_else(|| exe.clone(), PathBuf::from);
+        println!("server: {}", server_exe.display());
+        Some(Self { x, dir, exe, server_exe })
     }
 
     /// The example with `args`, on this test's display, run from the temporary folder as the
     /// built binary (so it must find its assets without cargo's help).
     fn command(&self, args: &[&str]) -> Command {
-        let mut c = Command::new(&self.exe);
+        self.command_of(&self.exe, args)
+    }
+
+    /// `exe` with `args`, as [`Self::command`] runs the example.
+    fn command_of(&self, exe: &Path, args: &[&str]) -> Command {
+        let mut c = Command::new(exe);
         c.args(args).current_dir(&self.dir).env("DISPLAY", &self.x.display).env_remove("WAYLAND_DISPLAY").env_remove("CARGO_MANIFEST_DIR");
         c
     }
@@ -162,7 +179,7 @@ impl Rig {
         let store = self.store();
         args.extend(["--store", &store]);
         args.extend(extra);
-        let mut server = Process::spawn("server", &mut self.command(&args));
+        let mut server = Process::spawn("server", &mut self.command_of(&self.server_exe, &args));
         server.wait_for("listening", |l| l.starts_with("server: listening"));
         server
     }
@@ -172,6 +189,18 @@ impl Drop for Rig {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.dir);
     }
+}
+
+/// Where `MULTIPLAYER_SERVER_EXE` names the server (CI), that binary is the
+/// server alone, built without the client: asked to play, it refuses.
+fn assert_server_alone(rig: &Rig) {
+    if std::env::var_os("MULTIPLAYER_SERVER_EXE").is_none() {
+        return;
+    }
+    let out = Command::new(&rig.server_exe).args(["client", "--connect", "127.0.0.1:9"]).output().expect("running the server's binary");
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() == Some(2) && said.contains("the server alone"), "{} plays: {:?}\n{said}", rig.server_exe.display(), out.status);
+    println!("the server is {}, built without the client", rig.server_exe.display());
 }
 
 /// GPU libraries among the files `pid` has mapped.
@@ -358,6 +387,7 @@ fn assert_server_saw_the_trench(server: &Process) {
 fn a_late_client_sees_the_trail_and_the_fox_of_a_player_walked_before_it_joined() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let Some(rig) = Rig::new("multiplayer_late") else { return };
+    assert_server_alone(&rig);
     let shot = rig.dir.join("late.png");
     let port = free_port();
     let addr = format!("127.0.0.1:{port}");
@@ -401,6 +431,7 @@ fn a_late_client_sees_the_trail_and_the_fox_of_a_player_walked_before_it_joined(
 fn a_late_client_reads_the_trail_after_the_server_restarted() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     let Some(rig) = Rig::new("multiplayer_restart") else { return };
+    assert_server_alone(&rig);
     let shot = rig.dir.join("late.png");
     let port = free_port();
     let addr = format!("127.0.0.1:{port}");
