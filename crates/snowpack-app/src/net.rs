@@ -50,6 +50,16 @@ const MAX_BACKLOG: usize = 1024;
 pub const MAX_BACKLOG_BYTES: usize = 1 << 20;
 /// Clients a server takes at once.
 const MAX_CLIENTS: usize = 256;
+/// The bytes of one client's messages the relay takes in one tick; the
+/// message that crosses it is taken whole, so a tick takes at most this plus
+/// one message ([`snowpack_share::replicate::MAX_MESSAGE_BYTES`]). The loop is
+/// one thread: without this, one client's flood would be processed whole
+/// before anyone else's next message. What a client sends beyond it waits in
+/// its own channel for the next tick, and a client that keeps sending more
+/// fills that channel ([`CHANNEL_BYTES`]) and is disconnected by renet. At
+/// 100 ticks a second it is 6.4 MB/s a client, above renet's own pace for
+/// a client (60 kB a tick) and far above what an honest peer sends.
+pub const TICK_BYTES_PER_CLIENT: usize = 64 * 1024;
 /// Tile side of the worlds a `snowpack server` serves when its store does not say.
 pub const DEFAULT_TILE_SIDE: u32 = 32;
 
@@ -302,9 +312,9 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
         take_events(&mut server, &mut relay, &mut backlog);
         let before = relay.stats();
         for client_id in server.clients_id() {
-            while let Some(bytes) = server.receive_message(client_id, CHANNEL) {
-                relay.receive(client_id, &bytes, world_s);
-            }
+            let taken = take_messages(&mut server, &mut relay, client_id, world_s);
+            work.max_peer_bytes_in = work.max_peer_bytes_in.max(taken as u64);
+            work.capped += u64::from(taken >= TICK_BYTES_PER_CLIENT);
         }
         relay.update(world_s);
         work.tick(&before, &relay.stats());
@@ -353,6 +363,20 @@ fn listen(addr: SocketAddr, key: Option<[u8; NETCODE_KEY_BYTES]>) -> anyhow::Res
     };
     let transport = NetcodeServerTransport::new(setup, NativeSocket::new(socket).context("the server's socket")?)?;
     Ok((transport, local))
+}
+
+/// One client's messages into the relay, up to [`TICK_BYTES_PER_CLIENT`]
+/// (a message is taken whole, so the last may pass it); returns the bytes
+/// taken. The rest stays in its channel for the next tick.
+fn take_messages(server: &mut RenetServer, relay: &mut SnowRelay, client_id: u64, world_s: f64) -> usize {
+    let mut taken = 0;
+    while taken < TICK_BYTES_PER_CLIENT
+        && let Some(bytes) = server.receive_message(client_id, CHANNEL)
+    {
+        taken += bytes.len();
+        relay.receive(client_id, &bytes, world_s);
+    }
+    taken
 }
 
 /// Clients that came and went, told to the relay.
@@ -440,6 +464,12 @@ impl Backlog {
 #[derive(Default)]
 struct TickWork {
     max_bytes_in: u64,
+    /// The most bytes one client's messages brought in one tick (at most
+    /// [`TICK_BYTES_PER_CLIENT`] plus one message).
+    max_peer_bytes_in: u64,
+    /// Ticks in which a client reached [`TICK_BYTES_PER_CLIENT`] (the rest of
+    /// what it sent waited for the next tick).
+    capped: u64,
     max_distance_tests: u64,
     max_window_keys: u64,
     /// Clients disconnected for not reading.
@@ -470,7 +500,7 @@ impl TickWork {
         let (cpu_s, peak_kib) = own_usage();
         format!(
             "snowpack server stopped after {:.1} s: cpu_s={cpu_s:.3} peak_kib={peak_kib} tiles_received={} tiles_merged={} bytes_in={} bytes_out={} rejected={} \
-             messages_in={} max_tick_bytes_in={} max_tick_distance_tests={} max_tick_window_keys={} slow_disconnects={} backlog_dropped={} {}",
+             messages_in={} max_tick_bytes_in={} max_tick_peer_bytes_in={} peer_ticks_capped={} max_tick_distance_tests={} max_tick_window_keys={} slow_disconnects={} backlog_dropped={} {}",
             started.elapsed().as_secs_f64(),
             s.tiles_received,
             s.tiles_merged,
@@ -479,6 +509,8 @@ impl TickWork {
             s.rejected.total(),
             s.messages_in,
             self.max_bytes_in,
+            self.max_peer_bytes_in,
+            self.capped,
             self.max_distance_tests,
             self.max_window_keys,
             self.slow_disconnects,

@@ -117,6 +117,12 @@ fn the_server_refuses_every_abuse_and_keeps_the_honest_trail() {
     assert!(f("distance_tests") <= 4 * f("bytes_in"), "{closing}");
     assert!(f("max_tick_distance_tests") <= 4 * f("max_tick_bytes_in"), "{closing}");
     assert!(f("max_tick_window_keys") <= 4 * 16_384, "{closing}");
+    // Fair ticks: the flooder's largest digests reached the per-client
+    // budget (64 KiB a tick, the message crossing it taken whole), and no
+    // client brought more than that plus one largest message into a tick;
+    // the rest waited for the next one while the honest peer was served.
+    assert!(f("peer_ticks_capped") >= 1, "{closing}");
+    assert!(f("max_tick_peer_bytes_in") <= 64 * 1024 + 256 * 1024, "{closing}");
     // Every abuse was met.
     for key in ["refused_world", "refused_not_welcomed", "refused_far", "refused_teleports", "refused_rate_bytes", "refused_rate_window", "refused_rate_query"]
     {
