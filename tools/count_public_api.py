@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
 """Counts the public items reachable from a crate's root in rustdoc's JSON output.
 
-Usage: count_public_api.py DOC.json [DEP.json ...] [--trait-items]
+Usage: count_public_api.py DOC.json [DEP.json ...] [--trait-items] [--max=N]
 
 DOC.json is what `cargo rustdoc -p snowpack --lib -- -Z unstable-options
 --output-format json` writes (RUSTC_BOOTSTRAP=1 on a stable toolchain). Items
 are followed from the root: module items, re-exports (a glob re-export of a
 module counts its items), struct fields, enum variants and their fields,
 inherent impl items and trait items; trait impls only with --trait-items.
-An item reached twice is counted once.
+An item reached twice is counted once. With --max=N it exits 1 when the
+count is over N, or when a re-export could not be followed (`.ci/run` holds
+the default front door to 250 this way).
 
 rustdoc's JSON does not inline a re-export of another crate's item (snowpack's
 `TileStore`, `SnowPeer`, the store's and sharing's errors are snowpack-share's):
@@ -18,6 +20,7 @@ Without it, the tool says how many re-exports it could not follow.
 """
 import json, sys, collections
 args = [a for a in sys.argv[1:] if not a.startswith("--")]
+limit = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--max=")), None)
 docs = [json.load(open(p)) for p in args]
 doc = docs[0]
 # Each crate's items by path, for re-exports into it: {crate name: {path tuple: (doc number, id)}}.
@@ -107,3 +110,6 @@ for k, n in kinds.most_common():
     print(f"  {k}: {n}")
 if unfollowed:
     print(f"re-exports of other crates' items not followed (give their JSON): {len(set(unfollowed))}: {', '.join(sorted(set(unfollowed)))}")
+if limit is not None and (total > limit or unfollowed):
+    print(f"over the limit of {limit} public items, or re-exports not followed: see above")
+    sys.exit(1)
