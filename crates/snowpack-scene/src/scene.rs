@@ -674,7 +674,7 @@ fn parse_store(root: &mut Fields<'_>, base_dir: &Path, snow: &SnowParams) -> Res
                 save: t.bool("save", keep == StoreKeep::Disk && d.save)?,
             };
             if let Err(snowpack::low_level::error::SnowError::InvalidParameter { why, .. }) =
-                snowpack::low_level::tiles::TileGrid::new(snow.resolution, spec.tile_texels)
+                snowpack::low_level::tiles::streaming::TileGrid::new(snow.resolution, spec.tile_texels)
             {
                 return Err(t.err("tile_texels", why));
             }

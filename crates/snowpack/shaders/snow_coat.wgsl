@@ -2,6 +2,7 @@
 // #import shared/terrain
 // #import shared/terrain_kind
 // #import shared/snow_word
+// #import shared/sky_test
 
 // Snow coat: the snow each vertex of a skinned character carries (m, one f32
 // a vertex), after the frame's skinning and the ground's update. A vertex
@@ -40,12 +41,7 @@ struct SnowCoatParams {
     use_sky: u32,
     has_previous: u32,
     teleport_m: f32,
-    sky_shear: vec2<f32>,
-    sky_offset_m: vec2<f32>,
-    sky_y0_m: f32,
-    sky_low_m: f32,
-    sky_high_m: f32,
-    _pad: u32,
+    sky: SkyTest,           // the occlusion's projection and range (shared/sky_test.wgsl)
 }
 
 @group(0) @binding(0) var<uniform> params: SnowCoatParams;
@@ -74,7 +70,6 @@ fn coat_inputs() -> u32 {
     return min(params.use_fallen, 1u) | (min(params.use_sky, 1u) << 1u);
 }
 
-const SKY_BIAS_M: f32 = 0.02;
 // The circle's eight directions (cos, sin of k * 45 degrees).
 const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
     vec2<f32>(1.0, 0.0), vec2<f32>(0.70710677, 0.70710677), vec2<f32>(0.0, 1.0), vec2<f32>(-0.70710677, 0.70710677),
@@ -125,15 +120,11 @@ fn sky_reaches(q0: vec2<f32>, h: f32) -> f32 {
     if (coat_inputs() & 2u) == 0u {
         return 1.0;
     }
-    let q = q0 + params.sky_shear * (h - params.sky_y0_m) + params.sky_offset_m;
-    let pix = floor(q / params.texel_m);
-    let r = f32(params.resolution);
-    if pix.x < 0.0 || pix.y < 0.0 || pix.x >= r || pix.y >= r {
+    let pix = sky_test_pixel(params.sky, q0, h, params.texel_m, params.resolution);
+    if pix.x < 0 {
         return 1.0;
     }
-    let seen = textureLoad(sky, vec2<i32>(pix), 0).x;
-    let here = (params.sky_high_m - (h + SKY_BIAS_M)) / (params.sky_high_m - params.sky_low_m);
-    return select(0.0, 1.0, here <= seen);
+    return sky_test_seen(params.sky, h, textureLoad(sky, pix, 0).x);
 }
 
 

@@ -4,6 +4,7 @@
 // #import shared/stamp
 // #import shared/snow_word
 // #import shared/share_flags
+// #import shared/sky_test
 
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
@@ -44,12 +45,7 @@ struct UpdateParams {
     fall_m: f32,         // snowfall this frame on open ground (m)
     max_fallen_m: f32,   // most snowfall a texel keeps above its rest depth
     texel_m: f32,
-    sky_shear: vec2<f32>,   // the occlusion's projection (see occlusion.wgsl)
-    sky_offset_m: vec2<f32>,
-    sky_y0_m: f32,
-    sky_low_m: f32,
-    sky_high_m: f32,
-    _pad: u32,
+    sky: SkyTest,        // the occlusion's projection and range (shared/sky_test.wgsl)
     storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
     share_side: u32, // changed-tile flags' tile side (with SHARE)
     share_keys: u32, // slots per side of the flags
@@ -67,7 +63,6 @@ const SHARE: u32 = 32u;
 // branch tests a uniform alone (Mesa 22's lavapipe compiles such a shader
 // again at every dispatch and keeps every copy; docs/deformation.md).
 const REFILLS: u32 = 64u;
-const SKY_BIAS_M: f32 = 0.02;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, gpu/specialised.rs); the default reads `params.flags`.
@@ -95,16 +90,12 @@ fn update_flags() -> u32 {
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
-    let p = vec2<f32>(f32(j) + 0.5, f32(i) + 0.5) * params.texel_m;
-    let q = p + params.sky_shear * (h - params.sky_y0_m) + params.sky_offset_m;
-    let pix = floor(q / params.texel_m);
-    let r = f32(params.resolution);
-    if pix.x < 0.0 || pix.y < 0.0 || pix.x >= r || pix.y >= r {
+    let q0 = vec2<f32>(f32(j) + 0.5, f32(i) + 0.5) * params.texel_m;
+    let pix = sky_test_pixel(params.sky, q0, h, params.texel_m, params.resolution);
+    if pix.x < 0 {
         return 1.0;
     }
-    let seen = textureLoad(sky, vec2<i32>(pix), 0).x;
-    let here = (params.sky_high_m - (h + SKY_BIAS_M)) / (params.sky_high_m - params.sky_low_m);
-    return select(0.0, 1.0, here <= seen);
+    return sky_test_seen(params.sky, h, textureLoad(sky, pix, 0).x);
 }
 
 @compute @workgroup_size(16, 16)

@@ -418,11 +418,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         fall_m: rng.range(0.0, 0.05),
         max_fallen_m: rng.range(0.1, 0.3),
         texel_m: params.texel_m(),
-        sky_shear: sky.shear,
-        sky_offset_m: sky.offset_m,
-        sky_y0_m: sky.y0_m,
-        sky_low_m: sky.low_m,
-        sky_high_m: sky.high_m,
+        sky: sky.sky_test(),
         ..UpdateParams::default()
     };
     update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);

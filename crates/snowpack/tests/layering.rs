@@ -16,6 +16,12 @@
 //! crate's unit tests (`#[cfg(test)]`): they are not part of the library.
 //! The crate root (`lib.rs` outside inline modules) is above every layer.
 //!
+//! Files are read the same way, in every crate of the repository: no two
+//! files may use each other, directly or round a circle ([`file_circles`];
+//! `docs/architecture.md`, "Layers"). A path through a re-export counts as
+//! the file that defines the item; a child naming its parent module's own
+//! items, or a parent re-exporting its children, is nesting, not a use.
+//!
 //! The same reading holds the library's functions to [`MAX_FUNCTION_LINES`]
 //! lines (from `fn` to the closing brace), so that no pass or orchestrator
 //! grows back into one long function; `tools/long_functions.py` lists them.
@@ -366,12 +372,39 @@ fn parse_tree(t: &[Token], mut k: usize, prefix: &[String], leaves: &mut Vec<(Ve
     k
 }
 
+/// The modules a file declares outside any braces (`mod x;`, `pub mod x;`,
+/// `mod x { … }`), those under `#[cfg(test)]` left out.
+fn file_modules(t: &[Token]) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let mut depth = 0usize;
+    let mut k = 0;
+    while k < t.len() {
+        match t[k].text.as_str() {
+            "#" if depth == 0 && is_cfg_test(t, k) => {
+                k = skip_item(t, skip_attribute(t, k));
+                continue;
+            }
+            "{" => depth += 1,
+            "}" => depth = depth.saturating_sub(1),
+            "mod" if depth == 0 => {
+                if let Some(name) = t.get(k + 1).filter(|x| x.text.starts_with(|ch: char| ch.is_alphabetic() || ch == '_')) {
+                    out.insert(name.text.clone());
+                }
+            }
+            _ => {}
+        }
+        k += 1;
+    }
+    out
+}
+
 /// Every crate path `file` (a path under `src/`) names in `text`, resolved
 /// to absolute segments, and the modules it declares at the crate root.
 /// Items under `#[cfg(test)]` are skipped.
 fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
     let t = tokens(&code_only(text));
     let file_module = module_of(file);
+    let children = file_modules(&t);
     let mut named = Vec::new();
     let mut declared = Vec::new();
     // Inline modules the walk is in: (name, brace depth outside it).
@@ -413,8 +446,10 @@ fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
             _ => {}
         }
         let starts_path = prev != "::" && next == "::";
-        let root_use = here(&inline).is_empty() && prev == "use";
-        if starts_path && (matches!(word, "crate" | "super" | "self") || root_use) {
+        // At the crate root `use x::…` names a module or an outside crate; in
+        // any file, `use child::…` names a module the file declares.
+        let relative_use = prev == "use" && (here(&inline).is_empty() || (inline.is_empty() && children.contains(word)));
+        if starts_path && (matches!(word, "crate" | "super" | "self") || relative_use) {
             let mut leaves = Vec::new();
             k = parse_tree(&t, k, &[], &mut leaves);
             for (rel, binds, line) in leaves {
@@ -840,6 +875,195 @@ fn an_undeclared_use_beside_is_reported() {
     assert!(planted(&[("deform", 3, &[]), ("accumulate", 3, &["deform"])], &files).is_empty());
 }
 
+/// The files of the crate whose root is `root` (`lib.rs` or `main.rs`) among
+/// `files` (path under the crate's `src/`, text): the root and every file a
+/// `mod` declaration reaches from it. A folder with both roots holds two
+/// crates, each with its own modules.
+fn crate_files<'a>(root: &str, files: &'a [(String, String)]) -> Vec<&'a (String, String)> {
+    let by_module: BTreeMap<Vec<String>, &(String, String)> =
+        files.iter().filter(|(f, _)| f != "lib.rs" && f != "main.rs").map(|entry| (module_of(&entry.0), entry)).collect();
+    let mut out: Vec<&(String, String)> = files.iter().filter(|(f, _)| f == root).collect();
+    let mut k = 0;
+    while k < out.len() {
+        let (file, text) = out[k];
+        let here = module_of(file);
+        for child in file_modules(&tokens(&code_only(text))) {
+            let mut path = here.clone();
+            path.push(child);
+            if let Some(entry) = by_module.get(&path)
+                && !out.iter().any(|e| e.0 == entry.0)
+            {
+                out.push(entry);
+            }
+        }
+        k += 1;
+    }
+    out
+}
+
+/// The file that defines what the absolute `path` names among `modules`
+/// (module path → file): the file of its longest module prefix, followed
+/// through that file's `use` of the next segment (a re-export, or an import
+/// a child module reaches with `super::`), up to 8 times.
+fn defining_file(
+    path: &[String],
+    modules: &BTreeMap<Vec<String>, String>,
+    imports: &BTreeMap<String, BTreeMap<String, Vec<String>>>,
+    hops: u32,
+) -> Option<String> {
+    let n = (0..=path.len()).rev().find(|&n| modules.contains_key(&path[..n]))?;
+    let file = &modules[&path[..n]];
+    if let Some(next) = path.get(n)
+        && hops < 8
+        && let Some(target) = imports.get(file).and_then(|m| m.get(next))
+        && let Some(found) = defining_file(target, modules, imports, hops + 1)
+    {
+        return Some(found);
+    }
+    Some(file.clone())
+}
+
+/// The uses between files of one crate (`files`: path under `src/`, text,
+/// every file of the crate): from → to → the first place, `src/file:line:
+/// the line`. A path through a re-export counts as the file that defines
+/// the item. Uses between a module's file and its own descendants' files
+/// (a child naming its parent's items, a parent re-exporting its children)
+/// are how modules nest, not edges.
+fn file_edges(files: &[&(String, String)]) -> BTreeMap<String, BTreeMap<String, String>> {
+    let modules: BTreeMap<Vec<String>, String> = files.iter().map(|(f, _)| (module_of(f), f.clone())).collect();
+    let parsed: Vec<(&String, &String, Vec<Named>)> = files.iter().map(|(f, text)| (f, text, named_paths(f, text).0)).collect();
+    let mut imports: BTreeMap<String, BTreeMap<String, Vec<String>>> = BTreeMap::new();
+    for (file, _, named) in &parsed {
+        for n in named.iter().filter(|n| n.from == module_of(file)) {
+            if let Some(name) = &n.binds {
+                imports.entry((*file).clone()).or_default().insert(name.clone(), n.path.clone());
+            }
+        }
+    }
+    let nested = |a: &[String], b: &[String]| a.len() < b.len() && b.starts_with(a);
+    let mut edges: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
+    for (file, text, named) in &parsed {
+        let lines: Vec<&str> = text.lines().collect();
+        let here = module_of(file);
+        for n in named {
+            let Some(to) = defining_file(&n.path, &modules, &imports, 0) else { continue };
+            let there = module_of(&to);
+            if to == **file || nested(&there, &here) || nested(&here, &there) {
+                continue;
+            }
+            let at = format!("src/{file}:{}: {}", n.line, lines.get(n.line - 1).map_or("", |l| l.trim()));
+            edges.entry((*file).clone()).or_default().entry(to).or_insert(at);
+        }
+    }
+    edges
+}
+
+/// The file circles of a crate folder (`files`: path under `src/`, text;
+/// the library's and the binary's crates each read on its own): for each
+/// circle once, where each of its files uses the next.
+fn file_circles(files: &[(String, String)]) -> Vec<String> {
+    let mut problems = Vec::new();
+    let mut seen: BTreeSet<Vec<String>> = BTreeSet::new();
+    for root in ["lib.rs", "main.rs"] {
+        let crate_files = crate_files(root, files);
+        if crate_files.is_empty() {
+            continue;
+        }
+        let edges = file_edges(&crate_files);
+        let pairs: Vec<(String, String)> = edges.iter().flat_map(|(a, tos)| tos.keys().map(move |b| (a.clone(), b.clone()))).collect();
+        for (a, b) in &pairs {
+            let Some(back) = route(&pairs, b, a) else { continue };
+            let mut members: Vec<String> = back.clone();
+            members.sort();
+            members.dedup();
+            if !seen.insert(members) {
+                continue;
+            }
+            let mut circle = vec![a.clone()];
+            circle.extend(back);
+            let steps: Vec<String> = circle.windows(2).map(|w| format!("  {}", edges[&w[0]][&w[1]])).collect();
+            problems.push(format!("file circle {}:\n{}", circle.join(" → "), steps.join("\n")));
+        }
+    }
+    problems
+}
+
+/// Every crate folder of the repository with sources: the root workspace's
+/// crates, the Bevy plugin and its multiplayer example.
+fn crate_source_folders() -> Vec<PathBuf> {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut out: Vec<PathBuf> = std::fs::read_dir(repo.join("crates")).expect("crates/").map(|e| e.expect("entry").path().join("src")).collect();
+    out.push(repo.join("integrations/bevy_snowpack/src"));
+    out.push(repo.join("integrations/bevy_snowpack/examples/multiplayer/src"));
+    out.retain(|d| d.is_dir());
+    out.sort();
+    out
+}
+
+#[test]
+fn no_crate_has_a_file_circle() {
+    let folders = crate_source_folders();
+    assert!(folders.len() >= 7, "only {} crate folders: the layout changed and this test must follow", folders.len());
+    let mut problems = Vec::new();
+    for folder in &folders {
+        let files = sources_in(folder);
+        problems.extend(file_circles(&files).into_iter().map(|p| format!("{}: {p}", folder.display())));
+    }
+    assert!(problems.is_empty(), "files that use each other in a circle (move what both need below them):\n{}", problems.join("\n"));
+}
+
+/// `files` in a test's own words, as a crate folder.
+fn folder(files: &[(&str, &str)]) -> Vec<(String, String)> {
+    files.iter().map(|&(f, t)| (f.to_owned(), t.to_owned())).collect()
+}
+
+#[test]
+fn a_planted_file_circle_is_reported() {
+    let lib = "mod snow;\n";
+    let snow = "mod coat;\nmod steps;\npub use steps::Steps;\npub struct Shared;\n";
+    // A child naming its parent's own item, and the parent re-exporting a child: nesting, not a circle.
+    let fine = folder(&[("lib.rs", lib), ("snow/mod.rs", snow), ("snow/coat.rs", "fn f(_: super::Shared) {}\n"), ("snow/steps.rs", "pub struct Steps;\n")]);
+    assert!(file_circles(&fine).is_empty(), "{:#?}", file_circles(&fine));
+    // Two files of one module using each other, one way through the parent's re-export.
+    let coat = "pub struct Coat;\nfn f(_: super::Steps) {}\n";
+    let steps = "use super::coat::Coat;\npub struct Steps(Coat);\n";
+    let circle = folder(&[("lib.rs", lib), ("snow/mod.rs", snow), ("snow/coat.rs", coat), ("snow/steps.rs", steps)]);
+    let found = file_circles(&circle);
+    assert_eq!(found.len(), 1, "{found:#?}");
+    assert!(
+        found[0].contains("snow/coat.rs → snow/steps.rs → snow/coat.rs") || found[0].contains("snow/steps.rs → snow/coat.rs → snow/steps.rs"),
+        "{}",
+        found[0]
+    );
+    assert!(
+        found[0].contains("src/snow/steps.rs:1: use super::coat::Coat;") && found[0].contains("src/snow/coat.rs:2: fn f(_: super::Steps) {}"),
+        "{}",
+        found[0]
+    );
+    // A binary's modules are its own crate: main.rs's files never meet lib.rs's.
+    let two = folder(&[
+        ("lib.rs", "pub mod a;\n"),
+        ("a.rs", "pub struct A;\n"),
+        ("main.rs", "mod b;\nmod c;\n"),
+        ("b.rs", "use crate::c::C;\npub struct B;\n"),
+        ("c.rs", "pub struct C;\n"),
+    ]);
+    assert!(file_circles(&two).is_empty());
+}
+
+#[test]
+fn the_real_tree_with_a_planted_file_circle_fails() {
+    let mut files = sources();
+    assert!(file_circles(&files).is_empty(), "the real tree must be clean before planting");
+    // The shader sources come to name the tile streamer, which names them: a circle through two files.
+    let shaders = files.iter_mut().find(|(f, _)| f == "shaders.rs").expect("src/shaders.rs");
+    shaders.1.push_str("\nfn planted() { let _ = crate::persist::TileStreamer::new; }\n");
+    let streamer = files.iter_mut().find(|(f, _)| f == "persist/streamer.rs").expect("src/persist/streamer.rs");
+    streamer.1.push_str("\nfn planted_back() { let _ = crate::shaders::UPDATE; }\n");
+    let found = file_circles(&files);
+    assert!(found.iter().any(|p| p.contains("src/shaders.rs") && p.contains("planted")), "{found:#?}");
+}
+
 /// Every `.rs` file of the repository's crates that is not a test: each root
 /// crate's `src/` and `examples/`, and the Bevy plugin's (its own workspace,
 /// read from here as files), by path from the repository's root.
@@ -885,4 +1109,109 @@ fn a_planted_long_function_is_reported() {
     // `->` in a signature do not count.
     let tricky = "trait T { fn f(&self) -> u8; }\nfn g<A: Fn() -> u8>(a: A) -> u8 {\n    // }\n    let s = \"}\";\n    a()\n}\n";
     assert_eq!(functions(&code_only(tricky)), [("g".to_owned(), 2, 6)]);
+}
+
+/// The crate root's re-exports by the feature that gates them (`""` for
+/// none): `pub use` lines of `lib.rs` outside any module, a
+/// `#[cfg(feature = "…")]` line before one naming its feature.
+fn root_exports(lib: &str) -> BTreeMap<String, BTreeSet<String>> {
+    let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut feature = String::new();
+    let code = lib.to_owned();
+    let mut lines = code.lines().map(str::trim);
+    while let Some(first) = lines.next() {
+        // A statement rustfmt wrapped over several lines, joined.
+        let mut line = first.to_owned();
+        while line.starts_with("pub use ") && !line.ends_with(';') {
+            let Some(more) = lines.next() else { break };
+            line.push(' ');
+            line.push_str(more);
+        }
+        let line = line.as_str();
+        if let Some(rest) = line.strip_prefix("#[cfg(feature = \"") {
+            feature = rest.split('"').next().unwrap_or_default().to_owned();
+            continue;
+        }
+        if let Some(tree) = line.strip_prefix("pub use ") {
+            let tree = tree.trim_end_matches(';');
+            let names = match tree.split_once('{') {
+                Some((_, group)) => group.trim_end_matches('}').split(',').map(|s| s.trim().to_owned()).collect::<Vec<_>>(),
+                None => vec![tree.rsplit("::").next().unwrap_or(tree).to_owned()],
+            };
+            out.entry(feature.clone()).or_default().extend(names.into_iter().filter(|n| !n.is_empty()).map(|n| n.rsplit("::").next().unwrap_or(&n).to_owned()));
+        }
+        if !line.starts_with('#') {
+            feature.clear();
+        }
+    }
+    out
+}
+
+/// The identifiers in backticks in `text` (a table cell): `SnowPeer`, not
+/// `kind()`, `low_level::error` or a feature's name.
+fn backticked_items(text: &str) -> BTreeSet<String> {
+    text.split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|w| !w.is_empty() && w.chars().all(|c| c.is_alphanumeric() || c == '_') && !w.starts_with(|c: char| c.is_ascii_digit()))
+        .filter(|w| !["low_level", "relay", "renderer"].contains(w))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The rows of the first table under `heading` in `markdown`: each row's cells.
+fn table_rows(markdown: &str, heading: &str) -> Vec<Vec<String>> {
+    let after = markdown.split_once(&format!("\n{heading}\n")).map_or("", |(_, rest)| rest);
+    after
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'))
+        .skip(2)
+        .map(|l| l.trim().trim_matches('|').split(" | ").map(|c| c.trim().to_owned()).collect())
+        .collect()
+}
+
+/// `docs/architecture.md`'s front door says what the root exports: its
+/// table is the root's re-exports without features, and the rows of its
+/// features table name what `renderer` and `relay` add and every root item
+/// that only `low_level` adds.
+#[test]
+fn the_front_door_table_is_the_roots_exports() {
+    let lib = std::fs::read_to_string(src().join("lib.rs")).expect("src/lib.rs");
+    let exports = root_exports(&lib);
+    assert!(exports.get("").is_some_and(|e| e.contains("SnowDeformation")), "the root's re-exports were not read: {exports:?}");
+    let table: BTreeSet<String> =
+        table_rows(ARCHITECTURE, "## The front door").iter().filter_map(|row| row.get(1)).flat_map(|cell| backticked_items(cell)).collect();
+    let root = &exports[""];
+    let missing: Vec<&String> = root.difference(&table).collect();
+    let extra: Vec<&String> = table.difference(root).collect();
+    assert!(
+        missing.is_empty() && extra.is_empty(),
+        "docs/architecture.md's front-door table: exported at the root but not listed {missing:?}; listed but not exported without features {extra:?}"
+    );
+    let rows = feature_rows();
+    for feature in ["renderer", "relay"] {
+        let listed = backticked_items(rows.get(feature).unwrap_or_else(|| panic!("no `{feature}` row in the features table")));
+        let exported = exports.get(feature).cloned().unwrap_or_default();
+        assert_eq!(listed, exported, "docs/architecture.md's `{feature}` row against the root's `#[cfg(feature = \"{feature}\")]` re-exports");
+    }
+    let low_level = backticked_items(rows.get("low_level").expect("a `low_level` row"));
+    let unlisted: Vec<&String> = exports.get("low_level").into_iter().flatten().filter(|n| !low_level.contains(*n)).collect();
+    assert!(unlisted.is_empty(), "root items only `low_level` exports that its row does not name: {unlisted:?}");
+}
+
+/// The features table under the front door: feature name → what it adds.
+fn feature_rows() -> BTreeMap<String, String> {
+    let section = ARCHITECTURE.split_once("\n## The front door\n").map_or("", |(_, rest)| rest);
+    let features = section.split_once("\nFeatures:\n").map_or("", |(_, rest)| rest);
+    features
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'))
+        .skip(2)
+        .filter_map(|l| {
+            let cells: Vec<&str> = l.trim().trim_matches('|').split(" | ").map(str::trim).collect();
+            Some((cells.first()?.trim_matches('`').to_owned(), (*cells.get(1)?).to_owned()))
+        })
+        .collect()
 }

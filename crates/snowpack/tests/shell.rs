@@ -7,7 +7,7 @@ use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
 use snowpack::low_level::cpu;
-use snowpack::low_level::deform::window::TerrainParams;
+use snowpack::low_level::deform::resources::TerrainParams;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;

@@ -20,7 +20,7 @@ use bevy::shader::{Shader, ShaderRef};
 use snowpack::{CoatSettings, GpuContext, SkinnedId, SnowDeformation};
 
 use crate::SnowSystems;
-use crate::systems::{FromRender, ToMainWorld};
+use crate::from_render::{FromRender, ToMainWorld};
 
 /// How a mesh deformer's meshes gather and lose snow: put it on the
 /// [`SnowDeformer::Mesh`](crate::SnowDeformer) entity (the library's defaults
@@ -117,7 +117,7 @@ pub(crate) fn build(app: &mut App) {
         .register_type::<SnowCoat>()
         .register_type::<SnowCoatLook>()
         .init_resource::<ArrivedCoats>()
-        .add_systems(PreUpdate, apply_coats.in_set(SnowSystems::Receive).after(crate::systems::receive_from_render))
+        .add_systems(PreUpdate, apply_coats.in_set(SnowSystems::Receive).after(crate::systems::Delivered))
         .add_systems(PostUpdate, swap_materials.in_set(SnowSystems::Gather));
 }
 

@@ -137,7 +137,7 @@ impl SnowControl {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_systems(PreUpdate, announce_results.in_set(SnowSystems::Receive).after(crate::systems::receive_from_render));
+    app.add_systems(PreUpdate, announce_results.in_set(SnowSystems::Receive).after(crate::systems::Delivered));
 }
 
 /// Triggers the events of the results that arrived since the last frame.

@@ -85,7 +85,7 @@ impl SnowWheel {
     /// `hardness_kpa` (see [`crate::SnowResistance`]).
     #[must_use]
     pub fn sinkage_m(&self, depth_m: f32, hardness_kpa: f32) -> f32 {
-        crate::resistance::wheel_sinkage_m(self.load_kg, self.radius_m, self.width_m, depth_m, hardness_kpa)
+        crate::sinkage::wheel_sinkage_m(self.load_kg, self.radius_m, self.width_m, depth_m, hardness_kpa)
     }
 }
 

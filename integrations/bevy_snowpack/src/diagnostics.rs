@@ -22,7 +22,7 @@ use bevy::render::{Render, RenderApp, RenderSystems};
 #[cfg(feature = "multiplayer")]
 use crate::SnowSharing;
 use crate::SnowSystems;
-use crate::render::SnowRenderState;
+use crate::render_state::SnowRenderState;
 
 /// Adds the snow's diagnostics (after [`crate::SnowpackPlugin`]):
 ///

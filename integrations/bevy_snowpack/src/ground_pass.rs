@@ -15,7 +15,7 @@ use bevy::render::view::{ExtractedView, Msaa, ViewDepthStencilTexture, ViewTarge
 use bevy::render::{RenderApp, sync_world::MainEntity};
 use snowpack::{GroundCamera, SnowGround, SnowGroundDescriptor};
 
-use crate::render::SnowRenderState;
+use crate::render_state::SnowRenderState;
 
 /// Draw snowpack's own snow ground in this camera's main pass.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, ExtractComponent)]

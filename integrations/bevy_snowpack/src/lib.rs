@@ -53,6 +53,8 @@ mod diagnostics;
 #[cfg(feature = "render")]
 mod footsteps;
 #[cfg(feature = "render")]
+mod from_render;
+#[cfg(feature = "render")]
 mod ground;
 #[cfg(feature = "render")]
 mod ground_pass;
@@ -63,13 +65,19 @@ mod mesh_deformer;
 #[cfg(feature = "render")]
 mod query;
 #[cfg(feature = "render")]
+mod receive;
+#[cfg(feature = "render")]
 mod render;
+#[cfg(feature = "render")]
+mod render_state;
 #[cfg(feature = "server")]
 mod replication;
 #[cfg(feature = "render")]
 mod resistance;
 #[cfg(feature = "render")]
 mod settings;
+#[cfg(feature = "render")]
+mod sinkage;
 #[cfg(feature = "render")]
 mod systems;
 #[cfg(feature = "render")]
@@ -112,7 +120,7 @@ pub use material_extension::{SnowCoverBindings, SnowCoverExtension, SnowCoverMat
 #[cfg(feature = "render")]
 pub use query::{SnowAnswered, SnowAnswers, SnowQuery, SnowTicket};
 #[cfg(feature = "render")]
-pub use render::SnowRenderState;
+pub use render_state::SnowRenderState;
 #[cfg(feature = "multiplayer")]
 pub use replication::SnowSharing;
 #[cfg(feature = "server")]
@@ -473,9 +481,9 @@ impl Plugin for SnowpackPlugin {
         app.insert_resource(self.settings.clone())
             .init_resource::<SnowQuery>()
             .init_resource::<SnowControl>()
-            .insert_resource(systems::FromRenderWorld::new(from_render));
+            .insert_resource(from_render::FromRenderWorld::new(from_render));
         register_types(app);
-        systems::build(app);
+        receive::build(app);
         settings::build(app);
         footsteps::build(app);
         ground::build(app);
@@ -490,7 +498,7 @@ impl Plugin for SnowpackPlugin {
         terrain_asset::build(app);
         world_switch::build(app);
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
-            render::build(render_app, self.settings.clone(), systems::ToMainWorld(to_main));
+            render::build(render_app, self.settings.clone(), from_render::ToMainWorld(to_main));
         }
     }
 }

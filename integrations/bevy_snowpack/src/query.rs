@@ -116,7 +116,7 @@ impl SnowQuery {
 }
 
 pub(crate) fn build(app: &mut App) {
-    app.add_systems(PreUpdate, announce_answers.in_set(SnowSystems::Receive).after(crate::systems::receive_from_render));
+    app.add_systems(PreUpdate, announce_answers.in_set(SnowSystems::Receive).after(crate::systems::Delivered));
 }
 
 /// Triggers a [`SnowAnswered`] for each announced answer that arrived.

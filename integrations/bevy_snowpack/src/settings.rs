@@ -8,7 +8,7 @@ use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 
-use crate::render::SnowRenderState;
+use crate::render_state::SnowRenderState;
 use crate::{SnowpackSettings, dvec2};
 
 impl ExtractResource<RenderApp> for SnowpackSettings {

@@ -11,9 +11,9 @@
 use bevy::prelude::*;
 use snowpack::GpuContext;
 
-use crate::render::{SnowRenderState, create_world};
+use crate::from_render::ToMainWorld;
+use crate::render_state::{SnowRenderState, create_world};
 use crate::settings::AppliedSettings;
-use crate::systems::ToMainWorld;
 use crate::{SnowCoverMaterial, SnowGroundMaterial, SnowpackSettings};
 
 /// The settings that differ between two configurations of the snow and
@@ -75,7 +75,8 @@ pub(crate) fn switch_world(world: &mut World) {
             }
         }
     };
-    state.insert_into(world, settings);
+    state.insert_into(world);
+    world.insert_resource(AppliedSettings(settings));
 }
 
 /// Another context over the same device and queue (the library's contexts are not `Clone`).

@@ -51,6 +51,13 @@ impl OcclusionParams {
         Self { extent_m, y0_m, low_m, high_m, shear: shear.to_array(), offset_m: offset_m.to_array() }
     }
 
+    /// The sky test of this projection, as the passes that read the
+    /// occlusion depth carry it in their uniforms.
+    #[must_use]
+    pub fn sky_test(&self) -> crate::height_depth::SkyTest {
+        crate::height_depth::SkyTest { shear: self.shear, offset_m: self.offset_m, y0_m: self.y0_m, low_m: self.low_m, high_m: self.high_m, _pad: 0 }
+    }
+
     /// Window-local (x, z) where the flake through window-local point `p` meets the plane, and its depth.
     #[must_use]
     pub fn project(&self, p: Vec3) -> (Vec2, f32) {

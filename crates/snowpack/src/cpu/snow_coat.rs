@@ -7,8 +7,6 @@ use crate::skin::coat::SnowCoatParams;
 
 use super::window::storage_index;
 
-const SKY_BIAS_M: f32 = 0.02;
-
 fn lerp2(a: Vec2, b: Vec2, c: Vec2, d: Vec2, f: Vec2) -> Vec2 {
     let ab = a + (b - a) * f.x;
     let cd = c + (d - c) * f.x;
@@ -51,15 +49,7 @@ fn height_at(p: &SnowCoatParams, g: &CoatGroundData<'_>, q: Vec2) -> Vec2 {
 
 fn sky_reaches(p: &SnowCoatParams, g: &CoatGroundData<'_>, q0: Vec2, h: f32) -> f32 {
     let Some(sky) = g.sky.filter(|_| p.use_sky != 0) else { return 1.0 };
-    let q = q0 + Vec2::from(p.sky_shear) * (h - p.sky_y0_m) + Vec2::from(p.sky_offset_m);
-    let pix = (q / p.texel_m).floor();
-    let r = p.resolution as f32;
-    if pix.x < 0.0 || pix.y < 0.0 || pix.x >= r || pix.y >= r {
-        return 1.0;
-    }
-    let seen = sky[pix.y as usize * p.resolution as usize + pix.x as usize];
-    let here = (p.sky_high_m - (h + SKY_BIAS_M)) / (p.sky_high_m - p.sky_low_m);
-    if here <= seen { 1.0 } else { 0.0 }
+    p.sky.reaches(q0.to_array(), h, p.texel_m, p.resolution, sky)
 }
 
 /// The coat `snow_coat.wgsl` leaves on each vertex, from `coat` before the

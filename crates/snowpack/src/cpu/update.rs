@@ -6,23 +6,11 @@ use crate::deform::update::UpdateParams;
 use super::stamp::{STAMP_EMPTY, height};
 use super::window::storage_index;
 
-/// Below the surface the occlusion saw by less than this, a texel still counts as seen (m).
-const SKY_BIAS_M: f32 = 0.02;
-
 /// 1 where the sky reaches window-local texel (i, j) whose surface is at `h`,
-/// by the window-local occlusion depth `sky`.
+/// by the window-local occlusion depth `sky` (`SkyTest::reaches`).
 #[must_use]
 pub fn sky_visible(p: &UpdateParams, sky: &[f32], i: u32, j: u32, h: f32) -> f32 {
-    let x = (j as f32 + 0.5) * p.texel_m + p.sky_shear[0] * (h - p.sky_y0_m) + p.sky_offset_m[0];
-    let z = (i as f32 + 0.5) * p.texel_m + p.sky_shear[1] * (h - p.sky_y0_m) + p.sky_offset_m[1];
-    let (px, pz) = ((x / p.texel_m).floor(), (z / p.texel_m).floor());
-    let r = p.resolution as f32;
-    if px < 0.0 || pz < 0.0 || px >= r || pz >= r {
-        return 1.0;
-    }
-    let seen = sky[(pz as u32 * p.resolution + px as u32) as usize];
-    let here = (p.sky_high_m - (h + SKY_BIAS_M)) / (p.sky_high_m - p.sky_low_m);
-    if here <= seen { 1.0 } else { 0.0 }
+    p.sky.reaches([(j as f32 + 0.5) * p.texel_m, (i as f32 + 0.5) * p.texel_m], h, p.texel_m, p.resolution, sky)
 }
 
 /// The update's inputs besides its parameters: window-local capture and

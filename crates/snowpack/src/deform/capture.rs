@@ -175,7 +175,7 @@ impl CaptureInstances {
                     use super::wheel;
                     let now = (local(center), axle, roll_m);
                     // From `then` in `steps` sub-steps (see `wheel_poses`), or `now` alone.
-                    let (then, steps) = match prev.as_ref().and_then(wheel::pose) {
+                    let (then, steps) = match prev.as_ref().and_then(Deformer::wheel_pose) {
                         Some((c, a, roll)) => {
                             let then = (local(c), a, roll);
                             (then, super::sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), params.texel_m))

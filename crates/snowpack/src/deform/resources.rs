@@ -13,12 +13,13 @@
 //! used from the displayed heights. The terrain is evaluated from its
 //! source, never stored per texel.
 
+use bytemuck::{Pod, Zeroable};
+
 use crate::gpu::layout;
 use crate::height_depth::height_depth_texture;
 use crate::{SnowParams, TerrainSource};
 
 use super::terrain_bake::TerrainBakePass;
-use super::window::TerrainParams;
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {
@@ -184,5 +185,50 @@ impl DeformResources {
     pub fn memory_total(&self) -> u64 {
         let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         self.snow.size() + self.stamps.size() + self.fallen.size() + self.heightmap.size() + depth + self.share_flags.size()
+    }
+}
+
+/// Uniforms of `shared/terrain.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct TerrainParams {
+    /// 0 flat, 1 noise, 2 heightmap.
+    pub kind: u32,
+    /// Noise seed.
+    pub seed: u32,
+    /// Flat height or noise base (m).
+    pub base_m: f32,
+    /// Noise amplitude (m).
+    pub amplitude_m: f32,
+    /// Noise wavelength (m).
+    pub wavelength_m: f32,
+    /// Heightmap pixels per row.
+    pub hm_width: u32,
+    /// Heightmap rows.
+    pub hm_height: u32,
+    /// Padding.
+    pub _pad: u32,
+    /// Heightmap centre (x, z) in world metres.
+    pub hm_center_m: [f32; 2],
+    /// Heightmap size (x, z) in metres.
+    pub hm_size_m: [f32; 2],
+}
+
+impl TerrainParams {
+    /// Uniforms describing `terrain` (heightmap samples go in a separate buffer).
+    #[must_use]
+    pub fn new(terrain: &crate::TerrainSource) -> Self {
+        use crate::TerrainSource as T;
+        match terrain {
+            T::Flat { height_m } => Self { kind: 0, base_m: *height_m, ..Self::default() },
+            T::Noise(n) => Self { kind: 1, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, wavelength_m: n.wavelength_m, ..Self::default() },
+            T::Heightmap(h) => Self::heightmap(h),
+            // The mesh is drawn into a grid on the GPU and sampled like a heightmap.
+            T::Mesh(m) => Self::heightmap(&m.grid),
+        }
+    }
+
+    fn heightmap(h: &crate::HeightmapTerrain) -> Self {
+        Self { kind: 2, hm_width: h.width(), hm_height: h.height(), hm_center_m: h.center_m(), hm_size_m: h.size_m(), ..Self::default() }
     }
 }

@@ -54,6 +54,17 @@ pub enum Deformer {
 }
 
 impl Deformer {
+    /// The pose of a wheel (centre, axle, roll); `None` for other shapes.
+    /// Here rather than in `wheel.rs`, which knows wheels but not the
+    /// deformer kinds (a circle of files otherwise).
+    #[must_use]
+    pub(crate) fn wheel_pose(&self) -> Option<super::wheel::WheelPose> {
+        match *self {
+            Self::Wheel { center, axle, roll_m, .. } => Some((center, axle, roll_m)),
+            _ => None,
+        }
+    }
+
     low_level_pub! {
         /// World-space model matrix of a box (unit cube from -1 to 1 scaled by the half extents).
         #[must_use]

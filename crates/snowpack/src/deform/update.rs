@@ -6,7 +6,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::gpu::specialised::SpecialisedPipeline;
-use crate::height_depth::sky_depth_texture;
+use crate::height_depth::{SkyTest, sky_depth_texture};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -39,18 +39,8 @@ pub struct UpdateParams {
     pub max_fallen_m: f32,
     /// Texel size (m), the occlusion map's too.
     pub texel_m: f32,
-    /// The occlusion's shear, `d.xz / -d.y` ([`crate::accumulate::OcclusionParams`]).
-    pub sky_shear: [f32; 2],
-    /// The occlusion's jitter (m).
-    pub sky_offset_m: [f32; 2],
-    /// Height of the occlusion's projection plane (m).
-    pub sky_y0_m: f32,
-    /// Height at occlusion depth 1 (m).
-    pub sky_low_m: f32,
-    /// Height at occlusion depth 0 (m).
-    pub sky_high_m: f32,
-    /// Padding to the 8-byte alignment of `storage_origin`.
-    pub _pad: u32,
+    /// The sky test against the objects' occlusion depth (with [`Self::USE_SKY`]).
+    pub sky: SkyTest,
     /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
     /// [`UpdatePass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.

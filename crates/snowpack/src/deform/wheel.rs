@@ -1,4 +1,4 @@
-//! Wheels ([`Deformer::Wheel`]): a tyre with a tread, rolling about its axle.
+//! Wheels ([`crate::Deformer::Wheel`]): a tyre with a tread, rolling about its axle.
 //!
 //! The tyre is a cylinder of the outer radius `r` (lugs included) and width
 //! `2 half_width` around the axle; the tread is a pattern over its surface in
@@ -22,8 +22,6 @@
 //! [`super::sweep::SWEEP_STEP_TEXELS`] texels between them.
 
 use glam::Vec3;
-
-use crate::Deformer;
 
 /// The procedural tread patterns.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -164,15 +162,6 @@ pub fn instance(center_local: Vec3, axle: Vec3, radius: f32, half_width: f32, tr
         0.0,
         0.0,
     ]
-}
-
-/// The pose of a wheel deformer; `None` for other shapes.
-#[must_use]
-pub fn pose(d: &Deformer) -> Option<WheelPose> {
-    match *d {
-        Deformer::Wheel { center, axle, roll_m, .. } => Some((center, axle, roll_m)),
-        _ => None,
-    }
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
 use crate::gpu::specialised::SpecialisedPipeline;
+use crate::height_depth::SkyTest;
 use crate::shaders;
 
 use super::skinning::SkinnedInstance;
@@ -102,18 +103,8 @@ pub struct SnowCoatParams {
     pub has_previous: u32,
     /// A vertex that moved farther in one frame jumped (no shaking).
     pub teleport_m: f32,
-    /// Occlusion projection (see `accumulate::OcclusionParams`).
-    pub sky_shear: [f32; 2],
-    /// Occlusion jitter (m).
-    pub sky_offset_m: [f32; 2],
-    /// Occlusion plane height (m).
-    pub sky_y0_m: f32,
-    /// Height at occlusion depth 1 (m).
-    pub sky_low_m: f32,
-    /// Height at occlusion depth 0 (m).
-    pub sky_high_m: f32,
-    /// Padding to 16 bytes.
-    pub _pad: u32,
+    /// The sky test against the objects' occlusion depth (with `use_sky`).
+    pub sky: SkyTest,
 }
 
 impl SnowCoatParams {

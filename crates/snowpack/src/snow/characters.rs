@@ -9,23 +9,12 @@ use crate::frame::FrameContext;
 use crate::gpu::GpuContext;
 use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
 
-use super::SnowFrame;
+use super::coat::Coats;
+use super::core_window::CoreWindow;
+use super::skinned::SkinnedId;
+use super::snow_frame::SnowFrame;
+use super::steps::GroundAfter;
 use super::sweep::{MeshHistory, MeshKey};
-
-/// A skinned mesh registered with [`super::SnowDeformation::add_skinned_mesh`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SkinnedId(pub(super) usize);
-
-/// One character's pose for a frame: which mesh, its joint matrices and its placement.
-#[derive(Clone, Copy, Debug)]
-pub struct SkinnedPose<'a> {
-    /// The registered mesh.
-    pub mesh: SkinnedId,
-    /// Skinning matrix of each joint (`crate::skin::Skeleton::joint_matrices`).
-    pub joints: &'a [glam::Mat4],
-    /// Position, heading and scale in the world.
-    pub model: glam::Mat4,
-}
 
 /// The skinned meshes, their skinning pass and every pressing mesh's history.
 pub(super) struct Characters {
@@ -39,7 +28,7 @@ pub(super) struct Characters {
     /// caller's), kept for its memory.
     steps: Vec<u32>,
     /// The snow the characters carry ([`super::coat`]).
-    pub(super) coats: super::coat::Coats,
+    pub(super) coats: Coats,
 }
 
 impl Characters {
@@ -51,8 +40,13 @@ impl Characters {
             posed: Vec::new(),
             history: MeshHistory::default(),
             steps: Vec::new(),
-            coats: super::coat::Coats::new(device, terrain_constants),
+            coats: Coats::new(device, terrain_constants),
         }
+    }
+
+    /// Records the coat pass of every character posed this frame ([`super::coat`]).
+    pub(super) fn record_coats(&mut self, cx: &mut FrameContext<'_>, core: &CoreWindow, sky: Option<&wgpu::TextureView>, ground: GroundAfter, dt_s: f32) {
+        self.coats.record(cx, core, sky, ground, dt_s, (&self.posed, &self.skinned));
     }
 
     /// Uploads a skinned mesh (a character's); `joint_count` is its skin's.

@@ -1,18 +1,18 @@
 //! The snow characters carry, part of the characters plug-in
-//! ([`super::characters`]): the coat pass of each posed character after the
-//! frame's steps ([`crate::skin::coat`]), its settings per skinned mesh, and
-//! reading it back.
+//! ([`super::characters`], which holds the [`Coats`]): the coat pass of each
+//! posed character after the frame's steps ([`crate::skin::coat`]) and its
+//! settings per skinned mesh. The game's calls (`set_coat`, `coat_buffer`)
+//! are [`super::SnowDeformation`]'s.
 
 use crate::accumulate::OcclusionParams;
 use crate::error::SnowError;
 use crate::frame::FrameContext;
-use crate::gpu::GpuContext;
-use crate::height_depth::sky_depth_texture;
+use crate::height_depth::{SkyTest, sky_depth_texture};
 use crate::skin::coat::{CoatGround, CoatSettings, SnowCoatParams, SnowCoatPass};
+use crate::skin::skinning::SkinnedInstance;
 
-use super::characters::{Characters, SkinnedId};
 use super::core_window::CoreWindow;
-use super::deformation::SnowDeformation;
+use super::skinned::SkinnedId;
 use super::steps::GroundAfter;
 
 /// The coats' state: the pass, each skinned mesh's settings and whether it
@@ -59,67 +59,47 @@ fn frame_params(core: &CoreWindow, ground: &GroundAfter, sky_bound: bool, dt_s: 
         use_sky: u32::from(sky.is_some()),
         // A vertex that moved farther than a teleport in one frame jumped.
         teleport_m: if p.teleport_m > 0.0 { p.teleport_m } else { f32::INFINITY },
-        sky_shear: sky.map_or([0.0; 2], |s| s.shear),
-        sky_offset_m: sky.map_or([0.0; 2], |s| s.offset_m),
-        sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
-        sky_low_m: sky.map_or(0.0, |s| s.low_m),
-        sky_high_m: sky.map_or(1.0, |s| s.high_m),
+        sky: sky.map_or(SkyTest::NONE, |s| s.sky_test()),
         ..SnowCoatParams::default()
     }
 }
 
-impl Characters {
-    /// Records the coat pass of every character posed this frame, against
-    /// the ground the frame's steps left (`sky`: the objects' occlusion map).
-    pub(super) fn record_coats(&mut self, cx: &mut FrameContext<'_>, core: &CoreWindow, sky: Option<&wgpu::TextureView>, ground: GroundAfter, dt_s: f32) {
+impl Coats {
+    /// Records the coat pass of every character posed this frame (`posed`:
+    /// indices into `skinned`, the characters' instances), against the ground the frame's steps left
+    /// (`sky`: the objects' occlusion map).
+    pub(super) fn record(
+        &mut self,
+        cx: &mut FrameContext<'_>,
+        core: &CoreWindow,
+        sky: Option<&wgpu::TextureView>,
+        ground: GroundAfter,
+        dt_s: f32,
+        (posed, skinned): (&[usize], &[SkinnedInstance]),
+    ) {
         let sky_view = sky.filter(|_| ground.sky.is_some());
         let bound = CoatGround {
             heightmap: &core.res.heightmap,
             snow: &core.res.snow,
             fallen: &core.res.fallen,
             terrain_params: &core.res.terrain_params,
-            sky: sky_view.unwrap_or(&self.coats.no_sky),
+            sky: sky_view.unwrap_or(&self.no_sky),
         };
         let base = frame_params(core, &ground, sky_view.is_some(), dt_s);
-        self.coats.pass.reserve(cx.device(), self.posed.len());
-        for (slot, &k) in self.posed.iter().enumerate() {
-            let Some(instance) = self.skinned.get(k) else { continue };
-            let params = SnowCoatParams { has_previous: u32::from(self.coats.posed_before[k]), ..base.with_settings(&self.coats.settings[k]) };
-            self.coats.pass.record(cx, slot, instance, bound, &params);
-            self.coats.posed_before[k] = true;
+        self.pass.reserve(cx.device(), posed.len());
+        for (slot, &k) in posed.iter().enumerate() {
+            let Some(instance) = skinned.get(k) else { continue };
+            let params = SnowCoatParams { has_previous: u32::from(self.posed_before[k]), ..base.with_settings(&self.settings[k]) };
+            self.pass.record(cx, slot, instance, bound, &params);
+            self.posed_before[k] = true;
         }
     }
-}
 
-impl SnowDeformation {
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
-    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), crate::SnowError> {
+    pub(super) fn set(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), SnowError> {
         settings.validate()?;
-        let slot = self
-            .characters
-            .coats
-            .settings
-            .get_mut(id.0)
-            .ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
+        let slot = self.settings.get_mut(id.0).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
         *slot = settings;
         Ok(())
-    }
-
-    /// The snow on skinned mesh `id`'s vertices: one `f32` a vertex (m), in
-    /// the mesh's vertex order, usable as `STORAGE` and `VERTEX`. A character
-    /// material binds it as a per-vertex attribute (`docs/rendering.md`,
-    /// "Snow on characters"); [`Self::encode`] updates it for posed meshes.
-    #[must_use]
-    pub fn coat_buffer(&self, id: SkinnedId) -> Option<&wgpu::Buffer> {
-        self.characters.skinned.get(id.0).map(|s| &s.coat)
-    }
-
-    low_level_pub! {
-        /// Reads skinned mesh `id`'s coat back (m a vertex); blocks until the GPU is done.
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
-            let buffer = self.coat_buffer(id).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
-            Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, buffer)?))
-        }
     }
 }

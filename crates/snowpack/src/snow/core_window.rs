@@ -19,6 +19,7 @@ use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::GpuContext;
+use crate::height_depth::SkyTest;
 use crate::replicate::flags::ShareGrid;
 use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
@@ -288,11 +289,7 @@ impl CoreWindow {
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
             texel_m: p.texel_m(),
-            sky_shear: sky.map_or([0.0; 2], |s| s.shear),
-            sky_offset_m: sky.map_or([0.0; 2], |s| s.offset_m),
-            sky_y0_m: sky.map_or(0.0, |s| s.y0_m),
-            sky_low_m: sky.map_or(0.0, |s| s.low_m),
-            sky_high_m: sky.map_or(1.0, |s| s.high_m),
+            sky: sky.map_or(SkyTest::NONE, |s| s.sky_test()),
             share_side: share.map_or(0, |g| g.side),
             share_keys: share.map_or(0, |g| g.keys),
             ..Default::default()

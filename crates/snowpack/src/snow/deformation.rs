@@ -7,7 +7,6 @@ use glam::DVec2;
 
 use crate::RimStyle;
 use crate::accumulate::SnowAccumulation;
-use crate::deform::capture::CaptureMesh;
 use crate::deform::params::RANGE_TEXELS;
 use crate::deform::query::{PointAnswers, QueryStats, QueryTicket};
 use crate::error::SnowError;
@@ -15,14 +14,17 @@ use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings};
 use crate::persist::SnowClock;
 use crate::replicate::sharing::Sharing;
+use crate::skin::coat::CoatSettings;
 use crate::skin::skinning::{SkinnedInstance, SkinnedMesh};
 use crate::snowfall::Snowfall;
 use crate::tiles::TileStreaming;
 use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
-use super::characters::{Characters, SkinnedId, SkinnedPose};
+use super::characters::Characters;
 use super::clock::SnowTime;
 use super::core_window::CoreWindow;
+use super::skinned::SkinnedId;
+use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
 
 /// A deformation window and the passes that update it.
@@ -75,95 +77,6 @@ pub struct SnowDeformation {
     peak_memory_bytes: u64,
 }
 
-low_level_fields! {
-    /// What presses the snow in one frame: the input of [`SnowDeformation::encode`].
-    #[derive(Clone, Copy, Debug, Default)]
-    pub struct SnowFrame<'a> {
-        /// Seconds since the last frame (refill and snowfall advance by it).
-        dt_s: f32,
-        /// Spheres, boxes and contact points.
-        deformers: &'a [Deformer],
-        /// Characters: registered skinned meshes in this frame's pose.
-        poses: &'a [SkinnedPose<'a>],
-        /// World-space triangle meshes the caller has already posed this frame
-        /// (recorded into the same encoder before [`SnowDeformation::encode`]).
-        meshes: &'a [CaptureMesh<'a>],
-        /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
-        /// upper bound: mesh k is swept over that motion when it has one here,
-        /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
-        /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
-        /// pose presses.
-        mesh_travel_m: &'a [f32],
-        /// A stable id per deformer (the same body has the same id every frame),
-        /// to find each one's last pose when the list's length or order changes
-        /// ([`Self::with_ids`]); empty (or of another length): deformer k is
-        /// the same body as last frame's deformer k.
-        ids: &'a [u64],
-        /// Points (x, z relative to the floating origin, like deformers) to
-        /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
-        /// `None`: nothing asked.
-        queries: Option<&'a [glam::Vec2]>,
-    }
-}
-
-impl<'a> SnowFrame<'a> {
-    /// A frame of `dt_s` seconds with `deformers` and nothing else.
-    #[must_use]
-    pub fn new(dt_s: f32, deformers: &'a [Deformer]) -> Self {
-        Self { dt_s, deformers, poses: &[], meshes: &[], mesh_travel_m: &[], ids: &[], queries: None }
-    }
-
-    /// The same frame with characters in pose.
-    #[must_use]
-    pub fn with_poses(mut self, poses: &'a [SkinnedPose<'a>]) -> Self {
-        self.poses = poses;
-        self
-    }
-
-    /// The same frame with caller-posed meshes.
-    #[must_use]
-    pub fn with_meshes(mut self, meshes: &'a [CaptureMesh<'a>]) -> Self {
-        self.meshes = meshes;
-        self
-    }
-
-    /// The same frame with the motion of each caller mesh since the last
-    /// frame, so they are swept: `travel_m[k]` is how far (m) any vertex of
-    /// mesh k moved, an upper bound. Mesh k is swept over that motion when
-    /// it has one here, its vertex buffer has `COPY_SRC` usage and it had as
-    /// many vertices last frame; otherwise only its current pose presses.
-    #[must_use]
-    pub fn with_mesh_travel(mut self, travel_m: &'a [f32]) -> Self {
-        self.mesh_travel_m = travel_m;
-        self
-    }
-
-    /// The same frame with a stable id per deformer (the same body has the
-    /// same id every frame), so each is swept from its own last pose when
-    /// the list's length or order changes (see `crate::deform::sweep`).
-    /// Without ids (or with another number of them), deformer k is the
-    /// same body as last frame's deformer k.
-    #[must_use]
-    pub fn with_ids(mut self, ids: &'a [u64]) -> Self {
-        self.ids = ids;
-        self
-    }
-
-    /// The same frame asking for the snow at `points` (world x, z relative
-    /// to the floating origin, like deformers) as this frame leaves it.
-    /// [`SnowDeformation::encode`] returns the request's ticket; the
-    /// answer, tagged with it, arrives a frame or two later in
-    /// [`SnowDeformation::point_answers`], and a frame never waits for it.
-    /// If the GPU is so far behind that every staging buffer is in flight,
-    /// the request is dropped and counted (`query_stats`, with `low_level`): ask
-    /// again (games ask every frame).
-    #[must_use]
-    pub fn with_queries(mut self, points: &'a [glam::Vec2]) -> Self {
-        self.queries = Some(points);
-        self
-    }
-}
-
 impl SnowDeformation {
     /// Allocates a window of `params` over `terrain`, centred on world (x, z).
     pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, crate::SnowError> {
@@ -212,7 +125,7 @@ impl SnowDeformation {
     fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
         let core = CoreWindow::new(ctx, params, terrain, center);
         let tiles = match core.params.tile_memory_bytes {
-            Some(budget) => super::store::keep_in_memory(ctx, &core.res, &core.params, budget)?,
+            Some(budget) => TileStreaming::keep_in_memory(ctx, &core.res, &core.params, budget)?,
             None => None,
         };
         Ok(Self {
@@ -416,6 +329,29 @@ impl SnowDeformation {
     #[must_use]
     pub fn exposed_texels(&self) -> u64 {
         self.core.exposed_texels
+    }
+
+    /// Sets how skinned mesh `id`'s character gathers and loses snow.
+    pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), crate::SnowError> {
+        Ok(self.characters.coats.set(id, settings)?)
+    }
+
+    /// The snow on skinned mesh `id`'s vertices: one `f32` a vertex (m), in
+    /// the mesh's vertex order, usable as `STORAGE` and `VERTEX`. A character
+    /// material binds it as a per-vertex attribute (`docs/rendering.md`,
+    /// "Snow on characters"); [`Self::encode`] updates it for posed meshes.
+    #[must_use]
+    pub fn coat_buffer(&self, id: SkinnedId) -> Option<&wgpu::Buffer> {
+        self.characters.skinned.get(id.0).map(|s| &s.coat)
+    }
+
+    low_level_pub! {
+        /// Reads skinned mesh `id`'s coat back (m a vertex); blocks until the GPU is done.
+        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
+        fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
+            let buffer = self.coat_buffer(id).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
+            Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, buffer)?))
+        }
     }
 
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];

@@ -18,9 +18,12 @@ pub mod objects;
 pub mod reads;
 pub mod saved;
 pub mod share;
+pub mod skinned;
+pub mod snow_frame;
 pub mod steps;
 pub mod store;
 pub mod sweep;
 
-pub use characters::{SkinnedId, SkinnedPose};
-pub use deformation::{SnowDeformation, SnowFrame};
+pub use deformation::SnowDeformation;
+pub use skinned::{SkinnedId, SkinnedPose};
+pub use snow_frame::SnowFrame;

@@ -17,9 +17,9 @@ use crate::replicate::merge::{FrameRecord, TileMergeParams};
 use crate::replicate::sharing::Sharing;
 use crate::tiles::TileStreaming;
 
-use super::SnowFrame;
 use super::clock::{FrameRefill, SnowTime};
 use super::core_window::CoreWindow;
+use super::snow_frame::SnowFrame;
 
 /// What the frame's steps leave for the characters' snow
 /// ([`super::coat`]): where the window is, this frame's snowfall and the

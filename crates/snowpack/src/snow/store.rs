@@ -4,44 +4,22 @@
 //! snow into that store. Its frame steps (the move, the weather) are in
 //! [`super::steps`].
 
-use crate::SnowParams;
-use crate::deform::params::default_tile_texels;
-use crate::deform::resources::DeformResources;
 use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::error::SnowError;
 use crate::gpu::GpuContext;
-use crate::persist::{StoreError, StreamerConfig, TileStreamer};
-use crate::tiles::streaming::planes;
-use crate::tiles::{TileGrid, TileStats, TileStreaming};
+use crate::persist::{StoreError, TileStreamer};
+use crate::tiles::{TileStats, TileStreaming};
 
 use super::SnowDeformation;
 use super::clock::RefillBase;
 use super::saved::{STATE_NAME, SavedWindow};
-
-/// The default tile keeper: tiles of [`default_tile_texels`] kept in memory
-/// up to `budget` bytes. `None` (with a warning) where the resident ring
-/// would not fit in one of this adapter's storage buffers (resolutions far
-/// above the default): the window then forgets, as with
-/// `tile_memory_bytes: None`, rather than failing to be created.
-pub(super) fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &SnowParams, budget: usize) -> Result<Option<TileStreaming>, SnowError> {
-    let side = default_tile_texels(params.resolution);
-    let grid = TileGrid::new(params.resolution, side)?;
-    let bytes = (grid.slot_count() * planes(params.snowfall.is_some(), true) * grid.area() * 4) as u64;
-    let limit = ctx.device.limits().max_storage_buffer_binding_size;
-    if bytes > limit {
-        tracing::warn!("trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})", params.resolution);
-        return Ok(None);
-    }
-    let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() });
-    TileStreaming::new(ctx, res, streamer, (params.depth_m, params.snowfall.is_some())).map(Some)
-}
 
 impl SnowDeformation {
     /// Attaches a tile store: from now on texels leaving the window are kept
     /// through `streamer` (in memory, then on disk; or in memory alone for
     /// `TileStreamer::in_memory`) and come back when the window returns,
     /// brought up to the time then. It replaces the memory keeper the window
-    /// was created with ([`SnowParams::tile_memory_bytes`]). Call before the
+    /// was created with ([`crate::SnowParams::tile_memory_bytes`]). Call before the
     /// first frame, once. When the store holds a save ([`Self::save`]), the
     /// window's clock, snowfall and position are loaded from it and `true`
     /// returned.

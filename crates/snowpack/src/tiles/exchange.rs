@@ -31,7 +31,7 @@ pub struct ExchangeParams {
     pub rect_count: u32,
     /// Texel size (m): where the terrain is evaluated.
     pub texel_m: f32,
-    /// Planes per resident slot ([`super::streaming::planes`]).
+    /// Planes per resident slot ([`super::planes::planes`]).
     pub planes: u32,
     /// Rest depth (m): the window's snow words are deficits below terrain +
     /// depth + snowfall so far, the tiles' snow planes f32 heights.

@@ -1,6 +1,7 @@
 //! The world's tiles around the window, kept while the window is away
 //! (the persistence side of the deformation): the resident slots and their
-//! traffic with the tile keeper ([`streaming`]), and their passes: texels
+//! traffic with the tile keeper ([`streaming`]), a slot's layout
+//! ([`planes`]), and their passes: texels
 //! between the window and the slots ([`exchange`]), tiles made resident
 //! ([`restore`]), time passing on the resident tiles outside the window
 //! ([`weather`]) and tiles made ready to leave ([`seal`]). The orchestrator ([`crate::snow::SnowDeformation`])
@@ -8,12 +9,13 @@
 //! deformation knows nothing of them.
 
 pub mod exchange;
+pub mod planes;
 pub mod restore;
 pub mod seal;
 pub mod streaming;
 pub mod weather;
 
-pub use streaming::{TileGrid, TileStats, TileStreaming};
+pub use streaming::{TileStats, TileStreaming};
 
 /// A storage buffer the CPU fills through the queue (a tile pass's entry
 /// list or upload), at least 16 bytes.

@@ -34,7 +34,7 @@ pub struct RestoreParams {
     pub low_m: f32,
     /// Footprint quantisation: highest height (m).
     pub high_m: f32,
-    /// Planes per resident slot ([`super::streaming::planes`]).
+    /// Planes per resident slot ([`super::planes::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,
@@ -173,7 +173,7 @@ impl TileRestorePass {
         entries: &[RestoreEntry],
         upload: &[u32],
     ) {
-        params.flags = super::streaming::with_stamp_plane_flag(params.flags, params.planes, (RestoreParams::USE_FALLEN, RestoreParams::STAMP_PLANE));
+        params.flags = super::planes::with_stamp_plane_flag(params.flags, params.planes, (RestoreParams::USE_FALLEN, RestoreParams::STAMP_PLANE));
         let (device, queue) = (cx.device(), cx.queue());
         let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {

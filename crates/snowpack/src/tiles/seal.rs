@@ -16,7 +16,7 @@ use crate::deform::resources::DeformResources;
 pub struct SealParams {
     /// Tile side (texels).
     pub side: u32,
-    /// Planes per resident slot ([`super::streaming::planes`]).
+    /// Planes per resident slot ([`super::planes::planes`]).
     pub planes: u32,
     /// [`SealParams::USE_FALLEN`].
     pub flags: u32,

@@ -25,59 +25,23 @@
 
 use std::collections::{HashMap, HashSet};
 
+use crate::deform::params::default_tile_texels;
 use crate::deform::resources::DeformResources;
 use crate::deform::window::TexelRect;
 use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::readback::{MapFlag, MapState};
 use crate::gpu::{GpuContext, GpuTimer};
-use crate::persist::{SnowClock, StoreError, StoreStats, TileData, TileKey, TileLookup, TileStreamer};
+use crate::persist::{SnowClock, StoreError, StoreStats, StreamerConfig, TileData, TileKey, TileLookup, TileStreamer};
 
 use super::exchange::{ExchangeParams, ExchangePass};
 use super::restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use super::seal::{SealParams, TileSealPass};
 use super::weather::{TileWeatherPass, WeatherParams};
 
-/// The key table's "no slot" (`NO_SLOT` in `shared/tiles.wgsl`).
-pub const NO_SLOT: u32 = u32::MAX;
-
-/// Most planes per resident tile: snow, fallen, stamps
-/// (`shared/tiles.wgsl`); a slot has the snowfall plane only in a world
-/// with snowfall and the footprint plane only while the window has a
-/// footprint buffer ([`planes`]). No terrain plane: the passes evaluate the
-/// ground under a slot texel from the terrain's source.
-pub const PLANES: usize = 3;
-/// Plane of the snow height (f32 bits; height XOR rest height while sealed
-/// for a copy-out, `tile_seal.wgsl`).
-pub const PLANE_SNOW: usize = 0;
-/// Plane of the snowfall so far (f32 bits); only in a world with snowfall.
-pub const PLANE_FALLEN: usize = 1;
-
-/// Planes per resident tile: snow, the snowfall so far where the world has
-/// snowfall, the packed footprints where the window has a footprint buffer
-/// (points or combined used).
-#[must_use]
-pub const fn planes(use_fallen: bool, has_stamps: bool) -> usize {
-    1 + use_fallen as usize + has_stamps as usize
-}
-
-/// A tile pass's `flags` with its footprint-plane bit set where a slot of
-/// `planes` planes has one (a plane left over after the snow and, with
-/// `use_fallen` set in `flags`, the snowfall): the shader's choice as a
-/// flag, so that no branch tests uniforms alone (docs/deformation.md).
-/// `(use_fallen, stamp_plane)` are the pass's bits.
-#[must_use]
-pub(crate) const fn with_stamp_plane_flag(flags: u32, planes: u32, (use_fallen, stamp_plane): (u32, u32)) -> u32 {
-    let has_plane = planes > 1 + (flags & use_fallen != 0) as u32;
-    (flags & !stamp_plane) | if has_plane { stamp_plane } else { 0 }
-}
-
-/// Plane of the packed footprints in a slot of `planes` planes: the last
-/// (only where the window has a footprint buffer).
-#[must_use]
-pub const fn plane_stamps(planes: usize) -> usize {
-    planes - 1
-}
+// The slot layout lives in `planes.rs` (the tile passes below this file need
+// it too); it stays reachable here, where the streaming's users look for it.
+pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_stamps, planes};
 
 /// Most tiles per submission of a batched move or a save.
 const BATCH_TILES: usize = 32;
@@ -292,6 +256,27 @@ pub struct TileStreaming {
 }
 
 impl TileStreaming {
+    /// The default tile keeper: tiles of [`default_tile_texels`] kept in
+    /// memory up to `budget` bytes. `None` (with a warning) where the
+    /// resident ring would not fit in one of this adapter's storage buffers
+    /// (resolutions far above the default): the window then forgets, as with
+    /// `tile_memory_bytes: None`, rather than failing to be created.
+    pub(crate) fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &crate::SnowParams, budget: usize) -> Result<Option<Self>, SnowError> {
+        let side = default_tile_texels(params.resolution);
+        let grid = TileGrid::new(params.resolution, side)?;
+        let bytes = (grid.slot_count() * planes(params.snowfall.is_some(), true) * grid.area() * 4) as u64;
+        let limit = ctx.device.limits().max_storage_buffer_binding_size;
+        if bytes > limit {
+            tracing::warn!(
+                "trails are not kept: {bytes} bytes of resident tiles exceed this adapter's {limit} byte buffers (resolution {})",
+                params.resolution
+            );
+            return Ok(None);
+        }
+        let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() });
+        Self::new(ctx, res, streamer, (params.depth_m, params.snowfall.is_some())).map(Some)
+    }
+
     /// Planes per slot now.
     fn planes(&self) -> usize {
         planes(self.use_fallen, self.has_stamps)

@@ -40,7 +40,7 @@ pub struct WeatherParams {
     pub high_m: f32,
     /// Slots listed for the pass (set by [`TileWeatherPass::record`]).
     pub count: u32,
-    /// Planes per resident slot ([`super::streaming::planes`]).
+    /// Planes per resident slot ([`super::planes::planes`]).
     pub planes: u32,
     /// Padding.
     pub _pad: u32,
@@ -115,7 +115,7 @@ impl TileWeatherPass {
         if !params.passes_time() || slots.is_empty() {
             return;
         }
-        let flags = super::streaming::with_stamp_plane_flag(params.flags, params.planes, (WeatherParams::USE_FALLEN, WeatherParams::STAMP_PLANE));
+        let flags = super::planes::with_stamp_plane_flag(params.flags, params.planes, (WeatherParams::USE_FALLEN, WeatherParams::STAMP_PLANE));
         let params = WeatherParams { count: slots.len() as u32, flags, ..*params };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));

@@ -18,7 +18,7 @@ use bevy_replicon::prelude::*;
 use snowpack::{PeerStats, ShareErrorKind, SnowPeer, WorldIdentity};
 
 use super::{SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
-use crate::render::SnowRenderState;
+use crate::render_state::SnowRenderState;
 use crate::{SnowDeformer, SnowSystems};
 
 /// Messages kept for the server while the connection is down; beyond it the
