@@ -202,6 +202,10 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
 
     let (mut forger, clock) = Raw::join(addr, world, "forger")?;
     let (mut flooder, _) = Raw::join(addr, world, "flooder")?;
+    // The flipper has a connection of its own: behind the flooder's digests
+    // (the server takes 64 KiB of one client a tick) its window flips and
+    // queries would wait their turn instead of meeting their rate limits.
+    let (mut flipper, _) = Raw::join(addr, world, "flipper")?;
     let (mut mute, _) = Raw::join(addr, world, "mute")?;
     let (mut feeder, _) = Raw::join(addr, world, "feeder")?;
     // Many connections: each says hello and stays.
@@ -242,16 +246,16 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
             forger.forge(world, now_clock, &keys_around(world, p));
             counts[0] += 9;
         }
-        // The flooder: the largest digests, and windows flipping between two
-        // far places as fast as it may.
+        // The flooder: the largest digests. The flipper: windows flipping
+        // between two far places, and the most query points, as fast as it may.
         let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
         flooder.send(&Message::Digest { clock: now_clock, window: [0, 0], resolution: 2048, entries });
         let side = world.tile_side;
         let far = if frame.is_multiple_of(2) { 0 } else { 1 << 20 };
         let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
         let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
-        flooder.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
-        flooder.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
+        flipper.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
+        flipper.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
         counts[1] += 1;
         feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
         let keys = (0..4).map(|k| feed_keys[(frame as usize * 4 + k) % feed_keys.len()]);
@@ -260,13 +264,14 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         counts[2] += 4;
         forger.pump_on();
         flooder.pump_on();
+        flipper.pump_on();
         feeder.pump_on();
         greet(&mut crowd, world)?;
         // The mute client holds its socket open without a packet in or out.
         std::thread::sleep(Duration::from_millis(10));
     }
     let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
-    for (who, raw) in [("forger", &forger), ("flooder", &flooder), ("feeder", &feeder)].into_iter().chain(crowd.iter().map(|(c, _)| ("crowd", c))) {
+    for (who, raw) in [("forger", &forger), ("flooder", &flooder), ("flipper", &flipper), ("feeder", &feeder)].into_iter().chain(crowd.iter().map(|(c, _)| ("crowd", c))) {
         if let Some(why) = &raw.lost {
             println!("lost {who}: {why}");
         }
