@@ -698,7 +698,12 @@ fn a_restarted_relay_resumes_from_its_store_and_the_peers_catch_it_up() {
             if let Some(r) = relay.as_mut() {
                 r.connect(id);
             }
-            Player { id, snow: CpuSnow::new(w.clone(), 128, [-64, -64], 0.0), peer: SnowPeer::new(w.clone(), "p", PeerConfig::default()) }
+            // Over an unreliable network a game digests every second (the
+            // default, every 5 s once synced, is for reliable channels): a
+            // tile the network lost after the last digest is repaired within
+            // the 3 quiet seconds the loop waits for.
+            let config = PeerConfig { synced_digest_interval_s: 1.0, ..PeerConfig::default() };
+            Player { id, snow: CpuSnow::new(w.clone(), 128, [-64, -64], 0.0), peer: SnowPeer::new(w.clone(), "p", config) }
         })
         .collect();
     let dt = 1.0 / 16.0;
