@@ -232,7 +232,6 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     mute.send(&Message::Presence { window: [-(i64::from(big) / 2); 2], resolution: big, deformers: Vec::new() });
     mute.pump_on();
 
-    let texel = f64::from(world.texel_m);
     let begin = Instant::now();
     let mut frame = 0u64;
     let mut counts = [0u64; 4];
@@ -246,16 +245,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
             forger.forge(world, now_clock, &keys_around(world, p));
             counts[0] += 9;
         }
-        // The flooder: the largest digests. The flipper: windows flipping
-        // between two far places, and the most query points, as fast as it may.
-        let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
-        flooder.send(&Message::Digest { clock: now_clock, window: [0, 0], resolution: 2048, entries });
-        let side = world.tile_side;
-        let far = if frame.is_multiple_of(2) { 0 } else { 1 << 20 };
-        let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
-        let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
-        flipper.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
-        flipper.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
+        flood(world, now_clock, frame, (&mut flooder, &mut flipper));
         counts[1] += 1;
         feeder.send(&Message::Presence { window: [320, 320], resolution: 1280, deformers: feed.clone() });
         let keys = (0..4).map(|k| feed_keys[(frame as usize * 4 + k) % feed_keys.len()]);
@@ -271,7 +261,9 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         std::thread::sleep(Duration::from_millis(10));
     }
     let welcomed = crowd.iter().filter(|(c, _)| c.welcome.is_some()).count();
-    for (who, raw) in [("forger", &forger), ("flooder", &flooder), ("flipper", &flipper), ("feeder", &feeder)].into_iter().chain(crowd.iter().map(|(c, _)| ("crowd", c))) {
+    for (who, raw) in
+        [("forger", &forger), ("flooder", &flooder), ("flipper", &flipper), ("feeder", &feeder)].into_iter().chain(crowd.iter().map(|(c, _)| ("crowd", c)))
+    {
         if let Some(why) = &raw.lost {
             println!("lost {who}: {why}");
         }
@@ -279,6 +271,21 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
     println!("hostile forged_tiles={} flood_rounds={} fed_tiles={} crowd={} crowd_welcomed={welcomed}", counts[0], counts[1], counts[2], crowd.len());
     drop(mute);
     Ok(())
+}
+
+/// One round of floods: the flooder's largest digest; the flipper's window
+/// flipping between two far places (even and odd `frame`s), and the most
+/// query points.
+fn flood(world: &WorldIdentity, clock: ShareClock, frame: u64, (flooder, flipper): (&mut Raw, &mut Raw)) {
+    let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
+    flooder.send(&Message::Digest { clock, window: [0, 0], resolution: 2048, entries });
+    let side = world.tile_side;
+    let far = if frame.is_multiple_of(2) { 0 } else { 1 << 20 };
+    let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
+    let texel = f64::from(world.texel_m);
+    let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
+    flipper.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
+    flipper.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
 }
 
 /// `snowpack attack`: the world from `scene`, and the role's clients.

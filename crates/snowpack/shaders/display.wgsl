@@ -44,15 +44,15 @@ struct DisplayParams {
 
 @group(0) @binding(0) var<uniform> params: DisplayParams;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
-@group(0) @binding(1) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(2) var<storage, read_write> snow: array<atomic<u32>>;
-@group(0) @binding(3) var<storage, read> stamps: array<u32>;
-@group(0) @binding(4) var<storage, read> fallen: array<f32>;
-@group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(2) var<storage, read_write> snow: array<atomic<u32>>;
+@group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
+@group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
 // The choices this pipeline is built for, packed as in
 // `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3 | bare << 4):
-// `DisplayPass` builds one pipeline per set in use (gpu/specialised.rs); the
+// `DisplayPass` builds one pipeline per set in use (pass/compute.rs); the
 // default reads them from `params`. No branch here tests uniforms alone:
 // Mesa 22's lavapipe compiles such a shader again, with the uniforms'
 // values inlined, at every dispatch, and keeps each copy (docs/deformation.md).

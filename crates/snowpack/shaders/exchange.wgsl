@@ -40,12 +40,12 @@ const HAS_STAMPS: u32 = 4u;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
 // Tile key -> slot (shared/tiles.wgsl).
 @group(0) @binding(2) var<storage, read> tile_table: array<u32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
-@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
+@group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
+@group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
+@group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
 // The terrain's source (shared/terrain.wgsl): the rest height the snow words are below.
-@group(0) @binding(6) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
 const WORKGROUP: u32 = 256u;
 

@@ -40,7 +40,7 @@ struct Sample {
 @group(0) @binding(0) var<uniform> params: QueryParams;
 
 // Whether the rest height includes snowfall, as this pipeline is built
-// (`QueryPass` builds one per value in use, gpu/specialised.rs); the default
+// (`QueryPass` builds one per value in use, pass/compute.rs); the default
 // reads `params.use_fallen`.
 // Built in, no branch tests a uniform alone: Mesa 22's lavapipe compiles
 // such a shader again at every dispatch, uniforms inlined, and keeps every
@@ -55,11 +55,11 @@ fn query_uses_fallen() -> bool {
 }
 @group(0) @binding(1) var<storage, read> points: array<vec2<f32>>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read> snow: array<u32>;
-@group(0) @binding(4) var<storage, read> fallen: array<f32>;
-@group(0) @binding(5) var<storage, read_write> samples: array<Sample>;
-@group(0) @binding(6) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(2) var<storage, read> snow: array<u32>;
+@group(1) @binding(4) var<storage, read> fallen: array<f32>;
+@group(0) @binding(2) var<storage, read_write> samples: array<Sample>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
 fn bilerp(a: f32, b: f32, c: f32, d: f32, f: vec2<f32>) -> f32 {
     let ab = a + (b - a) * f.x;

@@ -38,7 +38,7 @@ struct BaseVertex {
 @group(0) @binding(4) var<uniform> terrain_params: TerrainParams;
 
 // The mode this pipeline is built for (`ShellVertexPass` builds one per
-// mode in use, gpu/specialised.rs); the default reads `params.mode`. Built
+// mode in use, pass/compute.rs); the default reads `params.mode`. Built
 // in, no branch tests a uniform alone: Mesa 22's lavapipe compiles such a
 // shader again at every dispatch and keeps every copy (docs/deformation.md,
 // "Branches on uniforms").

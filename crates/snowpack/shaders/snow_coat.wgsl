@@ -49,14 +49,14 @@ struct SnowCoatParams {
 @group(0) @binding(2) var<storage, read> previous: array<f32>;
 @group(0) @binding(3) var<storage, read> normals: array<f32>;
 @group(0) @binding(4) var<storage, read_write> coat: array<f32>;
-@group(0) @binding(5) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(6) var<storage, read> snow: array<u32>;
-@group(0) @binding(7) var<storage, read> fallen: array<f32>;
-@group(0) @binding(8) var<uniform> terrain_params: TerrainParams;
-@group(0) @binding(9) var sky: texture_2d<f32>;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(2) var<storage, read> snow: array<u32>;
+@group(1) @binding(4) var<storage, read> fallen: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(5) var sky: texture_2d<f32>;
 
 // The inputs this pipeline is built for, `use_fallen | use_sky << 1`
-// (`SnowCoatPass` builds one per set in use, gpu/specialised.rs); the
+// (`SnowCoatPass` builds one per set in use, pass/compute.rs); the
 // default reads them from `params`. Built in, no branch tests a uniform
 // alone: Mesa 22's lavapipe compiles such a shader again at every dispatch,
 // uniforms inlined, and keeps every copy (docs/deformation.md, "Branches on

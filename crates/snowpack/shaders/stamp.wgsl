@@ -34,8 +34,8 @@ struct StampParams {
 // (m), scale (1/m)) where it ended this frame, then (x, foot, z, 0) where it
 // started (the same for a point that is not swept).
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> stamps: array<atomic<u32>>;
-@group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
+@group(1) @binding(3) var<storage, read_write> stamps: array<atomic<u32>>;
+@group(0) @binding(2) var<storage, read_write> share_flags: array<atomic<u32>>;
 
 const SIDE: u32 = 8u;
 

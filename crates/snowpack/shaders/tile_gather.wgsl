@@ -29,10 +29,10 @@ const GATHER_USE_FALLEN: u32 = 2u;
 @group(0) @binding(0) var<uniform> params: TileGatherParams;
 
 @group(0) @binding(1) var<storage, read> keys: array<vec2<i32>>; // tile (column, row)
-@group(0) @binding(2) var<storage, read> snow: array<u32>;
-@group(0) @binding(3) var<storage, read> stamps: array<u32>;
-@group(0) @binding(4) var<storage, read> fallen: array<f32>;
-@group(0) @binding(5) var<storage, read_write> packed: array<u32>;
+@group(1) @binding(2) var<storage, read> snow: array<u32>;
+@group(1) @binding(3) var<storage, read> stamps: array<u32>;
+@group(1) @binding(4) var<storage, read> fallen: array<f32>;
+@group(0) @binding(2) var<storage, read_write> packed: array<u32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {

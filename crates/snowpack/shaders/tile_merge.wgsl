@@ -56,14 +56,14 @@ const MERGE_USE_FALLEN: u32 = 2u;
 // Per tile: (column, row, first frame of `history` to replay, 0).
 @group(0) @binding(1) var<storage, read> keys: array<vec4<i32>>;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<u32>;
-@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(5) var<storage, read_write> fallen: array<f32>;
-@group(0) @binding(6) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(2) var<storage, read_write> snow: array<u32>;
+@group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
+@group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 // This window's last frames, oldest first: (snow refill quanta, footprint
 // refill quanta, snowfall (m) bits, 1 where the footprints pressed).
-@group(0) @binding(8) var<storage, read> history: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> history: array<vec4<u32>>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {

@@ -58,11 +58,11 @@ const STAMP_PLANE: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: RestoreParams;
 
-@group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read> entries: array<RestoreEntry>;
-@group(0) @binding(4) var<storage, read> upload: array<u32>;
-@group(0) @binding(5) var<storage, read_write> tiles: array<u32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(1) var<storage, read> entries: array<RestoreEntry>;
+@group(0) @binding(2) var<storage, read> upload: array<u32>;
+@group(0) @binding(3) var<storage, read_write> tiles: array<u32>;
 
 // Texel `i` of the saved planes at `at` in `upload`, brought up to now.
 fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f32, quanta: u32) -> TexelState {

@@ -28,10 +28,10 @@ const USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: SealParams;
 
-@group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read> entries: array<vec4<i32>>; // (col, row, slot, 0)
-@group(0) @binding(4) var<storage, read_write> tiles: array<u32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(0) @binding(1) var<storage, read> entries: array<vec4<i32>>; // (col, row, slot, 0)
+@group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

@@ -41,8 +41,8 @@ const STAMP_PLANE: u32 = 4u;
 @group(0) @binding(2) var<storage, read_write> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read> slots: array<u32>;
 // The terrain's source (shared/terrain.wgsl): the ground under a slot texel.
-@group(0) @binding(4) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(5) var<uniform> terrain_params: TerrainParams;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {

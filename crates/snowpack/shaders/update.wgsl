@@ -65,7 +65,7 @@ const SHARE: u32 = 32u;
 const REFILLS: u32 = 64u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
-// use, gpu/specialised.rs); the default reads `params.flags`.
+// use, pass/compute.rs); the default reads `params.flags`.
 override UPDATE_FLAGS: u32 = 0xffffffffu;
 
 fn update_flags() -> u32 {
@@ -80,13 +80,13 @@ fn update_flags() -> u32 {
 // texelFetch for depth textures, and this binding works on every backend.
 @group(0) @binding(1) var capture: texture_2d<f32>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
-@group(0) @binding(2) var<storage, read> heightmap: array<f32>;
-@group(0) @binding(3) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
-@group(0) @binding(4) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(5) var sky: texture_2d<f32>;
-@group(0) @binding(6) var<storage, read_write> fallen: array<f32>;
-@group(0) @binding(7) var<uniform> terrain_params: TerrainParams;
-@group(0) @binding(8) var<storage, read_write> share_flags: array<atomic<u32>>;
+@group(1) @binding(1) var<storage, read> heightmap: array<f32>;
+@group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
+@group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
+@group(0) @binding(2) var sky: texture_2d<f32>;
+@group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
+@group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
+@group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {

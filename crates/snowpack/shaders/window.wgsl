@@ -20,9 +20,9 @@ struct WindowParams {
 }
 
 @group(0) @binding(0) var<uniform> params: WindowParams;
-@group(0) @binding(1) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
-@group(0) @binding(2) var<storage, read_write> stamps: array<u32>;
-@group(0) @binding(3) var<storage, read_write> fallen: array<f32>;
+@group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
+@group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
+@group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
 
 const WORKGROUP: u32 = 256u;
 

@@ -153,6 +153,7 @@ mod gpu;
 mod height_depth;
 #[cfg(feature = "low_level")]
 pub mod low_level;
+mod pass;
 mod persist;
 mod render;
 mod replicate;

@@ -36,6 +36,10 @@ pub mod gpu {
 pub mod height_depth {
     pub use crate::height_depth::*;
 }
+/// The one shape of a compute pass and the window's shared bindings.
+pub mod pass {
+    pub use crate::pass::*;
+}
 /// The tile store, its codec and disks, and the streamer.
 pub mod persist {
     pub use crate::persist::*;

@@ -421,7 +421,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         sky: sky.sky_test(),
         ..UpdateParams::default()
     };
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
     // The occlusion depth, for the CPU: copied by a compute pass, since GL
     // cannot copy depth textures to buffers.
     let r = params.resolution;

@@ -166,7 +166,7 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             ..DisplayParams::default()
         };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });
-        display.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), &rp);
+        display.record(&mut FrameContext::new(ctx, &mut encoder, &mut timer), &res, &rp);
         ctx.queue.submit([encoder.finish()]);
         // The displayed height is the upper (f16) half of each word, above the terrain.
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &res.snow).expect("readback"));

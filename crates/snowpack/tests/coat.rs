@@ -69,10 +69,10 @@ fn gpu_coat_matches_its_cpu_twin_on_random_poses_and_snow() {
     let fallen = floats(&read_buffer(ctx, &res.fallen).expect("fallen"));
     let ground_data = CoatGroundData { terrain: &terrain_plane, snow: &snow_words, fallen: &fallen, sky: None };
     let no_sky = snowpack::low_level::height_depth::sky_depth_texture(&ctx.device, 1).create_view(&wgpu::TextureViewDescriptor::default());
-    let ground = CoatGround { heightmap: &res.heightmap, snow: &res.snow, fallen: &res.fallen, terrain_params: &res.terrain_params, sky: &no_sky };
+    let ground = CoatGround { window: &res.bindings, sky: &no_sky };
 
     let skinning = SkinningPass::new(&ctx.device);
-    let mut coat_pass = SnowCoatPass::new(&ctx.device, &res.terrain_constants());
+    let mut coat_pass = SnowCoatPass::new(&ctx.device, &res.bindings, &res.terrain_constants());
     coat_pass.reserve(&ctx.device, 1);
     let joint_count = 6;
     let n = 1500;

@@ -100,7 +100,7 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
             ..WindowParams::default()
         };
         let mut enc = encoder(ctx);
-        pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), p, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, p, &rects);
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
@@ -271,7 +271,7 @@ fn capture_and_update_match_cpu() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record_swept(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &meshes);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
     submit(ctx, enc);
 
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
@@ -361,7 +361,7 @@ fn display_and_surface_unpack_match_cpu() {
         dp.blur = blur;
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
         let mut enc = encoder(ctx);
-        display.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &dp);
+        display.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &dp);
         submit(ctx, enc);
         let mut cpu_words = snow.clone();
         cpu::display::display(&dp, &terrain, &mut cpu_words, &stamps, &[]);
@@ -582,10 +582,9 @@ fn run_stamps(ctx: &GpuContext, res: &DeformResources, sp: &StampParams, points:
     let n = (res.resolution * res.resolution) as usize;
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&vec![cpu::stamp::STAMP_EMPTY; n]));
     let mut pass = StampPass::new(&ctx.device, res);
-    assert_eq!(pass.prepare(&ctx.device, &ctx.queue, res, sp, points), 0, "points left out");
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer));
+    assert_eq!(pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), res, sp, points), 0, "points left out");
     submit(ctx, enc);
     read_u32(ctx, &res.stamps)
 }
@@ -601,8 +600,11 @@ fn points_beyond_the_stamp_maximum_are_reported() {
     let max = snowpack::low_level::deform::stamp::MAX_POINTS;
     let points = vec![[0.0f32; 8]; max + 5];
     let mut pass = StampPass::new(&ctx.device, &res);
-    assert_eq!(pass.prepare(&ctx.device, &ctx.queue, &res, &sp, &points), 5);
-    assert_eq!(pass.prepare(&ctx.device, &ctx.queue, &res, &sp, &points[..max]), 0);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    assert_eq!(pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &sp, &points), 5);
+    assert_eq!(pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &sp, &points[..max]), 0);
+    submit(ctx, enc);
 }
 
 #[test]
@@ -761,7 +763,7 @@ fn wheel_capture_matches_cpu() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
     submit(ctx, enc);
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
     cpu::capture_sphere::quantise_depths(&mut depth);

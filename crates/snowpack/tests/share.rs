@@ -106,7 +106,7 @@ fn tile_gather_matches_cpu() {
         let flags = TileGatherParams::HAS_STAMPS | TileGatherParams::USE_FALLEN;
         let p = TileGatherParams { origin: w.origin, resolution: w.params.resolution, side, flags, ..Default::default() };
         let mut enc = encoder(ctx);
-        let gathered = pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), p, &keys);
+        let gathered = pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &w.res, p, &keys);
         submit(ctx, enc);
         assert_eq!(gathered as usize, count);
         let gpu = read_u32(ctx, pass.packed());
@@ -177,7 +177,7 @@ fn tile_merge_matches_cpu() {
             ..Default::default()
         };
         let mut enc = encoder(ctx);
-        let merged = pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), p, (&gkeys, &history), &packed);
+        let merged = pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &w.res, p, (&gkeys, &history), &packed);
         submit(ctx, enc);
         assert_eq!(merged as usize, count);
         let cp = TileMergeParams { count: merged, blocks: side.div_ceil(8), frames: frames as u32, ..p };
@@ -224,9 +224,8 @@ fn stamp_and_update_flags_match_cpu() {
         ..StampParams::default()
     };
     let mut pass = StampPass::new(&ctx.device, &w.res);
-    assert_eq!(pass.prepare(&ctx.device, &ctx.queue, &w.res, &sp, &points), 0);
     let mut enc = encoder(ctx);
-    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer));
+    assert_eq!(pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &w.res, &sp, &points), 0);
     submit(ctx, enc);
     let mut flags = vec![0; slots];
     cpu::stamp::stamp_flagged(&StampParams { count: points.len() as u32, ..sp }, &points, &mut stamps, &mut flags);
@@ -252,7 +251,7 @@ fn stamp_and_update_flags_match_cpu() {
     };
     let update = UpdatePass::new(&ctx.device, &w.res);
     let mut enc = encoder(ctx);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &up);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &w.res, &up);
     submit(ctx, enc);
     let terrain = cpu::window::ground_plane(&w.terrain, w.origin, r, w.params.texel_m());
     let input = cpu::update::UpdateInputs { capture_depth: &[], sky_depth: &[], terrain: &terrain };

@@ -130,8 +130,8 @@ fn exchange_matches_cpu() {
         let mut e = encoder(ctx);
         let mut timer = GpuTimer::disabled();
         let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
-        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), stash, &rects);
-        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), base, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &res, stash, &rects);
+        pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &res, base, &rects);
         submit(ctx, e);
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
@@ -286,7 +286,7 @@ fn tile_restore_and_weather_match_cpu() {
         slots.swap(k, (rng.next_u64() % (k as u64 + 1)) as usize);
     }
     let mut e = encoder(ctx);
-    weather.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &wp, &slots);
+    weather.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &res, &wp, &slots);
     submit(ctx, e);
     cpu::tile_weather::weather(&WeatherParams { count: slots.len() as u32, ..wp }, &owners, &slots, &terrain, &mut tiles);
     let gpu = read_u32(ctx, &tiles_gpu);

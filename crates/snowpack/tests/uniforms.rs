@@ -154,3 +154,49 @@ fn every_shader_is_listed_and_valid() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
 }
+
+/// Every compute shader that binds group 1 binds the window's buffers there
+/// as `pass::window_bindings` lays them out: each binding at its number,
+/// under its name, in its address space, and the snow, footprints and
+/// snowfall all read-only or all read-write (one of the two layouts).
+#[test]
+fn every_window_pass_binds_group_1_as_the_window_bindings() {
+    use snowpack::low_level::pass::window_bindings::{WindowAccess, window_layout_entries};
+    const NAMES: [&str; 5] = ["terrain_params", "heightmap", "snow", "stamps", "fallen"];
+    let read_only = |access| {
+        window_layout_entries(access).map(|e| match e.ty {
+            wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, .. } => Some(read_only),
+            _ => None,
+        })
+    };
+    let layouts = [read_only(WindowAccess::Read), read_only(WindowAccess::Write)];
+    let mut passes = Vec::new();
+    for (name, source) in shaders::ALL {
+        let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| panic!("{name}: {e}"));
+        if !module.entry_points.iter().any(|e| e.stage == naga::ShaderStage::Compute) {
+            continue;
+        }
+        let mut access = [None; 5];
+        for (_, var) in module.global_variables.iter() {
+            let Some(binding) = var.binding.as_ref().filter(|b| b.group == 1) else { continue };
+            let b = binding.binding as usize;
+            let var_name = var.name.as_deref().unwrap_or("");
+            assert!(b < NAMES.len() && NAMES[b] == var_name, "{name}: group 1 binding {b} is `{var_name}`, not the window's");
+            access[b] = Some(match var.space {
+                naga::AddressSpace::Uniform => None,
+                naga::AddressSpace::Storage { access } => Some(!access.contains(naga::StorageAccess::STORE)),
+                other => panic!("{name}: `{var_name}` in {other:?}"),
+            });
+        }
+        if access.iter().all(Option::is_none) {
+            continue;
+        }
+        let fits = layouts.iter().any(|layout| access.iter().zip(layout).all(|(a, l)| a.is_none_or(|a| a == *l)));
+        assert!(fits, "{name}: group 1 {access:?} is neither window layout {layouts:?}");
+        passes.push(*name);
+    }
+    let expected =
+        ["DISPLAY", "EXCHANGE", "QUERY", "SNOW_COAT", "STAMP", "TILE_GATHER", "TILE_MERGE", "TILE_RESTORE", "TILE_SEAL", "TILE_WEATHER", "UPDATE", "WINDOW"];
+    passes.sort_unstable();
+    assert_eq!(passes, expected, "the passes over the window");
+}

@@ -1,5 +1,5 @@
 // The flags a pass's pipeline is built for: `PASS_FLAGS`, set by the pass
-// (one pipeline per set of flags in use, `gpu::specialised::SpecialisedPipeline`);
+// (one pipeline per set of flags in use, `pass::compute::ComputePass`);
 // the default reads `params.flags`, which the importing pass declares (its
 // uniforms, with a `flags: u32`). Built in, no branch tests a uniform alone:
 // Mesa 22's lavapipe compiles such a shader again at every dispatch, the

@@ -5,10 +5,11 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape};
 use crate::shaders;
 
 use super::resources::DeformResources;
+use crate::pass::window_bindings::WindowAccess;
 
 /// Uniforms of `display.wgsl`.
 #[repr(C)]
@@ -67,60 +68,32 @@ impl DisplayParams {
 /// Writes the displayed height of every texel (upper halves of `res.snow`).
 pub struct DisplayPass {
     /// One pipeline per [`DisplayParams::variant`] in use.
-    pipelines: SpecialisedPipeline,
-    params: wgpu::Buffer,
-    /// The uniforms last written, so an unchanged frame writes none.
-    written: std::cell::Cell<Option<DisplayParams>>,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<DisplayParams>,
 }
 
 impl DisplayPass {
-    /// Compiles the shader and binds it to `res`; the pipeline for a
+    /// Compiles the shader for `res`'s terrain; the pipeline for a
     /// [`DisplayParams::variant`] is built on its first frame.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "display",
-            shaders::DISPLAY,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, false),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::uniform(5, wgpu::ShaderStages::COMPUTE),
-            ],
-            "DISPLAY_VARIANT",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<DisplayParams>(device, "display params");
-        let bind_group = layout::bind_group(
-            device,
-            "display",
-            &bgl,
-            &[
-                params.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.stamps.as_entire_binding(),
-                res.fallen.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-            ],
-        );
-        Self { pipelines, params, written: std::cell::Cell::new(None), bind_group }
+        let shape = PassShape {
+            label: "display",
+            source: shaders::DISPLAY,
+            slots: &[],
+            specialise_on: Some("DISPLAY_VARIANT"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Write),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
+        pass.bind(device, &[]);
+        Self { pass }
     }
 
     /// Records this frame's display.
-    pub fn record(&self, cx: &mut FrameContext<'_>, params: &DisplayParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &DisplayParams) {
         let params = &DisplayParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
-        if self.written.get() != Some(*params) {
-            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-            self.written.set(Some(*params));
-        }
         let g = layout::groups(params.resolution, 16);
-        layout::dispatch(encoder, timer, "display", &self.pipelines.get(params.variant()), &self.bind_group, (g, g));
+        self.pass.record(cx, Some(&res.bindings), params, params.variant(), (g, g));
     }
 }
 

@@ -9,11 +9,12 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
 use crate::frame::FrameContext;
-use crate::gpu::specialised::SpecialisedPipeline;
 use crate::gpu::{ReadbackRing, layout};
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 use super::resources::DeformResources;
+use crate::pass::window_bindings::WindowAccess;
 
 /// Staging buffers of the answer ring: one being written, one in flight, one
 /// arriving. More would only add latency.
@@ -165,12 +166,9 @@ low_level_some_fields! {
 #[doc(hidden)]
 pub struct QueryPass {
     /// One pipeline with snowfall in the rest height, one without (as used).
-    pipelines: SpecialisedPipeline,
-    bgl: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    pass: ComputePass<QueryParams>,
     points: wgpu::Buffer,
     samples: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
     ring: ReadbackRing<(QueryTicket, u64, Vec<Vec2>)>,
     capacity: u32,
     stats: QueryStats,
@@ -196,51 +194,19 @@ impl QueryPass {
     /// Builds the pipeline over `res` with room for a first few hundred points.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "query",
-            shaders::QUERY,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::storage(5, false),
-                layout::uniform(6, wgpu::ShaderStages::COMPUTE),
-            ],
-            "QUERY_USE_FALLEN",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<QueryParams>(device, "query params");
+        let shape = PassShape {
+            label: "query",
+            source: shaders::QUERY,
+            slots: &[Slot::Read, Slot::ReadWrite],
+            specialise_on: Some("QUERY_USE_FALLEN"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Read),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let (points, samples) = buffers(device, INITIAL_CAPACITY);
-        let bind_group = Self::bind(device, &bgl, &params, &points, &samples, res);
+        pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding()]);
         let ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
-        Self { pipelines, bgl, params, points, samples, bind_group, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
-    }
-
-    fn bind(
-        device: &wgpu::Device,
-        bgl: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
-        points: &wgpu::Buffer,
-        samples: &wgpu::Buffer,
-        res: &DeformResources,
-    ) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "query",
-            bgl,
-            &[
-                params.as_entire_binding(),
-                points.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.fallen.as_entire_binding(),
-                samples.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-            ],
-        )
+        Self { pass, points, samples, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
     }
 
     /// Records the gather of `points` (metres from the window's corner, `local`)
@@ -257,12 +223,11 @@ impl QueryPass {
         tag: (QueryTicket, u64, Vec<Vec2>),
     ) -> bool {
         let (device, queue) = (cx.device(), cx.queue());
-        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let count = local.len() as u32;
         if count > self.capacity {
             self.capacity = count.next_power_of_two();
             let (points, samples) = buffers(device, self.capacity);
-            self.bind_group = Self::bind(device, &self.bgl, &self.params, &points, &samples, res);
+            self.pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding()]);
             self.ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
             (self.points, self.samples) = (points, samples);
         }
@@ -273,10 +238,10 @@ impl QueryPass {
         }
         if count > 0 {
             queue.write_buffer(&self.points, 0, bytemuck::cast_slice(local));
-            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&QueryParams { count, ..params }));
-            layout::dispatch(encoder, timer, "query", &self.pipelines.get(u32::from(params.use_fallen != 0)), &self.bind_group, (layout::groups(count, 64), 1));
+            let variant = u32::from(params.use_fallen != 0);
+            self.pass.record(cx, Some(&res.bindings), &QueryParams { count, ..params }, variant, (layout::groups(count, 64), 1));
         }
-        self.ring.record_copy_len(encoder, &self.samples, len, tag);
+        self.ring.record_copy_len(cx.encoder, &self.samples, len, tag);
         self.stats.gathered += 1;
         true
     }

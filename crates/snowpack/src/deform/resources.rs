@@ -20,6 +20,7 @@ use crate::height_depth::height_depth_texture;
 use crate::{SnowParams, TerrainSource};
 
 use super::terrain_bake::TerrainBakePass;
+use crate::pass::window_bindings::{WindowBindings, WindowBuffers};
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {
@@ -56,6 +57,9 @@ pub struct DeformResources {
     /// 4-byte stand-in that no pass writes until
     /// [`Self::allocate_share_flags`].
     pub share_flags: wgpu::Buffer,
+    /// The terrain, snow, footprint and snowfall buffers as group 1 of
+    /// every window pass, made again when one is replaced.
+    pub bindings: WindowBindings,
 }
 
 fn height_buffer(device: &wgpu::Device, label: &str, texels: u64) -> wgpu::Buffer {
@@ -108,20 +112,28 @@ impl DeformResources {
         queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&terrain_uniform));
         let capture = height_depth_texture(device, "capture depth", res);
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
+        let snow = height_buffer(device, "snow", texels);
+        // Every texel is written by the window pass on first placement.
+        let stamps = height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 });
+        // Zeroed by wgpu; only read and written while `params.snowfall` is set.
+        let fallen = height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 });
+        let bindings = WindowBindings::new(
+            device,
+            &WindowBuffers { terrain_params: &terrain_params, heightmap: &heightmap, snow: &snow, stamps: &stamps, fallen: &fallen },
+        );
         Self {
             resolution: res,
             texel_m: params.texel_m(),
-            snow: height_buffer(device, "snow", texels),
-            // Every texel is written by the window pass on first placement.
-            stamps: height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 }),
-            // Zeroed by wgpu; only read and written while `params.snowfall` is set.
-            fallen: height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 }),
+            snow,
+            stamps,
+            fallen,
             heightmap,
             terrain_params,
             terrain_kind: terrain_uniform.kind,
             capture,
             capture_view,
             share_flags: flags_buffer(device, 1),
+            bindings,
         }
     }
 
@@ -152,8 +164,8 @@ impl DeformResources {
     }
 
     /// Allocates the footprint buffer, every texel without a footprint, when
-    /// it is not yet; returns whether it did (passes bound to the old one
-    /// must then be bound again).
+    /// it is not yet, and binds the window's group to it; returns whether it
+    /// did.
     pub fn allocate_stamps(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> bool {
         if self.has_stamps() {
             return false;
@@ -162,6 +174,9 @@ impl DeformResources {
         self.stamps = height_buffer(device, "stamps", texels);
         let empty = vec![u32::MAX; texels as usize];
         queue.write_buffer(&self.stamps, 0, bytemuck::cast_slice(&empty));
+        let buffers =
+            WindowBuffers { terrain_params: &self.terrain_params, heightmap: &self.heightmap, snow: &self.snow, stamps: &self.stamps, fallen: &self.fallen };
+        self.bindings.rebind(device, &buffers);
         true
     }
 

@@ -13,10 +13,11 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec2;
 
 use crate::frame::FrameContext;
-use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
+use crate::pass::window_bindings::WindowAccess;
 
 /// A texel no footprint has touched, in the packed stamp buffer
 /// (`STAMP_EMPTY` in `shared/stamp.wgsl`).
@@ -41,7 +42,7 @@ pub struct StampParams {
     /// Points to stamp.
     pub count: u32,
     /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
-    /// [`StampPass::prepare`] writes it from `origin` and `resolution`, so
+    /// [`StampPass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],
     /// Tile side of the changed-tile flags (texels); 0: no flags are written.
@@ -110,14 +111,8 @@ pub const MAX_POINTS: usize = 1 << 20;
 
 /// Writes this frame's footprints into the stamp buffer.
 pub struct StampPass {
-    pipeline: wgpu::ComputePipeline,
-    bgl: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    pass: ComputePass<StampParams>,
     points: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
-    count: u32,
-    /// The uniforms last written, so an unchanged frame writes none.
-    written: Option<StampParams>,
 }
 
 fn points_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
@@ -130,63 +125,47 @@ fn points_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
 }
 
 impl StampPass {
-    /// Builds the pipeline and binds it to `res`.
+    /// Builds the pipeline and binds it to `res`'s changed-tile flags.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
-            device,
-            "stamp",
-            shaders::STAMP,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false), layout::storage(3, false)],
-        );
-        let params = layout::uniform_buffer::<StampParams>(device, "stamp params");
-        let points = points_buffer(device, 32 * 256);
-        let bind_group = Self::bind(device, &bgl, &params, &points, res);
-        Self { pipeline, bgl, params, points, bind_group, count: 0, written: None }
+        let shape = PassShape {
+            label: "stamp",
+            source: shaders::STAMP,
+            slots: &[Slot::Read, Slot::ReadWrite],
+            specialise_on: None,
+            constants: &[],
+            window: Some(WindowAccess::Write),
+        };
+        let mut stamp = Self { pass: ComputePass::new(device, &shape, Some(&res.bindings)), points: points_buffer(device, 32 * 256) };
+        stamp.bind(device, res);
+        stamp
     }
 
-    fn bind(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, points: &wgpu::Buffer, res: &DeformResources) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "stamp",
-            bgl,
-            &[params.as_entire_binding(), points.as_entire_binding(), res.stamps.as_entire_binding(), res.share_flags.as_entire_binding()],
-        )
+    fn bind(&mut self, device: &wgpu::Device, res: &DeformResources) {
+        self.pass.bind(device, &[self.points.as_entire_binding(), res.share_flags.as_entire_binding()]);
     }
 
-    /// Uploads this frame's points, growing the buffer when needed. At most
-    /// [`MAX_POINTS`] are stamped; returns how many were left out (0 unless
-    /// a frame brings more), for the caller to report.
+    /// Records the stamping of this frame's `points` (nothing when there are
+    /// none), growing the points' buffer when needed. At most [`MAX_POINTS`]
+    /// are stamped; returns how many were left out (0 unless a frame brings
+    /// more), for the caller to report.
     #[must_use = "points left out must be reported"]
-    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, res: &DeformResources, params: &StampParams, points: &[[f32; 8]]) -> usize {
+    pub fn record(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &StampParams, points: &[[f32; 8]]) -> usize {
         let dropped = points.len().saturating_sub(MAX_POINTS);
         let points = &points[..points.len().min(MAX_POINTS)];
         let bytes: &[u8] = bytemuck::cast_slice(points);
         if bytes.len() as u64 > self.points.size() {
-            self.points = points_buffer(device, (bytes.len() as u64).next_power_of_two());
-            self.bind_group = Self::bind(device, &self.bgl, &self.params, &self.points, res);
+            self.points = points_buffer(cx.device(), (bytes.len() as u64).next_power_of_two());
+            self.bind(cx.device(), res);
         }
-        if !bytes.is_empty() {
-            queue.write_buffer(&self.points, 0, bytes);
+        if bytes.is_empty() {
+            return dropped;
         }
-        self.count = points.len() as u32;
-        let mut p = *params;
-        p.count = self.count;
-        p.storage_origin = super::window::storage_origin(p.origin, p.resolution);
-        if self.written != Some(p) {
-            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-            self.written = Some(p);
-        }
+        cx.queue().write_buffer(&self.points, 0, bytes);
+        let count = points.len() as u32;
+        let p = StampParams { count, storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
+        let groups = if count <= 65535 { (count, 1) } else { (65535, count.div_ceil(65535)) };
+        self.pass.record(cx, Some(&res.bindings), &p, 0, groups);
         dropped
-    }
-
-    /// Records the stamping of the prepared points (nothing when there are none).
-    pub fn record(&self, cx: &mut FrameContext<'_>) {
-        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
-        if self.count == 0 {
-            return;
-        }
-        let groups = if self.count <= 65535 { (self.count, 1) } else { (65535, self.count.div_ceil(65535)) };
-        layout::dispatch(encoder, timer, "stamp", &self.pipeline, &self.bind_group, groups);
     }
 }

@@ -5,11 +5,12 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
 use crate::height_depth::{SkyTest, sky_depth_texture};
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 use super::resources::DeformResources;
+use crate::pass::window_bindings::WindowAccess;
 
 /// Uniforms of `update.wgsl`.
 #[repr(C)]
@@ -76,12 +77,7 @@ impl UpdateParams {
 /// Applies refill, snowfall and the captured actors to the persistent snow.
 pub struct UpdatePass {
     /// One pipeline per set of [`UpdateParams::flags`] in use.
-    pipelines: SpecialisedPipeline,
-    layout: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
-    /// The uniforms last written, so an unchanged frame writes none.
-    written: std::cell::Cell<Option<UpdateParams>>,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<UpdateParams>,
     /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
     no_sky: wgpu::TextureView,
 }
@@ -91,69 +87,40 @@ impl UpdatePass {
     /// depth); the pipeline for a set of flags is built on its first frame.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipelines, layout) = SpecialisedPipeline::new(
-            device,
-            "update",
-            shaders::UPDATE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::depth_texture(1),
-                layout::storage(2, true),
-                layout::storage(3, false),
-                layout::storage(4, false),
-                layout::depth_texture(5),
-                layout::storage(6, false),
-                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
-                layout::storage(8, false),
-            ],
-            "UPDATE_FLAGS",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<UpdateParams>(device, "update params");
+        let shape = PassShape {
+            label: "update",
+            source: shaders::UPDATE,
+            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite],
+            specialise_on: Some("UPDATE_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Write),
+        };
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
-        let bind_group = Self::group(device, &layout, &params, res, &no_sky);
-        Self { pipelines, layout, params, written: std::cell::Cell::new(None), bind_group, no_sky }
-    }
-
-    fn group(device: &wgpu::Device, bgl: &wgpu::BindGroupLayout, params: &wgpu::Buffer, res: &DeformResources, sky: &wgpu::TextureView) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "update",
-            bgl,
-            &[
-                params.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&res.capture_view),
-                res.heightmap.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.stamps.as_entire_binding(),
-                wgpu::BindingResource::TextureView(sky),
-                res.fallen.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                res.share_flags.as_entire_binding(),
-            ],
-        )
+        let mut update = Self { pass: ComputePass::new(device, &shape, Some(&res.bindings)), no_sky };
+        update.bind_sky(device, res, None);
+        update
     }
 
     /// Binds the occlusion depth `sky` (of the window's resolution) for
-    /// `USE_SKY`, or none again.
+    /// `USE_SKY`, or none again, and the window's changed-tile flags (again
+    /// after they were allocated).
     pub fn bind_sky(&mut self, device: &wgpu::Device, res: &DeformResources, sky: Option<&wgpu::TextureView>) {
-        self.bind_group = Self::group(device, &self.layout, &self.params, res, sky.unwrap_or(&self.no_sky));
+        let sky = sky.unwrap_or(&self.no_sky);
+        self.pass.bind(
+            device,
+            &[wgpu::BindingResource::TextureView(&res.capture_view), wgpu::BindingResource::TextureView(sky), res.share_flags.as_entire_binding()],
+        );
     }
 
     /// Records the update for this frame.
-    pub fn record(&self, cx: &mut FrameContext<'_>, params: &UpdateParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &UpdateParams) {
         let refills = if params.refill_quanta > 0 { UpdateParams::REFILLS } else { 0 };
         let params = &UpdateParams {
             storage_origin: super::window::storage_origin(params.origin, params.resolution),
             flags: (params.flags & !UpdateParams::REFILLS) | refills,
             ..*params
         };
-        if self.written.get() != Some(*params) {
-            queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-            self.written.set(Some(*params));
-        }
         let g = layout::groups(params.resolution, 16);
-        layout::dispatch(encoder, timer, "update", &self.pipelines.get(params.flags), &self.bind_group, (g, g));
+        self.pass.record(cx, Some(&res.bindings), params, params.flags, (g, g));
     }
 }

@@ -10,10 +10,11 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape};
 use crate::shaders;
 
 use super::resources::DeformResources;
+use crate::pass::window_bindings::WindowAccess;
 
 /// A rectangle of window-local texels: `[row0, col0, rows, cols]`.
 pub type TexelRect = [u32; 4];
@@ -132,41 +133,32 @@ impl WindowParams {
 /// Writes fresh, untouched snow into newly exposed texels (`window.wgsl`).
 pub struct WindowPass {
     /// One pipeline per set of [`WindowParams::flags`] in use.
-    pipelines: SpecialisedPipeline,
-    params: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<WindowParams>,
 }
 
 impl WindowPass {
-    /// Builds the pipeline and binds it to `res`.
+    /// Builds the pipeline for `res`'s window.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "window",
-            shaders::WINDOW,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, false), layout::storage(2, false), layout::storage(3, false)],
-            "PASS_FLAGS",
-            &[],
-        );
-        let params = layout::uniform_buffer::<WindowParams>(device, "window params");
-        let bind_group = layout::bind_group(
-            device,
-            "window",
-            &bgl,
-            &[params.as_entire_binding(), res.snow.as_entire_binding(), res.stamps.as_entire_binding(), res.fallen.as_entire_binding()],
-        );
-        Self { pipelines, params, bind_group }
+        let shape = PassShape {
+            label: "window",
+            source: shaders::WINDOW,
+            slots: &[],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &[],
+            window: Some(WindowAccess::Write),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
+        pass.bind(device, &[]);
+        Self { pass }
     }
 
     /// Records the exposure of `rects` (nothing when empty).
-    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: WindowParams, rects: &[TexelRect]) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, mut params: WindowParams, rects: &[TexelRect]) {
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        layout::dispatch(encoder, timer, "window", &self.pipelines.get(params.flags), &self.bind_group, grid);
+        self.pass.record(cx, Some(&res.bindings), &params, params.flags, grid);
     }
 }
 

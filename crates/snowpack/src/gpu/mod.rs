@@ -1,4 +1,4 @@
-//! GPU plumbing: adapter and device selection (or a game's device), readback rings, per-pass timing, render-pipeline builders, pipelines specialised on a constant.
+//! GPU plumbing: adapter and device selection (or a game's device), readback rings, per-pass timing, render-pipeline builders; a compute pass's pipeline cache is `pass`'s.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
@@ -8,7 +8,6 @@ pub mod context;
 pub mod layout;
 pub mod readback;
 pub mod render;
-pub mod specialised;
 pub mod timing;
 
 pub use context::{AdapterRequest, AdapterSummary, GpuContext};

@@ -6,8 +6,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
-use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::persist::TileKey;
 use crate::shaders;
 
@@ -78,11 +78,9 @@ pub fn unpack_tiles(keys: &[TileKey], side: u32, clock: ShareClock, packed: &[u3
 /// Copies whole tiles out of the window.
 pub struct TileGatherPass {
     /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    params: wgpu::Buffer,
+    pass: ComputePass<TileGatherParams>,
     keys: wgpu::Buffer,
     packed: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
     capacity: u32,
 }
 
@@ -91,22 +89,15 @@ impl TileGatherPass {
     /// tiles of `side` a dispatch.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, side: u32, capacity: u32) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "tile gather",
-            shaders::TILE_GATHER,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::storage(5, false),
-            ],
-            "PASS_FLAGS",
-            &[],
-        );
-        let params = layout::uniform_buffer::<TileGatherParams>(device, "tile gather params");
+        let shape = PassShape {
+            label: "tile gather",
+            source: shaders::TILE_GATHER,
+            slots: &[Slot::Read, Slot::ReadWrite],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &[],
+            window: Some(WindowAccess::Read),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let keys = crate::tiles::input_buffer(device, "tile gather keys", u64::from(capacity) * 8);
         let packed = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("tile gather packed"),
@@ -114,20 +105,8 @@ impl TileGatherPass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let bind_group = layout::bind_group(
-            device,
-            "tile gather",
-            &bgl,
-            &[
-                params.as_entire_binding(),
-                keys.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.stamps.as_entire_binding(),
-                res.fallen.as_entire_binding(),
-                packed.as_entire_binding(),
-            ],
-        );
-        Self { pipelines, params, keys, packed, bind_group, capacity }
+        pass.bind(device, &[keys.as_entire_binding(), packed.as_entire_binding()]);
+        Self { pass, keys, packed, capacity }
     }
 
     /// Tiles one dispatch gathers at most.
@@ -150,17 +129,15 @@ impl TileGatherPass {
 
     /// Records the gather of `keys` (at most [`Self::capacity`]; the rest
     /// are left out) into [`Self::packed`]; returns how many it gathers.
-    pub fn record(&self, cx: &mut FrameContext<'_>, params: TileGatherParams, keys: &[[i32; 2]]) -> u32 {
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: TileGatherParams, keys: &[[i32; 2]]) -> u32 {
         let keys = &keys[..keys.len().min(self.capacity as usize)];
         if keys.is_empty() {
             return 0;
         }
         let blocks = params.side.div_ceil(8);
         let p = TileGatherParams { count: keys.len() as u32, blocks, ..params };
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(keys));
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-        layout::dispatch(encoder, timer, "tile gather", &self.pipelines.get(p.flags), &self.bind_group, (blocks * blocks, p.count));
+        cx.queue().write_buffer(&self.keys, 0, bytemuck::cast_slice(keys));
+        self.pass.record(cx, Some(&res.bindings), &p, p.flags, (blocks * blocks, p.count));
         p.count
     }
 }

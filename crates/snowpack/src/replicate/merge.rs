@@ -7,8 +7,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
-use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::shaders;
 
 use super::gather::{PACKED_PLANES, packed_tile_bytes};
@@ -105,12 +105,10 @@ pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
 /// Folds uploaded tiles into the window.
 pub struct TileMergePass {
     /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    params: wgpu::Buffer,
+    pass: ComputePass<TileMergeParams>,
     keys: wgpu::Buffer,
     tiles: wgpu::Buffer,
     history: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
     capacity: u32,
 }
 
@@ -119,45 +117,20 @@ impl TileMergePass {
     /// tiles of `side` a dispatch.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, side: u32, capacity: u32) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "tile merge",
-            shaders::TILE_MERGE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, false),
-                layout::storage(4, false),
-                layout::storage(5, false),
-                layout::storage(6, true),
-                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
-                layout::storage(8, true),
-            ],
-            "PASS_FLAGS",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<TileMergeParams>(device, "tile merge params");
+        let shape = PassShape {
+            label: "tile merge",
+            source: shaders::TILE_MERGE,
+            slots: &[Slot::Read, Slot::Read, Slot::Read],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Write),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let keys = crate::tiles::input_buffer(device, "tile merge keys", u64::from(capacity) * 16);
         let history = crate::tiles::input_buffer(device, "tile merge history", HISTORY_FRAMES as u64 * 16);
         let tiles = crate::tiles::input_buffer(device, "tile merge upload", packed_tile_bytes(side) * u64::from(capacity.max(1)));
-        let bind_group = layout::bind_group(
-            device,
-            "tile merge",
-            &bgl,
-            &[
-                params.as_entire_binding(),
-                keys.as_entire_binding(),
-                tiles.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.stamps.as_entire_binding(),
-                res.fallen.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                history.as_entire_binding(),
-            ],
-        );
-        Self { pipelines, params, keys, tiles, history, bind_group, capacity }
+        pass.bind(device, &[keys.as_entire_binding(), tiles.as_entire_binding(), history.as_entire_binding()]);
+        Self { pass, keys, tiles, history, capacity }
     }
 
     /// Tiles one dispatch merges at most.
@@ -177,7 +150,14 @@ impl TileMergePass {
     /// tiles; at most [`Self::capacity`], the rest are left out), replaying
     /// `history` (at most [`HISTORY_FRAMES`], oldest first, as
     /// [`FrameRecord::gpu`]); returns how many tiles it merges.
-    pub fn record(&self, cx: &mut FrameContext<'_>, params: TileMergeParams, (keys, history): (&[[i32; 4]], &[[u32; 4]]), tiles: &[u32]) -> u32 {
+    pub fn record(
+        &self,
+        cx: &mut FrameContext<'_>,
+        res: &DeformResources,
+        params: TileMergeParams,
+        (keys, history): (&[[i32; 4]], &[[u32; 4]]),
+        tiles: &[u32],
+    ) -> u32 {
         let area = (params.side as usize) * (params.side as usize);
         let count = keys.len().min(self.capacity as usize).min(tiles.len() / (area * PACKED_PLANES).max(1));
         if count == 0 {
@@ -186,14 +166,13 @@ impl TileMergePass {
         let blocks = params.side.div_ceil(8);
         let history = &history[..history.len().min(HISTORY_FRAMES)];
         let p = TileMergeParams { count: count as u32, blocks, frames: history.len() as u32, ..params };
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+        let queue = cx.queue();
         queue.write_buffer(&self.keys, 0, bytemuck::cast_slice(&keys[..count]));
         if !history.is_empty() {
             queue.write_buffer(&self.history, 0, bytemuck::cast_slice(history));
         }
         queue.write_buffer(&self.tiles, 0, bytemuck::cast_slice(&tiles[..count * area * PACKED_PLANES]));
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-        layout::dispatch(encoder, timer, "tile merge", &self.pipelines.get(p.flags), &self.bind_group, (blocks * blocks, p.count));
+        self.pass.record(cx, Some(&res.bindings), &p, p.flags, (blocks * blocks, p.count));
         p.count
     }
 }

@@ -121,13 +121,6 @@ impl Sharing {
         }
     }
 
-    /// Binds the passes again (the window's buffers were replaced).
-    pub fn rebind(&mut self, device: &wgpu::Device, res: &DeformResources) {
-        let capacity = self.gather.capacity();
-        self.gather = TileGatherPass::new(device, res, self.grid.side, capacity);
-        self.merge = TileMergePass::new(device, res, self.grid.side, capacity);
-    }
-
     /// The flags' layout (tile side, slots).
     #[must_use]
     pub fn grid(&self) -> ShareGrid {
@@ -205,7 +198,14 @@ impl Sharing {
 
     /// Records the merge of the tiles ready at `clock` into the window
     /// (after the window's move, before this frame's presses).
-    pub fn record_merge(&mut self, cx: &mut FrameContext<'_>, window: &ShareWindow, params: TileMergeParams, (clock, catch): (&ShareClock, CatchUp)) {
+    pub fn record_merge(
+        &mut self,
+        cx: &mut FrameContext<'_>,
+        res: &DeformResources,
+        window: &ShareWindow,
+        params: TileMergeParams,
+        (clock, catch): (&ShareClock, CatchUp),
+    ) {
         let tiles = self.ready(window, clock, catch);
         if tiles.is_empty() {
             return;
@@ -215,7 +215,7 @@ impl Sharing {
         let refs: Vec<&SharedTile> = tiles.iter().map(|(t, _)| t).collect();
         let flags = if window.has_stamps { TileMergeParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileMergeParams::USE_FALLEN } else { 0 };
         let params = TileMergeParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..params };
-        self.merge.record(cx, params, (&keys, &history), &pack_tiles(&refs));
+        self.merge.record(cx, res, params, (&keys, &history), &pack_tiles(&refs));
     }
 
     /// Records, after this frame's presses (`frame`, with the clock after
@@ -254,7 +254,7 @@ impl Sharing {
         }
         let flags = if window.has_stamps { TileGatherParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileGatherParams::USE_FALLEN } else { 0 };
         let params = TileGatherParams { origin: window.gpu_origin(), resolution: window.resolution, side: self.grid.side, flags, ..Default::default() };
-        let count = self.gather.record(cx, params, &gpu_keys(&keys));
+        let count = self.gather.record(cx, res, params, &gpu_keys(&keys));
         let bytes = packed_tile_bytes(self.grid.side) * u64::from(count);
         let meta = Gathered { keys, clock: *clock, planes: (window.has_stamps, window.use_fallen) };
         self.gather_ring.record_copy_len(cx.encoder, self.gather.packed(), bytes, meta);

@@ -11,8 +11,9 @@ use bytemuck::{Pod, Zeroable};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
 use crate::height_depth::SkyTest;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::{WindowAccess, WindowBindings};
 use crate::shaders;
 
 use super::skinning::SkinnedInstance;
@@ -128,61 +129,46 @@ impl SnowCoatParams {
     }
 }
 
-/// The window's buffers the coat reads: heights, snow words, fallen snow,
-/// the terrain's uniforms and the occlusion map.
+/// What the coat reads of the ground: the window's bindings (heights, snow
+/// words, fallen snow, the terrain) and the occlusion map.
 #[derive(Clone, Copy)]
 pub struct CoatGround<'a> {
-    /// Terrain heightmap (`DeformResources::heightmap`).
-    pub heightmap: &'a wgpu::Buffer,
-    /// Snow words.
-    pub snow: &'a wgpu::Buffer,
-    /// Fallen snow.
-    pub fallen: &'a wgpu::Buffer,
-    /// Terrain uniforms.
-    pub terrain_params: &'a wgpu::Buffer,
+    /// The window's buffers (`DeformResources::bindings`).
+    pub window: &'a WindowBindings,
     /// Occlusion depth (a 1x1 stand-in when no objects are set).
     pub sky: &'a wgpu::TextureView,
 }
 
 /// The pass: one pipeline for every character.
 pub struct SnowCoatPass {
-    /// One pipeline per set of inputs in use ([`SnowCoatParams::inputs`]).
-    pipelines: SpecialisedPipeline,
-    layout: wgpu::BindGroupLayout,
-    params: Vec<wgpu::Buffer>,
+    /// One pipeline per set of inputs in use ([`SnowCoatParams::inputs`]),
+    /// and the first character's uniform.
+    pass: ComputePass<SnowCoatParams>,
+    /// The other characters' uniforms (every dispatch of a frame reads its own).
+    more: Vec<ComputePass<SnowCoatParams>>,
 }
 
 impl SnowCoatPass {
-    /// Builds the pipeline for a window whose terrain kind `terrain_constants` names.
+    /// Builds the pipeline for the window `window`, whose terrain kind
+    /// `terrain_constants` names.
     #[must_use]
-    pub fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
-        let (pipelines, layout) = SpecialisedPipeline::new(
-            device,
-            "snow coat",
-            shaders::SNOW_COAT,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, false),
-                layout::storage(5, true),
-                layout::storage(6, true),
-                layout::storage(7, true),
-                layout::uniform(8, wgpu::ShaderStages::COMPUTE),
-                layout::depth_texture(9),
-            ],
-            "COAT_INPUTS",
-            terrain_constants,
-        );
-        Self { pipelines, layout, params: Vec::new() }
+    pub fn new(device: &wgpu::Device, window: &WindowBindings, terrain_constants: &[(&'static str, f64)]) -> Self {
+        let shape = PassShape {
+            label: "snow coat",
+            source: shaders::SNOW_COAT,
+            slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite, Slot::Depth],
+            specialise_on: Some("COAT_INPUTS"),
+            constants: terrain_constants,
+            window: Some(WindowAccess::Read),
+        };
+        Self { pass: ComputePass::new(device, &shape, Some(window)), more: Vec::new() }
     }
 
     /// Makes sure `characters` characters can be recorded in one frame: one
     /// uniform buffer each, kept (every dispatch of a frame reads its own).
     pub fn reserve(&mut self, device: &wgpu::Device, characters: usize) {
-        while self.params.len() < characters {
-            self.params.push(layout::uniform_buffer::<SnowCoatParams>(device, "snow coat params"));
+        while self.more.len() + 1 < characters {
+            self.more.push(self.pass.sibling(device));
         }
     }
 
@@ -190,27 +176,20 @@ impl SnowCoatPass {
     /// skinning already recorded; [`Self::reserve`]d for), then keeps its
     /// positions for the next frame's speeds. Nothing for a `k` not reserved.
     pub fn record(&self, cx: &mut FrameContext<'_>, k: usize, instance: &SkinnedInstance, ground: CoatGround<'_>, params: &SnowCoatParams) {
-        let (gpu, encoder, timer) = (cx.gpu, &mut *cx.encoder, &mut *cx.timer);
-        let Some(params_buffer) = self.params.get(k) else { return };
-        gpu.queue.write_buffer(params_buffer, 0, bytemuck::bytes_of(&SnowCoatParams { vertex_count: instance.vertex_count, ..*params }));
-        let bind_group = layout::bind_group(
-            &gpu.device,
-            "snow coat",
-            &self.layout,
+        let Some(pass) = k.checked_sub(1).map_or(Some(&self.pass), |m| self.more.get(m)) else { return };
+        let group = pass.make_group(
+            cx.device(),
             &[
-                params_buffer.as_entire_binding(),
                 instance.skinned.as_entire_binding(),
                 instance.previous.as_entire_binding(),
                 instance.normals.as_entire_binding(),
                 instance.coat.as_entire_binding(),
-                ground.heightmap.as_entire_binding(),
-                ground.snow.as_entire_binding(),
-                ground.fallen.as_entire_binding(),
-                ground.terrain_params.as_entire_binding(),
                 wgpu::BindingResource::TextureView(ground.sky),
             ],
         );
-        layout::dispatch(encoder, timer, "snow coat", &self.pipelines.get(params.inputs()), &bind_group, (layout::groups(instance.vertex_count, 64), 1));
+        let params = SnowCoatParams { vertex_count: instance.vertex_count, ..*params };
+        pass.record_with(cx, &group, Some(ground.window), &params, params.inputs(), (layout::groups(instance.vertex_count, 64), 1));
+        let encoder = &mut *cx.encoder;
         encoder.copy_buffer_to_buffer(&instance.skinned, 0, &instance.previous, 0, u64::from(instance.vertex_count) * 12);
     }
 }

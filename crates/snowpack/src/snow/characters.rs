@@ -4,6 +4,7 @@
 //! and sub-steps, so the capture sweeps it over its motion.
 
 use crate::deform::capture::{CaptureMesh, SweptMesh};
+use crate::deform::resources::DeformResources;
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::GpuContext;
@@ -32,15 +33,15 @@ pub(super) struct Characters {
 }
 
 impl Characters {
-    /// No characters yet.
-    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
+    /// No characters yet, over the window of `res`.
+    pub(super) fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
         Self {
             skinning: SkinningPass::new(device),
             skinned: Vec::new(),
             posed: Vec::new(),
             history: MeshHistory::default(),
             steps: Vec::new(),
-            coats: Coats::new(device, terrain_constants),
+            coats: Coats::new(device, res),
         }
     }
 

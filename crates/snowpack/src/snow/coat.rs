@@ -5,6 +5,7 @@
 //! are [`super::SnowDeformation`]'s.
 
 use crate::accumulate::OcclusionParams;
+use crate::deform::resources::DeformResources;
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::height_depth::{SkyTest, sky_depth_texture};
@@ -26,10 +27,10 @@ pub(super) struct Coats {
 }
 
 impl Coats {
-    /// No characters yet; the pass for a window whose terrain kind `terrain_constants` names.
-    pub(super) fn new(device: &wgpu::Device, terrain_constants: &[(&'static str, f64)]) -> Self {
+    /// No characters yet; the pass for the window of `res`.
+    pub(super) fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
         Self {
-            pass: SnowCoatPass::new(device, terrain_constants),
+            pass: SnowCoatPass::new(device, &res.bindings, &res.terrain_constants()),
             settings: Vec::new(),
             posed_before: Vec::new(),
             no_sky: sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default()),
@@ -78,13 +79,7 @@ impl Coats {
         (posed, skinned): (&[usize], &[SkinnedInstance]),
     ) {
         let sky_view = sky.filter(|_| ground.sky.is_some());
-        let bound = CoatGround {
-            heightmap: &core.res.heightmap,
-            snow: &core.res.snow,
-            fallen: &core.res.fallen,
-            terrain_params: &core.res.terrain_params,
-            sky: sky_view.unwrap_or(&self.no_sky),
-        };
+        let bound = CoatGround { window: &core.res.bindings, sky: sky_view.unwrap_or(&self.no_sky) };
         let base = frame_params(core, &ground, sky_view.is_some(), dt_s);
         self.pass.reserve(cx.device(), posed.len());
         for (slot, &k) in posed.iter().enumerate() {

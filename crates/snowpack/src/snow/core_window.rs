@@ -130,20 +130,10 @@ impl CoreWindow {
     }
 
     /// Allocates the footprint buffer the first time the technique uses it
-    /// and rebinds the core passes bound to its 4-byte stand-in; `true`
-    /// when it did, so the plug-ins bound to the resources rebind too.
-    pub(super) fn allocate_stamps(&mut self, ctx: &GpuContext, sky: Option<&wgpu::TextureView>) -> bool {
-        let (device, queue) = (&ctx.device, &ctx.queue);
-        if !(self.params.technique.uses_stamps() && self.res.allocate_stamps(device, queue)) {
-            return false;
-        }
-        // Every pass bound to the 4-byte stand-in binds the new buffer.
-        self.window_pass = WindowPass::new(device, &self.res);
-        self.stamp_pass = StampPass::new(device, &self.res);
-        self.display_pass = DisplayPass::new(device, &self.res);
-        self.update_pass = UpdatePass::new(device, &self.res);
-        self.update_pass.bind_sky(device, &self.res, sky);
-        true
+    /// (the window's bindings follow; no pass binds it itself); `true` when
+    /// it did, so the tiles add a footprint plane.
+    pub(super) fn allocate_stamps(&mut self, ctx: &GpuContext) -> bool {
+        self.params.technique.uses_stamps() && self.res.allocate_stamps(&ctx.device, &ctx.queue)
     }
 
     /// Moves the window to `origin`: the rectangles of texels it exposes
@@ -186,7 +176,7 @@ impl CoreWindow {
             flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 } | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
             ..WindowParams::default()
         };
-        self.window_pass.record(cx, params, rects);
+        self.window_pass.record(cx, &self.res, params, rects);
     }
 
     /// Each deformer's pose to sweep from (its last frame's), then this
@@ -237,8 +227,7 @@ impl CoreWindow {
     pub(super) fn record_stamps(&mut self, cx: &mut FrameContext<'_>, deformers: &[Deformer], corner: DVec2, stamp_params: &StampParams) {
         let points = &mut self.scratch.points;
         contact_points_into(deformers, &self.scratch.sweeps, corner, stamp_params, points);
-        let dropped = self.stamp_pass.prepare(cx.device(), cx.queue(), &self.res, stamp_params, points);
-        self.stamp_pass.record(cx);
+        let dropped = self.stamp_pass.record(cx, &self.res, stamp_params, points);
         self.points_last_frame = points.len() - dropped;
         if dropped > 0 {
             // Said once per doubling of the total, so a scene that always
@@ -294,7 +283,7 @@ impl CoreWindow {
             share_keys: share.map_or(0, |g| g.keys),
             ..Default::default()
         };
-        self.update_pass.record(cx, &params);
+        self.update_pass.record(cx, &self.res, &params);
     }
 
     /// The display: rims, blur and the displayed half of each snow word.
@@ -313,7 +302,7 @@ impl CoreWindow {
             blur: u32::from(p.blur),
             ..Default::default()
         };
-        self.display_pass.record(cx, &params);
+        self.display_pass.record(cx, &self.res, &params);
     }
 
     /// The decals: contacts are kept whatever the technique (so switching

@@ -130,7 +130,7 @@ impl SnowDeformation {
         };
         Ok(Self {
             timer: GpuTimer::new(&ctx.device, &ctx.queue),
-            characters: Characters::new(&ctx.device, &core.res.terrain_constants()),
+            characters: Characters::new(&ctx.device, &core.res),
             core,
             time: SnowTime::default(),
             accumulation: None,

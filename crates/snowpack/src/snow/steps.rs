@@ -80,7 +80,7 @@ impl FrameSteps<'_> {
         let refill = self.time.refill(&self.core.params, frame.dt_s, stamp_params.quantum_m());
         self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share);
         if let Some(tiles) = &mut self.tiles {
-            tiles.record_weather(cx, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
+            tiles.record_weather(cx, &self.core.res, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
         }
         self.time.advance(&refill, window.max_fallen_m);
         self.record_shared_flags(cx, &window, &refill, stamps);
@@ -104,14 +104,10 @@ impl FrameSteps<'_> {
             Some(tiles) => tiles.plan(cx.gpu, old, desired),
             None => desired,
         };
-        let sky = self.accumulation.as_deref().map(SnowAccumulation::sky_view);
-        if self.core.allocate_stamps(cx.gpu, sky) {
-            if let Some(tiles) = &mut self.tiles {
-                tiles.add_stamp_plane(cx.gpu, &self.core.res);
-            }
-            if let Some(sharing) = &mut self.sharing {
-                sharing.rebind(cx.device(), &self.core.res);
-            }
+        if self.core.allocate_stamps(cx.gpu)
+            && let Some(tiles) = &mut self.tiles
+        {
+            tiles.add_stamp_plane(cx.gpu, &self.core.res);
         }
         let (window, rects) = self.core.move_to(origin, self.time.fallen_m);
         (window, old, rects)
@@ -140,7 +136,7 @@ impl FrameSteps<'_> {
             max_fallen_m: window.max_fallen_m,
             ..Default::default()
         };
-        sharing.record_merge(cx, &core.share_window(window.origin), merge, (&self.time.share_clock(), core.catch_up_rule()));
+        sharing.record_merge(cx, &core.res, &core.share_window(window.origin), merge, (&self.time.share_clock(), core.catch_up_rule()));
     }
 
     /// What the sky sees (drawn while the snowfall is set, even at rate 0,

@@ -4,8 +4,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
-use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -50,18 +50,12 @@ impl ExchangeParams {
     pub const HAS_STAMPS: u32 = 4;
 }
 
-/// One direction of the exchange, with its own uniforms (both run in one frame).
-struct Direction {
-    params: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
-}
-
 /// Stashes leaving texels into their tiles and loads entering ones from theirs.
 pub struct ExchangePass {
-    /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    stash: Direction,
-    load: Direction,
+    /// One pipeline per set of flags in use, and the stash's uniform.
+    stash: ComputePass<ExchangeParams>,
+    /// The same pipelines and the load's uniform (both may be recorded in one submission).
+    load: ComputePass<ExchangeParams>,
 }
 
 impl ExchangePass {
@@ -69,56 +63,30 @@ impl ExchangePass {
     /// and their key `table` (tile key -> slot).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer, table: &wgpu::Buffer) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "exchange",
-            shaders::EXCHANGE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, false),
-                layout::storage(2, true),
-                layout::storage(3, false),
-                layout::storage(4, false),
-                layout::storage(5, false),
-                layout::storage(6, true),
-                layout::uniform(7, wgpu::ShaderStages::COMPUTE),
-            ],
-            "PASS_FLAGS",
-            &res.terrain_constants(),
-        );
-        let direction = |label: &str| {
-            let params = layout::uniform_buffer::<ExchangeParams>(device, label);
-            let bind_group = layout::bind_group(
-                device,
-                label,
-                &bgl,
-                &[
-                    params.as_entire_binding(),
-                    tiles.as_entire_binding(),
-                    table.as_entire_binding(),
-                    res.snow.as_entire_binding(),
-                    res.stamps.as_entire_binding(),
-                    res.fallen.as_entire_binding(),
-                    res.heightmap.as_entire_binding(),
-                    res.terrain_params.as_entire_binding(),
-                ],
-            );
-            Direction { params, bind_group }
+        let shape = PassShape {
+            label: "exchange",
+            source: shaders::EXCHANGE,
+            slots: &[Slot::ReadWrite, Slot::Read],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Write),
         };
-        Self { pipelines, stash: direction("exchange stash"), load: direction("exchange load") }
+        let mut stash = ComputePass::new(device, &shape, Some(&res.bindings));
+        let mut load = stash.sibling(device);
+        for pass in [&mut stash, &mut load] {
+            pass.bind(device, &[tiles.as_entire_binding(), table.as_entire_binding()]);
+        }
+        Self { stash, load }
     }
 
     /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
     /// or the load of `rects`; nothing when empty.
-    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: ExchangeParams, rects: &[TexelRect]) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, mut params: ExchangeParams, rects: &[TexelRect]) {
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;
         let stash = params.flags & ExchangeParams::STASH != 0;
-        let direction = if stash { &self.stash } else { &self.load };
-        queue.write_buffer(&direction.params, 0, bytemuck::bytes_of(&params));
-        let label = if stash { "tile stash" } else { "tile load" };
-        layout::dispatch(encoder, timer, label, &self.pipelines.get(params.flags), &direction.bind_group, grid);
+        let (pass, label) = if stash { (&self.stash, "tile stash") } else { (&self.load, "tile load") };
+        pass.record_labelled(cx, label, Some(&res.bindings), &params, params.flags, grid);
     }
 }

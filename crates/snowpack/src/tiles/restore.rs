@@ -5,7 +5,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -105,62 +106,28 @@ impl Default for RestoreEntry {
 /// Writes restored or fresh tiles into their slots.
 pub struct TileRestorePass {
     /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    bgl: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    pass: ComputePass<RestoreParams>,
     entries: wgpu::Buffer,
     upload: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
 }
 
 impl TileRestorePass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "tile restore",
-            shaders::TILE_RESTORE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::storage(5, false),
-            ],
-            "PASS_FLAGS",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<RestoreParams>(device, "tile restore params");
+        let shape = PassShape {
+            label: "tile restore",
+            source: shaders::TILE_RESTORE,
+            slots: &[Slot::Read, Slot::Read, Slot::ReadWrite],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Read),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let entries = super::input_buffer(device, "tile restore entries", 64 * size_of::<RestoreEntry>() as u64);
         let upload = super::input_buffer(device, "tile upload", 16);
-        let bind_group = Self::group(device, &bgl, &params, &entries, &upload, res, tiles);
-        Self { pipelines, bgl, params, entries, upload, bind_group }
-    }
-
-    fn group(
-        device: &wgpu::Device,
-        bgl: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
-        entries: &wgpu::Buffer,
-        upload: &wgpu::Buffer,
-        res: &DeformResources,
-        tiles: &wgpu::Buffer,
-    ) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "tile restore",
-            bgl,
-            &[
-                params.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                entries.as_entire_binding(),
-                upload.as_entire_binding(),
-                tiles.as_entire_binding(),
-            ],
-        )
+        pass.bind(device, &[entries.as_entire_binding(), upload.as_entire_binding(), tiles.as_entire_binding()]);
+        Self { pass, entries, upload }
     }
 
     /// Records the restore of `entries`, whose saved planes are `upload`
@@ -175,7 +142,6 @@ impl TileRestorePass {
     ) {
         params.flags = super::planes::with_stamp_plane_flag(params.flags, params.planes, (RestoreParams::USE_FALLEN, RestoreParams::STAMP_PLANE));
         let (device, queue) = (cx.device(), cx.queue());
-        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {
             return;
         }
@@ -188,16 +154,15 @@ impl TileRestorePass {
             if upload_bytes > self.upload.size() {
                 self.upload = super::input_buffer(device, "tile upload", upload_bytes.next_power_of_two());
             }
-            self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, &self.upload, res, tiles);
+            self.pass.bind(device, &[self.entries.as_entire_binding(), self.upload.as_entire_binding(), tiles.as_entire_binding()]);
         }
         params.count = entries.len() as u32;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(entries));
         if !upload.is_empty() {
             queue.write_buffer(&self.upload, 0, bytemuck::cast_slice(upload));
         }
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile restore", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
+        self.pass.record(cx, Some(&res.bindings), &params, params.flags, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its upload and entry buffers).

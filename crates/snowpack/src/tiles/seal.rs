@@ -5,7 +5,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -38,57 +39,26 @@ impl SealParams {
 /// Seals the snow plane of listed slots, `[col, row, slot, 0]` each.
 pub struct TileSealPass {
     /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    bgl: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    pass: ComputePass<SealParams>,
     entries: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
 }
 
 impl TileSealPass {
     /// Builds the pipeline over the terrain description in `res` and the resident `tiles`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, tiles: &wgpu::Buffer) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "tile seal",
-            shaders::TILE_SEAL,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::uniform(1, wgpu::ShaderStages::COMPUTE),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, false),
-            ],
-            "PASS_FLAGS",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<SealParams>(device, "tile seal params");
+        let shape = PassShape {
+            label: "tile seal",
+            source: shaders::TILE_SEAL,
+            slots: &[Slot::Read, Slot::ReadWrite],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Read),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let entries = super::input_buffer(device, "tile seal entries", 64 * 16);
-        let bind_group = Self::group(device, &bgl, &params, &entries, res, tiles);
-        Self { pipelines, bgl, params, entries, bind_group }
-    }
-
-    fn group(
-        device: &wgpu::Device,
-        bgl: &wgpu::BindGroupLayout,
-        params: &wgpu::Buffer,
-        entries: &wgpu::Buffer,
-        res: &DeformResources,
-        tiles: &wgpu::Buffer,
-    ) -> wgpu::BindGroup {
-        layout::bind_group(
-            device,
-            "tile seal",
-            bgl,
-            &[
-                params.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                entries.as_entire_binding(),
-                tiles.as_entire_binding(),
-            ],
-        )
+        pass.bind(device, &[entries.as_entire_binding(), tiles.as_entire_binding()]);
+        Self { pass, entries }
     }
 
     /// Records the seal of `entries` (`[col, row, slot, 0]`); grows its entry
@@ -96,20 +66,18 @@ impl TileSealPass {
     /// uniforms and entries are written through the queue).
     pub fn record(&mut self, cx: &mut FrameContext<'_>, (res, tiles): (&DeformResources, &wgpu::Buffer), mut params: SealParams, entries: &[[i32; 4]]) {
         let (device, queue) = (cx.device(), cx.queue());
-        let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         if entries.is_empty() {
             return;
         }
         let bytes = std::mem::size_of_val(entries) as u64;
         if bytes > self.entries.size() {
             self.entries = super::input_buffer(device, "tile seal entries", bytes.next_power_of_two());
-            self.bind_group = Self::group(device, &self.bgl, &self.params, &self.entries, res, tiles);
+            self.pass.bind(device, &[self.entries.as_entire_binding(), tiles.as_entire_binding()]);
         }
         params.count = entries.len() as u32;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(entries));
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile seal", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
+        self.pass.record(cx, Some(&res.bindings), &params, params.flags, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its entry list).

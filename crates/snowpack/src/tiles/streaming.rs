@@ -671,14 +671,14 @@ impl TileStreaming {
             self.record_copy_out(cx, res, &evicting, clock);
         }
         self.write_table(cx.queue());
-        self.exchange.record(cx, stash, rects);
+        self.exchange.record(cx, res, stash, rects);
         for (k, slot) in deferred {
             let entry = self.restore_entry(k, slot, &mut upload, clock);
             entries.push(entry);
         }
         let params = self.restore_params(frame);
         self.restore.record(cx, (res, &self.tiles), params, &entries, &upload);
-        self.exchange.record(cx, self.exchange_params(res, old, origin, false), rects);
+        self.exchange.record(cx, res, self.exchange_params(res, old, origin, false), rects);
         // Tiles now wholly inside the window give their slots up (their
         // texels were all loaded or never left): no copy-out. The GPU table
         // keeps them until the next write, after this frame's load.
@@ -755,7 +755,7 @@ impl TileStreaming {
             let mut encoder = new_encoder(ctx);
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             if let Some(old) = old {
-                self.exchange.record(&mut cx, self.exchange_params(res, old, old, true), &full);
+                self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, true), &full);
             }
             let out: Vec<(TileKey, usize)> = batch.iter().map(|k| (*k, self.slots[k])).collect();
             self.record_copy_out(&mut cx, res, &out, clock);
@@ -785,7 +785,7 @@ impl TileStreaming {
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             let params = self.restore_params(frame);
             self.restore.record(&mut cx, (res, &self.tiles), params, &entries, &upload);
-            self.exchange.record(&mut cx, self.exchange_params(res, origin, origin, false), &full);
+            self.exchange.record(&mut cx, res, self.exchange_params(res, origin, origin, false), &full);
             submit(ctx, encoder);
             for &k in batch {
                 if g.inside(k, origin) {
@@ -846,19 +846,20 @@ impl TileStreaming {
     pub fn record_weather(
         &mut self,
         cx: &mut FrameContext<'_>,
+        res: &DeformResources,
         frame @ &WindowFrame { origin, .. }: &WindowFrame,
         (refill_m, fall_m): (f32, f32),
         quanta: u32,
     ) {
         // Only tiles reaching outside the window: the update has the rest.
-        let (side, res) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
-        let inside = |k: TileKey| {
-            k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + res && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + res
-        };
+        let (side, n) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
+        let inside =
+            |k: TileKey| k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + n && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + n;
         self.weather_slots.clear();
         self.weather_slots.extend(self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32));
         self.weather.record(
             cx,
+            res,
             &WeatherParams {
                 origin: [origin[0] as i32, origin[1] as i32],
                 resolution: self.grid.resolution,
@@ -955,7 +956,7 @@ impl TileStreaming {
             let entries: Vec<[i32; 4]> = batch.iter().map(|k| [k.col as i32, k.row as i32, self.slots[k] as i32, 0]).collect();
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
-            self.exchange.record(&mut cx, stash, &full);
+            self.exchange.record(&mut cx, res, stash, &full);
             self.seal.record(&mut cx, (res, &self.tiles), seal, &entries);
             ctx.queue.submit([encoder.finish()]);
             let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
@@ -1029,7 +1030,7 @@ impl TileStreaming {
             {
                 let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
                 self.restore.record(&mut cx, (res, &self.tiles), self.restore_base, &entries, &upload);
-                self.exchange.record(&mut cx, load, &full);
+                self.exchange.record(&mut cx, res, load, &full);
                 self.seal.record(&mut cx, (res, &self.tiles), seal, &sealed);
             }
             ctx.queue.submit([encoder.finish()]);

@@ -5,7 +5,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
+use crate::pass::window_bindings::WindowAccess;
 use crate::shaders;
 
 use crate::deform::resources::DeformResources;
@@ -63,10 +64,8 @@ impl WeatherParams {
 /// Lets time pass on resident tiles the window does not cover.
 pub struct TileWeatherPass {
     /// One pipeline per set of flags in use.
-    pipelines: SpecialisedPipeline,
-    params: wgpu::Buffer,
+    pass: ComputePass<WeatherParams>,
     slots: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
 }
 
 impl TileWeatherPass {
@@ -74,53 +73,32 @@ impl TileWeatherPass {
     /// the terrain description in `res` (the ground under each texel).
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources, owners: &wgpu::Buffer, tiles: &wgpu::Buffer) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
-            device,
-            "tile weather",
-            shaders::TILE_WEATHER,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, false),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::uniform(5, wgpu::ShaderStages::COMPUTE),
-            ],
-            "PASS_FLAGS",
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<WeatherParams>(device, "tile weather params");
+        let shape = PassShape {
+            label: "tile weather",
+            source: shaders::TILE_WEATHER,
+            slots: &[Slot::Read, Slot::ReadWrite, Slot::Read],
+            specialise_on: Some("PASS_FLAGS"),
+            constants: &res.terrain_constants(),
+            window: Some(WindowAccess::Read),
+        };
+        let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         // One entry per slot at most (the owners buffer holds 16 bytes per slot).
         let slots = super::input_buffer(device, "tile weather slots", owners.size() / 4);
-        let bind_group = layout::bind_group(
-            device,
-            "tile weather",
-            &bgl,
-            &[
-                params.as_entire_binding(),
-                owners.as_entire_binding(),
-                tiles.as_entire_binding(),
-                slots.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-            ],
-        );
-        Self { pipelines, params, slots, bind_group }
+        pass.bind(device, &[owners.as_entire_binding(), tiles.as_entire_binding(), slots.as_entire_binding()]);
+        Self { pass, slots }
     }
 
     /// Records this frame's weather on the listed `slots` (nothing when it
     /// passes no time or lists none).
-    pub fn record(&self, cx: &mut FrameContext<'_>, params: &WeatherParams, slots: &[u32]) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &WeatherParams, slots: &[u32]) {
         if !params.passes_time() || slots.is_empty() {
             return;
         }
         let flags = super::planes::with_stamp_plane_flag(params.flags, params.planes, (WeatherParams::USE_FALLEN, WeatherParams::STAMP_PLANE));
         let params = WeatherParams { count: slots.len() as u32, flags, ..*params };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        queue.write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
+        cx.queue().write_buffer(&self.slots, 0, bytemuck::cast_slice(slots));
         let groups = layout::groups(params.side * params.side, 256);
-        layout::dispatch(encoder, timer, "tile weather", &self.pipelines.get(params.flags), &self.bind_group, (groups, params.count));
+        self.pass.record(cx, Some(&res.bindings), &params, params.flags, (groups, params.count));
     }
 
     /// Bytes of GPU memory held (its slot list).

@@ -7,7 +7,7 @@
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::gpu::specialised::SpecialisedPipeline;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Parameters of [`ShellVertexPass`] (`ShellVertexParams` in WGSL).
@@ -87,10 +87,8 @@ pub struct SnowSurface<'a> {
 
 /// Transforms the base surface and builds the offset surface, one invocation per vertex.
 pub struct ShellVertexPass {
-    params: wgpu::Buffer,
     /// One pipeline per [`ShellVertexParams::mode`] in use.
-    pipelines: SpecialisedPipeline,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<ShellVertexParams>,
 }
 
 impl ShellVertexPass {
@@ -98,28 +96,18 @@ impl ShellVertexPass {
     /// snow mode) and `snow`, writing `vertices`.
     #[must_use]
     pub fn new(device: &wgpu::Device, base: &wgpu::Buffer, snow: &SnowSurface<'_>, vertices: &wgpu::Buffer) -> Self {
-        let (pipelines, bgl) = SpecialisedPipeline::new(
+        let shape = PassShape {
+            label: "shell vertices",
+            source: shaders::SHELL_VERTICES,
+            slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::Uniform, Slot::ReadWrite],
+            specialise_on: Some("SHELL_MODE"),
+            constants: &snow.terrain_constants,
+            window: None,
+        };
+        let mut pass = ComputePass::new(device, &shape, None);
+        pass.bind(
             device,
-            "shell vertices",
-            shaders::SHELL_VERTICES,
             &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::uniform(4, wgpu::ShaderStages::COMPUTE),
-                layout::storage(5, false),
-            ],
-            "SHELL_MODE",
-            &snow.terrain_constants,
-        );
-        let params = layout::uniform_buffer::<ShellVertexParams>(device, "shell vertex params");
-        let bind_group = layout::bind_group(
-            device,
-            "shell vertices",
-            &bgl,
-            &[
-                params.as_entire_binding(),
                 base.as_entire_binding(),
                 snow.surface.as_entire_binding(),
                 snow.heightmap.as_entire_binding(),
@@ -127,13 +115,11 @@ impl ShellVertexPass {
                 vertices.as_entire_binding(),
             ],
         );
-        Self { params, pipelines, bind_group }
+        Self { pass }
     }
 
     /// Records the pass over `params.count` vertices.
     pub fn record(&self, cx: &mut FrameContext<'_>, params: &ShellVertexParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        layout::dispatch(encoder, timer, "shell vertices", &self.pipelines.get(params.mode), &self.bind_group, (layout::groups(params.count, 64), 1));
+        self.pass.record(cx, None, params, params.mode, (layout::groups(params.count, 64), 1));
     }
 }
