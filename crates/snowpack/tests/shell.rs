@@ -505,7 +505,6 @@ fn peel_count_matches_cpu() {
     let counts = storage(ctx, "counts", &[0u8; 64]);
     let shaded = storage(ctx, "shaded", &vec![0u8; n * 4]);
     let pass = PeelCountPass::new(&ctx.device, &view, &counts, &shaded);
-    pass.prepare(&ctx.queue, size);
     let mut cpu_mask = vec![0u32; n];
     let mut cpu_counts = Vec::new();
     for k in 0..3 {

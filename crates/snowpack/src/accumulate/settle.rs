@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Uniforms of `settle.wgsl`.
@@ -42,35 +43,28 @@ pub struct SettleBuffers<'a> {
 
 /// Adds the blurred increment and lets snow beyond a surface's capacity fall off.
 pub struct SettlePass {
-    pipeline: wgpu::ComputePipeline,
-    params: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<SettleParams>,
 }
 
 impl SettlePass {
     /// Builds the pipeline over `b`.
     #[must_use]
     pub fn new(device: &wgpu::Device, b: &SettleBuffers<'_>) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let mut pass = ComputePass::new(
             device,
-            "settle",
-            shaders::SETTLE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::storage(5, false),
-            ],
+            &PassShape {
+                label: "settle",
+                source: shaders::SETTLE,
+                slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
+                specialise_on: None,
+                constants: &[],
+                window: None,
+            },
+            None,
         );
-        let params = layout::uniform_buffer::<SettleParams>(device, "settle params");
-        let bind_group = layout::bind_group(
+        pass.bind(
             device,
-            "settle",
-            &bgl,
             &[
-                params.as_entire_binding(),
                 b.objects.as_entire_binding(),
                 b.normal_area.as_entire_binding(),
                 b.owner.as_entire_binding(),
@@ -78,17 +72,15 @@ impl SettlePass {
                 b.acc.as_entire_binding(),
             ],
         );
-        Self { pipeline, params, bind_group }
+        Self { pass }
     }
 
     /// Records the settle.
     /// Only the first `rows` atlas rows are dispatched: charts are packed from
     /// row 0 up ([`super::AtlasLayout::used_rows`]), and the rows above hold nothing.
     pub fn record(&self, cx: &mut FrameContext<'_>, rows: u32, params: &SettleParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.atlas_resolution, 16);
         let gy = layout::groups(rows.min(params.atlas_resolution), 16);
-        layout::dispatch(encoder, timer, "settle", &self.pipeline, &self.bind_group, (g, gy));
+        self.pass.record(cx, None, params, 0, (g, gy));
     }
 }

@@ -5,6 +5,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Uniforms of `atlas_surface.wgsl`.
@@ -19,45 +20,35 @@ pub struct SurfaceParams {
 
 /// Writes (height, slope x, slope y, owned) per atlas texel.
 pub struct AtlasSurfacePass {
-    pipeline: wgpu::ComputePipeline,
-    params: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<SurfaceParams>,
 }
 
 impl AtlasSurfacePass {
     /// Builds the pipeline reading `objects`, `owner` and `acc`, writing `surface`.
     #[must_use]
     pub fn new(device: &wgpu::Device, objects: &wgpu::Buffer, owner: &wgpu::Buffer, acc: &wgpu::Buffer, surface: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
+        let mut pass = ComputePass::new(
             device,
-            "atlas surface",
-            shaders::ATLAS_SURFACE,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, false),
-            ],
+            &PassShape {
+                label: "atlas surface",
+                source: shaders::ATLAS_SURFACE,
+                slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
+                specialise_on: None,
+                constants: &[],
+                window: None,
+            },
+            None,
         );
-        let params = layout::uniform_buffer::<SurfaceParams>(device, "atlas surface params");
-        let bind_group = layout::bind_group(
-            device,
-            "atlas surface",
-            &bgl,
-            &[params.as_entire_binding(), objects.as_entire_binding(), owner.as_entire_binding(), acc.as_entire_binding(), surface.as_entire_binding()],
-        );
-        Self { pipeline, params, bind_group }
+        pass.bind(device, &[objects.as_entire_binding(), owner.as_entire_binding(), acc.as_entire_binding(), surface.as_entire_binding()]);
+        Self { pass }
     }
 
     /// Records the surface.
     /// Only the first `rows` atlas rows are dispatched: charts are packed from
     /// row 0 up ([`super::AtlasLayout::used_rows`]), and the rows above hold nothing.
     pub fn record(&self, cx: &mut FrameContext<'_>, rows: u32, params: &SurfaceParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let g = layout::groups(params.atlas_resolution, 16);
         let gy = layout::groups(rows.min(params.atlas_resolution), 16);
-        layout::dispatch(encoder, timer, "atlas surface", &self.pipeline, &self.bind_group, (g, gy));
+        self.pass.record(cx, None, params, 0, (g, gy));
     }
 }

@@ -34,6 +34,8 @@ pub enum Slot {
     ReadWrite,
     /// A depth texture read with `textureLoad` ([`layout::depth_texture`]).
     Depth,
+    /// A `u32` texture read with `textureLoad` (`texture_2d<u32>`).
+    UintTexture,
 }
 
 impl Slot {
@@ -43,6 +45,16 @@ impl Slot {
             Self::Read => layout::storage(binding, true),
             Self::ReadWrite => layout::storage(binding, false),
             Self::Depth => layout::depth_texture(binding),
+            Self::UintTexture => wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Uint,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            },
         }
     }
 }

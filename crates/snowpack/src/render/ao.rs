@@ -2,6 +2,7 @@
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Parameters of the AO pass (`AoParams` in WGSL).
@@ -22,9 +23,7 @@ pub struct AoParams {
 pub struct AoPass {
     /// AO per texel, window-local (1 open).
     pub ao: wgpu::Buffer,
-    params: wgpu::Buffer,
-    pipeline: wgpu::ComputePipeline,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<AoParams>,
     resolution: u32,
 }
 
@@ -43,22 +42,15 @@ impl AoPass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let (pipeline, bgl) = layout::compute_pipeline(
-            device,
-            "ao",
-            shaders::AO,
-            &[layout::uniform(0, wgpu::ShaderStages::COMPUTE), layout::storage(1, true), layout::storage(2, false)],
-        );
-        let params = layout::uniform_buffer::<AoParams>(device, "ao params");
-        let bind_group = layout::bind_group(device, "ao", &bgl, &[params.as_entire_binding(), surface.as_entire_binding(), ao.as_entire_binding()]);
-        Self { ao, params, pipeline, bind_group, resolution }
+        let shape = PassShape { label: "ao", source: shaders::AO, slots: &[Slot::Read, Slot::ReadWrite], specialise_on: None, constants: &[], window: None };
+        let mut pass = ComputePass::new(device, &shape, None);
+        pass.bind(device, &[surface.as_entire_binding(), ao.as_entire_binding()]);
+        Self { ao, pass, resolution }
     }
 
     /// Records the pass with `params`.
     pub fn record(&self, cx: &mut FrameContext<'_>, params: AoParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let g = layout::groups(self.resolution, 8);
-        layout::dispatch(encoder, timer, "ao", &self.pipeline, &self.bind_group, (g, g));
+        self.pass.record(cx, None, &params, 0, (g, g));
     }
 }

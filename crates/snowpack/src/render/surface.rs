@@ -17,6 +17,7 @@ use bytemuck::{Pod, Zeroable};
 use crate::deform::resources::DeformResources;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Uniforms of `surface_unpack.wgsl`.
@@ -35,9 +36,7 @@ pub struct UnpackParams {
 
 /// Unpacks the deformation's snow words into [`Self::surface`].
 pub struct SurfaceUnpackPass {
-    pipeline: wgpu::ComputePipeline,
-    params: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<UnpackParams>,
     resolution: u32,
     texel_m: f32,
     /// `(f32 height bits, pack2x16snorm(normal.x, normal.z))` per texel, window-local.
@@ -48,20 +47,15 @@ impl SurfaceUnpackPass {
     /// Builds the pipeline and the output buffer for the window of `res`.
     #[must_use]
     pub fn new(device: &wgpu::Device, res: &DeformResources) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline_with(
-            device,
-            "surface unpack",
-            shaders::SURFACE_UNPACK,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::uniform(3, wgpu::ShaderStages::COMPUTE),
-                layout::storage(4, false),
-            ],
-            &res.terrain_constants(),
-        );
-        let params = layout::uniform_buffer::<UnpackParams>(device, "surface unpack params");
+        let shape = PassShape {
+            label: "surface unpack",
+            source: shaders::SURFACE_UNPACK,
+            slots: &[Slot::Read, Slot::Read, Slot::Uniform, Slot::ReadWrite],
+            specialise_on: None,
+            constants: &res.terrain_constants(),
+            window: None,
+        };
+        let mut pass = ComputePass::new(device, &shape, None);
         let texels = u64::from(res.resolution) * u64::from(res.resolution);
         let surface = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("unpacked surface"),
@@ -69,29 +63,19 @@ impl SurfaceUnpackPass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let bind_group = layout::bind_group(
+        pass.bind(
             device,
-            "surface unpack",
-            &bgl,
-            &[
-                params.as_entire_binding(),
-                res.snow.as_entire_binding(),
-                res.heightmap.as_entire_binding(),
-                res.terrain_params.as_entire_binding(),
-                surface.as_entire_binding(),
-            ],
+            &[res.snow.as_entire_binding(), res.heightmap.as_entire_binding(), res.terrain_params.as_entire_binding(), surface.as_entire_binding()],
         );
-        Self { pipeline, params, bind_group, resolution: res.resolution, texel_m: res.texel_m, surface }
+        Self { pass, resolution: res.resolution, texel_m: res.texel_m, surface }
     }
 
     /// Records the unpack of the window at `origin` (global texel of local (0, 0)).
     pub fn record(&self, cx: &mut FrameContext<'_>, origin: [i32; 2]) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let storage_origin = crate::deform::window::storage_origin(origin, self.resolution);
         let p = UnpackParams { origin, resolution: self.resolution, texel_m: self.texel_m, storage_origin };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         let g = layout::groups(self.resolution, 16);
-        layout::dispatch(encoder, timer, "surface unpack", &self.pipeline, &self.bind_group, (g, g));
+        self.pass.record(cx, None, &p, 0, (g, g));
     }
 
     /// Bytes of GPU memory held (the unpacked surface).

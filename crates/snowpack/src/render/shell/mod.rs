@@ -411,7 +411,7 @@ impl ShellRenderer {
         };
         queue.write_buffer(&self.draw_params, 0, bytemuck::bytes_of(&draw));
         if self.targets.as_ref().is_none_or(|t| t.size != size) {
-            self.targets = Some(PeelTargets::new((device, queue), &self.pipelines, size, scene_depth));
+            self.targets = Some(PeelTargets::new(device, &self.pipelines, size, scene_depth));
         }
         let Some(targets) = &self.targets else { return };
         let draw = PeelDraw {

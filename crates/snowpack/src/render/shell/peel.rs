@@ -330,7 +330,7 @@ pub struct PeelTargets {
 impl PeelTargets {
     /// Targets of `size` over the scene's depth `scene_depth` (reverse-Z, sampled).
     #[must_use]
-    pub fn new((device, queue): (&wgpu::Device, &wgpu::Queue), pipelines: &PeelPipelines, size: (u32, u32), scene_depth: &wgpu::TextureView) -> Self {
+    pub fn new(device: &wgpu::Device, pipelines: &PeelPipelines, size: (u32, u32), scene_depth: &wgpu::TextureView) -> Self {
         let layer_depth = screen_target(device, "shell layer depth", size, PEEL_DEPTH_FORMAT);
         let peel_depth = screen_target(device, "shell peel depth", size, PEEL_DEPTH_FORMAT);
         let cull_depth = screen_target(device, "shell cull depth", size, PEEL_DEPTH_FORMAT);
@@ -348,7 +348,6 @@ impl PeelTargets {
             mapped_at_creation: false,
         });
         let count = PeelCountPass::new(device, &peel_depth, &counts, &shaded);
-        count.prepare(queue, size);
         let resolve_params = layout::uniform_buffer::<PeelParams>(device, "shell resolve params");
         let tetra_depths = layout::bind_group(
             device,

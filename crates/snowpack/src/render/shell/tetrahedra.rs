@@ -8,6 +8,7 @@
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Parameters of [`ShellTetraPass`] (`TetraParams` in WGSL).
@@ -48,9 +49,7 @@ pub const CORNERS_PER_TETRA: u32 = 12;
 
 /// Builds the tetrahedra, one invocation per face.
 pub struct ShellTetraPass {
-    params: wgpu::Buffer,
-    pipeline: wgpu::ComputePipeline,
-    bind_group: wgpu::BindGroup,
+    pass: ComputePass<TetraParams>,
 }
 
 impl ShellTetraPass {
@@ -59,32 +58,21 @@ impl ShellTetraPass {
     /// `corners` ([`CORNERS_PER_TETRA`] per tetrahedron).
     #[must_use]
     pub fn new(device: &wgpu::Device, faces: &wgpu::Buffer, vertices: &wgpu::Buffer, tetras: &wgpu::Buffer, corners: &wgpu::Buffer) -> Self {
-        let (pipeline, bgl) = layout::compute_pipeline(
-            device,
-            "shell tetrahedra",
-            shaders::SHELL_TETRAHEDRA,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, false),
-                layout::storage(4, false),
-            ],
-        );
-        let params = layout::uniform_buffer::<TetraParams>(device, "shell tetra params");
-        let bind_group = layout::bind_group(
-            device,
-            "shell tetrahedra",
-            &bgl,
-            &[params.as_entire_binding(), faces.as_entire_binding(), vertices.as_entire_binding(), tetras.as_entire_binding(), corners.as_entire_binding()],
-        );
-        Self { params, pipeline, bind_group }
+        let shape = PassShape {
+            label: "shell tetrahedra",
+            source: shaders::SHELL_TETRAHEDRA,
+            slots: &[Slot::Read, Slot::Read, Slot::ReadWrite, Slot::ReadWrite],
+            specialise_on: None,
+            constants: &[],
+            window: None,
+        };
+        let mut pass = ComputePass::new(device, &shape, None);
+        pass.bind(device, &[faces.as_entire_binding(), vertices.as_entire_binding(), tetras.as_entire_binding(), corners.as_entire_binding()]);
+        Self { pass }
     }
 
     /// Records the pass over `params.faces` faces.
     pub fn record(&self, cx: &mut FrameContext<'_>, params: &TetraParams) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        layout::dispatch(encoder, timer, "shell tetrahedra", &self.pipeline, &self.bind_group, (layout::groups(params.faces, 64), 1));
+        self.pass.record(cx, None, params, 0, (layout::groups(params.faces, 64), 1));
     }
 }
