@@ -237,7 +237,6 @@ fn capture_and_update_match_cpu() {
         triangles.iter().map(|t| t.map(|v| [v[0] + rng.range(-1.5, 1.5), v[1] + rng.range(-0.3, 0.3), v[2] + rng.range(-1.5, 1.5)])).collect();
     let steps = 1 + (rng.next_u64() % 12) as u32;
     instances.mesh_steps = vec![steps];
-    capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
     let vertex_buffer = |tris: &[[[f32; 3]; 3]]| {
         let flat: Vec<f32> = tris.iter().flatten().flatten().copied().collect();
         let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -270,7 +269,7 @@ fn capture_and_update_match_cpu() {
     }];
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record_swept(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &meshes);
+    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &meshes);
     update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
     submit(ctx, enc);
 
@@ -759,10 +758,9 @@ fn wheel_capture_matches_cpu() {
         texel_m: texel,
         ..UpdateParams::default()
     };
-    capture.prepare(&ctx.device, &ctx.queue, &cparams, &instances);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res);
+    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
     update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
     submit(ctx, enc);
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);

@@ -67,7 +67,7 @@ pub struct CaptureInstances {
     /// the floating origin, for meshes given in world space.
     pub corner_m: [f32; 2],
     /// Sub-steps of each world-space mesh drawn with
-    /// [`CapturePass::record_swept`], in order (0: its current pose only).
+    /// [`CapturePass::record`], in order (0: its current pose only).
     pub mesh_steps: Vec<u32>,
 }
 
@@ -375,8 +375,19 @@ impl CapturePass {
         }
     }
 
+    /// Records this frame's capture: uploads `params` and the instances
+    /// (growing their buffers when needed), clears the capture target and
+    /// draws them, with world-space `meshes`, mesh k swept over the
+    /// sub-steps [`CaptureInstances::mesh_steps`]`[k]` where it has previous
+    /// positions. The one form of the presses' passes: the stamp pass and
+    /// the decal pass record the same way (what, where, one call).
+    pub fn record(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, (params, inst): (&CaptureParams, &CaptureInstances), meshes: &[SweptMesh<'_>]) {
+        self.upload(cx.device(), cx.queue(), params, inst);
+        self.draw(cx, res, meshes);
+    }
+
     /// Uploads this frame's instances, growing the instance buffers when needed.
-    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
         if self.written.0 != Some(*params) {
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
             self.written.0 = Some(*params);
@@ -424,21 +435,8 @@ impl CapturePass {
         self.step_data = steps;
     }
 
-    /// Clears the capture target and draws the prepared instances.
-    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources) {
-        self.record_swept(cx, res, &[]);
-    }
-
-    /// Like [`Self::record`], also drawing world-space `meshes` in their current pose.
-    pub fn record_with_meshes(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[CaptureMesh<'_>]) {
-        let swept: Vec<SweptMesh<'_>> = meshes.iter().map(|&mesh| SweptMesh { mesh, previous: None }).collect();
-        self.record_swept(cx, res, &swept);
-    }
-
-    /// Like [`Self::record`], also drawing world-space `meshes`, mesh k swept
-    /// over the sub-steps `prepare` was given in
-    /// [`CaptureInstances::mesh_steps`]`[k]` where it has previous positions.
-    pub fn record_swept<'a>(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
+    /// Clears the capture target and draws the uploaded instances and `meshes`.
+    fn draw<'a>(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
         let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let slot = timer.reserve("capture");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

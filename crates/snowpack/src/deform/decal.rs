@@ -369,8 +369,17 @@ impl DecalPass {
         u64::from(self.layer.width()) * u64::from(self.layer.height()) * 4
     }
 
+    /// Records this frame's decals: uploads the ring when it changed and
+    /// the window's placement (its corner and side), clears the layer and
+    /// draws every decal into it (the presses' one form, as the capture's
+    /// and the stamps').
+    pub fn record(&mut self, cx: &mut FrameContext<'_>, ring: &mut DecalRing, (window_corner_m, extent_m): (DVec2, f32)) {
+        self.upload(cx.device(), cx.queue(), ring, window_corner_m, extent_m);
+        self.draw(cx);
+    }
+
     /// Uploads the ring when it changed, and this frame's window placement.
-    pub fn prepare(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, ring: &mut DecalRing, window_corner_m: DVec2, extent_m: f32) {
+    fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, ring: &mut DecalRing, window_corner_m: DVec2, extent_m: f32) {
         let corner = window_corner_m - ring.anchor;
         let p = DecalParams { corner_m: [corner.x as f32, corner.y as f32], extent_m, _pad: 0.0 };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
@@ -388,8 +397,8 @@ impl DecalPass {
         }
     }
 
-    /// Clears the layer and draws every decal into it.
-    pub fn record(&self, cx: &mut FrameContext<'_>) {
+    /// Clears the layer and draws every uploaded decal into it.
+    fn draw(&self, cx: &mut FrameContext<'_>) {
         let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
         let slot = timer.reserve("decals");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

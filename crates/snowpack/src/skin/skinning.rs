@@ -8,6 +8,7 @@ use glam::{Mat4, Vec3};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 /// Uniforms of the skinning pass (`SkinningParams` in WGSL).
@@ -92,8 +93,9 @@ impl SkinnedMesh {
 
 /// The pass: one pipeline for every skinned instance.
 pub struct SkinningPass {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
+    /// The pipeline; each instance records through a sibling of its own
+    /// (its uniform and buffers).
+    pass: ComputePass<SkinningParams>,
 }
 
 /// One actor's skinning buffers: the bind pose, its joint matrices this frame
@@ -115,32 +117,25 @@ pub struct SkinnedInstance {
     pub index_count: u32,
     /// Number of vertices.
     pub vertex_count: u32,
-    params: wgpu::Buffer,
     joints: wgpu::Buffer,
     joint_count: u32,
-    bind_group: wgpu::BindGroup,
+    /// The skinning pass with this instance's uniform and buffers bound.
+    pass: ComputePass<SkinningParams>,
 }
 
 impl SkinningPass {
     /// Builds the pipeline.
     #[must_use]
     pub fn new(device: &wgpu::Device) -> Self {
-        let (pipeline, layout) = layout::compute_pipeline(
-            device,
-            "skinning",
-            shaders::SKINNING,
-            &[
-                layout::uniform(0, wgpu::ShaderStages::COMPUTE),
-                layout::storage(1, true),
-                layout::storage(2, true),
-                layout::storage(3, true),
-                layout::storage(4, true),
-                layout::storage(5, false),
-                layout::storage(6, true),
-                layout::storage(7, false),
-            ],
-        );
-        Self { pipeline, layout }
+        let shape = PassShape {
+            label: "skinning",
+            source: shaders::SKINNING,
+            slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite, Slot::Read, Slot::ReadWrite],
+            specialise_on: None,
+            constants: &[],
+            window: None,
+        };
+        Self { pass: ComputePass::new(device, &shape, None) }
     }
 
     /// Uploads `mesh` for a skin of `joint_count` joints.
@@ -179,13 +174,10 @@ impl SkinningPass {
         // Zeroed at creation (wgpu's guarantee): a character starts clean.
         let coat = output("snow coat", n * 4, wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST);
         let previous = output("snow coat previous positions", n * 12, wgpu::BufferUsages::COPY_DST);
-        let params = layout::uniform_buffer::<SkinningParams>(device, "skinning params");
-        let bind_group = layout::bind_group(
+        let mut pass = self.pass.sibling(device);
+        pass.bind(
             device,
-            "skinning",
-            &self.layout,
             &[
-                params.as_entire_binding(),
                 rest.as_entire_binding(),
                 ids.as_entire_binding(),
                 weights.as_entire_binding(),
@@ -203,21 +195,20 @@ impl SkinningPass {
             indices,
             index_count: mesh.indices.len() as u32,
             vertex_count: n as u32,
-            params,
             joints,
             joint_count: joint_count.max(1) as u32,
-            bind_group,
+            pass,
         })
     }
 
     /// Records skinning of `instance` with `joints` (one matrix per skin joint) placed by `model`.
+    /// (The instance records through its own sibling of this pass: `self`
+    /// only says which pass the instance is of.)
     pub fn record(&self, cx: &mut FrameContext<'_>, instance: &SkinnedInstance, joints: &[Mat4], model: Mat4) {
-        let (queue, encoder, timer) = (cx.queue(), &mut *cx.encoder, &mut *cx.timer);
         let count = joints.len().min(instance.joint_count as usize);
         let matrices: Vec<[[f32; 4]; 4]> = joints[..count].iter().map(Mat4::to_cols_array_2d).collect();
-        queue.write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));
+        cx.queue().write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));
         let params = SkinningParams { model: model.to_cols_array_2d(), vertex_count: instance.vertex_count, joint_count: count.max(1) as u32, _pad: [0; 2] };
-        queue.write_buffer(&instance.params, 0, bytemuck::bytes_of(&params));
-        layout::dispatch(encoder, timer, "skinning", &self.pipeline, &instance.bind_group, (layout::groups(instance.vertex_count, 64), 1));
+        instance.pass.record(cx, None, &params, 0, (layout::groups(instance.vertex_count, 64), 1));
     }
 }

@@ -200,8 +200,7 @@ impl CoreWindow {
         instances.fill_swept(deformers, &scratch.sweeps, corner, &self.capture_params);
         instances.mesh_steps.clear();
         instances.mesh_steps.extend_from_slice(mesh_steps);
-        self.capture_pass.prepare(cx.device(), cx.queue(), &self.capture_params, instances);
-        self.capture_pass.record_swept(cx, &self.res, meshes);
+        self.capture_pass.record(cx, &self.res, (&self.capture_params, instances), meshes);
     }
 
     /// The stamp pass's uniforms at `origin` (the shared grid's, when the snow is shared).
@@ -312,8 +311,7 @@ impl CoreWindow {
         self.decals.observe(deformers, &self.terrain, p.depth_m);
         if p.technique == Technique::Decals {
             self.decal_pass.allocate_layer(cx.device());
-            self.decal_pass.prepare(cx.device(), cx.queue(), &mut self.decals, corner, p.extent_m);
-            self.decal_pass.record(cx);
+            self.decal_pass.record(cx, &mut self.decals, (corner, p.extent_m));
         }
     }
 

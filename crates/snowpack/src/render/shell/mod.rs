@@ -422,7 +422,7 @@ impl ShellRenderer {
             threshold: s.opacity,
             debug_pass: s.debug_pass,
         };
-        peel::record(cx, &self.pipelines, targets, &draw, hdr);
+        self.pipelines.record(cx, targets, &draw, hdr);
         self.drawn = true;
     }
 

@@ -306,6 +306,81 @@ impl PeelPipelines {
         );
         Self { shell_layout, depth_layout, resolve_layout, layer, shade, layer_depth, extend, composite }
     }
+
+    /// Records the peeling passes and the composite into `hdr`.
+    pub fn record(&self, cx: &mut FrameContext<'_>, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
+        let gpu = cx.gpu;
+        let (queue, encoder, timer) = (&gpu.queue, &mut *cx.encoder, &mut *cx.timer);
+        let size = targets.size;
+        queue.write_buffer(
+            &targets.resolve_params,
+            0,
+            bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }),
+        );
+        encoder.clear_buffer(&targets.counts, 0, None);
+        // Nothing peeled yet: the cull depth at the near plane lets every layer through.
+        drop(depth_pass(encoder, "shell cull clear", &targets.cull_depth, Some(1.0), None));
+        drop(colour_pass(encoder, "shell colour clear", &targets.accumulated, true, None, None));
+        // The counts are not timed: one slot each would crowd out the passes' own.
+        let mut untimed = crate::gpu::GpuTimer::disabled();
+        for k in 0..draw.passes.min(MAX_PASSES) {
+            // One timestamp pair spans the pass's four steps (and its count).
+            let slot = timer.reserve(PASS_LABELS[k as usize]);
+            let stamps = timer.render_writes(slot);
+            let (begin, end) = stamps.map_or((None, None), |w| {
+                (
+                    Some(wgpu::RenderPassTimestampWrites {
+                        query_set: w.query_set,
+                        beginning_of_pass_write_index: w.beginning_of_pass_write_index,
+                        end_of_pass_write_index: None,
+                    }),
+                    Some(wgpu::RenderPassTimestampWrites {
+                        query_set: w.query_set,
+                        beginning_of_pass_write_index: None,
+                        end_of_pass_write_index: w.end_of_pass_write_index,
+                    }),
+                )
+            });
+            {
+                // Step 1: the next layer's depth.
+                let mut pass = depth_pass(encoder, "shell layer", &targets.layer_depth, Some(0.0), begin);
+                pass.set_pipeline(&self.layer);
+                pass.set_bind_group(0, draw.lit_group, &[]);
+                pass.set_bind_group(1, draw.shell_group, &[]);
+                pass.set_bind_group(2, &targets.tetra_depths, &[]);
+                pass.draw(0..draw.vertices, 0..1);
+            }
+            {
+                // Step 2: into the depth buffer, culled behind the scene.
+                let mut pass = depth_pass(encoder, "shell layer depth", &targets.peel_depth, None, None);
+                pass.set_pipeline(&self.layer_depth);
+                pass.set_bind_group(0, &targets.resolve_layer, &[]);
+                pass.draw(0..3, 0..1);
+            }
+            targets.count.record(&mut FrameContext::new(gpu, encoder, &mut untimed), k, size);
+            {
+                // Step 3: shade the layer, depth test `equal`, under what is there.
+                let mut pass = colour_pass(encoder, "shell shade", &targets.accumulated, false, Some(&targets.peel_depth), None);
+                pass.set_pipeline(&self.shade);
+                pass.set_bind_group(0, draw.lit_group, &[]);
+                pass.set_bind_group(1, draw.shell_group, &[]);
+                pass.set_bind_group(2, &targets.tetra_depths, &[]);
+                pass.draw(0..draw.vertices, 0..1);
+            }
+            {
+                // Step 4: extend the depth buffer where the pixel is opaque enough.
+                let mut pass = depth_pass(encoder, "shell extend", &targets.cull_depth, None, end);
+                pass.set_pipeline(&self.extend);
+                pass.set_bind_group(0, &targets.resolve_peel, &[]);
+                pass.draw(0..3, 0..1);
+            }
+        }
+        let slot = timer.reserve("shell composite");
+        let mut pass = colour_pass(encoder, "shell composite", hdr, false, None, timer.render_writes(slot));
+        pass.set_pipeline(&self.composite);
+        pass.set_bind_group(0, &targets.resolve_layer, &[]);
+        pass.draw(0..3, 0..1);
+    }
 }
 
 /// The peeling's per-size textures and bind groups.
@@ -444,77 +519,3 @@ fn colour_pass<'e>(
     })
 }
 
-/// Records the peeling passes and the composite into `hdr`.
-pub fn record(cx: &mut FrameContext<'_>, pipelines: &PeelPipelines, targets: &PeelTargets, draw: &PeelDraw<'_>, hdr: &wgpu::TextureView) {
-    let gpu = cx.gpu;
-    let (queue, encoder, timer) = (&gpu.queue, &mut *cx.encoder, &mut *cx.timer);
-    let size = targets.size;
-    queue.write_buffer(
-        &targets.resolve_params,
-        0,
-        bytemuck::bytes_of(&PeelParams { threshold: draw.threshold, debug_pass: draw.debug_pass, width: size.0, _pad: 0 }),
-    );
-    encoder.clear_buffer(&targets.counts, 0, None);
-    // Nothing peeled yet: the cull depth at the near plane lets every layer through.
-    drop(depth_pass(encoder, "shell cull clear", &targets.cull_depth, Some(1.0), None));
-    drop(colour_pass(encoder, "shell colour clear", &targets.accumulated, true, None, None));
-    // The counts are not timed: one slot each would crowd out the passes' own.
-    let mut untimed = crate::gpu::GpuTimer::disabled();
-    for k in 0..draw.passes.min(MAX_PASSES) {
-        // One timestamp pair spans the pass's four steps (and its count).
-        let slot = timer.reserve(PASS_LABELS[k as usize]);
-        let stamps = timer.render_writes(slot);
-        let (begin, end) = stamps.map_or((None, None), |w| {
-            (
-                Some(wgpu::RenderPassTimestampWrites {
-                    query_set: w.query_set,
-                    beginning_of_pass_write_index: w.beginning_of_pass_write_index,
-                    end_of_pass_write_index: None,
-                }),
-                Some(wgpu::RenderPassTimestampWrites {
-                    query_set: w.query_set,
-                    beginning_of_pass_write_index: None,
-                    end_of_pass_write_index: w.end_of_pass_write_index,
-                }),
-            )
-        });
-        {
-            // Step 1: the next layer's depth.
-            let mut pass = depth_pass(encoder, "shell layer", &targets.layer_depth, Some(0.0), begin);
-            pass.set_pipeline(&pipelines.layer);
-            pass.set_bind_group(0, draw.lit_group, &[]);
-            pass.set_bind_group(1, draw.shell_group, &[]);
-            pass.set_bind_group(2, &targets.tetra_depths, &[]);
-            pass.draw(0..draw.vertices, 0..1);
-        }
-        {
-            // Step 2: into the depth buffer, culled behind the scene.
-            let mut pass = depth_pass(encoder, "shell layer depth", &targets.peel_depth, None, None);
-            pass.set_pipeline(&pipelines.layer_depth);
-            pass.set_bind_group(0, &targets.resolve_layer, &[]);
-            pass.draw(0..3, 0..1);
-        }
-        targets.count.record(&mut FrameContext::new(gpu, encoder, &mut untimed), k, size);
-        {
-            // Step 3: shade the layer, depth test `equal`, under what is there.
-            let mut pass = colour_pass(encoder, "shell shade", &targets.accumulated, false, Some(&targets.peel_depth), None);
-            pass.set_pipeline(&pipelines.shade);
-            pass.set_bind_group(0, draw.lit_group, &[]);
-            pass.set_bind_group(1, draw.shell_group, &[]);
-            pass.set_bind_group(2, &targets.tetra_depths, &[]);
-            pass.draw(0..draw.vertices, 0..1);
-        }
-        {
-            // Step 4: extend the depth buffer where the pixel is opaque enough.
-            let mut pass = depth_pass(encoder, "shell extend", &targets.cull_depth, None, end);
-            pass.set_pipeline(&pipelines.extend);
-            pass.set_bind_group(0, &targets.resolve_peel, &[]);
-            pass.draw(0..3, 0..1);
-        }
-    }
-    let slot = timer.reserve("shell composite");
-    let mut pass = colour_pass(encoder, "shell composite", hdr, false, None, timer.render_writes(slot));
-    pass.set_pipeline(&pipelines.composite);
-    pass.set_bind_group(0, &targets.resolve_layer, &[]);
-    pass.draw(0..3, 0..1);
-}
