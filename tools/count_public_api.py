@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """Counts the public items reachable from a crate's root in rustdoc's JSON output.
 
-Usage: count_public_api.py DOC.json [DEP.json ...] [--trait-items] [--max=N]
+Usage: count_public_api.py DOC.json [DEP.json ...] [--trait-items] [--max=N] [--list]
 
 DOC.json is what `cargo rustdoc -p snowpack --lib -- -Z unstable-options
 --output-format json` writes (RUSTC_BOOTSTRAP=1 on a stable toolchain). Items
 are followed from the root: module items, re-exports (a glob re-export of a
 module counts its items), struct fields, enum variants and their fields,
 inherent impl items and trait items; trait impls only with --trait-items.
-An item reached twice is counted once. With --max=N it exits 1 when the
+An item reached twice is counted once. --list prints each item counted
+(kind, owner, name), to see where a count comes from. With --max=N it exits 1 when the
 count is over N, or when a re-export could not be followed (`.ci/run` holds
 the default front door to 250 this way).
 
@@ -30,6 +31,9 @@ for n, d in enumerate(docs[1:], start=1):
     by_path[name] = {tuple(p["path"]): (n, i) for i, p in d["paths"].items() if p["crate_id"] == 0 and i in d["index"]}
 seen = set()
 kinds = collections.Counter()
+owner = {}
+listed = []
+current = [None]
 unfollowed = []
 stack = [(0, str(doc["root"]))]
 def kind_of(item):
@@ -50,6 +54,7 @@ def resolve(n, i):
 def push(n, i):
     r = resolve(n, i) if i is not None else None
     if r is not None and r not in seen:
+        owner.setdefault(r, current[0])
         stack.append(r)
 while stack:
     n, i = stack.pop()
@@ -77,6 +82,9 @@ while stack:
     if item.get("visibility") not in ("public", "default"):
         continue
     kinds[k] += 1
+    listed.append((k, owner.get((n, i)) or "", item.get("name") or ""))
+    if k in ("struct", "enum", "trait", "union", "module", "variant"):
+        current[0] = item.get("name")
     if k == "module":
         for c in inner["items"]: push(n, c)
     elif k == "struct":
@@ -105,6 +113,9 @@ while stack:
         for c in inner["items"]: push(n, c)
         for c in inner.get("implementations", []): push(n, c)
 total = sum(kinds.values())
+if "--list" in sys.argv:
+    for k, o, name in sorted(listed):
+        print(f"{k:14} {o:28} {name}")
 print(f"public items reachable from the root: {total}")
 for k, n in kinds.most_common():
     print(f"  {k}: {n}")
