@@ -102,11 +102,11 @@ impl Characters {
     /// Records the copy of this frame's positions of the pressing meshes
     /// (`caller`'s after the characters'): the next frame's previous ones
     /// (after the frame's passes, which read the old).
-    pub(super) fn remember(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, caller: &[CaptureMesh<'_>]) {
+    pub(super) fn remember(&mut self, cx: &mut FrameContext<'_>, caller: &[CaptureMesh<'_>]) {
         let mut history = std::mem::take(&mut self.history);
         history.age();
         for (mesh, key) in self.meshes(caller) {
-            history.remember(&ctx.device, encoder, key, mesh.vertices, u64::from(mesh.vertex_count) * 12);
+            history.remember(cx.device(), cx.encoder, key, mesh.vertices, u64::from(mesh.vertex_count) * 12);
         }
         self.history = history;
     }

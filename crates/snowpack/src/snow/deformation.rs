@@ -388,25 +388,17 @@ impl SnowDeformation {
         });
         self.timer.begin_frame();
         let mut cx = FrameContext::new(ctx, encoder, &mut self.timer);
-        let (texel_m, teleport_m) = (self.core.params.texel_m(), self.core.params.teleport_m);
-        self.characters.record_poses(&mut cx, frame, texel_m, teleport_m);
-        let (meshes, mesh_steps) = self.characters.swept(frame.meshes);
         let steps = FrameSteps {
+            characters: &mut self.characters,
             core: &mut self.core,
             time: &mut self.time,
             accumulation: self.accumulation.as_mut(),
             tiles: self.tiles.as_mut(),
             sharing: self.sharing.as_mut(),
         };
-        let ground = steps.record(&mut cx, frame, (&meshes, mesh_steps), queries.map(|q| (q, self.frame)));
-        drop(meshes);
-        // The characters' snow, against the ground this frame left.
-        let sky = self.accumulation.as_ref().map(SnowAccumulation::sky_view);
-        self.characters.record_coats(&mut cx, &self.core, sky, ground, frame.dt_s);
+        steps.record(&mut cx, frame, queries.map(|q| (q, self.frame)));
         self.timer.end_frame(encoder);
         self.frame += 1;
-        // This frame's positions are the next frame's previous ones.
-        self.characters.remember(ctx, encoder, frame.meshes);
         // With this frame's copy-outs recorded, before they can be collected and dropped.
         self.peak_memory_bytes = self.peak_memory_bytes.max(self.memory_total());
         queries.map(|(t, _)| t)

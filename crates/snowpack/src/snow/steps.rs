@@ -1,15 +1,15 @@
 //! One frame as a list of steps: `FrameSteps::record` records, in order,
-//! the core window's passes ([`super::core_window`]) and the plug-ins' (tiles,
-//! shared snow, objects) into the frame's [`FrameContext`]. The characters
-//! are skinned before it and remembered after it
-//! ([`super::SnowDeformation::encode`]). A new pass goes in as a step here,
-//! at its place in the list (see `docs/architecture.md`).
+//! the characters' skinning, the core window's passes
+//! ([`super::core_window`]) and the plug-ins' (tiles, shared snow, objects),
+//! then the characters' snow coats and the copy of the pressing meshes'
+//! positions for the next frame, into the frame's [`FrameContext`]. A new
+//! pass goes in as a step here, at its place in the list (see
+//! `docs/architecture.md`).
 
 use glam::Vec2;
 
 use crate::Technique;
 use crate::accumulate::{OcclusionParams, SnowAccumulation};
-use crate::deform::capture::SweptMesh;
 use crate::deform::query::QueryTicket;
 use crate::deform::window::TexelRect;
 use crate::frame::{FrameContext, WindowFrame};
@@ -17,11 +17,12 @@ use crate::replicate::merge::{FrameRecord, TileMergeParams};
 use crate::replicate::sharing::Sharing;
 use crate::tiles::TileStreaming;
 
+use super::characters::Characters;
 use super::clock::{FrameRefill, SnowTime};
 use super::core_window::CoreWindow;
 use super::snow_frame::SnowFrame;
 
-/// What the frame's steps leave for the characters' snow
+/// What the window's steps leave for the characters' snow
 /// ([`super::coat`]): where the window is, this frame's snowfall and the
 /// occlusion's projection.
 #[derive(Clone, Copy, Debug)]
@@ -35,8 +36,10 @@ pub(super) struct GroundAfter {
 }
 
 /// What a frame's steps change, borrowed apart from the frame's timer (in
-/// the context) and the characters (whose meshes the capture reads).
+/// the context).
 pub(super) struct FrameSteps<'s> {
+    /// Skinned characters and every pressing mesh's history.
+    pub characters: &'s mut Characters,
     /// The window and its passes.
     pub core: &'s mut CoreWindow,
     /// Time, refill and snowfall so far.
@@ -50,16 +53,12 @@ pub(super) struct FrameSteps<'s> {
 }
 
 impl FrameSteps<'_> {
-    /// Records one frame: `frame`'s deformers, the pressing `meshes` (with
-    /// their sub-steps) and the point queries (with the frame's number);
-    /// returns what the characters' snow reads of the ground.
-    pub(super) fn record(
-        mut self,
-        cx: &mut FrameContext<'_>,
-        frame: &SnowFrame<'_>,
-        meshes: (&[SweptMesh<'_>], &[u32]),
-        queries: Option<((QueryTicket, &[Vec2]), u64)>,
-    ) -> GroundAfter {
+    /// Records one frame: `frame`'s characters, deformers and pressing
+    /// meshes, and the point queries (with the frame's number), every pass
+    /// at its place in the list.
+    pub(super) fn record(mut self, cx: &mut FrameContext<'_>, frame: &SnowFrame<'_>, queries: Option<((QueryTicket, &[Vec2]), u64)>) {
+        let (texel_m, teleport_m) = (self.core.params.texel_m(), self.core.params.teleport_m);
+        self.characters.record_poses(cx, frame, texel_m, teleport_m);
         let (window, old, rects) = self.place_window(cx);
         self.record_move(cx, &window, old, &rects);
         self.record_shared_merge(cx, &window);
@@ -69,7 +68,8 @@ impl FrameSteps<'_> {
         // Each deformer presses over its motion since the last frame.
         self.core.sweep(frame.deformers, frame.ids);
         if matches!(technique, Technique::Depth | Technique::Combined) {
-            self.core.record_capture(cx, frame.deformers, window.corner, meshes);
+            let (meshes, mesh_steps) = self.characters.swept(frame.meshes);
+            self.core.record_capture(cx, frame.deformers, window.corner, (&meshes, mesh_steps));
         }
         let share = self.sharing.as_ref().map(|s| s.grid());
         let stamp_params = self.core.stamp_params(window.origin, share);
@@ -90,7 +90,13 @@ impl FrameSteps<'_> {
         if let Some((asked, number)) = queries {
             self.core.record_queries(cx, (window.origin, window.corner), asked, number);
         }
-        GroundAfter { window, fall_m: refill.fall_m, sky }
+        // The characters' snow, against the ground this frame left.
+        let ground = GroundAfter { window, fall_m: refill.fall_m, sky };
+        let sky_view = self.accumulation.as_deref().map(SnowAccumulation::sky_view);
+        self.characters.record_coats(cx, self.core, sky_view, ground, frame.dt_s);
+        // This frame's positions of the pressing meshes are the next frame's
+        // previous ones (copied after every pass that reads the old).
+        self.characters.remember(cx, frame.meshes);
     }
 
     /// Where the window is this frame (with a store it may wait for tiles
