@@ -809,3 +809,56 @@ fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
     d.finish(ctx).expect("finish");
     assert_eq!(d.point_answers().expect("answers").ticket, next);
 }
+
+/// A 500 m jump of the window with a disk store attached, away and back
+/// (`docs/tiles.md`, "Jumps"): no frame waits for the GPU (`gpu_waits`
+/// stays 0; every copy out of the GPU is taken as it arrives, in later
+/// frames), the window holds still while the tiles it jumps onto are still
+/// on their way (counted in `window_waits`), and the trail is back, bit for
+/// bit, within `JUMP_BACK_FRAMES` frames of the jump home.
+#[test]
+fn a_jump_of_500_m_waits_for_nothing_and_the_trail_comes_back() {
+    /// Frames the jump home may take before the trail is back (here it
+    /// takes 1 to 3: the copies out arrive, then the disk's read).
+    const JUMP_BACK_FRAMES: u32 = 60;
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = temp_dir("jump");
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    assert!(!d.attach_store(ctx, streamer(&dir, 2)).expect("attach"));
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    assert!(deepest_press(&before, &[0.0; 64 * 64], 0.5) > 0.2, "no trail was pressed");
+    let home = d.origin_texel();
+    let start = d.tile_stats().expect("tiles kept");
+    let texel = f64::from(d.params().texel_m());
+    let far = DVec2::new(500.0, -120.0);
+    let far_origin = Some([(far.x / texel).floor() as i64 - 32, (far.y / texel).floor() as i64 - 32]);
+    // Away in one frame's move; frames until the window is there.
+    d.set_center(far);
+    let mut frames_away = 0;
+    while d.origin_texel() != far_origin && frames_away < JUMP_BACK_FRAMES {
+        d.step(ctx, &[], DT).expect("frame");
+        frames_away += 1;
+    }
+    assert_eq!(d.origin_texel(), far_origin, "the window never got there: {:?}", d.tile_stats());
+    let away = d.tile_stats().expect("stats");
+    assert!(away.batched_moves > start.batched_moves && away.evicted > start.evicted, "{away:?}");
+    // And home again.
+    d.set_center(DVec2::ZERO);
+    let mut frames_back = 0;
+    while d.origin_texel() != home && frames_back < JUMP_BACK_FRAMES {
+        d.step(ctx, &[], DT).expect("frame");
+        frames_back += 1;
+    }
+    let back = d.tile_stats().expect("stats");
+    eprintln!("500 m away in {frames_away} frames, back in {frames_back}: {back:?}");
+    assert_eq!(d.origin_texel(), home, "the window never got home within {JUMP_BACK_FRAMES} frames: {back:?}");
+    assert_eq!(back.gpu_waits, start.gpu_waits, "a frame of the jumps waited for the GPU: {back:?}");
+    assert!(back.restored > away.restored, "the trail's tiles were not restored: {back:?}");
+    let after = d.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the jump away and back");
+    assert!(d.take_store_errors().is_empty());
+    drop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+}

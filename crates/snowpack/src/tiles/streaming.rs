@@ -170,9 +170,17 @@ pub struct TileStats {
     /// Frames the window stayed put because a tile it needed was still loading.
     pub window_waits: u64,
     /// Window moves too long for the slot pool in one frame, done in
-    /// batches of their own submissions (blocking): the first placement,
-    /// jumps, moves of more than a tile or two.
+    /// batches of their own submissions: the first placement, jumps, moves
+    /// of more than a tile or two. A jump's batches wait for nothing (see
+    /// `gpu_waits`).
     pub batched_moves: u64,
+    /// Times a frame waited for the GPU: for the copy-outs of tiles the
+    /// window was about to restore (a move back onto tiles still on their
+    /// way out; the window holds still instead while it can, see
+    /// `window_waits`), for those of the first placement, or when the
+    /// footprint plane is added. A jump away and back waits for none; a
+    /// save (`SnowDeformation::save`) waits by design and is not counted.
+    pub gpu_waits: u64,
     /// Tiles restored from the store.
     pub restored: u64,
     /// Tiles made resident with fresh snow (never seen before).
@@ -247,6 +255,7 @@ pub struct TileStreaming {
     /// The last frame's restore uniforms, for the merges a save does.
     restore_base: RestoreParams,
     window_waits: u64,
+    gpu_waits: u64,
     blocking_loads: u64,
     restored: u64,
     fresh: u64,
@@ -291,6 +300,7 @@ impl TileStreaming {
         if self.has_stamps || !res.has_stamps() {
             return;
         }
+        self.gpu_waits += u64::from(!self.evictions.is_empty());
         self.collect_evictions(ctx, true);
         let area = self.grid.area() as u64;
         let old = self.planes() as u64;
@@ -379,6 +389,7 @@ impl TileStreaming {
             gave_up: HashSet::new(),
             restore_base: RestoreParams::default(),
             window_waits: 0,
+            gpu_waits: 0,
             blocking_loads: 0,
             restored: 0,
             fresh: 0,
@@ -440,6 +451,7 @@ impl TileStreaming {
         if current.is_none() {
             // First placement: a loading screen, so waiting is fine.
             if needed.iter().any(|k| self.in_flight.contains(k)) {
+                self.gpu_waits += 1;
                 self.collect_evictions(ctx, true);
             }
             if let Err(e) = self.streamer.wait_for(&needed) {
@@ -727,11 +739,11 @@ impl TileStreaming {
         evicting
     }
 
-    /// A long move (or the first placement) in batches of its own submits,
-    /// blocking: every tile of the old window is stashed whole and copied
-    /// out (as many at a time as the pool holds), the copies are waited for,
-    /// then every tile of the new window is restored and loaded whole, and
-    /// only its edge tiles keep their slots.
+    /// A long move (or the first placement) in batches of its own submits:
+    /// every tile of the old window is stashed whole and copied out (as many
+    /// at a time as the pool holds), the copies are waited for only when the
+    /// new window touches one of them, then every tile of the new window is
+    /// restored and loaded whole, and only its edge tiles keep their slots.
     fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &WindowFrame, clock: SnowClock) {
         let g = self.grid;
         let full = [[0, 0, res.resolution, res.resolution]];
@@ -764,9 +776,15 @@ impl TileStreaming {
                 self.release(k);
             }
         }
-        // The new window's tiles must find the old ones' latest versions.
-        self.collect_evictions(ctx, true);
         let mut arriving: Vec<TileKey> = g.around(origin, 0);
+        // The new window's tiles must find the old ones' latest versions:
+        // wait for the copies out only when one of them is on its way (a
+        // move onto the tiles it leaves). A jump leaves tiles it does not
+        // touch again: nothing to wait for, the copies arrive in later frames.
+        if arriving.iter().any(|k| self.in_flight.contains(k)) {
+            self.gpu_waits += 1;
+            self.collect_evictions(ctx, true);
+        }
         arriving.sort_by_key(|&k| g.inside(k, origin));
         let keep = arriving.iter().filter(|&&k| !g.inside(k, origin)).count();
         let mut start = 0;
@@ -1086,6 +1104,7 @@ impl TileStreaming {
             batched_moves: self.batched_moves,
             slots: self.owners.len(),
             window_waits: self.window_waits,
+            gpu_waits: self.gpu_waits,
             restored: self.restored,
             fresh: self.fresh,
             stood_in: self.stood_in,
