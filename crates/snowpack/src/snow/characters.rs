@@ -12,9 +12,9 @@ use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
 
 use super::coat::Coats;
 use super::core_window::CoreWindow;
+use super::ground_after::GroundAfter;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
-use super::steps::GroundAfter;
 use super::sweep::{MeshHistory, MeshKey};
 
 /// The skinned meshes, their skinning pass and every pressing mesh's history.

@@ -13,8 +13,8 @@ use crate::skin::coat::{CoatGround, CoatSettings, SnowCoatParams, SnowCoatPass};
 use crate::skin::skinning::SkinnedInstance;
 
 use super::core_window::CoreWindow;
+use super::ground_after::GroundAfter;
 use super::skinned::SkinnedId;
-use super::steps::GroundAfter;
 
 /// The coats' state: the pass, each skinned mesh's settings and whether it
 /// was posed before (has last frame's positions).

@@ -14,6 +14,7 @@ pub mod clock;
 mod coat;
 pub mod core_window;
 pub mod deformation;
+mod ground_after;
 pub mod objects;
 pub mod reads;
 pub mod saved;

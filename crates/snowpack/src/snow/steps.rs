@@ -20,20 +20,8 @@ use crate::tiles::TileStreaming;
 use super::characters::Characters;
 use super::clock::{FrameRefill, SnowTime};
 use super::core_window::CoreWindow;
+use super::ground_after::GroundAfter;
 use super::snow_frame::SnowFrame;
-
-/// What the window's steps leave for the characters' snow
-/// ([`super::coat`]): where the window is, this frame's snowfall and the
-/// occlusion's projection.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct GroundAfter {
-    /// The window's placement this frame.
-    pub window: WindowFrame,
-    /// This frame's snowfall on open ground (m).
-    pub fall_m: f32,
-    /// The occlusion's projection, when objects shelter the ground.
-    pub sky: Option<OcclusionParams>,
-}
 
 /// What a frame's steps change, borrowed apart from the frame's timer (in
 /// the context).
