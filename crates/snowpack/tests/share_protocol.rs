@@ -812,12 +812,16 @@ fn bytes_per_second_of_a_peer_walking() {
     let (rate, watched) = (to_relay as f64 / seconds, to_watcher as f64 / seconds);
     let stats = relay.stats();
     eprintln!(
-        "a peer walking at 1.4 m/s (32² tiles of 12.5 cm texels, 30 Hz): {rate:.0} B/s to the relay ({} tiles), {watched:.0} B/s from it to a watching peer ({} tiles); the relay spent {:.1} µs a received tile",
+        "a peer walking at 1.4 m/s (32² tiles of 12.5 cm texels, 30 Hz): {rate:.0} B/s to the relay ({} tiles, {} of them as deltas), {watched:.0} B/s from it to a watching peer ({} tiles); the relay spent {:.1} µs a received tile",
         peer.stats().tiles_sent,
+        peer.stats().tiles_as_deltas,
         watcher.stats().tiles_received,
         relay_time.as_secs_f64() * 1e6 / stats.tiles_received.max(1) as f64
     );
     assert_eq!(stats.rejected.total(), 0, "{:?}", stats.rejected);
+    // A tile the walk crosses goes out again as what it adds to the copy
+    // the relay acknowledged, not whole (`SharedTile::beyond`).
+    assert!(peer.stats().tiles_as_deltas > peer.stats().tiles_sent / 4, "{:?}", peer.stats());
     assert!(rate < 64.0 * 1024.0, "{rate} B/s");
     assert!(watched < 64.0 * 1024.0, "{watched} B/s");
     // Where the walk passed 10 s before the end, the watcher's copy is the relay's.

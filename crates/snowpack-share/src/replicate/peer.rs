@@ -98,6 +98,9 @@ low_level_fields! {
         /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
         /// is `Hello`, `Presence` and `Digest`).
         tile_bytes_out: u64,
+        /// Tiles sent again as what they add to the copy the relay
+        /// acknowledged ([`SharedTile::beyond`]), not whole.
+        tiles_as_deltas: u64,
     }
 }
 
@@ -123,6 +126,14 @@ pub struct SnowPeer {
     next_seq: u64,
     /// Replica tiles to send at the next update (changed, wanted or resent).
     to_send: BTreeSet<TileKey>,
+    /// What the relay is known to hold of each tile: the merge of the
+    /// copies it acknowledged. A tile sent again carries only what it adds
+    /// to this ([`SharedTile::beyond`]).
+    acked: HashMap<TileKey, SharedTile>,
+    /// The newest copy of each tile in flight and the delta that carried it.
+    sent: HashMap<TileKey, (u64, SharedTile)>,
+    /// Tiles the relay asked for (`Want`): sent whole, its copy may be gone.
+    wanted: BTreeSet<TileKey>,
     deformers: Vec<[f64; 2]>,
     last_presence_s: f64,
     last_digest_s: f64,
@@ -165,6 +176,9 @@ impl SnowPeer {
             unacked: BTreeMap::new(),
             next_seq: 0,
             to_send: BTreeSet::new(),
+            acked: HashMap::new(),
+            sent: HashMap::new(),
+            wanted: BTreeSet::new(),
             deformers: Vec::new(),
             last_presence_s: f64::NEG_INFINITY,
             last_digest_s: f64::NEG_INFINITY,
@@ -214,11 +228,23 @@ impl SnowPeer {
                 }
             }
             Message::Ack { seq } => {
-                self.unacked.remove(&seq);
+                let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
+                for key in self.unacked.remove(&seq).map(|(_, keys)| keys).unwrap_or_default() {
+                    // Only the newest copy in flight is kept: an older one's
+                    // acknowledgement adds nothing the newer will not.
+                    if self.sent.get(&key).is_some_and(|(s, _)| *s == seq)
+                        && let Some((_, tile)) = self.sent.remove(&key)
+                    {
+                        merge_into(&mut self.acked, tile, c);
+                    }
+                }
             }
             Message::Want { keys } => {
-                // Only what the replica holds can be sent; the rest is not ours to give.
-                self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+                // Only what the replica holds can be sent; the rest is not ours
+                // to give. Whole: the relay lacks what it asks for.
+                let keys: Vec<TileKey> = keys.into_iter().filter(|k| self.replica.contains_key(k)).collect();
+                self.wanted.extend(keys.iter().copied());
+                self.to_send.extend(keys);
             }
             Message::Clock { clock } => self.relay_clock = Some(clock),
             Message::InSync { clock } => {
@@ -248,6 +274,10 @@ impl SnowPeer {
         for (_, keys) in std::mem::take(&mut self.unacked).into_values() {
             self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
         }
+        // The relay may be another (restarted from its store): nothing is
+        // known to be there, so the next copies go whole.
+        self.acked.clear();
+        self.sent.clear();
         self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
     }
 
@@ -446,13 +476,29 @@ impl SnowPeer {
         while !self.to_send.is_empty() && self.unacked.len() < self.config.max_unacknowledged.max(1) {
             let mut keys = Vec::new();
             let mut parts: Vec<Vec<u8>> = Vec::new();
+            let mut pending = Vec::new();
             let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
             while let Some(&key) = self.to_send.first() {
                 let Some(tile) = self.replica.get(&key) else {
                     self.to_send.remove(&key);
                     continue;
                 };
-                let encoded = encode_tile(tile);
+                // Again: only what the relay's acknowledged copy lacks; a
+                // tile with nothing new is not sent at all.
+                let tile = match self.acked.get(&key).filter(|_| !self.wanted.contains(&key)) {
+                    None => tile.clone(),
+                    Some(base) => match tile.beyond(base, CatchUp { max_fallen_m: self.world.max_fallen_m }) {
+                        Some(delta) => {
+                            self.stats.tiles_as_deltas += 1;
+                            delta
+                        }
+                        None => {
+                            self.to_send.remove(&key);
+                            continue;
+                        }
+                    },
+                };
+                let encoded = encode_tile(&tile);
                 if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
                     self.stats.tile_too_large += 1;
                     self.to_send.remove(&key);
@@ -464,8 +510,10 @@ impl SnowPeer {
                 bytes += encoded.len();
                 texels += tile.texels();
                 self.to_send.remove(&key);
+                self.wanted.remove(&key);
                 keys.push(key);
                 parts.push(encoded);
+                pending.push(tile);
             }
             if keys.is_empty() {
                 break;
@@ -478,6 +526,9 @@ impl SnowPeer {
             self.stats.tile_bytes_out += message.len() as u64;
             self.push(message);
             self.unacked.insert(seq, (now_s, keys));
+            for tile in pending {
+                self.sent.insert(tile.key, (seq, tile));
+            }
         }
     }
 
@@ -526,6 +577,9 @@ impl SnowPeer {
         for k in keys.into_iter().take(excess) {
             self.replica.remove(&k);
             self.to_send.remove(&k);
+            self.acked.remove(&k);
+            self.sent.remove(&k);
+            self.wanted.remove(&k);
         }
     }
 }

@@ -206,6 +206,52 @@ impl SharedTile {
         changed
     }
 
+    /// What `self` adds to `base` (the same key and side: a copy the other
+    /// side is known to hold): `self` at the later of the two clocks with
+    /// every texel `base` already covers (its merge with `base`'s texel is
+    /// `base`'s) set to the merge's identity (deficit 0, no footprint, no
+    /// snowfall), which deflates to almost nothing. Merged into anything
+    /// that holds `base`, it gives what `self` would. `None` when it adds
+    /// nothing, or when the tiles do not match.
+    #[must_use]
+    pub fn beyond(&self, base: &Self, c: CatchUp) -> Option<Self> {
+        if base.key != self.key || base.side != self.side || !base.is_consistent() || !self.is_consistent() {
+            return None;
+        }
+        let to = self.clock.later(&base.clock);
+        let mut out = self.clone();
+        out.catch_up(&to, c);
+        let mut base = base.clone();
+        base.catch_up(&to, c);
+        let mut adds = false;
+        for k in 0..out.texels() {
+            let theirs = TexelCopy {
+                deficit: u32::from(base.deficit[k]),
+                stamp: base.stamps.get(k).copied().unwrap_or(NO_STAMP),
+                fallen_m: base.fallen.get(k).copied().unwrap_or(0.0),
+            };
+            let mine = TexelCopy {
+                deficit: u32::from(out.deficit[k]),
+                stamp: out.stamps.get(k).copied().unwrap_or(NO_STAMP),
+                fallen_m: out.fallen.get(k).copied().unwrap_or(0.0),
+            };
+            let merged = theirs.merge(mine);
+            let covered = merged.deficit == theirs.deficit && merged.stamp == theirs.stamp && merged.fallen_m.to_bits() == theirs.fallen_m.to_bits();
+            if covered {
+                out.deficit[k] = 0;
+                if let Some(s) = out.stamps.get_mut(k) {
+                    *s = NO_STAMP;
+                }
+                if let Some(f) = out.fallen.get_mut(k) {
+                    *f = 0.0;
+                }
+            } else {
+                adds = true;
+            }
+        }
+        adds.then_some(out)
+    }
+
     /// A 64-bit digest of the clock's counters and the planes (FNV-1a over
     /// their bytes): equal tiles have equal digests, on every machine.
     #[must_use]
@@ -322,5 +368,68 @@ mod tests {
         assert_eq!(a.deficit, vec![90, 30, 40, 0]);
         assert_eq!(a.clock.refill_quanta, 10);
         assert!(!a.clone().merge(&b, CatchUp::default()), "idempotent");
+    }
+
+    /// A random tile of side 8 at `clock` (xorshift over `state`).
+    fn random_tile(state: &mut u64, clock: ShareClock) -> SharedTile {
+        let mut next = || {
+            *state ^= *state << 13;
+            *state ^= *state >> 7;
+            *state ^= *state << 17;
+            *state
+        };
+        let mut t = SharedTile::untouched(TileKey::new(3, -2), 8, clock, true, true);
+        for k in 0..t.texels() {
+            let r = next();
+            t.deficit[k] = if r % 3 == 0 { 0 } else { (r >> 8) as u16 % 900 };
+            t.stamps[k] = if r % 5 == 0 { ((r >> 20) as u32 % 60_000) << 16 | ((r >> 40) as u32 % 60_000) } else { NO_STAMP };
+            t.fallen[k] = if r % 7 == 0 { ((r >> 30) % 100) as f32 * 1e-3 } else { 0.0 };
+        }
+        t
+    }
+
+    /// What a tile adds to a copy the relay holds, merged into anything
+    /// that holds that copy, gives what the whole tile would: for random
+    /// tiles, copies and relays, at equal and later clocks.
+    #[test]
+    fn what_a_tile_adds_to_an_acknowledged_copy_merges_as_the_whole_tile() {
+        let c = CatchUp { max_fallen_m: 0.2 };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let (mut smaller, mut none) = (0, 0);
+        for round in 0..200u64 {
+            let acked = random_tile(&mut state, clock(round % 3));
+            // What the peer holds now: the acknowledged copy and new presses.
+            let mut now = acked.clone();
+            now.merge(&random_tile(&mut state, clock(round % 5)), c);
+            if round % 4 == 0 {
+                now = acked.clone();
+            }
+            // The relay: the acknowledged copy and others' presses.
+            let mut relay = acked.clone();
+            relay.merge(&random_tile(&mut state, clock(round % 4)), c);
+            let mut whole = relay.clone();
+            whole.merge(&now, c);
+            match now.beyond(&acked, c) {
+                Some(delta) => {
+                    let mut by_delta = relay.clone();
+                    by_delta.merge(&delta, c);
+                    assert_eq!(by_delta, whole, "round {round}");
+                    smaller += usize::from(crate::replicate::message::encode_tile(&delta).len() < crate::replicate::message::encode_tile(&now).len());
+                }
+                None => {
+                    none += 1;
+                    assert_eq!(
+                        whole,
+                        {
+                            let mut r = relay.clone();
+                            r.catch_up(&whole.clock, c);
+                            r
+                        },
+                        "round {round}: nothing added, yet the merge changed"
+                    );
+                }
+            }
+        }
+        assert!(none >= 40 && smaller > 100, "{none} tiles added nothing, {smaller} deltas were smaller");
     }
 }
