@@ -917,6 +917,45 @@ fn a_late_joiner_receives_its_window_paced_by_its_byte_budget() {
     }
 }
 
+/// A late joiner is in sync a moment after its backlog has arrived: its
+/// digest goes out once the relay's tiles stop coming (0.3 s), not at the
+/// next second, so a window of 20 trodden tiles is in sync in well under
+/// the digest interval (`snowpack bench --only share`: 1.07 s before, 0.39 s after).
+#[test]
+fn a_late_joiner_is_in_sync_soon_after_its_backlog() {
+    let mut rng = Rng::new(testing::seed("a_late_joiner_is_in_sync_soon_after_its_backlog"));
+    let mut relay = relay_holding(RelayConfig::default(), 20, 1.0, &mut rng);
+    while relay.poll_transmit().is_some() {}
+    let w = world(16);
+    relay.connect(2);
+    let mut snow = CpuSnow::new(w.clone(), 64, [-32, -32], 1.0);
+    let mut peer = SnowPeer::new(w, "late", PeerConfig::default());
+    let (mut t, dt) = (1.0, 1.0 / 60.0);
+    let mut last_tile_s = t;
+    let mut received = 0;
+    while !peer.is_synced() && t < 10.0 {
+        t += dt;
+        snow.step(dt);
+        peer.update(&mut snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            relay.receive(2, &b, t);
+        }
+        relay.update(t);
+        while let Some((id, b)) = relay.poll_transmit() {
+            if id == 2 {
+                peer.receive(&b).expect("well-formed");
+            }
+        }
+        if peer.stats().tiles_received > received {
+            (received, last_tile_s) = (peer.stats().tiles_received, t);
+        }
+    }
+    let (synced_after, after_backlog) = (t - 1.0, t - last_tile_s);
+    eprintln!("late join of 20 tiles: in sync {synced_after:.2} s after joining, {after_backlog:.2} s after its last tile");
+    assert!(peer.is_synced() && received >= 20, "not in sync by 10 s: {:?}", peer.stats());
+    assert!(synced_after < 0.7 && after_backlog < 0.5, "in sync {synced_after:.2} s after joining, {after_backlog:.2} s after the backlog");
+}
+
 #[test]
 fn a_peer_that_never_reads_costs_a_bounded_queue() {
     let config = RelayConfig { queue_messages: 4, ..RelayConfig::default() };

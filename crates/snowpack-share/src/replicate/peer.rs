@@ -28,6 +28,12 @@ low_level_some_fields! {
         /// one with `InSync` (after joining or reconnecting): a late joiner
         /// learns quickly that it holds everything.
         pub digest_interval_s: f64,
+        /// Until then, a `Digest` also goes out once the relay's tiles have
+        /// stopped arriving for this long (seconds; longer than the relay's
+        /// send interval, so a paced backlog is not taken for its end) while
+        /// none of the peer's own changes waits: a late joiner is in sync a
+        /// moment after its backlog, not at the next `digest_interval_s`.
+        pub(crate) settled_digest_s: f64,
         /// Seconds between two `Digest` messages after that: digests only
         /// repair what a connection lost, and on a reliable channel (renet2's,
         /// a game's own) that is rare, while a digest of a window full of
@@ -56,6 +62,7 @@ impl Default for PeerConfig {
         Self {
             presence_interval_s: 0.25,
             digest_interval_s: 1.0,
+            settled_digest_s: 0.3,
             synced_digest_interval_s: 5.0,
             delta_interval_s: 0.1,
             resend_after_s: 1.0,
@@ -150,6 +157,10 @@ pub struct SnowPeer {
     synced_once: bool,
     /// [`SnowPeer::request_digest`] was called.
     digest_requested: bool,
+    /// When the relay's tiles last arrived (merged at an update) since the
+    /// last digest, if they did: before the first `InSync`, a digest goes
+    /// out once they stop (`settled_digest_s`).
+    tiles_since_digest_s: Option<f64>,
     stats: PeerStats,
 }
 
@@ -189,6 +200,7 @@ impl SnowPeer {
             in_sync: false,
             synced_once: false,
             digest_requested: false,
+            tiles_since_digest_s: None,
             stats: PeerStats::default(),
         }
     }
@@ -345,6 +357,7 @@ impl SnowPeer {
             self.last_window = window;
         }
         if !self.incoming.is_empty() {
+            self.tiles_since_digest_s = Some(now_s);
             let incoming: Vec<SharedTile> = self.incoming.drain(..).collect();
             for t in &incoming {
                 if merge_into(&mut self.replica, t.clone(), c) {
@@ -384,11 +397,17 @@ impl SnowPeer {
             self.send_tiles(now_s);
         }
         let digest_every = if self.synced_once && !self.digest_requested { self.config.synced_digest_interval_s } else { self.config.digest_interval_s };
-        if now_s - self.last_digest_s >= digest_every
+        // Before the first `InSync`: also once the relay's tiles (a late
+        // join's backlog, say) have stopped coming, while none of this
+        // peer's own changes waits (a peer pressing as it goes could not be
+        // answered `InSync` anyway: its digest would be extra work for the relay).
+        let settled = !self.synced_once && self.unacknowledged() == 0 && self.tiles_since_digest_s.is_some_and(|t| now_s - t >= self.config.settled_digest_s);
+        if (now_s - self.last_digest_s >= digest_every || settled)
             && let Some((first, resolution)) = window
         {
             self.last_digest_s = now_s;
             self.digest_requested = false;
+            self.tiles_since_digest_s = None;
             self.send_digest(snow.share_clock(), first, resolution, c);
         }
     }
