@@ -379,6 +379,14 @@ impl SnowPeer {
             }
             return;
         }
+        self.send_due(now_s, window, snow.share_clock());
+    }
+
+    /// What a welcomed peer sends when due at `now_s`: `Presence`, the
+    /// resends of deltas not acknowledged in time, the deltas, and `Digest`
+    /// (of the window, at `snow_clock`).
+    fn send_due(&mut self, now_s: f64, window: Option<([i64; 2], u32)>, snow_clock: ShareClock) {
+        let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
         if now_s - self.last_presence_s >= self.config.presence_interval_s
             && let Some((first, resolution)) = window
         {
@@ -408,7 +416,7 @@ impl SnowPeer {
             self.last_digest_s = now_s;
             self.digest_requested = false;
             self.tiles_since_digest_s = None;
-            self.send_digest(snow.share_clock(), first, resolution, c);
+            self.send_digest(snow_clock, first, resolution, c);
         }
     }
 

@@ -9,9 +9,11 @@
 //! deformation knows nothing of them.
 
 pub mod exchange;
+pub mod grid;
 pub mod planes;
 pub mod restore;
 pub mod seal;
+mod slots;
 pub mod streaming;
 pub mod weather;
 

@@ -23,7 +23,7 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 use crate::deform::params::default_tile_texels;
 use crate::deform::resources::DeformResources;
@@ -42,121 +42,13 @@ use super::weather::{TileWeatherPass, WeatherParams};
 // The slot layout lives in `planes.rs` (the tile passes below this file need
 // it too); it stays reachable here, where the streaming's users look for it.
 pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_stamps, planes};
+// The grid and the slot pool live in files of their own; the grid stays
+// reachable here, where the streaming's users look for it.
+pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
+use super::slots::SlotTable;
 
 /// Most tiles per submission of a batched move or a save.
 const BATCH_TILES: usize = 32;
-
-/// Tiles around the window that are requested from the store ahead of need.
-pub const PREFETCH_MARGIN_TILES: i64 = 2;
-
-/// Spare slots beyond what a one-step move needs ([`TileGrid::slot_count`]).
-pub const SPARE_SLOTS: u32 = 32;
-
-/// How a window of `resolution` texels is cut into tiles, and the slot pool
-/// and key table that hold the resident ones.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TileGrid {
-    side: u32,
-    resolution: u32,
-}
-
-impl TileGrid {
-    /// Tiles of `side` texels (a power of two, 16..=256, dividing the resolution).
-    pub fn new(resolution: u32, side: u32) -> Result<Self, SnowError> {
-        if !side.is_power_of_two() || !(16..=256).contains(&side) || !resolution.is_multiple_of(side) {
-            return Err(SnowError::InvalidParameter {
-                field: "tile_texels",
-                why: format!("{side} must be a power of two in 16..=256 that divides the resolution {resolution}"),
-            });
-        }
-        Ok(Self { side, resolution })
-    }
-
-    /// Tile side (texels).
-    #[must_use]
-    pub fn side(&self) -> u32 {
-        self.side
-    }
-
-    /// Side of the toroidal key table: every resident tile lies within
-    /// [`PREFETCH_MARGIN_TILES`] tiles of the window, a span of at most
-    /// `resolution/side + 1 + 2·margin` tiles, one less than this, so no two
-    /// resident tiles share an entry.
-    #[must_use]
-    pub fn keys_per_side(&self) -> u32 {
-        self.resolution / self.side + 2 + 2 * PREFETCH_MARGIN_TILES as u32
-    }
-
-    /// Slots in the pool: the most tiles an unaligned window partly covers
-    /// (its edge tiles, `4(n+1) − 4` with `n = resolution/side`), the tiles a
-    /// one-tile diagonal step leaves behind and that keep texels stashed in
-    /// that move (`2(n+1) − 1`), and [`SPARE_SLOTS`] for tiles near the window
-    /// (prefetched, or recently left: a window jittering across a tile
-    /// boundary keeps them). 225 at 1024/32.
-    #[must_use]
-    pub fn slot_count(&self) -> usize {
-        let n = self.resolution / self.side;
-        (4 * (n + 1) - 4 + 2 * (n + 1) - 1 + SPARE_SLOTS) as usize
-    }
-
-    /// Texels per tile.
-    #[must_use]
-    pub fn area(&self) -> usize {
-        (self.side * self.side) as usize
-    }
-
-    /// The tile holding global texel `g` (`[column, row]`).
-    #[must_use]
-    pub fn key_of(&self, g: [i64; 2]) -> TileKey {
-        let s = i64::from(self.side);
-        TileKey { col: g[0].div_euclid(s), row: g[1].div_euclid(s) }
-    }
-
-    /// The key table entry of tile `key`.
-    #[must_use]
-    pub fn table_entry(&self, key: TileKey) -> usize {
-        let n = i64::from(self.keys_per_side());
-        (key.row.rem_euclid(n) * n + key.col.rem_euclid(n)) as usize
-    }
-
-    /// Whether tile `key` lies wholly inside the window at `origin` (its
-    /// texels are all in the window's buffers: it needs no slot).
-    #[must_use]
-    pub fn inside(&self, key: TileKey, origin: [i64; 2]) -> bool {
-        let (s, r) = (i64::from(self.side), i64::from(self.resolution));
-        key.col * s >= origin[0] && (key.col + 1) * s <= origin[0] + r && key.row * s >= origin[1] && (key.row + 1) * s <= origin[1] + r
-    }
-
-    /// Whether tile `key` has a texel in the window at `origin`.
-    #[must_use]
-    pub fn touched(&self, key: TileKey, origin: [i64; 2]) -> bool {
-        let (s, r) = (i64::from(self.side), i64::from(self.resolution));
-        (key.col + 1) * s > origin[0] && key.col * s < origin[0] + r && (key.row + 1) * s > origin[1] && key.row * s < origin[1] + r
-    }
-
-    /// Whether tile `key` is within `margin` tiles of the window at `origin`.
-    #[must_use]
-    pub fn near(&self, key: TileKey, origin: [i64; 2], margin: i64) -> bool {
-        let last = i64::from(self.resolution) - 1;
-        let (lo, hi) = (self.key_of(origin), self.key_of([origin[0] + last, origin[1] + last]));
-        key.col >= lo.col - margin && key.col <= hi.col + margin && key.row >= lo.row - margin && key.row <= hi.row + margin
-    }
-
-    /// Tiles within `margin` tiles of the window at `origin` (margin 0: those it touches).
-    #[must_use]
-    pub fn around(&self, origin: [i64; 2], margin: i64) -> Vec<TileKey> {
-        let last = i64::from(self.resolution) - 1;
-        let lo = self.key_of(origin);
-        let hi = self.key_of([origin[0] + last, origin[1] + last]);
-        let mut keys = Vec::new();
-        for row in lo.row - margin..=hi.row + margin {
-            for col in lo.col - margin..=hi.col + margin {
-                keys.push(TileKey { col, row });
-            }
-        }
-        keys
-    }
-}
 
 /// Tile traffic so far, with the store's own figures.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -226,16 +118,8 @@ pub struct TileStreaming {
     has_stamps: bool,
     streamer: TileStreamer,
     tiles: wgpu::Buffer,
-    owners_buffer: wgpu::Buffer,
-    /// The tile in each slot of the pool.
-    owners: Vec<Option<TileKey>>,
-    /// Each resident tile's slot.
-    slots: HashMap<TileKey, usize>,
-    /// When each slot's tile was last needed (a move count), for eviction.
-    last_needed: Vec<u64>,
-    /// The key table (tile key -> slot or [`NO_SLOT`]) and its GPU copy.
-    table: Vec<u32>,
-    table_buffer: wgpu::Buffer,
+    /// The slot pool, its key table and which tile holds each slot.
+    slots: SlotTable,
     moves: u64,
     batched_moves: u64,
     exchange: ExchangePass,
@@ -322,10 +206,10 @@ impl TileStreaming {
         }
         ctx.queue.submit([encoder.finish()]);
         self.tiles = tiles;
-        self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles, &self.table_buffer);
+        self.exchange = ExchangePass::new(&ctx.device, res, &self.tiles, self.slots.table_buffer());
         self.restore = TileRestorePass::new(&ctx.device, res, &self.tiles);
         self.seal = TileSealPass::new(&ctx.device, res, &self.tiles);
-        self.weather = TileWeatherPass::new(&ctx.device, res, &self.owners_buffer, &self.tiles);
+        self.weather = TileWeatherPass::new(&ctx.device, res, self.slots.owners_buffer(), &self.tiles);
     }
 
     /// Resident slots for the window of `res`, behind `streamer`.
@@ -348,30 +232,13 @@ impl TileStreaming {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let owners_buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile owners"),
-            size: grid.slot_count() as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let table = vec![NO_SLOT; (grid.keys_per_side() * grid.keys_per_side()) as usize];
-        let table_buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile key table"),
-            size: table.len() as u64 * 4,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        ctx.queue.write_buffer(&table_buffer, 0, bytemuck::cast_slice(&table));
+        let slots = SlotTable::new(&ctx.device, &ctx.queue, grid);
         let this = Self {
-            exchange: ExchangePass::new(&ctx.device, res, &tiles, &table_buffer),
+            exchange: ExchangePass::new(&ctx.device, res, &tiles, slots.table_buffer()),
             restore: TileRestorePass::new(&ctx.device, res, &tiles),
             seal: TileSealPass::new(&ctx.device, res, &tiles),
-            weather: TileWeatherPass::new(&ctx.device, res, &owners_buffer, &tiles),
-            owners: vec![None; grid.slot_count()],
-            slots: HashMap::new(),
-            last_needed: vec![0; grid.slot_count()],
-            table,
-            table_buffer,
+            weather: TileWeatherPass::new(&ctx.device, res, slots.owners_buffer(), &tiles),
+            slots,
             moves: 0,
             batched_moves: 0,
             grid,
@@ -380,7 +247,6 @@ impl TileStreaming {
             has_stamps: res.has_stamps(),
             streamer,
             tiles,
-            owners_buffer,
             evictions: Vec::new(),
             weather_slots: Vec::new(),
             in_flight: HashSet::new(),
@@ -419,7 +285,7 @@ impl TileStreaming {
     }
 
     fn resident(&self, key: TileKey) -> bool {
-        self.slots.contains_key(&key)
+        self.slots.contains(key)
     }
 
     /// Tiles the window at `desired` needs from the streamer when coming
@@ -509,7 +375,7 @@ impl TileStreaming {
             origin: [origin[0] as i32, origin[1] as i32],
             old_origin: [old[0] as i32, old[1] as i32],
             resolution: res.resolution,
-            side: self.grid.side,
+            side: self.grid.side(),
             keys_per_side: self.grid.keys_per_side(),
             flags,
             texel_m: res.texel_m,
@@ -521,7 +387,7 @@ impl TileStreaming {
 
     fn restore_params(&mut self, frame: &WindowFrame) -> RestoreParams {
         self.restore_base = RestoreParams {
-            side: self.grid.side,
+            side: self.grid.side(),
             flags: if frame.use_fallen { RestoreParams::USE_FALLEN } else { 0 },
             planes: self.planes() as u32,
             texel_m: frame.texel_m,
@@ -536,26 +402,19 @@ impl TileStreaming {
     }
 
     fn assign(&mut self, key: TileKey, slot: usize) {
-        self.owners[slot] = Some(key);
-        self.slots.insert(key, slot);
-        self.last_needed[slot] = self.moves;
-        self.table[self.grid.table_entry(key)] = slot as u32;
+        self.slots.assign(key, slot, self.moves);
     }
 
     fn release(&mut self, key: TileKey) {
-        if let Some(slot) = self.slots.remove(&key) {
-            self.owners[slot] = None;
-            self.table[self.grid.table_entry(key)] = NO_SLOT;
-        }
+        self.slots.release(key);
     }
 
     fn free_slot(&self) -> Option<usize> {
-        self.owners.iter().position(Option::is_none)
+        self.slots.free_slot()
     }
 
     fn write_table(&self, queue: &wgpu::Queue) {
-        queue.write_buffer(&self.table_buffer, 0, bytemuck::cast_slice(&self.table));
-        self.write_owners(queue);
+        self.slots.write(queue);
     }
 
     /// The restore entry of `key` into `slot`, from the streamer (saved
@@ -595,7 +454,7 @@ impl TileStreaming {
             }
         };
         let mut entry = RestoreEntry { tile: [key.col as i32, key.row as i32], slot: slot as u32, ..RestoreEntry::default() };
-        let usable = |tile: &TileData| tile.side == self.grid.side && tile.snow_xor_rest.len() == area && tile.stamps.len() == area;
+        let usable = |tile: &TileData| tile.side == self.grid.side() && tile.snow_xor_rest.len() == area && tile.stamps.len() == area;
         // Appends a tile's planes to `upload`; its offset and time away.
         let push = |tile: &TileData, upload: &mut Vec<u32>| {
             let at = upload.len() as u32;
@@ -622,7 +481,7 @@ impl TileStreaming {
             Some(tile) => {
                 self.errors.push(StoreError::Mismatch {
                     path: self.streamer.dir().to_path_buf(),
-                    why: format!("tile ({}, {}) has side {}, the window uses {}; fresh snow used", key.col, key.row, tile.side, self.grid.side),
+                    why: format!("tile ({}, {}) has side {}, the window uses {}; fresh snow used", key.col, key.row, tile.side, self.grid.side()),
                 });
                 self.fresh += 1;
             }
@@ -694,49 +553,18 @@ impl TileStreaming {
         // Tiles now wholly inside the window give their slots up (their
         // texels were all loaded or never left): no copy-out. The GPU table
         // keeps them until the next write, after this frame's load.
-        let inside: Vec<TileKey> = self.slots.keys().copied().filter(|&k| g.inside(k, origin)).collect();
+        let inside: Vec<TileKey> = self.slots.keys().filter(|&k| g.inside(k, origin)).collect();
         for k in inside {
             self.release(k);
         }
         true
     }
 
-    /// Gives up the slots a step to `origin` needs for the `required` tiles:
-    /// tiles that drifted away from the window first (the table's span), then
-    /// the least recently needed; returns the evicted tiles and their slots,
+    /// Gives up the slots a step to `origin` needs for the `required`
+    /// tiles ([`SlotTable::evict_for`]): the evicted tiles and their slots,
     /// to copy out.
     fn evict_for(&mut self, required: &[TileKey], origin: [i64; 2]) -> Vec<(TileKey, usize)> {
-        let g = self.grid;
-        let wanted: HashSet<TileKey> = required.iter().copied().collect();
-        // Tiles that drifted away from the window go (the table's span), then
-        // the least recently needed, as slots are needed.
-        let mut evicting: Vec<(TileKey, usize)> = Vec::new();
-        for slot in 0..self.owners.len() {
-            if let Some(k) = self.owners[slot]
-                && !g.near(k, origin, PREFETCH_MARGIN_TILES)
-            {
-                evicting.push((k, slot));
-                self.release(k);
-            }
-        }
-        for &k in required {
-            if let Some(&slot) = self.slots.get(&k) {
-                self.last_needed[slot] = self.moves;
-            }
-        }
-        let missing = required.iter().filter(|k| !self.resident(**k)).count();
-        let free = self.owners.iter().filter(|o| o.is_none()).count();
-        if missing > free {
-            let mut candidates: Vec<(u64, usize)> =
-                self.owners.iter().enumerate().filter_map(|(s, o)| o.filter(|k| !wanted.contains(k)).map(|_| (self.last_needed[s], s))).collect();
-            candidates.sort_unstable();
-            for &(_, slot) in candidates.iter().take(missing - free) {
-                let key = self.owners[slot].expect("a candidate has an owner");
-                evicting.push((key, slot));
-                self.release(key);
-            }
-        }
-        evicting
+        self.slots.evict_for(required, origin, self.moves)
     }
 
     /// A long move (or the first placement) in batches of its own submits:
@@ -751,7 +579,7 @@ impl TileStreaming {
         let submit = |ctx: &GpuContext, encoder: wgpu::CommandEncoder| ctx.queue.submit([encoder.finish()]);
         let new_encoder = |ctx: &GpuContext| ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile batch") });
         // Leave: every resident tile and every tile of the old window goes to the store.
-        let mut leaving: Vec<TileKey> = self.owners.iter().flatten().copied().collect();
+        let mut leaving: Vec<TileKey> = self.slots.keys().collect();
         if let Some(old) = old {
             leaving.extend(g.around(old, 0).into_iter().filter(|k| !self.resident(*k)));
         }
@@ -769,7 +597,7 @@ impl TileStreaming {
             if let Some(old) = old {
                 self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, true), &full);
             }
-            let out: Vec<(TileKey, usize)> = batch.iter().map(|k| (*k, self.slots[k])).collect();
+            let out: Vec<(TileKey, usize)> = batch.iter().filter_map(|&k| self.slots.slot(k).map(|s| (k, s))).collect();
             self.record_copy_out(&mut cx, res, &out, clock);
             submit(ctx, encoder);
             for &k in batch {
@@ -789,7 +617,7 @@ impl TileStreaming {
         let keep = arriving.iter().filter(|&&k| !g.inside(k, origin)).count();
         let mut start = 0;
         while start < arriving.len() {
-            let room = self.owners.iter().filter(|o| o.is_none()).count();
+            let room = self.slots.free_count();
             let batch = &arriving[start..(start + room.min(BATCH_TILES)).min(arriving.len())];
             start += batch.len();
             let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
@@ -818,18 +646,13 @@ impl TileStreaming {
     /// The seal's uniforms for the window of `res`.
     fn seal_params(&self, res: &DeformResources) -> SealParams {
         SealParams {
-            side: self.grid.side,
+            side: self.grid.side(),
             planes: self.planes() as u32,
             flags: if self.use_fallen { SealParams::USE_FALLEN } else { 0 },
             texel_m: res.texel_m,
             depth_m: self.depth_m,
             ..SealParams::default()
         }
-    }
-
-    fn write_owners(&self, queue: &wgpu::Queue) {
-        let owners: Vec<[i32; 4]> = self.owners.iter().map(|o| o.map_or([0; 4], |k| [k.col as i32, k.row as i32, 1, 0])).collect();
-        queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
     }
 
     /// Seals the slots of `slots` (snow XOR rest height, `tile_seal.wgsl`)
@@ -870,18 +693,18 @@ impl TileStreaming {
         quanta: u32,
     ) {
         // Only tiles reaching outside the window: the update has the rest.
-        let (side, n) = (i64::from(self.grid.side), i64::from(self.grid.resolution));
+        let (side, n) = (i64::from(self.grid.side()), i64::from(self.grid.resolution()));
         let inside =
             |k: TileKey| k.col * side >= origin[0] && (k.col + 1) * side <= origin[0] + n && k.row * side >= origin[1] && (k.row + 1) * side <= origin[1] + n;
         self.weather_slots.clear();
-        self.weather_slots.extend(self.owners.iter().enumerate().filter(|(_, o)| o.is_some_and(|k| !inside(k))).map(|(s, _)| s as u32));
+        self.weather_slots.extend(self.slots.owned().filter(|&(_, k)| !inside(k)).map(|(s, _)| s as u32));
         self.weather.record(
             cx,
             res,
             &WeatherParams {
                 origin: [origin[0] as i32, origin[1] as i32],
-                resolution: self.grid.resolution,
-                side: self.grid.side,
+                resolution: self.grid.resolution(),
+                side: self.grid.side(),
                 texel_m: frame.texel_m,
                 flags: if frame.use_fallen { WeatherParams::USE_FALLEN } else { 0 },
                 planes: self.planes() as u32,
@@ -914,7 +737,7 @@ impl TileStreaming {
             tracing::warn!("{e}");
         }
         let area = self.grid.area();
-        let side = self.grid.side;
+        let side = self.grid.side();
         let mut k = 0;
         while k < self.evictions.len() {
             let state = self.evictions[k].flag.state();
@@ -958,9 +781,9 @@ impl TileStreaming {
         let mut timer = GpuTimer::disabled();
         let g = self.grid;
         // The resident tiles first (they stay), then the window's inside tiles in batches.
-        let mut batches: Vec<Vec<TileKey>> = vec![self.owners.iter().flatten().copied().collect()];
+        let mut batches: Vec<Vec<TileKey>> = vec![self.slots.keys().collect()];
         let inside: Vec<TileKey> = g.around(origin, 0).into_iter().filter(|k| !self.resident(*k)).collect();
-        let room = self.owners.iter().filter(|o| o.is_none()).count().clamp(1, BATCH_TILES);
+        let room = self.slots.free_count().clamp(1, BATCH_TILES);
         batches.extend(inside.chunks(room).map(<[TileKey]>::to_vec));
         for (n, batch) in batches.iter().enumerate() {
             let borrowed = n > 0;
@@ -971,7 +794,7 @@ impl TileStreaming {
                 }
             }
             self.write_table(&ctx.queue);
-            let entries: Vec<[i32; 4]> = batch.iter().map(|k| [k.col as i32, k.row as i32, self.slots[k] as i32, 0]).collect();
+            let entries: Vec<[i32; 4]> = batch.iter().filter_map(|&k| self.slots.slot(k).map(|s| [k.col as i32, k.row as i32, s as i32, 0])).collect();
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             self.exchange.record(&mut cx, res, stash, &full);
@@ -981,9 +804,9 @@ impl TileStreaming {
             let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
             let slot_words = self.planes() * g.area();
             for &k in batch {
-                let slot = self.slots[&k];
+                let Some(slot) = self.slots.slot(k) else { continue };
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
-                self.streamer.put(tile_from_planes(k, g.side, clock, planes, (self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(k, g.side(), clock, planes, (self.use_fallen, self.has_stamps)));
             }
             if borrowed {
                 for &k in batch {
@@ -1023,11 +846,11 @@ impl TileStreaming {
         let load = self.exchange_params(res, origin, origin, false);
         let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
-        let room = self.owners.iter().filter(|o| o.is_none()).count().clamp(1, BATCH_TILES);
+        let room = self.slots.free_count().clamp(1, BATCH_TILES);
         for batch in owed.chunks(room) {
             let (mut entries, mut upload, mut borrowed) = (Vec::new(), Vec::<u32>::new(), Vec::new());
             for &k in batch {
-                let slot = if let Some(&slot) = self.slots.get(&k) {
+                let slot = if let Some(slot) = self.slots.slot(k) {
                     slot
                 } else {
                     let slot = self.free_slot().expect("a batch fits the free slots");
@@ -1038,11 +861,7 @@ impl TileStreaming {
                 entries.push(self.restore_entry(k, slot, &mut upload, clock));
             }
             // Only this batch in the table: the load leaves every other texel of the window as it is.
-            let mut table = vec![NO_SLOT; self.table.len()];
-            for &k in batch {
-                table[self.grid.table_entry(k)] = self.slots[&k] as u32;
-            }
-            ctx.queue.write_buffer(&self.table_buffer, 0, bytemuck::cast_slice(&table));
+            self.slots.write_only(&ctx.queue, batch);
             let sealed: Vec<[i32; 4]> = entries.iter().map(|e| [e.tile[0], e.tile[1], e.slot as i32, 0]).collect();
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile merge for a save") });
             {
@@ -1059,7 +878,7 @@ impl TileStreaming {
                 let key = TileKey::new(i64::from(e.tile[0]), i64::from(e.tile[1]));
                 let slot = e.slot as usize;
                 let planes = &words[slot * slot_words..(slot + 1) * slot_words];
-                self.streamer.put(tile_from_planes(key, self.grid.side, clock, planes, (self.use_fallen, self.has_stamps)));
+                self.streamer.put(tile_from_planes(key, self.grid.side(), clock, planes, (self.use_fallen, self.has_stamps)));
             }
             // Sealing again gives the resident slots back; the borrowed ones go.
             let resident: Vec<[i32; 4]> = sealed.iter().copied().filter(|e| !borrowed.contains(&TileKey::new(i64::from(e[0]), i64::from(e[1])))).collect();
@@ -1102,7 +921,7 @@ impl TileStreaming {
             store: self.streamer.stats(),
             resident: self.slots.len(),
             batched_moves: self.batched_moves,
-            slots: self.owners.len(),
+            slots: self.slots.capacity(),
             window_waits: self.window_waits,
             gpu_waits: self.gpu_waits,
             restored: self.restored,
@@ -1121,8 +940,7 @@ impl TileStreaming {
     #[must_use]
     pub fn gpu_bytes(&self) -> u64 {
         self.tiles.size()
-            + self.owners_buffer.size()
-            + self.table_buffer.size()
+            + self.slots.gpu_bytes()
             + self.weather.memory_bytes()
             + self.seal.memory_bytes()
             + self.restore.memory_bytes()
