@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 
 use glam::{DVec2, Quat, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 /// One measured set of deformers, swept and not.

@@ -8,6 +8,10 @@
 //! what it cannot do, and say why where you do. `docs/architecture.md` says
 //! what each module owns and how one frame passes through them.
 
+/// What snowpack's own app, tools and tests read and drive of a
+/// [`crate::SnowDeformation`] beyond the front door.
+pub use crate::snow::inspect::SnowInspect;
+
 /// Snow settling on objects: the object atlas, its passes and state.
 pub mod accumulate {
     pub use crate::accumulate::*;

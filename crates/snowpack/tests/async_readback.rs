@@ -4,6 +4,7 @@
 //! all, as a browser's frame loop gets them.
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::gpu::readback::{TextureReadback, read_buffer, read_buffer_async};
 use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};

@@ -3,6 +3,7 @@
 //! the snowfall's rate, and a deformer pressing into it leaves bare ground.
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::Snowfall;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};

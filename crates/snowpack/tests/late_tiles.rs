@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::error::SnowError;
 use snowpack::low_level::persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
 use snowpack::low_level::testing::{self, HeldDisk};

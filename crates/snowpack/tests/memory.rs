@@ -8,6 +8,7 @@
 //! of points and combined and one for snowfall.
 
 use glam::DVec2;
+use snowpack::low_level::SnowInspect;
 use snowpack::{SnowDeformation, SnowParams, Technique, TerrainSource, low_level::testing};
 
 const MIB: f64 = 1024.0 * 1024.0;

@@ -15,6 +15,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileData, TileKey, TileStore, TileStreamer};
 use snowpack::low_level::testing::{self, PowerLossDisk, Rng, Unsynced};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource};

@@ -14,6 +14,7 @@
 use std::path::PathBuf;
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::render::params::sun_from_angles;
 use snowpack::low_level::render::{IMAGE_FORMAT, LightParams};
 use snowpack::low_level::testing::{self, Rng};

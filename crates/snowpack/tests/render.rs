@@ -2,6 +2,7 @@
 //! checked for cracks between levels of detail and for geomorph continuity.
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;

@@ -6,6 +6,7 @@
 use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::TerrainParams;
 use snowpack::low_level::frame::FrameContext;

@@ -3,6 +3,7 @@
 //! depend on the frame rate (`docs/deformation.md`, "Swept capture").
 
 use glam::{DVec2, Quat, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::testing;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
 

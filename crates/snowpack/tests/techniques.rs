@@ -2,6 +2,7 @@
 //! buffer once, on its first frame, and leaves no stale footprints behind.
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::testing;
 use snowpack::{Deformer, SnowDeformation, SnowParams, Technique, TerrainSource};
 

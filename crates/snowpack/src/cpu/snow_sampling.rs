@@ -1,6 +1,6 @@
 //! CPU twin of `shaders/snow_sampling.wgsl`: the same samples of the
 //! displayed surface (height, normal, depth, compaction) from a blocking read
-//! of the snow words ([`crate::SnowDeformation::read_snow_words`]), same
+//! of the snow words ([`crate::snow::inspect::SnowInspect::read_snow_words`]), same
 //! operations in the same order.
 
 use glam::{Vec2, Vec3};
@@ -133,7 +133,7 @@ impl SampledSurface<'_> {
 }
 
 /// The displayed height above the terrain per texel from snow words in
-/// window-local order ([`crate::SnowDeformation::read_snow_words`]).
+/// window-local order ([`crate::snow::inspect::SnowInspect::read_snow_words`]).
 #[must_use]
 pub fn above_ground(words: &[u32]) -> Vec<f32> {
     words.iter().map(|w| crate::deform::snow_word::f16_to_f32(w >> 16)).collect()

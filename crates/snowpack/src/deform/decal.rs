@@ -355,7 +355,7 @@ impl DecalPass {
 
     /// Replaces the 1x1 placeholder with the full `resolution`² layer; does
     /// nothing when it is already full. Renderers holding the old texture
-    /// rebind ([`crate::SnowDeformation::decal_layer`] changes).
+    /// rebind ([`crate::snow::inspect::SnowInspect::decal_layer`] changes).
     pub fn allocate_layer(&mut self, device: &wgpu::Device) {
         if self.layer.width() != self.resolution {
             self.layer = layer_texture(device, self.resolution);

@@ -262,6 +262,7 @@ impl QueryPass {
 
     /// Counts so far.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "read through `SnowInspect` (`low_level`)"))]
     pub fn stats(&self) -> QueryStats {
         QueryStats { capacity: self.capacity, ..self.stats }
     }

@@ -21,6 +21,7 @@ use crate::snow::SnowDeformation;
 pub use super::sampling::{
     SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowSampling, SnowWindowUniform, sampling_bind_group, sampling_layout_entries, snow_sampling_wgsl,
 };
+use crate::snow::inspect::SnowInspect;
 
 /// Default quads per side of the ground grid.
 pub const DEFAULT_GRID_QUADS: u32 = 256;

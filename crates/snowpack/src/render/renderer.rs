@@ -23,6 +23,7 @@ use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 use crate::snow::SnowDeformation;
+use crate::snow::inspect::SnowInspect;
 
 /// Output format of [`Renderer::render_image`].
 pub const IMAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;

@@ -25,6 +25,7 @@ use super::pipeline::storage_ro;
 use crate::gpu::layout;
 use crate::shaders;
 use crate::snow::SnowDeformation;
+use crate::snow::inspect::SnowInspect;
 
 /// WGSL a game prepends to its shader to sample the snow: declares the four
 /// bindings (group `SNOW_SAMPLING_GROUP`, bindings 0..=3) and the functions

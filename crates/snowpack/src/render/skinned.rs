@@ -1,5 +1,5 @@
 //! Skinned characters (`shaders/skinned_draw.wgsl`): the meshes the
-//! deformation posed this frame ([`crate::SnowDeformation::posed_meshes`]),
+//! deformation posed this frame ([`crate::snow::inspect::SnowInspect::posed_meshes`]),
 //! drawn lit and into the shadow map, with the snow they carry.
 
 use super::pipeline::{DrawSpec, lit_and_shadow};

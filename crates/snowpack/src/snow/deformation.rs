@@ -8,17 +8,16 @@ use glam::DVec2;
 use crate::RimStyle;
 use crate::accumulate::SnowAccumulation;
 use crate::deform::params::RANGE_TEXELS;
-use crate::deform::query::{PointAnswers, QueryStats, QueryTicket};
+use crate::deform::query::{PointAnswers, QueryTicket};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings};
-use crate::persist::SnowClock;
 use crate::replicate::sharing::Sharing;
 use crate::skin::coat::CoatSettings;
-use crate::skin::skinning::{SkinnedInstance, SkinnedMesh};
+use crate::skin::skinning::SkinnedMesh;
 use crate::snowfall::Snowfall;
 use crate::tiles::TileStreaming;
-use crate::{Deformer, SnowParams, Technique, TerrainSource};
+use crate::{SnowParams, Technique, TerrainSource};
 
 use super::characters::Characters;
 use super::clock::SnowTime;
@@ -70,11 +69,11 @@ pub struct SnowDeformation {
     /// Shared snow ([`Self::enable_sharing`]): flags, gathers, merges.
     pub(super) sharing: Option<Sharing>,
     /// Frames collect no readback ([`Self::hold_readbacks`]).
-    readbacks_held: bool,
+    pub(super) readbacks_held: bool,
     /// Frames recorded so far.
     pub(super) frame: u64,
     /// The most GPU memory held after any submitted frame (bytes).
-    peak_memory_bytes: u64,
+    pub(super) peak_memory_bytes: u64,
 }
 
 impl SnowDeformation {
@@ -149,15 +148,6 @@ impl SnowDeformation {
         &self.core.params
     }
 
-    low_level_pub! {
-        /// The terrain under the snow.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn terrain(&self) -> &TerrainSource {
-            &self.core.terrain
-        }
-    }
-
     /// Changes the snowfall (rate, direction, stability) from the next frame
     /// on; `None` stops it. A window created without snowfall has no buffer
     /// for it, so starting snow there is an error.
@@ -188,23 +178,6 @@ impl SnowDeformation {
         Ok(())
     }
 
-    low_level_pub! {
-        /// Snowfall so far on open ground (m).
-        #[must_use]
-        fn fallen_m(&self) -> f32 {
-            self.time.fallen_m
-        }
-    }
-
-    low_level_pub! {
-        /// Time, refill and snowfall so far.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn clock(&self) -> SnowClock {
-            self.time.clock
-        }
-    }
-
     /// Sets the world (x, z) that deformer and object positions are given
     /// relative to, for worlds far from the origin: f32 positions keep
     /// millimetres only within a few kilometres, so a game 100 km out passes
@@ -220,14 +193,6 @@ impl SnowDeformation {
             self.characters.history.clear();
         }
         self.core.floating_origin = origin;
-    }
-
-    low_level_pub! {
-        /// The floating origin (world m).
-        #[must_use]
-        fn floating_origin(&self) -> DVec2 {
-            self.core.floating_origin
-        }
     }
 
     /// Sets the refill rate (m/s); takes effect next frame. The refill
@@ -252,43 +217,10 @@ impl SnowDeformation {
         self.core.params.technique = technique;
     }
 
-    low_level_pub! {
-        /// The technique in use.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn technique(&self) -> Technique {
-            self.core.params.technique
-        }
-    }
-
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
     pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
         self.core.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
         self.core.params.rim = rim;
-    }
-
-    #[cfg(feature = "low_level")]
-    /// Contact points stamped in the last frame.
-    #[must_use]
-    pub fn points_last_frame(&self) -> usize {
-        self.core.points_last_frame
-    }
-
-    #[cfg(feature = "low_level")]
-    /// Contact points left out so far because a frame brought more than the
-    /// stamp pass takes ([`crate::deform::stamp::MAX_POINTS`], about a
-    /// million); each time the total doubles a warning says so.
-    #[must_use]
-    pub fn points_dropped(&self) -> u64 {
-        self.core.points_dropped
-    }
-
-    low_level_pub! {
-        /// Quantisation of the stored footprints: (lowest, highest height, quantum), m.
-        #[must_use]
-        fn stamp_range(&self) -> (f32, f32, f32) {
-            self.core.stamp_range()
-        }
     }
 
     /// Turns the displayed-surface blur on or off.
@@ -301,34 +233,10 @@ impl SnowDeformation {
         self.core.center = center;
     }
 
-    low_level_pub! {
-        /// World (x, z) of the window's corner (local texel (0, 0)'s outer corner), once placed.
-        #[must_use]
-        fn origin_m(&self) -> Option<DVec2> {
-            let texel = f64::from(self.core.params.texel_m());
-            self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
-        }
-    }
-
-    low_level_pub! {
-        /// Global texel index `[column, row]` of local (0, 0), once placed.
-        #[must_use]
-        fn origin_texel(&self) -> Option<[i64; 2]> {
-            self.core.window.origin()
-        }
-    }
-
     /// Frames recorded so far.
     #[must_use]
     pub fn frame(&self) -> u64 {
         self.frame
-    }
-
-    #[cfg(feature = "low_level")]
-    /// Texels rewritten by window moves so far (the whole window once, then only new strips).
-    #[must_use]
-    pub fn exposed_texels(&self) -> u64 {
-        self.core.exposed_texels
     }
 
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
@@ -345,28 +253,10 @@ impl SnowDeformation {
         self.characters.skinned.get(id.0).map(|s| &s.coat)
     }
 
-    low_level_pub! {
-        /// Reads skinned mesh `id`'s coat back (m a vertex); blocks until the GPU is done.
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
-            let buffer = self.coat_buffer(id).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
-            Ok(bytemuck::pod_collect_to_vec(&crate::gpu::read_buffer(ctx, buffer)?))
-        }
-    }
-
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];
     /// `joint_count` is its skin's.
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, crate::SnowError> {
         ctx.guarded(|| self.characters.add(ctx, mesh, joint_count).map_err(Into::into))
-    }
-
-    low_level_pub! {
-        /// The skinned meshes posed in the last encoded frame, in world space
-        /// (what a renderer draws for the characters).
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
-        fn posed_meshes(&self) -> impl Iterator<Item = &SkinnedInstance> + '_ {
-            self.characters.posed_meshes()
-        }
     }
 
     /// Records one frame of deformation into `encoder`: the one per-frame
@@ -423,14 +313,6 @@ impl SnowDeformation {
         })
     }
 
-    low_level_pub! {
-        /// [`Self::step_frame`] with only `deformers` pressing the snow (headless tools and tests).
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn step(&mut self, ctx: &GpuContext, deformers: &[Deformer], dt_s: f32) -> Result<(), crate::SnowError> {
-            self.step_frame(ctx, &SnowFrame::new(dt_s, deformers)).map(|_| ())
-        }
-    }
-
     /// Takes the readbacks that have arrived, without waiting (unless held,
     /// [`Self::hold_readbacks`]).
     fn collect_arrived(&mut self, ctx: &GpuContext) {
@@ -454,15 +336,6 @@ impl SnowDeformation {
             sharing.collect(self.core.params.resolution);
         }
         self.timer.collect();
-    }
-
-    /// For tests: while `held`, frames take none of the readbacks that
-    /// arrive (point answers, timings, tiles leaving the window, shared
-    /// snow), as if the GPU never finished them, so their staging buffers
-    /// stay busy; [`Self::finish`] still waits for and takes them.
-    #[cfg(feature = "low_level")]
-    pub fn hold_readbacks(&mut self, held: bool) {
-        self.readbacks_held = held;
     }
 
     /// Waits for every outstanding readback (point answers and timings);
@@ -495,15 +368,6 @@ impl SnowDeformation {
         self.core.answers.as_ref()
     }
 
-    low_level_pub! {
-        /// Requests gathered, answered and skipped so far.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn query_stats(&self) -> QueryStats {
-            self.core.query_pass.stats()
-        }
-    }
-
     /// GPU time of each pass in the newest frame whose timestamps came
     /// back (a frame or two ago; empty without timestamp support): what a
     /// game's profiler overlay shows (bevy_snowpack's diagnostics).
@@ -525,56 +389,13 @@ impl SnowDeformation {
         self.tiles.as_ref().map_or(0, |t| t.stats().resident)
     }
 
-    #[cfg(feature = "low_level")]
-    /// Median GPU time per pass so far (empty without timestamp support).
-    #[must_use]
-    pub fn timings(&self) -> PassTimings {
-        self.timer.medians()
-    }
-
-    #[cfg(feature = "low_level")]
-    /// Forgets timing samples (call after warm-up).
-    pub fn clear_timings(&mut self) {
-        self.timer.clear();
-    }
-
-    #[cfg(feature = "low_level")]
-    /// The most GPU memory [`Self::memory_bytes`] summed to after any frame
-    /// so far (bytes): with tiles on their way to the CPU, the copy-out
-    /// staging they hold for a frame or two.
-    #[must_use]
-    pub fn peak_memory_bytes(&self) -> u64 {
-        self.peak_memory_bytes.max(self.memory_total())
-    }
-
     /// [`Self::memory_bytes`] summed (without building the list but for the objects').
-    fn memory_total(&self) -> u64 {
+    pub(super) fn memory_total(&self) -> u64 {
         self.core.res.memory_total()
             + self.core.query_pass.memory_bytes()
             + self.core.decal_pass.layer_bytes()
             + self.accumulation.as_ref().map_or(0, |acc| acc.memory_bytes().iter().map(|(_, b)| b).sum())
             + self.tiles.as_ref().map_or(0, TileStreaming::gpu_bytes)
             + self.sharing.as_ref().map_or(0, crate::replicate::sharing::Sharing::memory_bytes)
-    }
-
-    low_level_pub! {
-        /// GPU memory held, by resource (bytes), including the point queries' buffers.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
-        fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-            let mut list = self.core.res.memory_bytes();
-            list.push(("point queries", self.core.query_pass.memory_bytes()));
-            list.push(("decal layer", self.core.decal_pass.layer_bytes()));
-            if let Some(acc) = &self.accumulation {
-                list.extend(acc.memory_bytes());
-            }
-            if let Some(tiles) = &self.tiles {
-                list.push(("resident tiles", tiles.stats().gpu_bytes));
-            }
-            if let Some(sharing) = &self.sharing {
-                list.push(("shared snow", sharing.memory_bytes()));
-            }
-            list
-        }
     }
 }

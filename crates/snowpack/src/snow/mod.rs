@@ -15,6 +15,7 @@ mod coat;
 pub mod core_window;
 pub mod deformation;
 mod ground_after;
+pub mod inspect;
 pub mod objects;
 pub mod reads;
 pub mod saved;

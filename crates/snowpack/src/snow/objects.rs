@@ -29,15 +29,6 @@ impl SnowDeformation {
         ctx.check("creating the accumulation passes")
     }
 
-    low_level_pub! {
-        /// The objects' accumulation, when there are objects.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
-        fn accumulation(&self) -> Option<&SnowAccumulation> {
-            self.accumulation.as_ref()
-        }
-    }
-
     /// The snow on each object (in [`Self::set_objects`] order): read back
     /// from the GPU, so this blocks; for a save, a test or a debug panel, not
     /// every frame. Empty without objects.

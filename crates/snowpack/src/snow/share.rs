@@ -15,6 +15,7 @@ use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentit
 use super::SnowDeformation;
 use super::clock::{RefillBase, SnowTime};
 use super::core_window::CoreWindow;
+use crate::snow::inspect::SnowInspect;
 
 /// Tile sides [`SnowDeformation::enable_sharing`] accepts (texels).
 pub const SHARE_TILE_SIDES: std::ops::RangeInclusive<u32> = 8..=256;
@@ -50,13 +51,6 @@ impl SnowDeformation {
         ctx.check("enabling shared snow")
     }
 
-    #[cfg(feature = "low_level")]
-    /// Whether [`Self::enable_sharing`] was called on this window.
-    #[must_use]
-    pub fn is_sharing(&self) -> bool {
-        self.sharing.is_some()
-    }
-
     /// Lets the next frame gather the changed tiles whatever the interval,
     /// so a program about to stop sends its last changes without letting
     /// world time pass.
@@ -77,35 +71,6 @@ impl SnowDeformation {
     #[must_use]
     pub fn waiting_tiles(&self) -> usize {
         self.sharing.as_ref().map_or(0, Sharing::waiting_tiles)
-    }
-
-    low_level_pub! {
-        /// The world clock now: time, refill and footprint quanta, snowfall.
-        #[must_use]
-        fn share_clock(&self) -> ShareClock {
-            self.time.share_clock()
-        }
-    }
-
-    low_level_pub! {
-        /// Sets the world clock (joining a world): time, refill counters and
-        /// snowfall; the frames after it go on from there. When the counters are
-        /// the world's own at that time (its refill from time 0), they keep
-        /// being counted from the world's beginning, as on every other machine.
-        fn join_clock(&mut self, clock: ShareClock) {
-            let world = self.world_identity().clock_at(clock.time_s);
-            self.time.clock.time_s = clock.time_s;
-            self.time.clock.stamp_quanta = clock.stamp_quanta;
-            self.time.clock.refill_m = f64::from(self.core.params.refill_m_per_s) * clock.time_s;
-            self.time.clock.fallen_m = f64::from(clock.fallen_m);
-            self.time.snow_quanta = clock.refill_quanta;
-            self.time.fallen_m = clock.fallen_m;
-            self.time.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
-                RefillBase::default()
-            } else {
-                RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
-            };
-        }
     }
 
     /// The settings another machine must share for its snow to merge with
@@ -165,12 +130,28 @@ impl CoreWindow {
 }
 
 impl SharedSnow for SnowDeformation {
+    /// The world clock now: time, refill and footprint quanta, snowfall.
     fn share_clock(&self) -> ShareClock {
-        Self::share_clock(self)
+        self.time.share_clock()
     }
 
+    /// Sets the world clock (joining a world): time, refill counters and
+    /// snowfall; the frames after it go on from there. When the counters are
+    /// the world's own at that time (its refill from time 0), they keep
+    /// being counted from the world's beginning, as on every other machine.
     fn join_clock(&mut self, clock: ShareClock) {
-        Self::join_clock(self, clock);
+        let world = self.world_identity().clock_at(clock.time_s);
+        self.time.clock.time_s = clock.time_s;
+        self.time.clock.stamp_quanta = clock.stamp_quanta;
+        self.time.clock.refill_m = f64::from(self.core.params.refill_m_per_s) * clock.time_s;
+        self.time.clock.fallen_m = f64::from(clock.fallen_m);
+        self.time.snow_quanta = clock.refill_quanta;
+        self.time.fallen_m = clock.fallen_m;
+        self.time.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
+            RefillBase::default()
+        } else {
+            RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
+        };
     }
 
     fn window(&self) -> Option<([i64; 2], u32)> {

@@ -8,11 +8,12 @@ use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::error::SnowError;
 use crate::gpu::GpuContext;
 use crate::persist::{StoreError, TileStreamer};
-use crate::tiles::{TileStats, TileStreaming};
+use crate::tiles::TileStreaming;
 
 use super::SnowDeformation;
 use super::clock::RefillBase;
 use super::saved::{STATE_NAME, SavedWindow};
+use crate::snow::inspect::SnowInspect;
 
 impl SnowDeformation {
     /// Attaches a tile store: from now on texels leaving the window are kept
@@ -120,16 +121,6 @@ impl SnowDeformation {
         // complete, every tile with it, once it is there.
         streamer.commit_save(STATE_NAME, state.encode())?;
         Ok(())
-    }
-
-    low_level_pub! {
-        /// Tile traffic and store figures, when tiles are kept (in memory or in
-        /// an attached store).
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn tile_stats(&self) -> Option<TileStats> {
-            self.tiles.as_ref().map(TileStreaming::stats)
-        }
     }
 
     /// Store errors since the last call (disk full, read-only, corrupt tiles
