@@ -11,6 +11,7 @@ use snowpack::low_level::gpu::timing::median;
 use snowpack::{AdapterRequest, Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 use crate::output::OutputSet;
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 
 /// One measured configuration.

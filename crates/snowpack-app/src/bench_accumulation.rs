@@ -8,6 +8,7 @@
 use std::fmt::Write as _;
 
 use glam::{DVec2, Quat, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};

@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::render::shell::ShellSettings;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};

@@ -12,6 +12,7 @@ use snowpack::{RimStyle, Technique};
 
 use crate::camera::{CameraMode, CameraRig};
 use crate::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 
 /// In a browser (the `wasm32` build) there is no disk: no disk tile store,

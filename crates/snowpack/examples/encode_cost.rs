@@ -12,6 +12,7 @@
 use std::time::Instant;
 
 use glam::DVec2;
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::testing;
 use snowpack::{AdapterRequest, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};

@@ -10,6 +10,7 @@
 use std::sync::Arc;
 
 use glam::{DVec2, Mat4, Vec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::{Deformer, GpuContext, GroundCamera, SnowDeformation, SnowFrame, SnowGround, SnowGroundDescriptor, SnowParams, TerrainSource};
 use winit::application::ApplicationHandler;
 use winit::event::WindowEvent;

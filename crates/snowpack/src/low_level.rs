@@ -8,6 +8,9 @@
 //! what it cannot do, and say why where you do. `docs/architecture.md` says
 //! what each module owns and how one frame passes through them.
 
+/// What the app, the tools and the tests do with a [`crate::GpuContext`]
+/// beyond the front door.
+pub use crate::gpu::context::GpuContextExt;
 /// What snowpack's own app, tools and tests read and drive of a
 /// [`crate::SnowDeformation`] beyond the front door.
 pub use crate::snow::inspect::SnowInspect;

@@ -3,6 +3,7 @@
 //! that move. Each test runs the whole deformation frame with snowfall.
 
 use glam::{DVec2, Quat, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::low_level::testing;

@@ -10,6 +10,7 @@
 //! (`examples/encode_cost.rs` measures those).
 
 use glam::DVec2;
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowFrame, SnowParams, Technique, TerrainSource};

@@ -5,6 +5,7 @@
 //! says so; on Vulkan wgpu reports it only at a poll that waits.
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowErrorKind, SnowParams, TerrainSource, low_level, low_level::testing};
 

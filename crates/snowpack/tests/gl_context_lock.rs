@@ -14,6 +14,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource, low_level::testing};
 
 /// A compute pass that runs `iterations` dependent steps per invocation

@@ -2,6 +2,7 @@
 //! a game's own shader (`SNOW_SAMPLING_WGSL`), against the CPU twin.
 
 use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu::snow_sampling::SampledSurface;
 use snowpack::low_level::gpu::read_buffer;

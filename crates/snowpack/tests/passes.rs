@@ -8,6 +8,7 @@
 //! a texel centre exactly on an edge), so a few such texels are allowed.
 
 use glam::{DVec2, Quat, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};

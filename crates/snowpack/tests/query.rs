@@ -3,6 +3,7 @@
 //! them.
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::Snowfall;
 use snowpack::low_level::cpu::query::query as cpu_query;

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowFrame, SnowParams, TerrainSource, low_level::testing};
 

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, Vec3};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;

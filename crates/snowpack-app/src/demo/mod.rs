@@ -34,6 +34,7 @@ use snowpack_app::panel::{self, Action, PanelState};
 use snowpack_app::session::{PlayerBody, Session, WindowFollow};
 
 use self::script::{Script, ScriptEvent};
+use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 
 /// What the command line asked of the demo.

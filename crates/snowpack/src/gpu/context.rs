@@ -228,47 +228,6 @@ impl GpuContext {
         Self::choose(instance, None, request).map_err(Into::into)
     }
 
-    low_level_pub! {
-        /// `desc` with its backends narrowed to `request`'s (for a windowed
-        /// instance, start from `wgpu::InstanceDescriptor::new_with_display_handle`).
-        fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
-            if request.backends.is_some() {
-                desc.backends = request.parse_backends()?;
-            }
-            Ok(desc)
-        }
-    }
-
-    low_level_pub! {
-        /// Picks the best adapter of `instance` that can present to `surface`
-        /// (when given) and matches `request`, and creates the device.
-        fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
-            let backends = request.parse_backends()?;
-            let mut adapters = gl_lock_panics_as_errors(|| pollster::block_on(instance.enumerate_adapters(backends)))?;
-            if let Some(surface) = surface {
-                adapters.retain(|a| a.is_surface_supported(surface));
-            }
-            let mut filter = String::new();
-            if let Some(list) = &request.backends {
-                filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
-            }
-            if surface.is_some() {
-                filter.push_str(" that can present to the window");
-            }
-            if let Some(name) = &request.adapter_name {
-                let needle = name.to_ascii_lowercase();
-                adapters.retain(|a| a.get_info().name.to_ascii_lowercase().contains(&needle));
-                filter.push_str(&format!(" with SNOWPACK_ADAPTER={name}"));
-            }
-            adapters.sort_by_key(|a| {
-                let info = a.get_info();
-                (type_rank(info.device_type), u32::from(info.backend != wgpu::Backend::Vulkan))
-            });
-            let adapter = adapters.into_iter().next().ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
-            Self::from_adapter(instance, adapter)
-        }
-    }
-
     /// Wraps a device the game already has (shared with its renderer).
     ///
     /// snowpack installs no handlers on it: uncaptured errors and device loss
@@ -296,98 +255,6 @@ impl GpuContext {
             downlevel: wgpu::DownlevelFlags::all(),
             owns_handlers: false,
             sink: Arc::new(ErrorSink::default()),
-        }
-    }
-
-    low_level_pub! {
-        /// Creates the device on a given adapter, asking for the optional features
-        /// snowpack can use (timestamps) only where the adapter has them.
-        fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
-            let summary = AdapterSummary::from_info(&adapter.get_info());
-            let optional = wgpu::Features::TIMESTAMP_QUERY;
-            let required_features = adapter.features() & optional;
-            // Ask for what the adapter has: large windows need large storage buffers,
-            // and the defaults are below what most adapters offer.
-            let required_limits = adapter.limits();
-            let (device, queue) = gl_lock_panics_as_errors(|| {
-                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                    label: Some("snowpack"),
-                    required_features,
-                    required_limits,
-                    ..Default::default()
-                }))
-            })?
-            .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
-
-            let sink = Arc::new(ErrorSink::default());
-            install_handlers(&device, &sink);
-            tracing::info!(
-                "GPU: {} ({}, {}), timestamps: {}",
-                summary.name,
-                summary.backend,
-                summary.device_type,
-                device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
-            );
-            let downlevel = adapter.get_downlevel_capabilities().flags;
-            Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
-        }
-    }
-
-    low_level_pub! {
-        /// Wraps a device the program created for snowpack's use alone (the
-        /// browser demo's, made by its window toolkit) and installs snowpack's
-        /// uncaptured-error and device-lost handlers on it, as
-        /// [`Self::from_adapter`] does: [`Self::check`] then reports every error
-        /// and a lost device without error scopes.
-        #[must_use]
-        fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
-            let mut ctx = Self::from_device(device, queue);
-            install_handlers(&ctx.device, &ctx.sink);
-            ctx.owns_handlers = true;
-            ctx
-        }
-    }
-
-    low_level_pub! {
-        /// Whether per-pass GPU timestamps are available.
-        #[must_use]
-        fn has_timestamps(&self) -> bool {
-            self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
-        }
-    }
-
-    low_level_pub! {
-        /// Runs `work`, catching the GPU errors it causes (validation, out of
-        /// memory) for [`Self::check`] to report. With snowpack's own device the
-        /// uncaptured-error handler catches them already; with a game's device
-        /// ([`Self::from_device`]) this error scope is how snowpack sees its own
-        /// errors without taking the game's.
-        fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
-            // In a browser an error scope answers only after the page's event
-            // loop turns, so a blocking pop would hang: there the game's own
-            // handlers see snowpack's errors (or use [`Self::adopt_device`]).
-            if self.owns_handlers || cfg!(target_arch = "wasm32") {
-                return work();
-            }
-            let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-            let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-            let out = work();
-            // Native wgpu reports errors as the calls happen, so the futures are ready.
-            for error in [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())].into_iter().flatten() {
-                if let Ok(mut list) = self.sink.errors.lock() {
-                    list.push(error_message(&error));
-                }
-            }
-            out
-        }
-    }
-
-    low_level_pub! {
-        /// Why the device was lost, once it was (its device-lost callback ran);
-        /// unlike [`Self::check`] this leaves any reported errors in place.
-        #[must_use]
-        fn lost_reason(&self) -> Option<String> {
-            self.sink.lost.lock().ok().and_then(|s| s.clone()).or_else(|| self.gl_lock_reason())
         }
     }
 
@@ -429,35 +296,176 @@ impl GpuContext {
             _ => std::panic::resume_unwind(payload),
         })
     }
+}
 
-    low_level_pub! {
-        /// Returns the first GPU error reported since the last call (validation,
-        /// out of memory) or the device-lost reason, so callers fail instead of
-        /// rendering garbage or hanging.
-        fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
-            if let Some(reason) = self.lost_reason() {
-                return Err(SnowError::DeviceLost(reason).into());
-            }
-            let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
-            if errors.is_empty() {
-                return Ok(());
-            }
-            let message = errors.join("\n");
-            errors.clear();
-            Err(SnowError::Gpu { context, message }.into())
+/// What snowpack's own app, tools and tests do with a [`GpuContext`] beyond the front door: adapter choice, error capture and checks, waits.
+/// A named item of `low_level` (an extension trait): [`GpuContext`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait GpuContextExt: Sized {
+    /// `desc` with its backends narrowed to `request`'s (for a windowed
+    /// instance, start from `wgpu::InstanceDescriptor::new_with_display_handle`).
+    fn instance_descriptor(desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError>;
+
+    /// Picks the best adapter of `instance` that can present to `surface`
+    /// (when given) and matches `request`, and creates the device.
+    fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError>;
+
+    /// Creates the device on a given adapter, asking for the optional features
+    /// snowpack can use (timestamps) only where the adapter has them.
+    fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError>;
+
+    /// Wraps a device the program created for snowpack's use alone (the
+    /// browser demo's, made by its window toolkit) and installs snowpack's
+    /// uncaptured-error and device-lost handlers on it, as
+    /// [`Self::from_adapter`] does: [`Self::check`] then reports every error
+    /// and a lost device without error scopes.
+    #[must_use]
+    fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self;
+
+    /// Whether per-pass GPU timestamps are available.
+    #[must_use]
+    fn has_timestamps(&self) -> bool;
+
+    /// Runs `work`, catching the GPU errors it causes (validation, out of
+    /// memory) for [`Self::check`] to report. With snowpack's own device the
+    /// uncaptured-error handler catches them already; with a game's device
+    /// ([`GpuContext::from_device`]) this error scope is how snowpack sees its own
+    /// errors without taking the game's.
+    fn capturing<T>(&self, work: impl FnOnce() -> T) -> T;
+
+    /// Why the device was lost, once it was (its device-lost callback ran);
+    /// unlike [`Self::check`] this leaves any reported errors in place.
+    #[must_use]
+    fn lost_reason(&self) -> Option<String>;
+
+    /// Returns the first GPU error reported since the last call (validation,
+    /// out of memory) or the device-lost reason, so callers fail instead of
+    /// rendering garbage or hanging.
+    fn check(&self, context: &'static str) -> Result<(), crate::SnowError>;
+
+    /// Waits for all submitted work, with a timeout, then checks for errors.
+    fn wait_idle(&self, context: &'static str) -> Result<(), SnowError>;
+}
+
+impl GpuContextExt for GpuContext {
+    fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
+        if request.backends.is_some() {
+            desc.backends = request.parse_backends()?;
         }
+        Ok(desc)
     }
 
-    low_level_pub! {
-        /// Waits for all submitted work, with a timeout, then checks for errors.
-        fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
-            self.guarded(|| {
-                self.device
-                    .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
-                    .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
-                self.check(context).map_err(Into::into)
-            })
+    fn choose(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>, request: &AdapterRequest) -> Result<Self, SnowError> {
+        let backends = request.parse_backends()?;
+        let mut adapters = gl_lock_panics_as_errors(|| pollster::block_on(instance.enumerate_adapters(backends)))?;
+        if let Some(surface) = surface {
+            adapters.retain(|a| a.is_surface_supported(surface));
         }
+        let mut filter = String::new();
+        if let Some(list) = &request.backends {
+            filter.push_str(&format!(" with SNOWPACK_BACKEND={list}"));
+        }
+        if surface.is_some() {
+            filter.push_str(" that can present to the window");
+        }
+        if let Some(name) = &request.adapter_name {
+            let needle = name.to_ascii_lowercase();
+            adapters.retain(|a| a.get_info().name.to_ascii_lowercase().contains(&needle));
+            filter.push_str(&format!(" with SNOWPACK_ADAPTER={name}"));
+        }
+        adapters.sort_by_key(|a| {
+            let info = a.get_info();
+            (type_rank(info.device_type), u32::from(info.backend != wgpu::Backend::Vulkan))
+        });
+        let adapter = adapters.into_iter().next().ok_or_else(|| SnowError::NoAdapter { filter, hint: NO_ADAPTER_HINT.to_owned() })?;
+        Self::from_adapter(instance, adapter)
+    }
+
+    fn from_adapter(instance: wgpu::Instance, adapter: wgpu::Adapter) -> Result<Self, SnowError> {
+        let summary = AdapterSummary::from_info(&adapter.get_info());
+        let optional = wgpu::Features::TIMESTAMP_QUERY;
+        let required_features = adapter.features() & optional;
+        // Ask for what the adapter has: large windows need large storage buffers,
+        // and the defaults are below what most adapters offer.
+        let required_limits = adapter.limits();
+        let (device, queue) = gl_lock_panics_as_errors(|| {
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("snowpack"),
+                required_features,
+                required_limits,
+                ..Default::default()
+            }))
+        })?
+        .map_err(|source| SnowError::RequestDevice { adapter: summary.name.clone(), source })?;
+
+        let sink = Arc::new(ErrorSink::default());
+        install_handlers(&device, &sink);
+        tracing::info!(
+            "GPU: {} ({}, {}), timestamps: {}",
+            summary.name,
+            summary.backend,
+            summary.device_type,
+            device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+        );
+        let downlevel = adapter.get_downlevel_capabilities().flags;
+        Ok(Self { instance: Some(instance), adapter: Some(adapter), device, queue, summary, downlevel, owns_handlers: true, sink })
+    }
+
+    fn adopt_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        let mut ctx = Self::from_device(device, queue);
+        install_handlers(&ctx.device, &ctx.sink);
+        ctx.owns_handlers = true;
+        ctx
+    }
+
+    fn has_timestamps(&self) -> bool {
+        self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    fn capturing<T>(&self, work: impl FnOnce() -> T) -> T {
+        // In a browser an error scope answers only after the page's event
+        // loop turns, so a blocking pop would hang: there the game's own
+        // handlers see snowpack's errors (or use [`Self::adopt_device`]).
+        if self.owns_handlers || cfg!(target_arch = "wasm32") {
+            return work();
+        }
+        let memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = work();
+        // Native wgpu reports errors as the calls happen, so the futures are ready.
+        for error in [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())].into_iter().flatten() {
+            if let Ok(mut list) = self.sink.errors.lock() {
+                list.push(error_message(&error));
+            }
+        }
+        out
+    }
+
+    fn lost_reason(&self) -> Option<String> {
+        self.sink.lost.lock().ok().and_then(|s| s.clone()).or_else(|| self.gl_lock_reason())
+    }
+
+    fn check(&self, context: &'static str) -> Result<(), crate::SnowError> {
+        if let Some(reason) = self.lost_reason() {
+            return Err(SnowError::DeviceLost(reason).into());
+        }
+        let mut errors = self.sink.errors.lock().map_err(|_| SnowError::Gpu { context, message: "error list poisoned".to_owned() })?;
+        if errors.is_empty() {
+            return Ok(());
+        }
+        let message = errors.join("\n");
+        errors.clear();
+        Err(SnowError::Gpu { context, message }.into())
+    }
+
+    fn wait_idle(&self, context: &'static str) -> Result<(), SnowError> {
+        self.guarded(|| {
+            self.device
+                .poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(WAIT_TIMEOUT) })
+                .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
+            self.check(context).map_err(Into::into)
+        })
     }
 }
 

@@ -10,6 +10,7 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
+use crate::gpu::context::GpuContextExt;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 

@@ -21,6 +21,7 @@ use super::tonemap::TonemapPass;
 use crate::Deformer;
 use crate::error::SnowError;
 use crate::frame::FrameContext;
+use crate::gpu::context::GpuContextExt;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings, layout};
 use crate::snow::SnowDeformation;
 use crate::snow::inspect::SnowInspect;

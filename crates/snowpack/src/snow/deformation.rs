@@ -25,6 +25,7 @@ use super::core_window::CoreWindow;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
+use crate::gpu::context::GpuContextExt;
 
 /// A deformation window and the passes that update it.
 ///

@@ -8,6 +8,7 @@ use crate::gpu::GpuContext;
 use crate::snowfall::Snowfall;
 
 use super::SnowDeformation;
+use crate::gpu::context::GpuContextExt;
 
 impl SnowDeformation {
     /// Places `objects` for snow to settle on (replacing any before, and their

@@ -15,6 +15,7 @@ use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentit
 use super::SnowDeformation;
 use super::clock::{RefillBase, SnowTime};
 use super::core_window::CoreWindow;
+use crate::gpu::context::GpuContextExt;
 use crate::snow::inspect::SnowInspect;
 
 /// Tile sides [`SnowDeformation::enable_sharing`] accepts (texels).

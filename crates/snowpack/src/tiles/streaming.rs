@@ -46,6 +46,7 @@ pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_stamps,
 // reachable here, where the streaming's users look for it.
 pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
 use super::slots::SlotTable;
+use crate::gpu::context::GpuContextExt;
 
 /// Most tiles per submission of a batched move or a save.
 const BATCH_TILES: usize = 32;

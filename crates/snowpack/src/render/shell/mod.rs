@@ -28,6 +28,7 @@ use self::tetrahedra::{CORNERS_PER_TETRA, ShellTetraPass, TetraParams};
 use self::vertices::{ShellVertexParams, ShellVertexPass, SnowSurface};
 pub use self::volume::{DetailKind, DetailVolume};
 use crate::snow::inspect::SnowInspect;
+use crate::gpu::context::GpuContextExt;
 
 /// How the shell looks and what it costs: `[shell]` in scenes.
 #[derive(Clone, Copy, Debug, PartialEq)]
