@@ -10,6 +10,7 @@ use anyhow::Context as _;
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileKey, TileStore, TileStreamer};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
 

@@ -8,6 +8,7 @@ use snowpack::{GpuContext, SkinnedId, SkinnedPose, SnowDeformation};
 use snowpack_scene::{CharacterPose, Scene, WindowSpec, World};
 
 use crate::BadInput;
+use snowpack::low_level::TileStreamerExt;
 
 /// Where the scene's `[window]` puts the window's centre this frame.
 pub fn window_center(scene: &Scene, world: &World) -> DVec2 {

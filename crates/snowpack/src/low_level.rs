@@ -11,6 +11,9 @@
 /// What the app, the tools and the tests do with a [`crate::GpuContext`]
 /// beyond the front door.
 pub use crate::gpu::context::GpuContextExt;
+/// What the app, the tools and the tests do with a [`crate::TileStreamer`]
+/// beyond the front door.
+pub use crate::persist::streamer::TileStreamerExt;
 /// What snowpack's own app, tools and tests read and drive of a
 /// [`crate::SnowDeformation`] beyond the front door.
 pub use crate::snow::inspect::SnowInspect;

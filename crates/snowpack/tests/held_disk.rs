@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec2;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::error::SnowError;
 use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer};
 use snowpack::low_level::testing::{self, HeldDisk};

@@ -360,165 +360,6 @@ impl TileStreamer {
         }
     }
 
-    low_level_pub! {
-        /// Keeps tiles of `side` texels in memory only: no store, no worker
-        /// thread, no files. `TileStreamer::lookup` answers at once: the tile
-        /// put last (handed out once: it leaves the cache, as the window holds it
-        /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
-        /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
-        /// least recently used tiles are dropped and come back as fresh snow
-        /// (each counted in `StoreStats::lost`). Untouched tiles (every height
-        /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
-        /// is the same. `TileStreamer::write_state` (and so saving) fails:
-        /// saving needs a disk store.
-        #[must_use]
-        fn in_memory(side: u32, config: StreamerConfig) -> Self {
-            // A channel whose sender is gone: nothing is ever asked or answered.
-            let (_, replies) = mpsc::channel();
-            Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
-        }
-    }
-
-    low_level_pub! {
-        /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
-        #[must_use]
-        fn is_memory_only(&self) -> bool {
-            self.memory_only
-        }
-    }
-
-    low_level_pub! {
-        /// Texels per tile side.
-        #[must_use]
-        fn side(&self) -> u32 {
-            self.side
-        }
-    }
-
-    low_level_pub! {
-        /// The store's directory (empty for a memory-only streamer).
-        #[must_use]
-        fn dir(&self) -> &Path {
-            &self.dir
-        }
-    }
-
-    low_level_pub! {
-        /// Whether [`TileStreamer::lookup`] would answer `Ready` now (the tile is
-        /// in memory or known to be absent, or the worker has stopped). Does not
-        /// drain replies or start a load: call [`TileStreamer::poll`] and
-        /// [`TileStreamer::request`] for that.
-        #[must_use]
-        fn is_ready(&self, key: TileKey) -> bool {
-            self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.unreadable.contains(&key) || self.gone
-        }
-    }
-
-    low_level_pub! {
-        /// Starts loading a tile the window will soon need (non-blocking). Does
-        /// nothing if it is cached, known to be absent, or already loading.
-        fn request(&mut self, key: TileKey) {
-            if self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.loading.contains_key(&key) {
-                return;
-            }
-            if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
-                self.loading.insert(key, seq);
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// A tile's stored state if it is at hand (non-blocking): a copy from
-        /// memory, `Ready(None)` if the store has none, otherwise `Pending` (and
-        /// the load is started). Drains the worker's replies first, as
-        /// [`TileStreamer::poll`] does.
-        fn lookup(&mut self, key: TileKey) -> TileLookup {
-            self.poll();
-            if self.memory_only
-                && let Some(cached) = self.remove(key)
-            {
-                // Handed out to the window, which puts it back when it leaves:
-                // the budget holds only tiles away from the GPU.
-                self.stats.hits += 1;
-                return TileLookup::Ready(Some(Arc::unwrap_or_clone(cached.tile)));
-            }
-            if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
-                self.touch(key);
-                // Handed out, it may now make room for others.
-                self.trim(key);
-                self.stats.hits += 1;
-                return TileLookup::Ready(Some((*tile).clone()));
-            }
-            if self.absent.contains(&key) {
-                self.stats.hits += 1;
-                return TileLookup::Ready(None);
-            }
-            if self.unreadable.remove(&key) {
-                // Its read failed (reported): fresh snow stands in for it, and
-                // the stored version is merged in once it can be read.
-                self.stand_ins.entry(key).or_default();
-                return TileLookup::Ready(None);
-            }
-            if self.memory_only {
-                // Never kept, dropped by the budget, or untouched: fresh snow.
-                self.stats.misses += 1;
-                return TileLookup::Ready(None);
-            }
-            if self.gone {
-                // Nothing will ever arrive: fresh snow rather than waiting forever.
-                return TileLookup::Ready(None);
-            }
-            if !self.loading.contains_key(&key) {
-                self.stats.misses += 1;
-                self.request(key);
-            }
-            TileLookup::Pending
-        }
-    }
-
-    low_level_pub! {
-        /// Hands a tile to the store (non-blocking): it becomes the cached,
-        /// newest version at once and is written behind by the worker. A tile of
-        /// the wrong side or with planes of the wrong length is refused with an
-        /// error in [`TileStreamer::take_errors`].
-        fn put(&mut self, tile: TileData) {
-            let key = tile.key;
-            let valid = if tile.side == self.side {
-                tile.validate()
-            } else {
-                Err(StoreError::Mismatch { path: PathBuf::new(), why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) })
-            };
-            if let Err(e) = valid {
-                self.report(e.at(&tile_path(&self.dir, key)), false);
-                return;
-            }
-            self.absent.remove(&key);
-            if self.memory_only {
-                // Nothing to write: the cache is the only copy.
-                if is_untouched(&tile) {
-                    self.remove(key);
-                } else {
-                    self.insert(key, Cached::new(tile, Dirt::Clean, false));
-                }
-                return;
-            }
-            if let Some(stand_in) = self.stand_ins.get_mut(&key) {
-                // Not written: that would replace the stored version, which is
-                // merged in when the window next restores the tile (or at a save).
-                self.tick += 1;
-                stand_in.since = self.tick;
-                self.made_bytes += tile.memory_bytes();
-                if let Some(old) = stand_in.made.replace(tile) {
-                    self.made_bytes -= old.memory_bytes();
-                }
-                self.trim_stand_ins(key);
-                return;
-            }
-            self.insert(key, Cached::new(tile, Dirt::Failed, false));
-            self.queue_write(key);
-        }
-    }
-
     /// Fresh snow stands in for `key`, whose stored version the window could
     /// not get in time (a late or hung disk) or could not read: from now on
     /// what the window makes there is not written over the stored version
@@ -631,81 +472,6 @@ impl TileStreamer {
         }
     }
 
-    low_level_pub! {
-        /// Takes the worker's replies into the cache, the statistics and the
-        /// errors (non-blocking). Call once a frame.
-        fn poll(&mut self) {
-            if self.memory_only {
-                return;
-            }
-            loop {
-                match self.replies.try_recv() {
-                    Ok(reply) => self.handle(reply),
-                    Err(TryRecvError::Empty) => break,
-                    Err(TryRecvError::Disconnected) => {
-                        self.worker_gone();
-                        break;
-                    }
-                }
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Blocks until every key is ready (in memory or known absent): for the
-        /// first placement of the window and for loading a save. A tile whose
-        /// read failed before is read again. Read errors do not stop it (those
-        /// tiles are answered as fresh snow standing in for them, and the
-        /// errors are in [`TileStreamer::take_errors`]); only a stopped worker does. If the
-        /// keys together exceed the memory budget, the first may have been
-        /// dropped again by the time it returns. Gives up after
-        /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
-        fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
-            self.wait_for_within(keys, self.config.wait_limit)
-        }
-    }
-
-    low_level_pub! {
-        /// [`Self::wait_for`] giving up after `limit` with
-        /// [`crate::StoreErrorKind::TimedOut`]; the tiles keep loading and a later
-        /// [`Self::lookup`] or wait finds them.
-        fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
-            if self.memory_only {
-                return Ok(());
-            }
-            self.poll();
-            // A blocking wait is when a failed read is tried again (once).
-            for key in keys {
-                self.unreadable.remove(key);
-            }
-            let start = Instant::now();
-            let mut waiting: Vec<TileKey> = keys.to_vec();
-            loop {
-                waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key) && !self.unreadable.contains(key));
-                if waiting.is_empty() {
-                    return Ok(());
-                }
-                for &key in &waiting {
-                    self.request(key);
-                }
-                if self.gone {
-                    return Err(StoreError::WorkerGone);
-                }
-                let left = limit.saturating_sub(start.elapsed());
-                match self.replies.recv_timeout(left) {
-                    Ok(reply) => self.handle(reply),
-                    Err(RecvTimeoutError::Timeout) => {
-                        return Err(StoreError::TimedOut { what: format!("{} tile(s) to load", waiting.len()), waited: start.elapsed() });
-                    }
-                    Err(RecvTimeoutError::Disconnected) => {
-                        self.worker_gone();
-                        return Err(StoreError::WorkerGone);
-                    }
-                }
-            }
-        }
-    }
-
     /// Blocks until every queued write is done, writing again the cached
     /// tiles whose earlier write failed. Returns the first write error of
     /// this flush; any others are in `TileStreamer::take_errors`. Gives up
@@ -731,92 +497,6 @@ impl TileStreamer {
             return Err(gone.into());
         }
         first.map_or(Ok(()), |e| Err(e.into()))
-    }
-
-    low_level_pub! {
-        /// The errors since the last call, for the game to show or log. A
-        /// corrupt tile is reported here and answered as `Ready(None)`.
-        fn take_errors(&mut self) -> Vec<StoreError> {
-            std::mem::take(&mut self.errors)
-        }
-    }
-
-    low_level_pub! {
-        /// The counters now (disk numbers as of the worker's last reply).
-        #[must_use]
-        fn stats(&self) -> StoreStats {
-            StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
-        }
-    }
-
-    low_level_pub! {
-        /// Stores a small named blob (blocking, ordered after the writes queued
-        /// before it); see [`TileStore::write_state`]. A memory-only streamer
-        /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
-        /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`] (the
-        /// write stays queued and may still be done).
-        fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
-            if self.memory_only {
-                return Err(StoreError::NoDisk);
-            }
-            let owned = name.to_owned();
-            let seq = self.send(|seq| Request::WriteState { seq, name: owned, bytes })?;
-            match self.wait(seq, || format!("the state `{name}` to be written"))? {
-                Outcome::StateWritten(result) => result,
-                _ => Err(StoreError::WorkerGone),
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// From now on the store writes tiles for the next save, beside the
-        /// saved ones ([`TileStore::begin_saves`]): a crash before
-        /// [`Self::commit_save`] returns leaves the last complete save, every
-        /// tile and state of it. Ordered after the writes queued before it;
-        /// nothing for a memory-only streamer.
-        fn begin_saves(&mut self) {
-            if !self.memory_only {
-                // A stopped worker is reported by the next call that waits.
-                let _ = self.send(|seq| Request::BeginSaves { seq });
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Completes a save with the named state `bytes` ([`TileStore::commit`]):
-        /// blocking, ordered after the writes queued before it, so call it once
-        /// [`Self::flush`] has written the save's tiles. A memory-only streamer
-        /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
-        /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
-        /// commit stays queued and may still be done: the save is then complete).
-        fn commit_save(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
-            if self.memory_only {
-                return Err(StoreError::NoDisk);
-            }
-            let owned = name.to_owned();
-            let seq = self.send(|seq| Request::Commit { seq, name: owned, bytes })?;
-            match self.wait(seq, || format!("the save with `{name}` to be committed"))? {
-                Outcome::StateWritten(result) => result,
-                _ => Err(StoreError::WorkerGone),
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Reads a named blob (blocking, ordered after the writes queued before
-        /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
-        /// Gives up after [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
-        fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
-            if self.memory_only {
-                return Ok(None);
-            }
-            let owned = name.to_owned();
-            let seq = self.send(|seq| Request::ReadState { seq, name: owned })?;
-            match self.wait(seq, || format!("the state `{name}` to be read"))? {
-                Outcome::StateRead(result) => result,
-                _ => Err(StoreError::WorkerGone),
-            }
-        }
     }
 
     /// Sends a request numbered with the next `seq`.
@@ -1216,6 +896,334 @@ fn answer(store: &mut TileStore, request: Request) -> (u64, Outcome) {
             }
             let _ = gate.recv();
             (seq, Outcome::Flushed)
+        }
+    }
+}
+
+/// What snowpack's own app, tools and tests do with a [`TileStreamer`] beyond the front door: tile-level requests and lookups, waits, saved state and counters.
+/// A named item of `low_level` (an extension trait): [`TileStreamer`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait TileStreamerExt: Sized {
+    /// Keeps tiles of `side` texels in memory only: no store, no worker
+    /// thread, no files. `TileStreamer::lookup` answers at once: the tile
+    /// put last (handed out once: it leaves the cache, as the window holds it
+    /// from then on and puts it back when it leaves), or `Ready(None)` (fresh
+    /// snow) for one never put, dropped by the budget or untouched. `config` bounds the memory: beyond it the
+    /// least recently used tiles are dropped and come back as fresh snow
+    /// (each counted in `StoreStats::lost`). Untouched tiles (every height
+    /// at rest, no footprint, no snowfall plane) are not kept, as fresh snow
+    /// is the same. `TileStreamer::write_state` (and so saving) fails:
+    /// saving needs a disk store.
+    #[must_use]
+    fn in_memory(side: u32, config: StreamerConfig) -> Self;
+
+    /// Whether tiles are kept in memory only ([`TileStreamer::in_memory`]).
+    #[must_use]
+    fn is_memory_only(&self) -> bool;
+
+    /// Texels per tile side.
+    #[must_use]
+    fn side(&self) -> u32;
+
+    /// The store's directory (empty for a memory-only streamer).
+    #[must_use]
+    fn dir(&self) -> &Path;
+
+    /// Whether [`TileStreamer::lookup`] would answer `Ready` now (the tile is
+    /// in memory or known to be absent, or the worker has stopped). Does not
+    /// drain replies or start a load: call [`TileStreamer::poll`] and
+    /// [`TileStreamer::request`] for that.
+    #[must_use]
+    fn is_ready(&self, key: TileKey) -> bool;
+
+    /// Starts loading a tile the window will soon need (non-blocking). Does
+    /// nothing if it is cached, known to be absent, or already loading.
+    fn request(&mut self, key: TileKey);
+
+    /// A tile's stored state if it is at hand (non-blocking): a copy from
+    /// memory, `Ready(None)` if the store has none, otherwise `Pending` (and
+    /// the load is started). Drains the worker's replies first, as
+    /// [`TileStreamer::poll`] does.
+    fn lookup(&mut self, key: TileKey) -> TileLookup;
+
+    /// Hands a tile to the store (non-blocking): it becomes the cached,
+    /// newest version at once and is written behind by the worker. A tile of
+    /// the wrong side or with planes of the wrong length is refused with an
+    /// error in [`TileStreamer::take_errors`].
+    fn put(&mut self, tile: TileData);
+
+    /// Takes the worker's replies into the cache, the statistics and the
+    /// errors (non-blocking). Call once a frame.
+    fn poll(&mut self);
+
+    /// Blocks until every key is ready (in memory or known absent): for the
+    /// first placement of the window and for loading a save. A tile whose
+    /// read failed before is read again. Read errors do not stop it (those
+    /// tiles are answered as fresh snow standing in for them, and the
+    /// errors are in [`TileStreamer::take_errors`]); only a stopped worker does. If the
+    /// keys together exceed the memory budget, the first may have been
+    /// dropped again by the time it returns. Gives up after
+    /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
+    fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError>;
+
+    /// [`Self::wait_for`] giving up after `limit` with
+    /// [`crate::StoreErrorKind::TimedOut`]; the tiles keep loading and a later
+    /// [`Self::lookup`] or wait finds them.
+    fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError>;
+
+    /// The errors since the last call, for the game to show or log. A
+    /// corrupt tile is reported here and answered as `Ready(None)`.
+    fn take_errors(&mut self) -> Vec<StoreError>;
+
+    /// The counters now (disk numbers as of the worker's last reply).
+    #[must_use]
+    fn stats(&self) -> StoreStats;
+
+    /// Stores a small named blob (blocking, ordered after the writes queued
+    /// before it); see [`TileStore::write_state`]. A memory-only streamer
+    /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
+    /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`] (the
+    /// write stays queued and may still be done).
+    fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError>;
+
+    /// From now on the store writes tiles for the next save, beside the
+    /// saved ones ([`TileStore::begin_saves`]): a crash before
+    /// [`Self::commit_save`] returns leaves the last complete save, every
+    /// tile and state of it. Ordered after the writes queued before it;
+    /// nothing for a memory-only streamer.
+    fn begin_saves(&mut self);
+
+    /// Completes a save with the named state `bytes` ([`TileStore::commit`]):
+    /// blocking, ordered after the writes queued before it, so call it once
+    /// [`TileStreamer::flush`] has written the save's tiles. A memory-only streamer
+    /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
+    /// [`StreamerConfig::wait_limit`] with [`StoreError::TimedOut`] (the
+    /// commit stays queued and may still be done: the save is then complete).
+    fn commit_save(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError>;
+
+    /// Reads a named blob (blocking, ordered after the writes queued before
+    /// it); `Ok(None)` if there is none (always, for a memory-only streamer).
+    /// Gives up after [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`].
+    fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError>;
+}
+
+impl TileStreamerExt for TileStreamer {
+    fn in_memory(side: u32, config: StreamerConfig) -> Self {
+        // A channel whose sender is gone: nothing is ever asked or answered.
+        let (_, replies) = mpsc::channel();
+        Self::with_channels(side, PathBuf::new(), config, (None, replies, None), StoreStats::default())
+    }
+
+    fn is_memory_only(&self) -> bool {
+        self.memory_only
+    }
+
+    fn side(&self) -> u32 {
+        self.side
+    }
+
+    fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    fn is_ready(&self, key: TileKey) -> bool {
+        self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.unreadable.contains(&key) || self.gone
+    }
+
+    fn request(&mut self, key: TileKey) {
+        if self.memory_only || self.cache.contains_key(&key) || self.absent.contains(&key) || self.loading.contains_key(&key) {
+            return;
+        }
+        if let Ok(seq) = self.send(|seq| Request::Load { seq, key }) {
+            self.loading.insert(key, seq);
+        }
+    }
+
+    fn lookup(&mut self, key: TileKey) -> TileLookup {
+        self.poll();
+        if self.memory_only
+            && let Some(cached) = self.remove(key)
+        {
+            // Handed out to the window, which puts it back when it leaves:
+            // the budget holds only tiles away from the GPU.
+            self.stats.hits += 1;
+            return TileLookup::Ready(Some(Arc::unwrap_or_clone(cached.tile)));
+        }
+        if let Some(tile) = self.cache.get(&key).map(|c| Arc::clone(&c.tile)) {
+            self.touch(key);
+            // Handed out, it may now make room for others.
+            self.trim(key);
+            self.stats.hits += 1;
+            return TileLookup::Ready(Some((*tile).clone()));
+        }
+        if self.absent.contains(&key) {
+            self.stats.hits += 1;
+            return TileLookup::Ready(None);
+        }
+        if self.unreadable.remove(&key) {
+            // Its read failed (reported): fresh snow stands in for it, and
+            // the stored version is merged in once it can be read.
+            self.stand_ins.entry(key).or_default();
+            return TileLookup::Ready(None);
+        }
+        if self.memory_only {
+            // Never kept, dropped by the budget, or untouched: fresh snow.
+            self.stats.misses += 1;
+            return TileLookup::Ready(None);
+        }
+        if self.gone {
+            // Nothing will ever arrive: fresh snow rather than waiting forever.
+            return TileLookup::Ready(None);
+        }
+        if !self.loading.contains_key(&key) {
+            self.stats.misses += 1;
+            self.request(key);
+        }
+        TileLookup::Pending
+    }
+
+    fn put(&mut self, tile: TileData) {
+        let key = tile.key;
+        let valid = if tile.side == self.side {
+            tile.validate()
+        } else {
+            Err(StoreError::Mismatch { path: PathBuf::new(), why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) })
+        };
+        if let Err(e) = valid {
+            self.report(e.at(&tile_path(&self.dir, key)), false);
+            return;
+        }
+        self.absent.remove(&key);
+        if self.memory_only {
+            // Nothing to write: the cache is the only copy.
+            if is_untouched(&tile) {
+                self.remove(key);
+            } else {
+                self.insert(key, Cached::new(tile, Dirt::Clean, false));
+            }
+            return;
+        }
+        if let Some(stand_in) = self.stand_ins.get_mut(&key) {
+            // Not written: that would replace the stored version, which is
+            // merged in when the window next restores the tile (or at a save).
+            self.tick += 1;
+            stand_in.since = self.tick;
+            self.made_bytes += tile.memory_bytes();
+            if let Some(old) = stand_in.made.replace(tile) {
+                self.made_bytes -= old.memory_bytes();
+            }
+            self.trim_stand_ins(key);
+            return;
+        }
+        self.insert(key, Cached::new(tile, Dirt::Failed, false));
+        self.queue_write(key);
+    }
+
+    fn poll(&mut self) {
+        if self.memory_only {
+            return;
+        }
+        loop {
+            match self.replies.try_recv() {
+                Ok(reply) => self.handle(reply),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    self.worker_gone();
+                    break;
+                }
+            }
+        }
+    }
+
+    fn wait_for(&mut self, keys: &[TileKey]) -> Result<(), StoreError> {
+        self.wait_for_within(keys, self.config.wait_limit)
+    }
+
+    fn wait_for_within(&mut self, keys: &[TileKey], limit: Duration) -> Result<(), StoreError> {
+        if self.memory_only {
+            return Ok(());
+        }
+        self.poll();
+        // A blocking wait is when a failed read is tried again (once).
+        for key in keys {
+            self.unreadable.remove(key);
+        }
+        let start = Instant::now();
+        let mut waiting: Vec<TileKey> = keys.to_vec();
+        loop {
+            waiting.retain(|key| !self.cache.contains_key(key) && !self.absent.contains(key) && !self.unreadable.contains(key));
+            if waiting.is_empty() {
+                return Ok(());
+            }
+            for &key in &waiting {
+                self.request(key);
+            }
+            if self.gone {
+                return Err(StoreError::WorkerGone);
+            }
+            let left = limit.saturating_sub(start.elapsed());
+            match self.replies.recv_timeout(left) {
+                Ok(reply) => self.handle(reply),
+                Err(RecvTimeoutError::Timeout) => {
+                    return Err(StoreError::TimedOut { what: format!("{} tile(s) to load", waiting.len()), waited: start.elapsed() });
+                }
+                Err(RecvTimeoutError::Disconnected) => {
+                    self.worker_gone();
+                    return Err(StoreError::WorkerGone);
+                }
+            }
+        }
+    }
+
+    fn take_errors(&mut self) -> Vec<StoreError> {
+        std::mem::take(&mut self.errors)
+    }
+
+    fn stats(&self) -> StoreStats {
+        StoreStats { memory_tiles: self.cache.len(), memory_bytes: self.memory_bytes, ..self.stats }
+    }
+
+    fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+        if self.memory_only {
+            return Err(StoreError::NoDisk);
+        }
+        let owned = name.to_owned();
+        let seq = self.send(|seq| Request::WriteState { seq, name: owned, bytes })?;
+        match self.wait(seq, || format!("the state `{name}` to be written"))? {
+            Outcome::StateWritten(result) => result,
+            _ => Err(StoreError::WorkerGone),
+        }
+    }
+
+    fn begin_saves(&mut self) {
+        if !self.memory_only {
+            // A stopped worker is reported by the next call that waits.
+            let _ = self.send(|seq| Request::BeginSaves { seq });
+        }
+    }
+
+    fn commit_save(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+        if self.memory_only {
+            return Err(StoreError::NoDisk);
+        }
+        let owned = name.to_owned();
+        let seq = self.send(|seq| Request::Commit { seq, name: owned, bytes })?;
+        match self.wait(seq, || format!("the save with `{name}` to be committed"))? {
+            Outcome::StateWritten(result) => result,
+            _ => Err(StoreError::WorkerGone),
+        }
+    }
+
+    fn read_state(&mut self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        if self.memory_only {
+            return Ok(None);
+        }
+        let owned = name.to_owned();
+        let seq = self.send(|seq| Request::ReadState { seq, name: owned })?;
+        match self.wait(seq, || format!("the state `{name}` to be read"))? {
+            Outcome::StateRead(result) => result,
+            _ => Err(StoreError::WorkerGone),
         }
     }
 }

@@ -13,6 +13,7 @@ use crate::tiles::TileStreaming;
 use super::SnowDeformation;
 use super::clock::RefillBase;
 use super::saved::{STATE_NAME, SavedWindow};
+use crate::persist::streamer::TileStreamerExt;
 use crate::snow::inspect::SnowInspect;
 
 impl SnowDeformation {

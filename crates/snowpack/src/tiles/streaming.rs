@@ -47,6 +47,7 @@ pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_stamps,
 pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
 use super::slots::SlotTable;
 use crate::gpu::context::GpuContextExt;
+use crate::persist::streamer::TileStreamerExt;
 
 /// Most tiles per submission of a batched move or a save.
 const BATCH_TILES: usize = 32;
