@@ -9,6 +9,7 @@ mod common;
 
 use libfuzzer_sys::fuzz_target;
 use snowpack::TerrainSource;
+use snowpack::low_level::HeightmapTerrainExt;
 
 /// `height_scale_m` of the fuzzed scene.
 const SCALE_M: f32 = 10.0;

@@ -11,8 +11,10 @@ use snowpack::low_level::gpu::timing::median;
 use snowpack::{AdapterRequest, Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 use crate::output::OutputSet;
+use snowpack::low_level::AdapterRequestExt;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 
 /// One measured configuration.
 pub struct BenchRow {

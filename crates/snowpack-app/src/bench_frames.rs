@@ -9,6 +9,7 @@ use std::fmt::Write as _;
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 use snowpack::low_level::render::IMAGE_FORMAT;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
 

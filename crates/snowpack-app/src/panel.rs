@@ -13,7 +13,9 @@ use snowpack::{RimStyle, Technique};
 use crate::camera::{CameraMode, CameraRig};
 use crate::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};
 use snowpack::low_level::GpuContextExt;
+use snowpack::low_level::RimStyleExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 
 /// In a browser (the `wasm32` build) there is no disk: no disk tile store,
 /// no scene files.

@@ -15,7 +15,10 @@ use snowpack_app::BadInput;
 use snowpack_app::characters::{attach_store, new_window, poses, register_characters, sole_points, sole_sample, window_center};
 
 use crate::npy;
+use snowpack::low_level::AdapterRequestExt;
+use snowpack::low_level::SkinnedMeshExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 
 /// Size of `frame.png` without `--size`.
 pub const DEFAULT_FRAME_SIZE: (u32, u32) = (1280, 720);

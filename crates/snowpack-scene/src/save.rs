@@ -11,6 +11,8 @@ use snowpack::low_level::render::params::Material;
 use toml::{Table, Value};
 
 use crate::scene::{EnvironmentSpec, Scene};
+use snowpack::low_level::RimStyleExt;
+use snowpack::low_level::TechniqueExt;
 
 fn float(x: f32) -> Value {
     // Through the shortest decimal of the f32, so 0.1 is written as 0.1.

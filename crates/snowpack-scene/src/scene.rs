@@ -14,6 +14,11 @@ use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, 
 use crate::error::SceneError;
 use crate::fields::Fields;
 use crate::gltf_file::{GltfFile, SkinnedModel};
+use snowpack::low_level::HeightmapTerrainExt;
+use snowpack::low_level::RimStyleExt;
+use snowpack::low_level::SnowParamsExt;
+use snowpack::low_level::SnowfallExt;
+use snowpack::low_level::TechniqueExt;
 use snowpack::low_level::skin::feet::{DEFAULT_FOOT_PATTERNS, Foot, attach_paws, find_feet, stride_speed};
 use snowpack::low_level::skin::sinking::FootLoad;
 

@@ -14,6 +14,7 @@ use snowpack::low_level::testing::Rng;
 use snowpack::{Deformer, TerrainSource};
 
 use crate::scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, WindowSpec};
+use snowpack::low_level::TerrainSourceExt;
 
 /// Gravity (m/s²).
 pub const GRAVITY: f32 = 9.81;

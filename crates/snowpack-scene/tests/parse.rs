@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use snowpack::TerrainSource;
+use snowpack::low_level::HeightmapTerrainExt;
 use snowpack_scene::{Motion, Scene, ShapeSpec, Technique, WindowSpec};
 
 fn parse(text: &str) -> Result<Scene, snowpack_scene::SceneError> {

@@ -17,6 +17,7 @@ use std::cell::RefCell;
 use anyhow::Context as _;
 use glam::{Vec2, Vec3};
 use snowpack::low_level::gpu::readback::TextureReadback;
+use snowpack::low_level::{GpuContextExt, TechniqueExt};
 use snowpack::{GpuContext, PointAnswers};
 use snowpack_app::camera::{CameraMode, CameraRig, MoveInput};
 use snowpack_app::panel::{self, Action, PanelState};

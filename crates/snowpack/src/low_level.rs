@@ -8,15 +8,28 @@
 //! what it cannot do, and say why where you do. `docs/architecture.md` says
 //! what each module owns and how one frame passes through them.
 
+/// What the app, the tools and the tests read or do with the front door's
+/// plain types beyond it (terrains, techniques, deformers, parameters,
+/// snowfall, skinned meshes, coat settings, the game's ground, adapter
+/// requests).
+pub use crate::deform::params::SnowParamsExt;
+pub use crate::deform::shape::DeformerExt;
+pub use crate::deform::technique::{RimStyleExt, TechniqueExt};
+pub use crate::gpu::context::AdapterRequestExt;
 /// What the app, the tools and the tests do with a [`crate::GpuContext`]
 /// beyond the front door.
 pub use crate::gpu::context::GpuContextExt;
 /// What the app, the tools and the tests do with a [`crate::TileStreamer`]
 /// beyond the front door.
 pub use crate::persist::streamer::TileStreamerExt;
+pub use crate::render::ground::SnowGroundExt;
+pub use crate::skin::coat::CoatSettingsExt;
+pub use crate::skin::skinning::SkinnedMeshExt;
 /// What snowpack's own app, tools and tests read and drive of a
 /// [`crate::SnowDeformation`] beyond the front door.
 pub use crate::snow::inspect::SnowInspect;
+pub use crate::snowfall::SnowfallExt;
+pub use crate::terrain::{HeightmapTerrainExt, TerrainMeshExt, TerrainSourceExt};
 
 /// Snow settling on objects: the object atlas, its passes and state.
 pub mod accumulate {

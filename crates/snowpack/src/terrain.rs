@@ -138,14 +138,6 @@ impl TerrainMesh {
         let grid = HeightmapTerrain { width: cols, height: rows, heights_m, center_m, size_m };
         Ok(Self { triangles, grid })
     }
-
-    low_level_pub! {
-        /// Lowest and highest vertex height (m).
-        #[must_use]
-        fn height_range(&self) -> (f32, f32) {
-            self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
-        }
-    }
 }
 
 /// Number of octaves of the fractal noise; must match `shared/terrain.wgsl`.
@@ -232,101 +224,11 @@ impl HeightmapTerrain {
         Ok(Self { width, height, heights_m, center_m, size_m })
     }
 
-    low_level_pub! {
-        /// An FNV-1a digest of the size, placement and heights (their bits): two
-        /// machines with the same heightmap agree on it (the shared-snow world
-        /// identity names terrains by it).
-        #[must_use]
-        fn digest(&self) -> u64 {
-            let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-            let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
-            for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
-                for b in w.to_le_bytes() {
-                    h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-                }
-            }
-            h
-        }
-    }
-
-    low_level_pub! {
-        /// Pixels per row.
-        #[must_use]
-        fn width(&self) -> u32 {
-            self.width
-        }
-    }
-
-    low_level_pub! {
-        /// Rows.
-        #[must_use]
-        fn height(&self) -> u32 {
-            self.height
-        }
-    }
-
-    low_level_pub! {
-        /// Heights in metres, row-major, `width * height` values.
-        #[must_use]
-        fn heights_m(&self) -> &[f32] {
-            &self.heights_m
-        }
-    }
-
-    low_level_pub! {
-        /// World (x, z) of the centre of the covered area (m).
-        #[must_use]
-        fn center_m(&self) -> [f32; 2] {
-            self.center_m
-        }
-    }
-
-    low_level_pub! {
-        /// World size (x, z) of the covered area (m).
-        #[must_use]
-        fn size_m(&self) -> [f32; 2] {
-            self.size_m
-        }
-    }
-
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     /// The same grid with other heights (as many, finite): a mesh terrain's
     /// grid as the GPU baked it.
     pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
         Self::new(self.width, self.height, heights_m, self.center_m, self.size_m).map_err(Into::into)
-    }
-
-    low_level_pub! {
-        /// Lowest and highest sample (m).
-        #[must_use]
-        fn height_range(&self) -> (f32, f32) {
-            self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
-        }
-    }
-
-    low_level_pub! {
-        /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
-        #[must_use]
-        fn height_at(&self, x: f32, z: f32) -> f32 {
-            let (w, h) = (self.width as i32, self.height as i32);
-            // Continuous pixel coordinates with pixel centres at integer + 0.5.
-            let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
-            let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
-            let u = u.clamp(0.0, (w - 1) as f32);
-            let v = v.clamp(0.0, (h - 1) as f32);
-            let (u0, v0) = (u.floor(), v.floor());
-            let (fu, fv) = (u - u0, v - v0);
-            let (i0, j0) = (v0 as i32, u0 as i32);
-            let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
-            let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
-            let a = at(i0, j0);
-            let b = at(i0, j1);
-            let c = at(i1, j0);
-            let d = at(i1, j1);
-            let ab = a + (b - a) * fu;
-            let cd = c + (d - c) * fu;
-            ab + (cd - ab) * fv
-        }
     }
 }
 
@@ -339,16 +241,6 @@ impl TerrainSource {
             Self::Noise(n) => n.base_m + n.amplitude_m * fbm(x / n.wavelength_m, z / n.wavelength_m, n.seed),
             Self::Heightmap(hm) => hm.height_at(x, z),
             Self::Mesh(m) => m.grid.height_at(x, z),
-        }
-    }
-
-    low_level_pub! {
-        /// Unit surface normal at world (x, z), by central differences over `eps_m`.
-        #[must_use]
-        fn normal_at(&self, x: f32, z: f32, eps_m: f32) -> Vec3 {
-            let dx = self.height_at(x + eps_m, z) - self.height_at(x - eps_m, z);
-            let dz = self.height_at(x, z + eps_m) - self.height_at(x, z - eps_m);
-            Vec3::new(-dx, 2.0 * eps_m, -dz).normalize()
         }
     }
 
@@ -424,6 +316,138 @@ pub fn draw_from_above(triangles: &[[[f32; 3]; 3]], width: u32, height: u32, ori
         }
     }
     out
+}
+
+/// What snowpack's own app, tools and tests read of a [`HeightmapTerrain`] beyond the front door: its samples, size and place, digest and height range.
+/// A named item of `low_level` (an extension trait): [`HeightmapTerrain`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait HeightmapTerrainExt: Sized {
+    /// An FNV-1a digest of the size, placement and heights (their bits): two
+    /// machines with the same heightmap agree on it (the shared-snow world
+    /// identity names terrains by it).
+    #[must_use]
+    fn digest(&self) -> u64;
+
+    /// Pixels per row.
+    #[must_use]
+    fn width(&self) -> u32;
+
+    /// Rows.
+    #[must_use]
+    fn height(&self) -> u32;
+
+    /// Heights in metres, row-major, `width * height` values.
+    #[must_use]
+    fn heights_m(&self) -> &[f32];
+
+    /// World (x, z) of the centre of the covered area (m).
+    #[must_use]
+    fn center_m(&self) -> [f32; 2];
+
+    /// World size (x, z) of the covered area (m).
+    #[must_use]
+    fn size_m(&self) -> [f32; 2];
+
+    /// Lowest and highest sample (m).
+    #[must_use]
+    fn height_range(&self) -> (f32, f32);
+
+    /// Bilinear height at world (x, z), clamped to the edge pixels outside the covered area.
+    #[must_use]
+    fn height_at(&self, x: f32, z: f32) -> f32;
+}
+
+impl HeightmapTerrainExt for HeightmapTerrain {
+    fn digest(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
+        for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
+            for b in w.to_le_bytes() {
+                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+        h
+    }
+
+    fn width(&self) -> u32 {
+        self.width
+    }
+
+    fn height(&self) -> u32 {
+        self.height
+    }
+
+    fn heights_m(&self) -> &[f32] {
+        &self.heights_m
+    }
+
+    fn center_m(&self) -> [f32; 2] {
+        self.center_m
+    }
+
+    fn size_m(&self) -> [f32; 2] {
+        self.size_m
+    }
+
+    fn height_range(&self) -> (f32, f32) {
+        self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+    }
+
+    fn height_at(&self, x: f32, z: f32) -> f32 {
+        let (w, h) = (self.width as i32, self.height as i32);
+        // Continuous pixel coordinates with pixel centres at integer + 0.5.
+        let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
+        let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
+        let u = u.clamp(0.0, (w - 1) as f32);
+        let v = v.clamp(0.0, (h - 1) as f32);
+        let (u0, v0) = (u.floor(), v.floor());
+        let (fu, fv) = (u - u0, v - v0);
+        let (i0, j0) = (v0 as i32, u0 as i32);
+        let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
+        let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
+        let a = at(i0, j0);
+        let b = at(i0, j1);
+        let c = at(i1, j0);
+        let d = at(i1, j1);
+        let ab = a + (b - a) * fu;
+        let cd = c + (d - c) * fu;
+        ab + (cd - ab) * fv
+    }
+}
+
+/// What snowpack's own app, tools and tests read of a [`TerrainMesh`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`TerrainMesh`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait TerrainMeshExt: Sized {
+    /// Lowest and highest vertex height (m).
+    #[must_use]
+    fn height_range(&self) -> (f32, f32);
+}
+
+impl TerrainMeshExt for TerrainMesh {
+    fn height_range(&self) -> (f32, f32) {
+        self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
+    }
+}
+
+/// What snowpack's own app, tools and tests read of a [`TerrainSource`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`TerrainSource`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait TerrainSourceExt: Sized {
+    /// Unit surface normal at world (x, z), by central differences over `eps_m`.
+    #[must_use]
+    fn normal_at(&self, x: f32, z: f32, eps_m: f32) -> Vec3;
+}
+
+impl TerrainSourceExt for TerrainSource {
+    fn normal_at(&self, x: f32, z: f32, eps_m: f32) -> Vec3 {
+        let dx = self.height_at(x + eps_m, z) - self.height_at(x - eps_m, z);
+        let dz = self.height_at(x, z + eps_m) - self.height_at(x, z - eps_m);
+        Vec3::new(-dx, 2.0 * eps_m, -dz).normalize()
+    }
 }
 
 #[cfg(test)]

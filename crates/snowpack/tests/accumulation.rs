@@ -5,6 +5,7 @@
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};

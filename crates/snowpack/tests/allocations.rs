@@ -12,6 +12,7 @@
 use glam::DVec2;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowFrame, SnowParams, Technique, TerrainSource};
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};

@@ -5,6 +5,7 @@
 //! roof, and melting and running lose it at the set rates.
 
 use glam::{DVec2, Mat4, Quat, Vec3};
+use snowpack::low_level::SkinnedMeshExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::low_level::cpu;

@@ -9,7 +9,9 @@
 
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
+use snowpack::low_level::HeightmapTerrainExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};

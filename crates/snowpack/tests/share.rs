@@ -8,6 +8,8 @@ use std::collections::BTreeSet;
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::SnowParamsExt;
+use snowpack::low_level::TechniqueExt;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec2;
 use snowpack::low_level::accumulate::{AtlasLayout, Snowfall};
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureParams};
+use snowpack::low_level::{DeformerExt, SnowParamsExt};
 use snowpack_scene::{Scene, SceneError, WindowSpec, World};
 
 /// Frames the world is stepped for: enough for gaits, footsteps and physics

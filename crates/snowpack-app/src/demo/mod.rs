@@ -34,8 +34,10 @@ use snowpack_app::panel::{self, Action, PanelState};
 use snowpack_app::session::{PlayerBody, Session, WindowFollow};
 
 use self::script::{Script, ScriptEvent};
+use snowpack::low_level::AdapterRequestExt;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::TechniqueExt;
 
 /// What the command line asked of the demo.
 #[derive(Clone, Debug, Default)]

@@ -22,6 +22,7 @@ use crate::height_depth::CAPTURE_FORMAT;
 use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
+use crate::deform::shape::DeformerExt;
 
 /// Uniforms of `capture_sphere.wgsl`, `capture_wheel.wgsl` and `capture_mesh.wgsl`.
 #[repr(C)]

@@ -9,8 +9,10 @@ use std::collections::VecDeque;
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Vec3};
 
+use crate::deform::shape::DeformerExt;
 use crate::frame::FrameContext;
 use crate::gpu::layout;
+use crate::terrain::TerrainSourceExt;
 use crate::{Deformer, TerrainSource, shaders};
 
 /// Format of the decal layer: normal x, z, tint, coverage.

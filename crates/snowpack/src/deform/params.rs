@@ -1,6 +1,7 @@
 //! Parameters of the snow surface, shared by every deformation pass.
 
 use crate::error::SnowError;
+use crate::snowfall::SnowfallExt;
 use crate::{RimStyle, Technique};
 
 /// How the deformation window is sized and how the snow behaves.
@@ -100,50 +101,58 @@ impl SnowParams {
     pub fn texel_m(&self) -> f32 {
         self.extent_m / self.resolution as f32
     }
-
-    low_level_pub! {
-        /// Number of texels in the window.
-        #[must_use]
-        fn texel_count(&self) -> usize {
-            self.resolution as usize * self.resolution as usize
-        }
-    }
-
-    low_level_pub! {
-        /// Checks every value; the error names the offending field.
-        fn validate(&self) -> Result<(), SnowError> {
-            let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
-            if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
-                return bad("resolution", format!("{} is not a multiple of 16 in {}..={}", self.resolution, RESOLUTION_RANGE.start(), RESOLUTION_RANGE.end()));
-            }
-            if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
-                return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
-            }
-            if !(self.depth_m.is_finite() && self.depth_m >= 0.0) {
-                return bad("depth_m", format!("{} must be zero or a positive number of metres", self.depth_m));
-            }
-            if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
-                return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));
-            }
-            if !(self.teleport_m.is_finite() && self.teleport_m >= 0.0) {
-                return bad("teleport_m", format!("{} must be zero or a positive number of metres", self.teleport_m));
-            }
-            if !(self.elevation.is_finite() && self.elevation >= 0.0) {
-                return bad("elevation", format!("{} must be zero or positive", self.elevation));
-            }
-            if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
-                return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
-            }
-            if let Some(s) = &self.snowfall {
-                s.validate()?;
-            }
-            if !RANGE_TEXELS.contains(&self.range_texels) {
-                return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));
-            }
-            Ok(())
-        }
-    }
 }
 
 /// Footprint sizes the points technique accepts (texels per side).
 pub const RANGE_TEXELS: std::ops::RangeInclusive<u32> = 32..=128;
+
+/// What snowpack's own app, tools and tests read of [`SnowParams`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`SnowParams`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait SnowParamsExt: Sized {
+    /// Number of texels in the window.
+    #[must_use]
+    fn texel_count(&self) -> usize;
+
+    /// Checks every value; the error names the offending field.
+    fn validate(&self) -> Result<(), SnowError>;
+}
+
+impl SnowParamsExt for SnowParams {
+    fn texel_count(&self) -> usize {
+        self.resolution as usize * self.resolution as usize
+    }
+
+    fn validate(&self) -> Result<(), SnowError> {
+        let bad = |field: &'static str, why: String| Err(SnowError::InvalidParameter { field, why });
+        if !RESOLUTION_RANGE.contains(&self.resolution) || !self.resolution.is_multiple_of(16) {
+            return bad("resolution", format!("{} is not a multiple of 16 in {}..={}", self.resolution, RESOLUTION_RANGE.start(), RESOLUTION_RANGE.end()));
+        }
+        if !(self.extent_m.is_finite() && self.extent_m > 0.0) {
+            return bad("extent_m", format!("{} must be a positive number of metres", self.extent_m));
+        }
+        if !(self.depth_m.is_finite() && self.depth_m >= 0.0) {
+            return bad("depth_m", format!("{} must be zero or a positive number of metres", self.depth_m));
+        }
+        if !(self.refill_m_per_s.is_finite() && self.refill_m_per_s >= 0.0) {
+            return bad("refill_m_per_s", format!("{} must be zero or positive", self.refill_m_per_s));
+        }
+        if !(self.teleport_m.is_finite() && self.teleport_m >= 0.0) {
+            return bad("teleport_m", format!("{} must be zero or a positive number of metres", self.teleport_m));
+        }
+        if !(self.elevation.is_finite() && self.elevation >= 0.0) {
+            return bad("elevation", format!("{} must be zero or positive", self.elevation));
+        }
+        if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
+            return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
+        }
+        if let Some(s) = &self.snowfall {
+            s.validate()?;
+        }
+        if !RANGE_TEXELS.contains(&self.range_texels) {
+            return bad("range_texels", format!("{} is outside {}..={}", self.range_texels, RANGE_TEXELS.start(), RANGE_TEXELS.end()));
+        }
+        Ok(())
+    }
+}

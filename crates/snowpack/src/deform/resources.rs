@@ -20,7 +20,9 @@ use crate::height_depth::height_depth_texture;
 use crate::{SnowParams, TerrainSource};
 
 use super::terrain_bake::TerrainBakePass;
+use crate::deform::technique::TechniqueExt;
 use crate::pass::window_bindings::{WindowBindings, WindowBuffers};
+use crate::terrain::HeightmapTerrainExt;
 
 /// Every buffer and texture of one deformation window.
 pub struct DeformResources {

@@ -64,31 +64,38 @@ impl Deformer {
             _ => None,
         }
     }
+}
 
-    low_level_pub! {
-        /// World-space model matrix of a box (unit cube from -1 to 1 scaled by the half extents).
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, tools and tests (`low_level`)"))]
-        fn box_matrix(center: Vec3, half_extents: Vec3, rotation: Quat) -> Mat4 {
-            Mat4::from_scale_rotation_translation(half_extents, rotation, center)
-        }
+/// What snowpack's own passes, tools and tests read of a [`Deformer`] beyond the front door: its box transform and lowest point.
+/// A named item of `low_level` (an extension trait): [`Deformer`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait DeformerExt: Sized {
+    /// World-space model matrix of a box (unit cube from -1 to 1 scaled by the half extents).
+    #[must_use]
+    fn box_matrix(center: Vec3, half_extents: Vec3, rotation: Quat) -> Mat4;
+
+    /// Lowest world height of the shape (m).
+    #[must_use]
+    fn lowest_point(&self) -> f32;
+}
+
+impl DeformerExt for Deformer {
+    fn box_matrix(center: Vec3, half_extents: Vec3, rotation: Quat) -> Mat4 {
+        Mat4::from_scale_rotation_translation(half_extents, rotation, center)
     }
 
-    low_level_pub! {
-        /// Lowest world height of the shape (m).
-        #[must_use]
-        fn lowest_point(&self) -> f32 {
-            match *self {
-                Self::Sphere { center, radius } => center.y - radius,
-                Self::Box { center, half_extents, rotation } => {
-                    let m = glam::Mat3::from_quat(rotation);
-                    // Support function of the box in the -Y direction.
-                    let extent = (m.x_axis.y.abs() * half_extents.x) + (m.y_axis.y.abs() * half_extents.y) + (m.z_axis.y.abs() * half_extents.z);
-                    center.y - extent
-                }
-                Self::Point { position, .. } => position.y,
-                Self::Wheel { center, axle, radius, half_width, .. } => center.y - super::wheel::extent_below(axle, radius, half_width),
+    fn lowest_point(&self) -> f32 {
+        match *self {
+            Self::Sphere { center, radius } => center.y - radius,
+            Self::Box { center, half_extents, rotation } => {
+                let m = glam::Mat3::from_quat(rotation);
+                // Support function of the box in the -Y direction.
+                let extent = (m.x_axis.y.abs() * half_extents.x) + (m.y_axis.y.abs() * half_extents.y) + (m.z_axis.y.abs() * half_extents.z);
+                center.y - extent
             }
+            Self::Point { position, .. } => position.y,
+            Self::Wheel { center, axle, radius, half_width, .. } => center.y - super::wheel::extent_below(axle, radius, half_width),
         }
     }
 }

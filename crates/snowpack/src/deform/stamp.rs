@@ -17,6 +17,7 @@ use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::{Deformer, shaders};
 
 use super::resources::DeformResources;
+use crate::deform::shape::DeformerExt;
 use crate::pass::window_bindings::WindowAccess;
 
 /// A texel no footprint has touched, in the packed stamp buffer

@@ -30,28 +30,6 @@ impl Technique {
     #[cfg(not(feature = "low_level"))]
     #[allow(dead_code, reason = "the app's and the tests' list of techniques (`low_level`)")]
     pub(crate) const ALL: [Technique; 4] = [Self::Depth, Self::Points, Self::Decals, Self::Combined];
-
-    low_level_pub! {
-        /// The scene-file spelling.
-        #[must_use]
-        fn as_str(self) -> &'static str {
-            match self {
-                Self::Depth => "depth",
-                Self::Points => "points",
-                Self::Decals => "decals",
-                Self::Combined => "combined",
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Whether the technique stamps contact points' footprints (and so needs
-        /// the window's footprint buffer).
-        #[must_use]
-        fn uses_stamps(self) -> bool {
-            matches!(self, Self::Points | Self::Combined)
-        }
-    }
 }
 
 impl FromStr for Technique {
@@ -80,18 +58,7 @@ pub enum RimStyle {
     Rounded,
 }
 
-impl RimStyle {
-    low_level_pub! {
-        /// The scene-file spelling.
-        #[must_use]
-        fn as_str(self) -> &'static str {
-            match self {
-                Self::Ms16 => "ms16",
-                Self::Rounded => "rounded",
-            }
-        }
-    }
-}
+impl RimStyle {}
 
 impl FromStr for RimStyle {
     type Err = String;
@@ -107,3 +74,52 @@ impl FromStr for RimStyle {
 
 /// Peak rim height as a fraction of the depression's depth at `elevation = 1`.
 pub const RIM_PEAK: f32 = 0.25;
+
+/// What snowpack's own app, tools and tests read of a [`Technique`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`Technique`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait TechniqueExt: Sized {
+    /// The scene-file spelling.
+    #[must_use]
+    fn as_str(&self) -> &'static str;
+
+    /// Whether the technique stamps contact points' footprints (and so needs
+    /// the window's footprint buffer).
+    #[must_use]
+    fn uses_stamps(self) -> bool;
+}
+
+impl TechniqueExt for Technique {
+    fn as_str(&self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Points => "points",
+            Self::Decals => "decals",
+            Self::Combined => "combined",
+        }
+    }
+
+    fn uses_stamps(self) -> bool {
+        matches!(self, Self::Points | Self::Combined)
+    }
+}
+
+/// What snowpack's own app, tools and tests read of a [`RimStyle`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`RimStyle`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait RimStyleExt: Sized {
+    /// The scene-file spelling.
+    #[must_use]
+    fn as_str(&self) -> &'static str;
+}
+
+impl RimStyleExt for RimStyle {
+    fn as_str(&self) -> &'static str {
+        match self {
+            Self::Ms16 => "ms16",
+            Self::Rounded => "rounded",
+        }
+    }
+}

@@ -7,6 +7,8 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::layout;
+use crate::terrain::HeightmapTerrainExt;
+use crate::terrain::TerrainMeshExt;
 use crate::{TerrainMesh, shaders};
 
 /// Uniforms of `terrain_bake.wgsl`.

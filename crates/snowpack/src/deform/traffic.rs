@@ -17,6 +17,8 @@
 
 use super::technique::Technique;
 use crate::SnowParams;
+use crate::deform::params::SnowParamsExt;
+use crate::deform::technique::TechniqueExt;
 
 /// One pass's compulsory traffic per frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -85,25 +85,6 @@ impl AdapterRequest {
         let env = |key: &str| std::env::var(key).ok().filter(|s| !s.trim().is_empty());
         Self { backends: env("SNOWPACK_BACKEND").or_else(|| env("WGPU_BACKEND")), adapter_name: env("SNOWPACK_ADAPTER") }
     }
-
-    low_level_pub! {
-        /// This request with `backends` replaced when given (a command-line
-        /// `--backend` over the environment).
-        #[must_use]
-        fn with_backends(mut self, backends: Option<&str>) -> Self {
-            if let Some(list) = backends {
-                self.backends = Some(list.to_owned());
-            }
-            self
-        }
-    }
-
-    low_level_pub! {
-        /// The backends asked for, or every backend.
-        fn parse_backends(&self) -> Result<wgpu::Backends, SnowError> {
-            self.backends.as_deref().map_or(Ok(wgpu::Backends::all()), parse_backends)
-        }
-    }
 }
 
 low_level_some_fields! {
@@ -466,6 +447,33 @@ impl GpuContextExt for GpuContext {
                 .map_err(|e| SnowError::Gpu { context, message: format!("waiting for the GPU: {e}") })?;
             self.check(context).map_err(Into::into)
         })
+    }
+}
+
+/// What snowpack's own app, tools and tests do with an [`AdapterRequest`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`AdapterRequest`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait AdapterRequestExt: Sized {
+    /// This request with `backends` replaced when given (a command-line
+    /// `--backend` over the environment).
+    #[must_use]
+    fn with_backends(self, backends: Option<&str>) -> Self;
+
+    /// The backends asked for, or every backend.
+    fn parse_backends(&self) -> Result<wgpu::Backends, SnowError>;
+}
+
+impl AdapterRequestExt for AdapterRequest {
+    fn with_backends(mut self, backends: Option<&str>) -> Self {
+        if let Some(list) = backends {
+            self.backends = Some(list.to_owned());
+        }
+        self
+    }
+
+    fn parse_backends(&self) -> Result<wgpu::Backends, SnowError> {
+        self.backends.as_deref().map_or(Ok(wgpu::Backends::all()), parse_backends)
     }
 }
 

@@ -6,6 +6,7 @@ use glam::{Mat3, Mat4, Quat, Vec3};
 use super::pipeline::{DrawSpec, lit_and_shadow};
 use crate::Deformer;
 use crate::shaders;
+use crate::deform::shape::DeformerExt;
 
 /// One mesh vertex.
 #[repr(C)]

@@ -321,24 +321,6 @@ impl SnowGround {
         self.lighting = lighting;
     }
 
-    low_level_pub! {
-        /// The lighting and material in use.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn lighting(&self) -> &GroundLighting {
-            &self.lighting
-        }
-    }
-
-    low_level_pub! {
-        /// The snow bindings this pass uses (group 1, visible to vertex and
-        /// fragment shaders), which the caller's own draws may bind too.
-        #[must_use]
-        fn sampling(&self) -> &SnowSampling {
-            &self.sampling
-        }
-    }
-
     /// Draws `snow` as its last encoded frame left it into `pass`, seen by
     /// `camera` (one indexed draw); draws nothing before the window is
     /// placed (the deformation's first frame). Call after
@@ -362,14 +344,6 @@ impl SnowGround {
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..self.index_count, 0, 0..1);
     }
-
-    low_level_pub! {
-        /// Triangles one [`Self::draw`] draws.
-        #[must_use]
-        fn triangles(&self) -> u32 {
-            self.index_count / 3
-        }
-    }
 }
 
 /// Index list of a `quads`² grid of `(quads + 1)²` vertices numbered row by row.
@@ -387,6 +361,39 @@ pub fn grid_indices(quads: u32) -> Vec<u32> {
         }
     }
     out
+}
+
+/// What snowpack's own renderer, tools and tests read of a [`SnowGround`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`SnowGround`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait SnowGroundExt: Sized {
+    /// The lighting and material in use.
+    #[must_use]
+    fn lighting(&self) -> &GroundLighting;
+
+    /// The snow bindings this pass uses (group 1, visible to vertex and
+    /// fragment shaders), which the caller's own draws may bind too.
+    #[must_use]
+    fn sampling(&self) -> &SnowSampling;
+
+    /// Triangles one [`SnowGround::draw`] draws.
+    #[must_use]
+    fn triangles(&self) -> u32;
+}
+
+impl SnowGroundExt for SnowGround {
+    fn lighting(&self) -> &GroundLighting {
+        &self.lighting
+    }
+
+    fn sampling(&self) -> &SnowSampling {
+        &self.sampling
+    }
+
+    fn triangles(&self) -> u32 {
+        self.index_count / 3
+    }
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@ pub use snowpack_share::replicate::{message, motion, peer, relay, tile, world};
 
 use crate::TerrainSource;
 pub use crate::error::ShareError;
+use crate::terrain::HeightmapTerrainExt;
 pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};

@@ -44,25 +44,7 @@ impl Default for CoatSettings {
     }
 }
 
-impl CoatSettings {
-    low_level_pub! {
-        /// Checks every value; the error names the field.
-        fn validate(&self) -> Result<(), SnowError> {
-            let fields = [
-                ("coat_cling_per_s", self.cling_per_s),
-                ("coat_cap_m", self.cap_m),
-                ("coat_melt_m_per_s", self.melt_m_per_s),
-                ("coat_shake_speed_m_per_s", self.shake_speed_m_per_s),
-                ("coat_shake_per_s", self.shake_per_s),
-                ("coat_wade_radius_m", self.wade_radius_m),
-            ];
-            match fields.into_iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
-                Some((field, v)) => Err(SnowError::InvalidParameter { field, why: format!("{v} must be zero or positive") }),
-                None => Ok(()),
-            }
-        }
-    }
-}
+impl CoatSettings {}
 
 /// Uniforms of the snow coat pass (`SnowCoatParams` in WGSL).
 #[repr(C)]
@@ -191,5 +173,31 @@ impl SnowCoatPass {
         pass.record_with(cx, &group, Some(ground.window), &params, params.inputs(), (layout::groups(instance.vertex_count, 64), 1));
         let encoder = &mut *cx.encoder;
         encoder.copy_buffer_to_buffer(&instance.skinned, 0, &instance.previous, 0, u64::from(instance.vertex_count) * 12);
+    }
+}
+
+/// What snowpack's own app, tools and tests do with [`CoatSettings`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`CoatSettings`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait CoatSettingsExt: Sized {
+    /// Checks every value; the error names the field.
+    fn validate(&self) -> Result<(), SnowError>;
+}
+
+impl CoatSettingsExt for CoatSettings {
+    fn validate(&self) -> Result<(), SnowError> {
+        let fields = [
+            ("coat_cling_per_s", self.cling_per_s),
+            ("coat_cap_m", self.cap_m),
+            ("coat_melt_m_per_s", self.melt_m_per_s),
+            ("coat_shake_speed_m_per_s", self.shake_speed_m_per_s),
+            ("coat_shake_per_s", self.shake_per_s),
+            ("coat_wade_radius_m", self.wade_radius_m),
+        ];
+        match fields.into_iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+            Some((field, v)) => Err(SnowError::InvalidParameter { field, why: format!("{v} must be zero or positive") }),
+            None => Ok(()),
+        }
     }
 }

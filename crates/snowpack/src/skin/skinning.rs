@@ -69,26 +69,6 @@ impl SkinnedMesh {
         }
         Ok(())
     }
-
-    low_level_pub! {
-        /// Bind-pose vertex normals: the area-weighted sum of the normals of the
-        /// triangles around each vertex (either winding counts the same way as
-        /// long as a mesh is consistent), straight up where a vertex has none.
-        #[must_use]
-        fn vertex_normals(&self) -> Vec<Vec3> {
-            let mut sum = vec![Vec3::ZERO; self.positions.len()];
-            for t in self.indices.chunks_exact(3) {
-                let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
-                let (Some(&pa), Some(&pb), Some(&pc)) = (self.positions.get(a), self.positions.get(b), self.positions.get(c)) else { continue };
-                // The cross product's length is twice the area: larger faces weigh more.
-                let n = (pb - pa).cross(pc - pa);
-                for k in [a, b, c] {
-                    sum[k] += n;
-                }
-            }
-            sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
-        }
-    }
 }
 
 /// The pass: one pipeline for every skinned instance.
@@ -210,5 +190,33 @@ impl SkinningPass {
         cx.queue().write_buffer(&instance.joints, 0, bytemuck::cast_slice(&matrices));
         let params = SkinningParams { model: model.to_cols_array_2d(), vertex_count: instance.vertex_count, joint_count: count.max(1) as u32, _pad: [0; 2] };
         instance.pass.record(cx, None, &params, 0, (layout::groups(instance.vertex_count, 64), 1));
+    }
+}
+
+/// What snowpack's own passes, tools and tests read of a [`SkinnedMesh`] beyond the front door.
+/// A named item of `low_level` (an extension trait): [`SkinnedMesh`] has one
+/// shape with or without the feature.
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait SkinnedMeshExt: Sized {
+    /// Bind-pose vertex normals: the area-weighted sum of the normals of the
+    /// triangles around each vertex (either winding counts the same way as
+    /// long as a mesh is consistent), straight up where a vertex has none.
+    #[must_use]
+    fn vertex_normals(&self) -> Vec<Vec3>;
+}
+
+impl SkinnedMeshExt for SkinnedMesh {
+    fn vertex_normals(&self) -> Vec<Vec3> {
+        let mut sum = vec![Vec3::ZERO; self.positions.len()];
+        for t in self.indices.chunks_exact(3) {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+            let (Some(&pa), Some(&pb), Some(&pc)) = (self.positions.get(a), self.positions.get(b), self.positions.get(c)) else { continue };
+            // The cross product's length is twice the area: larger faces weigh more.
+            let n = (pb - pa).cross(pc - pa);
+            for k in [a, b, c] {
+                sum[k] += n;
+            }
+        }
+        sum.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
     }
 }

@@ -15,6 +15,7 @@ use crate::skin::skinning::SkinnedInstance;
 use super::core_window::CoreWindow;
 use super::ground_after::GroundAfter;
 use super::skinned::SkinnedId;
+use crate::skin::coat::CoatSettingsExt;
 
 /// The coats' state: the pass, each skinned mesh's settings and whether it
 /// was posed before (has last frame's positions).

@@ -24,6 +24,7 @@ use crate::replicate::flags::ShareGrid;
 use crate::{Deformer, SnowParams, Technique, TerrainSource};
 
 use super::clock::FrameRefill;
+use crate::deform::technique::TechniqueExt;
 
 /// The capture and footprint height range (low, high) of a window of
 /// `params` over terrain whose heights span `tmin..=tmax`: snowpack-share's

@@ -25,7 +25,10 @@ use super::core_window::CoreWindow;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
+use crate::deform::params::SnowParamsExt;
 use crate::gpu::context::GpuContextExt;
+use crate::snowfall::SnowfallExt;
+use crate::terrain::HeightmapTerrainExt;
 
 /// A deformation window and the passes that update it.
 ///

@@ -27,6 +27,7 @@ use super::deformation::SnowDeformation;
 use super::reads::untorus;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
+use crate::terrain::HeightmapTerrainExt;
 
 /// What the app, the tools and the tests read and drive of a
 /// [`SnowDeformation`] beyond the front door (see the module documentation).
