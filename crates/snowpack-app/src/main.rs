@@ -47,6 +47,7 @@ use clap::{Parser, Subcommand};
 #[cfg(feature = "gpu")]
 use snowpack_scene::{Scene, SceneError};
 
+#[cfg(feature = "gpu")]
 use snowpack::low_level::AdapterRequestExt;
 #[cfg(feature = "gpu")]
 use snowpack::low_level::error::SnowError as SnowDetail;

@@ -21,6 +21,7 @@ use renet2_netcode::{
     ClientAuthentication, ConnectToken, NETCODE_KEY_BYTES, NativeSocket, NetcodeClientTransport, NetcodeServerTransport, ServerAuthentication,
     ServerSetupConfig,
 };
+#[cfg(feature = "gpu")]
 use snowpack::low_level::SnowInspect;
 use snowpack_app::BadInput;
 use snowpack_share::persist::{StoreConfig, TileStore, WhenFull};
