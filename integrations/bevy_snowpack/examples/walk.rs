@@ -30,6 +30,7 @@ use bevy::light::CascadeShadowConfigBuilder;
 use bevy::prelude::*;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 use bevy_snowpack::prelude::*;
+use snowpack::low_level::TerrainSourceExt;
 
 /// Snow depth (m) on the hills.
 const DEPTH_M: f32 = 0.4;

@@ -21,6 +21,7 @@ use bevy_snowpack::{
 use common::xvfb::Xvfb;
 use common::{example, patch_luma};
 use snowpack::TerrainSource;
+use snowpack::low_level::SnowInspect;
 
 /// The test's landscape: 8 m square, 65 pixels a side, 3 m for a value of 1.
 const SIZE_M: f32 = 8.0;

@@ -7,6 +7,7 @@ mod common;
 
 use bevy::prelude::*;
 use bevy_snowpack::prelude::*;
+use snowpack::low_level::SnowInspect;
 
 #[test]
 fn changed_settings_reach_the_snow() {

@@ -7,6 +7,7 @@ mod common;
 
 use bevy::prelude::*;
 use bevy_snowpack::{FootKind, SnowDeformer, SnowFoot, SnowFootstep, SnowQuery, SnowpackSettings};
+use snowpack::low_level::SnowInspect;
 use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 const DT: f32 = 1.0 / 60.0;

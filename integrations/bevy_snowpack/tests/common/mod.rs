@@ -9,6 +9,7 @@ use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::window::ExitCondition;
 use bevy_snowpack::{SnowRenderState, SnowpackPlugin, SnowpackSettings};
+use snowpack::low_level::SnowInspect;
 
 /// Whether a missing adapter fails the test (CI) instead of skipping it.
 pub fn gpu_required() -> bool {
