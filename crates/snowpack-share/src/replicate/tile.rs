@@ -179,17 +179,7 @@ impl SharedTile {
         }
         let mut changed = false;
         for k in 0..self.texels() {
-            // A plane one side lacks is the merge's identity.
-            let mine = TexelCopy {
-                deficit: u32::from(self.deficit[k]),
-                stamp: self.stamps.get(k).copied().unwrap_or(NO_STAMP),
-                fallen_m: self.fallen.get(k).copied().unwrap_or(0.0),
-            };
-            let other = TexelCopy {
-                deficit: u32::from(theirs.deficit[k]),
-                stamp: theirs.stamps.get(k).copied().unwrap_or(NO_STAMP),
-                fallen_m: theirs.fallen.get(k).copied().unwrap_or(0.0),
-            };
+            let (mine, other) = (self.texel(k), theirs.texel(k));
             let merged = mine.merge(other);
             if merged.deficit != mine.deficit || merged.stamp != mine.stamp || merged.fallen_m.to_bits() != mine.fallen_m.to_bits() {
                 changed = true;
@@ -225,16 +215,7 @@ impl SharedTile {
         base.catch_up(&to, c);
         let mut adds = false;
         for k in 0..out.texels() {
-            let theirs = TexelCopy {
-                deficit: u32::from(base.deficit[k]),
-                stamp: base.stamps.get(k).copied().unwrap_or(NO_STAMP),
-                fallen_m: base.fallen.get(k).copied().unwrap_or(0.0),
-            };
-            let mine = TexelCopy {
-                deficit: u32::from(out.deficit[k]),
-                stamp: out.stamps.get(k).copied().unwrap_or(NO_STAMP),
-                fallen_m: out.fallen.get(k).copied().unwrap_or(0.0),
-            };
+            let (theirs, mine) = (base.texel(k), out.texel(k));
             let merged = theirs.merge(mine);
             let covered = merged.deficit == theirs.deficit && merged.stamp == theirs.stamp && merged.fallen_m.to_bits() == theirs.fallen_m.to_bits();
             if covered {
@@ -250,6 +231,15 @@ impl SharedTile {
             }
         }
         adds.then_some(out)
+    }
+
+    /// Texel `k`'s copy; a plane the tile lacks reads as the merge's identity.
+    fn texel(&self, k: usize) -> TexelCopy {
+        TexelCopy {
+            deficit: u32::from(self.deficit[k]),
+            stamp: self.stamps.get(k).copied().unwrap_or(NO_STAMP),
+            fallen_m: self.fallen.get(k).copied().unwrap_or(0.0),
+        }
     }
 
     /// A 64-bit digest of the clock's counters and the planes (FNV-1a over
