@@ -876,6 +876,21 @@ fn relay_holding(config: RelayConfig, count: i64, now: f64, rng: &mut Rng) -> Sn
     relay
 }
 
+/// One step of late joiner 2 with `relay` at `t`: its update, its messages
+/// to the relay, the relay's update and the relay's messages to it.
+fn pump_late_joiner(relay: &mut SnowRelay, peer: &mut SnowPeer, snow: &mut CpuSnow, t: f64) {
+    peer.update(snow, t);
+    while let Some(b) = peer.poll_transmit() {
+        relay.receive(2, &b, t);
+    }
+    relay.update(t);
+    while let Some((id, b)) = relay.poll_transmit() {
+        if id == 2 {
+            peer.receive(&b).expect("well-formed");
+        }
+    }
+}
+
 #[test]
 fn a_late_joiner_receives_its_window_paced_by_its_byte_budget() {
     let mut rng = Rng::new(testing::seed("a_late_joiner_receives_its_window_paced_by_its_byte_budget"));
@@ -891,16 +906,7 @@ fn a_late_joiner_receives_its_window_paced_by_its_byte_budget() {
     while t < 30.0 {
         t += 0.05;
         snow.step(0.05);
-        peer.update(&mut snow, t);
-        while let Some(b) = peer.poll_transmit() {
-            relay.receive(2, &b, t);
-        }
-        relay.update(t);
-        while let Some((id, b)) = relay.poll_transmit() {
-            if id == 2 {
-                peer.receive(&b).expect("well-formed");
-            }
-        }
+        pump_late_joiner(&mut relay, &mut peer, &mut snow, t);
         if t >= 2.0 && first_second.is_none() {
             first_second = Some(peer.stats().tiles_received);
         }
@@ -936,16 +942,7 @@ fn a_late_joiner_is_in_sync_soon_after_its_backlog() {
     while !peer.is_synced() && t < 10.0 {
         t += dt;
         snow.step(dt);
-        peer.update(&mut snow, t);
-        while let Some(b) = peer.poll_transmit() {
-            relay.receive(2, &b, t);
-        }
-        relay.update(t);
-        while let Some((id, b)) = relay.poll_transmit() {
-            if id == 2 {
-                peer.receive(&b).expect("well-formed");
-            }
-        }
+        pump_late_joiner(&mut relay, &mut peer, &mut snow, t);
         if peer.stats().tiles_received > received {
             (received, last_tile_s) = (peer.stats().tiles_received, t);
         }

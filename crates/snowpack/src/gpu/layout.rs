@@ -46,19 +46,6 @@ pub fn compute_pipeline(
     source: &str,
     entries: &[wgpu::BindGroupLayoutEntry],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
-    compute_pipeline_with(device, label, source, entries, &[])
-}
-
-/// [`compute_pipeline`] with values for the shader's `override` constants
-/// (by name).
-#[must_use]
-pub fn compute_pipeline_with(
-    device: &wgpu::Device,
-    label: &str,
-    source: &str,
-    entries: &[wgpu::BindGroupLayoutEntry],
-    constants: &[(&str, f64)],
-) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
     let pipeline_layout =
@@ -68,7 +55,7 @@ pub fn compute_pipeline_with(
         layout: Some(&pipeline_layout),
         module: &module,
         entry_point: Some("main"),
-        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
+        compilation_options: wgpu::PipelineCompilationOptions::default(),
         cache: None,
     });
     (pipeline, layout)

@@ -146,7 +146,7 @@ impl SlotTable {
     }
 
     /// Writes the owners alone.
-    pub(super) fn write_owners(&self, queue: &wgpu::Queue) {
+    fn write_owners(&self, queue: &wgpu::Queue) {
         let owners: Vec<[i32; 4]> = self.owners.iter().map(|o| o.map_or([0; 4], |k| [k.col as i32, k.row as i32, 1, 0])).collect();
         queue.write_buffer(&self.owners_buffer, 0, bytemuck::cast_slice(&owners));
     }
