@@ -194,7 +194,7 @@ fn simulate(
         }
         // Characters on the snow stand in it as the latest answers show it (older trails).
         let answers = snow.point_answers();
-        world.step_on(scene.sim.dt_s, &|x, z| sole_sample(answers, x, z).map(|s| s.height_m));
+        world.step_on(scene.sim.dt_s, &|x, z| sole_sample(answers, x, z));
         for mut step in world.take_footsteps() {
             // Answered a frame or two late: the snow the foot stepped into.
             step.snow_depth_m = sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());

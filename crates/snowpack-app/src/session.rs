@@ -346,7 +346,7 @@ impl Session {
             // Validated by the panel's ranges; a refusal leaves the old snowfall.
             let _ = self.snow.set_snowfall(p.snowfall.clone());
         }
-        self.world.set_snow(live.depth_m, p.hardness_kpa);
+        self.world.set_snow(live.depth_m, p.mechanics());
         if *self.renderer.params() != self.render_params {
             self.renderer.set_params(self.render_params);
         }
@@ -388,7 +388,7 @@ impl Session {
         if self.physics {
             // Characters on the snow stand in it as the latest answers show it (older trails).
             let answers = self.snow.point_answers();
-            self.world.step_on(dt, &|x, z| crate::characters::sole_sample(answers, x, z).map(|s| s.height_m));
+            self.world.step_on(dt, &|x, z| crate::characters::sole_sample(answers, x, z));
             for mut step in self.world.take_footsteps() {
                 step.snow_depth_m = crate::characters::sole_sample(answers, step.position.x, step.position.z).map(|s| s.depth_m());
                 self.footsteps = (self.footsteps.0 + 1, Some(step));

@@ -133,6 +133,8 @@ impl Scene {
         snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
         snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
         snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
+        snow.insert("density_kg_m3".into(), float(p.density_kg_m3));
+        snow.insert("max_density_kg_m3".into(), float(p.max_density_kg_m3));
         snow.insert("teleport_m".into(), float(p.teleport_m));
         snow
     }

@@ -467,6 +467,8 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 range_texels: t.u32_in("range_texels", 64, 32..=128)?,
                 rim,
                 hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
+                density_kg_m3: t.positive("density_kg_m3", defaults.density_kg_m3, " of kg/m³")?,
+                max_density_kg_m3: t.positive("max_density_kg_m3", defaults.max_density_kg_m3, " of kg/m³")?,
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
@@ -790,7 +792,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, teleport {} m",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, density {} kg/m³ packing to {} kg/m³, teleport {} m",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -802,6 +804,8 @@ impl Scene {
             p.range_texels,
             p.rim.as_str(),
             p.hardness_kpa,
+            p.density_kg_m3,
+            p.max_density_kg_m3,
             p.teleport_m
         );
         let terrain = self.describe_terrain();
@@ -865,7 +869,7 @@ impl Scene {
                 v.track_m,
                 v.wheel_radius_m,
                 v.wheel_width_m,
-                v.wheel_load().sinkage_m(self.snow.depth_m, self.snow.hardness_kpa),
+                v.wheel_load().sinkage_m(&self.snow.mechanics(), snowpack::mechanics::SnowColumn::fresh(self.snow.depth_m)),
                 v.tread.pattern.as_str(),
                 v.tread.spacing_m,
                 v.tread.depth_m,

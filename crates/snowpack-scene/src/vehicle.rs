@@ -13,6 +13,7 @@
 use glam::{Vec2, Vec3};
 use snowpack::low_level::deform::wheel::{Tread, TreadPattern, forward};
 use snowpack::low_level::skin::sinking::WheelLoad;
+use snowpack::mechanics::{SnowColumn, SnowMechanics};
 use snowpack::{Deformer, TerrainSource};
 
 use crate::error::SceneError;
@@ -180,11 +181,11 @@ impl VehicleState {
         }
     }
 
-    /// The four wheels as deformers, on the snow of `depth_m` and
-    /// `hardness_kpa` over `terrain`, sunk as deep as their load says.
-    pub(crate) fn deformers(&self, terrain: &TerrainSource, depth_m: f32, hardness_kpa: f32) -> [Deformer; 4] {
+    /// The four wheels as deformers, on fresh snow `depth_m` deep of
+    /// `mechanics` over `terrain`, sunk as deep as their load says.
+    pub(crate) fn deformers(&self, terrain: &TerrainSource, depth_m: f32, mechanics: &SnowMechanics) -> [Deformer; 4] {
         let s = &self.spec;
-        let sink = s.wheel_load().sinkage_m(depth_m, hardness_kpa);
+        let sink = s.wheel_load().sinkage_m(mechanics, SnowColumn::fresh(depth_m));
         std::array::from_fn(|k| {
             let (at, axle, roll) = self.wheels[k];
             let ground = terrain.height_at(at.x, at.y);

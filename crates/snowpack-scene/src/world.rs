@@ -11,7 +11,8 @@ use glam::{Mat4, Quat, Vec2, Vec3};
 use snowpack::low_level::skin::AnimationPlayer;
 use snowpack::low_level::skin::feet::{FootTracker, FootstepEvent, mean_feet_down};
 use snowpack::low_level::testing::Rng;
-use snowpack::{Deformer, TerrainSource};
+use snowpack::mechanics::{SnowColumn, SnowMechanics};
+use snowpack::{Deformer, PointSample, TerrainSource};
 
 use crate::scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, WindowSpec};
 use snowpack::low_level::TerrainSourceExt;
@@ -51,6 +52,8 @@ struct Actor {
     /// sinkage this frame (m).
     supports: Vec<f32>,
     sink_m: f32,
+    /// Characters: which feet were planted last frame (a planted foot keeps its support).
+    planted_before: Vec<bool>,
     /// Characters: index into the gaits of the gait playing.
     gait: Option<usize>,
     /// Characters: feet down on average over each clip (the load's share).
@@ -104,9 +107,9 @@ pub struct World {
     min: Vec2,
     max: Vec2,
     footsteps: Vec<FootstepEvent>,
-    /// Rest depth and hardness of the snow characters stand on.
+    /// Rest depth and mechanics of the snow characters stand on.
     snow_depth_m: f32,
-    hardness_kpa: f32,
+    mechanics: SnowMechanics,
 }
 
 fn path_at(keys: &[[f32; 4]], t: f32) -> Vec3 {
@@ -151,7 +154,7 @@ impl World {
             max: center + Vec2::splat(half),
             footsteps: Vec::new(),
             snow_depth_m: scene.snow.depth_m,
-            hardness_kpa: scene.snow.hardness_kpa,
+            mechanics: scene.snow.mechanics(),
         };
         for spec in &scene.actors {
             world.push_actor(spec);
@@ -171,7 +174,7 @@ impl World {
         // snow from the first frame on.
         world.update_headings(None);
         world.update_gaits();
-        world.place_characters(0.0, &|_, _| None);
+        world.place_characters(0.0, &|_, _| None::<PointSample>);
         world
     }
 
@@ -201,6 +204,7 @@ impl World {
             root_y: None,
             supports: Vec::new(),
             sink_m: 0.0,
+            planted_before: Vec::new(),
             gait: None,
             feet_down: match &spec.shape {
                 ShapeSpec::Gltf(g) => g.model.clips.iter().map(|c| mean_feet_down(&g.model.skeleton, c, &g.feet)).collect(),
@@ -217,7 +221,7 @@ impl World {
         let k = self.push_actor(spec);
         self.update_headings(None);
         self.update_gaits();
-        self.place_characters(0.0, &|_, _| None);
+        self.place_characters(0.0, &|_, _| None::<PointSample>);
         k
     }
 
@@ -234,10 +238,11 @@ impl World {
         true
     }
 
-    /// Changes the rest depth (m) and hardness (kPa) of the snow characters stand on.
-    pub fn set_snow(&mut self, depth_m: f32, hardness_kpa: f32) {
+    /// Changes the rest depth (m) and the mechanics (densities, hardness) of
+    /// the snow characters stand on.
+    pub fn set_snow(&mut self, depth_m: f32, mechanics: SnowMechanics) {
         self.snow_depth_m = depth_m;
-        self.hardness_kpa = hardness_kpa;
+        self.mechanics = mechanics;
     }
 
     /// Takes actor `i` out of the world (`false`: it neither presses the snow,
@@ -266,7 +271,7 @@ impl World {
             a.steer = Some((Vec3::new(xz.x, y, xz.y), v));
             a.root_y = None;
         }
-        self.place_characters(0.0, &|_, _| None);
+        self.place_characters(0.0, &|_, _| None::<PointSample>);
     }
 
     /// Turns characters toward their direction of travel, at most
@@ -317,33 +322,48 @@ impl World {
     }
 
     /// Puts characters placed on the ground or the snow at the height their
-    /// feet stand on: for the snow, the rest surface less the load model's
-    /// sinkage, or the snow as it is (`surface(x, z)`, when known) where that
-    /// is lower (an older trail), never below the ground. The root follows
-    /// the feet that are down: up at once, down with a short time constant.
-    fn place_characters(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<f32>) {
+    /// feet stand on. On the snow, a foot touching down sinks into the
+    /// column under it as far as the load model says
+    /// (`snowpack::low_level::skin::sinking`): Bekker's curve with the
+    /// column's density, from `surface(x, z)` (the snow there, when known),
+    /// so a foot in a packed trail sinks less than in fresh snow. A planted
+    /// foot keeps the support it touched down on, so standing still does not
+    /// sink deeper frame by frame; a character without foot tracking stands
+    /// on the fresh snow's sinkage, or on an older, deeper trail. Never below
+    /// the ground. The root follows the feet that are down: up at once, down
+    /// with a short time constant.
+    fn place_characters(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<PointSample>) {
         for (actor, soles) in self.soles() {
             let a = &self.actors[actor];
             let ShapeSpec::Gltf(g) = &a.shape else { continue };
             let (placement, load) = (g.placement, g.load);
             let root = a.root_y;
+            let tracked = a.feet.is_some();
             let planted: Vec<bool> = a.feet.as_ref().map_or_else(|| vec![true; soles.len()], |t| t.planted().to_vec());
             let clip = a.anim.as_ref().map_or(g.clip, |p| p.clip);
             // A character with gaits standing still has every foot down.
             let standing = !g.gaits.is_empty() && !g.gaits.iter().any(|x| x.clip == clip);
             let down = if standing { soles.len() as f32 } else { a.feet_down.get(clip).copied().unwrap_or(soles.len() as f32) };
             let sink = match placement {
-                Placement::Snow => load.sinkage_m(down, self.snow_depth_m, self.hardness_kpa),
+                Placement::Snow => load.sinkage_m(down, &self.mechanics, SnowColumn::fresh(self.snow_depth_m)),
                 Placement::Path | Placement::Ground => 0.0,
             };
             let supports: Vec<f32> = soles
                 .iter()
-                .map(|p| {
+                .enumerate()
+                .map(|(k, p)| {
                     let ground = self.terrain.height_at(p.x, p.z);
                     match placement {
                         Placement::Snow => {
                             let pressed = ground + self.snow_depth_m - sink;
-                            surface(p.x, p.z).map_or(pressed, |s| s.min(pressed)).max(ground)
+                            let held = tracked && planted[k] && a.planted_before.get(k).copied().unwrap_or(false);
+                            match (surface(p.x, p.z), a.supports.get(k)) {
+                                (_, Some(&support)) if held => support,
+                                (Some(s), _) if tracked => s.height_m - load.sinkage_m(down, &self.mechanics, s.column()),
+                                (Some(s), _) => s.height_m.min(pressed),
+                                (None, _) => pressed,
+                            }
+                            .max(ground)
                         }
                         Placement::Ground => ground,
                         // Path: the ground the root walks on, carried under each foot.
@@ -351,6 +371,7 @@ impl World {
                     }
                 })
                 .collect();
+            self.actors[actor].planted_before = planted.clone();
             self.actors[actor].sink_m = sink;
             if placement == Placement::Path {
                 self.actors[actor].supports.clear();
@@ -451,7 +472,7 @@ impl World {
         out.extend(self.foot_points());
         out.extend(self.bodies.iter().map(|b| Deformer::Sphere { center: b.pos, radius: b.radius }));
         for v in &self.vehicles {
-            out.extend(v.deformers(&self.terrain, self.snow_depth_m, self.hardness_kpa));
+            out.extend(v.deformers(&self.terrain, self.snow_depth_m, &self.mechanics));
         }
         out
     }
@@ -509,13 +530,13 @@ impl World {
     /// Advances time by `dt` seconds, with the snow undisturbed for characters
     /// placed on it (see [`Self::step_on`]).
     pub fn step(&mut self, dt: f32) {
-        self.step_on(dt, &|_, _| None);
+        self.step_on(dt, &|_, _| None::<PointSample>);
     }
 
     /// Advances time by `dt` seconds; characters placed on the snow stand in
     /// it as `surface(x, z)` (world height of the snow there, m, `None` where
     /// unknown) says, for example from the deformation's CPU snapshot.
-    pub fn step_on(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<f32>) {
+    pub fn step_on(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<PointSample>) {
         let h = dt / SUBSTEPS as f32;
         for _ in 0..SUBSTEPS {
             self.substep(h);

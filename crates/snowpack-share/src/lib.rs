@@ -29,6 +29,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`replicate`] | tiles and their clock, the world identity, the wire messages, peers and relays |
+//! | [`mechanics`] | snow with mass: density from compaction, hardness, Bekker's sinkage and resistance |
 //! | [`persist`] | the tile type, its compressed file format, the crash-safe store on disk |
 //! | [`error`] | the errors in detail; the opaque ones at the root |
 //!
@@ -80,6 +81,7 @@ macro_rules! low_level_some_fields {
 }
 
 pub mod error;
+pub mod mechanics;
 pub mod persist;
 pub mod replicate;
 #[cfg(any(test, feature = "low_level"))]

@@ -5,6 +5,7 @@
 // #import shared/tiles
 // #import shared/tile_table
 // #import shared/pass_flags
+// #import shared/packed_snow
 
 // Exchange pass: moves texels between the sliding window and the resident
 // tiles when the window moves (with a tile store attached). `stash` copies
@@ -15,7 +16,9 @@
 // stashes and loads in batches of tiles (src/deform/tiles.rs). The window
 // keeps its snow as a deficit below the rest height (shared/snow_word.wgsl),
 // the tiles as the f32 height: stash and load convert, evaluating the
-// terrain from its source. CPU twin: src/cpu/exchange.rs.
+// terrain from its source. The tiles hold no packed snow yet: a loaded
+// texel's column comes back at fresh density (docs/mechanics.md).
+// CPU twin: src/cpu/exchange.rs.
 
 struct ExchangeParams {
     origin: vec2<i32>,      // the window's origin after the move
@@ -40,6 +43,8 @@ const HAS_STAMPS: u32 = 4u;
 @group(0) @binding(1) var<storage, read_write> tiles: array<u32>;
 // Tile key -> slot (shared/tiles.wgsl).
 @group(0) @binding(2) var<storage, read> tile_table: array<u32>;
+// Packed snow, two texels a word (shared/packed_snow.wgsl).
+@group(0) @binding(3) var<storage, read_write> packed: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
 @group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
 @group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
@@ -103,5 +108,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         }
         let h = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
         snow[s] = snow_press_quanta(rest, ground, h);
+        atomicAnd(&packed[packed_index(s)], ~(0xffffu << packed_shift(s)));
     }
 }

@@ -2,6 +2,7 @@
 // #import shared/terrain
 // #import shared/terrain_kind
 // #import shared/snow_word
+// #import shared/packed_snow
 
 // Point queries: for each asked point (x, z in metres from the window's
 // corner), the snow there, bilinear between texel centres: the persistent
@@ -11,7 +12,9 @@
 // The snow words hold both the persistent snow (a deficit below rest) and
 // the displayed height (above the terrain, shared/snow_word.wgsl); a
 // texel's normal is the central difference of the displayed heights around
-// it, clamped at the window's edges, as the renderer computes it.
+// it, clamped at the window's edges, as the renderer computes it. The
+// packed snow (shared/packed_snow.wgsl) is bilinear too, in metres of fresh
+// snow: with the height above the terrain it gives the column's density.
 // One thread per point; a few thousand points cost one small dispatch.
 // CPU twin: src/cpu/query.rs.
 
@@ -25,7 +28,7 @@ struct QueryParams {
     _pad: u32,
 }
 
-// 32 bytes: what `PointSample` unpacks on the CPU.
+// 36 bytes: what `PointSample` unpacks on the CPU.
 struct Sample {
     height_m: f32,
     surface_m: f32,
@@ -35,6 +38,7 @@ struct Sample {
     normal_y: f32,
     normal_z: f32,
     inside: f32,
+    packed_m: f32,
 }
 
 @group(0) @binding(0) var<uniform> params: QueryParams;
@@ -58,6 +62,12 @@ fn query_uses_fallen() -> bool {
 @group(1) @binding(1) var<storage, read> heightmap: array<f32>;
 @group(1) @binding(2) var<storage, read> snow: array<u32>;
 @group(1) @binding(4) var<storage, read> fallen: array<f32>;
+// Packed snow, two texels a word (shared/packed_snow.wgsl).
+@group(0) @binding(3) var<storage, read> packed: array<u32>;
+
+fn packed_m(s: u32) -> f32 {
+    return f32(packed_get(packed[packed_index(s)], s)) * SNOW_QUANTUM_M;
+}
 @group(0) @binding(2) var<storage, read_write> samples: array<Sample>;
 @group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
@@ -92,7 +102,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cell = floor(uv);
     let f = uv - cell;
     let r = i32(params.resolution);
-    var out = Sample(0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0);
+    var out = Sample(0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0);
     if cell.x < 0.0 || cell.y < 0.0 || cell.x > f32(r - 2) || cell.y > f32(r - 2) {
         samples[k] = out;
         return;
@@ -129,6 +139,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         snow_word_height(snow[s11], t11 + d + l11, t11),
         f,
     );
+    out.packed_m = bilerp(packed_m(s00), packed_m(s01), packed_m(s10), packed_m(s11), f);
     out.surface_m = bilerp(snow_word_shown(snow[s00], t00), snow_word_shown(snow[s01], t01), snow_word_shown(snow[s10], t10), snow_word_shown(snow[s11], t11), f);
     let ii = i32(i);
     let jj = i32(j);

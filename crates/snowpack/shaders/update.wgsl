@@ -5,6 +5,7 @@
 // #import shared/snow_word
 // #import shared/share_flags
 // #import shared/sky_test
+// #import shared/packed_snow
 
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
@@ -23,6 +24,11 @@
 // so no snow settles under a table or a roof (Dinh figure 5.1). A texel
 // reaches the sky when its surface point, projected along the snowfall onto
 // the occlusion map, is no lower (less 2 cm) than what that pixel saw.
+// Mass (shared/packed_snow.wgsl): a press that raises the deficit by d
+// quanta squeezes d quanta of snow into the column below it, which packs it
+// (the packed snow grows by d); once the column would be denser than the
+// final density the rest is displaced (counted in `displaced`). Refill and
+// snowfall add fresh snow on top and leave the packed snow as it is.
 // In place: each texel reads and writes only itself; the displayed half of
 // each word is kept (the display pass rewrites it).
 // With shared snow (SHARE) a texel whose deficit the captured actors raised
@@ -49,6 +55,8 @@ struct UpdateParams {
     storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
     share_side: u32, // changed-tile flags' tile side (with SHARE)
     share_keys: u32, // slots per side of the flags
+    pack_ratio: f32, // rho_max / rho_fresh - 1: packed snow a column holds per quantum of its height
+    _pad: u32,
 }
 
 const USE_CAPTURE: u32 = 1u;
@@ -87,6 +95,18 @@ fn update_flags() -> u32 {
 @group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
 @group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
+// Packed snow, two texels a word (shared/packed_snow.wgsl).
+@group(0) @binding(4) var<storage, read_write> packed: array<atomic<u32>>;
+// Snow quanta displaced this frame (and since it was last cleared): [lo, hi] of a u64.
+@group(0) @binding(5) var<storage, read_write> displaced: array<atomic<u32>, 2>;
+
+// Adds `q` quanta to the displaced count, carrying into its high word.
+fn count_displaced(q: u32) {
+    let before = atomicAdd(&displaced[0], q);
+    if before + q < before {
+        atomicAdd(&displaced[1], 1u);
+    }
+}
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -158,6 +178,24 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let at_ground = snow_press_quanta(rest, ground, ground);
     deficit = min(deficit, at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
+    // What the presses took from the column's height goes into its packed
+    // snow, up to the final density; the rest is displaced.
+    if deficit > refilled {
+        let k = packed_index(s);
+        let shift = packed_shift(s);
+        let before = packed_get(atomicLoad(&packed[k]), s);
+        let squeezed = before + (deficit - refilled);
+        let cap = packed_cap(at_ground - deficit, params.pack_ratio);
+        let after = min(squeezed, cap);
+        if after > before {
+            atomicAdd(&packed[k], (after - before) << shift);
+        } else if after < before {
+            atomicSub(&packed[k], (before - after) << shift);
+        }
+        if squeezed > cap {
+            count_displaced(squeezed - cap);
+        }
+    }
     // The capture raised it (after the clamp, which only lowers).
     if (update_flags() & SHARE) != 0u && min(captured, at_ground) > refilled {
         atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(i32(j), i32(i)), params.share_side, params.share_keys)], 1u);

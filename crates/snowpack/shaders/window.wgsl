@@ -1,11 +1,12 @@
 // #import shared/window
 // #import shared/pass_flags
+// #import shared/packed_snow
 
 // Window pass: writes fresh snow (deficit 0: at its rest height) into the texels that the
 // sliding window has just exposed (at most two rectangles: new rows, new
 // columns), and nothing else; their footprints are cleared (when the window
 // has a footprint buffer: the points and combined techniques). New texels get
-// the snowfall so far (as if the sky reached them). CPU twin: src/cpu/window.rs.
+// the snowfall so far (as if the sky reached them) and no packed snow. CPU twin: src/cpu/window.rs.
 
 struct WindowParams {
     origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
@@ -23,6 +24,8 @@ struct WindowParams {
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
 @group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
 @group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
+// Packed snow, two texels a word (shared/packed_snow.wgsl).
+@group(0) @binding(1) var<storage, read_write> packed: array<atomic<u32>>;
 
 const WORKGROUP: u32 = 256u;
 
@@ -38,6 +41,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     // Untouched: no deficit below the rest height. The displayed half is
     // written by the display pass later in the frame.
     snow[s] = 0u;
+    atomicAnd(&packed[packed_index(s)], ~(0xffffu << packed_shift(s)));
     if (pass_flags() & 1u) != 0u {
         fallen[s] = params.fallen_m;
     }

@@ -194,6 +194,10 @@ pub use skin::coat::CoatSettings;
 pub use skin::skinning::SkinnedMesh;
 pub use snow::{SkinnedId, SkinnedPose, SnowDeformation, SnowFrame};
 pub use snowfall::Snowfall;
+/// Snow with mass: density from compaction, hardness, Bekker's sinkage and a
+/// wheel's resistance (`docs/mechanics.md`); [`SnowParams::mechanics`] gives
+/// the window's, [`PointSample::density_kg_m3`] the snow at a point.
+pub use snowpack_share::mechanics;
 pub use terrain::{HeightmapTerrain, NoiseTerrain, TerrainMesh, TerrainSource};
 
 // snowpack's own renderer, for tools and the demo (feature `renderer`).

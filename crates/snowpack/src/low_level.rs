@@ -27,7 +27,7 @@ pub use crate::skin::coat::CoatSettingsExt;
 pub use crate::skin::skinning::SkinnedMeshExt;
 /// What snowpack's own app, tools and tests read and drive of a
 /// [`crate::SnowDeformation`] beyond the front door.
-pub use crate::snow::inspect::SnowInspect;
+pub use crate::snow::inspect::{SnowInspect, WindowMass};
 pub use crate::snowfall::SnowfallExt;
 pub use crate::terrain::{HeightmapTerrainExt, TerrainMeshExt, TerrainSourceExt};
 

@@ -16,6 +16,7 @@ use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::resources::DeformResources;
+use snowpack::low_level::deform::packed_snow;
 use snowpack::low_level::deform::snow_word;
 use snowpack::low_level::deform::stamp::{StampParams, StampPass};
 use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
@@ -85,6 +86,9 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
     let mut cpu_stamps: Vec<u32> = (0..n).map(|_| rng.next_u64() as u32).collect();
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&cpu_stamps));
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&cpu_snow));
+    // Random packed snow: exposed texels come out fresh, the rest keep theirs.
+    let mut cpu_packed: Vec<u32> = (0..n.div_ceil(2)).map(|_| rng.next_u64() as u32).collect();
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&cpu_packed));
     let pass = WindowPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut window = SlidingWindow::new(params.resolution);
@@ -108,9 +112,10 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
         submit(ctx, enc);
         let mut cp = p;
         cp.rect_count = rects.len() as u32;
-        cpu::window::expose(&cp, &rects, &mut cpu_snow, &mut cpu_stamps, &mut []);
+        cpu::window::expose(&cp, &rects, &mut cpu_snow, &mut cpu_stamps, (&mut [], &mut cpu_packed));
         assert_eq!(read_u32(ctx, &res.snow), cpu_snow, "window snow words; seed {seed}");
         assert_eq!(read_u32(ctx, &res.stamps), cpu_stamps, "window stamps; seed {seed}");
+        assert_eq!(read_u32(ctx, &res.packed), cpu_packed, "window packed snow; seed {seed}");
     }
 }
 
@@ -282,7 +287,9 @@ fn capture_and_update_match_cpu() {
     cpu::capture_mesh::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
     cpu::capture_sphere::quantise_depths(&mut depth);
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
-    cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
+    let mut packed = vec![0u32; n.div_ceil(2)];
+    let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut [] };
+    cpu::update::update(&up, &input, state);
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
     let gpu_words = read_u32(ctx, &res.snow);
     assert!(gpu_words.iter().zip(&snow).all(|(a, b)| a >> 16 == b >> 16), "the update changed displayed halves; seed {seed}");
@@ -301,6 +308,99 @@ fn capture_and_update_match_cpu() {
     // The deformation did something, so the comparison is not vacuous.
     let pressed = depth.iter().filter(|d| **d < 1.0).count();
     assert!(pressed > n / 50, "only {pressed} texels captured; seed {seed}");
+}
+
+/// The packed snow (`shared/packed_snow.wgsl`) on random snow, packed
+/// snow, footprints, refill and final densities: what a press takes from a
+/// column's height goes into its packed snow, up to the final density, and
+/// the rest is counted as displaced. The GPU's result obeys that rule
+/// texel by texel on its own deficits (integer arithmetic: exact), and
+/// agrees with the CPU twin wherever the deficits do.
+#[test]
+fn update_packs_pressed_snow_like_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("packed snow");
+    let mut rng = Rng::new(seed);
+    let (params, terrain_src, res) = setup(ctx, &mut rng, 96);
+    let n = params.texel_count();
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::press_quanta(t + params.depth_m, t, t)).collect();
+    let pack_ratio = rng.range(0.3, 6.0);
+    let mut snow: Vec<u32> = at_ground.iter().map(|&g| (rng.next_u64() as u32 & 0xffff_0000) | (rng.range(0.0, g as f32 * 0.8) as u32)).collect();
+    let mut packed = vec![0u32; n.div_ceil(2)];
+    for (s, word) in snow.iter().enumerate() {
+        let cap = packed_snow::cap(at_ground[s] - (word & 0xffff), pack_ratio);
+        packed_snow::set(&mut packed, s, rng.range(0.0, cap as f32 * 1.0) as u32);
+    }
+    // Footprints on two texels in three, feet anywhere from above the snow to below the terrain.
+    let (low_m, high_m) = (-2.0, 3.0);
+    let mut stamps: Vec<u32> = (0..n)
+        .map(|_| {
+            if rng.range(0.0, 1.0) < 0.33 {
+                return cpu::stamp::STAMP_EMPTY;
+            }
+            let h = rng.range(0.0, 65535.0) as u32;
+            (h << 16) | h.saturating_sub(rng.range(0.0, 2000.0) as u32)
+        })
+        .collect();
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed));
+    ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
+    ctx.queue.write_buffer(&res.displaced, 0, bytemuck::cast_slice(&[0u32; 2]));
+    let up = UpdateParams {
+        origin,
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        snow_refill_quanta: rng.range(0.0, 300.0) as u32,
+        low_m,
+        high_m,
+        flags: UpdateParams::USE_STAMPS | UpdateParams::HAS_STAMPS,
+        texel_m: params.texel_m(),
+        pack_ratio,
+        ..UpdateParams::default()
+    };
+    let update = UpdatePass::new(&ctx.device, &res);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
+    submit(ctx, enc);
+    let (before_snow, before_packed) = (snow.clone(), packed.clone());
+    let input = cpu::update::UpdateInputs { capture_depth: &[], sky_depth: &[], terrain: &terrain };
+    let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut [] };
+    let cpu_displaced = cpu::update::update(&up, &input, state);
+    let (gpu_snow, gpu_packed) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed));
+    let gpu_displaced = read_u32(ctx, &res.displaced);
+    let gpu_displaced = u64::from(gpu_displaced[0]) | (u64::from(gpu_displaced[1]) << 32);
+    // The rule, on the GPU's own deficits.
+    let (mut pressed, mut capped, mut expected) = (0, 0, 0u64);
+    for s in 0..n {
+        let d0 = before_snow[s] & 0xffff;
+        let refilled = d0 - d0.min(up.snow_refill_quanta);
+        let d1 = gpu_snow[s] & 0xffff;
+        let q0 = packed_snow::get(&before_packed, s);
+        let q1 = packed_snow::get(&gpu_packed, s);
+        if d1 <= refilled {
+            assert_eq!(q1, q0, "texel {s} was not pressed and its packed snow changed; seed {seed}");
+            continue;
+        }
+        pressed += 1;
+        let squeezed = q0 + (d1 - refilled);
+        let cap = packed_snow::cap(at_ground[s] - d1, pack_ratio);
+        capped += usize::from(squeezed > cap);
+        expected += u64::from(squeezed.saturating_sub(cap));
+        assert_eq!(q1, squeezed.min(cap), "texel {s}: deficit {refilled} -> {d1}, packed {q0}; seed {seed}");
+    }
+    assert_eq!(gpu_displaced, expected, "displaced count; seed {seed}");
+    assert!(pressed > n / 4 && capped > 10 && capped < pressed, "pressed {pressed}, capped {capped} of {n}; seed {seed}");
+    // And the CPU twin, wherever the deficits agree (the footprint height is
+    // an f32 that a fused multiply-add may tip by a quantum).
+    let agree: Vec<usize> = (0..n).filter(|&s| gpu_snow[s] & 0xffff == snow[s] & 0xffff).collect();
+    assert!(agree.len() + n / 500 >= n, "{} of {n} deficits differ; seed {seed}", n - agree.len());
+    assert!(agree.iter().all(|&s| packed_snow::get(&gpu_packed, s) == packed_snow::get(&packed, s)), "packed snow differs; seed {seed}");
+    if agree.len() == n {
+        assert_eq!(gpu_displaced, cpu_displaced, "seed {seed}");
+    }
 }
 
 /// Whether two displayed halves (f16 bits of the same sign) are within one f16 step.
@@ -770,8 +870,10 @@ fn wheel_capture_matches_cpu() {
     let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
     cpu::capture_sphere::quantise_depths(&mut depth);
     let mut stamps = vec![cpu::stamp::STAMP_EMPTY; n];
+    let mut packed = vec![0u32; n.div_ceil(2)];
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
-    cpu::update::update(&up, &input, &mut snow, &mut stamps, &mut []);
+    let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut [] };
+    cpu::update::update(&up, &input, state);
     let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::height(w, t + params.depth_m, t)).collect() };
     let (gpu, cpu) = (height(&read_u32(ctx, &res.snow)), height(&snow));
     let pressed = gpu.iter().zip(&terrain).filter(|(h, t)| **h < **t + params.depth_m - 1e-3).count();

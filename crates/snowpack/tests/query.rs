@@ -69,20 +69,28 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
         &local,
         // The ground the query evaluates from the terrain's source, per texel.
         &snowpack::low_level::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
-        &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.snow).expect("snow")),
-        &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
+        (
+            &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.snow).expect("snow")),
+            &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),
+            &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.packed).expect("packed snow")),
+        ),
     );
     let mut inside = 0;
     let mut pressed = 0;
+    let mut packed = 0;
     for (k, (gpu, cpu)) in answers.samples.iter().zip(cpu.iter().map(|c| c.sample())).enumerate() {
         let (Some(g), Some(c)) = (gpu, cpu) else {
             assert_eq!(gpu.is_some(), cpu.is_some(), "point {k} {:?}: inside on one side only (seed {seed})", points[k]);
             continue;
         };
         inside += 1;
-        for (name, a, b) in
-            [("height", g.height_m, c.height_m), ("surface", g.surface_m, c.surface_m), ("terrain", g.terrain_m, c.terrain_m), ("rest", g.rest_m, c.rest_m)]
-        {
+        for (name, a, b) in [
+            ("height", g.height_m, c.height_m),
+            ("surface", g.surface_m, c.surface_m),
+            ("terrain", g.terrain_m, c.terrain_m),
+            ("rest", g.rest_m, c.rest_m),
+            ("packed", g.packed_m, c.packed_m),
+        ] {
             assert!((a - b).abs() < 1e-5, "point {k}: {name} {a} (GPU) vs {b} (CPU), seed {seed}");
         }
         assert!((g.normal - c.normal).length() < 1e-4, "point {k}: normal {} vs {}, seed {seed}", g.normal, c.normal);
@@ -91,7 +99,10 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
         assert!(g.height_m >= g.terrain_m - 1e-5 && g.height_m <= g.rest_m + 1e-4, "point {k}: {g:?}");
         assert!((0.0..=1.0).contains(&g.compaction()));
         pressed += usize::from(g.compaction() > 0.05);
+        let m = params.mechanics();
+        packed += usize::from(g.packed_m > 0.02 && g.density_kg_m3(&m) > 1.1 * m.fresh_density_kg_m3);
     }
+    assert!(packed > 0, "no point answered packed snow (seed {seed})");
     assert!(inside > 400, "only {inside} of 500 points inside (seed {seed})");
     assert!(pressed > 0, "no point landed in a print: the test would not see deformation (seed {seed})");
     assert!(answers.samples.last().expect("the far point").is_none(), "100 m away is outside the window");

@@ -137,7 +137,8 @@ fn exchange_matches_cpu() {
         submit(ctx, e);
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
-        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f };
+        let mut packed = vec![0u32; snow_w.len().div_ceil(2)];
+        let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f, packed: &mut packed };
         cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
         cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w);
         // Stashed heights are rest - deficit * quantum: a fused multiply-add on

@@ -33,6 +33,9 @@ pub struct WindowBuffers<'a> {
     pub stamps: &'a mut [u32],
     /// Snowfall so far (one texel without snowfall).
     pub fallen: &'a mut [f32],
+    /// Packed snow, two texels a word: cleared where a texel is loaded (the
+    /// tiles hold none yet).
+    pub packed: &'a mut [u32],
 }
 
 /// Stashes (with [`ExchangeParams::STASH`]) or loads the texels of `rects`
@@ -77,6 +80,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &
                     }
                     let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
                     w.snow[s] = snow_word::press_quanta(rest, ground, h);
+                    crate::deform::packed_snow::set(w.packed, s, 0);
                 }
             }
         }

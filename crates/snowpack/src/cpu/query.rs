@@ -1,6 +1,8 @@
 //! CPU twin of `query.wgsl`.
 
+use crate::deform::packed_snow;
 use crate::deform::query::{QueryParams, RawSample};
+use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::deform::snow_word;
 
 use super::window::storage_index;
@@ -24,9 +26,10 @@ fn texel_normal(params: &QueryParams, terrain: &[f32], snow: &[u32], i: i32, j: 
 }
 
 /// The samples `query.wgsl` writes for `points` (m from the window's
-/// corner), from toroidal `terrain`, snow words and `fallen`.
+/// corner), from toroidal `terrain`, snow words, `fallen` and packed snow
+/// (two texels a word, [`crate::deform::packed_snow`]).
 #[must_use]
-pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], snow: &[u32], fallen: &[f32]) -> Vec<RawSample> {
+pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], (snow, fallen, packed): (&[u32], &[f32], &[u32])) -> Vec<RawSample> {
     let res = params.resolution;
     let r = res as i32;
     points
@@ -51,6 +54,8 @@ pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], snow: &
             out.height_m = bilerp(h[0], h[1], h[2], h[3], f);
             let shown: [f32; 4] = std::array::from_fn(|k| snow_word::shown(snow[taps[k]], t[k]));
             out.surface_m = bilerp(shown[0], shown[1], shown[2], shown[3], f);
+            let q = taps.map(|s| packed_snow::get(packed, s) as f32 * SNOW_QUANTUM_M);
+            out.packed_m = bilerp(q[0], q[1], q[2], q[3], f);
             let (ii, jj) = (i as i32, j as i32);
             let n = [(0, 0), (0, 1), (1, 0), (1, 1)].map(|(di, dj)| texel_normal(params, terrain, snow, ii + di, jj + dj));
             out.normal = n[0].lerp(n[1], f[0]).lerp(n[2].lerp(n[3], f[0]), f[1]).normalize().to_array();

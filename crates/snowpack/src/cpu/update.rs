@@ -1,5 +1,6 @@
 //! CPU twin of `update.wgsl`.
 
+use crate::deform::packed_snow;
 use crate::deform::snow_word::{height as word_height, press_quanta};
 use crate::deform::update::UpdateParams;
 
@@ -25,18 +26,33 @@ pub struct UpdateInputs<'a> {
     pub terrain: &'a [f32],
 }
 
-/// Updates the toroidal `snow` words (`shared/snow_word.wgsl`), `fallen`
-/// (and refills `stamps`) in place.
-pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
-    update_flagged(p, input, snow, stamps, fallen, &mut []);
+/// What the update changes in place: the toroidal snow words
+/// (`shared/snow_word.wgsl`), footprints (refilled), snowfall so far, packed
+/// snow (two texels a word, [`crate::deform::packed_snow`]) and, with
+/// [`UpdateParams::SHARE`], the changed-tile flags
+/// ([`crate::replicate::flags::ShareGrid`]; empty: not flagged).
+#[derive(Debug)]
+pub struct UpdateState<'a> {
+    /// Snow words.
+    pub snow: &'a mut [u32],
+    /// Packed footprints.
+    pub stamps: &'a mut [u32],
+    /// Snowfall so far (m).
+    pub fallen: &'a mut [f32],
+    /// Packed snow, two texels a word.
+    pub packed: &'a mut [u32],
+    /// Changed-tile flags: set for every texel whose deficit the capture
+    /// raised above the refilled one (stored footprints press the same on
+    /// every machine; the stamp pass flags the footprints it changes).
+    pub flags: &'a mut [u32],
 }
 
-/// [`update`] that also sets, with [`UpdateParams::SHARE`] in `p.flags`,
-/// the changed-tile flag (`flags`, [`crate::replicate::flags::ShareGrid`])
-/// of every texel whose deficit the capture raised above the refilled one
-/// (stored footprints press the same on every machine; the stamp pass
-/// flags the footprints it changes).
-pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32], flags: &mut [u32]) {
+/// Runs the update over every texel of `state`; returns the snow quanta
+/// displaced beyond the final density (what `update.wgsl` adds to its
+/// `displaced` count).
+pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateState<'_>) -> u64 {
+    let UpdateState { snow, stamps, fallen, packed, flags } = state;
+    let mut displaced = 0u64;
     let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
     let share = p.flags & UpdateParams::SHARE != 0 && !flags.is_empty();
     let r = p.resolution;
@@ -86,9 +102,16 @@ pub fn update_flagged(p: &UpdateParams, input: &UpdateInputs<'_>, snow: &mut [u3
             let at_ground = press_quanta(rest, ground, ground);
             deficit = deficit.min(at_ground);
             snow[s] = (word & 0xffff_0000) | deficit;
+            if deficit > refilled {
+                let squeezed = packed_snow::get(packed, s) + (deficit - refilled);
+                let cap = packed_snow::cap(at_ground - deficit, p.pack_ratio);
+                packed_snow::set(packed, s, squeezed.min(cap));
+                displaced += u64::from(squeezed.saturating_sub(cap));
+            }
             if share && captured.min(at_ground) > refilled {
                 flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
             }
         }
     }
+    displaced
 }

@@ -27,13 +27,15 @@ pub fn ground_plane(terrain: &TerrainSource, origin: [i32; 2], res: u32, texel_m
 }
 
 /// Writes fresh snow (snow words with no deficit: at rest, the snowfall so
-/// far included) into the texels of `rects` and clears their footprints.
-pub fn expose(p: &WindowParams, rects: &[TexelRect], snow: &mut [u32], stamps: &mut [u32], fallen: &mut [f32]) {
+/// far included, no packed snow) into the texels of `rects` and clears
+/// their footprints.
+pub fn expose(p: &WindowParams, rects: &[TexelRect], snow: &mut [u32], stamps: &mut [u32], (fallen, packed): (&mut [f32], &mut [u32])) {
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
                 let s = storage_index(p.origin, p.resolution, i, j);
                 snow[s] = 0;
+                crate::deform::packed_snow::set(packed, s, 0);
                 if p.flags & WindowParams::WRITE_STAMPS != 0 {
                     stamps[s] = super::stamp::STAMP_EMPTY;
                 }

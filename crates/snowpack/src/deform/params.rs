@@ -1,5 +1,7 @@
 //! Parameters of the snow surface, shared by every deformation pass.
 
+use snowpack_share::mechanics::SnowMechanics;
+
 use crate::error::SnowError;
 use crate::snowfall::SnowfallExt;
 use crate::{RimStyle, Technique};
@@ -28,10 +30,18 @@ pub struct SnowParams {
     pub range_texels: u32,
     /// Rim formula of the points technique.
     pub rim: RimStyle,
-    /// Penetration hardness of the snow (kPa): the foot pressure at which a
-    /// character placed on the snow sinks half its depth (see
-    /// `crate::skin::sinking`). Fresh powder is a few kPa, settled snow tens.
+    /// Penetration hardness of fresh snow (kPa): the pressure that sinks a
+    /// 10 cm plate 10 cm into it. Packed snow is harder, as the fourth power
+    /// of its density ([`SnowParams::mechanics`]). Fresh powder is a few
+    /// kPa, settled snow tens.
     pub hardness_kpa: f32,
+    /// Density of fresh snow: the initial cover, refill and snowfall
+    /// (kg/m³; default 100). Presses pack it: the column's mass stays.
+    pub density_kg_m3: f32,
+    /// Density at which snow stops packing (kg/m³; default 500, CRREL's
+    /// final density under a wheel); what a press squeezes beyond it is
+    /// displaced.
+    pub max_density_kg_m3: f32,
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
@@ -85,6 +95,8 @@ impl Default for SnowParams {
             range_texels: 64,
             rim: RimStyle::Rounded,
             hardness_kpa: 10.0,
+            density_kg_m3: 100.0,
+            max_density_kg_m3: 500.0,
             snowfall: None,
             tile_memory_bytes: Some(DEFAULT_TILE_MEMORY_BYTES),
             teleport_m: 4.0,
@@ -100,6 +112,18 @@ impl SnowParams {
     #[must_use]
     pub fn texel_m(&self) -> f32 {
         self.extent_m / self.resolution as f32
+    }
+
+    /// The snow's mechanics: its densities and hardness on Wong's "Snow
+    /// (U.S.)" pressure–sinkage curve (`docs/mechanics.md`).
+    #[must_use]
+    pub fn mechanics(&self) -> SnowMechanics {
+        SnowMechanics {
+            fresh_density_kg_m3: self.density_kg_m3,
+            max_density_kg_m3: self.max_density_kg_m3,
+            hardness_kpa: self.hardness_kpa,
+            ..SnowMechanics::default()
+        }
     }
 }
 
@@ -146,6 +170,9 @@ impl SnowParamsExt for SnowParams {
         }
         if !(self.hardness_kpa.is_finite() && self.hardness_kpa > 0.0) {
             return bad("hardness_kpa", format!("{} must be a positive number of kPa", self.hardness_kpa));
+        }
+        if let Err((field, why)) = self.mechanics().validate() {
+            return bad(field, why);
         }
         if let Some(s) = &self.snowfall {
             s.validate()?;

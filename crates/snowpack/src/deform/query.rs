@@ -7,6 +7,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
+use snowpack_share::mechanics::{SnowColumn, SnowMechanics};
 
 use crate::frame::FrameContext;
 use crate::gpu::{ReadbackRing, layout};
@@ -60,6 +61,8 @@ pub struct RawSample {
     pub normal: [f32; 3],
     /// 1 inside the window, 0 outside.
     pub inside: f32,
+    /// Packed snow (m of fresh snow squeezed into the column).
+    pub packed_m: f32,
 }
 
 /// Which request an answer belongs to: returned by
@@ -81,9 +84,35 @@ pub struct PointSample {
     pub rest_m: f32,
     /// Unit normal of the displayed surface.
     pub normal: Vec3,
+    /// Fresh snow that presses squeezed into the column here (m of fresh
+    /// snow; 0 where untouched): with [`Self::depth_m`], its mass and
+    /// density ([`Self::density_kg_m3`]).
+    pub packed_m: f32,
 }
 
 impl PointSample {
+    /// The column of snow here: its depth and packed snow, for the
+    /// mechanics' sinkage and resistance
+    /// ([`snowpack_share::mechanics::SnowMechanics`], from
+    /// [`crate::SnowParams::mechanics`]).
+    #[must_use]
+    pub fn column(&self) -> SnowColumn {
+        SnowColumn { depth_m: self.depth_m(), packed_m: self.packed_m.max(0.0) }
+    }
+
+    /// Mean density of the snow here (kg/m³) for the snow's `mechanics`:
+    /// fresh snow's where untouched, up to the final density where packed.
+    #[must_use]
+    pub fn density_kg_m3(&self, mechanics: &SnowMechanics) -> f32 {
+        mechanics.density_kg_m3(self.column())
+    }
+
+    /// Penetration hardness of the snow here (kPa): harder where packed.
+    #[must_use]
+    pub fn hardness_kpa(&self, mechanics: &SnowMechanics) -> f32 {
+        mechanics.hardness_kpa(self.density_kg_m3(mechanics))
+    }
+
     /// Snow depth above the terrain (m).
     #[must_use]
     pub fn depth_m(&self) -> f32 {
@@ -115,6 +144,7 @@ impl RawSample {
             terrain_m: self.terrain_m,
             rest_m: self.rest_m,
             normal: Vec3::from(self.normal),
+            packed_m: self.packed_m,
         })
     }
 }
@@ -197,14 +227,15 @@ impl QueryPass {
         let shape = PassShape {
             label: "query",
             source: shaders::QUERY,
-            slots: &[Slot::Read, Slot::ReadWrite],
+            // points, samples, packed snow
+            slots: &[Slot::Read, Slot::ReadWrite, Slot::Read],
             specialise_on: Some("QUERY_USE_FALLEN"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Read),
         };
         let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         let (points, samples) = buffers(device, INITIAL_CAPACITY);
-        pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding()]);
+        pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding(), res.packed.as_entire_binding()]);
         let ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
         Self { pass, points, samples, ring, capacity: INITIAL_CAPACITY, stats: QueryStats::default() }
     }
@@ -227,7 +258,7 @@ impl QueryPass {
         if count > self.capacity {
             self.capacity = count.next_power_of_two();
             let (points, samples) = buffers(device, self.capacity);
-            self.pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding()]);
+            self.pass.bind(device, &[points.as_entire_binding(), samples.as_entire_binding(), res.packed.as_entire_binding()]);
             self.ring = ReadbackRing::new(device, "query answers", samples.size(), ANSWER_SLOTS);
             (self.points, self.samples) = (points, samples);
         }

@@ -5,9 +5,10 @@
 //! | `snow` | u32 per texel ([`super::snow_word`]) | toroidal | persistent snow as a 16-bit deficit below its rest height, and the displayed height above the terrain as an f16 |
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
+//! | `packed` | u16 per texel, two a u32 ([`super::packed_snow`]) | toroidal | fresh snow (snow quanta) that presses squeezed into the column: its mass and density |
 //! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
 //!
-//! Six bytes a texel with the depth technique: the persistent and the
+//! Eight bytes a texel with the depth technique: the persistent and the
 //! displayed snow share one word, the display pass fuses rims and blur in
 //! workgroup memory (no scratch), and normals are computed where they are
 //! used from the displayed heights. The terrain is evaluated from its
@@ -39,6 +40,13 @@ pub struct DeformResources {
     pub stamps: wgpu::Buffer,
     /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
     pub fallen: wgpu::Buffer,
+    /// Packed snow, 16 bits a texel, two a word, toroidal; persistent
+    /// ([`super::packed_snow`]). Zero (fresh snow) where the window pass or
+    /// a load writes a texel.
+    pub packed: wgpu::Buffer,
+    /// Snow quanta displaced beyond the final density (a u64 as two u32),
+    /// written by the update pass and read by the mass ledger.
+    pub displaced: wgpu::Buffer,
     /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
     /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
     /// passes evaluate the ground at texel centres (`texel_ground` in
@@ -123,12 +131,17 @@ impl DeformResources {
             device,
             &WindowBuffers { terrain_params: &terrain_params, heightmap: &heightmap, snow: &snow, stamps: &stamps, fallen: &fallen },
         );
+        // Zeroed by wgpu: fresh snow everywhere.
+        let packed = height_buffer(device, "packed snow", super::packed_snow::words(res));
+        let displaced = height_buffer(device, "displaced snow", 2);
         Self {
             resolution: res,
             texel_m: params.texel_m(),
             snow,
             stamps,
             fallen,
+            packed,
+            displaced,
             heightmap,
             terrain_params,
             terrain_kind: terrain_uniform.kind,
@@ -191,6 +204,7 @@ impl DeformResources {
             ("snow", self.snow.size()),
             ("stamps", self.stamps.size()),
             ("fallen", self.fallen.size()),
+            ("packed snow", self.packed.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", depth),
             ("changed-tile flags", self.share_flags.size()),
@@ -201,7 +215,7 @@ impl DeformResources {
     #[must_use]
     pub fn memory_total(&self) -> u64 {
         let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
-        self.snow.size() + self.stamps.size() + self.fallen.size() + self.heightmap.size() + depth + self.share_flags.size()
+        self.snow.size() + self.stamps.size() + self.fallen.size() + self.packed.size() + self.heightmap.size() + depth + self.share_flags.size()
     }
 }
 

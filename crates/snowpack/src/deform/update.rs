@@ -1,5 +1,6 @@
 //! Update pass: the persistent snow height with linear refill, lowered by the
-//! captured actors and the stamped footprints (`update.wgsl`).
+//! captured actors and the stamped footprints, and the packed snow their
+//! presses squeeze into the column below (`update.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 
@@ -50,6 +51,12 @@ pub struct UpdateParams {
     pub share_side: u32,
     /// Slots per side of the flags ([`crate::replicate::flags::ShareGrid`]).
     pub share_keys: u32,
+    /// `ρmax / ρ0 − 1` ([`snowpack_share::mechanics::SnowMechanics::pack_ratio`]):
+    /// packed snow a column holds per quantum of its height. 0 packs
+    /// nothing (every press displaces what it takes).
+    pub pack_ratio: f32,
+    /// Padding to the WGSL struct's 8-byte alignment.
+    pub _pad: u32,
 }
 
 impl UpdateParams {
@@ -90,7 +97,8 @@ impl UpdatePass {
         let shape = PassShape {
             label: "update",
             source: shaders::UPDATE,
-            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite],
+            // capture, sky, changed-tile flags, packed snow, displaced count
+            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite, Slot::ReadWrite],
             specialise_on: Some("UPDATE_FLAGS"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Write),
@@ -108,7 +116,13 @@ impl UpdatePass {
         let sky = sky.unwrap_or(&self.no_sky);
         self.pass.bind(
             device,
-            &[wgpu::BindingResource::TextureView(&res.capture_view), wgpu::BindingResource::TextureView(sky), res.share_flags.as_entire_binding()],
+            &[
+                wgpu::BindingResource::TextureView(&res.capture_view),
+                wgpu::BindingResource::TextureView(sky),
+                res.share_flags.as_entire_binding(),
+                res.packed.as_entire_binding(),
+                res.displaced.as_entire_binding(),
+            ],
         );
     }
 

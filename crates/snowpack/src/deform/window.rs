@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::frame::FrameContext;
 use crate::gpu::layout;
-use crate::pass::compute::{ComputePass, PassShape};
+use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 use super::resources::DeformResources;
@@ -143,13 +143,14 @@ impl WindowPass {
         let shape = PassShape {
             label: "window",
             source: shaders::WINDOW,
-            slots: &[],
+            // the packed snow
+            slots: &[Slot::ReadWrite],
             specialise_on: Some("PASS_FLAGS"),
             constants: &[],
             window: Some(WindowAccess::Write),
         };
         let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
-        pass.bind(device, &[]);
+        pass.bind(device, &[res.packed.as_entire_binding()]);
         Self { pass }
     }
 

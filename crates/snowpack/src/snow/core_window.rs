@@ -281,6 +281,7 @@ impl CoreWindow {
             sky: sky.map_or(SkyTest::NONE, |s| s.sky_test()),
             share_side: share.map_or(0, |g| g.side),
             share_keys: share.map_or(0, |g| g.keys),
+            pack_ratio: p.mechanics().pack_ratio(),
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);

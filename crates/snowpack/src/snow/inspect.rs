@@ -10,11 +10,13 @@
 )]
 
 use glam::DVec2;
+use snowpack_share::mechanics::SnowColumn;
 
 use crate::accumulate::SnowAccumulation;
 use crate::deform::decal::DecalRing;
 use crate::deform::query::QueryStats;
 use crate::deform::resources::DeformResources;
+use crate::deform::packed_snow;
 use crate::deform::snow_word;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, PassTimings, read_buffer};
@@ -28,6 +30,16 @@ use super::reads::untorus;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use crate::terrain::HeightmapTerrainExt;
+
+/// The mass of a window's snow ([`SnowInspect::read_mass`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WindowMass {
+    /// Snow in the window now (kg): `ρ0 (h + q)` over its texels.
+    pub total_kg: f64,
+    /// Snow that presses squeezed beyond the final density since the window
+    /// was created (kg): displaced, and not yet put down elsewhere.
+    pub displaced_kg: f64,
+}
 
 /// What the app, the tools and the tests read and drive of a
 /// [`SnowDeformation`] beyond the front door (see the module documentation).
@@ -148,6 +160,15 @@ pub trait SnowInspect {
 
     /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
     fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError>;
+
+    /// Packed snow per texel (m of fresh snow that presses squeezed into the
+    /// column, [`crate::deform::packed_snow`]), window-local row-major; blocking.
+    fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError>;
+
+    /// The window's snow mass (`docs/mechanics.md`): what it holds now and
+    /// what presses have displaced beyond the final density since it was
+    /// created; blocking.
+    fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError>;
 
     /// Terrain height (m) at the texel centres, window-local row-major; for
     /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
@@ -329,6 +350,28 @@ impl SnowInspect for SnowDeformation {
             vec![0.0; words.len()]
         };
         Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.core.params.depth_m + l, g)).collect())
+    }
+
+    fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
+        let r = self.core.params.resolution as usize;
+        let quanta = self.untorus(&packed_snow::unpack(&words, r * r));
+        Ok(quanta.iter().map(|&q| q as f32 * snow_word::SNOW_QUANTUM_M).collect())
+    }
+
+    fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError> {
+        let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.read_packed(ctx)?);
+        let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.displaced)?);
+        let mechanics = self.core.params.mechanics();
+        let area = f64::from(self.core.params.texel_m()).powi(2);
+        let total: f64 = height
+            .iter()
+            .zip(&terrain)
+            .zip(&packed)
+            .map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q })))
+            .sum();
+        let displaced_m = (u64::from(counted[0]) | (u64::from(counted[1]) << 32)) as f64 * f64::from(snow_word::SNOW_QUANTUM_M);
+        Ok(WindowMass { total_kg: total * area, displaced_kg: displaced_m * f64::from(mechanics.fresh_density_kg_m3) * area })
     }
 
     fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {

@@ -66,7 +66,8 @@ impl ExchangePass {
         let shape = PassShape {
             label: "exchange",
             source: shaders::EXCHANGE,
-            slots: &[Slot::ReadWrite, Slot::Read],
+            // tiles, key table, packed snow
+            slots: &[Slot::ReadWrite, Slot::Read, Slot::ReadWrite],
             specialise_on: Some("PASS_FLAGS"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Write),
@@ -74,7 +75,7 @@ impl ExchangePass {
         let mut stash = ComputePass::new(device, &shape, Some(&res.bindings));
         let mut load = stash.sibling(device);
         for pass in [&mut stash, &mut load] {
-            pass.bind(device, &[tiles.as_entire_binding(), table.as_entire_binding()]);
+            pass.bind(device, &[tiles.as_entire_binding(), table.as_entire_binding(), res.packed.as_entire_binding()]);
         }
         Self { stash, load }
     }

@@ -1,0 +1,337 @@
+//! Snow with mass: how dense a column of snow is after presses, how hard it
+//! is, how far a load sinks into it and what pressing it costs
+//! (`docs/mechanics.md` in the repository has the model and its sources).
+//!
+//! A texel's column is its height above the terrain `h` and its *packed
+//! snow* `q`: metres of fresh snow squeezed into the column by presses. The
+//! column holds `ρ0 (h + q)` kilograms a square metre, `ρ0` the density of
+//! fresh snow, so its density is `ρ0 (1 + q / h)`:
+//!
+//! - a press from `h` to `h − Δ` adds `Δ` to `q` (the mass stays);
+//! - refill and snowfall add fresh snow on top: `h` grows, `q` does not;
+//! - `q` never grows past `(ρmax / ρ0 − 1) h`, the column at the final
+//!   density `ρmax`; what a press squeezes beyond that is displaced (Richmond
+//!   1995, CRREL Report 95-7: snow under a wheel compacts to a final density
+//!   of 500 kg/m³ for contact pressures up to 210 kPa, so a rut is
+//!   `h (1 − ρ0 / ρf)` deep).
+//!
+//! Pure compaction only ever raises the deficit and `q` together, so copies
+//! of a tile merge by taking the larger of each, as the deficit alone did.
+//!
+//! Hardness follows density as a power law, `H(ρ) = H0 (ρ / ρ0)^4`: the
+//! strength of seasonal snow rises about as the fourth power of its density
+//! over 100–500 kg/m³ (Mellor 1975, *A review of basic snow mechanics*, IAHS
+//! Publ. 114). Sinkage is Bekker's pressure–sinkage law `p = k z^n` with
+//! `k = (kc / b + kφ)` of snow from Wong's *Theory of Ground Vehicles*
+//! (Table 2.3, "Snow (U.S.)": `n = 1.6`, `kc = 4.37 kN/m^(n+1)`,
+//! `kφ = 196.72 kN/m^(n+2)`), its modulus scaled by the column's hardness,
+//! and bounded by how far the column can compact before it reaches `ρmax`.
+//! A wheel's compaction resistance is Bekker's `R = b k z^(n+1) / (n + 1)`,
+//! the work of pressing its rut per metre rolled.
+
+/// Standard gravity (m/s²).
+pub const GRAVITY: f32 = 9.81;
+
+/// Bekker's pressure–sinkage parameters of a snow: `p = (kc / b + kφ) z^n`
+/// for a plate of width `b` (m), pressure in Pa.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bekker {
+    /// Sinkage exponent.
+    pub n: f32,
+    /// Cohesive modulus (N/m^(n+1)).
+    pub kc: f32,
+    /// Frictional modulus (N/m^(n+2)).
+    pub kphi: f32,
+}
+
+impl Bekker {
+    /// Wong, *Theory of Ground Vehicles*, Table 2.3, "Snow (U.S.)".
+    pub const SNOW_US: Self = Self { n: 1.6, kc: 4_370.0, kphi: 196_720.0 };
+    /// Wong, *Theory of Ground Vehicles*, Table 2.3, "Snow (Sweden)".
+    pub const SNOW_SWEDEN: Self = Self { n: 1.44, kc: 10_550.0, kphi: 66_080.0 };
+
+    /// The modulus `kc / b + kφ` for a plate `width_m` wide.
+    #[must_use]
+    pub fn modulus(&self, width_m: f32) -> f32 {
+        self.kc / width_m.max(1e-3) + self.kphi
+    }
+}
+
+/// Width (m) and sinkage (m) of the plate test that defines
+/// [`SnowMechanics::hardness_kpa`]: the pressure that sinks a 10 cm plate
+/// 10 cm.
+pub const HARDNESS_PLATE_M: f32 = 0.1;
+
+/// The exponent of the hardness–density power law (see the module docs).
+pub const HARDNESS_DENSITY_EXPONENT: i32 = 4;
+
+/// The snow's mechanics: its densities, its hardness when fresh, and the
+/// pressure–sinkage curve it follows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SnowMechanics {
+    /// Density of fresh snow: the initial cover, refill and snowfall (kg/m³).
+    pub fresh_density_kg_m3: f32,
+    /// Density at which snow stops compacting (kg/m³); a press beyond it
+    /// displaces snow instead.
+    pub max_density_kg_m3: f32,
+    /// Penetration hardness of fresh snow (kPa): the pressure that sinks a
+    /// 10 cm plate 10 cm into it ([`HARDNESS_PLATE_M`]).
+    pub hardness_kpa: f32,
+    /// The shape of the pressure–sinkage curve (its exponent and the ratio
+    /// of its moduli); its scale is set by the hardness.
+    pub bekker: Bekker,
+}
+
+impl Default for SnowMechanics {
+    /// Fresh snow of 100 kg/m³ that packs to 500 kg/m³, 10 kPa hard, on Wong's "Snow (U.S.)" curve.
+    fn default() -> Self {
+        Self { fresh_density_kg_m3: 100.0, max_density_kg_m3: 500.0, hardness_kpa: 10.0, bekker: Bekker::SNOW_US }
+    }
+}
+
+/// One texel's column of snow: how high it stands above the terrain and how
+/// much fresh snow presses have squeezed into it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SnowColumn {
+    /// Height of the snow above the terrain (m).
+    pub depth_m: f32,
+    /// Fresh snow squeezed into the column by presses (m of fresh snow).
+    pub packed_m: f32,
+}
+
+impl SnowColumn {
+    /// An untouched column of fresh snow `depth_m` deep.
+    #[must_use]
+    pub fn fresh(depth_m: f32) -> Self {
+        Self { depth_m: depth_m.max(0.0), packed_m: 0.0 }
+    }
+}
+
+impl SnowMechanics {
+    /// `ρmax / ρ0 − 1`: the most packed snow a column holds per metre of its height.
+    #[must_use]
+    pub fn pack_ratio(&self) -> f32 {
+        (self.max_density_kg_m3 / self.fresh_density_kg_m3.max(1e-3) - 1.0).max(0.0)
+    }
+
+    /// Mass of a column (kg/m²): `ρ0 (h + q)`.
+    #[must_use]
+    pub fn mass_kg_m2(&self, column: SnowColumn) -> f32 {
+        self.fresh_density_kg_m3 * (column.depth_m.max(0.0) + column.packed_m.max(0.0))
+    }
+
+    /// Mean density of a column (kg/m³): `ρ0 (1 + q / h)`, at most `ρmax`;
+    /// fresh snow's where there is no snow.
+    #[must_use]
+    pub fn density_kg_m3(&self, column: SnowColumn) -> f32 {
+        if column.depth_m <= 1e-6 {
+            return self.fresh_density_kg_m3;
+        }
+        (self.fresh_density_kg_m3 * (1.0 + column.packed_m.max(0.0) / column.depth_m)).min(self.max_density_kg_m3.max(self.fresh_density_kg_m3))
+    }
+
+    /// Penetration hardness (kPa) of snow of `density_kg_m3`: `H0 (ρ / ρ0)^4`.
+    #[must_use]
+    pub fn hardness_kpa(&self, density_kg_m3: f32) -> f32 {
+        let ratio = (density_kg_m3 / self.fresh_density_kg_m3.max(1e-3)).max(0.0);
+        self.hardness_kpa.max(0.0) * ratio.powi(HARDNESS_DENSITY_EXPONENT)
+    }
+
+    /// Bekker's modulus `k` (N/m^(n+2)) of snow of `density_kg_m3` for a
+    /// plate `width_m` wide: the curve's `kc / b + kφ`, scaled so that a
+    /// 10 cm plate meets the density's hardness at 10 cm.
+    #[must_use]
+    pub fn modulus(&self, density_kg_m3: f32, width_m: f32) -> f32 {
+        let b = &self.bekker;
+        let at_plate = b.modulus(HARDNESS_PLATE_M) * HARDNESS_PLATE_M.powf(b.n);
+        b.modulus(width_m) * self.hardness_kpa(density_kg_m3) * 1000.0 / at_plate
+    }
+
+    /// How far the column can still be pressed (m) before it reaches `ρmax`:
+    /// `h − ρ0 (h + q) / ρmax`.
+    #[must_use]
+    pub fn compactable_m(&self, column: SnowColumn) -> f32 {
+        let packed_height = self.mass_kg_m2(column) / self.max_density_kg_m3.max(1e-3);
+        (column.depth_m - packed_height).max(0.0)
+    }
+
+    /// Sinkage (m) of a plate `width_m` wide pressing `pressure_pa` into
+    /// `column`: Bekker's `z = (p / k(ρ))^(1/n)`, at most what the column
+    /// can compact.
+    #[must_use]
+    pub fn plate_sinkage_m(&self, pressure_pa: f32, width_m: f32, column: SnowColumn) -> f32 {
+        let k = self.modulus(self.density_kg_m3(column), width_m);
+        if pressure_pa <= 0.0 || k <= 0.0 || column.depth_m <= 0.0 {
+            return 0.0;
+        }
+        (pressure_pa / k).powf(1.0 / self.bekker.n).min(self.compactable_m(column))
+    }
+
+    /// The column after a press `sinkage_m` deep: lower by as much, holding
+    /// the snow it lost as packed snow, up to `ρmax`. Also returns the snow
+    /// (m of fresh snow) the press displaced beyond that.
+    #[must_use]
+    pub fn pressed(&self, column: SnowColumn, sinkage_m: f32) -> (SnowColumn, f32) {
+        let z = sinkage_m.clamp(0.0, column.depth_m.max(0.0));
+        let depth_m = column.depth_m - z;
+        let packed = column.packed_m + z;
+        let cap = self.pack_ratio() * depth_m;
+        (SnowColumn { depth_m, packed_m: packed.min(cap) }, (packed - cap).max(0.0))
+    }
+
+    /// Sinkage (m) of a rigid wheel into `column`: its load over the contact
+    /// patch (chord `2 √(2 r z − z²)` times its width) is the pressure, and
+    /// the sinkage is where Bekker's curve holds it (bisection); at most what
+    /// the column can compact.
+    #[must_use]
+    pub fn wheel_sinkage_m(&self, wheel: &WheelContact, column: SnowColumn) -> f32 {
+        let most = self.compactable_m(column);
+        if most <= 0.0 || wheel.load_kg <= 0.0 {
+            return 0.0;
+        }
+        // f(z) = z − sinkage(p(z)) rises from below 0 at z = 0 to above 0 at z = most.
+        let (mut lo, mut hi) = (0.0_f32, most);
+        for _ in 0..48 {
+            let mid = 0.5 * (lo + hi);
+            if mid < self.plate_sinkage_m(wheel.pressure_pa(mid), wheel.width_m, column) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    /// Bekker's compaction resistance (N) of a wheel rolling through
+    /// `column`: `b k z^(n+1) / (n + 1)` at its sinkage `z`, the work of
+    /// pressing its rut per metre rolled. Less in a packed trail: the
+    /// denser column sinks less under the same load.
+    #[must_use]
+    pub fn wheel_resistance_n(&self, wheel: &WheelContact, column: SnowColumn) -> f32 {
+        let z = self.wheel_sinkage_m(wheel, column);
+        let n = self.bekker.n;
+        wheel.width_m * self.modulus(self.density_kg_m3(column), wheel.width_m) * z.powf(n + 1.0) / (n + 1.0)
+    }
+
+    /// Checks every value; the error names the offending field and says why.
+    ///
+    /// # Errors
+    /// The first field that is not finite and positive, or a maximum
+    /// density below the fresh one.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        for (field, v) in
+            [("density_kg_m3", self.fresh_density_kg_m3), ("max_density_kg_m3", self.max_density_kg_m3), ("hardness_kpa", self.hardness_kpa)]
+        {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((field, format!("{v} must be a positive number")));
+            }
+        }
+        if self.max_density_kg_m3 < self.fresh_density_kg_m3 {
+            return Err(("max_density_kg_m3", format!("{} is below the fresh density {}", self.max_density_kg_m3, self.fresh_density_kg_m3)));
+        }
+        if self.max_density_kg_m3 > ICE_DENSITY_KG_M3 {
+            return Err(("max_density_kg_m3", format!("{} is denser than ice ({ICE_DENSITY_KG_M3})", self.max_density_kg_m3)));
+        }
+        Ok(())
+    }
+}
+
+/// Density of ice (kg/m³): no snow packs denser.
+pub const ICE_DENSITY_KG_M3: f32 = 917.0;
+
+/// A rigid wheel meeting the snow: the load it carries and its size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WheelContact {
+    /// Mass resting on this wheel (kg).
+    pub load_kg: f32,
+    /// Outer radius (m).
+    pub radius_m: f32,
+    /// Width of the tyre (m).
+    pub width_m: f32,
+}
+
+impl WheelContact {
+    /// Length of the contact patch (m) at sinkage `z_m`: the chord `2 √(2 r z − z²)`.
+    #[must_use]
+    pub fn patch_length_m(&self, z_m: f32) -> f32 {
+        let (r, z) = (self.radius_m.max(1e-6), z_m.max(0.0));
+        if z >= r { 2.0 * r } else { 2.0 * (2.0 * r * z - z * z).sqrt() }
+    }
+
+    /// Pressure under the wheel (Pa) at sinkage `z_m`.
+    #[must_use]
+    pub fn pressure_pa(&self, z_m: f32) -> f32 {
+        self.load_kg.max(0.0) * GRAVITY / (self.patch_length_m(z_m) * self.width_m.max(1e-6)).max(1e-9)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FOX_PRESSURE_PA: f32 = 6.0 * GRAVITY / (2.5 * 0.0035);
+    const FOX_SOLE_M: f32 = 0.067;
+
+    #[test]
+    fn a_press_keeps_the_mass_until_the_final_density_then_displaces() {
+        let m = SnowMechanics::default();
+        let fresh = SnowColumn::fresh(0.5);
+        let (after, displaced) = m.pressed(fresh, 0.3);
+        assert!((m.mass_kg_m2(after) - m.mass_kg_m2(fresh)).abs() < 1e-3 && displaced == 0.0);
+        assert!((m.density_kg_m3(after) - 250.0).abs() < 0.1, "{after:?}");
+        // 0.5 m at 100 kg/m³ packs into 0.1 m at 500: deeper than 0.4 displaces.
+        assert!((m.compactable_m(fresh) - 0.4).abs() < 1e-6);
+        let (deep, displaced) = m.pressed(fresh, 0.45);
+        assert!((m.density_kg_m3(deep) - 500.0).abs() < 0.1 && (displaced - 0.25).abs() < 1e-5, "{deep:?} {displaced}");
+        assert!((m.mass_kg_m2(deep) + displaced * 100.0 - 50.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn hardness_grows_with_density_and_the_plate_test_holds() {
+        let m = SnowMechanics::default();
+        assert!((m.hardness_kpa(100.0) - 10.0).abs() < 1e-4);
+        assert!((m.hardness_kpa(200.0) - 160.0).abs() < 1e-2);
+        // The defining plate test: a 10 cm plate at the hardness sinks 10 cm into deep fresh snow.
+        let deep = SnowColumn::fresh(10.0);
+        assert!((m.plate_sinkage_m(10_000.0, 0.1, deep) - 0.1).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_second_walk_in_a_packed_trail_sinks_less() {
+        let m = SnowMechanics::default();
+        let fresh = SnowColumn::fresh(0.5);
+        let first = m.plate_sinkage_m(FOX_PRESSURE_PA, FOX_SOLE_M, fresh);
+        let (trail, _) = m.pressed(fresh, first);
+        let second = m.plate_sinkage_m(FOX_PRESSURE_PA, FOX_SOLE_M, trail);
+        assert!(first > 0.03 && first < 0.4 && second < 0.8 * first, "{first} then {second}");
+        // Softer snow, or more pressure, sinks deeper; never past the final density.
+        assert!(SnowMechanics { hardness_kpa: 2.0, ..m }.plate_sinkage_m(FOX_PRESSURE_PA, FOX_SOLE_M, fresh) > first);
+        assert!(m.plate_sinkage_m(1e9, FOX_SOLE_M, fresh) <= m.compactable_m(fresh) + 1e-6);
+    }
+
+    #[test]
+    fn a_wheel_in_its_own_rut_sinks_and_costs_less() {
+        let m = SnowMechanics::default();
+        let car = WheelContact { load_kg: 375.0, radius_m: 0.32, width_m: 0.2 };
+        let fresh = SnowColumn::fresh(0.4);
+        let z = m.wheel_sinkage_m(&car, fresh);
+        // The root: the snow holds the wheel's pressure at that sinkage.
+        assert!(z > 0.01 && z < 0.4 && (m.plate_sinkage_m(car.pressure_pa(z), 0.2, fresh) - z).abs() < 1e-4, "{z}");
+        let r = m.wheel_resistance_n(&car, fresh);
+        let (rut, _) = m.pressed(fresh, z);
+        let (z2, r2) = (m.wheel_sinkage_m(&car, rut), m.wheel_resistance_n(&car, rut));
+        assert!(z2 < 0.5 * z && r2 < 0.5 * r && r > 1.0, "{z} {r} then {z2} {r2}");
+        let truck = WheelContact { load_kg: 1500.0, ..car };
+        assert!(m.wheel_sinkage_m(&truck, fresh) > z && m.wheel_resistance_n(&truck, fresh) > r);
+    }
+
+    #[test]
+    fn bad_values_name_their_field() {
+        let m = SnowMechanics::default();
+        assert_eq!(SnowMechanics { fresh_density_kg_m3: 0.0, ..m }.validate().unwrap_err().0, "density_kg_m3");
+        assert_eq!(SnowMechanics { max_density_kg_m3: 50.0, ..m }.validate().unwrap_err().0, "max_density_kg_m3");
+        assert_eq!(SnowMechanics { max_density_kg_m3: 1000.0, ..m }.validate().unwrap_err().0, "max_density_kg_m3");
+        assert_eq!(SnowMechanics { hardness_kpa: f32::NAN, ..m }.validate().unwrap_err().0, "hardness_kpa");
+        assert!(m.validate().is_ok());
+    }
+}

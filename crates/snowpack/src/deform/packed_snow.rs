@@ -1,0 +1,66 @@
+//! The window's packed snow (`shared/packed_snow.wgsl`): per texel, the
+//! fresh snow that presses squeezed into its column, in snow quanta
+//! ([`super::snow_word::SNOW_QUANTUM_M`]), 16 bits a texel and two texels a
+//! `u32` (storage index `s` in word `s / 2`, the odd texel in the high half).
+//!
+//! With the snow word's deficit it is the column of
+//! [`snowpack_share::mechanics`]: height `h` above the terrain and packed
+//! snow `q`, mass `ρ0 (h + q)`, density `ρ0 (1 + q / h)`. A press that
+//! raises the deficit by `d` quanta adds `d` to `q` (the update pass), up to
+//! [`cap`]; what is squeezed beyond the final density is displaced. Refill
+//! and snowfall leave it as it is. 16 bits hold 6.55 m of packed snow: the
+//! most a 1.6 m column holds at five times the fresh density.
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
+)]
+
+/// Words of packed snow for a window of `resolution` texels a side.
+#[must_use]
+pub fn words(resolution: u32) -> u64 {
+    (u64::from(resolution) * u64::from(resolution)).div_ceil(2)
+}
+
+/// Texel `s`'s packed snow (quanta).
+#[must_use]
+pub fn get(packed: &[u32], s: usize) -> u32 {
+    (packed[s / 2] >> ((s % 2) * 16)) & 0xffff
+}
+
+/// Sets texel `s`'s packed snow to `q` quanta (at most 16 bits).
+pub fn set(packed: &mut [u32], s: usize, q: u32) {
+    let shift = (s % 2) * 16;
+    packed[s / 2] = (packed[s / 2] & !(0xffff << shift)) | ((q.min(0xffff)) << shift);
+}
+
+/// Most packed snow (quanta) a column `column` quanta high holds at the
+/// final density: `floor(column × ratio)`, at most 16 bits
+/// (`packed_cap`; `ratio` is `ρmax / ρ0 − 1`).
+#[must_use]
+pub fn cap(column: u32, ratio: f32) -> u32 {
+    (column as f32 * ratio).floor().min(65_535.0) as u32
+}
+
+/// The packed snow of `words` as one value a texel, in storage order.
+#[must_use]
+pub fn unpack(words: &[u32], texels: usize) -> Vec<u32> {
+    (0..texels).map(|s| get(words, s)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn halves_are_independent_and_capped() {
+        let mut p = vec![0u32; 2];
+        set(&mut p, 1, 7);
+        set(&mut p, 0, 0x1_2345);
+        set(&mut p, 3, 9);
+        assert_eq!((get(&p, 0), get(&p, 1), get(&p, 2), get(&p, 3)), (0xffff, 7, 0, 9));
+        assert_eq!(unpack(&p, 4), vec![0xffff, 7, 0, 9]);
+        assert_eq!(cap(1000, 4.0), 4000);
+        assert_eq!(cap(60_000, 4.0), 65_535);
+        assert_eq!(words(16), 128);
+    }
+}
