@@ -694,13 +694,15 @@ fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
     }
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
     let mut by_hardness = Vec::new();
-    for hardness in [3.0f32, 30.0] {
+    for hardness in [5.0f32, 30.0] {
         let (run, events) = fox_on_snow(&format!("fox-sink-{hardness}"), hardness, &[]);
         let prints = prints_at_footsteps(&run, &events, 0.2);
         assert!(prints.len() >= 16, "{hardness} kPa: {} footsteps", prints.len());
         // 6 kg on 35 cm² paws: 4.2 kPa with four paws down, 16.8 with one.
         let load = snowpack::low_level::skin::sinking::FootLoad::default();
-        let (least, most) = (load.sinkage_m(4.0, 0.2, hardness), load.sinkage_m(1.0, 0.2, hardness));
+        let snow = snowpack::SnowParams { hardness_kpa: hardness, ..snowpack::SnowParams::default() }.mechanics();
+        let fresh = snowpack::mechanics::SnowColumn::fresh(0.2);
+        let (least, most) = (load.sinkage_m(4.0, &snow, fresh), load.sinkage_m(1.0, &snow, fresh));
         for (print, sink, _) in &prints {
             assert!(
                 (least - 0.02..most + 0.025).contains(print),
@@ -721,6 +723,73 @@ fn a_fox_on_the_snow_sinks_as_deep_as_its_load_model_says() {
     assert!(by_hardness[0] > by_hardness[1] + 0.05, "soft snow prints {:.3} m, hard {:.3} m", by_hardness[0], by_hardness[1]);
 }
 
+/// Snow with mass (`docs/mechanics.md`): a second fox walking the first
+/// one's path 3 s behind it steps into packed prints, which hold the load
+/// that made them, and deepens the first fox's trail far less than the
+/// first fox's own steps did. Prints the table of both (mean print depth
+/// at the first fox's footsteps, alone and with the second behind it).
+#[test]
+fn a_second_fox_in_the_first_ones_trail_sinks_less() {
+    if !gpu_available() {
+        return;
+    }
+    let fox = |path: &str| {
+        format!(
+            "[[actor]]\nkind = \"gltf\"\nfile = \"builtin:fox\"\nanimation = \"Survey\"\ngaits = [\"Walk\", \"Run\"]\nscale = 0.01\nplacement = \"snow\"\npath = {path}\n"
+        )
+    };
+    let first = fox("[[-4.0, 0.0, 0.0, 0.0], [3.0, 0.0, 0.0, 7.5]]");
+    let second = fox("[[-4.0, 0.0, 0.0, 3.0], [3.0, 0.0, 0.0, 10.5]]");
+    let scene = |actors: &str| format!("[snow]\nextent_m = 12.0\nresolution = 384\ndepth_m = 0.5\n[window]\ncenter = [0.0, 0.0]\n\n{actors}[sim]\nframes = 640\n");
+    let alone = run_scene("first-fox", &scene(&first), &["--size", "64x36"]);
+    let both = run_scene("second-fox", &scene(&format!("{first}{second}")), &["--size", "64x36"]);
+    let events: serde_json::Value = serde_json::from_slice(&std::fs::read(alone.out.join("footsteps.json")).expect("footsteps.json")).expect("JSON");
+    // The first fox's footsteps on the way (not standing at the ends).
+    let steps: Vec<(f64, f64)> = events
+        .as_array()
+        .expect("a list")
+        .iter()
+        .filter(|e| e["speed_m_per_s"].as_f64().is_some_and(|v| v > 0.5) && e["position"][0].as_f64().is_some_and(|x| (-3.0..2.5).contains(&x)))
+        .map(|e| (e["position"][0].as_f64().expect("x"), e["position"][2].as_f64().expect("z")))
+        .collect();
+    let print_depth = |run: &Run, (x, z): (f64, f64)| -> f64 {
+        let snow = run.grid("snow.npy");
+        let lowest = snow
+            .data
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| {
+                let (px, pz) = run.world(k / snow.res, k % snow.res);
+                (px - x).hypot(pz - z) < 0.03
+            })
+            .map(|(_, h)| f64::from(*h))
+            .fold(f64::MAX, f64::min);
+        0.5 - lowest
+    };
+    let (first_walk, second_walk): (Vec<f64>, Vec<f64>) = steps
+        .iter()
+        .map(|&p| {
+            let (a, b) = (print_depth(&alone, p), print_depth(&both, p));
+            (a, b - a)
+        })
+        .unzip();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    eprintln!("| at the first fox's {} footsteps | mean depth |", steps.len());
+    eprintln!("|---|---|");
+    eprintln!("| the first fox's print (fresh snow, {} kg/m³) | {:.1} cm |", 100, 100.0 * mean(&first_walk));
+    eprintln!("| what the second fox, 3 s behind, added | {:.1} cm |", 100.0 * mean(&second_walk));
+    assert!(steps.len() >= 10, "{} footsteps", steps.len());
+    assert!(mean(&first_walk) > 0.03, "the first fox's prints are {:.3} m deep", mean(&first_walk));
+    assert!(
+        mean(&second_walk) < 0.5 * mean(&first_walk),
+        "the second fox deepened the prints by {:.3} m, the first made them {:.3} m deep",
+        mean(&second_walk),
+        mean(&first_walk)
+    );
+    // Packed, not removed: no paw went through to the ground.
+    assert!(both.grid("snow.npy").data.iter().all(|h| *h > 0.05), "a paw went through the packed snow to the ground");
+}
+
 #[test]
 fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     if !gpu_available() {
@@ -734,7 +803,8 @@ fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     }
     // Only paws press: nothing away from the path, no snow pressed more than the deepest sinkage.
     let snow = run.grid("snow.npy");
-    let most = snowpack::low_level::skin::sinking::FootLoad::default().sinkage_m(1.0, 0.2, 5.0);
+    let snow_5_kpa = snowpack::SnowParams { hardness_kpa: 5.0, ..snowpack::SnowParams::default() }.mechanics();
+    let most = snowpack::low_level::skin::sinking::FootLoad::default().sinkage_m(1.0, &snow_5_kpa, snowpack::mechanics::SnowColumn::fresh(0.2));
     for (k, h) in snow.data.iter().enumerate() {
         let (x, z) = run.world(k / snow.res, k % snow.res);
         if 0.2 - h > 0.005 {
@@ -1323,7 +1393,8 @@ fn a_fast_vehicle_leaves_continuous_ruts_as_deep_as_its_load_says() {
     let mut floors = Vec::new();
     for mass in [800.0_f32, 3200.0] {
         let run = run_with(&format!("vehicle-fast-{mass}"), mass, "");
-        let sink = WheelLoad { mass_kg: mass / 4.0, radius_m: 0.33, width_m: 0.22 }.sinkage_m(0.3, 40.0);
+        let snow = snowpack::SnowParams { hardness_kpa: 40.0, ..snowpack::SnowParams::default() }.mechanics();
+        let sink = WheelLoad { mass_kg: mass / 4.0, radius_m: 0.33, width_m: 0.22 }.sinkage_m(&snow, snowpack::mechanics::SnowColumn::fresh(0.3));
         for z in [-0.8, 0.8] {
             let rut = rut_profile(&run, z, -3.5, 3.5);
             assert!(rut.len() > 400, "{} samples", rut.len());

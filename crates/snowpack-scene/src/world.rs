@@ -52,8 +52,6 @@ struct Actor {
     /// sinkage this frame (m).
     supports: Vec<f32>,
     sink_m: f32,
-    /// Characters: which feet were planted last frame (a planted foot keeps its support).
-    planted_before: Vec<bool>,
     /// Characters: index into the gaits of the gait playing.
     gait: Option<usize>,
     /// Characters: feet down on average over each clip (the load's share).
@@ -204,7 +202,6 @@ impl World {
             root_y: None,
             supports: Vec::new(),
             sink_m: 0.0,
-            planted_before: Vec::new(),
             gait: None,
             feet_down: match &spec.shape {
                 ShapeSpec::Gltf(g) => g.model.clips.iter().map(|c| mean_feet_down(&g.model.skeleton, c, &g.feet)).collect(),
@@ -322,23 +319,21 @@ impl World {
     }
 
     /// Puts characters placed on the ground or the snow at the height their
-    /// feet stand on. On the snow, a foot touching down sinks into the
-    /// column under it as far as the load model says
-    /// (`snowpack::low_level::skin::sinking`): Bekker's curve with the
-    /// column's density, from `surface(x, z)` (the snow there, when known),
-    /// so a foot in a packed trail sinks less than in fresh snow. A planted
-    /// foot keeps the support it touched down on, so standing still does not
-    /// sink deeper frame by frame; a character without foot tracking stands
-    /// on the fresh snow's sinkage, or on an older, deeper trail. Never below
-    /// the ground. The root follows the feet that are down: up at once, down
-    /// with a short time constant.
+    /// feet stand on. On the snow, each foot sinks into the column under it
+    /// (`surface(x, z)`, the snow there when known; else fresh snow) as far
+    /// as the load model says (`snowpack::low_level::skin::sinking`): on
+    /// fresh snow Bekker's sinkage, in a packed print only what the load
+    /// presses beyond the load that packed it, so a second walk in a trail
+    /// sinks less, a foot standing in its own print no further (and the
+    /// depth does not depend on the frame rate). Never below the ground.
+    /// The root follows the feet that are down: up at once, down with a
+    /// short time constant.
     fn place_characters(&mut self, dt: f32, surface: &dyn Fn(f32, f32) -> Option<PointSample>) {
         for (actor, soles) in self.soles() {
             let a = &self.actors[actor];
             let ShapeSpec::Gltf(g) = &a.shape else { continue };
             let (placement, load) = (g.placement, g.load);
             let root = a.root_y;
-            let tracked = a.feet.is_some();
             let planted: Vec<bool> = a.feet.as_ref().map_or_else(|| vec![true; soles.len()], |t| t.planted().to_vec());
             let clip = a.anim.as_ref().map_or(g.clip, |p| p.clip);
             // A character with gaits standing still has every foot down.
@@ -350,18 +345,16 @@ impl World {
             };
             let supports: Vec<f32> = soles
                 .iter()
-                .enumerate()
-                .map(|(k, p)| {
+                .map(|p| {
                     let ground = self.terrain.height_at(p.x, p.z);
                     match placement {
                         Placement::Snow => {
                             let pressed = ground + self.snow_depth_m - sink;
-                            let held = tracked && planted[k] && a.planted_before.get(k).copied().unwrap_or(false);
-                            match (surface(p.x, p.z), a.supports.get(k)) {
-                                (_, Some(&support)) if held => support,
-                                (Some(s), _) if tracked => s.height_m - load.sinkage_m(down, &self.mechanics, s.column()),
-                                (Some(s), _) => s.height_m.min(pressed),
-                                (None, _) => pressed,
+                            match surface(p.x, p.z) {
+                                Some(s) => {
+                                    s.height_m - load.sinkage_m(down, &self.mechanics, s.column())
+                                }
+                                None => pressed,
                             }
                             .max(ground)
                         }
@@ -371,7 +364,6 @@ impl World {
                     }
                 })
                 .collect();
-            self.actors[actor].planted_before = planted.clone();
             self.actors[actor].sink_m = sink;
             if placement == Placement::Path {
                 self.actors[actor].supports.clear();

@@ -107,10 +107,11 @@ impl PointSample {
         mechanics.density_kg_m3(self.column())
     }
 
-    /// Penetration hardness of the snow here (kPa): harder where packed.
+    /// Penetration hardness of the snow here (kPa): the pressure that
+    /// sinks a 10 cm plate 10 cm further; harder where packed.
     #[must_use]
     pub fn hardness_kpa(&self, mechanics: &SnowMechanics) -> f32 {
-        mechanics.hardness_kpa(self.density_kg_m3(mechanics))
+        mechanics.hardness_kpa(self.column())
     }
 
     /// Snow depth above the terrain (m).
