@@ -740,7 +740,8 @@ fn a_second_fox_in_the_first_ones_trail_sinks_less() {
     };
     let first = fox("[[-4.0, 0.0, 0.0, 0.0], [3.0, 0.0, 0.0, 7.5]]");
     let second = fox("[[-4.0, 0.0, 0.0, 3.0], [3.0, 0.0, 0.0, 10.5]]");
-    let scene = |actors: &str| format!("[snow]\nextent_m = 12.0\nresolution = 384\ndepth_m = 0.5\n[window]\ncenter = [0.0, 0.0]\n\n{actors}[sim]\nframes = 640\n");
+    let scene =
+        |actors: &str| format!("[snow]\nextent_m = 12.0\nresolution = 384\ndepth_m = 0.5\n[window]\ncenter = [0.0, 0.0]\n\n{actors}[sim]\nframes = 640\n");
     let alone = run_scene("first-fox", &scene(&first), &["--size", "64x36"]);
     let both = run_scene("second-fox", &scene(&format!("{first}{second}")), &["--size", "64x36"]);
     let events: serde_json::Value = serde_json::from_slice(&std::fs::read(alone.out.join("footsteps.json")).expect("footsteps.json")).expect("JSON");

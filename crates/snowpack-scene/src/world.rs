@@ -351,9 +351,7 @@ impl World {
                         Placement::Snow => {
                             let pressed = ground + self.snow_depth_m - sink;
                             match surface(p.x, p.z) {
-                                Some(s) => {
-                                    s.height_m - load.sinkage_m(down, &self.mechanics, s.column())
-                                }
+                                Some(s) => s.height_m - load.sinkage_m(down, &self.mechanics, s.column()),
                                 None => pressed,
                             }
                             .max(ground)

@@ -235,9 +235,7 @@ impl SnowMechanics {
     /// The first field that is not finite and positive, or a maximum
     /// density below the fresh one.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        for (field, v) in
-            [("density_kg_m3", self.fresh_density_kg_m3), ("max_density_kg_m3", self.max_density_kg_m3), ("hardness_kpa", self.hardness_kpa)]
-        {
+        for (field, v) in [("density_kg_m3", self.fresh_density_kg_m3), ("max_density_kg_m3", self.max_density_kg_m3), ("hardness_kpa", self.hardness_kpa)] {
             if !(v.is_finite() && v > 0.0) {
                 return Err((field, format!("{v} must be a positive number")));
             }

@@ -456,7 +456,11 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
     let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::low_level::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
     let mut packed = vec![0u32; texels.div_ceil(2)];
-    cpu::update::update(&up, &input, &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut fallen, packed: &mut packed, flags: &mut [] });
+    cpu::update::update(
+        &up,
+        &input,
+        &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut fallen, packed: &mut packed, flags: &mut [] },
+    );
     assert_eq!(read::<u32>(ctx, &res.snow), snow, "snow words; seed {seed}");
     close(&read::<f32>(ctx, &res.fallen), &fallen, 1e-5, "fallen", seed);
     let hidden = (0..r)

@@ -261,7 +261,11 @@ fn stamp_and_update_flags_match_cpu() {
     let input = cpu::update::UpdateInputs { capture_depth: &[], sky_depth: &[], terrain: &terrain };
     let (mut snow, mut stamps, mut flags) = (w.snow.clone(), stamps_gpu, vec![0; slots]);
     let mut packed = vec![0u32; snow.len().div_ceil(2)];
-    cpu::update::update(&up, &input, &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut flags });
+    cpu::update::update(
+        &up,
+        &input,
+        &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut flags },
+    );
     assert!(flags.iter().all(|&f| f == 0), "the CPU update flagged footprints; seed {seed}");
     assert_eq!(read_u32(ctx, &w.res.share_flags), flags, "update flags; seed {seed}");
     let gpu_snow = read_u32(ctx, &w.res.snow);

@@ -11,6 +11,7 @@
 //! lower (on the terrain, say) presses only to that height; one above the
 //! snow presses nothing.
 
+use snowpack::mechanics::{SnowColumn, SnowMechanics, WheelContact};
 use bevy::prelude::*;
 
 use crate::{SnowDeformer, SnowSystems, SnowpackSettings};
@@ -81,11 +82,18 @@ impl SnowWheel {
         self.roll_m
     }
 
-    /// How far this wheel sinks (m) into `depth_m` of fresh snow of
-    /// `hardness_kpa` (see [`crate::SnowResistance`]).
+    /// The wheel as the snow's mechanics see it.
     #[must_use]
-    pub fn sinkage_m(&self, depth_m: f32, hardness_kpa: f32) -> f32 {
-        crate::sinkage::wheel_sinkage_m(self.load_kg, self.radius_m, self.width_m, depth_m, hardness_kpa)
+    pub fn contact(&self) -> WheelContact {
+        WheelContact { load_kg: self.load_kg, radius_m: self.radius_m, width_m: self.width_m }
+    }
+
+    /// How far this wheel sinks (m) into `column` of snow of `mechanics`
+    /// (`SnowpackSettings::params.mechanics()`; see [`crate::SnowResistance`]):
+    /// Bekker's curve under its contact patch, less what the column is packed.
+    #[must_use]
+    pub fn sinkage_m(&self, mechanics: &SnowMechanics, column: SnowColumn) -> f32 {
+        mechanics.wheel_sinkage_m(&self.contact(), column)
     }
 }
 
@@ -125,7 +133,7 @@ fn drive_wheels(
         }
         wheel.last = Some(translation);
         let lowest_m = match wheel.snow_under {
-            Some((terrain_m, rest_m)) => (rest_m - wheel.sinkage_m(rest_m - terrain_m, settings.params.hardness_kpa)).max(terrain_m),
+            Some((terrain_m, rest_m)) => (rest_m - wheel.sinkage_m(&settings.params.mechanics(), SnowColumn::fresh(rest_m - terrain_m))).max(terrain_m),
             None => f32::INFINITY,
         };
         let pressing = SnowDeformer::Wheel { radius: wheel.radius_m, half_width: 0.5 * wheel.width_m, roll_m: wheel.roll_m, lowest_m };

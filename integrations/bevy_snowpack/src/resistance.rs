@@ -3,13 +3,12 @@
 //! footsteps): a speed factor for walkers, a rolling resistance for wheels.
 //!
 //! The snow is asked where the entity's next steps land (see
-//! [`FeelsSnow`]). Both figures start from the library's pressure–sinkage curve (`docs/characters.md`,
-//! `skin/sinking.rs` in snowpack): a load pressing `p` into untouched snow
-//! of depth `D` and penetration hardness `H` sinks `z = D p / (p + H)`, so the
-//! snow holds `p(z) = H z / (D − z)` at sinkage `z`. Snow already pressed by
-//! `s` (a trail: its depth below the untouched height) gives way only for
-//! the rest, `max(0, z − s)`: in a trail a walker or a wheel sinks only as
-//! far as the load pressing the trail did not.
+//! [`FeelsSnow`]). Both figures start from the library's snow with mass
+//! (`snowpack::mechanics`, `docs/mechanics.md`): a load sinks into the
+//! column under it by Bekker's pressure–sinkage curve of the snow, less
+//! what the column is already packed (a packed column holds the load that
+//! packed it), so in a trail a walker or a wheel sinks only as far as the
+//! load that pressed the trail did not.
 //!
 //! - Walkers: the terrain coefficient of snow of Richmond, Potter and
 //!   Santee (2015, for the Pandolf equation), `η = 0.0005 z³ + 0.0001 z² +
@@ -18,9 +17,8 @@
 //!   ground grows as `η V²`, so at the same effort the speed scales as
 //!   `1 / √η` (our derivation): the speed factor.
 //! - Wheels: Bekker's compaction resistance, the work of pressing the rut
-//!   per metre rolled, `R = b ∫ p dz` over the new sinkage, with the
-//!   library's curve for `p` instead of Bekker's `k zⁿ` (our derivation):
-//!   `R = b H [(s − z) + D ln((D − s) / (D − z))]` for `z > s`, else 0.
+//!   per metre rolled, `R = b ∫ k zⁿ dz` over the new sinkage
+//!   (`SnowMechanics::wheel_resistance_n`).
 //!
 //! `docs/bevy.md` ("Snow the game can feel") has the sources and figures.
 
@@ -29,7 +27,8 @@ use snowpack::PointSample;
 
 use crate::deformers::SnowWheel;
 use crate::query::{SnowQuery, SnowTicket};
-use crate::sinkage::{GRAVITY, compaction_resistance_n, sinkage_m, terrain_coefficient};
+use crate::sinkage::{GRAVITY, terrain_coefficient};
+use snowpack::mechanics::SnowMechanics;
 use crate::{SnowSystems, SnowpackSettings};
 
 /// Put on a character or a vehicle's wheel that the snow should hold back:
@@ -100,6 +99,13 @@ impl FeelsSnow {
         self
     }
 
+    /// Width of a foot's sole (m): the diameter of a round sole of its
+    /// area, the plate of Bekker's curve.
+    #[must_use]
+    pub fn sole_width_m(&self) -> f32 {
+        2.0 * (self.foot_area_m2.max(1e-6) / std::f32::consts::PI).sqrt()
+    }
+
     /// Pressure under each foot (Pa).
     #[must_use]
     pub fn pressure_pa(&self) -> f32 {
@@ -155,22 +161,21 @@ impl Default for SnowResistance {
     }
 }
 
-/// The resistance of one answered point for a walker or a wheel.
-fn resist(sample: &PointSample, walker: &FeelsSnow, wheel: Option<&SnowWheel>, hardness_kpa: f32) -> SnowResistance {
-    let rest_depth = (sample.rest_m - sample.terrain_m).max(0.0);
-    let (depth_m, pressed) = (sample.depth_m().max(0.0), sample.sinkage_m().max(0.0));
+/// The resistance of one answered point for a walker or a wheel, in snow of `mechanics`.
+fn resist(sample: &PointSample, walker: &FeelsSnow, wheel: Option<&SnowWheel>, mechanics: &SnowMechanics) -> SnowResistance {
+    let depth_m = sample.depth_m().max(0.0);
     let packed = sample.compaction();
+    let column = sample.column();
     match wheel {
         Some(w) => {
-            let z = w.sinkage_m(rest_depth, hardness_kpa);
-            let r = compaction_resistance_n(w.width_m, z, pressed, rest_depth, hardness_kpa);
+            let sinkage_m = w.sinkage_m(mechanics, column);
+            let r = mechanics.wheel_resistance_n(&w.contact(), column);
             let weight = (w.load_kg * GRAVITY).max(1e-6);
-            let sinkage_m = (z - pressed).max(0.0);
             let floor_m = Some(sample.height_m - sinkage_m);
             SnowResistance { depth_m, packed, sinkage_m, floor_m, rolling_resistance_n: r, rolling_coefficient: r / weight, ..SnowResistance::default() }
         }
         None => {
-            let sinkage_m = (sinkage_m(walker.pressure_pa(), rest_depth, hardness_kpa) - pressed).max(0.0);
+            let sinkage_m = mechanics.plate_sinkage_m(walker.pressure_pa(), walker.sole_width_m(), column);
             let eta = terrain_coefficient(sinkage_m, depth_m);
             let floor_m = Some(sample.height_m - sinkage_m);
             SnowResistance { speed_factor: eta.sqrt().recip(), terrain_coefficient: eta, depth_m, packed, sinkage_m, floor_m, ..SnowResistance::default() }
@@ -216,7 +221,7 @@ fn sense_snow(mut query: ResMut<SnowQuery>, mut asked: Local<Asked>, settings: R
             asked.0 = None;
         }
     }
-    let hardness_kpa = settings.params.hardness_kpa;
+    let mechanics = settings.params.mechanics();
     if let Some((ticket, entities, _)) = &asked.0
         && let Some(answers) = query.take(*ticket)
     {
@@ -228,7 +233,7 @@ fn sense_snow(mut query: ResMut<SnowQuery>, mut asked: Local<Asked>, settings: R
             }
             let (Some(feels), Some(mut resistance)) = (feels, resistance) else { continue };
             let wheel = wheel.as_deref();
-            let easiest = samples[1..].iter().flatten().map(|s| resist(s, &feels, wheel, hardness_kpa)).min_by(|a, b| a.sinkage_m.total_cmp(&b.sinkage_m));
+            let easiest = samples[1..].iter().flatten().map(|s| resist(s, &feels, wheel, &mechanics)).min_by(|a, b| a.sinkage_m.total_cmp(&b.sinkage_m));
             if let Some(easiest) = easiest {
                 *resistance = easiest;
             }
@@ -265,17 +270,20 @@ fn sense_snow(mut query: ResMut<SnowQuery>, mut asked: Local<Asked>, settings: R
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sinkage::wheel_sinkage_m;
-    use snowpack::low_level::skin::sinking::{WheelLoad, sinkage_m as library_sinkage_m};
+    use snowpack::low_level::skin::sinking::FootLoad;
+    use snowpack::mechanics::SnowColumn;
+
+    fn sample(height_m: f32, packed_m: f32) -> PointSample {
+        PointSample { height_m, surface_m: height_m, terrain_m: 0.0, rest_m: 0.4, normal: Vec3::Y, packed_m }
+    }
 
     #[test]
     fn the_sinkage_is_the_librarys() {
-        for (p, d, h) in [(8408.0, 0.4, 10.0), (24_525.0, 0.3, 5.0), (100.0, 0.0, 10.0)] {
-            assert!((sinkage_m(p, d, h) - library_sinkage_m(p, d, h)).abs() < 1e-6);
-        }
-        let car = WheelLoad { mass_kg: 375.0, radius_m: 0.32, width_m: 0.2 };
-        let ours = wheel_sinkage_m(375.0, 0.32, 0.2, 0.4, 30.0);
-        assert!((ours - car.sinkage_m(0.4, 30.0)).abs() < 1e-5, "{ours} vs {}", car.sinkage_m(0.4, 30.0));
+        let snow = SnowMechanics::default();
+        let fox = FeelsSnow::fox();
+        let library = FootLoad { mass_kg: fox.mass_kg, foot_area_m2: fox.foot_area_m2 }.sinkage_m(fox.feet_down, &snow, SnowColumn::fresh(0.4));
+        let ours = resist(&sample(0.4, 0.0), &fox, None, &snow).sinkage_m;
+        assert!((ours - library).abs() < 1e-6 && ours > 0.03, "{ours} vs {library}");
     }
 
     #[test]
@@ -284,27 +292,29 @@ mod tests {
         assert!((terrain_coefficient(0.0, 0.4) - 1.2604).abs() < 1e-4);
         assert!((terrain_coefficient(0.1, 0.4) - (0.5 + 0.01 + 1.072 + 1.2604)).abs() < 1e-3);
         assert_eq!(terrain_coefficient(0.0, 0.0), 1.0);
-        let fox = FeelsSnow::fox();
-        let fresh = PointSample { height_m: 0.4, surface_m: 0.4, terrain_m: 0.0, rest_m: 0.4, normal: Vec3::Y };
-        let trail = PointSample { height_m: 0.2, surface_m: 0.2, ..fresh };
-        let (a, b) = (resist(&fresh, &fox, None, 10.0), resist(&trail, &fox, None, 10.0));
-        // 8.4 kPa into 0.4 m of 10 kPa snow: 18 cm; the trail pressed 20 cm already.
-        assert!((a.sinkage_m - 0.4 * 8408.57 / 18_408.57).abs() < 1e-3, "{a:?}");
+        let (fox, snow) = (FeelsSnow::fox(), SnowMechanics::default());
+        let a = resist(&sample(0.4, 0.0), &fox, None, &snow);
+        // A trail pressed 20 cm by a heavier load holds the fox.
+        let b = resist(&sample(0.2, 0.2), &fox, None, &snow);
+        assert!(a.sinkage_m > 0.05, "{a:?}");
         assert_eq!(b.sinkage_m, 0.0);
-        assert!(a.speed_factor < 0.5 && b.speed_factor > 0.85 && b.speed_factor < 0.9, "{a:?} {b:?}");
+        assert!(a.speed_factor < 0.6 && b.speed_factor > 0.85 && b.speed_factor < 0.9, "{a:?} {b:?}");
     }
 
     #[test]
     fn a_wheel_rolls_harder_in_fresh_snow_and_not_at_all_in_its_rut() {
-        let wheel = SnowWheel::new(0.32, 0.2, 375.0);
-        let z = wheel.sinkage_m(0.4, 10.0);
-        let fresh = compaction_resistance_n(0.2, z, 0.0, 0.4, 10.0);
-        // The integral by the midpoint rule.
+        let (wheel, snow) = (SnowWheel::new(0.32, 0.2, 375.0), SnowMechanics::default());
+        let fresh = resist(&sample(0.4, 0.0), &FeelsSnow::fox(), Some(&wheel), &snow);
+        let z = fresh.sinkage_m;
+        assert!(z > 0.01 && fresh.rolling_resistance_n > 1.0, "{fresh:?}");
+        // Bekker's integral by the midpoint rule.
+        let k = snow.modulus(0.2);
         let steps = 10_000;
-        let numeric: f32 = (0..steps).map(|k| (k as f32 + 0.5) * z / steps as f32).map(|zz| 0.2 * 10_000.0 * zz / (0.4 - zz) * z / steps as f32).sum();
-        assert!((fresh - numeric).abs() < 1e-3 * numeric, "{fresh} vs {numeric}");
-        assert!(fresh > 0.0);
-        assert_eq!(compaction_resistance_n(0.2, z, z, 0.4, 10.0), 0.0);
-        assert!(compaction_resistance_n(0.2, z, 0.5 * z, 0.4, 10.0) < fresh);
+        let numeric: f32 = (0..steps).map(|i| (i as f32 + 0.5) * z / steps as f32).map(|zz| 0.2 * k * zz.powf(1.6) * z / steps as f32).sum();
+        assert!((fresh.rolling_resistance_n - numeric).abs() < 1e-2 * numeric, "{} vs {numeric}", fresh.rolling_resistance_n);
+        let rut = resist(&sample(0.4 - z, z), &FeelsSnow::fox(), Some(&wheel), &snow);
+        assert!(rut.sinkage_m < 1e-4 && rut.rolling_resistance_n < 1e-3 * fresh.rolling_resistance_n, "{rut:?}");
+        let half = resist(&sample(0.4 - 0.5 * z, 0.5 * z), &FeelsSnow::fox(), Some(&wheel), &snow);
+        assert!(half.rolling_resistance_n < fresh.rolling_resistance_n && half.rolling_resistance_n > rut.rolling_resistance_n);
     }
 }

@@ -27,6 +27,8 @@ pub(crate) fn world_changes(old: &SnowpackSettings, new: &SnowpackSettings) -> V
         ("params.resolution", p.resolution != q.resolution),
         ("params.depth_m", p.depth_m != q.depth_m),
         ("params.hardness_kpa", p.hardness_kpa != q.hardness_kpa),
+        ("params.density_kg_m3", p.density_kg_m3 != q.density_kg_m3),
+        ("params.max_density_kg_m3", p.max_density_kg_m3 != q.max_density_kg_m3),
         ("params.tile_memory_bytes", p.tile_memory_bytes != q.tile_memory_bytes),
         ("params.teleport_m", p.teleport_m != q.teleport_m),
         ("terrain", new.terrain != old.terrain),

@@ -191,7 +191,7 @@ fn every_deformer_kind_presses_what_it_should() {
     let point = height(2.0, -2.0);
     assert!((point - 0.2).abs() < 0.02, "under the contact point: {point} m, want 0.2");
     // The wheel sits where its load holds it: the rut's floor (the lugs) at the untouched snow minus its sinkage.
-    let floor = 0.4 - wheel.sinkage_m(0.4, SnowParams::default().hardness_kpa);
+    let floor = 0.4 - wheel.sinkage_m(&SnowParams::default().mechanics(), snowpack::mechanics::SnowColumn::fresh(0.4));
     let rut = (0..8).map(|k| height(0.0, 1.5 + 0.1 * k as f32)).fold(f32::MAX, f32::min);
     println!("wheel: sinkage {:.3} m, rut floor {rut:.3} m (want {floor:.3}); rolling resistance up to {resisted:.0} N", 0.4 - floor);
     assert!(floor > 0.05 && floor < 0.35, "a 200 kg wheel in 0.4 m of 10 kPa snow: floor {floor}");

@@ -2,8 +2,8 @@
 
 use crate::deform::packed_snow;
 use crate::deform::query::{QueryParams, RawSample};
-use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::deform::snow_word;
+use crate::deform::snow_word::SNOW_QUANTUM_M;
 
 use super::window::storage_index;
 

@@ -14,9 +14,9 @@ use snowpack_share::mechanics::SnowColumn;
 
 use crate::accumulate::SnowAccumulation;
 use crate::deform::decal::DecalRing;
+use crate::deform::packed_snow;
 use crate::deform::query::QueryStats;
 use crate::deform::resources::DeformResources;
-use crate::deform::packed_snow;
 use crate::deform::snow_word;
 use crate::error::SnowError;
 use crate::gpu::{GpuContext, PassTimings, read_buffer};
@@ -364,12 +364,8 @@ impl SnowInspect for SnowDeformation {
         let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.displaced)?);
         let mechanics = self.core.params.mechanics();
         let area = f64::from(self.core.params.texel_m()).powi(2);
-        let total: f64 = height
-            .iter()
-            .zip(&terrain)
-            .zip(&packed)
-            .map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q })))
-            .sum();
+        let total: f64 =
+            height.iter().zip(&terrain).zip(&packed).map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q }))).sum();
         let displaced_m = (u64::from(counted[0]) | (u64::from(counted[1]) << 32)) as f64 * f64::from(snow_word::SNOW_QUANTUM_M);
         Ok(WindowMass { total_kg: total * area, displaced_kg: displaced_m * f64::from(mechanics.fresh_density_kg_m3) * area })
     }
