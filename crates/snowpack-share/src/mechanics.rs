@@ -31,10 +31,13 @@
 //! the work of pressing its rut per metre rolled.
 
 /// Standard gravity (m/s²).
+#[cfg_attr(not(feature = "low_level"), doc(hidden))]
 pub const GRAVITY: f32 = 9.81;
 
 /// Bekker's pressure–sinkage parameters of a snow: `p = (kc / b + kφ) z^n`
-/// for a plate of width `b` (m), pressure in Pa.
+/// for a plate of width `b` (m), pressure in Pa. Hidden from the docs
+/// without `low_level`: a game sets the snow by its hardness.
+#[cfg_attr(not(feature = "low_level"), doc(hidden))]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bekker {
     /// Sinkage exponent.
@@ -61,6 +64,7 @@ impl Bekker {
 /// Width (m) and sinkage (m) of the plate test that defines
 /// [`SnowMechanics::hardness_kpa`]: the pressure that sinks a 10 cm plate
 /// 10 cm.
+#[cfg_attr(not(feature = "low_level"), doc(hidden))]
 pub const HARDNESS_PLATE_M: f32 = 0.1;
 
 /// The snow's mechanics: its densities, its hardness when fresh, and the
@@ -77,6 +81,7 @@ pub struct SnowMechanics {
     pub hardness_kpa: f32,
     /// The shape of the pressure–sinkage curve (its exponent and the ratio
     /// of its moduli); its scale is set by the hardness.
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub bekker: Bekker,
 }
 
@@ -108,6 +113,7 @@ impl SnowColumn {
 impl SnowMechanics {
     /// `ρmax / ρ0 − 1`: the most packed snow a column holds per metre of its height.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn pack_ratio(&self) -> f32 {
         (self.max_density_kg_m3 / self.fresh_density_kg_m3.max(1e-3) - 1.0).max(0.0)
     }
@@ -132,6 +138,7 @@ impl SnowMechanics {
     /// wide: the curve's `kc / b + kφ`, scaled so that a 10 cm plate meets
     /// the fresh snow's hardness at 10 cm.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn modulus(&self, width_m: f32) -> f32 {
         let b = &self.bekker;
         let at_plate = b.modulus(HARDNESS_PLATE_M) * HARDNESS_PLATE_M.powf(b.n);
@@ -152,6 +159,7 @@ impl SnowMechanics {
     /// How far the column can still be pressed (m) before it reaches `ρmax`:
     /// `h − ρ0 (h + q) / ρmax`.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn compactable_m(&self, column: SnowColumn) -> f32 {
         let packed_height = self.mass_kg_m2(column) / self.max_density_kg_m3.max(1e-3);
         (column.depth_m - packed_height).max(0.0)
@@ -160,6 +168,7 @@ impl SnowMechanics {
     /// The column before its presses: as much snow at fresh density,
     /// `h + q` deep.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn unpressed(&self, column: SnowColumn) -> SnowColumn {
         SnowColumn::fresh(column.depth_m.max(0.0) + column.packed_m.max(0.0))
     }
@@ -183,6 +192,7 @@ impl SnowMechanics {
     /// the snow it lost as packed snow, up to `ρmax`. Also returns the snow
     /// (m of fresh snow) the press displaced beyond that.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn pressed(&self, column: SnowColumn, sinkage_m: f32) -> (SnowColumn, f32) {
         let z = sinkage_m.clamp(0.0, column.depth_m.max(0.0));
         let depth_m = column.depth_m - z;
@@ -234,6 +244,7 @@ impl SnowMechanics {
     /// # Errors
     /// The first field that is not finite and positive, or a maximum
     /// density below the fresh one.
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         for (field, v) in [("density_kg_m3", self.fresh_density_kg_m3), ("max_density_kg_m3", self.max_density_kg_m3), ("hardness_kpa", self.hardness_kpa)] {
             if !(v.is_finite() && v > 0.0) {
@@ -251,6 +262,7 @@ impl SnowMechanics {
 }
 
 /// Density of ice (kg/m³): no snow packs denser.
+#[cfg_attr(not(feature = "low_level"), doc(hidden))]
 pub const ICE_DENSITY_KG_M3: f32 = 917.0;
 
 /// A rigid wheel meeting the snow: the load it carries and its size.
@@ -267,6 +279,7 @@ pub struct WheelContact {
 impl WheelContact {
     /// Length of the contact patch (m) at sinkage `z_m`: the chord `2 √(2 r z − z²)`.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn patch_length_m(&self, z_m: f32) -> f32 {
         let (r, z) = (self.radius_m.max(1e-6), z_m.max(0.0));
         if z >= r { 2.0 * r } else { 2.0 * (2.0 * r * z - z * z).sqrt() }
@@ -274,6 +287,7 @@ impl WheelContact {
 
     /// Pressure under the wheel (Pa) at sinkage `z_m`.
     #[must_use]
+    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
     pub fn pressure_pa(&self, z_m: f32) -> f32 {
         self.load_kg.max(0.0) * GRAVITY / (self.patch_length_m(z_m) * self.width_m.max(1e-6)).max(1e-9)
     }

@@ -90,7 +90,8 @@ fn plugin_snow_and_queries_equal_the_library() {
         let words = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.snow).expect("snow words"));
         let fallen = bytemuck::pod_collect_to_vec::<u8, f32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.fallen).expect("fallen"));
         let ground = snowpack::low_level::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
-        snowpack::low_level::cpu::query::query(&qp, &local, &ground, &words, &fallen)
+        let packed = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.packed).expect("packed snow"));
+        snowpack::low_level::cpu::query::query(&qp, &local, &ground, (&words, &fallen, &packed))
     };
     let frames = state.deformation().frame() as usize;
     let placed = &app.world().resource::<Placed>().0;
