@@ -306,3 +306,53 @@ fn a_readback_ring_held_busy_skips_its_copies_and_frames_go_on() {
     assert_eq!(ring.skipped(), 50);
     ctx.check("the released ring").expect("no GPU error");
 }
+
+/// Snow with mass (`docs/mechanics.md`): a sphere pressed 0.3 m into 0.5 m
+/// of fresh snow (what compaction alone can take) keeps its shape within a
+/// few millimetres, packs the snow under it to `ρ0 D / h` and keeps the
+/// window's mass; pressed to 2 cm above the ground it packs the column to
+/// the final density and the rest is counted as displaced, so the window's
+/// mass plus the displaced snow is still what it was.
+#[test]
+fn a_press_packs_the_snow_under_it_and_the_mass_stays() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
+    let m = params.mechanics();
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+    let start = snow.read_mass(ctx).expect("mass");
+    let fresh = m.fresh_density_kg_m3 * 0.5 * 64.0;
+    assert!((start.total_kg - f64::from(fresh)).abs() < 1e-3 * f64::from(fresh) && start.displaced_kg == 0.0, "{start:?}");
+    // 0.3 m into the snow: 0.2 m left at 250 kg/m³.
+    let ball = Deformer::Sphere { center: Vec3::new(0.5, 0.7, -0.5), radius: 0.5 };
+    let points = [Vec2::new(0.5, -0.5), Vec2::new(-3.0, 3.0)];
+    snow.step(ctx, &[ball], 1.0 / 60.0).expect("frame");
+    snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &[ball]).with_queries(&points)).expect("frame");
+    snow.finish(ctx).expect("finish");
+    let answers = snow.point_answers().expect("answered");
+    let (under, away) = (answers.samples[0].expect("inside"), answers.samples[1].expect("inside"));
+    assert!((under.height_m - 0.2).abs() < 0.003, "{under:?}");
+    assert!((under.packed_m - 0.3).abs() < 0.003 && (under.density_kg_m3(&m) - 250.0).abs() < 5.0, "{under:?}");
+    assert!(away.packed_m == 0.0 && away.density_kg_m3(&m) == m.fresh_density_kg_m3 && (away.height_m - 0.5).abs() < 1e-4);
+    assert!(under.hardness_kpa(&m) > 3.0 * away.hardness_kpa(&m), "{} vs {}", under.hardness_kpa(&m), away.hardness_kpa(&m));
+    let pressed = snow.read_mass(ctx).expect("mass");
+    assert!((pressed.total_kg - start.total_kg).abs() < 1e-3 * start.total_kg && pressed.displaced_kg == 0.0, "{start:?} then {pressed:?}");
+    // Down to 2 cm: a 0.02 m column holds 10 kg/m² at 500 kg/m³ of the 50; the rest is displaced.
+    let deep = Deformer::Sphere { center: Vec3::new(0.5, 0.52, -0.5), radius: 0.5 };
+    snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &[deep]).with_queries(&points)).expect("frame");
+    snow.step(ctx, &[deep], 1.0 / 60.0).expect("frame");
+    snow.finish(ctx).expect("finish");
+    let after = snow.read_mass(ctx).expect("mass");
+    assert!(after.displaced_kg > 1.0, "{after:?}");
+    let kept = after.total_kg + after.displaced_kg;
+    assert!((kept - start.total_kg).abs() < 5e-3 * start.total_kg, "{start:?} then {after:?}");
+    let packed = snow.read_packed(ctx).expect("packed");
+    let heights = snow.read_snow(ctx).expect("snow");
+    let densest = heights
+        .iter()
+        .zip(&packed)
+        .filter(|(h, _)| **h > 0.01)
+        .map(|(h, q)| m.density_kg_m3(snowpack::mechanics::SnowColumn { depth_m: *h, packed_m: *q }))
+        .fold(0.0f32, f32::max);
+    assert!((densest - m.max_density_kg_m3).abs() < 2.0, "densest column {densest}");
+}

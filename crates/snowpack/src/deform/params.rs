@@ -31,8 +31,8 @@ pub struct SnowParams {
     /// Rim formula of the points technique.
     pub rim: RimStyle,
     /// Penetration hardness of fresh snow (kPa): the pressure that sinks a
-    /// 10 cm plate 10 cm into it. Packed snow is harder, as the fourth power
-    /// of its density ([`SnowParams::mechanics`]). Fresh powder is a few
+    /// 10 cm plate 10 cm into it. Packed snow is harder: it holds the load
+    /// that packed it ([`SnowParams::mechanics`]). Fresh powder is a few
     /// kPa, settled snow tens.
     pub hardness_kpa: f32,
     /// Density of fresh snow: the initial cover, refill and snowfall
@@ -115,7 +115,9 @@ impl SnowParams {
     }
 
     /// The snow's mechanics: its densities and hardness on Wong's "Snow
-    /// (U.S.)" pressure–sinkage curve (`docs/mechanics.md`).
+    /// (U.S.)" pressure–sinkage curve (`docs/mechanics.md`): how dense the
+    /// snow at a point is, how far a foot or a wheel sinks into it and
+    /// what it costs a wheel.
     #[must_use]
     pub fn mechanics(&self) -> SnowMechanics {
         SnowMechanics {
