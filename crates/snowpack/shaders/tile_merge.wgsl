@@ -4,6 +4,8 @@
 // #import shared/stamp
 // #import shared/snow_word
 // #import shared/pass_flags
+// #import shared/packed_snow
+// #import shared/pack_press
 
 // Tile merge pass (shared snow): folds tiles from other machines into the
 // window's toroidal buffers (src/replicate/merge.rs). Tiles are packed as
@@ -21,7 +23,8 @@
 // Then per texel inside the window:
 //   fallen    = max(own, incoming)
 //   deficit   = max(own, incoming), then never below the terrain under the
-//               merged rest height (terrain + depth + fallen)
+//               merged rest height (terrain + depth + fallen); what it rose
+//               by is packed into the column as a press would (shared/pack_press.wgsl)
 //   footprint = min(own, incoming); where the incoming one wins, it is gone
 //               if its foot is at or above the rest height (the rest test the
 //               update applies as footprints refill, which the CPU catch-up
@@ -45,7 +48,7 @@ struct TileMergeParams {
     high_m: f32,
     frames: u32,       // frames in `history`
     max_fallen_m: f32, // most snowfall a texel keeps
-    _pad: u32,
+    pack_ratio: f32,   // rho_max / rho_fresh - 1 (shared/pack_press.wgsl)
 }
 
 const MERGE_HAS_STAMPS: u32 = 1u;
@@ -57,6 +60,8 @@ const MERGE_USE_FALLEN: u32 = 2u;
 @group(0) @binding(1) var<storage, read> keys: array<vec4<i32>>;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>;
+// Packed snow and, in its last two words, the displaced count (shared/pack_press.wgsl).
+@group(0) @binding(4) var<storage, read_write> packed: array<atomic<u32>>;
 @group(1) @binding(3) var<storage, read_write> stamps: array<u32>;
 @group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
 @group(1) @binding(1) var<storage, read> heightmap: array<f32>;
@@ -124,8 +129,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     }
     let rest = ground + params.depth_m + lying;
     let word = snow[s];
-    let deficit = min(max(word & 0xffffu, d), snow_press_quanta(rest, ground, ground));
+    let at_ground = snow_press_quanta(rest, ground, ground);
+    let deficit = min(max(word & 0xffffu, d), at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
+    pack_press(s, word & 0xffffu, deficit, at_ground, params.pack_ratio);
     if (pass_flags() & MERGE_HAS_STAMPS) != 0u {
         let incoming = st;
         if incoming < stamps[s] {

@@ -6,6 +6,7 @@
 // #import shared/share_flags
 // #import shared/sky_test
 // #import shared/packed_snow
+// #import shared/pack_press
 
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
@@ -95,18 +96,8 @@ fn update_flags() -> u32 {
 @group(1) @binding(4) var<storage, read_write> fallen: array<f32>;
 @group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 @group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
-// Packed snow, two texels a word (shared/packed_snow.wgsl).
+// Packed snow, two texels a word, and the displaced count (shared/pack_press.wgsl).
 @group(0) @binding(4) var<storage, read_write> packed: array<atomic<u32>>;
-// Snow quanta displaced this frame (and since it was last cleared): [lo, hi] of a u64.
-@group(0) @binding(5) var<storage, read_write> displaced: array<atomic<u32>, 2>;
-
-// Adds `q` quanta to the displaced count, carrying into its high word.
-fn count_displaced(q: u32) {
-    let before = atomicAdd(&displaced[0], q);
-    if before + q < before {
-        atomicAdd(&displaced[1], 1u);
-    }
-}
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -180,22 +171,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     snow[s] = (word & 0xffff0000u) | deficit;
     // What the presses took from the column's height goes into its packed
     // snow, up to the final density; the rest is displaced.
-    if deficit > refilled {
-        let k = packed_index(s);
-        let shift = packed_shift(s);
-        let before = packed_get(atomicLoad(&packed[k]), s);
-        let squeezed = before + (deficit - refilled);
-        let cap = packed_cap(at_ground - deficit, params.pack_ratio);
-        let after = min(squeezed, cap);
-        if after > before {
-            atomicAdd(&packed[k], (after - before) << shift);
-        } else if after < before {
-            atomicSub(&packed[k], (before - after) << shift);
-        }
-        if squeezed > cap {
-            count_displaced(squeezed - cap);
-        }
-    }
+    pack_press(s, refilled, deficit, at_ground, params.pack_ratio);
     // The capture raised it (after the clamp, which only lowers).
     if (update_flags() & SHARE) != 0u && min(captured, at_ground) > refilled {
         atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(i32(j), i32(i)), params.share_side, params.share_keys)], 1u);

@@ -50,7 +50,7 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
-    assert_eq!(bytes_of(&depth, "packed snow"), 2 * texels);
+    assert_eq!(bytes_of(&depth, "packed snow"), 2 * texels + 8, "two texels a word and the displaced count");
     let per_texel = 4 + 2 + 2;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
     // The default keeps trails: a pool of 225 slots of 32² texels (128 edge

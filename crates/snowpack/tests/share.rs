@@ -11,6 +11,7 @@ use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::TechniqueExt;
 use snowpack::low_level::cpu;
+use snowpack::low_level::deform::packed_snow;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
 use snowpack::low_level::deform::stamp::{StampParams, StampPass};
@@ -178,19 +179,33 @@ fn tile_merge_matches_cpu() {
             low_m: rng.range(-2.0, -0.5),
             high_m: rng.range(1.0, 3.0),
             max_fallen_m: 0.3,
+            pack_ratio: rng.range(0.5, 6.0),
             ..Default::default()
         };
+        // Packed snow as pure compaction left it (as deep as the deficit, within the cap).
+        let mut packed_snow = vec![0u32; w.snow.len().div_ceil(2)];
+        for (s, word) in w.snow.iter().enumerate() {
+            packed_snow::set(&mut packed_snow, s, (word & 0xffff).min(4000));
+        }
+        ctx.queue.write_buffer(&w.res.packed, 0, bytemuck::cast_slice(&packed_snow));
+        ctx.queue.write_buffer(&w.res.packed, 4 * packed_snow.len() as u64, bytemuck::cast_slice(&[0u32; 2]));
         let mut enc = encoder(ctx);
         let merged = pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &w.res, p, (&gkeys, &history), &packed);
         submit(ctx, enc);
         assert_eq!(merged as usize, count);
         let cp = TileMergeParams { count: merged, blocks: side.div_ceil(8), frames: frames as u32, ..p };
-        cpu::tile_merge::merge(&cp, (&gkeys, &history), &packed, &w.terrain, &mut w.snow, &mut w.stamps, &mut w.fallen);
+        let mut window =
+            cpu::exchange::WindowBuffers { terrain: &w.terrain, snow: &mut w.snow, stamps: &mut w.stamps, fallen: &mut w.fallen, packed: &mut packed_snow };
+        let displaced = cpu::tile_merge::merge(&cp, (&gkeys, &history), &packed, &mut window);
         let what = format!("side {side}, origin {:?}, resolution {}, {frames} frames; seed {seed}", w.origin, w.params.resolution);
         assert_eq!(read_u32(ctx, &w.res.snow), w.snow, "merged snow words; {what}");
         assert_eq!(read_u32(ctx, &w.res.stamps), w.stamps, "merged footprints; {what}");
         let fallen: Vec<u32> = read_f32(ctx, &w.res.fallen).iter().map(|f| f.to_bits()).collect();
         assert_eq!(fallen, w.fallen.iter().map(|f| f.to_bits()).collect::<Vec<_>>(), "merged snowfall; {what}");
+        // A deficit the merge raised packed the column as a press would.
+        let gpu_packed = read_u32(ctx, &w.res.packed);
+        assert_eq!(gpu_packed[..packed_snow.len()], packed_snow[..], "merged packed snow; {what}");
+        assert_eq!(packed_snow::displaced_count(&gpu_packed), displaced, "displaced by the merge; {what}");
     }
 }
 

@@ -1,6 +1,7 @@
 // Packed snow (src/deform/packed_snow.rs): per texel, the fresh snow that
 // presses squeezed into its column (snow quanta, 16 bits), two texels a
-// u32; with the snow word's deficit it gives the column's mass and density
+// u32, then two words counting the snow quanta presses displaced
+// (shared/pack_press.wgsl); with the snow word's deficit it gives the column's mass and density
 // (snowpack_share::mechanics). A texel's half is changed with atomic adds
 // and ands, so neighbouring texels' threads never clobber each other.
 

@@ -1,27 +1,24 @@
 //! CPU twin of `tile_merge.wgsl`.
 
-use crate::TerrainSource;
 use crate::deform::snow_word::press_quanta;
 use crate::replicate::gather::PACKED_PLANES;
 use crate::replicate::merge::TileMergeParams;
 
+use super::exchange::WindowBuffers;
 use super::stamp::{STAMP_EMPTY, height};
 use super::window::{storage_index, texel_ground};
 
 /// Folds the packed `tiles` at `keys` (`[column, row, first frame of
 /// history to replay, 0]`, the first `p.count`) into the window's toroidal
-/// `snow`, `stamps` and `fallen` over `terrain`, replaying the frames of
-/// `history` ([`crate::replicate::merge::FrameRecord::gpu`], the first
-/// `p.frames`) from each tile's first frame on.
-pub fn merge(
-    p: &TileMergeParams,
-    (keys, history): (&[[i32; 4]], &[[u32; 4]]),
-    tiles: &[u32],
-    terrain: &TerrainSource,
-    snow: &mut [u32],
-    stamps: &mut [u32],
-    fallen: &mut [f32],
-) {
+/// snow, footprints, snowfall and packed snow over its terrain (`w`),
+/// replaying the frames of `history`
+/// ([`crate::replicate::merge::FrameRecord::gpu`], the first `p.frames`)
+/// from each tile's first frame on. A deficit the merge raises packs the
+/// column as a press would; returns the snow quanta displaced beyond the
+/// final density.
+pub fn merge(p: &TileMergeParams, (keys, history): (&[[i32; 4]], &[[u32; 4]]), tiles: &[u32], w: &mut WindowBuffers<'_>) -> u64 {
+    let WindowBuffers { terrain, snow, stamps, fallen, packed } = w;
+    let mut displaced = 0u64;
     let side = p.side as usize;
     let area = side * side;
     let r = p.resolution as i32;
@@ -69,8 +66,10 @@ pub fn merge(
                 }
                 let rest = ground + p.depth_m + lying;
                 let word = snow[s];
-                let deficit = (word & 0xffff).max(d).min(press_quanta(rest, ground, ground));
+                let at_ground = press_quanta(rest, ground, ground);
+                let deficit = (word & 0xffff).max(d).min(at_ground);
                 snow[s] = (word & 0xffff_0000) | deficit;
+                displaced += super::update::pack_press(packed, s, (word & 0xffff, deficit), at_ground, p.pack_ratio);
                 if p.flags & TileMergeParams::HAS_STAMPS != 0 {
                     let incoming = st;
                     if incoming < stamps[s] {
@@ -80,4 +79,5 @@ pub fn merge(
             }
         }
     }
+    displaced
 }

@@ -102,16 +102,25 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
             let at_ground = press_quanta(rest, ground, ground);
             deficit = deficit.min(at_ground);
             snow[s] = (word & 0xffff_0000) | deficit;
-            if deficit > refilled {
-                let squeezed = packed_snow::get(packed, s) + (deficit - refilled);
-                let cap = packed_snow::cap(at_ground - deficit, p.pack_ratio);
-                packed_snow::set(packed, s, squeezed.min(cap));
-                displaced += u64::from(squeezed.saturating_sub(cap));
-            }
+            displaced += pack_press(packed, s, (refilled, deficit), at_ground, p.pack_ratio);
             if share && captured.min(at_ground) > refilled {
                 flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
             }
         }
     }
     displaced
+}
+
+/// Texel `s`'s deficit rose `from` → `to` quanta (`at_ground` up to the
+/// terrain): the snow it lost goes into its packed snow up to the final
+/// density (`ratio`); returns the quanta displaced beyond
+/// (`shared/pack_press.wgsl`).
+pub fn pack_press(packed: &mut [u32], s: usize, (from, to): (u32, u32), at_ground: u32, ratio: f32) -> u64 {
+    if to <= from {
+        return 0;
+    }
+    let squeezed = packed_snow::get(packed, s) + (to - from);
+    let cap = packed_snow::cap(at_ground - to, ratio);
+    packed_snow::set(packed, s, squeezed.min(cap));
+    u64::from(squeezed.saturating_sub(cap))
 }

@@ -15,7 +15,21 @@
     allow(dead_code, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-/// Words of packed snow for a window of `resolution` texels a side.
+/// Words after the texels' that count the displaced snow quanta (a u64,
+/// low word first; `shared/pack_press.wgsl`).
+pub const COUNT_WORDS: u64 = 2;
+
+/// The displaced snow quanta counted in the packed buffer's last words.
+#[must_use]
+pub fn displaced_count(buffer: &[u32]) -> u64 {
+    match buffer {
+        [.., low, high] => u64::from(*low) | (u64::from(*high) << 32),
+        _ => 0,
+    }
+}
+
+/// Words of packed snow for a window of `resolution` texels a side (the
+/// buffer holds [`COUNT_WORDS`] more).
 #[must_use]
 pub fn words(resolution: u32) -> u64 {
     (u64::from(resolution) * u64::from(resolution)).div_ceil(2)

@@ -42,11 +42,10 @@ pub struct DeformResources {
     pub fallen: wgpu::Buffer,
     /// Packed snow, 16 bits a texel, two a word, toroidal; persistent
     /// ([`super::packed_snow`]). Zero (fresh snow) where the window pass or
-    /// a load writes a texel.
+    /// a load writes a texel. Its last two words count the snow quanta
+    /// displaced beyond the final density (a u64, low word first), written
+    /// by the passes that press and read by the mass ledger.
     pub packed: wgpu::Buffer,
-    /// Snow quanta displaced beyond the final density (a u64 as two u32),
-    /// written by the update pass and read by the mass ledger.
-    pub displaced: wgpu::Buffer,
     /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
     /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
     /// passes evaluate the ground at texel centres (`texel_ground` in
@@ -132,8 +131,7 @@ impl DeformResources {
             &WindowBuffers { terrain_params: &terrain_params, heightmap: &heightmap, snow: &snow, stamps: &stamps, fallen: &fallen },
         );
         // Zeroed by wgpu: fresh snow everywhere.
-        let packed = height_buffer(device, "packed snow", super::packed_snow::words(res));
-        let displaced = height_buffer(device, "displaced snow", 2);
+        let packed = height_buffer(device, "packed snow", super::packed_snow::words(res) + super::packed_snow::COUNT_WORDS);
         Self {
             resolution: res,
             texel_m: params.texel_m(),
@@ -141,7 +139,6 @@ impl DeformResources {
             stamps,
             fallen,
             packed,
-            displaced,
             heightmap,
             terrain_params,
             terrain_kind: terrain_uniform.kind,

@@ -97,8 +97,8 @@ impl UpdatePass {
         let shape = PassShape {
             label: "update",
             source: shaders::UPDATE,
-            // capture, sky, changed-tile flags, packed snow, displaced count
-            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite, Slot::ReadWrite],
+            // capture, sky, changed-tile flags, packed snow (with the displaced count)
+            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite],
             specialise_on: Some("UPDATE_FLAGS"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Write),
@@ -121,7 +121,6 @@ impl UpdatePass {
                 wgpu::BindingResource::TextureView(sky),
                 res.share_flags.as_entire_binding(),
                 res.packed.as_entire_binding(),
-                res.displaced.as_entire_binding(),
             ],
         );
     }

@@ -42,8 +42,9 @@ pub struct TileMergeParams {
     pub frames: u32,
     /// The most snowfall a texel keeps (m).
     pub max_fallen_m: f32,
-    /// Padding to 8 bytes.
-    pub _pad: u32,
+    /// `ρmax / ρ0 − 1`: what a deficit the merge raises packs into the
+    /// column, as a press would (`shared/pack_press.wgsl`).
+    pub pack_ratio: f32,
 }
 
 /// Frames of its own a window remembers to replay for tiles gathered then.
@@ -120,7 +121,8 @@ impl TileMergePass {
         let shape = PassShape {
             label: "tile merge",
             source: shaders::TILE_MERGE,
-            slots: &[Slot::Read, Slot::Read, Slot::Read],
+            // keys, tiles, history, packed snow (with the displaced count)
+            slots: &[Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
             specialise_on: Some("PASS_FLAGS"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Write),
@@ -129,7 +131,7 @@ impl TileMergePass {
         let keys = crate::tiles::input_buffer(device, "tile merge keys", u64::from(capacity) * 16);
         let history = crate::tiles::input_buffer(device, "tile merge history", HISTORY_FRAMES as u64 * 16);
         let tiles = crate::tiles::input_buffer(device, "tile merge upload", packed_tile_bytes(side) * u64::from(capacity.max(1)));
-        pass.bind(device, &[keys.as_entire_binding(), tiles.as_entire_binding(), history.as_entire_binding()]);
+        pass.bind(device, &[keys.as_entire_binding(), tiles.as_entire_binding(), history.as_entire_binding(), res.packed.as_entire_binding()]);
         Self { pass, keys, tiles, history, capacity }
     }
 

@@ -355,18 +355,19 @@ impl SnowInspect for SnowDeformation {
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
         let r = self.core.params.resolution as usize;
-        let quanta = self.untorus(&packed_snow::unpack(&words, r * r));
+        let words = &words[..packed_snow::words(r as u32) as usize];
+        let quanta = self.untorus(&packed_snow::unpack(words, r * r));
         Ok(quanta.iter().map(|&q| q as f32 * snow_word::SNOW_QUANTUM_M).collect())
     }
 
     fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError> {
         let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.read_packed(ctx)?);
-        let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.displaced)?);
+        let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
         let mechanics = self.core.params.mechanics();
         let area = f64::from(self.core.params.texel_m()).powi(2);
         let total: f64 =
             height.iter().zip(&terrain).zip(&packed).map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q }))).sum();
-        let displaced_m = (u64::from(counted[0]) | (u64::from(counted[1]) << 32)) as f64 * f64::from(snow_word::SNOW_QUANTUM_M);
+        let displaced_m = packed_snow::displaced_count(&counted) as f64 * f64::from(snow_word::SNOW_QUANTUM_M);
         Ok(WindowMass { total_kg: total * area, displaced_kg: displaced_m * f64::from(mechanics.fresh_density_kg_m3) * area })
     }
 

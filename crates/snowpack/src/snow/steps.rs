@@ -128,6 +128,7 @@ impl FrameSteps<'_> {
             low_m: low,
             high_m: high,
             max_fallen_m: window.max_fallen_m,
+            pack_ratio: core.params.mechanics().pack_ratio(),
             ..Default::default()
         };
         sharing.record_merge(cx, &core.res, &core.share_window(window.origin), merge, (&self.time.share_clock(), core.catch_up_rule()));
