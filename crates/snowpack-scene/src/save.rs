@@ -135,6 +135,9 @@ impl Scene {
         snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
         snow.insert("density_kg_m3".into(), float(p.density_kg_m3));
         snow.insert("max_density_kg_m3".into(), float(p.max_density_kg_m3));
+        if let Some(r) = p.repose_deg {
+            snow.insert("repose_deg".into(), float(r));
+        }
         snow.insert("teleport_m".into(), float(p.teleport_m));
         snow
     }

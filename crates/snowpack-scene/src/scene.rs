@@ -469,6 +469,8 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 hardness_kpa: t.positive("hardness_kpa", defaults.hardness_kpa, " of kPa")?,
                 density_kg_m3: t.positive("density_kg_m3", defaults.density_kg_m3, " of kg/m³")?,
                 max_density_kg_m3: t.positive("max_density_kg_m3", defaults.max_density_kg_m3, " of kg/m³")?,
+                // Validated with the rest below (an angle in (0, 90) degrees).
+                repose_deg: t.f32_opt("repose_deg")?,
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
@@ -792,7 +794,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, density {} kg/m³ packing to {} kg/m³, teleport {} m",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, density {} kg/m³ packing to {} kg/m³, angle of repose {}, teleport {} m",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -806,6 +808,7 @@ impl Scene {
             p.hardness_kpa,
             p.density_kg_m3,
             p.max_density_kg_m3,
+            p.repose_deg.map_or_else(|| "none".to_owned(), |r| format!("{r}°")),
             p.teleport_m
         );
         let terrain = self.describe_terrain();

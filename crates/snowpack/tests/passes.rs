@@ -15,6 +15,7 @@ use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
+use snowpack::low_level::deform::erosion::{ErosionParams, ErosionPass};
 use snowpack::low_level::deform::packed_snow;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
@@ -400,6 +401,65 @@ fn update_packs_pressed_snow_like_cpu() {
     if agree.len() == n {
         assert_eq!(gpu_displaced, cpu_displaced, "seed {seed}");
     }
+}
+
+/// The erosion pass (`erosion.wgsl`) against its twin on random snow with
+/// steep steps and random packed snow: the GPU's iteration moves snow only
+/// between neighbours, in whole quanta, so the window's deficits and packed
+/// snow sum to what they did (exact); and it equals the CPU twin wherever
+/// the terrain's quantisation agrees (a texel's column is an f32 the GPU
+/// may round a quantum differently).
+#[test]
+fn erosion_matches_cpu_and_moves_no_snow_in_or_out() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("erosion");
+    let mut rng = Rng::new(seed);
+    let (params, terrain_src, res) = setup(ctx, &mut rng, 80);
+    let n = params.texel_count();
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::press_quanta(t + params.depth_m, t, t)).collect();
+    // Trenches: blocks of deep deficits beside untouched snow.
+    let mut snow: Vec<u32> = at_ground
+        .iter()
+        .map(|&g| {
+            (rng.next_u64() as u32 & 0xffff_0000)
+                | if rng.range(0.0, 1.0) < 0.4 { (rng.range(0.3, 1.0) * g as f32) as u32 } else { rng.range(0.0, 0.05 * g as f32) as u32 }
+        })
+        .collect();
+    let mut packed = vec![0u32; n.div_ceil(2)];
+    for (s, word) in snow.iter().enumerate() {
+        let cap = packed_snow::cap(at_ground[s] - (word & 0xffff).min(at_ground[s]), 4.0);
+        packed_snow::set(&mut packed, s, rng.range(0.0, cap as f32) as u32);
+    }
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed));
+    let ep = ErosionParams {
+        origin,
+        resolution: params.resolution,
+        texel_m: params.texel_m(),
+        depth_m: params.depth_m,
+        threshold_q: ErosionParams::threshold_quanta(rng.range(20.0, 60.0), params.texel_m()),
+        ..ErosionParams::default()
+    };
+    let pass = ErosionPass::new(&ctx.device, &res);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &ep);
+    submit(ctx, enc);
+    let sums = |words: &[u32], packed: &[u32]| -> (u64, u64) {
+        (words.iter().map(|w| u64::from(w & 0xffff)).sum(), (0..n).map(|s| u64::from(packed_snow::get(packed, s))).sum())
+    };
+    let (before_snow, before_packed) = (snow.clone(), packed.clone());
+    cpu::erosion::iterate(&ep, &terrain, &[], &mut snow, &mut packed);
+    let (gpu_snow, gpu_packed) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed));
+    assert_eq!(sums(&gpu_snow, &gpu_packed), sums(&before_snow, &before_packed), "the GPU's erosion moved snow in or out; seed {seed}");
+    assert_eq!(sums(&snow, &packed), sums(&before_snow, &before_packed), "the twin moved snow in or out; seed {seed}");
+    let moved = (0..n).filter(|&s| gpu_snow[s] & 0xffff != before_snow[s] & 0xffff).count();
+    let differ = (0..n).filter(|&s| gpu_snow[s] != snow[s] || packed_snow::get(&gpu_packed, s) != packed_snow::get(&packed, s)).count();
+    assert!(moved > n / 10, "only {moved} of {n} texels eroded; seed {seed}");
+    assert!(differ <= n / 500, "{differ} of {n} texels differ from the twin; seed {seed}");
+    assert!(gpu_snow.iter().zip(&before_snow).all(|(a, b)| a >> 16 == b >> 16), "erosion changed displayed halves; seed {seed}");
 }
 
 /// Whether two displayed halves (f16 bits of the same sign) are within one f16 step.

@@ -356,3 +356,45 @@ fn a_press_packs_the_snow_under_it_and_the_mass_stays() {
         .fold(0.0f32, f32::max);
     assert!((densest - m.max_density_kg_m3).abs() < 2.0, "densest column {densest}");
 }
+
+/// Erosion (`docs/mechanics.md`): a box presses a trench with vertical
+/// walls 0.3 m deep; with an angle of repose of 40° the walls slide into it
+/// until no step between neighbours is steeper, the snow that slid is
+/// neither made nor lost, and snow further than the slope reaches does not
+/// move; without one, the walls stay as the box left them.
+#[test]
+fn trench_walls_slide_to_the_angle_of_repose_and_keep_the_mass() {
+    let Some(ctx) = testing::gpu() else { return };
+    let run = |repose_deg: Option<f32>| {
+        let params = SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, repose_deg, ..SnowParams::default() };
+        let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+        // A box 0.5 m wide along z, its bottom 0.2 m above the ground.
+        let block = Deformer::Box { center: Vec3::new(0.0, 0.7, 0.0), half_extents: Vec3::new(0.25, 0.5, 1.2), rotation: glam::Quat::IDENTITY };
+        snow.step(ctx, &[block], 1.0 / 60.0).expect("frame");
+        let pressed = snow.read_mass(ctx).expect("mass");
+        for _ in 0..60 {
+            snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+        }
+        (snow.read_snow(ctx).expect("snow"), pressed, snow.read_mass(ctx).expect("mass"))
+    };
+    let texel = 4.0 / 64.0;
+    let steepest = |heights: &[f32]| -> f32 {
+        let mut most = 0.0f32;
+        for i in 0..64 {
+            for j in 0..63 {
+                most = most.max((heights[i * 64 + j] - heights[i * 64 + j + 1]).abs());
+            }
+        }
+        most / texel
+    };
+    let (kept, _, _) = run(None);
+    assert!(steepest(&kept) > 2.0, "the box's walls are vertical without erosion: slope {}", steepest(&kept));
+    let (slid, pressed, after) = run(Some(40.0));
+    let slope = steepest(&slid);
+    assert!(slope <= 40f32.to_radians().tan() + 2e-3 / texel, "the walls still slope {:.2} ({:.1}°)", slope, slope.atan().to_degrees());
+    assert!((after.total_kg - pressed.total_kg).abs() < 1e-4 * pressed.total_kg, "{pressed:?} then {after:?}");
+    // The trench is shallower and its walls lower; snow 0.6 m away never moved.
+    let at = |x: f32| slid[32 * 64 + ((x + 2.0) / texel) as usize];
+    let profile: Vec<f32> = (0..24).map(|k| at(-0.05 + 0.0625 * k as f32)).collect();
+    assert!(at(0.22) > 0.21 && at(0.3) < 0.49 && at(0.0) > 0.2 - 1e-4 && (at(1.2) - 0.5).abs() < 1e-4, "the profile from the centre out: {profile:?}");
+}

@@ -11,6 +11,7 @@ pub mod capture_wheel;
 pub mod display;
 pub mod env_downsample;
 pub mod env_prefilter;
+pub mod erosion;
 pub mod exchange;
 pub mod increment;
 #[cfg(feature = "renderer")]

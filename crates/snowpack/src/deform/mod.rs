@@ -8,6 +8,7 @@
 pub mod capture;
 pub mod decal;
 pub mod display;
+pub mod erosion;
 pub mod packed_snow;
 pub mod params;
 pub mod query;

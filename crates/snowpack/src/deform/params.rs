@@ -42,6 +42,12 @@ pub struct SnowParams {
     /// final density under a wheel); what a press squeezes beyond it is
     /// displaced.
     pub max_density_kg_m3: f32,
+    /// The snow's angle of repose (degrees, in (0, 90)): walls a press left
+    /// steeper than this slide into the trench beside them, a step of the
+    /// erosion pass a frame (`docs/mechanics.md`, "Erosion"). `None` (the
+    /// default): trails keep the walls their presses made. Not applied
+    /// while the window shares its snow.
+    pub repose_deg: Option<f32>,
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
@@ -97,6 +103,7 @@ impl Default for SnowParams {
             hardness_kpa: 10.0,
             density_kg_m3: 100.0,
             max_density_kg_m3: 500.0,
+            repose_deg: None,
             snowfall: None,
             tile_memory_bytes: Some(DEFAULT_TILE_MEMORY_BYTES),
             teleport_m: 4.0,
@@ -175,6 +182,11 @@ impl SnowParamsExt for SnowParams {
         }
         if let Err((field, why)) = self.mechanics().validate() {
             return bad(field, why);
+        }
+        if let Some(r) = self.repose_deg
+            && !(r.is_finite() && r > 0.0 && r < 90.0)
+        {
+            return bad("repose_deg", format!("{r} must be an angle between 0 and 90 degrees"));
         }
         if let Some(s) = &self.snowfall {
             s.validate()?;

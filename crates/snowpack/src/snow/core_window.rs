@@ -5,6 +5,7 @@
 //! the core takes from them only what a pass's uniforms need (the sky's
 //! projection, the shared grid), as arguments.
 
+use crate::deform::erosion::{ErosionParams, ErosionPass};
 use glam::DVec2;
 
 use crate::accumulate::OcclusionParams;
@@ -50,6 +51,8 @@ pub(super) struct CoreWindow {
     pub(super) decal_pass: DecalPass,
     pub(super) decals: DecalRing,
     pub(super) update_pass: UpdatePass,
+    /// Built on the first frame with an angle of repose.
+    erosion_pass: Option<ErosionPass>,
     display_pass: DisplayPass,
     pub(super) query_pass: QueryPass,
     /// Tickets given so far ([`super::SnowFrame::with_queries`]).
@@ -99,6 +102,7 @@ impl CoreWindow {
             decal_pass: DecalPass::new(device, queue, params.resolution, params.technique == Technique::Decals),
             decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
             update_pass: UpdatePass::new(device, &res),
+            erosion_pass: None,
             display_pass: DisplayPass::new(device, &res),
             query_pass: QueryPass::new(device, &res),
             tickets: 0,
@@ -285,6 +289,24 @@ impl CoreWindow {
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
+    }
+
+    /// One iteration of erosion where the snow has an angle of repose
+    /// (`docs/mechanics.md`, "Erosion").
+    pub(super) fn record_erosion(&mut self, cx: &mut FrameContext<'_>, origin: [i64; 2]) {
+        let Some(repose_deg) = self.params.repose_deg else { return };
+        let p = &self.params;
+        let params = ErosionParams {
+            origin: gpu_origin(origin),
+            resolution: p.resolution,
+            texel_m: p.texel_m(),
+            depth_m: p.depth_m,
+            threshold_q: ErosionParams::threshold_quanta(repose_deg, p.texel_m()),
+            use_fallen: u32::from(p.snowfall.is_some()),
+            ..ErosionParams::default()
+        };
+        let res = &self.res;
+        self.erosion_pass.get_or_insert_with(|| ErosionPass::new(cx.device(), res)).record(cx, res, &params);
     }
 
     /// The display: rims, blur and the displayed half of each snow word.

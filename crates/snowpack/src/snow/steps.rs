@@ -70,6 +70,10 @@ impl FrameSteps<'_> {
         if let Some(tiles) = &mut self.tiles {
             tiles.record_weather(cx, &self.core.res, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
         }
+        if self.sharing.is_none() {
+            // Local relaxation: not applied to shared snow, whose copies merge by the larger deficit.
+            self.core.record_erosion(cx, window.origin);
+        }
         self.time.advance(&refill, window.max_fallen_m);
         self.record_shared_flags(cx, &window, &refill, stamps);
         self.core.record_display(cx, window.origin);

@@ -1,0 +1,53 @@
+//! CPU twin of `erosion.wgsl`: one iteration, four half-sweeps of pairs.
+
+use crate::deform::erosion::ErosionParams;
+use crate::deform::packed_snow;
+use crate::deform::snow_word::press_quanta;
+
+use super::window::storage_index;
+
+/// Runs one half-sweep (`p.axis`, `p.offset`) over the toroidal snow words
+/// and packed snow (two texels a word), with `terrain` and `fallen` per
+/// texel, toroidal (`fallen` read with `p.use_fallen`).
+pub fn erode(p: &ErosionParams, terrain: &[f32], fallen: &[f32], snow: &mut [u32], packed: &mut [u32]) {
+    let res = p.resolution;
+    let column = |s: usize| {
+        let ground = terrain[s];
+        let rest = ground + p.depth_m + if p.use_fallen != 0 { fallen[s] } else { 0.0 };
+        press_quanta(rest, ground, ground)
+    };
+    for a in 0..res {
+        for k in 0..res.div_ceil(2) {
+            let (i0, j0, i1, j1) = if p.axis == 0 { (a, 2 * k + p.offset, a, 2 * k + p.offset + 1) } else { (2 * k + p.offset, a, 2 * k + p.offset + 1, a) };
+            if i1.max(j1) >= res {
+                continue;
+            }
+            let (s0, s1) = (storage_index(p.origin, res, i0, j0), storage_index(p.origin, res, i1, j1));
+            let (d0, d1) = (snow[s0] & 0xffff, snow[s1] & 0xffff);
+            let ((sa, da), (sb, db)) = if d0 > d1 { ((s1, d1), (s0, d0)) } else { ((s0, d0), (s1, d1)) };
+            let diff = db - da;
+            if diff <= p.threshold_q {
+                continue;
+            }
+            let column_a = column(sa) - da.min(column(sa));
+            let moved = ((diff - p.threshold_q) / 2).min(column_a);
+            if moved == 0 {
+                continue;
+            }
+            let (qa, qb) = (packed_snow::get(packed, sa), packed_snow::get(packed, sb));
+            let carried = moved * qa / column_a;
+            snow[sa] = (snow[sa] & 0xffff_0000) | (da + moved);
+            snow[sb] = (snow[sb] & 0xffff_0000) | (db - moved);
+            packed_snow::set(packed, sa, qa - carried);
+            packed_snow::set(packed, sb, (qb + carried).min(0xffff));
+        }
+    }
+}
+
+/// One iteration: pairs along x (even, odd), then along z (even, odd), as
+/// [`crate::deform::erosion::ErosionPass::record`] dispatches them.
+pub fn iterate(p: &ErosionParams, terrain: &[f32], fallen: &[f32], snow: &mut [u32], packed: &mut [u32]) {
+    for (axis, offset) in ErosionParams::SWEEPS {
+        erode(&ErosionParams { axis, offset, ..*p }, terrain, fallen, snow, packed);
+    }
+}
