@@ -661,6 +661,19 @@ frames = 355
     (run, events)
 }
 
+/// The lowest snow of `snow` (a grid of `run`) within `radius_m` of (x, z).
+fn lowest_within(run: &Run, snow: &Grid, (x, z): (f64, f64), radius_m: f64) -> f32 {
+    snow.data
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| {
+            let (px, pz) = run.world(k / snow.res, k % snow.res);
+            (px - x).hypot(pz - z) < radius_m
+        })
+        .map(|(_, h)| *h)
+        .fold(f32::MAX, f32::min)
+}
+
 /// Depth of the print at each footstep (rest less the lowest snow within
 /// 5 cm) beside the load model's sinkage there and whether the fox was running.
 fn prints_at_footsteps(run: &Run, events: &[serde_json::Value], depth: f32) -> Vec<(f32, f32, bool)> {
@@ -671,16 +684,7 @@ fn prints_at_footsteps(run: &Run, events: &[serde_json::Value], depth: f32) -> V
         .map(|e| {
             let p = &e["position"];
             let (x, z) = (p[0].as_f64().expect("x"), p[2].as_f64().expect("z"));
-            let lowest = snow
-                .data
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| {
-                    let (px, pz) = run.world(k / snow.res, k % snow.res);
-                    (px - x).hypot(pz - z) < 0.05
-                })
-                .map(|(_, h)| *h)
-                .fold(f32::MAX, f32::min);
+            let lowest = lowest_within(run, &snow, (x, z), 0.05);
             let running = e["speed_m_per_s"].as_f64().expect("speed") > 2.0;
             (depth - lowest, e["sink_m"].as_f64().expect("sink_m") as f32, running)
         })
@@ -753,20 +757,7 @@ fn a_second_fox_in_the_first_ones_trail_sinks_less() {
         .filter(|e| e["speed_m_per_s"].as_f64().is_some_and(|v| v > 0.5) && e["position"][0].as_f64().is_some_and(|x| (-3.0..2.5).contains(&x)))
         .map(|e| (e["position"][0].as_f64().expect("x"), e["position"][2].as_f64().expect("z")))
         .collect();
-    let print_depth = |run: &Run, (x, z): (f64, f64)| -> f64 {
-        let snow = run.grid("snow.npy");
-        let lowest = snow
-            .data
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| {
-                let (px, pz) = run.world(k / snow.res, k % snow.res);
-                (px - x).hypot(pz - z) < 0.03
-            })
-            .map(|(_, h)| f64::from(*h))
-            .fold(f64::MAX, f64::min);
-        0.5 - lowest
-    };
+    let print_depth = |run: &Run, (x, z): (f64, f64)| -> f64 { 0.5 - f64::from(lowest_within(run, &run.grid("snow.npy"), (x, z), 0.03)) };
     let (first_walk, second_walk): (Vec<f64>, Vec<f64>) = steps
         .iter()
         .map(|&p| {

@@ -11,8 +11,8 @@
 //! lower (on the terrain, say) presses only to that height; one above the
 //! snow presses nothing.
 
-use snowpack::mechanics::{SnowColumn, SnowMechanics, WheelContact};
 use bevy::prelude::*;
+use snowpack::mechanics::{SnowColumn, SnowMechanics, WheelContact};
 
 use crate::{SnowDeformer, SnowSystems, SnowpackSettings};
 

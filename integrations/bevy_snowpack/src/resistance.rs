@@ -28,8 +28,8 @@ use snowpack::PointSample;
 use crate::deformers::SnowWheel;
 use crate::query::{SnowQuery, SnowTicket};
 use crate::sinkage::{GRAVITY, terrain_coefficient};
-use snowpack::mechanics::SnowMechanics;
 use crate::{SnowSystems, SnowpackSettings};
+use snowpack::mechanics::SnowMechanics;
 
 /// Put on a character or a vehicle's wheel that the snow should hold back:
 /// the plugin keeps its [`SnowResistance`] up to date (a frame or two
