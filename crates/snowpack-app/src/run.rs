@@ -131,9 +131,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let (png, render_meta) = render_frame(&ctx, scene, &snow, &world, render_params, size)?;
     let timings = snow.timings();
     let origin = snow.origin_m().unwrap_or_default();
-    // Snow with mass (docs/mechanics.md): what the window holds at the end
-    // and what presses displaced beyond the final density.
-    let mass = snow.read_mass(&ctx).context("reading the snow's mass")?;
+    let mass = mass_meta(&ctx, &snow)?;
     let meta = serde_json::json!({
         "origin_m": [origin.x, origin.y],
         "texel_m": scene.snow.texel_m(),
@@ -147,7 +145,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         "timings_ms": timings.passes.iter().map(|(k, v, _)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>(),
         "objects": object_meta(&snow, accumulation.as_ref().map(|(stats, _)| stats.as_slice())),
         "fallen_m": snow.fallen_m(),
-        "mass": {"window_kg": mass.total_kg, "displaced_kg": mass.displaced_kg},
+        "mass": mass,
         "store": store_meta(&snow, resumed),
         "render": render_meta,
         // The deformation's GPU memory (the renderer's is under "render"), in all and by resource.
@@ -314,6 +312,13 @@ fn stage_outputs(
 
 /// `meta.json`'s `store`: tile traffic and the keeper's figures (null when
 /// trails are forgotten); `keep` is `"memory"` or `"disk"`.
+/// Snow with mass (docs/mechanics.md): what the window holds at the end and
+/// what presses displaced beyond the final density, for `meta.json`.
+fn mass_meta(ctx: &GpuContext, snow: &SnowDeformation) -> anyhow::Result<serde_json::Value> {
+    let mass = snow.read_mass(ctx).context("reading the snow's mass")?;
+    Ok(serde_json::json!({"window_kg": mass.total_kg, "displaced_kg": mass.displaced_kg}))
+}
+
 fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
     let Some(t) = snow.tile_stats() else { return serde_json::Value::Null };
     serde_json::json!({

@@ -978,16 +978,18 @@ path = [[0.0, 10.0, 0.0, 0.0], [0.0, 10.0, 0.0, 0.3], [40.0, 10.0, 0.0, 2.3], [0
 frames = 300
 "#;
 
-/// The adoption budget, as `meta.json` reports it: a default-sized window
+/// The memory budget, as `meta.json` reports it: a default-sized window
 /// (64 m at 1024²) that presses a trench and walks more than a window width,
-/// trails kept in memory (the default), holds at most 8 MiB of GPU memory with
-/// the depth technique and 12 MiB with combined.
+/// trails kept in memory (the default), holds at most 10 MiB of GPU memory
+/// with the depth technique and 14 MiB with combined: the adoption issue's
+/// 8 and 12 MiB, each with the 2 MiB of packed snow that snow with mass
+/// adds (its issue's budget: 10 MiB for depth).
 #[test]
-fn a_default_sized_window_stays_within_8_mib_for_depth_and_12_for_combined() {
+fn a_default_sized_window_stays_within_10_mib_for_depth_and_14_for_combined() {
     if !gpu_available() {
         return;
     }
-    for (technique, budget) in [("depth", 8u64 << 20), ("combined", 12 << 20)] {
+    for (technique, budget) in [("depth", 10u64 << 20), ("combined", 14 << 20)] {
         let scene = format!(
             r#"
 [snow]

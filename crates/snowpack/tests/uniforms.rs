@@ -195,8 +195,21 @@ fn every_window_pass_binds_group_1_as_the_window_bindings() {
         assert!(fits, "{name}: group 1 {access:?} is neither window layout {layouts:?}");
         passes.push(*name);
     }
-    let expected =
-        ["DISPLAY", "EXCHANGE", "QUERY", "SNOW_COAT", "STAMP", "TILE_GATHER", "TILE_MERGE", "TILE_RESTORE", "TILE_SEAL", "TILE_WEATHER", "UPDATE", "WINDOW"];
+    let expected = [
+        "DISPLAY",
+        "EROSION",
+        "EXCHANGE",
+        "QUERY",
+        "SNOW_COAT",
+        "STAMP",
+        "TILE_GATHER",
+        "TILE_MERGE",
+        "TILE_RESTORE",
+        "TILE_SEAL",
+        "TILE_WEATHER",
+        "UPDATE",
+        "WINDOW",
+    ];
     passes.sort_unstable();
     assert_eq!(passes, expected, "the passes over the window");
 }

@@ -133,6 +133,12 @@ pub struct SnowResistance {
     pub depth_m: f32,
     /// How much of that snow is pressed already (0 untouched, 1 to the ground).
     pub packed: f32,
+    /// Mean density of the snow where it steps (kg/m³): fresh snow's where
+    /// untouched, up to the final density where packed (`docs/mechanics.md`).
+    pub density_kg_m3: f32,
+    /// Penetration hardness of that snow (kPa): the pressure that sinks a
+    /// 10 cm plate 10 cm further; harder where packed.
+    pub hardness_kpa: f32,
     /// How far a step (or the wheel) sinks into it now (m).
     pub sinkage_m: f32,
     /// Where the feet (or the tyre's bottom) come to rest (world y, m): the
@@ -153,6 +159,8 @@ impl Default for SnowResistance {
             terrain_coefficient: 1.0,
             depth_m: 0.0,
             packed: 0.0,
+            density_kg_m3: 0.0,
+            hardness_kpa: 0.0,
             sinkage_m: 0.0,
             floor_m: None,
             rolling_resistance_n: 0.0,
@@ -166,19 +174,40 @@ fn resist(sample: &PointSample, walker: &FeelsSnow, wheel: Option<&SnowWheel>, m
     let depth_m = sample.depth_m().max(0.0);
     let packed = sample.compaction();
     let column = sample.column();
+    let (density_kg_m3, hardness_kpa) = (sample.density_kg_m3(mechanics), sample.hardness_kpa(mechanics));
     match wheel {
         Some(w) => {
             let sinkage_m = w.sinkage_m(mechanics, column);
             let r = mechanics.wheel_resistance_n(&w.contact(), column);
             let weight = (w.load_kg * GRAVITY).max(1e-6);
             let floor_m = Some(sample.height_m - sinkage_m);
-            SnowResistance { depth_m, packed, sinkage_m, floor_m, rolling_resistance_n: r, rolling_coefficient: r / weight, ..SnowResistance::default() }
+            SnowResistance {
+                depth_m,
+                packed,
+                density_kg_m3,
+                hardness_kpa,
+                sinkage_m,
+                floor_m,
+                rolling_resistance_n: r,
+                rolling_coefficient: r / weight,
+                ..SnowResistance::default()
+            }
         }
         None => {
             let sinkage_m = mechanics.plate_sinkage_m(walker.pressure_pa(), walker.sole_width_m(), column);
             let eta = terrain_coefficient(sinkage_m, depth_m);
             let floor_m = Some(sample.height_m - sinkage_m);
-            SnowResistance { speed_factor: eta.sqrt().recip(), terrain_coefficient: eta, depth_m, packed, sinkage_m, floor_m, ..SnowResistance::default() }
+            SnowResistance {
+                speed_factor: eta.sqrt().recip(),
+                terrain_coefficient: eta,
+                depth_m,
+                packed,
+                density_kg_m3,
+                hardness_kpa,
+                sinkage_m,
+                floor_m,
+                ..SnowResistance::default()
+            }
         }
     }
 }
@@ -297,6 +326,9 @@ mod tests {
         // A trail pressed 20 cm by a heavier load holds the fox.
         let b = resist(&sample(0.2, 0.2), &fox, None, &snow);
         assert!(a.sinkage_m > 0.05, "{a:?}");
+        // Packed to twice the fresh density, and harder.
+        assert!((a.density_kg_m3 - 100.0).abs() < 1e-3 && (b.density_kg_m3 - 200.0).abs() < 1e-2, "{a:?} {b:?}");
+        assert!((a.hardness_kpa - 10.0).abs() < 1e-2 && b.hardness_kpa > 5.0 * a.hardness_kpa, "{a:?} {b:?}");
         assert_eq!(b.sinkage_m, 0.0);
         assert!(a.speed_factor < 0.7 && b.speed_factor > 0.85 && b.speed_factor < 0.9, "{a:?} {b:?}");
     }
