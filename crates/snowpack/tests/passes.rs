@@ -439,7 +439,8 @@ fn erosion_matches_cpu_and_moves_no_snow_in_or_out() {
         resolution: params.resolution,
         texel_m: params.texel_m(),
         depth_m: params.depth_m,
-        threshold_q: ErosionParams::threshold_quanta(rng.range(20.0, 60.0), params.texel_m()),
+        // A step of 5 to 30 % of the snow's depth holds (whatever the texel size).
+        threshold_q: snow_word::deficit_quanta(rng.range(0.05, 0.3) * params.depth_m),
         ..ErosionParams::default()
     };
     let pass = ErosionPass::new(&ctx.device, &res);
