@@ -172,42 +172,28 @@ impl Default for SnowResistance {
 /// The resistance of one answered point for a walker or a wheel, in snow of `mechanics`.
 fn resist(sample: &PointSample, walker: &FeelsSnow, wheel: Option<&SnowWheel>, mechanics: &SnowMechanics) -> SnowResistance {
     let depth_m = sample.depth_m().max(0.0);
-    let packed = sample.compaction();
     let column = sample.column();
-    let (density_kg_m3, hardness_kpa) = (sample.density_kg_m3(mechanics), sample.hardness_kpa(mechanics));
+    let sinkage_m = match wheel {
+        Some(w) => w.sinkage_m(mechanics, column),
+        None => mechanics.plate_sinkage_m(walker.pressure_pa(), walker.sole_width_m(), column),
+    };
+    let here = SnowResistance {
+        depth_m,
+        packed: sample.compaction(),
+        density_kg_m3: sample.density_kg_m3(mechanics),
+        hardness_kpa: sample.hardness_kpa(mechanics),
+        sinkage_m,
+        floor_m: Some(sample.height_m - sinkage_m),
+        ..SnowResistance::default()
+    };
     match wheel {
         Some(w) => {
-            let sinkage_m = w.sinkage_m(mechanics, column);
             let r = mechanics.wheel_resistance_n(&w.contact(), column);
-            let weight = (w.load_kg * GRAVITY).max(1e-6);
-            let floor_m = Some(sample.height_m - sinkage_m);
-            SnowResistance {
-                depth_m,
-                packed,
-                density_kg_m3,
-                hardness_kpa,
-                sinkage_m,
-                floor_m,
-                rolling_resistance_n: r,
-                rolling_coefficient: r / weight,
-                ..SnowResistance::default()
-            }
+            SnowResistance { rolling_resistance_n: r, rolling_coefficient: r / (w.load_kg * GRAVITY).max(1e-6), ..here }
         }
         None => {
-            let sinkage_m = mechanics.plate_sinkage_m(walker.pressure_pa(), walker.sole_width_m(), column);
             let eta = terrain_coefficient(sinkage_m, depth_m);
-            let floor_m = Some(sample.height_m - sinkage_m);
-            SnowResistance {
-                speed_factor: eta.sqrt().recip(),
-                terrain_coefficient: eta,
-                depth_m,
-                packed,
-                density_kg_m3,
-                hardness_kpa,
-                sinkage_m,
-                floor_m,
-                ..SnowResistance::default()
-            }
+            SnowResistance { speed_factor: eta.sqrt().recip(), terrain_coefficient: eta, ..here }
         }
     }
 }
