@@ -51,8 +51,6 @@ pub struct Bekker {
 impl Bekker {
     /// Wong, *Theory of Ground Vehicles*, Table 2.3, "Snow (U.S.)".
     pub const SNOW_US: Self = Self { n: 1.6, kc: 4_370.0, kphi: 196_720.0 };
-    /// Wong, *Theory of Ground Vehicles*, Table 2.3, "Snow (Sweden)".
-    pub const SNOW_SWEDEN: Self = Self { n: 1.44, kc: 10_550.0, kphi: 66_080.0 };
 
     /// The modulus `kc / b + kφ` for a plate `width_m` wide.
     #[must_use]
@@ -168,8 +166,7 @@ impl SnowMechanics {
     /// The column before its presses: as much snow at fresh density,
     /// `h + q` deep.
     #[must_use]
-    #[cfg_attr(not(feature = "low_level"), doc(hidden))]
-    pub fn unpressed(&self, column: SnowColumn) -> SnowColumn {
+    fn unpressed(&self, column: SnowColumn) -> SnowColumn {
         SnowColumn::fresh(column.depth_m.max(0.0) + column.packed_m.max(0.0))
     }
 

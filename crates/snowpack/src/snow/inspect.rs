@@ -354,15 +354,13 @@ impl SnowInspect for SnowDeformation {
 
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
-        let r = self.core.params.resolution as usize;
-        let words = &words[..packed_snow::words(r as u32) as usize];
-        let quanta = self.untorus(&packed_snow::unpack(words, r * r));
-        Ok(quanta.iter().map(|&q| q as f32 * snow_word::SNOW_QUANTUM_M).collect())
+        Ok(self.packed_m(&words))
     }
 
     fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError> {
-        let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.read_packed(ctx)?);
+        // One readback of the packed buffer: the texels' packed snow and, in its last words, the displaced count.
         let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
+        let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.packed_m(&counted));
         let mechanics = self.core.params.mechanics();
         let area = f64::from(self.core.params.texel_m()).powi(2);
         let total: f64 =

@@ -2,11 +2,23 @@
 //! the app, tools and tests (`low_level`): blocking, never in a frame loop.
 
 use super::SnowDeformation;
+use crate::deform::packed_snow;
+use crate::deform::params::SnowParamsExt;
+use crate::deform::snow_word::SNOW_QUANTUM_M;
 
 impl SnowDeformation {
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     pub(super) fn untorus<T: Copy + Default>(&self, toroidal: &[T]) -> Vec<T> {
         untorus(self.core.params.resolution, self.core.window.origin().unwrap_or([0, 0]), toroidal)
+    }
+
+    /// The packed snow (m of fresh snow) per texel, window-local, from the
+    /// packed buffer's words as read back (its count words after the texels').
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+    pub(super) fn packed_m(&self, words: &[u32]) -> Vec<f32> {
+        let texels = self.core.params.texel_count();
+        let quanta = self.untorus(&packed_snow::unpack(words, texels));
+        quanta.iter().map(|&q| q as f32 * SNOW_QUANTUM_M).collect()
     }
 }
 
