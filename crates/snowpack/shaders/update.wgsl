@@ -7,6 +7,7 @@
 // #import shared/sky_test
 // #import shared/packed_snow
 // #import shared/pack_press
+// #import shared/displace
 
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
@@ -30,6 +31,12 @@
 // (the packed snow grows by d); once the column would be denser than the
 // final density the rest is displaced (counted in `displaced`). Refill and
 // snowfall add fresh snow on top and leave the packed snow as it is.
+// With DISPLACE, the snow beyond the final density at a texel the actors
+// press moves instead (shared/displace.wgsl): to the texel of the 5x5 that
+// best follows the way out of the press (the captured surface rising, or
+// gone), at most DISPLACE_MOST_Q quanta a frame, the rest staying packed
+// until the next frame; the move goes in the upper half of the snow word
+// for the displace pass. No way out (a flat press all around): it stays.
 // In place: each texel reads and writes only itself; the displayed half of
 // each word is kept (the display pass rewrites it).
 // With shared snow (SHARE) a texel whose deficit the captured actors raised
@@ -57,7 +64,7 @@ struct UpdateParams {
     share_side: u32, // changed-tile flags' tile side (with SHARE)
     share_keys: u32, // slots per side of the flags
     pack_ratio: f32, // rho_max / rho_fresh - 1: packed snow a column holds per quantum of its height
-    _pad: u32,
+    displace_k: f32, // (high_m - low_m) * 8 / texel_m: a capture depth step in eighths of a texel's rise
 }
 
 const USE_CAPTURE: u32 = 1u;
@@ -72,6 +79,8 @@ const SHARE: u32 = 32u;
 // branch tests a uniform alone (Mesa 22's lavapipe compiles such a shader
 // again at every dispatch and keeps every copy; docs/deformation.md).
 const REFILLS: u32 = 64u;
+// Snow beyond the final density moves aside (needs USE_CAPTURE).
+const DISPLACE: u32 = 128u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, pass/compute.rs); the default reads `params.flags`.
@@ -109,6 +118,67 @@ fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
     return sky_test_seen(params.sky, h, textureLoad(sky, pix, 0).x);
 }
 
+// How far the way out of a press rises at neighbour `n` from a texel at
+// capture depth `d0`: 0..63 eighths of a texel's rise, 63 where nothing
+// presses. In capture depths and one correctly rounded product, so the
+// CPU twin picks the same target.
+fn displace_rise(n: vec2<i32>, d0: f32) -> i32 {
+    let d = textureLoad(capture, vec2<u32>(n), 0).x;
+    if d >= 1.0 {
+        return 63;
+    }
+    return i32(clamp(floor((d - d0) * params.displace_k), 0.0, 63.0));
+}
+
+// The offset index (DISPLACE_OFFSETS) that snow at window-local texel
+// (i, j) moves to, or 24 for none: the neighbour in the window whose
+// direction is closest to the rise's mean direction (integer cosines),
+// then the higher rise, then the first; without a mean direction the
+// highest rise; none where nothing rises.
+fn displace_target(i: u32, j: u32) -> u32 {
+    let d0 = textureLoad(capture, vec2<u32>(j, i), 0).x;
+    let here = vec2<i32>(i32(j), i32(i));
+    let r = i32(params.resolution);
+    var rise: array<i32, 24>;
+    var g = vec2<i32>(0, 0);
+    for (var k = 0u; k < 24u; k++) {
+        let n = here + DISPLACE_OFFSETS[k];
+        var w = -1;
+        if all(n >= vec2<i32>(0)) && all(n < vec2<i32>(r)) {
+            w = displace_rise(n, d0);
+            g += w * DISPLACE_OFFSETS[k];
+        }
+        rise[k] = w;
+    }
+    var best = 24u;
+    var best_dot = 0;
+    var best_len = 1;
+    for (var k = 0u; k < 24u; k++) {
+        let o = DISPLACE_OFFSETS[k];
+        let dot_o = o.x * g.x + o.y * g.y;
+        let len = o.x * o.x + o.y * o.y;
+        if rise[k] < 0 || dot_o <= 0 {
+            continue;
+        }
+        // dot/|o| compared without roots: dot^2 |o_best|^2 against dot_best^2 |o|^2 (u32: at most 3024^2 * 8).
+        let a = u32(dot_o) * u32(dot_o) * u32(best_len);
+        let b = u32(best_dot) * u32(best_dot) * u32(len);
+        if best == 24u || a > b || (a == b && rise[k] > rise[best]) {
+            best = k;
+            best_dot = dot_o;
+            best_len = len;
+        }
+    }
+    if best == 24u {
+        for (var k = 0u; k < 24u; k++) {
+            if rise[k] > 0 && (best == 24u || rise[k] > rise[best]) {
+                best = k;
+            }
+        }
+    }
+    return best;
+}
+
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let j = gid.x;
@@ -138,11 +208,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         deficit -= min(deficit, params.snow_refill_quanta);
     }
     let refilled = deficit;
+    // Whether the captured actors reach down to the snow here (what displaces).
+    var pressed = false;
     if (update_flags() & USE_CAPTURE) != 0u {
         let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
         if d < 1.0 {
             let actor = params.low_m + d * (params.high_m - params.low_m);
-            deficit = max(deficit, snow_press_quanta(rest, ground, actor));
+            let press = snow_press_quanta(rest, ground, actor);
+            pressed = press >= refilled;
+            deficit = max(deficit, press);
         }
     }
     let captured = deficit;
@@ -168,10 +242,25 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Never below the terrain.
     let at_ground = snow_press_quanta(rest, ground, ground);
     deficit = min(deficit, at_ground);
-    snow[s] = (word & 0xffff0000u) | deficit;
     // What the presses took from the column's height goes into its packed
-    // snow, up to the final density; the rest is displaced.
-    pack_press(s, refilled, deficit, at_ground, params.pack_ratio);
+    // snow, up to the final density; the rest is displaced: counted, or
+    // with DISPLACE moved aside by the displace pass.
+    if (update_flags() & DISPLACE) != 0u {
+        var code = 0u;
+        let excess = pack_press_excess(s, refilled, deficit, at_ground, params.pack_ratio, pressed);
+        if excess > 0u {
+            let to = displace_target(i, j);
+            if to < 24u {
+                code = displace_code(to, excess);
+            }
+            // None: the snow stays packed beyond the final density.
+            pack_press_keep(s, select(excess, 0u, to < 24u));
+        }
+        snow[s] = (code << 16u) | deficit;
+    } else {
+        snow[s] = (word & 0xffff0000u) | deficit;
+        pack_press(s, refilled, deficit, at_ground, params.pack_ratio);
+    }
     // The capture raised it (after the clamp, which only lowers).
     if (update_flags() & SHARE) != 0u && min(captured, at_ground) > refilled {
         atomicStore(&share_flags[share_slot(params.origin + vec2<i32>(i32(j), i32(i)), params.share_side, params.share_keys)], 1u);

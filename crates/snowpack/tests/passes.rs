@@ -14,6 +14,7 @@ use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
+use snowpack::low_level::deform::displace::{self, DisplaceParams, DisplacePass};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::erosion::{ErosionParams, ErosionPass};
 use snowpack::low_level::deform::packed_snow;
@@ -401,6 +402,108 @@ fn update_packs_pressed_snow_like_cpu() {
     if agree.len() == n {
         assert_eq!(gpu_displaced, cpu_displaced, "seed {seed}");
     }
+}
+
+/// Displacement (`update.wgsl` with `DISPLACE`, then `displace.wgsl`)
+/// against the twins on random snow, packed snow and lying snow under
+/// spheres (some swept) pressed to the terrain at a low pack ratio: the
+/// update's moves (the upper halves) equal the twin's wherever the
+/// deficits agree; the berms the GPU gathered equal the twin's gather of
+/// the GPU's own moves bit for bit; and every texel's lost height is in its
+/// packed snow, its move or the displaced count (mass kept).
+#[test]
+fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("displacement");
+    let mut rng = Rng::new(seed);
+    let (params, terrain_src, _) = setup(ctx, &mut rng, 96);
+    let params = SnowParams { displace: true, ..params };
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let n = params.texel_count();
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+    let mut fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.1)).collect();
+    let at_ground: Vec<u32> = terrain.iter().zip(&fallen).map(|(&t, &l)| snow_word::press_quanta(t + params.depth_m + l, t, t)).collect();
+    let pack_ratio = rng.range(0.2, 1.5);
+    let mut snow: Vec<u32> = at_ground.iter().map(|&g| (rng.next_u64() as u32 & 0xffff_0000) | (rng.range(0.0, g as f32 * 0.6) as u32)).collect();
+    let mut packed = vec![0u32; n.div_ceil(2)];
+    for (s, word) in snow.iter().enumerate() {
+        let cap = packed_snow::cap(at_ground[s] - (word & 0xffff), pack_ratio);
+        packed_snow::set(&mut packed, s, rng.range(0.0, cap as f32) as u32);
+    }
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed));
+    ctx.queue.write_buffer(&res.packed, 4 * packed.len() as u64, bytemuck::cast_slice(&[0u32; 2]));
+    let e = params.extent_m;
+    let deformers: Vec<Deformer> = (0..10)
+        .map(|_| Deformer::Sphere {
+            center: Vec3::new(rng.range(0.1 * e, 0.9 * e), rng.range(-0.6, 0.4), rng.range(0.1 * e, 0.9 * e)),
+            radius: rng.range(0.3, 0.1 * e),
+        })
+        .collect();
+    let previous: Vec<Option<Deformer>> = deformers
+        .iter()
+        .map(|d| match *d {
+            Deformer::Sphere { center, radius } if rng.range(0.0, 1.0) < 0.5 => {
+                Some(Deformer::Sphere { center: center + Vec3::new(rng.range(-2.0, 2.0), 0.0, rng.range(-2.0, 2.0)), radius })
+            }
+            _ => None,
+        })
+        .collect();
+    let cparams = CaptureParams { extent_m: e, texel_m: params.texel_m(), low_m: -2.0, high_m: 3.0 };
+    let instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
+    let up = UpdateParams {
+        origin,
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        low_m: cparams.low_m,
+        high_m: cparams.high_m,
+        flags: UpdateParams::USE_CAPTURE | UpdateParams::USE_FALLEN | UpdateParams::DISPLACE,
+        texel_m: params.texel_m(),
+        pack_ratio,
+        displace_k: (cparams.high_m - cparams.low_m) * 8.0 / params.texel_m(),
+        ..UpdateParams::default()
+    };
+    let dp = DisplaceParams { origin, resolution: params.resolution, ..DisplaceParams::default() };
+    let mut capture = CapturePass::new(&ctx.device);
+    let update = UpdatePass::new(&ctx.device, &res);
+    let displace = DisplacePass::new(&ctx.device, &res);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
+    displace.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &dp);
+    submit(ctx, enc);
+    let (gpu_words, gpu_packed, gpu_fallen) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed), read_f32(ctx, &res.fallen));
+
+    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture_sphere::quantise_depths(&mut depth);
+    let (before_snow, before_packed, before_fallen) = (snow.clone(), packed.clone(), fallen.clone());
+    let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
+    let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut [], fallen: &mut fallen, packed: &mut packed, flags: &mut [] };
+    cpu::update::update(&up, &input, state);
+    // The moves, wherever the deficits agree (a press height is an f32 a fused multiply-add may tip by a quantum).
+    let agree: Vec<usize> = (0..n).filter(|&s| gpu_words[s] & 0xffff == snow[s] & 0xffff).collect();
+    assert!(agree.len() + n / 200 >= n, "{} of {n} deficits differ; seed {seed}", n - agree.len());
+    assert!(agree.iter().all(|&s| gpu_words[s] == snow[s]), "moves differ from the twin's; seed {seed}");
+    // The gather of the GPU's own moves, bit for bit.
+    let mut gathered = before_fallen.clone();
+    cpu::displace::displace(&dp, &gpu_words, &mut gathered, &mut []);
+    assert!(gathered.iter().zip(&gpu_fallen).all(|(a, b)| a.to_bits() == b.to_bits()), "berms differ from the twin's gather; seed {seed}");
+    // Mass: each texel's press went into its packed snow, its move or the count.
+    let moved: u64 = gpu_words.iter().map(|&w| u64::from(displace::code_quanta(w >> 16))).sum();
+    let moves = gpu_words.iter().filter(|&&w| w >> 16 != 0).count();
+    let mut pressed = 0u64;
+    for s in 0..n {
+        let d0 = before_snow[s] & 0xffff;
+        pressed += u64::from((gpu_words[s] & 0xffff).saturating_sub(d0));
+    }
+    let packed_gain: i64 = (0..n).map(|s| i64::from(packed_snow::get(&gpu_packed, s)) - i64::from(packed_snow::get(&before_packed, s))).sum();
+    assert_eq!(pressed as i64, packed_gain + moved as i64 + packed_snow::displaced_count(&gpu_packed) as i64, "mass; seed {seed}");
+    let gained_m: f64 = gpu_fallen.iter().zip(&before_fallen).map(|(a, b)| f64::from(a - b)).sum();
+    assert!((gained_m - moved as f64 * 1e-4).abs() < 1e-4 + moved as f64 * 1e-8, "berms gained {gained_m} m, moves {} m; seed {seed}", moved as f64 * 1e-4);
+    assert!(moves > 50, "only {moves} moves; seed {seed}");
 }
 
 /// The erosion pass (`erosion.wgsl`) against its twin on random snow with

@@ -24,7 +24,8 @@ low_level_fields! {
         snowfall_m_per_s: f32,
         /// The most snowfall a texel keeps (m); 0 without snowfall.
         max_fallen_m: f32,
-        /// Whether tiles carry the snowfall plane.
+        /// Whether tiles carry the lying-snow plane: snowfall so far, and
+        /// berms where presses displace snow.
         has_snowfall: bool,
         /// The footprint quantisation range (m): low and high.
         stamp_range_m: [f32; 2],
@@ -55,7 +56,7 @@ impl WorldIdentity {
                 out.push(format!("tile side: {} here, {} there", self.tile_side, other.tile_side));
             }
             if self.has_snowfall != other.has_snowfall {
-                out.push(format!("snowfall: {} here, {} there", on_off(self.has_snowfall), on_off(other.has_snowfall)));
+                out.push(format!("lying snow (snowfall or berms): {} here, {} there", on_off(self.has_snowfall), on_off(other.has_snowfall)));
             }
             if self.terrain != other.terrain {
                 out.push(format!("terrain: {} here, {} there", self.terrain, other.terrain));
@@ -128,6 +129,9 @@ pub struct WorldSnow {
     pub refill_m_per_s: f32,
     /// Snowfall on open ground; `None` without it.
     pub snowfall: Option<WorldSnowfall>,
+    /// Whether presses displace snow into berms (snow lying on the rest
+    /// surface, shared in the tiles' snowfall plane like snowfall).
+    pub displace: bool,
 }
 
 /// Snowfall in a [`WorldSnow`].
@@ -190,7 +194,7 @@ impl WorldIdentity {
             refill_m_per_s: snow.refill_m_per_s,
             snowfall_m_per_s: fall.map_or(0.0, |f| f.rate_m_per_s),
             max_fallen_m: fall.map_or(0.0, |f| f.max_m),
-            has_snowfall: fall.is_some(),
+            has_snowfall: fall.is_some() || snow.displace,
             stamp_range_m: [low, high],
         }
     }

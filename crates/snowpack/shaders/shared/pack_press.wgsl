@@ -1,3 +1,4 @@
+// #import shared/displace
 // A press's packing (docs/mechanics.md), for the passes that raise deficits
 // (the update and the tile merge). The importing shader declares
 //   packed: array<atomic<u32>>
@@ -36,5 +37,49 @@ fn pack_press(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32) {
     }
     if squeezed > cap {
         count_displaced(squeezed - cap);
+    }
+}
+
+// As pack_press, for a window that displaces (update.wgsl's DISPLACE):
+// where the actors press (`pressed`), the snow beyond the final density,
+// new or left from earlier frames, leaves the column, at most
+// DISPLACE_MOST_Q quanta in whole 4-quantum steps; the rest stays packed
+// (beyond the cap) for the next frames. Returns what leaves. Packed snow
+// beyond 16 bits is counted as displaced.
+fn pack_press_excess(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32, pressed: bool) -> u32 {
+    let k = packed_index(s);
+    let shift = packed_shift(s);
+    let before = packed_get(atomicLoad(&packed[k]), s);
+    let squeezed = before + (now - min(was, now));
+    let cap = packed_cap(at_ground - now, ratio);
+    var leaves = 0u;
+    if pressed && squeezed > cap {
+        leaves = min(squeezed - cap, DISPLACE_MOST_Q) & ~3u;
+    }
+    let kept = squeezed - leaves;
+    let after = min(kept, 65535u);
+    if kept > after {
+        count_displaced(kept - after);
+    }
+    if after > before {
+        atomicAdd(&packed[k], (after - before) << shift);
+    } else if after < before {
+        atomicSub(&packed[k], (before - after) << shift);
+    }
+    return leaves;
+}
+
+// Puts `quanta` that pack_press_excess took out of texel `s` back into its
+// packed snow (no way out of the press), counting what 16 bits cannot hold.
+fn pack_press_keep(s: u32, quanta: u32) {
+    if quanta == 0u {
+        return;
+    }
+    let k = packed_index(s);
+    let before = packed_get(atomicLoad(&packed[k]), s);
+    let after = min(before + quanta, 65535u);
+    atomicAdd(&packed[k], (after - before) << packed_shift(s));
+    if before + quanta > after {
+        count_displaced(before + quanta - after);
     }
 }

@@ -8,6 +8,7 @@ pub mod atlas_surface;
 pub mod capture_mesh;
 pub mod capture_sphere;
 pub mod capture_wheel;
+pub mod displace;
 pub mod display;
 pub mod env_downsample;
 pub mod env_prefilter;

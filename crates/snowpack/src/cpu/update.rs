@@ -78,11 +78,14 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                 deficit -= deficit.min(p.snow_refill_quanta);
             }
             let refilled = deficit;
+            let mut pressed = false;
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
                 let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
                     let actor = p.low_m + d * (p.high_m - p.low_m);
-                    deficit = deficit.max(press_quanta(rest, ground, actor));
+                    let press = press_quanta(rest, ground, actor);
+                    pressed = press >= refilled;
+                    deficit = deficit.max(press);
                 }
             }
             let captured = deficit;
@@ -101,8 +104,14 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
             // Never below the terrain.
             let at_ground = press_quanta(rest, ground, ground);
             deficit = deficit.min(at_ground);
-            snow[s] = (word & 0xffff_0000) | deficit;
-            displaced += pack_press(packed, s, (refilled, deficit), at_ground, p.pack_ratio);
+            if p.flags & UpdateParams::DISPLACE != 0 {
+                let (code, lost) = super::displace::press(p, input.capture_depth, packed, (s, i, j), (refilled, deficit, at_ground), pressed);
+                snow[s] = (code << 16) | deficit;
+                displaced += lost;
+            } else {
+                snow[s] = (word & 0xffff_0000) | deficit;
+                displaced += pack_press(packed, s, (refilled, deficit), at_ground, p.pack_ratio);
+            }
             if share && captured.min(at_ground) > refilled {
                 flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
             }

@@ -7,6 +7,7 @@
 
 pub mod capture;
 pub mod decal;
+pub mod displace;
 pub mod display;
 pub mod erosion;
 pub mod packed_snow;

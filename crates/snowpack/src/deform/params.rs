@@ -48,6 +48,15 @@ pub struct SnowParams {
     /// default): trails keep the walls their presses made. Not applied
     /// while the window shares its snow.
     pub repose_deg: Option<f32>,
+    /// Whether snow a press squeezes beyond the final density moves aside
+    /// into berms (`docs/mechanics.md`, "Displacement"): the displace pass
+    /// puts it down on the texels beside the press, as snow lying on the
+    /// rest surface, so a blade (a box scraping the ground,
+    /// [`crate::Deformer::blade`]) pushes a windrow. `false` (the default):
+    /// it is counted as displaced and leaves the window. Needs the depth or
+    /// combined technique (the capture gives the direction); the window then
+    /// keeps a lying-snow plane (4 bytes a texel) as with snowfall.
+    pub displace: bool,
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
@@ -104,6 +113,7 @@ impl Default for SnowParams {
             density_kg_m3: 100.0,
             max_density_kg_m3: 500.0,
             repose_deg: None,
+            displace: false,
             snowfall: None,
             tile_memory_bytes: Some(DEFAULT_TILE_MEMORY_BYTES),
             teleport_m: 4.0,
@@ -115,6 +125,13 @@ impl Default for SnowParams {
 pub const RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 16..=8192;
 
 impl SnowParams {
+    /// Whether the window keeps a plane of snow lying on the rest surface
+    /// (`fallen`): snowfall so far, and berms when it displaces.
+    #[must_use]
+    pub(crate) fn keeps_lying_snow(&self) -> bool {
+        self.snowfall.is_some() || self.displace
+    }
+
     /// Size of one texel (m).
     #[must_use]
     pub fn texel_m(&self) -> f32 {

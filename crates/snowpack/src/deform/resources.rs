@@ -125,7 +125,7 @@ impl DeformResources {
         // Every texel is written by the window pass on first placement.
         let stamps = height_buffer(device, "stamps", if params.technique.uses_stamps() { texels } else { 1 });
         // Zeroed by wgpu; only read and written while `params.snowfall` is set.
-        let fallen = height_buffer(device, "fallen", if params.snowfall.is_some() { texels } else { 1 });
+        let fallen = height_buffer(device, "fallen", if params.keeps_lying_snow() { texels } else { 1 });
         let bindings = WindowBindings::new(
             device,
             &WindowBuffers { terrain_params: &terrain_params, heightmap: &heightmap, snow: &snow, stamps: &stamps, fallen: &fallen },

@@ -55,8 +55,9 @@ pub struct UpdateParams {
     /// packed snow a column holds per quantum of its height. 0 packs
     /// nothing (every press displaces what it takes).
     pub pack_ratio: f32,
-    /// Padding to the WGSL struct's 8-byte alignment.
-    pub _pad: u32,
+    /// `(high_m − low_m) × 8 / texel_m`: a step of capture depth in eighths
+    /// of a texel's rise (with [`Self::DISPLACE`], the way out of a press).
+    pub displace_k: f32,
 }
 
 impl UpdateParams {
@@ -79,6 +80,10 @@ impl UpdateParams {
     /// uniform alone (Mesa 22's lavapipe compiles such a shader again at
     /// every dispatch and keeps every copy).
     pub const REFILLS: u32 = 64;
+    /// Snow beyond the final density where the actors press moves aside:
+    /// the move goes into the upper half of the snow word for the displace
+    /// pass ([`super::displace`]). Needs [`Self::USE_CAPTURE`].
+    pub const DISPLACE: u32 = 128;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.

@@ -57,7 +57,7 @@ fn frame_params(core: &CoreWindow, ground: &GroundAfter, sky_bound: bool, dt_s: 
         depth_m: p.depth_m,
         dt_s,
         fall_m: ground.fall_m,
-        use_fallen: u32::from(p.snowfall.is_some()),
+        use_fallen: u32::from(p.keeps_lying_snow()),
         use_sky: u32::from(sky.is_some()),
         // A vertex that moved farther than a teleport in one frame jumped.
         teleport_m: if p.teleport_m > 0.0 { p.teleport_m } else { f32::INFINITY },

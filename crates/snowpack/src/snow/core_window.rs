@@ -5,6 +5,7 @@
 //! the core takes from them only what a pass's uniforms need (the sky's
 //! projection, the shared grid), as arguments.
 
+use crate::deform::displace::{DisplaceParams, DisplacePass};
 use crate::deform::erosion::{ErosionParams, ErosionPass};
 use glam::DVec2;
 
@@ -53,6 +54,9 @@ pub(super) struct CoreWindow {
     pub(super) update_pass: UpdatePass,
     /// Built on the first frame with an angle of repose.
     erosion_pass: Option<ErosionPass>,
+    /// Built on the first frame that displaces snow (again when sharing
+    /// allocates the changed-tile flags it writes).
+    pub(super) displace_pass: Option<DisplacePass>,
     display_pass: DisplayPass,
     pub(super) query_pass: QueryPass,
     /// Tickets given so far ([`super::SnowFrame::with_queries`]).
@@ -103,6 +107,7 @@ impl CoreWindow {
             decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
             update_pass: UpdatePass::new(device, &res),
             erosion_pass: None,
+            displace_pass: None,
             display_pass: DisplayPass::new(device, &res),
             query_pass: QueryPass::new(device, &res),
             tickets: 0,
@@ -162,7 +167,7 @@ impl CoreWindow {
             max_fallen_m: p.snowfall.as_ref().map_or(0.0, |s| s.max_m),
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
-            use_fallen: p.snowfall.is_some(),
+            use_fallen: p.keeps_lying_snow(),
             terrain_m: self.terrain_bounds,
         };
         (window, rects)
@@ -178,7 +183,7 @@ impl CoreWindow {
             texel_m: p.texel_m(),
             depth_m: p.depth_m,
             fallen_m: window.fallen_m,
-            flags: if p.snowfall.is_some() { WindowParams::WRITE_FALLEN } else { 0 } | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
+            flags: if p.keeps_lying_snow() { WindowParams::WRITE_FALLEN } else { 0 } | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
             ..WindowParams::default()
         };
         self.window_pass.record(cx, &self.res, params, rects);
@@ -274,10 +279,11 @@ impl CoreWindow {
             high_m: self.capture_params.high_m,
             flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
                 | if stamps { UpdateParams::USE_STAMPS } else { 0 }
-                | if snowfall.is_some() { UpdateParams::USE_FALLEN } else { 0 }
+                | if p.keeps_lying_snow() { UpdateParams::USE_FALLEN } else { 0 }
                 | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
                 | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 }
-                | if share.is_some() { UpdateParams::SHARE } else { 0 },
+                | if share.is_some() { UpdateParams::SHARE } else { 0 }
+                | if self.displaces() { UpdateParams::DISPLACE } else { 0 },
             refill_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
@@ -286,9 +292,34 @@ impl CoreWindow {
             share_side: share.map_or(0, |g| g.side),
             share_keys: share.map_or(0, |g| g.keys),
             pack_ratio: p.mechanics().pack_ratio(),
+            displace_k: (self.capture_params.high_m - self.capture_params.low_m) * 8.0 / p.texel_m(),
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
+    }
+
+    /// Whether presses displace snow into berms: asked for, and a technique
+    /// that captures (the capture gives the way out of a press).
+    pub(super) fn displaces(&self) -> bool {
+        self.params.displace && matches!(self.params.technique, Technique::Depth | Technique::Combined)
+    }
+
+    /// The berms: the moves the update chose, gathered at their targets
+    /// (`docs/mechanics.md`, "Displacement"), when the window displaces.
+    pub(super) fn record_displace(&mut self, cx: &mut FrameContext<'_>, origin: [i64; 2], share: Option<ShareGrid>) {
+        if !self.displaces() {
+            return;
+        }
+        let params = DisplaceParams {
+            origin: gpu_origin(origin),
+            resolution: self.params.resolution,
+            flags: if share.is_some() { DisplaceParams::SHARE } else { 0 },
+            share_side: share.map_or(0, |g| g.side),
+            share_keys: share.map_or(0, |g| g.keys),
+            ..DisplaceParams::default()
+        };
+        let res = &self.res;
+        self.displace_pass.get_or_insert_with(|| DisplacePass::new(cx.device(), res)).record(cx, res, &params);
     }
 
     /// One iteration of erosion where the snow has an angle of repose
@@ -302,7 +333,7 @@ impl CoreWindow {
             texel_m: p.texel_m(),
             depth_m: p.depth_m,
             threshold_q: ErosionParams::threshold_quanta(repose_deg, p.texel_m()),
-            use_fallen: u32::from(p.snowfall.is_some()),
+            use_fallen: u32::from(p.keeps_lying_snow()),
             ..ErosionParams::default()
         };
         let res = &self.res;
@@ -320,7 +351,7 @@ impl CoreWindow {
             mode: DisplayParams::mode_for(p.technique, p.rim),
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
-            use_fallen: u32::from(p.snowfall.is_some()),
+            use_fallen: u32::from(p.keeps_lying_snow()),
             texel_m: p.texel_m(),
             blur: u32::from(p.blur),
             ..Default::default()
@@ -356,7 +387,7 @@ impl CoreWindow {
             count: 0,
             texel_m: p.texel_m(),
             depth_m: p.depth_m,
-            use_fallen: u32::from(p.snowfall.is_some()),
+            use_fallen: u32::from(p.keeps_lying_snow()),
             _pad: 0,
         };
         self.query_pass.record(cx, &self.res, params, &local, (ticket, frame, points.to_vec()));

@@ -344,7 +344,7 @@ impl SnowInspect for SnowDeformation {
     fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words = self.read_snow_words(ctx)?;
         let terrain = self.read_terrain(ctx)?;
-        let fallen: Vec<f32> = if self.core.params.snowfall.is_some() {
+        let fallen: Vec<f32> = if self.core.params.keeps_lying_snow() {
             self.untorus(&bytemuck::pod_collect_to_vec::<u8, f32>(&read_buffer(ctx, &self.core.res.fallen)?))
         } else {
             vec![0.0; words.len()]

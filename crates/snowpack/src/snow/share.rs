@@ -47,6 +47,9 @@ impl SnowDeformation {
             self.core.stamp_pass = StampPass::new(device, &self.core.res);
             self.core.update_pass = UpdatePass::new(device, &self.core.res);
             self.core.update_pass.bind_sky(device, &self.core.res, self.accumulation.as_ref().map(crate::accumulate::SnowAccumulation::sky_view));
+            if let Some(displace) = &mut self.core.displace_pass {
+                displace.bind_flags(device, &self.core.res);
+            }
             self.sharing = Some(Sharing::new(device, &self.core.res, tile_side, interval_s));
         });
         ctx.check("enabling shared snow")
@@ -89,7 +92,7 @@ impl SnowDeformation {
             refill_m_per_s: self.core.params.refill_m_per_s,
             snowfall_m_per_s: snowfall.map_or(0.0, |s| s.rate_m_per_s),
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
-            has_snowfall: snowfall.is_some(),
+            has_snowfall: self.core.params.keeps_lying_snow(),
             stamp_range_m: [low, high],
         }
     }
@@ -106,6 +109,7 @@ impl SnowDeformation {
             depth_m: params.depth_m,
             refill_m_per_s: params.refill_m_per_s,
             snowfall: params.snowfall.as_ref().map(|s| WorldSnowfall { rate_m_per_s: s.rate_m_per_s, max_m: s.max_m }),
+            displace: params.displace,
         };
         WorldIdentity::new(&snow, &WorldTerrain::described(terrain_identity(terrain), terrain.height_bounds()), tile_side)
     }
@@ -126,7 +130,7 @@ impl CoreWindow {
 
     /// The window a frame's sharing steps work on, at `origin`.
     pub(super) fn share_window(&self, origin: [i64; 2]) -> ShareWindow {
-        ShareWindow { origin, resolution: self.params.resolution, has_stamps: self.res.has_stamps(), use_fallen: self.params.snowfall.is_some() }
+        ShareWindow { origin, resolution: self.params.resolution, has_stamps: self.res.has_stamps(), use_fallen: self.params.keeps_lying_snow() }
     }
 }
 

@@ -67,6 +67,8 @@ impl FrameSteps<'_> {
         }
         let refill = self.time.refill(&self.core.params, frame.dt_s, stamp_params.quantum_m());
         self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share);
+        // Snow squeezed beyond the final density onto the texels beside the press.
+        self.core.record_displace(cx, window.origin, share);
         if let Some(tiles) = &mut self.tiles {
             tiles.record_weather(cx, &self.core.res, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
         }

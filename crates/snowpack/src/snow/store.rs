@@ -65,7 +65,7 @@ impl SnowDeformation {
         }
         // The memory keeper's resident tiles go first: two rings need not coexist.
         self.tiles = None;
-        self.tiles = Some(TileStreaming::new(ctx, &self.core.res, streamer, (self.core.params.depth_m, self.core.params.snowfall.is_some()))?);
+        self.tiles = Some(TileStreaming::new(ctx, &self.core.res, streamer, (self.core.params.depth_m, self.core.params.keeps_lying_snow()))?);
         self.store_attached = true;
         if let Some(s) = saved {
             self.time.clock = s.clock;

@@ -156,7 +156,7 @@ impl TileStreaming {
     pub(crate) fn keep_in_memory(ctx: &GpuContext, res: &DeformResources, params: &crate::SnowParams, budget: usize) -> Result<Option<Self>, SnowError> {
         let side = default_tile_texels(params.resolution);
         let grid = TileGrid::new(params.resolution, side)?;
-        let bytes = (grid.slot_count() * planes(params.snowfall.is_some(), true) * grid.area() * 4) as u64;
+        let bytes = (grid.slot_count() * planes(params.keeps_lying_snow(), true) * grid.area() * 4) as u64;
         let limit = ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             tracing::warn!(
@@ -166,7 +166,7 @@ impl TileStreaming {
             return Ok(None);
         }
         let streamer = TileStreamer::in_memory(side, StreamerConfig { memory_budget_bytes: budget, ..StreamerConfig::default() });
-        Self::new(ctx, res, streamer, (params.depth_m, params.snowfall.is_some())).map(Some)
+        Self::new(ctx, res, streamer, (params.depth_m, params.keeps_lying_snow())).map(Some)
     }
 
     /// Planes per slot now.

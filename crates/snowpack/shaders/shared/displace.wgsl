@@ -1,0 +1,36 @@
+// Displacement (docs/mechanics.md, "Displacement"): snow a press squeezes
+// beyond the final density leaves its texel for one of the 24 texels of
+// the 5x5 around it. Between the update pass (which chooses and writes it)
+// and the display pass (which rewrites that half), the upper half of the
+// snow word holds the move:
+//   bits 11..15  target + 1 (an index into DISPLACE_OFFSETS; 0: none)
+//   bits  0..10  the snow moved, in 4-quantum steps (at most 8188 quanta)
+// The displace pass gathers, at each texel, the moves of its 24 neighbours
+// that name it. Twin: src/deform/displace.rs (the same table and codes).
+
+const DISPLACE_MOST_Q: u32 = 8188u;
+
+// The 5x5 around a texel without its centre, (column, row) offsets, rows
+// first: the order breaks ties between equally good targets.
+const DISPLACE_OFFSETS = array<vec2<i32>, 24>(
+    vec2<i32>(-2, -2), vec2<i32>(-1, -2), vec2<i32>(0, -2), vec2<i32>(1, -2), vec2<i32>(2, -2),
+    vec2<i32>(-2, -1), vec2<i32>(-1, -1), vec2<i32>(0, -1), vec2<i32>(1, -1), vec2<i32>(2, -1),
+    vec2<i32>(-2, 0), vec2<i32>(-1, 0), vec2<i32>(1, 0), vec2<i32>(2, 0),
+    vec2<i32>(-2, 1), vec2<i32>(-1, 1), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(2, 1),
+    vec2<i32>(-2, 2), vec2<i32>(-1, 2), vec2<i32>(0, 2), vec2<i32>(1, 2), vec2<i32>(2, 2),
+);
+
+// The move of `quanta` (a multiple of 4, at most DISPLACE_MOST_Q) to offset index `to`.
+fn displace_code(to: u32, quanta: u32) -> u32 {
+    return ((to + 1u) << 11u) | (quanta >> 2u);
+}
+
+// The target offset index + 1 of move `code` (0: none).
+fn displace_code_target(code: u32) -> u32 {
+    return code >> 11u;
+}
+
+// The quanta of move `code`.
+fn displace_code_quanta(code: u32) -> u32 {
+    return (code & 0x7ffu) << 2u;
+}

@@ -1,0 +1,126 @@
+//! CPU twin of `displace.wgsl`, and of the update's side of displacement
+//! (`displace_target`, `pack_press_excess` and `pack_press_keep` in
+//! `update.wgsl` and `shared/pack_press.wgsl`).
+
+use crate::deform::displace::{DisplaceParams, MOST_QUANTA, OFFSETS, code, code_quanta, code_target};
+use crate::deform::packed_snow;
+use crate::deform::update::UpdateParams;
+
+use super::window::storage_index;
+
+/// How far the way out of a press rises at neighbour `[column, row]` `n`
+/// from a texel at capture depth `d0` (eighths of a texel's rise, 0..=63;
+/// 63 where nothing presses): `displace_rise`.
+fn rise(p: &UpdateParams, capture: &[f32], n: [i32; 2], d0: f32) -> i32 {
+    let d = capture[n[1] as usize * p.resolution as usize + n[0] as usize];
+    if d >= 1.0 {
+        return 63;
+    }
+    ((d - d0) * p.displace_k).floor().clamp(0.0, 63.0) as i32
+}
+
+/// The offset index ([`OFFSETS`]) that snow at window-local texel (i, j)
+/// moves to (`displace_target`): the neighbour in the window closest in
+/// direction to the rise's mean direction, then the higher rise, then the
+/// first; without one, the highest rise; `None` where nothing rises.
+#[must_use]
+pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize> {
+    let r = p.resolution as i32;
+    let d0 = capture[(i * p.resolution + j) as usize];
+    let here = [j as i32, i as i32];
+    let mut rise_of = [-1i32; 24];
+    let mut g = [0i32; 2];
+    for (k, o) in OFFSETS.iter().enumerate() {
+        let n = [here[0] + o[0], here[1] + o[1]];
+        if (0..r).contains(&n[0]) && (0..r).contains(&n[1]) {
+            let w = rise(p, capture, n, d0);
+            g = [g[0] + w * o[0], g[1] + w * o[1]];
+            rise_of[k] = w;
+        }
+    }
+    let mut best: Option<(usize, u32, u32)> = None;
+    for (k, o) in OFFSETS.iter().enumerate() {
+        let dot = o[0] * g[0] + o[1] * g[1];
+        if rise_of[k] < 0 || dot <= 0 {
+            continue;
+        }
+        let len = (o[0] * o[0] + o[1] * o[1]) as u32;
+        let better = match best {
+            None => true,
+            Some((b, b_dot, b_len)) => {
+                let (x, y) = (dot as u32 * dot as u32 * b_len, b_dot * b_dot * len);
+                x > y || (x == y && rise_of[k] > rise_of[b])
+            }
+        };
+        if better {
+            best = Some((k, dot as u32, len));
+        }
+    }
+    if let Some((k, ..)) = best {
+        return Some(k);
+    }
+    let mut highest: Option<usize> = None;
+    for k in 0..24 {
+        if rise_of[k] > 0 && highest.is_none_or(|b| rise_of[k] > rise_of[b]) {
+            highest = Some(k);
+        }
+    }
+    highest
+}
+
+/// The update's packing at texel `s` of window-local (i, j) in a window
+/// that displaces: its deficit rose `from` → `to` (`at_ground` up to the
+/// terrain) and the actors press it (`pressed`). Packs up to the final
+/// density; what is beyond leaves (at most [`MOST_QUANTA`] in 4-quantum
+/// steps) to the [`target`], the rest stays packed. Returns the move's code
+/// for the upper half of the snow word (0: none) and the quanta counted as
+/// displaced (beyond 16 bits of packed snow).
+#[must_use]
+pub fn press(
+    p: &UpdateParams,
+    capture: &[f32],
+    packed: &mut [u32],
+    (s, i, j): (usize, u32, u32),
+    (from, to, at_ground): (u32, u32, u32),
+    pressed: bool,
+) -> (u32, u64) {
+    let squeezed = packed_snow::get(packed, s) + (to - from.min(to));
+    let cap = packed_snow::cap(at_ground - to, p.pack_ratio);
+    let leaves = if pressed && squeezed > cap { (squeezed - cap).min(MOST_QUANTA) & !3 } else { 0 };
+    let target = if leaves > 0 { target(p, capture, i, j) } else { None };
+    let kept = squeezed - if target.is_some() { leaves } else { 0 };
+    packed_snow::set(packed, s, kept.min(0xffff));
+    (target.map_or(0, |t| code(t, leaves)), u64::from(kept.saturating_sub(0xffff)))
+}
+
+/// Gathers, at every texel, the moves its neighbours' snow words name it
+/// for (upper halves) into its lying snow (`fallen`, metres); with
+/// [`DisplaceParams::SHARE`] flags the tile of every texel that gains
+/// (`flags`, [`crate::replicate::flags::ShareGrid`]).
+pub fn displace(p: &DisplaceParams, snow: &[u32], fallen: &mut [f32], flags: &mut [u32]) {
+    let r = p.resolution as i32;
+    let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
+    for i in 0..r {
+        for j in 0..r {
+            let mut gained = 0u32;
+            for (k, o) in OFFSETS.iter().enumerate() {
+                let n = [j - o[0], i - o[1]];
+                if !(0..r).contains(&n[0]) || !(0..r).contains(&n[1]) {
+                    continue;
+                }
+                let c = snow[storage_index(p.origin, p.resolution, n[1] as u32, n[0] as u32)] >> 16;
+                if code_target(c) == k as u32 + 1 {
+                    gained += code_quanta(c);
+                }
+            }
+            if gained == 0 {
+                continue;
+            }
+            let s = storage_index(p.origin, p.resolution, i as u32, j as u32);
+            fallen[s] += gained as f32 * 0.0001;
+            if p.flags & DisplaceParams::SHARE != 0 && !flags.is_empty() {
+                flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
+            }
+        }
+    }
+}
