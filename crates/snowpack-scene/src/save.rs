@@ -138,6 +138,9 @@ impl Scene {
         if let Some(r) = p.repose_deg {
             snow.insert("repose_deg".into(), float(r));
         }
+        if p.displace {
+            snow.insert("displace".into(), Value::Boolean(true));
+        }
         snow.insert("teleport_m".into(), float(p.teleport_m));
         snow
     }

@@ -50,6 +50,18 @@ pub enum ShapeSpec {
         /// Orientation (from `rotation_deg`, Euler XYZ).
         rotation: Quat,
     },
+    /// A plough's blade or a crate's face (`snowpack::Deformer::blade`):
+    /// `position` is the middle of its lower edge; it faces its direction
+    /// of travel, turned by `angle_deg`.
+    Blade {
+        /// Width along the edge (m).
+        width_m: f32,
+        /// Height (m).
+        height_m: f32,
+        /// Turn from square to the travel (degrees): the pushed snow slides
+        /// off the trailing end.
+        angle_deg: f32,
+    },
     /// A contact point for the points technique (`position` is the foot's lowest point).
     Point {
         /// Footprint curvature (1/m): `h = foot + d^2 * scale_per_m`.
@@ -471,6 +483,7 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 max_density_kg_m3: t.positive("max_density_kg_m3", defaults.max_density_kg_m3, " of kg/m³")?,
                 // Validated with the rest below (an angle in (0, 90) degrees).
                 repose_deg: t.f32_opt("repose_deg")?,
+                displace: t.bool("displace", defaults.displace)?,
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
@@ -794,7 +807,7 @@ impl Scene {
         let _ = writeln!(s, "scene {}", self.path.display());
         let _ = writeln!(
             s,
-            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, density {} kg/m³ packing to {} kg/m³, angle of repose {}, teleport {} m",
+            "snow: extent {} m, resolution {}² ({:.4} m/texel), depth {} m, refill {} m/s, elevation {}, blur {}, technique {}, range {} texels, rim {}, hardness {} kPa, density {} kg/m³ packing to {} kg/m³, angle of repose {}, beyond it {}, teleport {} m",
             p.extent_m,
             p.resolution,
             p.texel_m(),
@@ -809,6 +822,7 @@ impl Scene {
             p.density_kg_m3,
             p.max_density_kg_m3,
             p.repose_deg.map_or_else(|| "none".to_owned(), |r| format!("{r}°")),
+            if p.displace { "displaced into berms" } else { "counted and gone" },
             p.teleport_m
         );
         let terrain = self.describe_terrain();
@@ -1014,7 +1028,7 @@ fn read_heightmap_png(file: &Path) -> Result<image::ImageBuffer<image::Luma<u16>
 }
 
 fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneError> {
-    let kind = a.choice("kind", "sphere", &["sphere", "box", "point", "gltf"])?;
+    let kind = a.choice("kind", "sphere", &["sphere", "box", "blade", "point", "gltf"])?;
     let shape = match kind.as_str() {
         "sphere" => ShapeSpec::Sphere { radius_m: a.positive("radius_m", 0.5, " of metres")? },
         "box" => {
@@ -1023,6 +1037,13 @@ fn parse_actor(a: &mut Fields<'_>, base_dir: &Path) -> Result<ActorSpec, SceneEr
                 return Err(a.err("size_m", format!("every side must be a positive number of metres, got {size_m}")));
             }
             ShapeSpec::Box { size_m, rotation: rotation_from_deg(a.vec3("rotation_deg", Vec3::ZERO)?) }
+        }
+        "blade" => {
+            let angle_deg = a.f32("angle_deg", 30.0)?;
+            if !(-80.0..=80.0).contains(&angle_deg) {
+                return Err(a.err("angle_deg", format!("{angle_deg} must be between -80 and 80 degrees from square to the travel")));
+            }
+            ShapeSpec::Blade { width_m: a.positive("width_m", 2.5, " of metres")?, height_m: a.positive("height_m", 0.8, " of metres")?, angle_deg }
         }
         "point" => ShapeSpec::Point { scale_per_m: a.positive("scale_per_m", 1.0, " (1/m)")? },
         _ => ShapeSpec::Gltf(parse_gltf_actor(a, base_dir)?),

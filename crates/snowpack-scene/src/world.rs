@@ -452,6 +452,7 @@ impl World {
             out.push(match &a.shape {
                 ShapeSpec::Sphere { radius_m } => Deformer::Sphere { center, radius: *radius_m },
                 ShapeSpec::Box { size_m, rotation } => Deformer::Box { center, half_extents: *size_m * 0.5, rotation: *rotation },
+                ShapeSpec::Blade { width_m, height_m, angle_deg } => Deformer::blade(center, self.actor_velocity(i), *angle_deg, (*width_m, *height_m)),
                 ShapeSpec::Point { scale_per_m } => Deformer::Point { position: center, scale_per_m: *scale_per_m },
                 // Characters press the snow with their skinned mesh (see
                 // `characters`) and, for the points technique, a point under

@@ -16,7 +16,9 @@
 //   f(x) = -3.4766x^3 + 6.508x^2 - 2.231x + 0.215,
 // applied to the normalised snow depth x and blended in by `elevation`:
 //   shown = terrain + depth * (x + elevation * (f(x) - x)),
-// depth being the rest depth plus the snowfall so far where it snows.
+// depth being the rest depth plus the snowfall so far where it snows; where
+// lying snow passes the snowfall so far (a berm), the remap takes the
+// depth without it and the berm shows as it is.
 // Modes 1 (MS16) and 2 (Wasmut's rounded variant), for points and combined:
 // the persistent snow as it is, plus a rim where a stored footprint rises
 // above the rest height over undisturbed snow, from its foot height:
@@ -38,7 +40,7 @@ struct DisplayParams {
     use_fallen: u32,  // 1: the rest depth includes `fallen` (snowfall so far)
     texel_m: f32,
     blur: u32,        // 1: blur the rimmed height
-    _pad: u32,
+    open_fallen_m: f32, // snowfall so far on open ground: lying snow beyond it is a berm
     storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
@@ -126,10 +128,11 @@ fn ground_at(i: u32, j: u32) -> f32 {
 fn rimmed_height(i: u32, j: u32) -> f32 {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let ground = ground_at(i, j);
-    var depth = params.depth_m;
+    var lying = 0.0;
     if display_uses_fallen() {
-        depth += fallen[s];
+        lying = fallen[s];
     }
+    let depth = params.depth_m + lying;
     let snow_h = snow_word_height(atomicLoad(&snow[s]), ground + depth, ground);
     if display_bare() || (display_uses_fallen() && depth <= 0.0) {
         // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
@@ -138,9 +141,14 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
         return snow_h;
     }
     if display_mode() == 0u {
-        let x = clamp((snow_h - ground) / depth, 0.0, 1.0);
+        // Remapped over the undisturbed depth (rest depth and snowfall so
+        // far); lying snow beyond the snowfall is a berm (displacement),
+        // and what rises above that depth is shown as it is.
+        let base = params.depth_m + min(lying, params.open_fallen_m);
+        let x = clamp((snow_h - ground) / base, 0.0, 1.0);
         let remapped = x + params.elevation * (hanak_cubic(x) - x);
-        return ground + depth * max(remapped, 0.0);
+        let above = select(0.0, max(snow_h - ground - base, 0.0), lying > params.open_fallen_m);
+        return ground + base * max(remapped, 0.0) + above;
     }
     let rest = ground + depth;
     var out = snow_h;

@@ -9,17 +9,20 @@
 // the trench (Sumner, O'Brien and Hodgins 1999, *Animating Sand, Mud, and
 // Snow*: material moves from a cell to a lower neighbour while the slope
 // between them exceeds the angle of repose). The slope is taken between the
-// deficits below the rest height, not the heights: untouched snow on steep
-// terrain stays where it fell, and only what presses disturbed moves.
+// levels above or below the rest surface (lying snow, the berms, less the
+// deficit), not the heights: untouched snow on steep terrain stays where
+// it fell, and only what presses and displacement disturbed moves.
 // Pairwise and in place: one thread owns two neighbouring texels (along x
 // or z, even or odd pairs: four dispatches an iteration), reads and writes
 // only them, so no texel is touched twice in a dispatch and the snow moved
 // out of one is exactly what the other gains, in whole quanta:
-//   diff  = deficit_b - deficit_a            (b the lower snow)
+//   level = lying (quanta) - deficit
+//   diff  = level_a - level_b                (b the lower snow)
 //   move  = (diff - threshold) / 2           when diff > threshold
 //           at most what a holds above the terrain
 //   a: deficit += move, packed -= move * packed_a / column_a
-//   b: deficit -= move, packed += that much
+//   b: deficit -= move, at most its deficit; the rest lies on b (fallen);
+//      packed += that much
 // so the window's snow (sum of column + packed) does not change. The moved
 // snow keeps a's density, which never takes b past the final density.
 // CPU twin: src/cpu/erosion.rs.
@@ -34,7 +37,7 @@ struct ErosionParams {
     axis: u32,         // 0: pairs along x (columns j, j + 1), 1: along z (rows)
     offset: u32,       // 0: pairs start at even indices, 1: at odd
     use_fallen: u32,   // the rest height includes the snowfall so far
-    _pad: u32,
+    marks: u32,        // 1: the update marked the texels the actors press (displacement)
 }
 
 @group(0) @binding(0) var<uniform> params: ErosionParams;
@@ -66,6 +69,13 @@ fn set_packed(s: u32, before: u32, after: u32) {
     }
 }
 
+// Texel `s`'s lying snow (snowfall so far, berms) in whole quanta, rounded:
+// a product then a rounding, which no backend fuses, so the twin agrees.
+fn lying_quanta(s: u32) -> i32 {
+    let lying = fallen[min(s, arrayLength(&fallen) - 1u)];
+    return i32(round(select(0.0, lying, params.use_fallen != 0u) * 10000.0));
+}
+
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let res = params.resolution;
@@ -84,22 +94,32 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s1 = storage_index_wrapped(params.storage_origin, res, i1, j1);
     let w0 = snow[s0];
     let w1 = snow[s1];
+    // Snow does not slide into or out of a texel an actor presses (Sumner et
+    // al. move material only between columns out of contact): the update's
+    // marks (shared/displace.wgsl) while displacing.
+    let marked = select(0u, (w0 >> 27u) | (w1 >> 27u), params.marks != 0u);
+    if marked != 0u {
+        return;
+    }
     let d0 = w0 & 0xffffu;
     let d1 = w1 & 0xffffu;
-    // a: the higher snow (less deficit), b: the lower.
+    // The level of each above (berms) or below (trails) the rest surface.
+    let l0 = lying_quanta(s0) - i32(d0);
+    let l1 = lying_quanta(s1) - i32(d1);
+    // a: the higher snow, b: the lower.
     var sa = s0;
     var sb = s1;
     var da = d0;
     var db = d1;
     var ga = column_quanta(s0, i0, j0);
-    if d0 > d1 {
+    if l1 > l0 {
         sa = s1;
         sb = s0;
         da = d1;
         db = d0;
         ga = column_quanta(s1, i1, j1);
     }
-    let diff = db - da;
+    let diff = u32(abs(l1 - l0));
     if diff <= params.threshold_q {
         return;
     }
@@ -111,8 +131,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let qa = packed_get(atomicLoad(&packed[packed_index(sa)]), sa);
     let qb = packed_get(atomicLoad(&packed[packed_index(sb)]), sb);
     let carried = moved * qa / column_a;
+    // a gives from its column; b fills its trail, then lies on its surface.
+    let filled = min(moved, db);
     snow[sa] = (snow[sa] & 0xffff0000u) | (da + moved);
-    snow[sb] = (snow[sb] & 0xffff0000u) | (db - moved);
+    snow[sb] = (snow[sb] & 0xffff0000u) | (db - filled);
+    if moved > filled {
+        fallen[sb] = fallen[sb] + f32(moved - filled) * 0.0001;
+    }
     set_packed(sa, qa, qa - carried);
     set_packed(sb, qb, min(qb + carried, 65535u));
 }

@@ -65,6 +65,11 @@ struct UpdateParams {
     share_keys: u32, // slots per side of the flags
     pack_ratio: f32, // rho_max / rho_fresh - 1: packed snow a column holds per quantum of its height
     displace_k: f32, // (high_m - low_m) * 8 / texel_m: a capture depth step in eighths of a texel's rise
+    _pad2: vec2<u32>,
+    // Boxes that push snow this frame (src/deform/push.rs), two vec4 each:
+    // (centre x, z, axis x, z), (half extents along and across the axis,
+    // push x, z), window-local metres; unused ones contain nothing.
+    pushers: array<vec4<f32>, 16>,
 }
 
 const USE_CAPTURE: u32 = 1u;
@@ -130,9 +135,26 @@ fn displace_rise(n: vec2<i32>, d0: f32) -> i32 {
     return i32(clamp(floor((d - d0) * params.displace_k), 0.0, 63.0));
 }
 
+// The way the first box pushing over window-local texel centre `q` (m)
+// pushes, as an integer vector (its unit direction times 1000), or zero.
+fn displace_push(q: vec2<f32>) -> vec2<i32> {
+    for (var k = 0u; k < 8u; k++) {
+        let a = params.pushers[2u * k];
+        let b = params.pushers[2u * k + 1u];
+        let d = q - a.xy;
+        let u = d.x * a.z + d.y * a.w;
+        let v = d.y * a.z - d.x * a.w;
+        if abs(u) <= b.x && abs(v) <= b.y {
+            return vec2<i32>(round(b.zw * 1000.0));
+        }
+    }
+    return vec2<i32>(0, 0);
+}
+
 // The offset index (DISPLACE_OFFSETS) that snow at window-local texel
 // (i, j) moves to, or 24 for none: the neighbour in the window whose
-// direction is closest to the rise's mean direction (integer cosines),
+// direction is closest to the rise's mean direction (or, under a box that
+// pushes, its push; integer cosines),
 // then the higher rise, then the first; without a mean direction the
 // highest rise; none where nothing rises.
 fn displace_target(i: u32, j: u32) -> u32 {
@@ -149,6 +171,11 @@ fn displace_target(i: u32, j: u32) -> u32 {
             g += w * DISPLACE_OFFSETS[k];
         }
         rise[k] = w;
+    }
+    // Under a box that pushes, its way instead.
+    let push = displace_push((vec2<f32>(here) + 0.5) * params.texel_m);
+    if any(push != vec2<i32>(0)) {
+        g = push;
     }
     var best = 24u;
     var best_dot = 0;
@@ -255,6 +282,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             // None: the snow stays packed beyond the final density.
             pack_press_keep(s, select(excess, 0u, to < 24u));
+        }
+        if pressed && code == 0u {
+            code = DISPLACE_PRESSED;
         }
         snow[s] = (code << 16u) | deficit;
     } else {

@@ -555,7 +555,7 @@ fn erosion_matches_cpu_and_moves_no_snow_in_or_out() {
         (words.iter().map(|w| u64::from(w & 0xffff)).sum(), (0..n).map(|s| u64::from(packed_snow::get(packed, s))).sum())
     };
     let (before_snow, before_packed) = (snow.clone(), packed.clone());
-    cpu::erosion::iterate(&ep, &terrain, &[], &mut snow, &mut packed);
+    cpu::erosion::iterate(&ep, &terrain, &mut [], &mut snow, &mut packed);
     let (gpu_snow, gpu_packed) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed));
     assert_eq!(sums(&gpu_snow, &gpu_packed), sums(&before_snow, &before_packed), "the GPU's erosion moved snow in or out; seed {seed}");
     assert_eq!(sums(&snow, &packed), sums(&before_snow, &before_packed), "the twin moved snow in or out; seed {seed}");

@@ -3,7 +3,8 @@
 // the 5x5 around it. Between the update pass (which chooses and writes it)
 // and the display pass (which rewrites that half), the upper half of the
 // snow word holds the move:
-//   bits 11..15  target + 1 (an index into DISPLACE_OFFSETS; 0: none)
+//   bits 11..15  target + 1 (an index into DISPLACE_OFFSETS; 0: none;
+//                31: pressed, nothing moves, so erosion leaves it be)
 //   bits  0..10  the snow moved, in 4-quantum steps (at most 8188 quanta)
 // The displace pass gathers, at each texel, the moves of its 24 neighbours
 // that name it. Twin: src/deform/displace.rs (the same table and codes).
@@ -19,6 +20,9 @@ const DISPLACE_OFFSETS = array<vec2<i32>, 24>(
     vec2<i32>(-2, 1), vec2<i32>(-1, 1), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(2, 1),
     vec2<i32>(-2, 2), vec2<i32>(-1, 2), vec2<i32>(0, 2), vec2<i32>(1, 2), vec2<i32>(2, 2),
 );
+
+// The mark of a texel the actors press that sends nothing.
+const DISPLACE_PRESSED: u32 = 31u << 11u;
 
 // The move of `quanta` (a multiple of 4, at most DISPLACE_MOST_Q) to offset index `to`.
 fn displace_code(to: u32, quanta: u32) -> u32 {

@@ -2,7 +2,7 @@
 //! (`displace_target`, `pack_press_excess` and `pack_press_keep` in
 //! `update.wgsl` and `shared/pack_press.wgsl`).
 
-use crate::deform::displace::{DisplaceParams, MOST_QUANTA, OFFSETS, code, code_quanta, code_target};
+use crate::deform::displace::{DisplaceParams, MOST_QUANTA, OFFSETS, PRESSED, code, code_quanta, code_target};
 use crate::deform::packed_snow;
 use crate::deform::update::UpdateParams;
 
@@ -17,6 +17,16 @@ fn rise(p: &UpdateParams, capture: &[f32], n: [i32; 2], d0: f32) -> i32 {
         return 63;
     }
     ((d - d0) * p.displace_k).floor().clamp(0.0, 63.0) as i32
+}
+
+/// The way the first pusher over window-local point `q` (m) pushes, as an
+/// integer vector (its unit direction times 1000): `displace_push`.
+fn push(p: &UpdateParams, q: [f32; 2]) -> Option<[i32; 2]> {
+    p.pushers.iter().find_map(|[a, b]| {
+        let d = [q[0] - a[0], q[1] - a[1]];
+        let (u, v) = (d[0] * a[2] + d[1] * a[3], d[1] * a[2] - d[0] * a[3]);
+        (u.abs() <= b[0] && v.abs() <= b[1]).then(|| [(b[2] * 1000.0).round_ties_even() as i32, (b[3] * 1000.0).round_ties_even() as i32])
+    })
 }
 
 /// The offset index ([`OFFSETS`]) that snow at window-local texel (i, j)
@@ -37,6 +47,12 @@ pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize
             g = [g[0] + w * o[0], g[1] + w * o[1]];
             rise_of[k] = w;
         }
+    }
+    let q = [(here[0] as f32 + 0.5) * p.texel_m, (here[1] as f32 + 0.5) * p.texel_m];
+    if let Some(push) = push(p, q)
+        && push != [0, 0]
+    {
+        g = push;
     }
     let mut best: Option<(usize, u32, u32)> = None;
     for (k, o) in OFFSETS.iter().enumerate() {
@@ -73,7 +89,8 @@ pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize
 /// terrain) and the actors press it (`pressed`). Packs up to the final
 /// density; what is beyond leaves (at most [`MOST_QUANTA`] in 4-quantum
 /// steps) to the [`target`], the rest stays packed. Returns the move's code
-/// for the upper half of the snow word (0: none) and the quanta counted as
+/// for the upper half of the snow word ([`PRESSED`] where the actors press
+/// and nothing moves, else 0 without a move) and the quanta counted as
 /// displaced (beyond 16 bits of packed snow).
 #[must_use]
 pub fn press(
@@ -90,7 +107,12 @@ pub fn press(
     let target = if leaves > 0 { target(p, capture, i, j) } else { None };
     let kept = squeezed - if target.is_some() { leaves } else { 0 };
     packed_snow::set(packed, s, kept.min(0xffff));
-    (target.map_or(0, |t| code(t, leaves)), u64::from(kept.saturating_sub(0xffff)))
+    let mark = match target {
+        Some(t) => code(t, leaves),
+        None if pressed => PRESSED,
+        None => 0,
+    };
+    (mark, u64::from(kept.saturating_sub(0xffff)))
 }
 
 /// Gathers, at every texel, the moves its neighbours' snow words name it

@@ -44,16 +44,19 @@ pub fn rim(p: &DisplayParams, terrain: &[f32], snow: &[u32], stamps: &[u32], fal
         for j in 0..r {
             let s = storage_index(p.origin, r, i, j);
             let ground = terrain[s];
-            let depth = if p.use_fallen != 0 { p.depth_m + fallen[s] } else { p.depth_m };
+            let lying = if p.use_fallen != 0 { fallen[s] } else { 0.0 };
+            let depth = p.depth_m + lying;
             let snow_h = snow_word::height(snow[s], ground + depth, ground);
             shown[(i * r + j) as usize] = if depth <= 0.0 {
                 // Bare ground (depth_m 0, no snowfall yet): no snow to remap
                 // or to push into rims.
                 snow_h
             } else if p.mode == 0 {
-                let x = ((snow_h - ground) / depth).clamp(0.0, 1.0);
+                let base = p.depth_m + lying.min(p.open_fallen_m);
+                let x = ((snow_h - ground) / base).clamp(0.0, 1.0);
                 let remapped = x + p.elevation * (hanak_cubic(x) - x);
-                ground + depth * remapped.max(0.0)
+                let above = if lying > p.open_fallen_m { (snow_h - ground - base).max(0.0) } else { 0.0 };
+                ground + base * remapped.max(0.0) + above
             } else {
                 let rest = ground + depth;
                 let mut out = snow_h;

@@ -35,6 +35,10 @@ pub const OFFSETS: [[i32; 2]; 24] = {
     out
 };
 
+/// The upper-half code of a texel the actors press that sends nothing
+/// (`DISPLACE_PRESSED`): the erosion leaves it be.
+pub const PRESSED: u32 = 31 << 11;
+
 /// The upper-half code of a move of `quanta` (a multiple of 4, at most
 /// [`MOST_QUANTA`]) to offset index `target` (`displace_code`).
 #[must_use]

@@ -35,8 +35,9 @@ pub struct DisplayParams {
     pub texel_m: f32,
     /// 1: blur the rimmed height (the 5x5 Gaussian); 0: show it as it is.
     pub blur: u32,
-    /// Padding to the 8-byte alignment of `storage_origin`.
-    pub _pad: u32,
+    /// Snowfall so far on open ground (m): lying snow beyond it is a berm
+    /// (displacement), shown as it is above the remapped undisturbed depth.
+    pub open_fallen_m: f32,
     /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
     /// [`DisplayPass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.

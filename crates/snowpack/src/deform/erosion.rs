@@ -38,8 +38,10 @@ pub struct ErosionParams {
     pub offset: u32,
     /// 1 when the rest height includes the snowfall so far.
     pub use_fallen: u32,
-    /// Padding.
-    pub _pad: u32,
+    /// 1 when the update marked the texels the actors press (a window that
+    /// displaces, [`super::displace::PRESSED`]): no snow slides into or
+    /// out of them.
+    pub marks: u32,
 }
 
 impl ErosionParams {

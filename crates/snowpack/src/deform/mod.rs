@@ -12,6 +12,7 @@ pub mod display;
 pub mod erosion;
 pub mod packed_snow;
 pub mod params;
+pub mod push;
 pub mod query;
 pub mod resources;
 pub mod shape;

@@ -53,7 +53,30 @@ pub enum Deformer {
     },
 }
 
+/// Thickness of a [`Deformer::blade`] (m): thin, and still two texels at
+/// the default 6.25 cm so its sweep leaves no gap.
+pub const BLADE_THICKNESS_M: f32 = 0.12;
+
 impl Deformer {
+    /// A blade: a plough's blade or the face of a crate, a thin box standing
+    /// on its lower edge, centred at `edge_center`, `width_m` wide and
+    /// `height_m` tall. It travels along `travel` (its horizontal part;
+    /// none: along +x) and is turned `angle_deg` from square to it, so the
+    /// snow it pushes slides along it and off its trailing end. Scraping the
+    /// ground (its edge at or below the terrain), it packs nothing: with
+    /// [`crate::SnowParams::displace`] every bit of snow it takes moves
+    /// ahead of it and aside into a windrow (`docs/mechanics.md`).
+    #[must_use]
+    pub fn blade(edge_center: Vec3, travel: Vec3, angle_deg: f32, (width_m, height_m): (f32, f32)) -> Self {
+        let flat = Vec3::new(travel.x, 0.0, travel.z).try_normalize().unwrap_or(Vec3::X);
+        let normal = Quat::from_rotation_y(angle_deg.to_radians()) * flat;
+        Self::Box {
+            center: edge_center + Vec3::Y * (height_m * 0.5),
+            half_extents: Vec3::new(width_m * 0.5, height_m * 0.5, BLADE_THICKNESS_M * 0.5),
+            rotation: Quat::from_rotation_y(normal.x.atan2(normal.z)),
+        }
+    }
+
     /// The pose of a wheel (centre, axle, roll); `None` for other shapes.
     /// Here rather than in `wheel.rs`, which knows wheels but not the
     /// deformer kinds (a circle of files otherwise).
@@ -97,5 +120,26 @@ impl DeformerExt for Deformer {
             Self::Point { position, .. } => position.y,
             Self::Wheel { center, axle, radius, half_width, .. } => center.y - super::wheel::extent_below(axle, radius, half_width),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_blade_stands_on_its_edge_turned_from_its_travel() {
+        let edge = Vec3::new(1.0, -0.2, 3.0);
+        let blade = Deformer::blade(edge, Vec3::new(0.0, 0.3, 2.0), 30.0, (2.5, 0.8));
+        let Deformer::Box { center, half_extents, rotation } = blade else { panic!("a blade is a box") };
+        assert!((blade.lowest_point() - edge.y).abs() < 1e-6);
+        assert!((center - edge - Vec3::Y * 0.4).length() < 1e-6);
+        assert_eq!(half_extents, Vec3::new(1.25, 0.4, BLADE_THICKNESS_M * 0.5));
+        // Its face is turned 30 degrees from the travel (+z), about the vertical.
+        let face = rotation * Vec3::Z;
+        assert!((face.dot(Vec3::Z) - 30f32.to_radians().cos()).abs() < 1e-5 && face.y.abs() < 1e-6);
+        // Standing still, it faces +x turned by the angle.
+        let Deformer::Box { rotation, .. } = Deformer::blade(edge, Vec3::ZERO, 0.0, (1.0, 1.0)) else { unreachable!() };
+        assert!((rotation * Vec3::Z - Vec3::X).length() < 1e-6);
     }
 }

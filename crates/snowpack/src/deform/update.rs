@@ -15,7 +15,7 @@ use crate::pass::window_bindings::WindowAccess;
 
 /// Uniforms of `update.wgsl`.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct UpdateParams {
     /// Global texel index of local (0, 0): `[column, row]`.
     pub origin: [i32; 2],
@@ -58,6 +58,17 @@ pub struct UpdateParams {
     /// `(high_m − low_m) × 8 / texel_m`: a step of capture depth in eighths
     /// of a texel's rise (with [`Self::DISPLACE`], the way out of a press).
     pub displace_k: f32,
+    /// Padding: the pushers start on a 16-byte boundary.
+    pub _pad: [u32; 2],
+    /// The boxes that push snow this frame, which way ([`super::push`];
+    /// with [`Self::DISPLACE`]).
+    pub pushers: [super::push::Pusher; super::push::MOST_PUSHERS],
+}
+
+impl Default for UpdateParams {
+    fn default() -> Self {
+        Self { pushers: [super::push::NO_PUSHER; super::push::MOST_PUSHERS], ..Zeroable::zeroed() }
+    }
 }
 
 impl UpdateParams {

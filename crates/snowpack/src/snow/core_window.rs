@@ -81,7 +81,6 @@ pub(super) struct CoreWindow {
 }
 
 /// Lists the core's steps fill each frame, cleared and refilled.
-#[derive(Default)]
 struct FrameScratch {
     /// Each deformer's pose to sweep from.
     sweeps: Vec<Option<Deformer>>,
@@ -89,6 +88,19 @@ struct FrameScratch {
     instances: crate::deform::capture::CaptureInstances,
     /// The stamp pass's contact points.
     points: Vec<[f32; 8]>,
+    /// The boxes that push snow this frame (displacement), from the capture's sweep.
+    pushers: [crate::deform::push::Pusher; crate::deform::push::MOST_PUSHERS],
+}
+
+impl Default for FrameScratch {
+    fn default() -> Self {
+        Self {
+            sweeps: Vec::new(),
+            instances: crate::deform::capture::CaptureInstances::default(),
+            points: Vec::new(),
+            pushers: [crate::deform::push::NO_PUSHER; crate::deform::push::MOST_PUSHERS],
+        }
+    }
 }
 
 impl CoreWindow {
@@ -208,6 +220,7 @@ impl CoreWindow {
         let scratch = &mut self.scratch;
         let instances = &mut scratch.instances;
         instances.fill_swept(deformers, &scratch.sweeps, corner, &self.capture_params);
+        scratch.pushers = crate::deform::push::pushers(deformers, &scratch.sweeps, corner, self.params.texel_m());
         instances.mesh_steps.clear();
         instances.mesh_steps.extend_from_slice(mesh_steps);
         self.capture_pass.record(cx, &self.res, (&self.capture_params, instances), meshes);
@@ -293,6 +306,7 @@ impl CoreWindow {
             share_keys: share.map_or(0, |g| g.keys),
             pack_ratio: p.mechanics().pack_ratio(),
             displace_k: (self.capture_params.high_m - self.capture_params.low_m) * 8.0 / p.texel_m(),
+            pushers: self.scratch.pushers,
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
@@ -334,6 +348,7 @@ impl CoreWindow {
             depth_m: p.depth_m,
             threshold_q: ErosionParams::threshold_quanta(repose_deg, p.texel_m()),
             use_fallen: u32::from(p.keeps_lying_snow()),
+            marks: u32::from(self.displaces()),
             ..ErosionParams::default()
         };
         let res = &self.res;
@@ -341,7 +356,7 @@ impl CoreWindow {
     }
 
     /// The display: rims, blur and the displayed half of each snow word.
-    pub(super) fn record_display(&self, cx: &mut FrameContext<'_>, origin: [i64; 2]) {
+    pub(super) fn record_display(&self, cx: &mut FrameContext<'_>, origin: [i64; 2], open_fallen_m: f32) {
         let p = &self.params;
         let params = DisplayParams {
             origin: gpu_origin(origin),
@@ -354,6 +369,7 @@ impl CoreWindow {
             use_fallen: u32::from(p.keeps_lying_snow()),
             texel_m: p.texel_m(),
             blur: u32::from(p.blur),
+            open_fallen_m,
             ..Default::default()
         };
         self.display_pass.record(cx, &self.res, &params);

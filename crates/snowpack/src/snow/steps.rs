@@ -78,7 +78,7 @@ impl FrameSteps<'_> {
         }
         self.time.advance(&refill, window.max_fallen_m);
         self.record_shared_flags(cx, &window, &refill, stamps);
-        self.core.record_display(cx, window.origin);
+        self.core.record_display(cx, window.origin, self.time.fallen_m);
         self.record_objects(cx, sky.is_some(), refill.fall_m, frame.dt_s);
         self.core.record_decals(cx, frame.deformers, window.corner);
         if let Some((asked, number)) = queries {
