@@ -782,6 +782,59 @@ fn a_second_fox_in_the_first_ones_trail_sinks_less() {
     assert!(both.grid("snow.npy").data.iter().all(|h| *h > 0.05), "a paw went through the packed snow to the ground");
 }
 
+/// The plough scene with snowfall (issue 43): the blade scrapes its cut to
+/// the ground, the windrow beside the cut rises well above the snow, the
+/// windrow holds what the cut lost, and the window's mass is the start plus
+/// the snowfall (`meta.json` "mass"), within 0.5 %.
+#[test]
+fn a_plough_pushes_its_cut_into_a_windrow_and_the_mass_stays() {
+    if !gpu_available() {
+        return;
+    }
+    let plough = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/plough.toml")).expect("scenes/plough.toml");
+    // max_m above the windrow: snowfall stops on lying snow deeper than it (docs/mechanics.md).
+    let scene = format!("{plough}\n[snowfall]\nrate_m_per_s = 0.002\nmax_m = 3.0\n");
+    let run = run_scene("plough", &scene, &["--size", "64x36"]);
+    let (extent, fallen) = (run.meta["extent_m"].as_f64().expect("extent"), run.meta["fallen_m"].as_f64().expect("fallen"));
+    let (depth, density) = (0.4, 100.0);
+    let expected = density * extent * extent * (depth + fallen);
+    let mass = &run.meta["mass"];
+    let (window, displaced) = (mass["window_kg"].as_f64().expect("window_kg"), mass["displaced_kg"].as_f64().expect("displaced_kg"));
+    eprintln!(
+        "plough: window {window:.1} kg, displaced (gone) {displaced:.1} kg, start + snowfall {expected:.1} kg ({:+.3} %)",
+        100.0 * (window / expected - 1.0)
+    );
+    assert!(fallen > 0.01, "snowfall so far {fallen} m");
+    assert!((window / expected - 1.0).abs() < 0.005, "window {window} kg against {expected} kg");
+    let snow = run.grid("snow.npy");
+    let rest = (depth + fallen) as f32;
+    let at = |x: f64, z: f64| -> f32 {
+        let k = snow.data.iter().enumerate().min_by(|a, b| {
+            let (pa, pb) = (run.world(a.0 / snow.res, a.0 % snow.res), run.world(b.0 / snow.res, b.0 % snow.res));
+            (pa.0 - x).hypot(pa.1 - z).total_cmp(&(pb.0 - x).hypot(pb.1 - z))
+        });
+        *k.expect("a texel").1
+    };
+    // The cut along the blade's path (edge at z = -1.5, 2.5 m wide turned 30
+    // degrees: z -2.6 to -0.4, the windrow's foot and the near wall at its sides).
+    for x in [-4.0, -1.0, 2.0] {
+        for z in [-1.5, -1.2, -0.95] {
+            let h = at(x, z);
+            assert!(h < 0.06, "the cut at ({x}, {z}) holds {h} m of snow");
+        }
+    }
+    // The windrow beside it, on the side the blade turns snow off.
+    for x in [-4.0, -1.0, 2.0] {
+        let top = (0..24).map(|k| at(x, -2.2 - 0.06 * f64::from(k))).fold(0.0f32, f32::max);
+        assert!(top > rest + 0.4, "the windrow at x = {x} tops at {top} m over {rest} m of snow");
+    }
+    // What the cut lost, the windrow and the pile ahead of the blade hold.
+    let above: f64 = snow.data.iter().map(|&h| f64::from((h - rest).max(0.0))).sum();
+    let below: f64 = snow.data.iter().map(|&h| f64::from((rest - h).max(0.0))).sum();
+    eprintln!("plough: above the snow {above:.1}, below it {below:.1} (texel metres), {:.1} %", 100.0 * above / below);
+    assert!(below > 1000.0 && (above / below - 1.0).abs() < 0.02, "berms {above} against the cut's {below} texel metres");
+}
+
 #[test]
 fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     if !gpu_available() {

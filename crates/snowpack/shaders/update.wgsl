@@ -65,7 +65,8 @@ struct UpdateParams {
     share_keys: u32, // slots per side of the flags
     pack_ratio: f32, // rho_max / rho_fresh - 1: packed snow a column holds per quantum of its height
     displace_k: f32, // (high_m - low_m) * 8 / texel_m: a capture depth step in eighths of a texel's rise
-    _pad2: vec2<u32>,
+    open_fallen_m: f32, // snowfall so far on open ground, this frame's included
+    _pad2: u32,
     // Boxes that push snow this frame (src/deform/push.rs), two vec4 each:
     // (centre x, z, axis x, z), (half extents along and across the axis,
     // push x, z), window-local metres; unused ones contain nothing.
@@ -86,6 +87,9 @@ const SHARE: u32 = 32u;
 const REFILLS: u32 = 64u;
 // Snow beyond the final density moves aside (needs USE_CAPTURE).
 const DISPLACE: u32 = 128u;
+// With DISPLACE, not sharing: a press on a berm lowers the berm and the
+// deficit together.
+const CONSUME: u32 = 256u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, pass/compute.rs); the default reads `params.flags`.
@@ -174,9 +178,13 @@ fn displace_target(i: u32, j: u32) -> u32 {
     }
     // Under a box that pushes, its way instead.
     let push = displace_push((vec2<f32>(here) + 0.5) * params.texel_m);
-    if any(push != vec2<i32>(0)) {
+    let pushing = any(push != vec2<i32>(0));
+    if pushing {
         g = push;
     }
+    // By the rise alone, only to a neighbour the press holds less deep (or
+    // not at all); a moving box carries its snow on across its own texels.
+    let least = select(1, 0, pushing);
     var best = 24u;
     var best_dot = 0;
     var best_len = 1;
@@ -184,7 +192,7 @@ fn displace_target(i: u32, j: u32) -> u32 {
         let o = DISPLACE_OFFSETS[k];
         let dot_o = o.x * g.x + o.y * g.y;
         let len = o.x * o.x + o.y * o.y;
-        if rise[k] < 0 || dot_o <= 0 {
+        if rise[k] < least || dot_o <= 0 {
             continue;
         }
         // dot/|o| compared without roots: dot^2 |o_best|^2 against dot_best^2 |o|^2 (u32: at most 3024^2 * 8).
@@ -286,7 +294,19 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if pressed && code == 0u {
             code = DISPLACE_PRESSED;
         }
-        snow[s] = (code << 16u) | deficit;
+        var stored = deficit;
+        if (update_flags() & CONSUME) != 0u && pressed {
+            // A berm under a press: its lying snow (beyond the snowfall so
+            // far) and the deficit below it stand for the same snow, so both
+            // drop by it (the surface and the mass stay) and neither grows
+            // without bound while snow streams through. Not while sharing:
+            // copies merge by the larger of each.
+            let berm = u32(max(floor((lying - params.open_fallen_m) * SNOW_QUANTA_PER_M), 0.0));
+            let consumed = min(berm, deficit);
+            stored = deficit - consumed;
+            fallen[s] = lying - f32(consumed) * SNOW_QUANTUM_M;
+        }
+        snow[s] = (code << 16u) | stored;
     } else {
         snow[s] = (word & 0xffff0000u) | deficit;
         pack_press(s, refilled, deficit, at_ground, params.pack_ratio);

@@ -549,7 +549,7 @@ fn erosion_matches_cpu_and_moves_no_snow_in_or_out() {
     let pass = ErosionPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
-    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &ep);
+    pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &ep, 1);
     submit(ctx, enc);
     let sums = |words: &[u32], packed: &[u32]| -> (u64, u64) {
         (words.iter().map(|w| u64::from(w & 0xffff)).sum(), (0..n).map(|s| u64::from(packed_snow::get(packed, s))).sum())

@@ -5,11 +5,11 @@
 // snow word holds the move:
 //   bits 11..15  target + 1 (an index into DISPLACE_OFFSETS; 0: none;
 //                31: pressed, nothing moves, so erosion leaves it be)
-//   bits  0..10  the snow moved, in 4-quantum steps (at most 8188 quanta)
+//   bits  0..10  the snow moved, in 16-quantum steps (at most 32752 quanta, 3.3 m)
 // The displace pass gathers, at each texel, the moves of its 24 neighbours
 // that name it. Twin: src/deform/displace.rs (the same table and codes).
 
-const DISPLACE_MOST_Q: u32 = 8188u;
+const DISPLACE_MOST_Q: u32 = 32752u;
 
 // The 5x5 around a texel without its centre, (column, row) offsets, rows
 // first: the order breaks ties between equally good targets.
@@ -24,9 +24,9 @@ const DISPLACE_OFFSETS = array<vec2<i32>, 24>(
 // The mark of a texel the actors press that sends nothing.
 const DISPLACE_PRESSED: u32 = 31u << 11u;
 
-// The move of `quanta` (a multiple of 4, at most DISPLACE_MOST_Q) to offset index `to`.
+// The move of `quanta` (a multiple of 16, at most DISPLACE_MOST_Q) to offset index `to`.
 fn displace_code(to: u32, quanta: u32) -> u32 {
-    return ((to + 1u) << 11u) | (quanta >> 2u);
+    return ((to + 1u) << 11u) | (quanta >> 4u);
 }
 
 // The target offset index + 1 of move `code` (0: none).
@@ -36,5 +36,5 @@ fn displace_code_target(code: u32) -> u32 {
 
 // The quanta of move `code`.
 fn displace_code_quanta(code: u32) -> u32 {
-    return (code & 0x7ffu) << 2u;
+    return (code & 0x7ffu) << 4u;
 }

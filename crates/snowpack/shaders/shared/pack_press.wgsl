@@ -43,7 +43,7 @@ fn pack_press(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32) {
 // As pack_press, for a window that displaces (update.wgsl's DISPLACE):
 // where the actors press (`pressed`), the snow beyond the final density,
 // new or left from earlier frames, leaves the column, at most
-// DISPLACE_MOST_Q quanta in whole 4-quantum steps; the rest stays packed
+// DISPLACE_MOST_Q quanta in whole 16-quantum steps; the rest stays packed
 // (beyond the cap) for the next frames. Returns what leaves. Packed snow
 // beyond 16 bits is counted as displaced.
 fn pack_press_excess(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32, pressed: bool) -> u32 {
@@ -54,7 +54,7 @@ fn pack_press_excess(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32, pre
     let cap = packed_cap(at_ground - now, ratio);
     var leaves = 0u;
     if pressed && squeezed > cap {
-        leaves = min(squeezed - cap, DISPLACE_MOST_Q) & ~3u;
+        leaves = min(squeezed - cap, DISPLACE_MOST_Q) & ~15u;
     }
     let kept = squeezed - leaves;
     let after = min(kept, 65535u);

@@ -31,8 +31,10 @@ fn push(p: &UpdateParams, q: [f32; 2]) -> Option<[i32; 2]> {
 
 /// The offset index ([`OFFSETS`]) that snow at window-local texel (i, j)
 /// moves to (`displace_target`): the neighbour in the window closest in
-/// direction to the rise's mean direction, then the higher rise, then the
-/// first; without one, the highest rise; `None` where nothing rises.
+/// direction to the rise's mean direction (under a box that pushes, its
+/// push), then the higher rise, then the first, among those the press holds
+/// less deep (any, under a box that pushes); without one, the highest rise;
+/// `None` where nothing rises.
 #[must_use]
 pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize> {
     let r = p.resolution as i32;
@@ -49,15 +51,17 @@ pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize
         }
     }
     let q = [(here[0] as f32 + 0.5) * p.texel_m, (here[1] as f32 + 0.5) * p.texel_m];
-    if let Some(push) = push(p, q)
-        && push != [0, 0]
-    {
+    let pushing = push(p, q).filter(|v| *v != [0, 0]);
+    if let Some(push) = pushing {
         g = push;
     }
+    // By the rise alone, only to a neighbour the press holds less deep (or
+    // not at all); a moving box carries its snow on across its own texels.
+    let least = if pushing.is_some() { 0 } else { 1 };
     let mut best: Option<(usize, u32, u32)> = None;
     for (k, o) in OFFSETS.iter().enumerate() {
         let dot = o[0] * g[0] + o[1] * g[1];
-        if rise_of[k] < 0 || dot <= 0 {
+        if rise_of[k] < least || dot <= 0 {
             continue;
         }
         let len = (o[0] * o[0] + o[1] * o[1]) as u32;
@@ -87,7 +91,7 @@ pub fn target(p: &UpdateParams, capture: &[f32], i: u32, j: u32) -> Option<usize
 /// The update's packing at texel `s` of window-local (i, j) in a window
 /// that displaces: its deficit rose `from` → `to` (`at_ground` up to the
 /// terrain) and the actors press it (`pressed`). Packs up to the final
-/// density; what is beyond leaves (at most [`MOST_QUANTA`] in 4-quantum
+/// density; what is beyond leaves (at most [`MOST_QUANTA`] in 16-quantum
 /// steps) to the [`target`], the rest stays packed. Returns the move's code
 /// for the upper half of the snow word ([`PRESSED`] where the actors press
 /// and nothing moves, else 0 without a move) and the quanta counted as
@@ -103,7 +107,7 @@ pub fn press(
 ) -> (u32, u64) {
     let squeezed = packed_snow::get(packed, s) + (to - from.min(to));
     let cap = packed_snow::cap(at_ground - to, p.pack_ratio);
-    let leaves = if pressed && squeezed > cap { (squeezed - cap).min(MOST_QUANTA) & !3 } else { 0 };
+    let leaves = if pressed && squeezed > cap { (squeezed - cap).min(MOST_QUANTA) & !15 } else { 0 };
     let target = if leaves > 0 { target(p, capture, i, j) } else { None };
     let kept = squeezed - if target.is_some() { leaves } else { 0 };
     packed_snow::set(packed, s, kept.min(0xffff));

@@ -1,7 +1,7 @@
 //! CPU twin of `update.wgsl`.
 
 use crate::deform::packed_snow;
-use crate::deform::snow_word::{height as word_height, press_quanta};
+use crate::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, height as word_height, press_quanta};
 use crate::deform::update::UpdateParams;
 
 use super::stamp::{STAMP_EMPTY, height};
@@ -106,7 +106,14 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
             deficit = deficit.min(at_ground);
             if p.flags & UpdateParams::DISPLACE != 0 {
                 let (code, lost) = super::displace::press(p, input.capture_depth, packed, (s, i, j), (refilled, deficit, at_ground), pressed);
-                snow[s] = (code << 16) | deficit;
+                let mut stored = deficit;
+                if p.flags & UpdateParams::CONSUME != 0 && pressed {
+                    let berm = ((lying - p.open_fallen_m) * SNOW_QUANTA_PER_M).floor().max(0.0) as u32;
+                    let consumed = berm.min(deficit);
+                    stored = deficit - consumed;
+                    fallen[s] = lying - consumed as f32 * SNOW_QUANTUM_M;
+                }
+                snow[s] = (code << 16) | stored;
                 displaced += lost;
             } else {
                 snow[s] = (word & 0xffff_0000) | deficit;

@@ -16,8 +16,8 @@ use crate::shaders;
 use super::resources::DeformResources;
 
 /// The most snow quanta a texel sends in one frame (`DISPLACE_MOST_Q`): 11
-/// bits of 4-quantum steps, 0.82 m.
-pub const MOST_QUANTA: u32 = 8188;
+/// bits of 16-quantum steps, 3.3 m (less than 1.6 mm stays packed).
+pub const MOST_QUANTA: u32 = 32752;
 
 /// The 5x5 around a texel without its centre, `[column, row]` offsets, rows
 /// first (`DISPLACE_OFFSETS`; the order breaks ties).
@@ -39,11 +39,11 @@ pub const OFFSETS: [[i32; 2]; 24] = {
 /// (`DISPLACE_PRESSED`): the erosion leaves it be.
 pub const PRESSED: u32 = 31 << 11;
 
-/// The upper-half code of a move of `quanta` (a multiple of 4, at most
+/// The upper-half code of a move of `quanta` (a multiple of 16, at most
 /// [`MOST_QUANTA`]) to offset index `target` (`displace_code`).
 #[must_use]
 pub const fn code(target: usize, quanta: u32) -> u32 {
-    ((target as u32 + 1) << 11) | (quanta >> 2)
+    ((target as u32 + 1) << 11) | (quanta >> 4)
 }
 
 /// The offset index + 1 a move's `code` names (0: none).
@@ -55,7 +55,7 @@ pub const fn code_target(code: u32) -> u32 {
 /// The quanta a move's `code` carries.
 #[must_use]
 pub const fn code_quanta(code: u32) -> u32 {
-    (code & 0x7ff) << 2
+    (code & 0x7ff) << 4
 }
 
 /// Uniforms of `displace.wgsl`.

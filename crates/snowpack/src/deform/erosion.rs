@@ -1,7 +1,9 @@
 //! Erosion pass: walls steeper than the snow's angle of repose slide into
 //! the trench beside them (`erosion.wgsl`, CPU twin `cpu/erosion.rs`;
-//! `docs/mechanics.md`, "Erosion"). One iteration a frame, four dispatches
-//! of neighbouring pairs; off unless the snow has an angle of repose
+//! `docs/mechanics.md`, "Erosion"). One iteration a frame (four while the
+//! window displaces snow: a plough's windrow arrives faster than one
+//! settles it), four dispatches of neighbouring pairs each; off unless the
+//! snow has an angle of repose
 //! ([`crate::SnowParams::repose_deg`]).
 
 use bytemuck::{Pod, Zeroable};
@@ -82,14 +84,16 @@ impl ErosionPass {
         Self { sweeps }
     }
 
-    /// Records one iteration (the four half-sweeps) of `params`.
-    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &ErosionParams) {
+    /// Records `iterations` iterations (the four half-sweeps each) of `params`.
+    pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &ErosionParams, iterations: u32) {
         let storage_origin = super::window::storage_origin(params.origin, params.resolution);
         let pairs = layout::groups(params.resolution.div_ceil(2), 16);
         let rows = layout::groups(params.resolution, 16);
-        for (pass, (axis, offset)) in self.sweeps.iter().zip(ErosionParams::SWEEPS) {
-            let p = ErosionParams { storage_origin, axis, offset, ..*params };
-            pass.record(cx, Some(&res.bindings), &p, 0, (pairs, rows));
+        for _ in 0..iterations {
+            for (pass, (axis, offset)) in self.sweeps.iter().zip(ErosionParams::SWEEPS) {
+                let p = ErosionParams { storage_origin, axis, offset, ..*params };
+                pass.record(cx, Some(&res.bindings), &p, 0, (pairs, rows));
+            }
         }
     }
 }

@@ -30,7 +30,9 @@ pub const NO_PUSHER: Pusher = [[0.0; 4], [-1.0e9, -1.0e9, 0.0, 0.0]];
 pub fn pushers(deformers: &[Deformer], previous: &[Option<Deformer>], corner: DVec2, texel_m: f32) -> [Pusher; MOST_PUSHERS] {
     let mut out = [NO_PUSHER; MOST_PUSHERS];
     let found = deformers.iter().zip(previous).filter_map(|(now, before)| match (*now, *before) {
-        (Deformer::Box { center, half_extents, rotation }, Some(Deformer::Box { center: was, .. })) => pusher(center, half_extents, rotation, center - was, corner, texel_m),
+        (Deformer::Box { center, half_extents, rotation }, Some(Deformer::Box { center: was, .. })) => {
+            pusher(center, half_extents, rotation, center - was, corner, texel_m)
+        }
         _ => None,
     });
     for (slot, p) in out.iter_mut().zip(found) {

@@ -58,8 +58,11 @@ pub struct UpdateParams {
     /// `(high_m − low_m) × 8 / texel_m`: a step of capture depth in eighths
     /// of a texel's rise (with [`Self::DISPLACE`], the way out of a press).
     pub displace_k: f32,
+    /// Snowfall so far on open ground, this frame's included (m): lying
+    /// snow beyond it is a berm ([`Self::CONSUME`]).
+    pub open_fallen_m: f32,
     /// Padding: the pushers start on a 16-byte boundary.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
     /// The boxes that push snow this frame, which way ([`super::push`];
     /// with [`Self::DISPLACE`]).
     pub pushers: [super::push::Pusher; super::push::MOST_PUSHERS],
@@ -95,6 +98,11 @@ impl UpdateParams {
     /// the move goes into the upper half of the snow word for the displace
     /// pass ([`super::displace`]). Needs [`Self::USE_CAPTURE`].
     pub const DISPLACE: u32 = 128;
+    /// With [`Self::DISPLACE`] and not sharing: a press on a berm lowers
+    /// its lying snow and the deficit together (the surface and the mass
+    /// stay), so neither grows without bound while snow streams through a
+    /// texel. Off while sharing: copies merge by the larger of each.
+    pub const CONSUME: u32 = 256;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.

@@ -92,6 +92,9 @@ struct FrameScratch {
     pushers: [crate::deform::push::Pusher; crate::deform::push::MOST_PUSHERS],
 }
 
+/// Erosion iterations a frame while the window displaces snow.
+const EROSION_ITERATIONS_DISPLACING: u32 = 4;
+
 impl Default for FrameScratch {
     fn default() -> Self {
         Self {
@@ -269,7 +272,9 @@ impl CoreWindow {
 
     /// The update: the persistent snow pressed by this frame's capture and
     /// stamps, refilled by `refill`'s quanta, under `sky` (objects'
-    /// shelter) and flagging the tiles of `share` it changes.
+    /// shelter) and flagging the tiles of `share` it changes;
+    /// `open_fallen_m` is the snowfall so far on open ground with this
+    /// frame's (lying snow beyond it is a berm).
     pub(super) fn record_update(
         &self,
         cx: &mut FrameContext<'_>,
@@ -277,6 +282,7 @@ impl CoreWindow {
         refill: &FrameRefill,
         sky: Option<&OcclusionParams>,
         share: Option<ShareGrid>,
+        open_fallen_m: f32,
     ) {
         let p = &self.params;
         let technique = p.technique;
@@ -296,7 +302,8 @@ impl CoreWindow {
                 | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
                 | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 }
                 | if share.is_some() { UpdateParams::SHARE } else { 0 }
-                | if self.displaces() { UpdateParams::DISPLACE } else { 0 },
+                | if self.displaces() { UpdateParams::DISPLACE } else { 0 }
+                | if self.displaces() && share.is_none() { UpdateParams::CONSUME } else { 0 },
             refill_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
@@ -307,6 +314,7 @@ impl CoreWindow {
             pack_ratio: p.mechanics().pack_ratio(),
             displace_k: (self.capture_params.high_m - self.capture_params.low_m) * 8.0 / p.texel_m(),
             pushers: self.scratch.pushers,
+            open_fallen_m,
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
@@ -352,7 +360,9 @@ impl CoreWindow {
             ..ErosionParams::default()
         };
         let res = &self.res;
-        self.erosion_pass.get_or_insert_with(|| ErosionPass::new(cx.device(), res)).record(cx, res, &params);
+        // Four while displacing: a plough's windrow arrives faster than one iteration settles it.
+        let iterations = if self.displaces() { EROSION_ITERATIONS_DISPLACING } else { 1 };
+        self.erosion_pass.get_or_insert_with(|| ErosionPass::new(cx.device(), res)).record(cx, res, &params, iterations);
     }
 
     /// The display: rims, blur and the displayed half of each snow word.

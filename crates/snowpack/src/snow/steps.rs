@@ -66,7 +66,9 @@ impl FrameSteps<'_> {
             self.core.record_stamps(cx, frame.deformers, window.corner, &stamp_params);
         }
         let refill = self.time.refill(&self.core.params, frame.dt_s, stamp_params.quantum_m());
-        self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share);
+        // Snowfall so far on open ground with this frame's (as the texels have it after the update).
+        let open_fallen_m = (self.time.fallen_m + refill.fall_m).min(window.max_fallen_m);
+        self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share, open_fallen_m);
         // Snow squeezed beyond the final density onto the texels beside the press.
         self.core.record_displace(cx, window.origin, share);
         if let Some(tiles) = &mut self.tiles {
