@@ -570,13 +570,14 @@ fn a_world_made_from_plain_numbers_is_the_librarys() {
         (TerrainSource::Noise(noise.clone()), WorldTerrain::noise(noise.seed, noise.base_m, noise.amplitude_m, noise.wavelength_m)),
     ];
     for (source, terrain) in &terrains {
-        for snowfall in [None, Some(Snowfall::default())] {
-            let params = SnowParams { extent_m: 12.0, resolution: 256, depth_m: 0.5, refill_m_per_s: 0.001, snowfall, ..SnowParams::default() };
+        for (snowfall, displace) in [(None, false), (Some(Snowfall::default()), false), (None, true)] {
+            let params = SnowParams { extent_m: 12.0, resolution: 256, depth_m: 0.5, refill_m_per_s: 0.001, snowfall, displace, ..SnowParams::default() };
             let snow = WorldSnow {
                 texel_m: params.extent_m / params.resolution as f32,
                 depth_m: params.depth_m,
                 refill_m_per_s: params.refill_m_per_s,
                 snowfall: params.snowfall.as_ref().map(|s| WorldSnowfall { rate_m_per_s: s.rate_m_per_s, max_m: s.max_m }),
+                displace,
             };
             let plain = WorldIdentity::new(&snow, terrain, 32);
             assert_eq!(SnowDeformation::world_identity_for(&params, source, 32), plain, "{source:?}");
@@ -632,4 +633,79 @@ fn tiles_ahead_of_the_clock_wait_for_it_and_older_ones_are_caught_up() {
     let expected = i64::from(3900u16) - (world.clock_at(now + 0.25).refill_quanta - world.clock_at(now - 0.6).refill_quanta) as i64;
     assert_eq!(i64::from(deficits(ctx, &d)[at]), expected);
     assert!(d.take_changed_tiles().is_empty(), "merges were sent on");
+}
+
+/// Two peers plough overlapping paths (issue 43): A along x, B along z
+/// across it, each a blade scraping the ground that pushes its cut aside
+/// into berms. Their tiles cross; both end in the same snow, texel for
+/// texel (deficits and lying snow merge by the larger of each, a lattice),
+/// and the merged mass against the start is the overlapping pushes' error,
+/// printed (docs/mechanics.md, "Shared snow").
+#[test]
+fn two_peers_ploughing_across_each_other_converge_and_the_mass_error_is_measured() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.3, displace: true, ..SnowParams::default() };
+    let terrain = TerrainSource::Noise(NoiseTerrain { seed: 11, base_m: 0.0, amplitude_m: 0.1, wavelength_m: 3.0 });
+    let peer = || {
+        let mut d = SnowDeformation::new(ctx, params.clone(), terrain.clone(), CENTER).expect("deformation");
+        d.enable_sharing(ctx, SIDE, 0.25).expect("sharing");
+        d
+    };
+    let (mut a, mut b) = (peer(), peer());
+    let blade = |along_x: bool, k: usize| {
+        let t = k as f32 * 0.05;
+        let (edge, travel) = if along_x {
+            (Vec3::new(CORNER[0] + 1.5 + t, -0.3, CORNER[1] + 4.0), Vec3::X)
+        } else {
+            (Vec3::new(CORNER[0] + 4.0, -0.3, CORNER[1] + 1.5 + t), Vec3::Z)
+        };
+        Deformer::blade(edge, travel, 25.0, (1.2, 1.0))
+    };
+    let start = a.read_mass(ctx).expect("mass").total_kg;
+    for k in 0..80 {
+        let pressing = k < 64;
+        let (pa, pb) = ([blade(true, k)], [blade(false, k)]);
+        frame(ctx, &mut a, if pressing { &pa } else { &[] }, &[1], DT);
+        frame(ctx, &mut b, if pressing { &pb } else { &[] }, &[2], DT);
+    }
+    let (alone_a, alone_b) = (a.read_mass(ctx).expect("mass"), b.read_mass(ctx).expect("mass"));
+    let (from_a, from_b) = (a.take_changed_tiles(), b.take_changed_tiles());
+    assert!(!from_a.is_empty() && !from_b.is_empty(), "nothing was sent");
+    a.merge_tiles(&from_b);
+    b.merge_tiles(&from_a);
+    for _ in 0..4 {
+        frame(ctx, &mut a, &[], &[], DT);
+        frame(ctx, &mut b, &[], &[], DT);
+    }
+    let (ha, hb) = (a.read_snow(ctx).expect("snow"), b.read_snow(ctx).expect("snow"));
+    let differ = ha.iter().zip(&hb).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    assert_eq!(differ, 0, "the peers differ at {differ} texels after the merge");
+    // The packed snow is not on the wire (docs/mechanics.md): a merge packs
+    // a column as a press would, so the peers' masses differ by it.
+    let (ma, mb) = (a.read_mass(ctx).expect("mass"), b.read_mass(ctx).expect("mass"));
+    // Each alone kept its mass; what each moved aside, from its cut's lost height.
+    let moved = |h: &[f32]| -> f64 { h.iter().map(|&x| f64::from((0.3 - x).max(0.0))).sum::<f64>() };
+    let texel_area = f64::from(params.texel_m()).powi(2);
+    // The snow both see (heights, bit for bit the same): the merge's error
+    // against the start, which each peer alone kept.
+    let seen = |h: &[f32]| -> f64 { 100.0 * texel_area * h.iter().zip(&a.read_terrain(ctx).expect("terrain")).map(|(&x, &g)| f64::from(x - g)).sum::<f64>() };
+    let error = seen(&ha) - start;
+    eprintln!(
+        "ploughs across each other: start {start:.1} kg, A alone {:.1} kg, B alone {:.1} kg; merged, the snow both see {:.1} kg: error {error:+.1} kg ({:+.2} % of the window); with each one's packed snow A {:.1} kg, B {:.1} kg",
+        alone_a.total_kg,
+        alone_b.total_kg,
+        seen(&ha),
+        100.0 * error / start,
+        ma.total_kg,
+        mb.total_kg
+    );
+    for alone in [alone_a, alone_b] {
+        assert!((alone.total_kg + alone.displaced_kg - start).abs() < 1e-3 * start, "a peer alone lost mass: {} of {start} kg", alone.total_kg);
+    }
+    let pushed_kg = 100.0 * moved(&ha) * texel_area;
+    eprintln!("ploughs across each other: the merged cuts lost {pushed_kg:.1} kg; the error is {:.1} % of it", 100.0 * error.abs() / pushed_kg);
+    assert!(pushed_kg > 50.0, "the blades moved {pushed_kg} kg");
+    // The overlap is counted once where both peers' berms or cuts meet: the
+    // error is a part of what the blades moved, never more.
+    assert!(error.abs() < pushed_kg, "merge error {error} kg against {pushed_kg} kg moved");
 }

@@ -85,6 +85,6 @@ pub fn unix_now() -> Duration {
 /// `client::snow_settings`, is checked against it): 0.5 m of snow on flat
 /// ground, 4.7 cm texels, shared in the default tiles. Found without a GPU.
 pub fn world() -> WorldIdentity {
-    let snow = WorldSnow { texel_m: EXTENT_M / RESOLUTION as f32, depth_m: DEPTH_M, refill_m_per_s: 0.0, snowfall: None };
+    let snow = WorldSnow { texel_m: EXTENT_M / RESOLUTION as f32, depth_m: DEPTH_M, refill_m_per_s: 0.0, snowfall: None, displace: false };
     WorldIdentity::new(&snow, &WorldTerrain::flat(0.0), SnowReplicationSettings::default().tile_side)
 }
