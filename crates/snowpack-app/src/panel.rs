@@ -273,12 +273,20 @@ fn simulation_section(ui: &mut egui::Ui, session: &mut Session, state: &mut Pane
             actions.push(Action::PlayerBody(body));
         }
     });
-    if session.player.body == PlayerBody::Sphere {
-        ui.add(Slider::new(&mut session.player.radius, 0.1..=2.0).text("player radius").suffix(" m"));
-        ui.add(Slider::new(&mut session.player.sink, 0.0..=1.0).text("player sinks").suffix(" × depth"));
-        ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("player speed").suffix(" m/s"));
-    } else {
-        ui.label(format!("the fox walks at {FOX_WALK_M_PER_S} m/s, runs at {FOX_RUN_M_PER_S} m/s with Shift"));
+    match session.player.body {
+        PlayerBody::Sphere => {
+            ui.add(Slider::new(&mut session.player.radius, 0.1..=2.0).text("player radius").suffix(" m"));
+            ui.add(Slider::new(&mut session.player.sink, 0.0..=1.0).text("player sinks").suffix(" × depth"));
+            ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("player speed").suffix(" m/s"));
+        }
+        PlayerBody::Blade => {
+            ui.add(Slider::new(&mut session.player.speed, 0.5..=20.0).text("blade speed").suffix(" m/s"));
+            let (w, h, a) = crate::session::PLAYER_BLADE;
+            ui.label(format!("a {w} m blade, {h} m tall, turned {a}° from its travel: turn on \"displace into berms\" (Deformation) for a windrow"));
+        }
+        PlayerBody::Fox => {
+            ui.label(format!("the fox walks at {FOX_WALK_M_PER_S} m/s, runs at {FOX_RUN_M_PER_S} m/s with Shift"));
+        }
     }
     coat_controls(ui, session);
     ui.add(Slider::new(&mut session.snow_params.hardness_kpa, 0.5..=200.0).logarithmic(true).text("snow hardness").suffix(" kPa"))
@@ -406,8 +414,18 @@ fn deformation_section(ui: &mut egui::Ui, session: &mut Session, actions: &mut V
         ui.selectable_value(&mut p.rim, RimStyle::Rounded, RimStyle::Rounded.as_str());
         ui.selectable_value(&mut p.rim, RimStyle::Ms16, RimStyle::Ms16.as_str());
     });
+    let mut repose = p.repose_deg.is_some();
+    ui.horizontal(|ui| {
+        ui.checkbox(&mut repose, "walls slide")
+            .on_hover_text("erosion: walls steeper than the angle of repose slide into the trench beside them (off while sharing)");
+        let mut deg = p.repose_deg.unwrap_or(38.0);
+        ui.add_enabled(repose, Slider::new(&mut deg, 10.0..=80.0).text("angle of repose").suffix("°"));
+        p.repose_deg = repose.then_some(deg);
+    });
     ui.separator();
     ui.label("These rebuild the window (fresh snow):");
+    ui.checkbox(&mut p.displace, "displace into berms")
+        .on_hover_text("snow squeezed beyond the final density (a blade's cut) moves aside into berms and windrows (docs/mechanics.md)");
     ui.add(Slider::new(&mut p.depth_m, 0.0..=3.0).text("snow depth").suffix(" m"));
     ui.add(Slider::new(&mut p.extent_m, 4.0..=256.0).logarithmic(true).text("window").suffix(" m"));
     let mut log2 = p.resolution.ilog2();

@@ -24,12 +24,18 @@ pub enum PlayerBody {
     /// The built-in fox, walking (or running with Shift), standing on the
     /// snow as its weight and the snow's hardness say.
     Fox,
+    /// A plough's blade scraping the ground, turned from its travel
+    /// (`Deformer::blade`): with `[snow] displace` it pushes a windrow.
+    Blade,
 }
 
 impl PlayerBody {
     /// Every body with its label.
-    pub const ALL: [(Self, &'static str); 2] = [(Self::Sphere, "sphere"), (Self::Fox, "fox")];
+    pub const ALL: [(Self, &'static str); 3] = [(Self::Sphere, "sphere"), (Self::Fox, "fox"), (Self::Blade, "plough blade")];
 }
+
+/// The player's plough blade: width, height (m) and turn from its travel (degrees).
+pub const PLAYER_BLADE: (f32, f32, f32) = (2.5, 0.9, 30.0);
 
 /// The fox's walking and running speeds (m/s): about its clips' strides.
 pub const FOX_WALK_M_PER_S: f32 = 1.0;
@@ -51,6 +57,8 @@ pub struct Player {
     pub sink: f32,
     /// Walking speed (m/s).
     pub speed: f32,
+    /// Which way it last moved (ground plane): where a blade faces.
+    pub heading: Vec2,
 }
 
 /// Where the deformation window is centred.
@@ -141,7 +149,7 @@ impl Session {
         let renderer = Renderer::new(ctx, &snow, &env, render_params, format).context("creating the renderer")?;
         let start = Vec2::new(center.x as f32, center.y as f32);
         let radius = 0.5;
-        let mut player = Player { enabled: true, body: PlayerBody::Sphere, position: Vec3::ZERO, radius, sink: 0.6, speed: 4.0 };
+        let mut player = Player { enabled: true, body: PlayerBody::Sphere, position: Vec3::ZERO, radius, sink: 0.6, speed: 4.0, heading: Vec2::X };
         player.position = player_height(&scene, &snow_params, start, &player);
         let mut session = Self {
             follow: WindowFollow::Scene,
@@ -274,7 +282,7 @@ impl Session {
     #[must_use]
     pub fn deformer_ids(&self) -> Vec<u64> {
         let mut ids = self.world.deformer_ids();
-        if self.player.enabled && self.player.body == PlayerBody::Sphere {
+        if self.player.enabled && matches!(self.player.body, PlayerBody::Sphere | PlayerBody::Blade) {
             ids.push(u64::MAX);
         }
         ids
@@ -284,8 +292,18 @@ impl Session {
     #[must_use]
     pub fn deformers(&self) -> Vec<Deformer> {
         let mut d = self.world.deformers();
-        if self.player.enabled && self.player.body == PlayerBody::Sphere {
-            d.push(Deformer::Sphere { center: self.player.position, radius: self.player.radius });
+        if self.player.enabled {
+            let p = self.player.position;
+            match self.player.body {
+                PlayerBody::Sphere => d.push(Deformer::Sphere { center: p, radius: self.player.radius }),
+                PlayerBody::Blade => {
+                    // Its lower edge just under the terrain: it scrapes the ground.
+                    let edge = Vec3::new(p.x, self.scene.terrain.height_at(p.x, p.z) - 0.02, p.z);
+                    let (width_m, height_m, angle_deg) = PLAYER_BLADE;
+                    d.push(Deformer::blade(edge, Vec3::new(self.player.heading.x, 0.0, self.player.heading.y), angle_deg, (width_m, height_m)));
+                }
+                PlayerBody::Fox => {}
+            }
         }
         d
     }
@@ -304,6 +322,9 @@ impl Session {
                 }
             }
             _ => {
+                if dir.length() > 1e-3 {
+                    self.player.heading = dir.normalize();
+                }
                 let step = dir * self.player.speed * if fast { 2.5 } else { 1.0 } * dt;
                 let xz = Vec2::new(self.player.position.x, self.player.position.z) + step;
                 self.player.position = player_height(&self.scene, &self.snow_params, xz, &self.player);
@@ -339,6 +360,10 @@ impl Session {
         if live.blur != p.blur {
             self.snow.set_blur(p.blur);
         }
+        if live.repose_deg != p.repose_deg {
+            // The panel's range is valid; a refusal keeps the old angle.
+            let _ = self.snow.set_repose(p.repose_deg);
+        }
         if live.range_texels != p.range_texels || live.rim != p.rim {
             self.snow.set_points(p.range_texels, p.rim);
         }
@@ -372,6 +397,7 @@ impl Session {
             || live.resolution != self.snow_params.resolution
             || live.depth_m != self.snow_params.depth_m
             || live.snowfall.is_some() != self.snow_params.snowfall.is_some()
+            || live.displace != self.snow_params.displace
             || self.renderer.params().shadow_map_size != self.render_params.shadow_map_size
             || self.renderer.params().patch_quads != self.render_params.patch_quads
     }

@@ -168,7 +168,7 @@ pub mod prelude {
 /// `params.blur`, `params.elevation`, `params.range_texels` and
 /// `params.rim`, `center` (when no [`SnowWindowTarget`] moves the window)
 /// and `fixed_dt_s`. What sizes the snow makes a new snow world instead:
-/// the window's `extent_m`, `resolution` and `depth_m`, `hardness_kpa`, `density_kg_m3`, `max_density_kg_m3`, `repose_deg`,
+/// the window's `extent_m`, `resolution` and `depth_m`, `hardness_kpa`, `density_kg_m3`, `max_density_kg_m3`, `repose_deg`, `displace`,
 /// `tile_memory_bytes`, `teleport_m`, the `terrain` and the `store`. The
 /// old world's snow is saved to its store first (when it has one of its
 /// own), the new one loads its store's save, and the materials bind the new
@@ -304,6 +304,20 @@ pub enum SnowDeformer {
         /// is not known yet).
         lowest_m: f32,
     },
+    /// A plough's blade or a crate's face (`snowpack::Deformer::blade`):
+    /// its lower edge's middle at the entity's origin, travelling along the
+    /// entity's forward (-z) and turned `angle_deg` from square to it about
+    /// the vertical. Scraping the ground with the snow's `params.displace`
+    /// on, it pushes its cut aside into a windrow.
+    Blade {
+        /// Width along the edge (m) before scaling (the entity's x scale).
+        width: f32,
+        /// Height (m) before scaling (the entity's y scale).
+        height: f32,
+        /// Turn from square to the travel (degrees): the pushed snow slides
+        /// off the trailing end.
+        angle_deg: f32,
+    },
     /// The entity's own mesh (`Mesh3d`) in its current pose, or, on an
     /// entity without one (a glTF scene's root), every mesh below it.
     /// Skinned meshes press in pose (the library skins them on the GPU from
@@ -327,6 +341,9 @@ impl SnowDeformer {
             Self::Point { scale_per_m } => Some(snowpack::Deformer::Point { position: translation, scale_per_m }),
             Self::Wheel { radius, half_width, roll_m, lowest_m } => {
                 deformers::placed_wheel(rotation, translation, radius * largest, half_width * largest, roll_m, lowest_m)
+            }
+            Self::Blade { width, height, angle_deg } => {
+                Some(snowpack::Deformer::blade(translation, rotation * Vec3::NEG_Z, angle_deg, (width * scale.x.abs(), height * scale.y.abs())))
             }
             Self::Capsule { .. } | Self::Mesh => None,
         }

@@ -67,8 +67,8 @@ pub(crate) fn apply_settings(settings: Res<SnowpackSettings>, applied: Option<Re
     (params.extent_m, params.resolution, params.depth_m) = (created.params.extent_m, created.params.resolution, created.params.depth_m);
     (params.hardness_kpa, params.tile_memory_bytes, params.teleport_m) =
         (created.params.hardness_kpa, created.params.tile_memory_bytes, created.params.teleport_m);
-    (params.density_kg_m3, params.max_density_kg_m3, params.repose_deg) =
-        (created.params.density_kg_m3, created.params.max_density_kg_m3, created.params.repose_deg);
+    (params.density_kg_m3, params.max_density_kg_m3, params.repose_deg, params.displace) =
+        (created.params.density_kg_m3, created.params.max_density_kg_m3, created.params.repose_deg, created.params.displace);
     now.terrain = created.terrain.clone();
     now.store = created.store.clone();
     if snow.params().snowfall.is_none() && now.params.snowfall.is_some() {

@@ -30,6 +30,7 @@ pub(crate) fn world_changes(old: &SnowpackSettings, new: &SnowpackSettings) -> V
         ("params.density_kg_m3", p.density_kg_m3 != q.density_kg_m3),
         ("params.max_density_kg_m3", p.max_density_kg_m3 != q.max_density_kg_m3),
         ("params.repose_deg", p.repose_deg != q.repose_deg),
+        ("params.displace", p.displace != q.displace),
         ("params.tile_memory_bytes", p.tile_memory_bytes != q.tile_memory_bytes),
         ("params.teleport_m", p.teleport_m != q.teleport_m),
         ("terrain", new.terrain != old.terrain),

@@ -103,3 +103,52 @@ fn a_skinned_mesh_presses_where_its_joints_put_it() {
         assert!((beside - 0.4).abs() < 1e-3, "where the mesh entity stands, x = {x}: {beside} m, want untouched 0.4 m");
     }
 }
+
+#[derive(Component)]
+struct Plough;
+
+/// `SnowDeformer::Blade` with `params.displace`: a blade 1.5 m wide, turned
+/// 30° from its travel, scrapes 0.4 m of snow to the ground along x; the
+/// cut is bare, the windrow beside it rises above the snow, and the snow
+/// above the rest surface is what the cut lost.
+#[test]
+fn a_blade_pushes_its_cut_into_a_windrow() {
+    let mut settings = common::test_settings();
+    settings.params.displace = true;
+    settings.params.repose_deg = Some(38.0);
+    let Some(mut app) = common::headless_app(settings) else { return };
+    // Forward (-z) turned to +x; 3 m along x in 60 frames.
+    let at = |k: u32| Vec3::new(-1.5 + 0.05 * k.min(60) as f32, -0.02, 0.0);
+    app.add_systems(Update, move |mut frame: Local<u32>, mut blades: Query<&mut Transform, With<Plough>>| {
+        for mut t in &mut blades {
+            t.translation = at(*frame);
+        }
+        *frame += 1;
+    });
+    app.world_mut().spawn((
+        Plough,
+        SnowDeformer::Blade { width: 1.5, height: 0.8, angle_deg: 30.0 },
+        Transform::from_translation(at(0)).with_rotation(Quat::from_rotation_y(-std::f32::consts::FRAC_PI_2)),
+    ));
+    for _ in 0..80 {
+        app.update();
+    }
+    let height = common::snow_heights(&app);
+    // The cut's middle along the way (the blade spans z ±0.65 turned 30°).
+    for x in [-0.5f32, 0.0, 0.5] {
+        let h = height(x, 0.0);
+        assert!(h < 0.05, "the cut at x = {x} holds {h} m of snow");
+    }
+    let (mut top, mut above, mut below) = (0.0f32, 0.0f32, 0.0f32);
+    for i in -60..=60 {
+        for j in -60..=60 {
+            let h = height(j as f32 * 0.0625 + 0.03, i as f32 * 0.0625 + 0.03);
+            top = top.max(h);
+            above += (h - 0.4).max(0.0);
+            below += (0.4 - h).max(0.0);
+        }
+    }
+    println!("blade: windrow top {top} m; above the snow {above}, below it {below} (texel-metres)");
+    assert!(top > 0.55, "the windrow tops at {top} m over 0.4 m of snow");
+    assert!(below > 100.0 && (above / below - 1.0).abs() < 0.05, "berms {above} against the cut's {below} texel-metres");
+}

@@ -232,6 +232,19 @@ impl SnowDeformation {
         self.core.params.blur = blur;
     }
 
+    /// Sets the snow's angle of repose (degrees, in (0, 90); `None`: walls
+    /// stay as presses made them), from the next frame
+    /// ([`SnowParams::repose_deg`]).
+    ///
+    /// An angle outside (0, 90) is an error naming `repose_deg`, and the
+    /// angle stays as it was.
+    pub fn set_repose(&mut self, repose_deg: Option<f32>) -> Result<(), crate::SnowError> {
+        let p = SnowParams { repose_deg, ..self.core.params.clone() };
+        crate::deform::params::SnowParamsExt::validate(&p)?;
+        self.core.params.repose_deg = repose_deg;
+        Ok(())
+    }
+
     /// Moves the window's centre; the move (snapped to texels) happens at the next frame.
     pub fn set_center(&mut self, center: DVec2) {
         self.core.center = center;
