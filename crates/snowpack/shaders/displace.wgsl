@@ -42,7 +42,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = i32(res);
     var gained = 0u;
     for (var k = 0u; k < 24u; k++) {
-        let n = here - DISPLACE_OFFSETS[k];
+        let n = here - displace_offset(k);
         if any(n < vec2<i32>(0)) || any(n >= vec2<i32>(r)) {
             continue;
         }

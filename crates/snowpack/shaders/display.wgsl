@@ -145,7 +145,8 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
         // far); lying snow beyond the snowfall is a berm (displacement),
         // and what rises above that depth is shown as it is.
         let base = params.depth_m + min(lying, params.open_fallen_m);
-        let x = clamp((snow_h - ground) / base, 0.0, 1.0);
+        // No undisturbed depth (bare ground under a berm): nothing to remap.
+        let x = select(0.0, clamp((snow_h - ground) / base, 0.0, 1.0), base > 0.0);
         let remapped = x + params.elevation * (hanak_cubic(x) - x);
         let above = select(0.0, max(snow_h - ground - base, 0.0), lying > params.open_fallen_m);
         return ground + base * max(remapped, 0.0) + above;

@@ -155,7 +155,7 @@ fn displace_push(q: vec2<f32>) -> vec2<i32> {
     return vec2<i32>(0, 0);
 }
 
-// The offset index (DISPLACE_OFFSETS) that snow at window-local texel
+// The offset index (displace_offset) that snow at window-local texel
 // (i, j) moves to, or 24 for none: the neighbour in the window whose
 // direction is closest to the rise's mean direction (or, under a box that
 // pushes, its push; integer cosines),
@@ -165,16 +165,14 @@ fn displace_target(i: u32, j: u32) -> u32 {
     let d0 = textureLoad(capture, vec2<u32>(j, i), 0).x;
     let here = vec2<i32>(i32(j), i32(i));
     let r = i32(params.resolution);
-    var rise: array<i32, 24>;
+    // The rise of each neighbour (-1 outside the window), read again in each
+    // loop rather than kept in an array (a private array is slow here).
     var g = vec2<i32>(0, 0);
     for (var k = 0u; k < 24u; k++) {
-        let n = here + DISPLACE_OFFSETS[k];
-        var w = -1;
+        let n = here + displace_offset(k);
         if all(n >= vec2<i32>(0)) && all(n < vec2<i32>(r)) {
-            w = displace_rise(n, d0);
-            g += w * DISPLACE_OFFSETS[k];
+            g += displace_rise(n, d0) * displace_offset(k);
         }
-        rise[k] = w;
     }
     // Under a box that pushes, its way instead.
     let push = displace_push((vec2<f32>(here) + 0.5) * params.texel_m);
@@ -188,30 +186,36 @@ fn displace_target(i: u32, j: u32) -> u32 {
     var best = 24u;
     var best_dot = 0;
     var best_len = 1;
+    var best_rise = -1;
+    var highest = 24u;
+    var highest_rise = 0;
     for (var k = 0u; k < 24u; k++) {
-        let o = DISPLACE_OFFSETS[k];
-        let dot_o = o.x * g.x + o.y * g.y;
-        let len = o.x * o.x + o.y * o.y;
-        if rise[k] < least || dot_o <= 0 {
+        let o = displace_offset(k);
+        let n = here + o;
+        if any(n < vec2<i32>(0)) || any(n >= vec2<i32>(r)) {
             continue;
         }
-        // dot/|o| compared without roots: dot^2 |o_best|^2 against dot_best^2 |o|^2 (u32: at most 3024^2 * 8).
+        let w = displace_rise(n, d0);
+        if w > highest_rise {
+            highest = k;
+            highest_rise = w;
+        }
+        let dot_o = o.x * g.x + o.y * g.y;
+        let len = o.x * o.x + o.y * o.y;
+        if w < least || dot_o <= 0 {
+            continue;
+        }
+        // dot/|o| compared without roots: dot^2 |o_best|^2 against dot_best^2 |o|^2 (u32: at most 7560^2 * 8).
         let a = u32(dot_o) * u32(dot_o) * u32(best_len);
         let b = u32(best_dot) * u32(best_dot) * u32(len);
-        if best == 24u || a > b || (a == b && rise[k] > rise[best]) {
+        if best == 24u || a > b || (a == b && w > best_rise) {
             best = k;
             best_dot = dot_o;
             best_len = len;
+            best_rise = w;
         }
     }
-    if best == 24u {
-        for (var k = 0u; k < 24u; k++) {
-            if rise[k] > 0 && (best == 24u || rise[k] > rise[best]) {
-                best = k;
-            }
-        }
-    }
-    return best;
+    return select(best, highest, best == 24u);
 }
 
 @compute @workgroup_size(16, 16)

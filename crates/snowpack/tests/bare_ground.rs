@@ -164,6 +164,8 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
             use_fallen: 1,
             texel_m: params.texel_m(),
             blur: 0,
+            // All of it snowfall (none a berm).
+            open_fallen_m: f32::MAX,
             ..DisplayParams::default()
         };
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("rim at zero depth") });

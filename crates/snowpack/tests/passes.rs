@@ -610,8 +610,8 @@ fn erosion_slides_berms_and_leaves_pressed_texels_be() {
         })
         .collect();
     let mut packed = vec![0u32; n.div_ceil(2)];
-    for s in 0..n {
-        packed_snow::set(&mut packed, s, rng.range(0.0, 2000.0) as u32 * u32::from(snow[s] & 0xffff > 0));
+    for (s, word) in snow.iter().enumerate() {
+        packed_snow::set(&mut packed, s, rng.range(0.0, 2000.0) as u32 * u32::from(word & 0xffff > 0));
     }
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));

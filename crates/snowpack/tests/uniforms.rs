@@ -196,6 +196,7 @@ fn every_window_pass_binds_group_1_as_the_window_bindings() {
         passes.push(*name);
     }
     let expected = [
+        "DISPLACE",
         "DISPLAY",
         "EROSION",
         "EXCHANGE",

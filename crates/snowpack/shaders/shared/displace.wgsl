@@ -3,7 +3,7 @@
 // the 5x5 around it. Between the update pass (which chooses and writes it)
 // and the display pass (which rewrites that half), the upper half of the
 // snow word holds the move:
-//   bits 11..15  target + 1 (an index into DISPLACE_OFFSETS; 0: none;
+//   bits 11..15  target + 1 (k of displace_offset; 0: none;
 //                31: pressed, nothing moves, so erosion leaves it be)
 //   bits  0..10  the snow moved, in 16-quantum steps (at most 32752 quanta, 3.3 m)
 // The displace pass gathers, at each texel, the moves of its 24 neighbours
@@ -12,14 +12,13 @@
 const DISPLACE_MOST_Q: u32 = 32752u;
 
 // The 5x5 around a texel without its centre, (column, row) offsets, rows
-// first: the order breaks ties between equally good targets.
-const DISPLACE_OFFSETS = array<vec2<i32>, 24>(
-    vec2<i32>(-2, -2), vec2<i32>(-1, -2), vec2<i32>(0, -2), vec2<i32>(1, -2), vec2<i32>(2, -2),
-    vec2<i32>(-2, -1), vec2<i32>(-1, -1), vec2<i32>(0, -1), vec2<i32>(1, -1), vec2<i32>(2, -1),
-    vec2<i32>(-2, 0), vec2<i32>(-1, 0), vec2<i32>(1, 0), vec2<i32>(2, 0),
-    vec2<i32>(-2, 1), vec2<i32>(-1, 1), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(2, 1),
-    vec2<i32>(-2, 2), vec2<i32>(-1, 2), vec2<i32>(0, 2), vec2<i32>(1, 2), vec2<i32>(2, 2),
-);
+// first (k in 0..24): the order breaks ties between equally good targets.
+// Arithmetic rather than a constant array: a constant array indexed by a
+// loop counter is copied into each invocation's memory by some compilers.
+fn displace_offset(k: u32) -> vec2<i32> {
+    let n = i32(k + select(0u, 1u, k >= 12u));
+    return vec2<i32>(n % 5 - 2, n / 5 - 2);
+}
 
 // The mark of a texel the actors press that sends nothing.
 const DISPLACE_PRESSED: u32 = 31u << 11u;

@@ -53,7 +53,7 @@ pub fn rim(p: &DisplayParams, terrain: &[f32], snow: &[u32], stamps: &[u32], fal
                 snow_h
             } else if p.mode == 0 {
                 let base = p.depth_m + lying.min(p.open_fallen_m);
-                let x = ((snow_h - ground) / base).clamp(0.0, 1.0);
+                let x = if base > 0.0 { ((snow_h - ground) / base).clamp(0.0, 1.0) } else { 0.0 };
                 let remapped = x + p.elevation * (hanak_cubic(x) - x);
                 let above = if lying > p.open_fallen_m { (snow_h - ground - base).max(0.0) } else { 0.0 };
                 ground + base * remapped.max(0.0) + above

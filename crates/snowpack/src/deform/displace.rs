@@ -4,6 +4,10 @@
 //! chooses each move and writes it into the upper half of the snow word;
 //! this pass gathers the moves at their targets. Runs only for a window
 //! that displaces ([`crate::SnowParams::displace`]).
+#![cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, reason = "the move's table and codes are the CPU twin's and the tests' (`low_level::cpu`); the shader has its own")
+)]
 
 use bytemuck::{Pod, Zeroable};
 
@@ -20,7 +24,7 @@ use super::resources::DeformResources;
 pub const MOST_QUANTA: u32 = 32752;
 
 /// The 5x5 around a texel without its centre, `[column, row]` offsets, rows
-/// first (`DISPLACE_OFFSETS`; the order breaks ties).
+/// first (`displace_offset`; the order breaks ties).
 pub const OFFSETS: [[i32; 2]; 24] = {
     let mut out = [[0; 2]; 24];
     let mut k = 0;
