@@ -61,6 +61,23 @@ fn setup(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, Terra
     (params, terrain, res)
 }
 
+/// `setup`'s window made to displace (with its lying-snow plane), at a
+/// random origin: its parameters, resources, origin and ground per texel.
+fn setup_displacing(ctx: &GpuContext, rng: &mut Rng, resolution: u32) -> (SnowParams, DeformResources, [i32; 2], Vec<f32>) {
+    let (params, terrain_src, _) = setup(ctx, rng, resolution);
+    let params = SnowParams { displace: true, ..params };
+    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+    (params, res, origin, terrain)
+}
+
+/// The window's snow in quanta: lying snow less the deficit, plus the
+/// packed snow, over every texel (what displacement and erosion keep).
+fn snow_quanta(words: &[u32], lying: &[f32], packed: &[u32]) -> f64 {
+    (0..words.len()).map(|s| f64::from(lying[s]) * 1e4 - f64::from(words[s] & 0xffff) + f64::from(packed_snow::get(packed, s))).sum()
+}
+
 fn submit(ctx: &GpuContext, encoder: wgpu::CommandEncoder) {
     ctx.queue.submit([encoder.finish()]);
     ctx.wait_idle("test").expect("GPU error");
@@ -416,12 +433,8 @@ fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("displacement");
     let mut rng = Rng::new(seed);
-    let (params, terrain_src, _) = setup(ctx, &mut rng, 96);
-    let params = SnowParams { displace: true, ..params };
-    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let (params, res, origin, terrain) = setup_displacing(ctx, &mut rng, 96);
     let n = params.texel_count();
-    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
-    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
     let mut fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.1)).collect();
     let at_ground: Vec<u32> = terrain.iter().zip(&fallen).map(|(&t, &l)| snow_word::press_quanta(t + params.depth_m + l, t, t)).collect();
     let pack_ratio = rng.range(0.2, 1.5);
@@ -515,10 +528,7 @@ fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
     assert!((gained_m - moved as f64 * 1e-4).abs() < 1e-4 + moved as f64 * 1e-6, "berms gained {gained_m} m, moves {} m; seed {seed}", moved as f64 * 1e-4);
     // Mass: lying snow less the deficit, plus the packed snow (quanta), is
     // what it was, less what was counted displaced.
-    let mass = |words: &[u32], lying: &[f32], packed: &[u32]| -> f64 {
-        (0..n).map(|s| f64::from(lying[s]) * 1e4 - f64::from(words[s] & 0xffff) + f64::from(packed_snow::get(packed, s))).sum()
-    };
-    let (before, after) = (mass(&before_snow, &before_fallen, &before_packed), mass(&gpu_words, &gpu_fallen, &gpu_packed));
+    let (before, after) = (snow_quanta(&before_snow, &before_fallen, &before_packed), snow_quanta(&gpu_words, &gpu_fallen, &gpu_packed));
     let counted = packed_snow::displaced_count(&gpu_packed) as f64;
     assert!((after + counted - before).abs() < 20.0, "mass {before} quanta before, {after} + {counted} counted after; seed {seed}");
     assert!(moves > 50, "only {moves} moves; seed {seed}");
@@ -595,12 +605,8 @@ fn erosion_slides_berms_and_leaves_pressed_texels_be() {
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("erosion of berms");
     let mut rng = Rng::new(seed);
-    let (params, terrain_src, _) = setup(ctx, &mut rng, 80);
-    let params = SnowParams { displace: true, ..params };
-    let res = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    let (params, res, origin, terrain) = setup_displacing(ctx, &mut rng, 80);
     let n = params.texel_count();
-    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
-    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
     let mut fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.3 { rng.range(0.1, 1.5) } else { 0.0 }).collect();
     let mut snow: Vec<u32> = (0..n)
         .map(|s| {
@@ -633,14 +639,11 @@ fn erosion_slides_berms_and_leaves_pressed_texels_be() {
     submit(ctx, enc);
     let (gpu_snow, gpu_packed, gpu_fallen) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed), read_f32(ctx, &res.fallen));
     let (before_snow, before_fallen) = (snow.clone(), fallen.clone());
-    let mass = |words: &[u32], lying: &[f32], packed: &[u32]| -> f64 {
-        (0..n).map(|s| f64::from(lying[s]) * 1e4 - f64::from(words[s] & 0xffff) + f64::from(packed_snow::get(packed, s))).sum()
-    };
-    let before = mass(&snow, &fallen, &packed);
+    let before = snow_quanta(&snow, &fallen, &packed);
     for _ in 0..2 {
         cpu::erosion::iterate(&ep, &terrain, &mut fallen, &mut snow, &mut packed);
     }
-    let after = mass(&gpu_snow, &gpu_fallen, &gpu_packed);
+    let after = snow_quanta(&gpu_snow, &gpu_fallen, &gpu_packed);
     assert!((after - before).abs() < 1.0 + before.abs() * 1e-6, "erosion changed the snow: {before} -> {after} quanta; seed {seed}");
     let marked: Vec<usize> = (0..n).filter(|&s| before_snow[s] >> 27 != 0).collect();
     assert!(

@@ -357,6 +357,93 @@ fn a_press_packs_the_snow_under_it_and_the_mass_stays() {
     assert!((densest - m.max_density_kg_m3).abs() < 2.0, "densest column {densest}");
 }
 
+/// Mass over random presses (issue 43, a property over random cases): in a
+/// window that displaces, spheres and boxes pressing any depth, a blade
+/// scraping the ground, with or without an angle of repose, on noise
+/// terrain, while snow falls or not, the window's snow plus what was
+/// counted as displaced is the start plus the snowfall (`fallen_m` on open
+/// ground over the window), within 0.5 %.
+#[test]
+fn the_mass_stays_over_random_presses_blades_and_snowfall() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("mass over random presses");
+    let mut rng = Rng::new(seed);
+    for case in 0..3 {
+        let snowfall = (case != 1).then(|| Snowfall { rate_m_per_s: rng.range(0.0005, 0.004), max_m: 3.0, ..Snowfall::default() });
+        let params = SnowParams {
+            extent_m: 8.0,
+            resolution: 96,
+            depth_m: rng.range(0.2, 0.6),
+            density_kg_m3: rng.range(60.0, 200.0),
+            max_density_kg_m3: rng.range(300.0, 600.0),
+            displace: true,
+            repose_deg: (case != 2).then(|| rng.range(25.0, 50.0)),
+            snowfall,
+            ..SnowParams::default()
+        };
+        let terrain = TerrainSource::Noise(NoiseTerrain {
+            seed: rng.next_u64() as u32,
+            base_m: 0.0,
+            amplitude_m: rng.range(0.0, 0.3),
+            wavelength_m: rng.range(2.0, 8.0),
+        });
+        let m = params.mechanics();
+        let mut snow = SnowDeformation::new(ctx, params.clone(), terrain, DVec2::ZERO).expect("window");
+        snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
+        let (start, fallen0) = (snow.read_mass(ctx).expect("mass"), snow.fallen_m());
+        let at = |rng: &mut Rng| Vec3::new(rng.range(-2.5, 2.5), 0.0, rng.range(-2.5, 2.5));
+        let mut bodies: Vec<(Deformer, Vec3)> = (0..6)
+            .map(|k| {
+                let c = at(&mut rng) + Vec3::Y * rng.range(0.0, 0.7);
+                let v = Vec3::new(rng.range(-2.0, 2.0), 0.0, rng.range(-2.0, 2.0));
+                let d = if k % 2 == 0 {
+                    Deformer::Sphere { center: c, radius: rng.range(0.2, 0.6) }
+                } else {
+                    Deformer::Box {
+                        center: c,
+                        half_extents: Vec3::new(rng.range(0.1, 0.5), 0.3, rng.range(0.1, 0.5)),
+                        rotation: glam::Quat::from_rotation_y(rng.range(-3.0, 3.0)),
+                    }
+                };
+                (d, v)
+            })
+            .collect();
+        let (mut edge, travel, angle) =
+            (at(&mut rng) - Vec3::Y, Vec3::new(rng.range(-1.0, 1.0), 0.0, rng.range(-1.0, 1.0)).normalize_or(Vec3::X), rng.range(-40.0, 40.0));
+        for _ in 0..60 {
+            let mut frame: Vec<Deformer> = Vec::new();
+            for (d, v) in &mut bodies {
+                let moved = *v / 60.0;
+                *d = match *d {
+                    Deformer::Sphere { center, radius } => Deformer::Sphere { center: (center + moved).clamp(Vec3::splat(-3.0), Vec3::splat(3.0)), radius },
+                    Deformer::Box { center, half_extents, rotation } => {
+                        Deformer::Box { center: (center + moved).clamp(Vec3::splat(-3.0), Vec3::splat(3.0)), half_extents, rotation }
+                    }
+                    other => other,
+                };
+                frame.push(*d);
+            }
+            edge = (edge + travel * 0.04).clamp(Vec3::new(-2.5, -1.0, -2.5), Vec3::new(2.5, -1.0, 2.5));
+            frame.push(Deformer::blade(edge, travel, angle, (1.2, 2.0)));
+            let ids: Vec<u64> = (0..frame.len() as u64).collect();
+            snow.step_frame(ctx, &SnowFrame::new(1.0 / 60.0, &frame).with_ids(&ids)).expect("frame");
+        }
+        snow.finish(ctx).expect("finish");
+        let end = snow.read_mass(ctx).expect("mass");
+        let fell = f64::from(m.fresh_density_kg_m3) * 64.0 * f64::from(snow.fallen_m() - fallen0);
+        let expected = start.total_kg + fell;
+        let got = end.total_kg + end.displaced_kg;
+        eprintln!(
+            "case {case}: start {:.1} kg, snowfall {fell:.1} kg, end {:.1} kg + {:.1} kg displaced ({:+.3} %)",
+            start.total_kg,
+            end.total_kg,
+            end.displaced_kg,
+            100.0 * (got / expected - 1.0)
+        );
+        assert!((got / expected - 1.0).abs() < 0.005, "case {case}: {got} kg against {expected} kg; seed {seed}");
+    }
+}
+
 /// Erosion (`docs/mechanics.md`): a box presses a trench with vertical
 /// walls 0.3 m deep; with an angle of repose of 40° the walls slide into it
 /// until no step between neighbours is steeper, the snow that slid is
