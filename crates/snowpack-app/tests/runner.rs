@@ -835,6 +835,42 @@ fn a_plough_pushes_its_cut_into_a_windrow_and_the_mass_stays() {
     assert!(below > 1000.0 && (above / below - 1.0).abs() < 0.02, "berms {above} against the cut's {below} texel metres");
 }
 
+/// Berms persist (issue 43): a blade cuts a windrow, the window follows a
+/// marker 300 m away and back (the tiles keep the lying snow, as they keep
+/// snowfall), and the cut and the windrow are there again.
+#[test]
+fn a_windrow_comes_back_with_its_tiles_after_the_window_went_away() {
+    if !gpu_available() {
+        return;
+    }
+    let scene = "[snow]\nextent_m = 16.0\nresolution = 256\ndepth_m = 0.4\ndisplace = true\nrepose_deg = 38.0\n\
+        [terrain]\nkind = \"flat\"\n[window]\nfollow = \"actor:1\"\n\
+        [[actor]]\nkind = \"blade\"\nwidth_m = 2.0\nheight_m = 0.9\nangle_deg = 30.0\npath = [[-4.0, -0.02, 0.0, 0.0], [4.0, -0.02, 0.0, 4.0], [30.0, -0.02, 300.0, 4.5]]\n\
+        [[actor]]\nkind = \"sphere\"\nradius_m = 0.1\npath = [[0.0, 5.0, 0.0, 0.0], [0.0, 5.0, 0.0, 5.0], [300.0, 5.0, 0.0, 6.0], [300.0, 5.0, 0.0, 7.0], [0.0, 5.0, 0.0, 8.0]]\n\
+        [sim]\nframes = 600\n";
+    let run = run_scene("windrow-back", scene, &["--size", "64x36"]);
+    let snow = run.grid("snow.npy");
+    let at = |x: f64, z: f64| -> f32 {
+        let k = snow.data.iter().enumerate().min_by(|a, b| {
+            let (pa, pb) = (run.world(a.0 / snow.res, a.0 % snow.res), run.world(b.0 / snow.res, b.0 % snow.res));
+            (pa.0 - x).hypot(pa.1 - z).total_cmp(&(pb.0 - x).hypot(pb.1 - z))
+        });
+        *k.expect("a texel").1
+    };
+    let o = &run.meta["origin_m"];
+    assert!(o[0].as_f64().expect("x").abs() < 20.0, "the window is not back: origin {o}");
+    // It went: the windrow's tiles were kept and came back from memory.
+    let restored = run.meta["store"]["restored_tiles"].as_u64().expect("restored_tiles");
+    assert!(restored > 10, "{restored} tiles came back: the window did not leave");
+    // The cut along the path (the blade spans z -0.87..0.87 turned 30 degrees; the windrow spills to -0.5).
+    for x in [-2.0, 0.0, 2.0] {
+        let cut = at(x, 0.3);
+        let top = (0..20).map(|k| at(x, -0.8 - 0.06 * f64::from(k))).fold(0.0f32, f32::max);
+        assert!(cut < 0.06, "the cut at x = {x} holds {cut} m after the window came back");
+        assert!(top > 0.6, "the windrow at x = {x} tops at {top} m after the window came back");
+    }
+}
+
 #[test]
 fn with_the_points_technique_each_planted_paw_is_a_contact_point() {
     if !gpu_available() {
