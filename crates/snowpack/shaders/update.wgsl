@@ -165,20 +165,19 @@ fn displace_target(i: u32, j: u32) -> u32 {
     let d0 = textureLoad(capture, vec2<u32>(j, i), 0).x;
     let here = vec2<i32>(i32(j), i32(i));
     let r = i32(params.resolution);
-    // The rise of each neighbour (-1 outside the window), read again in each
-    // loop rather than kept in an array (a private array is slow here).
-    var g = vec2<i32>(0, 0);
-    for (var k = 0u; k < 24u; k++) {
-        let n = here + displace_offset(k);
-        if all(n >= vec2<i32>(0)) && all(n < vec2<i32>(r)) {
-            g += displace_rise(n, d0) * displace_offset(k);
-        }
-    }
-    // Under a box that pushes, its way instead.
+    // Under a box that pushes, its way; else the rises' mean direction.
+    // The rises are read again in each loop rather than kept in an array
+    // (a private array is slow here), and only where they count.
     let push = displace_push((vec2<f32>(here) + 0.5) * params.texel_m);
     let pushing = any(push != vec2<i32>(0));
-    if pushing {
-        g = push;
+    var g = push;
+    if !pushing {
+        for (var k = 0u; k < 24u; k++) {
+            let n = here + displace_offset(k);
+            if all(n >= vec2<i32>(0)) && all(n < vec2<i32>(r)) {
+                g += displace_rise(n, d0) * displace_offset(k);
+            }
+        }
     }
     // By the rise alone, only to a neighbour the press holds less deep (or
     // not at all); a moving box carries its snow on across its own texels.
@@ -187,24 +186,18 @@ fn displace_target(i: u32, j: u32) -> u32 {
     var best_dot = 0;
     var best_len = 1;
     var best_rise = -1;
-    var highest = 24u;
-    var highest_rise = 0;
     for (var k = 0u; k < 24u; k++) {
         let o = displace_offset(k);
         let n = here + o;
-        if any(n < vec2<i32>(0)) || any(n >= vec2<i32>(r)) {
+        let dot_o = o.x * g.x + o.y * g.y;
+        if dot_o <= 0 || any(n < vec2<i32>(0)) || any(n >= vec2<i32>(r)) {
             continue;
         }
         let w = displace_rise(n, d0);
-        if w > highest_rise {
-            highest = k;
-            highest_rise = w;
-        }
-        let dot_o = o.x * g.x + o.y * g.y;
-        let len = o.x * o.x + o.y * o.y;
-        if w < least || dot_o <= 0 {
+        if w < least {
             continue;
         }
+        let len = o.x * o.x + o.y * o.y;
         // dot/|o| compared without roots: dot^2 |o_best|^2 against dot_best^2 |o|^2 (u32: at most 7560^2 * 8).
         let a = u32(dot_o) * u32(dot_o) * u32(best_len);
         let b = u32(best_dot) * u32(best_dot) * u32(len);
@@ -215,7 +208,22 @@ fn displace_target(i: u32, j: u32) -> u32 {
             best_rise = w;
         }
     }
-    return select(best, highest, best == 24u);
+    if best == 24u {
+        // No neighbour along the way: the highest rise, if any.
+        var highest_rise = 0;
+        for (var k = 0u; k < 24u; k++) {
+            let n = here + displace_offset(k);
+            if any(n < vec2<i32>(0)) || any(n >= vec2<i32>(r)) {
+                continue;
+            }
+            let w = displace_rise(n, d0);
+            if w > highest_rise {
+                best = k;
+                highest_rise = w;
+            }
+        }
+    }
+    return best;
 }
 
 @compute @workgroup_size(16, 16)
