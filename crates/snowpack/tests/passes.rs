@@ -410,7 +410,10 @@ fn update_packs_pressed_snow_like_cpu() {
         assert_eq!(q1, squeezed.min(cap), "texel {s}: deficit {refilled} -> {d1}, packed {q0}; seed {seed}");
     }
     assert_eq!(gpu_displaced, expected, "displaced count; seed {seed}");
-    assert!(pressed > n / 4 && capped > 10 && capped < pressed, "pressed {pressed}, capped {capped} of {n}; seed {seed}");
+    // Two texels in three stamped, a foot anywhere in a 5 m range: about a
+    // quarter to two fifths of the texels pressed, by the terrain's draw
+    // (seed 1795819208138355762 pressed 2,168 of 9,216).
+    assert!(pressed > n / 8 && capped > 10 && capped < pressed, "pressed {pressed}, capped {capped} of {n}; seed {seed}");
     // And the CPU twin, wherever the deficits agree (the footprint height is
     // an f32 that a fused multiply-add may tip by a quantum).
     let agree: Vec<usize> = (0..n).filter(|&s| gpu_snow[s] & 0xffff == snow[s] & 0xffff).collect();

@@ -54,9 +54,9 @@ pub(super) struct CoreWindow {
     pub(super) update_pass: UpdatePass,
     /// Built on the first frame with an angle of repose.
     erosion_pass: Option<ErosionPass>,
-    /// Built on the first frame that displaces snow (again when sharing
-    /// allocates the changed-tile flags it writes).
-    pub(super) displace_pass: Option<DisplacePass>,
+    /// Built on the first frame that displaces snow; bound again when
+    /// sharing allocates the changed-tile flags it writes.
+    displace_pass: Option<DisplacePass>,
     display_pass: DisplayPass,
     pub(super) query_pass: QueryPass,
     /// Tickets given so far ([`super::SnowFrame::with_queries`]).
@@ -318,6 +318,14 @@ impl CoreWindow {
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
+    }
+
+    /// Binds the changed-tile flags sharing just allocated to the displace
+    /// pass, when it was built.
+    pub(super) fn bind_displace_flags(&mut self, device: &wgpu::Device) {
+        if let Some(displace) = &mut self.displace_pass {
+            displace.bind_flags(device, &self.res);
+        }
     }
 
     /// Whether presses displace snow into berms: asked for, and a technique

@@ -47,9 +47,7 @@ impl SnowDeformation {
             self.core.stamp_pass = StampPass::new(device, &self.core.res);
             self.core.update_pass = UpdatePass::new(device, &self.core.res);
             self.core.update_pass.bind_sky(device, &self.core.res, self.accumulation.as_ref().map(crate::accumulate::SnowAccumulation::sky_view));
-            if let Some(displace) = &mut self.core.displace_pass {
-                displace.bind_flags(device, &self.core.res);
-            }
+            self.core.bind_displace_flags(device);
             self.sharing = Some(Sharing::new(device, &self.core.res, tile_side, interval_s));
         });
         ctx.check("enabling shared snow")
