@@ -661,6 +661,15 @@ frames = 355
     (run, events)
 }
 
+/// The value of `grid` at the texel whose centre is nearest world (x, z).
+fn nearest(run: &Run, grid: &Grid, (x, z): (f64, f64)) -> f32 {
+    let k = grid.data.iter().enumerate().min_by(|a, b| {
+        let (pa, pb) = (run.world(a.0 / grid.res, a.0 % grid.res), run.world(b.0 / grid.res, b.0 % grid.res));
+        (pa.0 - x).hypot(pa.1 - z).total_cmp(&(pb.0 - x).hypot(pb.1 - z))
+    });
+    *k.expect("a texel").1
+}
+
 /// The lowest snow of `snow` (a grid of `run`) within `radius_m` of (x, z).
 fn lowest_within(run: &Run, snow: &Grid, (x, z): (f64, f64), radius_m: f64) -> f32 {
     snow.data
@@ -808,13 +817,7 @@ fn a_plough_pushes_its_cut_into_a_windrow_and_the_mass_stays() {
     assert!((window / expected - 1.0).abs() < 0.005, "window {window} kg against {expected} kg");
     let snow = run.grid("snow.npy");
     let rest = (depth + fallen) as f32;
-    let at = |x: f64, z: f64| -> f32 {
-        let k = snow.data.iter().enumerate().min_by(|a, b| {
-            let (pa, pb) = (run.world(a.0 / snow.res, a.0 % snow.res), run.world(b.0 / snow.res, b.0 % snow.res));
-            (pa.0 - x).hypot(pa.1 - z).total_cmp(&(pb.0 - x).hypot(pb.1 - z))
-        });
-        *k.expect("a texel").1
-    };
+    let at = |x: f64, z: f64| nearest(&run, &snow, (x, z));
     // The cut along the blade's path (edge at z = -1.5, 2.5 m wide turned 30
     // degrees: z -2.6 to -0.4, the windrow's foot and the near wall at its sides).
     for x in [-4.0, -1.0, 2.0] {
@@ -850,13 +853,7 @@ fn a_windrow_comes_back_with_its_tiles_after_the_window_went_away() {
         [sim]\nframes = 600\n";
     let run = run_scene("windrow-back", scene, &["--size", "64x36"]);
     let snow = run.grid("snow.npy");
-    let at = |x: f64, z: f64| -> f32 {
-        let k = snow.data.iter().enumerate().min_by(|a, b| {
-            let (pa, pb) = (run.world(a.0 / snow.res, a.0 % snow.res), run.world(b.0 / snow.res, b.0 % snow.res));
-            (pa.0 - x).hypot(pa.1 - z).total_cmp(&(pb.0 - x).hypot(pb.1 - z))
-        });
-        *k.expect("a texel").1
-    };
+    let at = |x: f64, z: f64| nearest(&run, &snow, (x, z));
     let o = &run.meta["origin_m"];
     assert!(o[0].as_f64().expect("x").abs() < 20.0, "the window is not back: origin {o}");
     // It went: the windrow's tiles were kept and came back from memory.

@@ -3,6 +3,7 @@
 // #import shared/terrain_kind
 // #import shared/snow_word
 // #import shared/packed_snow
+// #import shared/pack_press
 
 // Erosion pass (docs/mechanics.md, "Erosion"): where a press left a wall
 // steeper than the snow's angle of repose, snow slides from its top into
@@ -57,16 +58,6 @@ fn column_quanta(s: u32, i: u32, j: u32) -> u32 {
     let lying = fallen[min(s, arrayLength(&fallen) - 1u)];
     let rest = ground + params.depth_m + select(0.0, lying, params.use_fallen != 0u);
     return snow_press_quanta(rest, ground, ground);
-}
-
-fn set_packed(s: u32, before: u32, after: u32) {
-    let k = packed_index(s);
-    let shift = packed_shift(s);
-    if after > before {
-        atomicAdd(&packed[k], (after - before) << shift);
-    } else if after < before {
-        atomicSub(&packed[k], (before - after) << shift);
-    }
 }
 
 // Texel `s`'s lying snow (snowfall so far, berms) in whole quanta, rounded:
@@ -138,6 +129,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if moved > filled {
         fallen[sb] = fallen[sb] + f32(moved - filled) * 0.0001;
     }
-    set_packed(sa, qa, qa - carried);
-    set_packed(sb, qb, min(qb + carried, 65535u));
+    packed_set(sa, qa, qa - carried);
+    packed_set(sb, qb, min(qb + carried, 65535u));
 }

@@ -293,16 +293,26 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // snow, up to the final density; the rest is displaced: counted, or
     // with DISPLACE moved aside by the displace pass.
     if (update_flags() & DISPLACE) != 0u {
+        // Where the actors press, the snow beyond the final density, new or
+        // left from earlier frames, leaves: at most DISPLACE_MOST_Q quanta in
+        // whole 16-quantum steps, and only where it has somewhere to go;
+        // the rest stays packed (beyond the cap) for the next frames.
+        let q = pack_squeezed(s, refilled, deficit);
+        let cap = packed_cap(at_ground - deficit, params.pack_ratio);
+        var leaves = 0u;
+        if pressed && q.y > cap {
+            leaves = min(q.y - cap, DISPLACE_MOST_Q) & ~15u;
+        }
         var code = 0u;
-        let excess = pack_press_excess(s, refilled, deficit, at_ground, params.pack_ratio, pressed);
-        if excess > 0u {
+        if leaves > 0u {
             let to = displace_target(i, j);
             if to < 24u {
-                code = displace_code(to, excess);
+                code = displace_code(to, leaves);
+            } else {
+                leaves = 0u;
             }
-            // None: the snow stays packed beyond the final density.
-            pack_press_keep(s, select(excess, 0u, to < 24u));
         }
+        pack_keep(s, q.x, q.y - leaves);
         if pressed && code == 0u {
             code = DISPLACE_PRESSED;
         }

@@ -16,6 +16,25 @@ fn count_displaced(q: u32) {
     }
 }
 
+// Sets texel `s`'s packed snow from `before` to `after` quanta (at most 16
+// bits): one atomic add or subtract on its half of the word, so the texel
+// beside it in the word, another thread's, is left as it is.
+fn packed_set(s: u32, before: u32, after: u32) {
+    let k = packed_index(s);
+    if after > before {
+        atomicAdd(&packed[k], (after - before) << packed_shift(s));
+    } else if after < before {
+        atomicSub(&packed[k], (before - after) << packed_shift(s));
+    }
+}
+
+// Texel `s`'s packed snow before a press (x) and squeezed by it (y): the
+// press raised its deficit from `was` to `now` quanta.
+fn pack_squeezed(s: u32, was: u32, now: u32) -> vec2<u32> {
+    let before = packed_get(atomicLoad(&packed[packed_index(s)]), s);
+    return vec2<u32>(before, before + (now - min(was, now)));
+}
+
 // Texel `s`'s deficit rose from `was` to `now` quanta (its column, up to
 // the terrain, `at_ground` quanta at rest): the snow it lost goes into its
 // packed snow, up to the final density (`ratio` = rho_max / rho_fresh - 1);
@@ -24,62 +43,21 @@ fn pack_press(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32) {
     if now <= was {
         return;
     }
-    let k = packed_index(s);
-    let shift = packed_shift(s);
-    let before = packed_get(atomicLoad(&packed[k]), s);
-    let squeezed = before + (now - was);
+    let q = pack_squeezed(s, was, now);
     let cap = packed_cap(at_ground - now, ratio);
-    let after = min(squeezed, cap);
-    if after > before {
-        atomicAdd(&packed[k], (after - before) << shift);
-    } else if after < before {
-        atomicSub(&packed[k], (before - after) << shift);
-    }
-    if squeezed > cap {
-        count_displaced(squeezed - cap);
+    packed_set(s, q.x, min(q.y, cap));
+    if q.y > cap {
+        count_displaced(q.y - cap);
     }
 }
 
-// As pack_press, for a window that displaces (update.wgsl's DISPLACE):
-// where the actors press (`pressed`), the snow beyond the final density,
-// new or left from earlier frames, leaves the column, at most
-// DISPLACE_MOST_Q quanta in whole 16-quantum steps; the rest stays packed
-// (beyond the cap) for the next frames. Returns what leaves. Packed snow
-// beyond 16 bits is counted as displaced.
-fn pack_press_excess(s: u32, was: u32, now: u32, at_ground: u32, ratio: f32, pressed: bool) -> u32 {
-    let k = packed_index(s);
-    let shift = packed_shift(s);
-    let before = packed_get(atomicLoad(&packed[k]), s);
-    let squeezed = before + (now - min(was, now));
-    let cap = packed_cap(at_ground - now, ratio);
-    var leaves = 0u;
-    if pressed && squeezed > cap {
-        leaves = min(squeezed - cap, DISPLACE_MOST_Q) & ~15u;
-    }
-    let kept = squeezed - leaves;
+// Keeps `kept` quanta of packed snow at texel `s` (it had `before`), for a
+// window that displaces: beyond the cap for the next frames to move on,
+// beyond 16 bits counted as displaced.
+fn pack_keep(s: u32, before: u32, kept: u32) {
     let after = min(kept, 65535u);
     if kept > after {
         count_displaced(kept - after);
     }
-    if after > before {
-        atomicAdd(&packed[k], (after - before) << shift);
-    } else if after < before {
-        atomicSub(&packed[k], (before - after) << shift);
-    }
-    return leaves;
-}
-
-// Puts `quanta` that pack_press_excess took out of texel `s` back into its
-// packed snow (no way out of the press), counting what 16 bits cannot hold.
-fn pack_press_keep(s: u32, quanta: u32) {
-    if quanta == 0u {
-        return;
-    }
-    let k = packed_index(s);
-    let before = packed_get(atomicLoad(&packed[k]), s);
-    let after = min(before + quanta, 65535u);
-    atomicAdd(&packed[k], (after - before) << packed_shift(s));
-    if before + quanta > after {
-        count_displaced(before + quanta - after);
-    }
+    packed_set(s, before, after);
 }

@@ -1,5 +1,5 @@
 //! CPU twin of `displace.wgsl`, and of the update's side of displacement
-//! (`displace_target`, `pack_press_excess` and `pack_press_keep` in
+//! (`displace_target` and the packing with `DISPLACE` in
 //! `update.wgsl` and `shared/pack_press.wgsl`).
 
 use crate::deform::displace::{DisplaceParams, MOST_QUANTA, OFFSETS, PRESSED, code, code_quanta, code_target};

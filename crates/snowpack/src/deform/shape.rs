@@ -55,7 +55,7 @@ pub enum Deformer {
 
 /// Thickness of a [`Deformer::blade`] (m): thin, and still two texels at
 /// the default 6.25 cm so its sweep leaves no gap.
-pub const BLADE_THICKNESS_M: f32 = 0.12;
+pub(crate) const BLADE_THICKNESS_M: f32 = 0.12;
 
 impl Deformer {
     /// A blade: a plough's blade or the face of a crate, a thin box standing
