@@ -33,6 +33,7 @@ fuzz_target!(|data: &[u8]| {
             snow_xor_rest: vec![0; 256],
             stamps: vec![u32::MAX; 256],
             fallen: Vec::new(),
+            packed: Vec::new(),
         };
         if store.write(&tile).is_ok() {
             assert_eq!(store.read(tile.key).expect("read back"), Some(tile));

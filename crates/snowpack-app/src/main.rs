@@ -218,7 +218,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Ask a shared-snow server for the snow depth at points (x,z in metres).
+    /// Ask a shared-snow server for the snow at points (x,z in metres): its
+    /// depth, packed snow, density and hardness.
     Query {
         /// The server (host:port).
         #[arg(long)]
@@ -351,12 +352,9 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
         }
         Some(Command::Token { key, server, out }) => net::make_token(&key, server, &out)?,
         Some(Command::Query { connect, token, scene, at }) => {
-            let world = net::scene_world(&scene)?;
-            for (point, depth) in at.iter().zip(net::query(connect, token.as_deref(), &world, &at)?) {
-                match depth {
-                    Some(d) => println!("depth_m {} {} {d:.6}", point.0, point.1),
-                    None => println!("depth_m {} {} none", point.0, point.1),
-                }
+            let (world, mechanics) = net::scene_snow(&scene)?;
+            for (point, column) in at.iter().zip(net::query(connect, token.as_deref(), &world, &at)?) {
+                print_column(*point, column, &mechanics);
             }
         }
         #[cfg(feature = "gpu")]
@@ -372,6 +370,25 @@ fn main_inner(cli: Cli) -> anyhow::Result<()> {
 }
 
 /// `--disk-budget`: bytes, or KiB, MiB, GiB with a suffix K, M, G.
+/// `snowpack query`'s lines for one point: `depth_m X Z D` (the contract),
+/// then the column's packed snow, density and hardness
+/// (`docs/mechanics.md`), each `KEY X Z VALUE`, or `none` where the server
+/// knows no world yet.
+fn print_column(point: (f64, f64), column: Option<(f32, f32)>, mechanics: &snowpack_share::mechanics::SnowMechanics) {
+    let (x, z) = point;
+    let Some((depth_m, packed_m)) = column else {
+        for key in ["depth_m", "packed_m", "density_kg_m3", "hardness_kpa"] {
+            println!("{key} {x} {z} none");
+        }
+        return;
+    };
+    let column = snowpack_share::mechanics::SnowColumn { depth_m, packed_m };
+    println!("depth_m {x} {z} {depth_m:.6}");
+    println!("packed_m {x} {z} {packed_m:.6}");
+    println!("density_kg_m3 {x} {z} {:.3}", mechanics.density_kg_m3(column));
+    println!("hardness_kpa {x} {z} {:.3}", mechanics.hardness_kpa(column));
+}
+
 fn parse_bytes(text: &str) -> Result<u64, String> {
     let t = text.trim();
     let (digits, unit) = match t.char_indices().last() {

@@ -138,6 +138,14 @@ pub struct ServerOptions {
 /// Found on the CPU: no GPU is opened.
 #[cfg(feature = "gpu")]
 pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
+    scene_snow(path).map(|(world, _)| world)
+}
+
+/// A scene file's world ([`scene_world`]) and its snow's mechanics (its
+/// densities and hardness, `[snow]`), which turn a server's depth and
+/// packed snow into a density and a hardness.
+#[cfg(feature = "gpu")]
+pub fn scene_snow(path: &Path) -> anyhow::Result<(WorldIdentity, snowpack_share::mechanics::SnowMechanics)> {
     let scene = snowpack_scene::Scene::load(path)?;
     if scene.snow.resolution % DEFAULT_TILE_SIDE != 0 {
         return Err(BadInput(format!(
@@ -147,7 +155,7 @@ pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
         ))
         .into());
     }
-    Ok(snowpack::SnowDeformation::world_identity_for(&scene.snow, &scene.terrain, DEFAULT_TILE_SIDE))
+    Ok((snowpack::SnowDeformation::world_identity_for(&scene.snow, &scene.terrain, DEFAULT_TILE_SIDE), scene.snow.mechanics()))
 }
 
 /// A scene's world needs the scene loader (heightmaps, meshes, the window's
@@ -155,6 +163,12 @@ pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
 /// bad input saying how to serve a scene's world from this build.
 #[cfg(not(feature = "gpu"))]
 pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
+    scene_snow(path).map(|(world, _)| world)
+}
+
+/// See [`scene_world`]: the server-only build has no scene loader.
+#[cfg(not(feature = "gpu"))]
+pub fn scene_snow(path: &Path) -> anyhow::Result<(WorldIdentity, snowpack_share::mechanics::SnowMechanics)> {
     Err(BadInput(format!(
         "--scene {}: this snowpack is the server-only build (no GPU stack, no scene loader); \
          pin the world into the store once with the full build (`snowpack server --scene FILE --store DIR`), \
@@ -563,10 +577,11 @@ fn random_id() -> u64 {
     x ^ (x >> 33)
 }
 
-/// `snowpack query`: the snow depth at `points` (world x, z in m) from the
-/// server's merged tiles. The server answers peers of its world only: the
-/// query says hello as a peer of `world` first (refused: exit 2).
-pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<f32>>> {
+/// `snowpack query`: the snow depth and the packed snow in it (m) at
+/// `points` (world x, z in m) from the server's merged tiles. The server
+/// answers peers of its world only: the query says hello as a peer of
+/// `world` first (refused: exit 2).
+pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, points: &[(f64, f64)]) -> anyhow::Result<Vec<Option<(f32, f32)>>> {
     use snowpack_share::replicate::{Message, decode, encode};
     let mut link = Transport::connect(addr, token)?;
     let deadline = Instant::now() + CONNECT_LIMIT;
@@ -590,7 +605,7 @@ pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, poin
             match decode(&bytes) {
                 Ok(Message::Welcome { .. }) => welcomed = true,
                 Ok(Message::Refused { differences }) => return Err(LinkError::Refused { addr, why: differences.join("; ") }.into()),
-                Ok(Message::Depths { id, depths }) => answers.push((id, depths)),
+                Ok(Message::Depths { id, depths, packed }) => answers.push((id, depths, packed)),
                 _ => {}
             }
         }
@@ -601,7 +616,14 @@ pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, poin
         std::thread::sleep(Duration::from_millis(5));
     }
     answers.sort_by_key(|a| a.0);
-    Ok(answers.into_iter().flat_map(|(_, d)| d).map(|d| d.is_finite().then_some(d)).collect())
+    Ok(answers
+        .into_iter()
+        .flat_map(|(_, depths, packed)| {
+            let n = depths.len();
+            depths.into_iter().zip(packed.into_iter().chain(std::iter::repeat(0.0)).take(n))
+        })
+        .map(|(d, q)| (d.is_finite() && q.is_finite()).then_some((d, q)))
+        .collect())
 }
 
 /// A renet2 client over netcode, without a peer: the connection itself.

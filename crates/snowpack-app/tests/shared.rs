@@ -38,6 +38,20 @@ fn load_npy(path: &Path) -> Vec<f32> {
     bytes[10 + len..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
 }
 
+/// The snow in a run's window at its end (kg, `meta.json`'s mass).
+fn window_kg(out: &Path) -> f64 {
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("meta.json")).expect("meta.json")).expect("valid JSON");
+    meta["mass"]["window_kg"].as_f64().expect("the window's mass")
+}
+
+/// `snowpack query`'s `KEY X Z VALUE` lines for `key`, in order.
+fn answers(out: &std::process::Output, key: &str) -> Vec<f32> {
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix(key).and_then(|r| r.strip_prefix(' ')).and_then(|r| r.split_whitespace().nth(2)).and_then(|d| d.parse().ok()))
+        .collect()
+}
+
 fn run_connected(scene: &Path, out: &Path, addr: SocketAddr) -> std::process::Output {
     let mut cmd = bin();
     cmd.args(["run", "--headless", "--scene"]).arg(scene).arg("--out").arg(out).args(["--connect", &addr.to_string()]);
@@ -95,12 +109,22 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
         c
     });
     assert_ok("the query", &query);
-    let depths: Vec<f32> = String::from_utf8_lossy(&query.stdout)
-        .lines()
-        .filter_map(|l| l.strip_prefix("depth_m ").and_then(|r| r.split_whitespace().nth(2)).and_then(|d| d.parse().ok()))
-        .collect();
+    let depths = answers(&query, "depth_m");
     assert_eq!(depths.len(), 2, "{}", String::from_utf8_lossy(&query.stdout));
     assert!((depths[0] - 0.1).abs() < 0.01 && (depths[1] - 0.5).abs() < 1e-3, "server depths {depths:?}");
+    // Snow with mass: the trail's 0.4 m went into 0.1 m of snow, about five
+    // times as dense (at most the final density, 500 kg/m³; the point is
+    // off the sphere's lowest texel), which the server knows from the
+    // tiles' packed snow; the open snow is fresh.
+    let (packed, density, hardness) = (answers(&query, "packed_m"), answers(&query, "density_kg_m3"), answers(&query, "hardness_kpa"));
+    assert!((packed[0] - 0.4).abs() < 0.01 && packed[1] == 0.0, "server packed snow {packed:?}");
+    assert!((450.0..=500.001).contains(&density[0]) && (density[1] - 100.0).abs() < 1e-3, "server densities {density:?}");
+    assert!(hardness[0] > 5.0 * hardness[1], "the trail is not harder than open snow: {hardness:?}");
+    // The late run holds the trail's mass: its window weighs what the
+    // ploughing run's did (the packed snow came with the tiles).
+    let (ma, mb) = (window_kg(&dir.0.join("a")), window_kg(&dir.0.join("b")));
+    eprintln!("window mass: ploughing run {ma:.2} kg, late run {mb:.2} kg");
+    assert!((ma - mb).abs() <= 1e-3 * ma, "the late run's window holds {mb:.2} kg, the ploughing run's {ma:.2} kg");
 
     // Killed at once (no chance to save): what it acknowledged is on disk.
     server.kill();
@@ -111,6 +135,9 @@ fn a_late_run_sees_the_first_runs_trail_and_so_does_one_after_a_server_restart()
     for (i, j) in trail_texels() {
         assert!((a[i * 128 + j] - c[i * 128 + j]).abs() <= 1e-3, "after the restart at ({i}, {j}): {} vs {}", c[i * 128 + j], a[i * 128 + j]);
     }
+    // And the packed snow came back from the server's store.
+    let mc = window_kg(&dir.0.join("c"));
+    assert!((ma - mc).abs() <= 1e-3 * ma, "after the restart the window holds {mc:.2} kg, the ploughing run's {ma:.2} kg");
 
     // Another world (deeper snow) is refused, naming what differs, with exit code 2.
     let other = run_connected(&scene(&dir.0, "other", 0.8, IDLE), &dir.0.join("d"), server.addr);

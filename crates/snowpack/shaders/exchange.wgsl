@@ -16,8 +16,8 @@
 // stashes and loads in batches of tiles (src/deform/tiles.rs). The window
 // keeps its snow as a deficit below the rest height (shared/snow_word.wgsl),
 // the tiles as the f32 height: stash and load convert, evaluating the
-// terrain from its source. The tiles hold no packed snow yet: a loaded
-// texel's column comes back at fresh density (docs/mechanics.md).
+// terrain from its source. The packed snow goes with the texel both ways
+// (its plane in the slot), so a column comes back with its mass.
 // CPU twin: src/cpu/exchange.rs.
 
 struct ExchangeParams {
@@ -91,6 +91,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         if use_fallen {
             tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)] = bitcast<u32>(fallen[s]);
         }
+        tiles[tile_index(g, side, n, params.planes, plane_packed(use_fallen))] = packed_get(atomicLoad(&packed[packed_index(s)]), s);
     } else {
         let g = params.origin + vec2<i32>(i32(j), i32(i));
         if !tile_resident(g, side, n) {
@@ -108,6 +109,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         }
         let h = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
         snow[s] = snow_press_quanta(rest, ground, h);
+        // Its neighbour in the word may be another invocation's: and, then or.
+        let q = min(tiles[tile_index(g, side, n, params.planes, plane_packed(use_fallen))], 0xffffu);
         atomicAnd(&packed[packed_index(s)], ~(0xffffu << packed_shift(s)));
+        atomicOr(&packed[packed_index(s)], q << packed_shift(s));
     }
 }

@@ -9,13 +9,14 @@
 
 // Tile merge pass (shared snow): folds tiles from other machines into the
 // window's toroidal buffers (src/replicate/merge.rs). Tiles are packed as
-// the gather pass writes them (deficit, footprint, snowfall bits: three
-// planes of side*side). A tile is first brought to this window's clock:
+// the gather pass writes them (deficit with the packed snow in its high
+// half, footprint, snowfall bits: three planes of side*side). A tile is first brought to this window's clock:
 // either on the CPU (SharedTile::catch_up, all the time passed in one step)
 // or here, replaying this window's own frames since the tile's clock
 // (`history`, from the tile's first frame on) as the update pass ran them:
 // refill, the stored footprint pressing again, footprint refill and its
-// rest test, the clamp at the terrain, snowfall. Replayed, a tile gathered
+// rest test, the clamp at the terrain, snowfall; a replayed footprint
+// press packs the tile's column as the update would. Replayed, a tile gathered
 // on a machine with the same frames is exactly what that machine has now;
 // in one step, a footprint's presses in between are missed (a quantum or
 // two under footprints). Sky occlusion is not replayed: every texel counts
@@ -23,7 +24,9 @@
 // Then per texel inside the window:
 //   fallen    = max(own, incoming)
 //   deficit   = max(own, incoming), then never below the terrain under the
-//               merged rest height (terrain + depth + fallen); what it rose
+//               merged rest height (terrain + depth + fallen)
+//   packed    = max(own, incoming) for a tile that carries packed snow (its
+//               key's w = 1); for one that does not, what the deficit rose
 //               by is packed into the column as a press would (shared/pack_press.wgsl)
 //   footprint = min(own, incoming); where the incoming one wins, it is gone
 //               if its foot is at or above the rest height (the rest test the
@@ -56,7 +59,8 @@ const MERGE_USE_FALLEN: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: TileMergeParams;
 
-// Per tile: (column, row, first frame of `history` to replay, 0).
+// Per tile: (column, row, first frame of `history` to replay, 1 where the
+// tile carries packed snow).
 @group(0) @binding(1) var<storage, read> keys: array<vec4<i32>>;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>;
@@ -69,6 +73,16 @@ const MERGE_USE_FALLEN: u32 = 2u;
 // This window's last frames, oldest first: (snow refill quanta, footprint
 // refill quanta, snowfall (m) bits, 1 where the footprints pressed).
 @group(0) @binding(3) var<storage, read> history: array<vec4<u32>>;
+
+// The packed snow `q` of a replayed copy whose deficit a footprint raised
+// from `was` to `now` (its column `at_ground` quanta at rest): as the
+// update packs it, up to the final density (what passes it was displaced).
+fn replay_pack(q: u32, was: u32, now: u32, at_ground: u32) -> u32 {
+    if now <= was {
+        return q;
+    }
+    return min(q + (now - was), max(q, packed_cap(at_ground - min(now, at_ground), params.pack_ratio)));
+}
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
@@ -90,7 +104,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let k = t * 3u * area + y * params.side + x;
     let ground = texel_ground(terrain_params, g, params.texel_m);
     let use_fallen = (pass_flags() & MERGE_USE_FALLEN) != 0u;
-    var d = tiles[k];
+    var d = tiles[k] & 0xffffu;
+    var q = tiles[k] >> 16u;
     var st = STAMP_EMPTY;
     if (pass_flags() & MERGE_HAS_STAMPS) != 0u {
         st = tiles[k + area];
@@ -109,7 +124,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         d -= min(d, h.x);
         if st != STAMP_EMPTY {
             if h.w != 0u {
+                let was = d;
                 d = max(d, snow_press_quanta(rest_f, ground, stamp_height(st >> 16u, params.low_m, params.high_m)));
+                q = replay_pack(q, was, d, snow_press_quanta(rest_f, ground, ground));
             }
             if h.y > 0u {
                 let foot = (st & 0xffffu) + h.y;
@@ -132,7 +149,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let at_ground = snow_press_quanta(rest, ground, ground);
     let deficit = min(max(word & 0xffffu, d), at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
-    pack_press(s, word & 0xffffu, deficit, at_ground, params.pack_ratio);
+    if key.w != 0 {
+        let own = packed_get(atomicLoad(&packed[packed_index(s)]), s);
+        packed_set(s, own, max(own, min(q, 65535u)));
+    } else {
+        pack_press(s, word & 0xffffu, deficit, at_ground, params.pack_ratio);
+    }
     if (pass_flags() & MERGE_HAS_STAMPS) != 0u {
         let incoming = st;
         if incoming < stamps[s] {

@@ -18,7 +18,9 @@
 // window made in a tile's place while the disk was late with it. Both are
 // brought up to now, then folded texel by texel with shared snow's merge
 // (TexelCopy::merge in src/replicate/tile.rs): the deeper deficit, the lower
-// footprint, the deeper snowfall; a texel one copy dominates keeps its bits.
+// footprint, the deeper snowfall, the more packed snow; a texel one copy
+// dominates keeps its bits. Saved planes in `upload`: snow, footprints,
+// snowfall, packed snow (zeros where the tile had none).
 // CPU twin: src/cpu/tile_restore.rs.
 
 struct RestoreParams {
@@ -71,6 +73,7 @@ fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f
     // rest is recomputed here from the same terrain, so they come back exactly.
     t.stamp = upload[at + area + i];
     t.fallen = bitcast<f32>(upload[at + 2u * area + i]);
+    t.packed = upload[at + 3u * area + i];
     t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
     if refill_m > 0.0 || fall_m > 0.0 || quanta > 0u {
         t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (pass_flags() & USE_FALLEN) != 0u);
@@ -89,6 +92,7 @@ fn merge_texels(ground: f32, a: TexelState, b: TexelState) -> TexelState {
         out.fallen = b.fallen;
     }
     out.stamp = min(a.stamp, b.stamp);
+    out.packed = max(a.packed, b.packed);
     let d = max(da, db);
     if d == da && bitcast<u32>(out.fallen) == bitcast<u32>(a.fallen) {
         out.snow = a.snow;
@@ -116,6 +120,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         t.fallen = select(0.0, params.fallen_m, use_fallen);
         t.snow = ground + params.depth_m + params.fallen_m;
         t.stamp = STAMP_EMPTY;
+        t.packed = 0u;
     } else {
         t = saved_texel(e.upload, area, gid.x, ground, e.refill_m, e.fall_m, e.quanta);
     }
@@ -124,6 +129,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
+    tiles[base + plane_packed(use_fallen) * area] = t.packed;
     if (pass_flags() & STAMP_PLANE) != 0u {
         tiles[base + plane_stamps(params.planes) * area] = t.stamp;
     }

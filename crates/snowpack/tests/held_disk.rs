@@ -56,6 +56,7 @@ fn tile(col: i64, row: i64, v: f32) -> TileData {
         snow_xor_rest: vec![v.to_bits(); n],
         stamps: vec![v as u32; n],
         fallen: Vec::new(),
+        packed: Vec::new(),
     }
 }
 

@@ -56,6 +56,7 @@ fn version(key: TileKey, v: u32) -> TileData {
         snow_xor_rest: vec![(v as f32).to_bits(); n],
         stamps: vec![v; n],
         fallen: vec![v as f32; n],
+        packed: vec![v as u16; n],
     }
 }
 
@@ -378,6 +379,7 @@ fn noisy(key: TileKey, seed: u64) -> TileData {
         snow_xor_rest: (0..n).map(|_| rng.next_u64() as u32).collect(),
         stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
         fallen: Vec::new(),
+        packed: Vec::new(),
     }
 }
 

@@ -35,6 +35,7 @@ fn tile(seed: u64, key: TileKey, v: u64) -> TileData {
         snow_xor_rest: (0..n).map(|k| if k % 3 == 0 { 0 } else { rng.next_u64() as u32 }).collect(),
         stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
         fallen: (0..n).map(|_| rng.range(0.0, 0.3)).collect(),
+        packed: (0..n).map(|k| if k % 5 == 0 { rng.next_u64() as u16 } else { 0 }).collect(),
     }
 }
 

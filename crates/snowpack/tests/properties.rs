@@ -45,17 +45,19 @@ fn plane(texels: usize) -> impl Strategy<Value = Vec<u32>> {
 }
 
 fn tile() -> impl Strategy<Value = TileData> {
-    (prop_oneof![Just(1u32), Just(3), Just(16), Just(32)], any::<i64>(), any::<i64>(), clock(), any::<bool>()).prop_flat_map(
-        |(side, col, row, clock, snowfall)| {
+    (prop_oneof![Just(1u32), Just(3), Just(16), Just(32)], any::<i64>(), any::<i64>(), clock(), any::<bool>(), any::<bool>()).prop_flat_map(
+        |(side, col, row, clock, snowfall, packed)| {
             let texels = (side * side) as usize;
             let fallen = if snowfall { prop::collection::vec(any::<u32>(), texels).boxed() } else { Just(Vec::new()).boxed() };
-            (plane(texels), plane(texels), fallen).prop_map(move |(snow, stamps, fallen)| TileData {
+            let packed = if packed { prop::collection::vec(prop_oneof![4 => Just(0u16), 1 => any::<u16>()], texels).boxed() } else { Just(Vec::new()).boxed() };
+            (plane(texels), plane(texels), fallen, packed).prop_map(move |(snow, stamps, fallen, packed)| TileData {
                 key: TileKey { col, row },
                 side,
                 clock,
                 snow_xor_rest: snow,
                 stamps,
                 fallen: fallen.into_iter().map(f32::from_bits).collect(),
+                packed,
             })
         },
     )
@@ -240,6 +242,7 @@ fn write_fuzz_corpus() {
             snow_xor_rest: snow,
             stamps,
             fallen,
+            packed: if trail { (0..n).map(|k| if k % side as usize == 3 { 2000 } else { 0 }).collect() } else { Vec::new() },
         }
     };
     let seeds = [tile(16, false, false), tile(16, true, true), tile(32, false, true), tile(1, true, false)];

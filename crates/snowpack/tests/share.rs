@@ -22,7 +22,7 @@ use snowpack::low_level::gpu::{GpuTimer, read_buffer};
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::flags::ShareGrid;
 use snowpack::low_level::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
-use snowpack::low_level::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, pack_tiles};
+use snowpack::low_level::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, carries_packed, pack_tiles};
 use snowpack::low_level::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
 use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, Snowfall, Technique, TerrainSource};
@@ -44,6 +44,8 @@ struct Window {
     snow: Vec<u32>,
     stamps: Vec<u32>,
     fallen: Vec<f32>,
+    /// Packed snow, two texels a word.
+    packed: Vec<u32>,
 }
 
 fn random_window(ctx: &GpuContext, rng: &mut Rng) -> Window {
@@ -71,7 +73,9 @@ fn random_window(ctx: &GpuContext, rng: &mut Rng) -> Window {
     ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
     ctx.queue.write_buffer(&res.stamps, 0, bytemuck::cast_slice(&stamps));
     ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
-    Window { params, terrain, res, origin, snow, stamps, fallen }
+    let packed: Vec<u32> = (0..n.div_ceil(2)).map(|_| if rng.next_u64().is_multiple_of(2) { 0 } else { rng.next_u64() as u32 }).collect();
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed));
+    Window { params, terrain, res, origin, snow, stamps, fallen, packed }
 }
 
 /// Distinct random tile keys around the window: inside, across its edges and beyond.
@@ -115,7 +119,8 @@ fn tile_gather_matches_cpu() {
         submit(ctx, enc);
         assert_eq!(gathered as usize, count);
         let gpu = read_u32(ctx, pass.packed());
-        let cpu = cpu::tile_gather::gather(&TileGatherParams { count: gathered, blocks: side.div_ceil(8), ..p }, &keys, &w.snow, &w.stamps, &w.fallen);
+        let cpu =
+            cpu::tile_gather::gather(&TileGatherParams { count: gathered, blocks: side.div_ceil(8), ..p }, &keys, &w.snow, &w.stamps, (&w.fallen, &w.packed));
         let n = cpu.len();
         if let Some(k) = (0..n).find(|&k| gpu[k] != cpu[k]) {
             panic!("gathered tiles differ at {k} of {n} (gpu {:#x}, cpu {:#x}); side {side}, origin {:?}; seed {seed}", gpu[k], cpu[k], w.origin);
@@ -148,6 +153,10 @@ fn tile_merge_matches_cpu() {
                 for f in &mut t.fallen {
                     *f = rng.range(0.0, 0.3);
                 }
+                // Half the tiles carry packed snow (merged by the larger), half not (packed as a press).
+                if rng.next_u64().is_multiple_of(2) {
+                    t.packed = t.deficit.iter().map(|&d| if rng.next_u64().is_multiple_of(3) { (rng.next_u64() % 9000) as u16 } else { d }).collect();
+                }
                 t
             })
             .collect();
@@ -167,7 +176,8 @@ fn tile_merge_matches_cpu() {
                 .gpu()
             })
             .collect();
-        let gkeys: Vec<[i32; 4]> = gpu_keys(&keys).iter().map(|k| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, 0]).collect();
+        let gkeys: Vec<[i32; 4]> =
+            gpu_keys(&keys).iter().zip(&tiles).map(|(k, t)| [k[0], k[1], (rng.next_u64() % (frames as u64 + 1)) as i32, carries_packed(t)]).collect();
         let pass = TileMergePass::new(&ctx.device, &w.res, side, count as u32);
         let p = TileMergeParams {
             origin: w.origin,
@@ -202,7 +212,8 @@ fn tile_merge_matches_cpu() {
         assert_eq!(read_u32(ctx, &w.res.stamps), w.stamps, "merged footprints; {what}");
         let fallen: Vec<u32> = read_f32(ctx, &w.res.fallen).iter().map(|f| f.to_bits()).collect();
         assert_eq!(fallen, w.fallen.iter().map(|f| f.to_bits()).collect::<Vec<_>>(), "merged snowfall; {what}");
-        // A deficit the merge raised packed the column as a press would.
+        // A deficit the merge raised packed the column as a press would, or
+        // the larger packed snow was kept where the tile carried its own.
         let gpu_packed = read_u32(ctx, &w.res.packed);
         assert_eq!(gpu_packed[..packed_snow.len()], packed_snow[..], "merged packed snow; {what}");
         assert_eq!(packed_snow::displaced_count(&gpu_packed), displaced, "displaced by the merge; {what}");

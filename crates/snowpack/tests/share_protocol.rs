@@ -73,14 +73,23 @@ fn stamp() -> impl Strategy<Value = u32> {
 
 /// Tiles of one key and side with random planes (present or not) and clocks.
 fn tiles(count: usize) -> impl Strategy<Value = Vec<SharedTile>> {
-    let one = (share_clock(), any::<bool>(), any::<bool>()).prop_flat_map(|(clock, has_stamps, has_fallen)| {
+    let one = (share_clock(), any::<bool>(), any::<bool>(), any::<bool>()).prop_flat_map(|(clock, has_stamps, has_fallen, has_packed)| {
         let n = 64;
         (
             proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>(), 0u16..500], n),
             if has_stamps { proptest::collection::vec(stamp(), n).boxed() } else { Just(Vec::new()).boxed() },
             if has_fallen { proptest::collection::vec(dyadic(), n).boxed() } else { Just(Vec::new()).boxed() },
+            if has_packed { proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>(), 0u16..500], n).boxed() } else { Just(Vec::new()).boxed() },
         )
-            .prop_map(move |(deficit, stamps, fallen)| SharedTile { key: TileKey::new(3, -2), side: 8, clock, deficit, stamps, fallen })
+            .prop_map(move |(deficit, stamps, fallen, packed)| SharedTile {
+                key: TileKey::new(3, -2),
+                side: 8,
+                clock,
+                deficit,
+                stamps,
+                fallen,
+                packed,
+            })
     });
     proptest::collection::vec(one, count)
 }
@@ -188,14 +197,15 @@ fn any_key() -> impl Strategy<Value = TileKey> {
 }
 
 fn wire_tile() -> impl Strategy<Value = SharedTile> {
-    (any_key(), MIN_TILE_SIDE..=24u32, any_clock(), any::<bool>(), any::<bool>()).prop_flat_map(|(key, side, clock, s, f)| {
+    (any_key(), MIN_TILE_SIDE..=24u32, any_clock(), (any::<bool>(), any::<bool>(), any::<bool>())).prop_flat_map(|(key, side, clock, (s, f, p))| {
         let n = (side * side) as usize;
         (
             proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>()], n),
             if s { proptest::collection::vec(any::<u32>(), n).boxed() } else { Just(Vec::new()).boxed() },
             if f { proptest::collection::vec(any::<f32>(), n).boxed() } else { Just(Vec::new()).boxed() },
+            if p { proptest::collection::vec(prop_oneof![Just(0u16), any::<u16>()], n).boxed() } else { Just(Vec::new()).boxed() },
         )
-            .prop_map(move |(deficit, stamps, fallen)| SharedTile { key, side, clock, deficit, stamps, fallen })
+            .prop_map(move |(deficit, stamps, fallen, packed)| SharedTile { key, side, clock, deficit, stamps, fallen, packed })
     })
 }
 
@@ -218,7 +228,10 @@ fn any_message() -> impl Strategy<Value = Message> {
         any_clock().prop_map(|clock| Message::InSync { clock }),
         (any::<u32>(), proptest::collection::vec(any::<[f64; 2]>(), 0..20)).prop_map(|(id, points)| Message::Query { id, points }),
         // Finite depths: NaN (the relay's "no world") never equals itself.
-        (any::<u32>(), proptest::collection::vec(-1e3f32..1e3, 0..20)).prop_map(|(id, depths)| Message::Depths { id, depths }),
+        (any::<u32>(), proptest::collection::vec((-1e3f32..1e3, 0f32..10.0), 0..20)).prop_map(|(id, columns)| {
+            let (depths, packed) = columns.into_iter().unzip();
+            Message::Depths { id, depths, packed }
+        }),
     ]
 }
 
@@ -1095,9 +1108,11 @@ fn a_peer_learns_it_is_in_sync_and_peers_of_the_world_may_ask_the_depth() {
         .find(|(_, b)| matches!(decode(b), Ok(Message::Depths { .. })))
         .expect("an answer to the query");
     match decode(&answer.1) {
-        Ok(Message::Depths { id: 5, depths }) => {
+        Ok(Message::Depths { id: 5, depths, packed }) => {
             assert!((depths[0] - 0.3).abs() < 0.01, "on the trail: {}", depths[0]);
             assert!((depths[1] - 0.5).abs() < 1e-6, "beside it: {}", depths[1]);
+            // This peer's tiles carry no packed snow (CpuSnow): none is answered.
+            assert_eq!(packed, vec![0.0, 0.0]);
         }
         other => panic!("not an answer: {other:?}"),
     }

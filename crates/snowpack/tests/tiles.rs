@@ -18,7 +18,7 @@ use snowpack::low_level::testing::{self, Rng};
 use snowpack::low_level::tiles::exchange::{ExchangeParams, ExchangePass};
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::low_level::tiles::seal::{SealParams, TileSealPass};
-use snowpack::low_level::tiles::streaming::{PLANES, TileGrid, plane_stamps, planes};
+use snowpack::low_level::tiles::streaming::{PLANES, TileGrid, plane_packed, plane_stamps, planes};
 use snowpack::low_level::tiles::weather::{TileWeatherPass, WeatherParams};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
@@ -95,6 +95,9 @@ fn exchange_matches_cpu() {
         if use_fallen {
             ctx.queue.write_buffer(&res.fallen, 0, bytemuck::cast_slice(&fallen));
         }
+        // Packed snow: random halves, stashed with their texels and loaded back.
+        let mut packed: Vec<u32> = (0..texels.div_ceil(2)).map(|_| rng.next_u64() as u32).collect();
+        ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed));
         // Every word a finite height (loads convert the snow plane), footprints random.
         let mut tiles: Vec<u32> = (0..grid.slot_count() * planes(use_fallen, !jump) * grid.area()).map(|_| rng.range(-1.0, 2.0).to_bits()).collect();
         let tiles_gpu = storage(ctx, &tiles);
@@ -137,7 +140,6 @@ fn exchange_matches_cpu() {
         submit(ctx, e);
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
-        let mut packed = vec![0u32; snow_w.len().div_ceil(2)];
         let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f, packed: &mut packed };
         cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
         cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w);
@@ -161,6 +163,16 @@ fn exchange_matches_cpu() {
         if use_fallen {
             assert_eq!(differing(&read_u32(ctx, &res.fallen), bytemuck::cast_slice(&fallen_f), 0.0), 0, "fallen differs; seed {seed}");
         }
+        // The packed snow bit for bit, both ways: in the slots' packed plane
+        // (stashed) and in the window (loaded; the counter words after it untouched).
+        let area = grid.area();
+        let pp = plane_packed(use_fallen);
+        let packed_plane: Vec<usize> =
+            (0..grid.slot_count()).flat_map(|s| (s * planes(use_fallen, !jump) + pp) * area..(s * planes(use_fallen, !jump) + pp + 1) * area).collect();
+        let stashed = packed_plane.iter().filter(|&&k| tiles_back[k] != tiles[k]).count();
+        assert_eq!(stashed, 0, "stashed packed snow differs (jump {jump}); seed {seed}");
+        let packed_back = read_u32(ctx, &res.packed);
+        assert_eq!(packed_back[..packed.len()], packed[..], "loaded packed snow differs (jump {jump}); seed {seed}");
     }
 }
 
@@ -202,6 +214,8 @@ fn tile_restore_and_weather_match_cpu() {
             }
         }));
         upload.extend(fallen);
+        // Packed snow: none in a third of the texels, else up to 16 bits.
+        upload.extend((0..area).map(|_| if rng.next_u64().is_multiple_of(3) { 0 } else { (rng.next_u64() % 65_536) as u32 }));
         at
     };
     for slot in 0..grid.slot_count() {
@@ -254,6 +268,11 @@ fn tile_restore_and_weather_match_cpu() {
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     // A footprint whose foot lands on the rest height to rounding may empty on one side only.
     assert!(stamp_diff <= stamp_words.len() / 1000, "restore: {stamp_diff} footprints differ; seed {seed}");
+    // The packed snow (merged by the larger) bit for bit: small integers, which the f32 comparison above cannot see.
+    let packed_words: Vec<usize> =
+        (0..grid.slot_count()).flat_map(|s| (s * PLANES + plane_packed(true)) * area..(s * PLANES + plane_packed(true) + 1) * area).collect();
+    assert_eq!(packed_words.iter().filter(|&&k| gpu[k] != tiles[k]).count(), 0, "restore: packed snow differs; seed {seed}");
+    assert!(packed_words.iter().filter(|&&k| gpu[k] != 0).count() > area, "restore: no packed snow came back; seed {seed}");
     // Start the weather from the GPU's result so rounding does not compound.
     tiles.clone_from(&gpu);
     let before = gpu;
@@ -296,6 +315,7 @@ fn tile_restore_and_weather_match_cpu() {
     assert_eq!(differing(&gpu, &tiles, 1e-5), 0, "weather: slots differ; seed {seed}");
     let stamp_diff = stamp_words.iter().filter(|&&k| gpu[k] != tiles[k]).count();
     assert!(stamp_diff <= stamp_words.len() / 1000, "weather: {stamp_diff} footprints differ; seed {seed}");
+    assert!(packed_words.iter().all(|&k| gpu[k] == before[k]), "weather: the packed snow changed; seed {seed}");
     // Non-vacuous: the weather changed many texels.
     assert!(differing(&gpu, &before, 0.0) > area, "the weather changed nothing; seed {seed}");
 

@@ -8,7 +8,7 @@
 //! | 12 | 4 | side (u32) |
 //! | 16 | 16 | key: col, row (i64 each) |
 //! | 32 | 32 | clock: time_s, refill_m, fallen_m (f64 each), stamp_quanta (u64) |
-//! | 64 | 4 | plane flags (u32): 1 snow, 2 stamps, 4 fallen |
+//! | 64 | 4 | plane flags (u32): 1 snow, 2 stamps, 4 fallen, 8 packed snow |
 //! | 68 | 4 | uncompressed payload length (u32) |
 //! | 72 | 4 | compressed payload length (u32) |
 //! | 76 | 4 | CRC32 of bytes 0..76 followed by the payload |
@@ -21,14 +21,27 @@
 //! ...). Untouched snow is smooth, so the residuals are small and their high
 //! bytes are runs of 0x00 or 0xff that deflate to almost nothing. Integer
 //! arithmetic on the bit patterns makes the round trip exact for any f32,
-//! NaN payloads and negative zero included.
+//! NaN payloads and negative zero included. The packed-snow plane (u16
+//! values widened to u32) came with version 2; version 1 files, which lack
+//! it, still read (as fresh snow).
 
 use std::path::PathBuf;
 
 use super::{MAX_SIDE, SnowClock, StoreError, TileData, TileKey};
 
-/// The tile format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The tile format version this build writes; it reads this one and
+/// [`OLDEST_READ_VERSION`] onwards.
+pub const FORMAT_VERSION: u32 = 2;
+/// The oldest tile format version this build reads (version 1 has no
+/// packed-snow plane).
+pub const OLDEST_READ_VERSION: u32 = 1;
+
+/// Whether this build reads files of format `version` (tiles and the
+/// store's own records alike).
+#[must_use]
+pub(crate) fn readable(version: u32) -> bool {
+    (OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&version)
+}
 
 /// Identifies a tile file.
 const MAGIC: &[u8; 8] = b"SNOWTILE";
@@ -43,6 +56,8 @@ const PLANE_SNOW: u32 = 1;
 const PLANE_STAMPS: u32 = 2;
 /// Plane flag: the snowfall plane is present.
 const PLANE_FALLEN: u32 = 4;
+/// Plane flag: the packed-snow plane is present (version 2 on).
+const PLANE_PACKED: u32 = 8;
 
 /// Deflate level: 6 is zlib's default; higher levels gain little on the
 /// shuffled residuals and cost time on the worker.
@@ -56,7 +71,7 @@ pub(crate) const DEFLATE_LEVEL: u8 = 6;
 #[must_use]
 pub fn encode(tile: &TileData) -> Vec<u8> {
     let mut flags = 0;
-    let mut raw = Vec::with_capacity(4 * (tile.snow_xor_rest.len() + tile.stamps.len() + tile.fallen.len()));
+    let mut raw = Vec::with_capacity(4 * (tile.snow_xor_rest.len() + tile.stamps.len() + tile.fallen.len() + tile.packed.len()));
     let side = tile.side as usize;
     if !tile.snow_xor_rest.is_empty() {
         flags |= PLANE_SNOW;
@@ -69,6 +84,10 @@ pub fn encode(tile: &TileData) -> Vec<u8> {
     if !tile.fallen.is_empty() {
         flags |= PLANE_FALLEN;
         shuffle_into(&delta(tile.fallen.iter().map(|v| v.to_bits()), side), &mut raw);
+    }
+    if !tile.packed.is_empty() {
+        flags |= PLANE_PACKED;
+        shuffle_into(&delta(tile.packed.iter().map(|&v| u32::from(v)), side), &mut raw);
     }
     let payload = miniz_oxide::deflate::compress_to_vec(&raw, DEFLATE_LEVEL);
 
@@ -83,7 +102,7 @@ pub fn encode(tile: &TileData) -> Vec<u8> {
     out.extend_from_slice(&tile.clock.fallen_m.to_le_bytes());
     out.extend_from_slice(&tile.clock.stamp_quanta.to_le_bytes());
     out.extend_from_slice(&flags.to_le_bytes());
-    // Lengths fit u32: a valid tile's raw payload is at most 3 * 4 * 1024² bytes,
+    // Lengths fit u32: a valid tile's raw payload is at most 4 * 4 * 1024² bytes,
     // and deflate expands incompressible data by well under 1%.
     out.extend_from_slice(&(raw.len() as u32).to_le_bytes());
     out.extend_from_slice(&(payload.len() as u32).to_le_bytes());
@@ -106,7 +125,7 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
     }
     let mut header = Reader::new(&bytes[MAGIC.len()..HEADER_BYTES]);
     let version = header.u32();
-    if version != FORMAT_VERSION {
+    if !readable(version) {
         return Err(StoreError::Version { path: PathBuf::new(), found: version, expected: FORMAT_VERSION });
     }
     let side = header.u32();
@@ -133,8 +152,9 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
     }
     // Past the CRC the header is what the writer wrote; these checks catch a
     // writer with a bug rather than a damaged disk.
-    if flags & !(PLANE_SNOW | PLANE_STAMPS | PLANE_FALLEN) != 0 || flags & (PLANE_SNOW | PLANE_STAMPS) != PLANE_SNOW | PLANE_STAMPS {
-        return Err(corrupt(format!("plane flags {flags:#x}: snow and stamps are required, fallen optional, nothing else")));
+    let known = if version >= 2 { PLANE_SNOW | PLANE_STAMPS | PLANE_FALLEN | PLANE_PACKED } else { PLANE_SNOW | PLANE_STAMPS | PLANE_FALLEN };
+    if flags & !known != 0 || flags & (PLANE_SNOW | PLANE_STAMPS) != PLANE_SNOW | PLANE_STAMPS {
+        return Err(corrupt(format!("plane flags {flags:#x}: snow and stamps are required, fallen and (from version 2) packed snow optional, nothing else")));
     }
     let texels = side as usize * side as usize;
     let expected = 4 * texels * flags.count_ones() as usize;
@@ -152,8 +172,14 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
     // The flags check above guarantees the first two planes.
     let snow_xor_rest = planes.next().unwrap_or_default();
     let stamps = planes.next().unwrap_or_default();
-    let fallen = planes.next().map(|p| p.into_iter().map(f32::from_bits).collect()).unwrap_or_default();
-    Ok(TileData { key, side, clock, snow_xor_rest, stamps, fallen })
+    let fallen = if flags & PLANE_FALLEN != 0 { planes.next().map(|p| p.into_iter().map(f32::from_bits).collect()).unwrap_or_default() } else { Vec::new() };
+    let mut packed = Vec::new();
+    if flags & PLANE_PACKED != 0 {
+        for v in planes.next().unwrap_or_default() {
+            packed.push(u16::try_from(v).map_err(|_| corrupt(format!("packed snow {v} does not fit 16 bits")))?);
+        }
+    }
+    Ok(TileData { key, side, clock, snow_xor_rest, stamps, fallen, packed })
 }
 
 /// CRC32 of `head` followed by `payload`.
@@ -271,11 +297,12 @@ mod tests {
             snow_xor_rest: plane.iter().map(|v| v.to_bits()).collect(),
             stamps: vec![0; n * n],
             fallen: if fallen { vec![0.125; n * n] } else { Vec::new() },
+            packed: Vec::new(),
         }
     }
 
     /// Bit patterns of every plane and clock field, so NaNs compare equal.
-    fn bits(t: &TileData) -> (TileKey, u32, [u64; 4], Vec<u32>, Vec<u32>, Vec<u32>) {
+    fn bits(t: &TileData) -> (TileKey, u32, [u64; 4], Vec<u32>, Vec<u32>, Vec<u32>, Vec<u16>) {
         (
             t.key,
             t.side,
@@ -283,6 +310,7 @@ mod tests {
             t.snow_xor_rest.clone(),
             t.stamps.clone(),
             t.fallen.iter().map(|v| v.to_bits()).collect(),
+            t.packed.clone(),
         )
     }
 
@@ -327,6 +355,7 @@ mod tests {
                 snow_xor_rest: (0..n).map(|_| random_f32(&mut rng).to_bits()).collect(),
                 stamps: (0..n).map(|_| rng.next_u64() as u32).collect(),
                 fallen: if case % 2 == 0 { (0..n).map(|_| random_f32(&mut rng)).collect() } else { Vec::new() },
+                packed: if case % 3 == 0 { Vec::new() } else { (0..n).map(|_| rng.next_u64() as u16).collect() },
             };
             let bytes = encode(&t);
             let back = decode(&bytes).unwrap_or_else(|e| panic!("seed {seed} case {case}: {e}"));
@@ -468,6 +497,23 @@ mod tests {
         garbage[72..76].copy_from_slice(&32u32.to_le_bytes());
         reseal(&mut garbage);
         assert!(corrupt_why(&garbage).contains("inflate"));
+    }
+
+    #[test]
+    fn version_1_files_read_as_fresh_snow_and_packed_snow_is_version_2() {
+        let mut t = tile(8, |i, j| (i * 8 + j) as f32 * 0.01, true);
+        let mut v1 = encode(&t);
+        v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+        reseal(&mut v1);
+        assert_eq!(bits(&decode(&v1).expect("a version 1 file reads")), bits(&t));
+        t.packed = (0..64).map(|k| k * 700).collect();
+        let v2 = encode(&t);
+        assert_eq!(bits(&decode(&v2).expect("decode")), bits(&t));
+        // A version 1 file cannot hold the packed plane.
+        let mut mislabelled = v2;
+        mislabelled[8..12].copy_from_slice(&1u32.to_le_bytes());
+        reseal(&mut mislabelled);
+        assert!(corrupt_why(&mislabelled).contains("flags"));
     }
 
     #[test]

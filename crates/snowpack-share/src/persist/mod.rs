@@ -91,6 +91,11 @@ pub struct TileData {
     pub stamps: Vec<u32>,
     /// Snowfall so far per texel (m); empty when the world has no snowfall.
     pub fallen: Vec<f32>,
+    /// Packed snow per texel ([`SNOW_QUANTUM_M`](crate::SNOW_QUANTUM_M)
+    /// steps of fresh snow that presses squeezed into the column,
+    /// `docs/mechanics.md`); empty reads as none (fresh snow), as tiles
+    /// written before the plane existed do.
+    pub packed: Vec<u16>,
 }
 
 impl TileData {
@@ -106,11 +111,14 @@ impl TileData {
     /// out, so budgets are simple multiples of a tile.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.snow_xor_rest.as_slice()) + std::mem::size_of_val(self.stamps.as_slice()) + std::mem::size_of_val(self.fallen.as_slice())
+        std::mem::size_of_val(self.snow_xor_rest.as_slice())
+            + std::mem::size_of_val(self.stamps.as_slice())
+            + std::mem::size_of_val(self.fallen.as_slice())
+            + std::mem::size_of_val(self.packed.as_slice())
     }
 
     /// Checks that `side` is in `1..=`[`MAX_SIDE`] and the planes hold
-    /// `side²` texels each (`fallen` may be empty). The error is a
+    /// `side²` texels each (`fallen` and `packed` may be empty). The error is a
     /// [`StoreError::Mismatch`] without a path.
     pub fn validate(&self) -> Result<(), StoreError> {
         let why = if self.side == 0 || self.side > MAX_SIDE {
@@ -121,6 +129,8 @@ impl TileData {
             format!("stamps holds {} texels, a {}² tile needs {}", self.stamps.len(), self.side, self.texels())
         } else if !self.fallen.is_empty() && self.fallen.len() != self.texels() {
             format!("fallen holds {} texels, a {}² tile needs {} (or none)", self.fallen.len(), self.side, self.texels())
+        } else if !self.packed.is_empty() && self.packed.len() != self.texels() {
+            format!("packed holds {} texels, a {}² tile needs {} (or none)", self.packed.len(), self.side, self.texels())
         } else {
             return Ok(());
         };

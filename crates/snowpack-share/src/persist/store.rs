@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::codec::{FORMAT_VERSION, decode, encode};
+use super::codec::{FORMAT_VERSION, decode, encode, readable};
 use super::disk::{DirEntry, Disk, DiskLock, OsDisk};
 use super::{MAX_SIDE, StoreError, TileData, TileKey};
 
@@ -336,7 +336,7 @@ impl TileStore {
                 return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
             }
             let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
-            if version != FORMAT_VERSION {
+            if !readable(version) {
                 return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
             }
             let mut len = [0; 8];
@@ -761,7 +761,7 @@ fn decode_save(path: &Path, bytes: &[u8]) -> Result<(u64, NamedStates), StoreErr
     let u32_at = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
     let u64_at = |b: &[u8]| u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]);
     let version = u32_at(take(4)?);
-    if version != FORMAT_VERSION {
+    if !readable(version) {
         return Err(StoreError::Version { path: path.to_owned(), found: version, expected: FORMAT_VERSION });
     }
     let generation = u64_at(take(8)?);
@@ -807,7 +807,7 @@ fn meta_side(path: &Path, bytes: &[u8]) -> Result<u32, StoreError> {
         return Err(StoreError::Corrupt { path: path.to_owned(), why: "bad CRC32".to_owned() });
     }
     let version = field(8);
-    if version != FORMAT_VERSION {
+    if !readable(version) {
         return Err(StoreError::Version { path: path.to_owned(), found: version, expected: FORMAT_VERSION });
     }
     Ok(field(12))
@@ -922,6 +922,7 @@ mod tests {
             snow_xor_rest: (0..n).map(|k| (v + (k % 7) as f32 * 0.001).to_bits()).collect(),
             stamps: vec![v as u32; n],
             fallen: vec![v; n],
+            packed: vec![v as u16; n],
         }
     }
 

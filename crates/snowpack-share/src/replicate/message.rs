@@ -17,6 +17,9 @@
 //! | 7 | `Digest` | clock, window first texel (2 × i64), resolution (u32), count (u16, ≤ 4096), each col, row (i64), digest (u64) |
 //! | 8 | `Want` | count (u16, ≤ 4096), each col, row (i64) |
 //! | 9 | `Clock` | clock |
+//! | 10 | `InSync` | clock |
+//! | 11 | `Query` | id (u32), count (u16, ≤ 256), each x, z (2 × f64) |
+//! | 12 | `Depths` | id (u32), count (u16, ≤ 256), each depth and packed snow (2 × f32) |
 //!
 //! A clock is `time_s` (f64), `refill_quanta`, `stamp_quanta` (u64 each),
 //! `fallen_m` (f32): 28 bytes. A world is `texel_m` (f32), `tile_side`
@@ -25,9 +28,11 @@
 //! terrain (u16 length + UTF-8, ≤ 1024 bytes).
 //!
 //! A tile is its key (col, row: i64), side (u32, 8..=256), clock, plane
-//! flags (u8: 1 footprints, 2 snowfall), the compressed length (u32) and
-//! the compressed planes: the deficit widened to u32, then the footprints
-//! and the snowfall's f32 bits when present, each delta-coded and
+//! flags (u8: 1 footprints, 2 snowfall, 4 packed snow), the compressed
+//! length (u32) and the compressed planes: the deficit widened to u32, then
+//! the footprints, the snowfall's f32 bits and the packed snow XOR the
+//! deficit (widened; zero wherever a press only packed, so a trail's packed
+//! snow costs almost nothing) when present, each delta-coded and
 //! byte-shuffled as the tile store does ([`crate::persist::codec`]), the
 //! whole deflated. Untouched snow is all zeros and costs a few bytes; the
 //! widened deficit's high bytes are zero runs that deflate to nothing.
@@ -45,7 +50,7 @@ use super::world::WorldIdentity;
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
 /// The protocol version this build speaks; a message of another is refused.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 /// Bytes of the header (magic, version, kind).
 pub const HEADER_BYTES: usize = 7;
 /// The largest message (bytes) either side sends or accepts.
@@ -57,7 +62,7 @@ pub const MIN_TILE_SIDE: u32 = 8;
 /// The largest tile side on the wire.
 pub const MAX_TILE_SIDE: u32 = 256;
 /// The most texels (summed over its tiles) one message may carry: bounds
-/// what decoding one message allocates (12 bytes a texel at most, 12 MiB).
+/// what decoding one message allocates (16 bytes a texel at most, 16 MiB).
 pub const MAX_MESSAGE_TEXELS: usize = 1 << 20;
 /// The longest peer name (bytes).
 pub const MAX_NAME_BYTES: usize = 64;
@@ -76,6 +81,8 @@ pub const MAX_KEYS: usize = 4096;
 const TILE_STAMPS: u8 = 1;
 /// Plane flag of a tile on the wire: snowfall present.
 const TILE_FALLEN: u8 = 2;
+/// Tile plane flag: the packed-snow plane is present.
+const TILE_PACKED: u8 = 4;
 
 /// One message between a peer and the relay.
 #[derive(Clone, Debug, PartialEq)]
@@ -170,13 +177,18 @@ pub enum Message {
         /// World (x, z) in m, ≤ [`MAX_DEFORMERS`].
         points: Vec<[f64; 2]>,
     },
-    /// Relay → asker: the answer to a `Query`, one depth (m) per point;
-    /// NaN where the relay knows no world yet.
+    /// Relay → asker: the answer to a `Query`, one depth and one packed
+    /// snow (m) per point; NaN where the relay knows no world yet.
     Depths {
         /// The query's id.
         id: u32,
         /// Snow depth above the terrain per point (m).
         depths: Vec<f32>,
+        /// Packed snow per point (m of fresh snow squeezed into the column,
+        /// `docs/mechanics.md`): with the depth and the world's densities it
+        /// gives the column's mass, density and hardness. As many as
+        /// `depths` (missing ones are sent as 0).
+        packed: Vec<f32>,
     },
 }
 
@@ -303,12 +315,13 @@ fn write_body(w: &mut Writer, message: &Message) {
                 w.f64(p[1]);
             }
         }
-        Message::Depths { id, depths } => {
+        Message::Depths { id, depths, packed } => {
             w.u32(*id);
             let n = depths.len().min(MAX_DEFORMERS);
             w.u16(n as u16);
-            for d in &depths[..n] {
+            for (k, d) in depths[..n].iter().enumerate() {
                 w.f32(*d);
+                w.f32(packed.get(k).copied().unwrap_or(0.0));
             }
         }
     }
@@ -318,7 +331,7 @@ fn write_body(w: &mut Writer, message: &Message) {
 #[must_use]
 pub fn encode_tile(tile: &SharedTile) -> Vec<u8> {
     let side = tile.side as usize;
-    let mut raw = Vec::with_capacity(4 * (tile.deficit.len() + tile.stamps.len() + tile.fallen.len()));
+    let mut raw = Vec::with_capacity(4 * (tile.deficit.len() + tile.stamps.len() + tile.fallen.len() + tile.packed.len()));
     shuffle_into(&delta(tile.deficit.iter().map(|&d| u32::from(d)), side), &mut raw);
     let mut flags = 0;
     if !tile.stamps.is_empty() {
@@ -328,6 +341,10 @@ pub fn encode_tile(tile: &SharedTile) -> Vec<u8> {
     if !tile.fallen.is_empty() {
         flags |= TILE_FALLEN;
         shuffle_into(&delta(tile.fallen.iter().map(|f| f.to_bits()), side), &mut raw);
+    }
+    if !tile.packed.is_empty() {
+        flags |= TILE_PACKED;
+        shuffle_into(&delta(tile.packed.iter().zip(&tile.deficit).map(|(&p, &d)| u32::from(p ^ d)), side), &mut raw);
     }
     let packed = miniz_oxide::deflate::compress_to_vec(&raw, DEFLATE_LEVEL);
     let mut w = Writer(Vec::with_capacity(49 + packed.len()));
@@ -409,12 +426,13 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
             let id = r.u32("query id")?;
             let n = usize::from(r.u16("depth count")?);
             cap("depths", n, MAX_DEFORMERS)?;
-            r.need(n * 4, "depths")?;
-            let mut depths = Vec::with_capacity(n);
+            r.need(n * 8, "depths")?;
+            let (mut depths, mut packed) = (Vec::with_capacity(n), Vec::with_capacity(n));
             for _ in 0..n {
                 depths.push(r.f32("depth")?);
+                packed.push(r.f32("packed snow")?);
             }
-            Message::Depths { id, depths }
+            Message::Depths { id, depths, packed }
         }
         other => return Err(MessageError::UnknownKind(other)),
     };
@@ -555,8 +573,8 @@ fn read_tile(r: &mut Reader, texels: &mut usize) -> Result<SharedTile, MessageEr
     }
     let clock = read_clock(r)?;
     let flags = r.u8("tile flags")?;
-    if flags & !(TILE_STAMPS | TILE_FALLEN) != 0 {
-        return Err(MessageError::BadTile(format!("plane flags {flags:#x}: only 1 (footprints) and 2 (snowfall) exist")));
+    if flags & !(TILE_STAMPS | TILE_FALLEN | TILE_PACKED) != 0 {
+        return Err(MessageError::BadTile(format!("plane flags {flags:#x}: only 1 (footprints), 2 (snowfall) and 4 (packed snow) exist")));
     }
     let packed_len = r.u32("tile length")? as usize;
     let packed = r.take(packed_len, "tile planes")?;
@@ -565,7 +583,7 @@ fn read_tile(r: &mut Reader, texels: &mut usize) -> Result<SharedTile, MessageEr
     if *texels > MAX_MESSAGE_TEXELS {
         return Err(MessageError::TooMany { what: "texels in one message", count: *texels, max: MAX_MESSAGE_TEXELS });
     }
-    let planes = 1 + usize::from(flags & TILE_STAMPS != 0) + usize::from(flags & TILE_FALLEN != 0);
+    let planes = 1 + (flags & (TILE_STAMPS | TILE_FALLEN | TILE_PACKED)).count_ones() as usize;
     let expected = 4 * n * planes;
     // The limit bounds the allocation whatever the compressed stream claims.
     let raw = miniz_oxide::inflate::decompress_to_vec_with_limit(packed, expected)
@@ -582,7 +600,13 @@ fn read_tile(r: &mut Reader, texels: &mut usize) -> Result<SharedTile, MessageEr
     }
     let stamps = if flags & TILE_STAMPS != 0 { planes.next().unwrap_or_default() } else { Vec::new() };
     let fallen = if flags & TILE_FALLEN != 0 { planes.next().unwrap_or_default().into_iter().map(f32::from_bits).collect() } else { Vec::new() };
-    Ok(SharedTile { key, side, clock, deficit, stamps, fallen })
+    let mut packed = Vec::new();
+    if flags & TILE_PACKED != 0 {
+        for (v, &d) in planes.next().unwrap_or_default().into_iter().zip(&deficit) {
+            packed.push(u16::try_from(v).map_err(|_| MessageError::BadTile(format!("packed snow {v} does not fit 16 bits")))? ^ d);
+        }
+    }
+    Ok(SharedTile { key, side, clock, deficit, stamps, fallen, packed })
 }
 
 /// Little-endian output.

@@ -661,6 +661,16 @@ impl SnowRelay {
     /// world (or for a position that is not a number).
     #[must_use]
     pub fn depth_at(&self, x_m: f64, z_m: f64) -> Option<f32> {
+        self.column_at(x_m, z_m).map(|(depth, _)| depth)
+    }
+
+    /// The snow depth (m) and the packed snow in it (m of fresh snow
+    /// squeezed into the column, `docs/mechanics.md`) at world (`x_m`,
+    /// `z_m`), as [`SnowRelay::depth_at`] finds the depth: with the world's
+    /// densities they give the column's mass, density and hardness
+    /// (`snowpack_share::mechanics`).
+    #[must_use]
+    pub fn column_at(&self, x_m: f64, z_m: f64) -> Option<(f32, f32)> {
         let world = self.world.as_ref()?;
         let texel = f64::from(world.texel_m);
         let (fx, fz) = ((x_m / texel).floor(), (z_m / texel).floor());
@@ -672,13 +682,14 @@ impl SnowRelay {
         let key = TileKey::containing(col, row, side);
         let clock = world.clock_at(self.now_s);
         let Some(mut tile) = self.tile(key) else {
-            return Some(world.depth_m + clock.fallen_m);
+            return Some((world.depth_m + clock.fallen_m, 0.0));
         };
         if clock.covers(&tile.clock) {
             tile.catch_up(&clock, CatchUp { max_fallen_m: world.max_fallen_m });
         }
         let first = key.first_texel(side);
-        Some(tile.depth_at((col - first[0]) as usize, (row - first[1]) as usize, world.depth_m))
+        let (x, z) = ((col - first[0]) as usize, (row - first[1]) as usize);
+        Some((tile.depth_at(x, z, world.depth_m), tile.packed_at(x, z)))
     }
 
     /// The world, once learnt.
@@ -890,8 +901,8 @@ impl SnowRelay {
             return;
         }
         self.stats.queries += 1;
-        let depths = points.iter().map(|p| self.depth_at(p[0], p[1]).unwrap_or(f32::NAN)).collect();
-        self.enqueue(peer, encode(&Message::Depths { id, depths }));
+        let (depths, packed) = points.iter().map(|p| self.column_at(p[0], p[1]).unwrap_or((f32::NAN, f32::NAN))).unzip();
+        self.enqueue(peer, encode(&Message::Depths { id, depths, packed }));
     }
 
     fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64) {
@@ -1334,6 +1345,7 @@ pub fn tile_to_data(t: &SharedTile) -> TileData {
         snow_xor_rest: t.deficit.iter().map(|&d| u32::from(d) | flag).collect(),
         stamps: if t.stamps.is_empty() { vec![NO_STAMP; t.texels()] } else { t.stamps.clone() },
         fallen: t.fallen.clone(),
+        packed: t.packed.clone(),
     }
 }
 
@@ -1368,6 +1380,7 @@ pub fn tile_from_data(d: TileData) -> Result<SharedTile, StoreError> {
         deficit,
         stamps,
         fallen: d.fallen,
+        packed: d.packed,
     };
     if tile.is_consistent() { Ok(tile) } else { Err(corrupt("planes of the wrong size".to_owned())) }
 }
@@ -1389,6 +1402,8 @@ mod tests {
             }
             if fallen {
                 t.fallen[5] = 0.25;
+                t.packed = vec![0; t.texels()];
+                t.packed[9] = 40_000;
             }
             let back = tile_from_data(tile_to_data(&t)).expect("round trip");
             assert_eq!(back, t);

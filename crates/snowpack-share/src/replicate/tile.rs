@@ -56,7 +56,7 @@ impl ShareClock {
 /// One tile of shared snow, row-major (row = +z), `side²` texels per plane.
 ///
 /// Texels a sender did not see (outside its window) hold the merge's
-/// identity: deficit 0, no footprint, snowfall 0.
+/// identity: deficit 0, no footprint, snowfall 0, no packed snow.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SharedTile {
     /// Where the tile is on the global tile grid.
@@ -71,6 +71,10 @@ pub struct SharedTile {
     pub stamps: Vec<u32>,
     /// Snowfall lying per texel (m); empty when the world has no snowfall.
     pub fallen: Vec<f32>,
+    /// Packed snow per texel ([`SNOW_QUANTUM_M`] steps of fresh snow that
+    /// presses squeezed into the column, `docs/mechanics.md`); empty reads
+    /// as none.
+    pub packed: Vec<u16>,
 }
 
 /// How time passing changes a tile: the world's snowfall cap.
@@ -93,6 +97,7 @@ impl SharedTile {
             deficit: vec![0; n],
             stamps: if stamps { vec![NO_STAMP; n] } else { Vec::new() },
             fallen: if fallen { vec![0.0; n] } else { Vec::new() },
+            packed: Vec::new(),
         }
     }
 
@@ -102,11 +107,15 @@ impl SharedTile {
         (self.side as usize) * (self.side as usize)
     }
 
-    /// Whether every plane has `side²` texels (or none, for footprints and snowfall).
+    /// Whether every plane has `side²` texels (or none, for footprints,
+    /// snowfall and packed snow).
     #[must_use]
     pub fn is_consistent(&self) -> bool {
         let n = self.texels();
-        self.deficit.len() == n && (self.stamps.is_empty() || self.stamps.len() == n) && (self.fallen.is_empty() || self.fallen.len() == n)
+        self.deficit.len() == n
+            && (self.stamps.is_empty() || self.stamps.len() == n)
+            && (self.fallen.is_empty() || self.fallen.len() == n)
+            && (self.packed.is_empty() || self.packed.len() == n)
     }
 
     /// The deepest deficit in the tile (m).
@@ -149,7 +158,8 @@ impl SharedTile {
 
     /// Folds `other` (the same key and side) into `self`: both are brought
     /// to the later of their clocks, then each texel takes the deeper
-    /// deficit, the lower footprint and the deeper snowfall. A plane one
+    /// deficit, the lower footprint, the deeper snowfall and the more packed
+    /// snow. A plane one
     /// side lacks counts as untouched. Returns whether `self` changed
     /// (beyond its clock).
     ///
@@ -177,11 +187,14 @@ impl SharedTile {
         if !theirs.fallen.is_empty() && self.fallen.is_empty() {
             self.fallen = vec![0.0; self.texels()];
         }
+        if !theirs.packed.is_empty() && self.packed.is_empty() {
+            self.packed = vec![0; self.texels()];
+        }
         let mut changed = false;
         for k in 0..self.texels() {
             let (mine, other) = (self.texel(k), theirs.texel(k));
             let merged = mine.merge(other);
-            if merged.deficit != mine.deficit || merged.stamp != mine.stamp || merged.fallen_m.to_bits() != mine.fallen_m.to_bits() {
+            if !merged.same(mine) {
                 changed = true;
                 // Both deficits are u16: so is their maximum.
                 self.deficit[k] = merged.deficit as u16;
@@ -190,6 +203,10 @@ impl SharedTile {
                 }
                 if let Some(f) = self.fallen.get_mut(k) {
                     *f = merged.fallen_m;
+                }
+                if let Some(p) = self.packed.get_mut(k) {
+                    // Both are u16: so is their maximum.
+                    *p = merged.packed as u16;
                 }
             }
         }
@@ -200,7 +217,7 @@ impl SharedTile {
     /// side is known to hold): `self` at the later of the two clocks with
     /// every texel `base` already covers (its merge with `base`'s texel is
     /// `base`'s) set to the merge's identity (deficit 0, no footprint, no
-    /// snowfall), which deflates to almost nothing. Merged into anything
+    /// snowfall, no packed snow), which deflates to almost nothing. Merged into anything
     /// that holds `base`, it gives what `self` would. `None` when it adds
     /// nothing, or when the tiles do not match.
     #[must_use]
@@ -217,14 +234,16 @@ impl SharedTile {
         for k in 0..out.texels() {
             let (theirs, mine) = (base.texel(k), out.texel(k));
             let merged = theirs.merge(mine);
-            let covered = merged.deficit == theirs.deficit && merged.stamp == theirs.stamp && merged.fallen_m.to_bits() == theirs.fallen_m.to_bits();
-            if covered {
+            if merged.same(theirs) {
                 out.deficit[k] = 0;
                 if let Some(s) = out.stamps.get_mut(k) {
                     *s = NO_STAMP;
                 }
                 if let Some(f) = out.fallen.get_mut(k) {
                     *f = 0.0;
+                }
+                if let Some(p) = out.packed.get_mut(k) {
+                    *p = 0;
                 }
             } else {
                 adds = true;
@@ -239,6 +258,7 @@ impl SharedTile {
             deficit: u32::from(self.deficit[k]),
             stamp: self.stamps.get(k).copied().unwrap_or(NO_STAMP),
             fallen_m: self.fallen.get(k).copied().unwrap_or(0.0),
+            packed: u32::from(self.packed.get(k).copied().unwrap_or(0)),
         }
     }
 
@@ -264,6 +284,14 @@ impl SharedTile {
         for f in &self.fallen {
             h.write(&f.to_bits().to_le_bytes());
         }
+        // No packed snow reads as a plane of zeros, whichever the tile
+        // holds, so both digest alike (and as they did before the plane).
+        if self.packed.iter().any(|&p| p != 0) {
+            h.write(&[1]);
+            for p in &self.packed {
+                h.write(&p.to_le_bytes());
+            }
+        }
         h.finish()
     }
 
@@ -278,11 +306,19 @@ impl SharedTile {
         let d = f32::from(self.deficit.get(k).copied().unwrap_or(0)) * SNOW_QUANTUM_M;
         (depth_m + lying - d).max(0.0)
     }
+
+    /// Packed snow (m of fresh snow squeezed into the column) at texel
+    /// (`x`, `z`) of the tile.
+    #[must_use]
+    pub fn packed_at(&self, x: usize, z: usize) -> f32 {
+        let k = z * self.side as usize + x;
+        f32::from(self.packed.get(k).copied().unwrap_or(0)) * SNOW_QUANTUM_M
+    }
 }
 
 /// One texel of a copy of the snow, brought to a common clock with the
 /// other copies it merges with: the deficit below its rest height (quanta),
-/// its packed footprint, the snowfall lying there.
+/// its packed footprint, the snowfall lying there, its packed snow.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TexelCopy {
     /// Rest height minus the persistent snow height ([`SNOW_QUANTUM_M`] steps).
@@ -291,12 +327,17 @@ pub struct TexelCopy {
     pub stamp: u32,
     /// Snowfall lying (m).
     pub fallen_m: f32,
+    /// Packed snow ([`SNOW_QUANTUM_M`] steps).
+    pub packed: u32,
 }
 
 impl TexelCopy {
     /// The merge of two copies of a texel, the rule every copy of the snow
     /// converges by: the deeper deficit, the lower footprint, the deeper
-    /// snowfall (commutative, associative, idempotent). [`SharedTile::merge`]
+    /// snowfall, the more packed snow (commutative, associative,
+    /// idempotent). Presses only ever raise the deficit and the packed
+    /// snow together, so copies that only saw presses merge exactly
+    /// (`docs/mechanics.md`, "What merges"). [`SharedTile::merge`]
     /// folds shared tiles with it; the tile restore pass folds a stored tile
     /// into what the window made in its place while the disk was late
     /// (`tile_restore.wgsl` runs the same rule, `cpu::tile_restore` is its twin).
@@ -304,7 +345,13 @@ impl TexelCopy {
     pub fn merge(self, other: Self) -> Self {
         // Bit patterns of non-negative floats order as the floats do.
         let fallen_m = if other.fallen_m.to_bits() > self.fallen_m.to_bits() && other.fallen_m >= 0.0 { other.fallen_m } else { self.fallen_m };
-        Self { deficit: self.deficit.max(other.deficit), stamp: self.stamp.min(other.stamp), fallen_m }
+        Self { deficit: self.deficit.max(other.deficit), stamp: self.stamp.min(other.stamp), fallen_m, packed: self.packed.max(other.packed) }
+    }
+
+    /// Whether two copies are the same bit for bit.
+    #[must_use]
+    pub fn same(self, other: Self) -> bool {
+        self.deficit == other.deficit && self.stamp == other.stamp && self.fallen_m.to_bits() == other.fallen_m.to_bits() && self.packed == other.packed
     }
 }
 
@@ -369,11 +416,18 @@ mod tests {
             *state
         };
         let mut t = SharedTile::untouched(TileKey::new(3, -2), 8, clock, true, true);
+        // Half the tiles carry packed snow, the others none (as older peers send).
+        if next() % 2 == 0 {
+            t.packed = vec![0; t.texels()];
+        }
         for k in 0..t.texels() {
             let r = next();
             t.deficit[k] = if r % 3 == 0 { 0 } else { (r >> 8) as u16 % 900 };
             t.stamps[k] = if r % 5 == 0 { ((r >> 20) as u32 % 60_000) << 16 | ((r >> 40) as u32 % 60_000) } else { NO_STAMP };
             t.fallen[k] = if r % 7 == 0 { ((r >> 30) % 100) as f32 * 1e-3 } else { 0.0 };
+            if let Some(p) = t.packed.get_mut(k) {
+                *p = if r % 4 == 0 { (r >> 50) as u16 % 900 } else { 0 };
+            }
         }
         t
     }

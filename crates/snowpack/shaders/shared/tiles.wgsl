@@ -8,14 +8,20 @@
 // (shared/tile_table.wgsl). Tiles wholly inside the window have no slot: their texels live
 // in the window's own buffers. A slot holds its
 // tile as `planes` planes of side * side u32, row-major: snow height (f32
-// bits), the snowfall so far (f32 bits) where the world has snowfall, and
-// last the packed footprints where the window has a footprint buffer: 1 to
-// 3 planes (`tiles::planes` in Rust). There is no terrain plane: the passes
+// bits), the snowfall so far (f32 bits) where the world has snowfall, the
+// packed snow (snow quanta, shared/packed_snow.wgsl), and last the packed
+// footprints where the window has a footprint buffer: 2 to 4 planes
+// (`tiles::planes` in Rust). There is no terrain plane: the passes
 // evaluate the ground of a slot texel from the terrain's source
 // (texel_ground in shared/terrain_kind.wgsl).
 
 const PLANE_SNOW: u32 = 0u;
 const PLANE_FALLEN: u32 = 1u; // only with snowfall
+
+// The packed-snow plane: after the snowfall's where the world has snowfall.
+fn plane_packed(use_fallen: bool) -> u32 {
+    return select(1u, 2u, use_fallen);
+}
 
 // The footprint plane of a slot of `planes` planes (where there is one).
 fn plane_stamps(planes: u32) -> u32 {
@@ -33,6 +39,7 @@ struct TexelState {
     snow: f32,
     stamp: u32,
     fallen: f32,
+    packed: u32, // packed snow (quanta): time passing leaves it as it is
 }
 
 // Time passing on a texel that no deformer reaches and the sky sees: what

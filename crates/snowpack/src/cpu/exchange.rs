@@ -1,9 +1,10 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
+use crate::deform::packed_snow;
 use crate::deform::snow_word;
 use crate::deform::window::TexelRect;
 use crate::tiles::exchange::ExchangeParams;
-use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
+use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_packed, plane_stamps};
 
 use super::window::storage_index;
 
@@ -33,8 +34,7 @@ pub struct WindowBuffers<'a> {
     pub stamps: &'a mut [u32],
     /// Snowfall so far (one texel without snowfall).
     pub fallen: &'a mut [f32],
-    /// Packed snow, two texels a word: cleared where a texel is loaded (the
-    /// tiles hold none yet).
+    /// Packed snow, two texels a word: stashed with the texel and loaded back.
     pub packed: &'a mut [u32],
 }
 
@@ -64,6 +64,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &
                     if use_fallen {
                         tiles[idx(PLANE_FALLEN)] = w.fallen[s].to_bits();
                     }
+                    tiles[idx(plane_packed(use_fallen))] = packed_snow::get(w.packed, s);
                 } else {
                     let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
                     let Some(at) = tile_index(g, side, n, table, planes, 0) else { continue };
@@ -80,7 +81,7 @@ pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &
                     }
                     let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
                     w.snow[s] = snow_word::press_quanta(rest, ground, h);
-                    crate::deform::packed_snow::set(w.packed, s, 0);
+                    packed_snow::set(w.packed, s, tiles[idx(plane_packed(use_fallen))].min(0xffff));
                 }
             }
         }

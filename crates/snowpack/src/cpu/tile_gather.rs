@@ -6,9 +6,10 @@ use super::stamp::STAMP_EMPTY;
 use super::window::storage_index;
 
 /// The packed tiles of `keys` (`[column, row]`, the first `p.count`) from
-/// the window's toroidal `snow`, `stamps` and `fallen`.
+/// the window's toroidal `snow`, `stamps`, `fallen` and `packed` (two
+/// texels a word; it goes into the deficit word's high half).
 #[must_use]
-pub fn gather(p: &TileGatherParams, keys: &[[i32; 2]], snow: &[u32], stamps: &[u32], fallen: &[f32]) -> Vec<u32> {
+pub fn gather(p: &TileGatherParams, keys: &[[i32; 2]], snow: &[u32], stamps: &[u32], (fallen, packed): (&[f32], &[u32])) -> Vec<u32> {
     let side = p.side as usize;
     let area = side * side;
     let r = p.resolution as i32;
@@ -22,7 +23,7 @@ pub fn gather(p: &TileGatherParams, keys: &[[i32; 2]], snow: &[u32], stamps: &[u
                 let (mut deficit, mut stamp, mut lying) = (0, STAMP_EMPTY, 0.0f32);
                 if (0..r).contains(&local[0]) && (0..r).contains(&local[1]) {
                     let s = storage_index(p.origin, p.resolution, local[1] as u32, local[0] as u32);
-                    deficit = snow[s] & 0xffff;
+                    deficit = (snow[s] & 0xffff) | (crate::deform::packed_snow::get(packed, s) << 16);
                     if p.flags & TileGatherParams::HAS_STAMPS != 0 {
                         stamp = stamps[s];
                     }

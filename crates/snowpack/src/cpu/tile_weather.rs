@@ -1,7 +1,7 @@
 //! CPU twin of `tile_weather.wgsl` and of `pass_time` in `shared/tiles.wgsl`.
 
 use crate::TerrainSource;
-use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_stamps};
+use crate::tiles::streaming::{PLANE_FALLEN, PLANE_SNOW, plane_packed, plane_stamps};
 use crate::tiles::weather::WeatherParams;
 
 use super::stamp::{STAMP_EMPTY, height};
@@ -15,6 +15,8 @@ pub struct TexelState {
     pub stamp: u32,
     /// Snowfall so far above the rest depth (m).
     pub fallen: f32,
+    /// Packed snow (snow quanta); time passing leaves it as it is.
+    pub packed: u32,
 }
 
 /// The time that passes: snowfall, refill and footprint refill (quanta).
@@ -80,21 +82,22 @@ pub struct SlotLayout {
 
 impl SlotLayout {
     fn has_stamps(self) -> bool {
-        self.planes > 1 + usize::from(self.use_fallen)
+        self.planes > 2 + usize::from(self.use_fallen)
     }
 }
 
 /// Reads texel `k` of slot `slot`: its state (no footprint, 0 m of
-/// snowfall, where the slot has no plane for them).
+/// snowfall, where the slot has no plane for them). The weather pass
+/// leaves the packed snow as it is and reads none (0 here).
 #[must_use]
 pub fn read_texel(tiles: &[u32], slot: usize, l: SlotLayout, k: usize) -> TexelState {
     let (area, base) = (l.area, slot * l.planes * l.area + k);
     let fallen = if l.use_fallen { f32::from_bits(tiles[base + PLANE_FALLEN * area]) } else { 0.0 };
     let stamp = if l.has_stamps() { tiles[base + plane_stamps(l.planes) * area] } else { STAMP_EMPTY };
-    TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp, fallen }
+    TexelState { snow: f32::from_bits(tiles[base + PLANE_SNOW * area]), stamp, fallen, packed: 0 }
 }
 
-/// Writes texel `k` of slot `slot`.
+/// Writes texel `k` of slot `slot`, all but its packed snow ([`write_packed`]).
 pub fn write_texel(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, t: TexelState) {
     let (area, base) = (l.area, slot * l.planes * l.area + k);
     tiles[base + PLANE_SNOW * area] = t.snow.to_bits();
@@ -104,6 +107,11 @@ pub fn write_texel(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, t: T
     if l.has_stamps() {
         tiles[base + plane_stamps(l.planes) * area] = t.stamp;
     }
+}
+
+/// Writes texel `k`'s packed snow (the restore does; the weather does not).
+pub fn write_packed(tiles: &mut [u32], slot: usize, l: SlotLayout, k: usize, packed: u32) {
+    tiles[(slot * l.planes + plane_packed(l.use_fallen)) * l.area + k] = packed;
 }
 
 /// One frame of weather on the resident `tiles` of the listed `slots`,

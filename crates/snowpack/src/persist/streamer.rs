@@ -761,10 +761,10 @@ impl TileStreamer {
 }
 
 /// Whether `tile` is fresh snow: every height at its rest (XOR 0), no
-/// footprint and no snowfall plane, so restoring it gives the same bits as
+/// footprint, no snowfall plane and no packed snow, so restoring it gives the same bits as
 /// a fresh tile (the refill of the time away leaves snow at rest unchanged).
 fn is_untouched(tile: &TileData) -> bool {
-    tile.fallen.is_empty() && tile.snow_xor_rest.iter().all(|&x| x == 0) && tile.stamps.iter().all(|&s| s == STAMP_EMPTY)
+    tile.fallen.is_empty() && tile.snow_xor_rest.iter().all(|&x| x == 0) && tile.stamps.iter().all(|&s| s == STAMP_EMPTY) && tile.packed.iter().all(|&q| q == 0)
 }
 
 impl Drop for TileStreamer {
@@ -1247,6 +1247,7 @@ mod tests {
             snow_xor_rest: vec![v.to_bits(); n],
             stamps: vec![v as u32; n],
             fallen: Vec::new(),
+            packed: Vec::new(),
         }
     }
 

@@ -13,7 +13,8 @@ use crate::shaders;
 
 use super::tile::{ShareClock, SharedTile};
 
-/// Planes per packed tile: deficit, footprint, snowfall (f32 bits).
+/// Planes per packed tile: deficit (with the packed snow in its high half),
+/// footprint, snowfall (f32 bits).
 pub const PACKED_PLANES: usize = 3;
 
 /// Uniforms of `tile_gather.wgsl`.
@@ -67,8 +68,9 @@ pub fn unpack_tiles(keys: &[TileKey], side: u32, clock: ShareClock, packed: &[u3
             key,
             side,
             clock,
-            // The gather masks the deficit to 16 bits.
-            deficit: planes[..area].iter().map(|&d| d as u16).collect(),
+            // The deficit's low half, the packed snow the high half.
+            deficit: planes[..area].iter().map(|&d| (d & 0xffff) as u16).collect(),
+            packed: planes[..area].iter().map(|&d| (d >> 16) as u16).collect(),
             stamps: if stamps { planes[area..2 * area].to_vec() } else { Vec::new() },
             fallen: if fallen { planes[2 * area..].iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() },
         })
@@ -92,7 +94,8 @@ impl TileGatherPass {
         let shape = PassShape {
             label: "tile gather",
             source: shaders::TILE_GATHER,
-            slots: &[Slot::Read, Slot::ReadWrite],
+            // keys, the gathered tiles, the window's packed snow
+            slots: &[Slot::Read, Slot::ReadWrite, Slot::Read],
             specialise_on: Some("PASS_FLAGS"),
             constants: &[],
             window: Some(WindowAccess::Read),
@@ -105,7 +108,7 @@ impl TileGatherPass {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        pass.bind(device, &[keys.as_entire_binding(), packed.as_entire_binding()]);
+        pass.bind(device, &[keys.as_entire_binding(), packed.as_entire_binding(), res.packed.as_entire_binding()]);
         Self { pass, keys, packed, capacity }
     }
 

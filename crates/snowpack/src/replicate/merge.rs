@@ -81,14 +81,17 @@ impl TileMergeParams {
     pub const USE_FALLEN: u32 = 2;
 }
 
-/// `tiles` (of one side, distinct keys) packed as the passes take them: a
-/// plane a tile lacks is the merge's identity.
+/// `tiles` (of one side, distinct keys) packed as the passes take them
+/// (the packed snow in the deficit word's high half): a plane a tile lacks
+/// is the merge's identity. A tile without packed snow merges as a press
+/// (its key's [`CARRIES_PACKED`] bit unset, [`carries_packed`]).
 #[must_use]
 pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
     let mut out = Vec::new();
     for t in tiles {
         let n = t.texels();
-        out.extend(t.deficit.iter().map(|&d| u32::from(d)));
+        let packed = |k: usize| u32::from(t.packed.get(k).copied().unwrap_or(0)) << 16;
+        out.extend(t.deficit.iter().enumerate().map(|(k, &d)| u32::from(d) | packed(k)));
         if t.stamps.len() == n {
             out.extend_from_slice(&t.stamps);
         } else {
@@ -101,6 +104,17 @@ pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
         }
     }
     out
+}
+
+/// A merge key's last field where the tile carries packed snow: the merge
+/// then takes the larger packed snow of the two copies (a lattice, as the
+/// deficit's), where a tile without it packs the raised deficit as a press.
+pub const CARRIES_PACKED: i32 = 1;
+
+/// The last field of `t`'s merge key: [`CARRIES_PACKED`] or 0.
+#[must_use]
+pub fn carries_packed(t: &SharedTile) -> i32 {
+    if t.packed.len() == t.texels() { CARRIES_PACKED } else { 0 }
 }
 
 /// Folds uploaded tiles into the window.
@@ -148,7 +162,7 @@ impl TileMergePass {
     }
 
     /// Records the merge of packed `tiles` ([`pack_tiles`]) at `keys`
-    /// (`[column, row, first frame of history to replay, 0]`, distinct
+    /// (`[column, row, first frame of history to replay, `[`carries_packed`]`]`, distinct
     /// tiles; at most [`Self::capacity`], the rest are left out), replaying
     /// `history` (at most [`HISTORY_FRAMES`], oldest first, as
     /// [`FrameRecord::gpu`]); returns how many tiles it merges.

@@ -210,7 +210,7 @@ impl Sharing {
         if tiles.is_empty() {
             return;
         }
-        let keys: Vec<[i32; 4]> = tiles.iter().map(|(t, first)| [t.key.col as i32, t.key.row as i32, *first, 0]).collect();
+        let keys: Vec<[i32; 4]> = tiles.iter().map(|(t, first)| [t.key.col as i32, t.key.row as i32, *first, super::merge::carries_packed(t)]).collect();
         let history: Vec<[u32; 4]> = self.history.iter().map(FrameRecord::gpu).collect();
         let refs: Vec<&SharedTile> = tiles.iter().map(|(t, _)| t).collect();
         let flags = if window.has_stamps { TileMergeParams::HAS_STAMPS } else { 0 } | if window.use_fallen { TileMergeParams::USE_FALLEN } else { 0 };

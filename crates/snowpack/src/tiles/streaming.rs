@@ -41,7 +41,7 @@ use super::weather::{TileWeatherPass, WeatherParams};
 
 // The slot layout lives in `planes.rs` (the tile passes below this file need
 // it too); it stays reachable here, where the streaming's users look for it.
-pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_stamps, planes};
+pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_packed, plane_stamps, planes};
 // The grid and the slot pool live in files of their own; the grid stays
 // reachable here, where the streaming's users look for it.
 pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
@@ -461,6 +461,12 @@ impl TileStreaming {
             upload.extend_from_slice(&tile.stamps);
             if tile.fallen.len() == area {
                 upload.extend(tile.fallen.iter().map(|v| v.to_bits()));
+            } else {
+                upload.extend(std::iter::repeat_n(0, area));
+            }
+            // Tiles written before the plane existed hold fresh snow.
+            if tile.packed.len() == area {
+                upload.extend(tile.packed.iter().map(|&q| u32::from(q)));
             } else {
                 upload.extend(std::iter::repeat_n(0, area));
             }
@@ -950,8 +956,8 @@ impl TileStreaming {
 }
 
 /// A tile from its sealed slot's planes (snow XOR rest height, fallen where
-/// the world has snowfall, stamps where the window has footprints:
-/// [`planes`]), for the store. The seal (`tile_seal.wgsl`) XORed the heights
+/// the world has snowfall, packed snow, stamps where the window has
+/// footprints: [`planes`]), for the store. The seal (`tile_seal.wgsl`) XORed the heights
 /// with their rest height (terrain + depth + fallen, as `tile_restore.wgsl`
 /// recomputes it) on the GPU, so untouched snow is 0 and the round trip is
 /// exact on any terrain. Without a footprint plane the tile has no footprints.
@@ -961,5 +967,7 @@ pub fn tile_from_planes(key: TileKey, side: u32, clock: SnowClock, planes: &[u32
     let plane = |p: usize| &planes[p * area..(p + 1) * area];
     let fallen: Vec<f32> = if use_fallen { plane(PLANE_FALLEN).iter().map(|&b| f32::from_bits(b)).collect() } else { Vec::new() };
     let stamps = if has_stamps { plane(plane_stamps(self::planes(use_fallen, true))).to_vec() } else { vec![u32::MAX; area] };
-    TileData { key, side, clock, snow_xor_rest: plane(PLANE_SNOW).to_vec(), stamps, fallen }
+    // The plane holds u16 values (the exchange and the restore clamp them).
+    let packed = plane(plane_packed(use_fallen)).iter().map(|&q| q.min(0xffff) as u16).collect();
+    TileData { key, side, clock, snow_xor_rest: plane(PLANE_SNOW).to_vec(), stamps, fallen, packed }
 }
