@@ -8,6 +8,7 @@
 // #import shared/packed_snow
 // #import shared/pack_press
 // #import shared/displace
+// #import shared/mass_ledger
 
 // Update pass: the persistent snow, as its deficit below the rest height
 // (shared/snow_word.wgsl). Per texel, in height terms,
@@ -30,7 +31,8 @@
 // quanta squeezes d quanta of snow into the column below it, which packs it
 // (the packed snow grows by d); once the column would be denser than the
 // final density the rest is displaced (counted in `displaced`). Refill and
-// snowfall add fresh snow on top and leave the packed snow as it is.
+// snowfall add fresh snow on top and leave the packed snow as it is. With
+// LEDGER, what snowfall and refill add is counted (shared/mass_ledger.wgsl).
 // With DISPLACE, the snow beyond the final density at a texel the actors
 // press moves instead (shared/displace.wgsl): to the texel of the 5x5 that
 // best follows the way out of the press (the captured surface rising, or
@@ -90,6 +92,8 @@ const DISPLACE: u32 = 128u;
 // With DISPLACE, not sharing: a press on a berm lowers the berm and the
 // deficit together.
 const CONSUME: u32 = 256u;
+// Count what snowfall and refill add in the mass ledger.
+const LEDGER: u32 = 512u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, pass/compute.rs); the default reads `params.flags`.
@@ -226,13 +230,23 @@ fn displace_target(i: u32, j: u32) -> u32 {
     return best;
 }
 
+// `v` metres of fresh snow in the ledger's fine steps.
+fn ledger_fine(v: f32) -> u32 {
+    return u32(max(round(v * LEDGER_FINE_PER_M), 0.0));
+}
+
 @compute @workgroup_size(16, 16)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let j = gid.x;
-    let i = gid.y;
-    if i >= params.resolution || j >= params.resolution {
-        return;
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    if gid.y < params.resolution && gid.x < params.resolution {
+        update_texel(gid.y, gid.x);
     }
+    if (update_flags() & LEDGER) != 0u {
+        ledger_flush(li, LEDGER_SNOWFALL, LEDGER_REFILL);
+    }
+}
+
+// One texel's frame: window-local row i, column j.
+fn update_texel(i: u32, j: u32) {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let word = snow[s];
@@ -248,6 +262,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let before = lying;
         lying = max(before, min(before + params.fall_m * visible, params.max_fallen_m));
         fallen[s] = lying;
+        if (update_flags() & LEDGER) != 0u {
+            ledger_add(0u, ledger_fine(lying - before));
+        }
     }
     let rest = ground + params.depth_m + lying;
     var deficit = word & 0xffffu;
@@ -255,6 +272,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         deficit -= min(deficit, params.snow_refill_quanta);
     }
     let refilled = deficit;
+    if (update_flags() & LEDGER) != 0u {
+        ledger_add(1u, (word & 0xffffu) - refilled);
+    }
     // Whether the captured actors reach down to the snow here (what displaces).
     var pressed = false;
     if (update_flags() & USE_CAPTURE) != 0u {

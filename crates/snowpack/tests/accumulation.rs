@@ -417,7 +417,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
         snow_refill_quanta: rng.range(0.0, 500.0) as u32,
         low_m: -2.0,
         high_m: 4.0,
-        flags: UpdateParams::USE_FALLEN | UpdateParams::USE_SKY,
+        flags: UpdateParams::USE_FALLEN | UpdateParams::USE_SKY | UpdateParams::LEDGER,
         fall_m: rng.range(0.0, 0.05),
         max_fallen_m: rng.range(0.1, 0.3),
         texel_m: params.texel_m(),
@@ -455,14 +455,28 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let capture = vec![1.0f32; texels];
     let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
     let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::low_level::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
+    let before_fallen = fallen.clone();
     let mut packed = vec![0u32; texels.div_ceil(2)];
-    cpu::update::update(
+    let cpu_ledger = cpu::update::update(
         &up,
         &input,
         &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut fallen, packed: &mut packed, flags: &mut [] },
     );
     assert_eq!(read::<u32>(ctx, &res.snow), snow, "snow words; seed {seed}");
     close(&read::<f32>(ctx, &res.fallen), &fallen, 1e-5, "fallen", seed);
+    // The mass ledger: the refill exactly (the deficits agree), the snowfall
+    // to a 0.1 µm step a texel (a fused multiply-add may tip its last bit).
+    let gpu_ledger = snowpack::low_level::deform::packed_snow::ledger(&read::<u32>(ctx, &res.packed));
+    assert_eq!(gpu_ledger.refill_q, cpu_ledger.refill_q, "refill counted; seed {seed}");
+    assert!(cpu_ledger.refill_q > 0 || up.snow_refill_quanta == 0, "no refill counted; seed {seed}");
+    assert!(
+        gpu_ledger.snowfall_fine.abs_diff(cpu_ledger.snowfall_fine) <= texels as u64 / 8,
+        "snowfall counted: GPU {gpu_ledger:?}, CPU {cpu_ledger:?}; seed {seed}"
+    );
+    // What the counts say fell is what the texels gained.
+    let gained: f64 = fallen.iter().zip(&before_fallen).map(|(&a, &b)| f64::from(a - b)).sum();
+    let counted = cpu_ledger.snowfall_fine as f64 / f64::from(snowpack::low_level::deform::packed_snow::LEDGER_FINE_PER_M);
+    assert!((counted - gained).abs() <= 1e-7 * texels as f64, "snowfall counted {counted} m, gained {gained} m; seed {seed}");
     let hidden = (0..r)
         .flat_map(|i| (0..r).map(move |j| (i, j)))
         .filter(|&(i, j)| {

@@ -2,10 +2,10 @@
 //! `SnowDeformation::memory_bytes` reports it (and the runner's `meta.json`
 //! `gpu_memory_bytes` sums). Prints the table; asserts what each technique
 //! allocates per texel. The resident tiles of the default trail keeper are
-//! printed and counted apart: their slot pool (225 slots of 32² texels, one
-//! to three 4-byte planes: only the tiles the window partly covers, and a
-//! few near it) is sized by the tile grid, a plane more for the footprints
-//! of points and combined and one for snowfall.
+//! printed and counted apart: their slot pool (225 slots of 32² texels, two
+//! to four 4-byte planes: only the tiles the window partly covers, and a
+//! few near it) is sized by the tile grid: snow and packed snow, a plane
+//! more for the footprints of points and combined and one for snowfall.
 
 use glam::DVec2;
 use snowpack::low_level::SnowInspect;
@@ -50,16 +50,16 @@ fn default_window_memory_per_technique() {
     assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
-    assert_eq!(bytes_of(&depth, "packed snow"), 2 * texels + 8, "two texels a word and the displaced count");
+    assert_eq!(bytes_of(&depth, "packed snow"), 2 * texels + 40, "two texels a word and the mass ledger's five counts");
     let per_texel = 4 + 2 + 2;
     assert!(depth_total >= per_texel * texels && depth_total <= per_texel * texels + 64 * 1024, "depth window {depth_total}");
     // The default keeps trails: a pool of 225 slots of 32² texels (128 edge
-    // tiles, 65 for a diagonal step, 32 spare), one 4-byte plane for depth
-    // without snowfall (snow), and the small key table and bookkeeping
-    // buffers: under 1 MiB.
-    let ring = 225 * 32 * 32 * 4;
+    // tiles, 65 for a diagonal step, 32 spare), two 4-byte planes for depth
+    // without snowfall (snow, packed snow), and the small key table and
+    // bookkeeping buffers: under 2 MiB.
+    let ring = 225 * 32 * 32 * 4 * 2;
     let tiles = bytes_of(&depth, "resident tiles");
-    assert!(tiles >= ring && tiles < ring + 64 * 1024 && tiles <= 1 << 20, "resident tiles {tiles}");
+    assert!(tiles >= ring && tiles < ring + 64 * 1024 && tiles <= 2 << 20, "resident tiles {tiles}");
 
     let combined =
         SnowDeformation::new(ctx, SnowParams { technique: Technique::Combined, ..params.clone() }, terrain.clone(), DVec2::ZERO).expect("combined window");
@@ -68,14 +68,17 @@ fn default_window_memory_per_technique() {
     assert_eq!(combined_total - depth_total, 4 * texels - 4, "combined adds only the footprint buffer");
     // ... and the slots' footprint plane.
     assert_eq!(bytes_of(&combined, "resident tiles") - bytes_of(&depth, "resident tiles"), 225 * 32 * 32 * 4);
-    assert!(bytes_of(&combined, "resident tiles") <= 2 << 20);
+    assert!(bytes_of(&combined, "resident tiles") <= 3 << 20);
     // The budget, everything `gpu_memory_bytes` sums, trails kept: the
     // adoption issue's 8 MiB for depth and 12 for combined, each with the
-    // 2 MiB of packed snow that snow with mass adds (its issue's budget:
-    // the depth window within 10 MiB).
+    // 2 MiB of packed snow that snow with mass adds and the 0.88 MiB of the
+    // slots' packed-snow plane that keeps a trail's mass when the window
+    // moves on (its issue's budget: the depth window within 10 MiB; a slot
+    // holding the snow as the window's word, deficit and packed snow in one
+    // u32, would win the plane back: docs/PERFORMANCE.md).
     let all = |snow: &SnowDeformation| snow.memory_bytes().iter().map(|(_, b)| b).sum::<u64>();
     assert!(all(&depth) <= 10 << 20, "depth: {} bytes", all(&depth));
-    assert!(all(&combined) <= 14 << 20, "combined: {} bytes", all(&combined));
+    assert!(all(&combined) <= 15 << 20, "combined: {} bytes", all(&combined));
 
     // Switching allocates what the new technique needs at the next frame, and keeps it.
     depth.set_technique(Technique::Points);

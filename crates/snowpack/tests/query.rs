@@ -444,6 +444,79 @@ fn the_mass_stays_over_random_presses_blades_and_snowfall() {
     }
 }
 
+/// The mass ledger (`docs/mechanics.md`, "The ledger"): over random
+/// presses and a blade, with snowfall or not, refill or not, displacement
+/// or not, while the window walks, jumps 40 m away (a long move, in
+/// batches) and comes back, with tiles kept in memory or not, the window's
+/// snow is what the ledger counted: what entered (the first fill
+/// included), less what left, plus snowfall and refill, less what was
+/// displaced beyond the final density. Within 0.05 %.
+#[test]
+fn the_mass_ledger_balances_over_window_moves_snowfall_and_refill() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("mass ledger");
+    let mut rng = Rng::new(seed);
+    for case in 0..4 {
+        let snowfall = (case % 2 == 0).then(|| Snowfall { rate_m_per_s: rng.range(0.001, 0.005), max_m: 2.0, ..Snowfall::default() });
+        let params = SnowParams {
+            extent_m: 8.0,
+            resolution: 96,
+            depth_m: rng.range(0.2, 0.6),
+            refill_m_per_s: if case == 3 { 0.0 } else { rng.range(0.002, 0.02) },
+            density_kg_m3: rng.range(60.0, 200.0),
+            max_density_kg_m3: rng.range(250.0, 600.0),
+            displace: case != 1,
+            repose_deg: (case == 2).then(|| rng.range(25.0, 50.0)),
+            tile_memory_bytes: if case == 1 { None } else { SnowParams::default().tile_memory_bytes },
+            snowfall,
+            ..SnowParams::default()
+        };
+        let terrain = TerrainSource::Noise(NoiseTerrain {
+            seed: rng.next_u64() as u32,
+            base_m: 0.0,
+            amplitude_m: rng.range(0.0, 0.3),
+            wavelength_m: rng.range(2.0, 8.0),
+        });
+        let mut snow = SnowDeformation::new(ctx, params.clone(), terrain, DVec2::ZERO).expect("window");
+        // The centre walks 6 m along x, jumps 40 m to z and comes back.
+        let centre = |f: usize| match f {
+            0..60 => DVec2::new(0.1 * f as f64, 0.0),
+            60..80 => DVec2::new(6.0, 40.0),
+            _ => DVec2::new(6.0 - 0.1 * (f - 80) as f64, 0.0),
+        };
+        let mut edge = Vec3::new(-1.0, -1.0, 1.0);
+        for f in 0..140 {
+            let c = centre(f);
+            snow.set_center(c);
+            let here = Vec3::new(c.x as f32, 0.0, c.y as f32);
+            edge = Vec3::new(here.x - 1.5 + 0.02 * (f % 100) as f32, -1.0, here.z + 1.0);
+            let frame = [
+                Deformer::Sphere { center: here + Vec3::new(rng.range(-2.0, 2.0), rng.range(0.0, 0.5), rng.range(-2.0, 2.0)), radius: rng.range(0.2, 0.5) },
+                Deformer::blade(edge, Vec3::X, 30.0, (1.0, 2.0)),
+            ];
+            snow.step_frame(ctx, &SnowFrame::new(1.0 / 30.0, &frame).with_ids(&[0, 1])).expect("frame");
+        }
+        snow.finish(ctx).expect("finish");
+        let m = snow.read_mass(ctx).expect("mass");
+        let off = m.total_kg / m.ledger_kg() - 1.0;
+        eprintln!(
+            "case {case}: window {:.2} kg; ledger {:.2} kg = entered {:.2} - left {:.2} + snowfall {:.2} + refill {:.2} - displaced {:.2} ({:+.4} %); edge at {edge}",
+            m.total_kg,
+            m.ledger_kg(),
+            m.entered_kg,
+            m.left_kg,
+            m.snowfall_kg,
+            m.refill_kg,
+            m.displaced_kg,
+            100.0 * off
+        );
+        assert!(m.left_kg > 0.5 * m.total_kg && m.entered_kg > m.left_kg, "the moves were not counted: {m:?}; seed {seed}");
+        assert!(params.snowfall.is_none() || m.snowfall_kg > 0.0, "no snowfall counted: {m:?}; seed {seed}");
+        assert!(params.refill_m_per_s == 0.0 || m.refill_kg > 0.0, "no refill counted: {m:?}; seed {seed}");
+        assert!(off.abs() < 5e-4, "case {case}: the window holds {:.3} kg, the ledger says {:.3} kg; seed {seed}", m.total_kg, m.ledger_kg());
+    }
+}
+
 /// Erosion (`docs/mechanics.md`): a box presses a trench with vertical
 /// walls 0.3 m deep; with an angle of repose of 40° the walls slide into it
 /// until no step between neighbours is steeper, the snow that slid is

@@ -134,6 +134,7 @@ fn exchange_matches_cpu() {
         let pass = ExchangePass::new(&ctx.device, &res, &tiles_gpu, &table_gpu);
         let mut e = encoder(ctx);
         let mut timer = GpuTimer::disabled();
+        let base = ExchangeParams { flags: base.flags | ExchangeParams::COUNT, ..base };
         let stash = ExchangeParams { flags: base.flags | ExchangeParams::STASH, ..base };
         pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &res, stash, &rects);
         pass.record(&mut FrameContext::new(ctx, &mut e, &mut timer), &res, base, &rects);
@@ -141,8 +142,8 @@ fn exchange_matches_cpu() {
         let mut snow_w = snow.clone();
         let mut fallen_f: Vec<f32> = bytemuck::cast_slice(&fallen).to_vec();
         let mut w = cpu::exchange::WindowBuffers { terrain: &terrain_src, snow: &mut snow_w, stamps: &mut stamps, fallen: &mut fallen_f, packed: &mut packed };
-        cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
-        cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w);
+        let mut ledger = cpu::exchange::exchange(&stash, &rects, &table, &mut tiles, &mut w);
+        ledger.add(cpu::exchange::exchange(&base, &rects, &table, &mut tiles, &mut w));
         // Stashed heights are rest - deficit * quantum: a fused multiply-add on
         // the GPU may change the last bit; loads round to the quantum, and may
         // tip by one.
@@ -173,6 +174,13 @@ fn exchange_matches_cpu() {
         assert_eq!(stashed, 0, "stashed packed snow differs (jump {jump}); seed {seed}");
         let packed_back = read_u32(ctx, &res.packed);
         assert_eq!(packed_back[..packed.len()], packed[..], "loaded packed snow differs (jump {jump}); seed {seed}");
+        // The mass ledger: what the stash moved out left, what the load moved in entered.
+        let counted = snowpack::low_level::deform::packed_snow::ledger(&packed_back);
+        assert!(counted.left_q > 0 && counted.entered_q > 0, "nothing counted: {counted:?}; seed {seed}");
+        // A load's deficit may tip by a quantum (above): a quantum a texel at most.
+        let moved = rects.iter().map(|r| u64::from(r[2] * r[3])).sum::<u64>();
+        assert_eq!(counted.left_q, ledger.left_q, "left counted (jump {jump}); seed {seed}");
+        assert!(counted.entered_q.abs_diff(ledger.entered_q) <= moved, "entered counted {counted:?}, CPU {ledger:?} (jump {jump}); seed {seed}");
     }
 }
 

@@ -302,16 +302,26 @@ mod tests {
     }
 
     /// Bit patterns of every plane and clock field, so NaNs compare equal.
-    fn bits(t: &TileData) -> (TileKey, u32, [u64; 4], Vec<u32>, Vec<u32>, Vec<u32>, Vec<u16>) {
-        (
-            t.key,
-            t.side,
-            [t.clock.time_s.to_bits(), t.clock.refill_m.to_bits(), t.clock.fallen_m.to_bits(), t.clock.stamp_quanta],
-            t.snow_xor_rest.clone(),
-            t.stamps.clone(),
-            t.fallen.iter().map(|v| v.to_bits()).collect(),
-            t.packed.clone(),
-        )
+    #[derive(Debug, PartialEq)]
+    struct Bits {
+        key: TileKey,
+        side: u32,
+        clock: [u64; 4],
+        planes: [Vec<u32>; 4],
+    }
+
+    fn bits(t: &TileData) -> Bits {
+        Bits {
+            key: t.key,
+            side: t.side,
+            clock: [t.clock.time_s.to_bits(), t.clock.refill_m.to_bits(), t.clock.fallen_m.to_bits(), t.clock.stamp_quanta],
+            planes: [
+                t.snow_xor_rest.clone(),
+                t.stamps.clone(),
+                t.fallen.iter().map(|v| v.to_bits()).collect(),
+                t.packed.iter().map(|&q| u32::from(q)).collect(),
+            ],
+        }
     }
 
     /// Rewrites the CRC after a test edits the header, so a later check is reached.

@@ -1,6 +1,6 @@
 //! CPU twin of `exchange.wgsl` and `tile_index` in `shared/tiles.wgsl`.
 
-use crate::deform::packed_snow;
+use crate::deform::packed_snow::{self, LedgerCounts};
 use crate::deform::snow_word;
 use crate::deform::window::TexelRect;
 use crate::tiles::exchange::ExchangeParams;
@@ -39,51 +39,80 @@ pub struct WindowBuffers<'a> {
 }
 
 /// Stashes (with [`ExchangeParams::STASH`]) or loads the texels of `rects`
-/// whose tiles have a slot in the key `table`.
-pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &mut [u32], w: &mut WindowBuffers<'_>) {
-    let res = p.resolution as i32;
+/// whose tiles have a slot in the key `table`, or with
+/// [`ExchangeParams::SWEEP`] moves nothing; returns the ledger's counts
+/// (with [`ExchangeParams::COUNT`]: what a stash or a sweep with `STASH`
+/// moved out as left, what a load or a sweep without it moved in as entered).
+pub fn exchange(p: &ExchangeParams, rects: &[TexelRect], table: &[u32], tiles: &mut [u32], w: &mut WindowBuffers<'_>) -> LedgerCounts {
     let use_fallen = p.flags & ExchangeParams::USE_FALLEN != 0;
-    let has_stamps = p.flags & ExchangeParams::HAS_STAMPS != 0;
-    let (side, n, planes) = (p.side, p.keys_per_side, p.planes as usize);
+    let stashing = p.flags & ExchangeParams::STASH != 0;
+    let mut moved = 0u64;
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
                 let s = storage_index(p.origin, p.resolution, i, j);
-                if p.flags & ExchangeParams::STASH != 0 {
-                    let (sj, si) = ((s % p.resolution as usize) as i32, (s / p.resolution as usize) as i32);
-                    let o = p.old_origin;
-                    let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
-                    let Some(at) = tile_index(g, side, n, table, planes, 0) else { continue };
-                    let idx = |plane: usize| at + plane * (side * side) as usize;
-                    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
-                    let rest = ground + p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
-                    tiles[idx(PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
-                    if has_stamps {
-                        tiles[idx(plane_stamps(planes))] = w.stamps[s];
-                    }
-                    if use_fallen {
-                        tiles[idx(PLANE_FALLEN)] = w.fallen[s].to_bits();
-                    }
-                    tiles[idx(plane_packed(use_fallen))] = packed_snow::get(w.packed, s);
+                let done = if p.flags & ExchangeParams::SWEEP != 0 {
+                    true
+                } else if stashing {
+                    stash(p, s, (table, &mut *tiles), w)
                 } else {
-                    let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
-                    let Some(at) = tile_index(g, side, n, table, planes, 0) else { continue };
-                    let idx = |plane: usize| at + plane * (side * side) as usize;
-                    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
-                    let mut rest = ground + p.depth_m;
-                    if has_stamps {
-                        w.stamps[s] = tiles[idx(plane_stamps(planes))];
-                    }
-                    if use_fallen {
-                        let lying = f32::from_bits(tiles[idx(PLANE_FALLEN)]);
-                        w.fallen[s] = lying;
-                        rest += lying;
-                    }
-                    let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
-                    w.snow[s] = snow_word::press_quanta(rest, ground, h);
-                    packed_snow::set(w.packed, s, tiles[idx(plane_packed(use_fallen))].min(0xffff));
+                    load(p, [i, j], s, (table, &*tiles), w)
+                };
+                if done {
+                    let lying = if use_fallen { w.fallen[s] } else { 0.0 };
+                    moved += u64::from(packed_snow::ledger_column(w.snow[s], p.depth_m, lying, packed_snow::get(w.packed, s)));
                 }
             }
         }
     }
+    let counted = if p.flags & ExchangeParams::COUNT != 0 { moved } else { 0 };
+    if stashing { LedgerCounts { left_q: counted, ..LedgerCounts::default() } } else { LedgerCounts { entered_q: counted, ..LedgerCounts::default() } }
+}
+
+/// The old window's texel at storage `s` into its tile; `false` where its
+/// tile has no slot.
+fn stash(p: &ExchangeParams, s: usize, (table, tiles): (&[u32], &mut [u32]), w: &WindowBuffers<'_>) -> bool {
+    let res = p.resolution as i32;
+    let use_fallen = p.flags & ExchangeParams::USE_FALLEN != 0;
+    let (side, planes) = (p.side, p.planes as usize);
+    let (sj, si) = ((s % p.resolution as usize) as i32, (s / p.resolution as usize) as i32);
+    let o = p.old_origin;
+    let g = [o[0] + (sj - o[0]).rem_euclid(res), o[1] + (si - o[1]).rem_euclid(res)];
+    let Some(at) = tile_index(g, side, p.keys_per_side, table, planes, 0) else { return false };
+    let idx = |plane: usize| at + plane * (side * side) as usize;
+    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
+    let rest = ground + p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
+    tiles[idx(PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
+    if p.flags & ExchangeParams::HAS_STAMPS != 0 {
+        tiles[idx(plane_stamps(planes))] = w.stamps[s];
+    }
+    if use_fallen {
+        tiles[idx(PLANE_FALLEN)] = w.fallen[s].to_bits();
+    }
+    tiles[idx(plane_packed(use_fallen))] = packed_snow::get(w.packed, s);
+    true
+}
+
+/// Window-local texel `[i, j]` (at storage `s`) from its tile; `false`
+/// where its tile has no slot.
+fn load(p: &ExchangeParams, [i, j]: [u32; 2], s: usize, (table, tiles): (&[u32], &[u32]), w: &mut WindowBuffers<'_>) -> bool {
+    let use_fallen = p.flags & ExchangeParams::USE_FALLEN != 0;
+    let (side, planes) = (p.side, p.planes as usize);
+    let g = [p.origin[0] + j as i32, p.origin[1] + i as i32];
+    let Some(at) = tile_index(g, side, p.keys_per_side, table, planes, 0) else { return false };
+    let idx = |plane: usize| at + plane * (side * side) as usize;
+    let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
+    let mut rest = ground + p.depth_m;
+    if p.flags & ExchangeParams::HAS_STAMPS != 0 {
+        w.stamps[s] = tiles[idx(plane_stamps(planes))];
+    }
+    if use_fallen {
+        let lying = f32::from_bits(tiles[idx(PLANE_FALLEN)]);
+        w.fallen[s] = lying;
+        rest += lying;
+    }
+    let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
+    w.snow[s] = snow_word::press_quanta(rest, ground, h);
+    packed_snow::set(w.packed, s, tiles[idx(plane_packed(use_fallen))].min(0xffff));
+    true
 }

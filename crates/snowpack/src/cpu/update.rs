@@ -1,6 +1,6 @@
 //! CPU twin of `update.wgsl`.
 
-use crate::deform::packed_snow;
+use crate::deform::packed_snow::{self, LedgerCounts};
 use crate::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, height as word_height, press_quanta};
 use crate::deform::update::UpdateParams;
 
@@ -47,12 +47,13 @@ pub struct UpdateState<'a> {
     pub flags: &'a mut [u32],
 }
 
-/// Runs the update over every texel of `state`; returns the snow quanta
-/// displaced beyond the final density (what `update.wgsl` adds to its
-/// `displaced` count).
-pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateState<'_>) -> u64 {
+/// Runs the update over every texel of `state`; returns what `update.wgsl`
+/// adds to the mass ledger: the snow quanta displaced beyond the final
+/// density and, with [`UpdateParams::LEDGER`], the snowfall and refill added.
+pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateState<'_>) -> LedgerCounts {
     let UpdateState { snow, stamps, fallen, packed, flags } = state;
-    let mut displaced = 0u64;
+    let mut ledger = LedgerCounts::default();
+    let counts = p.flags & UpdateParams::LEDGER != 0;
     let grid = crate::replicate::flags::ShareGrid { side: p.share_side.max(1), keys: p.share_keys };
     let share = p.flags & UpdateParams::SHARE != 0 && !flags.is_empty();
     let r = p.resolution;
@@ -71,6 +72,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                 let before = lying;
                 lying = before.max((before + p.fall_m * visible).min(p.max_fallen_m));
                 fallen[s] = lying;
+                ledger.snowfall_fine += if counts { u64::from(packed_snow::ledger_fine(lying - before)) } else { 0 };
             }
             let rest = ground + p.depth_m + lying;
             let mut deficit = word & 0xffff;
@@ -78,6 +80,7 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                 deficit -= deficit.min(p.snow_refill_quanta);
             }
             let refilled = deficit;
+            ledger.refill_q += if counts { u64::from((word & 0xffff) - refilled) } else { 0 };
             let mut pressed = false;
             if p.flags & UpdateParams::USE_CAPTURE != 0 {
                 let d = input.capture_depth[(i * r + j) as usize];
@@ -89,17 +92,8 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                 }
             }
             let captured = deficit;
-            let st = if p.flags & UpdateParams::HAS_STAMPS != 0 { stamps[s] } else { STAMP_EMPTY };
-            if st != STAMP_EMPTY {
-                let (hq, fq) = (st >> 16, st & 0xffff);
-                if p.flags & UpdateParams::USE_STAMPS != 0 {
-                    deficit = deficit.max(press_quanta(rest, ground, height(hq, p.low_m, p.high_m)));
-                }
-                if p.refill_quanta > 0 {
-                    let foot = fq + p.refill_quanta;
-                    stamps[s] =
-                        if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest { STAMP_EMPTY } else { ((hq + p.refill_quanta).min(65535) << 16) | foot };
-                }
+            if p.flags & UpdateParams::HAS_STAMPS != 0 {
+                deficit = footprint(p, &mut stamps[s], (rest, ground), deficit);
             }
             // Never below the terrain.
             let at_ground = press_quanta(rest, ground, ground);
@@ -114,17 +108,33 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                     fallen[s] = lying - consumed as f32 * SNOW_QUANTUM_M;
                 }
                 snow[s] = (code << 16) | stored;
-                displaced += lost;
+                ledger.displaced_q += lost;
             } else {
                 snow[s] = (word & 0xffff_0000) | deficit;
-                displaced += pack_press(packed, s, (refilled, deficit), at_ground, p.pack_ratio);
+                ledger.displaced_q += pack_press(packed, s, (refilled, deficit), at_ground, p.pack_ratio);
             }
             if share && captured.min(at_ground) > refilled {
                 flags[grid.slot([i64::from(p.origin[0]) + i64::from(j), i64::from(p.origin[1]) + i64::from(i)])] = 1;
             }
         }
     }
-    displaced
+    ledger
+}
+
+/// The stored footprint `st` at a texel with rest height and terrain
+/// `(rest, ground)`: it presses the snow to its height (with
+/// [`UpdateParams::USE_STAMPS`]; returns the deficit) and refills.
+fn footprint(p: &UpdateParams, st: &mut u32, (rest, ground): (f32, f32), deficit: u32) -> u32 {
+    if *st == STAMP_EMPTY {
+        return deficit;
+    }
+    let (hq, fq) = (*st >> 16, *st & 0xffff);
+    let pressed = if p.flags & UpdateParams::USE_STAMPS != 0 { deficit.max(press_quanta(rest, ground, height(hq, p.low_m, p.high_m))) } else { deficit };
+    if p.refill_quanta > 0 {
+        let foot = fq + p.refill_quanta;
+        *st = if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest { STAMP_EMPTY } else { ((hq + p.refill_quanta).min(65535) << 16) | foot };
+    }
+    pressed
 }
 
 /// Texel `s`'s deficit rose `from` → `to` quanta (`at_ground` up to the

@@ -1,6 +1,7 @@
 //! CPU twin of `window.wgsl`.
 
 use crate::TerrainSource;
+use crate::deform::packed_snow::{self, LedgerCounts};
 use crate::deform::window::{TexelRect, WindowParams};
 pub use crate::terrain::texel_ground;
 
@@ -28,21 +29,30 @@ pub fn ground_plane(terrain: &TerrainSource, origin: [i32; 2], res: u32, texel_m
 
 /// Writes fresh snow (snow words with no deficit: at rest, the snowfall so
 /// far included, no packed snow) into the texels of `rects` and clears
-/// their footprints.
-pub fn expose(p: &WindowParams, rects: &[TexelRect], snow: &mut [u32], stamps: &mut [u32], (fallen, packed): (&mut [f32], &mut [u32])) {
+/// their footprints; returns the ledger's counts of what left (with
+/// [`WindowParams::COUNT_LEFT`]) and entered.
+pub fn expose(p: &WindowParams, rects: &[TexelRect], snow: &mut [u32], stamps: &mut [u32], (fallen, packed): (&mut [f32], &mut [u32])) -> LedgerCounts {
+    let mut ledger = LedgerCounts::default();
+    let write_fallen = p.flags & WindowParams::WRITE_FALLEN != 0;
     for rect in rects.iter().take(2) {
         for i in rect[0]..rect[0] + rect[2] {
             for j in rect[1]..rect[1] + rect[3] {
                 let s = storage_index(p.origin, p.resolution, i, j);
+                if p.flags & WindowParams::COUNT_LEFT != 0 {
+                    let lying = if write_fallen { fallen[s] } else { 0.0 };
+                    ledger.left_q += u64::from(packed_snow::ledger_column(snow[s], p.depth_m, lying, packed_snow::get(packed, s)));
+                }
+                ledger.entered_q += u64::from(packed_snow::ledger_column(0, p.depth_m, if write_fallen { p.fallen_m } else { 0.0 }, 0));
                 snow[s] = 0;
-                crate::deform::packed_snow::set(packed, s, 0);
+                packed_snow::set(packed, s, 0);
                 if p.flags & WindowParams::WRITE_STAMPS != 0 {
                     stamps[s] = super::stamp::STAMP_EMPTY;
                 }
-                if p.flags & WindowParams::WRITE_FALLEN != 0 {
+                if write_fallen {
                     fallen[s] = p.fallen_m;
                 }
             }
         }
     }
+    ledger
 }

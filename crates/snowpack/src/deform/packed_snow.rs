@@ -15,9 +15,50 @@
     allow(dead_code, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-/// Words after the texels' that count the displaced snow quanta (a u64,
-/// low word first; `shared/pack_press.wgsl`).
-pub const COUNT_WORDS: u64 = 2;
+/// Words after the texels': the mass ledger's counts, each a u64 (low
+/// word first; `shared/mass_ledger.wgsl`), from the end: displaced (the
+/// last two, `shared/pack_press.wgsl`), refill, snowfall, entered, left.
+pub const COUNT_WORDS: u64 = 10;
+
+/// Steps per metre of fresh snow of the ledger's snowfall count
+/// (`LEDGER_FINE_PER_M`: a frame's snowfall is a small part of a quantum).
+pub const LEDGER_FINE_PER_M: f32 = 1.0e7;
+
+/// The mass ledger's counts (`shared/mass_ledger.wgsl`), since the window
+/// was created.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LedgerCounts {
+    /// Snow that left with the window's moves (quanta of fresh snow).
+    pub left_q: u64,
+    /// Snow that entered with them, the first fill included (quanta).
+    pub entered_q: u64,
+    /// Snowfall added ([`LEDGER_FINE_PER_M`] steps).
+    pub snowfall_fine: u64,
+    /// Refill added (quanta).
+    pub refill_q: u64,
+    /// Displaced beyond the final density (quanta).
+    pub displaced_q: u64,
+}
+
+impl LedgerCounts {
+    /// Adds `other`'s counts (a CPU twin's frame) to these.
+    pub fn add(&mut self, other: Self) {
+        self.left_q += other.left_q;
+        self.entered_q += other.entered_q;
+        self.snowfall_fine += other.snowfall_fine;
+        self.refill_q += other.refill_q;
+        self.displaced_q += other.displaced_q;
+    }
+}
+
+/// The ledger's counts in the packed buffer's last [`COUNT_WORDS`] words
+/// (zeros for a buffer too short to hold them).
+#[must_use]
+pub fn ledger(buffer: &[u32]) -> LedgerCounts {
+    let Some(at) = buffer.len().checked_sub(COUNT_WORDS as usize) else { return LedgerCounts::default() };
+    let wide = |k: usize| u64::from(buffer[at + k]) | (u64::from(buffer[at + k + 1]) << 32);
+    LedgerCounts { left_q: wide(0), entered_q: wide(2), snowfall_fine: wide(4), refill_q: wide(6), displaced_q: wide(8) }
+}
 
 /// The displaced snow quanta counted in the packed buffer's last words.
 #[must_use]
@@ -26,6 +67,22 @@ pub fn displaced_count(buffer: &[u32]) -> u64 {
         [.., low, high] => u64::from(*low) | (u64::from(*high) << 32),
         _ => 0,
     }
+}
+
+/// A window texel's snow in quanta of fresh snow, as the ledger counts it
+/// (`ledger_column`): its height above the terrain (rest depth and
+/// snowfall lying, rounded to quanta, less the deficit in `word`, never
+/// below 0) and its packed snow `q`.
+#[must_use]
+pub fn ledger_column(word: u32, depth_m: f32, lying: f32, q: u32) -> u32 {
+    let at_rest = ((depth_m + lying) * super::snow_word::SNOW_QUANTA_PER_M).round_ties_even().max(0.0) as u32;
+    at_rest - (word & 0xffff).min(at_rest) + q
+}
+
+/// `v` metres of fresh snow in the ledger's fine steps, rounded (`ledger_fine` in `update.wgsl`).
+#[must_use]
+pub fn ledger_fine(v: f32) -> u32 {
+    (v * LEDGER_FINE_PER_M).round_ties_even().max(0.0) as u32
 }
 
 /// Words of packed snow for a window of `resolution` texels a side (the

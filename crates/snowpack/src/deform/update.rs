@@ -103,6 +103,9 @@ impl UpdateParams {
     /// stay), so neither grows without bound while snow streams through a
     /// texel. Off while sharing: copies merge by the larger of each.
     pub const CONSUME: u32 = 256;
+    /// Count what snowfall and refill add in the mass ledger
+    /// (`shared/mass_ledger.wgsl`).
+    pub const LEDGER: u32 = 512;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.

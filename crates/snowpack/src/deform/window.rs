@@ -128,6 +128,9 @@ impl WindowParams {
     pub const WRITE_FALLEN: u32 = 1;
     /// `flags`: clear the footprints of new texels (the window has a footprint buffer).
     pub const WRITE_STAMPS: u32 = 2;
+    /// `flags`: count the snow the overwritten texels held as left the
+    /// window (every move but the first fill, `shared/mass_ledger.wgsl`).
+    pub const COUNT_LEFT: u32 = 4;
 }
 
 /// Writes fresh, untouched snow into newly exposed texels (`window.wgsl`).

@@ -65,6 +65,9 @@ pub(super) struct CoreWindow {
     pub(super) answers: Option<PointAnswers>,
     /// Texels rewritten by window moves so far.
     pub(super) exposed_texels: u64,
+    /// Whether the window's buffers hold snow (after the first move): what
+    /// a move overwrites then left the window (the mass ledger).
+    filled: bool,
     /// Contact points stamped in the last frame.
     pub(super) points_last_frame: usize,
     /// Contact points left out because a frame brought more than the stamp pass takes.
@@ -134,6 +137,7 @@ impl CoreWindow {
             terrain,
             res,
             exposed_texels: 0,
+            filled: false,
             points_last_frame: 0,
             points_dropped: 0,
             floating_origin: DVec2::ZERO,
@@ -167,6 +171,7 @@ impl CoreWindow {
     pub(super) fn move_to(&mut self, origin: [i64; 2], fallen_m: f32) -> (WindowFrame, Vec<TexelRect>) {
         let p = &self.params;
         let texel = f64::from(p.texel_m());
+        self.filled = self.window.origin().is_some();
         let rects = self.window.move_to(origin);
         self.exposed_texels += rects.iter().map(|r| u64::from(r[2]) * u64::from(r[3])).sum::<u64>();
         // Deformers and objects are relative to the floating origin; so is the corner they are placed against.
@@ -188,6 +193,12 @@ impl CoreWindow {
         (window, rects)
     }
 
+    /// Whether this frame's move overwrites snow the window held (every move
+    /// but the first fill): the ledger counts it as left.
+    pub(super) fn filled(&self) -> bool {
+        self.filled
+    }
+
     /// The window pass: fresh snow in the texels a move exposed (when no
     /// tiles are kept; otherwise the tiles' exchange does it).
     pub(super) fn record_window(&self, cx: &mut FrameContext<'_>, window: &WindowFrame, rects: &[TexelRect]) {
@@ -198,7 +209,9 @@ impl CoreWindow {
             texel_m: p.texel_m(),
             depth_m: p.depth_m,
             fallen_m: window.fallen_m,
-            flags: if p.keeps_lying_snow() { WindowParams::WRITE_FALLEN } else { 0 } | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 },
+            flags: if p.keeps_lying_snow() { WindowParams::WRITE_FALLEN } else { 0 }
+                | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 }
+                | if self.filled() { WindowParams::COUNT_LEFT } else { 0 },
             ..WindowParams::default()
         };
         self.window_pass.record(cx, &self.res, params, rects);
@@ -303,7 +316,9 @@ impl CoreWindow {
                 | if self.res.has_stamps() { UpdateParams::HAS_STAMPS } else { 0 }
                 | if share.is_some() { UpdateParams::SHARE } else { 0 }
                 | if self.displaces() { UpdateParams::DISPLACE } else { 0 }
-                | if self.displaces() && share.is_none() { UpdateParams::CONSUME } else { 0 },
+                | if self.displaces() && share.is_none() { UpdateParams::CONSUME } else { 0 }
+                // The mass ledger counts what this frame's snowfall and refill add (nothing to count without them).
+                | if refill.snow_refill_quanta > 0 || refill.fall_m > 0.0 { UpdateParams::LEDGER } else { 0 },
             refill_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),

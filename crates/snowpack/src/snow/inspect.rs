@@ -39,6 +39,30 @@ pub struct WindowMass {
     /// Snow that presses squeezed beyond the final density since the window
     /// was created (kg): displaced, and not yet put down elsewhere.
     pub displaced_kg: f64,
+    /// The mass ledger (`shared/mass_ledger.wgsl`, `docs/mechanics.md`):
+    /// snow that entered the window with its moves since it was created,
+    /// its first fill included (kg).
+    pub entered_kg: f64,
+    /// Snow that left the window with its moves (kg).
+    pub left_kg: f64,
+    /// Snow that snowfall added (kg).
+    pub snowfall_kg: f64,
+    /// Snow that the refill added to trails (kg).
+    pub refill_kg: f64,
+}
+
+impl WindowMass {
+    /// What the ledger says the window should hold: what entered, less
+    /// what left, plus snowfall and refill, less what was displaced beyond
+    /// the final density without [`crate::SnowParams::displace`] (with it,
+    /// displaced snow is moved, not lost, and this count only holds what
+    /// passed 16 bits of packed snow). Equal to [`WindowMass::total_kg`]
+    /// up to a quantum of rounding a texel moved or snowed on, and but for
+    /// merges (another machine's tiles, a stored tile merged under a stand-in).
+    #[must_use]
+    pub fn ledger_kg(&self) -> f64 {
+        self.entered_kg - self.left_kg + self.snowfall_kg + self.refill_kg - self.displaced_kg
+    }
 }
 
 /// What the app, the tools and the tests read and drive of a
@@ -365,8 +389,18 @@ impl SnowInspect for SnowDeformation {
         let area = f64::from(self.core.params.texel_m()).powi(2);
         let total: f64 =
             height.iter().zip(&terrain).zip(&packed).map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q }))).sum();
-        let displaced_m = packed_snow::displaced_count(&counted) as f64 * f64::from(snow_word::SNOW_QUANTUM_M);
-        Ok(WindowMass { total_kg: total * area, displaced_kg: displaced_m * f64::from(mechanics.fresh_density_kg_m3) * area })
+        let ledger = packed_snow::ledger(&counted);
+        // Quanta (and the snowfall's fine steps) of fresh snow to kilograms.
+        let kg = |count: u64, per_m: f64| count as f64 / per_m * f64::from(mechanics.fresh_density_kg_m3) * area;
+        let quanta = f64::from(snow_word::SNOW_QUANTA_PER_M);
+        Ok(WindowMass {
+            total_kg: total * area,
+            displaced_kg: kg(ledger.displaced_q, quanta),
+            entered_kg: kg(ledger.entered_q, quanta),
+            left_kg: kg(ledger.left_q, quanta),
+            snowfall_kg: kg(ledger.snowfall_fine, f64::from(packed_snow::LEDGER_FINE_PER_M)),
+            refill_kg: kg(ledger.refill_q, quanta),
+        })
     }
 
     fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {

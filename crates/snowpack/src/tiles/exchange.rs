@@ -48,6 +48,13 @@ impl ExchangeParams {
     /// `flags`: the window has a footprint buffer; without it, stashed
     /// tiles get no footprints and loaded tiles' footprints are not copied.
     pub const HAS_STAMPS: u32 = 4;
+    /// `flags`: count what moves in the mass ledger (a stash's texels as
+    /// left, a load's as entered; `shared/mass_ledger.wgsl`).
+    pub const COUNT: u32 = 8;
+    /// `flags`: move nothing, only count the window's texels in `rects`
+    /// (with [`Self::COUNT`]: as left with [`Self::STASH`], else as
+    /// entered); a long move's batches sweep the window before and after.
+    pub const SWEEP: u32 = 16;
 }
 
 /// Stashes leaving texels into their tiles and loads entering ones from theirs.
@@ -56,6 +63,8 @@ pub struct ExchangePass {
     stash: ComputePass<ExchangeParams>,
     /// The same pipelines and the load's uniform (both may be recorded in one submission).
     load: ComputePass<ExchangeParams>,
+    /// The same pipelines and a sweep's uniform (a submission of its own).
+    sweep: ComputePass<ExchangeParams>,
 }
 
 impl ExchangePass {
@@ -74,20 +83,27 @@ impl ExchangePass {
         };
         let mut stash = ComputePass::new(device, &shape, Some(&res.bindings));
         let mut load = stash.sibling(device);
-        for pass in [&mut stash, &mut load] {
+        let mut sweep = stash.sibling(device);
+        for pass in [&mut stash, &mut load, &mut sweep] {
             pass.bind(device, &[tiles.as_entire_binding(), table.as_entire_binding(), res.packed.as_entire_binding()]);
         }
-        Self { stash, load }
+        Self { stash, load, sweep }
     }
 
-    /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`)
-    /// or the load of `rects`; nothing when empty.
+    /// Records the stash (with [`ExchangeParams::STASH`] in `params.flags`),
+    /// the load or the sweep ([`ExchangeParams::SWEEP`]) of `rects`;
+    /// nothing when empty.
     pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, mut params: ExchangeParams, rects: &[TexelRect]) {
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;
         params.rects = fixed;
-        let stash = params.flags & ExchangeParams::STASH != 0;
-        let (pass, label) = if stash { (&self.stash, "tile stash") } else { (&self.load, "tile load") };
+        let (pass, label) = if params.flags & ExchangeParams::SWEEP != 0 {
+            (&self.sweep, "ledger sweep")
+        } else if params.flags & ExchangeParams::STASH != 0 {
+            (&self.stash, "tile stash")
+        } else {
+            (&self.load, "tile load")
+        };
         pass.record_labelled(cx, label, Some(&res.bindings), &params, params.flags, grid);
     }
 }

@@ -366,10 +366,10 @@ impl TileStreaming {
         self.record_batched(cx.gpu, res, (old, origin), frame, clock);
     }
 
-    fn exchange_params(&self, res: &DeformResources, old: [i64; 2], origin: [i64; 2], stash: bool) -> ExchangeParams {
-        let flags = if self.use_fallen { ExchangeParams::USE_FALLEN } else { 0 }
-            | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 }
-            | if stash { ExchangeParams::STASH } else { 0 };
+    /// The exchange's uniforms; `kind` is [`ExchangeParams::STASH`],
+    /// [`ExchangeParams::COUNT`] and [`ExchangeParams::SWEEP`] as the step needs.
+    fn exchange_params(&self, res: &DeformResources, old: [i64; 2], origin: [i64; 2], kind: u32) -> ExchangeParams {
+        let flags = if self.use_fallen { ExchangeParams::USE_FALLEN } else { 0 } | if res.has_stamps() { ExchangeParams::HAS_STAMPS } else { 0 } | kind;
         ExchangeParams {
             origin: [origin[0] as i32, origin[1] as i32],
             old_origin: [old[0] as i32, old[1] as i32],
@@ -522,7 +522,8 @@ impl TileStreaming {
             return false;
         }
         let evicting = self.evict_for(&required, origin);
-        let stash = self.exchange_params(res, old, origin, true);
+        // What leaves and enters is counted in the mass ledger.
+        let stash = self.exchange_params(res, old, origin, ExchangeParams::STASH | ExchangeParams::COUNT);
         let (mut entries, mut upload) = (Vec::new(), Vec::<u32>::new());
         let mut deferred = Vec::new();
         for &k in &required {
@@ -554,7 +555,7 @@ impl TileStreaming {
         }
         let params = self.restore_params(frame);
         self.restore.record(cx, (res, &self.tiles), params, &entries, &upload);
-        self.exchange.record(cx, res, self.exchange_params(res, old, origin, false), rects);
+        self.exchange.record(cx, res, self.exchange_params(res, old, origin, ExchangeParams::COUNT), rects);
         // Tiles now wholly inside the window give their slots up (their
         // texels were all loaded or never left): no copy-out. The GPU table
         // keeps them until the next write, after this frame's load.
@@ -583,6 +584,12 @@ impl TileStreaming {
         let mut timer = GpuTimer::disabled();
         let submit = |ctx: &GpuContext, encoder: wgpu::CommandEncoder| ctx.queue.submit([encoder.finish()]);
         let new_encoder = |ctx: &GpuContext| ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile batch") });
+        // The batches count nothing (a kept edge tile is loaded again by
+        // later batches): the ledger sweeps the whole window, before (left)
+        // and after (entered).
+        if let Some(old) = old {
+            self.record_sweep(ctx, res, old, ExchangeParams::STASH);
+        }
         // Leave: every resident tile and every tile of the old window goes to the store.
         let mut leaving: Vec<TileKey> = self.slots.keys().collect();
         if let Some(old) = old {
@@ -600,7 +607,7 @@ impl TileStreaming {
             let mut encoder = new_encoder(ctx);
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             if let Some(old) = old {
-                self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, true), &full);
+                self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, ExchangeParams::STASH), &full);
             }
             let out: Vec<(TileKey, usize)> = batch.iter().filter_map(|&k| self.slots.slot(k).map(|s| (k, s))).collect();
             self.record_copy_out(&mut cx, res, &out, clock);
@@ -638,7 +645,7 @@ impl TileStreaming {
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             let params = self.restore_params(frame);
             self.restore.record(&mut cx, (res, &self.tiles), params, &entries, &upload);
-            self.exchange.record(&mut cx, res, self.exchange_params(res, origin, origin, false), &full);
+            self.exchange.record(&mut cx, res, self.exchange_params(res, origin, origin, 0), &full);
             submit(ctx, encoder);
             for &k in batch {
                 if g.inside(k, origin) {
@@ -648,6 +655,17 @@ impl TileStreaming {
         }
         debug_assert_eq!(self.slots.len(), keep);
         self.write_table(&ctx.queue);
+        self.record_sweep(ctx, res, origin, 0);
+    }
+
+    /// Counts the whole window at `at` in the mass ledger, as left (`kind`
+    /// [`ExchangeParams::STASH`]) or entered (0), in a submission of its own
+    /// (the sweep's uniform is its own).
+    fn record_sweep(&self, ctx: &GpuContext, res: &DeformResources, at: [i64; 2], kind: u32) {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ledger sweep") });
+        let params = self.exchange_params(res, at, at, ExchangeParams::SWEEP | ExchangeParams::COUNT | kind);
+        self.exchange.record(&mut FrameContext::new(ctx, &mut encoder, &mut GpuTimer::disabled()), res, params, &[[0, 0, res.resolution, res.resolution]]);
+        ctx.queue.submit([encoder.finish()]);
     }
 
     /// The seal's uniforms for the window of `res`.
@@ -783,7 +801,7 @@ impl TileStreaming {
     pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock) -> Result<(), SnowError> {
         self.collect_evictions(ctx, true);
         let full = [[0, 0, res.resolution, res.resolution]];
-        let stash = self.exchange_params(res, origin, origin, true);
+        let stash = self.exchange_params(res, origin, origin, ExchangeParams::STASH);
         let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
         let g = self.grid;
@@ -850,7 +868,7 @@ impl TileStreaming {
             return Err(e.into());
         }
         let full = [[0, 0, res.resolution, res.resolution]];
-        let load = self.exchange_params(res, origin, origin, false);
+        let load = self.exchange_params(res, origin, origin, 0);
         let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
         let room = self.slots.free_count().clamp(1, BATCH_TILES);
