@@ -280,6 +280,9 @@ fn stage_outputs(
     out.stage("snow.npy", &npy::encode_f32(&snow_h, &[res, res]))?;
     out.stage("surface.npy", &npy::encode_f32(&surface_h, &[res, res]))?;
     out.stage("terrain.npy", &npy::encode_f32(&terrain_h, &[res, res]))?;
+    // Snow with mass (docs/mechanics.md): the packed snow per texel (m), which
+    // with snow.npy and terrain.npy gives each column's density and hardness.
+    out.stage("packed.npy", &npy::encode_f32(&snow.read_packed(ctx)?, &[res, res]))?;
     if let (Some(acc), Some(atlas)) = (snow.accumulation(), o.accumulation) {
         let n = acc.layout().resolution as usize;
         out.stage("accumulation.npy", &npy::encode_f32(atlas, &[n, n]))?;
@@ -312,11 +315,21 @@ fn stage_outputs(
 
 /// `meta.json`'s `store`: tile traffic and the keeper's figures (null when
 /// trails are forgotten); `keep` is `"memory"` or `"disk"`.
-/// Snow with mass (docs/mechanics.md): what the window holds at the end and
-/// what presses displaced beyond the final density, for `meta.json`.
+/// Snow with mass (docs/mechanics.md): what the window holds at the end,
+/// what presses displaced beyond the final density, and the rest of the
+/// mass ledger (what entered and left with the window's moves, what
+/// snowfall and refill added, and their sum), for `meta.json`.
 fn mass_meta(ctx: &GpuContext, snow: &SnowDeformation) -> anyhow::Result<serde_json::Value> {
     let mass = snow.read_mass(ctx).context("reading the snow's mass")?;
-    Ok(serde_json::json!({"window_kg": mass.total_kg, "displaced_kg": mass.displaced_kg}))
+    Ok(serde_json::json!({
+        "window_kg": mass.total_kg,
+        "displaced_kg": mass.displaced_kg,
+        "entered_kg": mass.entered_kg,
+        "left_kg": mass.left_kg,
+        "snowfall_kg": mass.snowfall_kg,
+        "refill_kg": mass.refill_kg,
+        "ledger_kg": mass.ledger_kg(),
+    }))
 }
 
 fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {

@@ -12,6 +12,9 @@
 @group(1) @binding(2) var<uniform> terrain_params: TerrainParams;
 @group(1) @binding(3) var<storage, read> ao_map: array<f32>;
 @group(1) @binding(4) var decal_layer: texture_2d<f32>;
+// What each texel's surface shows of its packing (packed snow m, density
+// from fresh 0 to final 1; window-local; surface_unpack.wgsl).
+@group(1) @binding(5) var<storage, read> packing: array<vec2<f32>>;
 
 struct Node {
     @location(0) node: vec4<f32>,   // origin x, origin z, size (m), quads per side
@@ -96,6 +99,10 @@ fn surface_normal(k: Taps) -> vec3<f32> {
     let c = unpack_normal(surface[k.i10].y);
     let d = unpack_normal(surface[k.i11].y);
     return normalize(mix(mix(a, b, k.f.x), mix(c, d, k.f.x), k.f.y));
+}
+
+fn surface_packing(k: Taps) -> vec2<f32> {
+    return mix(mix(packing[k.i00], packing[k.i01], k.f.x), mix(packing[k.i10], packing[k.i11], k.f.x), k.f.y);
 }
 
 fn window_ao(k: Taps) -> f32 {
@@ -190,17 +197,25 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     var h = rest;
     var n = rest_normal(xz, 0.25);
     var ao = 1.0;
+    var packing_shown = vec2<f32>(0.0);
     if w > 0.0 {
         h = mix(rest, surface_height(taps), w);
         n = normalize(mix(n, surface_normal(taps), w));
         ao = mix(1.0, window_ao(taps), w);
+        packing_shown = surface_packing(taps) * w;
     }
-    // Compaction: how far the snow is pressed below its rest height, 0..1 of
-    // the rest depth (which includes the snow fallen so far), from the
-    // displayed height the draw already reads: no extra buffer, and refill
-    // raising the snow takes the compacted look away with it.
+    // Compaction follows the snow's state, not its shape (docs/rendering.md):
+    // what the surface shows of its packing (faded out under refill:
+    // surface_unpack.wgsl), the larger of its hardness and its density. The
+    // hardness is Bekker's curve at q + 10 cm (docs/mechanics.md), so on a
+    // log scale ln(1 + q / 0.1 m), complete at the packed snow of a press of
+    // `compaction_full` of the rest depth; the density, from fresh to
+    // final, is what a thin column pressed to the ground has. A berm pushed
+    // aside is fresh snow; a trail refilled is fresh on top.
     let pressed = clamp((rest - h) / max(frame.snow.x, 1e-4), 0.0, 1.0);
-    let compaction = smoothstep(0.02, max(frame.compaction.x, 0.03), pressed);
+    let full_m = max(frame.compaction.x * frame.snow.x, 1e-3);
+    let hardness = log(1.0 + packing_shown.x / 0.1) / log(1.0 + full_m / 0.1);
+    let compaction = smoothstep(0.0, 1.0, max(hardness, packing_shown.y));
     // Snow thickness above the ground; bare ground shows where it is gone,
     // and partly at the bottom of a print pressed to the last quarter of a
     // deep layer (frame.compaction.w).

@@ -756,10 +756,13 @@ fn display_and_surface_unpack_match_cpu() {
         }
     }
 
-    // The renderer's unpack, from the GPU's own words so only that pass is tested.
+    // The renderer's unpack, from the GPU's own words so only that pass is tested;
+    // random packed snow, so the surface's packing sees covered and bare layers.
+    let packed_words: Vec<u32> = (0..params.texel_count().div_ceil(2)).map(|_| rng.next_u64() as u32 & 0x0fff_0fff).collect();
+    ctx.queue.write_buffer(&res.packed, 0, bytemuck::cast_slice(&packed_words));
     let unpack = SurfaceUnpackPass::new(&ctx.device, &res);
     let mut enc = encoder(ctx);
-    unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), origin);
+    unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), origin, &params);
     submit(ctx, enc);
     let cpu_surface = cpu::surface_unpack::normals(&gpu_words, &terrain, origin, params.resolution, params.texel_m());
     let gpu_surface: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.surface).expect("readback"));
@@ -771,6 +774,22 @@ fn display_and_surface_unpack_match_cpu() {
             assert!((i32::from(a) - i32::from(b)).abs() <= 2, "normal at {k}: {a} vs {b}; seed {seed}");
         }
     }
+    let up = snowpack::low_level::render::surface::UnpackParams {
+        origin,
+        resolution: params.resolution,
+        texel_m: params.texel_m(),
+        pack_ratio: params.mechanics().pack_ratio(),
+        depth_m: params.depth_m,
+        ..Default::default()
+    };
+    let cpu_packing = cpu::surface_unpack::packing(&up, (&gpu_words, &packed_words), (&terrain, &[]));
+    let gpu_packing: Vec<[f32; 2]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &unpack.packing).expect("readback"));
+    // The terrain agrees to rounding (noise), so the column and its density do.
+    let far = gpu_packing.iter().zip(&cpu_packing).filter(|(a, b)| (a[0] - b[0]).abs() > 1e-6 || (a[1] - b[1]).abs() > 1e-3).count();
+    assert_eq!(far, 0, "the surface's packing differs; seed {seed}");
+    let shown = cpu_packing.iter().filter(|q| q[0] > 0.01 && q[1] > 0.0).count();
+    let covered = cpu_packing.iter().filter(|q| q[0] == 0.0).count();
+    assert!(shown > 0 && covered > 0, "packing shown at {shown}, none at {covered} texels; seed {seed}");
 }
 
 /// A random terrain mesh: a jittered grid of random heights, with a few

@@ -250,3 +250,50 @@ fn compacted_snow_is_darker_only_where_pressed() {
     eprintln!("ground shows through in {} pixels: {darker:.1}/255 darker, red/blue up {warmer:.3}", through.len());
     assert!(darker > 8.0 && warmer > 0.0, "where the ground shows through: {darker:.1}/255 darker, red/blue up {warmer:.3}");
 }
+
+/// The compacted look follows the snow's packing, not its shape
+/// (docs/rendering.md): two trails pressed alike, 35 cm into half a metre,
+/// the first 5 s before the second, with 2 cm/s of refill. The first has
+/// 10 cm of fresh snow over its packed floor and looks fresh; the second,
+/// barely refilled, looks packed; both are still well below rest, which is
+/// all the look followed before.
+#[test]
+fn a_refilled_trail_looks_fresh_and_a_new_one_packed() {
+    let Some(ctx) = testing::gpu() else { return };
+    let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, refill_m_per_s: 0.02, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
+    let press = |snow: &mut SnowDeformation, z: f32| {
+        for k in 0..40 {
+            let x = -3.0 + 0.15 * k as f32;
+            snow.step(ctx, &[Deformer::Sphere { center: Vec3::new(x, 0.75, z), radius: 0.6 }], 1.0 / 30.0).expect("frame");
+        }
+    };
+    press(&mut snow, 2.0);
+    for _ in 0..150 {
+        snow.step(ctx, &[], 1.0 / 30.0).expect("frame");
+    }
+    press(&mut snow, 0.0);
+    snow.step(ctx, &[], 1.0 / 30.0).expect("frame");
+    snow.finish(ctx).expect("finish");
+    let camera = Camera { position: Vec3::new(0.0, 5.0, -2.5), target: Vec3::new(0.0, 0.0, 0.5), fov_deg: 60.0 };
+    let size = (160, 120);
+    let on = RenderParams { ao_strength: 0.0, ..RenderParams::default() };
+    let mut r = renderer(ctx, &snow, on);
+    let lit = r.render_image(ctx, &snow, &[], &camera, size).expect("frame");
+    r.set_params(RenderParams { material: on.material.without_compaction(), ..on });
+    let fresh = r.render_image(ctx, &snow, &[], &camera, size).expect("frame");
+    r.set_params(RenderParams { debug_view: DebugView::Deformation, ..on });
+    let pressed = r.render_image(ctx, &snow, &[], &camera, size).expect("frame");
+    // Pixels well below rest (the deformation view's red), split by the
+    // image row: the far trail (z = 2, refilled) is higher in the image.
+    let deep: Vec<usize> = (0..(size.0 * size.1) as usize).filter(|&k| i32::from(pressed[4 * k]) - i32::from(pressed[4 * k + 1]) > 60).collect();
+    let row = |k: usize| k / size.0 as usize;
+    let split = (deep.iter().map(|&k| row(k)).min().unwrap_or(0) + deep.iter().map(|&k| row(k)).max().unwrap_or(0)) / 2;
+    let (far, near): (Vec<usize>, Vec<usize>) = deep.iter().partition(|&&k| row(k) < split);
+    assert!(far.len() > 100 && near.len() > 100, "{} far and {} near pixels below rest", far.len(), near.len());
+    // How much darker the compacted look makes each trail than fresh snow would be.
+    let darkened = |ks: &[usize]| ks.iter().map(|&k| luminance(&fresh, k) - luminance(&lit, k)).sum::<f64>() / ks.len() as f64;
+    let (refilled, new) = (darkened(&far), darkened(&near));
+    eprintln!("compacted look: the refilled trail {refilled:.1}/255 darker than fresh, the new one {new:.1}/255");
+    assert!(new > 10.0 && refilled < 0.25 * new, "refilled trail {refilled:.1}/255 darker than fresh snow, new trail {new:.1}/255");
+}

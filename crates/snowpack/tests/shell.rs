@@ -381,7 +381,11 @@ fn the_snow_shell_matches_cpu_and_thins_in_the_trail() {
     let unpack = snowpack::low_level::render::surface::SurfaceUnpackPass::new(&ctx.device, res);
     let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("unpack") });
     let origin = snow.origin_texel().expect("placed");
-    unpack.record(&mut FrameContext::new(ctx, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled()), [origin[0] as i32, origin[1] as i32]);
+    unpack.record(
+        &mut FrameContext::new(ctx, &mut enc, &mut snowpack::low_level::gpu::GpuTimer::disabled()),
+        [origin[0] as i32, origin[1] as i32],
+        snow.params(),
+    );
     ctx.queue.submit([enc.finish()]);
     let surface =
         SnowSurface { surface: &unpack.surface, heightmap: &res.heightmap, terrain_params: &res.terrain_params, terrain_constants: res.terrain_constants() };

@@ -130,8 +130,10 @@ pub struct Material {
     pub detail_frequency: f32,
     /// Amplitude of the low-frequency brightness drift.
     pub macro_variation: f32,
-    /// Pressed fraction of the rest depth (0..1) at which the compacted look
-    /// (`packed_*`) is complete; it starts at 2 % (below that is filtering noise).
+    /// The compacted look (`packed_*`) follows the packed snow the surface
+    /// shows, on the scale of its hardness (`docs/rendering.md`); it is
+    /// complete where that is as much as a press of this fraction of the
+    /// rest depth (0..1) packs.
     pub compaction_full: f32,
     /// Fraction of the detail normal kept in fully compacted snow (1: as fresh).
     pub packed_detail: f32,

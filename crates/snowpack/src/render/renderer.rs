@@ -58,7 +58,13 @@ struct Targets {
 }
 
 /// The terrain pass's group 1: surface, heightmap, terrain params, AO, decal layer.
-fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDeformation, surface: &wgpu::Buffer, ao: &AoPass) -> wgpu::BindGroup {
+fn snow_bind_group(
+    device: &wgpu::Device,
+    terrain: &TerrainPass,
+    snow: &SnowDeformation,
+    unpack: &super::surface::SurfaceUnpackPass,
+    ao: &AoPass,
+) -> wgpu::BindGroup {
     let res = snow.resources();
     let decal_view = snow.decal_layer().create_view(&wgpu::TextureViewDescriptor::default());
     layout::bind_group(
@@ -66,11 +72,12 @@ fn snow_bind_group(device: &wgpu::Device, terrain: &TerrainPass, snow: &SnowDefo
         "terrain snow",
         &terrain.snow_layout,
         &[
-            surface.as_entire_binding(),
+            unpack.surface.as_entire_binding(),
             res.heightmap.as_entire_binding(),
             res.terrain_params.as_entire_binding(),
             ao.ao.as_entire_binding(),
             wgpu::BindingResource::TextureView(&decal_view),
+            unpack.packing.as_entire_binding(),
         ],
     )
 }
@@ -204,7 +211,7 @@ impl Renderer {
         let unpack = super::surface::SurfaceUnpackPass::new(device, res);
         let ao = AoPass::new(device, &unpack.surface, res.resolution);
         let terrain = TerrainPass::new(device, &lit_layout, &shadow_layout, params.patch_quads, res.terrain_kind);
-        let snow_group = snow_bind_group(device, &terrain, snow, &unpack.surface, &ao);
+        let snow_group = snow_bind_group(device, &terrain, snow, &unpack, &ao);
         let actors = ActorPass::new(device, &lit_layout, &shadow_layout, params.sphere_mesh);
         let skinned = SkinnedDrawPass::new(device, &lit_layout, &shadow_layout);
         let objects = super::objects::ObjectDrawPass::new(device, &lit_layout, &shadow_layout);
@@ -383,8 +390,8 @@ impl Renderer {
         self.timer.begin_frame();
         if let Some(origin) = snow.origin_texel() {
             // Window coordinates fit i32 on the GPU (see the deformation's frame).
-            self.unpack.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), [origin[0] as i32, origin[1] as i32]);
             let sp = snow.params();
+            self.unpack.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), [origin[0] as i32, origin[1] as i32], sp);
             let params = AoParams { resolution: sp.resolution, steps: AoPass::STEPS, texel_m: sp.texel_m(), strength: self.params.ao_strength };
             self.ao.record(&mut FrameContext::new(ctx, encoder, &mut self.timer), params);
         }
@@ -432,7 +439,7 @@ impl Renderer {
         let (uniforms, lod) = self.uniforms(snow, camera, size, eye_height);
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
         if snow.decal_layer() != &self.decal_layer {
-            self.snow_group = snow_bind_group(device, &self.terrain, snow, &self.unpack.surface, &self.ao);
+            self.snow_group = snow_bind_group(device, &self.terrain, snow, &self.unpack, &self.ao);
             self.decal_layer = snow.decal_layer().clone();
         }
 

@@ -69,6 +69,7 @@ impl TerrainPass {
                 crate::gpu::layout::uniform(2, vf),
                 storage_ro(3, wgpu::ShaderStages::FRAGMENT),
                 texture(4, wgpu::ShaderStages::FRAGMENT, false),
+                storage_ro(5, wgpu::ShaderStages::FRAGMENT),
             ],
         });
         let buffers = [Some(wgpu::VertexBufferLayout {
