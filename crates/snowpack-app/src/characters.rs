@@ -62,7 +62,7 @@ pub fn poses<'a>(skins: &[(usize, SkinnedId)], characters: &'a [CharacterPose]) 
 /// named in the message) is the user's input: [`BadInput`] naming the file
 /// and key (exit 2). Other failures are the machine's (exit 1).
 pub fn new_window(ctx: &GpuContext, scene: &Scene, params: snowpack::SnowParams, center: DVec2, doing: &'static str) -> anyhow::Result<SnowDeformation> {
-    match SnowDeformation::new(ctx, params, scene.terrain.clone(), center).map_err(snowpack::SnowError::into_detail) {
+    match SnowDeformation::new(ctx, params, scene.terrain.clone(), center).map_err(snowpack::low_level::error::SnowError::from) {
         Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
             let key = if field == "heightmap" { "[terrain].path".to_owned() } else { format!("[snow].{field}") };
             Err(BadInput(format!("{}: {key}: {why}", scene.path.display())).into())
@@ -79,7 +79,7 @@ pub use crate::machine_fault;
 /// message names the file and key.
 fn store_error(scene: &Scene, e: snowpack::StoreError) -> anyhow::Error {
     let key = format!("{}: [store].path", scene.path.display());
-    if machine_fault(e.detail()) { anyhow::Error::new(e).context(key) } else { BadInput(format!("{key}: {e}")).into() }
+    if machine_fault(e.as_ref()) { anyhow::Error::new(e).context(key) } else { BadInput(format!("{key}: {e}")).into() }
 }
 
 /// Attaches `[store]`: a disk store (default folder: `store/` in `out`) or,
@@ -113,7 +113,7 @@ pub fn attach_store(
             TileStreamer::new(store, memory)
         }
     };
-    match snow.attach_store(ctx, streamer).map_err(snowpack::SnowError::into_detail) {
+    match snow.attach_store(ctx, streamer).map_err(snowpack::low_level::error::SnowError::from) {
         Err(snowpack::low_level::error::SnowError::Store(e)) => Err(store_error(scene, e.into())),
         Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
             Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into())

@@ -542,12 +542,12 @@ fn gpu_machines_fault(_: &(dyn std::error::Error + 'static)) -> bool {
 /// The library's error in detail, whether the chain holds the front door's
 /// `SnowError` or the detailed enum that low-level calls return.
 fn snow_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a SnowDetail> {
-    e.downcast_ref::<snowpack::SnowError>().map(snowpack::SnowError::detail).or_else(|| e.downcast_ref::<SnowDetail>())
+    e.downcast_ref::<snowpack::SnowError>().map(AsRef::<SnowDetail>::as_ref).or_else(|| e.downcast_ref::<SnowDetail>())
 }
 
 /// The tile store's error in detail (front door's or detailed), as [`snow_detail`].
 fn store_detail<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a StoreDetail> {
-    e.downcast_ref::<snowpack_share::StoreError>().map(snowpack_share::StoreError::detail).or_else(|| e.downcast_ref::<StoreDetail>())
+    e.downcast_ref::<snowpack_share::StoreError>().map(AsRef::<StoreDetail>::as_ref).or_else(|| e.downcast_ref::<StoreDetail>())
 }
 
 #[cfg(feature = "gpu")]

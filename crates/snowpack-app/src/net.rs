@@ -228,7 +228,7 @@ fn open_relay(opts: &ServerOptions) -> anyhow::Result<(SnowRelay, f64)> {
     let relay_config = RelayConfig { max_speed_m_per_s: opts.max_speed_m_per_s, bounds_m: opts.bounds_m, ..RelayConfig::default() };
     let mut relay = SnowRelay::with_store(store, relay_config).context("resuming the world from the store")?;
     if let (Some(world), Some(scene)) = (world, opts.scene.as_deref()) {
-        match relay.pin_world(world).map_err(snowpack_share::ShareError::into_detail) {
+        match relay.pin_world(world).map_err(snowpack_share::error::ShareError::from) {
             Ok(()) => {}
             Err(ShareError::StoreWorld(differences)) => return Err(store_mismatch(&opts.store, scene, &differences)),
             Err(e) => return Err(e).context("saving the scene's world in the store"),
@@ -755,7 +755,7 @@ impl SnowLink {
         self.net.update()?;
         let mut refused = None;
         while let Some(bytes) = self.net.client.receive_message(CHANNEL) {
-            match self.peer.receive(&bytes).map_err(snowpack_share::ShareError::into_detail) {
+            match self.peer.receive(&bytes).map_err(snowpack_share::error::ShareError::from) {
                 Ok(()) => {}
                 Err(ShareError::Refused { differences }) => refused = Some(differences.join("; ")),
                 Err(e) => tracing::warn!("shared snow: {e}"),

@@ -92,11 +92,12 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
 
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
-    let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
+    // The runner reports the whole mass ledger in meta.json (snowfall and refill counted too).
+    let params = snowpack::SnowParams { technique, count_mass: true, ..scene.snow.clone() };
     let mut snow = new_window(&ctx, scene, params, window_center(scene, &world), "creating the deformation window")?;
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
-    match snow.set_objects(&ctx, &objects).map_err(snowpack::SnowError::into_detail) {
+    match snow.set_objects(&ctx, &objects).map_err(snowpack::low_level::error::SnowError::from) {
         Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
             return Err(BadInput(format!("{}: [[object]] / [snowfall].{field}: {why}", scene.path.display())).into());
         }
@@ -186,9 +187,13 @@ fn simulate(
         }
         let characters = world.characters();
         let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(skins, &characters));
+        let frame_in = snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses);
         snow.step_frame(
             ctx,
-            &snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses) },
+            &match asked.as_deref() {
+                Some(points) => frame_in.with_queries(points),
+                None => frame_in,
+            },
         )
         .with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {

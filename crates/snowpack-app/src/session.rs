@@ -440,7 +440,11 @@ impl Session {
         let characters = self.world.characters();
         let poses = crate::characters::poses(&self.skins, &characters);
         let ids = self.deformer_ids();
-        let frame = snowpack::SnowFrame { queries: asked.as_deref(), ..snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses) };
+        let frame = snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses);
+        let frame = match asked.as_deref() {
+            Some(points) => frame.with_queries(points),
+            None => frame,
+        };
         self.snow.encode(ctx, encoder, &frame);
         for e in self.snow.take_store_errors() {
             self.store_errors.push(e.to_string());

@@ -19,6 +19,7 @@ use snowpack::low_level::RimStyleExt;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::SnowfallExt;
 use snowpack::low_level::TechniqueExt;
+use snowpack::low_level::TerrainMeshExt;
 use snowpack::low_level::skin::feet::{DEFAULT_FOOT_PATTERNS, Foot, attach_paws, find_feet, stride_speed};
 use snowpack::low_level::skin::sinking::FootLoad;
 
@@ -484,6 +485,7 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 // Validated with the rest below (an angle in (0, 90) degrees).
                 repose_deg: t.f32_opt("repose_deg")?,
                 displace: t.bool("displace", defaults.displace)?,
+                count_mass: t.bool("count_mass", defaults.count_mass)?,
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
@@ -863,11 +865,11 @@ impl Scene {
             }
             TerrainSource::Mesh(m) => format!(
                 "mesh of {} triangles drawn into {}x{} texels over {:?} m centred at {:?}, heights {:?} m",
-                m.triangles.len(),
-                m.grid.width(),
-                m.grid.height(),
-                m.grid.size_m(),
-                m.grid.center_m(),
+                m.triangles().len(),
+                m.grid().width(),
+                m.grid().height(),
+                m.grid().size_m(),
+                m.grid().center_m(),
                 self.terrain.height_bounds()
             ),
             // A terrain kind added to the library after this describer.
@@ -992,7 +994,7 @@ fn load_heightmap(t: &mut Fields<'_>, base_dir: &Path, default_extent: f32) -> R
     }
     let heightmap = HeightmapTerrain::new(width, height, heights_m, center, size).map_err(|e| {
         // The library names its field; the scene names the key that set it.
-        let key = match e.detail() {
+        let key = match e.as_ref() {
             snowpack::low_level::error::SnowError::InvalidParameter { field: "heightmap size_m", .. } => "size_m",
             snowpack::low_level::error::SnowError::InvalidParameter { field: "heightmap center_m", .. } => "center",
             _ => "height_scale_m",

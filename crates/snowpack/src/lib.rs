@@ -81,65 +81,6 @@
 //! `docs/architecture.md` in the repository shows the layers, what each
 //! module owns and one frame's path through them.
 
-/// Declares a function `pub` with the `low_level` feature and `pub(crate)`
-/// without it: the methods of front-door types that the app, the tools and
-/// the tests use but a game does not (reading whole textures back, the
-/// window's GPU resources, the store's tile-level calls).
-macro_rules! low_level_pub {
-    ($(#[$attr:meta])* fn $($rest:tt)*) => {
-        $(#[$attr])*
-        #[cfg(feature = "low_level")]
-        pub fn $($rest)*
-        $(#[$attr])*
-        #[cfg(not(feature = "low_level"))]
-        pub(crate) fn $($rest)*
-    };
-}
-
-/// Declares a struct whose fields are `pub` with the `low_level` feature and
-/// `pub(crate)` without it: plain data of front-door types that the app, the
-/// tools and the tests build or read field by field, and a game reaches
-/// through the type's constructors, builders and methods.
-macro_rules! low_level_fields {
-    ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
-        $(#[$attr])*
-        #[cfg(feature = "low_level")]
-        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub $field: $ty),* }
-        $(#[$attr])*
-        #[cfg(not(feature = "low_level"))]
-        #[allow(dead_code, reason = "fields that only the app, the tools and the tests read (`low_level`)")]
-        pub struct $name $(<$lt>)? { $($(#[$fattr])* pub(crate) $field: $ty),* }
-    };
-}
-
-/// Declares a struct whose fields written `pub(crate)` are `pub` with the
-/// `low_level` feature: the fields a game sets or reads are written `pub`,
-/// the tuning and plumbing beside them `pub(crate)` (a game gets their
-/// defaults from the type's constructor); private fields stay private.
-/// Field by field, in order, so the struct's layout is as written.
-macro_rules! low_level_some_fields {
-    ($(#[$attr:meta])* pub struct $name:ident { $($body:tt)* }) => {
-        low_level_some_fields!(@field [$(#[$attr])*] $name [] [] $($body)*);
-    };
-    // A field written `pub(crate)`: `pub` with the feature.
-    (@field $attrs:tt $name:ident [$($ll:tt)*] [$($no:tt)*] $(#[$fattr:meta])* pub(crate) $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
-        low_level_some_fields!(@field $attrs $name [$($ll)* $(#[$fattr])* pub $field: $ty,] [$($no)* $(#[$fattr])* pub(crate) $field: $ty,] $($($rest)*)?);
-    };
-    // Any other field (`pub`, or private to its module): as written.
-    (@field $attrs:tt $name:ident [$($ll:tt)*] [$($no:tt)*] $(#[$fattr:meta])* $fvis:vis $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
-        low_level_some_fields!(@field $attrs $name [$($ll)* $(#[$fattr])* $fvis $field: $ty,] [$($no)* $(#[$fattr])* $fvis $field: $ty,] $($($rest)*)?);
-    };
-    (@field [$(#[$attr:meta])*] $name:ident [$($ll:tt)*] [$($no:tt)*]) => {
-        $(#[$attr])*
-        #[cfg(feature = "low_level")]
-        pub struct $name { $($ll)* }
-        $(#[$attr])*
-        #[cfg(not(feature = "low_level"))]
-        #[allow(dead_code, reason = "fields that only the app, the tools and the tests read (`low_level`)")]
-        pub struct $name { $($no)* }
-    };
-}
-
 // The modules are the crate's own: the front door is the root's re-exports
 // below, and what the app, the Bevy plugin and the tests need beyond it is
 // re-exported by `low_level` (feature `low_level`).

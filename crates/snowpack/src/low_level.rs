@@ -13,6 +13,7 @@
 /// snowfall, skinned meshes, coat settings, the game's ground, adapter
 /// requests).
 pub use crate::deform::params::SnowParamsExt;
+pub use crate::deform::query::QueryStatsExt;
 pub use crate::deform::shape::DeformerExt;
 pub use crate::deform::technique::{RimStyleExt, TechniqueExt};
 pub use crate::gpu::context::AdapterRequestExt;
@@ -22,7 +23,8 @@ pub use crate::gpu::context::GpuContextExt;
 /// What the app, the tools and the tests do with a [`crate::TileStreamer`]
 /// beyond the front door.
 pub use crate::persist::streamer::TileStreamerExt;
-pub use crate::render::ground::SnowGroundExt;
+pub use crate::render::ground::{SnowGroundDescriptorExt, SnowGroundExt};
+pub use crate::render::sampling::SnowWindowUniformExt;
 pub use crate::skin::coat::CoatSettingsExt;
 pub use crate::skin::skinning::SkinnedMeshExt;
 /// What snowpack's own app, tools and tests read and drive of a

@@ -66,24 +66,23 @@ pub const MESH_GRID_MAX_SIDE: u32 = 2048;
 /// 256 bytes and the GPU can copy the drawn texture into a tight buffer.
 const MESH_GRID_COLUMN_ALIGN: u32 = 64;
 
-low_level_fields! {
-    /// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
-    /// so cliffs, bridges' decks, roads and sculpted ground all work.
-    ///
-    /// The mesh is drawn from above into a grid (the highest surface per texel
-    /// centre wins, as a depth test would choose): on the GPU by
-    /// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
-    /// the CPU by `draw_from_above` for physics and queries (the
-    /// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
-    /// centre is not on a triangle's edge). Overhangs are invisible from above, which is
-    /// right for snow: it lies on the top surface.
-    #[derive(Clone, PartialEq)]
-    pub struct TerrainMesh {
-        /// World-space triangles, three corners each.
-        triangles: Vec<[[f32; 3]; 3]>,
-        /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
-        grid: HeightmapTerrain,
-    }
+/// Any terrain given as triangles: the blog's "draw the terrain mesh" route,
+/// so cliffs, bridges' decks, roads and sculpted ground all work.
+///
+/// The mesh is drawn from above into a grid (the highest surface per texel
+/// centre wins, as a depth test would choose): on the GPU by
+/// `crate::deform::terrain_bake::TerrainBakePass` for the snow window, and on
+/// the CPU by `draw_from_above` for physics and queries (the
+/// tests hold the two to 0.1 mm plus slope × texel / 128 wherever a texel's
+/// centre is not on a triangle's edge). Overhangs are invisible from above, which is
+/// right for snow: it lies on the top surface. Its triangles and grid are
+/// the tools' (`TerrainMeshExt` in `low_level`).
+#[derive(Clone, PartialEq)]
+pub struct TerrainMesh {
+    /// World-space triangles, three corners each.
+    pub(crate) triangles: Vec<[[f32; 3]; 3]>,
+    /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
+    pub(crate) grid: HeightmapTerrain,
 }
 
 impl std::fmt::Debug for TerrainMesh {
@@ -424,9 +423,25 @@ pub trait TerrainMeshExt: Sized {
     /// Lowest and highest vertex height (m).
     #[must_use]
     fn height_range(&self) -> (f32, f32);
+
+    /// World-space triangles, three corners each.
+    #[must_use]
+    fn triangles(&self) -> &[[[f32; 3]; 3]];
+
+    /// The grid the mesh was drawn into on the CPU: its size, placement and heights.
+    #[must_use]
+    fn grid(&self) -> &HeightmapTerrain;
 }
 
 impl TerrainMeshExt for TerrainMesh {
+    fn triangles(&self) -> &[[[f32; 3]; 3]] {
+        &self.triangles
+    }
+
+    fn grid(&self) -> &HeightmapTerrain {
+        &self.grid
+    }
+
     fn height_range(&self) -> (f32, f32) {
         self.triangles.iter().flatten().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])))
     }

@@ -4,6 +4,7 @@
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
+use snowpack::low_level::SnowWindowUniformExt;
 use snowpack::low_level::accumulate::Snowfall;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
@@ -247,5 +248,5 @@ fn snowfall_on_bare_ground_shows_no_square_at_the_window_edge() {
     let inside = snow.read_snow(ctx).expect("snow");
     let rest_inside = inside[128 * 256 + 255];
     let outside = snowpack::low_level::render::sampling::SnowWindowUniform::new(&snow);
-    assert!((GROUND_M + outside.rest_depth_m - rest_inside).abs() < 1e-3, "rest outside {} against {rest_inside} inside", GROUND_M + outside.rest_depth_m);
+    assert!((GROUND_M + outside.rest_depth_m() - rest_inside).abs() < 1e-3, "rest outside {} against {rest_inside} inside", GROUND_M + outside.rest_depth_m());
 }

@@ -7,7 +7,7 @@
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowErrorKind, SnowParams, TerrainSource, low_level, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource, low_level, low_level::testing};
 
 #[test]
 fn a_destroyed_device_gives_device_lost_to_the_caller() {
@@ -35,7 +35,7 @@ fn a_destroyed_device_gives_device_lost_to_the_caller() {
     }
     // A blocking wait (`finish`, a save, the end of a run) reports it on every
     // backend, and so does every frame after that.
-    assert!(matches!(snow.finish(&ctx).map_err(SnowError::into_detail), Err(low_level::error::SnowError::DeviceLost(reason)) if !reason.is_empty()));
+    assert!(matches!(snow.finish(&ctx).map_err(low_level::error::SnowError::from), Err(low_level::error::SnowError::DeviceLost(reason)) if !reason.is_empty()));
     for _ in 0..2 {
         assert!(snow.step(&ctx, &ball, 1.0 / 60.0).is_err_and(|e| e.kind() == SnowErrorKind::DeviceLost));
     }

@@ -10,6 +10,7 @@ use snowpack::low_level::render::ground::{
     GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
 };
 use snowpack::low_level::testing::{self, Rng};
+use snowpack::low_level::{SnowGroundDescriptorExt, SnowWindowUniformExt};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
 
 /// The GPU tests here take turns (on GL a submission holds the adapter's context).
@@ -259,7 +260,7 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
     let cpu = SampledSurface { window: SnowWindowUniform::new(&snow), above: &above, terrain: &terrain };
 
     // The caller's formats and reverse-Z depth; the grid at one quad per texel.
-    let desc = SnowGroundDescriptor { grid_quads: 256, ..SnowGroundDescriptor::new(COLOR).with_depth(DEPTH, wgpu::CompareFunction::Greater) };
+    let desc = SnowGroundDescriptor::new(COLOR).with_depth(DEPTH, wgpu::CompareFunction::Greater).with_grid_quads(256);
     let mut ground = SnowGround::new(&ctx.device, &snow, &desc);
     let view_proj = top_down();
     let camera = GroundCamera::new(view_proj, Vec3::new(0.0, 10.0, 0.0));
@@ -410,8 +411,8 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
     let mut sampling = SnowSampling::new(&ctx.device, &snow, wgpu::ShaderStages::COMPUTE);
     sampling.update(&ctx.queue, &snow);
     let window = SnowWindowUniform::new(&snow);
-    assert_ne!(window.origin_texel, [0, 0], "the window did not slide");
-    let corner = Vec2::from(window.corner);
+    assert_ne!(window.origin_texel(), [0, 0], "the window did not slide");
+    let corner = Vec2::from(window.corner());
     let extent = 16.0;
     // Random points inside the window and up to 3 m beyond it, texel centres and the window's own corners.
     let mut probes: Vec<Vec2> = (0..2000)
@@ -423,7 +424,7 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
             }
         })
         .collect();
-    probes.extend((0..50).map(|_| corner + (Vec2::new((rng.range(0.0, 128.0)).floor(), (rng.range(0.0, 128.0)).floor()) + 0.5) * window.texel_m));
+    probes.extend((0..50).map(|_| corner + (Vec2::new((rng.range(0.0, 128.0)).floor(), (rng.range(0.0, 128.0)).floor()) + 0.5) * window.texel_m()));
     probes.extend([corner, corner + Vec2::new(extent, 0.0), corner + Vec2::splat(extent), corner - 0.01]);
 
     let source = format!("{SNOW_SAMPLING_WGSL}\n{GAME_PROBE_WGSL}");
@@ -499,13 +500,13 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
         if !cpu.inside(xz) {
             return 0.0;
         }
-        let t = ((xz - corner) / window.texel_m - 0.5).clamp(Vec2::ZERO, Vec2::splat(127.0));
+        let t = ((xz - corner) / window.texel_m() - 0.5).clamp(Vec2::ZERO, Vec2::splat(127.0));
         let (j0, i0) = (t.x.floor() as usize, t.y.floor() as usize);
         let (j1, i1) = ((j0 + 1).min(res - 1), (i0 + 1).min(res - 1));
         let f = t - t.floor();
-        let pressed = |i: usize, j: usize| ground[i * res + j] + window.rest_depth_m - persistent[i * res + j];
+        let pressed = |i: usize, j: usize| ground[i * res + j] + window.rest_depth_m() - persistent[i * res + j];
         let p = (pressed(i0, j0) * (1.0 - f.x) + pressed(i0, j1) * f.x) * (1.0 - f.y) + (pressed(i1, j0) * (1.0 - f.x) + pressed(i1, j1) * f.x) * f.y;
-        (p / window.rest_depth_m).clamp(0.0, 1.0)
+        (p / window.rest_depth_m()).clamp(0.0, 1.0)
     };
 
     // Tolerances: heights are f32 bilinear blends of metres (and the noise

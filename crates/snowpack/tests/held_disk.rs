@@ -139,11 +139,11 @@ fn flush_gives_up_on_a_held_disk_and_writes_once_released() {
     disk.hold();
     s.put(tile(0, 0, 1.0));
     assert!(disk.wait_until_blocked(HUNG), "the tile's write reaches the disk");
-    assert_timed_out("flush", bounded(&disk, "flush", || s.flush().map_err(snowpack::StoreError::into_detail)), "flush");
+    assert_timed_out("flush", bounded(&disk, "flush", || s.flush().map_err(StoreError::from)), "flush");
     // Still answered from memory while the disk hangs.
     assert_eq!(s.lookup(TileKey::new(0, 0)), TileLookup::Ready(Some(tile(0, 0, 1.0))));
     disk.release();
-    until_ok("flush", || s.flush().map_err(snowpack::StoreError::into_detail), store_timed_out);
+    until_ok("flush", || s.flush().map_err(StoreError::from), store_timed_out);
     assert_eq!(s.stats().writes, 1);
     drop(s);
     let mut store = TileStore::open(dir.path(), SIDE, StoreConfig::default()).expect("reopen");
@@ -224,18 +224,18 @@ fn save_and_attach_store_give_up_on_a_held_disk() {
     assert!(!d.attach_store(ctx, held_streamer(dir.path(), &disk, side)).expect("attach"));
     d.step(ctx, &[], 1.0 / 60.0).expect("frame");
     disk.hold();
-    match bounded(&disk, "save", || d.save(ctx).map_err(snowpack::SnowError::into_detail)) {
+    match bounded(&disk, "save", || d.save(ctx).map_err(SnowError::from)) {
         Err(SnowError::Store(StoreError::TimedOut { .. })) => {}
         other => panic!("a save on a held disk gave {other:?}, not a TimedOut store error"),
     }
     disk.release();
-    until_ok("save", || d.save(ctx).map_err(snowpack::SnowError::into_detail), |e| matches!(e, SnowError::Store(StoreError::TimedOut { .. })));
+    until_ok("save", || d.save(ctx).map_err(SnowError::from), |e| matches!(e, SnowError::Store(StoreError::TimedOut { .. })));
     drop(d);
 
     let mut loaded = SnowDeformation::new(ctx, params, terrain, DVec2::ZERO).expect("window");
     let streamer = held_streamer(dir.path(), &disk, side);
     disk.hold();
-    match bounded(&disk, "attach_store", || loaded.attach_store(ctx, streamer).map_err(snowpack::SnowError::into_detail)) {
+    match bounded(&disk, "attach_store", || loaded.attach_store(ctx, streamer).map_err(SnowError::from)) {
         Err(SnowError::Store(StoreError::TimedOut { what, .. })) => assert!(what.contains("window"), "{what}"),
         other => panic!("loading a save from a held disk gave {other:?}, not a TimedOut store error"),
     }

@@ -104,7 +104,7 @@ fn walk(ctx: &GpuContext, d: &mut SnowDeformation, to: DVec2) {
 fn save(ctx: &GpuContext, d: &mut SnowDeformation, what: &str) {
     let start = Instant::now();
     loop {
-        match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+        match d.save(ctx).map_err(SnowError::from) {
             Ok(()) => return,
             Err(SnowError::Store(StoreError::TimedOut { .. })) if start.elapsed() < Duration::from_secs(30) => {}
             Err(e) => panic!("{what}: a save on a disk that works: {e}"),
@@ -162,7 +162,7 @@ fn a_late_tile_is_merged_with_what_the_window_made_meanwhile() {
     press_b_while_a_is_missing(ctx, &mut d, "slow disk");
     let stats = d.tile_stats().expect("tiles");
     assert!(stats.stood_in >= 1, "the window gave up on the disk: {stats:?}");
-    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(snowpack::StoreError::into_detail).collect();
+    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(StoreError::from).collect();
     assert!(errors.iter().any(|e| matches!(e, StoreError::TimedOut { .. })), "the wait that gave up is reported: {errors:?}");
     // The disk answers: A's tile arrives late, while the window still stands in for it.
     disk.release();
@@ -184,7 +184,7 @@ fn a_hung_disk_loses_no_trail_and_a_save_meanwhile_gives_up() {
     let (mut d, _) = attached(ctx, dir.path(), &disk);
     disk.hold();
     press_b_while_a_is_missing(ctx, &mut d, "hung disk");
-    match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+    match d.save(ctx).map_err(SnowError::from) {
         Err(SnowError::Store(StoreError::TimedOut { .. })) => {}
         other => panic!("a save while the disk hangs gave {other:?}, not TimedOut"),
     }
@@ -204,7 +204,7 @@ fn a_failing_disk_keeps_the_trail_in_memory_and_merges_once_it_works() {
     let (mut d, _) = attached(ctx, dir.path(), &disk);
     disk.fail(true);
     press_b_while_a_is_missing(ctx, &mut d, "failing disk");
-    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(snowpack::StoreError::into_detail).collect();
+    let errors: Vec<StoreError> = d.take_store_errors().into_iter().map(StoreError::from).collect();
     assert!(
         errors.iter().any(|e| matches!(e, StoreError::Io { op: "read", .. }) && e.path().is_some_and(|p| p.extension().is_some_and(|x| x == "tile"))),
         "the failed reads are reported, naming the tile files: {errors:?}"
@@ -214,7 +214,7 @@ fn a_failing_disk_keeps_the_trail_in_memory_and_merges_once_it_works() {
     walk(ctx, &mut d, DVec2::ZERO);
     let [a, b] = depths(ctx, &mut d);
     assert!(a > 0.45 && b < PRESSED, "while the disk fails, B is kept in memory: depths {a} at A, {b} at B");
-    match d.save(ctx).map_err(snowpack::SnowError::into_detail) {
+    match d.save(ctx).map_err(SnowError::from) {
         Err(SnowError::Store(e @ StoreError::Io { .. })) => {
             assert!(e.path().is_some_and(|p| p.extension().is_some_and(|x| x == "tile")), "the save names the tile it could not read: {e}");
         }

@@ -12,6 +12,7 @@ use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::HeightmapTerrainExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
+use snowpack::low_level::TerrainMeshExt;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::low_level::deform::displace::{self, DisplaceParams, DisplacePass};
@@ -837,7 +838,7 @@ fn terrain_bake_matches_cpu() {
     let buffer = TerrainBakePass::new(&ctx.device).bake(&ctx.device, &mut enc, &mesh);
     submit(ctx, enc);
     let gpu = read_f32(ctx, &buffer);
-    let cpu = &mesh.grid.heights_m();
+    let cpu = &mesh.grid().heights_m();
     assert_eq!(gpu.len(), cpu.len());
     // The rasteriser snaps vertices to 1/256 of a texel (the CPU does not),
     // which moves a triangle's edges by under 1/256 of a texel and its
@@ -849,7 +850,7 @@ fn terrain_bake_matches_cpu() {
     //   mesh's outer edge: the GPU left it at the floor, the CPU drew it.)
     // - elsewhere, the same triangles cover the centre on both sides, and
     //   the heights agree to 0.1 mm plus the steepest of them times texel / 128.
-    let grid = &mesh.grid;
+    let grid = mesh.grid();
     let (w, h) = (grid.width() as usize, grid.height() as usize);
     let texel = [grid.size_m()[0] / w as f32, grid.size_m()[1] / h as f32];
     let origin = [grid.center_m()[0] - grid.size_m()[0] * 0.5, grid.center_m()[1] - grid.size_m()[1] * 0.5];
@@ -857,7 +858,7 @@ fn terrain_bake_matches_cpu() {
     let centre = |k: usize| DVec2::new(f64::from(origin[0] + ((k % w) as f32 + 0.5) * texel[0]), f64::from(origin[1] + ((k / w) as f32 + 0.5) * texel[1]));
     let mut near_edge = vec![false; w * h];
     let mut steepest = vec![0.0f64; w * h];
-    for tri in &mesh.triangles {
+    for tri in mesh.triangles() {
         let p = tri.map(|v| DVec2::new(f64::from(v[0]), f64::from(v[2])));
         let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
         // Slope of the triangle's plane (its height's gradient in x, z).

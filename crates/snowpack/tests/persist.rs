@@ -205,7 +205,7 @@ fn a_failing_disk_is_an_error_not_a_panic() {
     let (x, y) = (TileKey::new(1, 0), TileKey::new(-40, 9));
     streamer.put(version(x, 1));
     streamer.put(version(y, 1));
-    match streamer.flush().map_err(snowpack::StoreError::into_detail) {
+    match streamer.flush().map_err(snowpack::low_level::error::StoreError::from) {
         Err(e @ StoreError::Io { .. }) => {
             assert!(e.path().is_some_and(|p| p.starts_with(&tiles)), "{e}")
         }

@@ -621,7 +621,7 @@ fn a_peer_of_another_world_is_refused_naming_the_difference() {
     while let Some((id, bytes)) = relay.poll_transmit() {
         match id {
             1 => first.receive(&bytes).expect("welcomed"),
-            _ => match other.receive(&bytes).map_err(snowpack::ShareError::into_detail) {
+            _ => match other.receive(&bytes).map_err(snowpack::low_level::error::ShareError::from) {
                 Err(e @ ShareError::Refused { .. }) => {
                     let text = e.to_string();
                     assert!(text.contains("tile side: 32 here, 64 there"), "{text}");

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowError, SnowFrame, SnowParams, TerrainSource, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource, low_level::testing};
 
 /// A device made the way a game makes it, on the adapter the tests use.
 /// `None` (the test skips) only where no GPU is required: with
@@ -18,7 +18,7 @@ fn game_device() -> Option<(wgpu::Device, wgpu::Queue)> {
     testing::gpu()?;
     let made = (|| {
         let ours = GpuContext::new_headless(&AdapterRequest::from_env()).map_err(|e| format!("no adapter: {e}"))?;
-        let adapter = ours.adapter.ok_or("the context has no adapter")?;
+        let adapter = ours.adapter().ok_or("the context has no adapter")?;
         pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor { label: Some("the game's device"), ..Default::default() }))
             .map_err(|e| format!("the adapter gives no device: {e}"))
     })();
@@ -52,7 +52,7 @@ fn snow_on_a_games_device_keeps_the_games_error_handler_and_reports_its_own_erro
     }));
 
     let ctx = GpuContext::from_device(device.clone(), queue.clone());
-    assert!(ctx.adapter.is_none() && ctx.instance.is_none());
+    assert!(ctx.adapter().is_none() && ctx.instance().is_none());
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.5, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(&ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("a window on the game's device");
     let ball = Deformer::Sphere { center: Vec3::new(0.5, 0.6, 0.5), radius: 0.4 };
@@ -74,7 +74,7 @@ fn snow_on_a_games_device_keeps_the_games_error_handler_and_reports_its_own_erro
 
     // An error in work snowpack does on the game's device is snowpack's: caught and returned.
     ctx.capturing(|| drop(invalid_buffer(&ctx.device)));
-    match ctx.check("test").map_err(SnowError::into_detail) {
+    match ctx.check("test").map_err(snowpack::low_level::error::SnowError::from) {
         Err(snowpack::low_level::error::SnowError::Gpu { message, .. }) => assert!(!message.is_empty()),
         other => panic!("expected snowpack's own GPU error, got {other:?}"),
     }

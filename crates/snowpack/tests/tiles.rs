@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
+use snowpack::low_level::QueryStatsExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;
@@ -606,7 +607,7 @@ fn a_corrupt_tile_in_a_save_comes_back_as_fresh_snow_and_is_reported() {
     let after = loaded.read_snow(ctx).expect("snow");
     let errors = loaded.take_store_errors();
     assert!(
-        errors.iter().any(|e| matches!(e.detail(), snowpack::low_level::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
+        errors.iter().any(|e| matches!(e.as_ref(), snowpack::low_level::persist::StoreError::Corrupt { path: p, .. } if *p == path)),
         "no corrupt-tile error for {}: {errors:?}",
         path.display()
     );
@@ -810,7 +811,7 @@ fn frames_go_on_while_tile_copy_outs_and_answers_are_held_in_flight() {
     assert_eq!(waiting.window_waits - away.window_waits, 50, "{waiting:?}");
     assert_eq!((waiting.evicting, waiting.evicted), (away.evicting, away.evicted), "{waiting:?}");
     let q = d.query_stats();
-    assert_eq!((q.gathered, q.skipped, q.answered), (3, frames - 3, 0), "{q:?}");
+    assert_eq!((q.gathered(), q.skipped, q.answered()), (3, frames - 3, 0), "{q:?}");
     assert!(d.point_answers().is_none());
     assert!(d.take_store_errors().is_empty());
 

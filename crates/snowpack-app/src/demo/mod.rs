@@ -226,7 +226,7 @@ impl App {
         let instance = wgpu::Instance::new(desc);
         let surface = instance.create_surface(Arc::clone(&window)).context("creating the window's surface")?;
         let ctx = GpuContext::choose(instance, Some(&surface), &request).context("choosing a GPU adapter for the window")?;
-        let caps = surface.get_capabilities(ctx.adapter.as_ref().context("the demo chose its own adapter")?);
+        let caps = surface.get_capabilities(ctx.adapter().context("the demo chose its own adapter")?);
         let format = caps
             .formats
             .iter()
@@ -531,7 +531,7 @@ impl Gfx {
         }
         self.window.pre_present_notify();
         self.ctx.queue.present(frame);
-        match self.ctx.check("demo frame").map_err(snowpack::SnowError::into_detail) {
+        match self.ctx.check("demo frame").map_err(snowpack::low_level::error::SnowError::from) {
             Ok(()) => {}
             Err(snowpack::low_level::error::SnowError::DeviceLost(reason)) => self.device_lost(reason),
             Err(e) => {

@@ -1483,7 +1483,7 @@ mod tests {
         let store = TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store");
         let mut relay = SnowRelay::with_store(store, RelayConfig::default()).expect("relay");
         assert_eq!(relay.world(), Some(&w));
-        match relay.pin_world(WorldIdentity { depth_m: 0.8, ..w.clone() }).map_err(crate::ShareError::into_detail) {
+        match relay.pin_world(WorldIdentity { depth_m: 0.8, ..w.clone() }).map_err(crate::error::ShareError::from) {
             Err(ShareError::StoreWorld(why)) => assert_eq!(why, "snow depth (m): 0.5 here, 0.8 there"),
             other => panic!("not refused: {other:?}"),
         }

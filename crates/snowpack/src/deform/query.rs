@@ -177,19 +177,47 @@ impl PointAnswers {
     }
 }
 
-low_level_some_fields! {
-    /// Counts of the query pipeline since the window was made.
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-    pub struct QueryStats {
-        /// Requests gathered on the GPU.
-        pub(crate) gathered: u64,
-        /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
-        pub(crate) answered: u64,
-        /// Requests not gathered because every staging buffer was still in flight
-        /// (the GPU was behind): the frame went on; a later request is answered.
-        pub skipped: u64,
-        /// Points the pass holds now (it grows to the largest request).
-        pub(crate) capacity: u32,
+/// Counts of the query pipeline since the window was made. The counts
+/// beside `skipped` are the tools' (`QueryStatsExt` in `low_level`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueryStats {
+    /// Requests gathered on the GPU.
+    pub(crate) gathered: u64,
+    /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
+    pub(crate) answered: u64,
+    /// Requests not gathered because every staging buffer was still in flight
+    /// (the GPU was behind): the frame went on; a later request is answered.
+    pub skipped: u64,
+    /// Points the pass holds now (it grows to the largest request).
+    pub(crate) capacity: u32,
+}
+
+/// The tools' view of [`QueryStats`] beyond `skipped` (a named extension
+/// trait, so the type has one shape with or without `low_level`).
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait QueryStatsExt {
+    /// Requests gathered on the GPU.
+    #[must_use]
+    fn gathered(&self) -> u64;
+    /// Requests answered (delivered to [`crate::SnowDeformation::point_answers`]).
+    #[must_use]
+    fn answered(&self) -> u64;
+    /// Points the pass holds now (it grows to the largest request).
+    #[must_use]
+    fn capacity(&self) -> u32;
+}
+
+impl QueryStatsExt for QueryStats {
+    fn gathered(&self) -> u64 {
+        self.gathered
+    }
+
+    fn answered(&self) -> u64 {
+        self.answered
+    }
+
+    fn capacity(&self) -> u32 {
+        self.capacity
     }
 }
 

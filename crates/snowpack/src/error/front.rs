@@ -13,27 +13,16 @@ pub use snowpack_share::error::front::{ShareError, ShareErrorKind, StoreError, S
 use super::{SnowError as SnowDetail, StoreError as StoreDetail};
 
 /// Declares an opaque error around a detailed enum: `Display`, `Debug`,
-/// `source` and the conversions both ways, and with `low_level` the
-/// detail itself.
+/// `source`, the conversions both ways and `AsRef` of the detail (which a
+/// program names through `low_level`): the opaque type has one shape with
+/// or without the feature.
 macro_rules! opaque_error {
     ($name:ident, $detail:ident, $what:literal) => {
-        impl $name {
-            low_level_pub! {
-                #[doc = concat!("The ", $what, " in detail, to match on its variants.")]
-                #[must_use]
-                #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "the app's and the tests' view (`low_level`)"))]
-                fn detail(&self) -> &$detail {
-                    &self.0
-                }
-            }
-
-            low_level_pub! {
-                #[doc = concat!("The ", $what, " in detail, taken out.")]
-                #[must_use]
-                #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "the app's and the tests' view (`low_level`)"))]
-                fn into_detail(self) -> $detail {
-                    *self.0
-                }
+        /// The detail, to match on its variants (the detailed enum is
+        /// `low_level`'s; the opaque error converts into it with `From`).
+        impl AsRef<$detail> for $name {
+            fn as_ref(&self) -> &$detail {
+                &self.0
             }
         }
 

@@ -87,31 +87,31 @@ impl AdapterRequest {
     }
 }
 
-low_level_some_fields! {
-    /// A wgpu device and queue for snowpack, with error tracking.
-    ///
-    /// Made by snowpack's own adapter selection ([`Self::new_headless`],
-    /// `Self::choose`) for the demo, the runner and tools, or around a device
-    /// the game already has ([`Self::from_device`]).
-    pub struct GpuContext {
-        /// The instance the adapter came from (`None` for a game's device).
-        pub(crate) instance: Option<wgpu::Instance>,
-        /// The chosen adapter (`None` for a game's device).
-        pub(crate) adapter: Option<wgpu::Adapter>,
-        /// The device.
-        pub device: wgpu::Device,
-        /// Its queue.
-        pub queue: wgpu::Queue,
-        /// The adapter, in words.
-        pub summary: AdapterSummary,
-        /// What the adapter can do below full WebGPU (all of it for a game's device,
-        /// which is trusted to be able to run what it asks for).
-        pub(crate) downlevel: wgpu::DownlevelFlags,
-        /// Whether snowpack owns the device's error and device-lost handlers;
-        /// a game's device keeps its own.
-        owns_handlers: bool,
-        sink: Arc<ErrorSink>,
-    }
+/// A wgpu device and queue for snowpack, with error tracking.
+///
+/// Made by snowpack's own adapter selection ([`Self::new_headless`],
+/// `Self::choose`) for the demo, the runner and tools, or around a device
+/// the game already has ([`Self::from_device`]). Its instance and adapter
+/// are the tools' (`GpuContextExt::instance`, `GpuContextExt::adapter` in
+/// `low_level`).
+pub struct GpuContext {
+    /// The instance the adapter came from (`None` for a game's device).
+    pub(crate) instance: Option<wgpu::Instance>,
+    /// The chosen adapter (`None` for a game's device).
+    pub(crate) adapter: Option<wgpu::Adapter>,
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The adapter, in words.
+    pub summary: AdapterSummary,
+    /// What the adapter can do below full WebGPU (all of it for a game's device,
+    /// which is trusted to be able to run what it asks for).
+    pub(crate) downlevel: wgpu::DownlevelFlags,
+    /// Whether snowpack owns the device's error and device-lost handlers;
+    /// a game's device keeps its own.
+    owns_handlers: bool,
+    sink: Arc<ErrorSink>,
 }
 
 fn parse_backends(list: &str) -> Result<wgpu::Backends, SnowError> {
@@ -308,6 +308,14 @@ pub trait GpuContextExt: Sized {
     #[must_use]
     fn has_timestamps(&self) -> bool;
 
+    /// The instance the adapter came from (`None` for a game's device).
+    #[must_use]
+    fn instance(&self) -> Option<&wgpu::Instance>;
+
+    /// The chosen adapter (`None` for a game's device).
+    #[must_use]
+    fn adapter(&self) -> Option<&wgpu::Adapter>;
+
     /// Runs `work`, catching the GPU errors it causes (validation, out of
     /// memory) for [`Self::check`] to report. With snowpack's own device the
     /// uncaptured-error handler catches them already; with a game's device
@@ -330,6 +338,14 @@ pub trait GpuContextExt: Sized {
 }
 
 impl GpuContextExt for GpuContext {
+    fn instance(&self) -> Option<&wgpu::Instance> {
+        self.instance.as_ref()
+    }
+
+    fn adapter(&self) -> Option<&wgpu::Adapter> {
+        self.adapter.as_ref()
+    }
+
     fn instance_descriptor(mut desc: wgpu::InstanceDescriptor, request: &AdapterRequest) -> Result<wgpu::InstanceDescriptor, SnowError> {
         if request.backends.is_some() {
             desc.backends = request.parse_backends()?;

@@ -26,17 +26,15 @@ use crate::snow::inspect::SnowInspect;
 /// Default quads per side of the ground grid.
 pub const DEFAULT_GRID_QUADS: u32 = 256;
 
-low_level_fields! {
-    /// The caller's camera for one frame: `GroundCamera` in `ground.wgsl`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-    pub struct GroundCamera {
-        /// World-to-clip matrix (column-major), in the frame the snow's positions are in
-        /// (world, or relative to the deformation's floating origin when one is set).
-        view_proj: [[f32; 4]; 4],
-        /// Eye position (xyz); w unused.
-        position: [f32; 4],
-    }
+/// The caller's camera for one frame: `GroundCamera` in `ground.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GroundCamera {
+    /// World-to-clip matrix (column-major), in the frame the snow's positions are in
+    /// (world, or relative to the deformation's floating origin when one is set).
+    pub(crate) view_proj: [[f32; 4]; 4],
+    /// Eye position (xyz); w unused.
+    pub(crate) position: [f32; 4],
 }
 
 impl GroundCamera {
@@ -102,24 +100,22 @@ pub struct GroundDepth {
     pub write: bool,
 }
 
-low_level_some_fields! {
-    /// What [`SnowGround`] draws into.
-    #[derive(Clone, Copy, Debug, PartialEq)]
-    pub struct SnowGroundDescriptor {
-        /// Format of the caller's colour attachment.
-        pub(crate) color_format: wgpu::TextureFormat,
-        /// The caller's depth attachment, or `None` for a pass without one.
-        pub(crate) depth: Option<GroundDepth>,
-        /// Samples per pixel of the caller's attachments (1 unless multisampled).
-        pub sample_count: u32,
-        /// Quads per side of the grid over the window (see [`SnowGround`]).
-        pub(crate) grid_quads: u32,
-        /// Cull triangles facing away (the grid is counter-clockwise seen from
-        /// above under a view-projection that keeps handedness); false draws both sides.
-        pub(crate) cull_back_faces: bool,
-        /// Light and material.
-        pub(crate) lighting: GroundLighting,
-    }
+/// What [`SnowGround`] draws into.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SnowGroundDescriptor {
+    /// Format of the caller's colour attachment.
+    pub(crate) color_format: wgpu::TextureFormat,
+    /// The caller's depth attachment, or `None` for a pass without one.
+    pub(crate) depth: Option<GroundDepth>,
+    /// Samples per pixel of the caller's attachments (1 unless multisampled).
+    pub sample_count: u32,
+    /// Quads per side of the grid over the window (see [`SnowGround`]).
+    pub(crate) grid_quads: u32,
+    /// Cull triangles facing away (the grid is counter-clockwise seen from
+    /// above under a view-projection that keeps handedness); false draws both sides.
+    pub(crate) cull_back_faces: bool,
+    /// Light and material.
+    pub(crate) lighting: GroundLighting,
 }
 
 impl SnowGroundDescriptor {
@@ -133,6 +129,23 @@ impl SnowGroundDescriptor {
     #[must_use]
     pub fn with_depth(mut self, format: wgpu::TextureFormat, compare: wgpu::CompareFunction) -> Self {
         self.depth = Some(GroundDepth { format, compare, write: true });
+        self
+    }
+}
+
+/// The tools' tuning of a [`SnowGroundDescriptor`] beside what a game sets
+/// (a named extension trait of `low_level`: the descriptor has one shape
+/// with or without the feature).
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait SnowGroundDescriptorExt: Sized {
+    /// The same with `quads` quads per side of the grid over the window.
+    #[must_use]
+    fn with_grid_quads(self, quads: u32) -> Self;
+}
+
+impl SnowGroundDescriptorExt for SnowGroundDescriptor {
+    fn with_grid_quads(mut self, quads: u32) -> Self {
+        self.grid_quads = quads;
         self
     }
 }

@@ -69,35 +69,69 @@ pub fn sampling_buffers(snow: &SnowDeformation) -> [wgpu::Buffer; 3] {
     [res.terrain_params.clone(), res.heightmap.clone(), res.snow.clone()]
 }
 
-low_level_fields! {
-    /// The `SnowWindow` uniform (binding 0): where the deformation window lies.
-    /// A game's material fills its buffer with [`Self::new`] (its size is
-    /// `size_of::<SnowWindowUniform>()`); the shader reads the fields, so a game's
-    /// code has no need to (the fields are `pub` with `low_level`, for the tests).
-    #[repr(C)]
-    #[cfg_attr(
-        not(feature = "low_level"),
-        allow(dead_code, reason = "the fields are read by the shader through the uniform's bytes; on the CPU only by its twin (`low_level`)")
-    )]
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-    pub struct SnowWindowUniform {
-        /// World (x, z) of local texel (0, 0)'s outer corner, minus the floating origin (m).
-        corner: [f32; 2],
-        /// The deformation's floating origin (m): shader positions are relative to it.
-        floating_origin: [f32; 2],
-        /// Global texel index (column, row) of local texel (0, 0).
-        origin_texel: [i32; 2],
-        /// Texel size (m).
-        texel_m: f32,
-        /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
-        rest_depth_m: f32,
-        /// Texels per side.
-        resolution: u32,
-        /// 1 once the window has been placed (after the deformation's first frame), else 0.
-        placed: u32,
-        /// `origin_texel` wrapped into `0..resolution` (`crate::deform::window::storage_origin`):
-        /// where local texel (0, 0) is stored, so the shader wraps with no division.
-        storage_origin: [u32; 2],
+/// The `SnowWindow` uniform (binding 0): where the deformation window lies.
+/// A game's material fills its buffer with [`Self::new`] (its size is
+/// `size_of::<SnowWindowUniform>()`); the shader reads the fields, so a game's
+/// code has no need to (the tests read them through `SnowWindowUniformExt` in `low_level`).
+#[repr(C)]
+#[cfg_attr(
+    not(feature = "low_level"),
+    allow(dead_code, reason = "the fields are read by the shader through the uniform's bytes; on the CPU only by its twin and the tests (`low_level`)")
+)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SnowWindowUniform {
+    /// World (x, z) of local texel (0, 0)'s outer corner, minus the floating origin (m).
+    pub(crate) corner: [f32; 2],
+    /// The deformation's floating origin (m): shader positions are relative to it.
+    pub(crate) floating_origin: [f32; 2],
+    /// Global texel index (column, row) of local texel (0, 0).
+    pub(crate) origin_texel: [i32; 2],
+    /// Texel size (m).
+    pub(crate) texel_m: f32,
+    /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
+    pub(crate) rest_depth_m: f32,
+    /// Texels per side.
+    pub(crate) resolution: u32,
+    /// 1 once the window has been placed (after the deformation's first frame), else 0.
+    pub(crate) placed: u32,
+    /// `origin_texel` wrapped into `0..resolution` (`crate::deform::window::storage_origin`):
+    /// where local texel (0, 0) is stored, so the shader wraps with no division.
+    pub(crate) storage_origin: [u32; 2],
+}
+
+/// What the tests read of a [`SnowWindowUniform`] (a named extension trait
+/// of `low_level`: the uniform has one shape with or without the feature).
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
+pub trait SnowWindowUniformExt {
+    /// World (x, z) of local texel (0, 0)'s outer corner, minus the floating origin (m).
+    #[must_use]
+    fn corner(&self) -> [f32; 2];
+    /// Global texel index (column, row) of local texel (0, 0).
+    #[must_use]
+    fn origin_texel(&self) -> [i32; 2];
+    /// Texel size (m).
+    #[must_use]
+    fn texel_m(&self) -> f32;
+    /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
+    #[must_use]
+    fn rest_depth_m(&self) -> f32;
+}
+
+impl SnowWindowUniformExt for SnowWindowUniform {
+    fn corner(&self) -> [f32; 2] {
+        self.corner
+    }
+
+    fn origin_texel(&self) -> [i32; 2] {
+        self.origin_texel
+    }
+
+    fn texel_m(&self) -> f32 {
+        self.texel_m
+    }
+
+    fn rest_depth_m(&self) -> f32 {
+        self.rest_depth_m
     }
 }
 

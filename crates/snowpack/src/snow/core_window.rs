@@ -318,7 +318,7 @@ impl CoreWindow {
                 | if self.displaces() { UpdateParams::DISPLACE } else { 0 }
                 | if self.displaces() && share.is_none() { UpdateParams::CONSUME } else { 0 }
                 // The mass ledger counts what this frame's snowfall and refill add (nothing to count without them).
-                | if refill.snow_refill_quanta > 0 || refill.fall_m > 0.0 { UpdateParams::LEDGER } else { 0 },
+                | if p.count_mass && (refill.snow_refill_quanta > 0 || refill.fall_m > 0.0) { UpdateParams::LEDGER } else { 0 },
             refill_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),

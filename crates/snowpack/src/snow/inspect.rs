@@ -45,9 +45,11 @@ pub struct WindowMass {
     pub entered_kg: f64,
     /// Snow that left the window with its moves (kg).
     pub left_kg: f64,
-    /// Snow that snowfall added (kg).
+    /// Snow that snowfall added (kg), counted with
+    /// [`crate::SnowParams::count_mass`] (else 0).
     pub snowfall_kg: f64,
-    /// Snow that the refill added to trails (kg).
+    /// Snow that the refill added to trails (kg), counted with
+    /// [`crate::SnowParams::count_mass`] (else 0).
     pub refill_kg: f64,
 }
 
@@ -57,8 +59,10 @@ impl WindowMass {
     /// the final density without [`crate::SnowParams::displace`] (with it,
     /// displaced snow is moved, not lost, and this count only holds what
     /// passed 16 bits of packed snow). Equal to [`WindowMass::total_kg`]
-    /// up to a quantum of rounding a texel moved or snowed on, and but for
-    /// merges (another machine's tiles, a stored tile merged under a stand-in).
+    /// up to a quantum of rounding a texel moved or snowed on, but for
+    /// merges (another machine's tiles, a stored tile merged under a
+    /// stand-in), and, where it snows or refills, only with
+    /// [`crate::SnowParams::count_mass`].
     #[must_use]
     pub fn ledger_kg(&self) -> f64 {
         self.entered_kg - self.left_kg + self.snowfall_kg + self.refill_kg - self.displaced_kg

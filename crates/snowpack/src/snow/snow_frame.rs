@@ -8,35 +8,34 @@ use crate::deform::capture::CaptureMesh;
 
 use super::skinned::SkinnedPose;
 
-low_level_fields! {
-    /// What presses the snow in one frame: the input of [`crate::SnowDeformation::encode`].
-    #[derive(Clone, Copy, Debug, Default)]
-    pub struct SnowFrame<'a> {
-        /// Seconds since the last frame (refill and snowfall advance by it).
-        dt_s: f32,
-        /// Spheres, boxes and contact points.
-        deformers: &'a [Deformer],
-        /// Characters: registered skinned meshes in this frame's pose.
-        poses: &'a [SkinnedPose<'a>],
-        /// World-space triangle meshes the caller has already posed this frame
-        /// (recorded into the same encoder before [`crate::SnowDeformation::encode`]).
-        meshes: &'a [CaptureMesh<'a>],
-        /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
-        /// upper bound: mesh k is swept over that motion when it has one here,
-        /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
-        /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
-        /// pose presses.
-        mesh_travel_m: &'a [f32],
-        /// A stable id per deformer (the same body has the same id every frame),
-        /// to find each one's last pose when the list's length or order changes
-        /// ([`Self::with_ids`]); empty (or of another length): deformer k is
-        /// the same body as last frame's deformer k.
-        ids: &'a [u64],
-        /// Points (x, z relative to the floating origin, like deformers) to
-        /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
-        /// `None`: nothing asked.
-        queries: Option<&'a [glam::Vec2]>,
-    }
+/// What presses the snow in one frame: the input of [`crate::SnowDeformation::encode`],
+/// made with [`SnowFrame::new`] and the `with_` builders.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SnowFrame<'a> {
+    /// Seconds since the last frame (refill and snowfall advance by it).
+    pub(crate) dt_s: f32,
+    /// Spheres, boxes and contact points.
+    pub(crate) deformers: &'a [Deformer],
+    /// Characters: registered skinned meshes in this frame's pose.
+    pub(crate) poses: &'a [SkinnedPose<'a>],
+    /// World-space triangle meshes the caller has already posed this frame
+    /// (recorded into the same encoder before [`crate::SnowDeformation::encode`]).
+    pub(crate) meshes: &'a [CaptureMesh<'a>],
+    /// How far (m) any vertex of `meshes[k]` moved since the last frame, an
+    /// upper bound: mesh k is swept over that motion when it has one here,
+    /// its vertex buffer has `COPY_SRC` usage and it had as many vertices
+    /// last frame ([`Self::with_mesh_travel`]); otherwise only its current
+    /// pose presses.
+    pub(crate) mesh_travel_m: &'a [f32],
+    /// A stable id per deformer (the same body has the same id every frame),
+    /// to find each one's last pose when the list's length or order changes
+    /// ([`Self::with_ids`]); empty (or of another length): deformer k is
+    /// the same body as last frame's deformer k.
+    pub(crate) ids: &'a [u64],
+    /// Points (x, z relative to the floating origin, like deformers) to
+    /// ask the snow at, as this frame leaves it ([`Self::with_queries`]);
+    /// `None`: nothing asked.
+    pub(crate) queries: Option<&'a [glam::Vec2]>,
 }
 
 impl<'a> SnowFrame<'a> {
