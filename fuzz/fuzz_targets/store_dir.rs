@@ -4,6 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use snowpack::low_level::TileStoreExt;
 use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
 
 fuzz_target!(|data: &[u8]| {

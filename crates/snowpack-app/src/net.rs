@@ -10,6 +10,7 @@
 //! protocol's own acknowledgements and digests repair what a connection that
 //! drops and comes back lost. `docs/multiplayer.md` has the protocol.
 
+use snowpack_share::persist::TileStoreExt;
 use std::collections::VecDeque;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};

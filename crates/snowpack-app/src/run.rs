@@ -92,9 +92,10 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
 
     let ctx = GpuContext::new_headless(&AdapterRequest::from_env().with_backends(opts.backend.as_deref())).context("choosing a GPU adapter")?;
     let mut world = World::new(scene);
-    // The runner reports the whole mass ledger in meta.json (snowfall and refill counted too).
-    let params = snowpack::SnowParams { technique, count_mass: true, ..scene.snow.clone() };
+    let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
     let mut snow = new_window(&ctx, scene, params, window_center(scene, &world), "creating the deformation window")?;
+    // The runner reports the whole mass ledger in meta.json (snowfall and refill counted too).
+    snow.set_count_mass(true);
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
     match snow.set_objects(&ctx, &objects).map_err(snowpack::low_level::error::SnowError::from) {

@@ -485,7 +485,6 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 // Validated with the rest below (an angle in (0, 90) degrees).
                 repose_deg: t.f32_opt("repose_deg")?,
                 displace: t.bool("displace", defaults.displace)?,
-                count_mass: t.bool("count_mass", defaults.count_mass)?,
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,

@@ -37,17 +37,6 @@
 //! docs what snowpack's app, tools and tests use beyond a game's API, and
 //! adds `testing`'s support for tests.
 
-/// Declares a function `pub` and, without the `low_level` feature, hidden
-/// from the docs: the calls that snowpack's app, tools and tests use (and
-/// snowpack's GPU side, across the crate boundary) but a game does not.
-macro_rules! low_level_pub {
-    ($(#[$attr:meta])* fn $($rest:tt)*) => {
-        $(#[$attr])*
-        #[cfg_attr(not(feature = "low_level"), doc(hidden))]
-        pub fn $($rest)*
-    };
-}
-
 /// Declares a struct whose fields are `pub` and, without the `low_level`
 /// feature, hidden from the docs: plain data that snowpack builds or reads
 /// field by field, and a game reaches through the type's methods.
@@ -55,28 +44,6 @@ macro_rules! low_level_fields {
     ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
         $(#[$attr])*
         pub struct $name $(<$lt>)? { $($(#[$fattr])* #[cfg_attr(not(feature = "low_level"), doc(hidden))] pub $field: $ty),* }
-    };
-}
-
-/// Declares a struct whose fields written `pub(crate)` are `pub` and,
-/// without the `low_level` feature, hidden from the docs: the tuning beside
-/// the fields a game sets (written `pub`); private fields stay private.
-/// Field by field, in order, so the struct's layout is as written.
-macro_rules! low_level_some_fields {
-    ($(#[$attr:meta])* pub struct $name:ident { $($body:tt)* }) => {
-        low_level_some_fields!(@field [$(#[$attr])*] $name [] $($body)*);
-    };
-    // A field written `pub(crate)`: `pub`, hidden from the docs without the feature.
-    (@field $attrs:tt $name:ident [$($out:tt)*] $(#[$fattr:meta])* pub(crate) $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
-        low_level_some_fields!(@field $attrs $name [$($out)* $(#[$fattr])* #[cfg_attr(not(feature = "low_level"), doc(hidden))] pub $field: $ty,] $($($rest)*)?);
-    };
-    // Any other field (`pub`, or private to its module): as written.
-    (@field $attrs:tt $name:ident [$($out:tt)*] $(#[$fattr:meta])* $fvis:vis $field:ident: $ty:ty $(, $($rest:tt)*)?) => {
-        low_level_some_fields!(@field $attrs $name [$($out)* $(#[$fattr])* $fvis $field: $ty,] $($($rest)*)?);
-    };
-    (@field [$(#[$attr:meta])*] $name:ident [$($out:tt)*]) => {
-        $(#[$attr])*
-        pub struct $name { $($out)* }
     };
 }
 

@@ -32,6 +32,8 @@ pub use crate::skin::skinning::SkinnedMeshExt;
 pub use crate::snow::inspect::{SnowInspect, WindowMass};
 pub use crate::snowfall::SnowfallExt;
 pub use crate::terrain::{HeightmapTerrainExt, TerrainMeshExt, TerrainSourceExt};
+pub use snowpack_share::persist::TileStoreExt;
+pub use snowpack_share::replicate::{SnowPeerExt, WorldIdentityExt};
 
 /// Snow settling on objects: the object atlas, its passes and state.
 pub mod accumulate {

@@ -2,6 +2,7 @@
 //! killed while saving, a damaged file, a disk that stops accepting writes,
 //! and a disk budget. CPU only.
 
+use snowpack::low_level::TileStoreExt;
 use std::fs;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};

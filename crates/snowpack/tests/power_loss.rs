@@ -4,6 +4,7 @@
 //! tile and state blob reads back bit for bit as its old or its new version,
 //! and every write that returned before the cut is there. CPU only.
 
+use snowpack::low_level::TileStoreExt;
 use std::path::Path;
 use std::sync::Arc;
 

@@ -4,6 +4,7 @@
 //! the same bits. (The fuzz targets under `fuzz/` run the same entry points
 //! for longer on the nightly toolchain.)
 
+use snowpack::low_level::TileStoreExt;
 use std::path::{Path, PathBuf};
 
 use glam::DVec2;

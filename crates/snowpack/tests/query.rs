@@ -471,7 +471,6 @@ fn the_mass_ledger_balances_over_window_moves_snowfall_and_refill() {
             displace: case != 1,
             repose_deg: (case == 2).then(|| rng.range(25.0, 50.0)),
             tile_memory_bytes: if case == 1 { None } else { SnowParams::default().tile_memory_bytes },
-            count_mass: true,
             snowfall,
             ..SnowParams::default()
         };
@@ -482,6 +481,7 @@ fn the_mass_ledger_balances_over_window_moves_snowfall_and_refill() {
             wavelength_m: rng.range(2.0, 8.0),
         });
         let mut snow = SnowDeformation::new(ctx, params.clone(), terrain, DVec2::ZERO).expect("window");
+        snow.set_count_mass(true);
         // The centre walks 6 m along x, jumps 40 m to z and comes back.
         let centre = |f: usize| match f {
             0..60 => DVec2::new(0.1 * f as f64, 0.0),

@@ -81,7 +81,8 @@ fn player(ctx: &GpuContext, id: u64, center: DVec2) -> Player {
     let mut snow = SnowDeformation::new(ctx, params(), TerrainSource::Flat { height_m: 0.0 }, center).expect("a window");
     snow.enable_sharing(ctx, SIDE, 0.25).expect("sharing");
     // Over an unreliable network a game digests every second.
-    let config = PeerConfig { synced_digest_interval_s: 1.0, ..PeerConfig::default() };
+    let mut config = PeerConfig::default();
+    config.synced_digest_interval_s = 1.0;
     let peer = SnowPeer::new(snow.world_identity(), &format!("player {id}"), config);
     Player { id, snow, peer }
 }

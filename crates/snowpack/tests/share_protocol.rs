@@ -2,6 +2,8 @@
 //! a relay with peers over a simulated network that loses, duplicates and
 //! reorders messages, all on the CPU (`testing::CpuSnow`).
 
+use snowpack::low_level::SnowPeerExt;
+use snowpack::low_level::WorldIdentityExt;
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
@@ -412,7 +414,8 @@ fn three_peers_converge_over_a_lossy_network() {
         let at = walk(id, t);
         snow.center_on(at[0], at[1]);
         // Over an unreliable network a game digests every second, not only until synced.
-        let config = PeerConfig { synced_digest_interval_s: 1.0, ..PeerConfig::default() };
+        let mut config = PeerConfig::default();
+        config.synced_digest_interval_s = 1.0;
         Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), config) }
     };
     players.push(join(1, t, &mut relay));
@@ -715,7 +718,8 @@ fn a_restarted_relay_resumes_from_its_store_and_the_peers_catch_it_up() {
             // default, every 5 s once synced, is for reliable channels): a
             // tile the network lost after the last digest is repaired within
             // the 3 quiet seconds the loop waits for.
-            let config = PeerConfig { synced_digest_interval_s: 1.0, ..PeerConfig::default() };
+            let mut config = PeerConfig::default();
+            config.synced_digest_interval_s = 1.0;
             Player { id, snow: CpuSnow::new(w.clone(), 128, [-64, -64], 0.0), peer: SnowPeer::new(w.clone(), "p", config) }
         })
         .collect();

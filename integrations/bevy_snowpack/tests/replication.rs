@@ -11,6 +11,7 @@ use bevy::prelude::*;
 use bevy::state::app::StatesPlugin;
 use bevy_replicon::prelude::*;
 use bevy_snowpack::prelude::*;
+use bevy_snowpack::snowpack::low_level::WorldIdentityExt;
 use bevy_snowpack::snowpack::low_level::persist::TileKey;
 use bevy_snowpack::snowpack::low_level::replicate::{Message, SharedTile, decode, encode};
 use bevy_snowpack::snowpack::{ShareErrorKind, SnowPeer, WorldIdentity};

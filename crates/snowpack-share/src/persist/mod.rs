@@ -19,7 +19,7 @@ use std::path::PathBuf;
 
 pub use crate::error::StoreError;
 pub use codec::{FORMAT_VERSION, decode, encode};
-pub use store::{DEFAULT_DISK_BUDGET_BYTES, StoreConfig, TileStore, WhenFull};
+pub use store::{DEFAULT_DISK_BUDGET_BYTES, StoreConfig, TileStore, TileStoreExt, WhenFull};
 
 /// The largest tile side the format accepts (the whole default window).
 pub const MAX_SIDE: u32 = 1024;

@@ -146,346 +146,6 @@ impl TileStore {
         Self::open_on(Arc::new(OsDisk), dir, side, config).map_err(Into::into)
     }
 
-    low_level_pub! {
-        /// [`TileStore::open`] on another [`Disk`] than the operating system's
-        /// (a fault-injecting one in tests: `testing::PowerLossDisk`).
-        #[doc(hidden)]
-        fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
-            let lock = prepare_dir(&*disk, dir, side)?;
-            let save_path = dir.join(SAVE_FILE);
-            let committed = match disk.read(&save_path) {
-                Ok(bytes) => Some(decode_save(&save_path, &bytes)?.0),
-                Err(e) if e.kind() == io::ErrorKind::NotFound => None,
-                Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
-            };
-            let (mut found, generations) = index_tiles(&*disk, &dir.join(TILES_DIR))?;
-            finish_generations(&*disk, dir, committed, generations, &mut found)?;
-            // Oldest first; the key breaks ties (file times are often coarser than writes).
-            let mut found: Vec<(std::time::SystemTime, TileKey, u64)> = found.into_iter().map(|(key, (modified, len))| (modified, key, len)).collect();
-            found.sort_unstable();
-
-            let mut store = Self {
-                disk,
-                dir: dir.to_owned(),
-                side,
-                config,
-                index: HashMap::with_capacity(found.len()),
-                by_age: BTreeSet::new(),
-                clock: 0,
-                total_bytes: 0,
-                evicted: 0,
-                committed: committed.unwrap_or(0),
-                saving: committed.is_some(),
-                _lock: lock,
-            };
-            for (_, key, bytes) in found {
-                store.insert(key, bytes, None);
-            }
-            if let Err(e) = store.enforce_budget(None) {
-                // The store still works; the next write tries again.
-                tracing::warn!("tile store: over its disk budget: {e}");
-            }
-            Ok(store)
-        }
-    }
-
-    low_level_pub! {
-        /// The tile side of the store in `dir` (its `store.meta`), without
-        /// opening or locking it; `None` where there is no store yet. A damaged
-        /// or foreign `store.meta` is an error naming it.
-        fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
-            let path = dir.join(META_FILE);
-            match std::fs::read(&path) {
-                Ok(bytes) => meta_side(&path, &bytes).map(Some),
-                Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
-                Err(source) => Err(StoreError::Io { path, op: "read", source }),
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
-        ///
-        /// A tile that fails to decode is an error naming its file, which is
-        /// renamed to `*.tile.corrupt` (best effort, for inspection) and dropped
-        /// from the index, so the next read answers `Ok(None)` and the caller
-        /// can write fresh snow there.
-        fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError> {
-            if !self.index.contains_key(&key) {
-                return Ok(None);
-            }
-            let path = self.live_path(key);
-            let bytes = match self.disk.read(&path) {
-                Ok(bytes) => bytes,
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                    // Deleted behind the store's back: as if never written.
-                    self.forget(key);
-                    return Ok(None);
-                }
-                Err(e) => {
-                    return Err(StoreError::Io { path, op: "read", source: e });
-                }
-            };
-            let tile = decode(&bytes).and_then(|tile| {
-                if tile.key != key || tile.side != self.side {
-                    return Err(StoreError::Mismatch {
-                        path: PathBuf::new(),
-                        why: format!("holds tile {:?} of side {}, expected {key:?} of side {}", tile.key, tile.side, self.side),
-                    });
-                }
-                Ok(tile)
-            });
-            match tile {
-                Ok(tile) => {
-                    self.touch(key);
-                    Ok(Some(tile))
-                }
-                Err(e) => {
-                    self.quarantine(key, &path);
-                    Err(e.at(&path))
-                }
-            }
-        }
-    }
-
-    low_level_pub! {
-        /// Writes a tile, atomically replacing any older version, then evicts the
-        /// least recently touched tiles (never this one) until the total is
-        /// within the disk budget. An error from eviction comes after the tile
-        /// itself was written.
-        fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
-            let path = self.tile_path(tile.key);
-            if tile.side != self.side {
-                return Err(StoreError::Mismatch { path, why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) });
-            }
-            tile.validate().map_err(|e| e.at(&path))?;
-            let bytes = encode(tile);
-            self.refuse_if_full(tile.key, bytes.len() as u64, &path)?;
-            // While saving, beside the saved version, for the next save.
-            let generation = self.saving.then_some(self.committed + 1);
-            let path = generation.map_or(path, |g| generation_path(&self.dir, tile.key, g));
-            if let Some(region) = path.parent() {
-                // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
-                // that is an error to report, not a directory to recreate.
-                match self.disk.create_dir(region) {
-                    Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
-                        return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
-                    }
-                    // A new region folder is an entry in `tiles`: synced, so a
-                    // power cut cannot lose the folder under a synced tile.
-                    Ok(()) => {
-                        if let Some(tiles) = region.parent() {
-                            new_entry_synced(&*self.disk, region, tiles)?;
-                        }
-                    }
-                    Err(_) => {}
-                }
-            }
-            atomic_write(&*self.disk, &path, &bytes)?;
-            self.forget(tile.key);
-            self.insert(tile.key, bytes.len() as u64, generation);
-            self.enforce_budget(Some(tile.key))
-        }
-    }
-
-    low_level_pub! {
-        /// Writes a small named blob (the saved window, the clock) atomically,
-        /// framed with a magic, the format version and a CRC32. Names are 1 to
-        /// 64 characters of ASCII letters, digits, `-` and `_`.
-        fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
-            let path = self.state_path(name)?;
-            let mut framed = Vec::with_capacity(24 + bytes.len());
-            framed.extend_from_slice(STATE_MAGIC);
-            framed.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-            framed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
-            let mut crc = crc32fast::Hasher::new();
-            crc.update(&framed);
-            crc.update(bytes);
-            framed.extend_from_slice(&crc.finalize().to_le_bytes());
-            framed.extend_from_slice(bytes);
-            atomic_write(&*self.disk, &path, &framed)
-        }
-    }
-
-    low_level_pub! {
-        /// Reads a blob written by [`TileStore::commit`] with the last complete
-        /// save, or else by [`TileStore::write_state`]; `Ok(None)` if there is none.
-        fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
-            let path = self.state_path(name)?;
-            // The last complete save's states first (read from disk each time:
-            // what is there is the answer).
-            let save_path = self.dir.join(SAVE_FILE);
-            match self.disk.read(&save_path) {
-                Ok(bytes) => {
-                    if let Some((_, bytes)) = decode_save(&save_path, &bytes)?.1.into_iter().find(|(n, _)| n == name) {
-                        return Ok(Some(bytes));
-                    }
-                }
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-                Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
-            }
-            let framed = match self.disk.read(&path) {
-                Ok(framed) => framed,
-                Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
-                Err(e) => {
-                    return Err(StoreError::Io { path, op: "read", source: e });
-                }
-            };
-            let corrupt = |why: &str| StoreError::Corrupt { path: path.clone(), why: why.to_owned() };
-            if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
-                return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
-            }
-            let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
-            if !readable(version) {
-                return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
-            }
-            let mut len = [0; 8];
-            len.copy_from_slice(&framed[12..20]);
-            let stored = u32::from_le_bytes([framed[20], framed[21], framed[22], framed[23]]);
-            let payload = &framed[24..];
-            if u64::from_le_bytes(len) != payload.len() as u64 {
-                return Err(corrupt("length mismatch (truncated?)"));
-            }
-            let mut crc = crc32fast::Hasher::new();
-            crc.update(&framed[..20]);
-            crc.update(payload);
-            if crc.finalize() != stored {
-                return Err(corrupt("bad CRC32"));
-            }
-            Ok(Some(payload.to_vec()))
-        }
-    }
-
-    low_level_pub! {
-        /// From now on tiles are written for the next save (beside their saved
-        /// versions, which stay as they are until [`TileStore::commit`]), so a
-        /// crash before the save is complete leaves the last complete one. A
-        /// store that holds a save is in this mode from when it is opened.
-        fn begin_saves(&mut self) {
-            self.saving = true;
-        }
-    }
-
-    low_level_pub! {
-        /// Completes a save: one atomic write of `save.commit` (the new
-        /// generation and `states`, named blobs as for
-        /// [`TileStore::write_state`], CRC-checked) makes every tile written
-        /// since the last save part of it; then those files replace their
-        /// saved versions (a crash meanwhile is finished on open). Before it
-        /// returns, a crash leaves the old save; once it has returned, the new
-        /// one. Call once every tile of the save is written.
-        fn commit(&mut self, states: &[(&str, &[u8])]) -> Result<(), StoreError> {
-            for (name, _) in states {
-                self.state_path(name)?;
-            }
-            let generation = self.committed + 1;
-            atomic_write(&*self.disk, &self.dir.join(SAVE_FILE), &encode_save(generation, states))?;
-            self.committed = generation;
-            self.saving = true;
-            // Best effort: what is not done here, open does.
-            let mut regions = BTreeSet::new();
-            let written: Vec<(TileKey, u64)> = self.index.iter().filter_map(|(k, e)| e.generation.map(|g| (*k, g))).collect();
-            for (key, g) in written {
-                let to = tile_path(&self.dir, key);
-                match self.disk.rename(&generation_path(&self.dir, key, g), &to) {
-                    Ok(()) => {
-                        if let Some(entry) = self.index.get_mut(&key) {
-                            entry.generation = None;
-                        }
-                        regions.insert(to.parent().map(Path::to_owned).unwrap_or_default());
-                    }
-                    Err(e) => tracing::warn!("tile store: {} stays beside its saved version until the store is opened again: {e}", to.display()),
-                }
-            }
-            for region in regions {
-                if let Err(e) = sync_dir(&*self.disk, &region) {
-                    tracing::warn!("tile store: {e}");
-                }
-            }
-            Ok(())
-        }
-    }
-
-    low_level_pub! {
-        /// The store's directory.
-        #[must_use]
-        fn dir(&self) -> &Path {
-            &self.dir
-        }
-    }
-
-    low_level_pub! {
-        /// Texels per tile side.
-        #[must_use]
-        fn side(&self) -> u32 {
-            self.side
-        }
-    }
-
-    low_level_pub! {
-        /// Tiles on disk.
-        #[must_use]
-        fn disk_tiles(&self) -> usize {
-            self.index.len()
-        }
-    }
-
-    low_level_pub! {
-        /// Bytes of tile files on disk (what the budget limits).
-        #[must_use]
-        fn disk_bytes(&self) -> u64 {
-            self.total_bytes
-        }
-    }
-
-    low_level_pub! {
-        /// Tiles deleted to keep within the budget since the store was opened.
-        #[must_use]
-        fn evicted(&self) -> u64 {
-            self.evicted
-        }
-    }
-
-    low_level_pub! {
-        /// Whether a tile is on disk (by the index; no I/O).
-        #[must_use]
-        fn contains(&self, key: TileKey) -> bool {
-            self.index.contains_key(&key)
-        }
-    }
-
-    low_level_pub! {
-        /// Whether a new tile may still be written: always, unless the store
-        /// refuses new tiles ([`WhenFull::RefuseNew`]) and its budget is spent.
-        fn has_room(&self) -> bool {
-            let budget = self.config.disk_budget_bytes;
-            self.config.when_full == WhenFull::EvictOldest || budget == 0 || self.total_bytes < budget
-        }
-    }
-
-    low_level_pub! {
-        /// The keys of every tile on disk (by the index; no I/O), in no particular order.
-        fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
-            self.index.keys().copied()
-        }
-    }
-
-    low_level_pub! {
-        /// Size of a tile's file, if it is on disk (by the index; no I/O).
-        #[must_use]
-        fn tile_bytes(&self, key: TileKey) -> Option<u64> {
-            self.index.get(&key).map(|e| e.bytes)
-        }
-    }
-
-    low_level_pub! {
-        /// Where a tile's file is (whether or not it exists).
-        #[must_use]
-        fn tile_path(&self, key: TileKey) -> PathBuf {
-            tile_path(&self.dir, key)
-        }
-    }
-
     fn state_path(&self, name: &str) -> Result<PathBuf, StoreError> {
         let ok = !name.is_empty() && name.len() <= MAX_STATE_NAME && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
         if ok {
@@ -578,6 +238,353 @@ impl TileStore {
             }
         }
         Ok(())
+    }
+}
+
+/// The tile-level calls of a [`TileStore`] beyond a game's API: what
+/// snowpack's GPU side, the relay, the tools and the tests use (a named
+/// extension trait, so the store has one shape with or without
+/// `low_level`; `snowpack::low_level::TileStoreExt` re-exports it).
+pub trait TileStoreExt: Sized {
+    /// [`TileStore::open`] on another [`Disk`] than the operating system's
+    /// (a fault-injecting one in tests: `testing::PowerLossDisk`).
+    fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError>;
+
+    /// The tile side of the store in `dir` (its `store.meta`), without
+    /// opening or locking it; `None` where there is no store yet. A damaged
+    /// or foreign `store.meta` is an error naming it.
+    fn side_in(dir: &Path) -> Result<Option<u32>, StoreError>;
+
+    /// Reads a tile. `Ok(None)`: it was never written (or was evicted).
+    ///
+    /// A tile that fails to decode is an error naming its file, which is
+    /// renamed to `*.tile.corrupt` (best effort, for inspection) and dropped
+    /// from the index, so the next read answers `Ok(None)` and the caller
+    /// can write fresh snow there.
+    fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError>;
+
+    /// Writes a tile, atomically replacing any older version, then evicts the
+    /// least recently touched tiles (never this one) until the total is
+    /// within the disk budget. An error from eviction comes after the tile
+    /// itself was written.
+    fn write(&mut self, tile: &TileData) -> Result<(), StoreError>;
+
+    /// Writes a small named blob (the saved window, the clock) atomically,
+    /// framed with a magic, the format version and a CRC32. Names are 1 to
+    /// 64 characters of ASCII letters, digits, `-` and `_`.
+    fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError>;
+
+    /// Reads a blob written by [`TileStore::commit`] with the last complete
+    /// save, or else by [`TileStore::write_state`]; `Ok(None)` if there is none.
+    fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError>;
+
+    /// From now on tiles are written for the next save (beside their saved
+    /// versions, which stay as they are until [`TileStore::commit`]), so a
+    /// crash before the save is complete leaves the last complete one. A
+    /// store that holds a save is in this mode from when it is opened.
+    fn begin_saves(&mut self);
+
+    /// Completes a save: one atomic write of `save.commit` (the new
+    /// generation and `states`, named blobs as for
+    /// [`TileStore::write_state`], CRC-checked) makes every tile written
+    /// since the last save part of it; then those files replace their
+    /// saved versions (a crash meanwhile is finished on open). Before it
+    /// returns, a crash leaves the old save; once it has returned, the new
+    /// one. Call once every tile of the save is written.
+    fn commit(&mut self, states: &[(&str, &[u8])]) -> Result<(), StoreError>;
+
+    /// The store's directory.
+    #[must_use]
+    fn dir(&self) -> &Path;
+
+    /// Texels per tile side.
+    #[must_use]
+    fn side(&self) -> u32;
+
+    /// Tiles on disk.
+    #[must_use]
+    fn disk_tiles(&self) -> usize;
+
+    /// Bytes of tile files on disk (what the budget limits).
+    #[must_use]
+    fn disk_bytes(&self) -> u64;
+
+    /// Tiles deleted to keep within the budget since the store was opened.
+    #[must_use]
+    fn evicted(&self) -> u64;
+
+    /// Whether a tile is on disk (by the index; no I/O).
+    #[must_use]
+    fn contains(&self, key: TileKey) -> bool;
+
+    /// Whether a new tile may still be written: always, unless the store
+    /// refuses new tiles ([`WhenFull::RefuseNew`]) and its budget is spent.
+    fn has_room(&self) -> bool;
+
+    /// The keys of every tile on disk (by the index; no I/O), in no particular order.
+    fn keys(&self) -> impl Iterator<Item = TileKey> + '_;
+
+    /// Size of a tile's file, if it is on disk (by the index; no I/O).
+    #[must_use]
+    fn tile_bytes(&self, key: TileKey) -> Option<u64>;
+
+    /// Where a tile's file is (whether or not it exists).
+    #[must_use]
+    fn tile_path(&self, key: TileKey) -> PathBuf;
+}
+
+impl TileStoreExt for TileStore {
+    fn open_on(disk: Arc<dyn Disk>, dir: &Path, side: u32, config: StoreConfig) -> Result<Self, StoreError> {
+        let lock = prepare_dir(&*disk, dir, side)?;
+        let save_path = dir.join(SAVE_FILE);
+        let committed = match disk.read(&save_path) {
+            Ok(bytes) => Some(decode_save(&save_path, &bytes)?.0),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => None,
+            Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
+        };
+        let (mut found, generations) = index_tiles(&*disk, &dir.join(TILES_DIR))?;
+        finish_generations(&*disk, dir, committed, generations, &mut found)?;
+        // Oldest first; the key breaks ties (file times are often coarser than writes).
+        let mut found: Vec<(std::time::SystemTime, TileKey, u64)> = found.into_iter().map(|(key, (modified, len))| (modified, key, len)).collect();
+        found.sort_unstable();
+
+        let mut store = Self {
+            disk,
+            dir: dir.to_owned(),
+            side,
+            config,
+            index: HashMap::with_capacity(found.len()),
+            by_age: BTreeSet::new(),
+            clock: 0,
+            total_bytes: 0,
+            evicted: 0,
+            committed: committed.unwrap_or(0),
+            saving: committed.is_some(),
+            _lock: lock,
+        };
+        for (_, key, bytes) in found {
+            store.insert(key, bytes, None);
+        }
+        if let Err(e) = store.enforce_budget(None) {
+            // The store still works; the next write tries again.
+            tracing::warn!("tile store: over its disk budget: {e}");
+        }
+        Ok(store)
+    }
+
+    fn side_in(dir: &Path) -> Result<Option<u32>, StoreError> {
+        let path = dir.join(META_FILE);
+        match std::fs::read(&path) {
+            Ok(bytes) => meta_side(&path, &bytes).map(Some),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(None),
+            Err(source) => Err(StoreError::Io { path, op: "read", source }),
+        }
+    }
+
+    fn read(&mut self, key: TileKey) -> Result<Option<TileData>, StoreError> {
+        if !self.index.contains_key(&key) {
+            return Ok(None);
+        }
+        let path = self.live_path(key);
+        let bytes = match self.disk.read(&path) {
+            Ok(bytes) => bytes,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                // Deleted behind the store's back: as if never written.
+                self.forget(key);
+                return Ok(None);
+            }
+            Err(e) => {
+                return Err(StoreError::Io { path, op: "read", source: e });
+            }
+        };
+        let tile = decode(&bytes).and_then(|tile| {
+            if tile.key != key || tile.side != self.side {
+                return Err(StoreError::Mismatch {
+                    path: PathBuf::new(),
+                    why: format!("holds tile {:?} of side {}, expected {key:?} of side {}", tile.key, tile.side, self.side),
+                });
+            }
+            Ok(tile)
+        });
+        match tile {
+            Ok(tile) => {
+                self.touch(key);
+                Ok(Some(tile))
+            }
+            Err(e) => {
+                self.quarantine(key, &path);
+                Err(e.at(&path))
+            }
+        }
+    }
+
+    fn write(&mut self, tile: &TileData) -> Result<(), StoreError> {
+        let path = self.tile_path(tile.key);
+        if tile.side != self.side {
+            return Err(StoreError::Mismatch { path, why: format!("the tile is {}², the store holds {}² tiles", tile.side, self.side) });
+        }
+        tile.validate().map_err(|e| e.at(&path))?;
+        let bytes = encode(tile);
+        self.refuse_if_full(tile.key, bytes.len() as u64, &path)?;
+        // While saving, beside the saved version, for the next save.
+        let generation = self.saving.then_some(self.committed + 1);
+        let path = generation.map_or(path, |g| generation_path(&self.dir, tile.key, g));
+        if let Some(region) = path.parent() {
+            // `create_dir`, not `create_dir_all`: if `tiles` itself has gone,
+            // that is an error to report, not a directory to recreate.
+            match self.disk.create_dir(region) {
+                Err(e) if e.kind() != io::ErrorKind::AlreadyExists => {
+                    return Err(StoreError::Io { path: region.to_owned(), op: "create the region directory", source: e });
+                }
+                // A new region folder is an entry in `tiles`: synced, so a
+                // power cut cannot lose the folder under a synced tile.
+                Ok(()) => {
+                    if let Some(tiles) = region.parent() {
+                        new_entry_synced(&*self.disk, region, tiles)?;
+                    }
+                }
+                Err(_) => {}
+            }
+        }
+        atomic_write(&*self.disk, &path, &bytes)?;
+        self.forget(tile.key);
+        self.insert(tile.key, bytes.len() as u64, generation);
+        self.enforce_budget(Some(tile.key))
+    }
+
+    fn write_state(&self, name: &str, bytes: &[u8]) -> Result<(), StoreError> {
+        let path = self.state_path(name)?;
+        let mut framed = Vec::with_capacity(24 + bytes.len());
+        framed.extend_from_slice(STATE_MAGIC);
+        framed.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        framed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&framed);
+        crc.update(bytes);
+        framed.extend_from_slice(&crc.finalize().to_le_bytes());
+        framed.extend_from_slice(bytes);
+        atomic_write(&*self.disk, &path, &framed)
+    }
+
+    fn read_state(&self, name: &str) -> Result<Option<Vec<u8>>, StoreError> {
+        let path = self.state_path(name)?;
+        // The last complete save's states first (read from disk each time:
+        // what is there is the answer).
+        let save_path = self.dir.join(SAVE_FILE);
+        match self.disk.read(&save_path) {
+            Ok(bytes) => {
+                if let Some((_, bytes)) = decode_save(&save_path, &bytes)?.1.into_iter().find(|(n, _)| n == name) {
+                    return Ok(Some(bytes));
+                }
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(e) => return Err(StoreError::Io { path: save_path, op: "read", source: e }),
+        }
+        let framed = match self.disk.read(&path) {
+            Ok(framed) => framed,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => {
+                return Err(StoreError::Io { path, op: "read", source: e });
+            }
+        };
+        let corrupt = |why: &str| StoreError::Corrupt { path: path.clone(), why: why.to_owned() };
+        if framed.len() < 24 || &framed[..8] != STATE_MAGIC {
+            return Err(corrupt("not a snowpack state file (no SNOWSTAT magic or too short)"));
+        }
+        let version = u32::from_le_bytes([framed[8], framed[9], framed[10], framed[11]]);
+        if !readable(version) {
+            return Err(StoreError::Version { path, found: version, expected: FORMAT_VERSION });
+        }
+        let mut len = [0; 8];
+        len.copy_from_slice(&framed[12..20]);
+        let stored = u32::from_le_bytes([framed[20], framed[21], framed[22], framed[23]]);
+        let payload = &framed[24..];
+        if u64::from_le_bytes(len) != payload.len() as u64 {
+            return Err(corrupt("length mismatch (truncated?)"));
+        }
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(&framed[..20]);
+        crc.update(payload);
+        if crc.finalize() != stored {
+            return Err(corrupt("bad CRC32"));
+        }
+        Ok(Some(payload.to_vec()))
+    }
+
+    fn begin_saves(&mut self) {
+        self.saving = true;
+    }
+
+    fn commit(&mut self, states: &[(&str, &[u8])]) -> Result<(), StoreError> {
+        for (name, _) in states {
+            self.state_path(name)?;
+        }
+        let generation = self.committed + 1;
+        atomic_write(&*self.disk, &self.dir.join(SAVE_FILE), &encode_save(generation, states))?;
+        self.committed = generation;
+        self.saving = true;
+        // Best effort: what is not done here, open does.
+        let mut regions = BTreeSet::new();
+        let written: Vec<(TileKey, u64)> = self.index.iter().filter_map(|(k, e)| e.generation.map(|g| (*k, g))).collect();
+        for (key, g) in written {
+            let to = tile_path(&self.dir, key);
+            match self.disk.rename(&generation_path(&self.dir, key, g), &to) {
+                Ok(()) => {
+                    if let Some(entry) = self.index.get_mut(&key) {
+                        entry.generation = None;
+                    }
+                    regions.insert(to.parent().map(Path::to_owned).unwrap_or_default());
+                }
+                Err(e) => tracing::warn!("tile store: {} stays beside its saved version until the store is opened again: {e}", to.display()),
+            }
+        }
+        for region in regions {
+            if let Err(e) = sync_dir(&*self.disk, &region) {
+                tracing::warn!("tile store: {e}");
+            }
+        }
+        Ok(())
+    }
+
+    fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    fn side(&self) -> u32 {
+        self.side
+    }
+
+    fn disk_tiles(&self) -> usize {
+        self.index.len()
+    }
+
+    fn disk_bytes(&self) -> u64 {
+        self.total_bytes
+    }
+
+    fn evicted(&self) -> u64 {
+        self.evicted
+    }
+
+    fn contains(&self, key: TileKey) -> bool {
+        self.index.contains_key(&key)
+    }
+
+    fn has_room(&self) -> bool {
+        let budget = self.config.disk_budget_bytes;
+        self.config.when_full == WhenFull::EvictOldest || budget == 0 || self.total_bytes < budget
+    }
+
+    fn keys(&self) -> impl Iterator<Item = TileKey> + '_ {
+        self.index.keys().copied()
+    }
+
+    fn tile_bytes(&self, key: TileKey) -> Option<u64> {
+        self.index.get(&key).map(|e| e.bytes)
+    }
+
+    fn tile_path(&self, key: TileKey) -> PathBuf {
+        tile_path(&self.dir, key)
     }
 }
 

@@ -33,10 +33,10 @@ pub mod world;
 
 pub use crate::error::ShareError;
 pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
-pub use peer::{PeerConfig, PeerStats, SnowPeer};
+pub use peer::{PeerConfig, PeerStats, SnowPeer, SnowPeerExt};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
-pub use world::{WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain};
+pub use world::{WorldIdentity, WorldIdentityExt, WorldSnow, WorldSnowfall, WorldTerrain};
 
 /// What a [`SnowPeer`] needs of the snow it shares: the
 /// window's clock and place, the tiles it changed, and a way to fold in

@@ -18,43 +18,41 @@ use super::tile::{CatchUp, ShareClock, SharedTile};
 use super::world::WorldIdentity;
 use super::{ShareError, SharedSnow};
 
-low_level_some_fields! {
-    /// How a peer paces itself and what it keeps.
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct PeerConfig {
-        /// Seconds between two `Presence` messages.
-        pub(crate) presence_interval_s: f64,
-        /// Seconds between two `Digest` messages until the relay first answers
-        /// one with `InSync` (after joining or reconnecting): a late joiner
-        /// learns quickly that it holds everything.
-        pub digest_interval_s: f64,
-        /// Until then, a `Digest` also goes out once the relay's tiles have
-        /// stopped arriving for this long (seconds; longer than the relay's
-        /// send interval, so a paced backlog is not taken for its end) while
-        /// none of the peer's own changes waits: a late joiner is in sync a
-        /// moment after its backlog, not at the next `digest_interval_s`.
-        pub(crate) settled_digest_s: f64,
-        /// Seconds between two `Digest` messages after that: digests only
-        /// repair what a connection lost, and on a reliable channel (renet2's,
-        /// a game's own) that is rare, while a digest of a window full of
-        /// trails is tens of bytes a tile. Set it to `digest_interval_s` over
-        /// an unreliable channel.
-        pub synced_digest_interval_s: f64,
-        /// The least time between two sends of deltas: a tile changed every
-        /// frame in between goes out once, as it is then.
-        pub(crate) delta_interval_s: f64,
-        /// A delta not acknowledged after this many seconds is sent again
-        /// (as the replica's current tiles, which include it).
-        pub(crate) resend_after_s: f64,
-        /// The most deltas in flight; further changes wait (and coalesce).
-        pub(crate) max_unacknowledged: usize,
-        /// Messages queued to send; beyond it the oldest is dropped and counted.
-        pub(crate) queue_messages: usize,
-        /// Tiles kept in the replica; beyond it those farthest from the window go.
-        pub(crate) replica_tiles: usize,
-        /// Received tiles waiting for the next `update`; beyond it the oldest go.
-        pub(crate) incoming_tiles: usize,
-    }
+/// How a peer paces itself and what it keeps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeerConfig {
+    /// Seconds between two `Presence` messages.
+    pub(crate) presence_interval_s: f64,
+    /// Seconds between two `Digest` messages until the relay first answers
+    /// one with `InSync` (after joining or reconnecting): a late joiner
+    /// learns quickly that it holds everything.
+    pub digest_interval_s: f64,
+    /// Until then, a `Digest` also goes out once the relay's tiles have
+    /// stopped arriving for this long (seconds; longer than the relay's
+    /// send interval, so a paced backlog is not taken for its end) while
+    /// none of the peer's own changes waits: a late joiner is in sync a
+    /// moment after its backlog, not at the next `digest_interval_s`.
+    pub(crate) settled_digest_s: f64,
+    /// Seconds between two `Digest` messages after that: digests only
+    /// repair what a connection lost, and on a reliable channel (renet2's,
+    /// a game's own) that is rare, while a digest of a window full of
+    /// trails is tens of bytes a tile. Set it to `digest_interval_s` over
+    /// an unreliable channel.
+    pub synced_digest_interval_s: f64,
+    /// The least time between two sends of deltas: a tile changed every
+    /// frame in between goes out once, as it is then.
+    pub(crate) delta_interval_s: f64,
+    /// A delta not acknowledged after this many seconds is sent again
+    /// (as the replica's current tiles, which include it).
+    pub(crate) resend_after_s: f64,
+    /// The most deltas in flight; further changes wait (and coalesce).
+    pub(crate) max_unacknowledged: usize,
+    /// Messages queued to send; beyond it the oldest is dropped and counted.
+    pub(crate) queue_messages: usize,
+    /// Tiles kept in the replica; beyond it those farthest from the window go.
+    pub(crate) replica_tiles: usize,
+    /// Received tiles waiting for the next `update`; beyond it the oldest go.
+    pub(crate) incoming_tiles: usize,
 }
 
 impl Default for PeerConfig {
@@ -301,15 +299,6 @@ impl SnowPeer {
         self.config = config;
     }
 
-    low_level_pub! {
-        /// How the peer paces itself now.
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn config(&self) -> &PeerConfig {
-            &self.config
-        }
-    }
-
     /// Where this peer's deformers are now (world x, z in m; at most 256
     /// are sent): where the relay lets it write.
     pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {
@@ -458,14 +447,6 @@ impl SnowPeer {
         self.welcomed
     }
 
-    low_level_pub! {
-        /// The relay's number for this peer, once welcomed.
-        #[must_use]
-        fn peer_number(&self) -> Option<u32> {
-            self.number
-        }
-    }
-
     /// Changes not yet acknowledged by the relay: deltas in flight plus
     /// tiles waiting to be sent. A headless run waits for 0 before exiting.
     #[must_use]
@@ -478,15 +459,6 @@ impl SnowPeer {
     #[must_use]
     pub fn stats(&self) -> PeerStats {
         self.stats
-    }
-
-    low_level_pub! {
-        /// The replica's copy of a tile (what this peer knows of it).
-        #[must_use]
-        #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the app, the tools and the tests (`low_level`)"))]
-        fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
-            self.replica.get(&key)
-        }
     }
 
     fn push(&mut self, bytes: Vec<u8>) {
@@ -608,6 +580,37 @@ impl SnowPeer {
             self.sent.remove(&k);
             self.wanted.remove(&k);
         }
+    }
+}
+
+/// What the tools and the tests read of a [`SnowPeer`] beyond a game's API
+/// (a named extension trait, so the peer has one shape with or without
+/// `low_level`; `snowpack::low_level::SnowPeerExt` re-exports it).
+pub trait SnowPeerExt: Sized {
+    /// How the peer paces itself now.
+    #[must_use]
+    fn config(&self) -> &PeerConfig;
+
+    /// The relay's number for this peer, once welcomed.
+    #[must_use]
+    fn peer_number(&self) -> Option<u32>;
+
+    /// The replica's copy of a tile (what this peer knows of it).
+    #[must_use]
+    fn replica_tile(&self, key: TileKey) -> Option<&SharedTile>;
+}
+
+impl SnowPeerExt for SnowPeer {
+    fn config(&self) -> &PeerConfig {
+        &self.config
+    }
+
+    fn peer_number(&self) -> Option<u32> {
+        self.number
+    }
+
+    fn replica_tile(&self, key: TileKey) -> Option<&SharedTile> {
+        self.replica.get(&key)
     }
 }
 

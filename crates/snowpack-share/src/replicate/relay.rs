@@ -15,6 +15,8 @@
 //! peer's byte and tile rates. Everything refused is counted
 //! ([`RelayStats::rejected`]) and changes nothing.
 
+use crate::persist::TileStoreExt;
+use crate::replicate::WorldIdentityExt;
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 

@@ -57,13 +57,6 @@ pub struct SnowParams {
     /// combined technique (the capture gives the direction); the window then
     /// keeps a lying-snow plane (4 bytes a texel) as with snowfall.
     pub displace: bool,
-    /// Counts what snowfall and refill add to the window, each frame, in the
-    /// mass ledger (`WindowMass`, `docs/mechanics.md`, "The ledger"): a sum
-    /// over each workgroup of the update pass, which costs it (about half
-    /// again on a software rasteriser) in frames that snow or refill. What
-    /// enters and leaves with the window's moves is counted either way. Off
-    /// by default; the headless runner turns it on for `meta.json`.
-    pub count_mass: bool,
     /// Snowfall (the `[snowfall]` table): the ground gains depth where the sky
     /// reaches it and objects accumulate snow. `None`: no snow falls, and the
     /// ground's snowfall buffer is not allocated.
@@ -121,7 +114,6 @@ impl Default for SnowParams {
             max_density_kg_m3: 500.0,
             repose_deg: None,
             displace: false,
-            count_mass: false,
             snowfall: None,
             tile_memory_bytes: Some(DEFAULT_TILE_MEMORY_BYTES),
             teleport_m: 4.0,

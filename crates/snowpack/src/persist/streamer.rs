@@ -19,6 +19,7 @@
 //! grow memory without bound). A tile pushed out while its write is still
 //! queued is not lost: the worker holds it until written.
 
+use snowpack_share::persist::TileStoreExt;
 use std::collections::{BTreeSet, HashMap, HashSet, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -68,6 +68,8 @@ pub(super) struct CoreWindow {
     /// Whether the window's buffers hold snow (after the first move): what
     /// a move overwrites then left the window (the mass ledger).
     filled: bool,
+    /// Whether the ledger counts snowfall and refill (`SnowInspect::set_count_mass`).
+    count_mass: bool,
     /// Contact points stamped in the last frame.
     pub(super) points_last_frame: usize,
     /// Contact points left out because a frame brought more than the stamp pass takes.
@@ -138,6 +140,7 @@ impl CoreWindow {
             res,
             exposed_texels: 0,
             filled: false,
+            count_mass: false,
             points_last_frame: 0,
             points_dropped: 0,
             floating_origin: DVec2::ZERO,
@@ -191,6 +194,11 @@ impl CoreWindow {
             terrain_m: self.terrain_bounds,
         };
         (window, rects)
+    }
+
+    /// Whether the ledger counts snowfall and refill from the next frame on.
+    pub(super) fn set_count_mass(&mut self, on: bool) {
+        self.count_mass = on;
     }
 
     /// Whether this frame's move overwrites snow the window held (every move
@@ -318,7 +326,7 @@ impl CoreWindow {
                 | if self.displaces() { UpdateParams::DISPLACE } else { 0 }
                 | if self.displaces() && share.is_none() { UpdateParams::CONSUME } else { 0 }
                 // The mass ledger counts what this frame's snowfall and refill add (nothing to count without them).
-                | if p.count_mass && (refill.snow_refill_quanta > 0 || refill.fall_m > 0.0) { UpdateParams::LEDGER } else { 0 },
+                | if self.count_mass && (refill.snow_refill_quanta > 0 || refill.fall_m > 0.0) { UpdateParams::LEDGER } else { 0 },
             refill_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),

@@ -46,10 +46,10 @@ pub struct WindowMass {
     /// Snow that left the window with its moves (kg).
     pub left_kg: f64,
     /// Snow that snowfall added (kg), counted with
-    /// [`crate::SnowParams::count_mass`] (else 0).
+    /// [`SnowInspect::set_count_mass`] (else 0).
     pub snowfall_kg: f64,
     /// Snow that the refill added to trails (kg), counted with
-    /// [`crate::SnowParams::count_mass`] (else 0).
+    /// [`SnowInspect::set_count_mass`] (else 0).
     pub refill_kg: f64,
 }
 
@@ -62,7 +62,7 @@ impl WindowMass {
     /// up to a quantum of rounding a texel moved or snowed on, but for
     /// merges (another machine's tiles, a stored tile merged under a
     /// stand-in), and, where it snows or refills, only with
-    /// [`crate::SnowParams::count_mass`].
+    /// [`SnowInspect::set_count_mass`].
     #[must_use]
     pub fn ledger_kg(&self) -> f64 {
         self.entered_kg - self.left_kg + self.snowfall_kg + self.refill_kg - self.displaced_kg
@@ -197,6 +197,14 @@ pub trait SnowInspect {
     /// what presses have displaced beyond the final density since it was
     /// created; blocking.
     fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError>;
+
+    /// Whether the mass ledger also counts what snowfall and refill add,
+    /// each frame (`docs/mechanics.md`, "The ledger"): a sum over each
+    /// workgroup of the update pass, which costs it (about half again on a
+    /// software rasteriser) in frames that snow or refill. What enters and
+    /// leaves with the window's moves is counted either way. Off at first;
+    /// the headless runner turns it on for `meta.json`.
+    fn set_count_mass(&mut self, on: bool);
 
     /// Terrain height (m) at the texel centres, window-local row-major; for
     /// mesh terrain blocking. Evaluated on the CPU with the GPU's formula
@@ -383,6 +391,10 @@ impl SnowInspect for SnowDeformation {
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
         Ok(self.packed_m(&words))
+    }
+
+    fn set_count_mass(&mut self, on: bool) {
+        self.core.set_count_mass(on);
     }
 
     fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError> {

@@ -11,6 +11,7 @@ use crate::replicate::flags::ShareGrid;
 use crate::replicate::sharing::{ShareWindow, Sharing};
 use crate::replicate::world::{WorldSnow, WorldSnowfall, WorldTerrain};
 use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity, terrain_identity};
+use snowpack_share::replicate::WorldIdentityExt;
 
 use super::SnowDeformation;
 use super::clock::{RefillBase, SnowTime};

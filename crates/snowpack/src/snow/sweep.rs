@@ -19,7 +19,7 @@ struct Previous {
 }
 
 /// Previous positions of skinned meshes (by [`super::SkinnedId`]) and of
-/// caller meshes (by index in [`super::SnowFrame::meshes`]).
+/// caller meshes (by index in the frame's meshes, `SnowFrame::with_meshes`).
 #[derive(Default)]
 pub struct MeshHistory {
     skinned: Vec<Option<Previous>>,

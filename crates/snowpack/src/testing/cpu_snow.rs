@@ -3,6 +3,7 @@
 //! toroidal: moving it copies what stays), discs pressed into it, refill by
 //! the world clock, and the tiles it changed.
 
+use snowpack_share::replicate::WorldIdentityExt;
 use std::collections::BTreeSet;
 
 use crate::persist::TileKey;

@@ -74,7 +74,7 @@ pub enum Unsynced {
     Random(u64),
 }
 
-/// A disk in memory for [`crate::persist::TileStore::open_on`] that can be
+/// A disk in memory for [`snowpack_share::persist::TileStoreExt::open_on`] that can be
 /// told to lose power after a number of operations; from then on every
 /// operation fails, and [`PowerLossDisk::crash`] gives the disk as it is
 /// when the power comes back. Clones share one disk.
