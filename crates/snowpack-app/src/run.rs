@@ -94,8 +94,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
     let mut world = World::new(scene);
     let params = snowpack::SnowParams { technique, ..scene.snow.clone() };
     let mut snow = new_window(&ctx, scene, params, window_center(scene, &world), "creating the deformation window")?;
-    // The runner reports the whole mass ledger in meta.json (snowfall and refill counted too).
-    snow.set_count_mass(true);
+    snow.set_count_mass(true); // meta.json's mass ledger counts snowfall and refill too
     let skins = register_characters(&ctx, &world, &mut snow)?;
     let objects: Vec<_> = scene.objects.iter().map(snowpack_scene::ObjectSpec::object).collect();
     match snow.set_objects(&ctx, &objects).map_err(snowpack::low_level::error::SnowError::from) {
@@ -189,14 +188,8 @@ fn simulate(
         let characters = world.characters();
         let (deformers, ids, poses) = (world.deformers(), world.deformer_ids(), poses(skins, &characters));
         let frame_in = snowpack::SnowFrame::new(scene.sim.dt_s, &deformers).with_ids(&ids).with_poses(&poses);
-        snow.step_frame(
-            ctx,
-            &match asked.as_deref() {
-                Some(points) => frame_in.with_queries(points),
-                None => frame_in,
-            },
-        )
-        .with_context(|| format!("GPU frame {frame}"))?;
+        let frame_in = asked.as_deref().map_or(frame_in, |points| frame_in.with_queries(points));
+        snow.step_frame(ctx, &frame_in).with_context(|| format!("GPU frame {frame}"))?;
         if u64::from(frame) + 1 == warmup {
             snow.clear_timings();
         }

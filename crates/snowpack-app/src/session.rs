@@ -441,10 +441,7 @@ impl Session {
         let poses = crate::characters::poses(&self.skins, &characters);
         let ids = self.deformer_ids();
         let frame = snowpack::SnowFrame::new(dt, &deformers).with_ids(&ids).with_poses(&poses);
-        let frame = match asked.as_deref() {
-            Some(points) => frame.with_queries(points),
-            None => frame,
-        };
+        let frame = asked.as_deref().map_or(frame, |points| frame.with_queries(points));
         self.snow.encode(ctx, encoder, &frame);
         for e in self.snow.take_store_errors() {
             self.store_errors.push(e.to_string());
