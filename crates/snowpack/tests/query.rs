@@ -384,12 +384,7 @@ fn the_mass_stays_over_random_presses_blades_and_snowfall() {
             snowfall,
             ..SnowParams::default()
         };
-        let terrain = TerrainSource::Noise(NoiseTerrain {
-            seed: rng.next_u64() as u32,
-            base_m: 0.0,
-            amplitude_m: rng.range(0.0, 0.3),
-            wavelength_m: rng.range(2.0, 8.0),
-        });
+        let terrain = gentle_noise(&mut rng);
         let m = params.mechanics();
         let mut snow = SnowDeformation::new(ctx, params.clone(), terrain, DVec2::ZERO).expect("window");
         snow.step(ctx, &[], 1.0 / 60.0).expect("frame");
@@ -447,6 +442,11 @@ fn the_mass_stays_over_random_presses_blades_and_snowfall() {
     }
 }
 
+/// Noise terrain of up to 0.3 m over 2 to 8 m: slopes under the snow, not hills.
+fn gentle_noise(rng: &mut Rng) -> TerrainSource {
+    TerrainSource::Noise(NoiseTerrain { seed: rng.next_u64() as u32, base_m: 0.0, amplitude_m: rng.range(0.0, 0.3), wavelength_m: rng.range(2.0, 8.0) })
+}
+
 /// The mass ledger (`docs/mechanics.md`, "The ledger"): over random
 /// presses and a blade, with snowfall or not, refill or not, displacement
 /// or not, while the window walks, jumps 40 m away (a long move, in
@@ -474,12 +474,7 @@ fn the_mass_ledger_balances_over_window_moves_snowfall_and_refill() {
             snowfall,
             ..SnowParams::default()
         };
-        let terrain = TerrainSource::Noise(NoiseTerrain {
-            seed: rng.next_u64() as u32,
-            base_m: 0.0,
-            amplitude_m: rng.range(0.0, 0.3),
-            wavelength_m: rng.range(2.0, 8.0),
-        });
+        let terrain = gentle_noise(&mut rng);
         let mut snow = SnowDeformation::new(ctx, params.clone(), terrain, DVec2::ZERO).expect("window");
         snow.set_count_mass(true);
         // The centre walks 6 m along x, jumps 40 m to z and comes back.
