@@ -1,3 +1,4 @@
+// #import shared/snow_word
 // The window's mass ledger (docs/mechanics.md, "The ledger";
 // src/deform/packed_snow.rs): what snow entered and left the window with
 // its moves, and what snowfall and refill added, counted in the packed-snow
@@ -11,8 +12,9 @@
 // into the workgroup's sums (ledger_add), then every invocation reaches
 // ledger_flush in uniform control flow, and one adds the sums to the
 // counts: one global atomic per workgroup and count, not one per texel.
-// Twin: src/deform/packed_snow.rs (`Ledger`) and the passes' CPU twins.
+// Twin: src/deform/packed_snow.rs (`LedgerCounts`) and the passes' CPU twins.
 
+const LEDGER_DISPLACED: u32 = 2u;
 const LEDGER_REFILL: u32 = 4u;
 const LEDGER_SNOWFALL: u32 = 6u;
 const LEDGER_ENTERED: u32 = 8u;

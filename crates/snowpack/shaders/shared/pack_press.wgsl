@@ -1,19 +1,16 @@
 // #import shared/displace
+// #import shared/mass_ledger
 // A press's packing (docs/mechanics.md), for the passes that raise deficits
 // (the update and the tile merge). The importing shader declares
 //   packed: array<atomic<u32>>
-// in shared/packed_snow.wgsl's layout, whose last two words are the count
-// of displaced snow quanta (a u64, low word first): one binding, so the
-// tile merge stays within 8 storage buffers.
+// in shared/packed_snow.wgsl's layout, whose last words are the mass
+// ledger's counts, the displaced snow last (shared/mass_ledger.wgsl): one
+// binding, so the tile merge stays within 8 storage buffers.
 // Twin: the same steps in src/cpu/update.rs and src/cpu/tile_merge.rs.
 
-// Adds `q` quanta to the displaced count, carrying into its high word.
+// Adds `q` quanta to the ledger's displaced count.
 fn count_displaced(q: u32) {
-    let low = arrayLength(&packed) - 2u;
-    let before = atomicAdd(&packed[low], q);
-    if before + q < before {
-        atomicAdd(&packed[low + 1u], 1u);
-    }
+    ledger_count(LEDGER_DISPLACED, q);
 }
 
 // Sets texel `s`'s packed snow from `before` to `after` quanta (at most 16

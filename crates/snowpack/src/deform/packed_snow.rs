@@ -60,13 +60,11 @@ pub fn ledger(buffer: &[u32]) -> LedgerCounts {
     LedgerCounts { left_q: wide(0), entered_q: wide(2), snowfall_fine: wide(4), refill_q: wide(6), displaced_q: wide(8) }
 }
 
-/// The displaced snow quanta counted in the packed buffer's last words.
+/// The displaced snow quanta counted in the packed buffer's last words
+/// ([`ledger`]'s `displaced_q`).
 #[must_use]
 pub fn displaced_count(buffer: &[u32]) -> u64 {
-    match buffer {
-        [.., low, high] => u64::from(*low) | (u64::from(*high) << 32),
-        _ => 0,
-    }
+    ledger(buffer).displaced_q
 }
 
 /// A window texel's snow in quanta of fresh snow, as the ledger counts it

@@ -201,12 +201,6 @@ impl CoreWindow {
         self.count_mass = on;
     }
 
-    /// Whether this frame's move overwrites snow the window held (every move
-    /// but the first fill): the ledger counts it as left.
-    pub(super) fn filled(&self) -> bool {
-        self.filled
-    }
-
     /// The window pass: fresh snow in the texels a move exposed (when no
     /// tiles are kept; otherwise the tiles' exchange does it).
     pub(super) fn record_window(&self, cx: &mut FrameContext<'_>, window: &WindowFrame, rects: &[TexelRect]) {
@@ -219,7 +213,7 @@ impl CoreWindow {
             fallen_m: window.fallen_m,
             flags: if p.keeps_lying_snow() { WindowParams::WRITE_FALLEN } else { 0 }
                 | if self.res.has_stamps() { WindowParams::WRITE_STAMPS } else { 0 }
-                | if self.filled() { WindowParams::COUNT_LEFT } else { 0 },
+                | if self.filled { WindowParams::COUNT_LEFT } else { 0 },
             ..WindowParams::default()
         };
         self.window_pass.record(cx, &self.res, params, rects);
