@@ -6,9 +6,10 @@
 
 use libfuzzer_sys::fuzz_target;
 use snowpack::low_level::replicate::{Message, PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity, decode, encode};
+use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 
 fn world() -> WorldIdentity {
-    WorldIdentity {
+    WorldIdentity::from_settings(WorldSettings {
         texel_m: 0.125,
         tile_side: 16,
         terrain: "flat at 0 m".to_owned(),
@@ -18,7 +19,7 @@ fn world() -> WorldIdentity {
         max_fallen_m: 0.0,
         has_snowfall: false,
         stamp_range_m: [-1.0, 1.0],
-    }
+    })
 }
 
 fuzz_target!(|data: &[u8]| {

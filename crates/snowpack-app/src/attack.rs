@@ -16,6 +16,7 @@ use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
 use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
 use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, WorldIdentity, decode, encode};
 use snowpack::low_level::testing::CpuSnow;
+use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 
 use crate::net::{CHANNEL, SnowLink, Transport};
 
@@ -140,7 +141,7 @@ impl Raw {
         let tiles = keys
             .iter()
             .map(|&key| {
-                let mut t = SharedTile::untouched(key, world.tile_side, clock, false, world.has_snowfall);
+                let mut t = SharedTile::untouched(key, world.settings().tile_side, clock, false, world.settings().has_snowfall);
                 t.deficit.fill(deficit);
                 t
             })
@@ -153,14 +154,14 @@ impl Raw {
 
 /// The keys of the 3 × 3 tiles around world (x, z).
 fn keys_around(world: &WorldIdentity, p: [f64; 2]) -> Vec<TileKey> {
-    let texel = f64::from(world.texel_m);
-    let c = TileKey::containing((p[0] / texel).floor() as i64, (p[1] / texel).floor() as i64, world.tile_side);
+    let texel = f64::from(world.settings().texel_m);
+    let c = TileKey::containing((p[0] / texel).floor() as i64, (p[1] / texel).floor() as i64, world.settings().tile_side);
     (-1..=1).flat_map(|dr| (-1..=1).map(move |dc| TileKey::new(c.col + dc, c.row + dr))).collect()
 }
 
 /// A tile of pressed snow that does not compress: deficits of xorshift noise, below the snow's depth.
 fn noisy_tile(world: &WorldIdentity, clock: ShareClock, key: TileKey, noise: &mut u64) -> SharedTile {
-    let mut t = SharedTile::untouched(key, world.tile_side, clock, false, world.has_snowfall);
+    let mut t = SharedTile::untouched(key, world.settings().tile_side, clock, false, world.settings().has_snowfall);
     for d in &mut t.deficit {
         *noise ^= *noise << 13;
         *noise ^= *noise >> 7;
@@ -279,10 +280,10 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
 fn flood(world: &WorldIdentity, clock: ShareClock, frame: u64, (flooder, flipper): (&mut Raw, &mut Raw)) {
     let entries: Vec<(TileKey, u64)> = (0..MAX_KEYS as i64).map(|k| (TileKey::new(k % 64, k / 64), k as u64)).collect();
     flooder.send(&Message::Digest { clock, window: [0, 0], resolution: 2048, entries });
-    let side = world.tile_side;
+    let side = world.settings().tile_side;
     let far = if frame.is_multiple_of(2) { 0 } else { 1 << 20 };
     let res = ((MAX_INTEREST_TILES as f64).sqrt() as u32 - 2) * side;
-    let texel = f64::from(world.texel_m);
+    let texel = f64::from(world.settings().texel_m);
     let deformers = (0..MAX_DEFORMERS).map(|k| [far as f64 * texel + k as f64, 0.0]).collect();
     flipper.send(&Message::Presence { window: [far, 0], resolution: res, deformers });
     flipper.send(&Message::Query { id: frame as u32, points: vec![[0.0, 0.0]; MAX_DEFORMERS] });
@@ -294,7 +295,7 @@ pub fn run(addr: SocketAddr, scene: &Path, role: &str, seconds: f64, trail_z: f6
     match role {
         "honest" => honest(addr, &world, trail_z, Duration::from_secs_f64(seconds.max(1.0))),
         "hostile" => {
-            let other = WorldIdentity { depth_m: world.depth_m + 0.3, ..world.clone() };
+            let other = WorldIdentity::from_settings(WorldSettings { depth_m: world.settings().depth_m + 0.3, ..world.settings().clone() });
             hostile(addr, &world, &other, seconds)
         }
         _ => Err(snowpack_app::BadInput(format!("--role {role}: honest or hostile")).into()),

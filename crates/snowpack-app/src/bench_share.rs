@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use snowpack::low_level::replicate::WorldIdentity;
 use snowpack::low_level::testing::CpuSnow;
+use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 
 use crate::net::SnowLink;
 
@@ -62,7 +63,7 @@ impl ShareRow {
 /// The world every simulated peer shares: 6.25 cm texels, 32² tiles, flat
 /// ground, 0.5 m of snow refilling at 1 cm a minute.
 fn world() -> WorldIdentity {
-    WorldIdentity {
+    WorldIdentity::from_settings(WorldSettings {
         texel_m: 0.0625,
         tile_side: crate::net::DEFAULT_TILE_SIDE,
         terrain: snowpack::low_level::replicate::terrain_identity(&snowpack::TerrainSource::Flat { height_m: 0.0 }),
@@ -72,7 +73,7 @@ fn world() -> WorldIdentity {
         max_fallen_m: 0.0,
         has_snowfall: false,
         stamp_range_m: [-0.5, 1.5],
-    }
+    })
 }
 
 /// A server started for a measurement: the process, its address, and the

@@ -11,6 +11,7 @@
 //! drops and comes back lost. `docs/multiplayer.md` has the protocol.
 
 use snowpack_share::persist::TileStoreExt;
+use snowpack_share::replicate::WorldIdentityExt;
 use std::collections::VecDeque;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -216,11 +217,11 @@ fn open_relay(opts: &ServerOptions) -> anyhow::Result<(SnowRelay, f64)> {
     std::fs::create_dir_all(&opts.store).with_context(|| format!("creating the store folder {}", opts.store.display()))?;
     let stored = TileStore::side_in(&opts.store).context("reading the store's description")?;
     let side = match (&world, stored) {
-        (Some(w), Some(s)) if s != w.tile_side => {
+        (Some(w), Some(s)) if s != w.settings().tile_side => {
             let scene = opts.scene.as_deref().unwrap_or(Path::new(""));
-            return Err(store_mismatch(&opts.store, scene, &format!("tile side: {s} here, {} there", w.tile_side)));
+            return Err(store_mismatch(&opts.store, scene, &format!("tile side: {s} here, {} there", w.settings().tile_side)));
         }
-        (Some(w), _) => w.tile_side,
+        (Some(w), _) => w.settings().tile_side,
         (None, s) => s.unwrap_or(DEFAULT_TILE_SIDE),
     };
     let config = StoreConfig { disk_budget_bytes: opts.disk_budget_bytes, when_full: WhenFull::RefuseNew };

@@ -37,16 +37,6 @@
 //! docs what snowpack's app, tools and tests use beyond a game's API, and
 //! adds `testing`'s support for tests.
 
-/// Declares a struct whose fields are `pub` and, without the `low_level`
-/// feature, hidden from the docs: plain data that snowpack builds or reads
-/// field by field, and a game reaches through the type's methods.
-macro_rules! low_level_fields {
-    ($(#[$attr:meta])* pub struct $name:ident $(<$lt:lifetime>)? { $($(#[$fattr:meta])* $field:ident: $ty:ty),* $(,)? }) => {
-        $(#[$attr])*
-        pub struct $name $(<$lt>)? { $($(#[$fattr])* #[cfg_attr(not(feature = "low_level"), doc(hidden))] pub $field: $ty),* }
-    };
-}
-
 pub mod error;
 pub mod mechanics;
 pub mod persist;

@@ -33,7 +33,7 @@ pub use crate::snow::inspect::{SnowInspect, WindowMass};
 pub use crate::snowfall::SnowfallExt;
 pub use crate::terrain::{HeightmapTerrainExt, TerrainMeshExt, TerrainSourceExt};
 pub use snowpack_share::persist::TileStoreExt;
-pub use snowpack_share::replicate::{SnowPeerExt, WorldIdentityExt};
+pub use snowpack_share::replicate::{SnowPeerExt, WorldIdentityExt, WorldSettings};
 
 /// Snow settling on objects: the object atlas, its passes and state.
 pub mod accumulate {

@@ -551,7 +551,7 @@ fn sharing_rejects_bad_sides_and_counts_its_memory() {
     let after: u64 = d.memory_bytes().iter().map(|(_, b)| b).sum();
     // Flags (2 x 2 slots), two readback rings, the gather's and merge's buffers.
     assert!(after > before + 3 * 256 * 256 * 3 * 4, "{before} -> {after}");
-    assert_eq!(d.world_identity().tile_side, 256);
+    assert_eq!(d.world_identity().settings().tile_side, 256);
 }
 
 /// What `snowpack server --scene` serves, found without a GPU, is the world

@@ -3,7 +3,7 @@
 //! reorders messages, all on the CPU (`testing::CpuSnow`).
 
 use snowpack::low_level::SnowPeerExt;
-use snowpack::low_level::WorldIdentityExt;
+use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
@@ -17,7 +17,7 @@ use snowpack::low_level::testing::{self, CpuSnow, Rng};
 // ---------------------------------------------------------------- helpers
 
 fn world(side: u32) -> WorldIdentity {
-    WorldIdentity {
+    WorldIdentity::from_settings(WorldSettings {
         texel_m: 0.125,
         tile_side: side,
         terrain: "flat at 0 m".to_owned(),
@@ -27,7 +27,7 @@ fn world(side: u32) -> WorldIdentity {
         max_fallen_m: 0.0,
         has_snowfall: false,
         stamp_range_m: [-1.0, 1.0],
-    }
+    })
 }
 
 /// A tile's key, side, clock, planes and digest as bits.
@@ -171,16 +171,18 @@ fn merge_is_not_exact_where_a_footprint_leaves_the_range() {
 
 fn any_world() -> impl Strategy<Value = WorldIdentity> {
     (any::<f32>(), any::<u32>(), ".{0,40}", any::<[f32; 4]>(), any::<bool>(), any::<[f32; 2]>()).prop_map(
-        |(texel_m, tile_side, terrain, f, has_snowfall, stamp_range_m)| WorldIdentity {
-            texel_m,
-            tile_side,
-            terrain,
-            depth_m: f[0],
-            refill_m_per_s: f[1],
-            snowfall_m_per_s: f[2],
-            max_fallen_m: f[3],
-            has_snowfall,
-            stamp_range_m,
+        |(texel_m, tile_side, terrain, f, has_snowfall, stamp_range_m)| {
+            WorldIdentity::from_settings(WorldSettings {
+                texel_m,
+                tile_side,
+                terrain,
+                depth_m: f[0],
+                refill_m_per_s: f[1],
+                snowfall_m_per_s: f[2],
+                max_fallen_m: f[3],
+                has_snowfall,
+                stamp_range_m,
+            })
         },
     )
 }
@@ -483,20 +485,20 @@ fn assert_converged(relay: &SnowRelay, players: &[Player], w: &WorldIdentity, se
     for p in players {
         assert_eq!(p.snow.share_clock(), clock, "one world clock for all (player {})", p.id);
     }
-    let catch = CatchUp { max_fallen_m: w.max_fallen_m };
+    let catch = CatchUp { max_fallen_m: w.settings().max_fallen_m };
     let mut relay_tiles: BTreeMap<TileKey, Option<SharedTile>> = BTreeMap::new();
     let (mut pressed, mut compared) = (0usize, 0usize);
     for row in lo[1]..hi[1] {
         for col in lo[0]..hi[0] {
-            let key = TileKey::containing(col, row, w.tile_side);
+            let key = TileKey::containing(col, row, w.settings().tile_side);
             let tile = relay_tiles.entry(key).or_insert_with(|| {
                 relay.tile(key).map(|mut t| {
                     t.catch_up(&clock, catch);
                     t
                 })
             });
-            let first = key.first_texel(w.tile_side);
-            let at_relay = tile.as_ref().map_or(0, |t| t.deficit[((row - first[1]) * i64::from(w.tile_side) + (col - first[0])) as usize]);
+            let first = key.first_texel(w.settings().tile_side);
+            let at_relay = tile.as_ref().map_or(0, |t| t.deficit[((row - first[1]) * i64::from(w.settings().tile_side) + (col - first[0])) as usize]);
             for p in players {
                 let d = p.snow.deficit_at(col, row).unwrap_or(u16::MAX);
                 assert_eq!(d, at_relay, "texel ({col}, {row}): player {} has {d}, the relay {at_relay} (seed {seed})", p.id);

@@ -11,9 +11,9 @@ use bevy::prelude::*;
 use bevy::state::app::StatesPlugin;
 use bevy_replicon::prelude::*;
 use bevy_snowpack::prelude::*;
-use bevy_snowpack::snowpack::low_level::WorldIdentityExt;
 use bevy_snowpack::snowpack::low_level::persist::TileKey;
 use bevy_snowpack::snowpack::low_level::replicate::{Message, SharedTile, decode, encode};
+use bevy_snowpack::snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use bevy_snowpack::snowpack::{ShareErrorKind, SnowPeer, WorldIdentity};
 
 /// What the relay sent, caught before replicon's transport would take it.
@@ -43,7 +43,7 @@ fn server_app(settings: SnowReplicationSettings) -> App {
 }
 
 fn world(depth_m: f32) -> WorldIdentity {
-    WorldIdentity {
+    WorldIdentity::from_settings(WorldSettings {
         texel_m: 0.0625,
         tile_side: 32,
         terrain: "flat at 0 m".into(),
@@ -53,7 +53,7 @@ fn world(depth_m: f32) -> WorldIdentity {
         max_fallen_m: 0.0,
         has_snowfall: false,
         stamp_range_m: [-1.0, 3.0],
-    }
+    })
 }
 
 fn serving(depth_m: f32) -> SnowReplicationSettings {

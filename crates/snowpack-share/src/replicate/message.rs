@@ -45,7 +45,7 @@ use crate::persist::TileKey;
 use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuffle};
 
 use super::tile::{ShareClock, SharedTile};
-use super::world::WorldIdentity;
+use super::world::{WorldIdentity, WorldIdentityExt, WorldSettings};
 
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
@@ -534,16 +534,16 @@ fn read_clock(r: &mut Reader) -> Result<ShareClock, MessageError> {
 }
 
 fn write_world(w: &mut Writer, world: &WorldIdentity) {
-    w.f32(world.texel_m);
-    w.u32(world.tile_side);
-    w.f32(world.depth_m);
-    w.f32(world.refill_m_per_s);
-    w.f32(world.snowfall_m_per_s);
-    w.f32(world.max_fallen_m);
-    w.u8(u8::from(world.has_snowfall));
-    w.f32(world.stamp_range_m[0]);
-    w.f32(world.stamp_range_m[1]);
-    w.text16(&world.terrain, MAX_TERRAIN_BYTES);
+    w.f32(world.settings.texel_m);
+    w.u32(world.settings.tile_side);
+    w.f32(world.settings.depth_m);
+    w.f32(world.settings.refill_m_per_s);
+    w.f32(world.settings.snowfall_m_per_s);
+    w.f32(world.settings.max_fallen_m);
+    w.u8(u8::from(world.settings.has_snowfall));
+    w.f32(world.settings.stamp_range_m[0]);
+    w.f32(world.settings.stamp_range_m[1]);
+    w.text16(&world.settings.terrain, MAX_TERRAIN_BYTES);
 }
 
 fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
@@ -560,7 +560,17 @@ fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
     };
     let stamp_range_m = [r.f32("footprint range")?, r.f32("footprint range")?];
     let terrain = r.text16("terrain", MAX_TERRAIN_BYTES)?;
-    Ok(WorldIdentity { texel_m, tile_side, terrain, depth_m, refill_m_per_s, snowfall_m_per_s, max_fallen_m, has_snowfall, stamp_range_m })
+    Ok(WorldIdentity::from_settings(WorldSettings {
+        texel_m,
+        tile_side,
+        terrain,
+        depth_m,
+        refill_m_per_s,
+        snowfall_m_per_s,
+        max_fallen_m,
+        has_snowfall,
+        stamp_range_m,
+    }))
 }
 
 /// Reads one tile, adding its texels to `texels` (the message's running
@@ -722,7 +732,7 @@ mod tests {
     use super::*;
 
     fn world() -> WorldIdentity {
-        WorldIdentity {
+        WorldIdentity::from_settings(WorldSettings {
             texel_m: 0.125,
             tile_side: 16,
             terrain: "flat at 0 m".to_owned(),
@@ -732,7 +742,7 @@ mod tests {
             max_fallen_m: 0.0,
             has_snowfall: false,
             stamp_range_m: [-1.0, 1.0],
-        }
+        })
     }
 
     #[test]

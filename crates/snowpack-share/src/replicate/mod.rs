@@ -36,7 +36,7 @@ pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer, SnowPeerExt};
 pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
-pub use world::{WorldIdentity, WorldIdentityExt, WorldSnow, WorldSnowfall, WorldTerrain};
+pub use world::{WorldIdentity, WorldIdentityExt, WorldSettings, WorldSnow, WorldSnowfall, WorldTerrain};
 
 /// What a [`SnowPeer`] needs of the snow it shares: the
 /// window's clock and place, the tiles it changed, and a way to fold in

@@ -72,41 +72,39 @@ impl Default for PeerConfig {
     }
 }
 
-low_level_fields! {
-    /// A peer's counters since it was made.
-    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-    pub struct PeerStats {
-        /// Bytes received.
-        bytes_in: u64,
-        /// Bytes handed out by [`SnowPeer::poll_transmit`].
-        bytes_out: u64,
-        /// Messages received.
-        messages_in: u64,
-        /// Messages handed out.
-        messages_out: u64,
-        /// Tiles sent (resends included).
-        tiles_sent: u64,
-        /// Tiles received.
-        tiles_received: u64,
-        /// Received tiles that changed the replica.
-        tiles_merged: u64,
-        /// Deltas sent again after no acknowledgement.
-        resends: u64,
-        /// Messages that did not decode or were not expected.
-        malformed: u64,
-        /// Received tiles of another side, or dropped from a full incoming list.
-        tiles_dropped: u64,
-        /// Messages dropped from a full outgoing queue.
-        outgoing_dropped: u64,
-        /// Tiles too large to send even alone in a message.
-        tile_too_large: u64,
-        /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
-        /// is `Hello`, `Presence` and `Digest`).
-        tile_bytes_out: u64,
-        /// Tiles sent again as what they add to the copy the relay
-        /// acknowledged ([`SharedTile::beyond`]), not whole.
-        tiles_as_deltas: u64,
-    }
+/// A peer's counters since it was made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PeerStats {
+    /// Bytes received.
+    pub bytes_in: u64,
+    /// Bytes handed out by [`SnowPeer::poll_transmit`].
+    pub bytes_out: u64,
+    /// Messages received.
+    pub messages_in: u64,
+    /// Messages handed out.
+    pub messages_out: u64,
+    /// Tiles sent (resends included).
+    pub tiles_sent: u64,
+    /// Tiles received.
+    pub tiles_received: u64,
+    /// Received tiles that changed the replica.
+    pub tiles_merged: u64,
+    /// Deltas sent again after no acknowledgement.
+    pub resends: u64,
+    /// Messages that did not decode or were not expected.
+    pub malformed: u64,
+    /// Received tiles of another side, or dropped from a full incoming list.
+    pub tiles_dropped: u64,
+    /// Messages dropped from a full outgoing queue.
+    pub outgoing_dropped: u64,
+    /// Tiles too large to send even alone in a message.
+    pub tile_too_large: u64,
+    /// Bytes of the `Tiles` messages handed out (the rest of `bytes_out`
+    /// is `Hello`, `Presence` and `Digest`).
+    pub tile_bytes_out: u64,
+    /// Tiles sent again as what they add to the copy the relay
+    /// acknowledged ([`SharedTile::beyond`]), not whole.
+    pub tiles_as_deltas: u64,
 }
 
 /// A game client's side of shared snow: see the module documentation.
@@ -226,7 +224,7 @@ impl SnowPeer {
             Message::Tiles { tiles, .. } => {
                 self.stats.tiles_received += tiles.len() as u64;
                 for t in tiles {
-                    if t.side != self.world.tile_side {
+                    if t.side != self.world.settings.tile_side {
                         self.stats.tiles_dropped += 1;
                         continue;
                     }
@@ -238,7 +236,7 @@ impl SnowPeer {
                 }
             }
             Message::Ack { seq } => {
-                let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
+                let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
                 for key in self.unacked.remove(&seq).map(|(_, keys)| keys).unwrap_or_default() {
                     // Only the newest copy in flight is kept: an older one's
                     // acknowledgement adds nothing the newer will not.
@@ -314,8 +312,8 @@ impl SnowPeer {
     /// `delta_interval_s`, coalesced per tile) and `Digest` when due.
     /// Before the relay answers it only resends its `Hello`.
     pub fn update(&mut self, snow: &mut dyn SharedSnow, now_s: f64) {
-        let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
-        let side = self.world.tile_side;
+        let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
+        let side = self.world.settings.tile_side;
         if self.welcomed
             && !self.joined
             && let Some(clock) = self.relay_clock
@@ -375,7 +373,7 @@ impl SnowPeer {
     /// resends of deltas not acknowledged in time, the deltas, and `Digest`
     /// (of the window, at `snow_clock`).
     fn send_due(&mut self, now_s: f64, window: Option<([i64; 2], u32)>, snow_clock: ShareClock) {
-        let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
+        let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
         if now_s - self.last_presence_s >= self.config.presence_interval_s
             && let Some((first, resolution)) = window
         {
@@ -486,7 +484,7 @@ impl SnowPeer {
                 // tile with nothing new is not sent at all.
                 let tile = match self.acked.get(&key).filter(|_| !self.wanted.contains(&key)) {
                     None => tile.clone(),
-                    Some(base) => match tile.beyond(base, CatchUp { max_fallen_m: self.world.max_fallen_m }) {
+                    Some(base) => match tile.beyond(base, CatchUp { max_fallen_m: self.world.settings.max_fallen_m }) {
                         Some(delta) => {
                             self.stats.tiles_as_deltas += 1;
                             delta
@@ -535,7 +533,7 @@ impl SnowPeer {
     /// [`MAX_KEYS`]), all brought to one clock: the snow's, or a later
     /// tile's.
     fn send_digest(&mut self, snow_clock: ShareClock, first: [i64; 2], resolution: u32, c: CatchUp) {
-        let side = self.world.tile_side;
+        let side = self.world.settings.tile_side;
         let centre = [first[0] as f64 + f64::from(resolution) / 2.0, first[1] as f64 + f64::from(resolution) / 2.0];
         let mut keys: Vec<TileKey> = self.replica.keys().copied().filter(|k| overlaps_window(*k, side, first, resolution)).collect();
         keys.sort_by(|a, b| distance2(*a, side, centre).total_cmp(&distance2(*b, side, centre)).then(a.cmp(b)));
@@ -565,7 +563,7 @@ impl SnowPeer {
         if self.replica.len() <= cap {
             return;
         }
-        let side = self.world.tile_side;
+        let side = self.world.settings.tile_side;
         let centre = self.last_window.map_or([0.0, 0.0], |(f, r)| [f[0] as f64 + f64::from(r) / 2.0, f[1] as f64 + f64::from(r) / 2.0]);
         let mut keys: Vec<TileKey> = self.replica.keys().copied().collect();
         keys.sort_by(|a, b| {

@@ -441,10 +441,13 @@ impl SnowRelay {
         let world = match store.read_state(WORLD_STATE)? {
             Some(bytes) => {
                 let world = decode_world(&bytes).map_err(|e| ShareError::StoreWorld(format!("the saved world does not decode: {e}")))?;
-                if world.tile_side != store.side() {
-                    return Err(
-                        ShareError::StoreWorld(format!("the saved world has {}² tiles, the store holds {}² tiles", world.tile_side, store.side())).into()
-                    );
+                if world.settings.tile_side != store.side() {
+                    return Err(ShareError::StoreWorld(format!(
+                        "the saved world has {}² tiles, the store holds {}² tiles",
+                        world.settings.tile_side,
+                        store.side()
+                    ))
+                    .into());
                 }
                 Some(world)
             }
@@ -463,8 +466,8 @@ impl SnowRelay {
     /// store's and "there" `world`); otherwise the world is saved there.
     pub fn pin_world(&mut self, world: WorldIdentity) -> Result<(), crate::ShareError> {
         let mut problems = world_problems(&world);
-        if let Some(side) = self.store.get_mut().as_ref().map(TileStore::side).filter(|&s| s != world.tile_side) {
-            problems.push(format!("tile side: {side} here (the store's tiles), {} there", world.tile_side));
+        if let Some(side) = self.store.get_mut().as_ref().map(TileStore::side).filter(|&s| s != world.settings.tile_side) {
+            problems.push(format!("tile side: {side} here (the store's tiles), {} there", world.settings.tile_side));
         }
         if let Some(saved) = &self.world {
             problems.extend(saved.differences(&world));
@@ -674,24 +677,24 @@ impl SnowRelay {
     #[must_use]
     pub fn column_at(&self, x_m: f64, z_m: f64) -> Option<(f32, f32)> {
         let world = self.world.as_ref()?;
-        let texel = f64::from(world.texel_m);
+        let texel = f64::from(world.settings.texel_m);
         let (fx, fz) = ((x_m / texel).floor(), (z_m / texel).floor());
         if !fx.is_finite() || !fz.is_finite() {
             return None;
         }
         let (col, row) = (fx as i64, fz as i64);
-        let side = world.tile_side;
+        let side = world.settings.tile_side;
         let key = TileKey::containing(col, row, side);
         let clock = world.clock_at(self.now_s);
         let Some(mut tile) = self.tile(key) else {
-            return Some((world.depth_m + clock.fallen_m, 0.0));
+            return Some((world.settings.depth_m + clock.fallen_m, 0.0));
         };
         if clock.covers(&tile.clock) {
-            tile.catch_up(&clock, CatchUp { max_fallen_m: world.max_fallen_m });
+            tile.catch_up(&clock, CatchUp { max_fallen_m: world.settings.max_fallen_m });
         }
         let first = key.first_texel(side);
         let (x, z) = ((col - first[0]) as usize, (row - first[1]) as usize);
-        Some((tile.depth_at(x, z, world.depth_m), tile.packed_at(x, z)))
+        Some((tile.depth_at(x, z, world.settings.depth_m), tile.packed_at(x, z)))
     }
 
     /// The world, once learnt.
@@ -799,8 +802,8 @@ impl SnowRelay {
         if self.world.is_none() {
             let store_side = self.store.get_mut().as_ref().map(TileStore::side);
             let mut problems = world_problems(theirs);
-            if let Some(side) = store_side.filter(|&s| s != theirs.tile_side) {
-                problems.push(format!("tile side: {} here, {side} there (the relay's store)", theirs.tile_side));
+            if let Some(side) = store_side.filter(|&s| s != theirs.settings.tile_side) {
+                problems.push(format!("tile side: {} here, {side} there (the relay's store)", theirs.settings.tile_side));
             }
             if problems.is_empty() {
                 if let Some(store) = self.store.get_mut().as_ref()
@@ -842,7 +845,7 @@ impl SnowRelay {
         let Some(world) = self.world.clone() else {
             return;
         };
-        let Some(rect) = KeyRect::of_window(window, resolution, world.tile_side, 1) else {
+        let Some(rect) = KeyRect::of_window(window, resolution, world.settings.tile_side, 1) else {
             self.stats.rejected.bad_window += 1;
             return;
         };
@@ -911,7 +914,7 @@ impl SnowRelay {
         let Some(world) = self.world.clone() else {
             return;
         };
-        let c = CatchUp { max_fallen_m: world.max_fallen_m };
+        let c = CatchUp { max_fallen_m: world.settings.max_fallen_m };
         let so_far = world.clock_at(now);
         let limit = world.clock_at(now + self.config.max_clock_lead_s);
         let (rate, burst) = (f64::from(self.config.tiles_per_s), f64::from(self.config.burst_tiles));
@@ -921,7 +924,7 @@ impl SnowRelay {
             let Some(p) = self.peers.get_mut(&peer) else {
                 return;
             };
-            if t.side != world.tile_side || !t.is_consistent() || (!world.has_snowfall && !t.fallen.is_empty()) {
+            if t.side != world.settings.tile_side || !t.is_consistent() || (!world.settings.has_snowfall && !t.fallen.is_empty()) {
                 self.stats.rejected.bad_tile += 1;
                 continue;
             }
@@ -949,7 +952,7 @@ impl SnowRelay {
             }
             let too_deep = t.deficit.iter().enumerate().any(|(k, &d)| {
                 let lying = t.fallen.get(k).copied().unwrap_or(0.0);
-                f32::from(d) * SNOW_QUANTUM_M > world.depth_m + lying + SNOW_QUANTUM_M
+                f32::from(d) * SNOW_QUANTUM_M > world.settings.depth_m + lying + SNOW_QUANTUM_M
             });
             if too_deep {
                 self.stats.rejected.too_deep += 1;
@@ -1035,7 +1038,7 @@ impl SnowRelay {
     /// How far from a recent deformer a peer may write (m, the accept
     /// radius plus a tile's half diagonal), and the oldest position that counts.
     fn write_reach(&self, world: &WorldIdentity, now: f64) -> (f64, f64) {
-        let half_diagonal = f64::from(world.tile_side) * f64::from(world.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
+        let half_diagonal = f64::from(world.settings.tile_side) * f64::from(world.settings.texel_m) * std::f64::consts::FRAC_1_SQRT_2;
         (f64::from(self.config.accept_radius_m) + half_diagonal, now - self.config.deformer_memory_s)
     }
 
@@ -1045,7 +1048,7 @@ impl SnowRelay {
         };
         let (reach, oldest) = self.write_reach(&world, self.now_s);
         // The region first: entries outside it cost one comparison each.
-        let Some(region) = KeyRect::of_window(window, resolution, world.tile_side, 0) else {
+        let Some(region) = KeyRect::of_window(window, resolution, world.settings.tile_side, 0) else {
             self.stats.rejected.bad_window += 1;
             return;
         };
@@ -1063,7 +1066,7 @@ impl SnowRelay {
             .filter(|&k| may_write(p, k, &world, reach, oldest, &mut work))
             .collect();
         self.count(work);
-        let c = CatchUp { max_fallen_m: world.max_fallen_m };
+        let c = CatchUp { max_fallen_m: world.settings.max_fallen_m };
         let mut listed = HashSet::with_capacity(entries.len());
         let mut send = Vec::new();
         let mut want = Vec::new();
@@ -1272,9 +1275,9 @@ impl SnowRelay {
 /// one of the peer's deformer positions recorded since `oldest`.
 /// (A fixed number of grid look-ups, counted in `work`.)
 fn may_write(p: &mut PeerState, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64, work: &mut MotionWork) -> bool {
-    let first = key.first_texel(world.tile_side);
-    let half = f64::from(world.tile_side) / 2.0;
-    let texel = f64::from(world.texel_m);
+    let first = key.first_texel(world.settings.tile_side);
+    let half = f64::from(world.settings.tile_side) / 2.0;
+    let texel = f64::from(world.settings.texel_m);
     let centre = [(first[0] as f64 + half) * texel, (first[1] as f64 + half) * texel];
     p.history.near(centre, reach, oldest, work)
 }
@@ -1282,8 +1285,8 @@ fn may_write(p: &mut PeerState, key: TileKey, world: &WorldIdentity, reach: f64,
 /// Whether tile `key` lies where a window can be (its texels fit in i32,
 /// as every window's do) and, with `bounds_m`, overlaps those bounds.
 fn in_bounds(key: TileKey, world: &WorldIdentity, bounds_m: Option<[f64; 4]>) -> bool {
-    let side = i64::from(world.tile_side);
-    let first = key.first_texel(world.tile_side);
+    let side = i64::from(world.settings.tile_side);
+    let first = key.first_texel(world.settings.tile_side);
     let fits = |v: i64| v >= i64::from(i32::MIN) && v.saturating_add(side) <= i64::from(i32::MAX);
     if !(fits(first[0]) && fits(first[1])) {
         return false;
@@ -1291,7 +1294,7 @@ fn in_bounds(key: TileKey, world: &WorldIdentity, bounds_m: Option<[f64; 4]>) ->
     let Some([x0, z0, x1, z1]) = bounds_m else {
         return true;
     };
-    let texel = f64::from(world.texel_m);
+    let texel = f64::from(world.settings.texel_m);
     let (a, b) = ([first[0] as f64 * texel, first[1] as f64 * texel], [(first[0] + side) as f64 * texel, (first[1] + side) as f64 * texel]);
     a[0] < x1 && b[0] > x0 && a[1] < z1 && b[1] > z0
 }
@@ -1310,17 +1313,17 @@ fn held_bytes(t: &SharedTile, encoded: Option<&Vec<u8>>) -> usize {
 /// range, a texel size or depth that is not a positive number).
 fn world_problems(w: &WorldIdentity) -> Vec<String> {
     let mut out = Vec::new();
-    if !(MIN_TILE_SIDE..=MAX_TILE_SIDE).contains(&w.tile_side) {
-        out.push(format!("tile side: {} here, {MIN_TILE_SIDE}..={MAX_TILE_SIDE} there", w.tile_side));
+    if !(MIN_TILE_SIDE..=MAX_TILE_SIDE).contains(&w.settings.tile_side) {
+        out.push(format!("tile side: {} here, {MIN_TILE_SIDE}..={MAX_TILE_SIDE} there", w.settings.tile_side));
     }
-    if !(w.texel_m.is_finite() && w.texel_m > 0.0) {
-        out.push(format!("texel size (m): {} here, a positive number there", w.texel_m));
+    if !(w.settings.texel_m.is_finite() && w.settings.texel_m > 0.0) {
+        out.push(format!("texel size (m): {} here, a positive number there", w.settings.texel_m));
     }
-    if !(w.depth_m.is_finite() && w.depth_m >= 0.0) {
-        out.push(format!("snow depth (m): {} here, a number at least 0 there", w.depth_m));
+    if !(w.settings.depth_m.is_finite() && w.settings.depth_m >= 0.0) {
+        out.push(format!("snow depth (m): {} here, a number at least 0 there", w.settings.depth_m));
     }
-    if !(w.max_fallen_m.is_finite() && w.max_fallen_m >= 0.0) {
-        out.push(format!("most snowfall kept (m): {} here, a number at least 0 there", w.max_fallen_m));
+    if !(w.settings.max_fallen_m.is_finite() && w.settings.max_fallen_m >= 0.0) {
+        out.push(format!("most snowfall kept (m): {} here, a number at least 0 there", w.settings.max_fallen_m));
     }
     out
 }
@@ -1390,6 +1393,7 @@ pub fn tile_from_data(d: TileData) -> Result<SharedTile, StoreError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::replicate::world::WorldSettings;
 
     #[test]
     fn stored_tiles_come_back_bit_for_bit() {
@@ -1440,7 +1444,7 @@ mod tests {
     }
 
     fn pinned_world() -> WorldIdentity {
-        WorldIdentity {
+        WorldIdentity::from_settings(WorldSettings {
             texel_m: 0.0625,
             tile_side: 32,
             terrain: "flat at 0 m".to_owned(),
@@ -1450,7 +1454,7 @@ mod tests {
             max_fallen_m: 0.0,
             has_snowfall: false,
             stamp_range_m: [-1.0, 3.0],
-        }
+        })
     }
 
     /// A pinned world: the first peer of another is refused, and the world stays.
@@ -1460,7 +1464,7 @@ mod tests {
         let mut relay = SnowRelay::new(RelayConfig::default());
         relay.pin_world(w.clone()).expect("pinned");
         relay.connect(1);
-        let other = WorldIdentity { depth_m: 0.8, ..w.clone() };
+        let other = WorldIdentity::from_settings(WorldSettings { depth_m: 0.8, ..w.settings.clone() });
         relay.receive(1, &encode(&Message::Hello { world: other, name: "first".to_owned() }), 0.0);
         let (_, answer) = relay.poll_transmit().expect("an answer");
         match decode(&answer) {
@@ -1485,7 +1489,7 @@ mod tests {
         let store = TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store");
         let mut relay = SnowRelay::with_store(store, RelayConfig::default()).expect("relay");
         assert_eq!(relay.world(), Some(&w));
-        match relay.pin_world(WorldIdentity { depth_m: 0.8, ..w.clone() }).map_err(crate::error::ShareError::from) {
+        match relay.pin_world(WorldIdentity::from_settings(WorldSettings { depth_m: 0.8, ..w.settings.clone() })).map_err(crate::error::ShareError::from) {
             Err(ShareError::StoreWorld(why)) => assert_eq!(why, "snow depth (m): 0.5 here, 0.8 there"),
             other => panic!("not refused: {other:?}"),
         }

@@ -5,31 +5,41 @@ use crate::SNOW_QUANTUM_M;
 
 use super::tile::ShareClock;
 
-low_level_fields! {
-    /// The settings that make a world: tiles from machines that agree on all of
-    /// them merge; anything else is refused (the relay names each difference).
-    #[derive(Clone, Debug, PartialEq)]
-    pub struct WorldIdentity {
-        /// Side of a texel (m).
-        texel_m: f32,
-        /// Texels per tile side.
-        tile_side: u32,
-        /// The terrain, as `terrain_identity` describes it.
-        terrain: String,
-        /// Rest depth of fresh snow (m).
-        depth_m: f32,
-        /// Trail refill (m/s).
-        refill_m_per_s: f32,
-        /// Snowfall on open ground (m/s); 0 without snowfall.
-        snowfall_m_per_s: f32,
-        /// The most snowfall a texel keeps (m); 0 without snowfall.
-        max_fallen_m: f32,
-        /// Whether tiles carry the lying-snow plane: snowfall so far, and
-        /// berms where presses displace snow.
-        has_snowfall: bool,
-        /// The footprint quantisation range (m): low and high.
-        stamp_range_m: [f32; 2],
-    }
+/// The settings that make a world: tiles from machines that agree on all of
+/// them merge; anything else is refused (the relay names each difference).
+///
+/// Made by [`WorldIdentity::new`] (no GPU) or by snowpack's window
+/// (`SnowDeformation::world_identity`); tools read and build one field by
+/// field through [`WorldIdentityExt`] and [`WorldSettings`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldIdentity {
+    pub(crate) settings: WorldSettings,
+}
+
+/// A [`WorldIdentity`]'s settings as plain data, field by field: what the
+/// relay's tools, the attack tests and the property tests read and build
+/// ([`WorldIdentityExt::settings`], [`WorldIdentityExt::from_settings`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldSettings {
+    /// Side of a texel (m).
+    pub texel_m: f32,
+    /// Texels per tile side.
+    pub tile_side: u32,
+    /// The terrain, as `terrain_identity` describes it.
+    pub terrain: String,
+    /// Rest depth of fresh snow (m).
+    pub depth_m: f32,
+    /// Trail refill (m/s).
+    pub refill_m_per_s: f32,
+    /// Snowfall on open ground (m/s); 0 without snowfall.
+    pub snowfall_m_per_s: f32,
+    /// The most snowfall a texel keeps (m); 0 without snowfall.
+    pub max_fallen_m: f32,
+    /// Whether tiles carry the lying-snow plane: snowfall so far, and
+    /// berms where presses displace snow.
+    pub has_snowfall: bool,
+    /// The footprint quantisation range (m): low and high.
+    pub stamp_range_m: [f32; 2],
 }
 
 /// What the relay, the tools and the tests ask of a [`WorldIdentity`]
@@ -51,49 +61,69 @@ pub trait WorldIdentityExt: Sized {
     /// One footprint quantum (m): the range over 65535 steps.
     #[must_use]
     fn stamp_quantum_m(&self) -> f32;
+
+    /// The identity's settings, field by field.
+    #[must_use]
+    fn settings(&self) -> &WorldSettings;
+
+    /// An identity of `settings` as they are: a test's odd world, or a
+    /// world another tool described field by field.
+    #[must_use]
+    fn from_settings(settings: WorldSettings) -> Self;
 }
 
 impl WorldIdentityExt for WorldIdentity {
     fn differences(&self, other: &Self) -> Vec<String> {
+        let (here, there) = (&self.settings, &other.settings);
         let mut out = Vec::new();
         let mut f = |name: &str, a: f32, b: f32| {
             if a.to_bits() != b.to_bits() {
                 out.push(format!("{name}: {a} here, {b} there"));
             }
         };
-        f("texel size (m)", self.texel_m, other.texel_m);
-        f("snow depth (m)", self.depth_m, other.depth_m);
-        f("refill (m/s)", self.refill_m_per_s, other.refill_m_per_s);
-        f("snowfall rate (m/s)", self.snowfall_m_per_s, other.snowfall_m_per_s);
-        f("most snowfall kept (m)", self.max_fallen_m, other.max_fallen_m);
-        f("footprint range low (m)", self.stamp_range_m[0], other.stamp_range_m[0]);
-        f("footprint range high (m)", self.stamp_range_m[1], other.stamp_range_m[1]);
-        if self.tile_side != other.tile_side {
-            out.push(format!("tile side: {} here, {} there", self.tile_side, other.tile_side));
+        f("texel size (m)", here.texel_m, there.texel_m);
+        f("snow depth (m)", here.depth_m, there.depth_m);
+        f("refill (m/s)", here.refill_m_per_s, there.refill_m_per_s);
+        f("snowfall rate (m/s)", here.snowfall_m_per_s, there.snowfall_m_per_s);
+        f("most snowfall kept (m)", here.max_fallen_m, there.max_fallen_m);
+        f("footprint range low (m)", here.stamp_range_m[0], there.stamp_range_m[0]);
+        f("footprint range high (m)", here.stamp_range_m[1], there.stamp_range_m[1]);
+        if here.tile_side != there.tile_side {
+            out.push(format!("tile side: {} here, {} there", here.tile_side, there.tile_side));
         }
-        if self.has_snowfall != other.has_snowfall {
-            out.push(format!("lying snow (snowfall or berms): {} here, {} there", on_off(self.has_snowfall), on_off(other.has_snowfall)));
+        if here.has_snowfall != there.has_snowfall {
+            out.push(format!("lying snow (snowfall or berms): {} here, {} there", on_off(here.has_snowfall), on_off(there.has_snowfall)));
         }
-        if self.terrain != other.terrain {
-            out.push(format!("terrain: {} here, {} there", self.terrain, other.terrain));
+        if here.terrain != there.terrain {
+            out.push(format!("terrain: {} here, {} there", here.terrain, there.terrain));
         }
         out
     }
 
     fn clock_at(&self, time_s: f64) -> ShareClock {
+        let here = &self.settings;
         let t = time_s.max(0.0);
-        let refill_m = f64::from(self.refill_m_per_s.max(0.0)) * t;
+        let refill_m = f64::from(here.refill_m_per_s.max(0.0)) * t;
         let quantum = f64::from(self.stamp_quantum_m());
         ShareClock {
             time_s: t,
             refill_quanta: (refill_m / f64::from(SNOW_QUANTUM_M)).floor() as u64,
             stamp_quanta: if quantum > 0.0 { (refill_m / quantum).floor() as u64 } else { 0 },
-            fallen_m: if self.has_snowfall { (f64::from(self.snowfall_m_per_s.max(0.0)) * t).min(f64::from(self.max_fallen_m)) as f32 } else { 0.0 },
+            fallen_m: if here.has_snowfall { (f64::from(here.snowfall_m_per_s.max(0.0)) * t).min(f64::from(here.max_fallen_m)) as f32 } else { 0.0 },
         }
     }
 
     fn stamp_quantum_m(&self) -> f32 {
-        (self.stamp_range_m[1] - self.stamp_range_m[0]) / 65_535.0
+        let [low, high] = self.settings.stamp_range_m;
+        (high - low) / 65_535.0
+    }
+
+    fn settings(&self) -> &WorldSettings {
+        &self.settings
+    }
+
+    fn from_settings(settings: WorldSettings) -> Self {
+        Self { settings }
     }
 }
 
@@ -190,7 +220,7 @@ impl WorldIdentity {
         let fall = snow.snowfall;
         let deepest = snow.depth_m + fall.map_or(0.0, |f| f.max_m);
         let (low, high) = footprint_range_m(deepest, terrain.heights_m);
-        Self {
+        Self::from_settings(WorldSettings {
             texel_m: snow.texel_m,
             tile_side,
             terrain: terrain.description.clone(),
@@ -200,7 +230,7 @@ impl WorldIdentity {
             max_fallen_m: fall.map_or(0.0, |f| f.max_m),
             has_snowfall: fall.is_some() || snow.displace,
             stamp_range_m: [low, high],
-        }
+        })
     }
 }
 

@@ -9,7 +9,7 @@ use crate::error::SnowError;
 use crate::gpu::GpuContext;
 use crate::replicate::flags::ShareGrid;
 use crate::replicate::sharing::{ShareWindow, Sharing};
-use crate::replicate::world::{WorldSnow, WorldSnowfall, WorldTerrain};
+use crate::replicate::world::{WorldSettings, WorldSnow, WorldSnowfall, WorldTerrain};
 use crate::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity, terrain_identity};
 use snowpack_share::replicate::WorldIdentityExt;
 
@@ -83,7 +83,7 @@ impl SnowDeformation {
     pub fn world_identity(&self) -> WorldIdentity {
         let (low, high, _) = self.stamp_range();
         let snowfall = self.core.params.snowfall.as_ref();
-        WorldIdentity {
+        WorldIdentity::from_settings(WorldSettings {
             texel_m: self.core.params.texel_m(),
             tile_side: self.sharing.as_ref().map_or_else(|| default_tile_texels(self.core.params.resolution), |s| s.grid().side),
             terrain: terrain_identity(&self.core.terrain),
@@ -93,7 +93,7 @@ impl SnowDeformation {
             max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
             has_snowfall: self.core.params.keeps_lying_snow(),
             stamp_range_m: [low, high],
-        }
+        })
     }
 
     /// The world identity a window of `params` over `terrain` has once it
@@ -190,7 +190,7 @@ mod tests {
     fn refill_counters_match_the_world_clock() {
         let base = RefillBase::default();
         let rate = 0.013_f32;
-        let world = WorldIdentity {
+        let world = WorldIdentity::from_settings(WorldSettings {
             texel_m: 0.0625,
             tile_side: 16,
             terrain: String::new(),
@@ -200,7 +200,7 @@ mod tests {
             max_fallen_m: 0.0,
             has_snowfall: false,
             stamp_range_m: [-1.0, 3.0],
-        };
+        });
         for k in 0..2000 {
             let t = f64::from(k) * 0.0173;
             let c = world.clock_at(t);

@@ -90,7 +90,7 @@ impl CpuSnow {
 
     /// Centres the window on world (`x_m`, `z_m`), snapped to whole texels.
     pub fn center_on(&mut self, x_m: f64, z_m: f64) {
-        let texel = f64::from(self.world.texel_m);
+        let texel = f64::from(self.world.settings().texel_m);
         let half = i64::from(self.resolution / 2);
         self.set_origin([(x_m / texel).floor() as i64 - half, (z_m / texel).floor() as i64 - half]);
     }
@@ -99,7 +99,7 @@ impl CpuSnow {
     /// world `center_xz` gets at least `deficit` quanta; the tiles it
     /// deepened are marked changed.
     pub fn press_disc(&mut self, center_xz: [f64; 2], radius_m: f64, deficit: u16) {
-        let texel = f64::from(self.world.texel_m);
+        let texel = f64::from(self.world.settings().texel_m);
         let r = i64::from(self.resolution);
         for i in 0..r {
             for j in 0..r {
@@ -109,7 +109,7 @@ impl CpuSnow {
                     let d = &mut self.deficit[(i * r + j) as usize];
                     if deficit > *d {
                         *d = deficit;
-                        self.changed.insert(TileKey::containing(col, row, self.world.tile_side));
+                        self.changed.insert(TileKey::containing(col, row, self.world.settings().tile_side));
                     }
                 }
             }
@@ -141,7 +141,7 @@ impl CpuSnow {
 
     /// The tile `key` as the window holds it (texels outside it untouched).
     fn tile(&self, key: TileKey) -> SharedTile {
-        let side = self.world.tile_side;
+        let side = self.world.settings().tile_side;
         let mut t = SharedTile::untouched(key, side, self.clock, false, false);
         let first = key.first_texel(side);
         for i in 0..i64::from(side) {
@@ -179,8 +179,8 @@ impl SharedSnow for CpuSnow {
     }
 
     fn merge_tiles(&mut self, tiles: &[SharedTile]) {
-        let c = CatchUp { max_fallen_m: self.world.max_fallen_m };
-        let side = self.world.tile_side;
+        let c = CatchUp { max_fallen_m: self.world.settings().max_fallen_m };
+        let side = self.world.settings().tile_side;
         for t in tiles {
             if t.side != side || !t.is_consistent() {
                 continue;
@@ -213,9 +213,10 @@ impl SharedSnow for CpuSnow {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use snowpack_share::replicate::WorldSettings;
 
     fn world() -> WorldIdentity {
-        WorldIdentity {
+        WorldIdentity::from_settings(WorldSettings {
             texel_m: 0.125,
             tile_side: 8,
             terrain: "flat at 0 m".to_owned(),
@@ -225,7 +226,7 @@ mod tests {
             max_fallen_m: 0.0,
             has_snowfall: false,
             stamp_range_m: [-1.0, 1.0],
-        }
+        })
     }
 
     #[test]
