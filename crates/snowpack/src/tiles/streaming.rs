@@ -312,6 +312,7 @@ impl TileStreaming {
         if current == Some(desired) {
             return desired;
         }
+        let desired = current.map_or(desired, |c| self.reachable(c, desired));
         let needed = self.needed_from_store(current, desired);
         if current.is_none() {
             // First placement: a loading screen, so waiting is fine.
@@ -339,6 +340,23 @@ impl TileStreaming {
         }
         self.window_waits += 1;
         current.unwrap_or(desired)
+    }
+
+    /// Where the window at `current` may go this frame on its way to
+    /// `desired` without waiting for the GPU: all the way when the new
+    /// window is a jump away (none of its tiles within the prefetch margin
+    /// of the old, so none is resident or on its way out of this move), and
+    /// otherwise at most one tile side along each axis, a step the slot pool
+    /// always holds (`record_step`). A move of a few tiles thus glides over
+    /// as many frames instead of copying the old window out and waiting for
+    /// the copies before restoring the tiles it shares with the new one.
+    fn reachable(&self, current: [i64; 2], desired: [i64; 2]) -> [i64; 2] {
+        let g = self.grid;
+        if g.around(desired, 0).into_iter().all(|k| !g.near(k, current, PREFETCH_MARGIN_TILES)) {
+            return desired;
+        }
+        let side = i64::from(g.side());
+        [0, 1].map(|a| current[a] + (desired[a] - current[a]).clamp(-side, side))
     }
 
     /// Records the tile side of a window move from `old` to `origin` that
@@ -573,11 +591,12 @@ impl TileStreaming {
         self.slots.evict_for(required, origin, self.moves)
     }
 
-    /// A long move (or the first placement) in batches of its own submits,
-    /// blocking: every tile of the old window is stashed whole and copied
-    /// out (as many at a time as the pool holds), the copies are waited for,
-    /// then every tile of the new window is restored and loaded whole, and
-    /// only its edge tiles keep their slots.
+    /// A jump (or the first placement) in batches of its own submits: every
+    /// tile of the old window is stashed whole and copied out (as many at a
+    /// time as the pool holds), then every tile of the new window is
+    /// restored and loaded whole, and only its edge tiles keep their slots.
+    /// The copies out are collected over the next frames; only the first
+    /// placement, or an arriving tile still on its way out, waits for them.
     fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &WindowFrame, clock: SnowClock) {
         let g = self.grid;
         let full = [[0, 0, res.resolution, res.resolution]];
@@ -617,16 +636,16 @@ impl TileStreaming {
             }
         }
         let mut arriving: Vec<TileKey> = g.around(origin, 0);
-        // The new window's tiles must find the old ones' latest versions:
-        // every copy out in flight is waited for and handed to the streamer
-        // first. (Waiting only when an arriving tile is on its way, as a jump
-        // away needs, was tried: with it, CI's store-resume test lost its
-        // trench in about one run of three, for a reason not yet found; see
-        // docs/persistence.md.)
-        if !self.evictions.is_empty() {
+        // The new window's tiles must find their latest versions in the
+        // streamer. A jump (`reachable`) arrives on tiles none of which was
+        // resident or is on its way out (`plan` waited for those), so the
+        // frame goes on; only the first placement (a loading screen), or a
+        // move the pool could not hold in one step, waits for the copies
+        // out in flight.
+        if (old.is_none() || arriving.iter().any(|k| self.in_flight.contains(k))) && !self.evictions.is_empty() {
             self.gpu_waits += 1;
+            self.collect_evictions(ctx, true);
         }
-        self.collect_evictions(ctx, true);
         arriving.sort_by_key(|&k| g.inside(k, origin));
         let keep = arriving.iter().filter(|&&k| !g.inside(k, origin)).count();
         let mut start = 0;
