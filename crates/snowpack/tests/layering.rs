@@ -16,11 +16,23 @@
 //! crate's unit tests (`#[cfg(test)]`): they are not part of the library.
 //! The crate root (`lib.rs` outside inline modules) is above every layer.
 //!
-//! Files are read the same way, in every crate of the repository: no two
-//! files may use each other, directly or round a circle ([`file_circles`];
-//! `docs/architecture.md`, "Layers"). A path through a re-export counts as
-//! the file that defines the item; a child naming its parent module's own
-//! items, or a parent re-exporting its children, is nesting, not a use.
+//! Files are read the same way, in every crate of the repository (the Bevy
+//! plugin, another workspace, read by path): each `.rs` file is a node, and
+//! no two files may use each other, directly or round a circle
+//! ([`file_circles`]; `docs/architecture.md`, "Layers"). A file uses
+//! another when it names an item the other defines: in a `use` (groups,
+//! `crate::`, `super::`, `self::`, a module it declares), in a `crate::`,
+//! `super::` or `self::` path in code, or in a path in code that starts at a
+//! name its `use` binds or a module it declares (`window::index()`,
+//! `coat::paint()`). A path through a re-export counts as the file that
+//! defines the item, so naming a module's `mod.rs` (or the crate root) is a
+//! use of it only for an item defined there, and a name from another crate
+//! (`use snowpack::…`) is none. A `use` of a module itself is no use (the
+//! paths through it are). A parent declaring a child (`mod x;`) or
+//! re-exporting a descendant's item (`pub use x::X;`) is nesting, not a use,
+//! unless its own code uses that item too; a child naming an item its parent
+//! defines is a use, so a parent whose code calls its children keeps what
+//! they share in a file of its own.
 //!
 //! The same reading holds the library's functions to [`MAX_FUNCTION_LINES`]
 //! lines (from `fn` to the closing brace), so that no pass or orchestrator
@@ -237,13 +249,29 @@ fn tokens(code: &str) -> Vec<Token> {
 
 /// One path a file names: the module it is in and the absolute path it names
 /// (crate-relative segments; a group `crate::{a, b::C}` gives one per leaf),
-/// with the name it binds when it is a `use` leaf (for the root's re-exports).
+/// with the name it binds when it is a `use` leaf (for the root's re-exports)
+/// and whether that `use` is public (`pub use`, `pub(crate) use`: a
+/// re-export). A loose path (`window::storage_index()`, `Steps::new()`:
+/// starting at a name the file binds or a module it declares) keeps its
+/// segments as written; [`file_edges`] resolves it through the file's
+/// imports.
 #[derive(Clone, Debug, PartialEq)]
 struct Named {
     line: usize,
     from: Vec<String>,
     path: Vec<String>,
     binds: Option<String>,
+    reexport: bool,
+}
+
+/// What [`named_paths`] reads in one file: the crate paths it names, the
+/// modules it declares at the crate root, its loose paths (file scope only)
+/// and the identifiers its code uses outside `use` items.
+struct Reading {
+    named: Vec<Named>,
+    declared: Vec<String>,
+    loose: Vec<Named>,
+    words: BTreeSet<String>,
 }
 
 /// The module path of a file under `src/` (`render/shell/count.rs` is
@@ -398,15 +426,73 @@ fn file_modules(t: &[Token]) -> BTreeSet<String> {
     out
 }
 
+/// Whether the `use` at `k` is public: `pub use`, `pub(crate) use`,
+/// `pub(in path) use`.
+fn is_pub_use(t: &[Token], k: usize) -> bool {
+    match k.checked_sub(1).map(|j| t[j].text.as_str()) {
+        Some("pub") => true,
+        Some(")") => {
+            let open = (0..k - 1).rev().find(|&j| t[j].text == "(");
+            open.is_some_and(|j| j > 0 && t[j - 1].text == "pub")
+        }
+        _ => false,
+    }
+}
+
+/// The identifiers `t`'s code uses outside `use` items and `#[cfg(test)]`
+/// items: what tells a parent that only re-exports a child's item from one
+/// that uses it.
+fn code_words(t: &[Token]) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let mut k = 0;
+    while k < t.len() {
+        if t[k].text == "#" && is_cfg_test(t, k) {
+            k = skip_item(t, skip_attribute(t, k));
+        } else if t[k].text == "use" {
+            k = skip_item(t, k);
+        } else {
+            if t[k].text.starts_with(|ch: char| ch.is_alphabetic() || ch == '_') {
+                out.insert(t[k].text.clone());
+            }
+            k += 1;
+        }
+    }
+    out
+}
+
+/// `rel` (a path as written in module `here`) as absolute segments:
+/// `crate::` from the root, `self::` and `super::` from `here`, anything
+/// else (a module `here` declares, or a name at the crate root) below `here`.
+fn absolute(here: &[String], rel: Vec<String>) -> Vec<String> {
+    let mut base = here.to_vec();
+    let mut segs = rel.into_iter().peekable();
+    match segs.peek().map(String::as_str) {
+        Some("crate") => {
+            base.clear();
+            segs.next();
+        }
+        Some("self") => {
+            segs.next();
+        }
+        _ => {}
+    }
+    while segs.peek().is_some_and(|s| s == "super") {
+        segs.next();
+        base.pop();
+    }
+    base.extend(segs);
+    base
+}
+
 /// Every crate path `file` (a path under `src/`) names in `text`, resolved
-/// to absolute segments, and the modules it declares at the crate root.
-/// Items under `#[cfg(test)]` are skipped.
-fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
+/// to absolute segments, the modules it declares at the crate root, its
+/// loose paths and the words of its code ([`Reading`]). Items under
+/// `#[cfg(test)]` are skipped.
+fn named_paths(file: &str, text: &str) -> Reading {
     let t = tokens(&code_only(text));
     let file_module = module_of(file);
     let children = file_modules(&t);
-    let mut named = Vec::new();
-    let mut declared = Vec::new();
+    let mut out = Reading { named: Vec::new(), declared: Vec::new(), loose: Vec::new(), words: code_words(&t) };
     // Inline modules the walk is in: (name, brace depth outside it).
     let mut inline: Vec<(String, usize)> = Vec::new();
     let mut depth = 0usize;
@@ -437,7 +523,7 @@ fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
             ";" => pending_mod = None,
             "mod" if next.starts_with(|ch: char| ch.is_alphabetic() || ch == '_') => {
                 if here(&inline).is_empty() {
-                    declared.push(next.to_owned());
+                    out.declared.push(next.to_owned());
                 }
                 pending_mod = Some(next.to_owned());
                 k += 2;
@@ -445,38 +531,34 @@ fn named_paths(file: &str, text: &str) -> (Vec<Named>, Vec<String>) {
             }
             _ => {}
         }
-        let starts_path = prev != "::" && next == "::";
-        // At the crate root `use x::…` names a module or an outside crate; in
-        // any file, `use child::…` names a module the file declares.
-        let relative_use = prev == "use" && (here(&inline).is_empty() || (inline.is_empty() && children.contains(word)));
-        if starts_path && (matches!(word, "crate" | "super" | "self") || relative_use) {
-            let mut leaves = Vec::new();
-            k = parse_tree(&t, k, &[], &mut leaves);
-            for (rel, binds, line) in leaves {
-                let mut base = here(&inline);
-                let mut segs = rel.into_iter().peekable();
-                match segs.peek().map(String::as_str) {
-                    Some("crate") => {
-                        base.clear();
-                        segs.next();
-                    }
-                    Some("self") => {
-                        segs.next();
-                    }
-                    _ => {}
-                }
-                while segs.peek().is_some_and(|s| s == "super") {
-                    segs.next();
-                    base.pop();
-                }
-                base.extend(segs);
-                named.push(Named { line, from: here(&inline), path: base, binds });
-            }
+        let starts_path = prev != "::" && next == "::" && word.starts_with(|ch: char| ch.is_alphabetic() || ch == '_');
+        if !starts_path {
+            k += 1;
             continue;
         }
-        k += 1;
+        let is_use = prev == "use";
+        let reexport = is_use && is_pub_use(&t, k - 1);
+        // `use child::…` names a module the file declares; any other `use
+        // x::…` a name in scope or an outside crate (a loose path).
+        let relative_use = is_use && inline.is_empty() && children.contains(word);
+        let anchored = matches!(word, "crate" | "super" | "self") || relative_use;
+        if !anchored && !inline.is_empty() {
+            k += 1;
+            continue;
+        }
+        let mut leaves = Vec::new();
+        k = parse_tree(&t, k, &[], &mut leaves);
+        for (rel, binds, line) in leaves {
+            let binds = binds.filter(|_| is_use);
+            let from = here(&inline);
+            if anchored {
+                out.named.push(Named { line, path: absolute(&from, rel), from, binds, reexport });
+            } else {
+                out.loose.push(Named { line, path: rel, from, binds, reexport });
+            }
+        }
     }
-    (named, declared)
+    out
 }
 
 /// The layering problems of the crate whose sources are `files` (path under
@@ -487,11 +569,11 @@ fn check(declared: &Declared, files: &[(String, String)]) -> Vec<String> {
     let mut per_file = Vec::new();
     let mut modules = BTreeSet::new();
     for (file, text) in files {
-        let (named, mods) = named_paths(file, text);
+        let reading = named_paths(file, text);
         if module_of(file).is_empty() {
-            modules.extend(mods);
+            modules.extend(reading.declared);
         }
-        per_file.push((file, text, named));
+        per_file.push((file, text, reading.named));
     }
     if modules.is_empty() {
         problems.push("no crate root (lib.rs) among the sources, or it declares no modules".to_owned());
@@ -876,9 +958,11 @@ fn an_undeclared_use_beside_is_reported() {
 }
 
 /// The files of the crate whose root is `root` (`lib.rs` or `main.rs`) among
-/// `files` (path under the crate's `src/`, text): the root and every file a
-/// `mod` declaration reaches from it. A folder with both roots holds two
-/// crates, each with its own modules.
+/// `files` (path under the crate's `src/`, text): the root, every file a
+/// `mod` declaration reaches from it, and every file in the folder of a
+/// module it reaches (`render/mod.rs` declares its renderer's modules
+/// through a macro). A folder with both roots holds two crates, each with
+/// its own modules: at the top level only `mod` declarations count.
 fn crate_files<'a>(root: &str, files: &'a [(String, String)]) -> Vec<&'a (String, String)> {
     let by_module: BTreeMap<Vec<String>, &(String, String)> =
         files.iter().filter(|(f, _)| f != "lib.rs" && f != "main.rs").map(|entry| (module_of(&entry.0), entry)).collect();
@@ -887,9 +971,9 @@ fn crate_files<'a>(root: &str, files: &'a [(String, String)]) -> Vec<&'a (String
     while k < out.len() {
         let (file, text) = out[k];
         let here = module_of(file);
-        for child in file_modules(&tokens(&code_only(text))) {
-            let mut path = here.clone();
-            path.push(child);
+        let declared = file_modules(&tokens(&code_only(text))).into_iter().map(|child| here.iter().cloned().chain([child]).collect::<Vec<_>>());
+        let in_folder = by_module.keys().filter(|m| !here.is_empty() && m.len() == here.len() + 1 && m.starts_with(&here)).cloned();
+        for path in declared.chain(in_folder).collect::<Vec<_>>() {
             if let Some(entry) = by_module.get(&path)
                 && !out.iter().any(|e| e.0 == entry.0)
             {
@@ -901,54 +985,107 @@ fn crate_files<'a>(root: &str, files: &'a [(String, String)]) -> Vec<&'a (String
     out
 }
 
+/// Each file's `use` bindings: name → the absolute path it binds, or `None`
+/// for a name from outside the crate (`use std::…`, `use snowpack::…`).
+type Imports = BTreeMap<String, BTreeMap<String, Option<Vec<String>>>>;
+
 /// The file that defines what the absolute `path` names among `modules`
 /// (module path → file): the file of its longest module prefix, followed
 /// through that file's `use` of the next segment (a re-export, or an import
-/// a child module reaches with `super::`), up to 8 times.
-fn defining_file(
-    path: &[String],
-    modules: &BTreeMap<Vec<String>, String>,
-    imports: &BTreeMap<String, BTreeMap<String, Vec<String>>>,
-    hops: u32,
-) -> Option<String> {
+/// a child module reaches with `super::`), up to 8 times; `None` when that
+/// `use` brings the name from outside the crate.
+fn defining_file(path: &[String], modules: &BTreeMap<Vec<String>, String>, imports: &Imports, hops: u32) -> Option<String> {
     let n = (0..=path.len()).rev().find(|&n| modules.contains_key(&path[..n]))?;
     let file = &modules[&path[..n]];
     if let Some(next) = path.get(n)
         && hops < 8
-        && let Some(target) = imports.get(file).and_then(|m| m.get(next))
-        && let Some(found) = defining_file(target, modules, imports, hops + 1)
+        && let Some(bound) = imports.get(file).and_then(|m| m.get(next))
     {
-        return Some(found);
+        return defining_file(bound.as_ref()?, modules, imports, hops + 1);
     }
     Some(file.clone())
+}
+
+/// The `use` bindings of every file of `read` ([`Imports`]): the anchored
+/// ones (`crate::`, `super::`, `self::`, a declared module) first, then the
+/// loose ones, through them.
+fn file_imports(read: &[(&String, &String, Reading)], modules: &BTreeMap<Vec<String>, String>) -> Imports {
+    let mut imports = Imports::new();
+    for (file, _, reading) in read {
+        let here = module_of(file);
+        for n in reading.named.iter().filter(|n| n.from == here) {
+            if let Some(name) = &n.binds {
+                imports.entry((*file).clone()).or_default().insert(name.clone(), Some(n.path.clone()));
+            }
+        }
+    }
+    for (file, _, reading) in read {
+        let here = module_of(file);
+        for n in reading.loose.iter().filter(|n| n.from == here) {
+            let Some(name) = &n.binds else { continue };
+            let resolved = resolve_loose(n, &here, modules, imports.get(*file)).map(|r| r.path);
+            imports.entry((*file).clone()).or_default().entry(name.clone()).or_insert(resolved);
+        }
+    }
+    imports
+}
+
+/// The absolute path a loose path of the file of module `here` names: its
+/// first segment a name the file's `use` binds (`imports`) or a module the
+/// file declares; `None` for anything else (`std::…`, `Self::…`, a local
+/// type's associated item, a name from outside the crate).
+fn resolve_loose(
+    n: &Named,
+    here: &[String],
+    modules: &BTreeMap<Vec<String>, String>,
+    imports: Option<&BTreeMap<String, Option<Vec<String>>>>,
+) -> Option<Named> {
+    let (first, rest) = n.path.split_first()?;
+    let mut path = match imports.and_then(|m| m.get(first)) {
+        Some(bound) => bound.clone()?,
+        None => {
+            let child: Vec<String> = here.iter().chain([first]).cloned().collect();
+            modules.contains_key(&child).then_some(child)?
+        }
+    };
+    path.extend(rest.iter().cloned());
+    Some(Named { path, ..n.clone() })
+}
+
+/// The file `n` (named in the file of module `here`, whose code uses
+/// `words`) is an edge to, if any: the file that defines the item. `None`
+/// for a `use` of a module itself (the paths through it count where they
+/// name an item) and for a re-export of a descendant's item (`pub use
+/// steps::Steps` in `snow/mod.rs`) that the re-exporting file's own code
+/// does not use: that is how modules nest, not an import.
+fn used_file(n: &Named, here: &[String], modules: &BTreeMap<Vec<String>, String>, imports: &Imports, words: &BTreeSet<String>) -> Option<String> {
+    if n.binds.is_some() && modules.contains_key(&n.path) {
+        return None;
+    }
+    let to = defining_file(&n.path, modules, imports, 0)?;
+    let there = module_of(&to);
+    let nests = there.len() > here.len() && there.starts_with(here);
+    let only_reexported = n.reexport && nests && n.binds.as_ref().is_none_or(|b| !words.contains(b));
+    (!only_reexported).then_some(to)
 }
 
 /// The uses between files of one crate (`files`: path under `src/`, text,
 /// every file of the crate): from → to → the first place, `src/file:line:
 /// the line`. A path through a re-export counts as the file that defines
-/// the item. Uses between a module's file and its own descendants' files
-/// (a child naming its parent's items, a parent re-exporting its children)
-/// are how modules nest, not edges.
+/// the item, so naming a module's `mod.rs` counts only for an item defined
+/// in it; the rest of the rule is [`used_file`]'s.
 fn file_edges(files: &[&(String, String)]) -> BTreeMap<String, BTreeMap<String, String>> {
     let modules: BTreeMap<Vec<String>, String> = files.iter().map(|(f, _)| (module_of(f), f.clone())).collect();
-    let parsed: Vec<(&String, &String, Vec<Named>)> = files.iter().map(|(f, text)| (f, text, named_paths(f, text).0)).collect();
-    let mut imports: BTreeMap<String, BTreeMap<String, Vec<String>>> = BTreeMap::new();
-    for (file, _, named) in &parsed {
-        for n in named.iter().filter(|n| n.from == module_of(file)) {
-            if let Some(name) = &n.binds {
-                imports.entry((*file).clone()).or_default().insert(name.clone(), n.path.clone());
-            }
-        }
-    }
-    let nested = |a: &[String], b: &[String]| a.len() < b.len() && b.starts_with(a);
+    let read: Vec<(&String, &String, Reading)> = files.iter().map(|(f, text)| (f, text, named_paths(f, text))).collect();
+    let imports = file_imports(&read, &modules);
     let mut edges: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
-    for (file, text, named) in &parsed {
+    for (file, text, reading) in &read {
         let lines: Vec<&str> = text.lines().collect();
         let here = module_of(file);
-        for n in named {
-            let Some(to) = defining_file(&n.path, &modules, &imports, 0) else { continue };
-            let there = module_of(&to);
-            if to == **file || nested(&there, &here) || nested(&here, &there) {
+        let loose = reading.loose.iter().filter_map(|n| resolve_loose(n, &here, &modules, imports.get(*file)));
+        for n in reading.named.iter().cloned().chain(loose) {
+            let Some(to) = used_file(&n, &here, &modules, &imports, &reading.words) else { continue };
+            if to == **file {
                 continue;
             }
             let at = format!("src/{file}:{}: {}", n.line, lines.get(n.line - 1).map_or("", |l| l.trim()));
@@ -1004,6 +1141,13 @@ fn crate_source_folders() -> Vec<PathBuf> {
 fn no_crate_has_a_file_circle() {
     let folders = crate_source_folders();
     assert!(folders.len() >= 7, "only {} crate folders: the layout changed and this test must follow", folders.len());
+    // The graph was read: every file of the library is in it (those a macro
+    // declares too), with its uses.
+    let library = sources();
+    let reached = crate_files("lib.rs", &library);
+    assert_eq!(reached.len(), library.len(), "files of src/ the crate root does not reach");
+    let uses: usize = file_edges(&reached).values().map(BTreeMap::len).sum();
+    assert!(uses > 2 * library.len(), "only {uses} uses between {} files", library.len());
     let mut problems = Vec::new();
     for folder in &folders {
         let files = sources_in(folder);
@@ -1040,6 +1184,32 @@ fn a_planted_file_circle_is_reported() {
         "{}",
         found[0]
     );
+    // A parent whose own code calls its child (a loose path through the
+    // module it declares), while the child names an item the parent defines.
+    let parent = "mod coat;\npub struct Shared;\nfn run() { coat::paint(); }\n";
+    let found = file_circles(&folder(&[("lib.rs", lib), ("snow/mod.rs", parent), ("snow/coat.rs", "pub fn paint() {}\nfn f(_: super::Shared) {}\n")]));
+    assert_eq!(found.len(), 1, "{found:#?}");
+    assert!(found[0].contains("src/snow/mod.rs:3: fn run() { coat::paint(); }") && found[0].contains("src/snow/coat.rs:2:"), "{}", found[0]);
+    // The same child with a parent that only declares it: no circle.
+    let found = file_circles(&folder(&[("lib.rs", lib), ("snow/mod.rs", "mod coat;\npub struct Shared;\n"), ("snow/coat.rs", "fn f(_: super::Shared) {}\n")]));
+    assert!(found.is_empty(), "{found:#?}");
+    // A parent that re-exports a child's item and uses it in its own code.
+    let parent = "mod coat;\npub use coat::Coat;\npub struct Shared(Coat);\n";
+    let found = file_circles(&folder(&[("lib.rs", lib), ("snow/mod.rs", parent), ("snow/coat.rs", "pub struct Coat;\nfn f(_: super::Shared) {}\n")]));
+    assert_eq!(found.len(), 1, "{found:#?}");
+    // Siblings through a module one imports (`use super::window;`, then `window::…` in code).
+    let window = "use super::stamp::EMPTY;\npub fn index() -> u32 { EMPTY }\n";
+    let stamp = "use super::window;\npub const EMPTY: u32 = 0;\nfn f() -> u32 { window::index() }\n";
+    let cpu = "mod stamp;\nmod window;\n";
+    let found = file_circles(&folder(&[("lib.rs", "mod cpu;\n"), ("cpu/mod.rs", cpu), ("cpu/stamp.rs", stamp), ("cpu/window.rs", window)]));
+    assert_eq!(found.len(), 1, "{found:#?}");
+    assert!(found[0].contains("src/cpu/stamp.rs:3: fn f() -> u32 { window::index() }"), "{}", found[0]);
+    // A name the crate root brings from another crate is not the root's own.
+    let outside = folder(&[
+        ("main.rs", "mod bench;\nuse app_lib::BadInput;\nfn main() { bench::run(); }\n"),
+        ("bench.rs", "pub fn run() -> Result<(), crate::BadInput> { Ok(()) }\n"),
+    ]);
+    assert!(file_circles(&outside).is_empty(), "{:#?}", file_circles(&outside));
     // A binary's modules are its own crate: main.rs's files never meet lib.rs's.
     let two = folder(&[
         ("lib.rs", "pub mod a;\n"),
@@ -1062,6 +1232,19 @@ fn the_real_tree_with_a_planted_file_circle_fails() {
     streamer.1.push_str("\nfn planted_back() { let _ = crate::shaders::UPDATE; }\n");
     let found = file_circles(&files);
     assert!(found.iter().any(|p| p.contains("src/shaders.rs") && p.contains("planted")), "{found:#?}");
+}
+
+#[test]
+fn the_real_tree_with_a_planted_circle_in_one_module_fails() {
+    let mut files = sources();
+    // The slot layout comes to name the streaming that re-exports it: two files of `tiles`.
+    let planes = files.iter_mut().find(|(f, _)| f == "tiles/planes.rs").expect("src/tiles/planes.rs");
+    planes.1.push_str("\nfn planted() { let _ = super::streaming::tile_from_planes; }\n");
+    let found = file_circles(&files);
+    let circle = found.iter().find(|p| {
+        p.contains("tiles/planes.rs → tiles/streaming.rs → tiles/planes.rs") || p.contains("tiles/streaming.rs → tiles/planes.rs → tiles/streaming.rs")
+    });
+    assert!(circle.is_some_and(|p| p.contains("src/tiles/planes.rs:") && p.contains("planted")), "{found:#?}");
 }
 
 /// Every `.rs` file of the repository's crates that is not a test: each root

@@ -1,3 +1,6 @@
+//! What presses the snow: [`SnowDeformer`], every shape the library presses
+//! with, placed by its entity's transform.
+//!
 //! Wheels: [`SnowWheel`] keeps a [`SnowDeformer::Wheel`] rolling with its
 //! entity and sitting on the snow as deep as its load presses it.
 //!
@@ -14,7 +17,108 @@
 use bevy::prelude::*;
 use snowpack::mechanics::{SnowColumn, SnowMechanics, WheelContact};
 
-use crate::{SnowDeformer, SnowSystems, SnowpackSettings};
+use crate::{SnowSystems, SnowpackSettings};
+
+/// Something that presses the snow, placed by the entity's `GlobalTransform`
+/// (its translation and rotation; its scale scales the shape). Every kind
+/// the library presses with is here: an analytic sphere or box, a capsule
+/// and any mesh (pressed by their triangles, skinned meshes in pose), a
+/// contact point of the points technique, and a wheel ([`SnowWheel`] keeps
+/// one rolling with its load).
+#[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
+#[reflect(Component, Clone, Debug, PartialEq)]
+#[require(Transform)]
+pub enum SnowDeformer {
+    /// A sphere around the entity's origin.
+    Sphere {
+        /// Radius (m) before scaling (the largest scale axis applies).
+        radius: f32,
+    },
+    /// A box centred on the entity's origin, turned with it.
+    Box {
+        /// Half the box's size along the entity's axes (m) before scaling.
+        half_extents: Vec3,
+    },
+    /// A capsule along the entity's local y axis, centred on its origin
+    /// (Bevy's `Capsule3d`): pressed by its triangles, like [`Self::Mesh`],
+    /// so a lying, rolling or tumbling capsule presses what it covers.
+    Capsule {
+        /// Radius of its hemispheres and cylinder (m) before scaling.
+        radius: f32,
+        /// Half the length of its cylinder (m) before scaling.
+        half_length: f32,
+    },
+    /// A contact point of the points technique (`Technique::Points` or
+    /// `Combined`; the depth technique ignores it): the footprint
+    /// `h = origin.y + d² · scale_per_m` around the entity's origin, the
+    /// foot's lowest point.
+    Point {
+        /// Curvature of the footprint (1/m): `1 / 2r` matches a sphere of radius r.
+        scale_per_m: f32,
+    },
+    /// A tyre with the library's default tread (blocks 12 cm apart, 2 cm
+    /// deep) rolling about the entity's local x axis (kept horizontal),
+    /// centred on its origin. [`SnowWheel`] writes this each frame from its
+    /// motion and load; a game may also drive it by hand.
+    Wheel {
+        /// Outer radius (m) before scaling.
+        radius: f32,
+        /// Half the tyre's width (m) before scaling.
+        half_width: f32,
+        /// How far the tread has turned, as arc length (m): the distance
+        /// rolled, times `1 + slip`.
+        roll_m: f32,
+        /// The lowest the tyre's bottom goes (world y, m): where the load
+        /// holds it on the snow. The wheel presses from its transform or from
+        /// this, whichever is higher; `f32::NEG_INFINITY`: from its
+        /// transform; not finite and positive: it does not press (its load
+        /// is not known yet).
+        lowest_m: f32,
+    },
+    /// A plough's blade or a crate's face (`snowpack::Deformer::blade`):
+    /// its lower edge's middle at the entity's origin, travelling along the
+    /// entity's forward (-z) and turned `angle_deg` from square to it about
+    /// the vertical. Scraping the ground with the snow's `params.displace`
+    /// on, it pushes its cut aside into a windrow.
+    Blade {
+        /// Width along the edge (m) before scaling (the entity's x scale).
+        width: f32,
+        /// Height (m) before scaling (the entity's y scale).
+        height: f32,
+        /// Turn from square to the travel (degrees): the pushed snow slides
+        /// off the trailing end.
+        angle_deg: f32,
+    },
+    /// The entity's own mesh (`Mesh3d`) in its current pose, or, on an
+    /// entity without one (a glTF scene's root), every mesh below it.
+    /// Skinned meshes press in pose (the library skins them on the GPU from
+    /// the joints' transforms); the mesh asset must keep its data in the
+    /// main world (`RenderAssetUsages::MAIN_WORLD`, the glTF default).
+    Mesh,
+}
+
+impl SnowDeformer {
+    /// The library's deformer for this shape placed at `transform`; `None`
+    /// for [`Self::Mesh`] and [`Self::Capsule`], which press as posed meshes
+    /// instead, and for a wheel whose load is not known yet.
+    #[must_use]
+    pub fn placed(&self, transform: &GlobalTransform) -> Option<snowpack::Deformer> {
+        let (scale, rotation, translation) = transform.to_scale_rotation_translation();
+        let largest = scale.abs().max_element();
+        match *self {
+            Self::Sphere { radius } => Some(snowpack::Deformer::Sphere { center: translation, radius: radius * largest }),
+            Self::Box { half_extents } => Some(snowpack::Deformer::Box { center: translation, half_extents: half_extents * scale.abs(), rotation }),
+            Self::Point { scale_per_m } => Some(snowpack::Deformer::Point { position: translation, scale_per_m }),
+            Self::Wheel { radius, half_width, roll_m, lowest_m } => {
+                placed_wheel(rotation, translation, radius * largest, half_width * largest, roll_m, lowest_m)
+            }
+            Self::Blade { width, height, angle_deg } => {
+                Some(snowpack::Deformer::blade(translation, rotation * Vec3::NEG_Z, angle_deg, (width * scale.x.abs(), height * scale.y.abs())))
+            }
+            Self::Capsule { .. } | Self::Mesh => None,
+        }
+    }
+}
 
 /// A wheel pressing the snow with its load: put it on the wheel's entity
 /// (its local x axis is the axle, its origin the wheel's centre); the plugin

@@ -16,8 +16,9 @@ use crate::mesh_deformer::{MeshDeformerFrame, MeshPose, MeshRegistration};
 use crate::query::{SnowQuery, SnowTicket, split_answers};
 use crate::render_state::{SnowRenderState, create_world};
 use crate::settings::{AppliedSettings, apply_settings};
+use crate::snowpack_settings::dvec2;
 use crate::systems::SnowSystems;
-use crate::{SnowCatcher, SnowDeformer, SnowWindowTarget, SnowpackSettings, dvec2};
+use crate::{SnowCatcher, SnowDeformer, SnowWindowTarget, SnowpackSettings};
 
 /// What presses the snow this frame, extracted from the main world.
 #[derive(Resource, Default)]

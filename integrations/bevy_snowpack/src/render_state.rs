@@ -14,7 +14,8 @@ use crate::from_render::{FromRender, ToMainWorld};
 use crate::material_extension::CoverTexture;
 use crate::mesh_deformer::MeshRegistration;
 use crate::query::SnowTicket;
-use crate::{SnowStoreSettings, SnowpackSettings, dvec2};
+use crate::snowpack_settings::dvec2;
+use crate::{SnowStoreSettings, SnowpackSettings};
 
 /// The plugin's deformation in the render world, on Bevy's device and queue.
 /// Tests and tools read it back (`deformation().read_snow(context())`).

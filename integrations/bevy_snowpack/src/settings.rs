@@ -8,8 +8,9 @@ use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::extract_resource::{ExtractResource, ExtractResourcePlugin};
 
+use crate::SnowpackSettings;
 use crate::render_state::SnowRenderState;
-use crate::{SnowpackSettings, dvec2};
+use crate::snowpack_settings::dvec2;
 
 impl ExtractResource<RenderApp> for SnowpackSettings {
     type Source = Self;

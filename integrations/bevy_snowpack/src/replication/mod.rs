@@ -10,6 +10,13 @@
 //! |---|---|
 //! | `server.rs` | the relay: its world and store, messages in and out, owned entities' positions reported, depth under each owned entity |
 //! | `client.rs` | the peer: messages between the main world and the render world's deformation, its status |
+//! | `settings.rs` | [`SnowReplicationSettings`] and the relay's store |
+//! | `messages.rs` | the two replicon messages |
+//! | `owners.rs` | [`SnowOwnedBy`] and [`SnowDepthUnder`] |
+//! | `systems.rs` | [`SnowReplicationSystems`] |
+//!
+//! `mod.rs` holds the plugin and re-exports the rest; the files below it
+//! never name it (`crates/snowpack/tests/layering.rs`: no file circles).
 //!
 //! The world is the server's: the relay serves the world its settings name
 //! ([`SnowReplicationSettings::world`], or a listen server's own snow), and
@@ -22,18 +29,22 @@
 
 #[cfg(feature = "multiplayer")]
 mod client;
+mod messages;
+mod owners;
 mod server;
-
-use std::path::PathBuf;
+mod settings;
+mod systems;
 
 use bevy::prelude::*;
 use bevy_replicon::prelude::*;
-use serde::{Deserialize, Serialize};
-use snowpack_share::{PeerConfig, RelayConfig, StoreConfig, WorldIdentity};
 
 #[cfg(feature = "multiplayer")]
 pub use client::SnowSharing;
+pub use messages::{SnowToClient, SnowToServer};
+pub use owners::{SnowDepthUnder, SnowOwnedBy};
 pub use server::SnowServer;
+pub use settings::{SnowRelayStore, SnowReplicationSettings};
+pub use systems::SnowReplicationSystems;
 
 /// Shared snow over bevy_replicon: add it after `RepliconPlugins` (and, on a
 /// client, after [`crate::SnowpackPlugin`]) in every app of the game, server
@@ -101,136 +112,4 @@ impl Plugin for SnowReplicationPlugin {
         #[cfg(feature = "multiplayer")]
         client::build(app);
     }
-}
-
-/// What the shared snow is made of (a resource, the same on the server and
-/// the clients). Applied when changed: `peer` (clients) and `relay` (the
-/// server). Fixed when a client first joins: `tile_side`, `gather_interval_s`
-/// and `peer_name` (a change warns and is ignored until the app restarts).
-/// Read when the server starts its relay (`ServerState` becomes `Running`):
-/// `world` and `store` (a change while it runs warns and waits for the next
-/// start).
-#[derive(Resource, Clone, Debug, PartialEq)]
-pub struct SnowReplicationSettings {
-    /// Side of a shared tile (texels, 8..=256). Every client of a world must
-    /// use the same side (the relay refuses another, naming it).
-    pub tile_side: u32,
-    /// A changed tile is gathered at most this often (s of the snow's time).
-    pub gather_interval_s: f64,
-    /// How a client's peer paces itself (presence, digests, deltas, resends).
-    pub peer: PeerConfig,
-    /// How the server's relay paces and polices its clients (the radius
-    /// around their entities they may write in, byte and tile rates).
-    pub relay: RelayConfig,
-    /// The client's name in the relay's logs.
-    pub peer_name: String,
-    /// On the server: the world it serves, from its own configuration
-    /// (`SnowDeformation::world_identity_for` of the snow its clients run, with
-    /// `tile_side`). A client of another world is refused naming what
-    /// differs, the first one too; a client never chooses the world. `None`:
-    /// a listen server serves its own snow's world; a dedicated server
-    /// serves nobody until it is set (it warns).
-    pub world: Option<WorldIdentity>,
-    /// On the server: where the relay keeps its tiles (and the world and its
-    /// clock), so a restarted server, or a player joining an empty one,
-    /// still sees every trail. `None`: in memory, for the server's life.
-    pub store: Option<SnowRelayStore>,
-}
-
-impl Default for SnowReplicationSettings {
-    fn default() -> Self {
-        Self {
-            tile_side: 32,
-            gather_interval_s: 0.25,
-            peer: PeerConfig::default(),
-            relay: RelayConfig::default(),
-            peer_name: "bevy_snowpack".into(),
-            world: None,
-            store: None,
-        }
-    }
-}
-
-/// The server relay's tile store (`snowpack::TileStore`, the format
-/// `snowpack server --store` keeps: either can serve the other's folder).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SnowRelayStore {
-    /// The store's folder (created when missing; one server at a time, and
-    /// not a folder the snow's own [`crate::SnowStoreSettings`] uses: the
-    /// relay's tiles hold deficits, not heights).
-    pub dir: PathBuf,
-    /// Its disk budget.
-    pub config: StoreConfig,
-}
-
-impl SnowRelayStore {
-    /// A store in `dir` with the library's default budget.
-    #[must_use]
-    pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Self { dir: dir.into(), config: StoreConfig::default() }
-    }
-}
-
-/// A shared-snow message from a client to the server (its peer's `Hello`,
-/// `Presence`, `Tiles` deltas, `Digest`): the library's wire bytes.
-#[derive(Message, Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
-pub struct SnowToServer(pub Vec<u8>);
-
-/// A shared-snow message from the server to one client (`Welcome`, `Ack`,
-/// merged `Tiles`, `Want`, `Clock`, `InSync`): the library's wire bytes.
-#[derive(Message, Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
-pub struct SnowToClient(pub Vec<u8>);
-
-/// On the server: the client that controls this entity (replicon's
-/// `ClientId`: `ClientId::Client` of a connected client's entity, the one
-/// with `ConnectedClient`, or `ClientId::Server` for a listen server's own
-/// player). The relay lets that client change the snow only near its
-/// entities, placed by their `Transform` (root entities: a server without
-/// `TransformPlugin` has no `GlobalTransform`), and [`SnowDepthUnder`] is
-/// kept up to date on them.
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
-#[require(SnowDepthUnder)]
-pub struct SnowOwnedBy(pub ClientId);
-
-/// On the server: the snow depth (m) under an entity with [`SnowOwnedBy`],
-/// from the relay's merged tiles on the CPU (the answer a client's
-/// [`crate::SnowQuery`] gives there once it holds the same tiles). Updated in
-/// [`SnowReplicationSystems::Relay`], before `Update`: gameplay there slows a
-/// player in deep snow with it. `None` until the relay runs (it starts once
-/// the server knows its world).
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq)]
-pub struct SnowDepthUnder {
-    /// Snow depth (m) at the entity's x, z.
-    pub depth_m: Option<f32>,
-}
-
-/// The shared snow's systems; order a game's own around them.
-///
-/// Server (while `ServerState` is `Running`):
-/// - [`Self::Relay`] (`PreUpdate`, after replicon's `ServerSystems::Receive`):
-///   the relay started (once the world is known), messages received, the
-///   owners' positions reported, the relay updated (and its changed tiles
-///   written to its store before anything is sent), its messages written,
-///   [`SnowDepthUnder`] updated.
-///
-/// Client (while `ClientState` is `Connected`, or on a listen server while
-/// `ServerState` is `Running`):
-/// - [`Self::Receive`] (`PreUpdate`, after replicon's `ClientSystems::Receive`):
-///   messages from the server queued for the render world, the peer's last
-///   status and messages received from it.
-/// - [`Self::Send`] (`PostUpdate`, before replicon's `ClientSystems::Send`):
-///   the peer's messages written.
-/// - [`Self::Peer`] (render world, `RenderGraph`, after
-///   [`crate::SnowSystems::Encode`]): the peer takes the frame's changed
-///   tiles, merges what arrived and makes its messages.
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SnowReplicationSystems {
-    /// The server's relay (main world, `PreUpdate`).
-    Relay,
-    /// What arrived reaches the client's peer and back (main world, `PreUpdate`).
-    Receive,
-    /// The client's messages go out (main world, `PostUpdate`).
-    Send,
-    /// The client's peer steps beside the deformation (render world, `RenderGraph`).
-    Peer,
 }
