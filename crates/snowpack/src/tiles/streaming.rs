@@ -599,7 +599,6 @@ impl TileStreaming {
     /// placement, or an arriving tile still on its way out, waits for them.
     fn record_batched(&mut self, ctx: &GpuContext, res: &DeformResources, (old, origin): (Option<[i64; 2]>, [i64; 2]), frame: &WindowFrame, clock: SnowClock) {
         let g = self.grid;
-        let full = [[0, 0, res.resolution, res.resolution]];
         let mut timer = GpuTimer::disabled();
         let submit = |ctx: &GpuContext, encoder: wgpu::CommandEncoder| ctx.queue.submit([encoder.finish()]);
         let new_encoder = |ctx: &GpuContext| ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile batch") });
@@ -626,7 +625,7 @@ impl TileStreaming {
             let mut encoder = new_encoder(ctx);
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             if let Some(old) = old {
-                self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, ExchangeParams::STASH), &full);
+                self.exchange.record(&mut cx, res, self.exchange_params(res, old, old, ExchangeParams::STASH), &self.batch_rects(batch, old));
             }
             let out: Vec<(TileKey, usize)> = batch.iter().filter_map(|&k| self.slots.slot(k).map(|s| (k, s))).collect();
             self.record_copy_out(&mut cx, res, &out, clock);
@@ -664,7 +663,7 @@ impl TileStreaming {
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
             let params = self.restore_params(frame);
             self.restore.record(&mut cx, (res, &self.tiles), params, &entries, &upload);
-            self.exchange.record(&mut cx, res, self.exchange_params(res, origin, origin, 0), &full);
+            self.exchange.record(&mut cx, res, self.exchange_params(res, origin, origin, 0), &self.batch_rects(batch, origin));
             submit(ctx, encoder);
             for &k in batch {
                 if g.inside(k, origin) {
@@ -675,6 +674,30 @@ impl TileStreaming {
         debug_assert_eq!(self.slots.len(), keep);
         self.write_table(&ctx.queue);
         self.record_sweep(ctx, res, origin, 0);
+    }
+
+    /// The window-local rectangles (at most two, as the exchange takes)
+    /// that cover the texels of `batch`'s tiles in the window at `origin`:
+    /// the bounds of its tiles left of the window's middle and of those
+    /// right of it. A batch of a jump is a run of rows or the edge columns,
+    /// so a batch's stash or load reads a strip of the window, not all of it
+    /// (64 passes over the whole window made a jump at 1024² take 2 s on
+    /// lavapipe).
+    fn batch_rects(&self, batch: &[TileKey], origin: [i64; 2]) -> Vec<TexelRect> {
+        let (s, n) = (i64::from(self.grid.side()), i64::from(self.grid.resolution()));
+        let mut bounds: [Option<[i64; 4]>; 2] = [None, None];
+        for k in batch {
+            // The tile's texels in window-local coordinates, clipped to the window.
+            let (c0, c1) = ((k.col * s - origin[0]).max(0), ((k.col + 1) * s - origin[0]).min(n));
+            let (r0, r1) = ((k.row * s - origin[1]).max(0), ((k.row + 1) * s - origin[1]).min(n));
+            if c0 >= c1 || r0 >= r1 {
+                continue;
+            }
+            let half = usize::from(c0 + c1 > n);
+            let b = bounds[half].get_or_insert([r0, c0, r1, c1]);
+            *b = [b[0].min(r0), b[1].min(c0), b[2].max(r1), b[3].max(c1)];
+        }
+        bounds.into_iter().flatten().map(|[r0, c0, r1, c1]| [r0 as u32, c0 as u32, (r1 - r0) as u32, (c1 - c0) as u32]).collect()
     }
 
     /// Counts the whole window at `at` in the mass ledger, as left (`kind`
@@ -819,7 +842,6 @@ impl TileStreaming {
     /// never in a frame loop.
     pub fn checkpoint(&mut self, ctx: &GpuContext, res: &DeformResources, origin: [i64; 2], clock: SnowClock) -> Result<(), SnowError> {
         self.collect_evictions(ctx, true);
-        let full = [[0, 0, res.resolution, res.resolution]];
         let stash = self.exchange_params(res, origin, origin, ExchangeParams::STASH);
         let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
@@ -841,7 +863,7 @@ impl TileStreaming {
             let entries: Vec<[i32; 4]> = batch.iter().filter_map(|&k| self.slots.slot(k).map(|s| [k.col as i32, k.row as i32, s as i32, 0])).collect();
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("tile checkpoint") });
             let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
-            self.exchange.record(&mut cx, res, stash, &full);
+            self.exchange.record(&mut cx, res, stash, &self.batch_rects(batch, origin));
             self.seal.record(&mut cx, (res, &self.tiles), seal, &entries);
             ctx.queue.submit([encoder.finish()]);
             let raw = crate::gpu::read_buffer(ctx, &self.tiles)?;
@@ -886,7 +908,6 @@ impl TileStreaming {
         if let Some(e) = owed.iter().find_map(|&k| self.streamer.stand_in_error(k)) {
             return Err(e.into());
         }
-        let full = [[0, 0, res.resolution, res.resolution]];
         let load = self.exchange_params(res, origin, origin, 0);
         let seal = self.seal_params(res);
         let mut timer = GpuTimer::disabled();
@@ -911,7 +932,7 @@ impl TileStreaming {
             {
                 let mut cx = FrameContext::new(ctx, &mut encoder, &mut timer);
                 self.restore.record(&mut cx, (res, &self.tiles), self.restore_base, &entries, &upload);
-                self.exchange.record(&mut cx, res, load, &full);
+                self.exchange.record(&mut cx, res, load, &self.batch_rects(batch, origin));
                 self.seal.record(&mut cx, (res, &self.tiles), seal, &sealed);
             }
             ctx.queue.submit([encoder.finish()]);
