@@ -113,8 +113,6 @@ mod tiles;
 
 // The front door: what a game uses (docs/architecture.md lists it and says why each is here).
 pub use accumulate::{ObjectShape, ObjectStats, SnowObject};
-#[cfg(feature = "low_level")]
-pub use deform::QueryStats;
 pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
@@ -123,8 +121,6 @@ pub use error::front::{ShareError, ShareErrorKind, SnowError, SnowErrorKind, Sto
 pub use gpu::{AdapterRequest, GpuContext, PassTimings};
 pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer, WhenFull};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
-#[cfg(feature = "low_level")]
-pub use render::sampling::snow_sampling_wgsl;
 pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
 pub use replicate::{PeerConfig, PeerStats, SnowPeer, WorldIdentity};

@@ -13,7 +13,8 @@
 /// snowfall, skinned meshes, coat settings, the game's ground, adapter
 /// requests).
 pub use crate::deform::params::SnowParamsExt;
-pub use crate::deform::query::QueryStatsExt;
+/// The point queries' counters ([`SnowInspect::query_stats`]).
+pub use crate::deform::query::{QueryStats, QueryStatsExt};
 pub use crate::deform::shape::DeformerExt;
 pub use crate::deform::technique::{RimStyleExt, TechniqueExt};
 pub use crate::gpu::context::AdapterRequestExt;
@@ -25,6 +26,9 @@ pub use crate::gpu::context::GpuContextExt;
 pub use crate::persist::streamer::TileStreamerExt;
 pub use crate::render::ground::{SnowGroundDescriptorExt, SnowGroundExt};
 pub use crate::render::sampling::SnowWindowUniformExt;
+/// The snow-sampling WGSL module in any bind group (the root has
+/// [`crate::snow_sampling_wgsl_at`], which also takes the binding offset).
+pub use crate::render::sampling::snow_sampling_wgsl;
 pub use crate::skin::coat::CoatSettingsExt;
 pub use crate::skin::skinning::SkinnedMeshExt;
 /// What snowpack's own app, tools and tests read and drive of a
