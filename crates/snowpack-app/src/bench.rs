@@ -961,6 +961,8 @@ mod tests {
             restore_ms: 0.5,
             teleport_wait_frames: 3,
             teleport_ms: 50.0,
+            teleport_longest_frame_ms: 20.0,
+            teleport_gpu_waits: 0,
         });
         results.shell_rows = [false, true]
             .map(|lod| crate::bench_shell::ShellRow {

@@ -58,6 +58,11 @@ pub struct StoreRow {
     pub teleport_wait_frames: u64,
     /// Wall ms from that teleport to the window standing at the start.
     pub teleport_ms: f64,
+    /// Wall ms of the longest frame of that teleport (`step`: encode,
+    /// submit, the readbacks that have arrived): what a game's frame feels.
+    pub teleport_longest_frame_ms: f64,
+    /// Times a frame of that teleport waited for the GPU (`TileStats::gpu_waits`).
+    pub teleport_gpu_waits: u64,
 }
 
 fn params(resolution: u32, refill: f32) -> SnowParams {
@@ -155,11 +160,13 @@ pub fn measure_store(ctx: &GpuContext, trail_m: f64, scratch: &Path) -> anyhow::
             row.bytes_per_km_with_trail = per_km;
             row.mean_tile_bytes = stats.store.disk_bytes as f64 / stats.store.disk_tiles.max(1) as f64;
             // Teleport back to the start: the window waits for its tiles.
-            let waits = stats.window_waits;
+            let (waits, gpu_waits) = (stats.window_waits, stats.gpu_waits);
             snow.set_center(DVec2::ZERO);
             let start = Instant::now();
             for _ in 0..600 {
+                let frame = Instant::now();
                 snow.step(ctx, &[], 1.0 / 60.0)?;
+                row.teleport_longest_frame_ms = row.teleport_longest_frame_ms.max(frame.elapsed().as_secs_f64() * 1e3);
                 if snow.origin_m().is_some_and(|o| o.x < 0.0) {
                     break;
                 }
@@ -167,6 +174,7 @@ pub fn measure_store(ctx: &GpuContext, trail_m: f64, scratch: &Path) -> anyhow::
             ctx.wait_idle("tile bench teleport")?;
             row.teleport_ms = start.elapsed().as_secs_f64() * 1e3;
             row.teleport_wait_frames = snow.tile_stats().map_or(0, |s| s.window_waits - waits);
+            row.teleport_gpu_waits = snow.tile_stats().map_or(0, |s| s.gpu_waits - gpu_waits);
         } else {
             row.bytes_per_km_untouched = per_km;
         }
@@ -227,7 +235,7 @@ pub fn markdown(moves: &[MoveRow], store: Option<&StoreRow>, adapter: &str, soft
     if let Some(s) = store {
         let _ = writeln!(
             md,
-            "\nStore size and speed: a 256² ({} m) window travelling {} m with and without a sphere ploughing a 1 m trail down its middle, then saved. {:.0} KB per km of swath with the trail, {:.0} KB per km untouched, so the trail itself costs {:.0} KB per km; {:.0} bytes per tile on average. A tile not in memory comes back (read, CRC, inflate, on the worker) in a median {:.2} ms; teleported back to the start with a cold cache, the window waited {} frames for its tiles and stood there {:.0} ms (wall) after the teleport.",
+            "\nStore size and speed: a 256² ({} m) window travelling {} m with and without a sphere ploughing a 1 m trail down its middle, then saved. {:.0} KB per km of swath with the trail, {:.0} KB per km untouched, so the trail itself costs {:.0} KB per km; {:.0} bytes per tile on average. A tile not in memory comes back (read, CRC, inflate, on the worker) in a median {:.2} ms; teleported back to the start with a cold cache, the window waited {} frames for its tiles and stood there {:.0} ms (wall) after the teleport; its longest frame took {:.1} ms, waiting {} times for the GPU.",
             s.swath_m,
             s.trail_m,
             s.bytes_per_km_with_trail / 1e3,
@@ -236,7 +244,9 @@ pub fn markdown(moves: &[MoveRow], store: Option<&StoreRow>, adapter: &str, soft
             s.mean_tile_bytes,
             s.restore_ms,
             s.teleport_wait_frames,
-            s.teleport_ms
+            s.teleport_ms,
+            s.teleport_longest_frame_ms,
+            s.teleport_gpu_waits
         );
     }
     md
