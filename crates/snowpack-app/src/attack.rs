@@ -15,8 +15,8 @@ use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
 use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
 use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, WorldIdentity, decode, encode};
-use snowpack::low_level::testing::CpuSnow;
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
+use snowpack_testkit::testing::CpuSnow;
 
 use crate::net::{CHANNEL, SnowLink, Transport};
 

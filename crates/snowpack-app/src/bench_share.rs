@@ -1,6 +1,6 @@
 //! Shared snow under load: one `snowpack server` (a separate process, as in
 //! production) and many simulated peers on loopback, each a CPU snow window
-//! ([`snowpack::low_level::testing::CpuSnow`]) walking and pressing a trail, linked
+//! ([`snowpack_testkit::testing::CpuSnow`]) walking and pressing a trail, linked
 //! over renet2 exactly as `snowpack run --connect` is. Measures the server's
 //! CPU time per second of world time, its peak memory, the bytes it sends
 //! and receives, and its CPU time per merged tile. Needs no GPU.
@@ -13,8 +13,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use snowpack::low_level::replicate::WorldIdentity;
-use snowpack::low_level::testing::CpuSnow;
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
+use snowpack_testkit::testing::CpuSnow;
 
 use crate::net::SnowLink;
 

@@ -30,7 +30,7 @@ impl Xvfb {
             Ok(c) => c,
             Err(e) => {
                 assert!(
-                    !snowpack::low_level::testing::gpu_required(),
+                    !snowpack_testkit::testing::gpu_required(),
                     "SNOWPACK_REQUIRE_GPU is set but Xvfb cannot start ({e}); install it: apt-get install xvfb"
                 );
                 eprintln!("skipping the demo test: no Xvfb ({e})");

@@ -14,7 +14,7 @@ fn bin() -> Command {
 }
 
 fn gpu_available() -> bool {
-    snowpack::low_level::testing::gpu().is_some()
+    snowpack_testkit::testing::gpu().is_some()
 }
 
 struct Grid {
@@ -1272,7 +1272,7 @@ fn bad_store_values_exit_2_naming_file_and_key() {
 /// smallest such resolution is found from the same adapter the binary picks.
 #[test]
 fn a_resolution_beyond_the_adapter_exits_2_naming_the_limit() {
-    let Some(ctx) = snowpack::low_level::testing::gpu() else { return };
+    let Some(ctx) = snowpack_testkit::testing::gpu() else { return };
     let limits = ctx.device.limits();
     let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let range = snowpack::low_level::deform::params::RESOLUTION_RANGE;

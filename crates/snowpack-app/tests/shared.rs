@@ -12,7 +12,7 @@ mod common;
 use common::{PROCESS_LIMIT, Server, Temp, bin, run_bounded};
 
 fn gpu_available() -> bool {
-    snowpack::low_level::testing::gpu().is_some()
+    snowpack_testkit::testing::gpu().is_some()
 }
 
 /// The scene all three runs share: 8 m of 0.5 m snow at 6.25 cm, window

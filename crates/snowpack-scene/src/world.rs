@@ -10,9 +10,9 @@ use std::collections::HashMap;
 use glam::{Mat4, Quat, Vec2, Vec3};
 use snowpack::low_level::skin::AnimationPlayer;
 use snowpack::low_level::skin::feet::{FootTracker, FootstepEvent, mean_feet_down};
-use snowpack::low_level::testing::Rng;
 use snowpack::mechanics::{SnowColumn, SnowMechanics};
 use snowpack::{Deformer, PointSample, TerrainSource};
+use snowpack_share::testing::Rng;
 
 use crate::scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, WindowSpec};
 use snowpack::low_level::TerrainSourceExt;

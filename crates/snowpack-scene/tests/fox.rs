@@ -21,7 +21,7 @@ fn the_fox_has_a_skin_and_three_clips() {
     // The bind pose is the rest pose: skinning at rest gives the mesh back.
     let s = &model.skeleton;
     let joints = s.joint_matrices(&s.globals(&s.rest_pose()));
-    let skinned = snowpack::low_level::cpu::skinning::skin(&model.mesh, &joints, Mat4::IDENTITY);
+    let skinned = snowpack_testkit::cpu::skinning::skin(&model.mesh, &joints, Mat4::IDENTITY);
     let worst = skinned.iter().zip(&model.mesh.positions).map(|(a, b)| (*a - *b).length()).fold(0.0f32, f32::max);
     assert!(worst < 0.05, "rest pose moves vertices by {worst} units (of a 79-unit fox)");
 }

@@ -13,8 +13,8 @@ use std::time::Instant;
 
 use glam::DVec2;
 use snowpack::low_level::GpuContextExt;
-use snowpack::low_level::testing;
 use snowpack::{AdapterRequest, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::testing;
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
 /// Every allocation of the process counted (`stats_alloc`: no unsafe code here).

@@ -5,7 +5,7 @@
 //! blur, normals); point queries answer gameplay's questions (snow depth under
 //! a foot) a frame or two late without stalling; the snow is drawn into the
 //! game's own render pass ([`SnowGround`]) or by the full `Renderer` (feature `renderer`).
-//! Every compute pass has a CPU twin (`low_level::cpu`, for tests).
+//! Every compute pass has a CPU twin (`snowpack_testkit::cpu`, the test kit crate).
 //!
 //! A game with its own wgpu device:
 //!
@@ -85,8 +85,6 @@
 // below, and what the app, the Bevy plugin and the tests need beyond it is
 // re-exported by `low_level` (feature `low_level`).
 mod accumulate;
-#[cfg(any(test, feature = "low_level"))]
-mod cpu;
 mod deform;
 mod error;
 mod frame;
@@ -107,8 +105,6 @@ mod skin;
 mod snow;
 mod snowfall;
 mod terrain;
-#[cfg(any(test, feature = "low_level"))]
-mod testing;
 mod tiles;
 
 // The front door: what a game uses (docs/architecture.md lists it and says why each is here).

@@ -43,10 +43,6 @@ pub use snowpack_share::replicate::{SnowPeerExt, WorldIdentityExt, WorldSettings
 pub mod accumulate {
     pub use crate::accumulate::*;
 }
-/// The CPU twins of the compute shaders, one per pass, for tests.
-pub mod cpu {
-    pub use crate::cpu::*;
-}
 /// The core deformation: the window's resources and passes.
 pub mod deform {
     pub use crate::deform::*;
@@ -105,11 +101,6 @@ pub mod snowfall {
 /// Terrain sources and their evaluation.
 pub mod terrain {
     pub use crate::terrain::*;
-}
-/// Test support: adapters for tests, a seeded random generator, a CPU snow
-/// for protocol tests, a disk that loses power and one that hangs.
-pub mod testing {
-    pub use crate::testing::*;
 }
 /// The resident tiles around the window and their passes.
 pub mod tiles {

@@ -132,16 +132,20 @@ mod tests {
 
     #[test]
     fn every_cpu_twin_is_named_after_its_shader() {
-        let cpu = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/cpu");
+        // The twins live in the test kit (crates/snowpack-testkit/src/cpu).
+        let cpu = Path::new(env!("CARGO_MANIFEST_DIR")).join("../snowpack-testkit/src/cpu");
         let shaders: BTreeSet<String> = stems(&shaders_dir(), "wgsl").into_iter().collect();
         for twin in stems(&cpu, "rs") {
             if twin == "mod" || TWINS_WITHOUT_A_SHADER.iter().any(|(file, _)| *file == twin) {
                 continue;
             }
-            assert!(shaders.contains(&twin), "src/cpu/{twin}.rs twins no shaders/{twin}.wgsl: rename it after its shader (or list it, with why)");
+            assert!(
+                shaders.contains(&twin),
+                "snowpack-testkit/src/cpu/{twin}.rs twins no shaders/{twin}.wgsl: rename it after its shader (or list it, with why)"
+            );
             let text = std::fs::read_to_string(cpu.join(format!("{twin}.rs"))).expect("twin source");
             let doc: String = text.lines().take_while(|l| l.starts_with("//!")).collect();
-            assert!(doc.contains(&format!("{twin}.wgsl")), "src/cpu/{twin}.rs: its module doc names `{twin}.wgsl`");
+            assert!(doc.contains(&format!("{twin}.wgsl")), "snowpack-testkit/src/cpu/{twin}.rs: its module doc names `{twin}.wgsl`");
         }
     }
 }

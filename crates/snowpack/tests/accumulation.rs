@@ -7,8 +7,8 @@ use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
-use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
+use snowpack_testkit::testing;
 
 const EXTENT_M: f32 = 16.0;
 const RESOLUTION: u32 = 128;
@@ -197,13 +197,13 @@ use snowpack::low_level::accumulate::state::ObjectGpu;
 use snowpack::low_level::accumulate::{
     AtlasSurfacePass, IncrementParams, IncrementPass, ScatterParams, ScatterPass, SettleParams, SettlePass, SnowAccumulation, SurfaceParams,
 };
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
 use snowpack::low_level::frame::{FrameContext, WindowFrame};
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::testing::Rng;
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::Rng;
 
 fn random_objects(rng: &mut Rng, count: usize, extent: f32) -> Vec<SnowObject> {
     (0..count)

@@ -13,8 +13,8 @@ use glam::DVec2;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TechniqueExt;
-use snowpack::low_level::testing;
 use snowpack::{GpuContext, SnowDeformation, SnowFrame, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing;
 use stats_alloc::{INSTRUMENTED_SYSTEM, Region, StatsAlloc};
 
 #[global_allocator]

@@ -6,8 +6,8 @@
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::gpu::readback::{TextureReadback, read_buffer, read_buffer_async};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::testing::{self, Rng};
 
 #[test]
 fn async_buffer_and_texture_readbacks_equal_the_blocking_ones() {

@@ -6,15 +6,15 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowWindowUniformExt;
 use snowpack::low_level::accumulate::Snowfall;
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::testing;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing;
 
 const DT: f32 = 1.0 / 60.0;
 const RES: usize = 64;

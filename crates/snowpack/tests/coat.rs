@@ -8,14 +8,14 @@ use glam::{DVec2, Mat4, Quat, Vec3};
 use snowpack::low_level::SkinnedMeshExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
-use snowpack::low_level::cpu;
-use snowpack::low_level::cpu::snow_coat::CoatGroundData;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::{GpuTimer, read_buffer};
 use snowpack::low_level::skin::coat::{CoatGround, SnowCoatParams, SnowCoatPass};
 use snowpack::low_level::skin::skinning::{SkinnedMesh, SkinningPass};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{CoatSettings, Deformer, GpuContext, NoiseTerrain, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::cpu::snow_coat::CoatGroundData;
+use snowpack_testkit::testing::{self, Rng};
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(bytes)

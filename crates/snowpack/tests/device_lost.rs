@@ -7,7 +7,8 @@
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource, low_level, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource, low_level};
+use snowpack_testkit::testing;
 
 #[test]
 fn a_destroyed_device_gives_device_lost_to_the_caller() {

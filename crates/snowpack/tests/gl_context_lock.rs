@@ -15,7 +15,8 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowErrorKind, SnowParams, TerrainSource};
+use snowpack_testkit::testing;
 
 /// A compute pass that runs `iterations` dependent steps per invocation
 /// over 65,536 invocations: long on a CPU rasteriser, in one submission.

@@ -4,14 +4,14 @@
 use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::cpu::snow_sampling::SampledSurface;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::ground::{
     GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
 };
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::low_level::{SnowGroundDescriptorExt, SnowWindowUniformExt};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack_testkit::cpu::snow_sampling::SampledSurface;
+use snowpack_testkit::testing::{self, Rng};
 
 /// The GPU tests here take turns (on GL a submission holds the adapter's context).
 static GPU_TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -256,7 +256,7 @@ fn ground_draws_into_the_callers_pass_and_shares_its_depth() {
     let params = SnowParams { extent_m: 16.0, resolution: 256, depth_m: 0.5, ..SnowParams::default() };
     let snow = trench(ctx, params, TerrainSource::Flat { height_m: 0.0 });
     let terrain = snow.terrain().clone();
-    let above = snowpack::low_level::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
+    let above = snowpack_testkit::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
     let cpu = SampledSurface { window: SnowWindowUniform::new(&snow), above: &above, terrain: &terrain };
 
     // The caller's formats and reverse-Z depth; the grid at one quad per texel.
@@ -492,7 +492,7 @@ fn a_games_shader_samples_the_snow_like_the_cpu() {
         heights[worst_k],
         persistent[worst_k]
     );
-    let above = snowpack::low_level::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
+    let above = snowpack_testkit::cpu::snow_sampling::above_ground(&snow.read_snow_words(ctx).expect("words"));
     let cpu = SampledSurface { window, above: &above, terrain: snow.terrain() };
     // Compaction from the persistent snow and terrain texels, independently of the twin.
     let res = 128usize;

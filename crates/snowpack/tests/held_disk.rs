@@ -17,8 +17,8 @@ use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::error::SnowError;
 use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer};
-use snowpack::low_level::testing::{self, HeldDisk};
 use snowpack::{SnowDeformation, SnowParams, TerrainSource};
+use snowpack_testkit::testing::{self, HeldDisk};
 
 const SIDE: u32 = 16;
 /// The streamers' wait limit in these tests.

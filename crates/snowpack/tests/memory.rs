@@ -9,7 +9,8 @@
 
 use glam::DVec2;
 use snowpack::low_level::SnowInspect;
-use snowpack::{SnowDeformation, SnowParams, Technique, TerrainSource, low_level::testing};
+use snowpack::{SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing;
 
 const MIB: f64 = 1024.0 * 1024.0;
 

@@ -13,7 +13,6 @@ use snowpack::low_level::HeightmapTerrainExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::TerrainMeshExt;
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
 use snowpack::low_level::deform::displace::{self, DisplaceParams, DisplacePass};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
@@ -29,8 +28,9 @@ use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::surface::SurfaceUnpackPass;
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 fn read_f32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, encode};
-use snowpack::low_level::testing::{self, Rng};
+use snowpack_testkit::testing::{self, Rng};
 
 /// Set (to a store directory) when the test binary runs as the writer child.
 const CHILD_ENV: &str = "SNOWPACK_PERSIST_CHILD_DIR";

@@ -9,7 +9,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
-use snowpack::low_level::testing::{self, PowerLossDisk, Rng, Unsynced};
+use snowpack_testkit::testing::{self, PowerLossDisk, Rng, Unsynced};
 
 const SIDE: u32 = 16;
 /// Inside a folder the store must create, so that its creation is tested too.

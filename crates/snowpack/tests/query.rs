@@ -7,11 +7,11 @@ use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::QueryStatsExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::accumulate::Snowfall;
-use snowpack::low_level::cpu::query::query as cpu_query;
 use snowpack::low_level::deform::query::QueryParams;
 use snowpack::low_level::gpu::{ReadbackRing, read_buffer};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::cpu::query::query as cpu_query;
+use snowpack_testkit::testing::{self, Rng};
 
 fn floats(bytes: &[u8]) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(bytes)
@@ -69,7 +69,7 @@ fn point_answers_equal_the_cpu_twin_on_random_points() {
         &qp,
         &local,
         // The ground the query evaluates from the terrain's source, per texel.
-        &snowpack::low_level::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
+        &snowpack_testkit::cpu::window::ground_plane(&terrain, qp.origin, params.resolution, params.texel_m()),
         (
             &bytemuck::pod_collect_to_vec::<u8, u32>(&read_buffer(ctx, &res.snow).expect("snow")),
             &floats(&read_buffer(ctx, &res.fallen).expect("fallen")),

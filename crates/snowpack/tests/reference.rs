@@ -17,8 +17,8 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::render::params::sun_from_angles;
 use snowpack::low_level::render::{IMAGE_FORMAT, LightParams};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing::{self, Rng};
 
 /// Frame size of every reference (small: the suite runs on a software rasteriser).
 const SIZE: (u32, u32) = (320, 192);

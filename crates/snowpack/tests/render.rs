@@ -3,15 +3,15 @@
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::cpu;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::ao::{AoParams, AoPass};
 use snowpack::low_level::render::environment::{self, EnvironmentPass};
 use snowpack::low_level::render::{DebugView, IMAGE_FORMAT};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 #[test]
 fn ao_matches_cpu_twin() {

@@ -11,7 +11,6 @@ use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::TechniqueExt;
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::packed_snow;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
@@ -25,8 +24,9 @@ use snowpack::low_level::replicate::flags::ShareGrid;
 use snowpack::low_level::replicate::gather::{TileGatherParams, TileGatherPass, gpu_keys};
 use snowpack::low_level::replicate::merge::{FrameRecord, HISTORY_FRAMES, TileMergeParams, TileMergePass, carries_packed, pack_tiles};
 use snowpack::low_level::replicate::{NO_STAMP, ShareClock, SharedSnow, SharedTile};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, Snowfall, Technique, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))

@@ -8,8 +8,8 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::{PeerConfig, RelayConfig, SharedSnow, SnowPeer, SnowRelay};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::testing::{self, Rng};
 
 /// Texels per tile side.
 const SIDE: u32 = 16;

@@ -12,7 +12,7 @@ use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
 use snowpack::low_level::replicate::{
     CatchUp, Message, NO_STAMP, PeerConfig, RelayConfig, ShareClock, ShareError, SharedSnow, SharedTile, SnowPeer, SnowRelay, WorldIdentity, decode, encode,
 };
-use snowpack::low_level::testing::{self, CpuSnow, Rng};
+use snowpack_testkit::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers
 

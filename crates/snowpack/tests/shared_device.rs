@@ -8,7 +8,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource, low_level::testing};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::testing;
 
 /// A device made the way a game makes it, on the adapter the tests use.
 /// `None` (the test skips) only where no GPU is required: with

@@ -7,7 +7,6 @@ use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::TerrainParams;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
@@ -17,8 +16,9 @@ use snowpack::low_level::render::shell::ShellSettings;
 use snowpack::low_level::render::shell::count::PeelCountPass;
 use snowpack::low_level::render::shell::tetrahedra::{MAX_SHAPE_RATIO, ShellTetraPass, Tetra, TetraParams};
 use snowpack::low_level::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 /// The tests here take turns on the GPU: on GL, wgpu runs a submission while
 /// holding the adapter's context, and a frame traced at 1280x960 on a

@@ -1,12 +1,12 @@
 //! The skinning pass against its CPU twin on random meshes and poses.
 
 use glam::{Mat4, Quat, Vec3};
-use snowpack::low_level::cpu;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::skin::skinning::{SkinnedMesh, SkinningPass};
-use snowpack::low_level::testing::{self, Rng};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 fn random_affine(rng: &mut Rng) -> Mat4 {
     let axis = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize_or(Vec3::Y);

@@ -25,8 +25,8 @@ use std::time::Instant;
 use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing::{self, Rng};
 use stats_alloc::{INSTRUMENTED_SYSTEM, StatsAlloc};
 
 #[global_allocator]

@@ -4,8 +4,8 @@
 
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::testing;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing;
 
 const DEPTH_M: f32 = 0.5;
 

@@ -3,8 +3,8 @@
 
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::testing;
 use snowpack::{Deformer, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack_testkit::testing;
 
 #[test]
 fn switching_keeps_trails_and_allocates_once() {

@@ -9,20 +9,20 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::QueryStatsExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::cpu;
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::window::SlidingWindow;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
-use snowpack::low_level::testing::{self, Rng};
 use snowpack::low_level::tiles::exchange::{ExchangeParams, ExchangePass};
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::low_level::tiles::seal::{SealParams, TileSealPass};
 use snowpack::low_level::tiles::streaming::{PLANES, TileGrid, plane_packed, plane_stamps, planes};
 use snowpack::low_level::tiles::weather::{TileWeatherPass, WeatherParams};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack_testkit::cpu;
+use snowpack_testkit::testing::{self, Rng};
 
 fn read_u32(ctx: &GpuContext, b: &wgpu::Buffer) -> Vec<u32> {
     bytemuck::pod_collect_to_vec(&read_buffer(ctx, b).expect("readback"))

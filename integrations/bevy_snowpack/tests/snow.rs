@@ -89,9 +89,9 @@ fn plugin_snow_and_queries_equal_the_library() {
         let local: Vec<[f32; 2]> = points.iter().map(|p| [(f64::from(p.x) - corner.x) as f32, (f64::from(p.y) - corner.y) as f32]).collect();
         let words = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.snow).expect("snow words"));
         let fallen = bytemuck::pod_collect_to_vec::<u8, f32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.fallen).expect("fallen"));
-        let ground = snowpack::low_level::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
+        let ground = snowpack_testkit::cpu::window::ground_plane(snow.terrain(), qp.origin, params.resolution, params.texel_m());
         let packed = bytemuck::pod_collect_to_vec::<u8, u32>(&snowpack::low_level::gpu::read_buffer(ctx, &res.packed).expect("packed snow"));
-        snowpack::low_level::cpu::query::query(&qp, &local, &ground, (&words, &fallen, &packed))
+        snowpack_testkit::cpu::query::query(&qp, &local, &ground, (&words, &fallen, &packed))
     };
     let frames = state.deformation().frame() as usize;
     let placed = &app.world().resource::<Placed>().0;

@@ -6,7 +6,7 @@
 //! that displaces ([`crate::SnowParams::displace`]).
 #![cfg_attr(
     not(feature = "low_level"),
-    allow(dead_code, reason = "the move's table and codes are the CPU twin's and the tests' (`low_level::cpu`); the shader has its own")
+    allow(dead_code, reason = "the move's table and codes are the CPU twin's and the tests' (`snowpack_testkit::cpu`); the shader has its own")
 )]
 
 use bytemuck::{Pod, Zeroable};

@@ -115,6 +115,15 @@ pub trait SnowWindowUniformExt {
     /// Rest depth of untouched snow (m): `depth_m` plus snowfall so far on open ground.
     #[must_use]
     fn rest_depth_m(&self) -> f32;
+    /// The floating origin (world x, z) the corner is relative to (m).
+    #[must_use]
+    fn floating_origin(&self) -> [f32; 2];
+    /// Texels per window side.
+    #[must_use]
+    fn resolution(&self) -> u32;
+    /// Whether the window has been placed (the uniform holds a window yet).
+    #[must_use]
+    fn placed(&self) -> bool;
 }
 
 impl SnowWindowUniformExt for SnowWindowUniform {
@@ -132,6 +141,18 @@ impl SnowWindowUniformExt for SnowWindowUniform {
 
     fn rest_depth_m(&self) -> f32 {
         self.rest_depth_m
+    }
+
+    fn floating_origin(&self) -> [f32; 2] {
+        self.floating_origin
+    }
+
+    fn resolution(&self) -> u32 {
+        self.resolution
+    }
+
+    fn placed(&self) -> bool {
+        self.placed != 0
     }
 }
 

@@ -1,4 +1,0 @@
-//! CPU twin of `terrain_bake.wgsl`: the terrain mesh drawn from above into a
-//! grid, keeping the highest surface per texel centre (the GPU's depth test).
-
-pub use crate::terrain::draw_from_above as draw;
