@@ -34,6 +34,7 @@ use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 use super::clock::FrameRefill;
 use super::reads::WindowLayout;
 use crate::deform::technique::TechniqueExt;
+use crate::terrain::HeightmapTerrainExt;
 
 /// The capture and footprint height range (low, high) of a window of
 /// `params` over terrain whose heights span `tmin..=tmax`: snowpack-share's
@@ -42,6 +43,43 @@ pub(super) fn capture_range(params: &SnowParams, terrain_m: (f32, f32)) -> (f32,
     // Snowfall raises the rest depth by up to `max_m`; footprints are quantised over that range.
     let deepest = params.depth_m + params.snowfall.as_ref().map_or(0.0, |s| s.max_m);
     snowpack_share::replicate::world::footprint_range_m(deepest, terrain_m)
+}
+
+/// Whether a window of `params` over `terrain` fits an adapter of `limits`:
+/// its texture side and the largest buffer its resources bind (an error
+/// naming `resolution` or `heightmap` when not).
+pub(super) fn fits_adapter(limits: &wgpu::Limits, params: &SnowParams, terrain: &TerrainSource) -> Result<(), SnowError> {
+    if params.resolution > limits.max_texture_dimension_2d {
+        return Err(SnowError::InvalidParameter {
+            field: "resolution",
+            why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
+        });
+    }
+    let buffer_bytes = params.texel_count() as u64 * 4;
+    let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    if buffer_bytes > buffer_limit {
+        return Err(SnowError::InvalidParameter {
+            field: "resolution",
+            why: format!(
+                "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                params.resolution
+            ),
+        });
+    }
+    if let TerrainSource::Heightmap(h) = terrain {
+        let bytes = h.heights_m().len() as u64 * 4;
+        if bytes > buffer_limit {
+            return Err(SnowError::InvalidParameter {
+                field: "heightmap",
+                why: format!(
+                    "{}x{} samples need a {bytes} byte buffer, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                    h.width(),
+                    h.height()
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The deformation window over the terrain and the passes that update it.

@@ -23,14 +23,13 @@ use snowpack_share::replicate::WorldIdentityExt;
 
 use super::characters::Characters;
 use super::clock::SnowTime;
-use super::core_window::CoreWindow;
+use super::core_window::{CoreWindow, fits_adapter};
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
 use super::{objects, share, store};
 use crate::deform::params::SnowParamsExt;
 use crate::gpu::context::GpuContextExt;
-use crate::terrain::HeightmapTerrainExt;
 
 /// A deformation window and the passes that update it.
 ///
@@ -86,40 +85,7 @@ impl SnowDeformation {
     /// Allocates a window of `params` over `terrain`, centred on world (x, z).
     pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, crate::SnowError> {
         params.validate()?;
-        let limits = ctx.device.limits();
-        if params.resolution > limits.max_texture_dimension_2d {
-            return Err(SnowError::InvalidParameter {
-                field: "resolution",
-                why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
-            }
-            .into());
-        }
-        let buffer_bytes = params.texel_count() as u64 * 4;
-        let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        if buffer_bytes > buffer_limit {
-            return Err(SnowError::InvalidParameter {
-                field: "resolution",
-                why: format!(
-                    "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
-                    params.resolution
-                ),
-            }
-            .into());
-        }
-        if let TerrainSource::Heightmap(h) = &terrain {
-            let bytes = h.heights_m().len() as u64 * 4;
-            if bytes > buffer_limit {
-                return Err(SnowError::InvalidParameter {
-                    field: "heightmap",
-                    why: format!(
-                        "{}x{} samples need a {bytes} byte buffer, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
-                        h.width(),
-                        h.height()
-                    ),
-                }
-                .into());
-            }
-        }
+        fits_adapter(&ctx.device.limits(), &params, &terrain)?;
         ctx.guarded(|| {
             let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
             ctx.check("creating the deformation passes")?;
