@@ -8,6 +8,7 @@ use crate::deform::resources::DeformResources;
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::GpuContext;
+use crate::skin::coat::CoatSettings;
 use crate::skin::skinning::{SkinnedInstance, SkinnedMesh, SkinningPass};
 
 use super::coat::Coats;
@@ -20,16 +21,16 @@ use super::sweep::{MeshHistory, MeshKey};
 /// The skinned meshes, their skinning pass and every pressing mesh's history.
 pub(super) struct Characters {
     skinning: SkinningPass,
-    pub(super) skinned: Vec<SkinnedInstance>,
+    skinned: Vec<SkinnedInstance>,
     /// Skinned meshes posed in the last encoded frame (indices into `skinned`).
-    pub(super) posed: Vec<usize>,
+    posed: Vec<usize>,
     /// Last frame's positions of the meshes, to sweep them.
-    pub(super) history: MeshHistory,
+    history: MeshHistory,
     /// Sub-steps of each mesh this frame (posed characters, then the
     /// caller's), kept for its memory.
     steps: Vec<u32>,
     /// The snow the characters carry ([`super::coat`]).
-    pub(super) coats: Coats,
+    coats: Coats,
 }
 
 impl Characters {
@@ -109,6 +110,21 @@ impl Characters {
             history.remember(cx.device(), cx.encoder, key, mesh.vertices, u64::from(mesh.vertex_count) * 12);
         }
         self.history = history;
+    }
+
+    /// Sets how skinned mesh `id`'s character gathers and loses snow.
+    pub(super) fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), SnowError> {
+        self.coats.set(id, settings)
+    }
+
+    /// The snow on skinned mesh `id`'s vertices (m a vertex), when there is such a mesh.
+    pub(super) fn coat_buffer(&self, id: SkinnedId) -> Option<&wgpu::Buffer> {
+        self.skinned.get(id.0).map(|s| &s.coat)
+    }
+
+    /// Forgets every mesh's last positions (the floating origin moved): the next frame sweeps no mesh.
+    pub(super) fn forget_positions(&mut self) {
+        self.history.clear();
     }
 
     /// The skinned meshes posed in the last encoded frame, in world space.

@@ -5,6 +5,7 @@
 use crate::SnowParams;
 use crate::deform::snow_word::SNOW_QUANTUM_M;
 use crate::persist::SnowClock;
+use crate::replicate::ShareClock;
 
 /// Where the cumulative refill counters are counted from: at world time
 /// `t` they are `base + floor(rate * (t - time_s) / quantum)` (f64), so two
@@ -101,5 +102,37 @@ impl SnowTime {
     /// The counters go on from now (the refill rate changed).
     pub(super) fn rebase(&mut self) {
         self.refill_base = RefillBase { time_s: self.clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta };
+    }
+
+    /// The world clock now: time, refill and footprint quanta, snowfall.
+    pub(super) fn share_clock(&self) -> ShareClock {
+        ShareClock { time_s: self.clock.time_s, refill_quanta: self.snow_quanta, stamp_quanta: self.clock.stamp_quanta, fallen_m: self.fallen_m }
+    }
+
+    /// Sets the time to a shared world's `clock` (joining it), the refill
+    /// at `refill_m_per_s`. When its counters are `world`'s own at that
+    /// time (the world's refill from time 0), they go on being counted from
+    /// the world's beginning, as on every other machine; else from now.
+    pub(super) fn join(&mut self, clock: ShareClock, world: ShareClock, refill_m_per_s: f32) {
+        self.clock.time_s = clock.time_s;
+        self.clock.stamp_quanta = clock.stamp_quanta;
+        self.clock.refill_m = f64::from(refill_m_per_s) * clock.time_s;
+        self.clock.fallen_m = f64::from(clock.fallen_m);
+        self.snow_quanta = clock.refill_quanta;
+        self.fallen_m = clock.fallen_m;
+        self.refill_base = if world.refill_quanta == clock.refill_quanta && world.stamp_quanta == clock.stamp_quanta {
+            RefillBase::default()
+        } else {
+            RefillBase { time_s: clock.time_s, snow_quanta: clock.refill_quanta, stamp_quanta: clock.stamp_quanta }
+        };
+    }
+
+    /// Takes up a saved `clock` and snowfall so far (`fallen_m`, loading a
+    /// save): the refill counters go on from the saved clock.
+    pub(super) fn resume(&mut self, clock: SnowClock, fallen_m: f32) {
+        self.clock = clock;
+        self.fallen_m = fallen_m;
+        self.snow_quanta = (clock.refill_m / f64::from(SNOW_QUANTUM_M)).floor() as u64;
+        self.refill_base = RefillBase { time_s: clock.time_s, snow_quanta: self.snow_quanta, stamp_quanta: clock.stamp_quanta };
     }
 }

@@ -43,30 +43,7 @@ impl Coats {
         self.settings.push(CoatSettings::default());
         self.posed_before.push(false);
     }
-}
 
-/// The coat's uniforms for the frame's ground, before a character's settings.
-fn frame_params(core: &CoreWindow, ground: &GroundAfter, sky_bound: bool, dt_s: f32) -> SnowCoatParams {
-    let p = &core.params;
-    let sky: Option<OcclusionParams> = ground.sky.filter(|_| sky_bound);
-    SnowCoatParams {
-        origin: [ground.window.origin[0] as i32, ground.window.origin[1] as i32],
-        resolution: p.resolution,
-        corner_m: [ground.window.corner.x as f32, ground.window.corner.y as f32],
-        texel_m: p.texel_m(),
-        depth_m: p.depth_m,
-        dt_s,
-        fall_m: ground.fall_m,
-        use_fallen: u32::from(p.keeps_lying_snow()),
-        use_sky: u32::from(sky.is_some()),
-        // A vertex that moved farther than a teleport in one frame jumped.
-        teleport_m: if p.teleport_m > 0.0 { p.teleport_m } else { f32::INFINITY },
-        sky: sky.map_or(SkyTest::NONE, |s| s.sky_test()),
-        ..SnowCoatParams::default()
-    }
-}
-
-impl Coats {
     /// Records the coat pass of every character posed this frame (`posed`:
     /// indices into `skinned`, the characters' instances), against the ground the frame's steps left
     /// (`sky`: the objects' occlusion map).
@@ -80,7 +57,7 @@ impl Coats {
         (posed, skinned): (&[usize], &[SkinnedInstance]),
     ) {
         let sky_view = sky.filter(|_| ground.sky.is_some());
-        let bound = CoatGround { window: &core.res.bindings, sky: sky_view.unwrap_or(&self.no_sky) };
+        let bound = CoatGround { window: &core.res().bindings, sky: sky_view.unwrap_or(&self.no_sky) };
         let base = frame_params(core, &ground, sky_view.is_some(), dt_s);
         self.pass.reserve(cx.device(), posed.len());
         for (slot, &k) in posed.iter().enumerate() {
@@ -97,5 +74,26 @@ impl Coats {
         let slot = self.settings.get_mut(id.0).ok_or(SnowError::InvalidParameter { field: "skinned mesh", why: format!("no skinned mesh {}", id.0) })?;
         *slot = settings;
         Ok(())
+    }
+}
+
+/// The coat's uniforms for the frame's ground, before a character's settings.
+fn frame_params(core: &CoreWindow, ground: &GroundAfter, sky_bound: bool, dt_s: f32) -> SnowCoatParams {
+    let p = core.params();
+    let sky: Option<OcclusionParams> = ground.sky.filter(|_| sky_bound);
+    SnowCoatParams {
+        origin: [ground.window.origin[0] as i32, ground.window.origin[1] as i32],
+        resolution: p.resolution,
+        corner_m: [ground.window.corner.x as f32, ground.window.corner.y as f32],
+        texel_m: p.texel_m(),
+        depth_m: p.depth_m,
+        dt_s,
+        fall_m: ground.fall_m,
+        use_fallen: u32::from(p.keeps_lying_snow()),
+        use_sky: u32::from(sky.is_some()),
+        // A vertex that moved farther than a teleport in one frame jumped.
+        teleport_m: if p.teleport_m > 0.0 { p.teleport_m } else { f32::INFINITY },
+        sky: sky.map_or(SkyTest::NONE, |s| s.sky_test()),
+        ..SnowCoatParams::default()
     }
 }

@@ -3,7 +3,10 @@
 //! step of [`SnowDeformation::encode`](super::SnowDeformation::encode). The
 //! plug-ins (objects, tiles, characters, shared snow) are the orchestrator's;
 //! the core takes from them only what a pass's uniforms need (the sky's
-//! projection, the shared grid), as arguments.
+//! projection, the shared grid), as arguments. Its state is its own: the
+//! orchestrator, the steps and the plug-ins' fronts read it through
+//! accessors (`params`, `res`, ...) and change it through named settings
+//! and jobs (`set_blur`, `allocate_share_flags`, ...), never field by field.
 
 use crate::deform::displace::{DisplaceParams, DisplacePass};
 use crate::deform::erosion::{ErosionParams, ErosionPass};
@@ -13,20 +16,25 @@ use crate::accumulate::OcclusionParams;
 use crate::deform::capture::{CaptureParams, CapturePass, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
-use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryTicket};
+use crate::deform::params::{RANGE_TEXELS, SnowParamsExt};
+use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use crate::deform::resources::DeformResources;
 use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
+use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::GpuContext;
 use crate::height_depth::SkyTest;
 use crate::replicate::flags::ShareGrid;
-use crate::{Deformer, SnowParams, Technique, TerrainSource};
+use crate::snowfall::{Snowfall, SnowfallExt};
+use crate::{Deformer, RimStyle, SnowParams, Technique, TerrainSource};
 
 use super::clock::FrameRefill;
+use super::reads::WindowLayout;
 use crate::deform::technique::TechniqueExt;
+use crate::terrain::HeightmapTerrainExt;
 
 /// The capture and footprint height range (low, high) of a window of
 /// `params` over terrain whose heights span `tmin..=tmax`: snowpack-share's
@@ -37,47 +45,84 @@ pub(super) fn capture_range(params: &SnowParams, terrain_m: (f32, f32)) -> (f32,
     snowpack_share::replicate::world::footprint_range_m(deepest, terrain_m)
 }
 
+/// Whether a window of `params` over `terrain` fits an adapter of `limits`:
+/// its texture side and the largest buffer its resources bind (an error
+/// naming `resolution` or `heightmap` when not).
+pub(super) fn fits_adapter(limits: &wgpu::Limits, params: &SnowParams, terrain: &TerrainSource) -> Result<(), SnowError> {
+    if params.resolution > limits.max_texture_dimension_2d {
+        return Err(SnowError::InvalidParameter {
+            field: "resolution",
+            why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
+        });
+    }
+    let buffer_bytes = params.texel_count() as u64 * 4;
+    let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    if buffer_bytes > buffer_limit {
+        return Err(SnowError::InvalidParameter {
+            field: "resolution",
+            why: format!(
+                "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                params.resolution
+            ),
+        });
+    }
+    if let TerrainSource::Heightmap(h) = terrain {
+        let bytes = h.heights_m().len() as u64 * 4;
+        if bytes > buffer_limit {
+            return Err(SnowError::InvalidParameter {
+                field: "heightmap",
+                why: format!(
+                    "{}x{} samples need a {bytes} byte buffer, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
+                    h.width(),
+                    h.height()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// The deformation window over the terrain and the passes that update it.
 pub(super) struct CoreWindow {
-    pub(super) params: SnowParams,
-    pub(super) terrain: TerrainSource,
-    pub(super) res: DeformResources,
-    pub(super) window: SlidingWindow,
+    params: SnowParams,
+    terrain: TerrainSource,
+    res: DeformResources,
+    window: SlidingWindow,
     /// Where the window is asked to be centred (world m, f64).
-    pub(super) center: DVec2,
-    pub(super) capture_params: CaptureParams,
+    center: DVec2,
+    capture_params: CaptureParams,
     window_pass: WindowPass,
     capture_pass: CapturePass,
-    pub(super) stamp_pass: StampPass,
-    pub(super) decal_pass: DecalPass,
-    pub(super) decals: DecalRing,
-    pub(super) update_pass: UpdatePass,
+    stamp_pass: StampPass,
+    decal_pass: DecalPass,
+    decals: DecalRing,
+    update_pass: UpdatePass,
     /// Built on the first frame with an angle of repose.
     erosion_pass: Option<ErosionPass>,
     /// Built on the first frame that displaces snow; bound again when
     /// sharing allocates the changed-tile flags it writes.
     displace_pass: Option<DisplacePass>,
     display_pass: DisplayPass,
-    pub(super) query_pass: QueryPass,
+    query_pass: QueryPass,
     /// Tickets given so far ([`super::SnowFrame::with_queries`]).
-    pub(super) tickets: u64,
+    tickets: u64,
     /// The newest point answers taken.
-    pub(super) answers: Option<PointAnswers>,
+    answers: Option<PointAnswers>,
     /// Texels rewritten by window moves so far.
-    pub(super) exposed_texels: u64,
+    exposed_texels: u64,
     /// Whether the window's buffers hold snow (after the first move): what
     /// a move overwrites then left the window (the mass ledger).
     filled: bool,
     /// Whether the ledger counts snowfall and refill (`SnowInspect::set_count_mass`).
     count_mass: bool,
     /// Contact points stamped in the last frame.
-    pub(super) points_last_frame: usize,
+    points_last_frame: usize,
     /// Contact points left out because a frame brought more than the stamp pass takes.
-    pub(super) points_dropped: u64,
+    points_dropped: u64,
     /// World (x, z) that deformer and object positions are relative to (f64).
-    pub(super) floating_origin: DVec2,
+    floating_origin: DVec2,
     /// Last frame's deformers, by index, to sweep this frame's from.
-    pub(super) history: DeformerHistory,
+    history: DeformerHistory,
     /// The terrain's lowest and highest height (m), found once.
     terrain_bounds: (f32, f32),
     /// Lists one frame fills, kept for their memory so that a frame after
@@ -159,6 +204,206 @@ impl CoreWindow {
     /// The window's origin for its centre, snapped to texels.
     pub(super) fn desired_origin(&self) -> [i64; 2] {
         self.window.snapped_origin(self.center.x, self.center.y, f64::from(self.params.texel_m()))
+    }
+
+    /// The parameters in use.
+    pub(super) fn params(&self) -> &SnowParams {
+        &self.params
+    }
+
+    /// The terrain under the snow.
+    pub(super) fn terrain(&self) -> &TerrainSource {
+        &self.terrain
+    }
+
+    /// The window's GPU resources (what plug-in passes bind and readbacks read).
+    pub(super) fn res(&self) -> &DeformResources {
+        &self.res
+    }
+
+    /// Global texel index of the window's corner, once placed.
+    pub(super) fn window_origin(&self) -> Option<[i64; 2]> {
+        self.window.origin()
+    }
+
+    /// How the window's toroidal buffers lie (corner (0, 0) before the
+    /// window is placed), to read them window-local.
+    pub(super) fn layout(&self) -> WindowLayout {
+        WindowLayout { resolution: self.params.resolution, origin: self.window.origin().unwrap_or([0, 0]) }
+    }
+
+    /// Where the window is asked to be centred (world m).
+    pub(super) fn center(&self) -> DVec2 {
+        self.center
+    }
+
+    /// World (x, z) that deformer and object positions are relative to.
+    pub(super) fn floating_origin(&self) -> DVec2 {
+        self.floating_origin
+    }
+
+    /// Texels rewritten by window moves so far.
+    pub(super) fn exposed_texels(&self) -> u64 {
+        self.exposed_texels
+    }
+
+    /// Contact points stamped in the last frame.
+    pub(super) fn points_last_frame(&self) -> usize {
+        self.points_last_frame
+    }
+
+    /// Contact points left out so far (a frame brought more than the stamp pass takes).
+    pub(super) fn points_dropped(&self) -> u64 {
+        self.points_dropped
+    }
+
+    /// The point queries' counters.
+    pub(super) fn query_stats(&self) -> QueryStats {
+        self.query_pass.stats()
+    }
+
+    /// The newest point answers taken ([`Self::collect_answers`]).
+    pub(super) fn answers(&self) -> Option<&PointAnswers> {
+        self.answers.as_ref()
+    }
+
+    /// The decal ring (each actor's last contacts).
+    pub(super) fn decals(&self) -> &DecalRing {
+        &self.decals
+    }
+
+    /// The decal layer (a 1x1 placeholder until the decals technique's first frame).
+    pub(super) fn decal_layer(&self) -> &wgpu::Texture {
+        &self.decal_pass.layer
+    }
+
+    /// GPU memory the window holds (bytes): its buffers, the point queries' and the decal layer.
+    pub(super) fn memory_total(&self) -> u64 {
+        self.res.memory_total() + self.query_pass.memory_bytes() + self.decal_pass.layer_bytes()
+    }
+
+    /// [`Self::memory_total`] by resource (bytes).
+    pub(super) fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
+        let mut list = self.res.memory_bytes();
+        list.push(("point queries", self.query_pass.memory_bytes()));
+        list.push(("decal layer", self.decal_pass.layer_bytes()));
+        list
+    }
+
+    /// Changes the snowfall from the next frame on (`None` stops it): an
+    /// error, leaving it as it was, when the window was created without
+    /// snowfall or `max_m` grows beyond the one the footprints were
+    /// quantised for (`SnowDeformation::set_snowfall`).
+    pub(super) fn set_snowfall(&mut self, snowfall: Option<Snowfall>) -> Result<(), SnowError> {
+        if let Some(s) = &snowfall {
+            s.validate()?;
+            if self.params.snowfall.is_none() {
+                return Err(SnowError::InvalidParameter {
+                    field: "snowfall",
+                    why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into(),
+                });
+            }
+        }
+        // The footprint quantisation was fixed at creation from `max_m`.
+        if let (Some(new), Some(old)) = (&snowfall, &self.params.snowfall)
+            && new.max_m > old.max_m
+        {
+            return Err(SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) });
+        }
+        if snowfall.is_some() {
+            self.params.snowfall = snowfall;
+        } else if let Some(s) = &mut self.params.snowfall {
+            s.rate_m_per_s = 0.0;
+        }
+        Ok(())
+    }
+
+    /// Sets the floating origin; `true` when it moved (the remembered
+    /// deformers moved with it, and meshes' positions must be forgotten).
+    pub(super) fn set_floating_origin(&mut self, origin: DVec2) -> bool {
+        // Remembered deformers move with the origin (so they still sweep).
+        let delta = self.floating_origin - origin;
+        if delta != DVec2::ZERO {
+            self.history.shift(glam::Vec3::new(delta.x as f32, 0.0, delta.y as f32));
+        }
+        self.floating_origin = origin;
+        delta != DVec2::ZERO
+    }
+
+    /// Sets the refill rate (m/s, at least 0) from the next frame.
+    pub(super) fn set_refill(&mut self, refill_m_per_s: f32) {
+        self.params.refill_m_per_s = refill_m_per_s.max(0.0);
+    }
+
+    /// Sets the rim strength (at least 0) from the next frame.
+    pub(super) fn set_elevation(&mut self, elevation: f32) {
+        self.params.elevation = elevation.max(0.0);
+    }
+
+    /// Switches the technique from the next frame (its buffer comes then).
+    pub(super) fn set_technique(&mut self, technique: Technique) {
+        self.params.technique = technique;
+    }
+
+    /// Sets the footprint size (clamped to the points technique's range) and rim formula.
+    pub(super) fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
+        self.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
+        self.params.rim = rim;
+    }
+
+    /// Turns the displayed-surface blur on or off.
+    pub(super) fn set_blur(&mut self, blur: bool) {
+        self.params.blur = blur;
+    }
+
+    /// Sets the angle of repose; an angle the parameters refuse is an
+    /// error naming `repose_deg`, and the angle stays as it was.
+    pub(super) fn set_repose(&mut self, repose_deg: Option<f32>) -> Result<(), SnowError> {
+        let p = SnowParams { repose_deg, ..self.params.clone() };
+        p.validate()?;
+        self.params.repose_deg = repose_deg;
+        Ok(())
+    }
+
+    /// Moves the window's centre; the move happens at the next frame.
+    pub(super) fn set_center(&mut self, center: DVec2) {
+        self.center = center;
+    }
+
+    /// The ticket of the next frame's point queries.
+    pub(super) fn next_ticket(&mut self) -> QueryTicket {
+        self.tickets += 1;
+        QueryTicket(self.tickets)
+    }
+
+    /// Takes the point answers that have arrived, keeping the newest.
+    pub(super) fn collect_answers(&mut self) {
+        if let Some(answers) = self.query_pass.take_answers() {
+            self.answers = Some(answers);
+        }
+    }
+
+    /// Whether a point answer's mapping callback has yet to run.
+    pub(super) fn answers_pending(&self) -> bool {
+        self.query_pass.callbacks_pending()
+    }
+
+    /// Binds the objects' occlusion map (`sky`; `None` without objects) to the update pass.
+    pub(super) fn bind_sky(&mut self, device: &wgpu::Device, sky: Option<&wgpu::TextureView>) {
+        self.update_pass.bind_sky(device, &self.res, sky);
+    }
+
+    /// Allocates the changed-tile flags of shared snow (`slots` tiles) and
+    /// binds them to the passes that write them (stamp, update with the
+    /// objects' occlusion map `sky`, displace).
+    pub(super) fn allocate_share_flags(&mut self, device: &wgpu::Device, slots: u32, sky: Option<&wgpu::TextureView>) {
+        self.res.allocate_share_flags(device, slots);
+        self.stamp_pass = StampPass::new(device, &self.res);
+        self.update_pass = UpdatePass::new(device, &self.res);
+        self.update_pass.bind_sky(device, &self.res, sky);
+        if let Some(displace) = &mut self.displace_pass {
+            displace.bind_flags(device, &self.res);
+        }
     }
 
     /// Allocates the footprint buffer the first time the technique uses it
@@ -261,10 +506,14 @@ impl CoreWindow {
         }
     }
 
-    /// The stamps (techniques points and combined): each deformer's contact
-    /// points, swept, as footprints; counts what a frame brought beyond the
-    /// pass's limit.
+    /// The stamps (techniques points and combined; none with the others):
+    /// each deformer's contact points, swept, as footprints; counts what a
+    /// frame brought beyond the pass's limit.
     pub(super) fn record_stamps(&mut self, cx: &mut FrameContext<'_>, deformers: &[Deformer], corner: DVec2, stamp_params: &StampParams) {
+        self.points_last_frame = 0;
+        if !matches!(self.params.technique, Technique::Points | Technique::Combined) {
+            return;
+        }
         let points = &mut self.scratch.points;
         contact_points_into(deformers, &self.scratch.sweeps, corner, stamp_params, points);
         let dropped = self.stamp_pass.record(cx, &self.res, stamp_params, points);
@@ -335,14 +584,6 @@ impl CoreWindow {
             ..Default::default()
         };
         self.update_pass.record(cx, &self.res, &params);
-    }
-
-    /// Binds the changed-tile flags sharing just allocated to the displace
-    /// pass, when it was built.
-    pub(super) fn bind_displace_flags(&mut self, device: &wgpu::Device) {
-        if let Some(displace) = &mut self.displace_pass {
-            displace.bind_flags(device, &self.res);
-        }
     }
 
     /// Whether presses displace snow into berms: asked for, and a technique

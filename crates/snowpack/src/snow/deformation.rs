@@ -6,29 +6,30 @@
 use glam::DVec2;
 
 use crate::RimStyle;
-use crate::accumulate::SnowAccumulation;
-use crate::deform::params::RANGE_TEXELS;
+use crate::accumulate::{SnowAccumulation, SnowObject};
 use crate::deform::query::{PointAnswers, QueryTicket};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings};
+use crate::persist::TileStreamer;
 use crate::replicate::sharing::Sharing;
+use crate::replicate::{ShareClock, SharedSnow, SharedTile, WorldIdentity};
 use crate::skin::coat::CoatSettings;
 use crate::skin::skinning::SkinnedMesh;
 use crate::snowfall::Snowfall;
 use crate::tiles::TileStreaming;
 use crate::{SnowParams, Technique, TerrainSource};
+use snowpack_share::replicate::WorldIdentityExt;
 
 use super::characters::Characters;
 use super::clock::SnowTime;
-use super::core_window::CoreWindow;
+use super::core_window::{CoreWindow, fits_adapter};
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
+use super::{objects, share, store};
 use crate::deform::params::SnowParamsExt;
 use crate::gpu::context::GpuContextExt;
-use crate::snowfall::SnowfallExt;
-use crate::terrain::HeightmapTerrainExt;
 
 /// A deformation window and the passes that update it.
 ///
@@ -84,40 +85,7 @@ impl SnowDeformation {
     /// Allocates a window of `params` over `terrain`, centred on world (x, z).
     pub fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, crate::SnowError> {
         params.validate()?;
-        let limits = ctx.device.limits();
-        if params.resolution > limits.max_texture_dimension_2d {
-            return Err(SnowError::InvalidParameter {
-                field: "resolution",
-                why: format!("{} exceeds this adapter's texture limit (max_texture_dimension_2d) of {}", params.resolution, limits.max_texture_dimension_2d),
-            }
-            .into());
-        }
-        let buffer_bytes = params.texel_count() as u64 * 4;
-        let buffer_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        if buffer_bytes > buffer_limit {
-            return Err(SnowError::InvalidParameter {
-                field: "resolution",
-                why: format!(
-                    "{} needs {buffer_bytes} byte buffers, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
-                    params.resolution
-                ),
-            }
-            .into());
-        }
-        if let TerrainSource::Heightmap(h) = &terrain {
-            let bytes = h.heights_m().len() as u64 * 4;
-            if bytes > buffer_limit {
-                return Err(SnowError::InvalidParameter {
-                    field: "heightmap",
-                    why: format!(
-                        "{}x{} samples need a {bytes} byte buffer, above this adapter's buffer limit (max_storage_buffer_binding_size) of {buffer_limit} bytes",
-                        h.width(),
-                        h.height()
-                    ),
-                }
-                .into());
-            }
-        }
+        fits_adapter(&ctx.device.limits(), &params, &terrain)?;
         ctx.guarded(|| {
             let this = ctx.capturing(|| Self::allocate(ctx, params, terrain, center))?;
             ctx.check("creating the deformation passes")?;
@@ -127,13 +95,13 @@ impl SnowDeformation {
 
     fn allocate(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Result<Self, SnowError> {
         let core = CoreWindow::new(ctx, params, terrain, center);
-        let tiles = match core.params.tile_memory_bytes {
-            Some(budget) => TileStreaming::keep_in_memory(ctx, &core.res, &core.params, budget)?,
+        let tiles = match core.params().tile_memory_bytes {
+            Some(budget) => TileStreaming::keep_in_memory(ctx, core.res(), core.params(), budget)?,
             None => None,
         };
         Ok(Self {
             timer: GpuTimer::new(&ctx.device, &ctx.queue),
-            characters: Characters::new(&ctx.device, &core.res),
+            characters: Characters::new(&ctx.device, core.res()),
             core,
             time: SnowTime::default(),
             accumulation: None,
@@ -149,37 +117,14 @@ impl SnowDeformation {
     /// The parameters in use.
     #[must_use]
     pub fn params(&self) -> &SnowParams {
-        &self.core.params
+        self.core.params()
     }
 
     /// Changes the snowfall (rate, direction, stability) from the next frame
     /// on; `None` stops it. A window created without snowfall has no buffer
     /// for it, so starting snow there is an error.
     pub fn set_snowfall(&mut self, snowfall: Option<Snowfall>) -> Result<(), crate::SnowError> {
-        if let Some(s) = &snowfall {
-            s.validate()?;
-            if self.core.params.snowfall.is_none() {
-                return Err(SnowError::InvalidParameter {
-                    field: "snowfall",
-                    why: "the window was created without snowfall; create it with `SnowParams::snowfall` set".into(),
-                }
-                .into());
-            }
-        }
-        // The footprint quantisation was fixed at creation from `max_m`.
-        if let (Some(new), Some(old)) = (&snowfall, &self.core.params.snowfall)
-            && new.max_m > old.max_m
-        {
-            return Err(
-                SnowError::InvalidParameter { field: "max_m", why: format!("{} is above the {} m the window was created with", new.max_m, old.max_m) }.into()
-            );
-        }
-        if snowfall.is_some() {
-            self.core.params.snowfall = snowfall;
-        } else if let Some(s) = &mut self.core.params.snowfall {
-            s.rate_m_per_s = 0.0;
-        }
-        Ok(())
+        Ok(self.core.set_snowfall(snowfall)?)
     }
 
     /// Sets the world (x, z) that deformer and object positions are given
@@ -191,24 +136,21 @@ impl SnowDeformation {
     pub fn set_floating_origin(&mut self, origin: DVec2) {
         // Remembered deformers move with the origin (so they still sweep);
         // remembered mesh positions are on the GPU and are forgotten instead.
-        let delta = self.core.floating_origin - origin;
-        if delta != DVec2::ZERO {
-            self.core.history.shift(glam::Vec3::new(delta.x as f32, 0.0, delta.y as f32));
-            self.characters.history.clear();
+        if self.core.set_floating_origin(origin) {
+            self.characters.forget_positions();
         }
-        self.core.floating_origin = origin;
     }
 
     /// Sets the refill rate (m/s); takes effect next frame. The refill
     /// counters go on from now at the new rate.
     pub fn set_refill(&mut self, refill_m_per_s: f32) {
-        self.core.params.refill_m_per_s = refill_m_per_s.max(0.0);
+        self.core.set_refill(refill_m_per_s);
         self.time.rebase();
     }
 
     /// Sets the rim strength; takes effect next frame.
     pub fn set_elevation(&mut self, elevation: f32) {
-        self.core.params.elevation = elevation.max(0.0);
+        self.core.set_elevation(elevation);
     }
 
     /// Switches the deformation technique from the next frame on; keeps the
@@ -218,18 +160,17 @@ impl SnowDeformation {
     /// buffer for points and combined, the decal layer for decals) gets it
     /// at the next encoded frame: 4 bytes a texel, kept from then on.
     pub fn set_technique(&mut self, technique: Technique) {
-        self.core.params.technique = technique;
+        self.core.set_technique(technique);
     }
 
     /// Sets the points technique's footprint size (clamped to 32..=128 texels) and rim formula.
     pub fn set_points(&mut self, range_texels: u32, rim: RimStyle) {
-        self.core.params.range_texels = range_texels.clamp(*RANGE_TEXELS.start(), *RANGE_TEXELS.end());
-        self.core.params.rim = rim;
+        self.core.set_points(range_texels, rim);
     }
 
     /// Turns the displayed-surface blur on or off.
     pub fn set_blur(&mut self, blur: bool) {
-        self.core.params.blur = blur;
+        self.core.set_blur(blur);
     }
 
     /// Sets the snow's angle of repose (degrees, in (0, 90); `None`: walls
@@ -239,15 +180,12 @@ impl SnowDeformation {
     /// An angle outside (0, 90) is an error naming `repose_deg`, and the
     /// angle stays as it was.
     pub fn set_repose(&mut self, repose_deg: Option<f32>) -> Result<(), crate::SnowError> {
-        let p = SnowParams { repose_deg, ..self.core.params.clone() };
-        crate::deform::params::SnowParamsExt::validate(&p)?;
-        self.core.params.repose_deg = repose_deg;
-        Ok(())
+        Ok(self.core.set_repose(repose_deg)?)
     }
 
     /// Moves the window's centre; the move (snapped to texels) happens at the next frame.
     pub fn set_center(&mut self, center: DVec2) {
-        self.core.center = center;
+        self.core.set_center(center);
     }
 
     /// Frames recorded so far.
@@ -258,7 +196,7 @@ impl SnowDeformation {
 
     /// Sets how skinned mesh `id`'s character gathers and loses snow.
     pub fn set_coat(&mut self, id: SkinnedId, settings: CoatSettings) -> Result<(), crate::SnowError> {
-        Ok(self.characters.coats.set(id, settings)?)
+        Ok(self.characters.set_coat(id, settings)?)
     }
 
     /// The snow on skinned mesh `id`'s vertices: one `f32` a vertex (m), in
@@ -267,13 +205,33 @@ impl SnowDeformation {
     /// "Snow on characters"); [`Self::encode`] updates it for posed meshes.
     #[must_use]
     pub fn coat_buffer(&self, id: SkinnedId) -> Option<&wgpu::Buffer> {
-        self.characters.skinned.get(id.0).map(|s| &s.coat)
+        self.characters.coat_buffer(id)
     }
 
     /// Uploads a skinned mesh (a character's) for [`SnowFrame::with_poses`];
     /// `joint_count` is its skin's.
     pub fn add_skinned_mesh(&mut self, ctx: &GpuContext, mesh: &SkinnedMesh, joint_count: usize) -> Result<SkinnedId, crate::SnowError> {
         ctx.guarded(|| self.characters.add(ctx, mesh, joint_count).map_err(Into::into))
+    }
+
+    /// Places `objects` for snow to settle on (replacing any before, and their
+    /// snow): lays out their atlas and builds the accumulation passes.
+    pub fn set_objects(&mut self, ctx: &GpuContext, objects: &[SnowObject]) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| objects::place(ctx, &mut self.core, &mut self.accumulation, objects))
+    }
+
+    /// The snow on each object (in [`Self::set_objects`] order): read back
+    /// from the GPU, so this blocks; for a save, a test or a debug panel, not
+    /// every frame. Empty without objects.
+    pub fn read_object_stats(&self, ctx: &GpuContext) -> Result<Vec<crate::accumulate::ObjectStats>, crate::SnowError> {
+        ctx.guarded(|| objects::read_stats(ctx, self.accumulation.as_ref()))
+    }
+
+    /// Moves and turns object `k` (in [`Self::set_objects`] order); its snow goes with it.
+    pub fn set_object_pose(&mut self, k: usize, position: glam::Vec3, rotation: glam::Quat) {
+        if let Some(acc) = &mut self.accumulation {
+            acc.set_pose(k, position, rotation);
+        }
     }
 
     /// Records one frame of deformation into `encoder`: the one per-frame
@@ -289,10 +247,7 @@ impl SnowDeformation {
     /// what has arrived (a non-blocking `device.poll`, never a wait).
     pub fn encode(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, frame: &SnowFrame<'_>) -> Option<QueryTicket> {
         self.collect_arrived(ctx);
-        let queries = frame.queries.map(|points| {
-            self.core.tickets += 1;
-            (QueryTicket(self.core.tickets), points)
-        });
+        let queries = frame.queries.map(|points| (self.core.next_ticket(), points));
         self.timer.begin_frame();
         let mut cx = FrameContext::new(ctx, encoder, &mut self.timer);
         let steps = FrameSteps {
@@ -343,14 +298,12 @@ impl SnowDeformation {
     }
 
     fn collect(&mut self, ctx: &GpuContext) {
-        if let Some(answers) = self.core.query_pass.take_answers() {
-            self.core.answers = Some(answers);
-        }
+        self.core.collect_answers();
         if let Some(tiles) = &mut self.tiles {
             tiles.collect(ctx);
         }
         if let Some(sharing) = &mut self.sharing {
-            sharing.collect(self.core.params.resolution);
+            sharing.collect(self.core.params().resolution);
         }
         self.timer.collect();
     }
@@ -367,7 +320,7 @@ impl SnowDeformation {
         // (a game's loader, parallel tests) may have taken the answers'
         // mapping callbacks and fire them after our poll returned.
         let deadline = std::time::Instant::now() + crate::gpu::context::WAIT_TIMEOUT;
-        while self.core.query_pass.callbacks_pending() || self.sharing.as_ref().is_some_and(crate::replicate::sharing::Sharing::callbacks_pending) {
+        while self.core.answers_pending() || self.sharing.as_ref().is_some_and(crate::replicate::sharing::Sharing::callbacks_pending) {
             if std::time::Instant::now() > deadline {
                 return Err(SnowError::Readback("a point answer's mapping never completed".to_owned()).into());
             }
@@ -382,7 +335,7 @@ impl SnowDeformation {
     /// come back (taken at the start of each [`Self::encode`]).
     #[must_use]
     pub fn point_answers(&self) -> Option<&PointAnswers> {
-        self.core.answers.as_ref()
+        self.core.answers()
     }
 
     /// GPU time of each pass in the newest frame whose timestamps came
@@ -406,13 +359,139 @@ impl SnowDeformation {
         self.tiles.as_ref().map_or(0, |t| t.stats().resident)
     }
 
+    /// Attaches a tile store: from now on texels leaving the window are kept
+    /// through `streamer` (in memory, then on disk; or in memory alone for
+    /// `TileStreamer::in_memory`) and come back when the window returns,
+    /// brought up to the time then. It replaces the memory keeper the window
+    /// was created with ([`crate::SnowParams::tile_memory_bytes`]). Call before the
+    /// first frame, once. When the store holds a save ([`Self::save`]), the
+    /// window's clock, snowfall and position are loaded from it and `true`
+    /// returned.
+    pub fn attach_store(&mut self, ctx: &GpuContext, streamer: TileStreamer) -> Result<bool, crate::SnowError> {
+        ctx.guarded(|| {
+            if self.frame > 0 || self.store_attached {
+                return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() }.into());
+            }
+            let saved = store::attach(ctx, &self.core, &mut self.tiles, streamer)?;
+            self.store_attached = true;
+            let Some(s) = saved else { return Ok(false) };
+            self.time.resume(s.clock, s.fallen_m);
+            self.core.set_center(s.center);
+            self.frame = s.frame;
+            Ok(true)
+        })
+    }
+
+    /// Saves the whole snow state into the attached store: every tile (the
+    /// window's texels included) and the window's clock and position; when
+    /// it returns `Ok`, the store directory is a complete save that
+    /// [`Self::attach_store`] loads. Blocking (a save point, not a frame).
+    /// Saving needs a disk store: with tiles kept in memory only (the
+    /// default) or not at all it is an error naming `store`.
+    pub fn save(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
+        ctx.guarded(|| store::save(ctx, &self.core, self.tiles.as_mut(), (&self.time, self.frame)))
+    }
+
+    /// Store errors since the last call (disk full, read-only, corrupt tiles
+    /// replaced by fresh snow): the frame goes on; the game decides what to tell.
+    pub fn take_store_errors(&mut self) -> Vec<crate::StoreError> {
+        self.tiles.as_mut().map(TileStreaming::take_errors).unwrap_or_default().into_iter().map(Into::into).collect()
+    }
+
+    /// Shares this window's snow in tiles of `tile_side` texels (8..=256) on
+    /// the global grid: from the next frame the stamp and update passes flag
+    /// the tiles presses change, changed tiles are gathered at most every
+    /// `interval_s` of world time (0.25 s is a good default) for a
+    /// [`crate::SnowPeer`] to send, and the tiles it receives are folded in. Calling it again changes the side and
+    /// the interval and forgets pending tiles.
+    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
+        let sky = self.accumulation.as_ref().map(SnowAccumulation::sky_view);
+        ctx.guarded(|| share::enable(ctx, &mut self.core, sky, &mut self.sharing, (tile_side, interval_s)))
+    }
+
+    /// Lets the next frame gather the changed tiles whatever the interval,
+    /// so a program about to stop sends its last changes without letting
+    /// world time pass.
+    pub fn flush_changed_tiles(&mut self) {
+        if let Some(sharing) = &mut self.sharing {
+            sharing.gather_now();
+        }
+    }
+
+    /// Changed tiles flagged and not gathered yet (0 without sharing).
+    #[must_use]
+    pub fn dirty_tiles(&self) -> usize {
+        self.sharing.as_ref().map_or(0, Sharing::dirty_tiles)
+    }
+
+    /// Tiles given to the shared snow (`SnowPeer::update`) and not merged yet (ahead
+    /// of the clock, or beyond a frame's upload).
+    #[must_use]
+    pub fn waiting_tiles(&self) -> usize {
+        self.sharing.as_ref().map_or(0, Sharing::waiting_tiles)
+    }
+
+    /// The settings another machine must share for its snow to merge with
+    /// this window's; the tile side is the sharing one
+    /// ([`Self::enable_sharing`]), or the default tile side before.
+    #[must_use]
+    pub fn world_identity(&self) -> WorldIdentity {
+        share::world_identity(&self.core, self.sharing.as_ref())
+    }
+
+    /// The world identity a window of `params` over `terrain` has once it
+    /// shares tiles of `tile_side`², found without a GPU: what a dedicated
+    /// server (`snowpack server --scene`) serves and checks its peers
+    /// against. Equal, field for field, to [`Self::world_identity`] of such
+    /// a window after [`Self::enable_sharing`] with that side.
+    #[must_use]
+    pub fn world_identity_for(params: &crate::SnowParams, terrain: &crate::TerrainSource, tile_side: u32) -> WorldIdentity {
+        share::world_identity_for(params, terrain, tile_side)
+    }
+
     /// [`Self::memory_bytes`] summed (without building the list but for the objects').
     pub(super) fn memory_total(&self) -> u64 {
-        self.core.res.memory_total()
-            + self.core.query_pass.memory_bytes()
-            + self.core.decal_pass.layer_bytes()
+        self.core.memory_total()
             + self.accumulation.as_ref().map_or(0, |acc| acc.memory_bytes().iter().map(|(_, b)| b).sum())
             + self.tiles.as_ref().map_or(0, TileStreaming::gpu_bytes)
             + self.sharing.as_ref().map_or(0, crate::replicate::sharing::Sharing::memory_bytes)
+    }
+}
+
+impl SharedSnow for SnowDeformation {
+    /// The world clock now: time, refill and footprint quanta, snowfall.
+    fn share_clock(&self) -> ShareClock {
+        self.time.share_clock()
+    }
+
+    /// Sets the world clock (joining a world): time, refill counters and
+    /// snowfall; the frames after it go on from there. When the counters are
+    /// the world's own at that time (its refill from time 0), they keep
+    /// being counted from the world's beginning, as on every other machine.
+    fn join_clock(&mut self, clock: ShareClock) {
+        let world = self.world_identity().clock_at(clock.time_s);
+        self.time.join(clock, world, self.core.params().refill_m_per_s);
+    }
+
+    fn window(&self) -> Option<([i64; 2], u32)> {
+        self.core.window_origin().map(|o| (o, self.core.params().resolution))
+    }
+
+    /// The tiles gathered since the last call (empty without sharing):
+    /// whole tiles as the GPU had them at the frame gathered, stamped with
+    /// that frame's clock.
+    fn take_changed_tiles(&mut self) -> Vec<SharedTile> {
+        self.sharing.as_mut().map(Sharing::take_outbox).unwrap_or_default()
+    }
+
+    /// Queues `tiles`; frames merge them (a bounded number each) once the
+    /// clock reaches theirs. Without sharing enabled, or of another tile
+    /// side, they are dropped with a warning.
+    fn merge_tiles(&mut self, tiles: &[SharedTile]) {
+        match &mut self.sharing {
+            Some(sharing) => sharing.queue(tiles),
+            None if !tiles.is_empty() => tracing::warn!("{} shared tiles dropped: sharing is not enabled (enable_sharing)", tiles.len()),
+            None => {}
+        }
     }
 }

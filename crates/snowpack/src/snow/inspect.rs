@@ -26,7 +26,6 @@ use crate::tiles::{TileStats, TileStreaming};
 use crate::{Deformer, Technique, TerrainSource};
 
 use super::deformation::SnowDeformation;
-use super::reads::untorus;
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use crate::terrain::HeightmapTerrainExt;
@@ -235,7 +234,7 @@ pub trait SnowInspect {
 
 impl SnowInspect for SnowDeformation {
     fn terrain(&self) -> &TerrainSource {
-        &self.core.terrain
+        self.core.terrain()
     }
 
     fn fallen_m(&self) -> f32 {
@@ -247,19 +246,19 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn floating_origin(&self) -> DVec2 {
-        self.core.floating_origin
+        self.core.floating_origin()
     }
 
     fn technique(&self) -> Technique {
-        self.core.params.technique
+        self.core.params().technique
     }
 
     fn points_last_frame(&self) -> usize {
-        self.core.points_last_frame
+        self.core.points_last_frame()
     }
 
     fn points_dropped(&self) -> u64 {
-        self.core.points_dropped
+        self.core.points_dropped()
     }
 
     fn stamp_range(&self) -> (f32, f32, f32) {
@@ -267,16 +266,16 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn origin_m(&self) -> Option<DVec2> {
-        let texel = f64::from(self.core.params.texel_m());
-        self.core.window.origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
+        let texel = f64::from(self.core.params().texel_m());
+        self.core.window_origin().map(|o| DVec2::new(o[0] as f64 * texel, o[1] as f64 * texel))
     }
 
     fn origin_texel(&self) -> Option<[i64; 2]> {
-        self.core.window.origin()
+        self.core.window_origin()
     }
 
     fn exposed_texels(&self) -> u64 {
-        self.core.exposed_texels
+        self.core.exposed_texels()
     }
 
     fn read_coat(&self, ctx: &GpuContext, id: SkinnedId) -> Result<Vec<f32>, SnowError> {
@@ -297,7 +296,7 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn query_stats(&self) -> QueryStats {
-        self.core.query_pass.stats()
+        self.core.query_stats()
     }
 
     fn timings(&self) -> PassTimings {
@@ -313,9 +312,7 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-        let mut list = self.core.res.memory_bytes();
-        list.push(("point queries", self.core.query_pass.memory_bytes()));
-        list.push(("decal layer", self.core.decal_pass.layer_bytes()));
+        let mut list = self.core.memory_bytes();
         if let Some(acc) = &self.accumulation {
             list.extend(acc.memory_bytes());
         }
@@ -329,20 +326,20 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn resources(&self) -> &DeformResources {
-        &self.core.res
+        self.core.res()
     }
 
     fn decals(&self) -> &DecalRing {
-        &self.core.decals
+        self.core.decals()
     }
 
     fn decal_layer(&self) -> &wgpu::Texture {
-        &self.core.decal_pass.layer
+        self.core.decal_layer()
     }
 
     fn read_decals(&self, ctx: &GpuContext) -> Result<Vec<[u8; 4]>, SnowError> {
-        let r = self.core.params.resolution;
-        if self.core.decal_pass.layer.width() != r {
+        let r = self.core.params().resolution;
+        if self.core.decal_layer().width() != r {
             return Ok(vec![[0; 4]; (r * r) as usize]);
         }
         let row = (r * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -354,7 +351,7 @@ impl SnowInspect for SnowDeformation {
         });
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("decal layer copy") });
         encoder.copy_texture_to_buffer(
-            self.core.decal_pass.layer.as_image_copy(),
+            self.core.decal_layer().as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: &staging,
                 layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(r) },
@@ -367,30 +364,30 @@ impl SnowInspect for SnowDeformation {
     }
 
     fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError> {
-        let raw = read_buffer(ctx, &self.core.res.snow)?;
-        Ok(self.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
+        let raw = read_buffer(ctx, &self.core.res().snow)?;
+        Ok(self.core.layout().untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&raw)))
     }
 
     fn read_snow_words_async(&self, ctx: &GpuContext) -> impl std::future::Future<Output = Result<Vec<u32>, SnowError>> + 'static {
-        let mapped = crate::gpu::readback::read_buffer_async(ctx, &self.core.res.snow);
-        let (resolution, origin) = (self.core.params.resolution, self.core.window.origin().unwrap_or([0, 0]));
-        async move { Ok(untorus(resolution, origin, &bytemuck::pod_collect_to_vec::<u8, u32>(&mapped.await?))) }
+        let mapped = crate::gpu::readback::read_buffer_async(ctx, &self.core.res().snow);
+        let layout = self.core.layout();
+        async move { Ok(layout.untorus(&bytemuck::pod_collect_to_vec::<u8, u32>(&mapped.await?))) }
     }
 
     fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let words = self.read_snow_words(ctx)?;
         let terrain = self.read_terrain(ctx)?;
-        let fallen: Vec<f32> = if self.core.params.keeps_lying_snow() {
-            self.untorus(&bytemuck::pod_collect_to_vec::<u8, f32>(&read_buffer(ctx, &self.core.res.fallen)?))
+        let fallen: Vec<f32> = if self.core.params().keeps_lying_snow() {
+            self.core.layout().untorus(&bytemuck::pod_collect_to_vec::<u8, f32>(&read_buffer(ctx, &self.core.res().fallen)?))
         } else {
             vec![0.0; words.len()]
         };
-        Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.core.params.depth_m + l, g)).collect())
+        Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.core.params().depth_m + l, g)).collect())
     }
 
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
-        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
-        Ok(self.packed_m(&words))
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res().packed)?);
+        Ok(self.core.layout().packed_m(&words))
     }
 
     fn set_count_mass(&mut self, on: bool) {
@@ -399,10 +396,10 @@ impl SnowInspect for SnowDeformation {
 
     fn read_mass(&self, ctx: &GpuContext) -> Result<WindowMass, SnowError> {
         // One readback of the packed buffer: the texels' packed snow and, in its last words, the displaced count.
-        let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.packed)?);
-        let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.packed_m(&counted));
-        let mechanics = self.core.params.mechanics();
-        let area = f64::from(self.core.params.texel_m()).powi(2);
+        let counted: Vec<u32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res().packed)?);
+        let (height, terrain, packed) = (self.read_snow(ctx)?, self.read_terrain(ctx)?, self.core.layout().packed_m(&counted));
+        let mechanics = self.core.params().mechanics();
+        let area = f64::from(self.core.params().texel_m()).powi(2);
         let total: f64 =
             height.iter().zip(&terrain).zip(&packed).map(|((&h, &g), &q)| f64::from(mechanics.mass_kg_m2(SnowColumn { depth_m: h - g, packed_m: q }))).sum();
         let ledger = packed_snow::ledger(&counted);
@@ -421,19 +418,19 @@ impl SnowInspect for SnowDeformation {
 
     fn read_terrain(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {
         let baked;
-        let source = match &self.core.terrain {
+        let source = match self.core.terrain() {
             TerrainSource::Mesh(mesh) => {
                 let n = (mesh.grid.width() * mesh.grid.height()) as usize;
-                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res.heightmap)?);
+                let heights: Vec<f32> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, &self.core.res().heightmap)?);
                 baked = TerrainSource::Heightmap(mesh.grid.with_heights(heights[..n].to_vec())?);
                 &baked
             }
             other => other,
         };
-        let r = self.core.params.resolution;
-        let origin = self.core.window.origin().unwrap_or([0, 0]);
+        let r = self.core.params().resolution;
+        let origin = self.core.layout().origin;
         let o = [origin[0] as i32, origin[1] as i32];
-        let texel = self.core.params.texel_m();
+        let texel = self.core.params().texel_m();
         Ok((0..r)
             .flat_map(|i| (0..r).map(move |j| (i, j)))
             .map(|(i, j)| crate::terrain::texel_ground(source, [o[0] + j as i32, o[1] + i as i32], texel))
@@ -444,7 +441,7 @@ impl SnowInspect for SnowDeformation {
         let words = self.read_snow_words(ctx)?;
         let terrain = self.read_terrain(ctx)?;
         let heights: Vec<f32> = words.iter().zip(&terrain).map(|(&w, &g)| snow_word::shown(w, g)).collect();
-        let normals = crate::deform::display::normals_of(&heights, self.core.params.resolution, self.core.params.texel_m());
+        let normals = crate::deform::display::normals_of(&heights, self.core.params().resolution, self.core.params().texel_m());
         Ok((heights, normals))
     }
 

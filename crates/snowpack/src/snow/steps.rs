@@ -21,6 +21,7 @@ use super::characters::Characters;
 use super::clock::{FrameRefill, SnowTime};
 use super::core_window::CoreWindow;
 use super::ground_after::GroundAfter;
+use super::share;
 use super::snow_frame::SnowFrame;
 
 /// What a frame's steps change, borrowed apart from the frame's timer (in
@@ -45,13 +46,13 @@ impl FrameSteps<'_> {
     /// meshes, and the point queries (with the frame's number), every pass
     /// at its place in the list.
     pub(super) fn record(mut self, cx: &mut FrameContext<'_>, frame: &SnowFrame<'_>, queries: Option<((QueryTicket, &[Vec2]), u64)>) {
-        let (texel_m, teleport_m) = (self.core.params.texel_m(), self.core.params.teleport_m);
+        let (texel_m, teleport_m) = (self.core.params().texel_m(), self.core.params().teleport_m);
         self.characters.record_poses(cx, frame, texel_m, teleport_m);
         let (window, old, rects) = self.place_window(cx);
         self.record_move(cx, &window, old, &rects);
         self.record_shared_merge(cx, &window);
         let sky = self.record_occlusion(cx, &window);
-        let technique = self.core.params.technique;
+        let technique = self.core.params().technique;
         let stamps = matches!(technique, Technique::Points | Technique::Combined);
         // Each deformer presses over its motion since the last frame.
         self.core.sweep(frame.deformers, frame.ids);
@@ -61,18 +62,15 @@ impl FrameSteps<'_> {
         }
         let share = self.sharing.as_ref().map(|s| s.grid());
         let stamp_params = self.core.stamp_params(window.origin, share);
-        self.core.points_last_frame = 0;
-        if stamps {
-            self.core.record_stamps(cx, frame.deformers, window.corner, &stamp_params);
-        }
-        let refill = self.time.refill(&self.core.params, frame.dt_s, stamp_params.quantum_m());
+        self.core.record_stamps(cx, frame.deformers, window.corner, &stamp_params);
+        let refill = self.time.refill(self.core.params(), frame.dt_s, stamp_params.quantum_m());
         // Snowfall so far on open ground with this frame's (as the texels have it after the update).
         let open_fallen_m = (self.time.fallen_m + refill.fall_m).min(window.max_fallen_m);
         self.core.record_update(cx, window.origin, &refill, sky.as_ref(), share, open_fallen_m);
         // Snow squeezed beyond the final density onto the texels beside the press.
         self.core.record_displace(cx, window.origin, share);
         if let Some(tiles) = &mut self.tiles {
-            tiles.record_weather(cx, &self.core.res, &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
+            tiles.record_weather(cx, self.core.res(), &window, (refill.refill_m, refill.fall_m), refill.refill_quanta);
         }
         if self.sharing.is_none() {
             // Local relaxation: not applied to shared snow, whose copies merge by the larger deficit.
@@ -101,7 +99,7 @@ impl FrameSteps<'_> {
     /// exposed rectangles.
     fn place_window(&mut self, cx: &mut FrameContext<'_>) -> (WindowFrame, Option<[i64; 2]>, Vec<TexelRect>) {
         let desired = self.core.desired_origin();
-        let old = self.core.window.origin();
+        let old = self.core.window_origin();
         let origin = match &mut self.tiles {
             Some(tiles) => tiles.plan(cx.gpu, old, desired),
             None => desired,
@@ -109,7 +107,7 @@ impl FrameSteps<'_> {
         if self.core.allocate_stamps(cx.gpu)
             && let Some(tiles) = &mut self.tiles
         {
-            tiles.add_stamp_plane(cx.gpu, &self.core.res);
+            tiles.add_stamp_plane(cx.gpu, self.core.res());
         }
         let (window, rects) = self.core.move_to(origin, self.time.fallen_m);
         (window, old, rects)
@@ -119,7 +117,7 @@ impl FrameSteps<'_> {
     /// copy-out, restore, load), else fresh snow in the exposed strips.
     fn record_move(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame, old: Option<[i64; 2]>, rects: &[TexelRect]) {
         match &mut self.tiles {
-            Some(tiles) => tiles.record_move(cx, window, &self.core.res, (old, rects), self.time.clock),
+            Some(tiles) => tiles.record_move(cx, window, self.core.res(), (old, rects), self.time.clock),
             None => self.core.record_window(cx, window, rects),
         }
     }
@@ -130,16 +128,17 @@ impl FrameSteps<'_> {
         let Some(sharing) = &mut self.sharing else { return };
         let core = &*self.core;
         let (low, high, _) = core.stamp_range();
+        let p = core.params();
         let merge = TileMergeParams {
-            depth_m: core.params.depth_m,
-            texel_m: core.params.texel_m(),
+            depth_m: p.depth_m,
+            texel_m: p.texel_m(),
             low_m: low,
             high_m: high,
             max_fallen_m: window.max_fallen_m,
-            pack_ratio: core.params.mechanics().pack_ratio(),
+            pack_ratio: p.mechanics().pack_ratio(),
             ..Default::default()
         };
-        sharing.record_merge(cx, &core.res, &core.share_window(window.origin), merge, (&self.time.share_clock(), core.catch_up_rule()));
+        sharing.record_merge(cx, core.res(), &share::share_window(core, window.origin), merge, (&self.time.share_clock(), share::catch_up_rule(core)));
     }
 
     /// What the sky sees (drawn while the snowfall is set, even at rate 0,
@@ -148,7 +147,7 @@ impl FrameSteps<'_> {
     fn record_occlusion(&mut self, cx: &mut FrameContext<'_>, window: &WindowFrame) -> Option<OcclusionParams> {
         let acc = self.accumulation.as_mut()?;
         acc.upload_poses(cx.queue(), window);
-        let snowfall = self.core.params.snowfall.as_ref()?;
+        let snowfall = self.core.params().snowfall.as_ref()?;
         Some(acc.record_occlusion(cx, window, snowfall))
     }
 
@@ -162,9 +161,9 @@ impl FrameSteps<'_> {
             snow_quanta: refill.snow_refill_quanta,
             stamp_quanta: refill.refill_quanta,
             fall_m: refill.fall_m,
-            stamps_pressed: stamps && core.res.has_stamps(),
+            stamps_pressed: stamps && core.res().has_stamps(),
         };
-        sharing.record_after_update(cx, &core.res, &core.share_window(window.origin), record);
+        sharing.record_after_update(cx, core.res(), &share::share_window(core, window.origin), record);
     }
 
     /// Snow settling on objects: with snowfall, what falls on them this
@@ -172,7 +171,7 @@ impl FrameSteps<'_> {
     /// without, their surface as it is.
     fn record_objects(&mut self, cx: &mut FrameContext<'_>, sheltered: bool, fall_m: f32, dt_s: f32) {
         let Some(acc) = &mut self.accumulation else { return };
-        let p = &self.core.params;
+        let p = self.core.params();
         match &p.snowfall {
             Some(s) => acc.record_atlas(cx, s, if sheltered { fall_m * p.texel_m() * p.texel_m() } else { 0.0 }, dt_s),
             None => acc.record_surface(cx),
