@@ -66,6 +66,36 @@ impl SnowRenderState {
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
+
+    /// Puts this world in the render world with what the materials bind
+    /// (the caller records the settings it was made from: `AppliedSettings`).
+    pub(crate) fn insert_into(self, world: &mut World) {
+        let snow = self.snow.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        world.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &self.window));
+        drop(snow);
+        world.insert_resource(self.cover.bindings(&self.window));
+        world.insert_resource(self);
+    }
+
+    /// Ends this world: its snow saved to its disk store when `save` (the
+    /// store's files closed once it is dropped); gives back what the next
+    /// world needs: the context, the mesh registrations and the generation.
+    pub(crate) fn retire(self, save: bool) -> (GpuContext, Vec<MeshRegistration>, u64) {
+        let Self { ctx, snow, registrations, generation, .. } = self;
+        let mut snow = snow.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if save && let Err(e) = snow.save(&ctx) {
+            tracing::error!("bevy_snowpack: the old snow world could not be saved to its store: {e}");
+        }
+        drop(snow);
+        (ctx, registrations, generation)
+    }
+
+    /// Which snow world this is: 0 for the first, one more for each rebuild
+    /// ([`crate::SnowpackSettings`] changed where it cannot change live).
+    #[must_use]
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
 }
 
 /// How one combined request splits back into the callers' requests: their tickets and ranges.
@@ -119,38 +149,6 @@ pub(crate) fn create_world(
         generation,
         cover,
     })
-}
-
-impl SnowRenderState {
-    /// Puts this world in the render world with what the materials bind
-    /// (the caller records the settings it was made from: `AppliedSettings`).
-    pub(crate) fn insert_into(self, world: &mut World) {
-        let snow = self.snow.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        world.insert_resource(crate::ground::SnowGpuBuffers::new(&snow, &self.window));
-        drop(snow);
-        world.insert_resource(self.cover.bindings(&self.window));
-        world.insert_resource(self);
-    }
-
-    /// Ends this world: its snow saved to its disk store when `save` (the
-    /// store's files closed once it is dropped); gives back what the next
-    /// world needs: the context, the mesh registrations and the generation.
-    pub(crate) fn retire(self, save: bool) -> (GpuContext, Vec<MeshRegistration>, u64) {
-        let Self { ctx, snow, registrations, generation, .. } = self;
-        let mut snow = snow.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
-        if save && let Err(e) = snow.save(&ctx) {
-            tracing::error!("bevy_snowpack: the old snow world could not be saved to its store: {e}");
-        }
-        drop(snow);
-        (ctx, registrations, generation)
-    }
-
-    /// Which snow world this is: 0 for the first, one more for each rebuild
-    /// ([`crate::SnowpackSettings`] changed where it cannot change live).
-    #[must_use]
-    pub fn generation(&self) -> u64 {
-        self.generation
-    }
 }
 
 /// The disk store of the settings, attached before the first frame; `Ok(true)`: a save was loaded.

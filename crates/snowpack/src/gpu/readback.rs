@@ -229,9 +229,6 @@ impl<M> ReadbackRing<M> {
         }
         result
     }
-}
-
-impl<M> ReadbackRing<M> {
     /// Returns every copy that has arrived, oldest first, without waiting
     /// (for data where each copy counts, such as flags cleared after each
     /// copy, unlike [`Self::take_latest`] which keeps only the newest); call
