@@ -13,6 +13,9 @@ use snowpack::ObjectShape;
 #[derive(Component, Reflect, Clone, Debug, PartialEq)]
 #[reflect(Component, Clone, Debug, PartialEq)]
 #[require(Transform)]
+// Its reflected path stays where it was declared before it had a file of
+// its own (the crate root), so saved scenes and reflected names still match.
+#[type_path = "bevy_snowpack"]
 pub struct SnowCatcher {
     /// Its shape (a box or a sphere around the entity's origin, or a mesh;
     /// the library's type, opaque to reflection).

@@ -28,6 +28,9 @@ use crate::{SnowSystems, SnowpackSettings};
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Clone, Debug, PartialEq)]
 #[require(Transform)]
+// Its reflected path stays where it was declared before it had a file of
+// its own (the crate root), so saved scenes and reflected names still match.
+#[type_path = "bevy_snowpack"]
 pub enum SnowDeformer {
     /// A sphere around the entity's origin.
     Sphere {

@@ -29,6 +29,9 @@ use snowpack::{SnowParams, StoreConfig, StreamerConfig, TerrainSource};
 /// dynamic value or a serialized one leaves them out.
 #[derive(Resource, Reflect, Clone, Debug)]
 #[reflect(Resource, Clone, Debug, Default)]
+// Its reflected path stays where it was declared before it had a file of
+// its own (the crate root), so saved scenes and reflected names still match.
+#[type_path = "bevy_snowpack"]
 pub struct SnowpackSettings {
     /// The window: size and resolution, depth, technique, refill, snowfall,
     /// tile memory (see `snowpack::SnowParams`).
@@ -52,6 +55,9 @@ pub struct SnowpackSettings {
 /// is loaded when the app starts again with the same window settings.
 #[derive(Reflect, Clone, Debug)]
 #[reflect(Clone, Debug)]
+// Its reflected path stays where it was declared before it had a file of
+// its own (the crate root), so saved scenes and reflected names still match.
+#[type_path = "bevy_snowpack"]
 pub struct SnowStoreSettings {
     /// The store's folder (created when missing; one app at a time).
     pub dir: std::path::PathBuf,
@@ -94,6 +100,9 @@ impl Default for SnowpackSettings {
 #[derive(Component, Reflect, Clone, Copy, Debug, Default)]
 #[reflect(Component, Clone, Debug, Default)]
 #[require(Transform)]
+// Its reflected path stays where it was declared before it had a file of
+// its own (the crate root), so saved scenes and reflected names still match.
+#[type_path = "bevy_snowpack"]
 pub struct SnowWindowTarget;
 
 /// The window's centre as the library takes it.
