@@ -41,10 +41,10 @@ use super::weather::{TileWeatherPass, WeatherParams};
 
 // The slot layout lives in `planes.rs` (the tile passes below this file need
 // it too); it stays reachable here, where the streaming's users look for it.
-pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_packed, plane_stamps, planes};
+pub use super::planes::{PLANE_FALLEN, PLANE_SNOW, PLANES, plane_packed, plane_stamps, planes};
 // The grid and the slot pool live in files of their own; the grid stays
 // reachable here, where the streaming's users look for it.
-pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
+pub use super::grid::{PREFETCH_MARGIN_TILES, TileGrid};
 use super::slots::SlotTable;
 use crate::gpu::context::GpuContextExt;
 use crate::persist::streamer::TileStreamerExt;
