@@ -7,7 +7,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::low_level::render::environment::{ENVIRONMENT_MAX_H, ENVIRONMENT_MAX_W, EnvironmentMap};
+use snowpack::EnvironmentMap;
+use snowpack::low_level::render::environment::{ENVIRONMENT_MAX_H, ENVIRONMENT_MAX_W};
 use snowpack_scene::EnvironmentSpec;
 
 mod common;

@@ -5,7 +5,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::low_level::replicate::{Message, PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity, decode, encode};
+use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
+use snowpack::low_level::replicate::{Message, decode, encode};
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 
 fn world() -> WorldIdentity {

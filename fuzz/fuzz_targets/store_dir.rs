@@ -5,7 +5,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use snowpack::low_level::TileStoreExt;
-use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
+use snowpack::{StoreConfig, TileStore};
+use snowpack::low_level::persist::{SnowClock, TileData, TileKey};
 
 fuzz_target!(|data: &[u8]| {
     let dir = std::env::temp_dir().join(format!("snowpack-fuzz-store-{}", std::process::id()));

@@ -11,10 +11,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
 use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
-use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, WorldIdentity, decode, encode};
+use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, decode, encode};
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use snowpack_testkit::testing::CpuSnow;
 

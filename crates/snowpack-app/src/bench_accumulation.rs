@@ -10,8 +10,8 @@ use std::fmt::Write as _;
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{ObjectShape, SnowObject, Snowfall};
 
 /// The three scenes of Dinh's table.
 pub const SCENARIOS: [&str; 3] = ["eight objects", "forest", "both"];

@@ -7,8 +7,8 @@ use std::fmt::Write as _;
 
 use anyhow::Context as _;
 use glam::{DVec2, Mat4, Vec3};
+use snowpack::Snowfall;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::accumulate::Snowfall;
 use snowpack::{GpuContext, SkinnedMesh, SkinnedPose, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
 
 /// One measured character.

@@ -8,9 +8,9 @@ use std::fmt::Write as _;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
+use snowpack::IMAGE_FORMAT;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TechniqueExt;
-use snowpack::low_level::render::IMAGE_FORMAT;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
 
 /// Frame size of Wasmut's measurements.
@@ -80,7 +80,7 @@ pub fn measure(ctx: &GpuContext, technique: Technique, count: usize, mesh_side: 
     }
     snow.finish(ctx)?;
     renderer.finish(ctx)?;
-    let total = |t: snowpack::low_level::gpu::PassTimings| t.passes.iter().map(|p| p.1).sum::<f64>();
+    let total = |t: snowpack::PassTimings| t.passes.iter().map(|p| p.1).sum::<f64>();
     Ok(FrameRow { technique, spheres: count, mesh_side: side, range_texels, deform_ms: total(snow.timings()), render_ms: total(renderer.timings()) })
 }
 

@@ -6,8 +6,8 @@ use std::fmt::Write as _;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
+use snowpack::IMAGE_FORMAT;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::render::IMAGE_FORMAT;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
 /// Frame size of the render bench.

@@ -12,7 +12,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use snowpack::low_level::replicate::WorldIdentity;
+use snowpack::WorldIdentity;
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use snowpack_testkit::testing::CpuSnow;
 

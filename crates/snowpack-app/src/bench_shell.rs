@@ -8,9 +8,9 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec3};
+use snowpack::ShellSettings;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::render::shell::ShellSettings;
 use snowpack::{Camera, Deformer, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
 
 /// Frame sizes of Figure 5.
@@ -75,9 +75,8 @@ pub fn measure(ctx: &GpuContext, sizes: &[(u32, u32)], textures: &[u32], warmup:
         for &texture in textures {
             for lod in [false, true] {
                 let shell = ShellSettings { texture_size: texture, lod, ..base };
-                let mut renderer =
-                    Renderer::new(ctx, &snow, &env, RenderParams { shell, ..RenderParams::default() }, snowpack::low_level::render::IMAGE_FORMAT)
-                        .context("creating the renderer")?;
+                let mut renderer = Renderer::new(ctx, &snow, &env, RenderParams { shell, ..RenderParams::default() }, snowpack::IMAGE_FORMAT)
+                    .context("creating the renderer")?;
                 let mut walls = Vec::new();
                 for frame in 0..warmup + frames {
                     let start = Instant::now();

@@ -11,8 +11,9 @@ use glam::{DVec2, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TileStreamerExt;
-use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileKey, TileStore, TileStreamer};
+use snowpack::low_level::persist::TileKey;
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 
 /// Texels per side of a tile in every measurement.
 const TILE: u32 = 64;

@@ -96,7 +96,7 @@ pub fn attach_store(
     spec: &snowpack_scene::StoreSpec,
     out: &std::path::Path,
 ) -> anyhow::Result<bool> {
-    use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+    use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
     use snowpack_scene::StoreKeep;
     const MIB: f64 = 1024.0 * 1024.0;
     let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize, ..StreamerConfig::default() };

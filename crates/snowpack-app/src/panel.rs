@@ -6,8 +6,9 @@ use std::collections::VecDeque;
 
 use egui::{Color32, ComboBox, RichText, Slider, Stroke};
 use glam::Vec3;
-use snowpack::low_level::render::params::{DebugView, Material, MaterialPreset, sun_from_angles};
+use snowpack::low_level::render::params::sun_from_angles;
 use snowpack::low_level::render::shell::DetailKind;
+use snowpack::{DebugView, Material, MaterialPreset};
 use snowpack::{RimStyle, Technique};
 
 use crate::camera::{CameraMode, CameraRig};
@@ -314,7 +315,7 @@ fn simulation_section(ui: &mut egui::Ui, session: &mut Session, state: &mut Pane
 fn snowfall_section(ui: &mut egui::Ui, session: &mut Session) {
     let mut on = session.snow_params.snowfall.is_some();
     if ui.checkbox(&mut on, "it snows (toggling rebuilds the window)").changed() {
-        session.snow_params.snowfall = on.then(snowpack::low_level::accumulate::Snowfall::default);
+        session.snow_params.snowfall = on.then(snowpack::Snowfall::default);
     }
     if let Some(f) = &mut session.snow_params.snowfall {
         ui.add(Slider::new(&mut f.rate_m_per_s, 0.0..=0.05).logarithmic(true).smallest_positive(1e-4).max_decimals(4).text("rate").suffix(" m/s"));

@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use snowpack::low_level::gpu::PassTimings;
-use snowpack::low_level::render::{DebugView, IMAGE_FORMAT, MaterialPreset};
+use snowpack::PassTimings;
 use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SnowDeformation};
+use snowpack::{DebugView, IMAGE_FORMAT, MaterialPreset};
 use snowpack_scene::{Scene, Technique, World};
 
 use crate::output::OutputSet;
@@ -357,7 +357,7 @@ fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
 
 /// `meta.json`'s `objects`: per object name, the snow on its upward surfaces
 /// and where its charts lie in `accumulation.npy`.
-fn object_meta(snow: &SnowDeformation, stats: Option<&[snowpack::low_level::accumulate::ObjectStats]>) -> serde_json::Value {
+fn object_meta(snow: &SnowDeformation, stats: Option<&[snowpack::ObjectStats]>) -> serde_json::Value {
     let (Some(acc), Some(stats)) = (snow.accumulation(), stats) else { return serde_json::json!({}) };
     acc.objects()
         .iter()

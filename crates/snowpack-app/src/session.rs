@@ -7,8 +7,8 @@ use std::sync::Arc;
 
 use anyhow::Context as _;
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::PassTimings;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::gpu::PassTimings;
 use snowpack::low_level::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
 use snowpack_scene::{ActorSpec, GltfActor, Motion, Placement, Scene, ShapeSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec, World};

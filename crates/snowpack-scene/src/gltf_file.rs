@@ -14,7 +14,7 @@ use std::path::Path;
 
 use glam::{Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
-use snowpack::low_level::skin::skinning::SkinnedMesh;
+use snowpack::SkinnedMesh;
 use snowpack::low_level::skin::{Channel, Clip, Interpolation, Node, Property, Skeleton, Transform};
 
 /// Most nodes a file may have.

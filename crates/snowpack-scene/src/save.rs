@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use snowpack::low_level::render::params::Material;
+use snowpack::Material;
 use toml::{Table, Value};
 
 use crate::scene::{EnvironmentSpec, Scene};
@@ -199,7 +199,7 @@ impl Scene {
 }
 
 /// `[shell]` with every field, so a saved scene reloads the same shell.
-fn shell_table(s: &snowpack::low_level::render::shell::ShellSettings) -> Table {
+fn shell_table(s: &snowpack::ShellSettings) -> Table {
     let mut t = Table::new();
     t.insert("enabled".into(), Value::Boolean(s.enabled));
     t.insert("texture".into(), Value::String(s.texture.name().into()));

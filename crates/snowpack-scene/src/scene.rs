@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use snowpack::low_level::render::params::{DebugView, LightParams, Material, MaterialPreset, sun_from_angles};
-use snowpack::low_level::render::shell::{DetailKind, ShellSettings};
-use snowpack::low_level::render::{EnvironmentMap, RenderParams};
+use snowpack::ShellSettings;
+use snowpack::low_level::render::params::sun_from_angles;
+use snowpack::low_level::render::shell::DetailKind;
+use snowpack::{DebugView, LightParams, Material, MaterialPreset};
+use snowpack::{EnvironmentMap, RenderParams};
 use snowpack::{HeightmapTerrain, NoiseTerrain, RimStyle, SnowParams, Technique, TerrainMesh, TerrainSource};
 
 use crate::error::SceneError;
@@ -277,10 +279,10 @@ impl ObjectSpec {
 
     /// The library's description of this object.
     #[must_use]
-    pub fn object(&self) -> snowpack::low_level::accumulate::SnowObject {
-        use snowpack::low_level::accumulate::ObjectShape;
+    pub fn object(&self) -> snowpack::SnowObject {
+        use snowpack::ObjectShape;
         let r = self.rotation_deg * (std::f32::consts::PI / 180.0);
-        snowpack::low_level::accumulate::SnowObject {
+        snowpack::SnowObject {
             name: self.name.clone(),
             shape: match (&self.mesh, self.kind.as_str()) {
                 (Some(mesh), _) => ObjectShape::Mesh(Arc::clone(mesh)),
@@ -295,7 +297,7 @@ impl ObjectSpec {
 }
 
 /// `[snowfall]`: the library's snowfall parameters.
-pub type SnowfallSpec = snowpack::low_level::accumulate::Snowfall;
+pub type SnowfallSpec = snowpack::Snowfall;
 
 /// `[sim]`.
 #[derive(Clone, Debug, PartialEq)]

@@ -123,10 +123,10 @@ direction = [0.0, -2.0, 0.0]
     assert_eq!(s.snowfall.as_ref().map(|f| f.direction), Some(glam::Vec3::NEG_Y));
     // The window carries the snowfall, with the library's defaults for what the file leaves out.
     assert_eq!(s.snow.snowfall, s.snowfall);
-    assert_eq!(s.snowfall.as_ref().map(|f| f.repose_deg), Some(snowpack::low_level::accumulate::Snowfall::default().repose_deg));
+    assert_eq!(s.snowfall.as_ref().map(|f| f.repose_deg), Some(snowpack::Snowfall::default().repose_deg));
     assert!(s.objects[0].dilate);
     let o = s.objects[0].object();
-    assert_eq!(o.shape, snowpack::low_level::accumulate::ObjectShape::Box { size_m: glam::Vec3::new(2.0, 0.1, 1.0) });
+    assert_eq!(o.shape, snowpack::ObjectShape::Box { size_m: glam::Vec3::new(2.0, 0.1, 1.0) });
 }
 
 #[test]
@@ -213,7 +213,7 @@ fn every_bad_value_names_the_file_and_the_key() {
 
 #[test]
 fn light_and_render_keys_are_understood() {
-    use snowpack::low_level::render::{DebugView, MaterialPreset};
+    use snowpack::{DebugView, MaterialPreset};
     let s = parse(
         r#"
 [light]
@@ -242,7 +242,7 @@ ao_strength = 0.5
 
 #[test]
 fn compacted_snow_keys_are_understood_and_default_to_the_preset() {
-    use snowpack::low_level::render::MaterialPreset;
+    use snowpack::MaterialPreset;
     let s = parse("[render]\nmaterial = \"mud\"\n[material]\ncompaction_full = 0.5\npacked_detail = 1.0\npacked_sparkle = 0.25\n").expect("valid");
     let m = s.render.params.material;
     let mud = MaterialPreset::Mud.material();
@@ -284,7 +284,8 @@ fn heightmaps_load_from_16_bit_png_relative_to_the_scene() {
 
 #[test]
 fn saved_scenes_load_back_the_same() {
-    use snowpack::low_level::render::params::{MaterialPreset, sun_from_angles};
+    use snowpack::MaterialPreset;
+    use snowpack::low_level::render::params::sun_from_angles;
     let dir = std::env::temp_dir().join(format!("snowpack-save-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let mut scene = Scene::default_scene().expect("default");
@@ -297,7 +298,7 @@ fn saved_scenes_load_back_the_same() {
     scene.render.params.material.wrap = 0.3;
     scene.render.params.light.sun_direction = Some(sun_from_angles(12.0, 250.0));
     scene.render.params.light.exposure_ev = -0.5;
-    scene.render.params.shell = snowpack::low_level::render::shell::ShellSettings {
+    scene.render.params.shell = snowpack::ShellSettings {
         enabled: true,
         texture: snowpack::low_level::render::shell::DetailKind::Crust,
         texture_size: 32,
@@ -327,7 +328,8 @@ fn saved_scenes_load_back_the_same() {
 
 #[test]
 fn the_shell_table_is_understood() {
-    use snowpack::low_level::render::shell::{DetailKind, ShellSettings};
+    use snowpack::ShellSettings;
+    use snowpack::low_level::render::shell::DetailKind;
     assert!(!parse("").expect("empty").render.params.shell.enabled, "the shell is off without [shell]");
     let on = parse("[shell]\n").expect("shell");
     assert_eq!(on.render.params.shell, ShellSettings { enabled: true, ..ShellSettings::default() });

@@ -7,7 +7,7 @@
 use std::sync::OnceLock;
 
 #[cfg(not(target_arch = "wasm32"))]
-use snowpack::low_level::gpu::GpuContext;
+use snowpack::GpuContext;
 
 mod cpu_snow;
 mod held;
@@ -28,7 +28,7 @@ pub use snowpack_share::testing::{Rng, TestDir, seed};
 #[must_use]
 pub fn gpu() -> Option<&'static GpuContext> {
     static CONTEXT: OnceLock<Option<GpuContext>> = OnceLock::new();
-    let ctx = CONTEXT.get_or_init(|| match GpuContext::new_headless(&snowpack::low_level::gpu::AdapterRequest::from_env()) {
+    let ctx = CONTEXT.get_or_init(|| match GpuContext::new_headless(&snowpack::AdapterRequest::from_env()) {
         Ok(ctx) => {
             eprintln!("test GPU: {} ({})", ctx.summary.name, ctx.summary.backend);
             Some(ctx)

@@ -46,8 +46,8 @@ pub use snowpack_share::replicate::{SnowPeerExt, WorldIdentityExt, WorldSettings
 /// Snow settling on objects: the object atlas, its passes and state.
 pub mod accumulate {
     pub use crate::accumulate::{
-        AtlasLayout, AtlasSurfacePass, IncrementParams, IncrementPass, ObjectMesh, ObjectShape, ObjectStats, OcclusionParams, ScatterParams, ScatterPass,
-        SettleParams, SettlePass, SnowAccumulation, SnowObject, Snowfall, SurfaceParams,
+        AtlasLayout, AtlasSurfacePass, IncrementParams, IncrementPass, ObjectMesh, OcclusionParams, ScatterParams, ScatterPass, SettleParams, SettlePass,
+        SnowAccumulation, SurfaceParams,
     };
     /// `accumulate::atlas`: what snowpack's app, tools and tests use of it.
     pub mod atlas {
@@ -155,7 +155,7 @@ pub mod frame {
 
 /// Device, readback and timing plumbing.
 pub mod gpu {
-    pub use crate::gpu::{AdapterRequest, GpuContext, GpuTimer, PassTimings, ReadbackRing, read_buffer};
+    pub use crate::gpu::{GpuTimer, ReadbackRing, read_buffer};
     /// `gpu::context`: what snowpack's app, tools and tests use of it.
     pub mod context {
         pub use crate::gpu::context::{GL_CONTEXT_LOCK_PANIC, panic_text};
@@ -189,7 +189,7 @@ pub mod pass {
 
 /// The tile store, its codec and disks, and the streamer.
 pub mod persist {
-    pub use crate::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, decode, encode};
+    pub use crate::persist::{SnowClock, StoreError, TileData, TileKey, TileLookup, decode, encode};
     /// `persist::disk`: what snowpack's app, tools and tests use of it.
     pub mod disk {
         pub use crate::persist::disk::{DirEntry, Disk, DiskFile, DiskLock, OsDisk};
@@ -199,7 +199,6 @@ pub mod persist {
 /// snowpack's own renderer (the demo's and the headless runner's), its
 /// parameters, and the ground drawn into a game's pass.
 pub mod render {
-    pub use crate::render::{DebugView, EnvironmentMap, IMAGE_FORMAT, LightParams, MaterialPreset, RenderParams};
     /// `render::ao`: what snowpack's app, tools and tests use of it.
     pub mod ao {
         pub use crate::render::ao::{AoParams, AoPass};
@@ -207,8 +206,8 @@ pub mod render {
     /// `render::environment`: what snowpack's app, tools and tests use of it.
     pub mod environment {
         pub use crate::render::environment::{
-            CLAMP_LUMINANCE, DOWNSAMPLED_H, DOWNSAMPLED_W, ENVIRONMENT_MAX_H, ENVIRONMENT_MAX_W, EnvParams, EnvironmentMap, EnvironmentPass, PREFILTERED_H,
-            PREFILTERED_LEVELS, PREFILTERED_W, dir_equirect, equirect_dir,
+            CLAMP_LUMINANCE, DOWNSAMPLED_H, DOWNSAMPLED_W, ENVIRONMENT_MAX_H, ENVIRONMENT_MAX_W, EnvParams, EnvironmentPass, PREFILTERED_H, PREFILTERED_LEVELS,
+            PREFILTERED_W, dir_equirect, equirect_dir,
         };
     }
     /// `render::frame`: what snowpack's app, tools and tests use of it.
@@ -217,22 +216,15 @@ pub mod render {
     }
     /// `render::ground`: what snowpack's app, tools and tests use of it.
     pub mod ground {
-        pub use crate::render::ground::{
-            GroundCamera, GroundParams, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform,
-            snow_sampling_wgsl,
-        };
+        pub use crate::render::ground::{GroundParams, SnowSampling, snow_sampling_wgsl};
     }
     /// `render::params`: what snowpack's app, tools and tests use of it.
     pub mod params {
-        pub use crate::render::params::{DebugView, LightParams, Material, MaterialPreset, sun_from_angles};
-    }
-    /// `render::sampling`: what snowpack's app, tools and tests use of it.
-    pub mod sampling {
-        pub use crate::render::sampling::SnowWindowUniform;
+        pub use crate::render::params::sun_from_angles;
     }
     /// `render::shell`: what snowpack's app, tools and tests use of it.
     pub mod shell {
-        pub use crate::render::shell::{DetailKind, ShellPatch, ShellSettings};
+        pub use crate::render::shell::{DetailKind, ShellPatch};
         /// `render::shell::count`: what snowpack's app, tools and tests use of it.
         pub mod count {
             pub use crate::render::shell::count::{CountParams, PeelCountPass};
@@ -259,10 +251,7 @@ pub mod render {
 /// Shared snow: mergeable tiles, their clock, the world identity, the wire
 /// messages, peers and relays, and the window's gather and merge passes.
 pub mod replicate {
-    pub use crate::replicate::{
-        CatchUp, Message, NO_STAMP, PeerConfig, RelayConfig, ShareClock, ShareError, SharedSnow, SharedTile, SnowPeer, SnowRelay, WorldIdentity, decode,
-        encode, terrain_identity,
-    };
+    pub use crate::replicate::{CatchUp, Message, NO_STAMP, ShareClock, ShareError, SharedSnow, SharedTile, decode, encode, terrain_identity};
     /// `replicate::flags`: what snowpack's app, tools and tests use of it.
     pub mod flags {
         pub use crate::replicate::flags::ShareGrid;
@@ -289,7 +278,7 @@ pub mod replicate {
     }
     /// `replicate::world`: what snowpack's app, tools and tests use of it.
     pub mod world {
-        pub use crate::replicate::world::{WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain};
+        pub use crate::replicate::world::{WorldSnow, WorldSnowfall, WorldTerrain};
     }
 }
 
@@ -320,7 +309,7 @@ pub mod skin {
     }
     /// `skin::skinning`: what snowpack's app, tools and tests use of it.
     pub mod skinning {
-        pub use crate::skin::skinning::{SkinnedMesh, SkinningParams, SkinningPass};
+        pub use crate::skin::skinning::{SkinningParams, SkinningPass};
     }
 }
 
@@ -339,7 +328,7 @@ pub mod snow {
 
 /// Terrain sources and their evaluation.
 pub mod terrain {
-    pub use crate::terrain::{HEIGHTMAP_MAX_SIDE, TerrainSource, draw_from_above, texel_ground};
+    pub use crate::terrain::{HEIGHTMAP_MAX_SIDE, draw_from_above, texel_ground};
 }
 
 /// The resident tiles around the window and their passes.

@@ -6,8 +6,8 @@ use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
-use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::{GpuContext, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{ObjectShape, SnowObject, Snowfall};
 use snowpack_testkit::testing;
 
 const EXTENT_M: f32 = 16.0;

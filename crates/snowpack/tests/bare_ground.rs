@@ -3,9 +3,9 @@
 //! the snowfall's rate, and a deformer pressing into it leaves bare ground.
 
 use glam::{DVec2, Vec3};
+use snowpack::Snowfall;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowWindowUniformExt;
-use snowpack::low_level::accumulate::Snowfall;
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::snow_word;
@@ -222,8 +222,7 @@ fn snowfall_on_bare_ground_shows_no_square_at_the_window_edge() {
     let edge = snow.origin_m().expect("placed").x as f32 + 16.0;
     let sky = EnvironmentMap::from_hdr(include_bytes!("../../../assets/spiaggia_di_mondello_1k.hdr")).expect("sky");
     let mut renderer =
-        Renderer::new(ctx, &snow, &sky, RenderParams { shadow_map_size: 512, ..RenderParams::default() }, snowpack::low_level::render::IMAGE_FORMAT)
-            .expect("renderer");
+        Renderer::new(ctx, &snow, &sky, RenderParams { shadow_map_size: 512, ..RenderParams::default() }, snowpack::IMAGE_FORMAT).expect("renderer");
     let camera = Camera { position: Vec3::new(edge, GROUND_M + 6.0, -0.01), target: Vec3::new(edge, GROUND_M, 0.0), fov_deg: 50.0 };
     let (w, h) = (256_u32, 160_u32);
     let rgba = renderer.render_image(ctx, &snow, &[], &camera, (w, h)).expect("frame");
@@ -247,6 +246,6 @@ fn snowfall_on_bare_ground_shows_no_square_at_the_window_edge() {
     // sampling module use outside is what the window holds inside.
     let inside = snow.read_snow(ctx).expect("snow");
     let rest_inside = inside[128 * 256 + 255];
-    let outside = snowpack::low_level::render::sampling::SnowWindowUniform::new(&snow);
+    let outside = snowpack::SnowWindowUniform::new(&snow);
     assert!((GROUND_M + outside.rest_depth_m() - rest_inside).abs() < 1e-3, "rest outside {} against {rest_inside} inside", GROUND_M + outside.rest_depth_m());
 }

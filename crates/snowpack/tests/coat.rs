@@ -5,14 +5,15 @@
 //! roof, and melting and running lose it at the set rates.
 
 use glam::{DVec2, Mat4, Quat, Vec3};
+use snowpack::SkinnedMesh;
 use snowpack::low_level::SkinnedMeshExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::accumulate::{ObjectShape, SnowObject, Snowfall};
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::{GpuTimer, read_buffer};
 use snowpack::low_level::skin::coat::{CoatGround, SnowCoatParams, SnowCoatPass};
-use snowpack::low_level::skin::skinning::{SkinnedMesh, SkinningPass};
+use snowpack::low_level::skin::skinning::SkinningPass;
 use snowpack::{CoatSettings, Deformer, GpuContext, NoiseTerrain, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack::{ObjectShape, SnowObject, Snowfall};
 use snowpack_testkit::cpu;
 use snowpack_testkit::cpu::snow_coat::CoatGroundData;
 use snowpack_testkit::testing::{self, Rng};

@@ -5,11 +5,10 @@ use glam::{DVec2, Mat4, Vec2, Vec3, Vec4};
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::render::ground::{
-    GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowSampling, SnowWindowUniform, snow_sampling_wgsl,
-};
+use snowpack::low_level::render::ground::{SnowSampling, snow_sampling_wgsl};
 use snowpack::low_level::{SnowGroundDescriptorExt, SnowWindowUniformExt};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{GroundCamera, SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowGround, SnowGroundDescriptor, SnowWindowUniform};
 use snowpack_testkit::cpu::snow_sampling::SampledSurface;
 use snowpack_testkit::testing::{self, Rng};
 

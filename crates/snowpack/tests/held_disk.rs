@@ -16,8 +16,9 @@ use glam::DVec2;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::error::SnowError;
-use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer};
+use snowpack::low_level::persist::{SnowClock, StoreError, TileData, TileKey, TileLookup};
 use snowpack::{SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack_testkit::testing::{self, HeldDisk};
 
 const SIDE: u32 = 16;

@@ -17,8 +17,9 @@ use std::time::{Duration, Instant};
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::error::SnowError;
-use snowpack::low_level::persist::{StoreConfig, StoreError, StreamerConfig, TileStore, TileStreamer};
+use snowpack::low_level::persist::StoreError;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack_testkit::testing::{self, HeldDisk};
 
 /// Tiles of 1 m (16 texels of 1/16 m); the window is 4 m, 4×4 tiles.

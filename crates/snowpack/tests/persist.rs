@@ -10,7 +10,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use snowpack::low_level::TileStreamerExt;
-use snowpack::low_level::persist::{SnowClock, StoreConfig, StoreError, StreamerConfig, TileData, TileKey, TileLookup, TileStore, TileStreamer, encode};
+use snowpack::low_level::persist::{SnowClock, StoreError, TileData, TileKey, TileLookup, encode};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack_testkit::testing::{self, Rng};
 
 /// Set (to a store directory) when the test binary runs as the writer child.

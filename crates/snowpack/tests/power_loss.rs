@@ -8,7 +8,8 @@ use snowpack::low_level::TileStoreExt;
 use std::path::Path;
 use std::sync::Arc;
 
-use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore};
+use snowpack::low_level::persist::{SnowClock, TileData, TileKey};
+use snowpack::{StoreConfig, TileStore};
 use snowpack_testkit::testing::{self, PowerLossDisk, Rng, Unsynced};
 
 const SIDE: u32 = 16;

@@ -17,8 +17,9 @@ use std::time::Duration;
 
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileData, TileKey, TileStore, TileStreamer};
+use snowpack::low_level::persist::{TileData, TileKey};
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowError, SnowParams, TerrainSource};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack_testkit::testing::{self, PowerLossDisk, Rng, Unsynced};
 
 const SIDE: u32 = 16;

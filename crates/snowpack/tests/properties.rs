@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec2;
 use proptest::prelude::*;
-use snowpack::low_level::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
+use snowpack::low_level::persist::{SnowClock, TileData, TileKey, decode, encode};
 use snowpack::low_level::snow::saved::SavedWindow;
+use snowpack::{StoreConfig, TileStore};
 
 /// Bit patterns, so NaNs and signed zeros compare as stored.
 fn tile_bits(t: &TileData) -> (TileKey, u32, [u64; 4], Vec<u32>, Vec<u32>, Vec<u32>) {

@@ -3,10 +3,10 @@
 //! them.
 
 use glam::{DVec2, Vec2, Vec3};
+use snowpack::Snowfall;
 use snowpack::low_level::GpuContextExt;
 use snowpack::low_level::QueryStatsExt;
 use snowpack::low_level::SnowInspect;
-use snowpack::low_level::accumulate::Snowfall;
 use snowpack::low_level::deform::query::QueryParams;
 use snowpack::low_level::gpu::{ReadbackRing, read_buffer};
 use snowpack::{Deformer, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};

@@ -16,8 +16,8 @@ use std::path::PathBuf;
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::render::params::sun_from_angles;
-use snowpack::low_level::render::{IMAGE_FORMAT, LightParams};
 use snowpack::{Camera, Deformer, EnvironmentMap, GpuContext, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, Technique, TerrainSource};
+use snowpack::{IMAGE_FORMAT, LightParams};
 use snowpack_testkit::testing::{self, Rng};
 
 /// Frame size of every reference (small: the suite runs on a software rasteriser).

@@ -8,8 +8,8 @@ use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
 use snowpack::low_level::render::ao::{AoParams, AoPass};
 use snowpack::low_level::render::environment::{self, EnvironmentPass};
-use snowpack::low_level::render::{DebugView, IMAGE_FORMAT};
 use snowpack::{Camera, Deformer, EnvironmentMap, NoiseTerrain, RenderParams, Renderer, SnowDeformation, SnowParams, TerrainSource};
+use snowpack::{DebugView, IMAGE_FORMAT};
 use snowpack_testkit::cpu;
 use snowpack_testkit::testing::{self, Rng};
 

@@ -574,7 +574,8 @@ fn a_world_found_without_a_gpu_is_the_windows() {
 /// plain numbers, for flat and noise terrain, with and without snowfall.
 #[test]
 fn a_world_made_from_plain_numbers_is_the_librarys() {
-    use snowpack::low_level::replicate::world::{WorldIdentity, WorldSnow, WorldSnowfall, WorldTerrain};
+    use snowpack::WorldIdentity;
+    use snowpack::low_level::replicate::world::{WorldSnow, WorldSnowfall, WorldTerrain};
     let noise = NoiseTerrain { seed: 7, base_m: 0.3, amplitude_m: -1.5, wavelength_m: 9.0 };
     let terrains = [
         (TerrainSource::Flat { height_m: 0.0 }, WorldTerrain::flat(0.0)),

@@ -7,8 +7,9 @@
 use glam::{DVec2, Vec3};
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::persist::TileKey;
-use snowpack::low_level::replicate::{PeerConfig, RelayConfig, SharedSnow, SnowPeer, SnowRelay};
+use snowpack::low_level::replicate::SharedSnow;
 use snowpack::{Deformer, GpuContext, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay};
 use snowpack_testkit::testing::{self, Rng};
 
 /// Texels per tile side.

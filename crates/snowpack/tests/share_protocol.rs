@@ -7,11 +7,11 @@ use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
-use snowpack::low_level::persist::{StoreConfig, TileKey, TileStore};
+use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
-use snowpack::low_level::replicate::{
-    CatchUp, Message, NO_STAMP, PeerConfig, RelayConfig, ShareClock, ShareError, SharedSnow, SharedTile, SnowPeer, SnowRelay, WorldIdentity, decode, encode,
-};
+use snowpack::low_level::replicate::{CatchUp, Message, NO_STAMP, ShareClock, ShareError, SharedSnow, SharedTile, decode, encode};
+use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
+use snowpack::{StoreConfig, TileStore};
 use snowpack_testkit::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers

@@ -6,13 +6,13 @@
 use std::collections::{BTreeSet, HashMap};
 
 use glam::{DVec2, DVec3, Vec3};
+use snowpack::IMAGE_FORMAT;
+use snowpack::ShellSettings;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::deform::resources::TerrainParams;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::render::IMAGE_FORMAT;
-use snowpack::low_level::render::shell::ShellSettings;
 use snowpack::low_level::render::shell::count::PeelCountPass;
 use snowpack::low_level::render::shell::tetrahedra::{MAX_SHAPE_RATIO, ShellTetraPass, Tetra, TetraParams};
 use snowpack::low_level::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams, ShellVertexPass, SnowSurface};

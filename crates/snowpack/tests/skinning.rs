@@ -1,10 +1,11 @@
 //! The skinning pass against its CPU twin on random meshes and poses.
 
 use glam::{Mat4, Quat, Vec3};
+use snowpack::SkinnedMesh;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::skin::skinning::{SkinnedMesh, SkinningPass};
+use snowpack::low_level::skin::skinning::SkinningPass;
 use snowpack_testkit::cpu;
 use snowpack_testkit::testing::{self, Rng};
 

@@ -14,13 +14,13 @@ use snowpack::low_level::deform::window::SlidingWindow;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
-use snowpack::low_level::persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack::low_level::tiles::exchange::{ExchangeParams, ExchangePass};
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams, TileRestorePass};
 use snowpack::low_level::tiles::seal::{SealParams, TileSealPass};
 use snowpack::low_level::tiles::streaming::{PLANES, TileGrid, plane_packed, plane_stamps, planes};
 use snowpack::low_level::tiles::weather::{TileWeatherPass, WeatherParams};
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowFrame, SnowParams, TerrainSource};
+use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
 use snowpack_testkit::cpu;
 use snowpack_testkit::testing::{self, Rng};
 
@@ -78,7 +78,7 @@ fn exchange_matches_cpu() {
         // The short move with a footprint buffer (points) and snowfall (three
         // planes a slot), the jump without either (depth: snow only).
         let technique = if jump { snowpack::Technique::Depth } else { snowpack::Technique::Points };
-        let snowfall = (!jump).then(snowpack::low_level::accumulate::Snowfall::default);
+        let snowfall = (!jump).then(snowpack::Snowfall::default);
         let params = SnowParams { extent_m: 8.0, resolution, snowfall, technique, ..SnowParams::default() };
         let use_fallen = !jump;
         // Flat at a random height (the rest height the snow words are below).
@@ -637,7 +637,7 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     let Some(ctx) = testing::gpu() else { return };
     let dir = temp_dir("snowfall");
     let rate = 0.1;
-    let snowfall = snowpack::low_level::accumulate::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::low_level::accumulate::Snowfall::default() };
+    let snowfall = snowpack::Snowfall { rate_m_per_s: 0.0, max_m: 1.0, ..snowpack::Snowfall::default() };
     let params =
         SnowParams { extent_m: 4.0, resolution: 64, depth_m: 0.5, blur: false, elevation: 0.0, snowfall: Some(snowfall.clone()), ..SnowParams::default() };
     let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO).expect("window");
@@ -646,7 +646,7 @@ fn snow_that_fell_while_away_is_on_the_trail_when_the_window_returns() {
     let before = d.read_snow(ctx).expect("snow");
     // It snows only while the window is away.
     let t0 = d.clock().time_s;
-    d.set_snowfall(Some(snowpack::low_level::accumulate::Snowfall { rate_m_per_s: rate, ..snowfall.clone() })).expect("snowfall");
+    d.set_snowfall(Some(snowpack::Snowfall { rate_m_per_s: rate, ..snowfall.clone() })).expect("snowfall");
     walk(ctx, &mut d, DVec2::ZERO, DVec2::new(20.0, 0.0), 0.5);
     d.set_snowfall(Some(snowfall)).expect("snowfall stops");
     let snowed = rate * (d.clock().time_s - t0) as f32;

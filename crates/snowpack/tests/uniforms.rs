@@ -14,7 +14,7 @@ use snowpack::low_level::deform::window::WindowParams;
 use snowpack::low_level::render::ao::AoParams;
 use snowpack::low_level::render::environment::EnvParams;
 use snowpack::low_level::render::frame::FrameUniforms;
-use snowpack::low_level::render::ground::{GroundCamera, GroundParams, SnowWindowUniform};
+use snowpack::low_level::render::ground::GroundParams;
 use snowpack::low_level::render::shell::count::CountParams;
 use snowpack::low_level::render::shell::peel::{PeelParams, ShellDrawParams};
 use snowpack::low_level::render::shell::tetrahedra::{Tetra, TetraParams};
@@ -29,6 +29,7 @@ use snowpack::low_level::tiles::exchange::ExchangeParams;
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams};
 use snowpack::low_level::tiles::seal::SealParams;
 use snowpack::low_level::tiles::weather::WeatherParams;
+use snowpack::{GroundCamera, SnowWindowUniform};
 
 /// Size naga gives the uniform global `name` in `source`.
 fn wgsl_uniform_size(source: &str, name: &str) -> u32 {

@@ -7,7 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec2;
-use snowpack::low_level::accumulate::{AtlasLayout, Snowfall};
+use snowpack::Snowfall;
+use snowpack::low_level::accumulate::AtlasLayout;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureParams};
 use snowpack::low_level::{DeformerExt, SnowParamsExt};
 use snowpack_scene::{Scene, SceneError, WindowSpec, World};

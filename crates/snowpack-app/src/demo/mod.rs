@@ -17,8 +17,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use glam::{Vec2, Vec3};
+use snowpack::DebugView;
 use snowpack::low_level::gpu::readback::TextureReadback;
-use snowpack::low_level::render::DebugView;
 use snowpack::{AdapterRequest, GpuContext, Technique};
 use snowpack_scene::Scene;
 use winit::application::ApplicationHandler;

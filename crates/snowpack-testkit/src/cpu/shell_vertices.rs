@@ -1,7 +1,7 @@
 //! CPU twin of `shaders/shell_vertices.wgsl`: the base surface and its offset copy.
 
+use snowpack::TerrainSource;
 use snowpack::low_level::render::shell::vertices::{BaseVertex, ShellVertex, ShellVertexParams};
-use snowpack::low_level::terrain::TerrainSource;
 
 /// cos and sin of the texture's turn against the world axes (0.5 rad), as in the shader.
 const TILE_COS: f32 = 0.877_582_56;

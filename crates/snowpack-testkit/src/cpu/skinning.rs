@@ -3,7 +3,7 @@
 
 use glam::{Mat4, Vec3};
 
-use snowpack::low_level::skin::skinning::SkinnedMesh;
+use snowpack::SkinnedMesh;
 
 /// World positions of `mesh`'s vertices for joint matrices `joints` and placement `model`.
 #[must_use]

@@ -5,9 +5,9 @@
 
 use glam::{Vec2, Vec3};
 
+use snowpack::SnowWindowUniform;
 use snowpack::TerrainSource;
 use snowpack::low_level::SnowWindowUniformExt;
-use snowpack::low_level::render::sampling::SnowWindowUniform;
 
 /// A read-back displayed surface and where it lies.
 #[derive(Clone, Copy, Debug)]

@@ -6,8 +6,9 @@
 use snowpack_share::replicate::WorldIdentityExt;
 use std::collections::BTreeSet;
 
+use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
-use snowpack::low_level::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile, WorldIdentity};
+use snowpack::low_level::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile};
 
 /// Tiles ahead of the snow's clock kept until it reaches them; beyond it
 /// the oldest are dropped.

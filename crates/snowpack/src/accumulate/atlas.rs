@@ -214,7 +214,7 @@ fn shelf_pack(sizes: &[[u32; 2]], res: u32) -> Option<Vec<[u32; 2]>> {
 
 impl AtlasLayout {
     /// Lays out `objects` in an atlas of `resolution` texels per side, no finer
-    /// than [`TEXELS_PER_PIXEL`] texels per occlusion pixel of `pixel_m`.
+    /// than `TEXELS_PER_PIXEL` texels per occlusion pixel of `pixel_m`.
     pub fn new(objects: &[SnowObject], resolution: u32, pixel_m: f32) -> Result<Self, SnowError> {
         let maps: Vec<(u32, ChartMap)> =
             objects.iter().enumerate().flat_map(|(k, o)| object_charts(&o.shape).into_iter().map(move |m| (k as u32, m))).collect();

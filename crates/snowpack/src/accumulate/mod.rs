@@ -47,10 +47,6 @@ pub use settle::{SettleParams, SettlePass};
 pub use state::{ObjectStats, SnowAccumulation};
 pub use surface::{AtlasSurfacePass, SurfaceParams};
 
-/// The snowfall settings the accumulation passes take (defined beside the
-/// ground's use of them, in `crate::snowfall`).
-pub use crate::snowfall::Snowfall;
-
 /// The shape of an accumulation object.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ObjectShape {

@@ -97,7 +97,7 @@ pub struct SnowAccumulation {
     objects: Vec<SnowObject>,
     layout: AtlasLayout,
     bake: AtlasBake,
-    /// Every object's mesh ([`super::ObjectVertex`]), for the occlusion and for drawing.
+    /// Every object's mesh (`super::ObjectVertex`), for the occlusion and for drawing.
     pub vertices: wgpu::Buffer,
     /// Triangle indices into `vertices`.
     pub indices: wgpu::Buffer,

@@ -87,7 +87,7 @@ pub struct CaptureMesh<'a> {
 }
 
 /// A world-space mesh with the positions its vertices had last frame: drawn
-/// at `steps` sub-steps between them (see [`crate::deform::sweep`]), plus
+/// at `steps` sub-steps between them (see `crate::deform::sweep`), plus
 /// this frame's pose.
 #[derive(Clone, Copy, Debug)]
 pub struct SweptMesh<'a> {
@@ -108,7 +108,7 @@ impl CaptureInstances {
     }
 
     /// Like [`Self::new`], sweeping deformer k from `previous[k]` where it is
-    /// `Some` (see [`crate::deform::sweep::DeformerHistory::sweeps`]): spheres
+    /// `Some` (see `crate::deform::sweep::DeformerHistory::sweeps`): spheres
     /// as capsules, boxes in sub-steps.
     #[must_use]
     pub fn swept(deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &CaptureParams) -> Self {

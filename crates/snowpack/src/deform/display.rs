@@ -38,7 +38,7 @@ pub struct DisplayParams {
     /// Snowfall so far on open ground (m): lying snow beyond it is a berm
     /// (displacement), shown as it is above the remapped undisturbed depth.
     pub open_fallen_m: f32,
-    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// `origin` wrapped into the storage (`super::window::storage_origin`):
     /// [`DisplayPass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],

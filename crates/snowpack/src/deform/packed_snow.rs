@@ -51,7 +51,7 @@ impl LedgerCounts {
     }
 }
 
-/// The ledger's counts in the packed buffer's last [`COUNT_WORDS`] words
+/// The ledger's counts in the packed buffer's last `COUNT_WORDS` words
 /// (zeros for a buffer too short to hold them).
 #[must_use]
 pub fn ledger(buffer: &[u32]) -> LedgerCounts {

@@ -24,7 +24,7 @@ pub type Pusher = [[f32; 4]; 2];
 pub const NO_PUSHER: Pusher = [[0.0; 4], [-1.0e9, -1.0e9, 0.0, 0.0]];
 
 /// The pushers of this frame's `deformers` swept from `previous` (the
-/// boxes that moved across the ground, at most [`MOST_PUSHERS`]), relative
+/// boxes that moved across the ground, at most `MOST_PUSHERS`), relative
 /// to the window's corner (world x, z), with `texel_m` texels.
 #[must_use]
 pub fn pushers(deformers: &[Deformer], previous: &[Option<Deformer>], corner: DVec2, texel_m: f32) -> [Pusher; MOST_PUSHERS] {

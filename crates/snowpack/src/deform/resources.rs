@@ -31,7 +31,7 @@ pub struct DeformResources {
     pub resolution: u32,
     /// Texel size (m).
     pub texel_m: f32,
-    /// The snow words, toroidal ([`super::snow_word`]): persistent snow and displayed height.
+    /// The snow words, toroidal (`super::snow_word`): persistent snow and displayed height.
     pub snow: wgpu::Buffer,
     /// Packed footprints (height16 << 16 | foot16) per texel, toroidal;
     /// persistent. Allocated for the points and combined techniques (at
@@ -41,7 +41,7 @@ pub struct DeformResources {
     /// Snowfall so far above the rest depth per texel (m), toroidal; persistent.
     pub fallen: wgpu::Buffer,
     /// Packed snow, 16 bits a texel, two a word, toroidal; persistent
-    /// ([`super::packed_snow`]). Zero (fresh snow) where the window pass or
+    /// (`super::packed_snow`). Zero (fresh snow) where the window pass or
     /// a load writes a texel. Its last two words count the snow quanta
     /// displaced beyond the final density (a u64, low word first), written
     /// by the passes that press and read by the mass ledger.

@@ -42,7 +42,7 @@ pub struct StampParams {
     pub high_m: f32,
     /// Points to stamp.
     pub count: u32,
-    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// `origin` wrapped into the storage (`super::window::storage_origin`):
     /// [`StampPass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],
@@ -79,7 +79,7 @@ fn contact(d: &Deformer) -> Option<(glam::Vec3, f32, f32)> {
 /// `[x, foot, z, scale, x0, foot0, z0, 0]`: window-local x, foot height and
 /// window-local z now, then where the point was swept from (`previous[k]`
 /// for deformer k where it is `Some`, see
-/// [`crate::deform::sweep::DeformerHistory::sweeps`]; otherwise the same
+/// `crate::deform::sweep::DeformerHistory::sweeps`; otherwise the same
 /// point). Points whose foot stays above `high_m` (above any snow) are
 /// dropped.
 #[must_use]

@@ -43,7 +43,7 @@ pub struct UpdateParams {
     pub texel_m: f32,
     /// The sky test against the objects' occlusion depth (with [`Self::USE_SKY`]).
     pub sky: SkyTest,
-    /// `origin` wrapped into the storage ([`super::window::storage_origin`]):
+    /// `origin` wrapped into the storage (`super::window::storage_origin`):
     /// [`UpdatePass::record`] writes it from `origin` and `resolution`, so
     /// the value given here is not used.
     pub storage_origin: [u32; 2],
@@ -63,7 +63,7 @@ pub struct UpdateParams {
     pub open_fallen_m: f32,
     /// Padding: the pushers start on a 16-byte boundary.
     pub _pad: u32,
-    /// The boxes that push snow this frame, which way ([`super::push`];
+    /// The boxes that push snow this frame, which way (`super::push`;
     /// with [`Self::DISPLACE`]).
     pub pushers: [super::push::Pusher; super::push::MOST_PUSHERS],
 }
@@ -87,7 +87,7 @@ impl UpdateParams {
     /// [`Self::USE_STAMPS`]). Without it `stamps` is a 4-byte stand-in, never read.
     pub const HAS_STAMPS: u32 = 16;
     /// Shared snow: flag the tile of every texel whose deficit a press
-    /// raised (`res.share_flags`, [`crate::replicate::flags`]).
+    /// raised (`res.share_flags`, `crate::replicate::flags`).
     pub const SHARE: u32 = 32;
     /// Footprints refill this frame (`refill_quanta > 0`): set by
     /// [`UpdatePass::record`] so that no branch of the shader tests a
@@ -96,7 +96,7 @@ impl UpdateParams {
     pub const REFILLS: u32 = 64;
     /// Snow beyond the final density where the actors press moves aside:
     /// the move goes into the upper half of the snow word for the displace
-    /// pass ([`super::displace`]). Needs [`Self::USE_CAPTURE`].
+    /// pass (`super::displace`). Needs [`Self::USE_CAPTURE`].
     pub const DISPLACE: u32 = 128;
     /// With [`Self::DISPLACE`] and not sharing: a press on a berm lowers
     /// its lying snow and the deficit together (the surface and the mass

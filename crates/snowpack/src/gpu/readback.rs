@@ -270,7 +270,7 @@ pub fn read_buffer(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> Result<Vec
     ctx.guarded(|| map_blocking(ctx, &copy_to_staging(ctx, buffer)))
 }
 
-/// [`read_buffer`] without blocking (see [`MappedRead`]).
+/// [`read_buffer`] without blocking (see `MappedRead`).
 pub fn read_buffer_async(ctx: &crate::GpuContext, buffer: &wgpu::Buffer) -> MappedRead {
     MappedRead::new(&ctx.device, copy_to_staging(ctx, buffer))
 }
@@ -418,7 +418,7 @@ impl TextureReadback {
     }
 
     /// [`Self::read`] without blocking: the texels once the copy is back
-    /// (see [`MappedRead`]); what the browser build reads its frames with.
+    /// (see `MappedRead`); what the browser build reads its frames with.
     pub fn read_async(self, ctx: &crate::GpuContext) -> impl std::future::Future<Output = Result<Vec<u8>, crate::error::SnowError>> + 'static {
         let mapped = MappedRead::new(&ctx.device, self.staging.clone());
         async move { Ok(self.unpad(&mapped.await?)) }

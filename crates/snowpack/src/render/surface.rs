@@ -31,7 +31,7 @@ pub struct UnpackParams {
     pub resolution: u32,
     /// Texel size (m).
     pub texel_m: f32,
-    /// `origin` wrapped into the storage ([`crate::deform::window::storage_origin`]).
+    /// `origin` wrapped into the storage (`crate::deform::window::storage_origin`).
     pub storage_origin: [u32; 2],
     /// `ρmax / ρ0 − 1`: the most packed snow a metre of column holds
     /// ([`crate::mechanics::SnowMechanics::pack_ratio`]).

@@ -84,7 +84,7 @@ impl TileMergeParams {
 /// `tiles` (of one side, distinct keys) packed as the passes take them
 /// (the packed snow in the deficit word's high half): a plane a tile lacks
 /// is the merge's identity. A tile without packed snow merges as a press
-/// (its key's [`CARRIES_PACKED`] bit unset, [`carries_packed`]).
+/// (its key's `CARRIES_PACKED` bit unset, [`carries_packed`]).
 #[must_use]
 pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
     let mut out = Vec::new();
@@ -111,7 +111,7 @@ pub fn pack_tiles(tiles: &[&SharedTile]) -> Vec<u32> {
 /// deficit's), where a tile without it packs the raised deficit as a press.
 pub const CARRIES_PACKED: i32 = 1;
 
-/// The last field of `t`'s merge key: [`CARRIES_PACKED`] or 0.
+/// The last field of `t`'s merge key: `CARRIES_PACKED` or 0.
 #[must_use]
 pub fn carries_packed(t: &SharedTile) -> i32 {
     if t.packed.len() == t.texels() { CARRIES_PACKED } else { 0 }

@@ -175,21 +175,21 @@ pub trait SnowInspect {
     /// transparent before the decals technique's first frame.
     fn read_decals(&self, ctx: &GpuContext) -> Result<Vec<[u8; 4]>, SnowError>;
 
-    /// The snow words ([`crate::deform::snow_word`]), window-local row-major (row i
+    /// The snow words (`crate::deform::snow_word`), window-local row-major (row i
     /// = +z); blocking. [`Self::read_snow`] and [`Self::read_surface`]
     /// decode them.
     fn read_snow_words(&self, ctx: &GpuContext) -> Result<Vec<u32>, SnowError>;
 
     /// [`Self::read_snow_words`] without blocking: the words as the GPU has
     /// them once the frames submitted so far are done (the browser build's
-    /// path; see [`crate::gpu::readback::MappedRead`]).
+    /// path; see `crate::gpu::readback::MappedRead`).
     fn read_snow_words_async(&self, ctx: &GpuContext) -> impl std::future::Future<Output = Result<Vec<u32>, SnowError>> + 'static;
 
     /// Persistent snow height (m), window-local row-major (row i = +z); blocking.
     fn read_snow(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError>;
 
     /// Packed snow per texel (m of fresh snow that presses squeezed into the
-    /// column, [`crate::deform::packed_snow`]), window-local row-major; blocking.
+    /// column, `crate::deform::packed_snow`), window-local row-major; blocking.
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError>;
 
     /// The window's snow mass (`docs/mechanics.md`): what it holds now and

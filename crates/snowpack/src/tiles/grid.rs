@@ -43,7 +43,7 @@ impl TileGrid {
     }
 
     /// Side of the toroidal key table: every resident tile lies within
-    /// [`PREFETCH_MARGIN_TILES`] tiles of the window, a span of at most
+    /// `PREFETCH_MARGIN_TILES` tiles of the window, a span of at most
     /// `resolution/side + 1 + 2·margin` tiles, one less than this, so no two
     /// resident tiles share an entry.
     #[must_use]
@@ -54,7 +54,7 @@ impl TileGrid {
     /// Slots in the pool: the most tiles an unaligned window partly covers
     /// (its edge tiles, `4(n+1) − 4` with `n = resolution/side`), the tiles a
     /// one-tile diagonal step leaves behind and that keep texels stashed in
-    /// that move (`2(n+1) − 1`), and [`SPARE_SLOTS`] for tiles near the window
+    /// that move (`2(n+1) − 1`), and `SPARE_SLOTS` for tiles near the window
     /// (prefetched, or recently left: a window jittering across a tile
     /// boundary keeps them). 225 at 1024/32.
     #[must_use]

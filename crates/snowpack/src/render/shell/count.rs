@@ -53,7 +53,7 @@ impl PeelCountPass {
     }
 
     /// Records the count of pass `pass_index` over a `size` target (nothing
-    /// for an index past [`MAX_PASSES`]).
+    /// for an index past `MAX_PASSES`).
     pub fn record(&self, cx: &mut FrameContext<'_>, pass_index: u32, size: (u32, u32)) {
         let Some(pass) = self.passes.get(pass_index as usize) else { return };
         let p = CountParams { pass_index, width: size.0, height: size.1, _pad: 0 };
