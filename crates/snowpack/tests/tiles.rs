@@ -852,6 +852,29 @@ fn step_paced(ctx: &GpuContext, d: &mut SnowDeformation) {
     std::thread::sleep(std::time::Duration::from_millis(16));
 }
 
+/// A window at home over a disk store in `dir` (about `memory_tiles` tiles
+/// kept in memory), preloaded, with a trail pressed: the window and its snow.
+fn trail_at_home(ctx: &GpuContext, dir: &Path, memory_tiles: usize) -> (SnowDeformation, Vec<f32>) {
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    assert!(!d.attach_store(ctx, streamer(dir, memory_tiles)).expect("attach"));
+    d.preload(ctx).expect("preload");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    assert!(deepest_press(&before, &[0.0; 64 * 64], 0.5) > 0.2, "no trail was pressed");
+    (d, before)
+}
+
+/// After a jump away and back: the snow is `before`, bit for bit, and no
+/// store error came; the store in `dir` is removed.
+fn the_trail_is_back(ctx: &GpuContext, mut d: SnowDeformation, before: &[f32], dir: &Path) {
+    let after = d.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the jump away and back");
+    assert!(d.take_store_errors().is_empty());
+    drop(d);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 /// The loading screen's explicit wait (`SnowDeformation::preload`): after
 /// it, a 500 m jump away and back each take exactly one frame, with no
 /// frame holding for the disk (`window_waits`), waiting for the GPU or
@@ -860,15 +883,10 @@ fn step_paced(ctx: &GpuContext, d: &mut SnowDeformation) {
 fn a_preloaded_jump_moves_in_one_frame_and_waits_for_nothing() {
     let Some(ctx) = testing::gpu() else { return };
     let dir = temp_dir("preload");
-    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
     // A memory budget that holds the window's 16 tiles: under it the tiles
     // just copied out go to the disk and back, and a preload can lose the
-    // first of them to the last before the frame (the jump test above).
-    assert!(!d.attach_store(ctx, streamer(&dir, 64)).expect("attach"));
-    d.preload(ctx).expect("preload");
-    press_trail(ctx, &mut d, |_, _| 0.0);
-    let before = d.read_snow(ctx).expect("snow");
-    assert!(deepest_press(&before, &[0.0; 64 * 64], 0.5) > 0.2, "no trail was pressed");
+    // first of them to the last before the frame (the jump test below).
+    let (mut d, before) = trail_at_home(ctx, &dir, 64);
     let home = d.origin_texel();
     let texel = f64::from(d.params().texel_m());
     let far = DVec2::new(500.0, -120.0);
@@ -890,12 +908,7 @@ fn a_preloaded_jump_moves_in_one_frame_and_waits_for_nothing() {
     let back = d.tile_stats().expect("stats");
     assert_eq!(back.window_waits, start.window_waits, "a frame held for the disk: {back:?}");
     assert!(back.restored > start.restored, "the trail's tiles were not restored: {back:?}");
-    let after = d.read_snow(ctx).expect("snow");
-    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-    assert_eq!(differ, 0, "{differ} texels changed after the jump away and back");
-    assert!(d.take_store_errors().is_empty());
-    drop(d);
-    let _ = std::fs::remove_dir_all(&dir);
+    the_trail_is_back(ctx, d, &before, &dir);
 }
 
 /// A 500 m jump of the window with a disk store attached, away and back
@@ -915,11 +928,7 @@ fn a_jump_of_500_m_away_and_back_brings_the_trail_back() {
     const JUMP_BACK_FRAMES: u32 = 600;
     let Some(ctx) = testing::gpu() else { return };
     let dir = temp_dir("jump");
-    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
-    assert!(!d.attach_store(ctx, streamer(&dir, 2)).expect("attach"));
-    press_trail(ctx, &mut d, |_, _| 0.0);
-    let before = d.read_snow(ctx).expect("snow");
-    assert!(deepest_press(&before, &[0.0; 64 * 64], 0.5) > 0.2, "no trail was pressed");
+    let (mut d, before) = trail_at_home(ctx, &dir, 2);
     let home = d.origin_texel();
     let start = d.tile_stats().expect("tiles kept");
     let texel = f64::from(d.params().texel_m());
@@ -948,10 +957,5 @@ fn a_jump_of_500_m_away_and_back_brings_the_trail_back() {
     assert_eq!(back.gpu_waits, start.gpu_waits, "a jump waited for the GPU: {back:?}");
     assert_eq!(back.blocking_loads, start.blocking_loads, "a jump waited for the disk: {back:?}");
     assert!(back.restored > away.restored, "the trail's tiles were not restored: {back:?}");
-    let after = d.read_snow(ctx).expect("snow");
-    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-    assert_eq!(differ, 0, "{differ} texels changed after the jump away and back");
-    assert!(d.take_store_errors().is_empty());
-    drop(d);
-    let _ = std::fs::remove_dir_all(&dir);
+    the_trail_is_back(ctx, d, &before, &dir);
 }
