@@ -194,3 +194,9 @@ pub enum MessageError {
     #[error("{0} trailing byte(s) after the message")]
     TrailingBytes(usize),
 }
+
+impl From<crate::bytes::Truncated> for MessageError {
+    fn from(t: crate::bytes::Truncated) -> Self {
+        Self::Truncated { what: t.what, needed: t.needed, left: t.left }
+    }
+}

@@ -32,11 +32,16 @@
 //! | [`mechanics`] | snow with mass: density from compaction, hardness, Bekker's sinkage and resistance |
 //! | [`persist`] | the tile type, its compressed file format, the crash-safe store on disk |
 //! | [`error`] | the errors in detail; the opaque ones at the root |
+//! | `bytes` | the little-endian reader the formats share |
 //!
 //! Feature `low_level` (snowpack's `low_level` turns it on) shows in the
 //! docs what snowpack's app, tools and tests use beyond a game's API, and
 //! adds `testing`'s support for tests.
 
+/// Little-endian fields read in order (the codec's, the wire's and
+/// snowpack's saved state's one reader).
+#[cfg_attr(not(feature = "low_level"), doc(hidden))]
+pub mod bytes;
 pub mod error;
 pub mod mechanics;
 pub mod persist;

@@ -25,6 +25,7 @@
 //! values widened to u32) came with version 2; version 1 files, which lack
 //! it, still read (as fresh snow).
 
+use crate::bytes::{ByteReader, Truncated};
 use std::path::PathBuf;
 
 use super::{MAX_SIDE, SnowClock, StoreError, TileData, TileKey};
@@ -123,18 +124,21 @@ pub fn decode(bytes: &[u8]) -> Result<TileData, StoreError> {
     if bytes.len() < HEADER_BYTES {
         return Err(corrupt(format!("truncated: {} bytes, the header alone is {HEADER_BYTES}", bytes.len())));
     }
-    let mut header = Reader::new(&bytes[MAGIC.len()..HEADER_BYTES]);
-    let version = header.u32();
+    // The header's length is checked above: running out here would be a bug, reported as corruption.
+    let mut h = ByteReader::new(&bytes[MAGIC.len()..HEADER_BYTES]);
+    let short = |t: Truncated| corrupt(t.to_string());
+    let version = h.u32("format version").map_err(short)?;
     if !readable(version) {
         return Err(StoreError::Version { path: PathBuf::new(), found: version, expected: FORMAT_VERSION });
     }
-    let side = header.u32();
-    let key = TileKey { col: header.i64(), row: header.i64() };
-    let clock = SnowClock { time_s: header.f64(), refill_m: header.f64(), fallen_m: header.f64(), stamp_quanta: header.u64() };
-    let flags = header.u32();
-    let raw_len = header.u32() as usize;
-    let packed_len = header.u32() as usize;
-    let crc = header.u32();
+    let side = h.u32("side").map_err(short)?;
+    let key = TileKey { col: h.i64("column").map_err(short)?, row: h.i64("row").map_err(short)? };
+    let (time_s, refill_m, fallen_m) = (h.f64("time").map_err(short)?, h.f64("refill").map_err(short)?, h.f64("fallen").map_err(short)?);
+    let clock = SnowClock { time_s, refill_m, fallen_m, stamp_quanta: h.u64("stamp quanta").map_err(short)? };
+    let flags = h.u32("flags").map_err(short)?;
+    let raw_len = h.u32("raw length").map_err(short)? as usize;
+    let packed_len = h.u32("packed length").map_err(short)? as usize;
+    let crc = h.u32("checksum").map_err(short)?;
 
     if side == 0 || side > MAX_SIDE {
         return Err(corrupt(format!("tile side {side} is outside 1..={MAX_SIDE}")));
@@ -237,44 +241,6 @@ pub(crate) fn shuffle_into(residuals: &[u32], out: &mut Vec<u8>) {
 pub(crate) fn unshuffle(bytes: &[u8]) -> Vec<u32> {
     let n = bytes.len() / 4;
     (0..n).map(|k| u32::from_le_bytes([bytes[k], bytes[n + k], bytes[2 * n + k], bytes[3 * n + k]])).collect()
-}
-
-/// Little-endian fields from a slice known to be long enough.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
-        Self { bytes, at: 0 }
-    }
-
-    fn take<const N: usize>(&mut self) -> [u8; N] {
-        let mut out = [0; N];
-        // The header length is checked before reading; a short slice reads zeros.
-        if let Some(src) = self.bytes.get(self.at..self.at + N) {
-            out.copy_from_slice(src);
-        }
-        self.at += N;
-        out
-    }
-
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.take())
-    }
-
-    fn u64(&mut self) -> u64 {
-        u64::from_le_bytes(self.take())
-    }
-
-    fn i64(&mut self) -> i64 {
-        i64::from_le_bytes(self.take())
-    }
-
-    fn f64(&mut self) -> f64 {
-        f64::from_le_bytes(self.take())
-    }
 }
 
 #[cfg(test)]

@@ -40,6 +40,7 @@
 //! texels of one message by [`MAX_MESSAGE_TEXELS`], so a small message
 //! cannot make the reader allocate much.
 
+use crate::bytes::ByteReader;
 pub use crate::error::MessageError;
 use crate::persist::TileKey;
 use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuffle};
@@ -384,7 +385,7 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
     if bytes.len() > MAX_MESSAGE_BYTES {
         return Err(MessageError::Oversized { bytes: bytes.len(), max: MAX_MESSAGE_BYTES });
     }
-    let mut r = Reader { bytes, at: 0 };
+    let mut r = ByteReader::new(bytes);
     if r.take(MAGIC.len(), "magic")? != MAGIC {
         return Err(MessageError::BadMagic);
     }
@@ -394,14 +395,14 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
     }
     let kind = r.u8("kind")?;
     let message = match kind {
-        1 => Message::Hello { world: read_world(&mut r)?, name: r.text8("name", MAX_NAME_BYTES)? },
+        1 => Message::Hello { world: read_world(&mut r)?, name: text8(&mut r, "name", MAX_NAME_BYTES)? },
         2 => Message::Welcome { peer: r.u32("peer number")?, clock: read_clock(&mut r)? },
         3 => {
             let n = usize::from(r.u8("phrase count")?);
             cap("refusal phrases", n, MAX_REFUSED_PHRASES)?;
             let mut differences = Vec::with_capacity(n);
             for _ in 0..n {
-                differences.push(r.text16("refusal phrase", MAX_PHRASE_BYTES)?);
+                differences.push(text16(&mut r, "refusal phrase", MAX_PHRASE_BYTES)?);
             }
             Message::Refused { differences }
         }
@@ -436,7 +437,7 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
         }
         other => return Err(MessageError::UnknownKind(other)),
     };
-    let left = bytes.len() - r.at;
+    let left = r.left();
     if left > 0 {
         return Err(MessageError::TrailingBytes(left));
     }
@@ -444,7 +445,7 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
 }
 
 /// A `Presence` message's fields.
-fn read_presence(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+fn read_presence(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
     let window = [r.i64("window")?, r.i64("window")?];
     let resolution = r.u32("resolution")?;
     let n = usize::from(r.u16("deformer count")?);
@@ -458,7 +459,7 @@ fn read_presence(r: &mut Reader<'_>) -> Result<Message, MessageError> {
 }
 
 /// A `Tiles` message's fields.
-fn read_tiles(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+fn read_tiles(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
     let seq = r.u64("sequence number")?;
     let n = usize::from(r.u8("tile count")?);
     cap("tiles", n, MAX_TILES)?;
@@ -472,7 +473,7 @@ fn read_tiles(r: &mut Reader<'_>) -> Result<Message, MessageError> {
 }
 
 /// A `Digest` message's fields.
-fn read_digest(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+fn read_digest(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
     let clock = read_clock(r)?;
     let window = [r.i64("window")?, r.i64("window")?];
     let resolution = r.u32("resolution")?;
@@ -487,7 +488,7 @@ fn read_digest(r: &mut Reader<'_>) -> Result<Message, MessageError> {
 }
 
 /// A `Query` message's fields.
-fn read_query(r: &mut Reader<'_>) -> Result<Message, MessageError> {
+fn read_query(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
     let id = r.u32("query id")?;
     let n = usize::from(r.u16("point count")?);
     cap("query points", n, MAX_DEFORMERS)?;
@@ -509,9 +510,9 @@ pub fn encode_world(world: &WorldIdentity) -> Vec<u8> {
 
 /// Decodes [`encode_world`]'s bytes (exactly those, nothing after).
 pub fn decode_world(bytes: &[u8]) -> Result<WorldIdentity, MessageError> {
-    let mut r = Reader { bytes, at: 0 };
+    let mut r = ByteReader::new(bytes);
     let world = read_world(&mut r)?;
-    let left = bytes.len() - r.at;
+    let left = r.left();
     if left > 0 {
         return Err(MessageError::TrailingBytes(left));
     }
@@ -529,7 +530,7 @@ fn write_clock(w: &mut Writer, c: &ShareClock) {
     w.f32(c.fallen_m);
 }
 
-fn read_clock(r: &mut Reader) -> Result<ShareClock, MessageError> {
+fn read_clock(r: &mut ByteReader) -> Result<ShareClock, MessageError> {
     Ok(ShareClock { time_s: r.f64("clock")?, refill_quanta: r.u64("clock")?, stamp_quanta: r.u64("clock")?, fallen_m: r.f32("clock")? })
 }
 
@@ -546,7 +547,7 @@ fn write_world(w: &mut Writer, world: &WorldIdentity) {
     w.text16(&world.settings.terrain, MAX_TERRAIN_BYTES);
 }
 
-fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
+fn read_world(r: &mut ByteReader) -> Result<WorldIdentity, MessageError> {
     let texel_m = r.f32("texel size")?;
     let tile_side = r.u32("tile side")?;
     let depth_m = r.f32("snow depth")?;
@@ -559,7 +560,7 @@ fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
         other => return Err(MessageError::BadValue { what: "snowfall flag", why: format!("{other}, not 0 or 1") }),
     };
     let stamp_range_m = [r.f32("footprint range")?, r.f32("footprint range")?];
-    let terrain = r.text16("terrain", MAX_TERRAIN_BYTES)?;
+    let terrain = text16(r, "terrain", MAX_TERRAIN_BYTES)?;
     Ok(WorldIdentity::from_settings(WorldSettings {
         texel_m,
         tile_side,
@@ -575,7 +576,7 @@ fn read_world(r: &mut Reader) -> Result<WorldIdentity, MessageError> {
 
 /// Reads one tile, adding its texels to `texels` (the message's running
 /// total, capped at [`MAX_MESSAGE_TEXELS`]) before inflating anything.
-fn read_tile(r: &mut Reader, texels: &mut usize) -> Result<SharedTile, MessageError> {
+fn read_tile(r: &mut ByteReader, texels: &mut usize) -> Result<SharedTile, MessageError> {
     let key = TileKey::new(r.i64("tile column")?, r.i64("tile row")?);
     let side = r.u32("tile side")?;
     if !(MIN_TILE_SIDE..=MAX_TILE_SIDE).contains(&side) {
@@ -667,64 +668,25 @@ fn cut(s: &str, max: usize) -> &str {
     &s[..end]
 }
 
-/// Little-endian input that reports what it ran out on.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
+/// A length-prefixed UTF-8 text of at most `max` bytes, its length a `u8`.
+fn text8(r: &mut ByteReader<'_>, what: &'static str, max: usize) -> Result<String, MessageError> {
+    let n = usize::from(r.u8(what)?);
+    text(r, n, what, max)
 }
 
-impl<'a> Reader<'a> {
-    fn need(&self, n: usize, what: &'static str) -> Result<(), MessageError> {
-        let left = self.bytes.len() - self.at;
-        if n > left { Err(MessageError::Truncated { what, needed: n, left }) } else { Ok(()) }
+/// A length-prefixed UTF-8 text of at most `max` bytes, its length a `u16`.
+fn text16(r: &mut ByteReader<'_>, what: &'static str, max: usize) -> Result<String, MessageError> {
+    let n = usize::from(r.u16(what)?);
+    text(r, n, what, max)
+}
+
+/// `n` bytes of UTF-8 text, at most `max`.
+fn text(r: &mut ByteReader<'_>, n: usize, what: &'static str, max: usize) -> Result<String, MessageError> {
+    if n > max {
+        return Err(MessageError::BadValue { what, why: format!("{n} bytes, the most is {max}") });
     }
-    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], MessageError> {
-        self.need(n, what)?;
-        let out = &self.bytes[self.at..self.at + n];
-        self.at += n;
-        Ok(out)
-    }
-    fn array<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], MessageError> {
-        let mut out = [0; N];
-        out.copy_from_slice(self.take(N, what)?);
-        Ok(out)
-    }
-    fn u8(&mut self, what: &'static str) -> Result<u8, MessageError> {
-        Ok(self.array::<1>(what)?[0])
-    }
-    fn u16(&mut self, what: &'static str) -> Result<u16, MessageError> {
-        Ok(u16::from_le_bytes(self.array(what)?))
-    }
-    fn u32(&mut self, what: &'static str) -> Result<u32, MessageError> {
-        Ok(u32::from_le_bytes(self.array(what)?))
-    }
-    fn u64(&mut self, what: &'static str) -> Result<u64, MessageError> {
-        Ok(u64::from_le_bytes(self.array(what)?))
-    }
-    fn i64(&mut self, what: &'static str) -> Result<i64, MessageError> {
-        Ok(i64::from_le_bytes(self.array(what)?))
-    }
-    fn f32(&mut self, what: &'static str) -> Result<f32, MessageError> {
-        Ok(f32::from_bits(self.u32(what)?))
-    }
-    fn f64(&mut self, what: &'static str) -> Result<f64, MessageError> {
-        Ok(f64::from_bits(self.u64(what)?))
-    }
-    fn text8(&mut self, what: &'static str, max: usize) -> Result<String, MessageError> {
-        let n = usize::from(self.u8(what)?);
-        self.text(n, what, max)
-    }
-    fn text16(&mut self, what: &'static str, max: usize) -> Result<String, MessageError> {
-        let n = usize::from(self.u16(what)?);
-        self.text(n, what, max)
-    }
-    fn text(&mut self, n: usize, what: &'static str, max: usize) -> Result<String, MessageError> {
-        if n > max {
-            return Err(MessageError::BadValue { what, why: format!("{n} bytes, the most is {max}") });
-        }
-        let bytes = self.take(n, what)?;
-        String::from_utf8(bytes.to_vec()).map_err(|_| MessageError::BadValue { what, why: "not UTF-8".to_owned() })
-    }
+    let bytes = r.take(n, what)?;
+    String::from_utf8(bytes.to_vec()).map_err(|_| MessageError::BadValue { what, why: "not UTF-8".to_owned() })
 }
 
 #[cfg(test)]

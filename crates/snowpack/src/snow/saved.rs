@@ -3,6 +3,7 @@
 //! it with a magic, a format version and a checksum).
 
 use glam::DVec2;
+use snowpack_share::bytes::{ByteReader, Truncated};
 
 use crate::persist::{SnowClock, StoreError};
 
@@ -66,54 +67,24 @@ impl SavedWindow {
 
     /// Parses [`Self::encode`]'s bytes; `path` names the file in errors.
     pub fn decode(bytes: &[u8], path: &std::path::Path) -> Result<Self, StoreError> {
-        let mut r = Reader { bytes, at: 0, path };
-        let version = r.u32()?;
+        let truncated = |t: Truncated| StoreError::Corrupt { path: path.to_path_buf(), why: format!("the window state is {t}") };
+        let mut r = ByteReader::new(bytes);
+        let version = r.u32("version").map_err(truncated)?;
         if version != STATE_VERSION {
             return Err(StoreError::Version { path: path.to_path_buf(), found: version, expected: STATE_VERSION });
         }
-        let (resolution, tile_side) = (r.u32()?, r.u32()?);
-        let (texel_m, depth_m, low, high) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
-        let origin = [r.u64()? as i64, r.u64()? as i64];
-        let center = DVec2::new(r.f64()?, r.f64()?);
-        let clock = SnowClock { time_s: r.f64()?, refill_m: r.f64()?, fallen_m: r.f64()?, stamp_quanta: r.u64()? };
-        let (fallen_m, stamp_carry_m, frame) = (r.f32()?, r.f32()?, r.u64()?);
+        Self::fields(&mut r).map_err(truncated)
+    }
+
+    /// The fields after the version, in [`Self::encode`]'s order.
+    fn fields(r: &mut ByteReader<'_>) -> Result<Self, Truncated> {
+        let (resolution, tile_side) = (r.u32("resolution")?, r.u32("tile side")?);
+        let (texel_m, depth_m, low, high) = (r.f32("texel")?, r.f32("depth")?, r.f32("footprint low")?, r.f32("footprint high")?);
+        let origin = [r.u64("origin x")? as i64, r.u64("origin z")? as i64];
+        let center = DVec2::new(r.f64("centre x")?, r.f64("centre z")?);
+        let clock = SnowClock { time_s: r.f64("time")?, refill_m: r.f64("refill")?, fallen_m: r.f64("fallen")?, stamp_quanta: r.u64("stamp quanta")? };
+        let (fallen_m, stamp_carry_m, frame) = (r.f32("lying snow")?, r.f32("stamp carry")?, r.u64("frame")?);
         Ok(Self { resolution, tile_side, texel_m, depth_m, stamp_range_m: [low, high], origin, center, clock, fallen_m, stamp_carry_m, frame })
-    }
-}
-
-/// Little-endian fields in order, with a clear error at the end of the bytes.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-    path: &'a std::path::Path,
-}
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> Result<[u8; N], StoreError> {
-        let s = self
-            .bytes
-            .get(self.at..self.at + N)
-            .ok_or_else(|| StoreError::Corrupt { path: self.path.to_path_buf(), why: "the window state is truncated".to_owned() })?;
-        self.at += N;
-        let mut out = [0u8; N];
-        out.copy_from_slice(s);
-        Ok(out)
-    }
-
-    fn u32(&mut self) -> Result<u32, StoreError> {
-        Ok(u32::from_le_bytes(self.take()?))
-    }
-
-    fn f32(&mut self) -> Result<f32, StoreError> {
-        Ok(f32::from_le_bytes(self.take()?))
-    }
-
-    fn u64(&mut self) -> Result<u64, StoreError> {
-        Ok(u64::from_le_bytes(self.take()?))
-    }
-
-    fn f64(&mut self) -> Result<f64, StoreError> {
-        Ok(f64::from_le_bytes(self.take()?))
     }
 }
 
