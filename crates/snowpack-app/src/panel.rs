@@ -10,6 +10,7 @@ use snowpack::low_level::render::params::sun_from_angles;
 use snowpack::low_level::render::shell::DetailKind;
 use snowpack::{DebugView, Material, MaterialPreset};
 use snowpack::{RimStyle, Technique};
+use snowpack_scene::SaveScene;
 
 use crate::camera::{CameraMode, CameraRig};
 use crate::session::{FOX_RUN_M_PER_S, FOX_WALK_M_PER_S, PlayerBody, Session, WindowFollow};

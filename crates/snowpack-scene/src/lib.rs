@@ -14,6 +14,7 @@ mod vehicle;
 mod world;
 
 pub use error::SceneError;
+pub use save::SaveScene;
 pub use scene::{
     ActorSpec, BUILTIN_FOX, BUILTIN_FOX_GLB, BUILTIN_SKY_HDR, CameraSpec, DEFAULT_SCENE, EnvironmentSpec, Gait, GltfActor, Motion, ObjectSpec, Placement,
     RenderSpec, Scene, ShapeSpec, SimSpec, SnowfallSpec, SpawnSpec, StoreKeep, StoreSpec, WindowSpec,

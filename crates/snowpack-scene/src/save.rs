@@ -57,10 +57,21 @@ fn rebase(value: &mut Value, from: &Path, to: &Path) {
     }
 }
 
-impl Scene {
+/// A scene written back as a scene file: the inverse of [`Scene::load`].
+/// A trait beside `Scene`'s one inherent `impl` (parsing, in `scene.rs`),
+/// so the writing lives here without the two files naming each other.
+pub trait SaveScene {
     /// The scene as TOML text for a file at `dest`; parsing it back gives this scene.
     #[must_use]
-    pub fn to_toml(&self, dest: &Path) -> String {
+    fn to_toml(&self, dest: &Path) -> String;
+
+    /// Writes [`Self::to_toml`] to `dest` atomically (a temporary file renamed
+    /// over it), so a failed save leaves the old file whole.
+    fn save(&self, dest: &Path) -> std::io::Result<()>;
+}
+
+impl SaveScene for Scene {
+    fn to_toml(&self, dest: &Path) -> String {
         let mut root = self.source.clone();
         let from = self.path.parent().unwrap_or(Path::new(""));
         let to = dest.parent().unwrap_or(Path::new(""));
@@ -81,7 +92,7 @@ impl Scene {
             }
         }
 
-        root.insert("snow".into(), Value::Table(self.snow_table()));
+        root.insert("snow".into(), Value::Table(snow_table(self)));
 
         if self.spawns.is_empty() {
             root.remove("spawn");
@@ -112,89 +123,87 @@ impl Scene {
         camera.insert("fov_deg".into(), float(self.camera.fov_deg));
         root.insert("camera".into(), Value::Table(camera));
 
-        self.insert_render(&mut root);
+        insert_render(self, &mut root);
 
         let mut text = format!("# snowpack scene, saved from {}\n", self.path.display());
         text.push_str(&toml::to_string(&root).unwrap_or_default());
         text
     }
 
-    /// `[snow]` as the scene now has it.
-    fn snow_table(&self) -> Table {
-        let p = &self.snow;
-        let mut snow = Table::new();
-        snow.insert("extent_m".into(), float(p.extent_m));
-        snow.insert("resolution".into(), Value::Integer(i64::from(p.resolution)));
-        snow.insert("depth_m".into(), float(p.depth_m));
-        snow.insert("technique".into(), Value::String(p.technique.as_str().into()));
-        snow.insert("refill_m_per_s".into(), float(p.refill_m_per_s));
-        snow.insert("elevation".into(), float(p.elevation));
-        snow.insert("blur".into(), Value::Boolean(p.blur));
-        snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
-        snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
-        snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
-        snow.insert("density_kg_m3".into(), float(p.density_kg_m3));
-        snow.insert("max_density_kg_m3".into(), float(p.max_density_kg_m3));
-        if let Some(r) = p.repose_deg {
-            snow.insert("repose_deg".into(), float(r));
-        }
-        if p.displace {
-            snow.insert("displace".into(), Value::Boolean(true));
-        }
-        snow.insert("teleport_m".into(), float(p.teleport_m));
-        snow
-    }
-
-    /// `[light]`, `[render]`, `[material]` and (when on or present) `[shell]` as the scene now has them.
-    fn insert_render(&self, root: &mut Table) {
-        let r = &self.render.params;
-        let mut light = Table::new();
-        if let Some(sun) = r.light.sun_direction {
-            let sun = sun.normalize();
-            let elevation = sun.y.clamp(-1.0, 1.0).asin().to_degrees().clamp(0.5, 90.0);
-            let azimuth = sun.x.atan2(sun.z).to_degrees().rem_euclid(360.0);
-            light.insert("sun_elevation_deg".into(), float(elevation));
-            light.insert("sun_azimuth_deg".into(), float(azimuth));
-        }
-        light.insert("sun_intensity".into(), float(r.light.sun_intensity));
-        light.insert("sky_intensity".into(), float(r.light.sky_intensity));
-        light.insert("exposure_ev".into(), float(r.light.exposure_ev));
-        let environment = match &self.render.environment {
-            EnvironmentSpec::Builtin => Value::String("builtin".into()),
-            EnvironmentSpec::Procedural => Value::String("procedural".into()),
-            EnvironmentSpec::File(path, _) => {
-                let absolute = std::path::absolute(path).unwrap_or_else(|_| path.clone());
-                Value::String(absolute.display().to_string())
-            }
-        };
-        light.insert("environment".into(), environment);
-        root.insert("light".into(), Value::Table(light));
-
-        let mut render = Table::new();
-        render.insert("material".into(), Value::String(r.material.preset.as_str().into()));
-        render.insert("debug_view".into(), Value::String(r.debug_view.as_str().into()));
-        render.insert("view_distance_m".into(), float(r.view_distance_m));
-        render.insert("shadow_distance_m".into(), float(r.shadow_distance_m));
-        render.insert("shadow_map_size".into(), Value::Integer(i64::from(r.shadow_map_size)));
-        render.insert("finest_patch_m".into(), float(r.finest_patch_m));
-        render.insert("patch_quads".into(), Value::Integer(i64::from(r.patch_quads)));
-        render.insert("ao_strength".into(), float(r.ao_strength));
-        root.insert("render".into(), Value::Table(render));
-        root.insert("material".into(), Value::Table(material_table(&r.material)));
-        if r.shell.enabled || root.contains_key("shell") {
-            root.insert("shell".into(), Value::Table(shell_table(&r.shell)));
-        }
-    }
-
-    /// Writes [`Self::to_toml`] to `dest` atomically (a temporary file renamed
-    /// over it), so a failed save leaves the old file whole.
-    pub fn save(&self, dest: &Path) -> std::io::Result<()> {
+    fn save(&self, dest: &Path) -> std::io::Result<()> {
         let text = self.to_toml(dest);
         let tmp = dest.with_extension("toml.tmp");
         std::fs::write(&tmp, text)?;
         std::fs::rename(&tmp, dest).inspect_err(|_| {
             let _ = std::fs::remove_file(&tmp);
         })
+    }
+}
+
+/// `[snow]` as the scene now has it.
+fn snow_table(scene: &Scene) -> Table {
+    let p = &scene.snow;
+    let mut snow = Table::new();
+    snow.insert("extent_m".into(), float(p.extent_m));
+    snow.insert("resolution".into(), Value::Integer(i64::from(p.resolution)));
+    snow.insert("depth_m".into(), float(p.depth_m));
+    snow.insert("technique".into(), Value::String(p.technique.as_str().into()));
+    snow.insert("refill_m_per_s".into(), float(p.refill_m_per_s));
+    snow.insert("elevation".into(), float(p.elevation));
+    snow.insert("blur".into(), Value::Boolean(p.blur));
+    snow.insert("range_texels".into(), Value::Integer(i64::from(p.range_texels)));
+    snow.insert("rim".into(), Value::String(p.rim.as_str().into()));
+    snow.insert("hardness_kpa".into(), float(p.hardness_kpa));
+    snow.insert("density_kg_m3".into(), float(p.density_kg_m3));
+    snow.insert("max_density_kg_m3".into(), float(p.max_density_kg_m3));
+    if let Some(r) = p.repose_deg {
+        snow.insert("repose_deg".into(), float(r));
+    }
+    if p.displace {
+        snow.insert("displace".into(), Value::Boolean(true));
+    }
+    snow.insert("teleport_m".into(), float(p.teleport_m));
+    snow
+}
+
+/// `[light]`, `[render]`, `[material]` and (when on or present) `[shell]` as the scene now has them.
+fn insert_render(scene: &Scene, root: &mut Table) {
+    let r = &scene.render.params;
+    let mut light = Table::new();
+    if let Some(sun) = r.light.sun_direction {
+        let sun = sun.normalize();
+        let elevation = sun.y.clamp(-1.0, 1.0).asin().to_degrees().clamp(0.5, 90.0);
+        let azimuth = sun.x.atan2(sun.z).to_degrees().rem_euclid(360.0);
+        light.insert("sun_elevation_deg".into(), float(elevation));
+        light.insert("sun_azimuth_deg".into(), float(azimuth));
+    }
+    light.insert("sun_intensity".into(), float(r.light.sun_intensity));
+    light.insert("sky_intensity".into(), float(r.light.sky_intensity));
+    light.insert("exposure_ev".into(), float(r.light.exposure_ev));
+    let environment = match &scene.render.environment {
+        EnvironmentSpec::Builtin => Value::String("builtin".into()),
+        EnvironmentSpec::Procedural => Value::String("procedural".into()),
+        EnvironmentSpec::File(path, _) => {
+            let absolute = std::path::absolute(path).unwrap_or_else(|_| path.clone());
+            Value::String(absolute.display().to_string())
+        }
+    };
+    light.insert("environment".into(), environment);
+    root.insert("light".into(), Value::Table(light));
+
+    let mut render = Table::new();
+    render.insert("material".into(), Value::String(r.material.preset.as_str().into()));
+    render.insert("debug_view".into(), Value::String(r.debug_view.as_str().into()));
+    render.insert("view_distance_m".into(), float(r.view_distance_m));
+    render.insert("shadow_distance_m".into(), float(r.shadow_distance_m));
+    render.insert("shadow_map_size".into(), Value::Integer(i64::from(r.shadow_map_size)));
+    render.insert("finest_patch_m".into(), float(r.finest_patch_m));
+    render.insert("patch_quads".into(), Value::Integer(i64::from(r.patch_quads)));
+    render.insert("ao_strength".into(), float(r.ao_strength));
+    root.insert("render".into(), Value::Table(render));
+    root.insert("material".into(), Value::Table(material_table(&r.material)));
+    if r.shell.enabled || root.contains_key("shell") {
+        root.insert("shell".into(), Value::Table(shell_table(&r.shell)));
     }
 }
 

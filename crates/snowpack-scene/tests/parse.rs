@@ -5,7 +5,7 @@ use std::path::Path;
 
 use snowpack::TerrainSource;
 use snowpack::low_level::HeightmapTerrainExt;
-use snowpack_scene::{Motion, Scene, ShapeSpec, Technique, WindowSpec};
+use snowpack_scene::{Motion, SaveScene, Scene, ShapeSpec, Technique, WindowSpec};
 
 fn parse(text: &str) -> Result<Scene, snowpack_scene::SceneError> {
     Scene::parse(text, Path::new("dir/test-scene.toml"))
