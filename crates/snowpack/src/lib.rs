@@ -74,9 +74,9 @@
 //!   headless runner draw the snow.
 //! - `relay`: the relay of shared snow (`SnowRelay`, `RelayConfig`,
 //!   `RelayStats`), for a game's server.
-//! - `low_level` (implies `renderer` and `relay`): `snowpack::low_level`, the library's
-//!   modules below the front door (passes, their parameters, the CPU twins of
-//!   the shaders, test support) for snowpack's app, tools and tests.
+//! - `low_level` (implies `renderer` and `relay`): `snowpack::low_level`,
+//!   named items below the front door (passes, their parameters, readbacks,
+//!   the tile and wire formats) for snowpack's app, tools and tests.
 //!
 //! `docs/architecture.md` in the repository shows the layers, what each
 //! module owns and one frame's path through them.

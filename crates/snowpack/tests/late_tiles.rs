@@ -173,6 +173,27 @@ fn a_late_tile_is_merged_with_what_the_window_made_meanwhile() {
     both_trails_survive(ctx, dir.path(), &disk, d, "slow disk");
 }
 
+/// After the loading screen's wait (`preload`), the first frame reads
+/// nothing from the disk: a disk that hangs from then on neither delays it
+/// nor costs the saved trail.
+#[test]
+fn after_a_preload_the_first_frame_does_not_wait_for_the_disk() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = TestDir::new("preload");
+    let disk = HeldDisk::default();
+    save_trail_a(ctx, dir.path(), &disk);
+    let (mut d, loaded) = attached(ctx, dir.path(), &disk);
+    assert!(loaded);
+    d.preload(ctx).expect("preload");
+    disk.hold();
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a < PRESSED && b > 0.45, "the preloaded trail A is there in the first frame: depths {a} at A, {b} at B");
+    let stats = d.tile_stats().expect("tiles");
+    assert_eq!((stats.stood_in, stats.blocking_loads, stats.gpu_waits), (0, 0, 0), "the first frame waited or stood in: {stats:?}");
+    assert!(d.take_store_errors().is_empty(), "no wait gave up");
+    disk.release();
+}
+
 /// A disk that hangs: a save meanwhile gives up (the program exits 1 with
 /// it) and writes nothing over the stored tile; once the disk answers,
 /// nothing is lost.

@@ -1423,3 +1423,77 @@ fn feature_rows() -> BTreeMap<String, String> {
         })
         .collect()
 }
+
+/// What `src/low_level.rs` re-exports, by module path (`low_level`,
+/// `low_level::deform::capture`, ...): the last name of each item of each
+/// `pub use`. An error names a `pub use` that ends in `*` (a whole module).
+fn low_level_items(code: &str) -> Result<BTreeMap<String, BTreeSet<String>>, String> {
+    let code = code_only(code);
+    let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut path = vec!["low_level".to_owned()];
+    let mut rest = code.as_str();
+    while let Some(at) = ["pub mod ", "pub use ", "}"].iter().filter_map(|w| rest.find(w).map(|k| (k, *w))).min() {
+        let (k, word) = at;
+        rest = &rest[k + word.len()..];
+        match word {
+            "pub mod " => {
+                let (name, after) = rest.split_once('{').ok_or("a `pub mod` without a body")?;
+                path.push(name.trim().to_owned());
+                rest = after;
+            }
+            "pub use " => {
+                let (tree, after) = rest.split_once(';').ok_or("a `pub use` without `;`")?;
+                let tree: String = tree.split_whitespace().collect();
+                if tree.ends_with('*') || tree.contains("*,") || tree.contains("*}") {
+                    return Err(format!("`pub use {tree}` in `{}` re-exports a whole module", path.join("::")));
+                }
+                let names = tree.split_once('{').map_or(tree.as_str(), |(_, group)| group.trim_end_matches('}'));
+                let entry = out.entry(path.join("::")).or_default();
+                entry.extend(names.split(',').filter(|n| !n.is_empty()).map(|n| n.rsplit("::").next().unwrap_or(n).to_owned()));
+                rest = after;
+            }
+            _ => {
+                path.pop();
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `low_level` is a list of named items, never a whole module, and
+/// `docs/architecture.md` ("`low_level`, item by item") lists exactly them.
+#[test]
+fn the_low_level_list_is_low_levels_named_items() {
+    let code = std::fs::read_to_string(src().join("low_level.rs")).expect("src/low_level.rs");
+    let items = low_level_items(&code).unwrap_or_else(|e| panic!("src/low_level.rs: {e}"));
+    assert!(items.get("low_level::deform::capture").is_some_and(|c| c.contains("CapturePass")), "src/low_level.rs was not read: {items:?}");
+    let listed: BTreeMap<String, BTreeSet<String>> = table_rows(ARCHITECTURE, "### `low_level`, item by item")
+        .iter()
+        .filter_map(|row| Some((row.first()?.trim_matches('`').to_owned(), backticked_items(row.get(1)?))))
+        .collect();
+    let mut problems = Vec::new();
+    for (module, names) in &items {
+        let doc = listed.get(module).cloned().unwrap_or_default();
+        let missing: Vec<&String> = names.difference(&doc).collect();
+        let extra: Vec<&String> = doc.difference(names).collect();
+        if !missing.is_empty() || !extra.is_empty() {
+            problems.push(format!("`{module}`: re-exported but not listed {missing:?}; listed but not re-exported {extra:?}"));
+        }
+    }
+    problems.extend(listed.keys().filter(|m| !items.contains_key(*m)).map(|m| format!("`{m}` is listed but src/low_level.rs has no such module")));
+    assert!(problems.is_empty(), "docs/architecture.md's `low_level` list against src/low_level.rs:\n{}", problems.join("\n"));
+}
+
+/// A glob re-export planted in `low_level` is reported, at any depth.
+#[test]
+fn a_planted_glob_in_low_level_is_reported() {
+    let named =
+        "pub use crate::a::Ext;\npub mod deform {\n    pub mod capture {\n        pub use crate::deform::capture::{CapturePass, CaptureParams};\n    }\n}\n";
+    let items = low_level_items(named).expect("named items only");
+    assert_eq!(items["low_level"], BTreeSet::from(["Ext".to_owned()]));
+    assert_eq!(items["low_level::deform::capture"], BTreeSet::from(["CaptureParams".to_owned(), "CapturePass".to_owned()]));
+    for planted in ["pub mod tiles {\n    pub use crate::tiles::*;\n}\n", "pub mod a {\n    pub use crate::a::{B, c::*};\n}\n"] {
+        let err = low_level_items(&format!("{named}{planted}")).expect_err("a glob must be reported");
+        assert!(err.contains("whole module"), "{err}");
+    }
+}

@@ -852,6 +852,52 @@ fn step_paced(ctx: &GpuContext, d: &mut SnowDeformation) {
     std::thread::sleep(std::time::Duration::from_millis(16));
 }
 
+/// The loading screen's explicit wait (`SnowDeformation::preload`): after
+/// it, a 500 m jump away and back each take exactly one frame, with no
+/// frame holding for the disk (`window_waits`), waiting for the GPU or
+/// reading a tile in the frame; the trail is back bit for bit.
+#[test]
+fn a_preloaded_jump_moves_in_one_frame_and_waits_for_nothing() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = temp_dir("preload");
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    // A memory budget that holds the window's 16 tiles: under it the tiles
+    // just copied out go to the disk and back, and a preload can lose the
+    // first of them to the last before the frame (the jump test above).
+    assert!(!d.attach_store(ctx, streamer(&dir, 64)).expect("attach"));
+    d.preload(ctx).expect("preload");
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    assert!(deepest_press(&before, &[0.0; 64 * 64], 0.5) > 0.2, "no trail was pressed");
+    let home = d.origin_texel();
+    let texel = f64::from(d.params().texel_m());
+    let far = DVec2::new(500.0, -120.0);
+    let far_origin = Some([(far.x / texel).floor() as i64 - 32, (far.y / texel).floor() as i64 - 32]);
+    let start = d.tile_stats().expect("tiles kept");
+    for (to, origin) in [(far, far_origin), (DVec2::ZERO, home)] {
+        d.set_center(to);
+        d.preload(ctx).expect("preload");
+        let loaded = d.tile_stats().expect("stats");
+        d.step(ctx, &[], DT).expect("frame");
+        assert_eq!(d.origin_texel(), origin, "the window is not at {to} one frame after the preload: {loaded:?} then {:?}", d.tile_stats());
+        let after = d.tile_stats().expect("stats");
+        assert_eq!(
+            (after.window_waits, after.gpu_waits, after.blocking_loads),
+            (loaded.window_waits, loaded.gpu_waits, loaded.blocking_loads),
+            "the frame after the preload waited: {after:?}"
+        );
+    }
+    let back = d.tile_stats().expect("stats");
+    assert_eq!(back.window_waits, start.window_waits, "a frame held for the disk: {back:?}");
+    assert!(back.restored > start.restored, "the trail's tiles were not restored: {back:?}");
+    let after = d.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the jump away and back");
+    assert!(d.take_store_errors().is_empty());
+    drop(d);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A 500 m jump of the window with a disk store attached, away and back
 /// (`docs/persistence.md`, "Resident tiles"): the window is there within a
 /// few frames, holds still while the tiles it jumps onto are on their way

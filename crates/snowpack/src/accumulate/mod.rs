@@ -38,10 +38,10 @@ pub mod surface;
 
 use glam::{Quat, Vec3};
 
-pub use atlas::{AtlasBake, AtlasLayout, ObjectVertex};
+pub use atlas::{AtlasLayout, ObjectVertex};
 pub use increment::{IncrementParams, IncrementPass};
-pub use mesh::{ChartedMesh, ObjectMesh};
-pub use occlusion::{OcclusionParams, OcclusionPass};
+pub use mesh::ObjectMesh;
+pub use occlusion::OcclusionParams;
 pub use scatter::{ScatterParams, ScatterPass};
 pub use settle::{SettleParams, SettlePass};
 pub use state::{ObjectStats, SnowAccumulation};

@@ -18,12 +18,9 @@ use crate::shaders;
 
 use super::atlas::ObjectVertex;
 
-/// Format of the footprint target: `[x0, y0, x1, y1]` atlas texels, [`NO_FOOTPRINT`]
+/// Format of the footprint target: `[x0, y0, x1, y1]` atlas texels, `u16::MAX`
 /// where no object is (integers: float targets are not renderable on GL).
 pub const FOOTPRINT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Uint;
-
-/// The footprint target's clear value: no object seen.
-pub const NO_FOOTPRINT: u16 = u16::MAX;
 
 /// Uniforms of `occlusion.wgsl`: the sheared orthographic projection.
 #[repr(C)]
@@ -78,13 +75,10 @@ pub struct OcclusionPass {
     pipeline: wgpu::RenderPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    /// Depth: what the sky sees, linear in height (window-local, the window's resolution).
-    pub depth: wgpu::Texture,
-    /// View of `depth`.
+    /// Depth: what the sky sees, linear in height (window-local, the
+    /// window's resolution); the view keeps its texture alive.
     pub depth_view: wgpu::TextureView,
     /// Footprint rectangles per pixel.
-    pub footprint: wgpu::Texture,
-    /// View of `footprint`.
     pub footprint_view: wgpu::TextureView,
 }
 
@@ -135,9 +129,7 @@ impl OcclusionPass {
             params,
             bind_group,
             depth_view: depth.create_view(&wgpu::TextureViewDescriptor::default()),
-            depth,
             footprint_view: footprint.create_view(&wgpu::TextureViewDescriptor::default()),
-            footprint,
         }
     }
 

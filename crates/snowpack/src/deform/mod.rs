@@ -26,6 +26,4 @@ pub mod update;
 pub mod wheel;
 pub mod window;
 
-#[cfg(feature = "low_level")]
-pub use query::QueryStats;
 pub use query::{PointAnswers, PointSample, QueryTicket};

@@ -23,8 +23,6 @@
 pub use snowpack_share::SNOW_QUANTUM_M;
 /// Quanta per metre (the shaders multiply by it: exact, where a division is not).
 pub const SNOW_QUANTA_PER_M: f32 = 10_000.0;
-/// The deepest press below the rest height a texel holds (m).
-pub const MAX_DEFICIT_M: f32 = 65_535.0 * SNOW_QUANTUM_M;
 
 /// Quanta of a deficit of `m` metres: rounded to nearest even, clamped to 0..=65535.
 #[must_use]

@@ -71,15 +71,8 @@ pub fn box_travel(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat)) -> f32 {
     most
 }
 
-/// The poses a box swept from `a` to `b` is drawn in: `steps` evenly spaced
-/// poses after `a` up to and including `b`, plus `a` itself (which the last
-/// frame drew already; drawn again so the sweep does not depend on it).
-#[must_use]
-pub fn box_poses(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), steps: u32) -> Vec<(Vec3, Vec3, Quat)> {
-    (0..=steps.max(1)).map(|k| box_pose(a, b, k, steps)).collect()
-}
-
-/// Pose `k` (0 ..= `steps`, 0 being `a`) of [`box_poses`], without the list.
+/// Pose `k` (0 ..= `steps`, 0 being `a`, the last `b`) of a box swept from
+/// `a` to `b` in `steps` steps.
 #[must_use]
 pub fn box_pose(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), k: u32, steps: u32) -> (Vec3, Vec3, Quat) {
     let t = k as f32 / steps.max(1) as f32;
@@ -156,6 +149,7 @@ impl DeformerHistory {
     /// body with its id (`ids[k]`, or k when `ids` does not have one per
     /// deformer) existed last frame as the same shape and moved at most
     /// `teleport_m` (`teleport_m <= 0` sweeps nothing).
+    #[cfg(test)]
     #[must_use]
     pub fn sweeps(&self, current: &[Deformer], ids: &[u64], teleport_m: f32) -> Vec<Option<Deformer>> {
         let mut out = Vec::new();
@@ -163,7 +157,7 @@ impl DeformerHistory {
         out
     }
 
-    /// [`Self::sweeps`] into `out` (cleared first), reusing its memory.
+    /// The sweeps (`sweeps` in the tests) into `out` (cleared first), reusing its memory.
     pub fn sweeps_into(&self, current: &[Deformer], ids: &[u64], teleport_m: f32, out: &mut Vec<Option<Deformer>>) {
         out.clear();
         out.extend(current.iter().enumerate().map(|(k, cur)| {
@@ -197,12 +191,6 @@ impl DeformerHistory {
                 Deformer::Point { position, .. } => *position += delta,
             }
         }
-    }
-
-    /// Forgets the previous frame (the next frame sweeps nothing).
-    pub fn clear(&mut self) {
-        self.previous.clear();
-        self.by_index.clear();
     }
 }
 

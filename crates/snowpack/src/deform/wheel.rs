@@ -121,13 +121,13 @@ pub fn wheel_travel(a: WheelPose, b: WheelPose, r: f32, w: f32) -> f32 {
 /// The poses a wheel swept from `a` to `b` is drawn in: `a`, then `steps`
 /// evenly spaced poses up to and including `b`; centre and roll linear, the
 /// axle normalised linear.
+#[cfg(test)]
 #[must_use]
-#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
 pub fn wheel_poses(a: WheelPose, b: WheelPose, steps: u32) -> Vec<WheelPose> {
     (0..=steps.max(1)).map(|k| wheel_pose(a, b, k, steps)).collect()
 }
 
-/// Pose `k` (0 ..= `steps`, 0 being `a`) of [`wheel_poses`], without the list.
+/// Pose `k` (0 ..= `steps`, 0 being `a`) of the poses a wheel swept from `a` to `b` is drawn in (`wheel_poses` in the tests).
 #[must_use]
 pub fn wheel_pose(a: WheelPose, b: WheelPose, k: u32, steps: u32) -> WheelPose {
     let t = k as f32 / steps.max(1) as f32;

@@ -10,6 +10,6 @@ pub mod readback;
 pub mod render;
 pub mod timing;
 
-pub use context::{AdapterRequest, AdapterSummary, GpuContext};
+pub use context::{AdapterRequest, GpuContext};
 pub use readback::{ReadbackRing, read_buffer};
 pub use timing::{GpuTimer, PassTimings};

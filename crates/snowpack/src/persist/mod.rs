@@ -22,12 +22,12 @@
 
 #[doc(hidden)]
 pub use snowpack_share::persist::disk;
-pub use snowpack_share::persist::{codec, store};
+pub use snowpack_share::persist::store;
 pub mod streamer;
 
 pub use crate::error::StoreError;
-pub use snowpack_share::persist::{DEFAULT_DISK_BUDGET_BYTES, WhenFull};
-pub use snowpack_share::persist::{FORMAT_VERSION, MAX_SIDE, SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
+pub use snowpack_share::persist::WhenFull;
+pub use snowpack_share::persist::{SnowClock, StoreConfig, TileData, TileKey, TileStore, decode, encode};
 pub use streamer::{StoreStats, StreamerConfig, TileLookup, TileStreamer};
 
 /// Temporary directories for the streamer's unit tests (the shared-snow

@@ -18,9 +18,7 @@ use crate::gpu::layout;
 use crate::shaders;
 use crate::snow::SnowDeformation;
 
-pub use super::sampling::{
-    SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowSampling, SnowWindowUniform, sampling_bind_group, sampling_layout_entries, snow_sampling_wgsl,
-};
+pub use super::sampling::{SNOW_SAMPLING_GROUP, SNOW_SAMPLING_WGSL, SnowSampling, SnowWindowUniform, snow_sampling_wgsl};
 use crate::snow::inspect::SnowInspect;
 
 /// Default quads per side of the ground grid.

@@ -96,6 +96,7 @@ impl LodSettings {
     }
 
     /// Detail bonus at a point (same as `lod_bonus` in `terrain_draw.wgsl`).
+    #[cfg(test)]
     #[must_use]
     pub fn bonus(&self, xz: Vec2) -> f32 {
         let Some((lo, extent)) = self.window else { return 0.0 };
@@ -105,6 +106,7 @@ impl LodSettings {
     }
 
     /// LOD distance at a point (same as `lod_distance` in `terrain_draw.wgsl`).
+    #[cfg(test)]
     #[must_use]
     pub fn distance(&self, eye_xz: Vec2, xz: Vec2) -> f32 {
         let d = (xz - eye_xz).length_squared() + self.vertical_m * self.vertical_m;

@@ -41,9 +41,7 @@ pub fn fit_shadow(camera: &Camera, aspect: f32, sun: Vec3, distance: f32, map_si
 pub struct ShadowMap {
     /// Side (texels).
     pub size: u32,
-    /// The depth texture.
-    pub texture: wgpu::Texture,
-    /// View for rendering and sampling.
+    /// The depth texture's view for rendering and sampling (it keeps the texture alive).
     pub view: wgpu::TextureView,
     /// Comparison sampler with hardware 2x2 filtering.
     pub sampler: wgpu::Sampler,
@@ -71,7 +69,7 @@ impl ShadowMap {
             compare: Some(wgpu::CompareFunction::LessEqual),
             ..Default::default()
         });
-        Self { size, texture, view, sampler }
+        Self { size, view, sampler }
     }
 
     /// Bytes of GPU memory held.

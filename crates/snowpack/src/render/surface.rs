@@ -125,11 +125,3 @@ impl SurfaceUnpackPass {
     }
 }
 
-/// Unpacks one unpacked-surface texel into (height, unit normal).
-#[must_use]
-pub fn unpack_surface(texel: [u32; 2]) -> (f32, [f32; 3]) {
-    let snorm = |bits: u32| (f32::from(bits as u16 as i16) / 32767.0).max(-1.0);
-    let (nx, nz) = (snorm(texel[1] & 0xffff), snorm(texel[1] >> 16));
-    let ny = (1.0 - nx * nx - nz * nz).max(0.0).sqrt();
-    (f32::from_bits(texel[0]), [nx, ny, nz])
-}

@@ -31,14 +31,14 @@ pub mod flags;
 pub mod gather;
 pub mod merge;
 pub(crate) mod sharing;
-pub use snowpack_share::replicate::{message, motion, peer, relay, tile, world};
+pub use snowpack_share::replicate::{message, peer, relay, tile, world};
 
 use crate::TerrainSource;
 pub use crate::error::ShareError;
 use crate::terrain::HeightmapTerrainExt;
-pub use message::{MAX_MESSAGE_BYTES, Message, MessageError, decode, encode};
+pub use message::{Message, decode, encode};
 pub use peer::{PeerConfig, PeerStats, SnowPeer};
-pub use relay::{PeerId, RelayConfig, RelayRejections, RelayStats, SnowRelay};
+pub use relay::{PeerId, RelayConfig, RelayStats, SnowRelay};
 pub use snowpack_share::replicate::SharedSnow;
 pub use tile::{CatchUp, NO_STAMP, ShareClock, SharedTile};
 pub use world::WorldIdentity;

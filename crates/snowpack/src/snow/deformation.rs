@@ -188,6 +188,27 @@ impl SnowDeformation {
         self.core.set_center(center);
     }
 
+    /// The blocking step of a loading screen: loads from the attached store
+    /// every tile the window needs at its centre ([`Self::set_center`]),
+    /// after [`Self::attach_store`] or a teleport, so that the frames that
+    /// follow wait for nothing. Without it, the first frame after attaching
+    /// waits for the disk itself, and a window that jumps far holds where it
+    /// is (pressing there) until its new tiles are read, a few frames.
+    ///
+    /// A disk that fails or does not answer within
+    /// [`crate::StreamerConfig::wait_limit`] is not an error here: as in a
+    /// frame, fresh snow stands in for those tiles, their stored versions
+    /// are merged in later, and [`Self::take_store_errors`] reports it.
+    /// Without a store it returns at once.
+    pub fn preload(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
+        let Some(tiles) = &mut self.tiles else { return Ok(()) };
+        let (current, desired) = (self.core.window_origin(), self.core.desired_origin());
+        ctx.guarded(|| {
+            tiles.preload(ctx, current, desired);
+            Ok(())
+        })
+    }
+
     /// Frames recorded so far.
     #[must_use]
     pub fn frame(&self) -> u64 {

@@ -127,10 +127,4 @@ impl MeshHistory {
             p.fresh = true;
         }
     }
-
-    /// Bytes held in previous positions.
-    #[must_use]
-    pub fn memory_bytes(&self) -> u64 {
-        self.skinned.iter().chain(&self.caller).flatten().map(|p| p.bytes).sum()
-    }
 }

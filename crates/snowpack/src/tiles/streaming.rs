@@ -41,10 +41,10 @@ use super::weather::{TileWeatherPass, WeatherParams};
 
 // The slot layout lives in `planes.rs` (the tile passes below this file need
 // it too); it stays reachable here, where the streaming's users look for it.
-pub use super::planes::{NO_SLOT, PLANE_FALLEN, PLANE_SNOW, PLANES, plane_packed, plane_stamps, planes};
+pub use super::planes::{PLANE_FALLEN, PLANE_SNOW, PLANES, plane_packed, plane_stamps, planes};
 // The grid and the slot pool live in files of their own; the grid stays
 // reachable here, where the streaming's users look for it.
-pub use super::grid::{PREFETCH_MARGIN_TILES, SPARE_SLOTS, TileGrid};
+pub use super::grid::{PREFETCH_MARGIN_TILES, TileGrid};
 use super::slots::SlotTable;
 use crate::gpu::context::GpuContextExt;
 use crate::persist::streamer::TileStreamerExt;
@@ -132,9 +132,12 @@ pub struct TileStreaming {
     in_flight: HashSet<TileKey>,
     prefetched_at: Option<TileKey>,
     errors: Vec<StoreError>,
-    /// Tiles the first placement gave up waiting for this frame: stood in
-    /// for at once, not waited for again one by one.
+    /// Tiles the first placement (or a preload) gave up waiting for: stood
+    /// in for at once, not waited for again one by one.
     gave_up: HashSet<TileKey>,
+    /// Where [`Self::preload`] last loaded the window's tiles for: the
+    /// first placement there waits for nothing.
+    preloaded: Option<[i64; 2]>,
     /// The last frame's restore uniforms, for the merges a save does.
     restore_base: RestoreParams,
     window_waits: u64,
@@ -252,6 +255,7 @@ impl TileStreaming {
             prefetched_at: None,
             errors: Vec::new(),
             gave_up: HashSet::new(),
+            preloaded: None,
             restore_base: RestoreParams::default(),
             window_waits: 0,
             gpu_waits: 0,
@@ -299,7 +303,11 @@ impl TileStreaming {
     /// then it stays at `current`. The first placement waits (blocking).
     pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
         self.streamer.poll();
-        self.gave_up.clear();
+        // A preload for this very place already waited (and gave up on what did not come).
+        let preloaded = self.preloaded.take() == Some(desired);
+        if !preloaded {
+            self.gave_up.clear();
+        }
         let here = self.grid.key_of(desired);
         if self.prefetched_at != Some(here) {
             self.prefetched_at = Some(here);
@@ -315,15 +323,11 @@ impl TileStreaming {
         let desired = current.map_or(desired, |c| self.reachable(c, desired));
         let needed = self.needed_from_store(current, desired);
         if current.is_none() {
-            // First placement: a loading screen, so waiting is fine.
-            if needed.iter().any(|k| self.in_flight.contains(k)) {
-                self.gpu_waits += 1;
-                self.collect_evictions(ctx, true);
-            }
-            if let Err(e) = self.streamer.wait_for(&needed) {
-                // Fresh snow stands in for what did not come (see `restore_entry`).
-                self.errors.push(e);
-                self.gave_up.extend(needed.iter().copied().filter(|&k| !self.streamer.is_ready(k)));
+            // First placement without a preload: the first frame is a
+            // loading screen's, so waiting is allowed (and counted).
+            if !preloaded {
+                self.gpu_waits += u64::from(needed.iter().any(|k| self.in_flight.contains(k)));
+                self.wait_for_needed(ctx, &needed);
             }
             return desired;
         }
@@ -340,6 +344,39 @@ impl TileStreaming {
         }
         self.window_waits += 1;
         current.unwrap_or(desired)
+    }
+
+    /// Waits (blocking) until each of `needed` is in memory: the copies out
+    /// of the GPU it is among first, then the disk, within the streamer's
+    /// wait limit. Fresh snow stands in for what did not come (see
+    /// `restore_entry`), its stored version merged in later; the error is
+    /// kept for [`Self::take_errors`].
+    fn wait_for_needed(&mut self, ctx: &GpuContext, needed: &[TileKey]) {
+        if needed.iter().any(|k| self.in_flight.contains(k)) {
+            self.collect_evictions(ctx, true);
+        }
+        if let Err(e) = self.streamer.wait_for(needed) {
+            self.errors.push(e);
+            self.gave_up.extend(needed.iter().copied().filter(|&k| !self.streamer.is_ready(k)));
+        }
+    }
+
+    /// The explicit wait a loading screen makes: loads (blocking) every
+    /// tile the window moving from `current` to `desired` needs, so the
+    /// next [`Self::plan`] for `desired` moves there at once (a jump
+    /// instead of holding while the disk reads) and a first placement
+    /// waits for nothing. What the disk does not give within the wait
+    /// limit is stood in for as in a frame, and reported the same way.
+    pub fn preload(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) {
+        self.streamer.poll();
+        self.gave_up.clear();
+        let needed = self.needed_from_store(current, desired);
+        self.wait_for_needed(ctx, &needed);
+        self.preloaded = Some(desired);
+        // Not the prefetch ring now: its tiles arriving between this wait
+        // and the placement could push the ones waited for out of a small
+        // memory budget. The ring follows once the window moves on.
+        self.prefetched_at = Some(self.grid.key_of(desired));
     }
 
     /// Where the window at `current` may go this frame on its way to

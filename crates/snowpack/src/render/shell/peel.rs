@@ -393,8 +393,6 @@ pub struct PeelTargets {
     accumulated: wgpu::TextureView,
     /// Pixels each pass shades (one u32 per pass).
     pub counts: wgpu::Buffer,
-    /// Per pixel, bit k: pass k+1 shaded it.
-    pub shaded: wgpu::Buffer,
     count: PeelCountPass,
     resolve_params: wgpu::Buffer,
     tetra_depths: wgpu::BindGroup,
@@ -446,7 +444,7 @@ impl PeelTargets {
         };
         let resolve_layer = resolve("shell resolve layer", &layer_depth);
         let resolve_peel = resolve("shell resolve peel", &peel_depth);
-        Self { size, layer_depth, peel_depth, cull_depth, accumulated, counts, shaded, count, resolve_params, tetra_depths, resolve_layer, resolve_peel }
+        Self { size, layer_depth, peel_depth, cull_depth, accumulated, counts, count, resolve_params, tetra_depths, resolve_layer, resolve_peel }
     }
 
     /// GPU memory of the targets (bytes).
