@@ -46,7 +46,7 @@ use super::store::tile_path;
 use super::{StoreError, TileData, TileKey, TileStore};
 use crate::deform::stamp::STAMP_EMPTY;
 
-pub use config::{StreamerConfig, WAIT_LIMIT};
+pub use config::StreamerConfig;
 pub use ext::TileStreamerExt;
 pub use lookup::TileLookup;
 pub use stats::StoreStats;

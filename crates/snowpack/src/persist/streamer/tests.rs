@@ -3,6 +3,7 @@
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use super::config::WAIT_LIMIT;
 use super::*;
 use crate::persist::test_dir::TestDir;
 use crate::persist::{SnowClock, StoreConfig, decode};
