@@ -91,20 +91,20 @@ pub trait TileStreamerExt: Sized {
     fn stats(&self) -> StoreStats;
 
     /// Stores a small named blob (blocking, ordered after the writes queued
-    /// before it); see [`TileStore::write_state`](crate::persist::TileStore::write_state). A memory-only streamer
+    /// before it); see [`TileStore::write_state`](crate::persist::store::TileStoreExt::write_state). A memory-only streamer
     /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after
     /// [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`] (the
     /// write stays queued and may still be done).
     fn write_state(&mut self, name: &str, bytes: Vec<u8>) -> Result<(), StoreError>;
 
     /// From now on the store writes tiles for the next save, beside the
-    /// saved ones ([`TileStore::begin_saves`](crate::persist::TileStore::begin_saves)): a crash before
+    /// saved ones ([`TileStore::begin_saves`](crate::persist::store::TileStoreExt::begin_saves)): a crash before
     /// [`Self::commit_save`] returns leaves the last complete save, every
     /// tile and state of it. Ordered after the writes queued before it;
     /// nothing for a memory-only streamer.
     fn begin_saves(&mut self);
 
-    /// Completes a save with the named state `bytes` ([`TileStore::commit`](crate::persist::TileStore::commit)):
+    /// Completes a save with the named state `bytes` ([`TileStore::commit`](crate::persist::store::TileStoreExt::commit)):
     /// blocking, ordered after the writes queued before it, so call it once
     /// [`TileStreamer::flush`](super::TileStreamer::flush) has written the save's tiles. A memory-only streamer
     /// has nowhere to put it: [`StoreError::NoDisk`]. Gives up after

@@ -26,11 +26,11 @@ pub struct StoreStats {
     pub corrupt: u64,
     /// Errors of any kind (each returned by
     /// [`TileStreamer::flush`](super::TileStreamer::flush) or in
-    /// [`TileStreamer::take_errors`](super::TileStreamer::take_errors)).
+    /// [`TileStreamer::take_errors`](super::TileStreamerExt::take_errors)).
     pub errors: u64,
     /// Dirty tiles dropped from memory after their write had failed: their
     /// latest version is lost. For a memory-only streamer
-    /// ([`TileStreamer::in_memory`](super::TileStreamer::in_memory)): every tile the budget dropped (it comes
+    /// ([`TileStreamer::in_memory`](super::TileStreamerExt::in_memory)): every tile the budget dropped (it comes
     /// back as fresh snow).
     pub lost: u64,
     /// Tiles deleted from disk to keep within its budget.
