@@ -810,12 +810,15 @@ fn the_share_crate_names_no_gpu_code() {
 #[test]
 fn a_planted_gpu_name_in_the_share_crate_is_reported() {
     let files = [
-        ("replicate/relay.rs".to_owned(), "//! wgpu::Device in a comment\nuse std::io;\nuse wgpu::Device;\nfn f() { let _ = \"image::open\"; }\n".to_owned()),
+        (
+            "replicate/relay/mod.rs".to_owned(),
+            "//! wgpu::Device in a comment\nuse std::io;\nuse wgpu::Device;\nfn f() { let _ = \"image::open\"; }\n".to_owned(),
+        ),
         ("persist/codec.rs".to_owned(), "fn g() -> glam::Vec2 { glam::Vec2::ZERO }\nfn h() { let wgpu = 1; let _ = wgpu; }\n".to_owned()),
     ];
     let names = gpu_names(&files);
     assert_eq!(names.len(), 3, "{names:#?}");
-    assert!(names[0].starts_with("src/replicate/relay.rs:3: use wgpu::Device;") && names[0].ends_with("names `wgpu`"), "{}", names[0]);
+    assert!(names[0].starts_with("src/replicate/relay/mod.rs:3: use wgpu::Device;") && names[0].ends_with("names `wgpu`"), "{}", names[0]);
     assert!(names[1].starts_with("src/persist/codec.rs:1:") && names[2].starts_with("src/persist/codec.rs:1:"), "{names:#?}");
     let deps = manifest_dependencies(
         "[package]\nname = \"x\"\n[dependencies]\nthiserror.workspace = true\nwgpu = \"30\"\n[dev-dependencies]\nimage = \"1\"\n[target.'cfg(unix)'.dependencies]\nwinit = { version = \"0.30\" }\n",
@@ -1228,7 +1231,7 @@ fn the_real_tree_with_a_planted_file_circle_fails() {
     // The shader sources come to name the tile streamer, which names them: a circle through two files.
     let shaders = files.iter_mut().find(|(f, _)| f == "shaders.rs").expect("src/shaders.rs");
     shaders.1.push_str("\nfn planted() { let _ = crate::persist::TileStreamer::new; }\n");
-    let streamer = files.iter_mut().find(|(f, _)| f == "persist/streamer.rs").expect("src/persist/streamer.rs");
+    let streamer = files.iter_mut().find(|(f, _)| f == "persist/streamer/mod.rs").expect("src/persist/streamer/mod.rs");
     streamer.1.push_str("\nfn planted_back() { let _ = crate::shaders::UPDATE; }\n");
     let found = file_circles(&files);
     assert!(found.iter().any(|p| p.contains("src/shaders.rs") && p.contains("planted")), "{found:#?}");
@@ -1237,12 +1240,14 @@ fn the_real_tree_with_a_planted_file_circle_fails() {
 #[test]
 fn the_real_tree_with_a_planted_circle_in_one_module_fails() {
     let mut files = sources();
-    // The slot layout comes to name the streaming that re-exports it: two files of `tiles`.
+    // The slot layout comes to name the streaming's copy-out (through the
+    // re-export in `streaming/mod.rs`), which names it: two files of `tiles`.
     let planes = files.iter_mut().find(|(f, _)| f == "tiles/planes.rs").expect("src/tiles/planes.rs");
     planes.1.push_str("\nfn planted() { let _ = super::streaming::tile_from_planes; }\n");
     let found = file_circles(&files);
     let circle = found.iter().find(|p| {
-        p.contains("tiles/planes.rs → tiles/streaming.rs → tiles/planes.rs") || p.contains("tiles/streaming.rs → tiles/planes.rs → tiles/streaming.rs")
+        p.contains("tiles/planes.rs → tiles/streaming/copy_out.rs → tiles/planes.rs")
+            || p.contains("tiles/streaming/copy_out.rs → tiles/planes.rs → tiles/streaming/copy_out.rs")
     });
     assert!(circle.is_some_and(|p| p.contains("src/tiles/planes.rs:") && p.contains("planted")), "{found:#?}");
 }

@@ -12,7 +12,7 @@
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share ([`WorldSnow`] and [`WorldTerrain`] make one without a GPU) |
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
-//! | `relay.rs` | [`SnowRelay`]: what a server runs (merges, relays, polices, persists; CPU only) |
+//! | `relay/` | [`SnowRelay`] (`mod.rs`): what a server runs (merges, relays, polices, persists; CPU only); beside it `peers.rs` (a peer's state), `interest.rs` (the tiles it is sent), `outbox.rs` (its queue), `bucket.rs` (the rate buckets), `admission.rs` (the checks on a world and a tile), `held.rs` (the tiles in memory), `digest.rs` (a digest against the relay's copies), `stored.rs` (a tile as the store keeps it), `config.rs`, `stats.rs` |
 //! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
 //! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
 //!

@@ -1,0 +1,82 @@
+//! What the relay keeps per peer: [`PeerId`], where it is in the handshake,
+//! its interest, the police's memory of its deformers, its rate buckets and
+//! what is queued for it.
+
+use std::collections::BTreeSet;
+
+use super::bucket::Bucket;
+use super::config::RelayConfig;
+use super::interest::{KeyRect, MAX_INTEREST_TILES};
+use super::outbox::Outbox;
+use crate::persist::TileKey;
+use crate::replicate::motion::{MotionHistory, MotionWork};
+use crate::replicate::world::WorldIdentity;
+
+/// A peer as the caller knows it (a connection number).
+pub type PeerId = u64;
+
+/// Where a peer is in the handshake.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Standing {
+    New,
+    Welcomed,
+    Refused,
+}
+
+/// What the relay keeps per peer; every collection in it is capped.
+#[derive(Debug)]
+pub(super) struct PeerState {
+    pub(super) number: u32,
+    pub(super) standing: Standing,
+    /// Tiles the peer is sent (its window plus one tile of margin).
+    pub(super) interest: Option<KeyRect>,
+    /// Where its deformers were, in a grid hash.
+    pub(super) history: MotionHistory,
+    /// Until when `report_deformers` overrides the peer's own `Presence`.
+    pub(super) authoritative_until: f64,
+    pub(super) in_bytes: Bucket,
+    pub(super) in_tiles: Bucket,
+    pub(super) out_bytes: Bucket,
+    pub(super) window_keys: Bucket,
+    pub(super) query_points: Bucket,
+    /// Tiles to send at the next send (coalesced).
+    pub(super) pending: BTreeSet<TileKey>,
+    pub(super) last_send_s: f64,
+    /// The messages queued for it.
+    pub(super) outbox: Outbox,
+    pub(super) seq_out: u64,
+}
+
+impl PeerState {
+    /// A peer just connected at `now`, numbered `number`: not yet welcomed,
+    /// its buckets full.
+    pub(super) fn new(number: u32, c: &RelayConfig, now: f64) -> Self {
+        Self {
+            number,
+            standing: Standing::New,
+            interest: None,
+            history: MotionHistory::default(),
+            authoritative_until: f64::NEG_INFINITY,
+            in_bytes: Bucket::full(f64::from(c.burst_bytes), now),
+            in_tiles: Bucket::full(f64::from(c.burst_tiles), now),
+            out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),
+            window_keys: Bucket::full(f64::from(c.burst_window_keys.max(MAX_INTEREST_TILES as u32)), now),
+            query_points: Bucket::full(f64::from(c.burst_query_points), now),
+            pending: BTreeSet::new(),
+            last_send_s: f64::NEG_INFINITY,
+            outbox: Outbox::default(),
+            seq_out: 0,
+        }
+    }
+
+    /// Whether the peer may write tile `key`: its centre is within `reach`
+    /// (m) of one of the peer's deformer positions recorded since `oldest`.
+    /// (A fixed number of grid look-ups, counted in `work`.)
+    pub(super) fn may_write(&mut self, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64, work: &mut MotionWork) -> bool {
+        let first = key.first_texel(world.settings.tile_side);
+        let half = f64::from(world.settings.tile_side) / 2.0;
+        let texel = f64::from(world.settings.texel_m);
+        let centre = [(first[0] as f64 + half) * texel, (first[1] as f64 + half) * texel];
+        self.history.near(centre, reach, oldest, work)
+    }
+}
