@@ -1512,3 +1512,99 @@ fn a_planted_glob_in_low_level_is_reported() {
         assert!(err.contains("whole module"), "{err}");
     }
 }
+
+/// The crate a repository path belongs to: `crates/snowpack`, `integrations/bevy_snowpack`.
+fn crate_of(path: &str) -> String {
+    path.split('/').take(2).collect::<Vec<_>>().join("/")
+}
+
+/// Per crate and type name: the inherent `impl` blocks (`path:line`) and
+/// how many types of that name the crate defines (`struct`, `enum`,
+/// `union`; two modules may each have their own `Reader`).
+fn impl_blocks(files: &[(String, String)]) -> BTreeMap<(String, String), (Vec<String>, usize)> {
+    let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
+    let mut out: BTreeMap<(String, String), (Vec<String>, usize)> = BTreeMap::new();
+    for (path, text) in files {
+        let code = code_only(text);
+        let krate = crate_of(path);
+        for line in code.lines() {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            if let Some(k) = words.iter().position(|w| ["struct", "enum", "union"].contains(w))
+                && words[..k].iter().all(|w| w.starts_with("pub") || w.starts_with("#["))
+                && let Some(name) = words.get(k + 1).map(|w| ident(w)).filter(|w| !w.is_empty())
+            {
+                out.entry((krate.clone(), name)).or_default().1 += 1;
+            }
+        }
+        let mut rest = code.as_str();
+        let mut offset = 0;
+        while let Some(k) = rest.find("impl") {
+            let at = offset + k;
+            let before = code[..at].chars().next_back();
+            rest = &rest[k + 4..];
+            offset = at + 4;
+            // `impl` as a word at the start of an item (a line), not `impl Trait` in a signature.
+            let line_start = code[..at].rfind('\n').map_or(0, |p| p + 1);
+            if before.is_some_and(|c| c.is_alphanumeric() || c == '_') || !code[line_start..at].trim().is_empty() {
+                continue;
+            }
+            let Some(head) = rest.split('{').next() else { continue };
+            if !rest.starts_with([' ', '<']) || head.contains(" for ") || head.contains(';') {
+                continue;
+            }
+            // Skip the impl's own generics, then take the type's last path segment.
+            let mut ty = head.trim_start();
+            if ty.starts_with('<') {
+                let mut depth = 0;
+                let end = ty.char_indices().find(|&(_, c)| {
+                    depth += i32::from(c == '<') - i32::from(c == '>');
+                    depth == 0
+                });
+                ty = end.map_or("", |(e, _)| &ty[e + 1..]).trim_start();
+            }
+            let path_part: String = ty.chars().take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':').collect();
+            let name = path_part.rsplit("::").next().unwrap_or_default().to_owned();
+            if !name.is_empty() {
+                let line = code[..at].matches('\n').count() + 1;
+                out.entry((krate.clone(), name)).or_default().0.push(format!("{path}:{line}"));
+            }
+        }
+    }
+    out
+}
+
+/// Types whose inherent `impl` blocks outnumber the types of that name.
+fn split_impls(files: &[(String, String)]) -> Vec<String> {
+    impl_blocks(files)
+        .into_iter()
+        .filter(|(_, (blocks, defined))| *defined > 0 && blocks.len() > *defined)
+        .map(|((krate, name), (blocks, _))| format!("{krate}: `{name}` has {} inherent impl blocks: {}", blocks.len(), blocks.join(", ")))
+        .collect()
+}
+
+/// Every type has one inherent `impl` block, in every crate of the
+/// repository (issue 42, item 2): its methods are in one place, and a
+/// type's behaviour spread over files (each adding an `impl`) is reported.
+#[test]
+fn every_type_has_one_inherent_impl_block() {
+    let files = repository_sources();
+    let blocks = impl_blocks(&files);
+    assert!(blocks.get(&("crates/snowpack".to_owned(), "SnowDeformation".to_owned())).is_some_and(|(b, d)| b.len() == 1 && *d == 1), "impl blocks not read");
+    let split = split_impls(&files);
+    assert!(split.is_empty(), "types with more than one inherent impl block (join them, or hand the work to a part that owns it):\n{}", split.join("\n"));
+}
+
+/// A second `impl` block planted in another file is reported; trait impls,
+/// `impl Trait` in signatures and two types of one name are not.
+#[test]
+fn a_planted_second_impl_block_is_reported() {
+    let files = |second: &str| {
+        vec![
+            ("crates/x/src/a.rs".to_owned(), "pub struct Wheel;\nimpl Wheel {\n    fn a(&self) -> impl Iterator<Item = u8> { None.into_iter() }\n}\nimpl Default for Wheel { fn default() -> Self { Wheel } }\nmod m {\n    pub struct Reader;\n    impl Reader {}\n}\n".to_owned()),
+            ("crates/x/src/b.rs".to_owned(), format!("pub struct Reader;\nimpl Reader {{}}\nimpl<'a> std::fmt::Debug for Reader {{}}\n{second}")),
+        ]
+    };
+    assert!(split_impls(&files("")).is_empty(), "{:?}", split_impls(&files("")));
+    let found = split_impls(&files("impl<T> crate::a::Wheel<T> {\n    fn b(&self) {}\n}\n"));
+    assert_eq!(found, ["crates/x: `Wheel` has 2 inherent impl blocks: crates/x/src/a.rs:2, crates/x/src/b.rs:4"]);
+}
