@@ -120,4 +120,52 @@ impl TileGrid {
         }
         keys
     }
+
+    /// [`Self::around`], the tiles nearest the window's centre first (by
+    /// the distance of their centres, row-major among equals): the order
+    /// the streamer is asked in, so after a jump or at a start the disk
+    /// reads the snow under the player first, and what a slow disk leaves
+    /// to stand-ins is the window's rim.
+    #[must_use]
+    pub fn nearest_first(&self, origin: [i64; 2], margin: i64) -> Vec<TileKey> {
+        let (s, r) = (i64::from(self.side), i64::from(self.resolution));
+        // Twice the coordinates, so the centres are integers.
+        let centre = [2 * origin[0] + r, 2 * origin[1] + r];
+        let distance = |k: &TileKey| {
+            let (dx, dz) = ((2 * k.col + 1) * s - centre[0], (2 * k.row + 1) * s - centre[1]);
+            dx * dx + dz * dz
+        };
+        let mut keys = self.around(origin, margin);
+        keys.sort_by_key(distance);
+        keys
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tiles come nearest the window's centre first: the centre's tile,
+    /// then rings outward, every tile of `around` once.
+    #[test]
+    fn nearest_first_starts_under_the_centre() {
+        let grid = TileGrid::new(64, 16).expect("grid");
+        for origin in [[0, 0], [-37, 5], [1000, -999]] {
+            let keys = grid.nearest_first(origin, 2);
+            let mut all = grid.around(origin, 2);
+            assert_eq!(keys.len(), all.len());
+            let centre = grid.key_of([origin[0] + 32, origin[1] + 32]);
+            let first = keys[0];
+            assert!((first.col - centre.col).abs() <= 1 && (first.row - centre.row).abs() <= 1, "{first:?} is not by the centre {centre:?}");
+            let ring = |k: &TileKey| {
+                let (c, r) = ((2 * k.col + 1) * 16 - (2 * origin[0] + 64), (2 * k.row + 1) * 16 - (2 * origin[1] + 64));
+                c * c + r * r
+            };
+            assert!(keys.windows(2).all(|w| ring(&w[0]) <= ring(&w[1])), "not nearest first: {keys:?}");
+            let mut sorted = keys.clone();
+            sorted.sort_by_key(|k| (k.row, k.col));
+            all.sort_by_key(|k| (k.row, k.col));
+            assert_eq!(sorted, all);
+        }
+    }
 }

@@ -36,7 +36,7 @@ impl PlanParts<'_> {
     /// the window before (a tile the old window touched lives there or in its slot).
     fn needed_from_store(&self, current: Option<[i64; 2]>, desired: [i64; 2]) -> Vec<TileKey> {
         let grid = self.layout.grid;
-        grid.around(desired, 0).into_iter().filter(|&k| !self.resident(k) && !current.is_some_and(|o| grid.touched(k, o))).collect()
+        grid.nearest_first(desired, 0).into_iter().filter(|&k| !self.resident(k) && !current.is_some_and(|o| grid.touched(k, o))).collect()
     }
 }
 
@@ -72,7 +72,7 @@ impl MovePlanner {
         let here = p.layout.grid.key_of(desired);
         if self.prefetched_at != Some(here) {
             self.prefetched_at = Some(here);
-            for key in p.layout.grid.around(desired, PREFETCH_MARGIN_TILES) {
+            for key in p.layout.grid.nearest_first(desired, PREFETCH_MARGIN_TILES) {
                 if !p.resident(key) && !p.copy_outs.carries(key) {
                     p.streamer.request(key);
                 }
