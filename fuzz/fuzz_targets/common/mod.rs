@@ -11,7 +11,7 @@ use snowpack::Snowfall;
 use snowpack::low_level::accumulate::AtlasLayout;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureParams};
 use snowpack::low_level::{DeformerExt, SnowParamsExt};
-use snowpack_scene::{Scene, SceneError, WindowSpec, World};
+use snowpack_scene::{SaveScene, Scene, SceneError, WindowSpec, World};
 
 /// Frames the world is stepped for: enough for gaits, footsteps and physics
 /// contacts to start, few enough for thousands of runs a second.
