@@ -5,9 +5,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack::low_level::replicate::{Message, decode, encode};
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
+use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
 
 fn world() -> WorldIdentity {
     WorldIdentity::from_settings(WorldSettings {

@@ -5,8 +5,8 @@
 
 use libfuzzer_sys::fuzz_target;
 use snowpack::low_level::TileStoreExt;
-use snowpack::{StoreConfig, TileStore};
 use snowpack::low_level::persist::{SnowClock, TileData, TileKey};
+use snowpack::{StoreConfig, TileStore};
 
 fuzz_target!(|data: &[u8]| {
     let dir = std::env::temp_dir().join(format!("snowpack-fuzz-store-{}", std::process::id()));
