@@ -198,11 +198,8 @@ impl TileStreaming {
         self.slots.contains(key)
     }
 
-    /// Decides where the window goes this frame: `desired`, once every tile
-    /// it touches can be made resident without waiting for the disk; until
-    /// then it stays at `current`. The first placement waits (blocking).
-    /// (`MovePlanner::plan`.)
-    pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
+    /// The planner and what it works on, borrowed apart for one call.
+    fn planner_and_parts(&mut self) -> (&mut MovePlanner, PlanParts<'_>) {
         let parts = PlanParts {
             layout: self.layout,
             slots: &self.slots,
@@ -211,7 +208,16 @@ impl TileStreaming {
             errors: &mut self.errors,
             counters: &mut self.counters,
         };
-        self.planner.plan(ctx, parts, current, desired)
+        (&mut self.planner, parts)
+    }
+
+    /// Decides where the window goes this frame: `desired`, once every tile
+    /// it touches can be made resident without waiting for the disk; until
+    /// then it stays at `current`. The first placement waits (blocking).
+    /// (`MovePlanner::plan`.)
+    pub fn plan(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
+        let (planner, parts) = self.planner_and_parts();
+        planner.plan(ctx, parts, current, desired)
     }
 
     /// The explicit wait a loading screen makes: loads (blocking) every
@@ -222,15 +228,8 @@ impl TileStreaming {
     /// limit is stood in for as in a frame, and reported the same way.
     /// (`MovePlanner::preload`.)
     pub fn preload(&mut self, ctx: &GpuContext, current: Option<[i64; 2]>, desired: [i64; 2]) {
-        let parts = PlanParts {
-            layout: self.layout,
-            slots: &self.slots,
-            copy_outs: &mut self.copy_outs,
-            streamer: &mut self.streamer,
-            errors: &mut self.errors,
-            counters: &mut self.counters,
-        };
-        self.planner.preload(ctx, parts, current, desired);
+        let (planner, parts) = self.planner_and_parts();
+        planner.preload(ctx, parts, current, desired);
     }
 
     /// Records the tile side of a window move from `old` to `origin` that
