@@ -113,14 +113,11 @@ pub fn attach_store(
             TileStreamer::new(store, memory)
         }
     };
-    let loaded = match snow.attach_store(ctx, streamer).map_err(snowpack::low_level::error::SnowError::from) {
-        Err(snowpack::low_level::error::SnowError::Store(e)) => return Err(store_error(scene, e.into())),
+    match snow.attach_store(ctx, streamer).map_err(snowpack::low_level::error::SnowError::from) {
+        Err(snowpack::low_level::error::SnowError::Store(e)) => Err(store_error(scene, e.into())),
         Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
-            return Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into());
+            Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into())
         }
-        other => other.context("attaching the tile store")?,
-    };
-    // The loading screen's wait, here rather than in the first frame's `encode`.
-    snow.preload(ctx).context("loading the window's tiles")?;
-    Ok(loaded)
+        other => other.context("attaching the tile store"),
+    }
 }
