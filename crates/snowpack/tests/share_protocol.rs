@@ -852,6 +852,61 @@ fn bytes_per_second_of_a_peer_walking() {
     assert_eq!(bits(&merged), bits(seen));
 }
 
+/// A game that sets its deformers only after the welcome (whose update
+/// reported none) still has its first deltas merged: they go after a
+/// `Presence` saying where they were pressed. Before, the relay refused
+/// them as far from every deformer it knew, acknowledged the message, and
+/// the trail's start waited a digest round for its repair: a peer that
+/// stopped once acknowledged lost it (`server_attack.rs` under load).
+#[test]
+fn a_peers_first_deltas_after_its_welcome_are_merged_not_refused() {
+    let w = world(32);
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    let mut snow = CpuSnow::new(w.clone(), 256, [-128, -128], 0.0);
+    let mut peer = SnowPeer::new(w, "late deformers", PeerConfig::default());
+    // As `snowpack`'s link pumps: what arrived first, then the update, so
+    // the update that takes the welcome reports the deformers as they are
+    // then (none yet).
+    let exchange = |peer: &mut SnowPeer, snow: &mut CpuSnow, relay: &mut SnowRelay, t: f64| {
+        while let Some((_, b)) = relay.poll_transmit() {
+            peer.receive(&b).expect("well-formed");
+        }
+        peer.update(snow, t);
+        while let Some(b) = peer.poll_transmit() {
+            relay.receive(1, &b, t);
+        }
+        relay.update(t);
+    };
+    let mut t = 0.0;
+    while !peer.is_welcomed() {
+        t += 0.005;
+        exchange(&mut peer, &mut snow, &mut relay, t);
+    }
+    // Half a second of walking (1.4 m/s at 30 Hz), well before the next
+    // digest could repair anything.
+    let (begin, dt) = (t, 1.0 / 30.0);
+    while t - begin < 0.5 {
+        let p = [-3.0 + 1.4 * (t - begin), -1.0];
+        peer.set_deformers(&[p]);
+        snow.press_disc(p, 0.3, 3000);
+        snow.step(dt);
+        t += dt;
+        exchange(&mut peer, &mut snow, &mut relay, t);
+    }
+    // The last presses go out at the next delta interval.
+    for _ in 0..6 {
+        t += dt;
+        exchange(&mut peer, &mut snow, &mut relay, t);
+    }
+    assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
+    assert_eq!(peer.unacknowledged(), 0);
+    for x in [-3.0, -2.8, -2.6] {
+        let depth = relay.depth_at(x, -1.0).expect("a world");
+        assert!(depth < 0.5 - 0.29, "the relay's snow at x = {x} is {depth} m deep: the first deltas were lost");
+    }
+}
+
 // ---------------------------------------------------------------- fuzz seeds
 
 /// The fuzz target's seed inputs (`fuzz/corpus/share_message/`, written by

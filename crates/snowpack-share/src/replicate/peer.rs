@@ -138,6 +138,9 @@ pub struct SnowPeer {
     /// Tiles the relay asked for (`Want`): sent whole, its copy may be gone.
     wanted: BTreeSet<TileKey>,
     deformers: Vec<[f64; 2]>,
+    /// The deformers the last `Presence` reported: the relay judges the
+    /// peer's tiles by these.
+    reported: Vec<[f64; 2]>,
     last_presence_s: f64,
     last_digest_s: f64,
     last_delta_s: f64,
@@ -187,6 +190,7 @@ impl SnowPeer {
             sent: HashMap::new(),
             wanted: BTreeSet::new(),
             deformers: Vec::new(),
+            reported: Vec::new(),
             last_presence_s: f64::NEG_INFINITY,
             last_digest_s: f64::NEG_INFINITY,
             last_delta_s: f64::NEG_INFINITY,
@@ -278,6 +282,7 @@ impl SnowPeer {
         self.refused = false;
         self.last_hello_s = None;
         self.last_presence_s = f64::NEG_INFINITY;
+        self.reported.clear();
         self.last_digest_s = f64::NEG_INFINITY;
         for (_, keys) in std::mem::take(&mut self.unacked).into_values() {
             self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
@@ -369,17 +374,12 @@ impl SnowPeer {
         self.send_due(now_s, window, snow.share_clock());
     }
 
-    /// What a welcomed peer sends when due at `now_s`: `Presence`, the
-    /// resends of deltas not acknowledged in time, the deltas, and `Digest`
-    /// (of the window, at `snow_clock`).
+    /// What a welcomed peer sends when due at `now_s`: `Presence` (also
+    /// before deltas when its deformers appeared or moved since the last),
+    /// the resends of deltas not acknowledged in time, the deltas, and
+    /// `Digest` (of the window, at `snow_clock`).
     fn send_due(&mut self, now_s: f64, window: Option<([i64; 2], u32)>, snow_clock: ShareClock) {
         let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-        if now_s - self.last_presence_s >= self.config.presence_interval_s
-            && let Some((first, resolution)) = window
-        {
-            self.last_presence_s = now_s;
-            self.push(encode(&Message::Presence { window: first, resolution, deformers: self.deformers.clone() }));
-        }
         let late: Vec<u64> = self.unacked.iter().filter(|(_, (at, _))| now_s - at >= self.config.resend_after_s).map(|(&s, _)| s).collect();
         for seq in late {
             if let Some((_, keys)) = self.unacked.remove(&seq) {
@@ -387,7 +387,21 @@ impl SnowPeer {
                 self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
             }
         }
-        if !self.to_send.is_empty() && now_s - self.last_delta_s >= self.config.delta_interval_s {
+        let deltas_due = !self.to_send.is_empty() && now_s - self.last_delta_s >= self.config.delta_interval_s;
+        // Deltas go after a `Presence` that says where they were pressed: a
+        // relay refuses (and still acknowledges) a tile far from every
+        // deformer it knows, so deformers that appeared (a first report sent
+        // on the welcome, before the game set any) or jumped since the last
+        // report are told first, not at the next interval.
+        let stale = deltas_due && deformers_moved(&self.reported, &self.deformers);
+        if (stale || now_s - self.last_presence_s >= self.config.presence_interval_s)
+            && let Some((first, resolution)) = window
+        {
+            self.last_presence_s = now_s;
+            self.reported.clone_from(&self.deformers);
+            self.push(encode(&Message::Presence { window: first, resolution, deformers: self.deformers.clone() }));
+        }
+        if deltas_due {
             self.last_delta_s = now_s;
             self.send_tiles(now_s);
         }
@@ -613,6 +627,18 @@ impl SnowPeerExt for SnowPeer {
 }
 
 /// Merges `t` into the replica (inserting it when new); whether the replica changed.
+/// How far (m) a deformer may be from where the last `Presence` put it
+/// before deltas wait for a new one. The relay lets a peer write within
+/// 6 m (and a tile's half diagonal) of its reported deformers; 1 m of that
+/// for the lag leaves 5 m for what the deformer presses around itself.
+const REPORTED_SLACK_M: f64 = 1.0;
+
+/// Whether `now` differs from `reported` by a deformer that appeared, went
+/// or moved more than [`REPORTED_SLACK_M`].
+fn deformers_moved(reported: &[[f64; 2]], now: &[[f64; 2]]) -> bool {
+    reported.len() != now.len() || reported.iter().zip(now).any(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]) > REPORTED_SLACK_M)
+}
+
 fn merge_into(replica: &mut HashMap<TileKey, SharedTile>, t: SharedTile, c: CatchUp) -> bool {
     match replica.get_mut(&t.key) {
         Some(mine) => mine.merge(&t, c),
