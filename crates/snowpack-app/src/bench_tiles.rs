@@ -13,7 +13,7 @@ use snowpack::low_level::SnowInspect;
 use snowpack::low_level::TileStreamerExt;
 use snowpack::low_level::persist::TileKey;
 use snowpack::{Deformer, GpuContext, NoiseTerrain, SnowDeformation, SnowParams, TerrainSource};
-use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+use snowpack::{StoreConfig, StoredWindow as _, StreamerConfig, TileStore, TileStreamer};
 
 /// Texels per side of a tile in every measurement.
 const TILE: u32 = 64;

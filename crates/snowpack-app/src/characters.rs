@@ -88,18 +88,20 @@ fn store_error(scene: &Scene, e: snowpack::StoreError) -> anyhow::Error {
 /// path that names a file, a store of another tile side or format, or a
 /// damaged or mismatched save is bad input (exit 2); a store the disk
 /// refuses (read-only, failing, not answering) is the machine's (exit 1).
-/// `Ok(true)`: a save was loaded.
+/// `Ok(true)`: a save was loaded. A `batch` run's window moves wait for the
+/// disk rather than hold ([`snowpack::StreamerConfig::moves_wait_for_disk`]):
+/// its outputs must not depend on the disk's speed or the machine's load.
 pub fn attach_store(
     ctx: &GpuContext,
     snow: &mut SnowDeformation,
     scene: &Scene,
     spec: &snowpack_scene::StoreSpec,
-    out: &std::path::Path,
+    (out, batch): (&std::path::Path, bool),
 ) -> anyhow::Result<bool> {
-    use snowpack::{StoreConfig, StreamerConfig, TileStore, TileStreamer};
+    use snowpack::{StoreConfig, StoredWindow as _, StreamerConfig, TileStore, TileStreamer};
     use snowpack_scene::StoreKeep;
     const MIB: f64 = 1024.0 * 1024.0;
-    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize, ..StreamerConfig::default() };
+    let memory = StreamerConfig { memory_budget_bytes: (f64::from(spec.memory_mb) * MIB) as usize, moves_wait_for_disk: batch, ..StreamerConfig::default() };
     let streamer = match spec.keep {
         StoreKeep::Off => return Ok(false),
         StoreKeep::Memory => TileStreamer::in_memory(spec.tile_texels, memory),
@@ -113,11 +115,14 @@ pub fn attach_store(
             TileStreamer::new(store, memory)
         }
     };
-    match snow.attach_store(ctx, streamer).map_err(snowpack::low_level::error::SnowError::from) {
-        Err(snowpack::low_level::error::SnowError::Store(e)) => Err(store_error(scene, e.into())),
+    let loaded = match snow.attach_store(ctx, streamer).map_err(snowpack::low_level::error::SnowError::from) {
+        Err(snowpack::low_level::error::SnowError::Store(e)) => return Err(store_error(scene, e.into())),
         Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) => {
-            Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into())
+            return Err(BadInput(format!("{}: [store].{field}: {why}", scene.path.display())).into());
         }
-        other => other.context("attaching the tile store"),
-    }
+        other => other.context("attaching the tile store")?,
+    };
+    // The loading screen's wait, here rather than in the first frame's `encode`.
+    snow.preload(ctx).context("loading the window's tiles")?;
+    Ok(loaded)
 }

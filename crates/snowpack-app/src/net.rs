@@ -24,6 +24,8 @@ use renet2_netcode::{
     ServerSetupConfig,
 };
 #[cfg(feature = "gpu")]
+use snowpack::SharedWindow as _;
+#[cfg(feature = "gpu")]
 use snowpack::low_level::SnowInspect;
 use snowpack_app::BadInput;
 use snowpack_share::persist::{StoreConfig, TileStore, WhenFull};

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context as _;
 use snowpack::PassTimings;
+use snowpack::StoredWindow as _;
 use snowpack::{AdapterRequest, Camera, GpuContext, Renderer, SnowDeformation};
 use snowpack::{DebugView, IMAGE_FORMAT, MaterialPreset};
 use snowpack_scene::{Scene, Technique, World};
@@ -104,7 +105,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> anyhow::Result<RunReport> 
         other => other.context("placing the [[object]]s")?,
     }
     let resumed = match &scene.store {
-        Some(spec) => attach_store(&ctx, &mut snow, scene, spec, &opts.out)?,
+        Some(spec) => attach_store(&ctx, &mut snow, scene, spec, (&opts.out, true))?,
         None => false,
     };
     let mut link = match opts.connect {

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use anyhow::Context as _;
 use glam::{DVec2, Vec2, Vec3};
 use snowpack::PassTimings;
+use snowpack::StoredWindow as _;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::skin::feet::FootstepEvent;
 use snowpack::{Deformer, EnvironmentMap, GpuContext, RenderParams, Renderer, SkinnedId, SnowDeformation, SnowParams};
@@ -184,7 +185,7 @@ impl Session {
     /// when it holds a save, the window resumes there.
     fn attach_store(&mut self, ctx: &GpuContext) -> anyhow::Result<()> {
         if let Some(spec) = self.scene.store.clone() {
-            crate::characters::attach_store(ctx, &mut self.snow, &self.scene, &spec, Path::new(DEMO_OUT))?;
+            crate::characters::attach_store(ctx, &mut self.snow, &self.scene, &spec, (Path::new(DEMO_OUT), false))?;
         }
         Ok(())
     }

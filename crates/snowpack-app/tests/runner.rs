@@ -1164,6 +1164,7 @@ fn a_trail_left_behind_comes_back_from_the_store_refilled_and_a_run_resumes_from
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(run.out.join("meta.json")).expect("meta")).expect("json");
     assert_eq!(meta["store"]["resumed"].as_bool(), Some(true), "{meta}");
+    assert_eq!(meta["origin_m"][0].as_f64(), Some(-4.0), "the window did not come back: {meta}");
     assert!((meta["store"]["time_s"].as_f64().unwrap_or(0.0) - 10.0).abs() < 1e-3, "{meta}");
     let again = Grid::load(&run.out.join("snow.npy"));
     let raised = again.at(c, c) - ground;

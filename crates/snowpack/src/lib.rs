@@ -64,17 +64,23 @@
 //! ([`SnowDeformation`], [`SnowParams`], [`SnowFrame`]), what presses it
 //! ([`Deformer`], [`SkinnedMesh`], [`SkinnedPose`]), the terrain under it,
 //! the ground drawn in a game's pass ([`SnowGround`]), point queries, objects
-//! that gather snow ([`SnowObject`]), persistence ([`TileStore`],
-//! [`TileStreamer`]), shared snow ([`SnowPeer`]; the relay a server runs,
-//! `SnowRelay`, with the `relay` feature) and errors.
+//! that gather snow ([`SnowObject`]) and errors. Trails stay in memory
+//! while the window is away; keeping them on disk and sharing them between
+//! machines are features.
 //!
 //! Features:
+//! - `store`: trails kept on disk and whole-snow saves (`StoredWindow`,
+//!   `SnowDeformation`'s `attach_store`, `preload`, `save`; `TileStore`,
+//!   `TileStreamer`, their settings, `StoreError`).
+//! - `share`: shared snow, a game's client side (`SharedWindow`,
+//!   `SnowDeformation`'s `enable_sharing`, `world_identity`; `SnowPeer`, its
+//!   settings and counters, `WorldIdentity`, `ShareError`).
 //! - `renderer`: snowpack's own renderer (`Renderer`, `RenderParams`,
 //!   `Camera`, `EnvironmentMap`, `ShellSettings`), as the demo and the
 //!   headless runner draw the snow.
-//! - `relay`: the relay of shared snow (`SnowRelay`, `RelayConfig`,
-//!   `RelayStats`), for a game's server.
-//! - `low_level` (implies `renderer` and `relay`): `snowpack::low_level`,
+//! - `relay` (implies `share`): the relay of shared snow (`SnowRelay`,
+//!   `RelayConfig`, `RelayStats`), for a game's server.
+//! - `low_level` (implies all of the above): `snowpack::low_level`,
 //!   named items below the front door (passes, their parameters, readbacks,
 //!   the tile and wire formats) for snowpack's app, tools and tests.
 //!
@@ -113,13 +119,25 @@ pub use deform::params::SnowParams;
 pub use deform::shape::Deformer;
 pub use deform::technique::{RimStyle, Technique};
 pub use deform::{PointAnswers, PointSample, QueryTicket};
-pub use error::front::{ShareError, ShareErrorKind, SnowError, SnowErrorKind, StoreError, StoreErrorKind};
+pub use error::front::{SnowError, SnowErrorKind};
 pub use gpu::{AdapterRequest, GpuContext, PassTimings};
-pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer, WhenFull};
 pub use render::ground::{GroundLighting, SNOW_SAMPLING_WGSL};
 pub use render::sampling::{SNOW_SAMPLING_GROUP, SnowWindowUniform, sampling_buffers, sampling_layout_entries, snow_sampling_wgsl_at};
 pub use render::{GroundCamera, SnowGround, SnowGroundDescriptor};
+// Trails kept on disk and whole-snow saves (feature `store`).
+#[cfg(feature = "store")]
+pub use error::front::{StoreError, StoreErrorKind};
+#[cfg(feature = "store")]
+pub use persist::{StoreConfig, StreamerConfig, TileStore, TileStreamer, WhenFull};
+#[cfg(feature = "store")]
+pub use snow::stored_window::StoredWindow;
+// Shared snow, a game's client side (feature `share`).
+#[cfg(feature = "share")]
+pub use error::front::{ShareError, ShareErrorKind};
+#[cfg(feature = "share")]
 pub use replicate::{PeerConfig, PeerStats, SnowPeer, WorldIdentity};
+#[cfg(feature = "share")]
+pub use snow::shared_window::SharedWindow;
 // The relay a game's server runs between its players (feature `relay`).
 #[cfg(feature = "relay")]
 pub use replicate::{PeerId, RelayConfig, RelayStats, SnowRelay};

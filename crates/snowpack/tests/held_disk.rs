@@ -7,6 +7,7 @@
 //! The bounds asserted are generous (seconds for a limit of a fraction of
 //! one): they tell a wait that gives up from one that hangs, not how fast.
 
+use snowpack::StoredWindow as _;
 use snowpack::low_level::TileStoreExt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -9,6 +9,7 @@
 //! pressed in the same tile. Both trails must be there after walking away and
 //! back, and after a save and a reload.
 
+use snowpack::StoredWindow as _;
 use snowpack::low_level::TileStoreExt;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -1342,7 +1342,7 @@ fn backticked_items(text: &str) -> BTreeSet<String> {
         .skip(1)
         .step_by(2)
         .filter(|w| !w.is_empty() && w.chars().all(|c| c.is_alphanumeric() || c == '_') && !w.starts_with(|c: char| c.is_ascii_digit()))
-        .filter(|w| !["low_level", "relay", "renderer"].contains(w))
+        .filter(|w| !["low_level", "relay", "renderer", "store", "share"].contains(w))
         .map(str::to_owned)
         .collect()
 }
@@ -1361,8 +1361,8 @@ fn table_rows(markdown: &str, heading: &str) -> Vec<Vec<String>> {
 
 /// `docs/architecture.md`'s front door says what the root exports: its
 /// table is the root's re-exports without features, and the rows of its
-/// features table name what `renderer` and `relay` add and every root item
-/// that only `low_level` adds.
+/// features table name what `renderer`, `relay`, `store` and `share` add
+/// and every root item that only `low_level` adds.
 #[test]
 fn the_front_door_table_is_the_roots_exports() {
     let lib = std::fs::read_to_string(src().join("lib.rs")).expect("src/lib.rs");
@@ -1378,7 +1378,7 @@ fn the_front_door_table_is_the_roots_exports() {
         "docs/architecture.md's front-door table: exported at the root but not listed {missing:?}; listed but not exported without features {extra:?}"
     );
     let rows = feature_rows();
-    for feature in ["renderer", "relay"] {
+    for feature in ["renderer", "relay", "store", "share"] {
         let listed = backticked_items(rows.get(feature).unwrap_or_else(|| panic!("no `{feature}` row in the features table")));
         let exported = exports.get(feature).cloned().unwrap_or_default();
         assert_eq!(listed, exported, "docs/architecture.md's `{feature}` row against the root's `#[cfg(feature = \"{feature}\")]` re-exports");

@@ -9,6 +9,7 @@
 //! again (the new save). The run is replayed with the power cut after each
 //! disk operation of the second save in turn.
 
+use snowpack::StoredWindow as _;
 use snowpack::low_level::TileStoreExt;
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -3,6 +3,7 @@
 //! makes a window a replica: merging two simulations' changed tiles gives
 //! what one simulation with both sets of presses gives, bit for bit.
 
+use snowpack::SharedWindow as _;
 use snowpack::low_level::WorldIdentityExt;
 use std::collections::BTreeSet;
 

@@ -5,6 +5,7 @@
 //! are equal bit for bit over the area the windows share.
 
 use glam::{DVec2, Vec3};
+use snowpack::SharedWindow as _;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::SharedSnow;

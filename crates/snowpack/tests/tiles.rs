@@ -2,6 +2,7 @@
 //! still there when the window comes back (from memory, from disk, from a
 //! save), raised by the refill of the time away, 100 km from the origin too.
 
+use snowpack::StoredWindow as _;
 use snowpack::low_level::TileStoreExt;
 use std::path::{Path, PathBuf};
 

@@ -144,6 +144,9 @@ pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, 
 pub mod prelude {
     #[cfg(feature = "multiplayer")]
     pub use crate::SnowSharing;
+    /// `SnowDeformation::world_identity_for`: the world a server checks its clients against.
+    #[cfg(feature = "multiplayer")]
+    pub use snowpack::SharedWindow;
     #[cfg(feature = "render")]
     pub use crate::{
         FeelsSnow, FootKind, SnowAnswered, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer,

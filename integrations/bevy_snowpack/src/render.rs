@@ -8,7 +8,7 @@ use bevy::core_pipeline::schedule::camera_driver;
 use bevy::prelude::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderGraphSystems, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderStartup, RenderSystems};
-use snowpack::{Deformer, GpuContext, ObjectShape, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform};
+use snowpack::{Deformer, GpuContext, ObjectShape, SkinnedId, SkinnedPose, SnowDeformation, SnowFrame, SnowWindowUniform, StoredWindow as _};
 
 use crate::control::SnowControl;
 use crate::from_render::{FromRender, ToMainWorld};

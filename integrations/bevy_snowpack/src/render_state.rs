@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
 
 use bevy::prelude::*;
-use snowpack::{GpuContext, ObjectShape, SkinnedId, SnowDeformation, SnowWindowUniform, TileStore, TileStreamer};
+use snowpack::{GpuContext, ObjectShape, SkinnedId, SnowDeformation, SnowWindowUniform, StoredWindow as _, TileStore, TileStreamer};
 
 use crate::from_render::{FromRender, ToMainWorld};
 use crate::material_extension::CoverTexture;

@@ -69,7 +69,7 @@ pub struct SnowParams {
     /// tiles are forgotten (fresh snow). `None`: texels leaving the window
     /// are forgotten and no tiles are resident on the GPU. Default
     /// `DEFAULT_TILE_MEMORY_BYTES`. A disk store attached with
-    /// [`crate::SnowDeformation::attach_store`] replaces the memory keeper.
+    /// `StoredWindow::attach_store` (feature `store`) replaces the memory keeper.
     pub tile_memory_bytes: Option<usize>,
     /// Largest distance (m) a deformer may move between two frames and still
     /// be swept over its motion (see `crate::deform::sweep`); a larger

@@ -8,7 +8,12 @@
 
 use std::fmt;
 
-pub use snowpack_share::error::front::{ShareError, ShareErrorKind, StoreError, StoreErrorKind};
+pub use snowpack_share::error::front::{ShareError, StoreError};
+// The kinds a program branches on, with the features whose calls return the errors.
+#[cfg(feature = "share")]
+pub use snowpack_share::error::front::ShareErrorKind;
+#[cfg(feature = "store")]
+pub use snowpack_share::error::front::StoreErrorKind;
 
 use super::{SnowError as SnowDetail, StoreError as StoreDetail};
 

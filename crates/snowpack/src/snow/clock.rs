@@ -129,6 +129,7 @@ impl SnowTime {
 
     /// Takes up a saved `clock` and snowfall so far (`fallen_m`, loading a
     /// save): the refill counters go on from the saved clock.
+    #[cfg_attr(not(feature = "store"), expect(dead_code, reason = "for `StoredWindow`'s calls (feature `store`)"))]
     pub(super) fn resume(&mut self, clock: SnowClock, fallen_m: f32) {
         self.clock = clock;
         self.fallen_m = fallen_m;

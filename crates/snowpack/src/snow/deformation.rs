@@ -11,9 +11,8 @@ use crate::deform::query::{PointAnswers, QueryTicket};
 use crate::error::SnowError;
 use crate::frame::FrameContext;
 use crate::gpu::{GpuContext, GpuTimer, PassTimings};
-use crate::persist::TileStreamer;
 use crate::replicate::sharing::Sharing;
-use crate::replicate::{ShareClock, SharedSnow, SharedTile, WorldIdentity};
+use crate::replicate::{ShareClock, SharedSnow, SharedTile};
 use crate::skin::coat::CoatSettings;
 use crate::skin::skinning::SkinnedMesh;
 use crate::snowfall::Snowfall;
@@ -27,7 +26,7 @@ use super::core_window::{CoreWindow, fits_adapter};
 use super::skinned::SkinnedId;
 use super::snow_frame::SnowFrame;
 use super::steps::FrameSteps;
-use super::{objects, share, store};
+use super::{objects, share};
 use crate::deform::params::SnowParamsExt;
 use crate::gpu::context::GpuContextExt;
 
@@ -53,8 +52,10 @@ use crate::gpu::context::GpuContextExt;
 ///
 /// Trails stay: texels leaving the window are kept in memory by default
 /// ([`SnowParams::tile_memory_bytes`]) and come back, refilled by the time
-/// away, when the window returns; [`Self::attach_store`] keeps them on disk
-/// instead (and makes [`Self::save`] possible).
+/// away, when the window returns; `StoredWindow::attach_store` (feature
+/// `store`) keeps them on disk instead (and makes `StoredWindow::save`
+/// possible). Sharing the snow between machines is `SharedWindow`'s
+/// (feature `share`).
 pub struct SnowDeformation {
     /// The window, its resources and its own passes.
     pub(super) core: CoreWindow,
@@ -70,6 +71,7 @@ pub struct SnowDeformation {
     /// resident tiles; `None` when trails are forgotten.
     pub(super) tiles: Option<TileStreaming>,
     /// [`Self::attach_store`] has been called.
+    #[cfg_attr(not(feature = "store"), expect(dead_code, reason = "for `StoredWindow`'s calls (feature `store`)"))]
     pub(super) store_attached: bool,
     /// Shared snow ([`Self::enable_sharing`]): flags, gathers, merges.
     pub(super) sharing: Option<Sharing>,
@@ -186,27 +188,6 @@ impl SnowDeformation {
     /// Moves the window's centre; the move (snapped to texels) happens at the next frame.
     pub fn set_center(&mut self, center: DVec2) {
         self.core.set_center(center);
-    }
-
-    /// The blocking step of a loading screen: loads from the attached store
-    /// every tile the window needs at its centre ([`Self::set_center`]),
-    /// after [`Self::attach_store`] or a teleport, so that the frames that
-    /// follow wait for nothing. Without it, the first frame after attaching
-    /// waits for the disk itself, and a window that jumps far holds where it
-    /// is (pressing there) until its new tiles are read, a few frames.
-    ///
-    /// A disk that fails or does not answer within
-    /// [`crate::StreamerConfig::wait_limit`] is not an error here: as in a
-    /// frame, fresh snow stands in for those tiles, their stored versions
-    /// are merged in later, and [`Self::take_store_errors`] reports it.
-    /// Without a store it returns at once.
-    pub fn preload(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
-        let Some(tiles) = &mut self.tiles else { return Ok(()) };
-        let (current, desired) = (self.core.window_origin(), self.core.desired_origin());
-        ctx.guarded(|| {
-            tiles.preload(ctx, current, desired);
-            Ok(())
-        })
     }
 
     /// Frames recorded so far.
@@ -380,96 +361,6 @@ impl SnowDeformation {
         self.tiles.as_ref().map_or(0, |t| t.stats().resident)
     }
 
-    /// Attaches a tile store: from now on texels leaving the window are kept
-    /// through `streamer` (in memory, then on disk; or in memory alone for
-    /// `TileStreamer::in_memory`) and come back when the window returns,
-    /// brought up to the time then. It replaces the memory keeper the window
-    /// was created with ([`crate::SnowParams::tile_memory_bytes`]). Call before the
-    /// first frame, once. When the store holds a save ([`Self::save`]), the
-    /// window's clock, snowfall and position are loaded from it and `true`
-    /// returned.
-    pub fn attach_store(&mut self, ctx: &GpuContext, streamer: TileStreamer) -> Result<bool, crate::SnowError> {
-        ctx.guarded(|| {
-            if self.frame > 0 || self.store_attached {
-                return Err(SnowError::InvalidParameter { field: "store", why: "a tile store is attached before the first frame, once".into() }.into());
-            }
-            let saved = store::attach(ctx, &self.core, &mut self.tiles, streamer)?;
-            self.store_attached = true;
-            let Some(s) = saved else { return Ok(false) };
-            self.time.resume(s.clock, s.fallen_m);
-            self.core.set_center(s.center);
-            self.frame = s.frame;
-            Ok(true)
-        })
-    }
-
-    /// Saves the whole snow state into the attached store: every tile (the
-    /// window's texels included) and the window's clock and position; when
-    /// it returns `Ok`, the store directory is a complete save that
-    /// [`Self::attach_store`] loads. Blocking (a save point, not a frame).
-    /// Saving needs a disk store: with tiles kept in memory only (the
-    /// default) or not at all it is an error naming `store`.
-    pub fn save(&mut self, ctx: &GpuContext) -> Result<(), crate::SnowError> {
-        ctx.guarded(|| store::save(ctx, &self.core, self.tiles.as_mut(), (&self.time, self.frame)))
-    }
-
-    /// Store errors since the last call (disk full, read-only, corrupt tiles
-    /// replaced by fresh snow): the frame goes on; the game decides what to tell.
-    pub fn take_store_errors(&mut self) -> Vec<crate::StoreError> {
-        self.tiles.as_mut().map(TileStreaming::take_errors).unwrap_or_default().into_iter().map(Into::into).collect()
-    }
-
-    /// Shares this window's snow in tiles of `tile_side` texels (8..=256) on
-    /// the global grid: from the next frame the stamp and update passes flag
-    /// the tiles presses change, changed tiles are gathered at most every
-    /// `interval_s` of world time (0.25 s is a good default) for a
-    /// [`crate::SnowPeer`] to send, and the tiles it receives are folded in. Calling it again changes the side and
-    /// the interval and forgets pending tiles.
-    pub fn enable_sharing(&mut self, ctx: &GpuContext, tile_side: u32, interval_s: f64) -> Result<(), crate::SnowError> {
-        let sky = self.accumulation.as_ref().map(SnowAccumulation::sky_view);
-        ctx.guarded(|| share::enable(ctx, &mut self.core, sky, &mut self.sharing, (tile_side, interval_s)))
-    }
-
-    /// Lets the next frame gather the changed tiles whatever the interval,
-    /// so a program about to stop sends its last changes without letting
-    /// world time pass.
-    pub fn flush_changed_tiles(&mut self) {
-        if let Some(sharing) = &mut self.sharing {
-            sharing.gather_now();
-        }
-    }
-
-    /// Changed tiles flagged and not gathered yet (0 without sharing).
-    #[must_use]
-    pub fn dirty_tiles(&self) -> usize {
-        self.sharing.as_ref().map_or(0, Sharing::dirty_tiles)
-    }
-
-    /// Tiles given to the shared snow (`SnowPeer::update`) and not merged yet (ahead
-    /// of the clock, or beyond a frame's upload).
-    #[must_use]
-    pub fn waiting_tiles(&self) -> usize {
-        self.sharing.as_ref().map_or(0, Sharing::waiting_tiles)
-    }
-
-    /// The settings another machine must share for its snow to merge with
-    /// this window's; the tile side is the sharing one
-    /// ([`Self::enable_sharing`]), or the default tile side before.
-    #[must_use]
-    pub fn world_identity(&self) -> WorldIdentity {
-        share::world_identity(&self.core, self.sharing.as_ref())
-    }
-
-    /// The world identity a window of `params` over `terrain` has once it
-    /// shares tiles of `tile_side`², found without a GPU: what a dedicated
-    /// server (`snowpack server --scene`) serves and checks its peers
-    /// against. Equal, field for field, to [`Self::world_identity`] of such
-    /// a window after [`Self::enable_sharing`] with that side.
-    #[must_use]
-    pub fn world_identity_for(params: &crate::SnowParams, terrain: &crate::TerrainSource, tile_side: u32) -> WorldIdentity {
-        share::world_identity_for(params, terrain, tile_side)
-    }
-
     /// [`Self::memory_bytes`] summed (without building the list but for the objects').
     pub(super) fn memory_total(&self) -> u64 {
         self.core.memory_total()
@@ -490,7 +381,7 @@ impl SharedSnow for SnowDeformation {
     /// the world's own at that time (its refill from time 0), they keep
     /// being counted from the world's beginning, as on every other machine.
     fn join_clock(&mut self, clock: ShareClock) {
-        let world = self.world_identity().clock_at(clock.time_s);
+        let world = share::world_identity(&self.core, self.sharing.as_ref()).clock_at(clock.time_s);
         self.time.join(clock, world, self.core.params().refill_m_per_s);
     }
 

@@ -222,7 +222,7 @@ pub trait SnowInspect {
     #[must_use]
     fn accumulation(&self) -> Option<&SnowAccumulation>;
 
-    /// Whether [`SnowDeformation::enable_sharing`] was called on this window.
+    /// Whether `SharedWindow::enable_sharing` was called on this window.
     #[must_use]
     fn is_sharing(&self) -> bool;
 

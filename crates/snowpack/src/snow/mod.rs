@@ -20,10 +20,15 @@ pub mod objects;
 pub mod reads;
 pub mod saved;
 pub mod share;
+#[cfg(feature = "share")]
+pub mod shared_window;
 pub mod skinned;
 pub mod snow_frame;
 pub mod steps;
+#[cfg_attr(not(feature = "store"), expect(dead_code, reason = "for `StoredWindow`'s calls (feature `store`)"))]
 pub mod store;
+#[cfg(feature = "store")]
+pub mod stored_window;
 pub mod sweep;
 
 pub use deformation::SnowDeformation;

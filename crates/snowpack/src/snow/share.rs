@@ -1,9 +1,10 @@
 //! The shared-snow plug-in's front: the window as a replica of a shared
 //! world (its identity, the flags' allocation) over `Sharing`, the GPU's
 //! changed-tile flags, gather and merge passes (`replicate::sharing`).
-//! `SnowDeformation`'s calls (`enable_sharing`, `world_identity`, the
-//! [`crate::replicate::SharedSnow`] impl) delegate here; its frame steps
-//! (merge, flags) are in [`super::steps`].
+//! `SharedWindow` (`shared_window.rs`: `SnowDeformation`'s calls for
+//! shared snow, feature `share`) and its [`crate::replicate::SharedSnow`]
+//! impl delegate here; its frame steps (merge, flags) are in
+//! [`super::steps`].
 
 use crate::deform::params::default_tile_texels;
 use crate::error::SnowError;
@@ -26,6 +27,7 @@ pub const SHARE_TILE_SIDES: std::ops::RangeInclusive<u32> = 8..=256;
 /// binds them to the passes that write them (the update with the objects'
 /// occlusion map `sky`) and makes `sharing` anew. A side or interval out of
 /// range is an error naming it, and nothing changes.
+#[cfg_attr(not(feature = "share"), expect(dead_code, reason = "for `SharedWindow`'s calls (feature `share`)"))]
 pub(super) fn enable(
     ctx: &GpuContext,
     core: &mut CoreWindow,
@@ -71,6 +73,7 @@ pub(super) fn world_identity(core: &CoreWindow, sharing: Option<&Sharing>) -> Wo
 /// The world identity of a window of `params` over `terrain` sharing
 /// tiles of `tile_side`², found without a GPU
 /// (`SnowDeformation::world_identity_for`).
+#[cfg_attr(not(feature = "share"), expect(dead_code, reason = "for `SharedWindow`'s calls (feature `share`)"))]
 pub(super) fn world_identity_for(params: &crate::SnowParams, terrain: &crate::TerrainSource, tile_side: u32) -> WorldIdentity {
     let snow = WorldSnow {
         texel_m: params.texel_m(),

@@ -2,8 +2,8 @@
 //! ([`TileStreaming`], which owns the resident tiles and their passes), in
 //! memory by default or in an attached store, the store's attaching (with
 //! the save it holds) and the save of the whole snow into it, for
-//! `SnowDeformation::attach_store` and `SnowDeformation::save`. Its frame
-//! steps (the move, the weather) are in [`super::steps`].
+//! `StoredWindow` (`stored_window.rs`: `SnowDeformation`'s calls, feature
+//! `store`). Its frame steps (the move, the weather) are in [`super::steps`].
 
 use crate::error::SnowError;
 use crate::gpu::GpuContext;

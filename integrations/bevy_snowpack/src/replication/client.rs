@@ -15,7 +15,7 @@ use bevy::prelude::*;
 use bevy::render::renderer::RenderGraph;
 use bevy::render::{Extract, ExtractSchedule, MainWorld, RenderApp};
 use bevy_replicon::prelude::*;
-use snowpack::{PeerStats, ShareErrorKind, SnowPeer, WorldIdentity};
+use snowpack::{PeerStats, ShareErrorKind, SharedWindow as _, SnowPeer, WorldIdentity};
 
 use super::{SnowReplicationSettings, SnowReplicationSystems, SnowToClient, SnowToServer};
 use crate::render_state::SnowRenderState;

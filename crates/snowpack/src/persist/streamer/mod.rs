@@ -122,6 +122,12 @@ impl TileStreamer {
         }
     }
 
+    /// Whether a window move waits for the disk instead of holding
+    /// ([`StreamerConfig::moves_wait_for_disk`]).
+    pub(crate) fn moves_wait_for_disk(&self) -> bool {
+        self.config.moves_wait_for_disk
+    }
+
     /// Fresh snow stands in for `key`, whose stored version the window could
     /// not get in time (a late or hung disk) or could not read: from now on
     /// what the window makes there is not written over the stored version
@@ -203,7 +209,7 @@ impl TileStreamer {
     /// this flush; any others are in `TileStreamer::take_errors`. Gives up
     /// after [`StreamerConfig::wait_limit`] with [`crate::StoreErrorKind::TimedOut`]
     /// (the writes stay queued).
-    pub fn flush(&mut self) -> Result<(), crate::StoreError> {
+    pub fn flush(&mut self) -> Result<(), crate::error::front::StoreError> {
         if self.memory_only {
             // Nothing is ever waiting to be written.
             return Ok(());

@@ -96,6 +96,14 @@ impl MovePlanner {
         if ready {
             return desired;
         }
+        if p.streamer.moves_wait_for_disk() {
+            // A batch run: the move waits (and is counted as a wait) rather
+            // than holds, so its result does not depend on the disk's speed.
+            p.counters.gpu_waits += u64::from(needed.iter().any(|&k| p.copy_outs.carries(k)));
+            p.counters.blocking_loads += 1;
+            self.wait_for_needed(ctx, &mut p, &needed);
+            return desired;
+        }
         // Ask again for what is missing: a tile that came back from the GPU
         // after the prefetch may have left memory for the disk since.
         for &key in &needed {

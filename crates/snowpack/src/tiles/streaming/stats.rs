@@ -41,7 +41,9 @@ pub struct TileStats {
     pub evicting: usize,
     /// Tiles the memory cache dropped between being found ready and being
     /// used, read again from disk within the frame (blocking; rare, with a
-    /// memory budget smaller than the tiles the window needs at once).
+    /// memory budget smaller than the tiles the window needs at once); and
+    /// with `StreamerConfig::moves_wait_for_disk`, the moves that waited
+    /// for the disk where a game's window would have held.
     pub blocking_loads: u64,
     /// GPU memory of the resident tiles, their upload buffers and the
     /// copy-out staging buffers still in flight (bytes).

@@ -457,7 +457,7 @@ fn script(
 #[cfg(test)]
 mod tests {
     use bevy_snowpack::SnowReplicationSettings;
-    use bevy_snowpack::snowpack::SnowDeformation;
+    use bevy_snowpack::snowpack::{SharedWindow as _, SnowDeformation};
 
     /// The server's world, found from constants without a GPU, is the one the clients' snow has.
     #[test]
