@@ -251,3 +251,44 @@ fn a_failing_disk_keeps_the_trail_in_memory_and_merges_once_it_works() {
     assert!(a < PRESSED && b < PRESSED, "once the disk works, the save merges A in: depths {a} at A, {b} at B");
     both_trails_survive(ctx, dir.path(), &disk, d, "failing disk");
 }
+
+/// A batch run's window (`StreamerConfig::moves_wait_for_disk`, as
+/// `snowpack run` sets it) is where it was told in the frame it was told:
+/// a jump away and one back, each while the disk is held for 200 ms, take
+/// one frame each, waiting for the disk where a game's window would hold
+/// (`window_waits` unchanged). What a run computes does not depend on the
+/// disk's speed; the trail is back.
+#[test]
+fn a_batch_runs_jump_waits_for_a_slow_disk_instead_of_holding() {
+    let Some(ctx) = testing::gpu() else { return };
+    let dir = TestDir::new("batch");
+    let disk = HeldDisk::default();
+    save_trail_a(ctx, dir.path(), &disk);
+    let store = TileStore::open_on(Arc::new(disk.clone()), dir.path(), SIDE, StoreConfig::default()).expect("open");
+    // A budget of one tile: what the window leaves goes to the disk, and coming back reads it.
+    let config = StreamerConfig { memory_budget_bytes: 1, wait_limit: Duration::from_secs(20), moves_wait_for_disk: true };
+    let mut d = window(ctx);
+    assert!(d.attach_store(ctx, TileStreamer::new(store, config)).expect("attach"), "the save loads");
+    let [a, _] = depths(ctx, &mut d);
+    assert!(a < PRESSED, "trail A in the first frame: depth {a}");
+    let before = d.tile_stats().expect("tiles");
+    for to in [DVec2::new(30.0, 0.0), DVec2::ZERO] {
+        disk.hold();
+        let held = disk.clone();
+        let release = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(200));
+            held.release();
+        });
+        d.set_center(to);
+        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
+        release.join().expect("the release");
+        let origin = d.origin_m().expect("placed");
+        assert!((origin + DVec2::splat(2.0) - to).length() < 0.5, "one frame after it was told, the window is at {origin}, not around {to}");
+    }
+    let after = d.tile_stats().expect("tiles");
+    assert_eq!(after.window_waits, before.window_waits, "a frame held for the disk: {after:?}");
+    assert!(after.blocking_loads > before.blocking_loads, "no move waited for the disk: {after:?}");
+    let [a, b] = depths(ctx, &mut d);
+    assert!(a < PRESSED && b > 0.45, "trail A is back: depths {a} at A, {b} at B");
+    assert!(d.take_store_errors().is_empty(), "no wait gave up");
+}
