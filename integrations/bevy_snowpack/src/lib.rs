@@ -144,9 +144,6 @@ pub use terrain_asset::{SnowTerrainAsset, SnowTerrainStatus, TerrainAssetError, 
 pub mod prelude {
     #[cfg(feature = "multiplayer")]
     pub use crate::SnowSharing;
-    /// `SnowDeformation::world_identity_for`: the world a server checks its clients against.
-    #[cfg(feature = "multiplayer")]
-    pub use snowpack::SharedWindow;
     #[cfg(feature = "render")]
     pub use crate::{
         FeelsSnow, FootKind, SnowAnswered, SnowAnswers, SnowCatcher, SnowCoat, SnowCoatLook, SnowCoatMaterial, SnowCoatSettings, SnowControl, SnowDeformer,
@@ -160,6 +157,9 @@ pub mod prelude {
         SnowDepthUnder, SnowOwnedBy, SnowRelayStore, SnowReplicationPlugin, SnowReplicationSettings, SnowReplicationSystems, SnowServer, SnowToClient,
         SnowToServer,
     };
+    /// `SnowDeformation::world_identity_for`: the world a server checks its clients against.
+    #[cfg(feature = "multiplayer")]
+    pub use snowpack::SharedWindow;
     #[cfg(feature = "render")]
     pub use snowpack::{
         CoatSettings, HeightmapTerrain, NoiseTerrain, ObjectShape, ObjectStats, PointSample, RimStyle, SnowParams, Snowfall, Technique, TerrainSource,
