@@ -629,9 +629,12 @@ impl SnowPeerExt for SnowPeer {
 /// Merges `t` into the replica (inserting it when new); whether the replica changed.
 /// How far (m) a deformer may be from where the last `Presence` put it
 /// before deltas wait for a new one. The relay lets a peer write within
-/// 6 m (and a tile's half diagonal) of its reported deformers; 1 m of that
-/// for the lag leaves 5 m for what the deformer presses around itself.
-const REPORTED_SLACK_M: f64 = 1.0;
+/// 6 m (and a tile's half diagonal) of its reported deformers; 2 m of that
+/// for the lag leaves 4 m for what the deformer presses around itself, and
+/// a car at 5 m/s (1.25 m between the 0.25 s reports) sends no more
+/// `Presence` than before: what the peer sends is unchanged but for
+/// deformers that appear or jump.
+const REPORTED_SLACK_M: f64 = 2.0;
 
 /// Whether `now` differs from `reported` by a deformer that appeared, went
 /// or moved more than [`REPORTED_SLACK_M`].
