@@ -626,7 +626,6 @@ impl SnowPeerExt for SnowPeer {
     }
 }
 
-/// Merges `t` into the replica (inserting it when new); whether the replica changed.
 /// How far (m) a deformer may be from where the last `Presence` put it
 /// before deltas wait for a new one. The relay lets a peer write within
 /// 6 m (and a tile's half diagonal) of its reported deformers; 2 m of that
@@ -642,6 +641,7 @@ fn deformers_moved(reported: &[[f64; 2]], now: &[[f64; 2]]) -> bool {
     reported.len() != now.len() || reported.iter().zip(now).any(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]) > REPORTED_SLACK_M)
 }
 
+/// Merges `t` into the replica (inserting it when new); whether the replica changed.
 fn merge_into(replica: &mut HashMap<TileKey, SharedTile>, t: SharedTile, c: CatchUp) -> bool {
     match replica.get_mut(&t.key) {
         Some(mine) => mine.merge(&t, c),
