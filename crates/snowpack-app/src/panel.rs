@@ -378,9 +378,10 @@ fn open_world_section(ui: &mut egui::Ui, session: &mut Session, actions: &mut Ve
             s.evicted
         ));
         ui.label(format!(
-            "window waited {} frames for tiles · {} blocking loads · {} errors · {} corrupt · {} lost",
-            t.window_waits, t.blocking_loads, s.errors, s.corrupt, s.lost
+            "window held {} frames for tiles · {} stood in, {} merged live, {} awaiting · {} blocking loads",
+            t.window_waits, t.stood_in, t.merged_live, t.awaiting_merge, t.blocking_loads
         ));
+        ui.label(format!("{} errors · {} corrupt · {} lost", s.errors, s.corrupt, s.lost));
         ui.label(format!("time {:.1} s", session.snow.clock().time_s));
         for e in &session.store_errors {
             ui.colored_label(Color32::LIGHT_RED, e);

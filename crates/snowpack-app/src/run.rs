@@ -343,6 +343,8 @@ fn store_meta(snow: &SnowDeformation, resumed: bool) -> serde_json::Value {
         "fresh_tiles": t.fresh,
         "evicted_tiles": t.evicted,
         "window_waits": t.window_waits,
+        "stood_in_tiles": t.stood_in,
+        "merged_live_tiles": t.merged_live,
         "blocking_loads": t.blocking_loads,
         "memory_tiles": t.store.memory_tiles,
         "memory_bytes": t.store.memory_bytes,

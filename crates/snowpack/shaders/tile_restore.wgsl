@@ -20,7 +20,10 @@
 // (TexelCopy::merge in src/replicate/tile.rs): the deeper deficit, the lower
 // footprint, the deeper snowfall, the more packed snow; a texel one copy
 // dominates keeps its bits. Saved planes in `upload`: snow, footprints,
-// snowfall, packed snow (zeros where the tile had none).
+// snowfall, packed snow (zeros where the tile had none). A `merge` of
+// IN_SLOT folds the slot's own texels in instead, as they are now: a live
+// merge, when the stored version of a tile the window stood in for with
+// fresh snow arrives while the tile is resident (src/tiles/streaming/live_merge.rs).
 // CPU twin: src/cpu/tile_restore.rs.
 
 struct RestoreParams {
@@ -46,13 +49,14 @@ struct RestoreEntry {
     fall_m: f32,         // time away: snowfall on open ground (m)
     quanta: u32,         // time away: footprint refill (stamp quanta)
     elapsed: u32,        // 1 when any time counted
-    merge: u32,          // first u32 of a second tile's planes to merge in, or FRESH (none)
+    merge: u32,          // first u32 of a second tile's planes to merge in, FRESH (none) or IN_SLOT (the slot as it is)
     merge_refill_m: f32, // its time away, as above
     merge_fall_m: f32,
     merge_quanta: u32,
 }
 
 const FRESH: u32 = 0xffffffffu;
+const IN_SLOT: u32 = 0xfffffffeu;
 const USE_FALLEN: u32 = 2u;
 // The slots have a footprint plane (a plane left over in the params' planes,
 // set by `TileRestorePass::record`: a flag, so no branch tests uniforms alone).
@@ -77,6 +81,22 @@ fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f
     t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
     if refill_m > 0.0 || fall_m > 0.0 || quanta > 0u {
         t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (pass_flags() & USE_FALLEN) != 0u);
+    }
+    return t;
+}
+
+// Texel `i` of the slot at `base` (its first word), as it is now.
+fn slot_texel(base: u32, area: u32, use_fallen: bool) -> TexelState {
+    var t: TexelState;
+    t.snow = bitcast<f32>(tiles[base + PLANE_SNOW * area]);
+    t.packed = tiles[base + plane_packed(use_fallen) * area];
+    t.stamp = STAMP_EMPTY;
+    if (pass_flags() & STAMP_PLANE) != 0u {
+        t.stamp = tiles[base + plane_stamps(params.planes) * area];
+    }
+    t.fallen = 0.0;
+    if use_fallen {
+        t.fallen = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
     }
     return t;
 }
@@ -124,10 +144,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else {
         t = saved_texel(e.upload, area, gid.x, ground, e.refill_m, e.fall_m, e.quanta);
     }
-    if e.merge != FRESH {
+    let base = e.slot * params.planes * area + gid.x;
+    if e.merge == IN_SLOT {
+        // Read before this invocation writes the texel; no other touches it.
+        t = merge_texels(ground, t, slot_texel(base, area, use_fallen));
+    } else if e.merge != FRESH {
         t = merge_texels(ground, t, saved_texel(e.merge, area, gid.x, ground, e.merge_refill_m, e.merge_fall_m, e.merge_quanta));
     }
-    let base = e.slot * params.planes * area + gid.x;
     tiles[base + PLANE_SNOW * area] = bitcast<u32>(t.snow);
     tiles[base + plane_packed(use_fallen) * area] = t.packed;
     if (pass_flags() & STAMP_PLANE) != 0u {

@@ -151,8 +151,13 @@ pub(crate) fn create_world(
     })
 }
 
-/// The disk store of the settings, attached before the first frame; `Ok(true)`: a save was loaded.
+/// The disk store of the settings, attached before the first frame, and
+/// the window's tiles loaded (the world's creation is the loading screen:
+/// without it the first frames would show fresh snow where the disk is
+/// slower than a frame, merged in as it answers); `Ok(true)`: a save was loaded.
 fn attach_store(ctx: &GpuContext, snow: &mut SnowDeformation, store: &SnowStoreSettings) -> Result<bool, snowpack::SnowError> {
     let tiles = TileStore::open(&store.dir, store.tile_texels, store.disk)?;
-    snow.attach_store(ctx, TileStreamer::new(tiles, store.memory))
+    let loaded = snow.attach_store(ctx, TileStreamer::new(tiles, store.memory))?;
+    snow.preload(ctx)?;
+    Ok(loaded)
 }

@@ -6,11 +6,13 @@ use snowpack::low_level::replicate::tile::TexelCopy;
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams};
 
 use super::stamp::STAMP_EMPTY;
-use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, write_packed, write_texel};
+use super::tile_weather::{SlotLayout, SnowConstants, TexelState, TimePassed, pass_time, read_texel, write_packed, write_texel};
+use snowpack::low_level::tiles::streaming::plane_packed;
 
 /// Writes each entry's tile into its slot: the saved planes in `upload`
 /// brought up to now, or fresh snow over `terrain`; with a second tile to
-/// merge, both up to now and folded by [`merge_texels`].
+/// merge, both up to now and folded by [`merge_texels`]; a merge of
+/// [`RestoreEntry::IN_SLOT`] folds in the slot's texels as they are.
 pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terrain: &TerrainSource, tiles: &mut [u32]) {
     let side = p.side as i32;
     let area = (p.side * p.side) as usize;
@@ -34,12 +36,15 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
             } else {
                 saved(e.upload, TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
             };
-            if e.merge != RestoreEntry::FRESH {
+            let planes = p.planes as usize;
+            let layout = SlotLayout { area, planes, use_fallen };
+            if e.merge == RestoreEntry::IN_SLOT {
+                let here = TexelState { packed: tiles[(slot * planes + plane_packed(use_fallen)) * area + k], ..read_texel(tiles, slot, layout, k) };
+                t = merge_texels(ground, p.depth_m, t, here);
+            } else if e.merge != RestoreEntry::FRESH {
                 let other = saved(e.merge, TimePassed { fall_m: e.merge_fall_m, refill_m: e.merge_refill_m, quanta: e.merge_quanta });
                 t = merge_texels(ground, p.depth_m, t, other);
             }
-            let planes = p.planes as usize;
-            let layout = SlotLayout { area, planes, use_fallen };
             write_texel(tiles, slot, layout, k, t);
             write_packed(tiles, slot, layout, k, t.packed);
         }

@@ -28,10 +28,13 @@ pub trait StoredWindow {
 
     /// The blocking step of a loading screen: loads from the attached store
     /// every tile the window needs at its centre (`SnowDeformation::set_center`),
-    /// after [`Self::attach_store`] or a teleport, so that the frames that
-    /// follow wait for nothing. Without it, the first frame after attaching
-    /// waits for the disk itself, and a window that jumps far holds where it
-    /// is (pressing there) until its new tiles are read, a few frames.
+    /// after [`Self::attach_store`] or a teleport, so that the first frame
+    /// there shows the stored snow. Frames never wait for the disk: without
+    /// it, fresh snow stands in for the tiles the disk has not given yet
+    /// (the save not shown in the first frame after attaching, the trails
+    /// missing a few frames after a jump), and each stored tile is merged
+    /// in live as it arrives, nearest the centre first, with what the window
+    /// pressed there meanwhile (`TileStats::merged_live`).
     ///
     /// A disk that fails or does not answer within
     /// `StreamerConfig::wait_limit` is not an error here: as in a

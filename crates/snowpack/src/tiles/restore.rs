@@ -69,8 +69,9 @@ pub struct RestoreEntry {
     /// 1 when any time counted (0: restored bit for bit).
     pub elapsed: u32,
     /// First u32 of a second tile's planes to merge in (what the window made
-    /// in this tile's place while the disk was late with it), or
-    /// [`RestoreEntry::FRESH`]: none.
+    /// in this tile's place while the disk was late with it),
+    /// [`RestoreEntry::FRESH`]: none, or [`RestoreEntry::IN_SLOT`]: the
+    /// slot's own texels as they are (a live merge).
     pub merge: u32,
     /// Refill of the time the second tile was away (m).
     pub merge_refill_m: f32,
@@ -83,6 +84,9 @@ pub struct RestoreEntry {
 impl RestoreEntry {
     /// No saved planes: fresh snow (for `upload`), nothing to merge (for `merge`).
     pub const FRESH: u32 = u32::MAX;
+    /// For `merge`: fold in the slot's texels as they are now (the window's
+    /// stand-in, stashed into the slot), not a second uploaded tile.
+    pub const IN_SLOT: u32 = u32::MAX - 1;
 }
 
 impl Default for RestoreEntry {

@@ -39,17 +39,17 @@ pub struct StreamerConfig {
     pub wait_limit: Duration,
     /// A batch run's setting (the headless runner's): a window move whose
     /// tiles the disk has not given yet waits for them (blocking, within
-    /// `wait_limit`) instead of holding the window where it is for a few
-    /// frames, so what a run computes does not depend on the disk's speed
-    /// or the machine's load. A game leaves it off (the default): its
-    /// frames never wait, and a window that holds catches up once its
-    /// tiles are read.
+    /// `wait_limit`), as does the first placement, so what a run computes
+    /// does not depend on the disk's speed or the machine's load. A game
+    /// leaves it off (the default): its frames never wait for the disk;
+    /// fresh snow stands in for such tiles and each is merged in live, with
+    /// what the window pressed there meanwhile, as it arrives.
     pub moves_wait_for_disk: bool,
 }
 
 impl Default for StreamerConfig {
     /// 128 MiB: about 2,700 tiles of 64² texels with all three planes; a
-    /// `WAIT_LIMIT` (30 s) wait limit; moves hold rather than wait.
+    /// `WAIT_LIMIT` (30 s) wait limit; moves stand in for late tiles rather than wait.
     fn default() -> Self {
         Self { memory_budget_bytes: 128 << 20, wait_limit: WAIT_LIMIT, moves_wait_for_disk: false }
     }

@@ -173,6 +173,18 @@ impl TileStreamer {
         self.stand_ins.contains(key)
     }
 
+    /// Whether fresh snow stands in for any tile.
+    pub(crate) fn stands_in_any(&self) -> bool {
+        !self.stand_ins.is_empty()
+    }
+
+    /// Whether the stored version of stand-in `key` is in memory, ready
+    /// to be merged into what the window has there now ([`Self::take_for_restore`]).
+    pub(crate) fn stand_in_arrived(&mut self, key: TileKey) -> bool {
+        self.poll();
+        self.stand_ins.contains(key) && self.cache.contains(key)
+    }
+
     /// The tiles stood in for whose `made` version is held, waiting for a
     /// merge (a save merges them: `TileStreaming::checkpoint`).
     pub(crate) fn stand_ins_made(&self) -> Vec<TileKey> {
@@ -349,9 +361,11 @@ impl TileStreamer {
                     Some(w) if self.unwritten.get(&key) == Some(&w) => Dirt::Queued(w),
                     _ => Dirt::Clean,
                 };
-                // A stand-in's stored version waits for its merge without
-                // holding memory beyond the budget.
-                let wanted = !self.stand_ins.contains(key);
+                // A stand-in whose made version is held (the window has
+                // left the tile) waits for its merge without holding memory
+                // beyond the budget; one the window is on is merged live
+                // at its next frame, so it is wanted like an asked-for tile.
+                let wanted = !self.stand_ins.is_held(key);
                 self.insert(key, Cached::new(tile, dirt, wanted));
             }
             None => {

@@ -37,6 +37,17 @@ impl StandIns {
         self.stand_ins.contains_key(&key)
     }
 
+    /// Whether no tile is stood in for.
+    pub(super) fn is_empty(&self) -> bool {
+        self.stand_ins.is_empty()
+    }
+
+    /// Whether `key` is stood in for and what the window made there is
+    /// held here (the window has left the tile).
+    pub(super) fn is_held(&self, key: TileKey) -> bool {
+        self.stand_ins.get(&key).is_some_and(|s| s.made.is_some())
+    }
+
     /// Stands in for `key` (if not already) and takes what the window made
     /// there, if it is held.
     pub(super) fn stand_in(&mut self, key: TileKey) -> Option<TileData> {

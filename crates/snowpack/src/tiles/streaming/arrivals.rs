@@ -94,11 +94,12 @@ fn take_tile(
             (saved, made)
         }
         // `plan` saw it ready, but handing out the tiles before it let
-        // the memory cache drop it: read it again rather than lose it
-        // to fresh snow (blocking; counted). Not for the tiles the first
-        // placement already gave up on: one wait each would add up.
+        // the memory cache drop it. A batch run reads it again (blocking;
+        // counted); a game's frame stands in for it and merges it live
+        // when it comes back. Not for the tiles the move already gave up
+        // on: one wait each would add up.
         (TileLookup::Pending, _) => {
-            if !gave_up.contains(&key) {
+            if !gave_up.contains(&key) && streamer.moves_wait_for_disk() {
                 counters.blocking_loads += 1;
                 if let Err(e) = streamer.wait_for(&[key]) {
                     errors.push(e);

@@ -13,11 +13,15 @@
 //! writes it on its worker thread. A tile coming back is restored in one pass
 //! with the refill and snowfall of the time it was away.
 //!
-//! The frame never waits for the disk: a tile the window needs that is not in
-//! memory yet keeps the window where it is (it waits, counted in
-//! [`TileStats::window_waits`]) while the streamer loads it; the prefetch ring
-//! around the window makes that rare. Only the first placement (start-up, a
-//! loaded save) blocks, as a loading screen would.
+//! The frame never waits for the disk: fresh snow stands in for a tile the
+//! window needs that is not in memory yet ([`TileStats::stood_in`]; the
+//! prefetch ring around the window makes that rare on a walk), and its
+//! stored version is merged in live when the streamer has it
+//! ([`TileStats::merged_live`], `live_merge.rs`). The window holds still
+//! only for a tile still on its way back from the GPU
+//! ([`TileStats::window_waits`]). The blocking path is the explicit
+//! preload a loading screen calls, and a batch run's
+//! `StreamerConfig::moves_wait_for_disk`.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
@@ -26,6 +30,7 @@
 mod arrivals;
 mod copy_out;
 mod layout;
+mod live_merge;
 mod planner;
 mod recording;
 mod stats;
@@ -43,6 +48,7 @@ use super::restore::{RestoreEntry, RestoreParams};
 use arrivals::Arrival;
 use copy_out::CopyOuts;
 use layout::SlotLayout;
+use live_merge::LiveMergeParts;
 use planner::{MovePlanner, PlanParts};
 use recording::TilePasses;
 use stats::TileCounters;
@@ -82,6 +88,8 @@ pub struct TileStreaming {
     restore_base: RestoreParams,
     /// The traffic counters of [`TileStats`].
     counters: TileCounters,
+    /// [`TileStats::awaiting_merge`].
+    awaiting_merge: usize,
 }
 
 impl TileStreaming {
@@ -172,6 +180,7 @@ impl TileStreaming {
             errors: Vec::new(),
             restore_base: RestoreParams::default(),
             counters: TileCounters::default(),
+            awaiting_merge: 0,
         };
         ctx.check("creating the resident tiles")?;
         Ok(this)
@@ -244,6 +253,21 @@ impl TileStreaming {
         (old, rects): (Option<[i64; 2]>, &[TexelRect]),
         clock: SnowClock,
     ) {
+        if let Some(old) = old {
+            // Before anything of the move: the merges submit on their own.
+            let parts = LiveMergeParts {
+                layout: self.layout,
+                slots: &mut self.slots,
+                passes: &mut self.passes,
+                streamer: &mut self.streamer,
+                gave_up: self.planner.gave_up(),
+                counters: &mut self.counters,
+                errors: &mut self.errors,
+                awaiting_merge: &mut self.awaiting_merge,
+                moves: self.moves,
+            };
+            live_merge::record_live_merges(parts, cx.gpu, res, frame, old, clock);
+        }
         if rects.is_empty() {
             return;
         }
@@ -639,6 +663,8 @@ impl TileStreaming {
             fresh: self.counters.fresh,
             stood_in: self.counters.stood_in,
             merged: self.counters.merged,
+            merged_live: self.counters.merged_live,
+            awaiting_merge: self.awaiting_merge,
             evicted: self.counters.evicted,
             evicting: self.copy_outs.tiles(),
             blocking_loads: self.counters.blocking_loads,

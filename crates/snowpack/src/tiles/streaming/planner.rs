@@ -1,8 +1,9 @@
 //! Where the window goes each frame: the move planner, which asks the
-//! streamer for the tiles ahead of the window (the prefetch ring), holds the
-//! window while a tile it needs is still loading, limits a move to what the
-//! slot pool holds in one step, and waits only at the first placement or in
-//! an explicit preload.
+//! streamer for the tiles ahead of the window (the prefetch ring), limits a
+//! move to what the slot pool holds in one step, has fresh snow stand in
+//! for the tiles the disk has not given yet (merged live when they come),
+//! holds the window only while a tile it needs is on its way back from the
+//! GPU, and waits for the disk only in an explicit preload or a batch run.
 
 use std::collections::HashSet;
 
@@ -45,8 +46,8 @@ impl PlanParts<'_> {
 pub(super) struct MovePlanner {
     /// The tile the prefetch ring was last asked around.
     prefetched_at: Option<TileKey>,
-    /// Tiles the first placement (or a preload) gave up waiting for: stood
-    /// in for at once, not waited for again one by one.
+    /// Tiles this frame's move does not wait for (not in memory yet, or a
+    /// preload gave up on them): stood in for at once, not waited for one by one.
     gave_up: HashSet<TileKey>,
     /// Where [`Self::preload`] last loaded the window's tiles for: the
     /// first placement there waits for nothing.
@@ -59,9 +60,11 @@ impl MovePlanner {
         &self.gave_up
     }
 
-    /// Decides where the window goes this frame: `desired`, once every tile
-    /// it touches can be made resident without waiting for the disk; until
-    /// then it stays at `current`. The first placement waits (blocking).
+    /// Decides where the window goes this frame: `desired` (a glide at most
+    /// a tile side per axis, or a jump), with fresh snow standing in for the
+    /// tiles the disk has not given yet; it stays at `current` only while a
+    /// tile it needs is on its way back from the GPU. With
+    /// `StreamerConfig::moves_wait_for_disk` it waits for the disk instead.
     pub(super) fn plan(&mut self, ctx: &GpuContext, mut p: PlanParts<'_>, current: Option<[i64; 2]>, desired: [i64; 2]) -> [i64; 2] {
         p.streamer.poll();
         // A preload for this very place already waited (and gave up on what did not come).
@@ -83,36 +86,49 @@ impl MovePlanner {
         }
         let desired = current.map_or(desired, |c| reachable(p.layout, c, desired));
         let needed = p.needed_from_store(current, desired);
-        if current.is_none() {
-            // First placement without a preload: the first frame is a
-            // loading screen's, so waiting is allowed (and counted).
-            if !preloaded {
-                p.counters.gpu_waits += u64::from(needed.iter().any(|&k| p.copy_outs.carries(k)));
-                self.wait_for_needed(ctx, &mut p, &needed);
-            }
-            return desired;
-        }
-        let ready = needed.iter().all(|&k| !p.copy_outs.carries(k) && p.streamer.is_ready(k));
-        if ready {
+        if preloaded || needed.iter().all(|&k| !p.copy_outs.carries(k) && p.streamer.is_ready(k)) {
             return desired;
         }
         if p.streamer.moves_wait_for_disk() {
             // A batch run: the move waits (and is counted as a wait) rather
-            // than holds, so its result does not depend on the disk's speed.
+            // than stands in, so its result does not depend on the disk's speed.
             p.counters.gpu_waits += u64::from(needed.iter().any(|&k| p.copy_outs.carries(k)));
-            p.counters.blocking_loads += 1;
+            p.counters.blocking_loads += u64::from(current.is_some());
             self.wait_for_needed(ctx, &mut p, &needed);
             return desired;
         }
-        // Ask again for what is missing: a tile that came back from the GPU
-        // after the prefetch may have left memory for the disk since.
-        for &key in &needed {
-            if !p.copy_outs.carries(key) {
+        if needed.iter().any(|&k| p.copy_outs.carries(k)) {
+            // A tile copied out a frame or two ago is still on its way back
+            // from the GPU: hold still until it is in (its latest version).
+            // Only the first placement, with nowhere to hold, waits for it.
+            let Some(current) = current else {
+                p.counters.gpu_waits += 1;
+                p.copy_outs.collect(ctx, true, p.layout, p.streamer, p.errors);
+                return self.stand_in_for_the_disk(&mut p, &needed, desired);
+            };
+            for &key in &needed {
+                if !p.copy_outs.carries(key) {
+                    p.streamer.request(key);
+                }
+            }
+            p.counters.window_waits += 1;
+            return current;
+        }
+        self.stand_in_for_the_disk(&mut p, &needed, desired)
+    }
+
+    /// The window goes to `desired` now, without waiting for the disk:
+    /// fresh snow stands in for each of `needed` not in memory yet (asked
+    /// for, nearest the centre first), and its stored version is merged
+    /// in live when it arrives (`TileStreaming::record_live_merges`).
+    fn stand_in_for_the_disk(&mut self, p: &mut PlanParts<'_>, needed: &[TileKey], desired: [i64; 2]) -> [i64; 2] {
+        for &key in needed {
+            if !p.streamer.is_ready(key) {
                 p.streamer.request(key);
+                self.gave_up.insert(key);
             }
         }
-        p.counters.window_waits += 1;
-        current.unwrap_or(desired)
+        desired
     }
 
     /// Waits (blocking) until each of `needed` is in memory: the copies out

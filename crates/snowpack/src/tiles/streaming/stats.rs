@@ -12,7 +12,12 @@ pub struct TileStats {
     pub resident: usize,
     /// Slots on the GPU.
     pub slots: usize,
-    /// Frames the window stayed put because a tile it needed was still loading.
+    /// Frames the window stayed put because a tile it needed was still on
+    /// its way back from the GPU (copied out a frame or two before). A tile
+    /// the disk has not given yet does not hold the window: fresh snow
+    /// stands in for it ([`Self::stood_in`]) until it is merged live
+    /// ([`Self::merged_live`]); a batch run waits for the disk instead
+    /// (`StreamerConfig::moves_wait_for_disk`, [`Self::blocking_loads`]).
     pub window_waits: u64,
     /// Window moves too long for the slot pool in one frame, done in
     /// batches of their own submissions (blocking): the first placement,
@@ -35,6 +40,14 @@ pub struct TileStats {
     /// Restores that merged a stored tile into what the window had made in
     /// its place (shared snow's merge: the deeper deficit wins).
     pub merged: u64,
+    /// Stored tiles merged live: arrived from the disk while the window was
+    /// on the tile, standing in for it with fresh snow, and folded into what
+    /// it has there now (the deeper deficit wins), in a submission before a
+    /// frame's move.
+    pub merged_live: u64,
+    /// Tiles of the window and the resident ring that fresh snow still
+    /// stands in for, their stored version not merged yet (as of the last frame).
+    pub awaiting_merge: usize,
     /// Tiles copied out of the GPU for the store.
     pub evicted: u64,
     /// Tiles on their way back from the GPU.
@@ -70,6 +83,8 @@ pub(super) struct TileCounters {
     pub(super) stood_in: u64,
     /// [`TileStats::merged`].
     pub(super) merged: u64,
+    /// [`TileStats::merged_live`].
+    pub(super) merged_live: u64,
     /// [`TileStats::evicted`].
     pub(super) evicted: u64,
 }
