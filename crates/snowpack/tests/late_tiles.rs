@@ -102,6 +102,26 @@ fn walk(ctx: &GpuContext, d: &mut SnowDeformation, to: DVec2) {
     }
 }
 
+/// Frames (each followed by 2 ms for the store's worker) within which the
+/// tiles fresh snow stands in for are merged once the disk answers: each
+/// is merged in the frame after its stored version reaches memory, so here
+/// 2 (the disk's read, then the merge); the bound is for a loaded CI machine.
+const MERGE_FRAMES: u32 = 600;
+
+/// Steps until no tile of the window awaits its merge, within
+/// [`MERGE_FRAMES`].
+fn until_merged(ctx: &GpuContext, d: &mut SnowDeformation) {
+    let mut frames = 0;
+    while d.tile_stats().expect("tiles").awaiting_merge > 0 && frames < MERGE_FRAMES {
+        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
+        std::thread::sleep(Duration::from_millis(2));
+        frames += 1;
+    }
+    let stats = d.tile_stats().expect("tiles");
+    eprintln!("merged live {frames} frames after the disk answered: {stats:?}");
+    assert_eq!(stats.awaiting_merge, 0, "not merged within {MERGE_FRAMES} frames: {stats:?}");
+}
+
 /// Saves on a disk that works: its many synced writes can take longer than
 /// [`LIMIT`] on a loaded machine, so only `TimedOut` is retried (bounded).
 fn save(ctx: &GpuContext, d: &mut SnowDeformation, what: &str) {
@@ -131,12 +151,7 @@ fn both_trails_survive(ctx: &GpuContext, dir: &Path, disk: &HeldDisk, mut d: Sno
     walk(ctx, &mut d, DVec2::new(30.0, 0.0));
     walk(ctx, &mut d, DVec2::ZERO);
     // Fresh snow stands in for the tiles the disk is still reading: until they are merged.
-    let start = Instant::now();
-    while d.tile_stats().is_some_and(|s| s.awaiting_merge > 0) {
-        assert!(start.elapsed() < Duration::from_secs(30), "{what}: the tiles back home were never merged: {:?}", d.tile_stats());
-        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    until_merged(ctx, &mut d);
     let [a, b] = depths(ctx, &mut d);
     assert!(a < PRESSED && b < PRESSED, "{what}: after walking away and back, depths {a} at A and {b} at B: a trail is gone");
     let stats = d.tile_stats().expect("tiles");
@@ -166,10 +181,6 @@ fn press_b_while_a_is_missing(ctx: &GpuContext, d: &mut SnowDeformation, what: &
 /// a bounded number of frames and without the window moving.
 #[test]
 fn a_late_tile_is_merged_with_what_the_window_made_meanwhile() {
-    /// Frames (each followed by 2 ms for the store's worker) within which
-    /// the late tile is merged once the disk answers: here 1 to 3; the
-    /// bound is for a loaded CI machine.
-    const MERGE_FRAMES: u32 = 600;
     let Some(ctx) = testing::gpu() else { return };
     let dir = TestDir::new("slow");
     let disk = HeldDisk::default();
@@ -185,15 +196,8 @@ fn a_late_tile_is_merged_with_what_the_window_made_meanwhile() {
     // The disk answers: A's tile arrives while the window still stands in for it.
     disk.release();
     let origin = d.origin_m();
-    let mut frames = 0;
-    while d.tile_stats().expect("tiles").awaiting_merge > 0 && frames < MERGE_FRAMES {
-        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
-        std::thread::sleep(Duration::from_millis(2));
-        frames += 1;
-    }
+    until_merged(ctx, &mut d);
     let stats = d.tile_stats().expect("tiles");
-    eprintln!("merged live {frames} frames after the disk answered: {stats:?}");
-    assert_eq!(stats.awaiting_merge, 0, "not merged within {MERGE_FRAMES} frames: {stats:?}");
     assert!(stats.merged_live >= 1, "{stats:?}");
     assert_eq!(d.origin_m(), origin, "the window moved");
     let [a, b] = depths(ctx, &mut d);
@@ -326,10 +330,6 @@ fn a_batch_runs_jump_waits_for_a_slow_disk_instead_of_holding() {
 /// is kept (issue 42, item 7).
 #[test]
 fn a_jump_onto_tiles_the_disk_has_not_given_moves_at_once_and_merges_them_live() {
-    /// Frames (each followed by 2 ms) within which the stored tile is merged
-    /// once the disk answers: here 2 to 20 (the disk reads one tile at a
-    /// time); the bound is for a loaded CI machine.
-    const MERGE_FRAMES: u32 = 600;
     let Some(ctx) = testing::gpu() else { return };
     let dir = TestDir::new("jump-live");
     let disk = HeldDisk::default();
@@ -365,15 +365,8 @@ fn a_jump_onto_tiles_the_disk_has_not_given_moves_at_once_and_merges_them_live()
         "a frame waited or held: {held:?}"
     );
     disk.release();
-    let mut frames = 0;
-    while d.tile_stats().expect("tiles").awaiting_merge > 0 && frames < MERGE_FRAMES {
-        d.step(ctx, &[], 1.0 / 60.0).expect("frame");
-        std::thread::sleep(Duration::from_millis(2));
-        frames += 1;
-    }
+    until_merged(ctx, &mut d);
     let after = d.tile_stats().expect("tiles");
-    eprintln!("merged live {frames} frames after the disk answered: {after:?}");
-    assert_eq!(after.awaiting_merge, 0, "not merged within {MERGE_FRAMES} frames: {after:?}");
     assert!(after.merged_live > before.merged_live, "{after:?}");
     let [a, b] = depths(ctx, &mut d);
     assert!(a < PRESSED && b < PRESSED, "A merged live, B kept: depths {a} at A, {b} at B");
