@@ -34,8 +34,6 @@ pub(super) struct LiveMergeParts<'a> {
     pub(super) gave_up: &'a HashSet<TileKey>,
     pub(super) counters: &'a mut TileCounters,
     pub(super) errors: &'a mut Vec<StoreError>,
-    /// [`super::TileStats::awaiting_merge`], counted again here.
-    pub(super) awaiting_merge: &'a mut usize,
     /// The move count, for the slots borrowed ([`SlotTable::assign`]).
     pub(super) moves: u64,
 }
@@ -52,7 +50,6 @@ pub(super) struct LiveMergeParts<'a> {
 /// submission: call it before anything of this frame's move is recorded
 /// (the passes' uniforms are shared with the move's).
 pub(super) fn record_live_merges(t: LiveMergeParts<'_>, ctx: &GpuContext, res: &DeformResources, frame: &WindowFrame, at: [i64; 2], clock: SnowClock) {
-    *t.awaiting_merge = 0;
     if !t.streamer.stands_in_any() {
         return;
     }
@@ -65,7 +62,6 @@ pub(super) fn record_live_merges(t: LiveMergeParts<'_>, ctx: &GpuContext, res: &
         if !t.streamer.stands_in(key) {
             continue;
         }
-        *t.awaiting_merge += 1;
         if !t.streamer.stand_in_arrived(key) {
             t.streamer.request(key);
             continue;
@@ -93,11 +89,9 @@ pub(super) fn record_live_merges(t: LiveMergeParts<'_>, ctx: &GpuContext, res: &
         if entry.upload == RestoreEntry::FRESH {
             // The store had no version after all (or an unusable one):
             // the window's snow is the tile; nothing to fold in.
-            *t.awaiting_merge -= 1;
             continue;
         }
         entry.merge = RestoreEntry::IN_SLOT;
-        *t.awaiting_merge -= 1;
         entries.push(entry);
         merged.push(key);
     }

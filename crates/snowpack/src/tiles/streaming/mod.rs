@@ -88,8 +88,9 @@ pub struct TileStreaming {
     restore_base: RestoreParams,
     /// The traffic counters of [`TileStats`].
     counters: TileCounters,
+    /// Where the window is (as of the last move recorded), for
     /// [`TileStats::awaiting_merge`].
-    awaiting_merge: usize,
+    at: Option<[i64; 2]>,
 }
 
 impl TileStreaming {
@@ -180,7 +181,7 @@ impl TileStreaming {
             errors: Vec::new(),
             restore_base: RestoreParams::default(),
             counters: TileCounters::default(),
-            awaiting_merge: 0,
+            at: None,
         };
         ctx.check("creating the resident tiles")?;
         Ok(this)
@@ -263,11 +264,11 @@ impl TileStreaming {
                 gave_up: self.planner.gave_up(),
                 counters: &mut self.counters,
                 errors: &mut self.errors,
-                awaiting_merge: &mut self.awaiting_merge,
                 moves: self.moves,
             };
             live_merge::record_live_merges(parts, cx.gpu, res, frame, old, clock);
         }
+        self.at = Some(origin);
         if rects.is_empty() {
             return;
         }
@@ -664,13 +665,22 @@ impl TileStreaming {
             stood_in: self.counters.stood_in,
             merged: self.counters.merged,
             merged_live: self.counters.merged_live,
-            awaiting_merge: self.awaiting_merge,
+            awaiting_merge: self.awaiting_merge(),
             evicted: self.counters.evicted,
             evicting: self.copy_outs.tiles(),
             blocking_loads: self.counters.blocking_loads,
             gpu_bytes: self.gpu_bytes(),
             memory_only: self.streamer.is_memory_only(),
         }
+    }
+
+    /// [`TileStats::awaiting_merge`]: the tiles of the window and the
+    /// resident ring that fresh snow stands in for.
+    fn awaiting_merge(&self) -> usize {
+        let Some(at) = self.at else { return 0 };
+        let g = self.layout.grid;
+        let ring = self.slots.keys().filter(|&k| !g.touched(k, at));
+        g.around(at, 0).into_iter().chain(ring).filter(|&k| self.streamer.stands_in(k)).count()
     }
 
     /// [`TileStats::gpu_bytes`] alone.

@@ -46,7 +46,8 @@ pub struct TileStats {
     /// frame's move.
     pub merged_live: u64,
     /// Tiles of the window and the resident ring that fresh snow still
-    /// stands in for, their stored version not merged yet (as of the last frame).
+    /// stands in for, their stored version not merged yet (where the last
+    /// frame left the window).
     pub awaiting_merge: usize,
     /// Tiles copied out of the GPU for the store.
     pub evicted: u64,
