@@ -1007,3 +1007,42 @@ fn a_jump_of_500_m_away_and_back_brings_the_trail_back() {
     assert!(back.restored > away.restored, "the trail's tiles were not restored: {back:?}");
     the_trail_is_back(ctx, d, &before, &dir);
 }
+
+/// Switching to footprints gives every slot a footprint plane while tile
+/// copy-outs are still in flight (their readbacks held): nothing is waited
+/// for (`gpu_waits` unchanged; each copy-out keeps the layout it was copied
+/// with), and once released the trench comes back bit for bit.
+#[test]
+fn a_switch_to_footprints_waits_for_no_copy_out_in_flight() {
+    let Some(ctx) = testing::gpu() else { return };
+    let mut d = window(ctx, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO, 0.0);
+    press_trail(ctx, &mut d, |_, _| 0.0);
+    let before = d.read_snow(ctx).expect("snow");
+    let held_frame = |d: &mut SnowDeformation| {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("held frame") });
+        // No queries: no ticket.
+        let _ = d.encode(ctx, &mut encoder, &SnowFrame::new(DT, &[]));
+        ctx.queue.submit([encoder.finish()]);
+    };
+    d.hold_readbacks(true);
+    // Away 20 m, a quarter metre a frame: the trench's tiles are copied out and stay in flight.
+    for k in 1..=80 {
+        d.set_center(DVec2::new(0.25 * f64::from(k), 0.0));
+        held_frame(&mut d);
+    }
+    let away = d.tile_stats().expect("stats");
+    assert!(away.evicting > 0, "no copy-out was held in flight: {away:?}");
+    d.set_technique(snowpack::Technique::Points);
+    held_frame(&mut d);
+    let switched = d.tile_stats().expect("stats");
+    assert_eq!(switched.gpu_waits, away.gpu_waits, "the switch waited for the GPU: {switched:?}");
+    assert!(switched.evicting > 0 && switched.gpu_bytes > away.gpu_bytes, "the slots did not grow a plane, or the copy-outs were taken: {switched:?}");
+    d.hold_readbacks(false);
+    d.finish(ctx).expect("finish");
+    walk(ctx, &mut d, DVec2::new(20.0, 0.0), DVec2::ZERO, 0.25);
+    let after = d.read_snow(ctx).expect("snow");
+    let differ = before.iter().zip(&after).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} texels changed after the switch with copy-outs in flight");
+    let stats = d.tile_stats().expect("stats");
+    assert!(stats.store.lost == 0 && stats.gpu_waits == away.gpu_waits, "{stats:?}");
+}

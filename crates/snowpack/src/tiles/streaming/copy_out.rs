@@ -17,6 +17,9 @@ struct Eviction {
     buffer: wgpu::Buffer,
     keys: Vec<TileKey>,
     clock: SnowClock,
+    /// The slots' layout when they were copied (a switch to footprints
+    /// adds a plane to the slots while a copy-out is in flight).
+    layout: SlotLayout,
     /// Its mapping, started when the encoder holding the copy is submitted.
     flag: MapFlag,
 }
@@ -49,16 +52,17 @@ impl CopyOuts {
         self.evictions.iter().map(|e| e.buffer.size()).sum::<u64>()
     }
 
-    /// Copies the sealed `slots` of `tiles` (`slot_bytes` each) into a
+    /// Copies the sealed `slots` of `tiles` (laid out as `layout` says) into a
     /// staging buffer of their own in `encoder`, mapped once it is submitted.
     pub(super) fn record(
         &mut self,
         (device, encoder): (&wgpu::Device, &mut wgpu::CommandEncoder),
         tiles: &wgpu::Buffer,
         slots: &[(TileKey, usize)],
-        slot_bytes: u64,
+        layout: SlotLayout,
         clock: SnowClock,
     ) {
+        let slot_bytes = (layout.planes() * layout.grid.area() * 4) as u64;
         let size = slot_bytes * slots.len() as u64;
         // Exactly this copy-out's size, dropped once read back: GPU memory
         // only while tiles are on their way to the CPU (counted in
@@ -74,20 +78,18 @@ impl CopyOuts {
             self.in_flight.insert(key);
         }
         let flag = MapFlag::on_submit(encoder, &buffer, size);
-        self.evictions.push(Eviction { buffer, keys: slots.iter().map(|s| s.0).collect(), clock, flag });
+        self.evictions.push(Eviction { buffer, keys: slots.iter().map(|s| s.0).collect(), clock, layout, flag });
     }
 
     /// Hands arrived copy-outs to `streamer`; with `wait`, waits for all.
     /// Tiles that could not be read back are reported in `errors`.
-    pub(super) fn collect(&mut self, ctx: &GpuContext, wait: bool, layout: SlotLayout, streamer: &mut TileStreamer, errors: &mut Vec<StoreError>) {
+    pub(super) fn collect(&mut self, ctx: &GpuContext, wait: bool, streamer: &mut TileStreamer, errors: &mut Vec<StoreError>) {
         if wait
             && !self.evictions.is_empty()
             && let Err(e) = ctx.wait_idle("reading back tiles for the store")
         {
             tracing::warn!("{e}");
         }
-        let area = layout.grid.area();
-        let side = layout.grid.side();
         let mut k = 0;
         while k < self.evictions.len() {
             let state = self.evictions[k].flag.state();
@@ -96,6 +98,8 @@ impl CopyOuts {
                 continue;
             }
             let eviction = self.evictions.swap_remove(k);
+            let layout = eviction.layout;
+            let (area, side) = (layout.grid.area(), layout.grid.side());
             let used = (eviction.keys.len() * layout.planes() * area * 4) as u64;
             let words: Option<Vec<u32>> =
                 if state == MapState::Mapped { eviction.buffer.slice(..used).get_mapped_range().map(|v| bytemuck::pod_collect_to_vec(&v)).ok() } else { None };

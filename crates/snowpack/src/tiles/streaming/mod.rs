@@ -117,15 +117,13 @@ impl TileStreaming {
 
     /// After the window's footprint buffer was allocated: gives every slot a
     /// footprint plane (no footprints), keeping the other planes, and binds
-    /// the passes to the new slots and to `res`. Waits for the copy-outs in
-    /// flight (they have the old layout). Once, on the first switch to
-    /// points or combined.
+    /// the passes to the new slots and to `res`. Copy-outs in flight keep
+    /// the old layout (each knows its own): nothing is waited for. Once, on
+    /// the first switch to points or combined.
     pub fn add_stamp_plane(&mut self, ctx: &GpuContext, res: &DeformResources) {
         if self.layout.has_stamps || !res.has_stamps() {
             return;
         }
-        self.counters.gpu_waits += u64::from(!self.copy_outs.is_empty());
-        self.collect_evictions(ctx, true);
         let area = self.layout.grid.area() as u64;
         let old = self.layout.planes() as u64;
         self.layout.has_stamps = true;
@@ -484,8 +482,7 @@ impl TileStreaming {
         let seal = self.layout.seal_params(res);
         self.passes.seal.record(&mut cx.with_timer(&mut GpuTimer::disabled()), (res, &self.passes.tiles), seal, &entries);
         let (device, encoder) = (cx.device(), &mut *cx.encoder);
-        let slot_bytes = (self.layout.planes() * self.layout.grid.area() * 4) as u64;
-        self.copy_outs.record((device, encoder), &self.passes.tiles, slots, slot_bytes, clock);
+        self.copy_outs.record((device, encoder), &self.passes.tiles, slots, self.layout, clock);
         self.counters.evicted += slots.len() as u64;
     }
 
@@ -503,7 +500,7 @@ impl TileStreaming {
 
     /// Hands arrived copy-outs to the streamer; with `wait`, waits for all.
     fn collect_evictions(&mut self, ctx: &GpuContext, wait: bool) {
-        self.copy_outs.collect(ctx, wait, self.layout, &mut self.streamer, &mut self.errors);
+        self.copy_outs.collect(ctx, wait, &mut self.streamer, &mut self.errors);
     }
 
     /// Every resident tile and every tile of the window, current at

@@ -103,7 +103,7 @@ impl MovePlanner {
             // Only the first placement, with nowhere to hold, waits for it.
             let Some(current) = current else {
                 p.counters.gpu_waits += 1;
-                p.copy_outs.collect(ctx, true, p.layout, p.streamer, p.errors);
+                p.copy_outs.collect(ctx, true, p.streamer, p.errors);
                 return self.stand_in_for_the_disk(&mut p, &needed, desired);
             };
             for &key in &needed {
@@ -138,7 +138,7 @@ impl MovePlanner {
     /// error is kept for `TileStreaming::take_errors`.
     fn wait_for_needed(&mut self, ctx: &GpuContext, p: &mut PlanParts<'_>, needed: &[TileKey]) {
         if needed.iter().any(|&k| p.copy_outs.carries(k)) {
-            p.copy_outs.collect(ctx, true, p.layout, p.streamer, p.errors);
+            p.copy_outs.collect(ctx, true, p.streamer, p.errors);
         }
         if let Err(e) = p.streamer.wait_for(needed) {
             p.errors.push(e);

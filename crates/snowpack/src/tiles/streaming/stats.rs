@@ -23,9 +23,9 @@ pub struct TileStats {
     /// batches of their own submissions (blocking): the first placement,
     /// jumps, moves of more than a tile or two.
     pub batched_moves: u64,
-    /// Times a frame waited for the GPU: a batched move for the copies out
-    /// in flight, the first placement onto tiles still in flight, and
-    /// adding the footprint plane. A save (`SnowDeformation::save`) waits
+    /// Times a frame waited for the GPU: the first placement onto tiles
+    /// still on their way out, or a move the slot pool could not hold in
+    /// one step (none is planned). A save (`SnowDeformation::save`) waits
     /// by design and is not counted.
     pub gpu_waits: u64,
     /// Tiles restored from the store.
