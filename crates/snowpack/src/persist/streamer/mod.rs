@@ -185,6 +185,16 @@ impl TileStreamer {
         self.stand_ins.contains(key) && self.cache.contains(key)
     }
 
+    /// Asks again for the stored version of stand-in `key` (a memory cache
+    /// over its budget may have dropped it before its merge), unless its
+    /// last read failed: that one is tried again when the tile is next
+    /// restored and by every blocking wait, not every frame.
+    pub(crate) fn ask_again_for_stand_in(&mut self, key: TileKey) {
+        if !self.unreadable.contains(&key) {
+            self.request(key);
+        }
+    }
+
     /// The tiles stood in for whose `made` version is held, waiting for a
     /// merge (a save merges them: `TileStreaming::checkpoint`).
     pub(crate) fn stand_ins_made(&self) -> Vec<TileKey> {

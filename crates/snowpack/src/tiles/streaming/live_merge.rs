@@ -14,7 +14,6 @@ use super::stats::TileCounters;
 use crate::deform::resources::DeformResources;
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::{GpuContext, GpuTimer};
-use crate::persist::streamer::TileStreamerExt;
 use crate::persist::{SnowClock, StoreError, TileKey, TileStreamer};
 use crate::tiles::exchange::ExchangeParams;
 use crate::tiles::restore::RestoreEntry;
@@ -46,7 +45,8 @@ pub(super) struct LiveMergeParts<'a> {
 /// into the slot by the deeper deficit ([`RestoreEntry::IN_SLOT`]), and
 /// the texels are loaded back. What leaves and comes back is counted in
 /// the mass ledger. Asks the streamer again for the stored versions not
-/// here yet (a memory cache may have dropped one). Records its own
+/// here yet (a memory cache may have dropped one; not those whose read
+/// failed). Records its own
 /// submission: call it before anything of this frame's move is recorded
 /// (the passes' uniforms are shared with the move's).
 pub(super) fn record_live_merges(t: LiveMergeParts<'_>, ctx: &GpuContext, res: &DeformResources, frame: &WindowFrame, at: [i64; 2], clock: SnowClock) {
@@ -63,7 +63,7 @@ pub(super) fn record_live_merges(t: LiveMergeParts<'_>, ctx: &GpuContext, res: &
             continue;
         }
         if !t.streamer.stand_in_arrived(key) {
-            t.streamer.request(key);
+            t.streamer.ask_again_for_stand_in(key);
             continue;
         }
         // A tile wholly inside the window holds no slot: it borrows one.
