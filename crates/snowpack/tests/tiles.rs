@@ -965,7 +965,7 @@ fn a_preloaded_jump_moves_in_one_frame_and_waits_for_nothing() {
 /// within `JUMP_BACK_FRAMES` frames of the jump home.
 #[test]
 fn a_jump_of_500_m_away_and_back_brings_the_trail_back() {
-    /// Frames the jump home may take until the trail is back (here 2 to 4:
+    /// Frames the jump home may take until the trail is back (here 1 to 4:
     /// the copies out arrive, then the disk's read, merged live). The
     /// frames are paced as a game's (see `step_paced`), so a loaded CI
     /// machine that is slow to schedule the store's worker still gets there.
