@@ -282,6 +282,17 @@ fn a_failing_disk_keeps_the_trail_in_memory_and_merges_once_it_works() {
     both_trails_survive(ctx, dir.path(), &disk, d, "failing disk");
 }
 
+/// A window over the save in `dir` on `disk` with a memory budget of one
+/// tile (what the window leaves goes to the disk, and coming back reads
+/// it), waiting for the disk on its moves or not (`moves_wait_for_disk`).
+fn one_tile_window(ctx: &GpuContext, dir: &Path, disk: &HeldDisk, moves_wait_for_disk: bool) -> SnowDeformation {
+    let store = TileStore::open_on(Arc::new(disk.clone()), dir, SIDE, StoreConfig::default()).expect("open");
+    let config = StreamerConfig { memory_budget_bytes: 1, wait_limit: Duration::from_secs(20), moves_wait_for_disk };
+    let mut d = window(ctx);
+    assert!(d.attach_store(ctx, TileStreamer::new(store, config)).expect("attach"), "the save loads");
+    d
+}
+
 /// A batch run's window (`StreamerConfig::moves_wait_for_disk`, as
 /// `snowpack run` sets it) is where it was told in the frame it was told:
 /// a jump away and one back, each while the disk is held for 200 ms, take
@@ -294,11 +305,7 @@ fn a_batch_runs_jump_waits_for_a_slow_disk_instead_of_holding() {
     let dir = TestDir::new("batch");
     let disk = HeldDisk::default();
     save_trail_a(ctx, dir.path(), &disk);
-    let store = TileStore::open_on(Arc::new(disk.clone()), dir.path(), SIDE, StoreConfig::default()).expect("open");
-    // A budget of one tile: what the window leaves goes to the disk, and coming back reads it.
-    let config = StreamerConfig { memory_budget_bytes: 1, wait_limit: Duration::from_secs(20), moves_wait_for_disk: true };
-    let mut d = window(ctx);
-    assert!(d.attach_store(ctx, TileStreamer::new(store, config)).expect("attach"), "the save loads");
+    let mut d = one_tile_window(ctx, dir.path(), &disk, true);
     let [a, _] = depths(ctx, &mut d);
     assert!(a < PRESSED, "trail A in the first frame: depth {a}");
     let before = d.tile_stats().expect("tiles");
@@ -334,11 +341,7 @@ fn a_jump_onto_tiles_the_disk_has_not_given_moves_at_once_and_merges_them_live()
     let dir = TestDir::new("jump-live");
     let disk = HeldDisk::default();
     save_trail_a(ctx, dir.path(), &disk);
-    let store = TileStore::open_on(Arc::new(disk.clone()), dir.path(), SIDE, StoreConfig::default()).expect("open");
-    // A budget of one tile: what the window leaves goes to the disk, and coming back reads it.
-    let config = StreamerConfig { memory_budget_bytes: 1, wait_limit: Duration::from_secs(20), moves_wait_for_disk: false };
-    let mut d = window(ctx);
-    assert!(d.attach_store(ctx, TileStreamer::new(store, config)).expect("attach"), "the save loads");
+    let mut d = one_tile_window(ctx, dir.path(), &disk, false);
     d.preload(ctx).expect("preload");
     let [a, _] = depths(ctx, &mut d);
     assert!(a < PRESSED, "trail A in the first frame after the preload: depth {a}");

@@ -179,9 +179,9 @@ impl TileStreamer {
     }
 
     /// Whether the stored version of stand-in `key` is in memory, ready
-    /// to be merged into what the window has there now ([`Self::take_for_restore`]).
-    pub(crate) fn stand_in_arrived(&mut self, key: TileKey) -> bool {
-        self.poll();
+    /// to be merged into what the window has there now ([`Self::take_for_restore`]),
+    /// as of the last poll (the frame's plan polls first).
+    pub(crate) fn stand_in_arrived(&self, key: TileKey) -> bool {
         self.stand_ins.contains(key) && self.cache.contains(key)
     }
 
