@@ -4,7 +4,7 @@
 //!
 //! Every `.wgsl` file directly in `shaders/` is a pass (or, for
 //! `snow_sampling.wgsl`, the module games import): its constant is the file's
-//! stem upper-cased (`capture_sphere.wgsl` gives `CAPTURE_SPHERE`), and `ALL`
+//! stem upper-cased (`capture_shapes.wgsl` gives `CAPTURE_SHAPES`), and `ALL`
 //! lists them by file name. `shaders/shared/` holds snippets that are only
 //! imported. A file names what it uses at its top, one comment line each:
 //!

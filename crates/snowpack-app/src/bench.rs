@@ -207,7 +207,7 @@ pub fn hanak_markdown(row: &BenchRow, adapter: &str, software: bool) -> String {
         ms(&["display"]),
         0.0
     );
-    md.push_str("\nsnowpack's deformation is its update pass; its blur column is the display pass, the rims and both blur directions fused in workgroup memory; it has no normals pass (normals are central differences of the displayed heights wherever they are used); its capture draws spheres as exact ray-cast quads, so its cost per object is the capture pass over the sphere count.\n");
+    md.push_str("\nsnowpack's deformation is its update pass; its blur column is the display pass, the rims and both blur directions fused in workgroup memory; it has no normals pass (normals are central differences of the displayed heights wherever they are used); its capture ray casts spheres exactly by compute, each 16×16-texel tile against the spheres over it, so its cost per object is the capture pass over the sphere count.\n");
     md
 }
 
@@ -252,7 +252,7 @@ pub fn memory_markdown(rows: &[BenchRow]) -> String {
          level geometry; Rise of the Tomb Raider as Wasmut 2019 quotes it, 2 to 4 MB depending on the float precision; Surface \
          Trails, 24 MB (the figure the benchmark issue quotes; not in the source texts). snowpack keeps the persistent snow in \
          one u32 word a texel holding both the persistent snow (a 16-bit deficit below rest) and the displayed height (an f16 above \
-         the terrain; rims and blur are fused in one pass, normals computed where used), a 16-bit capture depth, the terrain evaluated from its source, the point stamps only for points and combined and the decal layer only \
+         the terrain; rims and blur are fused in one pass, normals computed where used), a 16-bit capture (the analytic shapes' codes, written by compute; a depth target for meshes only once a mesh presses), the terrain evaluated from its source, the point stamps only for points and combined and the decal layer only \
          for decals (switching allocates them once), a few kilobytes for point queries, and the resident tiles that keep \
          trails when the window moves on.\n",
     );

@@ -119,7 +119,7 @@ pub fn markdown(rows: &[FrameRow], adapter: &str, software: bool) -> String {
     let mut md = format!("\n## Wasmut 2019, Tables 1–4: frames per second at {}x{} (deformation + render GPU time)\n\n", SIZE.0, SIZE.1);
     let _ = writeln!(
         md,
-        "Wasmut's figures are whole-application FPS on a GeForce GTX 960 (section 5.2); snowpack's are `1000 / GPU ms` on **{adapter}**{}. snowpack captures spheres as exact ray-cast impostors, so the mesh size changes only their drawing, not the capture (Wasmut's render target drew the meshes into the capture).",
+        "Wasmut's figures are whole-application FPS on a GeForce GTX 960 (section 5.2); snowpack's are `1000 / GPU ms` on **{adapter}**{}. snowpack ray casts spheres exactly by compute in the capture, so the mesh size changes only their drawing, not the capture (Wasmut's render target drew the meshes into the capture).",
         if software { " (a software adapter: ratios only)" } else { "" }
     );
     let titles = [

@@ -94,6 +94,10 @@ const DISPLACE: u32 = 128u;
 const CONSUME: u32 = 256u;
 // Count what snowfall and refill add in the mass ledger.
 const LEDGER: u32 = 512u;
+// The analytic shapes were captured this frame (read capture_shapes).
+const CAPTURE_SHAPES: u32 = 1024u;
+// Meshes were captured this frame (read the capture depth target).
+const CAPTURE_MESHES: u32 = 2048u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, pass/compute.rs); the default reads `params.flags`.
@@ -107,9 +111,13 @@ fn update_flags() -> u32 {
 }
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
-// The depth target is bound as an unfilterable float texture: GLSL has no
-// texelFetch for depth textures, and this binding works on every backend.
+// The meshes' capture depth target (with CAPTURE_MESHES) is bound as an
+// unfilterable float texture: GLSL has no texelFetch for depth textures, and
+// this binding works on every backend.
 @group(0) @binding(1) var capture: texture_2d<f32>;
+// The analytic shapes' capture (with CAPTURE_SHAPES; capture_shapes.wgsl):
+// two texels a word, each 65535 minus its 16-bit depth code, 0 for nothing.
+@group(0) @binding(5) var<storage, read> capture_shapes: array<u32>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
 @group(1) @binding(1) var<storage, read> heightmap: array<f32>;
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl
@@ -120,6 +128,21 @@ fn update_flags() -> u32 {
 @group(0) @binding(3) var<storage, read_write> share_flags: array<atomic<u32>>;
 // Packed snow, two texels a word, and the displaced count (shared/pack_press.wgsl).
 @group(0) @binding(4) var<storage, read_write> packed: array<atomic<u32>>;
+
+// The capture depth at window-local texel (i, j): the lower of the shapes'
+// code (decoded as the 16-bit depth target decodes, code / 65535) and the
+// meshes' depth, each where this frame captured it; 1 for nothing.
+fn capture_depth(i: u32, j: u32) -> f32 {
+    var d = 1.0;
+    if (update_flags() & CAPTURE_SHAPES) != 0u {
+        let v = (capture_shapes[(i * params.resolution + j) >> 1u] >> ((j & 1u) * 16u)) & 0xffffu;
+        d = f32(65535u - v) / 65535.0;
+    }
+    if (update_flags() & CAPTURE_MESHES) != 0u {
+        d = min(d, textureLoad(capture, vec2<u32>(j, i), 0).x);
+    }
+    return d;
+}
 
 // 1 where the sky reaches window-local texel (i, j) whose surface is at height h.
 fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
@@ -136,7 +159,7 @@ fn sky_visible(i: u32, j: u32, h: f32) -> f32 {
 // presses. In capture depths and one correctly rounded product, so the
 // CPU twin picks the same target.
 fn displace_rise(n: vec2<i32>, d0: f32) -> i32 {
-    let d = textureLoad(capture, vec2<u32>(n), 0).x;
+    let d = capture_depth(u32(n.y), u32(n.x));
     if d >= 1.0 {
         return 63;
     }
@@ -166,7 +189,7 @@ fn displace_push(q: vec2<f32>) -> vec2<i32> {
 // then the higher rise, then the first; without a mean direction the
 // highest rise; none where nothing rises.
 fn displace_target(i: u32, j: u32) -> u32 {
-    let d0 = textureLoad(capture, vec2<u32>(j, i), 0).x;
+    let d0 = capture_depth(i, j);
     let here = vec2<i32>(i32(j), i32(i));
     let r = i32(params.resolution);
     // Under a box that pushes, its way; else the rises' mean direction.
@@ -278,7 +301,7 @@ fn update_texel(i: u32, j: u32) {
     // Whether the captured actors reach down to the snow here (what displaces).
     var pressed = false;
     if (update_flags() & USE_CAPTURE) != 0u {
-        let d = textureLoad(capture, vec2<u32>(j, i), 0).x;
+        let d = capture_depth(i, j);
         if d < 1.0 {
             let actor = params.low_m + d * (params.high_m - params.low_m);
             let press = snow_press_quanta(rest, ground, actor);

@@ -43,12 +43,14 @@ fn default_window_memory_per_technique() {
     let mut depth = SnowDeformation::new(ctx, params.clone(), terrain.clone(), DVec2::ZERO).expect("depth window");
     let depth_total = table(&depth, "depth");
     // Per texel: the snow word 4 (persistent and displayed), capture 2
-    // (Depth16Unorm), packed snow 2 (snow with mass: two texels a word); no terrain copy (evaluated from its source), no
+    // (the analytic shapes' 16-bit codes; the meshes' depth target is 1x1
+    // until a mesh is captured), packed snow 2 (snow with mass: two texels a word); no terrain copy (evaluated from its source), no
     // footprint buffer, no decal layer, no blur, displayed-height or normal
     // buffer (normals are computed where they are used).
     assert!(depth.memory_bytes().iter().all(|(name, _)| *name != "terrain" && *name != "surface"));
     assert_eq!(bytes_of(&depth, "snow"), 4 * texels);
     assert_eq!(bytes_of(&depth, "capture"), 2 * texels);
+    assert_eq!(bytes_of(&depth, "capture meshes"), 2);
     assert_eq!(bytes_of(&depth, "stamps"), 4);
     assert_eq!(bytes_of(&depth, "decal layer"), 4);
     assert_eq!(bytes_of(&depth, "packed snow"), 2 * texels + 40, "two texels a word and the mass ledger's five counts");

@@ -145,24 +145,13 @@ fn window_pass_matches_cpu_on_first_placement_and_moves() {
     assert!(ledger.left_q > 0 && ledger.entered_q > ledger.left_q / 2, "nothing counted: {ledger:?}; seed {seed}");
 }
 
-#[test]
-fn capture_and_update_match_cpu() {
-    let Some(ctx) = testing::gpu() else { return };
-    let seed = testing::seed("capture+update");
-    let mut rng = Rng::new(seed);
-    let (params, terrain_src, res) = setup(ctx, &mut rng, 112);
-    let n = params.texel_count();
-    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
-    // The ground the update evaluates from the terrain's source, per texel.
-    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    // Deficits up to a little past the rest depth (the update clamps them
-    // at the terrain), under random displayed halves (the update keeps them).
-    let mut snow: Vec<u32> =
-        terrain.iter().map(|_| (rng.next_u64() as u32 & 0xffff_0000) | snow_word::deficit_quanta(rng.range(0.0, params.depth_m * 1.1))).collect();
-    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
-    let e = params.extent_m;
+/// `spheres` spheres (the first inside the window), 4 boxes and 4 wheels
+/// (every tread pattern, one tilted) over a window of side `e` with texels
+/// of `texel` m, and the poses half of them (the first of each kind
+/// always) had last frame, up to 3 m away: what the capture sweeps.
+fn random_deformers(rng: &mut Rng, e: f32, texel: f32, spheres: usize) -> (Vec<Deformer>, Vec<Option<Deformer>>) {
     let mut deformers = Vec::new();
-    for k in 0..12 {
+    for k in 0..spheres {
         // The first one (always swept, below) inside the window, so its sweep is never culled
         // (it was, for 1 seed in a few hundred: every sphere of that draw lay outside).
         let (lo, hi) = if k == 0 { (0.2 * e, 0.8 * e) } else { (-0.2 * e, 1.2 * e) };
@@ -177,7 +166,6 @@ fn capture_and_update_match_cpu() {
     }
     // Wheels: level axles turned any way and one tilted, every tread pattern,
     // lugs a few texels apart so the pattern shows at this resolution.
-    let texel = params.texel_m();
     let patterns = [TreadPattern::None, TreadPattern::Blocks, TreadPattern::Chevron, TreadPattern::Blocks];
     for (k, pattern) in patterns.into_iter().enumerate() {
         let tilt = if k == 3 { rng.range(-0.6, 0.6) } else { 0.0 };
@@ -200,7 +188,7 @@ fn capture_and_update_match_cpu() {
         .iter()
         .enumerate()
         .map(|(k, d)| {
-            let always = k == 0 || k == 12 || k == 16;
+            let always = k == 0 || k == spheres || k == spheres + 4;
             if !always && rng.range(0.0, 1.0) < 0.5 {
                 return None;
             }
@@ -220,6 +208,28 @@ fn capture_and_update_match_cpu() {
             })
         })
         .collect();
+    (deformers, previous)
+}
+
+#[test]
+fn capture_and_update_match_cpu() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("capture+update");
+    let mut rng = Rng::new(seed);
+    let (params, terrain_src, mut res) = setup(ctx, &mut rng, 112);
+    // This frame captures a mesh: the depth target it is drawn into.
+    assert!(res.allocate_mesh_capture(&ctx.device));
+    let n = params.texel_count();
+    let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
+    // The ground the update evaluates from the terrain's source, per texel.
+    let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+    // Deficits up to a little past the rest depth (the update clamps them
+    // at the terrain), under random displayed halves (the update keeps them).
+    let mut snow: Vec<u32> =
+        terrain.iter().map(|_| (rng.next_u64() as u32 & 0xffff_0000) | snow_word::deficit_quanta(rng.range(0.0, params.depth_m * 1.1))).collect();
+    ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+    let e = params.extent_m;
+    let (deformers, previous) = random_deformers(&mut rng, e, params.texel_m(), 12);
     let cparams = CaptureParams { extent_m: e, texel_m: params.texel_m(), low_m: -2.0, high_m: 3.0 };
     let mut instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
     assert!(
@@ -262,6 +272,7 @@ fn capture_and_update_match_cpu() {
         triangles.push([corner(&mut rng), corner(&mut rng), corner(&mut rng)]);
     }
     // Slivers far smaller than a texel (a thin leg): only their corners, drawn as points, mark.
+    let texel = params.texel_m();
     for _ in 0..200 {
         let c = [rng.range(0.0, e), rng.range(-0.5, 1.5), rng.range(0.0, e)];
         let corner = |rng: &mut Rng| [c[0] + rng.range(-0.1, 0.1) * texel, c[1] + rng.range(-0.05, 0.05), c[2] + rng.range(-0.1, 0.1) * texel];
@@ -305,13 +316,14 @@ fn capture_and_update_match_cpu() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &meshes);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
+    // The update reads what the capture wrote this frame.
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &UpdateParams { flags: up.flags | capture.update_flags(), ..up });
     submit(ctx, enc);
 
-    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
+    let mut depth = cpu::capture_shapes::capture_depths(&instances, &cparams, params.resolution);
     let swept = cpu::capture_mesh::swept_triangles(&before, &triangles, steps);
     cpu::capture_mesh::capture_triangles(&mut depth, &swept, DVec2::ZERO, &cparams, params.resolution);
-    cpu::capture_sphere::quantise_depths(&mut depth);
+    cpu::capture_shapes::quantise_depths(&mut depth);
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     let mut packed = vec![0u32; n.div_ceil(2)];
     let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut [] };
@@ -506,13 +518,14 @@ fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
+    // The update reads what the capture wrote this frame.
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &UpdateParams { flags: up.flags | capture.update_flags(), ..up });
     displace.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &dp);
     submit(ctx, enc);
     let (gpu_words, gpu_packed, gpu_fallen) = (read_u32(ctx, &res.snow), read_u32(ctx, &res.packed), read_f32(ctx, &res.fallen));
 
-    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
-    cpu::capture_sphere::quantise_depths(&mut depth);
+    let mut depth = cpu::capture_shapes::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture_shapes::quantise_depths(&mut depth);
     let (before_snow, before_packed, before_fallen) = (snow.clone(), packed.clone(), fallen.clone());
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut [], fallen: &mut fallen, packed: &mut packed, flags: &mut [] };
@@ -1084,6 +1097,57 @@ fn stamp_quantisation_error_is_at_most_half_a_quantum() {
     assert_eq!(cpu::stamp::quantise(high + 1.0, low, high), 65535);
 }
 
+/// The analytic shapes' compute capture (`capture_shapes.wgsl`) against its
+/// twin, code for code: swept spheres, tyres of every tread and boxes, and
+/// more shapes than one round of the tile culling lists (small spheres
+/// everywhere), so a shape listed in a later round is checked too.
+#[test]
+fn shape_capture_matches_cpu_code_for_code() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("shape capture");
+    let mut rng = Rng::new(seed);
+    let (params, _terrain, res) = setup(ctx, &mut rng, 128);
+    let (e, texel) = (params.extent_m, params.texel_m());
+    let (mut deformers, mut previous) = random_deformers(&mut rng, e, texel, 12);
+    for _ in 0..300 {
+        let center = Vec3::new(rng.range(0.0, e), rng.range(-0.5, 1.0), rng.range(0.0, e));
+        deformers.push(Deformer::Sphere { center, radius: rng.range(0.5, 3.0) * texel });
+        previous.push(
+            (rng.range(0.0, 1.0) < 0.5).then(|| Deformer::Sphere { center: center + Vec3::new(rng.range(-0.3, 0.3), 0.0, rng.range(-0.3, 0.3)), radius: 0.0 }),
+        );
+    }
+    let cparams = CaptureParams { extent_m: e, texel_m: texel, low_m: -2.0, high_m: 3.0 };
+    let instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
+    assert!(instances.capsules.len() > 256 && !instances.boxes.is_empty() && !instances.wheels.is_empty(), "too few shapes; seed {seed}");
+    let mut capture = CapturePass::new(&ctx.device);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let mut enc = encoder(ctx);
+    capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
+    submit(ctx, enc);
+    assert_eq!(capture.update_flags(), UpdateParams::CAPTURE_SHAPES, "shapes only; seed {seed}");
+    let gpu = read_u32(ctx, &res.capture_shapes);
+    let mut depth = cpu::capture_shapes::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture_shapes::quantise_depths(&mut depth);
+    let cpu = cpu::capture_shapes::shape_codes(&depth);
+    let halves = |w: &[u32]| -> Vec<u32> { w.iter().flat_map(|v| [v & 0xffff, v >> 16]).collect() };
+    let (gpu, cpu) = (halves(&gpu), halves(&cpu));
+    let captured = cpu.iter().filter(|v| **v != 0).count();
+    assert!(captured > params.texel_count() / 10, "only {captured} texels captured; seed {seed}");
+    let differ: Vec<usize> = (0..gpu.len()).filter(|&k| gpu[k] != cpu[k]).collect();
+    eprintln!("{} of {captured} captured texels differ ({} shapes)", differ.len(), instances.capsules.len() + instances.wheels.len() + instances.boxes.len());
+    // A tyre's lug edge rests on atan2, which WGSL lets round more loosely
+    // than Rust: a texel centre within a rounding error of an edge may fall
+    // on either side. Nothing else may differ by a single code.
+    let r = params.resolution as usize;
+    let near_a_tyre = |k: usize| {
+        let (x, z) = (((k % r) as f32 + 0.5) * texel, ((k / r) as f32 + 0.5) * texel);
+        instances.wheels.iter().any(|w| (x - w[0]).abs() <= w[3].hypot(w[7]) && (z - w[2]).abs() <= w[3].hypot(w[7]))
+    };
+    let elsewhere: Vec<(usize, u32, u32)> = differ.iter().filter(|&&k| !near_a_tyre(k)).map(|&k| (k, gpu[k], cpu[k])).take(8).collect();
+    assert!(elsewhere.is_empty(), "{} of {captured} captured texels differ, these away from tyres: {elsewhere:?}; seed {seed}", differ.len());
+    assert!(differ.len() <= 3, "{} texels under tyres differ; seed {seed}", differ.len());
+}
+
 #[test]
 fn wheel_capture_matches_cpu() {
     // Wheels alone, larger in the window than in the mixed test above, so
@@ -1147,10 +1211,11 @@ fn wheel_capture_matches_cpu() {
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
-    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &up);
+    // The update reads what the capture wrote this frame.
+    update.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &UpdateParams { flags: up.flags | capture.update_flags(), ..up });
     submit(ctx, enc);
-    let mut depth = cpu::capture_sphere::capture_depths(&instances, &cparams, params.resolution);
-    cpu::capture_sphere::quantise_depths(&mut depth);
+    let mut depth = cpu::capture_shapes::capture_depths(&instances, &cparams, params.resolution);
+    cpu::capture_shapes::quantise_depths(&mut depth);
     let mut stamps = vec![cpu::stamp::STAMP_EMPTY; n];
     let mut packed = vec![0u32; n.div_ceil(2)];
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };

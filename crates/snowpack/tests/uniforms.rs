@@ -3,6 +3,7 @@
 use snowpack::low_level::accumulate::state::ObjectGpu;
 use snowpack::low_level::accumulate::{IncrementParams, OcclusionParams, ScatterParams, SettleParams, SurfaceParams};
 use snowpack::low_level::deform::capture::CaptureParams;
+use snowpack::low_level::deform::capture_shapes::ShapeParams;
 use snowpack::low_level::deform::decal::DecalParams;
 use snowpack::low_level::deform::display::DisplayParams;
 use snowpack::low_level::deform::query::{QueryParams, RawSample};
@@ -47,9 +48,8 @@ fn uniform_sizes_match_naga() {
     let cases: &[(&str, &str, usize)] = &[
         (shaders::WINDOW, "params", size_of::<WindowParams>()),
         (shaders::UPDATE, "terrain_params", size_of::<TerrainParams>()),
-        (shaders::CAPTURE_SPHERE, "params", size_of::<CaptureParams>()),
+        (shaders::CAPTURE_SHAPES, "params", size_of::<ShapeParams>()),
         (shaders::CAPTURE_MESH, "params", size_of::<CaptureParams>()),
-        (shaders::CAPTURE_WHEEL, "params", size_of::<CaptureParams>()),
         (shaders::STAMP, "params", size_of::<StampParams>()),
         (shaders::DECAL, "params", size_of::<DecalParams>()),
         (shaders::UPDATE, "params", size_of::<UpdateParams>()),

@@ -1,8 +1,6 @@
 //! CPU twin of the capture pass's meshes (`capture_mesh.wgsl`): swept
-//! meshes' triangles as the GPU draws them, and boxes (unit cubes under a
-//! model matrix, which [`super::capture_sphere::capture_depths`] ray casts).
-
-use glam::{Mat4, Vec3};
+//! meshes' triangles as the GPU draws them (boxes are analytic shapes:
+//! [`super::capture_shapes`]).
 
 use snowpack::low_level::deform::capture::CaptureParams;
 
@@ -22,29 +20,8 @@ pub fn swept_triangles(previous: &[[[f32; 3]; 3]], current: &[[[f32; 3]; 3]], st
     out
 }
 
-/// Lowest world height where the vertical line through (x, z) meets the unit
-/// cube mapped by the inverse model matrix `inv`.
-pub(super) fn lowest_box_hit(inv: &Mat4, x: f32, z: f32, low: f32) -> Option<f32> {
-    let o = inv.transform_point3(Vec3::new(x, low, z));
-    let d = inv.transform_vector3(Vec3::Y);
-    let (mut t0, mut t1) = (f32::NEG_INFINITY, f32::INFINITY);
-    for axis in 0..3 {
-        let (oa, da) = (o[axis], d[axis]);
-        if da.abs() < 1e-12 {
-            if oa.abs() > 1.0 {
-                return None;
-            }
-            continue;
-        }
-        let (a, b) = ((-1.0 - oa) / da, (1.0 - oa) / da);
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
-    (t0 <= t1 && t1 >= 0.0).then_some(low + t0)
-}
-
 /// Adds world-space triangles to `depth` (window-local texels, as
-/// [`super::capture_sphere::capture_depths`] returns): the lowest surface per texel centre, and each
+/// [`super::capture_shapes::capture_depths`] returns): the lowest surface per texel centre, and each
 /// corner as a point in the texel it lies in, as the GPU draws
 /// [`snowpack::low_level::deform::capture::CaptureMesh`]es.
 pub fn capture_triangles(depth: &mut [f32], triangles: &[[[f32; 3]; 3]], corner: glam::DVec2, p: &CaptureParams, resolution: u32) {

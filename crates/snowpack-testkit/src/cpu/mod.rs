@@ -6,8 +6,7 @@
 pub mod ao;
 pub mod atlas_surface;
 pub mod capture_mesh;
-pub mod capture_sphere;
-pub mod capture_wheel;
+pub mod capture_shapes;
 pub mod displace;
 pub mod display;
 pub mod env_downsample;

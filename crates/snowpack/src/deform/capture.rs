@@ -1,13 +1,14 @@
-//! Capture pass: actors' lowest surfaces, drawn from below into a depth target.
+//! Capture pass: actors' lowest surfaces, seen from below the terrain.
 //!
-//! An orthographic camera below the terrain looks up over the window; depth is
-//! linear in world height between `low_m` (depth 0) and `high_m` (depth 1), so
-//! the depth test keeps the lowest surface per texel. Spheres are impostor
-//! quads writing their exact lower surface; boxes (and meshes in general) are
-//! instanced triangles; wheels are impostor quads writing their exact tyre,
-//! tread included (see [`super::wheel`]). Every deformer is swept over its motion since the
-//! last frame (see [`super::sweep`]): spheres as capsules, boxes and meshes
-//! in sub-steps. Actors outside the window leave no mark.
+//! Depth is linear in world height between `low_m` (depth 0) and `high_m`
+//! (depth 1), quantised to 16-bit codes, and the lowest surface per texel
+//! wins. The analytic shapes (spheres, tyres with their tread, boxes) are
+//! ray cast exactly by compute ([`super::capture_shapes`]); meshes
+//! (skinned characters, caller meshes) are drawn as triangles into the
+//! capture depth target. The update takes the lower of the two. Every
+//! deformer is swept over its motion since the last frame (see
+//! [`super::sweep`]): spheres as capsules, boxes, tyres and meshes in
+//! sub-steps. Actors outside the window leave no mark.
 #![cfg_attr(
     not(feature = "low_level"),
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
@@ -21,10 +22,13 @@ use crate::gpu::layout;
 use crate::height_depth::CAPTURE_FORMAT;
 use crate::{Deformer, shaders};
 
+use super::capture_shapes::{ShapeCapturePass, Shapes};
 use super::resources::DeformResources;
+use super::update::UpdateParams;
 use crate::deform::shape::DeformerExt;
 
-/// Uniforms of `capture_sphere.wgsl`, `capture_wheel.wgsl` and `capture_mesh.wgsl`.
+/// What a capture covers: the window, its texels and the height range of
+/// its depth (`capture_mesh.wgsl`'s uniforms; [`super::capture_shapes::ShapeParams`] carries the same).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct CaptureParams {
@@ -45,11 +49,6 @@ impl CaptureParams {
         (depth < 1.0).then_some(self.low_m + depth * (self.high_m - self.low_m))
     }
 }
-
-/// Unit cube, corners at ±1: 8 vertices, 12 triangles.
-const CUBE_VERTICES: [[f32; 3]; 8] =
-    [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]];
-const CUBE_INDICES: [u16; 36] = [0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6, 0, 4, 5, 0, 5, 1, 3, 2, 6, 3, 6, 7, 0, 3, 7, 0, 7, 4, 1, 5, 6, 1, 6, 2];
 
 /// Instances prepared for one frame, in window-local coordinates.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -210,11 +209,11 @@ fn growable(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
     })
 }
 
-/// Draws deformers into the capture depth target.
+/// The capture: the analytic shapes ray cast by compute
+/// ([`ShapeCapturePass`]) and the meshes drawn into the capture depth target.
 pub struct CapturePass {
-    sphere_pipeline: wgpu::RenderPipeline,
-    wheel_pipeline: wgpu::RenderPipeline,
-    mesh_pipeline: wgpu::RenderPipeline,
+    /// Spheres (swept: capsules), tyres and boxes, by compute.
+    shapes: ShapeCapturePass,
     /// World-space meshes, each vertex between its last and this frame's position.
     swept_pipeline: wgpu::RenderPipeline,
     /// The meshes' vertices again as points: a paw or a leg thinner than a
@@ -223,179 +222,140 @@ pub struct CapturePass {
     swept_point_pipeline: wgpu::RenderPipeline,
     params: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    capsule_instances: wgpu::Buffer,
-    box_instances: wgpu::Buffer,
-    wheel_instances: wgpu::Buffer,
     /// Per mesh sub-step: (corner x, corner z, t, 0); entry 0 is t = 1.
     step_instances: wgpu::Buffer,
     /// First entry in `step_instances` and sub-steps of each prepared mesh.
     mesh_steps: Vec<(u32, u32)>,
-    cube_vertices: wgpu::Buffer,
-    cube_indices: wgpu::Buffer,
-    /// Capsules, boxes and wheel poses prepared.
-    counts: (u32, u32, u32),
     /// This frame's `step_instances`, kept for its memory.
     step_data: Vec<[f32; 4]>,
     /// What `params` and `step_instances` last had written, so an unchanged
     /// frame writes neither.
     written: (Option<CaptureParams>, Vec<[f32; 4]>),
+    /// What the last record captured, as the update's flags
+    /// ([`Self::update_flags`]).
+    captured: u32,
 }
 
-fn depth_state() -> wgpu::DepthStencilState {
-    wgpu::DepthStencilState {
-        format: CAPTURE_FORMAT,
-        depth_write_enabled: Some(true),
-        depth_compare: Some(wgpu::CompareFunction::Less),
-        stencil: wgpu::StencilState::default(),
-        bias: wgpu::DepthBiasState::default(),
-    }
-}
-
-/// The unit cube's vertex and index buffers (boxes are drawn as instances of it).
-fn cube_buffers(device: &wgpu::Device) -> (wgpu::Buffer, wgpu::Buffer) {
-    use wgpu::util::DeviceExt as _;
-    let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("cube vertices"),
-        contents: bytemuck::cast_slice(&CUBE_VERTICES),
-        usage: wgpu::BufferUsages::VERTEX,
-    });
-    let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("cube indices"),
-        contents: bytemuck::cast_slice(&CUBE_INDICES),
-        usage: wgpu::BufferUsages::INDEX,
-    });
-    (vertices, indices)
-}
-
-/// A depth-only capture pipeline: `vertex` (entry point and buffers) of
-/// `module`, with its `fs_main` (no colour target) when `fragment`.
-fn capture_pipeline(
+/// A depth-only capture pipeline for the meshes: `vs_swept` of `module`
+/// drawing `primitive`s, no fragment stage.
+fn mesh_pipeline(
     device: &wgpu::Device,
     layout: &wgpu::PipelineLayout,
     label: &str,
     module: &wgpu::ShaderModule,
-    (entry, buffers): (&str, &[Option<wgpu::VertexBufferLayout<'_>>]),
     primitive: wgpu::PrimitiveState,
-    fragment: bool,
 ) -> wgpu::RenderPipeline {
+    let positions = |location| wgpu::VertexBufferLayout {
+        array_stride: 12,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: match location {
+            0 => &wgpu::vertex_attr_array![0 => Float32x3],
+            _ => &wgpu::vertex_attr_array![5 => Float32x3],
+        },
+    };
+    let buffers = [
+        Some(positions(0)),
+        Some(wgpu::VertexBufferLayout { array_stride: 16, step_mode: wgpu::VertexStepMode::Instance, attributes: &wgpu::vertex_attr_array![1 => Float32x4] }),
+        Some(positions(5)),
+    ];
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(layout),
-        vertex: wgpu::VertexState { module, entry_point: Some(entry), compilation_options: wgpu::PipelineCompilationOptions::default(), buffers },
-        primitive,
-        depth_stencil: Some(depth_state()),
-        multisample: wgpu::MultisampleState::default(),
-        fragment: fragment.then(|| wgpu::FragmentState {
+        vertex: wgpu::VertexState {
             module,
-            entry_point: Some("fs_main"),
+            entry_point: Some("vs_swept"),
             compilation_options: wgpu::PipelineCompilationOptions::default(),
-            targets: &[],
+            buffers: &buffers,
+        },
+        primitive,
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: CAPTURE_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
         }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: None,
         multiview_mask: None,
         cache: None,
     })
 }
 
 impl CapturePass {
-    /// Builds both pipelines.
+    /// Builds the shapes' compute pass and the meshes' pipelines.
     #[must_use]
     pub fn new(device: &wgpu::Device) -> Self {
         let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("capture"),
+            label: Some("capture meshes"),
             entries: &[layout::uniform(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
         });
-        let pipeline_layout =
-            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("capture"), bind_group_layouts: &[Some(&bgl)], immediate_size: 0 });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("capture meshes"),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("capture meshes"),
+            source: wgpu::ShaderSource::Wgsl(shaders::CAPTURE_MESH.into()),
+        });
         // Seen from below, front and back faces swap; cull nothing and let the depth test choose.
         let primitive = wgpu::PrimitiveState { cull_mode: None, ..Default::default() };
-        let module = |label: &str, source: &str| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) })
-        };
-        let pipeline = |label: &str, module: &wgpu::ShaderModule, vertex: (&str, &[Option<wgpu::VertexBufferLayout<'_>>]), primitive, fragment| {
-            capture_pipeline(device, &pipeline_layout, label, module, vertex, primitive, fragment)
-        };
-        let sphere_module = module("capture spheres", shaders::CAPTURE_SPHERE);
-        let sphere_instances = [Some(wgpu::VertexBufferLayout {
-            array_stride: 32,
-            step_mode: wgpu::VertexStepMode::Instance,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
-        })];
-        let sphere_pipeline = pipeline("capture spheres", &sphere_module, ("vs_main", &sphere_instances), primitive, true);
-        let wheel_module = module("capture wheels", shaders::CAPTURE_WHEEL);
-        let wheel_instances = [Some(wgpu::VertexBufferLayout {
-            array_stride: 64,
-            step_mode: wgpu::VertexStepMode::Instance,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4],
-        })];
-        let wheel_pipeline = pipeline("capture wheels", &wheel_module, ("vs_main", &wheel_instances), primitive, true);
-        let mesh_module = module("capture meshes", shaders::CAPTURE_MESH);
-        let positions =
-            wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &wgpu::vertex_attr_array![0 => Float32x3] };
-        let box_buffers = [
-            Some(positions.clone()),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 64,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
-            }),
-        ];
-        let mesh_pipeline = pipeline("capture boxes", &mesh_module, ("vs_main", &box_buffers), primitive, false);
-        let swept_buffers = [
-            Some(positions),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 16,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &wgpu::vertex_attr_array![1 => Float32x4],
-            }),
-            Some(wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &wgpu::vertex_attr_array![5 => Float32x3] }),
-        ];
-        let swept_pipeline = pipeline("capture meshes", &mesh_module, ("vs_swept", &swept_buffers), primitive, false);
         let points = wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::PointList, ..primitive };
-        let swept_point_pipeline = pipeline("capture mesh points", &mesh_module, ("vs_swept", &swept_buffers), points, false);
         let params = layout::uniform_buffer::<CaptureParams>(device, "capture params");
-        let bind_group = layout::bind_group(device, "capture", &bgl, &[params.as_entire_binding()]);
-        let (cube_vertices, cube_indices) = cube_buffers(device);
+        let bind_group = layout::bind_group(device, "capture meshes", &bgl, &[params.as_entire_binding()]);
         Self {
-            sphere_pipeline,
-            wheel_pipeline,
-            mesh_pipeline,
-            swept_pipeline,
-            swept_point_pipeline,
+            shapes: ShapeCapturePass::new(device),
+            swept_pipeline: mesh_pipeline(device, &pipeline_layout, "capture meshes", &module, primitive),
+            swept_point_pipeline: mesh_pipeline(device, &pipeline_layout, "capture mesh points", &module, points),
             params,
             bind_group,
-            capsule_instances: growable(device, "capsule instances", 32 * 64),
-            box_instances: growable(device, "box instances", 64 * 64),
-            wheel_instances: growable(device, "wheel instances", 64 * 64),
             step_instances: growable(device, "mesh step instances", 16 * 64),
             mesh_steps: Vec::new(),
-            cube_vertices,
-            cube_indices,
-            counts: (0, 0, 0),
             step_data: Vec::new(),
             written: (None, Vec::new()),
+            captured: 0,
         }
     }
 
-    /// Records this frame's capture: uploads `params` and the instances
-    /// (growing their buffers when needed), clears the capture target and
-    /// draws them, with world-space `meshes`, mesh k swept over the
-    /// sub-steps [`CaptureInstances::mesh_steps`]`[k]` where it has previous
-    /// positions. The one form of the presses' passes: the stamp pass and
-    /// the decal pass record the same way (what, where, one call).
+    /// Records this frame's capture: the analytic shapes of `inst` ray cast
+    /// by compute, and `meshes` (world-space) drawn into the capture depth
+    /// target, mesh k swept over the sub-steps
+    /// [`CaptureInstances::mesh_steps`]`[k]` where it has previous
+    /// positions. Either part is skipped when it has nothing to capture;
+    /// [`Self::update_flags`] then tells the update what to read. The one
+    /// form of the presses' passes: the stamp pass and the decal pass record
+    /// the same way (what, where, one call).
     pub fn record(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, (params, inst): (&CaptureParams, &CaptureInstances), meshes: &[SweptMesh<'_>]) {
-        self.upload(cx.device(), cx.queue(), params, inst);
-        self.draw(cx, res, meshes);
+        let shapes = Shapes { capsules: &inst.capsules, wheels: &inst.wheels, boxes: &inst.boxes };
+        let shapes = self.shapes.record(cx, res, [params.low_m, params.high_m], shapes);
+        self.captured = if shapes { UpdateParams::CAPTURE_SHAPES } else { 0 };
+        if !meshes.is_empty() {
+            if res.capture.width() != res.resolution {
+                tracing::error!("meshes captured before DeformResources::allocate_mesh_capture: skipped");
+                return;
+            }
+            self.upload(cx.device(), cx.queue(), params, inst);
+            self.draw(cx, res, meshes);
+            self.captured |= UpdateParams::CAPTURE_MESHES;
+        }
     }
 
-    /// Uploads this frame's instances, growing the instance buffers when needed.
+    /// What the last [`Self::record`] captured, as
+    /// [`UpdateParams::CAPTURE_SHAPES`] and [`UpdateParams::CAPTURE_MESHES`]:
+    /// the update reads those (with [`UpdateParams::USE_CAPTURE`]) and
+    /// nothing else.
+    #[must_use]
+    pub fn update_flags(&self) -> u32 {
+        self.captured
+    }
+
+    /// Uploads this frame's mesh sub-steps.
     fn upload(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, params: &CaptureParams, inst: &CaptureInstances) {
         if self.written.0 != Some(*params) {
             queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
             self.written.0 = Some(*params);
         }
-        let capsule_bytes: &[u8] = bytemuck::cast_slice(&inst.capsules);
-        let box_bytes: &[u8] = bytemuck::cast_slice(&inst.boxes);
-        let wheel_bytes: &[u8] = bytemuck::cast_slice(&inst.wheels);
         // Entry 0 is every unswept mesh's only draw; then each swept mesh's steps.
         let [cx, cz] = inst.corner_m;
         let mut steps = std::mem::take(&mut self.step_data);
@@ -410,38 +370,25 @@ impl CapturePass {
             self.mesh_steps.push((steps.len() as u32, n));
             steps.extend((0..=n).map(|k| [cx, cz, k as f32 / n as f32, 0.0]));
         }
-        // The steps are the same every frame without meshes: written once.
-        let steps_changed = self.written.1 != steps;
-        let step_bytes: &[u8] = if steps_changed { bytemuck::cast_slice(&steps) } else { &[] };
-        for (buffer, bytes, label) in [
-            (&mut self.capsule_instances, capsule_bytes, "capsule instances"),
-            (&mut self.box_instances, box_bytes, "box instances"),
-            (&mut self.wheel_instances, wheel_bytes, "wheel instances"),
-            (&mut self.step_instances, step_bytes, "mesh step instances"),
-        ] {
-            // An empty list draws nothing: its buffer is not read.
-            if bytes.is_empty() {
-                continue;
+        // The steps are the same every frame while meshes do not sweep: written once.
+        if self.written.1 != steps {
+            let bytes: &[u8] = bytemuck::cast_slice(&steps);
+            if bytes.len() as u64 > self.step_instances.size() {
+                self.step_instances = growable(device, "mesh step instances", (bytes.len() as u64).next_power_of_two());
             }
-            if bytes.len() as u64 > buffer.size() {
-                *buffer = growable(device, label, (bytes.len() as u64).next_power_of_two());
-            }
-            queue.write_buffer(buffer, 0, bytes);
-        }
-        if steps_changed {
+            queue.write_buffer(&self.step_instances, 0, bytes);
             self.written.1.clear();
             self.written.1.extend_from_slice(&steps);
         }
-        self.counts = (inst.capsules.len() as u32, inst.boxes.len() as u32, inst.wheels.len() as u32);
         self.step_data = steps;
     }
 
-    /// Clears the capture target and draws the uploaded instances and `meshes`.
+    /// Clears the capture depth target and draws `meshes` into it.
     fn draw<'a>(&self, cx: &mut FrameContext<'_>, res: &DeformResources, meshes: &[SweptMesh<'a>]) {
         let (encoder, timer) = (&mut *cx.encoder, &mut *cx.timer);
-        let slot = timer.reserve("capture");
+        let slot = timer.reserve("capture meshes");
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("capture"),
+            label: Some("capture meshes"),
             color_attachments: &[],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &res.capture_view,
@@ -453,26 +400,6 @@ impl CapturePass {
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
-        if self.counts.0 > 0 {
-            pass.set_pipeline(&self.sphere_pipeline);
-            pass.set_vertex_buffer(0, self.capsule_instances.slice(..));
-            pass.draw(0..6, 0..self.counts.0);
-        }
-        if self.counts.1 > 0 {
-            pass.set_pipeline(&self.mesh_pipeline);
-            pass.set_vertex_buffer(0, self.cube_vertices.slice(..));
-            pass.set_vertex_buffer(1, self.box_instances.slice(..));
-            pass.set_index_buffer(self.cube_indices.slice(..), wgpu::IndexFormat::Uint16);
-            pass.draw_indexed(0..CUBE_INDICES.len() as u32, 0, 0..self.counts.1);
-        }
-        if self.counts.2 > 0 {
-            pass.set_pipeline(&self.wheel_pipeline);
-            pass.set_vertex_buffer(0, self.wheel_instances.slice(..));
-            pass.draw(0..6, 0..self.counts.2);
-        }
-        if meshes.is_empty() {
-            return;
-        }
         // (previous positions, instances) of mesh k: itself and t = 1 when not swept.
         let steps = &self.mesh_steps;
         let draw_of = |k: usize, m: &SweptMesh<'a>| -> (&'a wgpu::Buffer, std::ops::Range<u32>) {

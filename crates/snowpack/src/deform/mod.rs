@@ -6,6 +6,7 @@
 //! those beside these passes.
 
 pub mod capture;
+pub mod capture_shapes;
 pub mod decal;
 pub mod displace;
 pub mod display;

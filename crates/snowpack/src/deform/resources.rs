@@ -6,7 +6,8 @@
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
 //! | `packed` | u16 per texel, two a u32 ([`super::packed_snow`]) | toroidal | fresh snow (snow quanta) that presses squeezed into the column: its mass and density |
-//! | `capture` | Depth16Unorm texture | window-local | lowest actor surface, linear in height over `[low_m, high_m]` |
+//! | `capture_shapes` | u16 per texel, two a u32 | window-local | lowest analytic shape (spheres, tyres, boxes), linear in height over `[low_m, high_m]` as a 16-bit code, stored as 65535 minus it (0 for nothing) |
+//! | `capture` | Depth16Unorm texture | window-local | lowest mesh surface (skinned characters, caller meshes), the same code; 1×1 until a frame first captures a mesh |
 //!
 //! Eight bytes a texel with the depth technique: the persistent and the
 //! displayed snow share one word, the display pass fuses rims and blur in
@@ -56,11 +57,15 @@ pub struct DeformResources {
     /// [`TerrainParams::kind`] of that terrain, which never changes: the
     /// window passes' pipelines are built for it ([`Self::terrain_constants`]).
     pub terrain_kind: u32,
-    /// Capture depth target.
-    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "read by the passes' tests through `low_level`"))]
+    /// The meshes' capture depth target: 1×1 until
+    /// [`Self::allocate_mesh_capture`] (a window whose frames capture no
+    /// mesh never holds it).
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
+    /// The analytic shapes' capture, written by compute
+    /// (`capture_shapes.wgsl`): two texels a word, window-local.
+    pub capture_shapes: wgpu::Buffer,
     /// Changed-tile flags of shared snow (`shared/share_flags.wgsl`), one
     /// `u32` per tile slot, written by the stamp and update passes; a
     /// 4-byte stand-in that no pass writes until
@@ -119,7 +124,7 @@ impl DeformResources {
         let terrain_params = layout::uniform_buffer::<TerrainParams>(device, "terrain params");
         let terrain_uniform = TerrainParams::new(terrain);
         queue.write_buffer(&terrain_params, 0, bytemuck::bytes_of(&terrain_uniform));
-        let capture = height_depth_texture(device, "capture depth", res);
+        let capture = height_depth_texture(device, "capture depth", 1);
         let capture_view = capture.create_view(&wgpu::TextureViewDescriptor::default());
         let snow = height_buffer(device, "snow", texels);
         // Every texel is written by the window pass on first placement.
@@ -144,9 +149,22 @@ impl DeformResources {
             terrain_kind: terrain_uniform.kind,
             capture,
             capture_view,
+            capture_shapes: height_buffer(device, "capture shapes", texels / 2),
             share_flags: flags_buffer(device, 1),
             bindings,
         }
+    }
+
+    /// Makes the meshes' capture depth target the window's size, the first
+    /// time a frame captures a mesh; returns whether it did (the update,
+    /// bound to the stand-in, must then be bound again).
+    pub fn allocate_mesh_capture(&mut self, device: &wgpu::Device) -> bool {
+        if self.capture.width() == self.resolution {
+            return false;
+        }
+        self.capture = height_depth_texture(device, "capture depth", self.resolution);
+        self.capture_view = self.capture.create_view(&wgpu::TextureViewDescriptor::default());
+        true
     }
 
     /// Allocates the changed-tile flags for `slots` tile slots, all clear,
@@ -196,14 +214,14 @@ impl DeformResources {
     #[must_use]
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     pub fn memory_bytes(&self) -> Vec<(&'static str, u64)> {
-        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
         vec![
             ("snow", self.snow.size()),
             ("stamps", self.stamps.size()),
             ("fallen", self.fallen.size()),
             ("packed snow", self.packed.size()),
             ("heightmap", self.heightmap.size()),
-            ("capture", depth),
+            ("capture", self.capture_shapes.size()),
+            ("capture meshes", self.mesh_capture_bytes()),
             ("changed-tile flags", self.share_flags.size()),
         ]
     }
@@ -211,8 +229,19 @@ impl DeformResources {
     /// [`Self::memory_bytes`] summed, without building the list.
     #[must_use]
     pub fn memory_total(&self) -> u64 {
-        let depth = u64::from(self.resolution) * u64::from(self.resolution) * 2;
-        self.snow.size() + self.stamps.size() + self.fallen.size() + self.packed.size() + self.heightmap.size() + depth + self.share_flags.size()
+        self.snow.size()
+            + self.stamps.size()
+            + self.fallen.size()
+            + self.packed.size()
+            + self.heightmap.size()
+            + self.capture_shapes.size()
+            + self.mesh_capture_bytes()
+            + self.share_flags.size()
+    }
+
+    /// Bytes of the meshes' capture depth target (16 bits a texel).
+    fn mesh_capture_bytes(&self) -> u64 {
+        u64::from(self.capture.width()) * u64::from(self.capture.height()) * 2
     }
 }
 

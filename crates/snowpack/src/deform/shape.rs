@@ -6,14 +6,14 @@ use glam::{Mat4, Quat, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum Deformer {
-    /// A sphere; captured exactly (an impostor writes the analytic lower surface).
+    /// A sphere; captured exactly (its analytic lower surface is ray cast at each texel centre).
     Sphere {
         /// Centre in world space (m).
         center: Vec3,
         /// Radius (m).
         radius: f32,
     },
-    /// An oriented box, captured as a triangle mesh.
+    /// An oriented box; captured exactly (ray cast against its faces at each texel centre).
     Box {
         /// Centre in world space (m).
         center: Vec3,
@@ -31,8 +31,8 @@ pub enum Deformer {
         scale_per_m: f32,
     },
     /// A wheel: a cylinder with a tread, rolling about its axle (see
-    /// `super::wheel`). Captured exactly (an impostor writes the lower
-    /// surface of the tyre, lugs included); swept in sub-steps with its roll,
+    /// `super::wheel`). Captured exactly (the lower surface of the tyre,
+    /// lugs included, is ray cast at each texel centre); swept in sub-steps with its roll,
     /// so a rolling wheel prints its tread in place and a slipping one
     /// smears it.
     Wheel {

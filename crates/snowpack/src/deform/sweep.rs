@@ -13,8 +13,8 @@
 //! different shape) only the current pose presses.
 //!
 //! How each kind is swept:
-//! - spheres: the capsule around the centre's segment, exactly (an analytic
-//!   impostor, `capture_sphere.wgsl`);
+//! - spheres: the capsule around the centre's segment, exactly (ray cast by
+//!   `capture_shapes.wgsl`);
 //! - boxes: sub-steps, centre interpolated linearly and rotation by slerp, as
 //!   many as make consecutive poses' corners move at most [`SWEEP_STEP_TEXELS`]
 //!   texels ([`steps_for`], [`box_poses`]);
@@ -24,7 +24,7 @@
 //! - wheels: sub-steps of centre, axle and roll, as many as keep the tyre
 //!   and its tread at the contact within a texel between consecutive poses
 //!   ([`super::wheel::wheel_travel`], [`super::wheel::wheel_poses`]); each
-//!   pose an exact impostor (`capture_wheel.wgsl`);
+//!   pose ray cast exactly (`capture_shapes.wgsl`);
 //! - contact points (the points technique): segments; the footprint is the
 //!   lowest of the paraboloids along the segment, found in closed form
 //!   (`stamp.wgsl`).

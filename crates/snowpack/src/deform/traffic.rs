@@ -50,14 +50,15 @@ impl PassTraffic {
 pub fn frame_traffic(params: &SnowParams) -> Vec<PassTraffic> {
     // One snow or stamp word.
     const WORD: u64 = 4;
-    // One texel of the 16-bit capture target.
+    // One texel of the 16-bit capture.
     const DEPTH: u64 = 2;
     let n = params.texel_count() as u64;
     let captures = matches!(params.technique, Technique::Depth | Technique::Combined);
     let pass = |pass, read_per_texel: u64, written_per_texel: u64| PassTraffic { pass, read_bytes: n * read_per_texel, written_bytes: n * written_per_texel };
     let mut out = Vec::new();
     if captures {
-        // The depth target is cleared and stored whole.
+        // The shapes' 16-bit codes are written whole by compute (the
+        // meshes' depth target only with meshes: actor-dependent, not counted).
         out.push(pass("capture", 0, DEPTH));
     }
     // The terrain is evaluated from its source (flat and noise read nothing

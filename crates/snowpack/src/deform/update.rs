@@ -106,6 +106,12 @@ impl UpdateParams {
     /// Count what snowfall and refill add in the mass ledger
     /// (`shared/mass_ledger.wgsl`).
     pub const LEDGER: u32 = 512;
+    /// With [`Self::USE_CAPTURE`]: the analytic shapes were captured this
+    /// frame (`res.capture_shapes`); [`super::capture::CapturePass::update_flags`] says.
+    pub const CAPTURE_SHAPES: u32 = 1024;
+    /// With [`Self::USE_CAPTURE`]: meshes were captured this frame (the
+    /// capture depth target); [`super::capture::CapturePass::update_flags`] says.
+    pub const CAPTURE_MESHES: u32 = 2048;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
@@ -114,6 +120,8 @@ pub struct UpdatePass {
     pass: ComputePass<UpdateParams>,
     /// A 1x1 occlusion depth for frames without objects (never read: `USE_SKY` is off).
     no_sky: wgpu::TextureView,
+    /// The occlusion depth bound, kept to bind again ([`Self::rebind`]).
+    sky: Option<wgpu::TextureView>,
 }
 
 impl UpdatePass {
@@ -124,14 +132,14 @@ impl UpdatePass {
         let shape = PassShape {
             label: "update",
             source: shaders::UPDATE,
-            // capture, sky, changed-tile flags, packed snow (with the displaced count)
-            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite],
+            // meshes' capture, sky, changed-tile flags, packed snow (with the displaced count), shapes' capture
+            slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite, Slot::Read],
             specialise_on: Some("UPDATE_FLAGS"),
             constants: &res.terrain_constants(),
             window: Some(WindowAccess::Write),
         };
         let no_sky = sky_depth_texture(device, 1).create_view(&wgpu::TextureViewDescriptor::default());
-        let mut update = Self { pass: ComputePass::new(device, &shape, Some(&res.bindings)), no_sky };
+        let mut update = Self { pass: ComputePass::new(device, &shape, Some(&res.bindings)), no_sky, sky: None };
         update.bind_sky(device, res, None);
         update
     }
@@ -140,6 +148,7 @@ impl UpdatePass {
     /// `USE_SKY`, or none again, and the window's changed-tile flags (again
     /// after they were allocated).
     pub fn bind_sky(&mut self, device: &wgpu::Device, res: &DeformResources, sky: Option<&wgpu::TextureView>) {
+        self.sky = sky.cloned();
         let sky = sky.unwrap_or(&self.no_sky);
         self.pass.bind(
             device,
@@ -148,8 +157,17 @@ impl UpdatePass {
                 wgpu::BindingResource::TextureView(sky),
                 res.share_flags.as_entire_binding(),
                 res.packed.as_entire_binding(),
+                res.capture_shapes.as_entire_binding(),
             ],
         );
+    }
+
+    /// Binds `res` again with the occlusion depth bound before (after
+    /// `res` replaced a resource the update reads: the meshes' capture
+    /// target, [`DeformResources::allocate_mesh_capture`]).
+    pub fn rebind(&mut self, device: &wgpu::Device, res: &DeformResources) {
+        let sky = self.sky.clone();
+        self.bind_sky(device, res, sky.as_ref());
     }
 
     /// Records the update for this frame.

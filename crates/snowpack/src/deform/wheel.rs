@@ -16,8 +16,8 @@
 //! wheel sliding): the contact moves over the snow and the sub-steps of the
 //! sweep smear the pattern along the rut.
 //!
-//! The capture draws one impostor per sub-step (`capture_wheel.wgsl`, CPU
-//! twin `cpu::capture_wheel::wheel_bottom`); the sub-steps are spaced so
+//! The capture ray casts one tyre per sub-step (`shared/capture_shapes.wgsl`,
+//! CPU twin `cpu::capture_shapes::wheel_bottom`); the sub-steps are spaced so
 //! that neither the tyre nor its tread at the contact moves more than
 //! [`super::sweep::SWEEP_STEP_TEXELS`] texels between them.
 
@@ -134,7 +134,7 @@ pub fn wheel_pose(a: WheelPose, b: WheelPose, k: u32, steps: u32) -> WheelPose {
     (a.0.lerp(b.0, t), a.1.lerp(b.1, t).normalize_or(b.1), a.2 + (b.2 - a.2) * t)
 }
 
-/// The capture's instance of one wheel pose (`capture_wheel.wgsl`):
+/// The capture's instance of one wheel pose (`capture_shapes.wgsl`):
 /// `[cx, cy, cz, r, ax, ay, az, half_width, roll, spacing, depth, pattern,
 /// lug_fraction, 0, 0, 0]`, the centre window-local (x, z relative to the
 /// window's corner). The roll is reduced modulo the spacing (in f64) so that

@@ -486,6 +486,10 @@ impl CoreWindow {
         scratch.pushers = crate::deform::push::pushers(deformers, &scratch.sweeps, corner, self.params.texel_m());
         instances.mesh_steps.clear();
         instances.mesh_steps.extend_from_slice(mesh_steps);
+        // The meshes' depth target is made on the first frame with a mesh.
+        if !meshes.is_empty() && self.res.allocate_mesh_capture(cx.device()) {
+            self.update_pass.rebind(cx.device(), &self.res);
+        }
         self.capture_pass.record(cx, &self.res, (&self.capture_params, instances), meshes);
     }
 
@@ -560,7 +564,7 @@ impl CoreWindow {
             snow_refill_quanta: refill.snow_refill_quanta,
             low_m: self.capture_params.low_m,
             high_m: self.capture_params.high_m,
-            flags: if captures { UpdateParams::USE_CAPTURE } else { 0 }
+            flags: if captures { UpdateParams::USE_CAPTURE | self.capture_pass.update_flags() } else { 0 }
                 | if stamps { UpdateParams::USE_STAMPS } else { 0 }
                 | if p.keeps_lying_snow() { UpdateParams::USE_FALLEN } else { 0 }
                 | if sky.is_some() { UpdateParams::USE_SKY } else { 0 }
