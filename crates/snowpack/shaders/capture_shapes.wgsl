@@ -3,13 +3,14 @@
 // Capture pass, analytic shapes, by compute: the lowest surface of every
 // sphere swept over the frame (a capsule), tyre pose and box over each
 // window texel's centre, as the capture depth's 16-bit code (depth linear in
-// world height, 0 at low_m, 1 at high_m). No rasteriser and no depth target:
-// each workgroup takes a 16x16-texel tile, keeps the shapes whose bounds
-// reach it (read 128 at a time, each invocation testing one) in workgroup
-// memory, and each invocation ray casts its two texels against that list.
-// Texels are stored two a word (even column low), as 65535 minus the code,
-// so 0 is "nothing captured" and untouched snow stays zero; update.wgsl
-// reads them and takes the lower of them and the meshes' rasterised depth.
+// world height, 0 at low_m, 1 at high_m). No rasteriser and no depth target.
+// The CPU bins the shapes into the window's 16x16-texel tiles (by their
+// bounds, half a texel wider than the shape); the capture buffer is cleared
+// to "nothing" (0) first, and one workgroup runs per tile that holds a
+// shape, each invocation ray casting its two texels against that tile's
+// list only. Texels are stored two a word (even column low), as 65535 minus
+// the code, so 0 is "nothing captured"; update.wgsl reads them and takes the
+// lower of them and the meshes' rasterised depth.
 // CPU twin: src/cpu/capture_shapes.rs (capture_depths, shape_codes).
 
 struct ShapeParams {
@@ -18,30 +19,32 @@ struct ShapeParams {
     high_m: f32,
     resolution: u32,
     capsules: u32, // shapes [0, capsules) are capsules,
-    wheels: u32,   // then this many tyre poses,
-    boxes: u32,    // then this many boxes
-    _pad: u32,
+    wheels: u32,   // then this many tyre poses, then boxes
+    tiles: u32,    // tiles holding a shape (records at the start of `bins`)
+    row: u32,      // workgroups per row of the dispatch
 }
 
 @group(0) @binding(0) var<uniform> params: ShapeParams;
-// Per shape five vec4: its bounds (window-local x0, z0, x1, z1 in m), then
-// a capsule's start (xyz, radius) and end, a tyre's 16-float instance
-// (src/deform/wheel.rs, `instance`), or a box's inverse model matrix.
+// Per shape five vec4: its bounds (window-local x0, z0, x1, z1 in m: where
+// it can capture anything), then a capsule's start (xyz, radius) and end, a
+// tyre's 16-float instance (src/deform/wheel.rs, `instance`), or a box's
+// inverse model matrix.
 @group(0) @binding(1) var<storage, read> shapes: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> codes: array<u32>;
+// Per tile holding a shape, four words: its column and row (in tiles), its
+// first entry and its count; then the entries, each a shape's index.
+@group(0) @binding(2) var<storage, read> bins: array<u32>;
+@group(0) @binding(3) var<storage, read_write> codes: array<u32>;
 
-const SHAPE_VEC4S: u32 = 5u;
-// Invocations per workgroup, and shapes tested per round.
-const ROUND: u32 = 128u;
 // A depth beyond the capture's range: nothing there.
 const NONE: f32 = 2.0;
 
-var<workgroup> listed: array<u32, 128>;
-var<workgroup> listed_count: atomic<u32>;
-
 // Shape k's capture depth over window-local point p (m), or NONE.
 fn shape_depth(k: u32, p: vec2<f32>) -> f32 {
-    let at = SHAPE_VEC4S * k + 1u;
+    let b = shapes[5u * k];
+    if p.x < b.x || p.y < b.y || p.x > b.z || p.y > b.w {
+        return NONE;
+    }
+    let at = 5u * k + 1u;
     let range = params.high_m - params.low_m;
     if k < params.capsules {
         let a = shapes[at];
@@ -96,48 +99,27 @@ fn stored(d: f32) -> u32 {
 }
 
 @compute @workgroup_size(8, 16)
-fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>, @builtin(local_invocation_index) index: u32) {
-    let half = params.resolution / 2u;
-    let word = group.x * 8u + local.x;
-    let row = group.y * 16u + local.y;
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
+    let tile = group.y * params.row + group.x;
+    if tile >= params.tiles {
+        return;
+    }
+    let record = 4u * tile;
+    let word = bins[record] * 8u + local.x;
+    let row = bins[record + 1u] * 16u + local.y;
+    let first = bins[record + 2u];
+    let count = bins[record + 3u];
     let j = 2u * word;
     let t = params.texel_m;
     let z = (f32(row) + 0.5) * t;
     let p0 = vec2((f32(j) + 0.5) * t, z);
     let p1 = vec2((f32(j + 1u) + 0.5) * t, z);
-    // The tile's texel centres, first and last.
-    let lo = (vec2<f32>(group.xy * 16u) + 0.5) * t;
-    let hi = (vec2<f32>(group.xy * 16u) + 15.5) * t;
-    let inside = row < params.resolution && word < half;
     var best0 = 1.0;
     var best1 = 1.0;
-    let total = params.capsules + params.wheels + params.boxes;
-    for (var first = 0u; first < total; first += ROUND) {
-        if index == 0u {
-            atomicStore(&listed_count, 0u);
-        }
-        workgroupBarrier();
-        let k = first + index;
-        if k < total {
-            let b = shapes[SHAPE_VEC4S * k];
-            if b.z >= lo.x && b.x <= hi.x && b.w >= lo.y && b.y <= hi.y {
-                listed[atomicAdd(&listed_count, 1u)] = k;
-            }
-        }
-        // Every listing is in before any invocation reads the count.
-        workgroupBarrier();
-        let n = atomicLoad(&listed_count);
-        if inside {
-            for (var h = 0u; h < n; h++) {
-                let s = listed[h];
-                best0 = min(best0, shape_depth(s, p0));
-                best1 = min(best1, shape_depth(s, p1));
-            }
-        }
-        // Every invocation has read the list before the next round rewrites it.
-        workgroupBarrier();
+    for (var h = 0u; h < count; h++) {
+        let s = bins[first + h];
+        best0 = min(best0, shape_depth(s, p0));
+        best1 = min(best1, shape_depth(s, p1));
     }
-    if inside {
-        codes[row * half + word] = stored(best0) | (stored(best1) << 16u);
-    }
+    codes[row * (params.resolution / 2u) + word] = stored(best0) | (stored(best1) << 16u);
 }

@@ -94,10 +94,10 @@ const DISPLACE: u32 = 128u;
 const CONSUME: u32 = 256u;
 // Count what snowfall and refill add in the mass ledger.
 const LEDGER: u32 = 512u;
-// The analytic shapes were captured this frame (read capture_shapes).
+// The analytic shapes were ray cast this frame (read capture_shapes).
 const CAPTURE_SHAPES: u32 = 1024u;
-// Meshes were captured this frame (read the capture depth target).
-const CAPTURE_MESHES: u32 = 2048u;
+// The capture depth target was drawn this frame (read it).
+const CAPTURE_DRAWN: u32 = 2048u;
 
 // The flags this pipeline is built for (`UpdatePass` builds one per set in
 // use, pass/compute.rs); the default reads `params.flags`.
@@ -111,11 +111,11 @@ fn update_flags() -> u32 {
 }
 
 @group(0) @binding(0) var<uniform> params: UpdateParams;
-// The meshes' capture depth target (with CAPTURE_MESHES) is bound as an
-// unfilterable float texture: GLSL has no texelFetch for depth textures, and
+// The capture depth target (with CAPTURE_DRAWN: meshes, and the shapes when
+// drawn) is bound as an unfilterable float texture: GLSL has no texelFetch for depth textures, and
 // this binding works on every backend.
 @group(0) @binding(1) var capture: texture_2d<f32>;
-// The analytic shapes' capture (with CAPTURE_SHAPES; capture_shapes.wgsl):
+// The analytic shapes' capture by compute (with CAPTURE_SHAPES; capture_shapes.wgsl):
 // two texels a word, each 65535 minus its 16-bit depth code, 0 for nothing.
 @group(0) @binding(5) var<storage, read> capture_shapes: array<u32>;
 // The terrain's source (shared/terrain.wgsl), evaluated at texel centres.
@@ -130,15 +130,16 @@ fn update_flags() -> u32 {
 @group(0) @binding(4) var<storage, read_write> packed: array<atomic<u32>>;
 
 // The capture depth at window-local texel (i, j): the lower of the shapes'
-// code (decoded as the 16-bit depth target decodes, code / 65535) and the
-// meshes' depth, each where this frame captured it; 1 for nothing.
+// code by compute (decoded as the 16-bit depth target decodes, code /
+// 65535) and the depth target's, each where this frame captured it; 1 for
+// nothing.
 fn capture_depth(i: u32, j: u32) -> f32 {
     var d = 1.0;
     if (update_flags() & CAPTURE_SHAPES) != 0u {
         let v = (capture_shapes[(i * params.resolution + j) >> 1u] >> ((j & 1u) * 16u)) & 0xffffu;
         d = f32(65535u - v) / 65535.0;
     }
-    if (update_flags() & CAPTURE_MESHES) != 0u {
+    if (update_flags() & CAPTURE_DRAWN) != 0u {
         d = min(d, textureLoad(capture, vec2<u32>(j, i), 0).x);
     }
     return d;

@@ -71,7 +71,7 @@ pub mod accumulate {
 pub mod deform {
     /// `deform::capture`: what snowpack's app, tools and tests use of it.
     pub mod capture {
-        pub use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
+        pub use crate::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, ShapeCapture, SweptMesh};
     }
     /// `deform::capture_shapes`: what snowpack's app, tools and tests use of it.
     pub mod capture_shapes {
@@ -289,10 +289,10 @@ pub mod replicate {
 /// Every pass's composed WGSL, validated by naga at build time.
 pub mod shaders {
     pub use crate::shaders::{
-        ACTOR_DRAW, ALL, AO, ATLAS_SURFACE, CAPTURE_MESH, CAPTURE_SHAPES, DECAL, DISPLAY, ENV_DOWNSAMPLE, ENV_PREFILTER, EXCHANGE, GROUND, INCREMENT,
-        OBJECT_DRAW, OCCLUSION, PEEL_COUNT, QUERY, SCATTER, SETTLE, SHELL_DRAW, SHELL_RESOLVE, SHELL_TETRAHEDRA, SHELL_VERTICES, SKINNING, SKY, SNOW_COAT,
-        SNOW_SAMPLING, STAMP, SURFACE_UNPACK, TERRAIN_BAKE, TERRAIN_DRAW, TERRAIN_RESOLVE, TILE_GATHER, TILE_MERGE, TILE_RESTORE, TILE_SEAL, TILE_WEATHER,
-        TONEMAP, UPDATE, WINDOW,
+        ACTOR_DRAW, ALL, AO, ATLAS_SURFACE, CAPTURE_MESH, CAPTURE_SHAPES, CAPTURE_SPHERE, CAPTURE_WHEEL, DECAL, DISPLAY, ENV_DOWNSAMPLE, ENV_PREFILTER,
+        EXCHANGE, GROUND, INCREMENT, OBJECT_DRAW, OCCLUSION, PEEL_COUNT, QUERY, SCATTER, SETTLE, SHELL_DRAW, SHELL_RESOLVE, SHELL_TETRAHEDRA, SHELL_VERTICES,
+        SKINNING, SKY, SNOW_COAT, SNOW_SAMPLING, STAMP, SURFACE_UNPACK, TERRAIN_BAKE, TERRAIN_DRAW, TERRAIN_RESOLVE, TILE_GATHER, TILE_MERGE, TILE_RESTORE,
+        TILE_SEAL, TILE_WEATHER, TONEMAP, UPDATE, WINDOW,
     };
 }
 

@@ -13,7 +13,7 @@ use snowpack::low_level::HeightmapTerrainExt;
 use snowpack::low_level::SnowInspect;
 use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::TerrainMeshExt;
-use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, SweptMesh};
+use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, ShapeCapture, SweptMesh};
 use snowpack::low_level::deform::displace::{self, DisplaceParams, DisplacePass};
 use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
 use snowpack::low_level::deform::erosion::{ErosionParams, ErosionPass};
@@ -213,12 +213,18 @@ fn random_deformers(rng: &mut Rng, e: f32, texel: f32, spheres: usize) -> (Vec<D
 
 #[test]
 fn capture_and_update_match_cpu() {
+    for by in [ShapeCapture::Compute, ShapeCapture::Raster] {
+        capture_and_update_match_cpu_by(by);
+    }
+}
+
+fn capture_and_update_match_cpu_by(by: ShapeCapture) {
     let Some(ctx) = testing::gpu() else { return };
-    let seed = testing::seed("capture+update");
+    let seed = testing::seed(&format!("capture+update, shapes by {by:?}"));
     let mut rng = Rng::new(seed);
     let (params, terrain_src, mut res) = setup(ctx, &mut rng, 112);
     // This frame captures a mesh: the depth target it is drawn into.
-    assert!(res.allocate_mesh_capture(&ctx.device));
+    assert!(res.allocate_capture(&ctx.device, (true, true)));
     let n = params.texel_count();
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     // The ground the update evaluates from the terrain's source, per texel.
@@ -239,7 +245,7 @@ fn capture_and_update_match_cpu() {
         instances.boxes.len(),
         instances.wheels.len()
     );
-    let mut capture = CapturePass::new(&ctx.device);
+    let mut capture = CapturePass::new(&ctx.device, by);
     let update = UpdatePass::new(&ctx.device, &res);
     let up = UpdateParams {
         origin,
@@ -452,10 +458,17 @@ fn update_packs_pressed_snow_like_cpu() {
 /// packed snow, its move or the displaced count (mass kept).
 #[test]
 fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
+    for by in [ShapeCapture::Compute, ShapeCapture::Raster] {
+        displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost_by(by);
+    }
+}
+
+fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost_by(by: ShapeCapture) {
     let Some(ctx) = testing::gpu() else { return };
-    let seed = testing::seed("displacement");
+    let seed = testing::seed(&format!("displacement, shapes by {by:?}"));
     let mut rng = Rng::new(seed);
-    let (params, res, origin, terrain) = setup_displacing(ctx, &mut rng, 96);
+    let (params, mut res, origin, terrain) = setup_displacing(ctx, &mut rng, 96);
+    res.allocate_capture(&ctx.device, (true, true));
     let n = params.texel_count();
     let mut fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.1)).collect();
     let at_ground: Vec<u32> = terrain.iter().zip(&fallen).map(|(&t, &l)| snow_word::press_quanta(t + params.depth_m + l, t, t)).collect();
@@ -512,7 +525,7 @@ fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost() {
         ..UpdateParams::default()
     };
     let dp = DisplaceParams { origin, resolution: params.resolution, ..DisplaceParams::default() };
-    let mut capture = CapturePass::new(&ctx.device);
+    let mut capture = CapturePass::new(&ctx.device, by);
     let update = UpdatePass::new(&ctx.device, &res);
     let displace = DisplacePass::new(&ctx.device, &res);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
@@ -1106,7 +1119,8 @@ fn shape_capture_matches_cpu_code_for_code() {
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("shape capture");
     let mut rng = Rng::new(seed);
-    let (params, _terrain, res) = setup(ctx, &mut rng, 128);
+    let (params, _terrain, mut res) = setup(ctx, &mut rng, 128);
+    res.allocate_capture(&ctx.device, (true, false));
     let (e, texel) = (params.extent_m, params.texel_m());
     let (mut deformers, mut previous) = random_deformers(&mut rng, e, texel, 12);
     for _ in 0..300 {
@@ -1119,7 +1133,7 @@ fn shape_capture_matches_cpu_code_for_code() {
     let cparams = CaptureParams { extent_m: e, texel_m: texel, low_m: -2.0, high_m: 3.0 };
     let instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
     assert!(instances.capsules.len() > 256 && !instances.boxes.is_empty() && !instances.wheels.is_empty(), "too few shapes; seed {seed}");
-    let mut capture = CapturePass::new(&ctx.device);
+    let mut capture = CapturePass::new(&ctx.device, ShapeCapture::Compute);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
     let mut enc = encoder(ctx);
     capture.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, (&cparams, &instances), &[]);
@@ -1150,12 +1164,19 @@ fn shape_capture_matches_cpu_code_for_code() {
 
 #[test]
 fn wheel_capture_matches_cpu() {
+    for by in [ShapeCapture::Compute, ShapeCapture::Raster] {
+        wheel_capture_matches_cpu_by(by);
+    }
+}
+
+fn wheel_capture_matches_cpu_by(by: ShapeCapture) {
     // Wheels alone, larger in the window than in the mixed test above, so
     // that a tread texel that differs cannot hide in that test's allowance.
     let Some(ctx) = testing::gpu() else { return };
-    let seed = testing::seed("wheel capture");
+    let seed = testing::seed(&format!("wheel capture, shapes by {by:?}"));
     let mut rng = Rng::new(seed);
-    let (params, terrain_src, res) = setup(ctx, &mut rng, 128);
+    let (params, terrain_src, mut res) = setup(ctx, &mut rng, 128);
+    res.allocate_capture(&ctx.device, (true, true));
     let n = params.texel_count();
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
@@ -1196,7 +1217,7 @@ fn wheel_capture_matches_cpu() {
     let cparams = CaptureParams { extent_m: e, texel_m: texel, low_m: -2.0, high_m: 3.0 };
     let instances = CaptureInstances::swept(&deformers, &previous, DVec2::ZERO, &cparams);
     assert!(instances.wheels.len() > 6, "nothing swept; seed {seed}");
-    let mut capture = CapturePass::new(&ctx.device);
+    let mut capture = CapturePass::new(&ctx.device, by);
     let update = UpdatePass::new(&ctx.device, &res);
     let up = UpdateParams {
         origin,

@@ -3,13 +3,16 @@
 //! from below at each window texel's centre, without a rasteriser or a
 //! depth target.
 //!
-//! The shapes go up as one list, five `vec4` each: the bounds of the texels
-//! the shape can reach (window-local metres, half a texel wider than the
-//! shape), then its data. Each workgroup takes a 16×16-texel tile, keeps
-//! the shapes whose bounds reach it, 128 at a time, in workgroup memory, and
-//! each invocation ray casts its two texels against that list only: the
-//! cost is the window's texels times the shapes over them, not times all
-//! shapes. The result is the capture depth's 16-bit code, two texels a word
+//! The CPU bins the shapes into the window's 16×16-texel tiles by their
+//! bounds (half a texel wider than the shape) with a counting sort
+//! ([`ShapeBins`]); the capture buffer is cleared to "nothing" (a fill, 2
+//! bytes a texel: the pass's floor), and one workgroup runs per tile that
+//! holds a shape, each invocation ray casting its two texels against that
+//! tile's list only. A window with a few actors touches a few tiles: the
+//! cost beyond the fill is the texels of those tiles times the shapes over
+//! them. (A ray cast of every texel, empty or not, cost lavapipe as much
+//! as the whole rasterised capture it replaced, ten times over.) The
+//! result is the capture depth's 16-bit code, two texels a word
 //! (`res.capture_shapes`), the same code the depth target holds for the
 //! meshes; the update reads the lower of both.
 //!
@@ -39,12 +42,12 @@ pub struct ShapeParams {
     pub resolution: u32,
     /// Capsules first in the list.
     pub capsules: u32,
-    /// Tyre poses after them.
+    /// Tyre poses after them; boxes last.
     pub wheels: u32,
-    /// Boxes last.
-    pub boxes: u32,
-    /// Padding to 16 bytes.
-    pub _pad: u32,
+    /// Tiles holding a shape ([`ShapeBins::tiles`]).
+    pub tiles: u32,
+    /// Workgroups per row of the dispatch.
+    pub row: u32,
 }
 
 /// A frame's analytic shapes, window-local, as
@@ -67,39 +70,124 @@ impl Shapes<'_> {
     }
 }
 
-/// `vec4`s a shape takes in the list: its bounds, then four of data.
-const SHAPE_VEC4S: usize = 5;
-
 /// Texels per side of the tile a workgroup ray casts.
 const TILE: u32 = 16;
 
-/// The list `capture_shapes.wgsl` reads for `inst`: per
-/// shape its bounds (x0, z0, x1, z1, half a texel wider than the shape),
-/// then a capsule's two ends, a tyre's instance or a box's inverse matrix;
-/// capsules, then tyres, then boxes. Appended to `out` (cleared first).
-pub fn shape_list(inst: Shapes<'_>, texel_m: f32, out: &mut Vec<[f32; 4]>) {
-    out.clear();
-    out.reserve(SHAPE_VEC4S * inst.count());
+/// The shapes as `capture_shapes.wgsl` reads them, and where they reach.
+#[derive(Clone, Debug, Default)]
+pub struct ShapeList {
+    /// Per shape five `vec4`: its bounds (as [`Self::bounds`]), then a
+    /// capsule's two ends (start xyz and radius, end xyz), a tyre's
+    /// instance or a box's inverse model matrix; capsules, then tyres, then
+    /// boxes.
+    pub data: Vec<[f32; 4]>,
+    /// Per shape the window-local rectangle (x0, z0, x1, z1, m) outside
+    /// which it captures nothing: its footprint, half a texel wider.
+    pub bounds: Vec<[f32; 4]>,
+}
+
+/// Fills `out` with `inst`'s shapes (cleared first, its memory kept).
+pub fn shape_list(inst: Shapes<'_>, texel_m: f32, out: &mut ShapeList) {
+    out.data.clear();
+    out.bounds.clear();
+    out.data.reserve(5 * inst.count());
+    out.bounds.reserve(inst.count());
     let pad = 0.5 * texel_m;
-    let bounds = |x0: f32, z0: f32, x1: f32, z1: f32| [x0 - pad, z0 - pad, x1 + pad, z1 + pad];
+    let mut shape = |[x0, z0, x1, z1]: [f32; 4], data: [[f32; 4]; 4]| {
+        let bounds = [x0 - pad, z0 - pad, x1 + pad, z1 + pad];
+        out.bounds.push(bounds);
+        out.data.push(bounds);
+        out.data.extend(data);
+    };
     for c in inst.capsules {
         let r = c[3];
-        out.push(bounds(c[0].min(c[4]) - r, c[2].min(c[6]) - r, c[0].max(c[4]) + r, c[2].max(c[6]) + r));
-        out.extend([[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]], [0.0; 4], [0.0; 4]]);
+        let bounds = [c[0].min(c[4]) - r, c[2].min(c[6]) - r, c[0].max(c[4]) + r, c[2].max(c[6]) + r];
+        shape(bounds, [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]], [0.0; 4], [0.0; 4]]);
     }
     for w in inst.wheels {
         let reach = w[3].hypot(w[7]);
-        out.push(bounds(w[0] - reach, w[2] - reach, w[0] + reach, w[2] + reach));
-        out.extend([[w[0], w[1], w[2], w[3]], [w[4], w[5], w[6], w[7]], [w[8], w[9], w[10], w[11]], [w[12], w[13], w[14], w[15]]]);
+        let data = [[w[0], w[1], w[2], w[3]], [w[4], w[5], w[6], w[7]], [w[8], w[9], w[10], w[11]], [w[12], w[13], w[14], w[15]]];
+        shape([w[0] - reach, w[2] - reach, w[0] + reach, w[2] + reach], data);
     }
     for m in inst.boxes {
         let model = Mat4::from_cols_array(m);
         // The unit cube's shadow: the centre plus each axis's reach.
         let (c, [a, b, d]) = (model.w_axis, [model.x_axis, model.y_axis, model.z_axis]);
         let reach = |k: usize| a[k].abs() + b[k].abs() + d[k].abs();
-        out.push(bounds(c.x - reach(0), c.z - reach(2), c.x + reach(0), c.z + reach(2)));
         let inv = model.inverse();
-        out.extend([inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis].map(|v: Vec4| v.to_array()));
+        shape([c.x - reach(0), c.z - reach(2), c.x + reach(0), c.z + reach(2)], [inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis].map(|v: Vec4| v.to_array()));
+    }
+}
+
+/// Workgroups per row of the dispatch (one a tile holding a shape).
+const DISPATCH_ROW: u32 = 256;
+
+/// The shapes binned into a window's 16×16-texel tiles, as
+/// `capture_shapes.wgsl` reads them: per tile holding a shape (row-major),
+/// four words: its column and row (in tiles), the index of its first entry
+/// and its count; then the entries (shape indices, in shape order per tile).
+#[derive(Clone, Debug, Default)]
+pub struct ShapeBins {
+    /// The records, then the entries.
+    pub words: Vec<u32>,
+    /// Tiles holding a shape (records at the start of `words`).
+    pub tiles: u32,
+    /// Shapes per tile of the window, then each tile's next entry; reused.
+    counts: Vec<u32>,
+    /// Where each shape reaches (tile columns, tile rows); reused.
+    spans: Vec<Option<([u32; 2], [u32; 2])>>,
+}
+
+impl ShapeBins {
+    /// Bins `bounds` ([`ShapeList::bounds`]) into the tiles of a window of
+    /// `resolution` texels of `texel_m` (a counting sort: counts, offsets,
+    /// entries). A tile lists a shape when the shape's bounds reach a texel
+    /// centre of the tile.
+    pub fn fill(&mut self, bounds: &[[f32; 4]], resolution: u32, texel_m: f32) {
+        let side = resolution / TILE;
+        self.counts.clear();
+        self.counts.resize((side * side) as usize, 0);
+        // The texel centres ((j + 0.5) t) a span reaches, as tiles.
+        let last = (resolution - 1) as f32;
+        let span = |lo: f32, hi: f32| -> Option<[u32; 2]> {
+            let (a, b) = ((lo / texel_m - 0.5).ceil(), (hi / texel_m - 0.5).floor());
+            (a <= b && b >= 0.0 && a <= last).then(|| [a.clamp(0.0, last) as u32 / TILE, b.clamp(0.0, last) as u32 / TILE])
+        };
+        self.spans.clear();
+        self.spans.extend(bounds.iter().map(|b| span(b[0], b[2]).zip(span(b[1], b[3]))));
+        let each_tile = |s: &([u32; 2], [u32; 2]), f: &mut dyn FnMut(usize)| {
+            for z in s.1[0]..=s.1[1] {
+                for x in s.0[0]..=s.0[1] {
+                    f((z * side + x) as usize);
+                }
+            }
+        };
+        let counts = &mut self.counts;
+        for s in self.spans.iter().flatten() {
+            each_tile(s, &mut |k| counts[k] += 1);
+        }
+        let tiles = counts.iter().filter(|&&c| c > 0).count();
+        self.tiles = tiles as u32;
+        self.words.clear();
+        self.words.reserve(4 * tiles);
+        // Records; each tile's count becomes its next entry.
+        let mut next = 4 * tiles as u32;
+        for (k, count) in counts.iter_mut().enumerate() {
+            if *count > 0 {
+                let k = k as u32;
+                self.words.extend([k % side, k / side, next, *count]);
+                (next, *count) = (next + *count, next);
+            }
+        }
+        self.words.resize(next as usize, 0);
+        let words = &mut self.words;
+        for (index, s) in self.spans.iter().enumerate() {
+            let Some(s) = s else { continue };
+            each_tile(s, &mut |k| {
+                words[counts[k] as usize] = index as u32;
+                counts[k] += 1;
+            });
+        }
     }
 }
 
@@ -107,10 +195,13 @@ pub fn shape_list(inst: Shapes<'_>, texel_m: f32, out: &mut Vec<[f32; 4]>) {
 /// compute: see the module documentation.
 pub struct ShapeCapturePass {
     pass: ComputePass<ShapeParams>,
-    /// The shape list, grown to the largest frame's.
+    /// The shapes' data, grown to the largest frame's.
     shapes: wgpu::Buffer,
-    /// This frame's list, kept for its memory.
-    list: Vec<[f32; 4]>,
+    /// The tiles' lists, grown to the largest frame's.
+    bins: wgpu::Buffer,
+    /// This frame's shapes and lists, kept for their memory.
+    list: ShapeList,
+    binned: ShapeBins,
     /// The capture buffer the pass is bound to (a window's resources).
     bound: Option<wgpu::Buffer>,
 }
@@ -122,13 +213,20 @@ impl ShapeCapturePass {
         let shape = PassShape {
             label: "capture",
             source: shaders::CAPTURE_SHAPES,
-            // the shape list, the capture
-            slots: &[Slot::Read, Slot::ReadWrite],
+            // the shapes, the tiles' lists, the capture
+            slots: &[Slot::Read, Slot::Read, Slot::ReadWrite],
             specialise_on: None,
             constants: &[],
             window: None,
         };
-        Self { pass: ComputePass::new(device, &shape, None), shapes: shape_buffer(device, 256 * 80), list: Vec::new(), bound: None }
+        Self {
+            pass: ComputePass::new(device, &shape, None),
+            shapes: storage_buffer(device, "capture shapes", 64 * 64),
+            bins: storage_buffer(device, "capture shape bins", 64 * 64),
+            list: ShapeList::default(),
+            binned: ShapeBins::default(),
+            bound: None,
+        }
     }
 
     /// Records the ray cast of `inst` over the window of `res`, its depth
@@ -139,19 +237,15 @@ impl ShapeCapturePass {
             return false;
         }
         let texel_m = res.texel_m;
-        let mut list = std::mem::take(&mut self.list);
-        shape_list(inst, texel_m, &mut list);
-        let bytes: &[u8] = bytemuck::cast_slice(&list);
-        let grown = bytes.len() as u64 > self.shapes.size();
-        if grown {
-            self.shapes = shape_buffer(cx.device(), (bytes.len() as u64).next_power_of_two());
-        }
-        cx.queue().write_buffer(&self.shapes, 0, bytes);
-        self.list = list;
+        shape_list(inst, texel_m, &mut self.list);
+        self.binned.fill(&self.list.bounds, res.resolution, texel_m);
+        let grown = upload(cx, &mut self.shapes, bytemuck::cast_slice(&self.list.data), "capture shapes")
+            | upload(cx, &mut self.bins, bytemuck::cast_slice(&self.binned.words), "capture shape bins");
         if grown || self.bound.as_ref() != Some(&res.capture_shapes) {
-            self.pass.bind(cx.device(), &[self.shapes.as_entire_binding(), res.capture_shapes.as_entire_binding()]);
+            self.pass.bind(cx.device(), &[self.shapes.as_entire_binding(), self.bins.as_entire_binding(), res.capture_shapes.as_entire_binding()]);
             self.bound = Some(res.capture_shapes.clone());
         }
+        let tiles = self.binned.tiles;
         let u = ShapeParams {
             texel_m,
             low_m,
@@ -159,18 +253,33 @@ impl ShapeCapturePass {
             resolution: res.resolution,
             capsules: inst.capsules.len() as u32,
             wheels: inst.wheels.len() as u32,
-            boxes: inst.boxes.len() as u32,
-            _pad: 0,
+            tiles,
+            row: DISPATCH_ROW,
         };
-        let groups = res.resolution / TILE;
-        self.pass.record(cx, None, &u, 0, (groups, groups));
+        // "Nothing" everywhere, then the tiles that hold a shape (every
+        // shape may lie outside the window's texel centres: then none).
+        cx.encoder.clear_buffer(&res.capture_shapes, 0, None);
+        if tiles > 0 {
+            self.pass.record(cx, None, &u, 0, (tiles.min(DISPATCH_ROW), tiles.div_ceil(DISPATCH_ROW)));
+        }
         true
     }
 }
 
-fn shape_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+/// Writes `bytes` to `buffer`, first making it larger when they do not
+/// fit; returns whether it did (the pass must be bound again).
+fn upload(cx: &FrameContext<'_>, buffer: &mut wgpu::Buffer, bytes: &[u8], label: &str) -> bool {
+    let grown = bytes.len() as u64 > buffer.size();
+    if grown {
+        *buffer = storage_buffer(cx.device(), label, (bytes.len() as u64).next_power_of_two());
+    }
+    cx.queue().write_buffer(buffer, 0, bytes);
+    grown
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("capture shapes list"),
+        label: Some(label),
         size: bytes,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,

@@ -6,6 +6,8 @@
 //! those beside these passes.
 
 pub mod capture;
+pub mod capture_draw;
+pub mod capture_instances;
 pub mod capture_shapes;
 pub mod decal;
 pub mod displace;

@@ -6,8 +6,8 @@
 //! | `stamps` | u32 per texel | toroidal | packed footprints of the points technique (`shared/stamp.wgsl`); 4 bytes until points or combined is used |
 //! | `fallen` | f32 per texel | toroidal | snowfall so far above the rest depth (m); one texel when the params have no snowfall |
 //! | `packed` | u16 per texel, two a u32 ([`super::packed_snow`]) | toroidal | fresh snow (snow quanta) that presses squeezed into the column: its mass and density |
-//! | `capture_shapes` | u16 per texel, two a u32 | window-local | lowest analytic shape (spheres, tyres, boxes), linear in height over `[low_m, high_m]` as a 16-bit code, stored as 65535 minus it (0 for nothing) |
-//! | `capture` | Depth16Unorm texture | window-local | lowest mesh surface (skinned characters, caller meshes), the same code; 1×1 until a frame first captures a mesh |
+//! | `capture_shapes` | u16 per texel, two a u32 | window-local | lowest analytic shape ray cast by compute (spheres, tyres, boxes), linear in height over `[low_m, high_m]` as a 16-bit code, stored as 65535 minus it (0 for nothing); 4 bytes until a frame first ray casts |
+//! | `capture` | Depth16Unorm texture | window-local | lowest drawn surface (meshes; the shapes when drawn), the same code; 1×1 until a frame first draws |
 //!
 //! Eight bytes a texel with the depth technique: the persistent and the
 //! displayed snow share one word, the display pass fuses rims and blur in
@@ -57,14 +57,14 @@ pub struct DeformResources {
     /// [`TerrainParams::kind`] of that terrain, which never changes: the
     /// window passes' pipelines are built for it ([`Self::terrain_constants`]).
     pub terrain_kind: u32,
-    /// The meshes' capture depth target: 1×1 until
-    /// [`Self::allocate_mesh_capture`] (a window whose frames capture no
-    /// mesh never holds it).
+    /// The capture depth target: 1×1 until [`Self::allocate_capture`] (a
+    /// window whose frames draw nothing into it never holds it).
     pub capture: wgpu::Texture,
     /// View of `capture`.
     pub capture_view: wgpu::TextureView,
     /// The analytic shapes' capture, written by compute
-    /// (`capture_shapes.wgsl`): two texels a word, window-local.
+    /// (`capture_shapes.wgsl`): two texels a word, window-local; a 4-byte
+    /// stand-in until [`Self::allocate_capture`].
     pub capture_shapes: wgpu::Buffer,
     /// Changed-tile flags of shared snow (`shared/share_flags.wgsl`), one
     /// `u32` per tile slot, written by the stamp and update passes; a
@@ -149,22 +149,29 @@ impl DeformResources {
             terrain_kind: terrain_uniform.kind,
             capture,
             capture_view,
-            capture_shapes: height_buffer(device, "capture shapes", texels / 2),
+            capture_shapes: height_buffer(device, "capture shapes", 1),
             share_flags: flags_buffer(device, 1),
             bindings,
         }
     }
 
-    /// Makes the meshes' capture depth target the window's size, the first
-    /// time a frame captures a mesh; returns whether it did (the update,
-    /// bound to the stand-in, must then be bound again).
-    pub fn allocate_mesh_capture(&mut self, device: &wgpu::Device) -> bool {
-        if self.capture.width() == self.resolution {
-            return false;
+    /// Makes the capture's outputs the window's size the first time a
+    /// frame writes them: the shapes' codes when it ray casts (`shapes`),
+    /// the depth target when it draws (`target`). Returns whether it made
+    /// either (the update, bound to the stand-ins, must then be bound
+    /// again).
+    pub fn allocate_capture(&mut self, device: &wgpu::Device, (shapes, target): (bool, bool)) -> bool {
+        let texels = u64::from(self.resolution) * u64::from(self.resolution);
+        let make_shapes = shapes && self.capture_shapes.size() < texels * 2;
+        if make_shapes {
+            self.capture_shapes = height_buffer(device, "capture shapes", texels / 2);
         }
-        self.capture = height_depth_texture(device, "capture depth", self.resolution);
-        self.capture_view = self.capture.create_view(&wgpu::TextureViewDescriptor::default());
-        true
+        let make_target = target && self.capture.width() != self.resolution;
+        if make_target {
+            self.capture = height_depth_texture(device, "capture depth", self.resolution);
+            self.capture_view = self.capture.create_view(&wgpu::TextureViewDescriptor::default());
+        }
+        make_shapes || make_target
     }
 
     /// Allocates the changed-tile flags for `slots` tile slots, all clear,
@@ -221,7 +228,7 @@ impl DeformResources {
             ("packed snow", self.packed.size()),
             ("heightmap", self.heightmap.size()),
             ("capture", self.capture_shapes.size()),
-            ("capture meshes", self.mesh_capture_bytes()),
+            ("capture target", self.mesh_capture_bytes()),
             ("changed-tile flags", self.share_flags.size()),
         ]
     }
@@ -239,7 +246,7 @@ impl DeformResources {
             + self.share_flags.size()
     }
 
-    /// Bytes of the meshes' capture depth target (16 bits a texel).
+    /// Bytes of the capture depth target (16 bits a texel).
     fn mesh_capture_bytes(&self) -> u64 {
         u64::from(self.capture.width()) * u64::from(self.capture.height()) * 2
     }

@@ -106,12 +106,14 @@ impl UpdateParams {
     /// Count what snowfall and refill add in the mass ledger
     /// (`shared/mass_ledger.wgsl`).
     pub const LEDGER: u32 = 512;
-    /// With [`Self::USE_CAPTURE`]: the analytic shapes were captured this
-    /// frame (`res.capture_shapes`); [`super::capture::CapturePass::update_flags`] says.
+    /// With [`Self::USE_CAPTURE`]: the analytic shapes were ray cast by
+    /// compute this frame (`res.capture_shapes`);
+    /// [`super::capture::CapturePass::update_flags`] says.
     pub const CAPTURE_SHAPES: u32 = 1024;
-    /// With [`Self::USE_CAPTURE`]: meshes were captured this frame (the
-    /// capture depth target); [`super::capture::CapturePass::update_flags`] says.
-    pub const CAPTURE_MESHES: u32 = 2048;
+    /// With [`Self::USE_CAPTURE`]: the capture depth target was drawn this
+    /// frame (meshes, or shapes drawn);
+    /// [`super::capture::CapturePass::update_flags`] says.
+    pub const CAPTURE_DRAWN: u32 = 2048;
 }
 
 /// Applies refill, snowfall and the captured actors to the persistent snow.
@@ -132,7 +134,7 @@ impl UpdatePass {
         let shape = PassShape {
             label: "update",
             source: shaders::UPDATE,
-            // meshes' capture, sky, changed-tile flags, packed snow (with the displaced count), shapes' capture
+            // capture depth target, sky, changed-tile flags, packed snow (with the displaced count), shapes' capture by compute
             slots: &[Slot::Depth, Slot::Depth, Slot::ReadWrite, Slot::ReadWrite, Slot::Read],
             specialise_on: Some("UPDATE_FLAGS"),
             constants: &res.terrain_constants(),
@@ -163,8 +165,8 @@ impl UpdatePass {
     }
 
     /// Binds `res` again with the occlusion depth bound before (after
-    /// `res` replaced a resource the update reads: the meshes' capture
-    /// target, [`DeformResources::allocate_mesh_capture`]).
+    /// `res` replaced a resource the update reads: the capture depth
+    /// target, [`DeformResources::allocate_capture`]).
     pub fn rebind(&mut self, device: &wgpu::Device, res: &DeformResources) {
         let sky = self.sky.clone();
         self.bind_sky(device, res, sky.as_ref());

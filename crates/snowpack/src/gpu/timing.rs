@@ -136,12 +136,23 @@ impl GpuTimer {
         let Some(ring) = &mut self.ring else { return };
         while let Some((labels, bytes)) = ring.take_latest() {
             let stamps: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+            // A pass recorded more than once in a frame (the capture's
+            // compute and its draw) counts once: the sum of its parts.
             for (k, label) in labels.iter().enumerate() {
-                let (start, end) = (stamps[2 * k], stamps[2 * k + 1]);
-                if end < start {
-                    continue; // a wrapped or missing stamp; skip rather than invent
+                if labels[..k].contains(label) {
+                    continue;
                 }
-                let ms = (end - start) as f64 * self.period_ns / 1e6;
+                let mut ms = 0.0;
+                let mut whole = true;
+                for (m, _) in labels.iter().enumerate().filter(|(_, l)| *l == label) {
+                    let (start, end) = (stamps[2 * m], stamps[2 * m + 1]);
+                    // A wrapped or missing stamp: skip the pass rather than invent.
+                    whole &= end >= start;
+                    ms += end.saturating_sub(start) as f64 * self.period_ns / 1e6;
+                }
+                if !whole {
+                    continue;
+                }
                 let list = self.samples.entry(label).or_default();
                 if list.len() == MAX_SAMPLES {
                     list.remove(0);

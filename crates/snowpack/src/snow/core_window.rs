@@ -13,7 +13,7 @@ use crate::deform::erosion::{ErosionParams, ErosionPass};
 use glam::DVec2;
 
 use crate::accumulate::OcclusionParams;
-use crate::deform::capture::{CaptureParams, CapturePass, SweptMesh};
+use crate::deform::capture::{CaptureParams, CapturePass, ShapeCapture, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
 use crate::deform::display::{DisplayParams, DisplayPass};
 use crate::deform::params::{RANGE_TEXELS, SnowParamsExt};
@@ -166,7 +166,7 @@ impl CoreWindow {
         let capture_params = CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m, high_m };
         Self {
             window_pass: WindowPass::new(device, &res),
-            capture_pass: CapturePass::new(device),
+            capture_pass: CapturePass::new(device, ShapeCapture::for_adapter(ctx.summary.is_software())),
             stamp_pass: StampPass::new(device, &res),
             decal_pass: DecalPass::new(device, queue, params.resolution, params.technique == Technique::Decals),
             decals: DecalRing::new(DEFAULT_PER_ACTOR, center),
@@ -486,8 +486,8 @@ impl CoreWindow {
         scratch.pushers = crate::deform::push::pushers(deformers, &scratch.sweeps, corner, self.params.texel_m());
         instances.mesh_steps.clear();
         instances.mesh_steps.extend_from_slice(mesh_steps);
-        // The meshes' depth target is made on the first frame with a mesh.
-        if !meshes.is_empty() && self.res.allocate_mesh_capture(cx.device()) {
+        // The capture's outputs are made on the first frame that writes them.
+        if self.res.allocate_capture(cx.device(), self.capture_pass.writes(instances, meshes)) {
             self.update_pass.rebind(cx.device(), &self.res);
         }
         self.capture_pass.record(cx, &self.res, (&self.capture_params, instances), meshes);
