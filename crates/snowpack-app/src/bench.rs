@@ -330,6 +330,8 @@ pub struct BenchResults {
     pub shell_rows: Vec<crate::bench_shell::ShellRow>,
     /// Swept capture against unswept.
     pub sweep_rows: Vec<crate::bench_sweep::SweepRow>,
+    /// The capture's shapes by compute against drawn.
+    pub capture_rows: Vec<crate::bench_capture::CaptureRow>,
     /// The snow coat against skinning.
     pub coat_rows: Vec<crate::bench_coat::CoatRow>,
     /// Shared snow: one relay under simulated peers (no GPU).
@@ -357,6 +359,7 @@ impl BenchResults {
             store_row: None,
             shell_rows: Vec::new(),
             sweep_rows: Vec::new(),
+            capture_rows: Vec::new(),
             coat_rows: Vec::new(),
             share_rows: Vec::new(),
         }
@@ -397,6 +400,9 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
     }
     if only.is_none_or(|o| "sweep".contains(o)) {
         measure_sweep(ctx, quick, &mut results)?;
+    }
+    if only.is_none_or(|o| "capture".contains(o)) {
+        measure_capture(ctx, quick, &mut results)?;
     }
     if only.is_none_or(|o| "coat".contains(o)) {
         measure_coat(ctx, quick, &mut results)?;
@@ -512,6 +518,19 @@ fn measure_share(quick: bool, results: &mut BenchResults) -> anyhow::Result<()> 
         row.late_join_s
     );
     results.share_rows.push(row);
+    Ok(())
+}
+
+/// The capture's shapes by compute against drawn (issue 44).
+fn measure_capture(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (warmup, frames) = if quick { (5, 20) } else { (30, 120) };
+    results.capture_rows = crate::bench_capture::measure(ctx, warmup, frames).context("measuring the capture both ways")?;
+    for r in &results.capture_rows {
+        println!(
+            "  capture {:<52} by compute {:.3} ms, drawn {:.3} ms; frame {:.3} against {:.3} ms",
+            r.scenario, r.compute_ms, r.raster_ms, r.compute_frame_ms, r.raster_frame_ms
+        );
+    }
     Ok(())
 }
 
@@ -711,6 +730,9 @@ fn report_markdown(r: &BenchResults) -> String {
     if !r.sweep_rows.is_empty() {
         md.push_str(&crate::bench_sweep::markdown(&r.sweep_rows, &r.adapter, r.software));
     }
+    if !r.capture_rows.is_empty() {
+        md.push_str(&crate::bench_capture::markdown(&r.capture_rows, &r.adapter, r.software));
+    }
     if !r.coat_rows.is_empty() {
         md.push_str(&crate::bench_coat::markdown(&r.coat_rows, &r.adapter, r.software));
     }
@@ -764,14 +786,31 @@ fn report_tables(r: &BenchResults, files: &mut Vec<(&'static str, Vec<u8>)>) {
     if !r.sweep_rows.is_empty() {
         files.push(("sweep.csv", crate::bench_sweep::csv(&r.sweep_rows).into_bytes()));
     }
+    if !r.capture_rows.is_empty() {
+        files.push(("capture.csv", crate::bench_capture::csv(&r.capture_rows).into_bytes()));
+    }
     if !r.coat_rows.is_empty() {
         files.push(("coat.csv", crate::bench_coat::csv(&r.coat_rows).into_bytes()));
     }
 }
 
 /// The parts `--only` picks from: a value selects every part whose name contains it.
-const PARTS: [&str; 13] =
-    ["passes-512", "passes-1024", "passes-2048", "passes-4096", "techniques", "render", "accumulation", "tiles", "sweep", "coat", "shell", "frames", "share"];
+const PARTS: [&str; 14] = [
+    "passes-512",
+    "passes-1024",
+    "passes-2048",
+    "passes-4096",
+    "techniques",
+    "render",
+    "accumulation",
+    "tiles",
+    "sweep",
+    "capture",
+    "coat",
+    "shell",
+    "frames",
+    "share",
+];
 
 /// `--only`'s value, checked before any GPU work: it must select a part.
 fn check_only(only: Option<&str>) -> Result<(), crate::BadInput> {
@@ -922,6 +961,7 @@ mod tests {
             store_row: None,
             shell_rows: vec![],
             sweep_rows: vec![],
+            capture_rows: vec![],
             coat_rows: vec![],
             share_rows: vec![],
         };
@@ -1053,6 +1093,7 @@ mod tests {
             store_row: None,
             shell_rows: vec![],
             sweep_rows: vec![],
+            capture_rows: vec![],
             coat_rows: vec![],
             software: true,
             ..results

@@ -45,7 +45,7 @@ impl SweepRow {
 type Scenario = (&'static str, Technique, &'static str, fn(f32) -> Vec<Deformer>);
 
 /// 256 balls of 15 cm on circles, 12 m/s: 20 cm a frame at 60 Hz.
-fn fast_spheres(t: f32) -> Vec<Deformer> {
+pub(crate) fn fast_spheres(t: f32) -> Vec<Deformer> {
     (0..256)
         .map(|k| {
             let (a, r) = (k as f32 * 2.399_963, 2.0 + 20.0 * ((k as f32 + 0.5) / 256.0).sqrt());
@@ -56,7 +56,7 @@ fn fast_spheres(t: f32) -> Vec<Deformer> {
 }
 
 /// 64 boxes of 1 x 0.4 x 2 m at 6 m/s, turning 1 rad/s: 10 cm a frame, two sub-steps.
-fn fast_boxes(t: f32) -> Vec<Deformer> {
+pub(crate) fn fast_boxes(t: f32) -> Vec<Deformer> {
     (0..64)
         .map(|k| {
             let (a, r) = (k as f32 * 2.399_963, 3.0 + 20.0 * ((k as f32 + 0.5) / 64.0).sqrt());
@@ -72,7 +72,7 @@ fn fast_boxes(t: f32) -> Vec<Deformer> {
 
 /// 64 wheels of 33 cm with block tread rolling on circles at 12 m/s, 15 cm
 /// into the snow: 20 cm a frame, four sub-steps each.
-fn fast_wheels(t: f32) -> Vec<Deformer> {
+pub(crate) fn fast_wheels(t: f32) -> Vec<Deformer> {
     (0..64)
         .map(|k| {
             let (a, r) = (k as f32 * 2.399_963, 3.0 + 20.0 * ((k as f32 + 0.5) / 64.0).sqrt());

@@ -15,6 +15,8 @@ mod bench;
 #[cfg(feature = "gpu")]
 mod bench_accumulation;
 #[cfg(feature = "gpu")]
+mod bench_capture;
+#[cfg(feature = "gpu")]
 mod bench_coat;
 #[cfg(feature = "gpu")]
 mod bench_frames;
@@ -24,7 +26,6 @@ mod bench_render;
 mod bench_share;
 #[cfg(feature = "gpu")]
 mod bench_shell;
-#[cfg(feature = "gpu")]
 mod bench_sweep;
 #[cfg(feature = "gpu")]
 mod bench_tiles;
@@ -244,7 +245,7 @@ enum Command {
         /// Output directory for report.md, the CSV files and the PNG charts.
         #[arg(long, default_value = "snowpack-bench")]
         out: PathBuf,
-        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames, accumulation, tiles, share, sweep, shell or coat.
+        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames, accumulation, tiles, share, sweep, capture, shell or coat.
         #[arg(long)]
         only: Option<String>,
         /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).

@@ -7,7 +7,11 @@
 //! software adapter (lavapipe, llvmpipe) the figure is the work the pass
 //! makes the CPU do, and the two columns compare the two ways on the same
 //! machine (ratios only); on a real GPU it includes the submission's
-//! overhead, and `snowpack bench`'s timestamps are the figure to read.
+//! overhead, and `snowpack bench --only capture`'s timestamps are the
+//! figure to read. Then whole frames (`SnowDeformation::step`, 30 after 10
+//! of warm-up, waited for at the end): the wall time a frame takes either
+//! way, which on a software adapter is the truth its per-pass timestamps
+//! are not (it moves work between them).
 //!
 //! ```text
 //! cargo run --release -p snowpack --example capture_cost [-- --frames N]
@@ -17,12 +21,13 @@ use std::time::Instant;
 
 use glam::{DVec2, Quat, Vec3};
 use snowpack::low_level::GpuContextExt;
+use snowpack::low_level::SnowInspect;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureParams, CapturePass, ShapeCapture};
 use snowpack::low_level::deform::resources::DeformResources;
 use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
-use snowpack::{AdapterRequest, Deformer, GpuContext, SnowParams, TerrainSource};
+use snowpack::{AdapterRequest, Deformer, GpuContext, SnowDeformation, SnowParams, TerrainSource};
 use snowpack_testkit::testing;
 
 /// The deformers of scenario `name` at time `t` (s).
@@ -72,6 +77,24 @@ fn measure(ctx: &GpuContext, (name, count): (&str, usize), by: ShapeCapture, (wa
     Ok(times[times.len() / 2])
 }
 
+/// Wall milliseconds a whole frame of `count` circling spheres takes, the shapes taken `by`.
+fn frame_ms(ctx: &GpuContext, count: usize, by: ShapeCapture) -> Result<f64, snowpack::SnowError> {
+    let params = SnowParams { tile_memory_bytes: None, ..SnowParams::default() };
+    let mut snow = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.0 }, DVec2::ZERO)?;
+    snow.set_shape_capture(by);
+    let step = |snow: &mut SnowDeformation, frame: u32| snow.step(ctx, &testing::circling_spheres(count, frame as f32 / 60.0), 1.0 / 60.0);
+    for frame in 0..10 {
+        step(&mut snow, frame)?;
+    }
+    snow.finish(ctx)?;
+    let start = Instant::now();
+    for frame in 10..40 {
+        step(&mut snow, frame)?;
+    }
+    snow.finish(ctx)?;
+    Ok(start.elapsed().as_secs_f64() * 1e3 / 30.0)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let frames = args.iter().position(|a| a == "--frames").and_then(|i| args.get(i + 1)).and_then(|s| s.parse().ok()).unwrap_or(30);
@@ -82,6 +105,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let compute = measure(&ctx, scenario, ShapeCapture::Compute, (10, frames))?;
         let raster = measure(&ctx, scenario, ShapeCapture::Raster, (10, frames))?;
         println!("{:>6} {:<8} {compute:>10.3} {raster:>10.3}", scenario.1, scenario.0);
+    }
+    println!("whole frames, wall ms (64 m, 1024² window, circling spheres)");
+    for count in [1, 256, 4096] {
+        let (compute, raster) = (frame_ms(&ctx, count, ShapeCapture::Compute)?, frame_ms(&ctx, count, ShapeCapture::Raster)?);
+        println!("{count:>6} spheres {compute:>10.3} {raster:>10.3}");
     }
     Ok(())
 }

@@ -20,35 +20,53 @@ struct ShapeParams {
     resolution: u32,
     capsules: u32, // shapes [0, capsules) are capsules,
     wheels: u32,   // then this many tyre poses, then boxes
-    tiles: u32,    // tiles holding a shape (records at the start of `bins`)
     row: u32,      // workgroups per row of the dispatch
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ShapeParams;
-// Per shape five vec4: its bounds (window-local x0, z0, x1, z1 in m: where
-// it can capture anything), then a capsule's start (xyz, radius) and end, a
-// tyre's 16-float instance (src/deform/wheel.rs, `instance`), or a box's
-// inverse model matrix.
-@group(0) @binding(1) var<storage, read> shapes: array<vec4<f32>>;
-// Per tile holding a shape, four words: its column and row (in tiles), its
-// first entry and its count; then the entries, each a shape's index.
-@group(0) @binding(2) var<storage, read> bins: array<u32>;
+// One upload a frame: a header (the tiles holding a shape, where the bins
+// start, in words; two more words), the shapes, the bins. Per shape its
+// bounds (window-local x0, z0, x1, z1 in m: where it can capture anything),
+// then a capsule's start (xyz, radius) and end (three vec4 in all), a tyre's
+// 16-float instance (src/deform/wheel.rs, `instance`) or a box's inverse
+// model matrix (five): `shape_at`. The bins: per tile holding a shape, four
+// words (its column and row in tiles, its first entry and its count,
+// entries counted from the bins' start), then the entries, each a shape's
+// index.
+@group(0) @binding(1) var<storage, read> list: array<u32>;
+// The same buffer as vec4s: the shapes' data, read a vec4 at a time.
+@group(0) @binding(2) var<storage, read> list_vec4: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> codes: array<u32>;
+
+// The i-th vec4 of shape data (after the header).
+fn shape_vec(i: u32) -> vec4<f32> {
+    return list_vec4[1u + i];
+}
 
 // A depth beyond the capture's range: nothing there.
 const NONE: f32 = 2.0;
 
+// Where shape k starts in `shapes`: capsules take three vec4, the others five.
+fn shape_at(k: u32) -> u32 {
+    if k < params.capsules {
+        return 3u * k;
+    }
+    return 3u * params.capsules + 5u * (k - params.capsules);
+}
+
 // Shape k's capture depth over window-local point p (m), or NONE.
 fn shape_depth(k: u32, p: vec2<f32>) -> f32 {
-    let b = shapes[5u * k];
+    let first = shape_at(k);
+    let b = shape_vec(first);
     if p.x < b.x || p.y < b.y || p.x > b.z || p.y > b.w {
         return NONE;
     }
-    let at = 5u * k + 1u;
+    let at = first + 1u;
     let range = params.high_m - params.low_m;
     if k < params.capsules {
-        let a = shapes[at];
-        let y = capsule_bottom(p, a.xyz, shapes[at + 1u].xyz, a.w);
+        let a = shape_vec(at);
+        let y = capsule_bottom(p, a.xyz, shape_vec(at + 1u).xyz, a.w);
         if y >= MISS {
             return NONE;
         }
@@ -59,15 +77,15 @@ fn shape_depth(k: u32, p: vec2<f32>) -> f32 {
         return NONE;
     }
     if k < params.capsules + params.wheels {
-        let center = shapes[at];
-        let axle = shapes[at + 1u];
+        let center = shape_vec(at);
+        let axle = shape_vec(at + 1u);
         let dx = p.x - center.x;
         let dz = p.y - center.z;
         let reach = sqrt(center.w * center.w + axle.w * axle.w);
         if abs(dx) > reach || abs(dz) > reach {
             return NONE;
         }
-        let y = wheel_bottom(vec3(dx, 0.0, dz), axle.xyz, center.w, axle.w, shapes[at + 2u], shapes[at + 3u].x);
+        let y = wheel_bottom(vec3(dx, 0.0, dz), axle.xyz, center.w, axle.w, shape_vec(at + 2u), shape_vec(at + 3u).x);
         if y >= MISS {
             return NONE;
         }
@@ -77,7 +95,7 @@ fn shape_depth(k: u32, p: vec2<f32>) -> f32 {
         }
         return NONE;
     }
-    let inv = mat4x4<f32>(shapes[at], shapes[at + 1u], shapes[at + 2u], shapes[at + 3u]);
+    let inv = mat4x4<f32>(shape_vec(at), shape_vec(at + 1u), shape_vec(at + 2u), shape_vec(at + 3u));
     let y = box_bottom(inv, p.x, p.y, params.low_m);
     if y >= MISS {
         return NONE;
@@ -101,14 +119,15 @@ fn stored(d: f32) -> u32 {
 @compute @workgroup_size(8, 16)
 fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let tile = group.y * params.row + group.x;
-    if tile >= params.tiles {
+    if tile >= list[0] {
         return;
     }
-    let record = 4u * tile;
-    let word = bins[record] * 8u + local.x;
-    let row = bins[record + 1u] * 16u + local.y;
-    let first = bins[record + 2u];
-    let count = bins[record + 3u];
+    let bins = list[1];
+    let record = bins + 4u * tile;
+    let word = list[record] * 8u + local.x;
+    let row = list[record + 1u] * 16u + local.y;
+    let first = bins + list[record + 2u];
+    let count = list[record + 3u];
     let j = 2u * word;
     let t = params.texel_m;
     let z = (f32(row) + 0.5) * t;
@@ -117,7 +136,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     var best0 = 1.0;
     var best1 = 1.0;
     for (var h = 0u; h < count; h++) {
-        let s = bins[first + h];
+        let s = list[first + h];
         best0 = min(best0, shape_depth(s, p0));
         best1 = min(best1, shape_depth(s, p1));
     }

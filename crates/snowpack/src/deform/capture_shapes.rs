@@ -44,10 +44,10 @@ pub struct ShapeParams {
     pub capsules: u32,
     /// Tyre poses after them; boxes last.
     pub wheels: u32,
-    /// Tiles holding a shape ([`ShapeBins::tiles`]).
-    pub tiles: u32,
     /// Workgroups per row of the dispatch.
     pub row: u32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
 }
 
 /// A frame's analytic shapes, window-local, as
@@ -76,10 +76,10 @@ const TILE: u32 = 16;
 /// The shapes as `capture_shapes.wgsl` reads them, and where they reach.
 #[derive(Clone, Debug, Default)]
 pub struct ShapeList {
-    /// Per shape five `vec4`: its bounds (as [`Self::bounds`]), then a
-    /// capsule's two ends (start xyz and radius, end xyz), a tyre's
-    /// instance or a box's inverse model matrix; capsules, then tyres, then
-    /// boxes.
+    /// Per shape its bounds (as [`Self::bounds`]), then a capsule's two
+    /// ends (start xyz and radius, end xyz: three `vec4` in all), a tyre's
+    /// instance or a box's inverse model matrix (five); capsules, then
+    /// tyres, then boxes.
     pub data: Vec<[f32; 4]>,
     /// Per shape the window-local rectangle (x0, z0, x1, z1, m) outside
     /// which it captures nothing: its footprint, half a texel wider.
@@ -90,24 +90,24 @@ pub struct ShapeList {
 pub fn shape_list(inst: Shapes<'_>, texel_m: f32, out: &mut ShapeList) {
     out.data.clear();
     out.bounds.clear();
-    out.data.reserve(5 * inst.count());
+    out.data.reserve(3 * inst.capsules.len() + 5 * (inst.wheels.len() + inst.boxes.len()));
     out.bounds.reserve(inst.count());
     let pad = 0.5 * texel_m;
-    let mut shape = |[x0, z0, x1, z1]: [f32; 4], data: [[f32; 4]; 4]| {
+    let mut shape = |[x0, z0, x1, z1]: [f32; 4], data: &[[f32; 4]]| {
         let bounds = [x0 - pad, z0 - pad, x1 + pad, z1 + pad];
         out.bounds.push(bounds);
         out.data.push(bounds);
-        out.data.extend(data);
+        out.data.extend_from_slice(data);
     };
     for c in inst.capsules {
         let r = c[3];
         let bounds = [c[0].min(c[4]) - r, c[2].min(c[6]) - r, c[0].max(c[4]) + r, c[2].max(c[6]) + r];
-        shape(bounds, [[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]], [0.0; 4], [0.0; 4]]);
+        shape(bounds, &[[c[0], c[1], c[2], c[3]], [c[4], c[5], c[6], c[7]]]);
     }
     for w in inst.wheels {
         let reach = w[3].hypot(w[7]);
         let data = [[w[0], w[1], w[2], w[3]], [w[4], w[5], w[6], w[7]], [w[8], w[9], w[10], w[11]], [w[12], w[13], w[14], w[15]]];
-        shape([w[0] - reach, w[2] - reach, w[0] + reach, w[2] + reach], data);
+        shape([w[0] - reach, w[2] - reach, w[0] + reach, w[2] + reach], &data);
     }
     for m in inst.boxes {
         let model = Mat4::from_cols_array(m);
@@ -115,7 +115,7 @@ pub fn shape_list(inst: Shapes<'_>, texel_m: f32, out: &mut ShapeList) {
         let (c, [a, b, d]) = (model.w_axis, [model.x_axis, model.y_axis, model.z_axis]);
         let reach = |k: usize| a[k].abs() + b[k].abs() + d[k].abs();
         let inv = model.inverse();
-        shape([c.x - reach(0), c.z - reach(2), c.x + reach(0), c.z + reach(2)], [inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis].map(|v: Vec4| v.to_array()));
+        shape([c.x - reach(0), c.z - reach(2), c.x + reach(0), c.z + reach(2)], &[inv.x_axis, inv.y_axis, inv.z_axis, inv.w_axis].map(|v: Vec4| v.to_array()));
     }
 }
 
@@ -195,13 +195,13 @@ impl ShapeBins {
 /// compute: see the module documentation.
 pub struct ShapeCapturePass {
     pass: ComputePass<ShapeParams>,
-    /// The shapes' data, grown to the largest frame's.
-    shapes: wgpu::Buffer,
-    /// The tiles' lists, grown to the largest frame's.
-    bins: wgpu::Buffer,
-    /// This frame's shapes and lists, kept for their memory.
+    /// The shapes' data, then the tiles' lists: one upload a frame; grown
+    /// to the largest frame's.
+    buffer: wgpu::Buffer,
+    /// This frame's shapes, lists and upload, kept for their memory.
     list: ShapeList,
     binned: ShapeBins,
+    words: Vec<u32>,
     /// The capture buffer the pass is bound to (a window's resources).
     bound: Option<wgpu::Buffer>,
 }
@@ -213,7 +213,7 @@ impl ShapeCapturePass {
         let shape = PassShape {
             label: "capture",
             source: shaders::CAPTURE_SHAPES,
-            // the shapes, the tiles' lists, the capture
+            // the shapes and the tiles' lists, as words and as vec4s; the capture
             slots: &[Slot::Read, Slot::Read, Slot::ReadWrite],
             specialise_on: None,
             constants: &[],
@@ -221,10 +221,10 @@ impl ShapeCapturePass {
         };
         Self {
             pass: ComputePass::new(device, &shape, None),
-            shapes: storage_buffer(device, "capture shapes", 64 * 64),
-            bins: storage_buffer(device, "capture shape bins", 64 * 64),
+            buffer: storage_buffer(device, 64 * 64),
             list: ShapeList::default(),
             binned: ShapeBins::default(),
+            words: Vec::new(),
             bound: None,
         }
     }
@@ -239,13 +239,27 @@ impl ShapeCapturePass {
         let texel_m = res.texel_m;
         shape_list(inst, texel_m, &mut self.list);
         self.binned.fill(&self.list.bounds, res.resolution, texel_m);
-        let grown = upload(cx, &mut self.shapes, bytemuck::cast_slice(&self.list.data), "capture shapes")
-            | upload(cx, &mut self.bins, bytemuck::cast_slice(&self.binned.words), "capture shape bins");
+        // A header (the tiles holding a shape, where the bins start), the
+        // shapes, the bins: what changes every frame is uploaded, the
+        // uniforms only when the window or the shapes' count do.
+        let tiles = self.binned.tiles;
+        self.words.clear();
+        self.words.extend_from_slice(&[tiles, 0, 0, 0]);
+        self.words.extend_from_slice(bytemuck::cast_slice(&self.list.data));
+        self.words[1] = self.words.len() as u32;
+        self.words.extend_from_slice(&self.binned.words);
+        let bytes: &[u8] = bytemuck::cast_slice(&self.words);
+        let grown = bytes.len() as u64 > self.buffer.size();
+        if grown {
+            // Twice what this frame needs: a list that hovers about a size
+            // does not make a buffer (and a bind group) again and again.
+            self.buffer = storage_buffer(cx.device(), (2 * bytes.len() as u64).next_power_of_two());
+        }
+        cx.queue().write_buffer(&self.buffer, 0, bytes);
         if grown || self.bound.as_ref() != Some(&res.capture_shapes) {
-            self.pass.bind(cx.device(), &[self.shapes.as_entire_binding(), self.bins.as_entire_binding(), res.capture_shapes.as_entire_binding()]);
+            self.pass.bind(cx.device(), &[self.buffer.as_entire_binding(), self.buffer.as_entire_binding(), res.capture_shapes.as_entire_binding()]);
             self.bound = Some(res.capture_shapes.clone());
         }
-        let tiles = self.binned.tiles;
         let u = ShapeParams {
             texel_m,
             low_m,
@@ -253,8 +267,8 @@ impl ShapeCapturePass {
             resolution: res.resolution,
             capsules: inst.capsules.len() as u32,
             wheels: inst.wheels.len() as u32,
-            tiles,
             row: DISPATCH_ROW,
+            _pad: 0,
         };
         // "Nothing" everywhere, then the tiles that hold a shape (every
         // shape may lie outside the window's texel centres: then none).
@@ -266,20 +280,10 @@ impl ShapeCapturePass {
     }
 }
 
-/// Writes `bytes` to `buffer`, first making it larger when they do not
-/// fit; returns whether it did (the pass must be bound again).
-fn upload(cx: &FrameContext<'_>, buffer: &mut wgpu::Buffer, bytes: &[u8], label: &str) -> bool {
-    let grown = bytes.len() as u64 > buffer.size();
-    if grown {
-        *buffer = storage_buffer(cx.device(), label, (bytes.len() as u64).next_power_of_two());
-    }
-    cx.queue().write_buffer(buffer, 0, bytes);
-    grown
-}
-
-fn storage_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+/// The shapes and bins' buffer, `bytes` long.
+fn storage_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
+        label: Some("capture shapes"),
         size: bytes,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,

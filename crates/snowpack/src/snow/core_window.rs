@@ -388,6 +388,16 @@ impl CoreWindow {
         self.query_pass.callbacks_pending()
     }
 
+    /// How the capture takes the analytic shapes.
+    pub(super) fn shape_capture(&self) -> ShapeCapture {
+        self.capture_pass.shape_capture()
+    }
+
+    /// Takes the analytic shapes `by` compute or drawn from the next frame on.
+    pub(super) fn set_shape_capture(&mut self, by: ShapeCapture) {
+        self.capture_pass.set_shape_capture(by);
+    }
+
     /// Binds the objects' occlusion map (`sky`; `None` without objects) to the update pass.
     pub(super) fn bind_sky(&mut self, device: &wgpu::Device, sky: Option<&wgpu::TextureView>) {
         self.update_pass.bind_sky(device, &self.res, sky);

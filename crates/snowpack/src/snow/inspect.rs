@@ -13,6 +13,7 @@ use glam::DVec2;
 use snowpack_share::mechanics::SnowColumn;
 
 use crate::accumulate::SnowAccumulation;
+use crate::deform::capture::ShapeCapture;
 use crate::deform::decal::DecalRing;
 use crate::deform::packed_snow;
 use crate::deform::query::QueryStats;
@@ -143,6 +144,15 @@ pub trait SnowInspect {
 
     /// Forgets timing samples (call after warm-up).
     fn clear_timings(&mut self);
+
+    /// How the capture takes the analytic shapes: chosen for the adapter
+    /// ([`ShapeCapture::for_adapter`]) unless set.
+    #[must_use]
+    fn shape_capture(&self) -> ShapeCapture;
+
+    /// Takes the analytic shapes `by` compute or drawn from the next frame
+    /// on (the benchmark compares both on one adapter).
+    fn set_shape_capture(&mut self, by: ShapeCapture);
 
     /// The most GPU memory [`Self::memory_bytes`] summed to after any frame
     /// so far (bytes): with tiles on their way to the CPU, the copy-out
@@ -305,6 +315,14 @@ impl SnowInspect for SnowDeformation {
 
     fn clear_timings(&mut self) {
         self.timer.clear();
+    }
+
+    fn shape_capture(&self) -> ShapeCapture {
+        self.core.shape_capture()
+    }
+
+    fn set_shape_capture(&mut self, by: ShapeCapture) {
+        self.core.set_shape_capture(by);
     }
 
     fn peak_memory_bytes(&self) -> u64 {
