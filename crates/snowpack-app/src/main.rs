@@ -26,6 +26,7 @@ mod bench_render;
 mod bench_share;
 #[cfg(feature = "gpu")]
 mod bench_shell;
+#[cfg(feature = "gpu")]
 mod bench_sweep;
 #[cfg(feature = "gpu")]
 mod bench_tiles;

@@ -67,7 +67,7 @@ pub struct CaptureMesh<'a> {
     pub indices: &'a wgpu::Buffer,
     /// Number of indices to draw.
     pub index_count: u32,
-    /// Number of vertices, each also drawn as a point (see [`CapturePass`]).
+    /// Number of vertices, each also drawn as a point (`capture_draw.rs`).
     pub vertex_count: u32,
 }
 
