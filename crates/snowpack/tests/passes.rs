@@ -1112,8 +1112,8 @@ fn stamp_quantisation_error_is_at_most_half_a_quantum() {
 
 /// The analytic shapes' compute capture (`capture_shapes.wgsl`) against its
 /// twin, code for code: swept spheres, tyres of every tread and boxes, and
-/// more shapes than one round of the tile culling lists (small spheres
-/// everywhere), so a shape listed in a later round is checked too.
+/// hundreds of small spheres everywhere, so that tiles hold many shapes and
+/// shapes cross tiles and the window's edge (the binning must drop none).
 #[test]
 fn shape_capture_matches_cpu_code_for_code() {
     let Some(ctx) = testing::gpu() else { return };
@@ -1151,15 +1151,27 @@ fn shape_capture_matches_cpu_code_for_code() {
     eprintln!("{} of {captured} captured texels differ ({} shapes)", differ.len(), instances.capsules.len() + instances.wheels.len() + instances.boxes.len());
     // A tyre's lug edge rests on atan2, which WGSL lets round more loosely
     // than Rust: a texel centre within a rounding error of an edge may fall
-    // on either side. Nothing else may differ by a single code.
+    // on either side. Elsewhere the operations are the twin's, one for one:
+    // lavapipe agrees code for code (0 texels differ, every run so far); a
+    // GL compiler may fuse a multiply and an add, which moves a depth just
+    // on a code's edge by that one code (2 texels of 10,959 in one GL run,
+    // 1 of 7,873 in another, of about 28).
     let r = params.resolution as usize;
     let near_a_tyre = |k: usize| {
         let (x, z) = (((k % r) as f32 + 0.5) * texel, ((k / r) as f32 + 0.5) * texel);
         instances.wheels.iter().any(|w| (x - w[0]).abs() <= w[3].hypot(w[7]) && (z - w[2]).abs() <= w[3].hypot(w[7]))
     };
-    let elsewhere: Vec<(usize, u32, u32)> = differ.iter().filter(|&&k| !near_a_tyre(k)).map(|&k| (k, gpu[k], cpu[k])).take(8).collect();
-    assert!(elsewhere.is_empty(), "{} of {captured} captured texels differ, these away from tyres: {elsewhere:?}; seed {seed}", differ.len());
-    assert!(differ.len() <= 3, "{} texels under tyres differ; seed {seed}", differ.len());
+    let elsewhere: Vec<(usize, u32, u32)> = differ.iter().filter(|&&k| !near_a_tyre(k)).map(|&k| (k, gpu[k], cpu[k])).collect();
+    let by_more = elsewhere.iter().filter(|(_, g, c)| g.abs_diff(*c) > 1).take(8).collect::<Vec<_>>();
+    assert!(by_more.is_empty(), "{} of {captured} captured texels differ, these away from tyres by more than a code: {by_more:?}; seed {seed}", differ.len());
+    assert!(
+        elsewhere.len() <= captured / 1000,
+        "{} texels away from tyres differ by a code: {:?}; seed {seed}",
+        elsewhere.len(),
+        &elsewhere[..elsewhere.len().min(8)]
+    );
+    let under_tyres = differ.len() - elsewhere.len();
+    assert!(under_tyres <= 3, "{under_tyres} texels under tyres differ; seed {seed}");
 }
 
 #[test]
