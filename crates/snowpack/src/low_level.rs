@@ -75,7 +75,7 @@ pub mod deform {
     }
     /// `deform::capture_shapes`: what snowpack's app, tools and tests use of it.
     pub mod capture_shapes {
-        pub use crate::deform::capture_shapes::{ShapeBins, ShapeCapturePass, ShapeList, ShapeParams, Shapes, shape_list};
+        pub use crate::deform::capture_shapes::ShapeParams;
     }
     /// `deform::decal`: what snowpack's app, tools and tests use of it.
     pub mod decal {

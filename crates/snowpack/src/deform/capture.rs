@@ -94,7 +94,7 @@ impl CapturePass {
     /// size ([`DeformResources::allocate_capture`]).
     #[must_use]
     pub fn writes(&self, inst: &CaptureInstances, meshes: &[SweptMesh<'_>]) -> (bool, bool) {
-        let shapes = shape_count(inst) > 0;
+        let shapes = shapes_of(inst).count() > 0;
         (shapes && self.by == ShapeCapture::Compute, !meshes.is_empty() || (shapes && self.by == ShapeCapture::Raster))
     }
 
@@ -108,15 +108,12 @@ impl CapturePass {
     pub fn record(&mut self, cx: &mut FrameContext<'_>, res: &DeformResources, (params, inst): (&CaptureParams, &CaptureInstances), meshes: &[SweptMesh<'_>]) {
         self.captured = 0;
         let (computes, draws) = self.writes(inst, meshes);
-        if (computes && res.capture_shapes.size() < u64::from(res.resolution).pow(2) * 2) || (draws && res.capture.width() != res.resolution) {
+        if !res.holds_capture((computes, draws)) {
             tracing::error!("a capture recorded before DeformResources::allocate_capture: skipped");
             return;
         }
-        if computes {
-            let shapes = Shapes { capsules: &inst.capsules, wheels: &inst.wheels, boxes: &inst.boxes };
-            if self.shapes.record(cx, res, [params.low_m, params.high_m], shapes) {
-                self.captured |= UpdateParams::CAPTURE_SHAPES;
-            }
+        if computes && self.shapes.record(cx, res, [params.low_m, params.high_m], shapes_of(inst)) {
+            self.captured |= UpdateParams::CAPTURE_SHAPES;
         }
         if draws {
             self.draw.record(cx, res, (params, inst), meshes, self.by == ShapeCapture::Raster);
@@ -134,7 +131,7 @@ impl CapturePass {
     }
 }
 
-/// How many analytic shapes `inst` holds.
-fn shape_count(inst: &CaptureInstances) -> usize {
-    inst.capsules.len() + inst.wheels.len() + inst.boxes.len()
+/// `inst`'s analytic shapes.
+fn shapes_of(inst: &CaptureInstances) -> Shapes<'_> {
+    Shapes { capsules: &inst.capsules, wheels: &inst.wheels, boxes: &inst.boxes }
 }

@@ -161,17 +161,25 @@ impl DeformResources {
     /// either (the update, bound to the stand-ins, must then be bound
     /// again).
     pub fn allocate_capture(&mut self, device: &wgpu::Device, (shapes, target): (bool, bool)) -> bool {
-        let texels = u64::from(self.resolution) * u64::from(self.resolution);
-        let make_shapes = shapes && self.capture_shapes.size() < texels * 2;
+        let make_shapes = shapes && !self.holds_capture((true, false));
         if make_shapes {
+            let texels = u64::from(self.resolution) * u64::from(self.resolution);
             self.capture_shapes = height_buffer(device, "capture shapes", texels / 2);
         }
-        let make_target = target && self.capture.width() != self.resolution;
+        let make_target = target && !self.holds_capture((false, true));
         if make_target {
             self.capture = height_depth_texture(device, "capture depth", self.resolution);
             self.capture_view = self.capture.create_view(&wgpu::TextureViewDescriptor::default());
         }
         make_shapes || make_target
+    }
+
+    /// Whether the capture's outputs asked for are the window's size: the
+    /// shapes' codes (`shapes`), the depth target (`target`).
+    #[must_use]
+    pub fn holds_capture(&self, (shapes, target): (bool, bool)) -> bool {
+        let texels = u64::from(self.resolution) * u64::from(self.resolution);
+        (!shapes || self.capture_shapes.size() >= texels * 2) && (!target || self.capture.width() == self.resolution)
     }
 
     /// Allocates the changed-tile flags for `slots` tile slots, all clear,
