@@ -20,6 +20,7 @@
 //! | 10 | `InSync` | clock |
 //! | 11 | `Query` | id (u32), count (u16, ≤ 256), each x, z (2 × f64) |
 //! | 12 | `Depths` | id (u32), count (u16, ≤ 256), each depth and packed snow (2 × f32) |
+//! | 13 | `Presses` | seq (u64), frame count (u8, ≤ 64), tile count (u8, ≤ 64), the frames' length (u32) and bytes ([`super::presses`]), each tile |
 //!
 //! A clock is `time_s` (f64), `refill_quanta`, `stamp_quanta` (u64 each),
 //! `fallen_m` (f32): 28 bytes. A world is `texel_m` (f32), `tile_side`
@@ -47,6 +48,7 @@ use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuff
 
 use super::tile::{ShareClock, SharedTile};
 use super::world::{WorldIdentity, WorldIdentityExt, WorldSettings};
+use crate::press::PressFrame;
 
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
@@ -178,6 +180,18 @@ pub enum Message {
         /// World (x, z) in m, ≤ [`MAX_DEFORMERS`].
         points: Vec<[f64; 2]>,
     },
+    /// Peer → relay: the analytic shapes that pressed the snow, frame by
+    /// frame ([`crate::press`]), and the tiles with what they do not
+    /// explain; numbered and acknowledged as `Tiles` are. The relay presses
+    /// the frames into its tiles with the same arithmetic.
+    Presses {
+        /// Sequence number (shared with `Tiles`).
+        seq: u64,
+        /// The frames, ≤ [`super::presses::MAX_PRESS_FRAMES`].
+        frames: Vec<PressFrame>,
+        /// The tiles, ≤ [`MAX_TILES`].
+        tiles: Vec<SharedTile>,
+    },
     /// Relay → asker: the answer to a `Query`, one depth and one packed
     /// snow (m) per point; NaN where the relay knows no world yet.
     Depths {
@@ -210,6 +224,7 @@ impl Message {
             Self::InSync { .. } => 10,
             Self::Query { .. } => 11,
             Self::Depths { .. } => 12,
+            Self::Presses { .. } => 13,
         }
     }
 
@@ -229,6 +244,7 @@ impl Message {
             Self::InSync { .. } => "InSync",
             Self::Query { .. } => "Query",
             Self::Depths { .. } => "Depths",
+            Self::Presses { .. } => "Presses",
         }
     }
 }
@@ -283,6 +299,11 @@ fn write_body(w: &mut Writer, message: &Message) {
             for t in tiles.iter().take(255) {
                 w.0.extend_from_slice(&encode_tile(t));
             }
+        }
+        Message::Presses { seq, frames, tiles } => {
+            let encoded: Vec<Vec<u8>> = tiles.iter().take(255).map(encode_tile).collect();
+            let parts: Vec<&[u8]> = encoded.iter().map(Vec::as_slice).collect();
+            write_presses(w, *seq, (frames.len(), &super::presses::encode_frames(frames)), &parts);
         }
         Message::Ack { seq } => w.u64(*seq),
         Message::Digest { clock, window, resolution, entries } => {
@@ -376,6 +397,34 @@ pub fn tiles_message(seq: u64, encoded: &[&[u8]]) -> Vec<u8> {
     w.0
 }
 
+/// A whole `Presses` message from its frames, coded once with
+/// [`super::presses::encode_frames`] (`count` of them), and tiles already
+/// encoded with [`encode_tile`] (the caller keeps within the caps).
+#[must_use]
+pub fn presses_message(seq: u64, frames: (usize, &[u8]), encoded: &[&[u8]]) -> Vec<u8> {
+    let mut w = Writer(Vec::with_capacity(PRESSES_OVERHEAD_BYTES + frames.1.len() + encoded.iter().map(|e| e.len()).sum::<usize>()));
+    w.0.extend_from_slice(MAGIC);
+    w.u16(PROTOCOL_VERSION);
+    w.u8(13);
+    write_presses(&mut w, seq, frames, encoded);
+    w.0
+}
+
+/// A `Presses` body: seq, counts, the frames' bytes, the tiles.
+fn write_presses(w: &mut Writer, seq: u64, (count, frames): (usize, &[u8]), encoded: &[&[u8]]) {
+    w.u64(seq);
+    w.u8(count.min(255) as u8);
+    w.u8(encoded.len().min(255) as u8);
+    w.u32(u32::try_from(frames.len()).unwrap_or(u32::MAX));
+    w.0.extend_from_slice(frames);
+    for e in encoded.iter().take(255) {
+        w.0.extend_from_slice(e);
+    }
+}
+
+/// Bytes of a `Presses` message before its frames: header, seq, counts, the frames' length.
+pub const PRESSES_OVERHEAD_BYTES: usize = HEADER_BYTES + 14;
+
 /// Bytes of a `Tiles` message's header and sequence number and count, before the tiles.
 pub const TILES_OVERHEAD_BYTES: usize = HEADER_BYTES + 9;
 
@@ -423,6 +472,7 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
         9 => Message::Clock { clock: read_clock(&mut r)? },
         10 => Message::InSync { clock: read_clock(&mut r)? },
         11 => read_query(&mut r)?,
+        13 => read_presses(&mut r)?,
         12 => {
             let id = r.u32("query id")?;
             let n = usize::from(r.u16("depth count")?);
@@ -470,6 +520,23 @@ fn read_tiles(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
         tiles.push(tile);
     }
     Ok(Message::Tiles { seq, tiles })
+}
+
+/// A `Presses` message's fields.
+fn read_presses(r: &mut ByteReader<'_>) -> Result<Message, MessageError> {
+    let seq = r.u64("sequence number")?;
+    let count = usize::from(r.u8("frame count")?);
+    cap("press frames", count, super::presses::MAX_PRESS_FRAMES)?;
+    let n = usize::from(r.u8("tile count")?);
+    cap("tiles", n, MAX_TILES)?;
+    let len = r.u32("press frames length")? as usize;
+    let frames = super::presses::decode_frames(r.take(len, "press frames")?, count)?;
+    let mut tiles = Vec::with_capacity(n);
+    let mut texels = 0usize;
+    for _ in 0..n {
+        tiles.push(read_tile(r, &mut texels)?);
+    }
+    Ok(Message::Presses { seq, frames, tiles })
 }
 
 /// A `Digest` message's fields.

@@ -12,6 +12,7 @@
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share ([`WorldSnow`] and [`WorldTerrain`] make one without a GPU) |
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
+//! | `presses.rs` | the frames of a `Presses` message on the wire: analytic shapes instead of the snow they pressed |
 //! | `relay/` | [`SnowRelay`] (`mod.rs`): what a server runs (merges, relays, polices, persists; CPU only); beside it `peers.rs` (a peer's state), `interest.rs` (the tiles it is sent), `outbox.rs` (its queue), `bucket.rs` (the rate buckets), `admission.rs` (the checks on a world and a tile), `held.rs` (the tiles in memory), `digest.rs` (a digest against the relay's copies), `stored.rs` (a tile as the store keeps it), `config.rs`, `stats.rs` |
 //! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
 //! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
@@ -27,6 +28,7 @@
 pub mod message;
 pub mod motion;
 pub mod peer;
+pub mod presses;
 pub mod relay;
 pub mod tile;
 pub mod world;
@@ -55,6 +57,13 @@ pub trait SharedSnow {
     /// as their state at the frame they were read: whole tiles on the global
     /// grid, texels outside the window untouched. Never waits for the GPU.
     fn take_changed_tiles(&mut self) -> Vec<SharedTile>;
+    /// The analytic presses of the frames since the last call
+    /// ([`crate::press::PressFrame`]): what a peer sends instead of the
+    /// snow they pressed, where presses travel. None by default (a snow
+    /// that keeps no record sends its changes as tiles alone).
+    fn take_press_frames(&mut self) -> Vec<crate::press::PressFrame> {
+        Vec::new()
+    }
     /// Folds `tiles` into the snow where they overlap the window (the
     /// deeper deficit wins; never written over). Tiles behind the snow's
     /// clock are caught up first; tiles ahead of it are held until the clock

@@ -11,12 +11,14 @@ use std::collections::{BTreeMap, BTreeSet, HashMap, VecDeque};
 use crate::persist::TileKey;
 
 use super::message::{
-    MAX_DEFORMERS, MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILES, Message, MessageError, TILES_OVERHEAD_BYTES, decode, encode, encode_tile,
-    tiles_message,
+    MAX_DEFORMERS, MAX_KEYS, MAX_MESSAGE_BYTES, MAX_MESSAGE_TEXELS, MAX_TILES, Message, MessageError, PRESSES_OVERHEAD_BYTES, TILES_OVERHEAD_BYTES, decode,
+    encode, encode_tile, presses_message, tiles_message,
 };
+use super::presses::MAX_PRESS_FRAMES;
 use super::tile::{CatchUp, ShareClock, SharedTile};
 use super::world::WorldIdentity;
 use super::{ShareError, SharedSnow};
+use crate::press::{FrameCasts, PressFrame};
 
 /// How a peer paces itself and what it keeps.
 #[derive(Clone, Debug, PartialEq)]
@@ -103,9 +105,43 @@ pub struct PeerStats {
     /// is `Hello`, `Presence` and `Digest`).
     pub tile_bytes_out: u64,
     /// Tiles sent again as what they add to the copy the relay
-    /// acknowledged ([`SharedTile::beyond`]), not whole.
+    /// acknowledged and the presses sent ([`SharedTile::beyond`]), not whole.
     pub tiles_as_deltas: u64,
+    /// Changed tiles the press frames sent explained whole: not sent.
+    pub tiles_as_presses: u64,
+    /// Press frames sent (resends included).
+    pub press_frames_sent: u64,
+    /// Press frames dropped from a full queue (what they pressed went as tiles).
+    pub press_frames_dropped: u64,
 }
+
+/// A numbered message in flight: when it went, the tiles whose copies it
+/// carried (or explained) and its press frames.
+#[derive(Debug)]
+struct InFlight {
+    at_s: f64,
+    keys: Vec<TileKey>,
+    frames: Vec<PressFrame>,
+}
+
+/// What one tile of `to_send` sends.
+enum Outgoing {
+    /// Nothing: the relay holds all of it.
+    Nothing,
+    /// Nothing beyond the press frames sent; the relay's copy once they are acknowledged.
+    Explained(SharedTile),
+    /// This tile (whole or a delta), and the relay's copy once acknowledged.
+    Tile(SharedTile, SharedTile),
+}
+
+/// Seconds of sent press frames a peer keeps to explain its tiles with: the
+/// GPU's changed tiles arrive within a few frames of the presses, and a
+/// quiet tile at most a second after it first changed.
+const PRESS_LOG_S: f64 = 3.0;
+/// The most sent press frames kept (a frame is a few hundred bytes).
+const MAX_PRESS_LOG: usize = 1024;
+/// The most press frames waiting to be sent.
+const MAX_PENDING_FRAMES: usize = 4 * MAX_PRESS_FRAMES;
 
 /// A game client's side of shared snow: see the module documentation.
 #[derive(Debug)]
@@ -124,8 +160,16 @@ pub struct SnowPeer {
     replica: HashMap<TileKey, SharedTile>,
     incoming: VecDeque<SharedTile>,
     outbox: VecDeque<Vec<u8>>,
-    /// Deltas in flight: sequence number → (when sent, the tiles it held).
-    unacked: BTreeMap<u64, (f64, Vec<TileKey>)>,
+    /// Deltas in flight by sequence number.
+    unacked: BTreeMap<u64, InFlight>,
+    /// The terrain height analytic presses are pressed over, when they
+    /// travel in this world ([`crate::press::presses_travel`]).
+    presses: Option<f32>,
+    /// Press frames from the snow not sent yet, oldest first.
+    frames_pending: VecDeque<PressFrame>,
+    /// Press frames sent in the last [`PRESS_LOG_S`] (with their ray casts):
+    /// a tile goes only beyond what they make of it.
+    frames_log: VecDeque<(PressFrame, FrameCasts)>,
     next_seq: u64,
     /// Replica tiles to send at the next update (changed, wanted or resent).
     to_send: BTreeSet<TileKey>,
@@ -170,6 +214,7 @@ impl SnowPeer {
     #[must_use]
     pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
         let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
+        let presses = crate::press::flat_ground(&world.settings).filter(|_| crate::press::presses_travel(&world.settings));
         Self {
             world,
             name: name.to_owned(),
@@ -184,6 +229,9 @@ impl SnowPeer {
             incoming: VecDeque::new(),
             outbox: VecDeque::from([hello]),
             unacked: BTreeMap::new(),
+            presses,
+            frames_pending: VecDeque::new(),
+            frames_log: VecDeque::new(),
             next_seq: 0,
             to_send: BTreeSet::new(),
             acked: HashMap::new(),
@@ -241,7 +289,7 @@ impl SnowPeer {
             }
             Message::Ack { seq } => {
                 let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-                for key in self.unacked.remove(&seq).map(|(_, keys)| keys).unwrap_or_default() {
+                for key in self.unacked.remove(&seq).map(|f| f.keys).unwrap_or_default() {
                     // Only the newest copy in flight is kept: an older one's
                     // acknowledgement adds nothing the newer will not.
                     if self.sent.get(&key).is_some_and(|(s, _)| *s == seq)
@@ -284,8 +332,8 @@ impl SnowPeer {
         self.last_presence_s = f64::NEG_INFINITY;
         self.reported.clear();
         self.last_digest_s = f64::NEG_INFINITY;
-        for (_, keys) in std::mem::take(&mut self.unacked).into_values() {
-            self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+        for flight in std::mem::take(&mut self.unacked).into_values() {
+            self.resend(flight);
         }
         // The relay may be another (restarted from its store): nothing is
         // known to be there, so the next copies go whole.
@@ -325,6 +373,15 @@ impl SnowPeer {
         {
             snow.join_clock(clock);
             self.joined = true;
+        }
+        let frames = snow.take_press_frames();
+        if self.presses.is_some() {
+            self.frames_pending.extend(frames);
+            while self.frames_pending.len() > MAX_PENDING_FRAMES {
+                // Their presses still reach the relay, in the tiles.
+                self.frames_pending.pop_front();
+                self.stats.press_frames_dropped += 1;
+            }
         }
         for t in snow.take_changed_tiles() {
             if t.side != side || !t.is_consistent() {
@@ -380,14 +437,14 @@ impl SnowPeer {
     /// `Digest` (of the window, at `snow_clock`).
     fn send_due(&mut self, now_s: f64, window: Option<([i64; 2], u32)>, snow_clock: ShareClock) {
         let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-        let late: Vec<u64> = self.unacked.iter().filter(|(_, (at, _))| now_s - at >= self.config.resend_after_s).map(|(&s, _)| s).collect();
+        let late: Vec<u64> = self.unacked.iter().filter(|(_, f)| now_s - f.at_s >= self.config.resend_after_s).map(|(&s, _)| s).collect();
         for seq in late {
-            if let Some((_, keys)) = self.unacked.remove(&seq) {
+            if let Some(flight) = self.unacked.remove(&seq) {
                 self.stats.resends += 1;
-                self.to_send.extend(keys.into_iter().filter(|k| self.replica.contains_key(k)));
+                self.resend(flight);
             }
         }
-        let deltas_due = !self.to_send.is_empty() && now_s - self.last_delta_s >= self.config.delta_interval_s;
+        let deltas_due = (!self.to_send.is_empty() || !self.frames_pending.is_empty()) && now_s - self.last_delta_s >= self.config.delta_interval_s;
         // Deltas go after a `Presence` that says where they were pressed: a
         // relay refuses (and still acknowledges) a tile far from every
         // deformer it knows, so deformers that appeared (a first report sent
@@ -460,10 +517,21 @@ impl SnowPeer {
     }
 
     /// Changes not yet acknowledged by the relay: deltas in flight plus
-    /// tiles waiting to be sent. A headless run waits for 0 before exiting.
+    /// tiles and press frames waiting to be sent. A headless run waits for
+    /// 0 before exiting.
     #[must_use]
     pub fn unacknowledged(&self) -> usize {
-        self.unacked.len() + self.to_send.len()
+        self.unacked.len() + self.to_send.len() + self.frames_pending.len()
+    }
+
+    /// A message not acknowledged in time (or in flight across a
+    /// reconnection): its tiles go again, as the replica has them then, and
+    /// its frames before any waiting (the tiles are sent beyond them).
+    fn resend(&mut self, flight: InFlight) {
+        self.to_send.extend(flight.keys.into_iter().filter(|k| self.replica.contains_key(k)));
+        for f in flight.frames.into_iter().rev() {
+            self.frames_pending.push_front(f);
+        }
     }
 
     /// Counters since the peer was made (printed with `{:?}`; their fields
@@ -481,41 +549,42 @@ impl SnowPeer {
         self.outbox.push_back(bytes);
     }
 
-    /// Sends the tiles in `to_send` as numbered deltas, as many as the
-    /// in-flight limit allows.
+    /// Sends the tiles in `to_send` and the press frames waiting as
+    /// numbered deltas, as many as the in-flight limit allows: `Presses`
+    /// when frames go (each tile then only beyond what the presses the
+    /// relay is sent make of it), else `Tiles`.
     fn send_tiles(&mut self, now_s: f64) {
-        while !self.to_send.is_empty() && self.unacked.len() < self.config.max_unacknowledged.max(1) {
+        while (!self.to_send.is_empty() || !self.frames_pending.is_empty()) && self.unacked.len() < self.config.max_unacknowledged.max(1) {
+            let frames = self.take_frames();
+            let coded = (!frames.is_empty()).then(|| super::presses::encode_frames(&frames));
+            let overhead = coded.as_ref().map_or(TILES_OVERHEAD_BYTES, |c| PRESSES_OVERHEAD_BYTES + c.len());
             let mut keys = Vec::new();
             let mut parts: Vec<Vec<u8>> = Vec::new();
             let mut pending = Vec::new();
-            let (mut bytes, mut texels) = (TILES_OVERHEAD_BYTES, 0usize);
+            let (mut bytes, mut texels) = (overhead, 0usize);
             while let Some(&key) = self.to_send.first() {
-                let Some(tile) = self.replica.get(&key) else {
-                    self.to_send.remove(&key);
-                    continue;
-                };
-                // Again: only what the relay's acknowledged copy lacks; a
-                // tile with nothing new is not sent at all.
-                let tile = match self.acked.get(&key).filter(|_| !self.wanted.contains(&key)) {
-                    None => tile.clone(),
-                    Some(base) => match tile.beyond(base, CatchUp { max_fallen_m: self.world.settings.max_fallen_m }) {
-                        Some(delta) => {
-                            self.stats.tiles_as_deltas += 1;
-                            delta
-                        }
-                        None => {
-                            self.to_send.remove(&key);
-                            continue;
-                        }
-                    },
+                let (tile, copy) = match self.what_to_send(key) {
+                    Outgoing::Nothing => {
+                        self.to_send.remove(&key);
+                        continue;
+                    }
+                    Outgoing::Explained(copy) => {
+                        // The presses carry all of it: acknowledged with this message.
+                        self.stats.tiles_as_presses += 1;
+                        self.to_send.remove(&key);
+                        keys.push(key);
+                        pending.push(copy);
+                        continue;
+                    }
+                    Outgoing::Tile(tile, copy) => (tile, copy),
                 };
                 let encoded = encode_tile(&tile);
-                if TILES_OVERHEAD_BYTES + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
+                if overhead + encoded.len() > MAX_MESSAGE_BYTES || tile.texels() > MAX_MESSAGE_TEXELS {
                     self.stats.tile_too_large += 1;
                     self.to_send.remove(&key);
                     continue;
                 }
-                if keys.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS {
+                if parts.len() == MAX_TILES || bytes + encoded.len() > MAX_MESSAGE_BYTES || texels + tile.texels() > MAX_MESSAGE_TEXELS {
                     break;
                 }
                 bytes += encoded.len();
@@ -524,23 +593,100 @@ impl SnowPeer {
                 self.wanted.remove(&key);
                 keys.push(key);
                 parts.push(encoded);
-                pending.push(tile);
+                pending.push(copy);
             }
-            if keys.is_empty() {
-                break;
+            if parts.is_empty() && frames.is_empty() {
+                if keys.is_empty() {
+                    break;
+                }
+                // Only tiles the presses in flight explain: nothing to send now.
+                let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
+                for copy in pending {
+                    merge_into(&mut self.acked, copy, c);
+                }
+                continue;
             }
             let seq = self.next_seq;
             self.next_seq = self.next_seq.wrapping_add(1);
             let refs: Vec<&[u8]> = parts.iter().map(Vec::as_slice).collect();
-            self.stats.tiles_sent += keys.len() as u64;
-            let message = tiles_message(seq, &refs);
+            self.stats.tiles_sent += parts.len() as u64;
+            self.stats.press_frames_sent += frames.len() as u64;
+            let message = match &coded {
+                Some(c) => presses_message(seq, (frames.len(), c), &refs),
+                None => tiles_message(seq, &refs),
+            };
             self.stats.tile_bytes_out += message.len() as u64;
             self.push(message);
-            self.unacked.insert(seq, (now_s, keys));
+            self.unacked.insert(seq, InFlight { at_s: now_s, keys, frames });
             for tile in pending {
                 self.sent.insert(tile.key, (seq, tile));
             }
         }
+    }
+
+    /// The press frames for the next message (at most
+    /// [`MAX_PRESS_FRAMES`]), into the log the tiles are explained from.
+    fn take_frames(&mut self) -> Vec<PressFrame> {
+        let n = self.frames_pending.len().min(MAX_PRESS_FRAMES);
+        let frames: Vec<PressFrame> = self.frames_pending.drain(..n).collect();
+        let texel_m = self.world.settings.texel_m;
+        for f in &frames {
+            self.frames_log.push_back((f.clone(), f.casts(texel_m)));
+        }
+        let newest = self.frames_log.back().map_or(f64::NEG_INFINITY, |(f, _)| f.clock.time_s);
+        while self.frames_log.front().is_some_and(|(f, _)| f.clock.time_s < newest - PRESS_LOG_S) || self.frames_log.len() > MAX_PRESS_LOG {
+            self.frames_log.pop_front();
+        }
+        frames
+    }
+
+    /// What tile `key` of the replica sends: whole when the relay asked
+    /// for it or holds nothing known of it and no press explains it; else
+    /// what it adds to the acknowledged copy and the presses sent
+    /// ([`SharedTile::beyond`]), or nothing. With each, the copy the relay
+    /// holds once it acknowledges.
+    fn what_to_send(&mut self, key: TileKey) -> Outgoing {
+        let Some(tile) = self.replica.get(&key) else { return Outgoing::Nothing };
+        let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
+        if self.wanted.contains(&key) {
+            return Outgoing::Tile(tile.clone(), tile.clone());
+        }
+        let explained = self.explained(key, tile.clock.time_s);
+        let base = match (self.acked.get(&key), &explained) {
+            (None, None) => return Outgoing::Tile(tile.clone(), tile.clone()),
+            (Some(a), None) => a.clone(),
+            (None, Some(e)) => e.clone(),
+            (Some(a), Some(e)) => {
+                let mut b = a.clone();
+                b.merge(e, c);
+                b
+            }
+        };
+        match tile.beyond(&base, c) {
+            Some(delta) => {
+                self.stats.tiles_as_deltas += 1;
+                let mut copy = delta.clone();
+                copy.merge(&base, c);
+                Outgoing::Tile(delta, copy)
+            }
+            None if explained.is_some() => Outgoing::Explained(base),
+            None => Outgoing::Nothing,
+        }
+    }
+
+    /// What the press frames logged up to `time_s` make of tile `key` from
+    /// untouched snow (`None` when none reaches it): every machine that
+    /// receives them makes the same.
+    fn explained(&self, key: TileKey, time_s: f64) -> Option<SharedTile> {
+        let ground = self.presses?;
+        let side = self.world.settings.tile_side;
+        let mut tile: Option<SharedTile> = None;
+        for (frame, casts) in self.frames_log.iter().filter(|(f, _)| f.clock.time_s <= time_s) {
+            if let Some(t) = crate::press::press_tile(frame, casts, key, side, (&self.world.settings, ground), tile.take()) {
+                tile = Some(t);
+            }
+        }
+        tile
     }
 
     /// Digests of the replica's tiles over the window (the nearest

@@ -57,6 +57,15 @@ impl ShapeCapture {
             _ => Self::Compute,
         }
     }
+
+    /// The choice for shared snow on any adapter: `SNOWPACK_SHAPE_CAPTURE`
+    /// when set, else compute, whose arithmetic the peers' and the relay's
+    /// CPU presses of the same shapes repeat bit for bit
+    /// (`snowpack_share::press`), so the shapes travel instead of the snow.
+    #[must_use]
+    pub fn for_shared_snow() -> Self {
+        Self::for_adapter(false)
+    }
 }
 
 /// The capture: see the module documentation.

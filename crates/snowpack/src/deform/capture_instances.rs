@@ -8,7 +8,8 @@
 )]
 
 use bytemuck::{Pod, Zeroable};
-use glam::{DVec2, Mat4, Vec3};
+use glam::{DVec2, Vec3};
+use snowpack_share::press::{ShapeInstances, ShapeSweep};
 
 use crate::Deformer;
 use crate::deform::shape::DeformerExt;
@@ -55,6 +56,10 @@ pub struct CaptureInstances {
     /// Sub-steps of each world-space mesh drawn with
     /// [`super::capture::CapturePass::record`], in order (0: its current pose only).
     pub mesh_steps: Vec<u32>,
+    /// The analytic shapes' motions the lists above were cut from, in
+    /// order: what shared snow sends instead of the snow they pressed
+    /// ([`snowpack_share::press::PressFrame`]).
+    pub sweeps: Vec<ShapeSweep>,
 }
 
 /// A triangle mesh already in world space this frame (a skinned character in
@@ -107,81 +112,50 @@ impl CaptureInstances {
     /// `mesh_steps` is left as it was.
     pub fn fill_swept(&mut self, deformers: &[Deformer], previous: &[Option<Deformer>], window_corner_m: DVec2, params: &CaptureParams) {
         self.corner_m = [window_corner_m.x as f32, window_corner_m.y as f32];
-        self.capsules.clear();
-        self.boxes.clear();
-        self.wheels.clear();
-        let out = self;
-        let extent = f64::from(params.extent_m);
+        let mut shapes =
+            ShapeInstances { capsules: std::mem::take(&mut self.capsules), boxes: std::mem::take(&mut self.boxes), wheels: std::mem::take(&mut self.wheels) };
+        shapes.clear();
+        self.sweeps.clear();
         let local = |c: Vec3| Vec3::new((f64::from(c.x) - window_corner_m.x) as f32, c.y, (f64::from(c.z) - window_corner_m.y) as f32);
-        // Whether the square of half-side `reach` around the segment a..b misses the window.
-        let outside = |a: Vec3, b: Vec3, reach: f32| {
-            let reach = f64::from(reach);
-            let (x0, x1) = (f64::from(a.x.min(b.x)) - reach, f64::from(a.x.max(b.x)) + reach);
-            let (z0, z1) = (f64::from(a.z.min(b.z)) - reach, f64::from(a.z.max(b.z)) + reach);
-            x1 < 0.0 || x0 > extent || z1 < 0.0 || z0 > extent
-        };
         for (k, d) in deformers.iter().enumerate() {
             let prev = previous.get(k).copied().flatten();
             if d.lowest_point().min(prev.map_or(f32::INFINITY, |p| p.lowest_point())) >= params.high_m {
                 continue;
             }
-            match (*d, prev) {
-                (Deformer::Sphere { center, radius }, prev) => {
-                    let b = local(center);
-                    let a = match prev {
-                        Some(Deformer::Sphere { center, .. }) => local(center),
-                        _ => b,
-                    };
-                    if !outside(a, b, radius) && radius > 0.0 {
-                        out.capsules.push([a.x, a.y, a.z, radius, b.x, b.y, b.z, 0.0]);
-                    }
-                }
-                (Deformer::Box { center, half_extents, rotation }, prev) => {
-                    let now = (local(center), half_extents, rotation);
-                    // From `then` in `steps` sub-steps (see `box_poses`), or `now` alone.
-                    let (then, steps) = match prev {
-                        Some(Deformer::Box { center, half_extents, rotation }) => {
-                            let then = (local(center), half_extents, rotation);
-                            (then, super::sweep::steps_for(super::sweep::box_travel(then, now), params.texel_m))
-                        }
-                        _ => (now, 0),
-                    };
-                    let first = if steps == 0 { now } else { super::sweep::box_pose(then, now, 0, steps) };
-                    let reach = half_extents.length();
-                    if !outside(first.0, now.0, reach) {
-                        let matrix = |(c, h, q): (Vec3, Vec3, glam::Quat)| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array();
-                        if steps == 0 {
-                            out.boxes.push(matrix(now));
-                        } else {
-                            out.boxes.extend((0..=steps).map(|k| matrix(super::sweep::box_pose(then, now, k, steps))));
-                        }
-                    }
-                }
-                (Deformer::Wheel { center, axle, radius, half_width, tread, roll_m }, prev) => {
-                    use super::wheel;
-                    let now = (local(center), axle, roll_m);
-                    // From `then` in `steps` sub-steps (see `wheel_poses`), or `now` alone.
-                    let (then, steps) = match prev.as_ref().and_then(Deformer::wheel_pose) {
-                        Some((c, a, roll)) => {
-                            let then = (local(c), a, roll);
-                            (then, super::sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), params.texel_m))
-                        }
-                        None => (now, 0),
-                    };
-                    let first = if steps == 0 { now } else { wheel::wheel_pose(then, now, 0, steps) };
-                    let reach = radius.hypot(half_width);
-                    if !outside(first.0, now.0, reach) && radius > 0.0 && half_width > 0.0 {
-                        let instance = |(c, a, roll): wheel::WheelPose| wheel::instance(c, a, radius, half_width, &tread, f64::from(roll));
-                        if steps == 0 {
-                            out.wheels.push(instance(now));
-                        } else {
-                            out.wheels.extend((0..=steps).map(|k| instance(wheel::wheel_pose(then, now, k, steps))));
-                        }
-                    }
-                }
-                // Points have no surface to draw; only the stamp pass uses them.
-                (Deformer::Point { .. }, _) => {}
+            let Some(sweep) = shape_sweep(d, prev.as_ref(), local) else { continue };
+            if sweep.touches_window(params.extent_m, params.texel_m) {
+                sweep.expand_into(params.texel_m, &mut shapes);
+                self.sweeps.push(sweep);
             }
         }
+        (self.capsules, self.boxes, self.wheels) = (shapes.capsules, shapes.boxes, shapes.wheels);
     }
+}
+
+/// Deformer `d`'s motion from `prev` (last frame's pose of the same body,
+/// when swept), window-local by `local`: `None` for a point, which has no
+/// surface to capture (only the stamp pass uses it).
+fn shape_sweep(d: &Deformer, prev: Option<&Deformer>, local: impl Fn(Vec3) -> Vec3) -> Option<ShapeSweep> {
+    Some(match *d {
+        Deformer::Sphere { center, radius } => {
+            let b = local(center);
+            let a = match prev {
+                Some(Deformer::Sphere { center, .. }) => local(*center),
+                _ => b,
+            };
+            ShapeSweep::Capsule { a, b, radius }
+        }
+        Deformer::Box { center, half_extents, rotation } => {
+            let then = match prev {
+                Some(Deformer::Box { center, half_extents, rotation }) => Some((local(*center), *half_extents, *rotation)),
+                _ => None,
+            };
+            ShapeSweep::Box { then, now: (local(center), half_extents, rotation) }
+        }
+        Deformer::Wheel { center, axle, radius, half_width, tread, roll_m } => {
+            let then = prev.and_then(Deformer::wheel_pose).map(|(c, a, roll)| (local(c), a, roll));
+            ShapeSweep::Wheel { then, now: (local(center), axle, roll_m), radius, half_width, tread }
+        }
+        Deformer::Point { .. } => return None,
+    })
 }

@@ -21,21 +21,7 @@
 
 /// Metres per deficit quantum (the shared-snow crate's: tiles and their clock count in it).
 pub use snowpack_share::SNOW_QUANTUM_M;
-/// Quanta per metre (the shaders multiply by it: exact, where a division is not).
-pub const SNOW_QUANTA_PER_M: f32 = 10_000.0;
-
-/// Quanta of a deficit of `m` metres: rounded to nearest even, clamped to 0..=65535.
-#[must_use]
-pub fn deficit_quanta(m: f32) -> u32 {
-    (m * SNOW_QUANTA_PER_M).round_ties_even().clamp(0.0, 65_535.0) as u32
-}
-
-/// The deficit that reaches the terrain from `rest` (rounded up; above
-/// 65535 under snow deeper than a deficit holds).
-#[must_use]
-pub fn ground_quanta(rest: f32, ground: f32) -> f32 {
-    ((rest - ground) * SNOW_QUANTA_PER_M).ceil().max(0.0)
-}
+pub use snowpack_share::press::{SNOW_QUANTA_PER_M, deficit_quanta, ground_quanta, press_quanta};
 
 /// The persistent snow height of `word` over rest height `rest` and terrain
 /// `ground`: exactly the terrain where the deficit reaches it.
@@ -46,15 +32,6 @@ pub fn height(word: u32, rest: f32, ground: f32) -> f32 {
         return ground;
     }
     rest - d * SNOW_QUANTUM_M
-}
-
-/// The deficit of a press down to `h` (not below the terrain) from `rest`.
-#[must_use]
-pub fn press_quanta(rest: f32, ground: f32, h: f32) -> u32 {
-    if h <= ground {
-        return ground_quanta(rest, ground).min(65_535.0) as u32;
-    }
-    deficit_quanta(rest - h)
 }
 
 /// The displayed height of `word` over terrain height `ground`.

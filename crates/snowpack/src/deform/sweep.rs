@@ -16,14 +16,14 @@
 //! - spheres: the capsule around the centre's segment, exactly (ray cast by
 //!   `capture_shapes.wgsl`);
 //! - boxes: sub-steps, centre interpolated linearly and rotation by slerp, as
-//!   many as make consecutive poses' corners move at most [`SWEEP_STEP_TEXELS`]
-//!   texels ([`steps_for`], [`box_poses`]);
+//!   many as make consecutive poses' corners move at most one texel
+//!   (`snowpack_share::press::sweep`);
 //! - meshes (skinned characters, caller meshes): the same sub-steps, each
 //!   vertex interpolated linearly between its two positions
 //!   (`capture_mesh.wgsl`, `vs_swept`);
 //! - wheels: sub-steps of centre, axle and roll, as many as keep the tyre
 //!   and its tread at the contact within a texel between consecutive poses
-//!   ([`super::wheel::wheel_travel`], [`super::wheel::wheel_poses`]); each
+//!   (`snowpack_share::press::wheel`); each
 //!   pose ray cast exactly (`capture_shapes.wgsl`);
 //! - contact points (the points technique): segments; the footprint is the
 //!   lowest of the paraboloids along the segment, found in closed form
@@ -35,49 +35,11 @@
     allow(dead_code, unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
 
-use glam::{Mat3, Quat, Vec3};
+use glam::{Mat3, Vec3};
 
 use crate::Deformer;
 
-/// Largest motion (texels) between consecutive sub-steps of a swept box or
-/// mesh: one texel, so consecutive poses overlap to within a texel centre and
-/// every texel the body crossed sees it at one sub-step or another. Spheres
-/// and points are swept exactly and need no sub-steps.
-pub const SWEEP_STEP_TEXELS: f32 = 1.0;
-
-/// Most sub-steps one box or mesh is drawn with in a frame (plus its current
-/// pose). With the default 4 m teleport distance and 6.25 cm texels a sweep
-/// never needs more; beyond it the steps are spaced wider than a texel.
-pub const MAX_SWEEP_STEPS: u32 = 64;
-
-/// Sub-steps for a motion of `travel_m` at `texel_m` (0: not swept).
-#[must_use]
-pub fn steps_for(travel_m: f32, texel_m: f32) -> u32 {
-    if !(travel_m.is_finite() && travel_m > 0.0 && texel_m > 0.0) {
-        return 0;
-    }
-    ((travel_m / (texel_m * SWEEP_STEP_TEXELS)).ceil() as u32).clamp(1, MAX_SWEEP_STEPS)
-}
-
-/// Farthest any corner of a box moves between two poses (m).
-#[must_use]
-pub fn box_travel(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat)) -> f32 {
-    let corner = |(c, h, q): (Vec3, Vec3, Quat), s: Vec3| c + q * (h * s);
-    let mut most = 0.0_f32;
-    for k in 0..8 {
-        let s = Vec3::new(if k & 1 == 0 { -1.0 } else { 1.0 }, if k & 2 == 0 { -1.0 } else { 1.0 }, if k & 4 == 0 { -1.0 } else { 1.0 });
-        most = most.max(corner(a, s).distance(corner(b, s)));
-    }
-    most
-}
-
-/// Pose `k` (0 ..= `steps`, 0 being `a`, the last `b`) of a box swept from
-/// `a` to `b` in `steps` steps.
-#[must_use]
-pub fn box_pose(a: (Vec3, Vec3, Quat), b: (Vec3, Vec3, Quat), k: u32, steps: u32) -> (Vec3, Vec3, Quat) {
-    let t = k as f32 / steps.max(1) as f32;
-    (a.0.lerp(b.0, t), a.1.lerp(b.1, t), a.2.slerp(b.2, t).normalize())
-}
+pub use snowpack_share::press::sweep::steps_for;
 
 /// Where a deformer is, for the teleport test: its centre (or point).
 fn anchor(d: &Deformer) -> Vec3 {
@@ -268,14 +230,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn steps_follow_the_motion_in_texels() {
-        assert_eq!(steps_for(0.0, 0.0625), 0);
-        assert_eq!(steps_for(0.01, 0.0625), 1);
-        assert_eq!(steps_for(0.2, 0.0625), 4);
-        assert_eq!(steps_for(100.0, 0.0625), MAX_SWEEP_STEPS);
-    }
-
-    #[test]
     fn history_sweeps_the_same_body_and_not_a_teleport() {
         let ball = |x: f32, r: f32| Deformer::Sphere { center: Vec3::new(x, 0.2, 0.0), radius: r };
         let mut h = DeformerHistory::new();
@@ -323,7 +277,9 @@ mod tests {
             let joints: Vec<[u16; 4]> = (0..40).map(|k| [(k % 4) as u16, ((k / 4) % 4) as u16, 0, 4]).collect();
             let weights: Vec<[f32; 4]> = (0..40).map(|k| if k % 3 == 0 { [1.0, 0.0, 0.0, 0.0] } else { [0.6, 0.3, 0.1, 0.0] }).collect();
             let pose = |r: &mut dyn FnMut(f32) -> Vec3| -> Vec<glam::Mat4> {
-                (0..joint_count).map(|_| glam::Mat4::from_scale_rotation_translation(Vec3::ONE + r(0.05), Quat::from_scaled_axis(r(0.4)), r(2.0))).collect()
+                (0..joint_count)
+                    .map(|_| glam::Mat4::from_scale_rotation_translation(Vec3::ONE + r(0.05), glam::Quat::from_scaled_axis(r(0.4)), r(2.0)))
+                    .collect()
             };
             let (a, b) = (pose(&mut rvec), pose(&mut rvec));
             let reach = JointReach::of_skin(&positions, &joints, &weights, joint_count);

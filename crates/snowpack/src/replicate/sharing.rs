@@ -5,6 +5,7 @@
 //! at their places in the frame (`docs/deformation.md`, "Shared snow on the
 //! GPU"); nothing here waits for the GPU.
 
+use snowpack_share::press::PressFrame;
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::deform::resources::DeformResources;
@@ -79,7 +80,14 @@ pub struct Sharing {
     incoming: VecDeque<SharedTile>,
     /// The window's last frames (at most [`HISTORY_FRAMES`]), oldest first.
     history: VecDeque<FrameRecord>,
+    /// The analytic presses of the frames since the last take (at most
+    /// [`PRESS_FRAMES_KEPT`], oldest dropped: their presses go as tiles).
+    presses: VecDeque<PressFrame>,
 }
+
+/// The most press frames kept for the peer: a few seconds of frames; a
+/// snow shared without a peer taking them keeps no more.
+const PRESS_FRAMES_KEPT: usize = 256;
 
 /// Whether tile `key` of `side` has a texel in `window`.
 fn overlaps(window: &ShareWindow, key: TileKey, side: u32) -> bool {
@@ -118,6 +126,7 @@ impl Sharing {
             outbox: Vec::new(),
             incoming: VecDeque::new(),
             history: VecDeque::with_capacity(HISTORY_FRAMES),
+            presses: VecDeque::new(),
         }
     }
 
@@ -292,6 +301,22 @@ impl Sharing {
     /// The gathered tiles since the last call.
     pub fn take_outbox(&mut self) -> Vec<SharedTile> {
         std::mem::take(&mut self.outbox)
+    }
+
+    /// Keeps a frame's analytic presses for the peer (a frame without shapes is not kept).
+    pub fn record_presses(&mut self, frame: PressFrame) {
+        if frame.shapes.is_empty() {
+            return;
+        }
+        if self.presses.len() >= PRESS_FRAMES_KEPT {
+            self.presses.pop_front();
+        }
+        self.presses.push_back(frame);
+    }
+
+    /// The press frames kept since the last call, oldest first.
+    pub fn take_presses(&mut self) -> Vec<PressFrame> {
+        self.presses.drain(..).collect()
     }
 }
 

@@ -388,6 +388,21 @@ impl CoreWindow {
         self.query_pass.callbacks_pending()
     }
 
+    /// The analytic shapes the last capture pressed, as a frame that
+    /// travels (`snowpack_share::press`): the window at `origin`, the
+    /// capture's range, the snow's packing and the `clock` after the update.
+    pub(super) fn press_frame(&self, origin: [i64; 2], clock: crate::replicate::ShareClock) -> snowpack_share::press::PressFrame {
+        snowpack_share::press::PressFrame {
+            clock,
+            origin,
+            resolution: self.params.resolution,
+            low_m: self.capture_params.low_m,
+            high_m: self.capture_params.high_m,
+            pack_ratio: self.params.mechanics().pack_ratio(),
+            shapes: self.scratch.instances.sweeps.clone(),
+        }
+    }
+
     /// How the capture takes the analytic shapes.
     pub(super) fn shape_capture(&self) -> ShapeCapture {
         self.capture_pass.shape_capture()

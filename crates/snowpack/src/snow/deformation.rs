@@ -396,6 +396,13 @@ impl SharedSnow for SnowDeformation {
         self.sharing.as_mut().map(Sharing::take_outbox).unwrap_or_default()
     }
 
+    /// The analytic shapes each frame since the last call pressed
+    /// (spheres, boxes, wheels; empty without sharing or with the points
+    /// technique), with the window and clock they pressed at.
+    fn take_press_frames(&mut self) -> Vec<snowpack_share::press::PressFrame> {
+        self.sharing.as_mut().map(Sharing::take_presses).unwrap_or_default()
+    }
+
     /// Queues `tiles`; frames merge them (a bounded number each) once the
     /// clock reaches theirs. Without sharing enabled, or of another tile
     /// side, they are dropped with a warning.

@@ -44,6 +44,7 @@ pub(super) fn enable(
     let device = &ctx.device;
     let grid = ShareGrid::new(core.params().resolution, tile_side);
     ctx.capturing(|| {
+        core.set_shape_capture(crate::deform::capture::ShapeCapture::for_shared_snow());
         core.allocate_share_flags(device, grid.slots(), sky);
         *sharing = Some(Sharing::new(device, core.res(), tile_side, interval_s));
     });

@@ -164,6 +164,10 @@ impl FrameSteps<'_> {
             stamps_pressed: stamps && core.res().has_stamps(),
         };
         sharing.record_after_update(cx, core.res(), &share::share_window(core, window.origin), record);
+        if core.params().technique != Technique::Points {
+            // The analytic shapes this frame's capture pressed, at the clock its update left.
+            sharing.record_presses(core.press_frame(window.origin, self.time.share_clock()));
+        }
     }
 
     /// Snow settling on objects: with snowfall, what falls on them this

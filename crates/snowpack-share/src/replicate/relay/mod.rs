@@ -241,6 +241,13 @@ impl SnowRelay {
                 self.tiles_from(peer, &tiles, now);
                 self.enqueue(peer, encode(&Message::Ack { seq }));
             }
+            Message::Presses { seq, frames, mut tiles } => {
+                // What the frames pressed, judged and merged as tiles the peer sent.
+                let mut pressed = self.pressed_by(peer, &frames, now);
+                pressed.append(&mut tiles);
+                self.tiles_from(peer, &pressed, now);
+                self.enqueue(peer, encode(&Message::Ack { seq }));
+            }
             Message::Digest { clock, window, resolution, entries } => self.digest_from(peer, &clock, window, resolution, &entries),
             _ => self.stats.rejected.unexpected_kind += 1,
         }
@@ -565,6 +572,34 @@ impl SnowRelay {
             }
             self.merge_in(peer, t, c);
         }
+    }
+
+    /// The tiles `frames` (a `Presses` message from `peer`) press, each from
+    /// untouched snow at its first frame's clock; none when the world's
+    /// presses cannot travel or the peer's press bucket cannot pay for the
+    /// message's ray casts (counted as refusals).
+    fn pressed_by(&mut self, peer: PeerId, frames: &[crate::press::PressFrame], now: f64) -> Vec<SharedTile> {
+        let Some(world) = self.world.clone() else {
+            return Vec::new();
+        };
+        let Some(ground) = crate::press::flat_ground(&world.settings).filter(|_| crate::press::presses_travel(&world.settings)) else {
+            self.stats.rejected.unpressable += 1;
+            return Vec::new();
+        };
+        let (side, texel_m) = (world.settings.tile_side, world.settings.texel_m);
+        let casts: Vec<crate::press::FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+        let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
+        let (rate, burst) = (self.config.press_casts_per_s as f64, self.config.burst_press_casts as f64);
+        let Some(p) = self.peers.get_mut(&peer) else {
+            return Vec::new();
+        };
+        if !p.press_casts.take(now, rate, burst, work as f64) {
+            self.stats.rejected.rate_presses += 1;
+            return Vec::new();
+        }
+        self.stats.press_frames += frames.len() as u64;
+        self.stats.press_casts += work;
+        crate::press::press_tiles(frames, &casts, &world.settings, ground, side)
     }
 
     /// Whether tile `key` may be merged: one the relay keeps (in memory or

@@ -39,6 +39,8 @@ pub(super) struct PeerState {
     pub(super) out_bytes: Bucket,
     pub(super) window_keys: Bucket,
     pub(super) query_points: Bucket,
+    /// Ray casts its `Presses` may cost.
+    pub(super) press_casts: Bucket,
     /// Tiles to send at the next send (coalesced).
     pub(super) pending: BTreeSet<TileKey>,
     pub(super) last_send_s: f64,
@@ -62,6 +64,7 @@ impl PeerState {
             out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),
             window_keys: Bucket::full(f64::from(c.burst_window_keys.max(MAX_INTEREST_TILES as u32)), now),
             query_points: Bucket::full(f64::from(c.burst_query_points), now),
+            press_casts: Bucket::full(c.burst_press_casts as f64, now),
             pending: BTreeSet::new(),
             last_send_s: f64::NEG_INFINITY,
             outbox: Outbox::default(),

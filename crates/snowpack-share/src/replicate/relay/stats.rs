@@ -50,6 +50,12 @@ pub struct RelayRejections {
     /// Tiles whose footprint plane holds a footprint no deformer makes
     /// (its foot above its top).
     pub bad_footprint: u64,
+    /// `Presses` messages beyond the peer's press rate
+    /// ([`super::RelayConfig::press_casts_per_s`]), refused whole.
+    pub rate_presses: u64,
+    /// `Presses` in a world whose presses cannot travel (not flat, or with
+    /// lying snow: [`crate::press::presses_travel`]), refused whole.
+    pub unpressable: u64,
 }
 
 impl RelayRejections {
@@ -78,6 +84,8 @@ impl RelayRejections {
             + self.rate_window
             + self.rate_query
             + self.bad_footprint
+            + self.rate_presses
+            + self.unpressable
     }
 }
 
@@ -122,6 +130,10 @@ pub struct RelayStats {
     pub distance_tests: u64,
     /// Tile keys walked for window changes.
     pub window_keys_walked: u64,
+    /// Frames of analytic presses received and pressed.
+    pub press_frames: u64,
+    /// Ray casts pressing them cost (bounded by the peers' press rate).
+    pub press_casts: u64,
     /// Bytes of tiles in memory now.
     pub tile_bytes_in_memory: usize,
     /// Bytes queued for peers now (not yet handed out).

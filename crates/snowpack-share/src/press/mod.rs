@@ -1,0 +1,458 @@
+//! Presses that travel instead of the snow they pressed.
+//!
+//! A car's four treaded wheels make about 16,000 texels of new trail a
+//! second; as tiles that is 15 KB/s, while what pressed them, four tyres'
+//! poses a frame, is a few hundred bytes. So a peer sends the analytic
+//! shapes of each frame ([`PressFrame`]: spheres swept to capsules, boxes
+//! and wheels with the pose they were swept from) and every machine that
+//! receives them presses them into its own copy of the tiles with the same
+//! arithmetic the GPU's compute capture and update use: the sweep's
+//! sub-steps ([`sweep`], [`wheel`]), the ray casts ([`cast`]), the 16-bit
+//! depth codes and the update's press and packing ([`PressFrame::press`]).
+//! What the shapes do not explain (skinned meshes, footprints, berms, a GPU
+//! whose arithmetic differs) still goes as tiles: the peer sends a tile only
+//! beyond what its presses make (`docs/multiplayer.md`, "Presses").
+//!
+//! | file | what |
+//! |---|---|
+//! | `wheel.rs` | tyres and treads: poses, sub-steps, the capture's instance of a pose |
+//! | `sweep.rs` | sub-steps of swept boxes (and meshes, in snowpack) |
+//! | `cast.rs` | the ray casts: capsule, tyre, box |
+
+pub mod cast;
+pub mod sweep;
+pub mod wheel;
+
+use glam::{Mat4, Quat, Vec3};
+
+use crate::replicate::tile::{CatchUp, ShareClock, SharedTile};
+use crate::replicate::world::WorldSettings;
+
+use sweep::BoxPose;
+use wheel::{Tread, WheelPose};
+
+/// Quanta per metre (the shaders multiply by it: exact, where a division is not).
+pub const SNOW_QUANTA_PER_M: f32 = 10_000.0;
+
+/// Codes of the capture's 16-bit depth: a depth `d` in 0..1 is stored as
+/// `round(d × CAPTURE_CODES)`.
+pub const CAPTURE_CODES: f32 = 65_535.0;
+
+/// Quanta of a deficit of `m` metres: rounded to nearest even, clamped to 0..=65535.
+#[must_use]
+pub fn deficit_quanta(m: f32) -> u32 {
+    (m * SNOW_QUANTA_PER_M).round_ties_even().clamp(0.0, 65_535.0) as u32
+}
+
+/// The deficit that reaches the terrain from `rest` (rounded up; above
+/// 65535 under snow deeper than a deficit holds).
+#[must_use]
+pub fn ground_quanta(rest: f32, ground: f32) -> f32 {
+    ((rest - ground) * SNOW_QUANTA_PER_M).ceil().max(0.0)
+}
+
+/// The deficit of a press down to `h` (not below the terrain) from `rest`.
+#[must_use]
+pub fn press_quanta(rest: f32, ground: f32, h: f32) -> u32 {
+    if h <= ground {
+        return ground_quanta(rest, ground).min(65_535.0) as u32;
+    }
+    deficit_quanta(rest - h)
+}
+
+/// Most packed snow (quanta) a column `column` quanta high holds at the
+/// final density: `floor(column × ratio)`, at most 16 bits (`ratio` is
+/// `ρmax / ρ0 − 1`, [`crate::mechanics`]).
+#[must_use]
+pub fn packed_cap(column: u32, ratio: f32) -> u32 {
+    (column as f32 * ratio).floor().min(65_535.0) as u32
+}
+
+/// One analytic shape's motion over a frame, window-local (x and z from the
+/// window's corner, y world height): what the capture ray casts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShapeSweep {
+    /// A sphere swept from `a` (last frame) to `b` (this frame): the capsule
+    /// around the segment, exactly (`a == b` when not swept).
+    Capsule {
+        /// Last frame's centre.
+        a: Vec3,
+        /// This frame's centre.
+        b: Vec3,
+        /// Radius (m).
+        radius: f32,
+    },
+    /// A box, in sub-steps from `then` (none: not swept) to `now`.
+    Box {
+        /// Last frame's pose.
+        then: Option<BoxPose>,
+        /// This frame's pose.
+        now: BoxPose,
+    },
+    /// A wheel, in sub-steps from `then` (none: not swept) to `now`.
+    Wheel {
+        /// Last frame's pose.
+        then: Option<WheelPose>,
+        /// This frame's pose.
+        now: WheelPose,
+        /// Outer radius, lugs included (m).
+        radius: f32,
+        /// Half the tyre's width (m).
+        half_width: f32,
+        /// The tread.
+        tread: Tread,
+    },
+}
+
+/// The capture's instances of analytic shapes (what `capture_shapes.wgsl`
+/// ray casts): capsules `[ax, ay, az, radius, bx, by, bz, 0]`, boxes as
+/// column-major model matrices of the unit cube, tyre poses
+/// ([`wheel::instance`]); all window-local.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShapeInstances {
+    /// Spheres swept to capsules.
+    pub capsules: Vec<[f32; 8]>,
+    /// Box poses (each sub-step one).
+    pub boxes: Vec<[f32; 16]>,
+    /// Tyre poses (each sub-step one).
+    pub wheels: Vec<[f32; 16]>,
+}
+
+impl ShapeInstances {
+    /// Empties the lists, keeping their memory.
+    pub fn clear(&mut self) {
+        self.capsules.clear();
+        self.boxes.clear();
+        self.wheels.clear();
+    }
+}
+
+impl ShapeSweep {
+    /// The box's sub-steps and first pose (`then` itself, or `now` unswept).
+    fn box_steps(then: Option<BoxPose>, now: BoxPose, texel_m: f32) -> (BoxPose, u32) {
+        match then {
+            Some(then) => (then, sweep::steps_for(sweep::box_travel(then, now), texel_m)),
+            None => (now, 0),
+        }
+    }
+
+    /// The wheel's sub-steps and first pose.
+    fn wheel_steps(then: Option<WheelPose>, now: WheelPose, (radius, half_width): (f32, f32), texel_m: f32) -> (WheelPose, u32) {
+        match then {
+            Some(then) => (then, sweep::steps_for(wheel::wheel_travel(then, now, radius, half_width), texel_m)),
+            None => (now, 0),
+        }
+    }
+
+    /// Whether the shape can touch a window `extent_m` on a side (its
+    /// reach around the segment from its first pose to its last overlaps
+    /// the window's square) and has a size: the capture keeps only these.
+    #[must_use]
+    pub fn touches_window(&self, extent_m: f32, texel_m: f32) -> bool {
+        let extent = f64::from(extent_m);
+        let outside = |a: Vec3, b: Vec3, reach: f32| {
+            let reach = f64::from(reach);
+            let (x0, x1) = (f64::from(a.x.min(b.x)) - reach, f64::from(a.x.max(b.x)) + reach);
+            let (z0, z1) = (f64::from(a.z.min(b.z)) - reach, f64::from(a.z.max(b.z)) + reach);
+            x1 < 0.0 || x0 > extent || z1 < 0.0 || z0 > extent
+        };
+        match *self {
+            Self::Capsule { a, b, radius } => !outside(a, b, radius) && radius > 0.0,
+            Self::Box { then, now } => {
+                let (then, steps) = Self::box_steps(then, now, texel_m);
+                let first = if steps == 0 { now } else { sweep::box_pose(then, now, 0, steps) };
+                !outside(first.0, now.0, now.1.length())
+            }
+            Self::Wheel { then, now, radius, half_width, .. } => {
+                let (then, steps) = Self::wheel_steps(then, now, (radius, half_width), texel_m);
+                let first = if steps == 0 { now } else { wheel::wheel_pose(then, now, 0, steps) };
+                !outside(first.0, now.0, radius.hypot(half_width)) && radius > 0.0 && half_width > 0.0
+            }
+        }
+    }
+
+    /// Appends the capture's instances of this shape to `out`: one capsule,
+    /// or a box or tyre per sub-step (`texel_m` spaces them).
+    pub fn expand_into(&self, texel_m: f32, out: &mut ShapeInstances) {
+        match *self {
+            Self::Capsule { a, b, radius } => out.capsules.push([a.x, a.y, a.z, radius, b.x, b.y, b.z, 0.0]),
+            Self::Box { then, now } => {
+                let matrix = |(c, h, q): BoxPose| Mat4::from_scale_rotation_translation(h, q, c).to_cols_array();
+                let (then, steps) = Self::box_steps(then, now, texel_m);
+                if steps == 0 {
+                    out.boxes.push(matrix(now));
+                } else {
+                    out.boxes.extend((0..=steps).map(|k| matrix(sweep::box_pose(then, now, k, steps))));
+                }
+            }
+            Self::Wheel { then, now, radius, half_width, tread } => {
+                let instance = |(c, a, roll): WheelPose| wheel::instance(c, a, radius, half_width, &tread, f64::from(roll));
+                let (then, steps) = Self::wheel_steps(then, now, (radius, half_width), texel_m);
+                if steps == 0 {
+                    out.wheels.push(instance(now));
+                } else {
+                    out.wheels.extend((0..=steps).map(|k| instance(wheel::wheel_pose(then, now, k, steps))));
+                }
+            }
+        }
+    }
+}
+
+/// One frame's analytic presses as the window pressed them: the shapes,
+/// where the window was, the capture's height range and the clock the
+/// frame's update left the snow at.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PressFrame {
+    /// The world clock after the frame (its refill applied before the press).
+    pub clock: ShareClock,
+    /// Global texel (column, row) of the window's first texel.
+    pub origin: [i64; 2],
+    /// Texels per window side.
+    pub resolution: u32,
+    /// World height of capture depth 0 (m).
+    pub low_m: f32,
+    /// World height of capture depth 1 (m).
+    pub high_m: f32,
+    /// `ρmax / ρ0 − 1` of the window's snow: how much packed snow a column holds.
+    pub pack_ratio: f32,
+    /// The shapes, window-local.
+    pub shapes: Vec<ShapeSweep>,
+}
+
+/// A frame's shapes as ray casts, each with its window-local bounds
+/// (x0, z0, x1, z1 in m) so a tile tests only those that can reach it.
+#[derive(Debug, Default)]
+pub struct FrameCasts {
+    capsules: Vec<([f32; 8], [f32; 4])>,
+    boxes: Vec<(Mat4, [f32; 4])>,
+    wheels: Vec<([f32; 16], [f32; 4])>,
+}
+
+impl FrameCasts {
+    /// Every instance's bounds.
+    fn bounds(&self) -> impl Iterator<Item = [f32; 4]> + '_ {
+        self.capsules.iter().map(|c| c.1).chain(self.boxes.iter().map(|b| b.1)).chain(self.wheels.iter().map(|w| w.1))
+    }
+
+    /// The instances whose bounds overlap window-local rectangle `rect`
+    /// (x0, z0, x1, z1 in m).
+    #[must_use]
+    fn within(&self, rect: [f32; 4]) -> Self {
+        Self {
+            capsules: self.capsules.iter().filter(|c| overlaps(c.1, rect)).copied().collect(),
+            boxes: self.boxes.iter().filter(|b| overlaps(b.1, rect)).copied().collect(),
+            wheels: self.wheels.iter().filter(|w| overlaps(w.1, rect)).copied().collect(),
+        }
+    }
+
+    /// The tiles (of `side` texels) of `frame`'s window that some
+    /// instance's bounds overlap, each with the number of instances that reach it.
+    fn tiles(&self, frame: &PressFrame, side: u32, texel_m: f32) -> Vec<(crate::TileKey, u64)> {
+        let mut keys = std::collections::BTreeMap::new();
+        for b in self.bounds() {
+            let Some((cols, rows)) = frame.texels_under(b, texel_m) else { continue };
+            let tile = |t: i64| t.div_euclid(i64::from(side));
+            for row in tile(rows.0)..=tile(rows.1) {
+                for col in tile(cols.0)..=tile(cols.1) {
+                    *keys.entry(crate::TileKey::new(col, row)).or_insert(0u64) += 1;
+                }
+            }
+        }
+        keys.into_iter().collect()
+    }
+
+    /// Ray casts pressing `frame` costs at most: per tile of `side` texels
+    /// an instance's bounds overlap, a cast a texel.
+    #[must_use]
+    pub fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
+        self.tiles(frame, side, texel_m).iter().map(|(_, n)| n * u64::from(side) * u64::from(side)).sum()
+    }
+
+    /// The capture depth (0..1; 1 where nothing is) at window-local point
+    /// (x, z), as `capture_shapes.wgsl` finds it: the lowest of the shapes
+    /// that reach it.
+    fn depth_at(&self, (x, z): (f32, f32), (low, range): (f32, f32)) -> f32 {
+        let inside = |b: [f32; 4]| x >= b[0] && x <= b[2] && z >= b[1] && z <= b[3];
+        let capsules = self.capsules.iter().filter(|c| inside(c.1)).map(|c| c.0);
+        let wheels = self.wheels.iter().filter(|w| inside(w.1)).map(|w| w.0);
+        let boxes = self.boxes.iter().filter(|b| inside(b.1)).map(|b| b.0);
+        cast::lowest_depth((capsules, wheels, boxes), [x, z], low, range)
+    }
+}
+
+/// Bounds (x0, z0, x1, z1) widened by a millimetre: they only skip shapes
+/// that cannot reach a point, whatever the rounding of the test.
+fn slack(b: [f32; 4]) -> [f32; 4] {
+    [b[0] - 1e-3, b[1] - 1e-3, b[2] + 1e-3, b[3] + 1e-3]
+}
+
+/// Whether two rectangles (x0, z0, x1, z1) overlap.
+fn overlaps(a: [f32; 4], b: [f32; 4]) -> bool {
+    a[0] <= b[2] && b[0] <= a[2] && a[1] <= b[3] && b[1] <= a[3]
+}
+
+impl PressFrame {
+    /// The frame's ray casts, with the bounds they can reach.
+    #[must_use]
+    pub fn casts(&self, texel_m: f32) -> FrameCasts {
+        let mut inst = ShapeInstances::default();
+        for s in &self.shapes {
+            s.expand_into(texel_m, &mut inst);
+        }
+        let capsules =
+            inst.capsules.iter().map(|c| (*c, slack([c[0].min(c[4]) - c[3], c[2].min(c[6]) - c[3], c[0].max(c[4]) + c[3], c[2].max(c[6]) + c[3]]))).collect();
+        let wheels = inst
+            .wheels
+            .iter()
+            .map(|w| {
+                let reach = w[3].hypot(w[7]);
+                (*w, slack([w[0] - reach, w[2] - reach, w[0] + reach, w[2] + reach]))
+            })
+            .collect();
+        let boxes = inst
+            .boxes
+            .iter()
+            .map(|m| {
+                let model = Mat4::from_cols_array(m);
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for k in 0..8 {
+                    let s = Vec3::new(if k & 1 == 0 { -1.0 } else { 1.0 }, if k & 2 == 0 { -1.0 } else { 1.0 }, if k & 4 == 0 { -1.0 } else { 1.0 });
+                    let p = model.transform_point3(s);
+                    (lo, hi) = (lo.min(p), hi.max(p));
+                }
+                (model.inverse(), slack([lo.x, lo.z, hi.x, hi.z]))
+            })
+            .collect();
+        FrameCasts { capsules, boxes, wheels }
+    }
+
+    /// The global texel columns and rows (first, last) of the window's
+    /// texels under window-local bounds `b` (x0, z0, x1, z1 in m), `None`
+    /// when they miss the window.
+    fn texels_under(&self, b: [f32; 4], texel_m: f32) -> Option<((i64, i64), (i64, i64))> {
+        let last = f64::from(self.resolution) - 1.0;
+        let texel = |m: f32| (f64::from(m) / f64::from(texel_m)).floor();
+        let (c0, c1, r0, r1) = (texel(b[0]).max(0.0), texel(b[2]).min(last), texel(b[1]).max(0.0), texel(b[3]).min(last));
+        (c0 <= c1 && r0 <= r1).then(|| ((self.origin[0] + c0 as i64, self.origin[0] + c1 as i64), (self.origin[1] + r0 as i64, self.origin[1] + r1 as i64)))
+    }
+
+    /// The window-local rows and columns of `tile` inside this frame's window
+    /// (`None` when they miss it), as ranges over the window.
+    #[must_use]
+    pub fn span(&self, key: crate::TileKey, side: u32) -> Option<((u32, u32), (u32, u32))> {
+        let r = i64::from(self.resolution);
+        let (c0, r0) = (key.col * i64::from(side) - self.origin[0], key.row * i64::from(side) - self.origin[1]);
+        let (c1, r1) = (c0 + i64::from(side), r0 + i64::from(side));
+        let cols = (c0.clamp(0, r), c1.clamp(0, r));
+        let rows = (r0.clamp(0, r), r1.clamp(0, r));
+        (cols.0 < cols.1 && rows.0 < rows.1).then(|| ((rows.0 as u32, rows.1 as u32), (cols.0 as u32, cols.1 as u32)))
+    }
+
+    /// Presses the frame into `tile` over flat terrain at `ground` (m) in
+    /// `world`: the tile is brought to the frame's clock, then each texel
+    /// inside the window takes the update's press of the shapes' capture
+    /// depth (16-bit codes, as the GPU stores them) and packs what it
+    /// lost up to the final density, as `update.wgsl` does where nothing
+    /// displaces, no footprint presses and no snowfall lies.
+    pub fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: f32) {
+        tile.catch_up(&self.clock, CatchUp { max_fallen_m: world.max_fallen_m });
+        let Some((rows, cols)) = self.span(tile.key, tile.side) else { return };
+        let side = i64::from(tile.side);
+        let (tile_c0, tile_r0) = (tile.key.col * side - self.origin[0], tile.key.row * side - self.origin[1]);
+        let texel_m = world.texel_m;
+        let range = self.high_m - self.low_m;
+        let rest = ground + world.depth_m + 0.0;
+        let at_ground = ground_quanta(rest, ground).min(65_535.0) as u32;
+        if tile.packed.is_empty() {
+            tile.packed = vec![0; tile.texels()];
+        }
+        for i in rows.0..rows.1 {
+            for j in cols.0..cols.1 {
+                let d = casts.depth_at(((j as f32 + 0.5) * texel_m, (i as f32 + 0.5) * texel_m), (self.low_m, range));
+                if d >= 1.0 {
+                    continue;
+                }
+                // As stored (a 16-bit code) and read back by the update.
+                let code = (d * CAPTURE_CODES + 0.5).floor() as u32;
+                let d = code as f32 / CAPTURE_CODES;
+                if d >= 1.0 {
+                    continue;
+                }
+                let k = ((i64::from(i) - tile_r0) * side + (i64::from(j) - tile_c0)) as usize;
+                let refilled = u32::from(tile.deficit[k]);
+                let deficit = refilled.max(press_quanta(rest, ground, self.low_m + d * range)).min(at_ground);
+                if deficit > refilled {
+                    let squeezed = u32::from(tile.packed[k]) + (deficit - refilled);
+                    tile.packed[k] = squeezed.min(packed_cap(at_ground - deficit, self.pack_ratio)).min(0xffff) as u16;
+                    tile.deficit[k] = deficit as u16;
+                }
+            }
+        }
+    }
+}
+
+/// The terrain height of a world whose terrain is flat (`"flat at H m"`,
+/// snowpack's `terrain_identity`): what a machine without the terrain
+/// presses over. `None` for any other terrain.
+#[must_use]
+pub fn flat_ground(world: &WorldSettings) -> Option<f32> {
+    let h = world.terrain.strip_prefix("flat at ")?.strip_suffix(" m")?;
+    h.parse::<f32>().ok().filter(|h| h.is_finite())
+}
+
+/// Tile `key` (of `side` texels) after `frame` pressed it: `tile`, or
+/// untouched snow at the frame's clock when `None`; `None` when the
+/// frame's shapes do not reach the tile (and `tile` was `None`).
+#[must_use]
+pub fn press_tile(
+    frame: &PressFrame,
+    casts: &FrameCasts,
+    key: crate::TileKey,
+    side: u32,
+    (world, ground): (&WorldSettings, f32),
+    tile: Option<SharedTile>,
+) -> Option<SharedTile> {
+    let (rows, cols) = frame.span(key, side)?;
+    let t = world.texel_m;
+    let rect = [cols.0 as f32 * t, rows.0 as f32 * t, cols.1 as f32 * t, rows.1 as f32 * t];
+    let local = casts.within(rect);
+    if local.capsules.is_empty() && local.boxes.is_empty() && local.wheels.is_empty() {
+        return tile;
+    }
+    let mut tile = tile.unwrap_or_else(|| SharedTile::untouched(key, side, frame.clock, false, false));
+    frame.press(&mut tile, &local, world, ground);
+    Some(tile)
+}
+
+/// The tiles (of `side` texels) `frames` press, in order, each from
+/// untouched snow at the clock of the first frame that reaches it, over flat
+/// terrain at `ground` (`casts[k]` is `frames[k].casts(world.texel_m)`):
+/// what a machine that receives the frames merges.
+#[must_use]
+pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: f32, side: u32) -> Vec<SharedTile> {
+    let mut tiles: std::collections::BTreeMap<crate::TileKey, SharedTile> = std::collections::BTreeMap::new();
+    for (frame, casts) in frames.iter().zip(casts) {
+        for (key, _) in casts.tiles(frame, side, world.texel_m) {
+            if let Some(t) = press_tile(frame, casts, key, side, (world, ground), tiles.remove(&key)) {
+                tiles.insert(key, t);
+            }
+        }
+    }
+    tiles.into_values().collect()
+}
+
+/// Whether presses can travel in `world`: flat terrain (a machine without
+/// the terrain knows its height) and no lying snow (a press's rest height
+/// would depend on the snowfall and berms under it, which only the window
+/// knows: those worlds send tiles).
+#[must_use]
+pub fn presses_travel(world: &WorldSettings) -> bool {
+    flat_ground(world).is_some() && !world.has_snowfall
+}
+
+/// Quaternion rotation normalised as the sender's box poses are (checked on
+/// the wire: a hostile frame may not carry a scaled rotation).
+#[must_use]
+pub fn is_unit(q: Quat) -> bool {
+    q.is_finite() && (q.length_squared() - 1.0).abs() < 1e-3
+}
