@@ -890,6 +890,9 @@ impl ShareReport {
             "tiles_sent": s.tiles_sent,
             "tiles_received": s.tiles_received,
             "resends": s.resends,
+            "tiles_as_deltas": s.tiles_as_deltas,
+            "tiles_as_presses": s.tiles_as_presses,
+            "press_frames_sent": s.press_frames_sent,
         })
     }
 }

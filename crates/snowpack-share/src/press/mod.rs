@@ -345,7 +345,7 @@ impl PressFrame {
         let (c1, r1) = (c0 + i64::from(side), r0 + i64::from(side));
         let cols = (c0.clamp(0, r), c1.clamp(0, r));
         let rows = (r0.clamp(0, r), r1.clamp(0, r));
-        (cols.0 < cols.1 && rows.0 < rows.1).then(|| ((rows.0 as u32, rows.1 as u32), (cols.0 as u32, cols.1 as u32)))
+        (cols.0 < cols.1 && rows.0 < rows.1).then_some(((rows.0 as u32, rows.1 as u32), (cols.0 as u32, cols.1 as u32)))
     }
 
     /// Presses the frame into `tile` over flat terrain at `ground` (m) in

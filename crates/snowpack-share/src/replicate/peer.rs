@@ -44,6 +44,10 @@ pub struct PeerConfig {
     /// The least time between two sends of deltas: a tile changed every
     /// frame in between goes out once, as it is then.
     pub(crate) delta_interval_s: f64,
+    /// Press frames wait until the oldest is this old on the snow's clock
+    /// (seconds), so a message carries several: each is coded from the
+    /// ones before it in the message, and the first costs the most.
+    pub(crate) press_interval_s: f64,
     /// A delta not acknowledged after this many seconds is sent again
     /// (as the replica's current tiles, which include it).
     pub(crate) resend_after_s: f64,
@@ -65,6 +69,7 @@ impl Default for PeerConfig {
             settled_digest_s: 0.3,
             synced_digest_interval_s: 5.0,
             delta_interval_s: 0.1,
+            press_interval_s: 0.25,
             resend_after_s: 1.0,
             max_unacknowledged: 64,
             queue_messages: 1024,
@@ -188,6 +193,8 @@ pub struct SnowPeer {
     last_presence_s: f64,
     last_digest_s: f64,
     last_delta_s: f64,
+    /// The snow's clock (s) at the last update.
+    last_snow_s: f64,
     last_window: Option<([i64; 2], u32)>,
     /// Changes to the replica or the window so far (a counter): an `InSync`
     /// answers a digest only if nothing changed since it was made.
@@ -242,6 +249,7 @@ impl SnowPeer {
             last_presence_s: f64::NEG_INFINITY,
             last_digest_s: f64::NEG_INFINITY,
             last_delta_s: f64::NEG_INFINITY,
+            last_snow_s: f64::NEG_INFINITY,
             last_window: None,
             activity: 0,
             last_digest: None,
@@ -444,7 +452,13 @@ impl SnowPeer {
                 self.resend(flight);
             }
         }
-        let deltas_due = (!self.to_send.is_empty() || !self.frames_pending.is_empty()) && now_s - self.last_delta_s >= self.config.delta_interval_s;
+        // Press frames wait until the oldest is an interval old on the
+        // snow's clock (a message then carries several, which code much
+        // smaller together), or the snow's time stopped (a run about to end).
+        let stopped = snow_clock.time_s <= self.last_snow_s;
+        self.last_snow_s = snow_clock.time_s;
+        let frames_ripe = self.frames_pending.front().is_some_and(|f| stopped || snow_clock.time_s - f.clock.time_s >= self.config.press_interval_s);
+        let deltas_due = (!self.to_send.is_empty() || frames_ripe) && now_s - self.last_delta_s >= self.config.delta_interval_s;
         // Deltas go after a `Presence` that says where they were pressed: a
         // relay refuses (and still acknowledges) a tile far from every
         // deformer it knows, so deformers that appeared (a first report sent
@@ -630,9 +644,19 @@ impl SnowPeer {
         let n = self.frames_pending.len().min(MAX_PRESS_FRAMES);
         let frames: Vec<PressFrame> = self.frames_pending.drain(..n).collect();
         let texel_m = self.world.settings.texel_m;
-        for f in &frames {
-            self.frames_log.push_back((f.clone(), f.casts(texel_m)));
+        let casts: Vec<FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+        // The replica holds what the relay is sent, so a digest made while
+        // the window's own tiles of these presses are still on their way
+        // agrees with the relay's copies (which the frames reach first).
+        if let Some(ground) = self.presses.filter(|_| !frames.is_empty()) {
+            let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
+            for t in crate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side) {
+                if merge_into(&mut self.replica, t, c) {
+                    self.changed();
+                }
+            }
         }
+        self.frames_log.extend(frames.iter().cloned().zip(casts));
         let newest = self.frames_log.back().map_or(f64::NEG_INFINITY, |(f, _)| f.clock.time_s);
         while self.frames_log.front().is_some_and(|(f, _)| f.clock.time_s < newest - PRESS_LOG_S) || self.frames_log.len() > MAX_PRESS_LOG {
             self.frames_log.pop_front();

@@ -8,10 +8,13 @@
 //! | header (17) | clock (time f64, refill u64, stamps u64, snowfall f32), origin (2 × i64), resolution, low, high, pack ratio, shape count |
 //! | shape (26) | kind (1 capsule, 2 box, 3 wheel), swept (0 or 1), then 24 words: a capsule's `a`, `b`, radius; a box's pose now (centre, half extents, rotation xyzw) and then; a wheel's pose now (centre, axle, roll) and then, radius, half width, tread pattern (0 none, 1 blocks, 2 chevron), spacing, depth, lug fraction; zeros after |
 //!
-//! A record's words are coded as their second difference from the same
-//! record (header, or shape slot) of the two frames before (wrapping): a
-//! body moving steadily, frame after frame, leaves small numbers and its
-//! size none. The words are then byte-shuffled and deflated, as tiles are.
+//! A record's words are coded as their difference from a prediction
+//! (wrapping): the second difference from the same record (header, or
+//! shape slot) of the two frames before, the 64-bit fields whole, and the
+//! pose a shape was swept from as last frame's pose of its slot. A body
+//! moving steadily, frame after frame, leaves small numbers, its size and
+//! its previous pose none. Residuals are zigzagged (the sign in the lowest
+//! bit), so a small negative one has zero high bytes. The words are then byte-shuffled and deflated, as tiles are.
 //! Decoding inflates within [`MAX_FRAME_WORDS`] words, checks every count
 //! first and every value after ([`check_frame`]): finite, sizes within
 //! [`MAX_SHAPE_M`], unit rotations and axles, a known tread.
@@ -47,10 +50,13 @@ pub fn encode_frames(frames: &[PressFrame]) -> Vec<u8> {
     let heads: Vec<[u32; HEADER_WORDS]> = frames.iter().map(header_words).collect();
     let mut words = Vec::new();
     for f in 0..frames.len() {
-        push_residual(&mut words, &heads[f], f.checked_sub(1).map(|g| &heads[g][..]), f.checked_sub(2).map(|g| &heads[g][..]));
+        let back = |n: usize| f.checked_sub(n).map(|g| heads[g]);
+        let guess = predict_header(back(1), back(2));
+        words.extend(heads[f].iter().zip(guess).map(|(w, g)| zigzag(w.wrapping_sub(g))));
         for (k, row) in rows[f].iter().enumerate() {
-            let back = |n: usize| f.checked_sub(n).and_then(|g| rows[g].get(k)).map(|r| &r[..]);
-            push_residual(&mut words, row, back(1), back(2));
+            let back = |n: usize| f.checked_sub(n).and_then(|g| rows[g].get(k)).copied();
+            let guess = predict_shape(back(1), back(2));
+            words.extend(row.iter().zip(guess).map(|(w, g)| zigzag(w.wrapping_sub(g))));
         }
     }
     let mut raw = Vec::with_capacity(words.len() * 4);
@@ -80,17 +86,23 @@ pub fn decode_frames(bytes: &[u8], count: usize) -> Result<Vec<PressFrame>, Mess
     let mut rows: Vec<Vec<[u32; SHAPE_WORDS]>> = Vec::with_capacity(count);
     let mut frames = Vec::with_capacity(count);
     for f in 0..count {
+        let guess = predict_header(f.checked_sub(1).map(|g| heads[g]), f.checked_sub(2).map(|g| heads[g]));
         let mut head = [0u32; HEADER_WORDS];
-        undo_residual(&mut head, next(HEADER_WORDS)?, f.checked_sub(1).map(|g| &heads[g][..]), f.checked_sub(2).map(|g| &heads[g][..]));
+        for ((w, r), g) in head.iter_mut().zip(next(HEADER_WORDS)?).zip(guess) {
+            *w = unzigzag(*r).wrapping_add(g);
+        }
         let shapes = head[16] as usize;
         if shapes > MAX_FRAME_SHAPES {
             return Err(MessageError::TooMany { what: "shapes in a press frame", count: shapes, max: MAX_FRAME_SHAPES });
         }
         let mut frame_rows = Vec::with_capacity(shapes);
         for k in 0..shapes {
+            let back = |n: usize| f.checked_sub(n).and_then(|g| rows[g].get(k)).copied();
+            let guess = predict_shape(back(1), back(2));
             let mut row = [0u32; SHAPE_WORDS];
-            let back = |n: usize| f.checked_sub(n).and_then(|g| rows[g].get(k)).map(|r: &[u32; SHAPE_WORDS]| &r[..]);
-            undo_residual(&mut row, next(SHAPE_WORDS)?, back(1), back(2));
+            for ((w, r), g) in row.iter_mut().zip(next(SHAPE_WORDS)?).zip(guess) {
+                *w = unzigzag(*r).wrapping_add(g);
+            }
             frame_rows.push(row);
         }
         let frame = read_frame(&head, &frame_rows)?;
@@ -105,28 +117,60 @@ pub fn decode_frames(bytes: &[u8], count: usize) -> Result<Vec<PressFrame>, Mess
     Ok(frames)
 }
 
-/// `row` minus its linear prediction from the two rows before it (each
-/// missing one reads as zeros): `row − 2 prev + prev2`, wrapping.
-fn push_residual(out: &mut Vec<u32>, row: &[u32], prev: Option<&[u32]>, prev2: Option<&[u32]>) {
-    for (k, &w) in row.iter().enumerate() {
-        out.push(w.wrapping_sub(predict(k, prev, prev2)));
-    }
+/// A residual with its sign in the lowest bit, so small negative numbers
+/// have zero high bytes as small positive ones do.
+fn zigzag(r: u32) -> u32 {
+    (r << 1) ^ ((r as i32 >> 31) as u32)
 }
 
-/// Undoes [`push_residual`].
-fn undo_residual(row: &mut [u32], residual: &[u32], prev: Option<&[u32]>, prev2: Option<&[u32]>) {
-    for (k, w) in row.iter_mut().enumerate() {
-        *w = residual[k].wrapping_add(predict(k, prev, prev2));
-    }
+/// Undoes [`zigzag`].
+fn unzigzag(z: u32) -> u32 {
+    (z >> 1) ^ (z & 1).wrapping_neg()
 }
 
-/// Word `k`'s prediction: `2 prev − prev2`, or `prev` with one row before.
-fn predict(k: usize, prev: Option<&[u32]>, prev2: Option<&[u32]>) -> u32 {
+/// Each word's prediction from the same record two and one frames before
+/// (missing ones read as zeros): `2 prev − prev2` (a body moving steadily),
+/// or `prev` with one frame before.
+fn linear<const N: usize>(prev: Option<[u32; N]>, prev2: Option<[u32; N]>) -> [u32; N] {
     match (prev, prev2) {
-        (Some(p), Some(q)) => p[k].wrapping_mul(2).wrapping_sub(q[k]),
-        (Some(p), None) => p[k],
-        _ => 0,
+        (Some(p), Some(q)) => std::array::from_fn(|k| p[k].wrapping_mul(2).wrapping_sub(q[k])),
+        (Some(p), None) => p,
+        _ => [0; N],
     }
+}
+
+/// A header's prediction: [`linear`], with the 64-bit fields (clock
+/// counters, origin) predicted whole, so a carry between their halves costs nothing.
+fn predict_header(prev: Option<[u32; HEADER_WORDS]>, prev2: Option<[u32; HEADER_WORDS]>) -> [u32; HEADER_WORDS] {
+    let mut guess = linear(prev, prev2);
+    for at in [0, 2, 4, 7, 9] {
+        let wide = |r: Option<[u32; HEADER_WORDS]>| r.map(|r| join64(&r[at..at + 2]));
+        let g = match (wide(prev), wide(prev2)) {
+            (Some(p), Some(q)) => p.wrapping_mul(2).wrapping_sub(q),
+            (Some(p), None) => p,
+            _ => 0,
+        };
+        guess[at..at + 2].copy_from_slice(&split64(g));
+    }
+    guess
+}
+
+/// A shape record's prediction: [`linear`], except that the pose it was
+/// swept from is last frame's pose of the same slot (a body that stays in
+/// its slot: exactly).
+fn predict_shape(prev: Option<[u32; SHAPE_WORDS]>, prev2: Option<[u32; SHAPE_WORDS]>) -> [u32; SHAPE_WORDS] {
+    let mut guess = linear(prev, prev2);
+    if let Some(p) = prev {
+        // Boxes: now at words 2..12, then at 12..22; wheels: now 2..9, then 9..16.
+        let (now, then) = match p[0] {
+            2 => (2..12, 12),
+            3 => (2..9, 9),
+            _ => return guess,
+        };
+        let len = now.len();
+        guess[then..then + len].copy_from_slice(&p[now]);
+    }
+    guess
 }
 
 fn split64(v: u64) -> [u32; 2] {
@@ -281,4 +325,82 @@ pub fn check_frame(f: &PressFrame) -> Result<(), MessageError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::Rng;
+
+    /// Random frames of every shape kind, swept and not, moving steadily
+    /// from frame to frame with noise.
+    pub(crate) fn random_frames(rng: &mut Rng, count: usize) -> Vec<PressFrame> {
+        let mut frames = Vec::new();
+        let shapes = 1 + (rng.next_u64() % 6) as usize;
+        let base: Vec<Vec3> = (0..shapes).map(|_| Vec3::new(rng.range(0.0, 8.0), rng.range(0.0, 1.0), rng.range(0.0, 8.0))).collect();
+        for f in 0..count {
+            let t = f as f32 * 0.03;
+            let shapes = base
+                .iter()
+                .enumerate()
+                .map(|(k, b)| {
+                    let c = *b + Vec3::new(t * 2.0, 0.0, t) + Vec3::splat(rng.range(-1e-3, 1e-3));
+                    let q = Quat::from_rotation_y(t + k as f32);
+                    match k % 3 {
+                        0 => ShapeSweep::Capsule { a: c - Vec3::X * 0.05, b: c, radius: rng.range(0.1, 1.0) },
+                        1 => ShapeSweep::Box { then: (f % 2 == 0).then_some((c, Vec3::new(0.3, 0.2, 0.1), q)), now: (c, Vec3::new(0.3, 0.2, 0.1), q) },
+                        _ => ShapeSweep::Wheel {
+                            then: (k % 2 == 0).then_some((c - Vec3::Z * 0.05, q * Vec3::X, t * 3.0 - 0.05)),
+                            now: (c, q * Vec3::X, t * 3.0),
+                            radius: 0.33,
+                            half_width: 0.14,
+                            tread: Tread { pattern: TreadPattern::Chevron, spacing_m: 0.1, depth_m: 0.03, lug_fraction: 0.4 },
+                        },
+                    }
+                })
+                .collect();
+            frames.push(PressFrame {
+                clock: ShareClock { time_s: 10.0 + f64::from(t), refill_quanta: f as u64 * 3, stamp_quanta: f as u64, fallen_m: 0.0 },
+                origin: [-700 + f as i64, 300],
+                resolution: 512,
+                low_m: -0.5,
+                high_m: 1.5,
+                pack_ratio: 3.2,
+                shapes,
+            });
+        }
+        frames
+    }
+
+    #[test]
+    fn frames_come_back_from_the_wire_bit_for_bit() {
+        let mut rng = Rng::new(crate::testing::seed("press frames on the wire"));
+        for count in [0, 1, 2, 7, MAX_PRESS_FRAMES] {
+            let frames = random_frames(&mut rng, count);
+            let bytes = encode_frames(&frames);
+            let back = decode_frames(&bytes, count).expect("decodes");
+            assert_eq!(back, frames, "{count} frames");
+        }
+    }
+
+    #[test]
+    fn frames_that_lie_are_refused_not_pressed() {
+        let mut rng = Rng::new(crate::testing::seed("press frames that lie"));
+        let good = random_frames(&mut rng, 3);
+        let mut huge = good.clone();
+        huge[1].shapes[0] = ShapeSweep::Capsule { a: Vec3::ZERO, b: Vec3::ZERO, radius: 1.0e4 };
+        let mut nan = good.clone();
+        nan[2].low_m = f32::NAN;
+        let mut window = good.clone();
+        window[0].resolution = 0;
+        for (what, frames) in [("a huge sphere", huge), ("a NaN range", nan), ("an empty window", window)] {
+            assert!(decode_frames(&encode_frames(&frames), frames.len()).is_err(), "{what} accepted");
+        }
+        // A count that does not match the records, or bytes that do not inflate.
+        let bytes = encode_frames(&good);
+        assert!(decode_frames(&bytes, 2).is_err());
+        assert!(decode_frames(&bytes, 4).is_err());
+        assert!(decode_frames(&bytes[..bytes.len() / 2], 3).is_err());
+        assert!(decode_frames(b"not deflate", 1).is_err());
+    }
 }

@@ -24,6 +24,10 @@ struct Held {
     encoded: Option<Vec<u8>>,
     /// Bytes counted for it in `SnowRelay::stats`'s `tile_bytes_in_memory`.
     bytes: usize,
+    /// The one peer whose tiles (and presses) made all of it, when one did:
+    /// that peer lacks nothing of it, so a merge is not sent back to it.
+    /// `None` once a second peer changed it, or when it came from the store.
+    author: Option<u64>,
 }
 
 /// Every [`Held`] tile by key, and the counter their uses are ordered by.
@@ -59,9 +63,9 @@ impl HeldTiles {
         self.tiles.values().map(|h| h.bytes).sum()
     }
 
-    /// Merges `t` into the copy in memory (or keeps it as the first),
-    /// marking it just used; whether the copy changed.
-    pub(super) fn merge(&mut self, t: &SharedTile, c: CatchUp) -> bool {
+    /// Merges `t` from peer `from` into the copy in memory (or keeps it as
+    /// the first), marking it just used; whether the copy changed.
+    pub(super) fn merge(&mut self, t: &SharedTile, c: CatchUp, from: u64) -> bool {
         self.use_counter += 1;
         let used = self.use_counter;
         match self.tiles.get_mut(&t.key) {
@@ -71,13 +75,21 @@ impl HeldTiles {
                 let changed = held.tile.merge(t, c);
                 held.dirty |= changed;
                 held.bytes = held_bytes(&held.tile, None);
+                if changed && held.author != Some(from) {
+                    held.author = None;
+                }
                 changed
             }
             None => {
-                self.tiles.insert(t.key, Held { tile: t.clone(), dirty: true, used, encoded: None, bytes: held_bytes(t, None) });
+                self.tiles.insert(t.key, Held { tile: t.clone(), dirty: true, used, encoded: None, bytes: held_bytes(t, None), author: Some(from) });
                 true
             }
         }
+    }
+
+    /// The one peer whose tiles made all of tile `key`, if one did.
+    pub(super) fn sole_author(&self, key: TileKey) -> Option<u64> {
+        self.tiles.get(&key).and_then(|h| h.author)
     }
 
     /// A tile's wire bytes and texels from the cache, filling it; `None`
@@ -102,7 +114,7 @@ impl HeldTiles {
                 Ok(tile) => {
                     stats.tiles_loaded += 1;
                     let bytes = held_bytes(&tile, None);
-                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None, bytes });
+                    self.tiles.insert(key, Held { tile, dirty: false, used: self.use_counter, encoded: None, bytes, author: None });
                 }
                 Err(_) => stats.store_errors += 1,
             },

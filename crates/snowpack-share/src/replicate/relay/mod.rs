@@ -238,14 +238,15 @@ impl SnowRelay {
             Message::Query { id, points } => self.query(peer, id, &points, now),
             Message::Presence { window, resolution, deformers } => self.presence(peer, window, resolution, &deformers, now),
             Message::Tiles { seq, tiles } => {
-                self.tiles_from(peer, &tiles, now);
+                self.tiles_from(peer, &tiles, now, true);
                 self.enqueue(peer, encode(&Message::Ack { seq }));
             }
-            Message::Presses { seq, frames, mut tiles } => {
-                // What the frames pressed, judged and merged as tiles the peer sent.
-                let mut pressed = self.pressed_by(peer, &frames, now);
-                pressed.append(&mut tiles);
-                self.tiles_from(peer, &pressed, now);
+            Message::Presses { seq, frames, tiles } => {
+                // What the frames pressed, judged and merged as tiles the
+                // peer sent (paid for by the press bucket, not the tile bucket).
+                let pressed = self.pressed_by(peer, &frames, now);
+                self.tiles_from(peer, &pressed, now, false);
+                self.tiles_from(peer, &tiles, now, true);
                 self.enqueue(peer, encode(&Message::Ack { seq }));
             }
             Message::Digest { clock, window, resolution, entries } => self.digest_from(peer, &clock, window, resolution, &entries),
@@ -536,7 +537,10 @@ impl SnowRelay {
         self.enqueue(peer, encode(&Message::Depths { id, depths, packed }));
     }
 
-    fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64) {
+    /// Judges and merges `tiles` from `peer`, each paid for by its tile
+    /// bucket when `counted` (tiles its presses made are paid for by the
+    /// press bucket).
+    fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64, counted: bool) {
         let Some(world) = self.world.clone() else {
             return;
         };
@@ -553,7 +557,7 @@ impl SnowRelay {
             if !fits_the_world(t, &world, self.config.bounds_m, &mut self.stats.rejected) {
                 continue;
             }
-            if !p.in_tiles.take(now, rate, burst, 1.0) {
+            if counted && !p.in_tiles.take(now, rate, burst, 1.0) {
                 self.stats.rejected.rate_tiles += 1;
                 continue;
             }
@@ -631,15 +635,18 @@ impl SnowRelay {
     fn merge_in(&mut self, sender: PeerId, t: &SharedTile, c: CatchUp) {
         let key = t.key;
         self.tiles.load(key, self.store.get_mut().as_mut(), &mut self.stats);
-        let changed = self.tiles.merge(t, c);
+        let changed = self.tiles.merge(t, c, sender);
         let Some(merged) = self.tiles.tile(key) else {
             return;
         };
         if changed {
             self.stats.tiles_merged += 1;
         }
-        // The sender needs the merge back only if it adds to what it sent.
-        let sender_lacks = {
+        // The sender needs the merge back only if it adds to what it sent
+        // and the sender did not make all of it itself (a tile sent beyond
+        // the copy the relay acknowledged, or pressed from its frames, lacks
+        // what the sender already holds).
+        let sender_lacks = self.tiles.sole_author(key) != Some(sender) && {
             let mut theirs = t.clone();
             theirs.merge(merged, c)
         };
