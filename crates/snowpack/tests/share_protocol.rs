@@ -6,12 +6,15 @@ use snowpack::low_level::SnowPeerExt;
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
 use std::collections::BTreeMap;
 
+use glam::Vec3;
 use proptest::prelude::*;
+use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
 use snowpack::low_level::replicate::{CatchUp, Message, NO_STAMP, ShareClock, ShareError, SharedSnow, SharedTile, decode, encode};
 use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack::{StoreConfig, TileStore};
+use snowpack_share::press::ShapeSweep;
 use snowpack_testkit::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers
@@ -466,6 +469,99 @@ fn three_peers_converge_over_a_lossy_network() {
     // x = 0.8 m to 3.2 m, player 2 beside it) reached it from the relay.
     let early = (lo[0]..(3.2f64 / 0.125) as i64).filter(|&col| players[2].snow.deficit_at(col, 0).is_some_and(|d| d > 0)).count();
     assert!(early > 10, "the late joiner has the trail pressed before it came ({early} texels)");
+}
+
+/// A car's four treaded wheels (world centre `at`, heading +x, rolled
+/// `roll_m`), window-local to a window whose first texel is `origin`,
+/// swept from `then` (last frame's centre and roll) when given.
+fn car_wheels(w: &WorldIdentity, origin: [i64; 2], (at, roll_m): ([f64; 2], f32), then: Option<([f64; 2], f32)>) -> Vec<ShapeSweep> {
+    let texel = f64::from(w.settings().texel_m);
+    let local = |p: [f64; 2], dx: f64, dz: f64| Vec3::new((p[0] + dx - origin[0] as f64 * texel) as f32, 0.75, (p[1] + dz - origin[1] as f64 * texel) as f32);
+    let tread = Tread { pattern: TreadPattern::Blocks, spacing_m: 0.1, depth_m: 0.03, lug_fraction: 0.4 };
+    [(1.3, -0.78), (1.3, 0.78), (-1.3, -0.78), (-1.3, 0.78)]
+        .into_iter()
+        .map(|(dx, dz)| ShapeSweep::Wheel {
+            then: then.map(|(p, r)| (local(p, dx, dz), Vec3::Z, r)),
+            now: (local(at, dx, dz), Vec3::Z, roll_m),
+            radius: 0.33,
+            half_width: 0.14,
+            tread,
+        })
+        .collect()
+}
+
+/// Where the car is at time `t` (x, z in m; it rolls forward +x at 3 m/s
+/// from 1 s to 7 s) and how far its wheels have rolled.
+fn drive(t: f64) -> ([f64; 2], f32) {
+    let d = 3.0 * (t.clamp(1.0, 7.0) - 1.0);
+    ([-9.0 + d, 0.5], -(d as f32))
+}
+
+/// Runs a car (player 1, reporting its presses or not) past a watcher
+/// (player 2) over a lossy network until it settles; asserts that both
+/// players and the relay converge and returns player 1's counters.
+fn car_past_a_watcher(reports_presses: bool, seed: u64) -> snowpack::PeerStats {
+    // Texels of 3 cm in tiles of 1 m, where a tread shows.
+    let mut settings = world(32).settings().clone();
+    settings.texel_m = 0.031_25;
+    let w = WorldIdentity::from_settings(settings);
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    let mut net = Net { rng: Rng::new(seed), drop: 0.1, duplicate: 0.05, max_delay_s: 0.15, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
+    let dt = 1.0 / 30.0;
+    let mut players: Vec<Player> = [1, 2]
+        .into_iter()
+        .map(|id| {
+            relay.connect(id);
+            let mut snow = CpuSnow::new(w.clone(), 256, [0, 0], 0.0);
+            snow.center_on(0.0, 0.0);
+            snow.set_reports_presses(reports_presses);
+            let mut config = PeerConfig::default();
+            config.synced_digest_interval_s = 1.0;
+            Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), config) }
+        })
+        .collect();
+    let mut t = 0.0f64;
+    let mut last = drive(0.0);
+    loop {
+        t += dt;
+        let now = drive(t);
+        for p in &mut players {
+            if p.id == 1 && t < 8.0 {
+                let origin = p.snow.origin();
+                p.snow.press_shapes(car_wheels(&w, origin, now, Some(last)), (-0.5, 1.5), 3.0);
+                p.peer.set_deformers(&[now.0]);
+            }
+            p.snow.step(dt);
+            p.peer.update(&mut p.snow, t);
+        }
+        last = now;
+        pump(&mut relay, &mut players, &mut net, t);
+        if t > 8.0 && t - net.last_busy_s > 3.0 && players.iter().all(|p| p.peer.unacknowledged() == 0) {
+            break;
+        }
+        assert!(t < 60.0, "the network did not settle by {t} s (seed {seed})");
+    }
+    let (_, _, compared, pressed) = assert_converged(&relay, &players, &w, seed);
+    assert!(pressed > 300, "the car pressed {pressed} of {compared} texels");
+    assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
+    players[0].peer.stats()
+}
+
+/// A car's presses travel as frames: the watcher and the relay end with the
+/// car's ruts texel for texel over a network that loses, duplicates and
+/// reorders, and the car sends a fraction of the bytes its tiles took.
+#[test]
+fn a_cars_presses_travel_as_frames_and_every_copy_converges() {
+    let seed = testing::seed("a car's presses travel");
+    let (frames, tiles) = (car_past_a_watcher(true, seed), car_past_a_watcher(false, seed));
+    eprintln!(
+        "a car for 6 s: {} B of presses ({} frames, {} tiles explained, {} tiles sent), against {} B of tiles ({} tiles)",
+        frames.tile_bytes_out, frames.press_frames_sent, frames.tiles_as_presses, frames.tiles_sent, tiles.tile_bytes_out, tiles.tiles_sent
+    );
+    assert!(frames.press_frames_sent >= 60 && tiles.press_frames_sent == 0);
+    // The CPU snow's tiles carry no packed snow (a GPU window's do), so
+    // they cost less than a window's: the ratio here is the least it buys.
+    assert!(frames.tile_bytes_out * 3 < tiles.tile_bytes_out * 2, "presses {} B, tiles {} B (seed {seed})", frames.tile_bytes_out, tiles.tile_bytes_out);
 }
 
 /// Asserts that every player's snow and the relay's tiles (caught up to

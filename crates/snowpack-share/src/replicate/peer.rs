@@ -121,12 +121,15 @@ pub struct PeerStats {
 }
 
 /// A numbered message in flight: when it went, the tiles whose copies it
-/// carried (or explained) and its press frames.
+/// carried (or explained), its press frames and what they press.
 #[derive(Debug)]
 struct InFlight {
     at_s: f64,
     keys: Vec<TileKey>,
     frames: Vec<PressFrame>,
+    /// The tiles its frames press: the relay holds them once it
+    /// acknowledges (whatever newer copies of the same tiles are in flight).
+    pressed: Vec<SharedTile>,
 }
 
 /// What one tile of `to_send` sends.
@@ -172,6 +175,12 @@ pub struct SnowPeer {
     presses: Option<f32>,
     /// Press frames from the snow not sent yet, oldest first.
     frames_pending: VecDeque<PressFrame>,
+    /// Tiles this peer's own press frames made, for the snow at the next
+    /// update: what the relay makes of them (merged message by message)
+    /// may hold more packed snow than the window's one timeline, and the
+    /// window must hold what the relay holds of its own presses, which the
+    /// relay does not send back.
+    own_pressed: Vec<SharedTile>,
     /// Press frames sent in the last [`PRESS_LOG_S`] (with their ray casts):
     /// a tile goes only beyond what they make of it.
     frames_log: VecDeque<(PressFrame, FrameCasts)>,
@@ -239,6 +248,7 @@ impl SnowPeer {
             presses,
             frames_pending: VecDeque::new(),
             frames_log: VecDeque::new(),
+            own_pressed: Vec::new(),
             next_seq: 0,
             to_send: BTreeSet::new(),
             acked: HashMap::new(),
@@ -297,7 +307,11 @@ impl SnowPeer {
             }
             Message::Ack { seq } => {
                 let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-                for key in self.unacked.remove(&seq).map(|f| f.keys).unwrap_or_default() {
+                let Some(flight) = self.unacked.remove(&seq) else { return Ok(()) };
+                for t in flight.pressed {
+                    merge_into(&mut self.acked, t, c);
+                }
+                for key in flight.keys {
                     // Only the newest copy in flight is kept: an older one's
                     // acknowledgement adds nothing the newer will not.
                     if self.sent.get(&key).is_some_and(|(s, _)| *s == seq)
@@ -412,6 +426,9 @@ impl SnowPeer {
                 }
             }
             self.last_window = window;
+        }
+        if !self.own_pressed.is_empty() {
+            snow.merge_tiles(&std::mem::take(&mut self.own_pressed));
         }
         if !self.incoming.is_empty() {
             self.tiles_since_digest_s = Some(now_s);
@@ -569,7 +586,7 @@ impl SnowPeer {
     /// relay is sent make of it), else `Tiles`.
     fn send_tiles(&mut self, now_s: f64) {
         while (!self.to_send.is_empty() || !self.frames_pending.is_empty()) && self.unacked.len() < self.config.max_unacknowledged.max(1) {
-            let frames = self.take_frames();
+            let (frames, pressed) = self.take_frames();
             let coded = (!frames.is_empty()).then(|| super::presses::encode_frames(&frames));
             let overhead = coded.as_ref().map_or(TILES_OVERHEAD_BYTES, |c| PRESSES_OVERHEAD_BYTES + c.len());
             let mut keys = Vec::new();
@@ -631,7 +648,7 @@ impl SnowPeer {
             };
             self.stats.tile_bytes_out += message.len() as u64;
             self.push(message);
-            self.unacked.insert(seq, InFlight { at_s: now_s, keys, frames });
+            self.unacked.insert(seq, InFlight { at_s: now_s, keys, frames, pressed });
             for tile in pending {
                 self.sent.insert(tile.key, (seq, tile));
             }
@@ -639,8 +656,10 @@ impl SnowPeer {
     }
 
     /// The press frames for the next message (at most
-    /// [`MAX_PRESS_FRAMES`]), into the log the tiles are explained from.
-    fn take_frames(&mut self) -> Vec<PressFrame> {
+    /// [`MAX_PRESS_FRAMES`]), into the log the tiles are explained from and
+    /// pressed into the replica, with the tiles they press (what the relay
+    /// holds once it acknowledges them).
+    fn take_frames(&mut self) -> (Vec<PressFrame>, Vec<SharedTile>) {
         let n = self.frames_pending.len().min(MAX_PRESS_FRAMES);
         let frames: Vec<PressFrame> = self.frames_pending.drain(..n).collect();
         let texel_m = self.world.settings.texel_m;
@@ -648,20 +667,23 @@ impl SnowPeer {
         // The replica holds what the relay is sent, so a digest made while
         // the window's own tiles of these presses are still on their way
         // agrees with the relay's copies (which the frames reach first).
+        let mut pressed = Vec::new();
         if let Some(ground) = self.presses.filter(|_| !frames.is_empty()) {
             let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-            for t in crate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side) {
-                if merge_into(&mut self.replica, t, c) {
+            pressed = crate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side);
+            for t in &pressed {
+                if merge_into(&mut self.replica, t.clone(), c) {
                     self.changed();
                 }
             }
+            self.own_pressed.extend(pressed.iter().cloned());
         }
         self.frames_log.extend(frames.iter().cloned().zip(casts));
         let newest = self.frames_log.back().map_or(f64::NEG_INFINITY, |(f, _)| f.clock.time_s);
         while self.frames_log.front().is_some_and(|(f, _)| f.clock.time_s < newest - PRESS_LOG_S) || self.frames_log.len() > MAX_PRESS_LOG {
             self.frames_log.pop_front();
         }
-        frames
+        (frames, pressed)
     }
 
     /// What tile `key` of the replica sends: whole when the relay asked
@@ -675,7 +697,17 @@ impl SnowPeer {
         if self.wanted.contains(&key) {
             return Outgoing::Tile(tile.clone(), tile.clone());
         }
-        let explained = self.explained(key, tile.clock.time_s);
+        let mut explained = self.explained(key, tile.clock.time_s);
+        // What the presses in flight make of the tile message by message
+        // (the replica holds that too): the relay holds it once they arrive.
+        for t in self.unacked.values().flat_map(|f| &f.pressed).filter(|t| t.key == key) {
+            match &mut explained {
+                Some(e) => {
+                    e.merge(t, c);
+                }
+                None => explained = Some(t.clone()),
+            }
+        }
         let base = match (self.acked.get(&key), &explained) {
             (None, None) => return Outgoing::Tile(tile.clone(), tile.clone()),
             (Some(a), None) => a.clone(),

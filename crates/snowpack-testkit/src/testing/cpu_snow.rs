@@ -1,7 +1,8 @@
 //! [`CpuSnow`]: a [`SharedSnow`] on the CPU for tests of shared snow
 //! without a device: a square window of deficits at a movable origin (not
-//! toroidal: moving it copies what stays), discs pressed into it, refill by
-//! the world clock, and the tiles it changed.
+//! toroidal: moving it copies what stays), discs and analytic shapes
+//! pressed into it (the shapes' frames reported as a GPU window reports
+//! them), refill by the world clock, and the tiles it changed.
 
 use snowpack_share::replicate::WorldIdentityExt;
 use std::collections::BTreeSet;
@@ -9,6 +10,7 @@ use std::collections::BTreeSet;
 use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile};
+use snowpack_share::press::{PressFrame, ShapeSweep, flat_ground, press_tiles};
 
 /// Tiles ahead of the snow's clock kept until it reaches them; beyond it
 /// the oldest are dropped.
@@ -26,6 +28,11 @@ pub struct CpuSnow {
     clock: ShareClock,
     changed: BTreeSet<TileKey>,
     held: Vec<SharedTile>,
+    /// The frames of analytic presses not taken yet.
+    frames: Vec<PressFrame>,
+    /// Whether analytic presses are reported as frames (a window that
+    /// shares them) or go as tiles alone.
+    reports_presses: bool,
 }
 
 impl CpuSnow {
@@ -35,7 +42,18 @@ impl CpuSnow {
     pub fn new(world: WorldIdentity, resolution: u32, origin: [i64; 2], time_s: f64) -> Self {
         let n = resolution as usize * resolution as usize;
         let clock = world.clock_at(time_s);
-        Self { world, resolution, origin, deficit: vec![0; n], time_s, clock, changed: BTreeSet::new(), held: Vec::new() }
+        Self {
+            world,
+            resolution,
+            origin,
+            deficit: vec![0; n],
+            time_s,
+            clock,
+            changed: BTreeSet::new(),
+            held: Vec::new(),
+            frames: Vec::new(),
+            reports_presses: true,
+        }
     }
 
     /// Global texel of the window's first texel.
@@ -117,6 +135,47 @@ impl CpuSnow {
         }
     }
 
+    /// Presses analytic shapes, window-local as the capture takes them
+    /// (x and z from the window's corner), with a capture range of
+    /// `range_m` (low, high world heights) and the packing `pack_ratio`, as
+    /// a GPU window does this frame (`snowpack_share::press`, the same
+    /// arithmetic); the frame is kept for the peer unless
+    /// [`Self::set_reports_presses`] turned that off. Needs flat terrain.
+    pub fn press_shapes(&mut self, shapes: Vec<ShapeSweep>, range_m: (f32, f32), pack_ratio: f32) {
+        let settings = self.world.settings().clone();
+        let Some(ground) = flat_ground(&settings) else { return };
+        // As the capture keeps them: shapes that reach the window.
+        let extent_m = settings.texel_m * self.resolution as f32;
+        let shapes: Vec<ShapeSweep> = shapes.into_iter().filter(|s| s.touches_window(extent_m, settings.texel_m)).collect();
+        if shapes.is_empty() {
+            return;
+        }
+        let frame = PressFrame { clock: self.clock, origin: self.origin, resolution: self.resolution, low_m: range_m.0, high_m: range_m.1, pack_ratio, shapes };
+        let casts = [frame.casts(settings.texel_m)];
+        let side = i64::from(settings.tile_side);
+        for tile in press_tiles(std::slice::from_ref(&frame), &casts, &settings, ground, settings.tile_side) {
+            let first = tile.key.first_texel(settings.tile_side);
+            for (k, &d) in tile.deficit.iter().enumerate() {
+                let (col, row) = (first[0] + k as i64 % side, first[1] + k as i64 / side);
+                let (j, i) = (col - self.origin[0], row - self.origin[1]);
+                let r = i64::from(self.resolution);
+                if (0..r).contains(&j) && (0..r).contains(&i) && d > self.deficit[(i * r + j) as usize] {
+                    self.deficit[(i * r + j) as usize] = d;
+                    self.changed.insert(tile.key);
+                }
+            }
+        }
+        if self.reports_presses {
+            self.frames.push(frame);
+        }
+    }
+
+    /// Whether [`Self::press_shapes`] reports its frames to the peer (on
+    /// by default): off, its presses go as tiles alone.
+    pub fn set_reports_presses(&mut self, on: bool) {
+        self.reports_presses = on;
+    }
+
     /// Advances `dt_s` seconds: refill by the quanta the world clock
     /// passed, then the held tiles the clock has reached are merged.
     pub fn step(&mut self, dt_s: f64) {
@@ -177,6 +236,10 @@ impl SharedSnow for CpuSnow {
     fn take_changed_tiles(&mut self) -> Vec<SharedTile> {
         let keys = std::mem::take(&mut self.changed);
         keys.into_iter().map(|k| self.tile(k)).collect()
+    }
+
+    fn take_press_frames(&mut self) -> Vec<PressFrame> {
+        std::mem::take(&mut self.frames)
     }
 
     fn merge_tiles(&mut self, tiles: &[SharedTile]) {
