@@ -14,7 +14,7 @@ use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
 use snowpack::low_level::replicate::{CatchUp, Message, NO_STAMP, ShareClock, ShareError, SharedSnow, SharedTile, decode, encode};
 use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack::{StoreConfig, TileStore};
-use snowpack_share::press::ShapeSweep;
+use snowpack_share::press::{PressFrame, ShapeSweep};
 use snowpack_testkit::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers
@@ -216,6 +216,42 @@ fn wire_tile() -> impl Strategy<Value = SharedTile> {
     })
 }
 
+/// `n` frames of random shapes of every kind (valid on the wire), from `seed`.
+fn random_frames(seed: u64, n: usize) -> Vec<PressFrame> {
+    let mut rng = Rng::new(seed);
+    let tread = Tread { pattern: TreadPattern::Chevron, spacing_m: 0.2, depth_m: 0.02, lug_fraction: 0.3 };
+    (0..n)
+        .map(|f| {
+            let shapes = (0..1 + rng.next_u64() % 4)
+                .map(|k| {
+                    let c = Vec3::new(rng.range(0.0, 10.0), rng.range(-1.0, 1.0), rng.range(0.0, 10.0));
+                    let q = glam::Quat::from_rotation_y(rng.range(-3.0, 3.0));
+                    match k % 3 {
+                        0 => ShapeSweep::Capsule { a: c, b: c + Vec3::X * rng.range(0.0, 0.2), radius: rng.range(0.05, 2.0) },
+                        1 => ShapeSweep::Box { then: None, now: (c, Vec3::splat(rng.range(0.05, 1.0)), q) },
+                        _ => ShapeSweep::Wheel {
+                            then: Some((c, q * Vec3::X, 0.5)),
+                            now: (c + Vec3::Z * 0.1, q * Vec3::X, 0.6),
+                            radius: 0.33,
+                            half_width: 0.1,
+                            tread,
+                        },
+                    }
+                })
+                .collect();
+            PressFrame {
+                clock: ShareClock { time_s: f64::from(f as u32) * 0.03, refill_quanta: rng.next_u64() % 1000, stamp_quanta: 0, fallen_m: 0.0 },
+                origin: [rng.next_u64() as i64 % 10_000, -(rng.next_u64() as i64 % 10_000)],
+                resolution: 1 + (rng.next_u64() % 4096) as u32,
+                low_m: -1.0,
+                high_m: rng.range(0.5, 3.0),
+                pack_ratio: rng.range(0.0, 4.0),
+                shapes,
+            }
+        })
+        .collect()
+}
+
 fn any_message() -> impl Strategy<Value = Message> {
     prop_oneof![
         (any_world(), ".{0,80}").prop_map(|(world, name)| Message::Hello { world, name }),
@@ -227,6 +263,11 @@ fn any_message() -> impl Strategy<Value = Message> {
             deformers
         }),
         (any::<u64>(), proptest::collection::vec(wire_tile(), 0..4)).prop_map(|(seq, tiles)| Message::Tiles { seq, tiles }),
+        (any::<u64>(), any::<u64>(), 0usize..5, proptest::collection::vec(wire_tile(), 0..2)).prop_map(|(seq, seed, n, tiles)| Message::Presses {
+            seq,
+            frames: random_frames(seed, n),
+            tiles
+        }),
         any::<u64>().prop_map(|seq| Message::Ack { seq }),
         (any_clock(), any::<[i64; 2]>(), any::<u32>(), proptest::collection::vec((any_key(), any::<u64>()), 0..30))
             .prop_map(|(clock, window, resolution, entries)| Message::Digest { clock, window, resolution, entries }),
@@ -264,7 +305,7 @@ proptest! {
     }
 
     #[test]
-    fn any_bytes_decode_to_a_message_or_an_error(bytes in proptest::collection::vec(any::<u8>(), 0..512), kind in 1u8..=10) {
+    fn any_bytes_decode_to_a_message_or_an_error(bytes in proptest::collection::vec(any::<u8>(), 0..512), kind in 1u8..=13) {
         let _ = decode(&bytes);
         // And with a valid header, so the bodies are reached.
         let mut framed = b"SNWP\x01\x00".to_vec();
@@ -625,6 +666,81 @@ fn pressed_tile(key: TileKey, clock: ShareClock, deficit: u16) -> SharedTile {
 
 fn all_tiles(relay: &SnowRelay) -> Vec<(TileKey, u64)> {
     relay.tile_keys().into_iter().filter_map(|k| relay.tile(k).map(|t| (k, t.digest()))).collect()
+}
+
+/// A frame of a sphere pressing `depth_m` into world(16)'s 0.5 m of snow at
+/// world (x, z), from a window whose first texel is at [-64, -64].
+fn sphere_frame(clock: ShareClock, (x, z): (f32, f32), depth_m: f32) -> PressFrame {
+    let corner = -64.0 * 0.125;
+    let radius = 0.4;
+    let centre = Vec3::new(x - corner, 0.5 - depth_m + radius, z - corner);
+    PressFrame {
+        clock,
+        origin: [-64, -64],
+        resolution: 128,
+        low_m: -0.5,
+        high_m: 1.5,
+        pack_ratio: 3.0,
+        shapes: vec![ShapeSweep::Capsule { a: centre, b: centre, radius }],
+    }
+}
+
+/// Presses from a peer are pressed where its deformers are, exactly as the
+/// peer pressed them; elsewhere, in a world whose terrain a relay cannot
+/// know, or beyond the peer's press rate, they are refused, counted and
+/// change nothing (the message is still acknowledged: resending cannot
+/// change a refusal).
+#[test]
+fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
+    use snowpack_share::press::{flat_ground, press_tiles};
+    let now = 10.0;
+    let w = world(16);
+    let clock = w.clock_at(now);
+    let acks = |relay: &mut SnowRelay| std::iter::from_fn(|| relay.poll_transmit()).filter(|(_, b)| matches!(decode(b), Ok(Message::Ack { .. }))).count();
+    let mut relay = relay_with_peer(RelayConfig::default(), now);
+    let honest = sphere_frame(clock, (0.3, -0.2), 0.2);
+    relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest.clone()], tiles: Vec::new() }), now);
+    let casts = [honest.casts(w.settings().texel_m)];
+    let expected = press_tiles(std::slice::from_ref(&honest), &casts, w.settings(), flat_ground(w.settings()).expect("flat"), 16);
+    assert!(expected.len() >= 2, "the sphere spans tiles");
+    for t in &expected {
+        let mut at_relay = relay.tile(t.key).expect("pressed at the relay");
+        at_relay.catch_up(&t.clock, CatchUp::default());
+        assert_eq!(at_relay.deficit, t.deficit, "tile {:?}", t.key);
+    }
+    assert!(expected.iter().flat_map(|t| &t.deficit).any(|&d| d > 1500), "the sphere pressed 0.2 m");
+    assert_eq!((relay.stats().press_frames, acks(&mut relay)), (1, 1));
+    let before = all_tiles(&relay);
+    // 100 m from the deformer: every tile it presses is refused.
+    relay.receive(1, &encode(&Message::Presses { seq: 1, frames: vec![sphere_frame(clock, (-7.5, -7.5), 0.2)], tiles: Vec::new() }), now);
+    assert!(relay.stats().rejected.far_from_deformers >= 1, "{:?}", relay.stats().rejected);
+    // Beyond the press rate: refused whole.
+    let mut stingy = RelayConfig::default();
+    stingy.press_casts_per_s = 1;
+    stingy.burst_press_casts = 1000;
+    let mut tight = relay_with_peer(stingy, now);
+    tight.receive(1, &encode(&Message::Presses { seq: 2, frames: vec![honest.clone()], tiles: Vec::new() }), now);
+    assert_eq!((tight.stats().rejected.rate_presses, tight.tile_keys().len(), acks(&mut tight)), (1, 0, 1));
+    // More sub-steps than one message may make (256 boxes swept 100 m: 65 poses each).
+    let q = glam::Quat::IDENTITY;
+    let far = (Vec3::new(108.0, 0.3, 8.0), Vec3::splat(0.2), q);
+    let near = (Vec3::new(8.0, 0.3, 8.0), Vec3::splat(0.2), q);
+    let mut swarm = sphere_frame(clock, (0.0, 0.0), 0.1);
+    swarm.shapes = vec![ShapeSweep::Box { then: Some(far), now: near }; 256];
+    let refused = relay.stats().rejected.rate_presses;
+    relay.receive(1, &encode(&Message::Presses { seq: 3, frames: vec![swarm], tiles: Vec::new() }), now);
+    assert_eq!(relay.stats().rejected.rate_presses, refused + 1, "{:?}", relay.stats().rejected);
+    assert_eq!(all_tiles(&relay), before, "a refused press changed the relay");
+    // A world whose terrain the relay cannot know: presses cannot travel.
+    let mut hilly = w.settings().clone();
+    hilly.terrain = "noise seed 7 base 0 m amplitude 1 m wavelength 9 m".to_owned();
+    let hilly = WorldIdentity::from_settings(hilly);
+    let mut other = SnowRelay::new(RelayConfig::default());
+    other.connect(1);
+    other.receive(1, &encode(&Message::Hello { world: hilly, name: "hills".to_owned() }), now);
+    other.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
+    other.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest], tiles: Vec::new() }), now);
+    assert_eq!((other.stats().rejected.unpressable, other.tile_keys().len()), (1, 0));
 }
 
 #[test]

@@ -128,6 +128,18 @@ impl ShapeInstances {
 }
 
 impl ShapeSweep {
+    /// The capture's instances of this shape at `texel_m`: one capsule, or
+    /// a box or tyre per sub-step (at most [`sweep::MAX_SWEEP_STEPS`] + 1),
+    /// counted without making them.
+    #[must_use]
+    pub fn instance_count(&self, texel_m: f32) -> u32 {
+        match *self {
+            Self::Capsule { .. } => 1,
+            Self::Box { then, now } => Self::box_steps(then, now, texel_m).1 + 1,
+            Self::Wheel { then, now, radius, half_width, .. } => Self::wheel_steps(then, now, (radius, half_width), texel_m).1 + 1,
+        }
+    }
+
     /// The box's sub-steps and first pose (`then` itself, or `now` unswept).
     fn box_steps(then: Option<BoxPose>, now: BoxPose, texel_m: f32) -> (BoxPose, u32) {
         match then {
@@ -262,10 +274,15 @@ impl FrameCasts {
     }
 
     /// Ray casts pressing `frame` costs at most: per tile of `side` texels
-    /// an instance's bounds overlap, a cast a texel.
+    /// an instance's bounds overlap, a cast a texel (counted without
+    /// walking the tiles, so judging a hostile frame costs little).
     #[must_use]
     pub fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
-        self.tiles(frame, side, texel_m).iter().map(|(_, n)| n * u64::from(side) * u64::from(side)).sum()
+        let tile = |t: i64| t.div_euclid(i64::from(side));
+        self.bounds()
+            .filter_map(|b| frame.texels_under(b, texel_m))
+            .map(|(cols, rows)| ((tile(cols.1) - tile(cols.0) + 1) * (tile(rows.1) - tile(rows.0) + 1)) as u64 * u64::from(side) * u64::from(side))
+            .sum()
     }
 
     /// The capture depth (0..1; 1 where nothing is) at window-local point

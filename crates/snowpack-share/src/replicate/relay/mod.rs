@@ -75,6 +75,12 @@ pub struct SnowRelay {
     last_full_warning_s: f64,
 }
 
+/// The most ray-cast instances (shapes times their sub-steps) one
+/// `Presses` message may make the relay build: a car's four wheels over
+/// eight frames make about 320; more is refused whole
+/// ([`RelayRejections::rate_presses`]).
+const MAX_PRESS_INSTANCES: u64 = 16_384;
+
 impl SnowRelay {
     /// A relay that keeps its tiles in memory; the world comes from the first `Hello`.
     #[must_use]
@@ -591,6 +597,12 @@ impl SnowRelay {
             return Vec::new();
         };
         let (side, texel_m) = (world.settings.tile_side, world.settings.texel_m);
+        // Counted before any is made: a message may not make more.
+        let instances: u64 = frames.iter().flat_map(|f| &f.shapes).map(|s| u64::from(s.instance_count(texel_m))).sum();
+        if instances > MAX_PRESS_INSTANCES {
+            self.stats.rejected.rate_presses += 1;
+            return Vec::new();
+        }
         let casts: Vec<crate::press::FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
         let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
         let (rate, burst) = (self.config.press_casts_per_s as f64, self.config.burst_press_casts as f64);

@@ -51,7 +51,8 @@ pub struct RelayRejections {
     /// (its foot above its top).
     pub bad_footprint: u64,
     /// `Presses` messages beyond the peer's press rate
-    /// ([`super::RelayConfig::press_casts_per_s`]), refused whole.
+    /// ([`super::RelayConfig::press_casts_per_s`]) or making more than
+    /// 16,384 ray-cast instances, refused whole.
     pub rate_presses: u64,
     /// `Presses` in a world whose presses cannot travel (not flat, or with
     /// lying snow: [`crate::press::presses_travel`]), refused whole.
