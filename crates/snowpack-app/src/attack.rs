@@ -2,7 +2,8 @@
 //! `tests/server_attack.rs`): clients of a `snowpack server` built from the
 //! library's own message types. `--role honest` is one well-behaved peer
 //! (a CPU snow window, no GPU) pressing a trail; `--role hostile` is every
-//! kind of abuse `docs/multiplayer.md` ("What the relay refuses") lists,
+//! kind of abuse `docs/multiplayer.md` ("What the relay refuses") lists
+//! (forged tiles and forged presses among them),
 //! each on connections of its own. Both print what they did as
 //! `key=value` lines for the test to read.
 
@@ -11,12 +12,14 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use glam::{Quat, Vec3};
 use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
 use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
 use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, decode, encode};
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
+use snowpack_share::press::{PressFrame, ShapeSweep};
 use snowpack_testkit::testing::CpuSnow;
 
 use crate::net::{CHANNEL, SnowLink, Transport};
@@ -151,6 +154,25 @@ impl Raw {
         self.seq += 1;
         self.send(&Message::Tiles { seq, tiles });
     }
+
+    /// A `Presses` message of a sphere pressing `PRESS_M` at world `p`, and
+    /// one of 256 boxes swept 100 m (more ray casts than a message may make).
+    fn forge_presses(&mut self, world: &WorldIdentity, clock: ShareClock, p: [f64; 2]) {
+        let texel = f64::from(world.settings().texel_m);
+        let origin = [(p[0] / texel).floor() as i64 - 64, (p[1] / texel).floor() as i64 - 64];
+        let local = |x: f64, z: f64| Vec3::new((x - origin[0] as f64 * texel) as f32, 0.0, (z - origin[1] as f64 * texel) as f32);
+        let (depth, radius) = (world.settings().depth_m, 0.5);
+        let centre = local(p[0], p[1]) + Vec3::Y * (depth - PRESS_M as f32 + radius);
+        let frame = |shapes| PressFrame { clock, origin, resolution: 128, low_m: -1.0, high_m: depth + 2.0, pack_ratio: 3.0, shapes };
+        let ball = frame(vec![ShapeSweep::Capsule { a: centre, b: centre, radius }]);
+        let pose = |c: Vec3| (c, Vec3::splat(0.2), Quat::IDENTITY);
+        let swarm = frame(vec![ShapeSweep::Box { then: Some(pose(centre + Vec3::X * 100.0)), now: pose(centre) }; 256]);
+        for frames in [vec![ball], vec![swarm]] {
+            let seq = self.seq;
+            self.seq += 1;
+            self.send(&Message::Presses { seq, frames, tiles: Vec::new() });
+        }
+    }
 }
 
 /// The keys of the 3 × 3 tiles around world (x, z).
@@ -245,6 +267,7 @@ pub fn hostile(addr: SocketAddr, world: &WorldIdentity, other: &WorldIdentity, s
         forger.send(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![at] });
         for p in FORGED {
             forger.forge(world, now_clock, &keys_around(world, p));
+            forger.forge_presses(world, now_clock, p);
             counts[0] += 9;
         }
         flood(world, now_clock, frame, (&mut flooder, &mut flipper));

@@ -248,7 +248,7 @@ fn stats_fields(s: &RelayStats) -> String {
         "distance_tests={} window_keys_walked={} queries={} tile_bytes_in_memory={} refused_far={} refused_teleports={} refused_world={} \
          refused_not_welcomed={} refused_rate_bytes={} refused_rate_tiles={} refused_rate_window={} refused_rate_query={} refused_bad_window={} \
          refused_out_of_bounds={} refused_disk_full={} refused_bad_footprint={} refused_bad_tile={} refused_too_deep={} refused_malformed={} \
-         refused_oversized={} outgoing_dropped={}",
+         refused_oversized={} refused_rate_presses={} refused_unpressable={} press_frames={} press_casts={} outgoing_dropped={}",
         s.distance_tests,
         s.window_keys_walked,
         s.queries,
@@ -269,6 +269,10 @@ fn stats_fields(s: &RelayStats) -> String {
         r.too_deep,
         r.malformed,
         r.oversized,
+        r.rate_presses,
+        r.unpressable,
+        s.press_frames,
+        s.press_casts,
         r.outgoing_dropped
     )
 }

@@ -127,8 +127,16 @@ fn the_server_refuses_every_abuse_and_keeps_the_honest_trail() {
     assert!(f("peer_ticks_capped") >= 1, "{closing}");
     assert!(f("max_tick_peer_bytes_in") <= 64 * 1024 + 256 * 1024, "{closing}");
     // Every abuse was met.
-    for key in ["refused_world", "refused_not_welcomed", "refused_far", "refused_teleports", "refused_rate_bytes", "refused_rate_window", "refused_rate_query"]
-    {
+    for key in [
+        "refused_world",
+        "refused_not_welcomed",
+        "refused_far",
+        "refused_teleports",
+        "refused_rate_bytes",
+        "refused_rate_window",
+        "refused_rate_query",
+        "refused_rate_presses",
+    ] {
         assert!(f(key) >= 1, "{key} = 0: {closing}");
     }
     assert!(f("refused_world") >= 2, "the query and the stranger: {closing}");
