@@ -400,7 +400,7 @@ def scene_seeds():
 # ---------------------------------------------------------------- shared snow's messages
 
 # replicate/message.rs: the header, the limits.
-SHARE_HEADER = b"SNWP" + struct.pack("<H", 1)
+SHARE_HEADER = b"SNWP" + struct.pack("<H", 3)
 MAX_KEYS = 4096
 MAX_DEFORMERS = 256
 
@@ -418,6 +418,33 @@ def share_seeds():
     presence = SHARE_HEADER + b"\x04" + struct.pack("<qqIH", -64, -64, 128, MAX_DEFORMERS)
     presence += b"".join(struct.pack("<dd", 0.5 * i, -0.25 * i) for i in range(MAX_DEFORMERS))
     put("share_message", "seed-presence-max", presence)
+    put("share_message", "seed-presses", presses_seed())
+
+
+def presses_seed():
+    """A `Presses` message (kind 13) of one frame: a sphere swept a little
+    and a treaded wheel rolling (replicate/presses.rs: words coded as
+    zigzagged residuals from no prediction, byte-shuffled, raw deflate)."""
+    import zlib
+
+    f32 = lambda v: struct.unpack("<I", struct.pack("<f", v))[0]
+    zig = lambda r: ((r << 1) ^ (0xFFFFFFFF if r & 0x80000000 else 0)) & 0xFFFFFFFF
+    words = []
+    for k in range(1):
+        t = 10.0 + k / 30.0
+        bits = struct.unpack("<Q", struct.pack("<d", t))[0]
+        head = [bits & 0xFFFFFFFF, bits >> 32, 0, 0, 0, 0, 0, (-64) & 0xFFFFFFFF, 0xFFFFFFFF, (-64) & 0xFFFFFFFF, 0xFFFFFFFF,
+                128, f32(-0.5), f32(1.5), f32(3.0), 0, 2]
+        ball = [1, 1] + [f32(v) for v in (4.0 + 0.1 * k, 0.6, 4.0, 4.1 + 0.1 * k, 0.6, 4.0, 0.3)] + [0] * 17
+        wheel = [3, 1] + [f32(v) for v in (5.0 + 0.1 * k, 0.5, 5.0, 1.0, 0.0, 0.0, 0.1 * k,
+                                            4.9 + 0.1 * k, 0.5, 5.0, 1.0, 0.0, 0.0, 0.1 * k - 0.1,
+                                            0.33, 0.14, 1.0, 0.1, 0.03, 0.4)] + [0] * 4
+        for row in (head, ball, wheel):
+            words.extend(zig(w) for w in row)
+    raw = bytes(((w >> (8 * b)) & 0xFF) for b in range(4) for w in words)
+    c = zlib.compressobj(9, zlib.DEFLATED, -15)
+    frames = c.compress(raw) + c.flush()
+    return SHARE_HEADER + b"\x0d" + struct.pack("<QBBI", 7, 1, 0, len(frames)) + frames
 
 
 if __name__ == "__main__":

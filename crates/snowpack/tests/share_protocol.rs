@@ -308,7 +308,8 @@ proptest! {
     fn any_bytes_decode_to_a_message_or_an_error(bytes in proptest::collection::vec(any::<u8>(), 0..512), kind in 1u8..=13) {
         let _ = decode(&bytes);
         // And with a valid header, so the bodies are reached.
-        let mut framed = b"SNWP\x01\x00".to_vec();
+        let mut framed = b"SNWP".to_vec();
+        framed.extend_from_slice(&snowpack_share::replicate::message::PROTOCOL_VERSION.to_le_bytes());
         framed.push(kind);
         framed.extend_from_slice(&bytes);
         if let Ok(m) = decode(&framed) {
@@ -715,9 +716,7 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
     relay.receive(1, &encode(&Message::Presses { seq: 1, frames: vec![sphere_frame(clock, (-7.5, -7.5), 0.2)], tiles: Vec::new() }), now);
     assert!(relay.stats().rejected.far_from_deformers >= 1, "{:?}", relay.stats().rejected);
     // Beyond the press rate: refused whole.
-    let mut stingy = RelayConfig::default();
-    stingy.press_casts_per_s = 1;
-    stingy.burst_press_casts = 1000;
+    let stingy = RelayConfig { press_casts_per_s: 1, burst_press_casts: 1000, ..RelayConfig::default() };
     let mut tight = relay_with_peer(stingy, now);
     tight.receive(1, &encode(&Message::Presses { seq: 2, frames: vec![honest.clone()], tiles: Vec::new() }), now);
     assert_eq!((tight.stats().rejected.rate_presses, tight.tile_keys().len(), acks(&mut tight)), (1, 0, 1));
@@ -1139,7 +1138,7 @@ fn the_fuzz_seeds_are_valid_messages_of_every_kind() {
     kinds.sort_unstable();
     // Some kinds have more than one seed (the largest digest, want and presence too).
     kinds.dedup();
-    assert_eq!(kinds, (1..=12).collect::<Vec<u8>>());
+    assert_eq!(kinds, (1..=13).collect::<Vec<u8>>());
 }
 
 // ---------------------------------------------------------------- late join, pacing and bounds

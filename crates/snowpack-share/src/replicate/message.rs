@@ -53,7 +53,7 @@ use crate::press::PressFrame;
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
 /// The protocol version this build speaks; a message of another is refused.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 /// Bytes of the header (magic, version, kind).
 pub const HEADER_BYTES: usize = 7;
 /// The largest message (bytes) either side sends or accepts.
