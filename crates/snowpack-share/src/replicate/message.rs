@@ -300,11 +300,7 @@ fn write_body(w: &mut Writer, message: &Message) {
                 w.0.extend_from_slice(&encode_tile(t));
             }
         }
-        Message::Presses { seq, frames, tiles } => {
-            let encoded: Vec<Vec<u8>> = tiles.iter().take(255).map(encode_tile).collect();
-            let parts: Vec<&[u8]> = encoded.iter().map(Vec::as_slice).collect();
-            write_presses(w, *seq, (frames.len(), &super::presses::encode_frames(frames)), &parts);
-        }
+        Message::Presses { seq, frames, tiles } => write_presses_of(w, *seq, frames, tiles),
         Message::Ack { seq } => w.u64(*seq),
         Message::Digest { clock, window, resolution, entries } => {
             write_clock(w, clock);
@@ -408,6 +404,13 @@ pub fn presses_message(seq: u64, frames: (usize, &[u8]), encoded: &[&[u8]]) -> V
     w.u8(13);
     write_presses(&mut w, seq, frames, encoded);
     w.0
+}
+
+/// A `Presses` body of `frames` and `tiles` (coded here).
+fn write_presses_of(w: &mut Writer, seq: u64, frames: &[PressFrame], tiles: &[SharedTile]) {
+    let encoded: Vec<Vec<u8>> = tiles.iter().take(255).map(encode_tile).collect();
+    let parts: Vec<&[u8]> = encoded.iter().map(Vec::as_slice).collect();
+    write_presses(w, seq, (frames.len(), &super::presses::encode_frames(frames)), &parts);
 }
 
 /// A `Presses` body: seq, counts, the frames' bytes, the tiles.
