@@ -309,6 +309,26 @@ fn overlaps(a: [f32; 4], b: [f32; 4]) -> bool {
 }
 
 impl PressFrame {
+    /// Whether this frame presses nothing `previous` (the frame before it)
+    /// did not: the same shapes, resting where they were, in the same
+    /// window and range, and no refill or snowfall since. Pressing it again
+    /// changes no texel (a press is a maximum), so a parked car or a ball
+    /// at rest sends nothing more.
+    #[must_use]
+    pub fn repeats(&self, previous: &Self) -> bool {
+        let resting = self.shapes.iter().all(|s| match *s {
+            ShapeSweep::Capsule { a, b, .. } => a == b,
+            ShapeSweep::Box { then, now } => then.is_none_or(|t| t == now),
+            ShapeSweep::Wheel { then, now, .. } => then.is_none_or(|t| t == now),
+        });
+        resting
+            && self.shapes == previous.shapes
+            && (self.origin, self.resolution) == (previous.origin, previous.resolution)
+            && (self.low_m, self.high_m, self.pack_ratio) == (previous.low_m, previous.high_m, previous.pack_ratio)
+            && (self.clock.refill_quanta, self.clock.stamp_quanta) == (previous.clock.refill_quanta, previous.clock.stamp_quanta)
+            && self.clock.fallen_m.to_bits() == previous.clock.fallen_m.to_bits()
+    }
+
     /// The frame's ray casts, with the bounds they can reach.
     #[must_use]
     pub fn casts(&self, texel_m: f32) -> FrameCasts {
@@ -472,4 +492,49 @@ pub fn presses_travel(world: &WorldSettings) -> bool {
 #[must_use]
 pub fn is_unit(q: Quat) -> bool {
     q.is_finite() && (q.length_squared() - 1.0).abs() < 1e-3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(shapes: Vec<ShapeSweep>, refill_quanta: u64) -> PressFrame {
+        let clock = ShareClock { time_s: 1.0, refill_quanta, stamp_quanta: 0, fallen_m: 0.0 };
+        PressFrame { clock, origin: [0, 0], resolution: 64, low_m: -1.0, high_m: 1.0, pack_ratio: 3.0, shapes }
+    }
+
+    #[test]
+    fn only_shapes_at_rest_with_no_refill_since_repeat_a_frame() {
+        let at = Vec3::new(2.0, 0.3, 2.0);
+        let resting = vec![ShapeSweep::Capsule { a: at, b: at, radius: 0.3 }];
+        let moving = vec![ShapeSweep::Capsule { a: at - Vec3::X * 0.1, b: at, radius: 0.3 }];
+        assert!(frame(resting.clone(), 5).repeats(&frame(resting.clone(), 5)));
+        assert!(!frame(resting.clone(), 6).repeats(&frame(resting.clone(), 5)), "refill since: the rest presses again");
+        assert!(!frame(moving.clone(), 5).repeats(&frame(moving, 5)), "a moving shape presses new snow");
+        let elsewhere = vec![ShapeSweep::Capsule { a: at + Vec3::X, b: at + Vec3::X, radius: 0.3 }];
+        assert!(!frame(elsewhere, 5).repeats(&frame(resting, 5)));
+    }
+
+    #[test]
+    fn flat_terrain_is_read_from_the_world_and_nothing_else_is() {
+        let mut w = WorldSettings {
+            texel_m: 0.0625,
+            tile_side: 32,
+            terrain: "flat at -2.25 m".to_owned(),
+            depth_m: 0.5,
+            refill_m_per_s: 0.0,
+            snowfall_m_per_s: 0.0,
+            max_fallen_m: 0.0,
+            has_snowfall: false,
+            stamp_range_m: [-1.0, 1.0],
+        };
+        assert_eq!(flat_ground(&w), Some(-2.25));
+        assert!(presses_travel(&w));
+        w.has_snowfall = true;
+        assert!(!presses_travel(&w), "lying snow stays in tiles");
+        w.terrain = "noise seed 7 base 0 m amplitude 1 m wavelength 9 m".to_owned();
+        assert_eq!(flat_ground(&w), None);
+        w.terrain = "flat at NaN m".to_owned();
+        assert_eq!(flat_ground(&w), None);
+    }
 }

@@ -30,6 +30,8 @@ pub struct CpuSnow {
     held: Vec<SharedTile>,
     /// The frames of analytic presses not taken yet.
     frames: Vec<PressFrame>,
+    /// The last frame of analytic presses, reported or not.
+    last_press: Option<PressFrame>,
     /// Whether analytic presses are reported as frames (a window that
     /// shares them) or go as tiles alone.
     reports_presses: bool,
@@ -52,6 +54,7 @@ impl CpuSnow {
             changed: BTreeSet::new(),
             held: Vec::new(),
             frames: Vec::new(),
+            last_press: None,
             reports_presses: true,
         }
     }
@@ -165,9 +168,11 @@ impl CpuSnow {
                 }
             }
         }
-        if self.reports_presses {
-            self.frames.push(frame);
+        // As a GPU window keeps them: not a frame repeating the one before.
+        if self.reports_presses && !self.last_press.as_ref().is_some_and(|last| frame.repeats(last)) {
+            self.frames.push(frame.clone());
         }
+        self.last_press = Some(frame);
     }
 
     /// Whether [`Self::press_shapes`] reports its frames to the peer (on

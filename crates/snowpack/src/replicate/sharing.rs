@@ -83,6 +83,8 @@ pub struct Sharing {
     /// The analytic presses of the frames since the last take (at most
     /// [`PRESS_FRAMES_KEPT`], oldest dropped: their presses go as tiles).
     presses: VecDeque<PressFrame>,
+    /// The last frame of presses, kept or not: a frame repeating it is not kept.
+    last_press: Option<PressFrame>,
 }
 
 /// The most press frames kept for the peer: a few seconds of frames; a
@@ -127,6 +129,7 @@ impl Sharing {
             incoming: VecDeque::new(),
             history: VecDeque::with_capacity(HISTORY_FRAMES),
             presses: VecDeque::new(),
+            last_press: None,
         }
     }
 
@@ -303,14 +306,19 @@ impl Sharing {
         std::mem::take(&mut self.outbox)
     }
 
-    /// Keeps a frame's analytic presses for the peer (a frame without shapes is not kept).
+    /// Keeps a frame's analytic presses for the peer: not a frame without
+    /// shapes, nor one that repeats the frame before it
+    /// ([`PressFrame::repeats`]: shapes at rest, no refill since).
     pub fn record_presses(&mut self, frame: PressFrame) {
-        if frame.shapes.is_empty() {
+        let repeats = self.last_press.as_ref().is_some_and(|last| frame.repeats(last));
+        if frame.shapes.is_empty() || repeats {
+            self.last_press = (!frame.shapes.is_empty()).then_some(frame);
             return;
         }
         if self.presses.len() >= PRESS_FRAMES_KEPT {
             self.presses.pop_front();
         }
+        self.last_press = Some(frame.clone());
         self.presses.push_back(frame);
     }
 
