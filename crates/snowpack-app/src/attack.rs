@@ -19,7 +19,7 @@ use snowpack::low_level::replicate::message::{MAX_DEFORMERS, MAX_KEYS};
 use snowpack::low_level::replicate::relay::MAX_INTEREST_TILES;
 use snowpack::low_level::replicate::{Message, ShareClock, SharedTile, decode, encode};
 use snowpack::low_level::{WorldIdentityExt, WorldSettings};
-use snowpack_share::press::{PressFrame, ShapeSweep};
+use snowpack_share::replicate::press::{PressFrame, ShapeSweep};
 use snowpack_testkit::testing::CpuSnow;
 
 use crate::net::{CHANNEL, SnowLink, Transport};

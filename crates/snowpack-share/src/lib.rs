@@ -28,10 +28,9 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`replicate`] | tiles and their clock, the world identity, the wire messages, peers and relays |
+//! | [`replicate`] | tiles and their clock, the world identity, the wire messages, peers and relays, and the presses that travel instead of the snow they pressed ([`replicate::press`]) |
 //! | [`mechanics`] | snow with mass: density from compaction, hardness, Bekker's sinkage and resistance |
 //! | [`persist`] | the tile type, its compressed file format, the crash-safe store on disk |
-//! | [`press`] | presses of analytic shapes that travel instead of the snow they pressed, and the same arithmetic on every machine |
 //! | [`error`] | the errors in detail; the opaque ones at the root |
 //! | `bytes` | the little-endian reader the formats share |
 //!
@@ -46,7 +45,6 @@ pub mod bytes;
 pub mod error;
 pub mod mechanics;
 pub mod persist;
-pub mod press;
 pub mod replicate;
 #[cfg(any(test, feature = "low_level"))]
 pub mod testing;

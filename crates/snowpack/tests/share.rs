@@ -727,12 +727,12 @@ fn two_peers_ploughing_across_each_other_converge_and_the_mass_error_is_measured
 /// Presses travel: the analytic shapes a window pressed (spheres, boxes,
 /// treaded wheels, swept across tile borders, with refill between frames),
 /// pressed again on the CPU from their press frames alone
-/// (`snowpack_share::press`), make every tile the GPU gathered, deficit and
+/// (`snowpack_share::replicate::press`), make every tile the GPU gathered, deficit and
 /// packed snow, bit for bit: what a relay and the other peers merge.
 #[test]
 fn presses_from_their_frames_alone_make_the_tiles_the_gpu_pressed() {
     use snowpack::low_level::replicate::CatchUp;
-    use snowpack_share::press::{PressFrame, flat_ground, press_tiles};
+    use snowpack_share::replicate::press::{PressFrame, flat_ground, press_tiles};
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("presses travel");
     let mut rng = Rng::new(seed);

@@ -14,7 +14,7 @@ use snowpack::low_level::replicate::message::{MIN_TILE_SIDE, encode_world};
 use snowpack::low_level::replicate::{CatchUp, Message, NO_STAMP, ShareClock, ShareError, SharedSnow, SharedTile, decode, encode};
 use snowpack::{PeerConfig, RelayConfig, SnowPeer, SnowRelay, WorldIdentity};
 use snowpack::{StoreConfig, TileStore};
-use snowpack_share::press::{PressFrame, ShapeSweep};
+use snowpack_share::replicate::press::{PressFrame, ShapeSweep};
 use snowpack_testkit::testing::{self, CpuSnow, Rng};
 
 // ---------------------------------------------------------------- helpers
@@ -693,7 +693,7 @@ fn sphere_frame(clock: ShareClock, (x, z): (f32, f32), depth_m: f32) -> PressFra
 /// change a refusal).
 #[test]
 fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
-    use snowpack_share::press::{flat_ground, press_tiles};
+    use snowpack_share::replicate::press::{flat_ground, press_tiles};
     let now = 10.0;
     let w = world(16);
     let clock = w.clock_at(now);

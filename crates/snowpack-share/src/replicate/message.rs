@@ -48,7 +48,7 @@ use crate::persist::codec::{DEFLATE_LEVEL, delta, shuffle_into, undelta, unshuff
 
 use super::tile::{ShareClock, SharedTile};
 use super::world::{WorldIdentity, WorldIdentityExt, WorldSettings};
-use crate::press::PressFrame;
+use crate::replicate::press::PressFrame;
 
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
@@ -181,7 +181,7 @@ pub enum Message {
         points: Vec<[f64; 2]>,
     },
     /// Peer → relay: the analytic shapes that pressed the snow, frame by
-    /// frame ([`crate::press`]), and the tiles with what they do not
+    /// frame ([`crate::replicate::press`]), and the tiles with what they do not
     /// explain; numbered and acknowledged as `Tiles` are. The relay presses
     /// the frames into its tiles with the same arithmetic.
     Presses {

@@ -12,7 +12,8 @@
 //! | `tile.rs` | [`SharedTile`], [`ShareClock`]: a tile's state and clock, catching up and merging |
 //! | `world.rs` | [`WorldIdentity`]: the settings a world's machines share ([`WorldSnow`] and [`WorldTerrain`] make one without a GPU) |
 //! | `message.rs` | [`Message`], [`encode`], [`decode`]: the wire format, with its caps |
-//! | `presses.rs` | the frames of a `Presses` message on the wire: analytic shapes instead of the snow they pressed |
+//! | `press/` | [`press::PressFrame`]: a frame's analytic shapes, pressed on the CPU with the GPU capture's sweep and ray casts and the update's press, so they travel instead of the snow they pressed |
+//! | `presses.rs` | the frames of a `Presses` message on the wire |
 //! | `relay/` | [`SnowRelay`] (`mod.rs`): what a server runs (merges, relays, polices, persists; CPU only); beside it `peers.rs` (a peer's state), `interest.rs` (the tiles it is sent), `outbox.rs` (its queue), `bucket.rs` (the rate buckets), `admission.rs` (the checks on a world and a tile), `held.rs` (the tiles in memory), `digest.rs` (a digest against the relay's copies), `stored.rs` (a tile as the store keeps it), `config.rs`, `stats.rs` |
 //! | `motion.rs` | [`motion::MotionHistory`]: where a peer's deformers were, held to a top speed, in a grid hash |
 //! | `peer.rs` | [`SnowPeer`]: what a game client runs beside its [`SharedSnow`] |
@@ -28,6 +29,7 @@
 pub mod message;
 pub mod motion;
 pub mod peer;
+pub mod press;
 pub mod presses;
 pub mod relay;
 pub mod tile;
@@ -58,10 +60,10 @@ pub trait SharedSnow {
     /// grid, texels outside the window untouched. Never waits for the GPU.
     fn take_changed_tiles(&mut self) -> Vec<SharedTile>;
     /// The analytic presses of the frames since the last call
-    /// ([`crate::press::PressFrame`]): what a peer sends instead of the
+    /// ([`crate::replicate::press::PressFrame`]): what a peer sends instead of the
     /// snow they pressed, where presses travel. None by default (a snow
     /// that keeps no record sends its changes as tiles alone).
-    fn take_press_frames(&mut self) -> Vec<crate::press::PressFrame> {
+    fn take_press_frames(&mut self) -> Vec<crate::replicate::press::PressFrame> {
         Vec::new()
     }
     /// Folds `tiles` into the snow where they overlap the window (the

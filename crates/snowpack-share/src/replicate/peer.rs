@@ -18,7 +18,7 @@ use super::presses::MAX_PRESS_FRAMES;
 use super::tile::{CatchUp, ShareClock, SharedTile};
 use super::world::WorldIdentity;
 use super::{ShareError, SharedSnow};
-use crate::press::{FrameCasts, PressFrame};
+use crate::replicate::press::{FrameCasts, PressFrame};
 
 /// How a peer paces itself and what it keeps.
 #[derive(Clone, Debug, PartialEq)]
@@ -171,7 +171,7 @@ pub struct SnowPeer {
     /// Deltas in flight by sequence number.
     unacked: BTreeMap<u64, InFlight>,
     /// The terrain height analytic presses are pressed over, when they
-    /// travel in this world ([`crate::press::presses_travel`]).
+    /// travel in this world ([`crate::replicate::press::presses_travel`]).
     presses: Option<f32>,
     /// Press frames from the snow not sent yet, oldest first.
     frames_pending: VecDeque<PressFrame>,
@@ -230,7 +230,7 @@ impl SnowPeer {
     #[must_use]
     pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
         let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
-        let presses = crate::press::flat_ground(&world.settings).filter(|_| crate::press::presses_travel(&world.settings));
+        let presses = crate::replicate::press::flat_ground(&world.settings).filter(|_| crate::replicate::press::presses_travel(&world.settings));
         Self {
             world,
             name: name.to_owned(),
@@ -670,7 +670,7 @@ impl SnowPeer {
         let mut pressed = Vec::new();
         if let Some(ground) = self.presses.filter(|_| !frames.is_empty()) {
             let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
-            pressed = crate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side);
+            pressed = crate::replicate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side);
             for t in &pressed {
                 if merge_into(&mut self.replica, t.clone(), c) {
                     self.changed();
@@ -738,7 +738,7 @@ impl SnowPeer {
         let side = self.world.settings.tile_side;
         let mut tile: Option<SharedTile> = None;
         for (frame, casts) in self.frames_log.iter().filter(|(f, _)| f.clock.time_s <= time_s) {
-            if let Some(t) = crate::press::press_tile(frame, casts, key, side, (&self.world.settings, ground), tile.take()) {
+            if let Some(t) = crate::replicate::press::press_tile(frame, casts, key, side, (&self.world.settings, ground), tile.take()) {
                 tile = Some(t);
             }
         }

@@ -23,8 +23,8 @@ use glam::{Quat, Vec3};
 
 use crate::error::MessageError;
 use crate::persist::codec::{DEFLATE_LEVEL, shuffle_into, unshuffle};
-use crate::press::wheel::{Tread, TreadPattern};
-use crate::press::{PressFrame, ShapeSweep, is_unit};
+use crate::replicate::press::wheel::{Tread, TreadPattern};
+use crate::replicate::press::{PressFrame, ShapeSweep, is_unit};
 
 use super::tile::ShareClock;
 

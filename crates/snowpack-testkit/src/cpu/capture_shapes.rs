@@ -11,7 +11,7 @@
 
 use glam::Mat4;
 
-pub use snowpack_share::press::cast::{capsule_bottom, lowest_box_hit, lowest_depth, wheel_bottom};
+pub use snowpack_share::replicate::press::cast::{capsule_bottom, lowest_box_hit, lowest_depth, wheel_bottom};
 
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureParams};
 

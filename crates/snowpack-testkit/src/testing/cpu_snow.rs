@@ -10,7 +10,7 @@ use std::collections::BTreeSet;
 use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile};
-use snowpack_share::press::{PressFrame, ShapeSweep, flat_ground, press_tiles};
+use snowpack_share::replicate::press::{PressFrame, ShapeSweep, flat_ground, press_tiles};
 
 /// Tiles ahead of the snow's clock kept until it reaches them; beyond it
 /// the oldest are dropped.
@@ -141,7 +141,7 @@ impl CpuSnow {
     /// Presses analytic shapes, window-local as the capture takes them
     /// (x and z from the window's corner), with a capture range of
     /// `range_m` (low, high world heights) and the packing `pack_ratio`, as
-    /// a GPU window does this frame (`snowpack_share::press`, the same
+    /// a GPU window does this frame (`snowpack_share::replicate::press`, the same
     /// arithmetic); the frame is kept for the peer unless
     /// [`Self::set_reports_presses`] turned that off. Needs flat terrain.
     pub fn press_shapes(&mut self, shapes: Vec<ShapeSweep>, range_m: (f32, f32), pack_ratio: f32) {

@@ -61,7 +61,7 @@ impl ShapeCapture {
     /// The choice for shared snow on any adapter: `SNOWPACK_SHAPE_CAPTURE`
     /// when set, else compute, whose arithmetic the peers' and the relay's
     /// CPU presses of the same shapes repeat bit for bit
-    /// (`snowpack_share::press`), so the shapes travel instead of the snow.
+    /// (`snowpack_share::replicate::press`), so the shapes travel instead of the snow.
     #[must_use]
     pub fn for_shared_snow() -> Self {
         Self::for_adapter(false)

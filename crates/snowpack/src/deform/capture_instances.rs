@@ -9,7 +9,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, Vec3};
-use snowpack_share::press::{ShapeInstances, ShapeSweep};
+use snowpack_share::replicate::press::{ShapeInstances, ShapeSweep};
 
 use crate::Deformer;
 use crate::deform::shape::DeformerExt;
@@ -58,7 +58,7 @@ pub struct CaptureInstances {
     pub mesh_steps: Vec<u32>,
     /// The analytic shapes' motions the lists above were cut from, in
     /// order: what shared snow sends instead of the snow they pressed
-    /// ([`snowpack_share::press::PressFrame`]).
+    /// ([`snowpack_share::replicate::press::PressFrame`]).
     pub sweeps: Vec<ShapeSweep>,
 }
 

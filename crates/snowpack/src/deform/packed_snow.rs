@@ -107,7 +107,7 @@ pub fn set(packed: &mut [u32], s: usize, q: u32) {
 /// (`packed_cap`; `ratio` is `ρmax / ρ0 − 1`).
 #[must_use]
 pub fn cap(column: u32, ratio: f32) -> u32 {
-    snowpack_share::press::packed_cap(column, ratio)
+    snowpack_share::replicate::press::packed_cap(column, ratio)
 }
 
 /// The packed snow of `words` as one value a texel, in storage order.

@@ -21,7 +21,7 @@
 
 /// Metres per deficit quantum (the shared-snow crate's: tiles and their clock count in it).
 pub use snowpack_share::SNOW_QUANTUM_M;
-pub use snowpack_share::press::{SNOW_QUANTA_PER_M, deficit_quanta, ground_quanta, press_quanta};
+pub use snowpack_share::replicate::press::{SNOW_QUANTA_PER_M, deficit_quanta, ground_quanta, press_quanta};
 
 /// The persistent snow height of `word` over rest height `rest` and terrain
 /// `ground`: exactly the terrain where the deficit reaches it.

@@ -17,13 +17,13 @@
 //!   `capture_shapes.wgsl`);
 //! - boxes: sub-steps, centre interpolated linearly and rotation by slerp, as
 //!   many as make consecutive poses' corners move at most one texel
-//!   (`snowpack_share::press::sweep`);
+//!   (`snowpack_share::replicate::press::sweep`);
 //! - meshes (skinned characters, caller meshes): the same sub-steps, each
 //!   vertex interpolated linearly between its two positions
 //!   (`capture_mesh.wgsl`, `vs_swept`);
 //! - wheels: sub-steps of centre, axle and roll, as many as keep the tyre
 //!   and its tread at the contact within a texel between consecutive poses
-//!   (`snowpack_share::press::wheel`); each
+//!   (`snowpack_share::replicate::press::wheel`); each
 //!   pose ray cast exactly (`capture_shapes.wgsl`);
 //! - contact points (the points technique): segments; the footprint is the
 //!   lowest of the paraboloids along the segment, found in closed form
@@ -39,7 +39,7 @@ use glam::{Mat3, Vec3};
 
 use crate::Deformer;
 
-pub use snowpack_share::press::sweep::steps_for;
+pub use snowpack_share::replicate::press::sweep::steps_for;
 
 /// Where a deformer is, for the teleport test: its centre (or point).
 fn anchor(d: &Deformer) -> Vec3 {

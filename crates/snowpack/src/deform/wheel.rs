@@ -1,5 +1,5 @@
 //! Wheels ([`crate::Deformer::Wheel`]): a tyre with a tread, rolling about its axle.
-//! The geometry lives in `snowpack_share::press::wheel` (a machine without a
+//! The geometry lives in `snowpack_share::replicate::press::wheel` (a machine without a
 //! GPU presses wheels the same way); this module re-exports it.
 //!
 //! The tyre is a cylinder of the outer radius `r` (lugs included) and width
@@ -21,10 +21,10 @@
 //! The capture ray casts one tyre per sub-step (`shared/capture_shapes.wgsl`,
 //! CPU twin `cpu::capture_shapes::wheel_bottom`); the sub-steps are spaced so
 //! that neither the tyre nor its tread at the contact moves more than
-//! one texel between them (`snowpack_share::press::sweep`).
+//! one texel between them (`snowpack_share::replicate::press::sweep`).
 
 #[cfg_attr(
     not(feature = "low_level"),
     allow(unused_imports, reason = "what the app, the scene loader and the tests use beyond the front door, reached through `low_level`")
 )]
-pub use snowpack_share::press::wheel::{Tread, TreadPattern, WheelPose, extent_below, forward, instance};
+pub use snowpack_share::replicate::press::wheel::{Tread, TreadPattern, WheelPose, extent_below, forward, instance};

@@ -5,7 +5,7 @@
 //! at their places in the frame (`docs/deformation.md`, "Shared snow on the
 //! GPU"); nothing here waits for the GPU.
 
-use snowpack_share::press::PressFrame;
+use snowpack_share::replicate::press::PressFrame;
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::deform::resources::DeformResources;

@@ -389,10 +389,10 @@ impl CoreWindow {
     }
 
     /// The analytic shapes the last capture pressed, as a frame that
-    /// travels (`snowpack_share::press`): the window at `origin`, the
+    /// travels (`snowpack_share::replicate::press`): the window at `origin`, the
     /// capture's range, the snow's packing and the `clock` after the update.
-    pub(super) fn press_frame(&self, origin: [i64; 2], clock: crate::replicate::ShareClock) -> snowpack_share::press::PressFrame {
-        snowpack_share::press::PressFrame {
+    pub(super) fn press_frame(&self, origin: [i64; 2], clock: crate::replicate::ShareClock) -> snowpack_share::replicate::press::PressFrame {
+        snowpack_share::replicate::press::PressFrame {
             clock,
             origin,
             resolution: self.params.resolution,

@@ -399,7 +399,7 @@ impl SharedSnow for SnowDeformation {
     /// The analytic shapes each frame since the last call pressed
     /// (spheres, boxes, wheels; empty without sharing or with the points
     /// technique), with the window and clock they pressed at.
-    fn take_press_frames(&mut self) -> Vec<snowpack_share::press::PressFrame> {
+    fn take_press_frames(&mut self) -> Vec<snowpack_share::replicate::press::PressFrame> {
         self.sharing.as_mut().map(Sharing::take_presses).unwrap_or_default()
     }
 

@@ -588,11 +588,11 @@ impl SnowRelay {
     /// untouched snow at its first frame's clock; none when the world's
     /// presses cannot travel or the peer's press bucket cannot pay for the
     /// message's ray casts (counted as refusals).
-    fn pressed_by(&mut self, peer: PeerId, frames: &[crate::press::PressFrame], now: f64) -> Vec<SharedTile> {
+    fn pressed_by(&mut self, peer: PeerId, frames: &[crate::replicate::press::PressFrame], now: f64) -> Vec<SharedTile> {
         let Some(world) = self.world.clone() else {
             return Vec::new();
         };
-        let Some(ground) = crate::press::flat_ground(&world.settings).filter(|_| crate::press::presses_travel(&world.settings)) else {
+        let Some(ground) = crate::replicate::press::flat_ground(&world.settings).filter(|_| crate::replicate::press::presses_travel(&world.settings)) else {
             self.stats.rejected.unpressable += 1;
             return Vec::new();
         };
@@ -603,7 +603,7 @@ impl SnowRelay {
             self.stats.rejected.rate_presses += 1;
             return Vec::new();
         }
-        let casts: Vec<crate::press::FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+        let casts: Vec<crate::replicate::press::FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
         let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
         let (rate, burst) = (self.config.press_casts_per_s as f64, self.config.burst_press_casts as f64);
         let Some(p) = self.peers.get_mut(&peer) else {
@@ -615,7 +615,7 @@ impl SnowRelay {
         }
         self.stats.press_frames += frames.len() as u64;
         self.stats.press_casts += work;
-        crate::press::press_tiles(frames, &casts, &world.settings, ground, side)
+        crate::replicate::press::press_tiles(frames, &casts, &world.settings, ground, side)
     }
 
     /// Whether tile `key` may be merged: one the relay keeps (in memory or

@@ -55,7 +55,7 @@ pub struct RelayRejections {
     /// 16,384 ray-cast instances, refused whole.
     pub rate_presses: u64,
     /// `Presses` in a world whose presses cannot travel (not flat, or with
-    /// lying snow: [`crate::press::presses_travel`]), refused whole.
+    /// lying snow: [`crate::replicate::press::presses_travel`]), refused whole.
     pub unpressable: u64,
 }
 
