@@ -284,7 +284,8 @@ fn bad(what: &'static str, why: String) -> MessageError {
     MessageError::BadValue { what, why }
 }
 
-/// Checks a decoded frame: a window of at most 2¹⁶ texels a side, a
+/// Checks a decoded frame: a window of at most 2¹⁶ texels a side whose
+/// texels fit in i32 (where a window can be), a
 /// capture range low below high, finite values everywhere, sizes in
 /// (0, [`MAX_SHAPE_M`]], centres within one window side of the window
 /// (in texels: the frame's texel size is the world's, so the side in metres
@@ -294,6 +295,10 @@ fn bad(what: &'static str, why: String) -> MessageError {
 pub fn check_frame(f: &PressFrame) -> Result<(), MessageError> {
     if f.resolution == 0 || f.resolution > 1 << 16 {
         return Err(bad("press window", format!("{} texels a side, not 1..=65536", f.resolution)));
+    }
+    // Where a window can be: its texels fit in i32 (and every sum with them in i64).
+    if f.origin.iter().any(|&o| i32::try_from(o).is_err() || i32::try_from(o + i64::from(f.resolution)).is_err()) {
+        return Err(bad("press window", format!("first texel {:?}: beyond where a window can be", f.origin)));
     }
     if !(f.low_m.is_finite() && f.high_m.is_finite() && f.low_m < f.high_m && f.pack_ratio.is_finite() && f.pack_ratio >= 0.0) {
         return Err(bad("press range", format!("{}..{} m, pack ratio {}", f.low_m, f.high_m, f.pack_ratio)));
@@ -393,7 +398,9 @@ mod tests {
         nan[2].low_m = f32::NAN;
         let mut window = good.clone();
         window[0].resolution = 0;
-        for (what, frames) in [("a huge sphere", huge), ("a NaN range", nan), ("an empty window", window)] {
+        let mut far = good.clone();
+        far[1].origin = [i64::MAX - 10, 0];
+        for (what, frames) in [("a huge sphere", huge), ("a NaN range", nan), ("an empty window", window), ("a window beyond i32", far)] {
             assert!(decode_frames(&encode_frames(&frames), frames.len()).is_err(), "{what} accepted");
         }
         // A count that does not match the records, or bytes that do not inflate.
