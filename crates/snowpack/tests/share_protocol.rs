@@ -540,15 +540,17 @@ fn drive(t: f64) -> ([f64; 2], f32) {
 }
 
 /// Runs a car (player 1, reporting its presses or not) past a watcher
-/// (player 2) over a lossy network until it settles; asserts that both
-/// players and the relay converge and returns player 1's counters.
-fn car_past_a_watcher(reports_presses: bool, seed: u64) -> snowpack::PeerStats {
+/// (player 2) over a network that is `lossy` (loses, duplicates and
+/// delays) or not, until it settles; asserts that both players and the
+/// relay converge and returns player 1's counters.
+fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> snowpack::PeerStats {
     // Texels of 3 cm in tiles of 1 m, where a tread shows.
     let mut settings = world(32).settings().clone();
     settings.texel_m = 0.031_25;
     let w = WorldIdentity::from_settings(settings);
     let mut relay = SnowRelay::new(RelayConfig::default());
-    let mut net = Net { rng: Rng::new(seed), drop: 0.1, duplicate: 0.05, max_delay_s: 0.15, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
+    let (drop, duplicate) = if lossy { (0.1, 0.05) } else { (0.0, 0.0) };
+    let mut net = Net { rng: Rng::new(seed), drop, duplicate, max_delay_s: 0.15, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
     let dt = 1.0 / 30.0;
     let mut players: Vec<Player> = [1, 2]
         .into_iter()
@@ -591,11 +593,18 @@ fn car_past_a_watcher(reports_presses: bool, seed: u64) -> snowpack::PeerStats {
 
 /// A car's presses travel as frames: the watcher and the relay end with the
 /// car's ruts texel for texel over a network that loses, duplicates and
-/// reorders, and the car sends a fraction of the bytes its tiles took.
+/// reorders, and the car sends a fraction of the bytes its tiles took
+/// (counted over a network that loses nothing).
 #[test]
 fn a_cars_presses_travel_as_frames_and_every_copy_converges() {
     let seed = testing::seed("a car's presses travel");
-    let (frames, tiles) = (car_past_a_watcher(true, seed), car_past_a_watcher(false, seed));
+    // Over a network that loses, duplicates and reorders, presses and
+    // tiles alike converge. The bytes are compared without losses: a lost
+    // message's resends vary from seed to seed (presses cost 0.41 to 0.68
+    // of the tiles' bytes over 12 lossy seeds).
+    car_past_a_watcher(true, true, seed);
+    car_past_a_watcher(false, true, seed);
+    let (frames, tiles) = (car_past_a_watcher(true, false, seed), car_past_a_watcher(false, false, seed));
     eprintln!(
         "a car for 6 s: {} B of presses ({} frames, {} tiles explained, {} tiles sent), against {} B of tiles ({} tiles)",
         frames.tile_bytes_out, frames.press_frames_sent, frames.tiles_as_presses, frames.tiles_sent, tiles.tile_bytes_out, tiles.tiles_sent

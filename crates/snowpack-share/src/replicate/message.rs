@@ -397,7 +397,7 @@ pub fn tiles_message(seq: u64, encoded: &[&[u8]]) -> Vec<u8> {
 /// [`super::presses::encode_frames`] (`count` of them), and tiles already
 /// encoded with [`encode_tile`] (the caller keeps within the caps).
 #[must_use]
-pub fn presses_message(seq: u64, frames: (usize, &[u8]), encoded: &[&[u8]]) -> Vec<u8> {
+pub(crate) fn presses_message(seq: u64, frames: (usize, &[u8]), encoded: &[&[u8]]) -> Vec<u8> {
     let mut w = Writer(Vec::with_capacity(PRESSES_OVERHEAD_BYTES + frames.1.len() + encoded.iter().map(|e| e.len()).sum::<usize>()));
     w.0.extend_from_slice(MAGIC);
     w.u16(PROTOCOL_VERSION);
@@ -426,7 +426,7 @@ fn write_presses(w: &mut Writer, seq: u64, (count, frames): (usize, &[u8]), enco
 }
 
 /// Bytes of a `Presses` message before its frames: header, seq, counts, the frames' length.
-pub const PRESSES_OVERHEAD_BYTES: usize = HEADER_BYTES + 14;
+pub(crate) const PRESSES_OVERHEAD_BYTES: usize = HEADER_BYTES + 14;
 
 /// Bytes of a `Tiles` message's header and sequence number and count, before the tiles.
 pub const TILES_OVERHEAD_BYTES: usize = HEADER_BYTES + 9;

@@ -230,7 +230,7 @@ impl SnowPeer {
     #[must_use]
     pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
         let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
-        let presses = crate::replicate::press::flat_ground(&world.settings).filter(|_| crate::replicate::press::presses_travel(&world.settings));
+        let presses = crate::replicate::press::press_ground(&world.settings);
         Self {
             world,
             name: name.to_owned(),

@@ -16,7 +16,7 @@
 //! its previous pose none. Residuals are zigzagged (the sign in the lowest
 //! bit), so a small negative one has zero high bytes. The words are then byte-shuffled and deflated, as tiles are.
 //! Decoding inflates within [`MAX_FRAME_WORDS`] words, checks every count
-//! first and every value after ([`check_frame`]): finite, sizes within
+//! first and every value after (`check_frame`): finite, sizes within
 //! [`MAX_SHAPE_M`], unit rotations and axles, a known tread.
 
 use glam::{Quat, Vec3};
@@ -34,7 +34,7 @@ pub const MAX_PRESS_FRAMES: usize = 64;
 pub const MAX_FRAME_SHAPES: usize = 256;
 /// The largest radius, half extent or half width of a shape (m), and the
 /// farthest a shape's centre may be from the window's corner (in window
-/// sides, see [`check_frame`]).
+/// sides, see `check_frame`).
 pub const MAX_SHAPE_M: f32 = 16.0;
 /// Words of a frame's header.
 const HEADER_WORDS: usize = 17;
@@ -292,7 +292,7 @@ fn bad(what: &'static str, why: String) -> MessageError {
 /// is not known here; 2¹⁶ texels of at most 16 m bound it), unit rotations
 /// and axles, a tread with a spacing, a depth within the radius and a lug
 /// fraction in 0..=1.
-pub fn check_frame(f: &PressFrame) -> Result<(), MessageError> {
+fn check_frame(f: &PressFrame) -> Result<(), MessageError> {
     if f.resolution == 0 || f.resolution > 1 << 16 {
         return Err(bad("press window", format!("{} texels a side, not 1..=65536", f.resolution)));
     }

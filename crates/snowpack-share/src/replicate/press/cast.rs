@@ -2,7 +2,7 @@
 //! to a capsule, a tyre with its tread, or a box, along the vertical line
 //! through a texel's centre, with the operations `capture_shapes.wgsl`
 //! (snowpack's compute capture) uses, in the same order, so a machine
-//! without a GPU presses what the GPU pressed ([`super::PressFrame::press`])
+//! without a GPU presses what the GPU pressed ([`super::press_tiles`])
 //! and snowpack's CPU twin of the pass checks the GPU against it.
 
 use glam::{Mat4, Vec3};

@@ -8,7 +8,7 @@
 //! receives them presses them into its own copy of the tiles with the same
 //! arithmetic the GPU's compute capture and update use: the sweep's
 //! sub-steps ([`sweep`], [`wheel`]), the ray casts ([`cast`]), the 16-bit
-//! depth codes and the update's press and packing ([`PressFrame::press`]).
+//! depth codes and the update's press and packing ([`press_tiles`]).
 //! What the shapes do not explain (skinned meshes, footprints, berms, a GPU
 //! whose arithmetic differs) still goes as tiles: the peer sends a tile only
 //! beyond what its presses make (`docs/multiplayer.md`, "Presses").
@@ -258,26 +258,24 @@ impl FrameCasts {
     }
 
     /// The tiles (of `side` texels) of `frame`'s window that some
-    /// instance's bounds overlap, each with the number of instances that reach it.
-    fn tiles(&self, frame: &PressFrame, side: u32, texel_m: f32) -> Vec<(crate::TileKey, u64)> {
-        let mut keys = std::collections::BTreeMap::new();
+    /// instance's bounds overlap.
+    fn tiles(&self, frame: &PressFrame, side: u32, texel_m: f32) -> std::collections::BTreeSet<crate::TileKey> {
+        let mut keys = std::collections::BTreeSet::new();
         for b in self.bounds() {
             let Some((cols, rows)) = frame.texels_under(b, texel_m) else { continue };
             let tile = |t: i64| t.div_euclid(i64::from(side));
             for row in tile(rows.0)..=tile(rows.1) {
-                for col in tile(cols.0)..=tile(cols.1) {
-                    *keys.entry(crate::TileKey::new(col, row)).or_insert(0u64) += 1;
-                }
+                keys.extend((tile(cols.0)..=tile(cols.1)).map(|col| crate::TileKey::new(col, row)));
             }
         }
-        keys.into_iter().collect()
+        keys
     }
 
     /// Ray casts pressing `frame` costs at most: per tile of `side` texels
     /// an instance's bounds overlap, a cast a texel (counted without
     /// walking the tiles, so judging a hostile frame costs little).
     #[must_use]
-    pub fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
+    pub(crate) fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
         let tile = |t: i64| t.div_euclid(i64::from(side));
         self.bounds()
             .filter_map(|b| frame.texels_under(b, texel_m))
@@ -375,8 +373,7 @@ impl PressFrame {
 
     /// The window-local rows and columns of `tile` inside this frame's window
     /// (`None` when they miss it), as ranges over the window.
-    #[must_use]
-    pub fn span(&self, key: crate::TileKey, side: u32) -> Option<((u32, u32), (u32, u32))> {
+    fn span(&self, key: crate::TileKey, side: u32) -> Option<((u32, u32), (u32, u32))> {
         let r = i64::from(self.resolution);
         let (c0, r0) = (key.col * i64::from(side) - self.origin[0], key.row * i64::from(side) - self.origin[1]);
         let (c1, r1) = (c0 + i64::from(side), r0 + i64::from(side));
@@ -391,13 +388,14 @@ impl PressFrame {
     /// depth (16-bit codes, as the GPU stores them) and packs what it
     /// lost up to the final density, as `update.wgsl` does where nothing
     /// displaces, no footprint presses and no snowfall lies.
-    pub fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: f32) {
+    fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: f32) {
         tile.catch_up(&self.clock, CatchUp { max_fallen_m: world.max_fallen_m });
         let Some((rows, cols)) = self.span(tile.key, tile.side) else { return };
         let side = i64::from(tile.side);
         let (tile_c0, tile_r0) = (tile.key.col * side - self.origin[0], tile.key.row * side - self.origin[1]);
         let texel_m = world.texel_m;
         let range = self.high_m - self.low_m;
+        // As the update adds the lying snow (none where presses travel).
         let rest = ground + world.depth_m + 0.0;
         let at_ground = ground_quanta(rest, ground).min(65_535.0) as u32;
         if tile.packed.is_empty() {
@@ -441,7 +439,7 @@ pub fn flat_ground(world: &WorldSettings) -> Option<f32> {
 /// untouched snow at the frame's clock when `None`; `None` when the
 /// frame's shapes do not reach the tile (and `tile` was `None`).
 #[must_use]
-pub fn press_tile(
+pub(crate) fn press_tile(
     frame: &PressFrame,
     casts: &FrameCasts,
     key: crate::TileKey,
@@ -469,7 +467,7 @@ pub fn press_tile(
 pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: f32, side: u32) -> Vec<SharedTile> {
     let mut tiles: std::collections::BTreeMap<crate::TileKey, SharedTile> = std::collections::BTreeMap::new();
     for (frame, casts) in frames.iter().zip(casts) {
-        for (key, _) in casts.tiles(frame, side, world.texel_m) {
+        for key in casts.tiles(frame, side, world.texel_m) {
             if let Some(t) = press_tile(frame, casts, key, side, (world, ground), tiles.remove(&key)) {
                 tiles.insert(key, t);
             }
@@ -484,13 +482,20 @@ pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSet
 /// knows: those worlds send tiles).
 #[must_use]
 pub fn presses_travel(world: &WorldSettings) -> bool {
-    flat_ground(world).is_some() && !world.has_snowfall
+    press_ground(world).is_some()
+}
+
+/// The terrain height presses are pressed over in `world`, when they
+/// travel there ([`presses_travel`]).
+#[must_use]
+pub(crate) fn press_ground(world: &WorldSettings) -> Option<f32> {
+    flat_ground(world).filter(|_| !world.has_snowfall)
 }
 
 /// Quaternion rotation normalised as the sender's box poses are (checked on
 /// the wire: a hostile frame may not carry a scaled rotation).
 #[must_use]
-pub fn is_unit(q: Quat) -> bool {
+pub(crate) fn is_unit(q: Quat) -> bool {
     q.is_finite() && (q.length_squared() - 1.0).abs() < 1e-3
 }
 

@@ -592,7 +592,7 @@ impl SnowRelay {
         let Some(world) = self.world.clone() else {
             return Vec::new();
         };
-        let Some(ground) = crate::replicate::press::flat_ground(&world.settings).filter(|_| crate::replicate::press::presses_travel(&world.settings)) else {
+        let Some(ground) = crate::replicate::press::press_ground(&world.settings) else {
             self.stats.rejected.unpressable += 1;
             return Vec::new();
         };
