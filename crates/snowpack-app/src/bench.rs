@@ -336,6 +336,8 @@ pub struct BenchResults {
     pub coat_rows: Vec<crate::bench_coat::CoatRow>,
     /// Shared snow: one relay under simulated peers (no GPU).
     pub share_rows: Vec<crate::bench_share::ShareRow>,
+    /// A car past a watcher, its presses as tiles and as frames.
+    pub car_rows: Vec<crate::bench_share::CarRow>,
 }
 
 impl BenchResults {
@@ -362,6 +364,7 @@ impl BenchResults {
             capture_rows: Vec::new(),
             coat_rows: Vec::new(),
             share_rows: Vec::new(),
+            car_rows: Vec::new(),
         }
     }
 }
@@ -518,6 +521,19 @@ fn measure_share(quick: bool, results: &mut BenchResults) -> anyhow::Result<()> 
         row.late_join_s
     );
     results.share_rows.push(row);
+    for presses in [false, true] {
+        let car = crate::bench_share::measure_car(presses).context("a car past a watcher")?;
+        println!(
+            "  a car past a watcher, presses as {}: car up {} B ({:.0} B/s), watcher down {} B ({:.0} B/s), server {:.2} CPU s",
+            if presses { "frames" } else { "tiles" },
+            car.car_up_bytes,
+            car.car_up_bytes as f64 / car.world_s,
+            car.watcher_down_bytes,
+            car.watcher_down_bytes as f64 / car.world_s,
+            car.server_cpu_s
+        );
+        results.car_rows.push(car);
+    }
     Ok(())
 }
 
@@ -738,6 +754,9 @@ fn report_markdown(r: &BenchResults) -> String {
     }
     if !r.share_rows.is_empty() {
         md.push_str(&crate::bench_share::markdown(&r.share_rows));
+    }
+    if !r.car_rows.is_empty() {
+        md.push_str(&crate::bench_share::car_markdown(&r.car_rows));
     }
     // The adapter and backend under every table's heading, so a table copied
     // alone still says where its figures come from.
@@ -964,6 +983,7 @@ mod tests {
             capture_rows: vec![],
             coat_rows: vec![],
             share_rows: vec![],
+            car_rows: vec![],
         };
         add_synthetic_world_rows(&mut results);
         results

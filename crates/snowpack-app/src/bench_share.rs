@@ -161,21 +161,9 @@ pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
     let late_stats = late.peer.stats();
     drop(late);
     // The server stops by itself and prints its totals.
-    let deadline = Instant::now() + Duration::from_secs_f64(seconds + 60.0);
-    loop {
-        if server.try_wait()?.is_some() {
-            break;
-        }
-        if Instant::now() > deadline {
-            let _ = server.kill();
-            anyhow::bail!("the server did not stop");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let lines = output.recv_timeout(Duration::from_secs(5))?;
-    let closing = lines.iter().rev().find(|l| l.contains("stopped")).context("the server's closing line")?;
+    let closing = stopped_server(&mut server, &output, seconds + 60.0)?;
     let _ = std::fs::remove_dir_all(&store);
-    let get = |k: &str| field(closing, k).with_context(|| format!("{k} in {closing:?}"));
+    let get = |k: &str| field(&closing, k).with_context(|| format!("{k} in {closing:?}"));
     Ok(ShareRow {
         peers,
         world_s: walked,
@@ -190,6 +178,156 @@ pub fn measure_load(peers: usize, seconds: f64) -> anyhow::Result<ShareRow> {
         late_join_tiles: late_stats.tiles_received,
         late_join_s,
     })
+}
+
+/// A car past a watcher, linked to one server: what each sent and received.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CarRow {
+    /// Whether the car's presses travelled as frames (else as the tiles they pressed).
+    pub presses: bool,
+    /// Seconds of world time the car drove (the windows' own clock, paced
+    /// to wall time when the machine keeps up).
+    pub world_s: f64,
+    /// Snowpack message bytes the car sent until in sync (`Presence`,
+    /// digests and all).
+    pub car_up_bytes: u64,
+    /// Of them, the bytes of `Tiles` and `Presses` messages.
+    pub car_snow_bytes: u64,
+    /// Press frames the car sent.
+    pub car_frames: u64,
+    /// Tiles the car sent.
+    pub car_tiles: u64,
+    /// Snowpack message bytes the watcher received until in sync.
+    pub watcher_down_bytes: u64,
+    /// Press frames the watcher was passed and pressed.
+    pub watcher_frames: u64,
+    /// Tiles the watcher received (those its frames pressed included).
+    pub watcher_tiles: u64,
+    /// The server's CPU time over the whole run (s).
+    pub server_cpu_s: f64,
+}
+
+/// The world of the car: 3.125 cm texels (a tread shows), 32² tiles, flat
+/// ground, 0.5 m of snow.
+fn car_world() -> WorldIdentity {
+    let mut settings = world().settings().clone();
+    settings.texel_m = 0.031_25;
+    WorldIdentity::from_settings(settings)
+}
+
+/// A car (four treaded wheels at 3 m/s for 6 s, pressing as
+/// [`snowpack_testkit::testing::car_wheels`]) drives past a watcher, both
+/// CPU windows of 16 m linked to one `snowpack server`; its presses travel
+/// as frames when `presses`, else as the tiles they pressed.
+pub fn measure_car(presses: bool) -> anyhow::Result<CarRow> {
+    use snowpack_testkit::testing::{car_wheels, drive};
+    let store = std::env::temp_dir().join(format!("snowpack-bench-car-{}-{presses}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&store);
+    let seconds = 8.0;
+    let (mut server, addr, output) = start_server(&store, seconds + 30.0)?;
+    let world = car_world();
+    let mut links = Vec::new();
+    for name in ["car", "watcher"] {
+        let mut snow = CpuSnow::new(world.clone(), 512, [0, 0], 0.0);
+        snow.center_on(0.0, 0.0);
+        snow.set_reports_presses(presses);
+        let mut link = SnowLink::connect(addr, None, world.clone(), name)?;
+        link.wait_welcomed(&mut snow, Duration::from_secs(30))?;
+        links.push((link, snow));
+    }
+    let tick = 1.0 / 30.0;
+    let begin = Instant::now();
+    let (mut t, mut last) = (0.0, drive(0.0));
+    while t < seconds {
+        t += tick;
+        let now = drive(t);
+        let (car, snow) = &mut links[0];
+        let origin = snow.origin();
+        snow.press_shapes(car_wheels(world.settings().texel_m, origin, now, Some(last)), (-0.5, 1.5), 3.0);
+        car.peer.set_deformers(&[now.0]);
+        last = now;
+        for (link, snow) in &mut links {
+            snow.step(tick);
+            link.pump(snow)?;
+        }
+        let ahead = Duration::from_secs_f64(t) - begin.elapsed().min(Duration::from_secs_f64(t));
+        std::thread::sleep(ahead);
+    }
+    let world_s = t;
+    // Both in sync: the car's changes acknowledged, the watcher holding them.
+    let settling = Instant::now();
+    while !links.iter().all(|(l, _)| l.peer.is_synced()) {
+        for (link, snow) in &mut links {
+            link.peer.request_digest();
+            link.pump(snow)?;
+        }
+        anyhow::ensure!(settling.elapsed() < Duration::from_secs(30), "the car and the watcher were not in sync within 30 s");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let (car, watcher) = (links[0].0.peer.stats(), links[1].0.peer.stats());
+    drop(links);
+    let closing = stopped_server(&mut server, &output, seconds + 60.0)?;
+    let _ = std::fs::remove_dir_all(&store);
+    Ok(CarRow {
+        presses,
+        world_s,
+        car_up_bytes: car.bytes_out,
+        car_snow_bytes: car.tile_bytes_out,
+        car_frames: car.press_frames_sent,
+        car_tiles: car.tiles_sent,
+        watcher_down_bytes: watcher.bytes_in,
+        watcher_frames: watcher.press_frames_received,
+        watcher_tiles: watcher.tiles_received,
+        server_cpu_s: field(&closing, "cpu_s").with_context(|| format!("cpu_s in {closing:?}"))?,
+    })
+}
+
+/// Waits (at most `limit_s`) for a server started by [`start_server`] to
+/// stop by itself; its closing line.
+fn stopped_server(server: &mut std::process::Child, output: &std::sync::mpsc::Receiver<Vec<String>>, limit_s: f64) -> anyhow::Result<String> {
+    let deadline = Instant::now() + Duration::from_secs_f64(limit_s);
+    loop {
+        if server.try_wait()?.is_some() {
+            break;
+        }
+        if Instant::now() > deadline {
+            let _ = server.kill();
+            anyhow::bail!("the server did not stop");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let lines = output.recv_timeout(Duration::from_secs(5))?;
+    lines.iter().rev().find(|l| l.contains("stopped")).cloned().context("the server's closing line")
+}
+
+/// The car's section of the report.
+pub fn car_markdown(rows: &[CarRow]) -> String {
+    let mut md = String::from(
+        "\n## Shared snow: a car past a watcher\n\n_Measured on this machine's CPU (no GPU is involved); bytes do not depend on the machine._\n\n\
+         A car of four treaded wheels (3 m/s for 6 s, 3.125 cm texels) and a watcher, CPU snow windows of 16 m linked to one `snowpack server` \
+         on loopback, until both are in sync. Bytes are snowpack's messages; per second of the drive.\n\n\
+         | the car's presses travel as | world s | car up: bytes, B/s | of it tiles and presses: bytes (frames, tiles) | watcher down: bytes, B/s | watcher pressed frames, tiles received | server CPU s |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {:.1} | {}, {:.0} | {} ({}, {}) | {}, {:.0} | {}, {} | {:.2} |",
+            if r.presses { "frames" } else { "tiles" },
+            r.world_s,
+            r.car_up_bytes,
+            r.car_up_bytes as f64 / r.world_s,
+            r.car_snow_bytes,
+            r.car_frames,
+            r.car_tiles,
+            r.watcher_down_bytes,
+            r.watcher_down_bytes as f64 / r.world_s,
+            r.watcher_frames,
+            r.watcher_tiles,
+            r.server_cpu_s
+        );
+    }
+    md
 }
 
 /// The report's section.

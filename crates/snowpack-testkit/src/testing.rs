@@ -9,10 +9,12 @@ use std::sync::OnceLock;
 #[cfg(not(target_arch = "wasm32"))]
 use snowpack::GpuContext;
 
+mod car;
 mod cpu_snow;
 mod held;
 mod power_loss;
 
+pub use car::{car_wheels, drive};
 pub use cpu_snow::CpuSnow;
 pub use held::HeldDisk;
 pub use power_loss::{PowerLossDisk, Unsynced};

@@ -513,37 +513,11 @@ fn three_peers_converge_over_a_lossy_network() {
     assert!(early > 10, "the late joiner has the trail pressed before it came ({early} texels)");
 }
 
-/// A car's four treaded wheels (world centre `at`, heading +x, rolled
-/// `roll_m`), window-local to a window whose first texel is `origin`,
-/// swept from `then` (last frame's centre and roll) when given.
-fn car_wheels(w: &WorldIdentity, origin: [i64; 2], (at, roll_m): ([f64; 2], f32), then: Option<([f64; 2], f32)>) -> Vec<ShapeSweep> {
-    let texel = f64::from(w.settings().texel_m);
-    let local = |p: [f64; 2], dx: f64, dz: f64| Vec3::new((p[0] + dx - origin[0] as f64 * texel) as f32, 0.75, (p[1] + dz - origin[1] as f64 * texel) as f32);
-    let tread = Tread { pattern: TreadPattern::Blocks, spacing_m: 0.1, depth_m: 0.03, lug_fraction: 0.4 };
-    [(1.3, -0.78), (1.3, 0.78), (-1.3, -0.78), (-1.3, 0.78)]
-        .into_iter()
-        .map(|(dx, dz)| ShapeSweep::Wheel {
-            then: then.map(|(p, r)| (local(p, dx, dz), Vec3::Z, r)),
-            now: (local(at, dx, dz), Vec3::Z, roll_m),
-            radius: 0.33,
-            half_width: 0.14,
-            tread,
-        })
-        .collect()
-}
-
-/// Where the car is at time `t` (x, z in m; it rolls forward +x at 3 m/s
-/// from 1 s to 7 s) and how far its wheels have rolled.
-fn drive(t: f64) -> ([f64; 2], f32) {
-    let d = 3.0 * (t.clamp(1.0, 7.0) - 1.0);
-    ([-9.0 + d, 0.5], -(d as f32))
-}
-
 /// Runs a car (player 1, reporting its presses or not) past a watcher
 /// (player 2) over a network that is `lossy` (loses, duplicates and
 /// delays) or not, until it settles; asserts that both players and the
 /// relay converge and returns player 1's counters.
-fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> snowpack::PeerStats {
+fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> (snowpack::PeerStats, snowpack::PeerStats) {
     // Texels of 3 cm in tiles of 1 m, where a tread shows.
     let mut settings = world(32).settings().clone();
     settings.texel_m = 0.031_25;
@@ -565,14 +539,14 @@ fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> snowpack
         })
         .collect();
     let mut t = 0.0f64;
-    let mut last = drive(0.0);
+    let mut last = testing::drive(0.0);
     loop {
         t += dt;
-        let now = drive(t);
+        let now = testing::drive(t);
         for p in &mut players {
             if p.id == 1 && t < 8.0 {
                 let origin = p.snow.origin();
-                p.snow.press_shapes(car_wheels(&w, origin, now, Some(last)), (-0.5, 1.5), 3.0);
+                p.snow.press_shapes(testing::car_wheels(w.settings().texel_m, origin, now, Some(last)), (-0.5, 1.5), 3.0);
                 p.peer.set_deformers(&[now.0]);
             }
             p.snow.step(dt);
@@ -588,13 +562,18 @@ fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> snowpack
     let (_, _, compared, pressed) = assert_converged(&relay, &players, &w, seed);
     assert!(pressed > 300, "the car pressed {pressed} of {compared} texels");
     assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
-    players[0].peer.stats()
+    let watcher = players[1].peer.stats();
+    // The relay passes the car's frames on to the watcher, which presses them.
+    assert_eq!(relay.stats().press_frames_sent > 0, reports_presses, "{:?}", relay.stats());
+    assert_eq!(watcher.press_frames_received > 0, reports_presses, "{watcher:?}");
+    (players[0].peer.stats(), watcher)
 }
 
-/// A car's presses travel as frames: the watcher and the relay end with the
-/// car's ruts texel for texel over a network that loses, duplicates and
-/// reorders, and the car sends a fraction of the bytes its tiles took
-/// (counted over a network that loses nothing).
+/// A car's presses travel as frames, to the relay and on to the watcher:
+/// the watcher and the relay end with the car's ruts texel for texel over
+/// a network that loses, duplicates and reorders, and the car sends and
+/// the watcher receives a fraction of the bytes the tiles took (counted
+/// over a network that loses nothing).
 #[test]
 fn a_cars_presses_travel_as_frames_and_every_copy_converges() {
     let seed = testing::seed("a car's presses travel");
@@ -604,15 +583,35 @@ fn a_cars_presses_travel_as_frames_and_every_copy_converges() {
     // of the tiles' bytes over 12 lossy seeds).
     car_past_a_watcher(true, true, seed);
     car_past_a_watcher(false, true, seed);
-    let (frames, tiles) = (car_past_a_watcher(true, false, seed), car_past_a_watcher(false, false, seed));
+    let ((frames, watched_frames), (tiles, watched_tiles)) = (car_past_a_watcher(true, false, seed), car_past_a_watcher(false, false, seed));
     eprintln!(
-        "a car for 6 s: {} B of presses ({} frames, {} tiles explained, {} tiles sent), against {} B of tiles ({} tiles)",
-        frames.tile_bytes_out, frames.press_frames_sent, frames.tiles_as_presses, frames.tiles_sent, tiles.tile_bytes_out, tiles.tiles_sent
+        "a car for 6 s: {} B of presses ({} frames, {} tiles explained, {} tiles sent), against {} B of tiles ({} tiles); \
+         the watcher received {} B ({} frames pressed into {} tiles, {} tiles in all) against {} B ({} tiles)",
+        frames.tile_bytes_out,
+        frames.press_frames_sent,
+        frames.tiles_as_presses,
+        frames.tiles_sent,
+        tiles.tile_bytes_out,
+        tiles.tiles_sent,
+        watched_frames.bytes_in,
+        watched_frames.press_frames_received,
+        watched_frames.tiles_from_presses,
+        watched_frames.tiles_received,
+        watched_tiles.bytes_in,
+        watched_tiles.tiles_received,
     );
     assert!(frames.press_frames_sent >= 60 && tiles.press_frames_sent == 0);
     // The CPU snow's tiles carry no packed snow (a GPU window's do), so
     // they cost less than a window's: the ratio here is the least it buys.
     assert!(frames.tile_bytes_out * 3 < tiles.tile_bytes_out * 2, "presses {} B, tiles {} B (seed {seed})", frames.tile_bytes_out, tiles.tile_bytes_out);
+    // What the watcher receives also holds the relay's clock, acks of its
+    // digests and the answers to them.
+    assert!(
+        watched_frames.bytes_in * 3 < watched_tiles.bytes_in * 2,
+        "the watcher received {} B of presses, {} B of tiles (seed {seed})",
+        watched_frames.bytes_in,
+        watched_tiles.bytes_in
+    );
 }
 
 /// Asserts that every player's snow and the relay's tiles (caught up to
@@ -749,6 +748,71 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
     other.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
     other.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest], tiles: Vec::new() }), now);
     assert_eq!((other.stats().rejected.unpressable, other.tile_keys().len()), (1, 0));
+}
+
+/// The relay passes the presses it pressed on to the peers watching those
+/// tiles, and a watcher presses them into the tiles the relay holds; but
+/// only when the relay took every tile they pressed: presses of which it
+/// refused a tile (far from the sender's deformers) reach the watchers as
+/// the tiles it took, and the refused place stays untouched there too.
+#[test]
+fn presses_are_passed_on_only_when_the_relay_took_all_they_pressed() {
+    let now = 10.0;
+    let w = world(16);
+    let clock = w.clock_at(now);
+    let mut relay = relay_with_peer(RelayConfig::default(), now);
+    relay.connect(2);
+    relay.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned() }), now);
+    relay.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), now);
+    let mut watcher = SnowPeer::new(w.clone(), "watcher", PeerConfig::default());
+    let mut snow = CpuSnow::new(w.clone(), 128, [-64, -64], now);
+    // What the relay sends the watcher up to `at`, handed to it; the kinds.
+    let deliver = |relay: &mut SnowRelay, watcher: &mut SnowPeer, snow: &mut CpuSnow, at: f64| {
+        relay.update(at);
+        let mut kinds = Vec::new();
+        while let Some((to, bytes)) = relay.poll_transmit() {
+            if to == 2 {
+                kinds.push(decode(&bytes).expect("the relay's message decodes").kind_name());
+                watcher.receive(&bytes).expect("the watcher takes the relay's message");
+            }
+        }
+        watcher.update(snow, at);
+        kinds
+    };
+    deliver(&mut relay, &mut watcher, &mut snow, now);
+    let honest = sphere_frame(clock, (0.3, -0.2), 0.2);
+    relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest], tiles: Vec::new() }), now);
+    let kinds = deliver(&mut relay, &mut watcher, &mut snow, now + 0.5);
+    assert!(kinds.contains(&"Presses") && !kinds.contains(&"Tiles"), "the frames were passed on, not the tiles: {kinds:?}");
+    let keys = relay.tile_keys();
+    assert!(keys.len() >= 2, "the sphere spans tiles");
+    for &key in &keys {
+        let mut at_relay = relay.tile(key).expect("held");
+        let mut watched = watcher.replica_tile(key).expect("the watcher pressed the tile").clone();
+        at_relay.catch_up(&clock, CatchUp::default());
+        watched.catch_up(&clock, CatchUp::default());
+        assert_eq!((watched.deficit, watched.packed), (at_relay.deficit, at_relay.packed), "tile {key:?}");
+    }
+    assert_eq!((relay.stats().press_frames_sent, watcher.stats().press_frames_received), (1, 1));
+
+    // One sphere near the sender's deformer, one 10 m from it: the far
+    // one's tiles are refused, so the near one's go as tiles.
+    let mut partly = sphere_frame(clock, (-0.5, 0.6), 0.25);
+    partly.shapes.extend(sphere_frame(clock, (-7.5, -7.5), 0.2).shapes);
+    relay.receive(1, &encode(&Message::Presses { seq: 1, frames: vec![partly], tiles: Vec::new() }), now + 0.5);
+    assert!(relay.stats().rejected.far_from_deformers >= 1, "{:?}", relay.stats().rejected);
+    let kinds = deliver(&mut relay, &mut watcher, &mut snow, now + 1.0);
+    assert!(kinds.contains(&"Tiles") && !kinds.contains(&"Presses"), "the tiles the relay took went, not the frames: {kinds:?}");
+    assert_eq!(relay.stats().press_frames_sent, 1);
+    let far = TileKey::containing(-60, -60, 16);
+    assert!(relay.tile(far).is_none() && watcher.replica_tile(far).is_none(), "the refused press reached no one");
+    for key in relay.tile_keys() {
+        let mut at_relay = relay.tile(key).expect("held");
+        let mut watched = watcher.replica_tile(key).expect("the watcher has the tile").clone();
+        at_relay.catch_up(&clock, CatchUp::default());
+        watched.catch_up(&clock, CatchUp::default());
+        assert_eq!(watched.deficit, at_relay.deficit, "tile {key:?}");
+    }
 }
 
 #[test]

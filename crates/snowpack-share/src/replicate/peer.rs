@@ -1,7 +1,8 @@
 //! [`SnowPeer`]: what a game client runs beside its snow. It keeps a
 //! replica of the tiles it has seen (its own changes merged with the
 //! relay's), sends its changes as numbered deltas until the relay
-//! acknowledges them, folds the relay's tiles into the snow, and every
+//! acknowledges them, folds the relay's tiles (and the tiles other peers'
+//! presses, passed on by the relay, press) into the snow, and every
 //! second sends digests of its replica so anything lost either way is
 //! repaired without a full resend. No sockets: the caller moves bytes
 //! ([`SnowPeer::receive`] in, [`SnowPeer::poll_transmit`] out).
@@ -118,6 +119,11 @@ pub struct PeerStats {
     pub press_frames_sent: u64,
     /// Press frames dropped from a full queue (what they pressed went as tiles).
     pub press_frames_dropped: u64,
+    /// Press frames of other peers the relay passed on, pressed here in
+    /// place of the tiles they pressed.
+    pub press_frames_received: u64,
+    /// Tiles those frames pressed near the window (counted in `tiles_received` too).
+    pub tiles_from_presses: u64,
 }
 
 /// A numbered message in flight: when it went, the tiles whose copies it
@@ -275,7 +281,8 @@ impl SnowPeer {
     /// [`crate::ShareErrorKind::Refused`] naming what differs ("here" is this peer's
     /// world, "there" the relay's); bytes that do not decode, or a message
     /// a relay never sends, are [`crate::ShareErrorKind::Malformed`] (and counted).
-    /// Tiles are kept for the next [`SnowPeer::update`].
+    /// Tiles, and those the presses the relay passes on press near the
+    /// window, are kept for the next [`SnowPeer::update`].
     pub fn receive(&mut self, bytes: &[u8]) -> Result<(), crate::ShareError> {
         self.stats.bytes_in += bytes.len() as u64;
         self.stats.messages_in += 1;
@@ -291,19 +298,11 @@ impl SnowPeer {
                 self.refused = true;
                 return Err(ShareError::Refused { differences }.into());
             }
-            Message::Tiles { tiles, .. } => {
-                self.stats.tiles_received += tiles.len() as u64;
-                for t in tiles {
-                    if t.side != self.world.settings.tile_side {
-                        self.stats.tiles_dropped += 1;
-                        continue;
-                    }
-                    if self.incoming.len() >= self.config.incoming_tiles.max(1) {
-                        self.incoming.pop_front();
-                        self.stats.tiles_dropped += 1;
-                    }
-                    self.incoming.push_back(t);
-                }
+            Message::Tiles { tiles, .. } => self.take_in(tiles),
+            Message::Presses { frames, tiles, .. } => {
+                // Another peer's presses, which the relay pressed and passed on.
+                let pressed = self.press_passed_on(&frames);
+                self.take_in(pressed.into_iter().chain(tiles));
             }
             Message::Ack { seq } => {
                 let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
@@ -339,6 +338,44 @@ impl SnowPeer {
             }
         }
         Ok(())
+    }
+
+    /// Keeps the relay's `tiles` for the next update (of another side
+    /// dropped; the oldest dropped beyond `incoming_tiles`).
+    fn take_in(&mut self, tiles: impl IntoIterator<Item = SharedTile>) {
+        for t in tiles {
+            self.stats.tiles_received += 1;
+            if t.side != self.world.settings.tile_side {
+                self.stats.tiles_dropped += 1;
+                continue;
+            }
+            if self.incoming.len() >= self.config.incoming_tiles.max(1) {
+                self.incoming.pop_front();
+                self.stats.tiles_dropped += 1;
+            }
+            self.incoming.push_back(t);
+        }
+    }
+
+    /// The tiles near the window (within a tile of it, as the relay's
+    /// interest) that `frames`, passed on by the relay, press from
+    /// untouched snow: what the relay merged of them. None in a world
+    /// whose presses do not travel, or beyond the instances a message may
+    /// make (a relay sends neither; counted as malformed).
+    fn press_passed_on(&mut self, frames: &[PressFrame]) -> Vec<SharedTile> {
+        let texel_m = self.world.settings.texel_m;
+        let Some(ground) = self.presses.filter(|_| crate::replicate::press::instances(frames, texel_m) <= crate::replicate::press::MAX_PRESS_INSTANCES) else {
+            self.stats.malformed += 1;
+            return Vec::new();
+        };
+        self.stats.press_frames_received += frames.len() as u64;
+        let side = self.world.settings.tile_side;
+        let casts: Vec<FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+        let window = self.last_window;
+        let near = |k: TileKey| window.is_none_or(|(first, resolution)| near_window(k, side, first, resolution));
+        let pressed = crate::replicate::press::press_tiles_where(frames, &casts, (&self.world.settings, ground, side), near);
+        self.stats.tiles_from_presses += pressed.len() as u64;
+        pressed
     }
 
     /// The connection to the relay was made again (to the same relay or to
@@ -876,6 +913,12 @@ fn overlaps_window(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> b
     let s = i64::from(side);
     let r = i64::from(resolution);
     t[0] < first[0].saturating_add(r) && t[0].saturating_add(s) > first[0] && t[1] < first[1].saturating_add(r) && t[1].saturating_add(s) > first[1]
+}
+
+/// Whether tile `k` is within a tile of the window (the relay's interest).
+fn near_window(k: TileKey, side: u32, first: [i64; 2], resolution: u32) -> bool {
+    let s = i64::from(side);
+    overlaps_window(k, side, [first[0].saturating_sub(s), first[1].saturating_sub(s)], resolution.saturating_add(2 * side))
 }
 
 /// Squared distance (texels²) from a tile's centre to `centre`.

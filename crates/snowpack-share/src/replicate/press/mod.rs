@@ -465,9 +465,31 @@ pub(crate) fn press_tile(
 /// what a machine that receives the frames merges.
 #[must_use]
 pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: f32, side: u32) -> Vec<SharedTile> {
+    press_tiles_where(frames, casts, (world, ground, side), |_| true)
+}
+
+/// The most ray-cast instances (shapes times their sub-steps) one
+/// `Presses` message may make a machine build: a car's four wheels over
+/// eight frames make about 320. The relay refuses more from a peer; a peer
+/// drops more from its relay.
+pub(crate) const MAX_PRESS_INSTANCES: u64 = 16_384;
+
+/// The ray-cast instances `frames` make at `texel_m`, counted without making them.
+pub(crate) fn instances(frames: &[PressFrame], texel_m: f32) -> u64 {
+    frames.iter().flat_map(|f| &f.shapes).map(|s| u64::from(s.instance_count(texel_m))).sum()
+}
+
+/// [`press_tiles`] of the tiles `keep` keeps only (a watcher presses those
+/// near its window; the rest it would not hold).
+pub(crate) fn press_tiles_where(
+    frames: &[PressFrame],
+    casts: &[FrameCasts],
+    (world, ground, side): (&WorldSettings, f32, u32),
+    keep: impl Fn(crate::TileKey) -> bool,
+) -> Vec<SharedTile> {
     let mut tiles: std::collections::BTreeMap<crate::TileKey, SharedTile> = std::collections::BTreeMap::new();
     for (frame, casts) in frames.iter().zip(casts) {
-        for key in casts.tiles(frame, side, world.texel_m) {
+        for key in casts.tiles(frame, side, world.texel_m).into_iter().filter(|k| keep(*k)) {
             if let Some(t) = press_tile(frame, casts, key, side, (world, ground), tiles.remove(&key)) {
                 tiles.insert(key, t);
             }

@@ -1,7 +1,8 @@
 //! [`SnowRelay`]: what a server runs. Its world is pinned by the server
 //! ([`SnowRelay::pin_world`]), or else learnt from its store or the first
 //! peer, and never redefined; it merges the tiles peers send into its own copy,
-//! relays merged tiles to the peers whose windows overlap them, answers
+//! relays merged tiles to the peers whose windows overlap them (and the
+//! analytic presses a peer sends, in place of the tiles they press), answers
 //! digests so lost messages are repaired, and keeps the tiles in a
 //! [`TileStore`] when it has one. CPU only; no sockets (the caller moves
 //! bytes: [`SnowRelay::receive`] in, [`SnowRelay::poll_transmit`] out).
@@ -75,11 +76,11 @@ pub struct SnowRelay {
     last_full_warning_s: f64,
 }
 
-/// The most ray-cast instances (shapes times their sub-steps) one
-/// `Presses` message may make the relay build: a car's four wheels over
-/// eight frames make about 320; more is refused whole
-/// ([`RelayRejections::rate_presses`]).
-const MAX_PRESS_INSTANCES: u64 = 16_384;
+/// Seconds after presses were passed on to a peer during which its digests
+/// may have crossed them: a tile they pressed that a digest shows
+/// otherwise is not sent then (the presses are on their way), only if a
+/// later digest still shows it otherwise (they were lost).
+const PASSED_ON_S: f64 = 1.0;
 
 impl SnowRelay {
     /// A relay that keeps its tiles in memory; the world comes from the first `Hello`.
@@ -244,15 +245,19 @@ impl SnowRelay {
             Message::Query { id, points } => self.query(peer, id, &points, now),
             Message::Presence { window, resolution, deformers } => self.presence(peer, window, resolution, &deformers, now),
             Message::Tiles { seq, tiles } => {
-                self.tiles_from(peer, &tiles, now, true);
+                self.tiles_from(peer, &tiles, now, true, &BTreeSet::new());
                 self.enqueue(peer, encode(&Message::Ack { seq }));
             }
             Message::Presses { seq, frames, tiles } => {
                 // What the frames pressed, judged and merged as tiles the
-                // peer sent (paid for by the press bucket, not the tile bucket).
+                // peer sent (paid for by the press bucket, not the tile
+                // bucket), then the frames go on to the peers that watch
+                // those tiles, in place of the tiles.
                 let pressed = self.pressed_by(peer, &frames, now);
-                self.tiles_from(peer, &pressed, now, false);
-                self.tiles_from(peer, &tiles, now, true);
+                let watchers = self.watchers_of(peer, &pressed);
+                let accepted = self.tiles_from(peer, &pressed, now, false, &watchers);
+                self.pass_presses_on(&frames, (&pressed, &accepted), &watchers, now);
+                self.tiles_from(peer, &tiles, now, true, &BTreeSet::new());
                 self.enqueue(peer, encode(&Message::Ack { seq }));
             }
             Message::Digest { clock, window, resolution, entries } => self.digest_from(peer, &clock, window, resolution, &entries),
@@ -545,10 +550,14 @@ impl SnowRelay {
 
     /// Judges and merges `tiles` from `peer`, each paid for by its tile
     /// bucket when `counted` (tiles its presses made are paid for by the
-    /// press bucket).
-    fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64, counted: bool) {
+    /// press bucket); a merge that changed a tile is sent to the peers
+    /// watching it but `forwarded` (those are sent the presses that made
+    /// it). The tiles accepted, by key, with whether each changed the
+    /// relay's copy.
+    fn tiles_from(&mut self, peer: PeerId, tiles: &[SharedTile], now: f64, counted: bool, forwarded: &BTreeSet<PeerId>) -> Vec<(TileKey, bool)> {
+        let mut accepted = Vec::new();
         let Some(world) = self.world.clone() else {
-            return;
+            return accepted;
         };
         let c = CatchUp { max_fallen_m: world.settings.max_fallen_m };
         let so_far = world.clock_at(now);
@@ -558,7 +567,7 @@ impl SnowRelay {
         for t in tiles {
             self.stats.tiles_received += 1;
             let Some(p) = self.peers.get_mut(&peer) else {
-                return;
+                return accepted;
             };
             if !fits_the_world(t, &world, self.config.bounds_m, &mut self.stats.rejected) {
                 continue;
@@ -580,7 +589,54 @@ impl SnowRelay {
             if !self.has_room_for(t.key) {
                 continue;
             }
-            self.merge_in(peer, t, c);
+            accepted.push((t.key, self.merge_in(peer, t, c, forwarded)));
+        }
+        accepted
+    }
+
+    /// The welcomed peers but `sender` whose interest holds one of the
+    /// `pressed` tiles: those a `Presses` message is passed on to.
+    fn watchers_of(&self, sender: PeerId, pressed: &[SharedTile]) -> BTreeSet<PeerId> {
+        self.peers
+            .iter()
+            .filter(|&(&id, p)| id != sender && p.standing == Standing::Welcomed && p.interest.is_some_and(|r| pressed.iter().any(|t| r.contains(t.key))))
+            .map(|(&id, _)| id)
+            .collect()
+    }
+
+    /// Sends `frames` on to `watchers` when the relay accepted every tile
+    /// they `pressed` and one of them changed its copy: each watcher
+    /// presses them as the relay did (its byte budget pays for them, so its
+    /// tiles wait the longer). When a tile was refused (far from the
+    /// sender's deformers, say) the frames would press it at the watchers
+    /// too, so the accepted merges go to them as tiles instead.
+    fn pass_presses_on(&mut self, frames: &[crate::replicate::press::PressFrame], (pressed, accepted): (&[SharedTile], &[(TileKey, bool)]), watchers: &BTreeSet<PeerId>, now: f64) {
+        if watchers.is_empty() || !accepted.iter().any(|&(_, changed)| changed) {
+            return;
+        }
+        if accepted.len() < pressed.len() {
+            for &(key, _) in accepted.iter().filter(|(_, changed)| *changed) {
+                for id in watchers {
+                    if let Some(p) = self.peers.get_mut(id).filter(|p| p.interest.is_some_and(|r| r.contains(key))) {
+                        p.pending.insert(key);
+                    }
+                }
+            }
+            return;
+        }
+        let coded = super::presses::encode_frames(frames);
+        let (rate, burst) = (f64::from(self.config.send_bytes_per_s), f64::from(self.config.send_burst_bytes));
+        for &id in watchers {
+            let Some(p) = self.peers.get_mut(&id) else { continue };
+            p.passed_on.retain(|_, at| now - *at < PASSED_ON_S);
+            let interest = p.interest;
+            p.passed_on.extend(pressed.iter().map(|t| t.key).filter(|k| interest.is_some_and(|r| r.contains(*k))).map(|k| (k, now)));
+            let message = super::message::presses_message(p.seq_out, (frames.len(), &coded), &[]);
+            p.seq_out = p.seq_out.wrapping_add(1);
+            p.out_bytes.refill(now, rate, burst);
+            p.out_bytes.tokens -= message.len() as f64;
+            self.stats.press_frames_sent += frames.len() as u64;
+            self.enqueue(id, message);
         }
     }
 
@@ -598,8 +654,8 @@ impl SnowRelay {
         };
         let (side, texel_m) = (world.settings.tile_side, world.settings.texel_m);
         // Counted before any is made: a message may not make more.
-        let instances: u64 = frames.iter().flat_map(|f| &f.shapes).map(|s| u64::from(s.instance_count(texel_m))).sum();
-        if instances > MAX_PRESS_INSTANCES {
+        // More is refused whole ([`RelayRejections::rate_presses`]).
+        if crate::replicate::press::instances(frames, texel_m) > crate::replicate::press::MAX_PRESS_INSTANCES {
             self.stats.rejected.rate_presses += 1;
             return Vec::new();
         }
@@ -643,13 +699,15 @@ impl SnowRelay {
         false
     }
 
-    /// Merges an accepted tile from `sender` and marks it for the peers that need it.
-    fn merge_in(&mut self, sender: PeerId, t: &SharedTile, c: CatchUp) {
+    /// Merges an accepted tile from `sender` and marks it for the peers
+    /// that need it but `forwarded` (sent what pressed it); whether it
+    /// changed the relay's copy.
+    fn merge_in(&mut self, sender: PeerId, t: &SharedTile, c: CatchUp, forwarded: &BTreeSet<PeerId>) -> bool {
         let key = t.key;
         self.tiles.load(key, self.store.get_mut().as_mut(), &mut self.stats);
         let changed = self.tiles.merge(t, c, sender);
         let Some(merged) = self.tiles.tile(key) else {
-            return;
+            return changed;
         };
         if changed {
             self.stats.tiles_merged += 1;
@@ -663,10 +721,12 @@ impl SnowRelay {
             theirs.merge(merged, c)
         };
         for (&id, p) in &mut self.peers {
-            if p.standing == Standing::Welcomed && p.interest.is_some_and(|r| r.contains(key)) && (if id == sender { sender_lacks } else { changed }) {
+            let needs = if id == sender { sender_lacks } else { changed && !forwarded.contains(&id) };
+            if p.standing == Standing::Welcomed && p.interest.is_some_and(|r| r.contains(key)) && needs {
                 p.pending.insert(key);
             }
         }
+        changed
     }
 
     /// How far from a recent deformer a peer may write (m, the accept
@@ -702,8 +762,15 @@ impl SnowRelay {
                 send.push(key);
             }
         }
-        let mut in_sync = send.is_empty() && want.is_empty();
+        let now = self.now_s;
+        let mut in_sync = want.is_empty();
         if let Some(p) = self.peers.get_mut(&peer) {
+            // A tile that presses passed on to the peer lately pressed may
+            // differ only because the digest crossed them: sent if it
+            // still differs at a later digest.
+            let crossed = |k: &TileKey| p.passed_on.get(k).is_some_and(|at| now - at < PASSED_ON_S);
+            in_sync &= send.is_empty();
+            send.retain(|k| !crossed(k));
             p.pending.extend(send.into_iter().filter(|k| p.interest.is_some_and(|r| r.contains(*k))));
             in_sync &= p.pending.is_empty();
         }

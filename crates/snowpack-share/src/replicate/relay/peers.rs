@@ -2,7 +2,7 @@
 //! its interest, the police's memory of its deformers, its rate buckets and
 //! what is queued for it.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 
 use super::bucket::Bucket;
 use super::config::RelayConfig;
@@ -43,6 +43,9 @@ pub(super) struct PeerState {
     pub(super) press_casts: Bucket,
     /// Tiles to send at the next send (coalesced).
     pub(super) pending: BTreeSet<TileKey>,
+    /// Tiles of its interest that presses passed on to it pressed, and when
+    /// (relay time): a digest that lacks them may have crossed them.
+    pub(super) passed_on: HashMap<TileKey, f64>,
     pub(super) last_send_s: f64,
     /// The messages queued for it.
     pub(super) outbox: Outbox,
@@ -66,6 +69,7 @@ impl PeerState {
             query_points: Bucket::full(f64::from(c.burst_query_points), now),
             press_casts: Bucket::full(c.burst_press_casts as f64, now),
             pending: BTreeSet::new(),
+            passed_on: HashMap::new(),
             last_send_s: f64::NEG_INFINITY,
             outbox: Outbox::default(),
             seq_out: 0,

@@ -135,6 +135,9 @@ pub struct RelayStats {
     pub press_frames: u64,
     /// Ray casts pressing them cost (bounded by the peers' press rate).
     pub press_casts: u64,
+    /// Frames passed on to the peers watching what they pressed (a frame
+    /// to two watchers counts twice), in place of the tiles they pressed.
+    pub press_frames_sent: u64,
     /// Bytes of tiles in memory now.
     pub tile_bytes_in_memory: usize,
     /// Bytes queued for peers now (not yet handed out).
