@@ -133,7 +133,7 @@ fn rimmed_height(i: u32, j: u32) -> f32 {
         lying = fallen[s];
     }
     let depth = params.depth_m + lying;
-    let snow_h = snow_word_height(atomicLoad(&snow[s]), ground + depth, ground);
+    let snow_h = snow_column_height(atomicLoad(&snow[s]), ground, depth);
     if display_bare() || (display_uses_fallen() && depth <= 0.0) {
         // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
         // push into rims. Without snowfall that is the pipeline's choice;

@@ -56,8 +56,8 @@ fn column_quanta(s: u32, i: u32, j: u32) -> u32 {
     // A select, not a branch on the uniform (docs/deformation.md); `fallen`
     // is one texel long without snowfall.
     let lying = fallen[min(s, arrayLength(&fallen) - 1u)];
-    let rest = ground + params.depth_m + select(0.0, lying, params.use_fallen != 0u);
-    return snow_press_quanta(rest, ground, ground);
+    let column = params.depth_m + select(0.0, lying, params.use_fallen != 0u);
+    return snow_column_press(ground, column, ground);
 }
 
 // Texel `s`'s lying snow (snowfall so far, berms) in whole quanta, rounded:

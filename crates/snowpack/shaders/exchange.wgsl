@@ -89,11 +89,11 @@ fn stash(s: u32, use_fallen: bool, has_stamps: bool) -> u32 {
         return 0u;
     }
     let ground = texel_ground(terrain_params, g, params.texel_m);
-    var rest = ground + params.depth_m;
+    var column = params.depth_m;
     if use_fallen {
-        rest += fallen[s];
+        column += fallen[s];
     }
-    tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow_word_height(snow[s], rest, ground));
+    tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)] = bitcast<u32>(snow_column_height(snow[s], ground, column));
     // The slots have a footprint plane exactly when the window has a footprint buffer.
     if has_stamps {
         tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))] = stamps[s];
@@ -115,17 +115,17 @@ fn load(i: u32, j: u32, s: u32, use_fallen: bool, has_stamps: bool) -> u32 {
         return 0u;
     }
     let ground = texel_ground(terrain_params, g, params.texel_m);
-    var rest = ground + params.depth_m;
+    var column = params.depth_m;
     if has_stamps {
         stamps[s] = tiles[tile_index(g, side, n, params.planes, plane_stamps(params.planes))];
     }
     if use_fallen {
         let lying = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_FALLEN)]);
         fallen[s] = lying;
-        rest += lying;
+        column += lying;
     }
     let h = bitcast<f32>(tiles[tile_index(g, side, n, params.planes, PLANE_SNOW)]);
-    snow[s] = snow_press_quanta(rest, ground, h);
+    snow[s] = snow_column_press(ground, column, h);
     // Its neighbour in the word may be another invocation's: and, then or.
     let q = min(tiles[tile_index(g, side, n, params.planes, plane_packed(use_fallen))], 0xffffu);
     atomicAnd(&packed[packed_index(s)], ~(0xffffu << packed_shift(s)));

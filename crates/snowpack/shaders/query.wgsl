@@ -133,10 +133,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     out.rest_m = out.terrain_m + params.depth_m + bilerp(l00, l01, l10, l11, f);
     let d = params.depth_m;
     out.height_m = bilerp(
-        snow_word_height(snow[s00], t00 + d + l00, t00),
-        snow_word_height(snow[s01], t01 + d + l01, t01),
-        snow_word_height(snow[s10], t10 + d + l10, t10),
-        snow_word_height(snow[s11], t11 + d + l11, t11),
+        snow_column_height(snow[s00], t00, d + l00),
+        snow_column_height(snow[s01], t01, d + l01),
+        snow_column_height(snow[s10], t10, d + l10),
+        snow_column_height(snow[s11], t11, d + l11),
         f,
     );
     out.packed_m = bilerp(packed_m(s00), packed_m(s01), packed_m(s10), packed_m(s11), f);

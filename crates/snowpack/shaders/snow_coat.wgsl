@@ -83,8 +83,8 @@ fn texel_height(g: vec2<i32>, s: u32) -> vec2<f32> {
     if (coat_inputs() & 1u) != 0u {
         lying = fallen[s];
     }
-    let rest = t + params.depth_m + lying;
-    return vec2<f32>(snow_word_height(snow[s], rest, t), rest);
+    let column = params.depth_m + lying;
+    return vec2<f32>(snow_column_height(snow[s], t, column), t + column);
 }
 
 fn lerp2v(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>, d: vec2<f32>, f: vec2<f32>) -> vec2<f32> {

@@ -75,7 +75,7 @@ fn load(k: u32, i: i32, j: i32) {
     // The persistent column (the displayed one has rims and blur): a select,
     // so that no branch tests a uniform alone.
     let lying = select(0.0, fallen[min(s, arrayLength(&fallen) - 1u)], params.use_fallen != 0u);
-    let column = snow_word_height(word, ground + params.depth_m + lying, ground) - ground;
+    let column = snow_column_height(word, ground, params.depth_m + lying) - ground;
     tile_packing[k] = surface_packing(word, packed_get(packed[packed_index(s)], s), column);
 }
 

@@ -120,13 +120,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         if use_fallen {
             l = max(l, min(l + bitcast<f32>(h.z), params.max_fallen_m));
         }
-        let rest_f = ground + params.depth_m + l;
+        let column_f = params.depth_m + l;
+        let rest_f = ground + column_f;
         d -= min(d, h.x);
         if st != STAMP_EMPTY {
             if h.w != 0u {
                 let was = d;
-                d = max(d, snow_press_quanta(rest_f, ground, stamp_height(st >> 16u, params.low_m, params.high_m)));
-                q = replay_pack(q, was, d, snow_press_quanta(rest_f, ground, ground));
+                d = max(d, snow_column_press(ground, column_f, stamp_height(st >> 16u, params.low_m, params.high_m)));
+                q = replay_pack(q, was, d, snow_column_press(ground, column_f, ground));
             }
             if h.y > 0u {
                 let foot = (st & 0xffffu) + h.y;
@@ -137,16 +138,17 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 }
             }
         }
-        d = min(d, snow_press_quanta(rest_f, ground, ground));
+        d = min(d, snow_column_press(ground, column_f, ground));
     }
     var lying = 0.0;
     if use_fallen {
         lying = max(fallen[s], l);
         fallen[s] = lying;
     }
-    let rest = ground + params.depth_m + lying;
+    let column = params.depth_m + lying;
+    let rest = ground + column;
     let word = snow[s];
-    let at_ground = snow_press_quanta(rest, ground, ground);
+    let at_ground = snow_column_press(ground, column, ground);
     let deficit = min(max(word & 0xffffu, d), at_ground);
     snow[s] = (word & 0xffff0000u) | deficit;
     if key.w != 0 {

@@ -104,8 +104,8 @@ fn slot_texel(base: u32, area: u32, use_fallen: bool) -> TexelState {
 // Two copies of a texel at one clock, merged by the deficit below each one's
 // rest height (TexelCopy::merge); a copy that wins on every plane keeps its bits.
 fn merge_texels(ground: f32, a: TexelState, b: TexelState) -> TexelState {
-    let da = snow_press_quanta(ground + params.depth_m + a.fallen, ground, a.snow);
-    let db = snow_press_quanta(ground + params.depth_m + b.fallen, ground, b.snow);
+    let da = snow_column_press(ground, params.depth_m + a.fallen, a.snow);
+    let db = snow_column_press(ground, params.depth_m + b.fallen, b.snow);
     var out: TexelState;
     out.fallen = a.fallen;
     if bitcast<u32>(b.fallen) > bitcast<u32>(a.fallen) && b.fallen >= 0.0 {
@@ -119,7 +119,7 @@ fn merge_texels(ground: f32, a: TexelState, b: TexelState) -> TexelState {
     } else if d == db && bitcast<u32>(out.fallen) == bitcast<u32>(b.fallen) {
         out.snow = b.snow;
     } else {
-        out.snow = snow_word_height(d, ground + params.depth_m + out.fallen, ground);
+        out.snow = snow_column_height(d, ground, params.depth_m + out.fallen);
     }
     return out;
 }

@@ -280,7 +280,7 @@ fn update_texel(i: u32, j: u32) {
     }
     var visible = 1.0;
     if (update_flags() & USE_SKY) != 0u {
-        visible = sky_visible(i, j, snow_word_height(word, ground + params.depth_m + lying, ground));
+        visible = sky_visible(i, j, snow_column_height(word, ground, params.depth_m + lying));
     }
     if (update_flags() & USE_FALLEN) != 0u {
         let before = lying;
@@ -290,7 +290,9 @@ fn update_texel(i: u32, j: u32) {
             ledger_add(0u, ledger_fine(lying - before));
         }
     }
-    let rest = ground + params.depth_m + lying;
+    // The rest column (depth and lying snow) and the rest height over the terrain.
+    let column = params.depth_m + lying;
+    let rest = ground + column;
     var deficit = word & 0xffffu;
     if visible > 0.0 {
         deficit -= min(deficit, params.snow_refill_quanta);
@@ -305,7 +307,7 @@ fn update_texel(i: u32, j: u32) {
         let d = capture_depth(i, j);
         if d < 1.0 {
             let actor = params.low_m + d * (params.high_m - params.low_m);
-            let press = snow_press_quanta(rest, ground, actor);
+            let press = snow_column_press(ground, column, actor);
             pressed = press >= refilled;
             deficit = max(deficit, press);
         }
@@ -319,7 +321,7 @@ fn update_texel(i: u32, j: u32) {
         let hq = st >> 16u;
         let fq = st & 0xffffu;
         if (update_flags() & USE_STAMPS) != 0u {
-            deficit = max(deficit, snow_press_quanta(rest, ground, stamp_height(hq, params.low_m, params.high_m)));
+            deficit = max(deficit, snow_column_press(ground, column, stamp_height(hq, params.low_m, params.high_m)));
         }
         if (update_flags() & REFILLS) != 0u {
             let foot = fq + params.refill_quanta;
@@ -331,7 +333,7 @@ fn update_texel(i: u32, j: u32) {
         }
     }
     // Never below the terrain.
-    let at_ground = snow_press_quanta(rest, ground, ground);
+    let at_ground = snow_column_press(ground, column, ground);
     deficit = min(deficit, at_ground);
     // What the presses took from the column's height goes into its packed
     // snow, up to the final density; the rest is displaced: counted, or

@@ -115,7 +115,7 @@ pub mod deform {
     }
     /// `deform::snow_word`: what snowpack's app, tools and tests use of it.
     pub mod snow_word {
-        pub use crate::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, deficit_quanta, f16_to_f32, height, press_quanta, shown, with_shown};
+        pub use crate::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, column_height, column_press, deficit_quanta, f16_to_f32, shown, with_shown};
     }
     /// `deform::stamp`: what snowpack's app, tools and tests use of it.
     pub mod stamp {

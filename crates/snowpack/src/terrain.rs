@@ -139,59 +139,11 @@ impl TerrainMesh {
     }
 }
 
-/// Number of octaves of the fractal noise; must match `shared/terrain.wgsl`.
-pub const NOISE_OCTAVES: u32 = 4;
-
-/// The lattice hash shared with `shared/terrain.wgsl` (a murmur-style finaliser).
-#[must_use]
-pub fn lattice_hash(ix: i32, iz: i32, seed: u32) -> u32 {
-    let mut h = (ix as u32).wrapping_mul(0x8da6_b343) ^ (iz as u32).wrapping_mul(0xd816_3841) ^ seed.wrapping_mul(0xcb1a_b31f);
-    h = (h ^ (h >> 16)).wrapping_mul(0x7feb_352d);
-    h = (h ^ (h >> 15)).wrapping_mul(0x846c_a68b);
-    h ^ (h >> 16)
-}
-
-fn lattice_value(ix: i32, iz: i32, seed: u32) -> f32 {
-    ((lattice_hash(ix, iz, seed) >> 8) as f32) * (2.0 / 16_777_216.0) - 1.0
-}
-
-fn fade(t: f32) -> f32 {
-    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
-}
-
-/// Single-octave value noise in `[-1, 1]` at lattice coordinates (x, z).
-#[must_use]
-pub fn value_noise(x: f32, z: f32, seed: u32) -> f32 {
-    let fx = x.floor();
-    let fz = z.floor();
-    let ix = fx as i32;
-    let iz = fz as i32;
-    let tx = fade(x - fx);
-    let tz = fade(z - fz);
-    let a = lattice_value(ix, iz, seed);
-    let b = lattice_value(ix + 1, iz, seed);
-    let c = lattice_value(ix, iz + 1, seed);
-    let d = lattice_value(ix + 1, iz + 1, seed);
-    let ab = a + (b - a) * tx;
-    let cd = c + (d - c) * tx;
-    ab + (cd - ab) * tz
-}
-
-/// Four-octave fractal sum of [`value_noise`], normalised to `[-1, 1]`.
-#[must_use]
-pub fn fbm(x: f32, z: f32, seed: u32) -> f32 {
-    let mut sum = 0.0_f32;
-    let mut amp = 1.0_f32;
-    let mut freq = 1.0_f32;
-    let mut norm = 0.0_f32;
-    for octave in 0..NOISE_OCTAVES {
-        sum += amp * value_noise(x * freq, z * freq, seed.wrapping_add(octave));
-        norm += amp;
-        amp *= 0.5;
-        freq *= 2.0;
-    }
-    sum / norm
-}
+// The noise every machine evaluates alike (the presses too): one copy, in
+// the share crate.
+#[cfg(test)]
+use snowpack_share::replicate::press::ground::fbm;
+pub(crate) use snowpack_share::replicate::press::ground::{lattice_hash, noise_height, value_noise};
 
 impl HeightmapTerrain {
     /// A heightmap of `width` x `height` pixels, `heights_m` row-major (row
@@ -237,7 +189,7 @@ impl TerrainSource {
     pub fn height_at(&self, x: f32, z: f32) -> f32 {
         match self {
             Self::Flat { height_m } => *height_m,
-            Self::Noise(n) => n.base_m + n.amplitude_m * fbm(x / n.wavelength_m, z / n.wavelength_m, n.seed),
+            Self::Noise(n) => noise_height(x, z, (n.seed, n.base_m, n.amplitude_m, n.wavelength_m)),
             Self::Heightmap(hm) => hm.height_at(x, z),
             Self::Mesh(m) => m.grid.height_at(x, z),
         }

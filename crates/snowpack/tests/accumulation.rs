@@ -454,7 +454,7 @@ fn update_with_snowfall_under_objects_matches_cpu() {
     let sky_depth: Vec<f32> = read(ctx, &staging);
     let capture = vec![1.0f32; texels];
     let input = cpu::update::UpdateInputs { capture_depth: &capture, sky_depth: &sky_depth, terrain: &terrain };
-    let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::low_level::deform::snow_word::height(w, params.depth_m + l, 0.0)).collect();
+    let before: Vec<f32> = snow.iter().zip(&fallen).map(|(&w, &l)| snowpack::low_level::deform::snow_word::column_height(w, 0.0, params.depth_m + l)).collect();
     let before_fallen = fallen.clone();
     let mut packed = vec![0u32; texels.div_ceil(2)];
     let cpu_ledger = cpu::update::update(

@@ -136,7 +136,7 @@ fn rims_at_zero_depth_match_cpu_and_stay_finite() {
     // Half the texels bare (no snowfall yet: a rest depth of 0), half with some snow.
     let fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.5 { 0.0 } else { rng.range(0.001, 0.3) }).collect();
     let snow_words: Vec<u32> = fallen.iter().map(|f| if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, *f)) }).collect();
-    let snow: Vec<f32> = snow_words.iter().zip(&terrain).zip(&fallen).map(|((&w, t), f)| snow_word::height(w, t + f, *t)).collect();
+    let snow: Vec<f32> = snow_words.iter().zip(&terrain).zip(&fallen).map(|((&w, t), f)| snow_word::column_height(w, *t, *f)).collect();
     let (low_m, high_m) = (-3.0_f32, 3.0_f32);
     let stamps: Vec<u32> = terrain
         .iter()

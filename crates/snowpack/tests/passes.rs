@@ -337,7 +337,7 @@ fn capture_and_update_match_cpu_by(by: ShapeCapture) {
     assert_eq!(read_u32(ctx, &res.stamps), stamps, "refilled stamps; seed {seed}");
     let gpu_words = read_u32(ctx, &res.snow);
     assert!(gpu_words.iter().zip(&snow).all(|(a, b)| a >> 16 == b >> 16), "the update changed displayed halves; seed {seed}");
-    let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::height(w, t + params.depth_m, t)).collect() };
+    let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::column_height(w, t, params.depth_m)).collect() };
     let (gpu, snow) = (height(&gpu_words), height(&snow));
     // The 16-bit capture's code is 5 m / 65535 = 76 µm here and both sides
     // round to it, so agreeing texels differ by rasteriser rounding only (a
@@ -369,7 +369,7 @@ fn update_packs_pressed_snow_like_cpu() {
     let n = params.texel_count();
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::press_quanta(t + params.depth_m, t, t)).collect();
+    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::column_press(t, params.depth_m, t)).collect();
     let pack_ratio = rng.range(0.3, 6.0);
     let mut snow: Vec<u32> = at_ground.iter().map(|&g| (rng.next_u64() as u32 & 0xffff_0000) | (rng.range(0.0, g as f32 * 0.8) as u32)).collect();
     let mut packed = vec![0u32; n.div_ceil(2)];
@@ -471,7 +471,7 @@ fn displacement_matches_cpu_and_the_berms_gain_what_the_presses_lost_by(by: Shap
     res.allocate_capture(&ctx.device, (true, true));
     let n = params.texel_count();
     let mut fallen: Vec<f32> = (0..n).map(|_| rng.range(0.0, 0.1)).collect();
-    let at_ground: Vec<u32> = terrain.iter().zip(&fallen).map(|(&t, &l)| snow_word::press_quanta(t + params.depth_m + l, t, t)).collect();
+    let at_ground: Vec<u32> = terrain.iter().zip(&fallen).map(|(&t, &l)| snow_word::column_press(t, params.depth_m + l, t)).collect();
     let pack_ratio = rng.range(0.2, 1.5);
     let mut snow: Vec<u32> = at_ground.iter().map(|&g| (rng.next_u64() as u32 & 0xffff_0000) | (rng.range(0.0, g as f32 * 0.6) as u32)).collect();
     let mut packed = vec![0u32; n.div_ceil(2)];
@@ -585,7 +585,7 @@ fn erosion_matches_cpu_and_moves_no_snow_in_or_out() {
     let n = params.texel_count();
     let origin = [rng.range(-300.0, 300.0) as i32, rng.range(-300.0, 300.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::press_quanta(t + params.depth_m, t, t)).collect();
+    let at_ground: Vec<u32> = terrain.iter().map(|&t| snow_word::column_press(t, params.depth_m, t)).collect();
     // Trenches: blocks of deep deficits beside untouched snow.
     let mut snow: Vec<u32> = at_ground
         .iter()
@@ -646,7 +646,7 @@ fn erosion_slides_berms_and_leaves_pressed_texels_be() {
     let mut fallen: Vec<f32> = (0..n).map(|_| if rng.range(0.0, 1.0) < 0.3 { rng.range(0.1, 1.5) } else { 0.0 }).collect();
     let mut snow: Vec<u32> = (0..n)
         .map(|s| {
-            let g = snow_word::press_quanta(terrain[s] + params.depth_m + fallen[s], terrain[s], terrain[s]);
+            let g = snow_word::column_press(terrain[s], params.depth_m + fallen[s], terrain[s]);
             let mark = if rng.range(0.0, 1.0) < 0.15 { displace::PRESSED << 16 } else { 0 };
             mark | if rng.range(0.0, 1.0) < 0.3 { (rng.range(0.3, 1.0) * g as f32) as u32 } else { 0 }
         })
@@ -1254,7 +1254,7 @@ fn wheel_capture_matches_cpu_by(by: ShapeCapture) {
     let input = cpu::update::UpdateInputs { capture_depth: &depth, sky_depth: &[], terrain: &terrain };
     let state = &mut cpu::update::UpdateState { snow: &mut snow, stamps: &mut stamps, fallen: &mut [], packed: &mut packed, flags: &mut [] };
     cpu::update::update(&up, &input, state);
-    let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::height(w, t + params.depth_m, t)).collect() };
+    let height = |words: &[u32]| -> Vec<f32> { words.iter().zip(&terrain).map(|(&w, &t)| snow_word::column_height(w, t, params.depth_m)).collect() };
     let (gpu, cpu) = (height(&read_u32(ctx, &res.snow)), height(&snow));
     let pressed = gpu.iter().zip(&terrain).filter(|(h, t)| **h < **t + params.depth_m - 1e-3).count();
     // Six wheels, each pressing at least a few texels across and along (narrow

@@ -731,16 +731,27 @@ fn two_peers_ploughing_across_each_other_converge_and_the_mass_error_is_measured
 /// packed snow, bit for bit: what a relay and the other peers merge.
 #[test]
 fn presses_from_their_frames_alone_make_the_tiles_the_gpu_pressed() {
-    use snowpack::low_level::replicate::CatchUp;
-    use snowpack_share::replicate::press::{PressFrame, flat_ground, press_tiles};
     let Some(ctx) = testing::gpu() else { return };
     let seed = testing::seed("presses travel");
+    presses_match_the_gpu(ctx, TerrainSource::Flat { height_m: 0.25 }, seed);
+    // Hills of value noise, which every machine evaluates from the world's
+    // identity: some bodies reach the ground, and the ground differs under
+    // every texel.
+    let hills = snowpack::NoiseTerrain { seed: seed as u32, base_m: 0.25, amplitude_m: 0.3, wavelength_m: 3.0 };
+    presses_match_the_gpu(ctx, TerrainSource::Noise(hills), seed);
+}
+
+/// The bodies of [`presses_from_their_frames_alone_make_the_tiles_the_gpu_pressed`]
+/// over `terrain`.
+fn presses_match_the_gpu(ctx: &snowpack::GpuContext, terrain: TerrainSource, seed: u64) {
+    use snowpack::low_level::replicate::CatchUp;
+    use snowpack_share::replicate::press::{PressFrame, PressGround, press_tiles};
     let mut rng = Rng::new(seed);
     let params = SnowParams { extent_m: 8.0, resolution: 128, depth_m: 0.4, refill_m_per_s: 0.02, range_texels: 32, ..SnowParams::default() };
-    let mut d = SnowDeformation::new(ctx, params, TerrainSource::Flat { height_m: 0.25 }, CENTER).expect("deformation");
+    let mut d = SnowDeformation::new(ctx, params, terrain, CENTER).expect("deformation");
     d.enable_sharing(ctx, SIDE, 0.25).expect("sharing");
     let world = d.world_identity().settings().clone();
-    let ground = flat_ground(&world).expect("flat terrain travels");
+    let ground = PressGround::of_world(&world).expect("the terrain travels");
     // Each body starts somewhere in the window and moves steadily, turning and rolling.
     let starts: Vec<(Vec3, Vec3, f32)> = (0..4)
         .map(|_| {
@@ -788,7 +799,7 @@ fn presses_from_their_frames_alone_make_the_tiles_the_gpu_pressed() {
         );
         texels += t.deficit.iter().filter(|&&q| q > 0).count();
     }
-    eprintln!("presses travel: {} of {texels} pressed texels differ from the GPU's", differ.len());
+    eprintln!("presses travel over {}: {} of {texels} pressed texels differ from the GPU's", world.terrain, differ.len());
     // As the capture's own test allows (passes.rs): a lug's edge rests on
     // atan2, which WGSL lets round more loosely, and a GL compiler may fuse
     // a multiply and an add; a texel moved so is sent as a tile.

@@ -695,13 +695,13 @@ fn sphere_frame(clock: ShareClock, (x, z): (f32, f32), depth_m: f32) -> PressFra
 }
 
 /// Presses from a peer are pressed where its deformers are, exactly as the
-/// peer pressed them; elsewhere, in a world whose terrain a relay cannot
-/// know, or beyond the peer's press rate, they are refused, counted and
+/// peer pressed them (over flat ground or value-noise hills); elsewhere,
+/// in a world whose terrain a relay cannot know, or beyond the peer's press rate, they are refused, counted and
 /// change nothing (the message is still acknowledged: resending cannot
 /// change a refusal).
 #[test]
 fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
-    use snowpack_share::replicate::press::{flat_ground, press_tiles};
+    use snowpack_share::replicate::press::{PressGround, press_tiles};
     let now = 10.0;
     let w = world(16);
     let clock = w.clock_at(now);
@@ -710,7 +710,7 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
     let honest = sphere_frame(clock, (0.3, -0.2), 0.2);
     relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest.clone()], tiles: Vec::new() }), now);
     let casts = [honest.casts(w.settings().texel_m)];
-    let expected = press_tiles(std::slice::from_ref(&honest), &casts, w.settings(), flat_ground(w.settings()).expect("flat"), 16);
+    let expected = press_tiles(std::slice::from_ref(&honest), &casts, w.settings(), PressGround::of_world(w.settings()).expect("flat"), 16);
     assert!(expected.len() >= 2, "the sphere spans tiles");
     for t in &expected {
         let mut at_relay = relay.tile(t.key).expect("pressed at the relay");
@@ -738,15 +738,31 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
     relay.receive(1, &encode(&Message::Presses { seq: 3, frames: vec![swarm], tiles: Vec::new() }), now);
     assert_eq!(relay.stats().rejected.rate_presses, refused + 1, "{:?}", relay.stats().rejected);
     assert_eq!(all_tiles(&relay), before, "a refused press changed the relay");
-    // A world whose terrain the relay cannot know: presses cannot travel.
-    let mut hilly = w.settings().clone();
-    hilly.terrain = "noise seed 7 base 0 m amplitude 1 m wavelength 9 m".to_owned();
-    let hilly = WorldIdentity::from_settings(hilly);
-    let mut other = SnowRelay::new(RelayConfig::default());
-    other.connect(1);
-    other.receive(1, &encode(&Message::Hello { world: hilly, name: "hills".to_owned() }), now);
-    other.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
-    other.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest], tiles: Vec::new() }), now);
+    // Hills of value noise, which the world's identity names whole: the
+    // relay presses over them as the window did.
+    let in_world = |terrain: &str| {
+        let mut settings = w.settings().clone();
+        settings.terrain = terrain.to_owned();
+        let world = WorldIdentity::from_settings(settings);
+        let mut relay = SnowRelay::new(RelayConfig::default());
+        relay.connect(1);
+        relay.receive(1, &encode(&Message::Hello { world: world.clone(), name: "hills".to_owned() }), now);
+        relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
+        relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest.clone()], tiles: Vec::new() }), now);
+        (relay, world)
+    };
+    let (hills, world) = in_world("noise seed 7 base 0.1 m amplitude 0.3 m wavelength 2 m");
+    let ground = PressGround::of_world(world.settings()).expect("noise travels");
+    let over_hills = press_tiles(std::slice::from_ref(&honest), &casts, world.settings(), ground, 16);
+    assert_eq!(hills.stats().rejected.total(), 0, "{:?}", hills.stats().rejected);
+    assert!(over_hills.iter().zip(&expected).any(|(a, b)| a.deficit != b.deficit), "the hills change the press");
+    for t in &over_hills {
+        let mut at_relay = hills.tile(t.key).expect("pressed at the relay");
+        at_relay.catch_up(&t.clock, CatchUp::default());
+        assert_eq!(at_relay.deficit, t.deficit, "tile {:?} over the hills", t.key);
+    }
+    // A heightmap is named by its digest alone: presses cannot travel.
+    let (other, _) = in_world("heightmap 00000000deadbeef");
     assert_eq!((other.stats().rejected.unpressable, other.tile_keys().len()), (1, 0));
 }
 

@@ -176,9 +176,9 @@ pub struct SnowPeer {
     outbox: VecDeque<Vec<u8>>,
     /// Deltas in flight by sequence number.
     unacked: BTreeMap<u64, InFlight>,
-    /// The terrain height analytic presses are pressed over, when they
-    /// travel in this world ([`crate::replicate::press::presses_travel`]).
-    presses: Option<f32>,
+    /// The terrain analytic presses are pressed over, when they travel in
+    /// this world ([`crate::replicate::press::presses_travel`]).
+    presses: Option<crate::replicate::press::PressGround>,
     /// Press frames from the snow not sent yet, oldest first.
     frames_pending: VecDeque<PressFrame>,
     /// Tiles this peer's own press frames made, for the snow at the next

@@ -46,7 +46,7 @@ pub fn rim(p: &DisplayParams, terrain: &[f32], snow: &[u32], stamps: &[u32], fal
             let ground = terrain[s];
             let lying = if p.use_fallen != 0 { fallen[s] } else { 0.0 };
             let depth = p.depth_m + lying;
-            let snow_h = snow_word::height(snow[s], ground + depth, ground);
+            let snow_h = snow_word::column_height(snow[s], ground, depth);
             shown[(i * r + j) as usize] = if depth <= 0.0 {
                 // Bare ground (depth_m 0, no snowfall yet): no snow to remap
                 // or to push into rims.

@@ -2,7 +2,7 @@
 
 use snowpack::low_level::deform::erosion::ErosionParams;
 use snowpack::low_level::deform::packed_snow;
-use snowpack::low_level::deform::snow_word::press_quanta;
+use snowpack::low_level::deform::snow_word::column_press;
 
 use super::window::storage_index;
 
@@ -13,8 +13,8 @@ pub fn erode(p: &ErosionParams, terrain: &[f32], fallen: &mut [f32], snow: &mut 
     let res = p.resolution;
     let column = |s: usize, fallen: &[f32]| {
         let ground = terrain[s];
-        let rest = ground + p.depth_m + if p.use_fallen != 0 { fallen[s] } else { 0.0 };
-        press_quanta(rest, ground, ground)
+        let column = p.depth_m + if p.use_fallen != 0 { fallen[s] } else { 0.0 };
+        column_press(ground, column, ground)
     };
     // `lying_quanta`: a product then a rounding.
     let lying = |s: usize, fallen: &[f32]| if p.use_fallen != 0 { (fallen[s] * 10000.0).round_ties_even() as i32 } else { 0 };

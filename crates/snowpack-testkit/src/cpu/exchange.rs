@@ -81,8 +81,8 @@ fn stash(p: &ExchangeParams, s: usize, (table, tiles): (&[u32], &mut [u32]), w: 
     let Some(at) = tile_index(g, side, p.keys_per_side, table, planes, 0) else { return false };
     let idx = |plane: usize| at + plane * (side * side) as usize;
     let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
-    let rest = ground + p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
-    tiles[idx(PLANE_SNOW)] = snow_word::height(w.snow[s], rest, ground).to_bits();
+    let column = p.depth_m + if use_fallen { w.fallen[s] } else { 0.0 };
+    tiles[idx(PLANE_SNOW)] = snow_word::column_height(w.snow[s], ground, column).to_bits();
     if p.flags & ExchangeParams::HAS_STAMPS != 0 {
         tiles[idx(plane_stamps(planes))] = w.stamps[s];
     }
@@ -102,17 +102,17 @@ fn load(p: &ExchangeParams, [i, j]: [u32; 2], s: usize, (table, tiles): (&[u32],
     let Some(at) = tile_index(g, side, p.keys_per_side, table, planes, 0) else { return false };
     let idx = |plane: usize| at + plane * (side * side) as usize;
     let ground = super::window::texel_ground(w.terrain, g, p.texel_m);
-    let mut rest = ground + p.depth_m;
+    let mut column = p.depth_m;
     if p.flags & ExchangeParams::HAS_STAMPS != 0 {
         w.stamps[s] = tiles[idx(plane_stamps(planes))];
     }
     if use_fallen {
         let lying = f32::from_bits(tiles[idx(PLANE_FALLEN)]);
         w.fallen[s] = lying;
-        rest += lying;
+        column += lying;
     }
     let h = f32::from_bits(tiles[idx(PLANE_SNOW)]);
-    w.snow[s] = snow_word::press_quanta(rest, ground, h);
+    w.snow[s] = snow_word::column_press(ground, column, h);
     packed_snow::set(w.packed, s, tiles[idx(plane_packed(use_fallen))].min(0xffff));
     true
 }

@@ -50,7 +50,7 @@ pub fn query(params: &QueryParams, points: &[[f32; 2]], terrain: &[f32], (snow, 
             let l = taps.map(|s| if params.use_fallen != 0 { fallen[s] } else { 0.0 });
             out.terrain_m = bilerp(t[0], t[1], t[2], t[3], f);
             out.rest_m = out.terrain_m + params.depth_m + bilerp(l[0], l[1], l[2], l[3], f);
-            let h: [f32; 4] = std::array::from_fn(|k| snow_word::height(snow[taps[k]], t[k] + params.depth_m + l[k], t[k]));
+            let h: [f32; 4] = std::array::from_fn(|k| snow_word::column_height(snow[taps[k]], t[k], params.depth_m + l[k]));
             out.height_m = bilerp(h[0], h[1], h[2], h[3], f);
             let shown: [f32; 4] = std::array::from_fn(|k| snow_word::shown(snow[taps[k]], t[k]));
             out.surface_m = bilerp(shown[0], shown[1], shown[2], shown[3], f);

@@ -41,8 +41,8 @@ fn height_at(p: &SnowCoatParams, g: &CoatGroundData<'_>, q: Vec2) -> Vec2 {
         let s = storage_index(p.origin, p.resolution, i + di, j + dj);
         let t = g.terrain[s];
         let lying = if p.use_fallen != 0 { g.fallen[s] } else { 0.0 };
-        let rest = t + p.depth_m + lying;
-        Vec2::new(snow_word::height(g.snow[s], rest, t), rest)
+        let column = p.depth_m + lying;
+        Vec2::new(snow_word::column_height(g.snow[s], t, column), t + column)
     };
     lerp2(h(0, 0), h(0, 1), h(1, 0), h(1, 1), f)
 }

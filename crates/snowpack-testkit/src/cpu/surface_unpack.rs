@@ -64,7 +64,7 @@ pub fn packing(p: &UnpackParams, (snow, packed): (&[u32], &[u32]), (terrain, fal
         for j in 0..resolution {
             let s = storage_index(origin, resolution, i, j);
             let lying = if p.use_fallen != 0 { fallen[s] } else { 0.0 };
-            let column = snow_word::height(snow[s], terrain[s] + p.depth_m + lying, terrain[s]) - terrain[s];
+            let column = snow_word::column_height(snow[s], terrain[s], p.depth_m + lying) - terrain[s];
             raw.push(surface_packing(snow[s], snowpack::low_level::deform::packed_snow::get(packed, s), column, p.pack_ratio));
         }
     }

@@ -1,7 +1,7 @@
 //! CPU twin of `tile_merge.wgsl`.
 
 use snowpack::low_level::deform::packed_snow;
-use snowpack::low_level::deform::snow_word::press_quanta;
+use snowpack::low_level::deform::snow_word::column_press;
 use snowpack::low_level::replicate::gather::PACKED_PLANES;
 use snowpack::low_level::replicate::merge::TileMergeParams;
 
@@ -57,9 +57,10 @@ pub fn merge(p: &TileMergeParams, (keys, history): (&[[i32; 4]], &[[u32; 4]]), t
                     lying = fallen[s].max(c.l);
                     fallen[s] = lying;
                 }
-                let rest = ground + p.depth_m + lying;
+                let column = p.depth_m + lying;
+                let rest = ground + column;
                 let word = snow[s];
-                let at_ground = press_quanta(rest, ground, ground);
+                let at_ground = column_press(ground, column, ground);
                 let deficit = (word & 0xffff).max(c.d).min(at_ground);
                 snow[s] = (word & 0xffff_0000) | deficit;
                 if key[3] != 0 {
@@ -85,20 +86,21 @@ fn replay<'a>(p: &TileMergeParams, ground: f32, mut c: TexelInTransit, frames: i
         if use_fallen {
             c.l = c.l.max((c.l + f32::from_bits(h[2])).min(p.max_fallen_m));
         }
-        let rest_f = ground + p.depth_m + c.l;
+        let column_f = p.depth_m + c.l;
+        let rest_f = ground + column_f;
         c.d -= c.d.min(h[0]);
         if c.st != STAMP_EMPTY {
             if h[3] != 0 {
                 let was = c.d;
-                c.d = c.d.max(press_quanta(rest_f, ground, height(c.st >> 16, p.low_m, p.high_m)));
-                c.q = replay_pack(c.q, (was, c.d), press_quanta(rest_f, ground, ground), p.pack_ratio);
+                c.d = c.d.max(column_press(ground, column_f, height(c.st >> 16, p.low_m, p.high_m)));
+                c.q = replay_pack(c.q, (was, c.d), column_press(ground, column_f, ground), p.pack_ratio);
             }
             if h[1] > 0 {
                 let foot = (c.st & 0xffff) + h[1];
                 c.st = if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest_f { STAMP_EMPTY } else { (((c.st >> 16) + h[1]).min(65535) << 16) | foot };
             }
         }
-        c.d = c.d.min(press_quanta(rest_f, ground, ground));
+        c.d = c.d.min(column_press(ground, column_f, ground));
     }
     c
 }

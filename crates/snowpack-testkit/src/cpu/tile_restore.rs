@@ -1,7 +1,7 @@
 //! CPU twin of `tile_restore.wgsl`.
 
 use snowpack::TerrainSource;
-use snowpack::low_level::deform::snow_word::{height, press_quanta};
+use snowpack::low_level::deform::snow_word::{column_height, column_press};
 use snowpack::low_level::replicate::tile::TexelCopy;
 use snowpack::low_level::tiles::restore::{RestoreEntry, RestoreParams};
 
@@ -57,8 +57,7 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
 /// keeps its bits. `merge_texels` in `tile_restore.wgsl`.
 #[must_use]
 pub fn merge_texels(ground: f32, depth_m: f32, a: TexelState, b: TexelState) -> TexelState {
-    let copy =
-        |t: TexelState| TexelCopy { deficit: press_quanta(ground + depth_m + t.fallen, ground, t.snow), stamp: t.stamp, fallen_m: t.fallen, packed: t.packed };
+    let copy = |t: TexelState| TexelCopy { deficit: column_press(ground, depth_m + t.fallen, t.snow), stamp: t.stamp, fallen_m: t.fallen, packed: t.packed };
     let (ca, cb) = (copy(a), copy(b));
     let m = ca.merge(cb);
     let snow = if m.deficit == ca.deficit && m.fallen_m.to_bits() == a.fallen.to_bits() {
@@ -66,7 +65,7 @@ pub fn merge_texels(ground: f32, depth_m: f32, a: TexelState, b: TexelState) -> 
     } else if m.deficit == cb.deficit && m.fallen_m.to_bits() == b.fallen.to_bits() {
         b.snow
     } else {
-        height(m.deficit, ground + depth_m + m.fallen_m, ground)
+        column_height(m.deficit, ground, depth_m + m.fallen_m)
     };
     TexelState { snow, stamp: m.stamp, fallen: m.fallen_m, packed: m.packed }
 }

@@ -1,7 +1,7 @@
 //! CPU twin of `update.wgsl`.
 
 use snowpack::low_level::deform::packed_snow::{self, LedgerCounts};
-use snowpack::low_level::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, height as word_height, press_quanta};
+use snowpack::low_level::deform::snow_word::{SNOW_QUANTA_PER_M, SNOW_QUANTUM_M, column_height, column_press};
 use snowpack::low_level::deform::update::UpdateParams;
 
 use super::stamp::{STAMP_EMPTY, height};
@@ -63,18 +63,16 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
             let ground = input.terrain[s];
             let word = snow[s];
             let mut lying = if p.flags & UpdateParams::USE_FALLEN != 0 { fallen[s] } else { 0.0 };
-            let visible = if p.flags & UpdateParams::USE_SKY != 0 {
-                sky_visible(p, input.sky_depth, i, j, word_height(word, ground + p.depth_m + lying, ground))
-            } else {
-                1.0
-            };
+            let visible =
+                if p.flags & UpdateParams::USE_SKY != 0 { sky_visible(p, input.sky_depth, i, j, column_height(word, ground, p.depth_m + lying)) } else { 1.0 };
             if p.flags & UpdateParams::USE_FALLEN != 0 {
                 let before = lying;
                 lying = before.max((before + p.fall_m * visible).min(p.max_fallen_m));
                 fallen[s] = lying;
                 ledger.snowfall_fine += if counts { u64::from(packed_snow::ledger_fine(lying - before)) } else { 0 };
             }
-            let rest = ground + p.depth_m + lying;
+            // The rest column (depth and lying snow) over the terrain.
+            let column = p.depth_m + lying;
             let mut deficit = word & 0xffff;
             if visible > 0.0 {
                 deficit -= deficit.min(p.snow_refill_quanta);
@@ -86,17 +84,17 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
                 let d = input.capture_depth[(i * r + j) as usize];
                 if d < 1.0 {
                     let actor = p.low_m + d * (p.high_m - p.low_m);
-                    let press = press_quanta(rest, ground, actor);
+                    let press = column_press(ground, column, actor);
                     pressed = press >= refilled;
                     deficit = deficit.max(press);
                 }
             }
             let captured = deficit;
             if p.flags & UpdateParams::HAS_STAMPS != 0 {
-                deficit = footprint(p, &mut stamps[s], (rest, ground), deficit);
+                deficit = footprint(p, &mut stamps[s], (ground, column), deficit);
             }
             // Never below the terrain.
-            let at_ground = press_quanta(rest, ground, ground);
+            let at_ground = column_press(ground, column, ground);
             deficit = deficit.min(at_ground);
             if p.flags & UpdateParams::DISPLACE != 0 {
                 let (code, lost) = super::displace::press(p, input.capture_depth, packed, (s, i, j), (refilled, deficit, at_ground), pressed);
@@ -121,15 +119,16 @@ pub fn update(p: &UpdateParams, input: &UpdateInputs<'_>, state: &mut UpdateStat
     ledger
 }
 
-/// The stored footprint `st` at a texel with rest height and terrain
-/// `(rest, ground)`: it presses the snow to its height (with
+/// The stored footprint `st` at a texel with terrain `ground` under a rest
+/// column `column`: it presses the snow to its height (with
 /// [`UpdateParams::USE_STAMPS`]; returns the deficit) and refills.
-fn footprint(p: &UpdateParams, st: &mut u32, (rest, ground): (f32, f32), deficit: u32) -> u32 {
+fn footprint(p: &UpdateParams, st: &mut u32, (ground, column): (f32, f32), deficit: u32) -> u32 {
+    let rest = ground + column;
     if *st == STAMP_EMPTY {
         return deficit;
     }
     let (hq, fq) = (*st >> 16, *st & 0xffff);
-    let pressed = if p.flags & UpdateParams::USE_STAMPS != 0 { deficit.max(press_quanta(rest, ground, height(hq, p.low_m, p.high_m))) } else { deficit };
+    let pressed = if p.flags & UpdateParams::USE_STAMPS != 0 { deficit.max(column_press(ground, column, height(hq, p.low_m, p.high_m))) } else { deficit };
     if p.refill_quanta > 0 {
         let foot = fq + p.refill_quanta;
         *st = if foot > 65535 || height(foot, p.low_m, p.high_m) >= rest { STAMP_EMPTY } else { ((hq + p.refill_quanta).min(65535) << 16) | foot };

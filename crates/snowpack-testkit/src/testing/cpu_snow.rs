@@ -10,7 +10,7 @@ use std::collections::BTreeSet;
 use snowpack::WorldIdentity;
 use snowpack::low_level::persist::TileKey;
 use snowpack::low_level::replicate::{CatchUp, ShareClock, SharedSnow, SharedTile};
-use snowpack_share::replicate::press::{PressFrame, ShapeSweep, flat_ground, press_tiles};
+use snowpack_share::replicate::press::{PressFrame, PressGround, ShapeSweep, press_tiles};
 
 /// Tiles ahead of the snow's clock kept until it reaches them; beyond it
 /// the oldest are dropped.
@@ -143,10 +143,11 @@ impl CpuSnow {
     /// `range_m` (low, high world heights) and the packing `pack_ratio`, as
     /// a GPU window does this frame (`snowpack_share::replicate::press`, the same
     /// arithmetic); the frame is kept for the peer unless
-    /// [`Self::set_reports_presses`] turned that off. Needs flat terrain.
+    /// [`Self::set_reports_presses`] turned that off. Needs terrain the
+    /// world's identity says whole (flat, or value noise).
     pub fn press_shapes(&mut self, shapes: Vec<ShapeSweep>, range_m: (f32, f32), pack_ratio: f32) {
         let settings = self.world.settings().clone();
-        let Some(ground) = flat_ground(&settings) else { return };
+        let Some(ground) = PressGround::of_world(&settings) else { return };
         // As the capture keeps them: shapes that reach the window.
         let extent_m = settings.texel_m * self.resolution as f32;
         let shapes: Vec<ShapeSweep> = shapes.into_iter().filter(|s| s.touches_window(extent_m, settings.texel_m)).collect();

@@ -21,28 +21,34 @@ fn snow_deficit_quanta(m: f32) -> u32 {
     return u32(clamp(round(m * SNOW_QUANTA_PER_M), 0.0, 65535.0));
 }
 
-// The deficit that reaches the terrain from `rest` (rounded up; may exceed
-// 65535 under snow deeper than the deficit can hold).
-fn snow_ground_quanta(rest: f32, ground: f32) -> f32 {
-    return max(ceil((rest - ground) * SNOW_QUANTA_PER_M), 0.0);
+// The deficit that reaches the terrain under a column of `column` metres at
+// rest (depth and lying snow; rounded up; may exceed 65535 under snow deeper
+// than the deficit can hold). From the column itself, not from the rest
+// height less the terrain: a GPU compiler may simplify (terrain + column) -
+// terrain to the column, or not, and the CPU twins and the relay's presses
+// must find the same quanta.
+fn snow_ground_quanta(column: f32) -> f32 {
+    return max(ceil(column * SNOW_QUANTA_PER_M), 0.0);
 }
 
-// The persistent snow height of `word` over rest height `rest` and terrain
-// `ground`: exactly the terrain where the deficit reaches it.
-fn snow_word_height(word: u32, rest: f32, ground: f32) -> f32 {
+// The persistent snow height of `word` over terrain `ground` under a rest
+// column of `column` metres (rest height ground + column): exactly the
+// terrain where the deficit reaches it.
+fn snow_column_height(word: u32, ground: f32, column: f32) -> f32 {
     let d = f32(word & 0xffffu);
-    if d >= snow_ground_quanta(rest, ground) {
+    if d >= snow_ground_quanta(column) {
         return ground;
     }
-    return rest - d * SNOW_QUANTUM_M;
+    return (ground + column) - d * SNOW_QUANTUM_M;
 }
 
-// The deficit of a press down to `h` (not below the terrain) from `rest`.
-fn snow_press_quanta(rest: f32, ground: f32, h: f32) -> u32 {
+// The deficit of a press down to `h` (not below the terrain `ground`) under a
+// rest column of `column` metres.
+fn snow_column_press(ground: f32, column: f32, h: f32) -> u32 {
     if h <= ground {
-        return u32(min(snow_ground_quanta(rest, ground), 65535.0));
+        return u32(min(snow_ground_quanta(column), 65535.0));
     }
-    return snow_deficit_quanta(rest - h);
+    return snow_deficit_quanta((ground + column) - h);
 }
 
 // The f32 of f16 bits `h` as snow_f16_bits writes them (no subnormals, no

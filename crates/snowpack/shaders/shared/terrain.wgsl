@@ -8,7 +8,7 @@ struct TerrainParams {
     seed: u32,
     base_m: f32,        // flat height, or noise base
     amplitude_m: f32,
-    wavelength_m: f32,
+    per_wavelength: f32, // 1 / wavelength (1/m): a multiply rounds alike everywhere
     hm_width: u32,
     hm_height: u32,
     _pad: u32,
@@ -17,6 +17,14 @@ struct TerrainParams {
 }
 
 const NOISE_OCTAVES: u32 = 4u;
+// 1 / (1 + 1/2 + 1/4 + 1/8): the fractal sum is normalised by a multiply.
+const NOISE_NORM: f32 = 0.53333336;
+
+// The same operations in the same order as the Rust twin
+// (`snowpack_share::replicate::press::ground`), with no division: a relay
+// that presses over these hills finds the ground from the world's identity.
+// An explicit `fma` is not one everywhere (lavapipe splits it into a
+// multiply and an add), so there is none.
 
 fn lattice_hash(ix: i32, iz: i32, seed: u32) -> u32 {
     var h = (bitcast<u32>(ix) * 0x8da6b343u) ^ (bitcast<u32>(iz) * 0xd8163841u) ^ (seed * 0xcb1ab31fu);
@@ -53,14 +61,12 @@ fn fbm(x: f32, z: f32, seed: u32) -> f32 {
     var sum = 0.0;
     var amp = 1.0;
     var freq = 1.0;
-    var norm = 0.0;
     for (var octave = 0u; octave < NOISE_OCTAVES; octave++) {
         sum += amp * value_noise(x * freq, z * freq, seed + octave);
-        norm += amp;
         amp *= 0.5;
         freq *= 2.0;
     }
-    return sum / norm;
+    return sum * NOISE_NORM;
 }
 
 fn heightmap_at(t: TerrainParams, x: f32, z: f32) -> f32 {
@@ -96,7 +102,7 @@ fn terrain_height(t: TerrainParams, x: f32, z: f32) -> f32 {
 fn terrain_height_of_kind(kind: u32, t: TerrainParams, x: f32, z: f32) -> f32 {
     switch kind {
         case 1u: {
-            return t.base_m + t.amplitude_m * fbm(x / t.wavelength_m, z / t.wavelength_m, t.seed);
+            return t.base_m + t.amplitude_m * fbm(x * t.per_wavelength, z * t.per_wavelength, t.seed);
         }
         case 2u: {
             return heightmap_at(t, x, z);

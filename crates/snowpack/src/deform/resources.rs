@@ -272,8 +272,9 @@ pub struct TerrainParams {
     pub base_m: f32,
     /// Noise amplitude (m).
     pub amplitude_m: f32,
-    /// Noise wavelength (m).
-    pub wavelength_m: f32,
+    /// One over the noise wavelength (1/m): the shader multiplies by it, as
+    /// the CPU does, where a division may round otherwise on a GPU.
+    pub per_wavelength: f32,
     /// Heightmap pixels per row.
     pub hm_width: u32,
     /// Heightmap rows.
@@ -293,7 +294,9 @@ impl TerrainParams {
         use crate::TerrainSource as T;
         match terrain {
             T::Flat { height_m } => Self { kind: 0, base_m: *height_m, ..Self::default() },
-            T::Noise(n) => Self { kind: 1, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, wavelength_m: n.wavelength_m, ..Self::default() },
+            T::Noise(n) => {
+                Self { kind: 1, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, per_wavelength: 1.0 / n.wavelength_m, ..Self::default() }
+            }
             T::Heightmap(h) => Self::heightmap(h),
             // The mesh is drawn into a grid on the GPU and sampled like a heightmap.
             T::Mesh(m) => Self::heightmap(&m.grid),

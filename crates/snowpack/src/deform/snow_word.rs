@@ -21,17 +21,18 @@
 
 /// Metres per deficit quantum (the shared-snow crate's: tiles and their clock count in it).
 pub use snowpack_share::SNOW_QUANTUM_M;
-pub use snowpack_share::replicate::press::{SNOW_QUANTA_PER_M, deficit_quanta, ground_quanta, press_quanta};
+pub use snowpack_share::replicate::press::{SNOW_QUANTA_PER_M, column_press, deficit_quanta, ground_quanta};
 
-/// The persistent snow height of `word` over rest height `rest` and terrain
-/// `ground`: exactly the terrain where the deficit reaches it.
+/// The persistent snow height of `word` over terrain `ground` under a rest
+/// column of `column` metres (depth and lying snow; rest height `ground +
+/// column`): exactly the terrain where the deficit reaches it.
 #[must_use]
-pub fn height(word: u32, rest: f32, ground: f32) -> f32 {
+pub fn column_height(word: u32, ground: f32, column: f32) -> f32 {
     let d = (word & 0xffff) as f32;
-    if d >= ground_quanta(rest, ground) {
+    if d >= ground_quanta(column) {
         return ground;
     }
-    rest - d * SNOW_QUANTUM_M
+    (ground + column) - d * SNOW_QUANTUM_M
 }
 
 /// The displayed height of `word` over terrain height `ground`.
@@ -112,19 +113,19 @@ mod tests {
         for k in 0..1000 {
             let m = k as f32 * 0.000_37;
             let q = deficit_quanta(m);
-            assert!((height(q, 10.0, 0.0) - (10.0 - m)).abs() <= 0.5 * SNOW_QUANTUM_M + 1e-6, "{m}");
+            assert!((column_height(q, 0.0, 10.0) - (10.0 - m)).abs() <= 0.5 * SNOW_QUANTUM_M + 1e-6, "{m}");
         }
         assert_eq!(deficit_quanta(-1.0), 0);
         assert_eq!(deficit_quanta(100.0), 65_535);
         assert_eq!(shown(with_shown(7, 0.25), 1.0), 1.25);
         // A press to the terrain reads as the terrain, whatever the rounding.
-        for rest in [0.3, 0.123_456_7, 1.000_05, 6.5] {
+        for column in [0.3, 0.123_456_7, 1.000_05, 6.5] {
             let ground = 0.017;
-            assert_eq!(height(press_quanta(rest + ground, ground, ground - 1.0), rest + ground, ground), ground);
-            assert!(height(press_quanta(rest + ground, ground, ground + 0.001), rest + ground, ground) > ground);
+            assert_eq!(column_height(column_press(ground, column, ground - 1.0), ground, column), ground);
+            assert!(column_height(column_press(ground, column, ground + 0.001), ground, column) > ground);
         }
         // Deeper than a deficit holds: the deepest press stops above the terrain.
-        assert!(height(press_quanta(10.0, 0.0, 0.0), 10.0, 0.0) > 3.0);
+        assert!(column_height(column_press(0.0, 10.0, 0.0), 0.0, 10.0) > 3.0);
         assert_eq!(with_shown(7, 0.25) & 0xffff, 7);
     }
 }

@@ -400,7 +400,7 @@ impl SnowInspect for SnowDeformation {
         } else {
             vec![0.0; words.len()]
         };
-        Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::height(w, g + self.core.params().depth_m + l, g)).collect())
+        Ok(words.iter().zip(&terrain).zip(&fallen).map(|((&w, &g), &l)| snow_word::column_height(w, g, self.core.params().depth_m + l)).collect())
     }
 
     fn read_packed(&self, ctx: &GpuContext) -> Result<Vec<f32>, SnowError> {

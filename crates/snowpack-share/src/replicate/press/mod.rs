@@ -18,10 +18,14 @@
 //! | `wheel.rs` | tyres and treads: poses, sub-steps, the capture's instance of a pose |
 //! | `sweep.rs` | sub-steps of swept boxes (and meshes, in snowpack) |
 //! | `cast.rs` | the ray casts: capsule, tyre, box |
+//! | `ground.rs` | the terrain they are pressed over: flat, or the window's value noise |
 
 pub mod cast;
+pub mod ground;
 pub mod sweep;
 pub mod wheel;
+
+pub use ground::PressGround;
 
 use glam::{Mat4, Quat, Vec3};
 
@@ -44,20 +48,24 @@ pub fn deficit_quanta(m: f32) -> u32 {
     (m * SNOW_QUANTA_PER_M).round_ties_even().clamp(0.0, 65_535.0) as u32
 }
 
-/// The deficit that reaches the terrain from `rest` (rounded up; above
-/// 65535 under snow deeper than a deficit holds).
+/// The deficit that reaches the terrain under a rest column of `column`
+/// metres (depth and lying snow; rounded up; above 65535 under snow deeper
+/// than a deficit holds). From the column itself, as `snow_word.wgsl` does,
+/// not from the rest height less the terrain: a GPU compiler may simplify
+/// (terrain + column) − terrain to the column, or not.
 #[must_use]
-pub fn ground_quanta(rest: f32, ground: f32) -> f32 {
-    ((rest - ground) * SNOW_QUANTA_PER_M).ceil().max(0.0)
+pub fn ground_quanta(column: f32) -> f32 {
+    (column * SNOW_QUANTA_PER_M).ceil().max(0.0)
 }
 
-/// The deficit of a press down to `h` (not below the terrain) from `rest`.
+/// The deficit of a press down to `h` (not below the terrain `ground`)
+/// under a rest column of `column` metres (rest height `ground + column`).
 #[must_use]
-pub fn press_quanta(rest: f32, ground: f32, h: f32) -> u32 {
+pub fn column_press(ground: f32, column: f32, h: f32) -> u32 {
     if h <= ground {
-        return ground_quanta(rest, ground).min(65_535.0) as u32;
+        return ground_quanta(column).min(65_535.0) as u32;
     }
-    deficit_quanta(rest - h)
+    deficit_quanta((ground + column) - h)
 }
 
 /// Most packed snow (quanta) a column `column` quanta high holds at the
@@ -382,22 +390,19 @@ impl PressFrame {
         (cols.0 < cols.1 && rows.0 < rows.1).then_some(((rows.0 as u32, rows.1 as u32), (cols.0 as u32, cols.1 as u32)))
     }
 
-    /// Presses the frame into `tile` over flat terrain at `ground` (m) in
-    /// `world`: the tile is brought to the frame's clock, then each texel
-    /// inside the window takes the update's press of the shapes' capture
-    /// depth (16-bit codes, as the GPU stores them) and packs what it
-    /// lost up to the final density, as `update.wgsl` does where nothing
-    /// displaces, no footprint presses and no snowfall lies.
-    fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: f32) {
+    /// Presses the frame into `tile` over `ground` in `world`: the tile is
+    /// brought to the frame's clock, then each texel inside the window
+    /// takes the update's press of the shapes' capture depth (16-bit
+    /// codes, as the GPU stores them) and packs what it lost up to the
+    /// final density, as `update.wgsl` does where nothing displaces, no
+    /// footprint presses and no snowfall lies.
+    fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: PressGround) {
         tile.catch_up(&self.clock, CatchUp { max_fallen_m: world.max_fallen_m });
         let Some((rows, cols)) = self.span(tile.key, tile.side) else { return };
         let side = i64::from(tile.side);
         let (tile_c0, tile_r0) = (tile.key.col * side - self.origin[0], tile.key.row * side - self.origin[1]);
         let texel_m = world.texel_m;
         let range = self.high_m - self.low_m;
-        // As the update adds the lying snow (none where presses travel).
-        let rest = ground + world.depth_m + 0.0;
-        let at_ground = ground_quanta(rest, ground).min(65_535.0) as u32;
         if tile.packed.is_empty() {
             tile.packed = vec![0; tile.texels()];
         }
@@ -414,8 +419,12 @@ impl PressFrame {
                     continue;
                 }
                 let k = ((i64::from(i) - tile_r0) * side + (i64::from(j) - tile_c0)) as usize;
+                let terrain = ground.at_texel([self.origin[0] + i64::from(j), self.origin[1] + i64::from(i)], texel_m);
+                // As the update adds the lying snow (none where presses travel).
+                let column = world.depth_m + 0.0;
+                let at_ground = column_press(terrain, column, terrain);
                 let refilled = u32::from(tile.deficit[k]);
-                let deficit = refilled.max(press_quanta(rest, ground, self.low_m + d * range)).min(at_ground);
+                let deficit = refilled.max(column_press(terrain, column, self.low_m + d * range)).min(at_ground);
                 if deficit > refilled {
                     let squeezed = u32::from(tile.packed[k]) + (deficit - refilled);
                     tile.packed[k] = squeezed.min(packed_cap(at_ground - deficit, self.pack_ratio)).min(0xffff) as u16;
@@ -424,15 +433,6 @@ impl PressFrame {
             }
         }
     }
-}
-
-/// The terrain height of a world whose terrain is flat (`"flat at H m"`,
-/// snowpack's `terrain_identity`): what a machine without the terrain
-/// presses over. `None` for any other terrain.
-#[must_use]
-pub fn flat_ground(world: &WorldSettings) -> Option<f32> {
-    let h = world.terrain.strip_prefix("flat at ")?.strip_suffix(" m")?;
-    h.parse::<f32>().ok().filter(|h| h.is_finite())
 }
 
 /// Tile `key` (of `side` texels) after `frame` pressed it: `tile`, or
@@ -444,7 +444,7 @@ pub(crate) fn press_tile(
     casts: &FrameCasts,
     key: crate::TileKey,
     side: u32,
-    (world, ground): (&WorldSettings, f32),
+    (world, ground): (&WorldSettings, PressGround),
     tile: Option<SharedTile>,
 ) -> Option<SharedTile> {
     let (rows, cols) = frame.span(key, side)?;
@@ -460,11 +460,11 @@ pub(crate) fn press_tile(
 }
 
 /// The tiles (of `side` texels) `frames` press, in order, each from
-/// untouched snow at the clock of the first frame that reaches it, over flat
-/// terrain at `ground` (`casts[k]` is `frames[k].casts(world.texel_m)`):
-/// what a machine that receives the frames merges.
+/// untouched snow at the clock of the first frame that reaches it, over
+/// `ground` (`casts[k]` is `frames[k].casts(world.texel_m)`): what a
+/// machine that receives the frames merges.
 #[must_use]
-pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: f32, side: u32) -> Vec<SharedTile> {
+pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: PressGround, side: u32) -> Vec<SharedTile> {
     press_tiles_where(frames, casts, (world, ground, side), |_| true)
 }
 
@@ -484,7 +484,7 @@ pub(crate) fn instances(frames: &[PressFrame], texel_m: f32) -> u64 {
 pub(crate) fn press_tiles_where(
     frames: &[PressFrame],
     casts: &[FrameCasts],
-    (world, ground, side): (&WorldSettings, f32, u32),
+    (world, ground, side): (&WorldSettings, PressGround, u32),
     keep: impl Fn(crate::TileKey) -> bool,
 ) -> Vec<SharedTile> {
     let mut tiles: std::collections::BTreeMap<crate::TileKey, SharedTile> = std::collections::BTreeMap::new();
@@ -498,8 +498,9 @@ pub(crate) fn press_tiles_where(
     tiles.into_values().collect()
 }
 
-/// Whether presses can travel in `world`: flat terrain (a machine without
-/// the terrain knows its height) and no lying snow (a press's rest height
+/// Whether presses can travel in `world`: terrain its identity says whole
+/// (flat or value noise: [`PressGround::of_world`]; a machine without the
+/// terrain then knows its height) and no lying snow (a press's rest height
 /// would depend on the snowfall and berms under it, which only the window
 /// knows: those worlds send tiles).
 #[must_use]
@@ -507,11 +508,11 @@ pub fn presses_travel(world: &WorldSettings) -> bool {
     press_ground(world).is_some()
 }
 
-/// The terrain height presses are pressed over in `world`, when they
-/// travel there ([`presses_travel`]).
+/// The terrain presses are pressed over in `world`, when they travel
+/// there ([`presses_travel`]).
 #[must_use]
-pub(crate) fn press_ground(world: &WorldSettings) -> Option<f32> {
-    flat_ground(world).filter(|_| !world.has_snowfall)
+pub(crate) fn press_ground(world: &WorldSettings) -> Option<PressGround> {
+    PressGround::of_world(world).filter(|_| !world.has_snowfall)
 }
 
 /// Quaternion rotation normalised as the sender's box poses are (checked on
@@ -543,7 +544,7 @@ mod tests {
     }
 
     #[test]
-    fn flat_terrain_is_read_from_the_world_and_nothing_else_is() {
+    fn flat_and_noise_terrain_are_read_from_the_world_and_nothing_else_is() {
         let mut w = WorldSettings {
             texel_m: 0.0625,
             tile_side: 32,
@@ -555,13 +556,29 @@ mod tests {
             has_snowfall: false,
             stamp_range_m: [-1.0, 1.0],
         };
-        assert_eq!(flat_ground(&w), Some(-2.25));
+        assert_eq!(PressGround::of_world(&w), Some(PressGround::Flat(-2.25)));
         assert!(presses_travel(&w));
         w.has_snowfall = true;
         assert!(!presses_travel(&w), "lying snow stays in tiles");
-        w.terrain = "noise seed 7 base 0 m amplitude 1 m wavelength 9 m".to_owned();
-        assert_eq!(flat_ground(&w), None);
-        w.terrain = "flat at NaN m".to_owned();
-        assert_eq!(flat_ground(&w), None);
+        w.has_snowfall = false;
+        w.terrain = "noise seed 7 base -0.5 m amplitude 1.25 m wavelength 9 m".to_owned();
+        let noise = PressGround::Noise { seed: 7, base_m: -0.5, amplitude_m: 1.25, wavelength_m: 9.0 };
+        assert_eq!(PressGround::of_world(&w), Some(noise));
+        assert!(presses_travel(&w));
+        // The height under a texel is the window's noise at its centre.
+        let h = noise.at_texel([37, -12], 0.25);
+        assert_eq!(h.to_bits(), ground::noise_height(37.5 * 0.25, -11.5 * 0.25, (7, -0.5, 1.25, 9.0)).to_bits());
+        for bad in [
+            "flat at NaN m",
+            "heightmap 00000000deadbeef",
+            "mesh of 12 triangles 00000000deadbeef",
+            "noise seed 7 base 0 m amplitude 1 m wavelength 0 m",
+            "noise seed 7 base 0 m amplitude inf m wavelength 9 m",
+            "noise seed -7 base 0 m amplitude 1 m wavelength 9 m",
+            "noise seed 7 base 0 m amplitude 1 m wavelength 9 m and more",
+        ] {
+            w.terrain = bad.to_owned();
+            assert_eq!(PressGround::of_world(&w), None, "{bad}");
+        }
     }
 }

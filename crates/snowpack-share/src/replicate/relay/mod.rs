@@ -610,7 +610,13 @@ impl SnowRelay {
     /// tiles wait the longer). When a tile was refused (far from the
     /// sender's deformers, say) the frames would press it at the watchers
     /// too, so the accepted merges go to them as tiles instead.
-    fn pass_presses_on(&mut self, frames: &[crate::replicate::press::PressFrame], (pressed, accepted): (&[SharedTile], &[(TileKey, bool)]), watchers: &BTreeSet<PeerId>, now: f64) {
+    fn pass_presses_on(
+        &mut self,
+        frames: &[crate::replicate::press::PressFrame],
+        (pressed, accepted): (&[SharedTile], &[(TileKey, bool)]),
+        watchers: &BTreeSet<PeerId>,
+        now: f64,
+    ) {
         if watchers.is_empty() || !accepted.iter().any(|&(_, changed)| changed) {
             return;
         }
