@@ -54,7 +54,8 @@ pub struct RelayRejections {
     /// ([`super::RelayConfig::press_casts_per_s`]) or making more than
     /// 16,384 ray-cast instances, refused whole.
     pub rate_presses: u64,
-    /// `Presses` in a world whose presses cannot travel (not flat, or with
+    /// `Presses` in a world whose presses cannot travel (terrain its identity
+    /// names by a digest only, a heightmap or a mesh; or with
     /// lying snow: [`crate::replicate::press::presses_travel`]), refused whole.
     pub unpressable: u64,
 }
