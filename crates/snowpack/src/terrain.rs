@@ -143,7 +143,7 @@ impl TerrainMesh {
 // the share crate.
 #[cfg(test)]
 use snowpack_share::replicate::press::ground::fbm;
-pub(crate) use snowpack_share::replicate::press::ground::{lattice_hash, noise_height, value_noise};
+pub(crate) use snowpack_share::replicate::press::ground::{lattice_hash, noise_height};
 
 impl HeightmapTerrain {
     /// A heightmap of `width` x `height` pixels, `heights_m` row-major (row

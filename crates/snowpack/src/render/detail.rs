@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use crate::terrain::value_noise;
+use snowpack_share::replicate::press::ground::value_noise;
 
 /// Side of the base level (texels).
 pub const DETAIL_SIDE: u32 = 256;
