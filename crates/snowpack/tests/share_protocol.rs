@@ -829,6 +829,15 @@ fn presses_are_passed_on_only_when_the_relay_took_all_they_pressed() {
         watched.catch_up(&clock, CatchUp::default());
         assert_eq!(watched.deficit, at_relay.deficit, "tile {key:?}");
     }
+    // A watcher presses no more than a relay takes from one peer: 256
+    // boxes swept 100 m (65 poses each) are dropped, counted as malformed.
+    let q = glam::Quat::IDENTITY;
+    let mut swarm = sphere_frame(clock, (0.0, 0.0), 0.1);
+    swarm.shapes =
+        vec![ShapeSweep::Box { then: Some((Vec3::new(108.0, 0.3, 8.0), Vec3::splat(0.2), q)), now: (Vec3::new(8.0, 0.3, 8.0), Vec3::splat(0.2), q) }; 256];
+    let (malformed, frames) = (watcher.stats().malformed, watcher.stats().press_frames_received);
+    assert!(watcher.receive(&encode(&Message::Presses { seq: 9, frames: vec![swarm], tiles: Vec::new() })).is_ok());
+    assert_eq!((watcher.stats().malformed, watcher.stats().press_frames_received), (malformed + 1, frames));
 }
 
 #[test]

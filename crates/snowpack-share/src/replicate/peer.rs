@@ -154,6 +154,10 @@ enum Outgoing {
 const PRESS_LOG_S: f64 = 3.0;
 /// The most sent press frames kept (a frame is a few hundred bytes).
 const MAX_PRESS_LOG: usize = 1024;
+/// The most ray casts one `Presses` message the relay passes on may cost
+/// this peer: the relay's default burst for one peer's presses
+/// (`RelayConfig::burst_press_casts`), so what a relay took it passes on.
+const MAX_PASSED_ON_CASTS: u64 = 16 << 20;
 /// The most press frames waiting to be sent.
 const MAX_PENDING_FRAMES: usize = 4 * MAX_PRESS_FRAMES;
 
@@ -360,17 +364,24 @@ impl SnowPeer {
     /// The tiles near the window (within a tile of it, as the relay's
     /// interest) that `frames`, passed on by the relay, press from
     /// untouched snow: what the relay merged of them. None in a world
-    /// whose presses do not travel, or beyond the instances a message may
-    /// make (a relay sends neither; counted as malformed).
+    /// whose presses do not travel, or beyond the instances or the ray
+    /// casts a message may make (a relay with the default press budget
+    /// sends neither; counted as malformed, and the digests bring the
+    /// tiles instead).
     fn press_passed_on(&mut self, frames: &[PressFrame]) -> Vec<SharedTile> {
-        let texel_m = self.world.settings.texel_m;
-        let Some(ground) = self.presses.filter(|_| crate::replicate::press::instances(frames, texel_m) <= crate::replicate::press::MAX_PRESS_INSTANCES) else {
+        use crate::replicate::press::{MAX_PRESS_INSTANCES, instances};
+        let (texel_m, side) = (self.world.settings.texel_m, self.world.settings.tile_side);
+        let Some(ground) = self.presses.filter(|_| instances(frames, texel_m) <= MAX_PRESS_INSTANCES) else {
             self.stats.malformed += 1;
             return Vec::new();
         };
-        self.stats.press_frames_received += frames.len() as u64;
-        let side = self.world.settings.tile_side;
         let casts: Vec<FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+        let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
+        if work > MAX_PASSED_ON_CASTS {
+            self.stats.malformed += 1;
+            return Vec::new();
+        }
+        self.stats.press_frames_received += frames.len() as u64;
         let window = self.last_window;
         let near = |k: TileKey| window.is_none_or(|(first, resolution)| near_window(k, side, first, resolution));
         let pressed = crate::replicate::press::press_tiles_where(frames, &casts, (&self.world.settings, ground, side), near);
