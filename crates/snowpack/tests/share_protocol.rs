@@ -518,6 +518,13 @@ fn three_peers_converge_over_a_lossy_network() {
 /// delays) or not, until it settles; asserts that both players and the
 /// relay converge and returns player 1's counters.
 fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> (snowpack::PeerStats, snowpack::PeerStats) {
+    cars_on_one_road(reports_presses, (lossy, false), seed)
+}
+
+/// [`car_past_a_watcher`], or with `oncoming` two cars: the watcher
+/// (player 2) drives the same road the other way, its wheels in the first
+/// car's ruts.
+fn cars_on_one_road(reports_presses: bool, (lossy, oncoming): (bool, bool), seed: u64) -> (snowpack::PeerStats, snowpack::PeerStats) {
     // Texels of 3 cm in tiles of 1 m, where a tread shows.
     let mut settings = world(32).settings().clone();
     settings.texel_m = 0.031_25;
@@ -544,10 +551,13 @@ fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> (snowpac
         t += dt;
         let now = testing::drive(t);
         for p in &mut players {
-            if p.id == 1 && t < 8.0 {
+            // The oncoming car: mirrored in x, rolling the other way.
+            let mirrored = |(at, roll): ([f64; 2], f32)| ([-at[0], at[1]], -roll);
+            let (at, then) = if p.id == 1 { (now, last) } else { (mirrored(now), mirrored(last)) };
+            if (p.id == 1 || oncoming) && t < 8.0 {
                 let origin = p.snow.origin();
-                p.snow.press_shapes(testing::car_wheels(w.settings().texel_m, origin, now, Some(last)), (-0.5, 1.5), 3.0);
-                p.peer.set_deformers(&[now.0]);
+                p.snow.press_shapes(testing::car_wheels(w.settings().texel_m, origin, at, Some(then)), (-0.5, 1.5), 3.0);
+                p.peer.set_deformers(&[at.0]);
             }
             p.snow.step(dt);
             p.peer.update(&mut p.snow, t);
@@ -566,7 +576,25 @@ fn car_past_a_watcher(reports_presses: bool, lossy: bool, seed: u64) -> (snowpac
     // The relay passes the car's frames on to the watcher, which presses them.
     assert_eq!(relay.stats().press_frames_sent > 0, reports_presses, "{:?}", relay.stats());
     assert_eq!(watcher.press_frames_received > 0, reports_presses, "{watcher:?}");
+    if oncoming {
+        let car = players[0].peer.stats();
+        assert_eq!(car.press_frames_received > 0, reports_presses, "the first car presses the oncoming one's frames: {car:?}");
+    }
     (players[0].peer.stats(), watcher)
+}
+
+/// Two cars on one road, each the other's watcher, their wheels in the same
+/// ruts: each one's frames are passed on to the other, which presses them
+/// into the snow it presses itself, and every copy ends the same, texel
+/// for texel, over a network that loses, duplicates and reorders.
+#[test]
+fn oncoming_cars_press_each_others_frames_and_every_copy_converges() {
+    let seed = testing::seed("oncoming cars");
+    let (one, two) = cars_on_one_road(true, (true, true), seed);
+    eprintln!(
+        "oncoming cars: {} and {} frames sent, {} and {} passed on and pressed, {} and {} tiles sent",
+        one.press_frames_sent, two.press_frames_sent, one.press_frames_received, two.press_frames_received, one.tiles_sent, two.tiles_sent
+    );
 }
 
 /// A car's presses travel as frames, to the relay and on to the watcher:

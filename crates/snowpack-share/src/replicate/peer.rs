@@ -486,6 +486,9 @@ impl SnowPeer {
                     self.stats.tiles_merged += 1;
                     self.changed();
                 }
+                // The relay holds what it sent (its copies only grow), so a
+                // tile this peer changes too goes beyond that, not with it.
+                merge_into(&mut self.acked, t.clone(), c);
             }
             snow.merge_tiles(&incoming);
         }
