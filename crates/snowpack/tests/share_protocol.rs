@@ -857,6 +857,19 @@ fn presses_are_passed_on_only_when_the_relay_took_all_they_pressed() {
         watched.catch_up(&clock, CatchUp::default());
         assert_eq!(watched.deficit, at_relay.deficit, "tile {key:?}");
     }
+    // A watcher whose byte budget cannot pay for the frames now is sent
+    // the tiles, paced with its others.
+    let stingy = RelayConfig { send_bytes_per_s: 1, send_burst_bytes: 64, ..RelayConfig::default() };
+    let mut paced = relay_with_peer(stingy, now);
+    paced.connect(2);
+    paced.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned() }), now);
+    paced.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), now);
+    let (mut other, mut other_snow) = (SnowPeer::new(w.clone(), "watcher", PeerConfig::default()), CpuSnow::new(w.clone(), 128, [-64, -64], now));
+    deliver(&mut paced, &mut other, &mut other_snow, now);
+    paced.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![sphere_frame(clock, (0.3, -0.2), 0.2)], tiles: Vec::new() }), now);
+    let kinds = deliver(&mut paced, &mut other, &mut other_snow, now + 0.5);
+    assert!(kinds.contains(&"Tiles") && !kinds.contains(&"Presses"), "a watcher without the budget was sent tiles: {kinds:?}");
+    assert_eq!(paced.stats().press_frames_sent, 0);
     // A watcher presses no more than a relay takes from one peer: 256
     // boxes swept 100 m (65 poses each) are dropped, counted as malformed.
     let q = glam::Quat::IDENTITY;

@@ -606,10 +606,12 @@ impl SnowRelay {
 
     /// Sends `frames` on to `watchers` when the relay accepted every tile
     /// they `pressed` and one of them changed its copy: each watcher
-    /// presses them as the relay did (its byte budget pays for them, so its
-    /// tiles wait the longer). When a tile was refused (far from the
+    /// presses them as the relay did, paid from its byte budget. A watcher
+    /// whose budget cannot pay for them now is sent the tiles instead,
+    /// paced with its other tiles (so many senders cannot flood one
+    /// watcher's queue); and when a tile was refused (far from the
     /// sender's deformers, say) the frames would press it at the watchers
-    /// too, so the accepted merges go to them as tiles instead.
+    /// too, so every watcher is sent the accepted merges as tiles.
     fn pass_presses_on(
         &mut self,
         frames: &[crate::replicate::press::PressFrame],
@@ -620,29 +622,23 @@ impl SnowRelay {
         if watchers.is_empty() || !accepted.iter().any(|&(_, changed)| changed) {
             return;
         }
-        if accepted.len() < pressed.len() {
-            for &(key, _) in accepted.iter().filter(|(_, changed)| *changed) {
-                for id in watchers {
-                    if let Some(p) = self.peers.get_mut(id).filter(|p| p.interest.is_some_and(|r| r.contains(key))) {
-                        p.pending.insert(key);
-                    }
-                }
-            }
-            return;
-        }
-        let coded = super::presses::encode_frames(frames);
+        let changed = || accepted.iter().filter(|(_, changed)| *changed).map(|&(key, _)| key);
+        let coded = (accepted.len() == pressed.len()).then(|| super::presses::encode_frames(frames));
         let (rate, burst) = (f64::from(self.config.send_bytes_per_s), f64::from(self.config.send_burst_bytes));
         for &id in watchers {
             let Some(p) = self.peers.get_mut(&id) else { continue };
-            p.passed_on.retain(|_, at| now - *at < PASSED_ON_S);
             let interest = p.interest;
-            p.passed_on.extend(pressed.iter().map(|t| t.key).filter(|k| interest.is_some_and(|r| r.contains(*k))).map(|k| (k, now)));
-            let message = super::message::presses_message(p.seq_out, (frames.len(), &coded), &[]);
-            p.seq_out = p.seq_out.wrapping_add(1);
-            p.out_bytes.refill(now, rate, burst);
-            p.out_bytes.tokens -= message.len() as f64;
-            self.stats.press_frames_sent += frames.len() as u64;
-            self.enqueue(id, message);
+            let message = coded.as_ref().map(|c| super::message::presses_message(p.seq_out, (frames.len(), c), &[]));
+            match message {
+                Some(message) if p.out_bytes.take(now, rate, burst, message.len() as f64) => {
+                    p.seq_out = p.seq_out.wrapping_add(1);
+                    p.passed_on.retain(|_, at| now - *at < PASSED_ON_S);
+                    p.passed_on.extend(pressed.iter().map(|t| t.key).filter(|k| interest.is_some_and(|r| r.contains(*k))).map(|k| (k, now)));
+                    self.stats.press_frames_sent += frames.len() as u64;
+                    self.enqueue(id, message);
+                }
+                _ => p.pending.extend(changed().filter(|k| interest.is_some_and(|r| r.contains(*k)))),
+            }
         }
     }
 
