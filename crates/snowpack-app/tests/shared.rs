@@ -253,3 +253,64 @@ fn a_server_with_a_key_answers_only_clients_with_a_token() {
     assert_eq!(refused.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("bad.key"), "{}", String::from_utf8_lossy(&refused.stderr));
 }
+
+/// Two cars at once against one server, on parallel roads through one
+/// window: each run is the other's watcher. Each car's presses travel as
+/// its frames (no tile of theirs is sent), the server passes them on to
+/// the other run, which presses them, and both windows end with both cars'
+/// ruts, texel for texel. Each car drives for its first 2 s and then stands
+/// for 8 s more (a frame at rest presses nothing and sends nothing), so
+/// each run is connected while the other drives however their starts
+/// differ on a busy machine.
+#[test]
+fn two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("shared-cars");
+    let server = Server::start(&dir.0.join("world"), PROCESS_LIMIT);
+    // 8 m of 0.3 m snow at 3.125 cm; a car crosses the window in 2 s at z.
+    let car = |name: &str, z: f32| {
+        let path = dir.0.join(format!("{name}.toml"));
+        std::fs::write(
+            &path,
+            format!(
+                "[snow]\nextent_m = 8.0\nresolution = 256\ndepth_m = 0.3\nrefill_m_per_s = 0.0\n\n[terrain]\nkind = \"flat\"\n\n[window]\ncenter = [0.0, 0.0]\n\n\
+                 [[vehicle]]\nwheelbase_m = 2.6\ntrack_m = 1.55\nwheel_radius_m = 0.33\nwheel_width_m = 0.28\nmass_kg = 1800.0\ntread = \"blocks\"\n\
+                 path = [[-3.0, {z}, 0.0], [3.0, {z}, 2.0]]\n\n[sim]\nframes = 300\ndt_s = 0.033333333\n"
+            ),
+        )
+        .expect("write the scene");
+        path
+    };
+    let scenes = [("a", car("a", -1.5)), ("b", car("b", 1.5))];
+    let runs: Vec<std::thread::JoinHandle<std::process::Output>> = scenes
+        .iter()
+        .map(|(name, path)| {
+            let (path, out, addr) = (path.clone(), dir.0.join(name), server.addr);
+            std::thread::spawn(move || run_connected(&path, &out, addr))
+        })
+        .collect();
+    for (run, (name, _)) in runs.into_iter().zip(&scenes) {
+        assert_ok(&format!("car {name}"), &run.join().expect("the run's thread"));
+    }
+    let share = |name: &str| -> serde_json::Value {
+        let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.0.join(name).join("meta.json")).expect("meta.json")).expect("valid JSON");
+        meta["share"].clone()
+    };
+    let (a, b) = (share("a"), share("b"));
+    eprintln!("car a: {a}\ncar b: {b}");
+    for s in [&a, &b] {
+        let count = |key: &str| s[key].as_u64().unwrap_or(0);
+        assert!(count("press_frames_sent") >= 30, "a car sends its presses as frames: {s}");
+        assert!(count("tiles_as_presses") > 0 && count("tiles_sent") == 0, "its frames explain its tiles: {s}");
+        assert!(count("press_frames_received") >= 30, "each presses the other's frames, passed on by the server: {s}");
+    }
+    let (sa, sb) = (load_npy(&dir.0.join("a/snow.npy")), load_npy(&dir.0.join("b/snow.npy")));
+    let differ = sa.iter().zip(&sb).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    // Both cars' ruts, in rows either side of the middle (row 128 is z = 0).
+    let rutted = |rows: std::ops::Range<usize>| rows.flat_map(|i| (0..256).map(move |j| i * 256 + j)).filter(|&k| sa[k] < 0.29).count();
+    let (first, second) = (rutted(0..128), rutted(128..256));
+    assert!(first > 500 && second > 500, "the cars left {first} and {second} texels below 0.29 m");
+    assert_eq!(differ, 0, "{differ} of {} texels differ between the two cars' windows", sa.len());
+}
