@@ -78,7 +78,7 @@ fn saved_texel(at: u32, area: u32, i: u32, ground: f32, refill_m: f32, fall_m: f
     t.stamp = upload[at + area + i];
     t.fallen = bitcast<f32>(upload[at + 2u * area + i]);
     t.packed = upload[at + 3u * area + i];
-    t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + params.depth_m + t.fallen));
+    t.snow = bitcast<f32>(upload[at + i] ^ bitcast<u32>(ground + (params.depth_m + t.fallen)));
     if refill_m > 0.0 || fall_m > 0.0 || quanta > 0u {
         t = pass_time(ground, params.depth_m, t, fall_m, params.max_fallen_m, refill_m, quanta, params.low_m, params.high_m, (pass_flags() & USE_FALLEN) != 0u);
     }
@@ -138,7 +138,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var t: TexelState;
     if e.upload == FRESH {
         t.fallen = select(0.0, params.fallen_m, use_fallen);
-        t.snow = ground + params.depth_m + params.fallen_m;
+        t.snow = ground + (params.depth_m + params.fallen_m);
         t.stamp = STAMP_EMPTY;
         t.packed = 0u;
     } else {

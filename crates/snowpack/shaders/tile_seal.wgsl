@@ -5,8 +5,8 @@
 
 // Tile seal pass: turns the snow plane of the listed slots into what the
 // store keeps, the snow height's bits XOR the bits of its rest height
-// (ground + depth + the texel's snowfall, added in that order, as
-// tile_restore.wgsl undoes it), just before those slots are copied out.
+// (ground + (depth + the texel's snowfall): the terrain plus the rest
+// column, as every pass finds the rest height and tile_restore.wgsl undoes it), just before those slots are copied out.
 // XOR is its own inverse: sealing a slot twice gives it back (a save seals
 // the resident tiles, reads them, and seals them again). The ground is
 // evaluated here from the terrain's source, with the very code the restore
@@ -47,5 +47,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (pass_flags() & USE_FALLEN) != 0u {
         lying = bitcast<f32>(tiles[base + PLANE_FALLEN * area]);
     }
-    tiles[base + PLANE_SNOW * area] ^= bitcast<u32>(ground + params.depth_m + lying);
+    tiles[base + PLANE_SNOW * area] ^= bitcast<u32>(ground + (params.depth_m + lying));
 }

@@ -26,13 +26,13 @@ pub fn restore(p: &RestoreParams, entries: &[RestoreEntry], upload: &[u32], terr
             let saved = |at: u32, time: TimePassed| {
                 let u = at as usize;
                 let fallen = f32::from_bits(upload[u + 2 * area + k]);
-                let rest = ground + p.depth_m + fallen;
+                let rest = ground + (p.depth_m + fallen);
                 let saved =
                     TexelState { snow: f32::from_bits(upload[u + k] ^ rest.to_bits()), stamp: upload[u + area + k], fallen, packed: upload[u + 3 * area + k] };
                 if time.refill_m > 0.0 || time.fall_m > 0.0 || time.quanta > 0 { pass_time(ground, &c, saved, &time) } else { saved }
             };
             let mut t = if e.upload == RestoreEntry::FRESH {
-                TexelState { snow: ground + p.depth_m + p.fallen_m, stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 }, packed: 0 }
+                TexelState { snow: ground + (p.depth_m + p.fallen_m), stamp: STAMP_EMPTY, fallen: if use_fallen { p.fallen_m } else { 0.0 }, packed: 0 }
             } else {
                 saved(e.upload, TimePassed { fall_m: e.fall_m, refill_m: e.refill_m, quanta: e.quanta })
             };

@@ -55,7 +55,7 @@ pub fn pass_time(ground: f32, c: &SnowConstants, t: TexelState, time: &TimePasse
         gained = lying - t.fallen;
         out.fallen = lying;
     }
-    let rest = ground + c.depth_m + lying;
+    let rest = ground + (c.depth_m + lying);
     let h = (t.snow + gained + time.refill_m).min(rest);
     if t.stamp != STAMP_EMPTY && time.quanta > 0 {
         let q = time.quanta.min(65536);

@@ -55,7 +55,7 @@ fn pass_time(ground: f32, depth_m: f32, t: TexelState, fall_m: f32, max_fallen_m
         gained = lying - t.fallen;
         out.fallen = lying;
     }
-    let rest = ground + depth_m + lying;
+    let rest = ground + (depth_m + lying);
     let h = min(t.snow + gained + refill_m, rest);
     if t.stamp != STAMP_EMPTY && quanta > 0u {
         // Clamped so a long absence cannot overflow; any 65536 quanta empty it.
