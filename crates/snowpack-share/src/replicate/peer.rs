@@ -369,18 +369,12 @@ impl SnowPeer {
     /// sends neither; counted as malformed, and the digests bring the
     /// tiles instead).
     fn press_passed_on(&mut self, frames: &[PressFrame]) -> Vec<SharedTile> {
-        use crate::replicate::press::{MAX_PRESS_INSTANCES, instances};
         let (texel_m, side) = (self.world.settings.texel_m, self.world.settings.tile_side);
-        let Some(ground) = self.presses.filter(|_| instances(frames, texel_m) <= MAX_PRESS_INSTANCES) else {
+        let costed = crate::replicate::press::costed_casts(frames, texel_m, side).filter(|&(_, work)| work <= MAX_PASSED_ON_CASTS);
+        let (Some(ground), Some((casts, _))) = (self.presses, costed) else {
             self.stats.malformed += 1;
             return Vec::new();
         };
-        let casts: Vec<FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
-        let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
-        if work > MAX_PASSED_ON_CASTS {
-            self.stats.malformed += 1;
-            return Vec::new();
-        }
         self.stats.press_frames_received += frames.len() as u64;
         let window = self.last_window;
         let near = |k: TileKey| window.is_none_or(|(first, resolution)| near_window(k, side, first, resolution));

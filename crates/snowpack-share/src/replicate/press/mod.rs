@@ -283,7 +283,7 @@ impl FrameCasts {
     /// an instance's bounds overlap, a cast a texel (counted without
     /// walking the tiles, so judging a hostile frame costs little).
     #[must_use]
-    pub(crate) fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
+    fn work(&self, frame: &PressFrame, side: u32, texel_m: f32) -> u64 {
         let tile = |t: i64| t.div_euclid(i64::from(side));
         self.bounds()
             .filter_map(|b| frame.texels_under(b, texel_m))
@@ -472,11 +472,20 @@ pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSet
 /// `Presses` message may make a machine build: a car's four wheels over
 /// eight frames make about 320. The relay refuses more from a peer; a peer
 /// drops more from its relay.
-pub(crate) const MAX_PRESS_INSTANCES: u64 = 16_384;
+const MAX_PRESS_INSTANCES: u64 = 16_384;
 
-/// The ray-cast instances `frames` make at `texel_m`, counted without making them.
-pub(crate) fn instances(frames: &[PressFrame], texel_m: f32) -> u64 {
-    frames.iter().flat_map(|f| &f.shapes).map(|s| u64::from(s.instance_count(texel_m))).sum()
+/// `frames`' ray casts at `texel_m` and the most casts pressing them into
+/// tiles of `side` costs ([`FrameCasts::work`]); `None`, with nothing
+/// made, when they would make more than [`MAX_PRESS_INSTANCES`] instances
+/// (counted first). What the relay and a watcher judge a message by.
+pub(crate) fn costed_casts(frames: &[PressFrame], texel_m: f32, side: u32) -> Option<(Vec<FrameCasts>, u64)> {
+    let instances: u64 = frames.iter().flat_map(|f| &f.shapes).map(|s| u64::from(s.instance_count(texel_m))).sum();
+    if instances > MAX_PRESS_INSTANCES {
+        return None;
+    }
+    let casts: Vec<FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
+    let work = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
+    Some((casts, work))
 }
 
 /// [`press_tiles`] of the tiles `keep` keeps only (a watcher presses those

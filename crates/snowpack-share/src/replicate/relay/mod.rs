@@ -655,14 +655,11 @@ impl SnowRelay {
             return Vec::new();
         };
         let (side, texel_m) = (world.settings.tile_side, world.settings.texel_m);
-        // Counted before any is made: a message may not make more.
-        // More is refused whole ([`RelayRejections::rate_presses`]).
-        if crate::replicate::press::instances(frames, texel_m) > crate::replicate::press::MAX_PRESS_INSTANCES {
+        // Too many instances for one message: refused whole, none made.
+        let Some((casts, work)) = crate::replicate::press::costed_casts(frames, texel_m, side) else {
             self.stats.rejected.rate_presses += 1;
             return Vec::new();
-        }
-        let casts: Vec<crate::replicate::press::FrameCasts> = frames.iter().map(|f| f.casts(texel_m)).collect();
-        let work: u64 = frames.iter().zip(&casts).map(|(f, c)| c.work(f, side, texel_m)).sum();
+        };
         let (rate, burst) = (self.config.press_casts_per_s as f64, self.config.burst_press_casts as f64);
         let Some(p) = self.peers.get_mut(&peer) else {
             return Vec::new();
