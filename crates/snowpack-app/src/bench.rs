@@ -32,7 +32,7 @@ pub struct BenchRow {
     pub memory_parts: Vec<(String, u64)>,
 }
 
-fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
+pub(crate) fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
     (0..count)
         .map(|k| {
             let a = k as f32 * 2.399_963 + t * 0.3;
@@ -332,6 +332,8 @@ pub struct BenchResults {
     pub sweep_rows: Vec<crate::bench_sweep::SweepRow>,
     /// The capture's shapes by compute against drawn.
     pub capture_rows: Vec<crate::bench_capture::CaptureRow>,
+    /// The display pass's kernels side by side.
+    pub display_rows: Vec<crate::bench_display::DisplayRow>,
     /// The snow coat against skinning.
     pub coat_rows: Vec<crate::bench_coat::CoatRow>,
     /// Shared snow: one relay under simulated peers (no GPU).
@@ -362,6 +364,7 @@ impl BenchResults {
             shell_rows: Vec::new(),
             sweep_rows: Vec::new(),
             capture_rows: Vec::new(),
+            display_rows: Vec::new(),
             coat_rows: Vec::new(),
             share_rows: Vec::new(),
             car_rows: Vec::new(),
@@ -406,6 +409,9 @@ pub fn measure_all(ctx: &GpuContext, quick: bool, only: Option<&str>) -> anyhow:
     }
     if only.is_none_or(|o| "capture".contains(o)) {
         measure_capture(ctx, quick, &mut results)?;
+    }
+    if only.is_none_or(|o| "display".contains(o)) {
+        measure_display(ctx, quick, &mut results)?;
     }
     if only.is_none_or(|o| "coat".contains(o)) {
         measure_coat(ctx, quick, &mut results)?;
@@ -545,6 +551,24 @@ fn measure_capture(ctx: &GpuContext, quick: bool, results: &mut BenchResults) ->
         println!(
             "  capture {:<52} by compute {:.3} ms, drawn {:.3} ms; frame {:.3} against {:.3} ms",
             r.scenario, r.compute_ms, r.raster_ms, r.compute_frame_ms, r.raster_frame_ms
+        );
+    }
+    Ok(())
+}
+
+/// The display pass's kernels side by side (issue 44, item 1).
+fn measure_display(ctx: &GpuContext, quick: bool, results: &mut BenchResults) -> anyhow::Result<()> {
+    let (sizes, warmup, frames): (&[u32], u32, u32) = if quick { (&[1024], 5, 20) } else { (&[1024, 4096], 30, 120) };
+    results.display_rows = crate::bench_display::measure(ctx, sizes, warmup, frames).context("measuring the display's kernels")?;
+    for r in &results.display_rows {
+        println!(
+            "  display {:>5}² {:<11} {:<8?} {:.4} ms GPU, frame {:.2} ms wall{}",
+            r.resolution,
+            r.terrain,
+            r.kernel,
+            r.display_ms,
+            r.frame_wall_ms,
+            if r.same_words { "" } else { ", DIFFERENT WORDS" }
         );
     }
     Ok(())
@@ -749,6 +773,9 @@ fn report_markdown(r: &BenchResults) -> String {
     if !r.capture_rows.is_empty() {
         md.push_str(&crate::bench_capture::markdown(&r.capture_rows, &r.adapter, r.software));
     }
+    if !r.display_rows.is_empty() {
+        md.push_str(&crate::bench_display::markdown(&r.display_rows, &r.adapter, r.software));
+    }
     if !r.coat_rows.is_empty() {
         md.push_str(&crate::bench_coat::markdown(&r.coat_rows, &r.adapter, r.software));
     }
@@ -808,13 +835,16 @@ fn report_tables(r: &BenchResults, files: &mut Vec<(&'static str, Vec<u8>)>) {
     if !r.capture_rows.is_empty() {
         files.push(("capture.csv", crate::bench_capture::csv(&r.capture_rows).into_bytes()));
     }
+    if !r.display_rows.is_empty() {
+        files.push(("display.csv", crate::bench_display::csv(&r.display_rows).into_bytes()));
+    }
     if !r.coat_rows.is_empty() {
         files.push(("coat.csv", crate::bench_coat::csv(&r.coat_rows).into_bytes()));
     }
 }
 
 /// The parts `--only` picks from: a value selects every part whose name contains it.
-const PARTS: [&str; 14] = [
+const PARTS: [&str; 15] = [
     "passes-512",
     "passes-1024",
     "passes-2048",
@@ -825,6 +855,7 @@ const PARTS: [&str; 14] = [
     "tiles",
     "sweep",
     "capture",
+    "display",
     "coat",
     "shell",
     "frames",
@@ -981,6 +1012,7 @@ mod tests {
             shell_rows: vec![],
             sweep_rows: vec![],
             capture_rows: vec![],
+            display_rows: vec![],
             coat_rows: vec![],
             share_rows: vec![],
             car_rows: vec![],
@@ -1114,6 +1146,7 @@ mod tests {
             shell_rows: vec![],
             sweep_rows: vec![],
             capture_rows: vec![],
+            display_rows: vec![],
             coat_rows: vec![],
             software: true,
             ..results

@@ -19,6 +19,8 @@ mod bench_capture;
 #[cfg(feature = "gpu")]
 mod bench_coat;
 #[cfg(feature = "gpu")]
+mod bench_display;
+#[cfg(feature = "gpu")]
 mod bench_frames;
 #[cfg(feature = "gpu")]
 mod bench_render;
@@ -246,7 +248,7 @@ enum Command {
         /// Output directory for report.md, the CSV files and the PNG charts.
         #[arg(long, default_value = "snowpack-bench")]
         out: PathBuf,
-        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames, accumulation, tiles, share, sweep, capture, shell or coat.
+        /// Only one part: passes (or passes-1024 and so on), techniques, render, frames, accumulation, tiles, share, sweep, capture, display, shell or coat.
         #[arg(long)]
         only: Option<String>,
         /// GPU backend(s): vulkan, gl, metal, dx12 (comma-separated).

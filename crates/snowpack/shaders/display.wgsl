@@ -25,9 +25,17 @@
 //   e = sqrt(h - foot) - sqrt(rest - foot), M = sqrt(rest - foot), r = e / M,
 //   MS16: 1 - (0.5 - 2r)^2, rounded: 1 - (2r - 1)^2, clamped at 0,
 // times elevation * RIM_PEAK * (rest - foot).
+// Two kernels, the same arithmetic (`DisplayKernel`, issue 44 item 1):
+// blur4 (bit 5 clear) blurs four outputs per invocation from eight
+// workgroup-memory reads and reads each written word again to write it;
+// per-texel (bit 5 set) gives every invocation its own texel, whose word and
+// ground it keeps in registers from the first read to the write (one read
+// of the word a texel, every invocation writing), at five reads per output
+// along each axis. Which is faster depends on the adapter; the bench
+// measures both side by side (`snowpack bench --only display`).
 // `snow` is atomic here only because other workgroups read the lower half of
 // words whose upper half this one writes: each word has one writer, which
-// keeps the lower half it read. CPU twin: src/cpu/display.rs.
+// keeps the lower half it read. CPU twin: snowpack-testkit's cpu/display.rs.
 
 struct DisplayParams {
     origin: vec2<i32>,
@@ -53,7 +61,8 @@ struct DisplayParams {
 @group(1) @binding(0) var<uniform> terrain_params: TerrainParams;
 
 // The choices this pipeline is built for, packed as in
-// `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3 | bare << 4):
+// `DisplayParams::variant` (mode | blur << 2 | use_fallen << 3 | bare << 4),
+// and the kernel (per_texel << 5, `DisplayKernel`):
 // `DisplayPass` builds one pipeline per set in use (pass/compute.rs); the
 // default reads them from `params`. No branch here tests uniforms alone:
 // Mesa 22's lavapipe compiles such a shader again, with the uniforms'
@@ -83,6 +92,11 @@ fn display_uses_fallen() -> bool {
 // No snow without snowfall (depth_m 0): the rest height is the ground.
 fn display_bare() -> bool {
     return (display_variant() & 16u) != 0u;
+}
+
+// The per-texel kernel (else blur4).
+fn display_per_texel() -> bool {
+    return (display_variant() & 32u) != 0u;
 }
 
 const RIM_PEAK: f32 = 0.25;
@@ -127,13 +141,18 @@ fn ground_at(i: u32, j: u32) -> f32 {
 // The rimmed (not yet blurred) height of window-local texel (i, j).
 fn rimmed_height(i: u32, j: u32) -> f32 {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
-    let ground = ground_at(i, j);
+    return rimmed_of(s, atomicLoad(&snow[s]), ground_at(i, j));
+}
+
+// The rimmed height of the texel at storage index `s`, of snow word `word`
+// over terrain height `ground`.
+fn rimmed_of(s: u32, word: u32, ground: f32) -> f32 {
     var lying = 0.0;
     if display_uses_fallen() {
         lying = fallen[s];
     }
     let depth = params.depth_m + lying;
-    let snow_h = snow_column_height(atomicLoad(&snow[s]), ground, depth);
+    let snow_h = snow_column_height(word, ground, depth);
     if display_bare() || (display_uses_fallen() && depth <= 0.0) {
         // Bare ground (depth_m 0, no snowfall yet): no snow to remap or to
         // push into rims. Without snowfall that is the pipeline's choice;
@@ -173,8 +192,70 @@ fn write_shown(i: u32, j: u32, shown: f32) {
     atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(i, j)));
 }
 
+// The 5-tap Gaussian of one output, summed in blur4's order (bit for bit the same).
+fn blur1(a: f32, b: f32, c: f32, d: f32, e: f32) -> f32 {
+    return (a + 4.0 * b + 6.0 * c + 4.0 * d + e) * (1.0 / 16.0);
+}
+
+// Where the apron's k-th texel of the 144 around the tile lies in the
+// SPAN x SPAN block: rows 0, 1, 18 and 19 whole, then columns 0, 1, 18 and
+// 19 of rows 2 to 17.
+fn ring_index(k: u32) -> u32 {
+    let edge = array<u32, 4>(0u, 1u, SPAN - 2u, SPAN - 1u);
+    if k < 4u * SPAN {
+        return edge[k / SPAN] * SPAN + k % SPAN;
+    }
+    let t = k - 4u * SPAN;
+    return (2u + t / 4u) * SPAN + edge[t % 4u];
+}
+
+// The per-texel kernel: this invocation's texel (i, j) keeps its word and
+// ground from the first read to the write.
+fn display_per_texel_main(wg: vec2<u32>, lid: vec2<u32>, flat: u32) {
+    let last = params.resolution - 1u;
+    let i = wg.y * TILE + lid.y;
+    let j = wg.x * TILE + lid.x;
+    // A texel past the window's edge reads the edge (the clamp) and writes nothing.
+    let ci = min(i, last);
+    let cj = min(j, last);
+    let s = storage_index_wrapped(params.storage_origin, params.resolution, ci, cj);
+    let word = atomicLoad(&snow[s]);
+    let ground = ground_at(ci, cj);
+    let own = rimmed_of(s, word, ground);
+    if !display_blurs() {
+        if i == ci && j == cj {
+            atomicStore(&snow[s], snow_word_with_shown(word, own - ground));
+        }
+        return;
+    }
+    rimmed[(lid.y + 2u) * SPAN + lid.x + 2u] = own;
+    if flat < SPAN * SPAN - TILE * TILE {
+        let k = ring_index(flat);
+        let ri = clamp(i32(wg.y * TILE) - 2 + i32(k / SPAN), 0, i32(last));
+        let rj = clamp(i32(wg.x * TILE) - 2 + i32(k % SPAN), 0, i32(last));
+        rimmed[k] = rimmed_height(u32(ri), u32(rj));
+    }
+    workgroupBarrier();
+    // Along x: the 20 rows' 16 columns, 320 outputs over 256 invocations.
+    for (var o = flat; o < SPAN * TILE; o += TILE * TILE) {
+        let r = (o / TILE) * SPAN + o % TILE;
+        along_x[o] = blur1(rimmed[r], rimmed[r + 1u], rimmed[r + 2u], rimmed[r + 3u], rimmed[r + 4u]);
+    }
+    workgroupBarrier();
+    // Along z: this invocation's own output.
+    let t = lid.y * TILE + lid.x;
+    let shown = blur1(along_x[t], along_x[t + TILE], along_x[t + 2u * TILE], along_x[t + 3u * TILE], along_x[t + 4u * TILE]);
+    if i == ci && j == cj {
+        atomicStore(&snow[s], snow_word_with_shown(word, shown - ground));
+    }
+}
+
 @compute @workgroup_size(16, 16)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(local_invocation_index) flat: u32) {
+    if display_per_texel() {
+        display_per_texel_main(wg.xy, lid.xy, flat);
+        return;
+    }
     if !display_blurs() {
         let i = wg.y * TILE + lid.y;
         let j = wg.x * TILE + lid.x;

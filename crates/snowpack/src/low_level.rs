@@ -87,7 +87,7 @@ pub mod deform {
     }
     /// `deform::display`: what snowpack's app, tools and tests use of it.
     pub mod display {
-        pub use crate::deform::display::{DisplayParams, DisplayPass, normals_of};
+        pub use crate::deform::display::{DisplayKernel, DisplayParams, DisplayPass, normals_of};
     }
     /// `deform::erosion`: what snowpack's app, tools and tests use of it.
     pub mod erosion {

@@ -15,7 +15,7 @@ use snowpack::low_level::SnowParamsExt;
 use snowpack::low_level::TerrainMeshExt;
 use snowpack::low_level::deform::capture::{CaptureInstances, CaptureMesh, CaptureParams, CapturePass, ShapeCapture, SweptMesh};
 use snowpack::low_level::deform::displace::{self, DisplaceParams, DisplacePass};
-use snowpack::low_level::deform::display::{DisplayParams, DisplayPass};
+use snowpack::low_level::deform::display::{DisplayKernel, DisplayParams, DisplayPass};
 use snowpack::low_level::deform::erosion::{ErosionParams, ErosionPass};
 use snowpack::low_level::deform::packed_snow;
 use snowpack::low_level::deform::resources::DeformResources;
@@ -742,15 +742,19 @@ fn display_and_surface_unpack_match_cpu() {
         texel_m: params.texel_m(),
         ..DisplayParams::default()
     };
-    let display = DisplayPass::new(&ctx.device, &res);
+    let mut display = DisplayPass::new(&ctx.device, &res);
     let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
 
     // Modes 1 and 2 (point rims) and 0 (Hanák) unblurred, then 0 blurred,
-    // whose output the unpack test uses.
+    // whose output the unpack test uses; by each kernel, which must agree
+    // bit for bit (the same arithmetic, mapped differently).
     let mut gpu_words = Vec::new();
-    for (mode, blur) in [(1, 0), (2, 0), (0, 0), (0, 1)] {
+    let mut by_blur4 = Vec::new();
+    let runs = DisplayKernel::ALL.into_iter().flat_map(|k| [(1, 0), (2, 0), (0, 0), (0, 1)].map(|m| (k, m)));
+    for (n, (kernel, (mode, blur))) in runs.enumerate() {
         dp.mode = mode;
         dp.blur = blur;
+        display.set_kernel(kernel);
         ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
         let mut enc = encoder(ctx);
         display.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), &res, &dp);
@@ -758,7 +762,13 @@ fn display_and_surface_unpack_match_cpu() {
         let mut cpu_words = snow.clone();
         cpu::display::display(&dp, &terrain, &mut cpu_words, &stamps, &[]);
         gpu_words = read_u32(ctx, &res.snow);
-        let what = format!("display (mode {mode}, blur {blur})");
+        let what = format!("display (mode {mode}, blur {blur}, {kernel:?})");
+        if kernel == DisplayKernel::Blur4 {
+            by_blur4.push(gpu_words.clone());
+        } else {
+            let differ = gpu_words.iter().zip(&by_blur4[n % 4]).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{what}: {differ} words differ from blur4's; seed {seed}");
+        }
         for (k, (g, c)) in gpu_words.iter().zip(&cpu_words).enumerate() {
             assert_eq!(g & 0xffff, c & 0xffff, "{what}: the deficit at {k} changed; seed {seed}");
             assert!(within_one_f16_step(*g, *c), "{what} at {k}: {g:#x} vs {c:#x}; seed {seed}");

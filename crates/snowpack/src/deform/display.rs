@@ -66,10 +66,42 @@ impl DisplayParams {
     }
 }
 
+/// How the display pass maps its work onto invocations (issue 44, item 1).
+/// Both give the same words, bit for bit; which is faster depends on the
+/// adapter, and `snowpack bench --only display` measures them side by side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DisplayKernel {
+    /// Four blurred outputs an invocation from eight workgroup-memory reads
+    /// along each axis; a quarter of the invocations write, each reading
+    /// the word it writes a second time. Fewest workgroup-memory reads: a
+    /// SIMD software adapter gathers each of them lane by lane.
+    #[default]
+    Blur4,
+    /// One texel an invocation: its word and ground stay in registers from
+    /// the first read to the write (the word read once, the terrain
+    /// evaluated once a texel fewer), every invocation writes, five
+    /// workgroup-memory reads an output along each axis.
+    PerTexel,
+}
+
+impl DisplayKernel {
+    /// Both kernels, in the bench's order.
+    pub const ALL: [Self; 2] = [Self::Blur4, Self::PerTexel];
+
+    /// The kernel's bit in `DISPLAY_VARIANT`.
+    fn variant_bit(self) -> u32 {
+        match self {
+            Self::Blur4 => 0,
+            Self::PerTexel => 1 << 5,
+        }
+    }
+}
+
 /// Writes the displayed height of every texel (upper halves of `res.snow`).
 pub struct DisplayPass {
-    /// One pipeline per [`DisplayParams::variant`] in use.
+    /// One pipeline per [`DisplayParams::variant`] and kernel in use.
     pass: ComputePass<DisplayParams>,
+    kernel: DisplayKernel,
 }
 
 impl DisplayPass {
@@ -87,14 +119,25 @@ impl DisplayPass {
         };
         let mut pass = ComputePass::new(device, &shape, Some(&res.bindings));
         pass.bind(device, &[]);
-        Self { pass }
+        Self { pass, kernel: DisplayKernel::default() }
+    }
+
+    /// The kernel the pass records.
+    #[must_use]
+    pub fn kernel(&self) -> DisplayKernel {
+        self.kernel
+    }
+
+    /// Records with `kernel` from the next frame on (its pipelines built on first use).
+    pub fn set_kernel(&mut self, kernel: DisplayKernel) {
+        self.kernel = kernel;
     }
 
     /// Records this frame's display.
     pub fn record(&self, cx: &mut FrameContext<'_>, res: &DeformResources, params: &DisplayParams) {
         let params = &DisplayParams { storage_origin: super::window::storage_origin(params.origin, params.resolution), ..*params };
         let g = layout::groups(params.resolution, 16);
-        self.pass.record(cx, Some(&res.bindings), params, params.variant(), (g, g));
+        self.pass.record(cx, Some(&res.bindings), params, params.variant() | self.kernel.variant_bit(), (g, g));
     }
 }
 

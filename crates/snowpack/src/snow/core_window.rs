@@ -15,7 +15,7 @@ use glam::DVec2;
 use crate::accumulate::OcclusionParams;
 use crate::deform::capture::{CaptureParams, CapturePass, ShapeCapture, SweptMesh};
 use crate::deform::decal::{DEFAULT_PER_ACTOR, DecalPass, DecalRing};
-use crate::deform::display::{DisplayParams, DisplayPass};
+use crate::deform::display::{DisplayKernel, DisplayParams, DisplayPass};
 use crate::deform::params::{RANGE_TEXELS, SnowParamsExt};
 use crate::deform::query::{PointAnswers, QueryParams, QueryPass, QueryStats, QueryTicket};
 use crate::deform::resources::DeformResources;
@@ -411,6 +411,16 @@ impl CoreWindow {
     /// Takes the analytic shapes `by` compute or drawn from the next frame on.
     pub(super) fn set_shape_capture(&mut self, by: ShapeCapture) {
         self.capture_pass.set_shape_capture(by);
+    }
+
+    /// How the display pass maps its work.
+    pub(super) fn display_kernel(&self) -> DisplayKernel {
+        self.display_pass.kernel()
+    }
+
+    /// Displays with `kernel` from the next frame on.
+    pub(super) fn set_display_kernel(&mut self, kernel: DisplayKernel) {
+        self.display_pass.set_kernel(kernel);
     }
 
     /// Binds the objects' occlusion map (`sky`; `None` without objects) to the update pass.

@@ -15,6 +15,7 @@ use snowpack_share::mechanics::SnowColumn;
 use crate::accumulate::SnowAccumulation;
 use crate::deform::capture::ShapeCapture;
 use crate::deform::decal::DecalRing;
+use crate::deform::display::DisplayKernel;
 use crate::deform::packed_snow;
 use crate::deform::query::QueryStats;
 use crate::deform::resources::DeformResources;
@@ -153,6 +154,15 @@ pub trait SnowInspect {
     /// Takes the analytic shapes `by` compute or drawn from the next frame
     /// on (the benchmark compares both on one adapter).
     fn set_shape_capture(&mut self, by: ShapeCapture);
+
+    /// How the display pass maps its work ([`DisplayKernel`]; both give
+    /// the same snow, bit for bit).
+    #[must_use]
+    fn display_kernel(&self) -> DisplayKernel;
+
+    /// Displays with `kernel` from the next frame on (the benchmark
+    /// compares the kernels on one adapter).
+    fn set_display_kernel(&mut self, kernel: DisplayKernel);
 
     /// The most GPU memory [`Self::memory_bytes`] summed to after any frame
     /// so far (bytes): with tiles on their way to the CPU, the copy-out
@@ -323,6 +333,14 @@ impl SnowInspect for SnowDeformation {
 
     fn set_shape_capture(&mut self, by: ShapeCapture) {
         self.core.set_shape_capture(by);
+    }
+
+    fn display_kernel(&self) -> DisplayKernel {
+        self.core.display_kernel()
+    }
+
+    fn set_display_kernel(&mut self, kernel: DisplayKernel) {
+        self.core.set_display_kernel(kernel);
     }
 
     fn peak_memory_bytes(&self) -> u64 {
