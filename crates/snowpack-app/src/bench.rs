@@ -32,7 +32,7 @@ pub struct BenchRow {
     pub memory_parts: Vec<(String, u64)>,
 }
 
-pub(crate) fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
+fn spheres_at(t: f32, count: usize, extent: f32) -> Vec<Deformer> {
     (0..count)
         .map(|k| {
             let a = k as f32 * 2.399_963 + t * 0.3;

@@ -52,13 +52,12 @@ fn run_kernel(
 ) -> anyhow::Result<(f64, f64, Vec<u32>)> {
     let params =
         SnowParams { extent_m: 64.0 * resolution as f32 / 1024.0, resolution, technique: Technique::Depth, tile_memory_bytes: None, ..SnowParams::default() };
-    let extent = params.extent_m;
     let mut snow = SnowDeformation::new(ctx, params, terrain.clone(), DVec2::ZERO)?;
     snow.set_display_kernel(kernel);
     let mut wall = Vec::new();
     for frame in 0..warmup + frames {
         let t = frame as f32 / 60.0;
-        let deformers = crate::bench::spheres_at(t, 256, extent);
+        let deformers = snowpack_testkit::testing::circling_spheres(256, t);
         let start = Instant::now();
         snow.step(ctx, &deformers, 1.0 / 60.0)?;
         ctx.wait_idle("the display bench's frame")?;

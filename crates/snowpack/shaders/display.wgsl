@@ -134,14 +134,15 @@ fn point_rim(st: u32, rest: f32) -> f32 {
     return max(1.0 - t * t, 0.0) * params.elevation * RIM_PEAK * (rest - foot);
 }
 
-fn ground_at(i: u32, j: u32) -> f32 {
-    return texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+// The terrain under window-local texel (i, j), stored at `s`.
+fn ground_at(s: u32, i: u32, j: u32) -> f32 {
+    return window_ground(terrain_params, s, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
 }
 
 // The rimmed (not yet blurred) height of window-local texel (i, j).
 fn rimmed_height(i: u32, j: u32) -> f32 {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
-    return rimmed_of(s, atomicLoad(&snow[s]), ground_at(i, j));
+    return rimmed_of(s, atomicLoad(&snow[s]), ground_at(s, i, j));
 }
 
 // The rimmed height of the texel at storage index `s`, of snow word `word`
@@ -189,7 +190,7 @@ fn blur4(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
 fn write_shown(i: u32, j: u32, shown: f32) {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
     let word = atomicLoad(&snow[s]);
-    atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(i, j)));
+    atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(s, i, j)));
 }
 
 // The 5-tap Gaussian of one output, summed in blur4's order (bit for bit the same).
@@ -220,7 +221,7 @@ fn display_per_texel_main(wg: vec2<u32>, lid: vec2<u32>, flat: u32) {
     let cj = min(j, last);
     let s = storage_index_wrapped(params.storage_origin, params.resolution, ci, cj);
     let word = atomicLoad(&snow[s]);
-    let ground = ground_at(ci, cj);
+    let ground = ground_at(s, ci, cj);
     let own = rimmed_of(s, word, ground);
     if !display_blurs() {
         if i == ci && j == cj {

@@ -52,7 +52,7 @@ struct ErosionParams {
 
 // Quanta from texel `s` (window-local i, j) down to the terrain.
 fn column_quanta(s: u32, i: u32, j: u32) -> u32 {
-    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+    let ground = window_ground(terrain_params, s, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     // A select, not a branch on the uniform (docs/deformation.md); `fallen`
     // is one texel long without snowfall.
     let lying = fallen[min(s, arrayLength(&fallen) - 1u)];

@@ -76,9 +76,9 @@ const RING: array<vec2<f32>, 8> = array<vec2<f32>, 8>(
     vec2<f32>(-1.0, 0.0), vec2<f32>(-0.70710677, -0.70710677), vec2<f32>(0.0, -1.0), vec2<f32>(0.70710677, -0.70710677),
 );
 
-// Persistent snow height and rest height of a texel.
+// Persistent snow height and rest height of a window texel (global g, stored at s).
 fn texel_height(g: vec2<i32>, s: u32) -> vec2<f32> {
-    let t = texel_ground(terrain_params, g, params.texel_m);
+    let t = window_ground(terrain_params, s, g, params.texel_m);
     var lying = 0.0;
     if (coat_inputs() & 1u) != 0u {
         lying = fallen[s];

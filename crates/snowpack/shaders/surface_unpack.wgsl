@@ -68,8 +68,8 @@ fn load(k: u32, i: i32, j: i32) {
     let r = i32(params.resolution) - 1;
     let ci = u32(clamp(i, 0, r));
     let cj = u32(clamp(j, 0, r));
-    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
     let s = storage_index_wrapped(params.storage_origin, params.resolution, ci, cj);
+    let ground = window_ground(terrain_params, s, params.origin + vec2<i32>(i32(cj), i32(ci)), params.texel_m);
     let word = snow[s];
     tile[k] = snow_word_shown(word, ground);
     // The persistent column (the displayed one has rims and blur): a select,

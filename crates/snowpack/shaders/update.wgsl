@@ -272,7 +272,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
 // One texel's frame: window-local row i, column j.
 fn update_texel(i: u32, j: u32) {
     let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
-    let ground = texel_ground(terrain_params, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
+    let ground = window_ground(terrain_params, s, params.origin + vec2<i32>(i32(j), i32(i)), params.texel_m);
     let word = snow[s];
     var lying = 0.0;
     if (update_flags() & USE_FALLEN) != 0u {

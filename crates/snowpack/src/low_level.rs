@@ -145,6 +145,10 @@ pub mod deform {
     pub mod window {
         pub use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
     }
+    /// `deform::window_ground`: what snowpack's app, tools and tests use of it.
+    pub mod window_ground {
+        pub use crate::deform::window_ground::{WindowGroundParams, WindowGroundPass};
+    }
 }
 
 /// The library's error type.
@@ -292,7 +296,7 @@ pub mod shaders {
         ACTOR_DRAW, ALL, AO, ATLAS_SURFACE, CAPTURE_MESH, CAPTURE_SHAPES, CAPTURE_SPHERE, CAPTURE_WHEEL, DECAL, DISPLAY, ENV_DOWNSAMPLE, ENV_PREFILTER,
         EXCHANGE, GROUND, INCREMENT, OBJECT_DRAW, OCCLUSION, PEEL_COUNT, QUERY, SCATTER, SETTLE, SHELL_DRAW, SHELL_RESOLVE, SHELL_TETRAHEDRA, SHELL_VERTICES,
         SKINNING, SKY, SNOW_COAT, SNOW_SAMPLING, STAMP, SURFACE_UNPACK, TERRAIN_BAKE, TERRAIN_DRAW, TERRAIN_RESOLVE, TILE_GATHER, TILE_MERGE, TILE_RESTORE,
-        TILE_SEAL, TILE_WEATHER, TONEMAP, UPDATE, WINDOW,
+        TILE_SEAL, TILE_WEATHER, TONEMAP, UPDATE, WINDOW, WINDOW_GROUND,
     };
 }
 

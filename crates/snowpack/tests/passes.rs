@@ -24,6 +24,7 @@ use snowpack::low_level::deform::stamp::{StampParams, StampPass};
 use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
 use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
 use snowpack::low_level::deform::window::{SlidingWindow, WindowParams, WindowPass};
+use snowpack::low_level::deform::window_ground::{WindowGroundParams, WindowGroundPass};
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
@@ -827,6 +828,69 @@ fn display_and_surface_unpack_match_cpu() {
     let shown = cpu_packing.iter().filter(|q| q[0] > 0.01 && q[1] > 0.0).count();
     let covered = cpu_packing.iter().filter(|q| q[0] == 0.0).count();
     assert!(shown > 0 && covered > 0, "packing shown at {shown}, none at {covered} texels; seed {seed}");
+}
+
+/// The window's ground over noise hills (`WindowGroundPass`): the ground
+/// it stores is the CPU twin's, texel for texel, through a move that
+/// exposes two strips; and the display reads it to the same words, bit for
+/// bit, as a window that evaluates the noise (by both kernels).
+#[test]
+fn the_stored_ground_is_the_evaluated_one_and_displays_the_same() {
+    let Some(ctx) = testing::gpu() else { return };
+    let seed = testing::seed("window ground");
+    let mut rng = Rng::new(seed);
+    let (params, terrain_src, evaluated) = setup(ctx, &mut rng, 90);
+    let mut stored = DeformResources::new(&ctx.device, &ctx.queue, &params, &terrain_src);
+    assert!(stored.store_ground(&ctx.device), "noise hills store their ground");
+    assert!(!evaluated.stores_ground() && stored.stores_ground());
+    let ground_pass = WindowGroundPass::new(&ctx.device, &stored);
+    let mut timer = GpuTimer::new(&ctx.device, &ctx.queue);
+    let first = [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32];
+    let mut window = SlidingWindow::new(params.resolution);
+    let mut origin = first;
+    for step in [[0, 0], [rng.range(-30.0, 30.0) as i32, rng.range(-30.0, 30.0) as i32]] {
+        origin = [first[0] + step[0], first[1] + step[1]];
+        let rects = window.move_to([i64::from(origin[0]), i64::from(origin[1])]);
+        let mut enc = encoder(ctx);
+        let gp = WindowGroundParams { origin, resolution: params.resolution, texel_m: params.texel_m(), ..WindowGroundParams::default() };
+        ground_pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), gp, &rects);
+        submit(ctx, enc);
+        let cpu_ground = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
+        let gpu_ground = read_f32(ctx, &stored.heightmap);
+        let far = gpu_ground.iter().zip(&cpu_ground).filter(|(g, c)| (*g - *c).abs() > 1e-6).count();
+        assert_eq!(far, 0, "the stored ground at origin {origin:?} differs from the twin's; seed {seed}");
+    }
+    let snow: Vec<u32> = (0..params.texel_count())
+        .map(|_| {
+            let deficit = if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, params.depth_m)) };
+            (rng.next_u64() as u32 & 0xffff_0000) | deficit
+        })
+        .collect();
+    let dp = DisplayParams {
+        origin,
+        resolution: params.resolution,
+        depth_m: params.depth_m,
+        elevation: params.elevation,
+        texel_m: params.texel_m(),
+        blur: 1,
+        ..DisplayParams::default()
+    };
+    let mut words = Vec::new();
+    for res in [&evaluated, &stored] {
+        let mut display = DisplayPass::new(&ctx.device, res);
+        for kernel in DisplayKernel::ALL {
+            display.set_kernel(kernel);
+            ctx.queue.write_buffer(&res.snow, 0, bytemuck::cast_slice(&snow));
+            let mut enc = encoder(ctx);
+            display.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), res, &dp);
+            submit(ctx, enc);
+            words.push(read_u32(ctx, &res.snow));
+        }
+    }
+    for (k, w) in words.iter().enumerate().skip(1) {
+        let differ = w.iter().zip(&words[0]).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "run {k} (evaluated, stored; by blur4, per texel) differs from the first in {differ} words; seed {seed}");
+    }
 }
 
 /// A random terrain mesh: a jittered grid of random heights, with a few

@@ -101,7 +101,9 @@ fn terrain_height(t: TerrainParams, x: f32, z: f32) -> f32 {
 // shared/terrain_kind.wgsl).
 fn terrain_height_of_kind(kind: u32, t: TerrainParams, x: f32, z: f32) -> f32 {
     switch kind {
-        case 1u: {
+        // 3: noise whose value at each window texel the window also stores
+        // (shared/terrain_kind.wgsl, `window_ground`); elsewhere evaluated.
+        case 1u, 3u: {
             return t.base_m + t.amplitude_m * fbm(x * t.per_wavelength, z * t.per_wavelength, t.seed);
         }
         case 2u: {

@@ -35,3 +35,22 @@ fn texel_ground(tp: TerrainParams, g: vec2<i32>, texel_m: f32) -> f32 {
     let z = (f32(g.y) + 0.5) * texel_m;
     return terrain_height_built(tp, x, z);
 }
+
+// The pipeline's kind for noise hills whose value at every window texel is
+// stored in the window's ground (`heightmap` then holds one f32 a window
+// texel, toroidal like the snow; `window_ground.wgsl` writes the texels a
+// move exposes): `DeformResources::terrain_constants`.
+const TERRAIN_STORED_NOISE: u32 = 3u;
+
+// The terrain under window texel `g` (global), stored at index `s`: read
+// from the window's ground where it is stored, else as `texel_ground`.
+// The same value either way (the stored one is `texel_ground`'s), but the
+// noise is four octaves of hashes a texel, most of a window pass's
+// arithmetic, where the read is four bytes. Only for texels of the current
+// window, after this frame's move: the update, display and unpack passes.
+fn window_ground(tp: TerrainParams, s: u32, g: vec2<i32>, texel_m: f32) -> f32 {
+    if terrain_kind(tp) == TERRAIN_STORED_NOISE {
+        return heightmap[s];
+    }
+    return texel_ground(tp, g, texel_m);
+}

@@ -70,6 +70,7 @@ impl DisplayParams {
 /// Both give the same words, bit for bit; which is faster depends on the
 /// adapter, and `snowpack bench --only display` measures them side by side.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "the second kernel is chosen by the bench and the tests (`low_level`)"))]
 pub enum DisplayKernel {
     /// Four blurred outputs an invocation from eight workgroup-memory reads
     /// along each axis; a quarter of the invocations write, each reading
@@ -86,6 +87,7 @@ pub enum DisplayKernel {
 
 impl DisplayKernel {
     /// Both kernels, in the bench's order.
+    #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the bench and the tests (`low_level`)"))]
     pub const ALL: [Self; 2] = [Self::Blur4, Self::PerTexel];
 
     /// The kernel's bit in `DISPLAY_VARIANT`.

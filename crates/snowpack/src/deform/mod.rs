@@ -28,5 +28,6 @@ pub mod traffic;
 pub mod update;
 pub mod wheel;
 pub mod window;
+pub mod window_ground;
 
 pub use query::{PointAnswers, PointSample, QueryTicket};

@@ -47,10 +47,14 @@ pub struct DeformResources {
     /// displaced beyond the final density (a u64, low word first), written
     /// by the passes that press and read by the mass ledger.
     pub packed: wgpu::Buffer,
-    /// Heightmap samples for heightmap terrain or a drawn terrain mesh (one
-    /// zero otherwise). With [`Self::terrain_params`], the terrain's source:
-    /// passes evaluate the ground at texel centres (`texel_ground` in
-    /// `shared/terrain_kind.wgsl`) instead of reading a per-texel copy.
+    /// Heightmap samples for heightmap terrain or a drawn terrain mesh;
+    /// over noise hills the window's ground (one f32 a texel, toroidal like
+    /// the snow, written by the window ground pass as texels are exposed:
+    /// [`Self::stores_ground`]); one zero over flat ground. With
+    /// [`Self::terrain_params`], the terrain's source: passes evaluate the
+    /// ground at texel centres (`texel_ground` in
+    /// `shared/terrain_kind.wgsl`), or read it where the window stores it
+    /// (`window_ground`).
     pub heightmap: wgpu::Buffer,
     /// [`TerrainParams`] uniform.
     pub terrain_params: wgpu::Buffer,
@@ -74,6 +78,8 @@ pub struct DeformResources {
     /// The terrain, snow, footprint and snowfall buffers as group 1 of
     /// every window pass, made again when one is replaced.
     pub bindings: WindowBindings,
+    /// Whether [`Self::heightmap`] holds the window's ground ([`Self::store_ground`]).
+    ground_stored: bool,
 }
 
 fn height_buffer(device: &wgpu::Device, label: &str, texels: u64) -> wgpu::Buffer {
@@ -94,6 +100,12 @@ fn flags_buffer(device: &wgpu::Device, slots: u64) -> wgpu::Buffer {
         mapped_at_creation: false,
     })
 }
+
+/// [`TerrainParams::kind`] of noise hills.
+const NOISE_KIND: u32 = 1;
+/// The pipelines' `TERRAIN_KIND` over noise hills the window stores
+/// (`shared/terrain_kind.wgsl`).
+const TERRAIN_STORED_NOISE: u32 = 3;
 
 impl DeformResources {
     /// Allocates everything for `params` and uploads the terrain description.
@@ -152,6 +164,7 @@ impl DeformResources {
             capture_shapes: height_buffer(device, "capture shapes", 1),
             share_flags: flags_buffer(device, 1),
             bindings,
+            ground_stored: false,
         }
     }
 
@@ -196,10 +209,52 @@ impl DeformResources {
 
     /// The `override` constants of the passes that evaluate the ground
     /// (`shaders/shared/terrain_kind.wgsl`): this window's terrain kind, so
-    /// the driver compiles only that kind's code.
+    /// the driver compiles only that kind's code; over noise hills
+    /// `TERRAIN_STORED_NOISE`, whose `window_ground` reads the window's
+    /// ground ([`Self::stores_ground`]).
     #[must_use]
     pub fn terrain_constants(&self) -> [(&'static str, f64); 1] {
-        [("TERRAIN_KIND", f64::from(self.terrain_kind))]
+        let kind = if self.stores_ground() { TERRAIN_STORED_NOISE } else { self.terrain_kind };
+        [("TERRAIN_KIND", f64::from(kind))]
+    }
+
+    /// Whether the window stores the terrain under each texel in
+    /// [`Self::heightmap`]: over noise hills, whose four octaves of hashes
+    /// a texel were most of the arithmetic of the passes that visit every
+    /// texel every frame (issue 44; `docs/deformation.md`, "The window's
+    /// ground"). Flat ground costs nothing to evaluate, and a heightmap's
+    /// samples are already a read.
+    #[must_use]
+    pub fn stores_ground(&self) -> bool {
+        self.ground_stored
+    }
+
+    /// Makes the window store its ground where that pays (noise hills;
+    /// [`Self::stores_ground`]) and binds the window's group to it; returns
+    /// whether it does. Call before the passes are made: they are built for
+    /// [`Self::terrain_constants`], and from then on every texel of the
+    /// window must have gone through the window ground pass
+    /// (`super::window_ground::WindowGroundPass`, the whole window on first
+    /// placement) before a pass reads it. A window that does not evaluates
+    /// the ground where it is needed, as before.
+    pub fn store_ground(&mut self, device: &wgpu::Device) -> bool {
+        if self.terrain_kind != NOISE_KIND {
+            return false;
+        }
+        if !self.ground_stored {
+            let texels = u64::from(self.resolution) * u64::from(self.resolution);
+            self.heightmap = height_buffer(device, "window ground", texels);
+            self.ground_stored = true;
+            self.rebind_window(device);
+        }
+        true
+    }
+
+    /// Makes the window's groups again over its buffers (one was replaced).
+    fn rebind_window(&mut self, device: &wgpu::Device) {
+        let buffers =
+            WindowBuffers { terrain_params: &self.terrain_params, heightmap: &self.heightmap, snow: &self.snow, stamps: &self.stamps, fallen: &self.fallen };
+        self.bindings.rebind(device, &buffers);
     }
 
     /// Whether the footprint buffer is allocated (one `u32` per texel).
@@ -219,9 +274,7 @@ impl DeformResources {
         self.stamps = height_buffer(device, "stamps", texels);
         let empty = vec![u32::MAX; texels as usize];
         queue.write_buffer(&self.stamps, 0, bytemuck::cast_slice(&empty));
-        let buffers =
-            WindowBuffers { terrain_params: &self.terrain_params, heightmap: &self.heightmap, snow: &self.snow, stamps: &self.stamps, fallen: &self.fallen };
-        self.bindings.rebind(device, &buffers);
+        self.rebind_window(device);
         true
     }
 
@@ -234,7 +287,7 @@ impl DeformResources {
             ("stamps", self.stamps.size()),
             ("fallen", self.fallen.size()),
             ("packed snow", self.packed.size()),
-            ("heightmap", self.heightmap.size()),
+            (if self.stores_ground() { "window ground" } else { "heightmap" }, self.heightmap.size()),
             ("capture", self.capture_shapes.size()),
             ("capture target", self.mesh_capture_bytes()),
             ("changed-tile flags", self.share_flags.size()),
@@ -295,7 +348,7 @@ impl TerrainParams {
         match terrain {
             T::Flat { height_m } => Self { kind: 0, base_m: *height_m, ..Self::default() },
             T::Noise(n) => {
-                Self { kind: 1, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, per_wavelength: 1.0 / n.wavelength_m, ..Self::default() }
+                Self { kind: NOISE_KIND, seed: n.seed, base_m: n.base_m, amplitude_m: n.amplitude_m, per_wavelength: 1.0 / n.wavelength_m, ..Self::default() }
             }
             T::Heightmap(h) => Self::heightmap(h),
             // The mesh is drawn into a grid on the GPU and sampled like a heightmap.

@@ -23,6 +23,7 @@ use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
+use crate::deform::window_ground::{WindowGroundParams, WindowGroundPass};
 use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::GpuContext;
@@ -103,6 +104,7 @@ pub(super) struct CoreWindow {
     /// sharing allocates the changed-tile flags it writes.
     displace_pass: Option<DisplacePass>,
     display_pass: DisplayPass,
+    window_ground_pass: WindowGroundPass,
     query_pass: QueryPass,
     /// Tickets given so far ([`super::SnowFrame::with_queries`]).
     tickets: u64,
@@ -160,7 +162,9 @@ impl CoreWindow {
     /// The window of `params` over `terrain`, centred on `center`, and its passes.
     pub(super) fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Self {
         let (device, queue) = (&ctx.device, &ctx.queue);
-        let res = DeformResources::new(device, queue, &params, &terrain);
+        let mut res = DeformResources::new(device, queue, &params, &terrain);
+        // Before the passes: they are built for the terrain as stored.
+        res.store_ground(device);
         let (tmin, tmax) = terrain.height_bounds();
         let (low_m, high_m) = capture_range(&params, (tmin, tmax));
         let capture_params = CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m, high_m };
@@ -174,6 +178,7 @@ impl CoreWindow {
             erosion_pass: None,
             displace_pass: None,
             display_pass: DisplayPass::new(device, &res),
+            window_ground_pass: WindowGroundPass::new(device, &res),
             query_pass: QueryPass::new(device, &res),
             tickets: 0,
             answers: None,
@@ -497,6 +502,15 @@ impl CoreWindow {
             ..WindowParams::default()
         };
         self.window_pass.record(cx, &self.res, params, rects);
+    }
+
+    /// The terrain under the texels a move exposed, where the window
+    /// stores it (noise hills): after the move's snow, whose stash reads the
+    /// leaving texels' ground by evaluating it.
+    pub(super) fn record_window_ground(&self, cx: &mut FrameContext<'_>, window: &WindowFrame, rects: &[TexelRect]) {
+        let p = &self.params;
+        let params = WindowGroundParams { origin: gpu_origin(window.origin), resolution: p.resolution, texel_m: p.texel_m(), ..WindowGroundParams::default() };
+        self.window_ground_pass.record(cx, params, rects);
     }
 
     /// Each deformer's pose to sweep from (its last frame's), then this

@@ -120,6 +120,7 @@ impl FrameSteps<'_> {
             Some(tiles) => tiles.record_move(cx, window, self.core.res(), (old, rects), self.time.clock),
             None => self.core.record_window(cx, window, rects),
         }
+        self.core.record_window_ground(cx, window, rects);
     }
 
     /// Shared snow: tiles from elsewhere, before this frame's presses, so
