@@ -42,6 +42,7 @@ struct SnowCoatParams {
     has_previous: u32,
     teleport_m: f32,
     sky: SkyTest,           // the occlusion's projection and range (shared/sky_test.wgsl)
+    storage_origin: vec2<u32>, // origin wrapped into 0..resolution (storage_index_wrapped)
 }
 
 @group(0) @binding(0) var<uniform> params: SnowCoatParams;
@@ -106,11 +107,15 @@ fn height_at(q: vec2<f32>) -> vec2<f32> {
     let i = u32(cell.y);
     let res = params.resolution;
     let g = params.origin + vec2<i32>(i32(j), i32(i));
+    // i + 1 and j + 1 are inside the window (the test above): one
+    // comparison wraps each, where `storage_index` took two remainders
+    // (36 texels a wading vertex).
+    let o = params.storage_origin;
     return lerp2v(
-        texel_height(g, storage_index(params.origin, res, i, j)),
-        texel_height(g + vec2<i32>(1, 0), storage_index(params.origin, res, i, j + 1u)),
-        texel_height(g + vec2<i32>(0, 1), storage_index(params.origin, res, i + 1u, j)),
-        texel_height(g + vec2<i32>(1, 1), storage_index(params.origin, res, i + 1u, j + 1u)),
+        texel_height(g, storage_index_wrapped(o, res, i, j)),
+        texel_height(g + vec2<i32>(1, 0), storage_index_wrapped(o, res, i, j + 1u)),
+        texel_height(g + vec2<i32>(0, 1), storage_index_wrapped(o, res, i + 1u, j)),
+        texel_height(g + vec2<i32>(1, 1), storage_index_wrapped(o, res, i + 1u, j + 1u)),
         f,
     );
 }
