@@ -562,7 +562,7 @@ fn measure_display(ctx: &GpuContext, quick: bool, results: &mut BenchResults) ->
     results.display_rows = crate::bench_display::measure(ctx, sizes, warmup, frames).context("measuring the display's kernels")?;
     for r in &results.display_rows {
         println!(
-            "  display {:>5}² {:<11} {:<8?} {:.4} ms GPU, frame {:.2} ms wall{}",
+            "  display {:>5}² {:<20} {:<8?} {:.4} ms GPU, frame {:.2} ms wall{}",
             r.resolution,
             r.terrain,
             r.kernel,

@@ -35,23 +35,22 @@ pub struct DisplayRow {
 }
 
 /// The terrains: flat (the ground a constant) and the passes table's
-/// hills (the ground a four-octave noise, evaluated per texel read).
-fn terrains() -> [(&'static str, TerrainSource); 2] {
-    [
-        ("flat", TerrainSource::Flat { height_m: 0.0 }),
-        ("noise hills", TerrainSource::Noise(NoiseTerrain { seed: 1, base_m: 0.0, amplitude_m: 0.3, wavelength_m: 30.0 })),
-    ]
+/// hills (the ground a four-octave noise), evaluated per texel read (the
+/// default) or stored by the window (`SnowParams::store_ground`).
+fn terrains() -> [(&'static str, TerrainSource, bool); 3] {
+    let hills = TerrainSource::Noise(NoiseTerrain { seed: 1, base_m: 0.0, amplitude_m: 0.3, wavelength_m: 30.0 });
+    [("flat", TerrainSource::Flat { height_m: 0.0 }, false), ("noise hills", hills.clone(), false), ("hills, ground stored", hills, true)]
 }
 
 /// (display median GPU ms, frame median wall ms, the final snow words).
 fn run_kernel(
     ctx: &GpuContext,
-    (resolution, terrain): (u32, &TerrainSource),
+    (resolution, terrain, store_ground): (u32, &TerrainSource, bool),
     kernel: DisplayKernel,
     (warmup, frames): (u32, u32),
 ) -> anyhow::Result<(f64, f64, Vec<u32>)> {
-    let params =
-        SnowParams { extent_m: 64.0 * resolution as f32 / 1024.0, resolution, technique: Technique::Depth, tile_memory_bytes: None, ..SnowParams::default() };
+    let extent_m = 64.0 * resolution as f32 / 1024.0;
+    let params = SnowParams { extent_m, resolution, technique: Technique::Depth, tile_memory_bytes: None, store_ground, ..SnowParams::default() };
     let mut snow = SnowDeformation::new(ctx, params, terrain.clone(), DVec2::ZERO)?;
     snow.set_display_kernel(kernel);
     let mut wall = Vec::new();
@@ -78,10 +77,10 @@ fn run_kernel(
 pub fn measure(ctx: &GpuContext, sizes: &[u32], warmup: u32, frames: u32) -> anyhow::Result<Vec<DisplayRow>> {
     let mut rows = Vec::new();
     for &resolution in sizes {
-        for (name, terrain) in terrains() {
+        for (name, terrain, store_ground) in terrains() {
             let mut first: Option<Vec<u32>> = None;
             for kernel in DisplayKernel::ALL {
-                let (display_ms, frame_wall_ms, words) = run_kernel(ctx, (resolution, &terrain), kernel, (warmup, frames))?;
+                let (display_ms, frame_wall_ms, words) = run_kernel(ctx, (resolution, &terrain, store_ground), kernel, (warmup, frames))?;
                 let same_words = first.as_ref().is_none_or(|f| *f == words);
                 first.get_or_insert(words);
                 rows.push(DisplayRow { resolution, terrain: name, kernel, display_ms, frame_wall_ms, same_words });

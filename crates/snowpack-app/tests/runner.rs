@@ -1084,6 +1084,61 @@ frames = 300
 /// 8 and 12 MiB, each with the 2 MiB of packed snow that snow with mass
 /// adds and the 0.88 MiB of the resident slots' packed-snow plane (its
 /// issue's budget: 10 MiB for depth).
+/// `[snow] store_ground` over noise hills: the window keeps the terrain
+/// under each texel (4 bytes a texel, named in the memory list) and the
+/// passes read it instead of evaluating the noise; the snow, its packing
+/// and the displayed surface come out the same, bit for bit, through a
+/// window that walks (the texels its moves expose stored as they come).
+#[test]
+fn a_stored_ground_leaves_the_same_snow_as_an_evaluated_one() {
+    if !gpu_available() {
+        return;
+    }
+    let runs: Vec<Run> = [false, true]
+        .into_iter()
+        .map(|store| {
+            let scene = format!(
+                r#"
+[snow]
+extent_m = 16.0
+resolution = 256
+depth_m = 0.4
+elevation = 1.0
+store_ground = {store}
+[terrain]
+kind = "noise"
+seed = 5
+amplitude_m = 0.8
+wavelength_m = 6.0
+[window]
+follow = "actor:0"
+[[actor]]
+kind = "sphere"
+radius_m = 0.4
+path = [[0.0, 0.5, 0.0, 0.0], [12.0, 0.5, 3.0, 1.0]]
+[sim]
+frames = 60
+"#
+            );
+            run_scene(&format!("ground-stored-{store}"), &scene, &["--size", "64x64"])
+        })
+        .collect();
+    let memory = |r: &Run| r.meta["gpu_memory_by_resource"]["window ground"].as_u64();
+    assert_eq!(memory(&runs[0]), None, "{}", runs[0].meta["gpu_memory_by_resource"]);
+    assert_eq!(memory(&runs[1]), Some(256 * 256 * 4), "{}", runs[1].meta["gpu_memory_by_resource"]);
+    // It started with its corner at -8 m and followed the sphere 12 m.
+    assert!(runs[1].meta["origin_m"][0].as_f64() > Some(0.0), "the window did not walk: {}", runs[1].meta["origin_m"]);
+    for name in ["snow.npy", "packed.npy", "surface.npy"] {
+        let (a, b) = (runs[0].grid(name), runs[1].grid(name));
+        let differ = a.data.iter().zip(&b.data).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+        assert_eq!(differ, 0, "{name}: {differ} texels differ between the evaluated and the stored ground");
+    }
+    let pressed = runs[0].grid("snow.npy");
+    let terrain = runs[0].grid("terrain.npy");
+    let deep = pressed.data.iter().zip(&terrain.data).filter(|(s, t)| **s - **t < 0.3).count();
+    assert!(deep > 100, "the sphere pressed only {deep} texels below 30 cm of snow");
+}
+
 #[test]
 fn a_default_sized_window_stays_within_10_mib_for_depth_and_15_for_combined() {
     if !gpu_available() {

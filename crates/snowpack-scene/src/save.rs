@@ -163,6 +163,9 @@ fn snow_table(scene: &Scene) -> Table {
         snow.insert("displace".into(), Value::Boolean(true));
     }
     snow.insert("teleport_m".into(), float(p.teleport_m));
+    if p.store_ground {
+        snow.insert("store_ground".into(), Value::Boolean(true));
+    }
     snow
 }
 

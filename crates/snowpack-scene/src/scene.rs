@@ -490,6 +490,7 @@ fn parse_snow(root: &mut Fields<'_>) -> Result<SnowParams, SceneError> {
                 snowfall: None,
                 tile_memory_bytes: defaults.tile_memory_bytes,
                 teleport_m: t.non_negative("teleport_m", defaults.teleport_m, " of metres")?,
+                store_ground: t.bool("store_ground", defaults.store_ground)?,
             };
             if let Err(snowpack::low_level::error::SnowError::InvalidParameter { field, why }) = snow.validate() {
                 return Err(t.err(field, why));

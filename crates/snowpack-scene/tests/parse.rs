@@ -292,6 +292,7 @@ fn saved_scenes_load_back_the_same() {
     scene.snow.technique = Technique::Combined;
     scene.snow.refill_m_per_s = 0.003;
     scene.snow.blur = false;
+    scene.snow.store_ground = true;
     scene.spawns[0].count = 17;
     scene.camera.position = glam::Vec3::new(1.5, 2.25, -3.0);
     scene.render.params.material = MaterialPreset::Mud.material();

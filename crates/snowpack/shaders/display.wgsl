@@ -25,14 +25,16 @@
 //   e = sqrt(h - foot) - sqrt(rest - foot), M = sqrt(rest - foot), r = e / M,
 //   MS16: 1 - (0.5 - 2r)^2, rounded: 1 - (2r - 1)^2, clamped at 0,
 // times elevation * RIM_PEAK * (rest - foot).
-// Two kernels, the same arithmetic (`DisplayKernel`, issue 44 item 1):
-// blur4 (bit 5 clear) blurs four outputs per invocation from eight
-// workgroup-memory reads and reads each written word again to write it;
-// per-texel (bit 5 set) gives every invocation its own texel, whose word and
-// ground it keeps in registers from the first read to the write (one read
-// of the word a texel, every invocation writing), at five reads per output
-// along each axis. Which is faster depends on the adapter; the bench
-// measures both side by side (`snowpack bench --only display`).
+// Two kernels, the same arithmetic (`DisplayKernel`, issue 44 item 1), each
+// reading a texel's word and ground once (the ground is four octaves of
+// hashed noise over hills, unless the window stores it): blur4 (bit 5
+// clear) blurs four outputs per invocation from eight workgroup-memory
+// reads, and a quarter of the invocations write, the tile's words and
+// ground kept in workgroup memory for them; per-texel (bit 5 set) gives
+// every invocation its own texel, whose word and ground it keeps in
+// registers, every invocation writing, at five reads per output along each
+// axis. Which is faster depends on the adapter; the bench measures both
+// side by side (`snowpack bench --only display`).
 // `snow` is atomic here only because other workgroups read the lower half of
 // words whose upper half this one writes: each word has one writer, which
 // keeps the lower half it read. CPU twin: snowpack-testkit's cpu/display.rs.
@@ -109,6 +111,10 @@ const SPAN: u32 = 20u; // TILE + 2 * 2 (the blur's radius on both sides)
 var<workgroup> rimmed: array<f32, 400>;
 // Blurred along x: the tile's 16 columns over the apron's 20 rows, [row * TILE + column].
 var<workgroup> along_x: array<f32, 320>;
+// blur4: the tile's own words and ground as first read, [row * TILE + column],
+// so that its writes neither read a word again nor evaluate the ground again.
+var<workgroup> tile_word: array<u32, 256>;
+var<workgroup> tile_ground: array<f32, 256>;
 
 fn hanak_cubic(x: f32) -> f32 {
     return ((-3.4766 * x + 6.508) * x - 2.231) * x + 0.215;
@@ -187,11 +193,6 @@ fn blur4(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
     return (a + 4.0 * vec4(a.yzw, b.x) + 6.0 * vec4(a.zw, b.xy) + 4.0 * vec4(a.w, b.xyz) + b) * (1.0 / 16.0);
 }
 
-fn write_shown(i: u32, j: u32, shown: f32) {
-    let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
-    let word = atomicLoad(&snow[s]);
-    atomicStore(&snow[s], snow_word_with_shown(word, shown - ground_at(s, i, j)));
-}
 
 // The 5-tap Gaussian of one output, summed in blur4's order (bit for bit the same).
 fn blur1(a: f32, b: f32, c: f32, d: f32, e: f32) -> f32 {
@@ -261,7 +262,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         let i = wg.y * TILE + lid.y;
         let j = wg.x * TILE + lid.x;
         if i < params.resolution && j < params.resolution {
-            write_shown(i, j, rimmed_height(i, j));
+            let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
+            let word = atomicLoad(&snow[s]);
+            let ground = ground_at(s, i, j);
+            atomicStore(&snow[s], snow_word_with_shown(word, rimmed_of(s, word, ground) - ground));
         }
         return;
     }
@@ -269,9 +273,19 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let i0 = i32(wg.y * TILE) - 2;
     let j0 = i32(wg.x * TILE) - 2;
     for (var k = flat; k < SPAN * SPAN; k += TILE * TILE) {
-        let i = clamp(i0 + i32(k / SPAN), 0, last);
-        let j = clamp(j0 + i32(k % SPAN), 0, last);
-        rimmed[k] = rimmed_height(u32(i), u32(j));
+        let row = k / SPAN;
+        let col = k % SPAN;
+        let i = u32(clamp(i0 + i32(row), 0, last));
+        let j = u32(clamp(j0 + i32(col), 0, last));
+        let s = storage_index_wrapped(params.storage_origin, params.resolution, i, j);
+        let word = atomicLoad(&snow[s]);
+        let ground = ground_at(s, i, j);
+        rimmed[k] = rimmed_of(s, word, ground);
+        if row >= 2u && row < TILE + 2u && col >= 2u && col < TILE + 2u {
+            let t = (row - 2u) * TILE + col - 2u;
+            tile_word[t] = word;
+            tile_ground[t] = ground;
+        }
     }
     workgroupBarrier();
     // Along x: 80 invocations, each four outputs of one row.
@@ -300,7 +314,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         let j = wg.x * TILE + c;
         for (var n = 0u; n < 4u; n++) {
             if i + n < params.resolution && j < params.resolution {
-                write_shown(i + n, j, z[n]);
+                let s = storage_index_wrapped(params.storage_origin, params.resolution, i + n, j);
+                let k = t + n * TILE;
+                atomicStore(&snow[s], snow_word_with_shown(tile_word[k], z[n] - tile_ground[k]));
             }
         }
     }

@@ -47,8 +47,11 @@ fn gpu_coat_matches_its_cpu_twin_on_random_poses_and_snow() {
         resolution: 128,
         depth_m: rng.range(0.2, 0.6),
         snowfall: Some(Snowfall { rate_m_per_s: 0.05, max_m: 0.5, ..Snowfall::default() }),
+        // The wading reads the window's stored ground, or evaluates it (a coin per seed).
+        store_ground: rng.next_u64() % 2 == 0,
         ..SnowParams::default()
     };
+    eprintln!("coat twin: the ground {}", if params.store_ground { "stored" } else { "evaluated" });
     let terrain = TerrainSource::Noise(NoiseTerrain { seed: rng.next_u64() as u32, amplitude_m: 0.5, wavelength_m: 8.0, base_m: 0.0 });
     let center = DVec2::new(f64::from(rng.range(-50.0, 50.0)), f64::from(rng.range(-50.0, 50.0)));
     let mut snow = SnowDeformation::new(ctx, params.clone(), terrain.clone(), center).expect("window");

@@ -70,6 +70,7 @@ pub(crate) fn apply_settings(settings: Res<SnowpackSettings>, applied: Option<Re
         (created.params.hardness_kpa, created.params.tile_memory_bytes, created.params.teleport_m);
     (params.density_kg_m3, params.max_density_kg_m3, params.repose_deg, params.displace) =
         (created.params.density_kg_m3, created.params.max_density_kg_m3, created.params.repose_deg, created.params.displace);
+    params.store_ground = created.params.store_ground;
     now.terrain = created.terrain.clone();
     now.store = created.store.clone();
     if snow.params().snowfall.is_none() && now.params.snowfall.is_some() {

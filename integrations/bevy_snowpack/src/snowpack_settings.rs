@@ -16,7 +16,7 @@ use snowpack::{SnowParams, StoreConfig, StreamerConfig, TerrainSource};
 /// `params.rim`, `center` (when no [`SnowWindowTarget`] moves the window)
 /// and `fixed_dt_s`. What sizes the snow makes a new snow world instead:
 /// the window's `extent_m`, `resolution` and `depth_m`, `hardness_kpa`, `density_kg_m3`, `max_density_kg_m3`, `repose_deg`, `displace`,
-/// `tile_memory_bytes`, `teleport_m`, the `terrain` and the `store`. The
+/// `tile_memory_bytes`, `teleport_m`, `store_ground`, the `terrain` and the `store`. The
 /// old world's snow is saved to its store first (when it has one of its
 /// own), the new one loads its store's save, and the materials bind the new
 /// world; going back to a world's settings brings its trails back. Queries

@@ -33,6 +33,7 @@ pub(crate) fn world_changes(old: &SnowpackSettings, new: &SnowpackSettings) -> V
         ("params.displace", p.displace != q.displace),
         ("params.tile_memory_bytes", p.tile_memory_bytes != q.tile_memory_bytes),
         ("params.teleport_m", p.teleport_m != q.teleport_m),
+        ("params.store_ground", p.store_ground != q.store_ground),
         ("terrain", new.terrain != old.terrain),
         ("store", format!("{:?}", new.store) != format!("{:?}", old.store)),
     ];

@@ -73,15 +73,9 @@ impl SlidingWindow {
     }
 }
 
-/// `origin` (a window's global texel of local (0, 0), `[column, row]`)
-/// wrapped into `0..res`: where local (0, 0) lies in the toroidal storage.
-/// The per-texel passes take it (`storage_index_wrapped` in
-/// `shared/window.wgsl`) so that no texel divides; their `record` fills it.
-#[must_use]
-pub fn storage_origin(origin: [i32; 2], res: u32) -> [u32; 2] {
-    let r = i64::from(res.max(1));
-    [i64::from(origin[0]).rem_euclid(r) as u32, i64::from(origin[1]).rem_euclid(r) as u32]
-}
+// Where local (0, 0) lies in the toroidal storage: the window's layout, kept
+// with its bindings below the passes that read it (the coat's too).
+pub use crate::pass::window_bindings::storage_origin;
 
 /// The exposed rectangles as a pass's uniforms take them (count, fixed
 /// array) and the 2D workgroup grid of 256 that covers their texels (under

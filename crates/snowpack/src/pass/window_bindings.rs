@@ -26,6 +26,16 @@
 
 use crate::gpu::layout;
 
+/// `origin` (a window's global texel of local (0, 0), `[column, row]`)
+/// wrapped into `0..res`: where local (0, 0) lies in the toroidal storage.
+/// The per-texel passes take it (`storage_index_wrapped` in
+/// `shared/window.wgsl`) so that no texel divides; their `record` fills it.
+#[must_use]
+pub fn storage_origin(origin: [i32; 2], res: u32) -> [u32; 2] {
+    let r = i64::from(res.max(1));
+    [i64::from(origin[0]).rem_euclid(r) as u32, i64::from(origin[1]).rem_euclid(r) as u32]
+}
+
 /// How a pass uses the window's snow, footprints and snowfall.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WindowAccess {

@@ -88,8 +88,8 @@ pub struct SnowCoatParams {
     pub teleport_m: f32,
     /// The sky test against the objects' occlusion depth (with `use_sky`).
     pub sky: SkyTest,
-    /// `origin` wrapped into the storage (`storage_origin` of
-    /// `deform::window`): [`SnowCoatPass::record`] writes it from `origin`
+    /// `origin` wrapped into the storage (`storage_origin`, with the
+    /// window's bindings): [`SnowCoatPass::record`] writes it from `origin`
     /// and `resolution`, so the value given here is not used.
     pub storage_origin: [u32; 2],
 }
@@ -173,7 +173,7 @@ impl SnowCoatPass {
                 wgpu::BindingResource::TextureView(ground.sky),
             ],
         );
-        let storage_origin = crate::deform::window::storage_origin(params.origin, params.resolution);
+        let storage_origin = crate::pass::window_bindings::storage_origin(params.origin, params.resolution);
         let params = SnowCoatParams { vertex_count: instance.vertex_count, storage_origin, ..*params };
         pass.record_with(cx, &group, Some(ground.window), &params, params.inputs(), (layout::groups(instance.vertex_count, 64), 1));
         let encoder = &mut *cx.encoder;

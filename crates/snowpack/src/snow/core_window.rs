@@ -163,8 +163,10 @@ impl CoreWindow {
     pub(super) fn new(ctx: &GpuContext, params: SnowParams, terrain: TerrainSource, center: DVec2) -> Self {
         let (device, queue) = (&ctx.device, &ctx.queue);
         let mut res = DeformResources::new(device, queue, &params, &terrain);
-        // Before the passes: they are built for the terrain as stored.
-        res.store_ground(device);
+        if params.store_ground {
+            // Before the passes: they are built for the terrain as stored.
+            res.store_ground(device);
+        }
         let (tmin, tmax) = terrain.height_bounds();
         let (low_m, high_m) = capture_range(&params, (tmin, tmax));
         let capture_params = CaptureParams { extent_m: params.extent_m, texel_m: params.texel_m(), low_m, high_m };
