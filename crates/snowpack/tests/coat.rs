@@ -48,7 +48,7 @@ fn gpu_coat_matches_its_cpu_twin_on_random_poses_and_snow() {
         depth_m: rng.range(0.2, 0.6),
         snowfall: Some(Snowfall { rate_m_per_s: 0.05, max_m: 0.5, ..Snowfall::default() }),
         // The wading reads the window's stored ground, or evaluates it (a coin per seed).
-        store_ground: rng.next_u64() % 2 == 0,
+        store_ground: rng.next_u64().is_multiple_of(2),
         ..SnowParams::default()
     };
     eprintln!("coat twin: the ground {}", if params.store_ground { "stored" } else { "evaluated" });
