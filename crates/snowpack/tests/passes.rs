@@ -693,6 +693,18 @@ fn erosion_slides_berms_and_leaves_pressed_texels_be() {
     assert!(differ <= n / 200, "{differ} of {n} texels differ from the twin; seed {seed}");
 }
 
+/// `n` snow words: half the texels undisturbed (at rest: point rims may
+/// grow there), half pressed up to `depth_m`; the displayed halves are
+/// garbage (the display pass rewrites them).
+fn half_pressed_words(rng: &mut Rng, n: usize, depth_m: f32) -> Vec<u32> {
+    (0..n)
+        .map(|_| {
+            let deficit = if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, depth_m)) };
+            (rng.next_u64() as u32 & 0xffff_0000) | deficit
+        })
+        .collect()
+}
+
 /// Whether two displayed halves (f16 bits of the same sign) are within one f16 step.
 fn within_one_f16_step(a: u32, b: u32) -> bool {
     let (a, b) = (a >> 16, b >> 16);
@@ -709,14 +721,7 @@ fn display_and_surface_unpack_match_cpu() {
     let n = params.texel_count();
     let origin = [rng.range(-999.0, 999.0) as i32, rng.range(-999.0, 999.0) as i32];
     let terrain = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());
-    // Half the texels undisturbed (at rest: point rims may grow there), half
-    // pressed; the displayed halves start as garbage (the pass rewrites them).
-    let snow: Vec<u32> = (0..n)
-        .map(|_| {
-            let deficit = if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, params.depth_m)) };
-            (rng.next_u64() as u32 & 0xffff_0000) | deficit
-        })
-        .collect();
+    let snow = half_pressed_words(&mut rng, n, params.depth_m);
     // Footprints around the rest height so every branch of the point rims runs.
     let (low_m, high_m) = (-3.0_f32, 3.0_f32);
     let stamps: Vec<u32> = (0..n)
@@ -860,12 +865,7 @@ fn the_stored_ground_is_the_evaluated_one_and_displays_the_same() {
         let far = gpu_ground.iter().zip(&cpu_ground).filter(|(g, c)| (*g - *c).abs() > 1e-6).count();
         assert_eq!(far, 0, "the stored ground at origin {origin:?} differs from the twin's; seed {seed}");
     }
-    let snow: Vec<u32> = (0..params.texel_count())
-        .map(|_| {
-            let deficit = if rng.range(0.0, 1.0) < 0.5 { 0 } else { snow_word::deficit_quanta(rng.range(0.0, params.depth_m)) };
-            (rng.next_u64() as u32 & 0xffff_0000) | deficit
-        })
-        .collect();
+    let snow = half_pressed_words(&mut rng, params.texel_count(), params.depth_m);
     let dp = DisplayParams {
         origin,
         resolution: params.resolution,
