@@ -248,7 +248,7 @@ fn stats_fields(s: &RelayStats) -> String {
         "distance_tests={} window_keys_walked={} queries={} tile_bytes_in_memory={} refused_far={} refused_teleports={} refused_world={} \
          refused_not_welcomed={} refused_rate_bytes={} refused_rate_tiles={} refused_rate_window={} refused_rate_query={} refused_bad_window={} \
          refused_out_of_bounds={} refused_disk_full={} refused_bad_footprint={} refused_bad_tile={} refused_too_deep={} refused_malformed={} \
-         refused_oversized={} refused_rate_presses={} refused_unpressable={} press_frames={} press_casts={} press_frames_passed_on={} outgoing_dropped={}",
+         refused_oversized={} refused_rate_presses={} refused_unpressable={} press_frames={} press_casts={} press_frames_passed_on={} awaiting_presence={} outgoing_dropped={}",
         s.distance_tests,
         s.window_keys_walked,
         s.queries,
@@ -274,6 +274,7 @@ fn stats_fields(s: &RelayStats) -> String {
         s.press_frames,
         s.press_casts,
         s.press_frames_sent,
+        s.awaiting_presence,
         r.outgoing_dropped
     )
 }

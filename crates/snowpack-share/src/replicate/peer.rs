@@ -209,6 +209,11 @@ pub struct SnowPeer {
     /// The deformers the last `Presence` reported: the relay judges the
     /// peer's tiles by these.
     reported: Vec<[f64; 2]>,
+    /// Where the deformers went before the welcome, a point every
+    /// [`REPORTED_SLACK_M`]: what this peer pressed meanwhile waits to be
+    /// sent, and the relay lets a peer write only near positions it was
+    /// told of, so the first `Presence` reports the way there too.
+    trail: Vec<[f64; 2]>,
     last_presence_s: f64,
     last_digest_s: f64,
     last_delta_s: f64,
@@ -266,6 +271,7 @@ impl SnowPeer {
             wanted: BTreeSet::new(),
             deformers: Vec::new(),
             reported: Vec::new(),
+            trail: Vec::new(),
             last_presence_s: f64::NEG_INFINITY,
             last_digest_s: f64::NEG_INFINITY,
             last_delta_s: f64::NEG_INFINITY,
@@ -418,6 +424,14 @@ impl SnowPeer {
     /// are sent): where the relay lets it write.
     pub fn set_deformers(&mut self, world_xz: &[[f64; 2]]) {
         self.deformers = world_xz.iter().take(MAX_DEFORMERS).copied().collect();
+        if !self.welcomed {
+            for &p in &self.deformers {
+                let new = self.trail.iter().all(|q| (p[0] - q[0]).hypot(p[1] - q[1]) > REPORTED_SLACK_M);
+                if new && self.trail.len() + self.deformers.len() < MAX_DEFORMERS {
+                    self.trail.push(p);
+                }
+            }
+        }
     }
 
     /// One step, at `now_s` seconds of the caller's clock (only intervals
@@ -532,7 +546,11 @@ impl SnowPeer {
         {
             self.last_presence_s = now_s;
             self.reported.clone_from(&self.deformers);
-            self.push(encode(&Message::Presence { window: first, resolution, deformers: self.deformers.clone() }));
+            // The deformers first (the relay follows each by its place in
+            // the list), then, once, the way they came before the welcome.
+            let mut deformers = self.deformers.clone();
+            deformers.extend(self.trail.drain(..).take(MAX_DEFORMERS.saturating_sub(self.deformers.len())));
+            self.push(encode(&Message::Presence { window: first, resolution, deformers }));
         }
         if deltas_due {
             self.last_delta_s = now_s;

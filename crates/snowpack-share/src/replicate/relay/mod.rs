@@ -241,6 +241,14 @@ impl SnowRelay {
             self.stats.rejected.not_welcomed += 1;
             return;
         }
+        // Tiles and presses are judged by where the peer's deformers are:
+        // before the peer first says so (its `Presence` can come after the
+        // changes it sent with it), they are left unacknowledged, and the
+        // peer sends them again.
+        if matches!(message, Message::Tiles { .. } | Message::Presses { .. }) && !p.has_reported() {
+            self.stats.awaiting_presence += 1;
+            return;
+        }
         match message {
             Message::Query { id, points } => self.query(peer, id, &points, now),
             Message::Presence { window, resolution, deformers } => self.presence(peer, window, resolution, &deformers, now),

@@ -79,6 +79,12 @@ impl PeerState {
     /// Whether the peer may write tile `key`: its centre is within `reach`
     /// (m) of one of the peer's deformer positions recorded since `oldest`.
     /// (A fixed number of grid look-ups, counted in `work`.)
+    /// Whether the peer has said where its deformers are (a `Presence`, or
+    /// a game server's report) within the deformer memory.
+    pub(super) fn has_reported(&self) -> bool {
+        !self.history.is_empty()
+    }
+
     pub(super) fn may_write(&mut self, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64, work: &mut MotionWork) -> bool {
         let first = key.first_texel(world.settings.tile_side);
         let half = f64::from(world.settings.tile_side) / 2.0;

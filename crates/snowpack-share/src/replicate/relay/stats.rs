@@ -139,6 +139,10 @@ pub struct RelayStats {
     /// Frames passed on to the peers watching what they pressed (a frame
     /// to two watchers counts twice), in place of the tiles they pressed.
     pub press_frames_sent: u64,
+    /// `Tiles` and `Presses` messages left unacknowledged, and so sent
+    /// again, because their peer had not yet said where its deformers are
+    /// (its first `Presence` still on its way): not judged, not refused.
+    pub awaiting_presence: u64,
     /// Bytes of tiles in memory now.
     pub tile_bytes_in_memory: usize,
     /// Bytes queued for peers now (not yet handed out).
