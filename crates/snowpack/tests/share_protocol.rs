@@ -953,6 +953,40 @@ fn forged_deltas_are_rejected_counted_and_change_nothing() {
     assert!(relay.stats().rejected.rate_bytes > 0, "{:?}", relay.stats().rejected);
 }
 
+/// Tiles that arrive before their peer's first `Presence` (which the
+/// network delivered later) are neither judged nor acknowledged, so the
+/// peer sends them again; once it has said where it is they are taken. A
+/// peer that never says is judged as before once its welcome is 5 s old:
+/// refused, and acknowledged, so it stops sending them.
+#[test]
+fn tiles_before_the_first_presence_wait_for_it_a_few_seconds() {
+    let w = world(16);
+    let acks =
+        |relay: &mut SnowRelay| std::iter::from_fn(|| relay.poll_transmit()).filter(|(_, bytes)| matches!(decode(bytes), Ok(Message::Ack { .. }))).count();
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "late".to_owned() }), 1.0);
+    let tiles = |seq| encode(&Message::Tiles { seq, tiles: vec![pressed_tile(TileKey::new(0, 0), w.clock_at(1.0), 1000)] });
+    relay.receive(1, &tiles(0), 1.1);
+    assert_eq!((relay.stats().awaiting_presence, relay.stats().rejected.total(), acks(&mut relay)), (1, 0, 0));
+    assert!(relay.tile_keys().is_empty(), "a waiting tile changes nothing");
+    relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.5, 0.5]] }), 1.2);
+    relay.receive(1, &tiles(0), 2.1);
+    assert_eq!((relay.stats().rejected.total(), acks(&mut relay)), (0, 1));
+    assert_eq!(relay.tile_keys(), vec![TileKey::new(0, 0)]);
+
+    // Never a Presence: after 5 s its tiles are refused as far from every deformer, and acknowledged.
+    let mut relay = SnowRelay::new(RelayConfig::default());
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "silent".to_owned() }), 1.0);
+    relay.receive(1, &tiles(0), 5.9);
+    relay.receive(1, &tiles(1), 6.1);
+    assert_eq!(relay.stats().awaiting_presence, 1);
+    assert_eq!(relay.stats().rejected.far_from_deformers, 1);
+    assert_eq!(acks(&mut relay), 1);
+    assert!(relay.tile_keys().is_empty());
+}
+
 #[test]
 fn deltas_are_accepted_near_where_the_game_server_says_the_deformers_are() {
     let now = 10.0;

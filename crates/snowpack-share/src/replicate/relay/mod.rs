@@ -243,9 +243,9 @@ impl SnowRelay {
         }
         // Tiles and presses are judged by where the peer's deformers are:
         // before the peer first says so (its `Presence` can come after the
-        // changes it sent with it), they are left unacknowledged, and the
-        // peer sends them again.
-        if matches!(message, Message::Tiles { .. } | Message::Presses { .. }) && !p.has_reported() {
+        // changes it sent with it), for a few seconds after its welcome,
+        // they are left unacknowledged, and the peer sends them again.
+        if matches!(message, Message::Tiles { .. } | Message::Presses { .. }) && p.awaits_presence(now) {
             self.stats.awaiting_presence += 1;
             return;
         }
@@ -473,6 +473,9 @@ impl SnowRelay {
         }
         let clock = world.clock_at(now);
         if let Some(p) = self.peers.get_mut(&peer) {
+            if p.standing != Standing::Welcomed {
+                p.welcomed_s = now;
+            }
             p.standing = Standing::Welcomed;
             let number = p.number;
             self.enqueue(peer, encode(&Message::Welcome { peer: number, clock }));

@@ -23,6 +23,11 @@ pub(super) enum Standing {
     Refused,
 }
 
+/// How long (s) after its welcome a peer's tiles and presses wait,
+/// unacknowledged, for its first `Presence` (which the network may deliver
+/// after them): a few of the peer's resends (one a second).
+pub(super) const AWAIT_PRESENCE_S: f64 = 5.0;
+
 /// What the relay keeps per peer; every collection in it is capped.
 #[derive(Debug)]
 pub(super) struct PeerState {
@@ -34,6 +39,8 @@ pub(super) struct PeerState {
     pub(super) history: MotionHistory,
     /// Until when `report_deformers` overrides the peer's own `Presence`.
     pub(super) authoritative_until: f64,
+    /// When (relay time) the peer was last welcomed.
+    pub(super) welcomed_s: f64,
     pub(super) in_bytes: Bucket,
     pub(super) in_tiles: Bucket,
     pub(super) out_bytes: Bucket,
@@ -62,6 +69,7 @@ impl PeerState {
             interest: None,
             history: MotionHistory::default(),
             authoritative_until: f64::NEG_INFINITY,
+            welcomed_s: f64::NEG_INFINITY,
             in_bytes: Bucket::full(f64::from(c.burst_bytes), now),
             in_tiles: Bucket::full(f64::from(c.burst_tiles), now),
             out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),
@@ -76,15 +84,18 @@ impl PeerState {
         }
     }
 
+    /// Whether the peer's tiles wait at `now` for it to say where its
+    /// deformers are: it has not (no `Presence`, nor a game server's
+    /// report, within the deformer memory) and was welcomed less than
+    /// [`AWAIT_PRESENCE_S`] ago. Later, a peer that never says is judged
+    /// (and refused) as before rather than made to resend forever.
+    pub(super) fn awaits_presence(&self, now: f64) -> bool {
+        self.history.is_empty() && now - self.welcomed_s < AWAIT_PRESENCE_S
+    }
+
     /// Whether the peer may write tile `key`: its centre is within `reach`
     /// (m) of one of the peer's deformer positions recorded since `oldest`.
     /// (A fixed number of grid look-ups, counted in `work`.)
-    /// Whether the peer has said where its deformers are (a `Presence`, or
-    /// a game server's report) within the deformer memory.
-    pub(super) fn has_reported(&self) -> bool {
-        !self.history.is_empty()
-    }
-
     pub(super) fn may_write(&mut self, key: TileKey, world: &WorldIdentity, reach: f64, oldest: f64, work: &mut MotionWork) -> bool {
         let first = key.first_texel(world.settings.tile_side);
         let half = f64::from(world.settings.tile_side) / 2.0;

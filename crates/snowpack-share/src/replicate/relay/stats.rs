@@ -140,8 +140,9 @@ pub struct RelayStats {
     /// to two watchers counts twice), in place of the tiles they pressed.
     pub press_frames_sent: u64,
     /// `Tiles` and `Presses` messages left unacknowledged, and so sent
-    /// again, because their peer had not yet said where its deformers are
-    /// (its first `Presence` still on its way): not judged, not refused.
+    /// again, because their peer, welcomed less than 5 s before, had not
+    /// yet said where its deformers are (its first `Presence` still on its
+    /// way): not judged, not refused.
     pub awaiting_presence: u64,
     /// Bytes of tiles in memory now.
     pub tile_bytes_in_memory: usize,
