@@ -1,4 +1,5 @@
 // #import shared/window
+// #import shared/window_params
 // #import shared/pass_flags
 // #import shared/packed_snow
 // #import shared/snow_word
@@ -12,18 +13,6 @@
 // With COUNT_LEFT the snow the overwritten texels held is counted as left
 // (not on the window's first fill, over buffers that held nothing), and the
 // fresh snow as entered (shared/mass_ledger.wgsl). CPU twin: src/cpu/window.rs.
-
-struct WindowParams {
-    origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
-    resolution: u32,
-    texel_m: f32,
-    depth_m: f32,
-    rect_count: u32,
-    fallen_m: f32,          // snowfall so far on open ground, given to new texels
-    flags: u32,             // 1: write `fallen`, 2: write `stamps`, 4: count what the texels held as left
-
-    rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
-}
 
 @group(0) @binding(0) var<uniform> params: WindowParams;
 @group(1) @binding(2) var<storage, read_write> snow: array<u32>; // shared/snow_word.wgsl

@@ -1,4 +1,5 @@
 // #import shared/window
+// #import shared/window_params
 // #import shared/terrain
 // #import shared/terrain_kind
 
@@ -12,18 +13,7 @@
 // leaving texels' ground before this overwrites it). CPU twin: the value
 // is `cpu::window::texel_ground`'s (snowpack-testkit), as `texel_ground`.
 
-struct WindowGroundParams {
-    origin: vec2<i32>,      // global texel index of local (0, 0): x = column, y = row
-    resolution: u32,
-    texel_m: f32,
-    rect_count: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-    rects: array<vec4<u32>, 2>, // local (row0, col0, rows, cols)
-}
-
-@group(0) @binding(0) var<uniform> params: WindowGroundParams;
+@group(0) @binding(0) var<uniform> params: WindowParams; // shared/window_params.wgsl (the window pass's)
 @group(0) @binding(1) var<uniform> terrain_params: TerrainParams;
 // The window's ground (its heightmap binding: one f32 a window texel).
 @group(0) @binding(2) var<storage, read_write> heightmap: array<f32>;

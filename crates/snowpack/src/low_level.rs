@@ -147,7 +147,7 @@ pub mod deform {
     }
     /// `deform::window_ground`: what snowpack's app, tools and tests use of it.
     pub mod window_ground {
-        pub use crate::deform::window_ground::{WindowGroundParams, WindowGroundPass};
+        pub use crate::deform::window_ground::WindowGroundPass;
     }
 }
 

@@ -24,7 +24,7 @@ use snowpack::low_level::deform::stamp::{StampParams, StampPass};
 use snowpack::low_level::deform::update::{UpdateParams, UpdatePass};
 use snowpack::low_level::deform::wheel::{Tread, TreadPattern};
 use snowpack::low_level::deform::window::{SlidingWindow, WindowParams, WindowPass};
-use snowpack::low_level::deform::window_ground::{WindowGroundParams, WindowGroundPass};
+use snowpack::low_level::deform::window_ground::WindowGroundPass;
 use snowpack::low_level::frame::FrameContext;
 use snowpack::low_level::gpu::GpuTimer;
 use snowpack::low_level::gpu::read_buffer;
@@ -857,7 +857,7 @@ fn the_stored_ground_is_the_evaluated_one_and_displays_the_same() {
         origin = [first[0] + step[0], first[1] + step[1]];
         let rects = window.move_to([i64::from(origin[0]), i64::from(origin[1])]);
         let mut enc = encoder(ctx);
-        let gp = WindowGroundParams { origin, resolution: params.resolution, texel_m: params.texel_m(), ..WindowGroundParams::default() };
+        let gp = WindowParams { origin, resolution: params.resolution, texel_m: params.texel_m(), ..WindowParams::default() };
         ground_pass.record(&mut FrameContext::new(ctx, &mut enc, &mut timer), gp, &rects);
         submit(ctx, enc);
         let cpu_ground = cpu::window::ground_plane(&terrain_src, origin, params.resolution, params.texel_m());

@@ -12,7 +12,6 @@ use snowpack::low_level::deform::stamp::StampParams;
 use snowpack::low_level::deform::terrain_bake::{ResolveParams, TerrainBakeParams};
 use snowpack::low_level::deform::update::UpdateParams;
 use snowpack::low_level::deform::window::WindowParams;
-use snowpack::low_level::deform::window_ground::WindowGroundParams;
 use snowpack::low_level::render::ao::AoParams;
 use snowpack::low_level::render::environment::EnvParams;
 use snowpack::low_level::render::frame::FrameUniforms;
@@ -48,7 +47,7 @@ fn wgsl_uniform_size(source: &str, name: &str) -> u32 {
 fn uniform_sizes_match_naga() {
     let cases: &[(&str, &str, usize)] = &[
         (shaders::WINDOW, "params", size_of::<WindowParams>()),
-        (shaders::WINDOW_GROUND, "params", size_of::<WindowGroundParams>()),
+        (shaders::WINDOW_GROUND, "params", size_of::<WindowParams>()),
         (shaders::WINDOW_GROUND, "terrain_params", size_of::<TerrainParams>()),
         (shaders::UPDATE, "terrain_params", size_of::<TerrainParams>()),
         (shaders::CAPTURE_SHAPES, "params", size_of::<ShapeParams>()),

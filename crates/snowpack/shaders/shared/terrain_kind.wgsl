@@ -47,7 +47,8 @@ const TERRAIN_STORED_NOISE: u32 = 3u;
 // The same value either way (the stored one is `texel_ground`'s), but the
 // noise is four octaves of hashes a texel, most of a window pass's
 // arithmetic, where the read is four bytes. Only for texels of the current
-// window, after this frame's move: the update, display and unpack passes.
+// window, after this frame's move: the update, display, erosion and
+// surface unpack passes and the snow coat.
 fn window_ground(tp: TerrainParams, s: u32, g: vec2<i32>, texel_m: f32) -> f32 {
     if terrain_kind(tp) == TERRAIN_STORED_NOISE {
         return heightmap[s];

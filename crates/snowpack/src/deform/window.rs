@@ -95,7 +95,7 @@ pub fn rect_dispatch(rects: &[TexelRect]) -> Option<(u32, [TexelRect; 2], (u32, 
     Some((rects.len().min(2) as u32, fixed, grid))
 }
 
-/// Uniforms of `window.wgsl`.
+/// Uniforms of `window.wgsl` and `window_ground.wgsl` (`shared/window_params.wgsl`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct WindowParams {

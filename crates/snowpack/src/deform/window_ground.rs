@@ -4,37 +4,17 @@
 //! the noise (`DeformResources::stores_ground`, `docs/deformation.md`,
 //! "The window's ground").
 
-use bytemuck::{Pod, Zeroable};
-
 use crate::frame::FrameContext;
 use crate::pass::compute::{ComputePass, PassShape, Slot};
 use crate::shaders;
 
 use super::resources::DeformResources;
-use super::window::{TexelRect, rect_dispatch};
-
-/// Uniforms of `window_ground.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub struct WindowGroundParams {
-    /// Global texel index of local (0, 0): `[column, row]`.
-    pub origin: [i32; 2],
-    /// Texels per side.
-    pub resolution: u32,
-    /// Texel size (m).
-    pub texel_m: f32,
-    /// How many of `rects` are used ([`WindowGroundPass::record`] sets it).
-    pub rect_count: u32,
-    /// Padding to the rectangles' 16-byte alignment.
-    pub _pad: [u32; 3],
-    /// Exposed local rectangles `[row0, col0, rows, cols]` ([`WindowGroundPass::record`] sets them).
-    pub rects: [TexelRect; 2],
-}
+use super::window::{TexelRect, WindowParams, rect_dispatch};
 
 /// Stores the terrain under the texels a move exposed (noise hills only).
 pub struct WindowGroundPass {
     /// `None` where the window stores no ground (flat, heightmap, mesh).
-    pass: Option<ComputePass<WindowGroundParams>>,
+    pass: Option<ComputePass<WindowParams>>,
 }
 
 impl WindowGroundPass {
@@ -57,8 +37,10 @@ impl WindowGroundPass {
         Self { pass: Some(pass) }
     }
 
-    /// Records the ground of `rects` (nothing when empty or not stored).
-    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: WindowGroundParams, rects: &[TexelRect]) {
+    /// Records the ground of `rects` (nothing when empty or not stored),
+    /// with the window pass's uniforms (it reads `origin`, `resolution` and
+    /// `texel_m`; the rectangles are set here).
+    pub fn record(&self, cx: &mut FrameContext<'_>, mut params: WindowParams, rects: &[TexelRect]) {
         let Some(pass) = &self.pass else { return };
         let Some((count, fixed, grid)) = rect_dispatch(rects) else { return };
         params.rect_count = count;

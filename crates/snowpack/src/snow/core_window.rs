@@ -23,7 +23,7 @@ use crate::deform::stamp::{StampParams, StampPass, contact_points_into};
 use crate::deform::sweep::DeformerHistory;
 use crate::deform::update::{UpdateParams, UpdatePass};
 use crate::deform::window::{SlidingWindow, TexelRect, WindowParams, WindowPass};
-use crate::deform::window_ground::{WindowGroundParams, WindowGroundPass};
+use crate::deform::window_ground::WindowGroundPass;
 use crate::error::SnowError;
 use crate::frame::{FrameContext, WindowFrame};
 use crate::gpu::GpuContext;
@@ -511,7 +511,7 @@ impl CoreWindow {
     /// leaving texels' ground by evaluating it.
     pub(super) fn record_window_ground(&self, cx: &mut FrameContext<'_>, window: &WindowFrame, rects: &[TexelRect]) {
         let p = &self.params;
-        let params = WindowGroundParams { origin: gpu_origin(window.origin), resolution: p.resolution, texel_m: p.texel_m(), ..WindowGroundParams::default() };
+        let params = WindowParams { origin: gpu_origin(window.origin), resolution: p.resolution, texel_m: p.texel_m(), ..WindowParams::default() };
         self.window_ground_pass.record(cx, params, rects);
     }
 
