@@ -400,7 +400,7 @@ def scene_seeds():
 # ---------------------------------------------------------------- shared snow's messages
 
 # replicate/message.rs: the header, the limits.
-SHARE_HEADER = b"SNWP" + struct.pack("<H", 3)
+SHARE_HEADER = b"SNWP" + struct.pack("<H", 4)
 MAX_KEYS = 4096
 MAX_DEFORMERS = 256
 

@@ -133,7 +133,7 @@ impl Raw {
     fn join(addr: SocketAddr, world: &WorldIdentity, name: &str) -> anyhow::Result<(Self, ShareClock)> {
         let mut raw = Self::connect(addr)?;
         raw.pump_until(Duration::from_secs(10), |r| r.net.client.is_connected())?;
-        raw.send(&Message::Hello { world: world.clone(), name: name.to_owned() });
+        raw.send(&Message::Hello { world: world.clone(), name: name.to_owned(), presses: true });
         raw.pump_until(Duration::from_secs(10), |r| r.welcome.is_some() || r.refused.is_some())?;
         let clock = raw.welcome.with_context(|| format!("{name} was not welcomed ({:?})", raw.refused))?;
         Ok((raw, clock))
@@ -199,7 +199,7 @@ fn noisy_tile(world: &WorldIdentity, clock: ShareClock, key: TileKey, noise: &mu
 fn stranger(addr: SocketAddr, other: &WorldIdentity) -> anyhow::Result<()> {
     let mut stranger = Raw::connect(addr)?;
     stranger.pump_until(Duration::from_secs(10), |r| r.net.client.is_connected())?;
-    stranger.send(&Message::Hello { world: other.clone(), name: "stranger".to_owned() });
+    stranger.send(&Message::Hello { world: other.clone(), name: "stranger".to_owned(), presses: true });
     stranger.send(&Message::Query { id: 1, points: vec![[0.0, 0.0]] });
     stranger.pump_until(Duration::from_secs(10), |r| r.refused.is_some())?;
     stranger.send(&Message::Query { id: 2, points: vec![[0.0, 0.0]] });
@@ -211,7 +211,7 @@ fn stranger(addr: SocketAddr, other: &WorldIdentity) -> anyhow::Result<()> {
 fn greet(crowd: &mut [(Raw, bool)], world: &WorldIdentity) -> anyhow::Result<()> {
     for (k, (c, said)) in crowd.iter_mut().enumerate() {
         if !*said && c.net.client.is_connected() {
-            c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}") });
+            c.send(&Message::Hello { world: world.clone(), name: format!("crowd-{k}"), presses: true });
             *said = true;
         }
         c.pump_on();

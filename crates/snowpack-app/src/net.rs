@@ -602,7 +602,7 @@ pub fn query(addr: SocketAddr, token: Option<&Path>, world: &WorldIdentity, poin
     while answers.len() < chunks.len() {
         link.update()?;
         if link.client.is_connected() && !hello {
-            link.client.send_message(CHANNEL, encode(&Message::Hello { world: world.clone(), name: "snowpack query".to_owned() }));
+            link.client.send_message(CHANNEL, encode(&Message::Hello { world: world.clone(), name: "snowpack query".to_owned(), presses: false }));
             hello = true;
         }
         if welcomed && !sent {

@@ -28,13 +28,14 @@ pub struct NoiseTerrain {
 /// A grid of heights covering a rectangle of the world, sampled bilinearly
 /// between pixel centres and clamped at its edges. Made by
 /// [`HeightmapTerrain::new`], which checks it, so sampling never fails.
+///
+/// The grid is shared, not copied: a shared-snow world's identity holds it
+/// too, so its peer presses over it as the GPU does
+/// (`snowpack_share::replicate::press::ground::HeightGrid`, one sampling
+/// for the window's twins and the presses).
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightmapTerrain {
-    width: u32,
-    height: u32,
-    heights_m: Vec<f32>,
-    center_m: [f32; 2],
-    size_m: [f32; 2],
+    grid: Arc<HeightGrid>,
 }
 
 /// Where the terrain's height comes from.
@@ -56,7 +57,7 @@ pub enum TerrainSource {
 
 /// Largest side of a heightmap (pixels): 8192 is the default texture limit
 /// of wgpu's adapters.
-pub const HEIGHTMAP_MAX_SIDE: u32 = 8192;
+pub const HEIGHTMAP_MAX_SIDE: u32 = snowpack_share::replicate::press::ground::HEIGHT_GRID_MAX_SIDE;
 
 /// Largest side of the grid a terrain mesh is drawn into (texels). 2048 is
 /// the texture limit every wgpu adapter has, GL ES included.
@@ -89,9 +90,9 @@ impl std::fmt::Debug for TerrainMesh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TerrainMesh")
             .field("triangles", &self.triangles.len())
-            .field("grid", &(self.grid.width, self.grid.height))
-            .field("center_m", &self.grid.center_m)
-            .field("size_m", &self.grid.size_m)
+            .field("grid", &(self.grid.width(), self.grid.height()))
+            .field("center_m", &self.grid.center_m())
+            .field("size_m", &self.grid.size_m())
             .finish()
     }
 }
@@ -134,13 +135,14 @@ impl TerrainMesh {
         let center_m = [(lo[0] + hi[0]) * 0.5, (lo[2] + hi[2]) * 0.5];
         let origin = [center_m[0] - size_m[0] * 0.5, center_m[1] - size_m[1] * 0.5];
         let heights_m = draw_from_above(&triangles, cols, rows, origin, size_m, lo[1]);
-        let grid = HeightmapTerrain { width: cols, height: rows, heights_m, center_m, size_m };
+        let grid = HeightmapTerrain::new(cols, rows, heights_m, center_m, size_m)?;
         Ok(Self { triangles, grid })
     }
 }
 
 // The noise every machine evaluates alike (the presses too): one copy, in
 // the share crate.
+use snowpack_share::replicate::press::ground::HeightGrid;
 #[cfg(test)]
 use snowpack_share::replicate::press::ground::fbm;
 pub(crate) use snowpack_share::replicate::press::ground::{lattice_hash, noise_height};
@@ -153,33 +155,23 @@ impl HeightmapTerrain {
     /// not finite, a size that is not positive and finite, a centre that is
     /// not finite.
     pub fn new(width: u32, height: u32, heights_m: Vec<f32>, center_m: [f32; 2], size_m: [f32; 2]) -> Result<Self, crate::SnowError> {
-        let bad = |field: &'static str, why: String| Err(crate::SnowError::from(SnowError::InvalidParameter { field, why }));
-        if width == 0 || height == 0 {
-            return bad("heightmap", format!("{width}x{height} pixels: both sides must be at least 1"));
-        }
-        if width > HEIGHTMAP_MAX_SIDE || height > HEIGHTMAP_MAX_SIDE {
-            return bad("heightmap", format!("{width}x{height} pixels: at most {HEIGHTMAP_MAX_SIDE} on a side are supported"));
-        }
-        if heights_m.len() as u64 != u64::from(width) * u64::from(height) {
-            return bad("heightmap", format!("{} heights for {width}x{height} pixels (needs {})", heights_m.len(), u64::from(width) * u64::from(height)));
-        }
-        if let Some(k) = heights_m.iter().position(|h| !h.is_finite()) {
-            return bad("heightmap", format!("height {} at pixel {k} is not a finite number of metres", heights_m[k]));
-        }
-        if !size_m.iter().all(|s| s.is_finite() && *s > 0.0) {
-            return bad("heightmap size_m", format!("{size_m:?} must be two positive, finite sizes in metres"));
-        }
-        if !center_m.iter().all(|c| c.is_finite()) {
-            return bad("heightmap center_m", format!("{center_m:?} must be finite"));
-        }
-        Ok(Self { width, height, heights_m, center_m, size_m })
+        HeightGrid::new(width, height, heights_m, center_m, size_m)
+            .map(|grid| Self { grid: Arc::new(grid) })
+            .map_err(|e| SnowError::InvalidParameter { field: e.field, why: e.why }.into())
+    }
+
+    /// The grid, shared: what a world's identity holds
+    /// (`WorldTerrain::heightmap`) so presses travel over it.
+    pub(crate) fn shared_grid(&self) -> &Arc<HeightGrid> {
+        &self.grid
     }
 
     #[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the renderer, the app and the tests (`low_level`)"))]
     /// The same grid with other heights (as many, finite): a mesh terrain's
     /// grid as the GPU baked it.
     pub(crate) fn with_heights(&self, heights_m: Vec<f32>) -> Result<Self, SnowError> {
-        Self::new(self.width, self.height, heights_m, self.center_m, self.size_m).map_err(Into::into)
+        let g = &self.grid;
+        Self::new(g.width(), g.height(), heights_m, g.center_m(), g.size_m()).map_err(Into::into)
     }
 }
 
@@ -311,59 +303,35 @@ pub trait HeightmapTerrainExt: Sized {
 
 impl HeightmapTerrainExt for HeightmapTerrain {
     fn digest(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let words = [self.width, self.height, self.center_m[0].to_bits(), self.center_m[1].to_bits(), self.size_m[0].to_bits(), self.size_m[1].to_bits()];
-        for w in words.into_iter().chain(self.heights_m.iter().map(|v| v.to_bits())) {
-            for b in w.to_le_bytes() {
-                h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-            }
-        }
-        h
+        self.grid.digest()
     }
 
     fn width(&self) -> u32 {
-        self.width
+        self.grid.width()
     }
 
     fn height(&self) -> u32 {
-        self.height
+        self.grid.height()
     }
 
     fn heights_m(&self) -> &[f32] {
-        &self.heights_m
+        self.grid.heights_m()
     }
 
     fn center_m(&self) -> [f32; 2] {
-        self.center_m
+        self.grid.center_m()
     }
 
     fn size_m(&self) -> [f32; 2] {
-        self.size_m
+        self.grid.size_m()
     }
 
     fn height_range(&self) -> (f32, f32) {
-        self.heights_m.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &h| (lo.min(h), hi.max(h)))
+        self.grid.height_range()
     }
 
     fn height_at(&self, x: f32, z: f32) -> f32 {
-        let (w, h) = (self.width as i32, self.height as i32);
-        // Continuous pixel coordinates with pixel centres at integer + 0.5.
-        let u = ((x - self.center_m[0]) / self.size_m[0] + 0.5) * self.width as f32 - 0.5;
-        let v = ((z - self.center_m[1]) / self.size_m[1] + 0.5) * self.height as f32 - 0.5;
-        let u = u.clamp(0.0, (w - 1) as f32);
-        let v = v.clamp(0.0, (h - 1) as f32);
-        let (u0, v0) = (u.floor(), v.floor());
-        let (fu, fv) = (u - u0, v - v0);
-        let (i0, j0) = (v0 as i32, u0 as i32);
-        let (i1, j1) = ((i0 + 1).min(h - 1), (j0 + 1).min(w - 1));
-        let at = |i: i32, j: i32| self.heights_m[(i * w + j) as usize];
-        let a = at(i0, j0);
-        let b = at(i0, j1);
-        let c = at(i1, j0);
-        let d = at(i1, j1);
-        let ab = a + (b - a) * fu;
-        let cd = c + (d - c) * fu;
-        ab + (cd - ab) * fv
+        self.grid.height_at(x, z)
     }
 }
 
@@ -472,7 +440,7 @@ mod tests {
         tris.push([t(0.0, 0.0), t(2.0, 0.0), t(2.0, 2.0)]);
         tris.push([t(0.0, 0.0), t(2.0, 2.0), t(0.0, 2.0)]);
         let mesh = TerrainMesh::new(tris, 0.1).unwrap();
-        assert_eq!(mesh.grid.width % 64, 0);
+        assert_eq!(mesh.grid.width() % 64, 0);
         let terrain = TerrainSource::Mesh(Arc::new(mesh));
         for &(x, z) in &[(-3.0, -3.0), (3.1, -2.0), (-1.0, 3.5), (2.6, 2.6)] {
             let want = 0.5 * x + 0.25 * z;

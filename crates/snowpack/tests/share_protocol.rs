@@ -254,8 +254,8 @@ fn random_frames(seed: u64, n: usize) -> Vec<PressFrame> {
 
 fn any_message() -> impl Strategy<Value = Message> {
     prop_oneof![
-        (any_world(), ".{0,80}").prop_map(|(world, name)| Message::Hello { world, name }),
-        (any::<u32>(), any_clock()).prop_map(|(peer, clock)| Message::Welcome { peer, clock }),
+        (any_world(), ".{0,80}", any::<bool>()).prop_map(|(world, name, presses)| Message::Hello { world, name, presses }),
+        (any::<u32>(), any_clock(), any::<bool>()).prop_map(|(peer, clock, presses)| Message::Welcome { peer, clock, presses }),
         proptest::collection::vec(".{0,60}", 0..5).prop_map(|differences| Message::Refused { differences }),
         (any::<[i64; 2]>(), any::<u32>(), proptest::collection::vec(any::<[f64; 2]>(), 0..20)).prop_map(|(window, resolution, deformers)| Message::Presence {
             window,
@@ -287,7 +287,7 @@ fn any_message() -> impl Strategy<Value = Message> {
 fn welcomed_relay() -> SnowRelay {
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
-    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned() }), 0.0);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned(), presses: true }), 0.0);
     relay
 }
 
@@ -339,7 +339,7 @@ proptest! {
         // A peer takes the message whole and damaged, then steps its snow.
         let mut peer = SnowPeer::new(world(16), "p", PeerConfig::default());
         let mut snow = CpuSnow::new(world(16), 32, [-16, -16], 0.0);
-        let _ = peer.receive(&encode(&Message::Welcome { peer: 1, clock: world(16).clock_at(0.5) }));
+        let _ = peer.receive(&encode(&Message::Welcome { peer: 1, clock: world(16).clock_at(0.5), presses: true }));
         let _ = peer.receive(&bytes);
         let _ = peer.receive(&flipped);
         peer.update(&mut snow, 1.0);
@@ -530,20 +530,51 @@ fn cars_on_one_road(reports_presses: bool, (lossy, oncoming): (bool, bool), seed
     let mut settings = world(32).settings().clone();
     settings.texel_m = 0.031_25;
     let w = WorldIdentity::from_settings(settings);
+    let road = Road { car: w.clone(), watcher: w, pinned: None };
+    let (car, watcher, _) = drive_road(&road, reports_presses, (lossy, oncoming), seed);
+    (car, watcher)
+}
+
+/// Where [`drive_road`]'s cars drive: the world each machine knows.
+struct Road {
+    /// The car's (player 1's) world.
+    car: WorldIdentity,
+    /// The watcher's (player 2's): the car's, or the same settings without
+    /// the heightmap they name.
+    watcher: WorldIdentity,
+    /// The world the relay is pinned to (a server's `--scene`), or none:
+    /// it takes the first peer's, as decoded from its `Hello`.
+    pinned: Option<WorldIdentity>,
+}
+
+/// Runs [`cars_on_one_road`] on `road`; asserts that every copy converges
+/// with no refusal, and that frames are passed on exactly when the car
+/// reports them and the relay and the watcher both hold the ground.
+/// Returns both players' counters and the relay's.
+fn drive_road(
+    road: &Road,
+    reports_presses: bool,
+    (lossy, oncoming): (bool, bool),
+    seed: u64,
+) -> (snowpack::PeerStats, snowpack::PeerStats, snowpack::RelayStats) {
+    let w = &road.car;
     let mut relay = SnowRelay::new(RelayConfig::default());
+    if let Some(pinned) = &road.pinned {
+        relay.pin_world(pinned.clone()).expect("a fresh relay takes the world");
+    }
     let (drop, duplicate) = if lossy { (0.1, 0.05) } else { (0.0, 0.0) };
     let mut net = Net { rng: Rng::new(seed), drop, duplicate, max_delay_s: 0.15, in_flight: Vec::new(), cut: Vec::new(), last_busy_s: 0.0 };
     let dt = 1.0 / 30.0;
-    let mut players: Vec<Player> = [1, 2]
+    let mut players: Vec<Player> = [(1, &road.car), (2, &road.watcher)]
         .into_iter()
-        .map(|id| {
+        .map(|(id, world)| {
             relay.connect(id);
-            let mut snow = CpuSnow::new(w.clone(), 256, [0, 0], 0.0);
+            let mut snow = CpuSnow::new(world.clone(), 256, [0, 0], 0.0);
             snow.center_on(0.0, 0.0);
             snow.set_reports_presses(reports_presses);
             let mut config = PeerConfig::default();
             config.synced_digest_interval_s = 1.0;
-            Player { id, snow, peer: SnowPeer::new(w.clone(), &format!("player {id}"), config) }
+            Player { id, snow, peer: SnowPeer::new(world.clone(), &format!("player {id}"), config) }
         })
         .collect();
     let mut t = 0.0f64;
@@ -573,18 +604,65 @@ fn cars_on_one_road(reports_presses: bool, (lossy, oncoming): (bool, bool), seed
         }
         assert!(t < 60.0, "the network did not settle by {t} s (seed {seed})");
     }
-    let (_, _, compared, pressed) = assert_converged(&relay, &players, &w, seed);
+    let (_, _, compared, pressed) = assert_converged(&relay, &players, w, seed);
     assert!(pressed > 300, "the car pressed {pressed} of {compared} texels");
     assert_eq!(relay.stats().rejected.total(), 0, "{:?}", relay.stats().rejected);
     let watcher = players[1].peer.stats();
-    // The relay passes the car's frames on to the watcher, which presses them.
-    assert_eq!(relay.stats().press_frames_sent > 0, reports_presses, "{:?}", relay.stats());
-    assert_eq!(watcher.press_frames_received > 0, reports_presses, "{watcher:?}");
+    // The relay passes the car's frames on to the watcher, which presses
+    // them, where both hold the ground.
+    let ground = |world: &WorldIdentity| snowpack_share::replicate::press::PressGround::of_identity(world).is_some();
+    let relay_presses = ground(road.pinned.as_ref().unwrap_or(&WorldIdentity::from_settings(w.settings().clone())));
+    let passed = reports_presses && relay_presses && ground(&road.watcher);
+    assert_eq!(relay.stats().press_frames_sent > 0, passed, "{:?}", relay.stats());
+    assert_eq!(watcher.press_frames_received > 0, passed, "{watcher:?}");
+    let car = players[0].peer.stats();
+    assert_eq!(car.press_frames_sent > 0, reports_presses && relay_presses, "{car:?}");
     if oncoming {
-        let car = players[0].peer.stats();
-        assert_eq!(car.press_frames_received > 0, reports_presses, "the first car presses the oncoming one's frames: {car:?}");
+        assert_eq!(car.press_frames_received > 0, passed, "the first car presses the oncoming one's frames: {car:?}");
     }
-    (players[0].peer.stats(), watcher)
+    (car, watcher, relay.stats())
+}
+
+/// Over a heightmap (a world's identity names it by its digest alone) a
+/// car's presses travel where the relay holds the heightmap too (a server
+/// with `--scene`): the car, a watcher and the relay end with the same
+/// ruts, over a network that loses, duplicates and reorders. A relay that
+/// knows the world from its first peer's `Hello` alone says it cannot
+/// press there, and the car sends tiles, nothing refused; a watcher
+/// without the heightmap is sent tiles while the car's frames travel.
+#[test]
+fn over_a_heightmap_presses_travel_where_both_ends_hold_it() {
+    use snowpack::low_level::replicate::world::{WorldSnow, WorldTerrain};
+    let seed = testing::seed("presses over a heightmap");
+    let mut rng = Rng::new(seed);
+    // A road over bumps of ±5 cm, 1 m apart, under 0.5 m of snow.
+    let (cols, rows) = (25, 9);
+    let heights: Vec<f32> = (0..cols * rows).map(|_| rng.range(-0.05, 0.05)).collect();
+    let grid = snowpack_share::replicate::press::ground::HeightGrid::new(cols, rows, heights, [0.0, 0.5], [24.0, 8.0]).expect("a grid");
+    let snow = WorldSnow { texel_m: 0.031_25, depth_m: 0.5, refill_m_per_s: 0.0005, snowfall: None, displace: false };
+    let held = WorldIdentity::new(&snow, &WorldTerrain::heightmap(std::sync::Arc::new(grid)), 32);
+    let named = WorldIdentity::from_settings(held.settings().clone());
+    assert_eq!(held, named, "the heightmap is named, not compared");
+    let both = Road { car: held.clone(), watcher: held.clone(), pinned: Some(held.clone()) };
+    let (car, watcher, _) = drive_road(&both, true, (true, false), seed);
+    assert!(car.tiles_as_presses > 0 && watcher.tiles_from_presses > 0, "{car:?} {watcher:?}");
+    let (lossless, _, _) = drive_road(&both, true, (false, false), seed);
+    let unpinned = Road { car: held.clone(), watcher: held.clone(), pinned: None };
+    let (as_tiles, _, relay) = drive_road(&unpinned, true, (false, false), seed);
+    assert_eq!(relay.rejected.unpressable, 0);
+    eprintln!(
+        "presses over a heightmap: the car sent {} B as frames ({} frames), {} B as tiles where the relay lacks the heightmap",
+        lossless.tile_bytes_out, lossless.press_frames_sent, as_tiles.tile_bytes_out
+    );
+    assert!(
+        lossless.tile_bytes_out * 3 < as_tiles.tile_bytes_out * 2,
+        "frames {} B, tiles {} B (seed {seed})",
+        lossless.tile_bytes_out,
+        as_tiles.tile_bytes_out
+    );
+    let blind_watcher = Road { car: held.clone(), watcher: named, pinned: Some(held) };
+    let (car, watcher, _) = drive_road(&blind_watcher, true, (true, false), seed);
+    assert!(car.press_frames_sent > 0 && watcher.tiles_received > 0, "{car:?} {watcher:?}");
 }
 
 /// Two cars on one road, each the other's watcher, their wheels in the same
@@ -696,7 +774,7 @@ fn assert_converged(relay: &SnowRelay, players: &[Player], w: &WorldIdentity, se
 fn relay_with_peer(config: RelayConfig, now: f64) -> SnowRelay {
     let mut relay = SnowRelay::new(config);
     relay.connect(1);
-    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "honest".to_owned() }), now);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "honest".to_owned(), presses: true }), now);
     relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
     relay
 }
@@ -744,7 +822,7 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
     let honest = sphere_frame(clock, (0.3, -0.2), 0.2);
     relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest.clone()], tiles: Vec::new() }), now);
     let casts = [honest.casts(w.settings().texel_m)];
-    let expected = press_tiles(std::slice::from_ref(&honest), &casts, w.settings(), PressGround::of_world(w.settings()).expect("flat"), 16);
+    let expected = press_tiles(std::slice::from_ref(&honest), &casts, w.settings(), &PressGround::of_world(w.settings()).expect("flat"), 16);
     assert!(expected.len() >= 2, "the sphere spans tiles");
     for t in &expected {
         let mut at_relay = relay.tile(t.key).expect("pressed at the relay");
@@ -780,14 +858,14 @@ fn presses_are_pressed_where_the_peer_may_write_and_refused_elsewhere() {
         let world = WorldIdentity::from_settings(settings);
         let mut relay = SnowRelay::new(RelayConfig::default());
         relay.connect(1);
-        relay.receive(1, &encode(&Message::Hello { world: world.clone(), name: "hills".to_owned() }), now);
+        relay.receive(1, &encode(&Message::Hello { world: world.clone(), name: "hills".to_owned(), presses: true }), now);
         relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
         relay.receive(1, &encode(&Message::Presses { seq: 0, frames: vec![honest.clone()], tiles: Vec::new() }), now);
         (relay, world)
     };
     let (hills, world) = in_world("noise seed 7 base 0.1 m amplitude 0.3 m wavelength 2 m");
     let ground = PressGround::of_world(world.settings()).expect("noise travels");
-    let over_hills = press_tiles(std::slice::from_ref(&honest), &casts, world.settings(), ground, 16);
+    let over_hills = press_tiles(std::slice::from_ref(&honest), &casts, world.settings(), &ground, 16);
     assert_eq!(hills.stats().rejected.total(), 0, "{:?}", hills.stats().rejected);
     assert!(over_hills.iter().zip(&expected).any(|(a, b)| a.deficit != b.deficit), "the hills change the press");
     for t in &over_hills {
@@ -812,7 +890,7 @@ fn presses_are_passed_on_only_when_the_relay_took_all_they_pressed() {
     let clock = w.clock_at(now);
     let mut relay = relay_with_peer(RelayConfig::default(), now);
     relay.connect(2);
-    relay.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned() }), now);
+    relay.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned(), presses: true }), now);
     relay.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), now);
     let mut watcher = SnowPeer::new(w.clone(), "watcher", PeerConfig::default());
     let mut snow = CpuSnow::new(w.clone(), 128, [-64, -64], now);
@@ -868,7 +946,7 @@ fn presses_are_passed_on_only_when_the_relay_took_all_they_pressed() {
     let stingy = RelayConfig { send_bytes_per_s: 1, send_burst_bytes: 64, ..RelayConfig::default() };
     let mut paced = relay_with_peer(stingy, now);
     paced.connect(2);
-    paced.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned() }), now);
+    paced.receive(2, &encode(&Message::Hello { world: w.clone(), name: "watcher".to_owned(), presses: true }), now);
     paced.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), now);
     let (mut other, mut other_snow) = (SnowPeer::new(w.clone(), "watcher", PeerConfig::default()), CpuSnow::new(w.clone(), 128, [-64, -64], now));
     deliver(&mut paced, &mut other, &mut other_snow, now);
@@ -965,7 +1043,7 @@ fn tiles_before_the_first_presence_wait_for_it_a_few_seconds() {
         |relay: &mut SnowRelay| std::iter::from_fn(|| relay.poll_transmit()).filter(|(_, bytes)| matches!(decode(bytes), Ok(Message::Ack { .. }))).count();
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
-    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "late".to_owned() }), 1.0);
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "late".to_owned(), presses: true }), 1.0);
     let tiles = |seq| encode(&Message::Tiles { seq, tiles: vec![pressed_tile(TileKey::new(0, 0), w.clock_at(1.0), 1000)] });
     relay.receive(1, &tiles(0), 1.1);
     assert_eq!((relay.stats().awaiting_presence, relay.stats().rejected.total(), acks(&mut relay)), (1, 0, 0));
@@ -978,7 +1056,7 @@ fn tiles_before_the_first_presence_wait_for_it_a_few_seconds() {
     // Never a Presence: after 5 s its tiles are refused as far from every deformer, and acknowledged.
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
-    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "silent".to_owned() }), 1.0);
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "silent".to_owned(), presses: true }), 1.0);
     relay.receive(1, &tiles(0), 5.9);
     relay.receive(1, &tiles(1), 6.1);
     assert_eq!(relay.stats().awaiting_presence, 1);
@@ -1058,7 +1136,7 @@ fn a_relay_with_a_store_comes_back_bit_for_bit() {
     let mut relay = SnowRelay::with_store(store, config.clone()).expect("relay");
     relay.connect(1);
     let now = 5.0;
-    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "p".to_owned() }), now);
+    relay.receive(1, &encode(&Message::Hello { world: w.clone(), name: "p".to_owned(), presses: true }), now);
     relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), now);
     let mut rng = Rng::new(testing::seed("a_relay_with_a_store_comes_back_bit_for_bit"));
     let mut sent = Vec::new();
@@ -1447,7 +1525,7 @@ fn memory_and_queues_are_bounded_in_bytes() {
     assert_eq!(stats.tiles_in_memory as u64 + stats.tiles_forgotten, 20, "{stats:?}");
     // A second peer whose window holds every tile, never polled: its queue stays under 3 KiB.
     relay.connect(2);
-    relay.receive(2, &encode(&Message::Hello { world: world(16), name: "slow".to_owned() }), 2.0);
+    relay.receive(2, &encode(&Message::Hello { world: world(16), name: "slow".to_owned(), presses: true }), 2.0);
     relay.receive(2, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: Vec::new() }), 2.0);
     for k in 0..40 {
         relay.receive(2, &encode(&Message::Query { id: k, points: vec![[0.5, 0.5]; 100] }), 2.0);
@@ -1475,7 +1553,7 @@ fn a_relay_knows_nothing_before_its_first_hello() {
     relay.connect(1);
     relay.receive(1, &encode(&Message::Presence { window: [0, 0], resolution: 64, deformers: Vec::new() }), 0.0);
     assert_eq!(relay.stats().rejected.not_welcomed, 1);
-    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned() }), 0.0);
+    relay.receive(1, &encode(&Message::Hello { world: world(16), name: "p".to_owned(), presses: true }), 0.0);
     assert_eq!(relay.depth_at(0.0, 0.0), Some(0.5));
     assert_eq!(relay.depth_at(f64::NAN, 0.0), None);
     assert_eq!(relay.clock(10.0), Some(world(16).clock_at(10.0)));
@@ -1551,7 +1629,7 @@ fn a_peer_learns_it_is_in_sync_and_peers_of_the_world_may_ask_the_depth() {
     relay.receive(9, &query, t);
     assert_eq!((relay.stats().queries, relay.stats().rejected.not_welcomed), (0, 1));
     assert!(std::iter::from_fn(|| relay.poll_transmit()).all(|(id, _)| id != 9), "a query before the Hello is answered");
-    relay.receive(9, &encode(&Message::Hello { world: w.clone(), name: "asker".to_owned() }), t);
+    relay.receive(9, &encode(&Message::Hello { world: w.clone(), name: "asker".to_owned(), presses: true }), t);
     relay.receive(9, &query, t);
     // After its Welcome, the answer.
     let answer = std::iter::from_fn(|| relay.poll_transmit())

@@ -8,8 +8,8 @@
 //!
 //! | kind | message | body |
 //! |---|---|---|
-//! | 1 | `Hello` | world, name (u8 length + UTF-8, ≤ 64 bytes) |
-//! | 2 | `Welcome` | peer number (u32), clock |
+//! | 1 | `Hello` | world, name (u8 length + UTF-8, ≤ 64 bytes), presses (u8, 0 or 1) |
+//! | 2 | `Welcome` | peer number (u32), clock, presses (u8, 0 or 1) |
 //! | 3 | `Refused` | count (u8, ≤ 32), each a u16 length + UTF-8 (≤ 512 bytes) |
 //! | 4 | `Presence` | window first texel (2 × i64), resolution (u32), count (u16, ≤ 256), each x, z (2 × f64) |
 //! | 5 | `Tiles` | seq (u64), count (u8, ≤ 64), each a tile |
@@ -53,7 +53,7 @@ use crate::replicate::press::PressFrame;
 /// Identifies a snowpack sharing message.
 pub const MAGIC: &[u8; 4] = b"SNWP";
 /// The protocol version this build speaks; a message of another is refused.
-pub const PROTOCOL_VERSION: u16 = 3;
+pub const PROTOCOL_VERSION: u16 = 4;
 /// Bytes of the header (magic, version, kind).
 pub const HEADER_BYTES: usize = 7;
 /// The largest message (bytes) either side sends or accepts.
@@ -97,6 +97,10 @@ pub enum Message {
         world: WorldIdentity,
         /// A name for logs (≤ [`MAX_NAME_BYTES`] bytes).
         name: String,
+        /// The peer holds the world's ground and presses the frames passed
+        /// on to it ([`crate::replicate::press::PressGround::of_identity`]);
+        /// otherwise it is sent their tiles.
+        presses: bool,
     },
     /// Relay → peer: the peer is in; its number and the world clock.
     Welcome {
@@ -104,6 +108,9 @@ pub enum Message {
         peer: u32,
         /// The world clock when the relay answered.
         clock: ShareClock,
+        /// The relay holds the world's ground and presses the peer's
+        /// frames; otherwise the peer sends what they pressed as tiles.
+        presses: bool,
     },
     /// Relay → peer: the peer's world is not the relay's. One phrase per
     /// difference, "here" being the peer's world and "there" the relay's
@@ -266,13 +273,15 @@ pub fn encode(message: &Message) -> Vec<u8> {
 /// A message's fields after its header.
 fn write_body(w: &mut Writer, message: &Message) {
     match message {
-        Message::Hello { world, name } => {
+        Message::Hello { world, name, presses } => {
             write_world(w, world);
             w.text8(name, MAX_NAME_BYTES);
+            w.u8(u8::from(*presses));
         }
-        Message::Welcome { peer, clock } => {
+        Message::Welcome { peer, clock, presses } => {
             w.u32(*peer);
             write_clock(w, clock);
+            w.u8(u8::from(*presses));
         }
         Message::Refused { differences } => {
             let n = differences.len().min(MAX_REFUSED_PHRASES);
@@ -447,8 +456,8 @@ pub fn decode(bytes: &[u8]) -> Result<Message, MessageError> {
     }
     let kind = r.u8("kind")?;
     let message = match kind {
-        1 => Message::Hello { world: read_world(&mut r)?, name: text8(&mut r, "name", MAX_NAME_BYTES)? },
-        2 => Message::Welcome { peer: r.u32("peer number")?, clock: read_clock(&mut r)? },
+        1 => Message::Hello { world: read_world(&mut r)?, name: text8(&mut r, "name", MAX_NAME_BYTES)?, presses: flag(&mut r, "presses flag")? },
+        2 => Message::Welcome { peer: r.u32("peer number")?, clock: read_clock(&mut r)?, presses: flag(&mut r, "presses flag")? },
         3 => {
             let n = usize::from(r.u8("phrase count")?);
             cap("refusal phrases", n, MAX_REFUSED_PHRASES)?;
@@ -617,6 +626,15 @@ fn write_world(w: &mut Writer, world: &WorldIdentity) {
     w.text16(&world.settings.terrain, MAX_TERRAIN_BYTES);
 }
 
+/// A byte that must be 0 or 1.
+fn flag(r: &mut ByteReader, what: &'static str) -> Result<bool, MessageError> {
+    match r.u8(what)? {
+        0 => Ok(false),
+        1 => Ok(true),
+        other => Err(MessageError::BadValue { what, why: format!("{other}, not 0 or 1") }),
+    }
+}
+
 fn read_world(r: &mut ByteReader) -> Result<WorldIdentity, MessageError> {
     let texel_m = r.f32("texel size")?;
     let tile_side = r.u32("tile side")?;
@@ -624,11 +642,7 @@ fn read_world(r: &mut ByteReader) -> Result<WorldIdentity, MessageError> {
     let refill_m_per_s = r.f32("refill")?;
     let snowfall_m_per_s = r.f32("snowfall rate")?;
     let max_fallen_m = r.f32("most snowfall kept")?;
-    let has_snowfall = match r.u8("snowfall flag")? {
-        0 => false,
-        1 => true,
-        other => return Err(MessageError::BadValue { what: "snowfall flag", why: format!("{other}, not 0 or 1") }),
-    };
+    let has_snowfall = flag(r, "snowfall flag")?;
     let stamp_range_m = [r.f32("footprint range")?, r.f32("footprint range")?];
     let terrain = text16(r, "terrain", MAX_TERRAIN_BYTES)?;
     Ok(WorldIdentity::from_settings(WorldSettings {
@@ -779,11 +793,11 @@ mod tests {
 
     #[test]
     fn a_hello_round_trips_and_names_what_is_wrong() {
-        let m = Message::Hello { world: world(), name: "ö".repeat(40) };
+        let m = Message::Hello { world: world(), name: "ö".repeat(40), presses: true };
         let bytes = encode(&m);
         let back = decode(&bytes).expect("decodes");
         // The name is cut at 64 bytes on a character boundary.
-        assert_eq!(back, Message::Hello { world: world(), name: "ö".repeat(32) });
+        assert_eq!(back, Message::Hello { world: world(), name: "ö".repeat(32), presses: true });
         assert!(matches!(decode(&bytes[..bytes.len() - 1]), Err(MessageError::Truncated { .. })));
         let mut longer = bytes.clone();
         longer.push(0);

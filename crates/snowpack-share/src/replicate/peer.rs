@@ -180,8 +180,13 @@ pub struct SnowPeer {
     outbox: VecDeque<Vec<u8>>,
     /// Deltas in flight by sequence number.
     unacked: BTreeMap<u64, InFlight>,
-    /// The terrain analytic presses are pressed over, when they travel in
-    /// this world ([`crate::replicate::press::presses_travel`]).
+    /// The terrain this peer can press over, where presses travel in its
+    /// world (`press::press_ground`: flat, value noise, or a heightmap the
+    /// identity holds); the frames the relay passes on are pressed over it.
+    ground: Option<crate::replicate::press::PressGround>,
+    /// The ground when this peer's own frames travel too: `ground` until a
+    /// `Welcome` says the relay does not hold it, then none (its presses
+    /// go as tiles).
     presses: Option<crate::replicate::press::PressGround>,
     /// Press frames from the snow not sent yet, oldest first.
     frames_pending: VecDeque<PressFrame>,
@@ -244,8 +249,8 @@ impl SnowPeer {
     /// `resend_after_s` until the relay answers.
     #[must_use]
     pub fn new(world: WorldIdentity, name: &str, config: PeerConfig) -> Self {
-        let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned() });
-        let presses = crate::replicate::press::press_ground(&world.settings);
+        let ground = crate::replicate::press::press_ground(&world);
+        let hello = encode(&Message::Hello { world: world.clone(), name: name.to_owned(), presses: ground.is_some() });
         Self {
             world,
             name: name.to_owned(),
@@ -260,7 +265,8 @@ impl SnowPeer {
             incoming: VecDeque::new(),
             outbox: VecDeque::from([hello]),
             unacked: BTreeMap::new(),
-            presses,
+            presses: ground.clone(),
+            ground,
             frames_pending: VecDeque::new(),
             frames_log: VecDeque::new(),
             own_pressed: Vec::new(),
@@ -298,10 +304,15 @@ impl SnowPeer {
         self.stats.messages_in += 1;
         let message = decode(bytes).inspect_err(|_| self.stats.malformed += 1)?;
         match message {
-            Message::Welcome { peer, clock } => {
+            Message::Welcome { peer, clock, presses } => {
                 self.welcomed = true;
                 self.number = Some(peer);
                 self.relay_clock = Some(clock);
+                if !presses && self.presses.take().is_some() {
+                    // The relay cannot press them: what they pressed goes
+                    // as tiles (the window's changed tiles hold it).
+                    self.frames_pending.clear();
+                }
             }
             Message::Refused { differences } => {
                 self.welcomed = false;
@@ -377,7 +388,7 @@ impl SnowPeer {
     fn press_passed_on(&mut self, frames: &[PressFrame]) -> Vec<SharedTile> {
         let (texel_m, side) = (self.world.settings.texel_m, self.world.settings.tile_side);
         let costed = crate::replicate::press::costed_casts(frames, texel_m, side).filter(|&(_, work)| work <= MAX_PASSED_ON_CASTS);
-        let (Some(ground), Some((casts, _))) = (self.presses, costed) else {
+        let (Some(ground), Some((casts, _))) = (self.ground.as_ref(), costed) else {
             self.stats.malformed += 1;
             return Vec::new();
         };
@@ -409,7 +420,14 @@ impl SnowPeer {
         // known to be there, so the next copies go whole.
         self.acked.clear();
         self.sent.clear();
-        self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+        // The relay's `Welcome` says again whether it presses.
+        self.presses.clone_from(&self.ground);
+        self.push(self.hello());
+    }
+
+    /// This peer's `Hello`, encoded.
+    fn hello(&self) -> Vec<u8> {
+        encode(&Message::Hello { world: self.world.clone(), name: self.name.clone(), presses: self.ground.is_some() })
     }
 
     /// Changes how the peer paces itself and what it keeps, from the next
@@ -506,7 +524,7 @@ impl SnowPeer {
                 None => self.last_hello_s = Some(now_s),
                 Some(at) if !self.refused && now_s - at >= self.config.resend_after_s => {
                     self.last_hello_s = Some(now_s);
-                    self.push(encode(&Message::Hello { world: self.world.clone(), name: self.name.clone() }));
+                    self.push(self.hello());
                 }
                 Some(_) => {}
             }
@@ -731,7 +749,7 @@ impl SnowPeer {
         // the window's own tiles of these presses are still on their way
         // agrees with the relay's copies (which the frames reach first).
         let mut pressed = Vec::new();
-        if let Some(ground) = self.presses.filter(|_| !frames.is_empty()) {
+        if let Some(ground) = self.presses.as_ref().filter(|_| !frames.is_empty()) {
             let c = CatchUp { max_fallen_m: self.world.settings.max_fallen_m };
             pressed = crate::replicate::press::press_tiles(&frames, &casts, &self.world.settings, ground, self.world.settings.tile_side);
             for t in &pressed {
@@ -797,7 +815,7 @@ impl SnowPeer {
     /// untouched snow (`None` when none reaches it): every machine that
     /// receives them makes the same.
     fn explained(&self, key: TileKey, time_s: f64) -> Option<SharedTile> {
-        let ground = self.presses?;
+        let ground = self.presses.as_ref()?;
         let side = self.world.settings.tile_side;
         let mut tile: Option<SharedTile> = None;
         for (frame, casts) in self.frames_log.iter().filter(|(f, _)| f.clock.time_s <= time_s) {

@@ -1,8 +1,11 @@
 //! A world's identity: the settings two machines must share for their snow
 //! to merge. A peer of another world is refused, naming what differs.
 
+use std::sync::Arc;
+
 use crate::SNOW_QUANTUM_M;
 
+use super::press::ground::HeightGrid;
 use super::tile::ShareClock;
 
 /// The settings that make a world: tiles from machines that agree on all of
@@ -11,9 +14,24 @@ use super::tile::ShareClock;
 /// Made by [`WorldIdentity::new`] (no GPU) or by snowpack's window
 /// (`SnowDeformation::world_identity`); tools read and build one field by
 /// field through [`WorldIdentityExt`] and [`WorldSettings`].
-#[derive(Clone, Debug, PartialEq)]
+///
+/// An identity found from a heightmap (a scene's, a window's) also holds
+/// the heightmap, so this machine can press over it
+/// ([`crate::replicate::press::PressGround::of_identity`]). The heightmap
+/// is not sent and not compared: its digest in the settings is.
+#[derive(Clone, Debug)]
 pub struct WorldIdentity {
     pub(crate) settings: WorldSettings,
+    /// The heightmap `settings.terrain` names, where this machine holds it.
+    pub(crate) grid: Option<Arc<HeightGrid>>,
+}
+
+impl PartialEq for WorldIdentity {
+    /// The same world: the same settings (the heightmap one side holds is
+    /// named by its digest in them).
+    fn eq(&self, other: &Self) -> bool {
+        self.settings == other.settings
+    }
 }
 
 /// A [`WorldIdentity`]'s settings as plain data, field by field: what the
@@ -70,6 +88,12 @@ pub trait WorldIdentityExt: Sized {
     /// world another tool described field by field.
     #[must_use]
     fn from_settings(settings: WorldSettings) -> Self;
+
+    /// The same world, holding `grid` when its terrain is the heightmap
+    /// the settings name (by its digest); as it was otherwise. A window's
+    /// identity holds its heightmap this way, so its peer presses over it.
+    #[must_use]
+    fn holding(self, grid: Arc<HeightGrid>) -> Self;
 }
 
 impl WorldIdentityExt for WorldIdentity {
@@ -123,7 +147,11 @@ impl WorldIdentityExt for WorldIdentity {
     }
 
     fn from_settings(settings: WorldSettings) -> Self {
-        Self { settings }
+        Self { settings, grid: None }
+    }
+
+    fn holding(self, grid: Arc<HeightGrid>) -> Self {
+        if self.settings.terrain == grid.terrain_identity() { Self { grid: Some(grid), ..self } } else { self }
     }
 }
 
@@ -184,13 +212,14 @@ pub struct WorldSnowfall {
 pub struct WorldTerrain {
     description: String,
     heights_m: (f32, f32),
+    grid: Option<Arc<HeightGrid>>,
 }
 
 impl WorldTerrain {
     /// Flat ground at `height_m`.
     #[must_use]
     pub fn flat(height_m: f32) -> Self {
-        Self { description: format!("flat at {height_m} m"), heights_m: (height_m, height_m) }
+        Self { description: format!("flat at {height_m} m"), heights_m: (height_m, height_m), grid: None }
     }
 
     /// snowpack's value-noise terrain (`NoiseTerrain`) of these parameters.
@@ -199,7 +228,16 @@ impl WorldTerrain {
         Self {
             description: format!("noise seed {seed} base {base_m} m amplitude {amplitude_m} m wavelength {wavelength_m} m"),
             heights_m: (base_m - amplitude_m.abs(), base_m + amplitude_m.abs()),
+            grid: None,
         }
+    }
+
+    /// A heightmap, named by its digest ([`HeightGrid::terrain_identity`]);
+    /// the identity made of it holds the grid, so presses travel over it
+    /// where the relay holds it too.
+    #[must_use]
+    pub fn heightmap(grid: Arc<HeightGrid>) -> Self {
+        Self { description: grid.terrain_identity(), heights_m: grid.height_range(), grid: Some(grid) }
     }
 
     /// Any other ground: `description` is what machines compare (snowpack's
@@ -207,7 +245,7 @@ impl WorldTerrain {
     /// `heights_m` the lowest and highest height (m).
     #[must_use]
     pub fn described(description: String, heights_m: (f32, f32)) -> Self {
-        Self { description, heights_m }
+        Self { description, heights_m, grid: None }
     }
 }
 
@@ -220,7 +258,7 @@ impl WorldIdentity {
         let fall = snow.snowfall;
         let deepest = snow.depth_m + fall.map_or(0.0, |f| f.max_m);
         let (low, high) = footprint_range_m(deepest, terrain.heights_m);
-        Self::from_settings(WorldSettings {
+        let settings = WorldSettings {
             texel_m: snow.texel_m,
             tile_side,
             terrain: terrain.description.clone(),
@@ -230,7 +268,8 @@ impl WorldIdentity {
             max_fallen_m: fall.map_or(0.0, |f| f.max_m),
             has_snowfall: fall.is_some() || snow.displace,
             stamp_range_m: [low, high],
-        })
+        };
+        Self { settings, grid: terrain.grid.clone() }
     }
 }
 

@@ -144,10 +144,11 @@ impl CpuSnow {
     /// a GPU window does this frame (`snowpack_share::replicate::press`, the same
     /// arithmetic); the frame is kept for the peer unless
     /// [`Self::set_reports_presses`] turned that off. Needs terrain the
-    /// world's identity says whole (flat, or value noise).
+    /// world's identity says whole (flat, or value noise) or holds (a
+    /// heightmap: [`PressGround::of_identity`]).
     pub fn press_shapes(&mut self, shapes: Vec<ShapeSweep>, range_m: (f32, f32), pack_ratio: f32) {
         let settings = self.world.settings().clone();
-        let Some(ground) = PressGround::of_world(&settings) else { return };
+        let Some(ground) = PressGround::of_identity(&self.world) else { return };
         // As the capture keeps them: shapes that reach the window.
         let extent_m = settings.texel_m * self.resolution as f32;
         let shapes: Vec<ShapeSweep> = shapes.into_iter().filter(|s| s.touches_window(extent_m, settings.texel_m)).collect();
@@ -157,7 +158,7 @@ impl CpuSnow {
         let frame = PressFrame { clock: self.clock, origin: self.origin, resolution: self.resolution, low_m: range_m.0, high_m: range_m.1, pack_ratio, shapes };
         let casts = [frame.casts(settings.texel_m)];
         let side = i64::from(settings.tile_side);
-        for tile in press_tiles(std::slice::from_ref(&frame), &casts, &settings, ground, settings.tile_side) {
+        for tile in press_tiles(std::slice::from_ref(&frame), &casts, &settings, &ground, settings.tile_side) {
             let first = tile.key.first_texel(settings.tile_side);
             for (k, &d) in tile.deficit.iter().enumerate() {
                 let (col, row) = (first[0] + k as i64 % side, first[1] + k as i64 / side);

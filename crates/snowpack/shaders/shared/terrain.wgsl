@@ -13,7 +13,7 @@ struct TerrainParams {
     hm_height: u32,
     _pad: u32,
     hm_center_m: vec2<f32>,
-    hm_size_m: vec2<f32>,
+    hm_per_size_m: vec2<f32>, // 1 / the covered size (1/m): multiplied, as on the CPU
 }
 
 const NOISE_OCTAVES: u32 = 4u;
@@ -69,11 +69,14 @@ fn fbm(x: f32, z: f32, seed: u32) -> f32 {
     return sum * NOISE_NORM;
 }
 
+// The twin is `HeightGrid::height_at` (snowpack_share::replicate::press::ground),
+// with no division, so a relay that holds the heightmap presses over the
+// same ground.
 fn heightmap_at(t: TerrainParams, x: f32, z: f32) -> f32 {
     let w = i32(t.hm_width);
     let h = i32(t.hm_height);
-    var u = ((x - t.hm_center_m.x) / t.hm_size_m.x + 0.5) * f32(t.hm_width) - 0.5;
-    var v = ((z - t.hm_center_m.y) / t.hm_size_m.y + 0.5) * f32(t.hm_height) - 0.5;
+    var u = ((x - t.hm_center_m.x) * t.hm_per_size_m.x + 0.5) * f32(t.hm_width) - 0.5;
+    var v = ((z - t.hm_center_m.y) * t.hm_per_size_m.y + 0.5) * f32(t.hm_height) - 0.5;
     u = clamp(u, 0.0, f32(w - 1));
     v = clamp(v, 0.0, f32(h - 1));
     let u0 = floor(u);

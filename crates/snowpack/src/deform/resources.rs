@@ -336,8 +336,9 @@ pub struct TerrainParams {
     pub _pad: u32,
     /// Heightmap centre (x, z) in world metres.
     pub hm_center_m: [f32; 2],
-    /// Heightmap size (x, z) in metres.
-    pub hm_size_m: [f32; 2],
+    /// One over the heightmap's size (x, z) (1/m): the shader multiplies
+    /// by it, as the CPU does, where a division may round otherwise.
+    pub hm_per_size_m: [f32; 2],
 }
 
 impl TerrainParams {
@@ -357,6 +358,6 @@ impl TerrainParams {
     }
 
     fn heightmap(h: &crate::HeightmapTerrain) -> Self {
-        Self { kind: 2, hm_width: h.width(), hm_height: h.height(), hm_center_m: h.center_m(), hm_size_m: h.size_m(), ..Self::default() }
+        Self { kind: 2, hm_width: h.width(), hm_height: h.height(), hm_center_m: h.center_m(), hm_per_size_m: h.shared_grid().per_size_m(), ..Self::default() }
     }
 }

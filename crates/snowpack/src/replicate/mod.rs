@@ -54,7 +54,7 @@ pub fn terrain_identity(terrain: &TerrainSource) -> String {
         TerrainSource::Noise(n) => {
             format!("noise seed {} base {} m amplitude {} m wavelength {} m", n.seed, n.base_m, n.amplitude_m, n.wavelength_m)
         }
-        TerrainSource::Heightmap(h) => format!("heightmap {:016x}", h.digest()),
+        TerrainSource::Heightmap(h) => h.shared_grid().terrain_identity(),
         TerrainSource::Mesh(m) => format!("mesh of {} triangles {:016x}", m.triangles.len(), m.grid.digest()),
     }
 }

@@ -58,7 +58,7 @@ pub(super) fn world_identity(core: &CoreWindow, sharing: Option<&Sharing>) -> Wo
     let (low, high, _) = core.stamp_range();
     let p = core.params();
     let snowfall = p.snowfall.as_ref();
-    WorldIdentity::from_settings(WorldSettings {
+    let world = WorldIdentity::from_settings(WorldSettings {
         texel_m: p.texel_m(),
         tile_side: sharing.map_or_else(|| default_tile_texels(p.resolution), |s| s.grid().side),
         terrain: terrain_identity(core.terrain()),
@@ -68,7 +68,21 @@ pub(super) fn world_identity(core: &CoreWindow, sharing: Option<&Sharing>) -> Wo
         max_fallen_m: snowfall.map_or(0.0, |s| s.max_m),
         has_snowfall: p.keeps_lying_snow(),
         stamp_range_m: [low, high],
-    })
+    });
+    match held_grid(core.terrain()) {
+        Some(grid) => world.holding(grid),
+        None => world,
+    }
+}
+
+/// The heightmap a world's identity holds, so presses travel over it: a
+/// heightmap terrain's. A mesh's grid is drawn on the GPU, which the CPU
+/// does not repeat bit for bit: its world shares tiles.
+fn held_grid(terrain: &crate::TerrainSource) -> Option<std::sync::Arc<snowpack_share::replicate::press::ground::HeightGrid>> {
+    match terrain {
+        crate::TerrainSource::Heightmap(h) => Some(std::sync::Arc::clone(h.shared_grid())),
+        _ => None,
+    }
 }
 
 /// The world identity of a window of `params` over `terrain` sharing
@@ -83,7 +97,11 @@ pub(super) fn world_identity_for(params: &crate::SnowParams, terrain: &crate::Te
         snowfall: params.snowfall.as_ref().map(|s| WorldSnowfall { rate_m_per_s: s.rate_m_per_s, max_m: s.max_m }),
         displace: params.displace,
     };
-    WorldIdentity::new(&snow, &WorldTerrain::described(terrain_identity(terrain), terrain.height_bounds()), tile_side)
+    let ground = match held_grid(terrain) {
+        Some(grid) => WorldTerrain::heightmap(grid),
+        None => WorldTerrain::described(terrain_identity(terrain), terrain.height_bounds()),
+    };
+    WorldIdentity::new(&snow, &ground, tile_side)
 }
 
 /// How tiles are caught up in `core`'s world.

@@ -18,7 +18,7 @@
 //! | `wheel.rs` | tyres and treads: poses, sub-steps, the capture's instance of a pose |
 //! | `sweep.rs` | sub-steps of swept boxes (and meshes, in snowpack) |
 //! | `cast.rs` | the ray casts: capsule, tyre, box |
-//! | `ground.rs` | the terrain they are pressed over: flat, or the window's value noise |
+//! | `ground.rs` | the terrain they are pressed over: flat, the window's value noise, or a heightmap both ends hold |
 
 pub mod cast;
 pub mod ground;
@@ -30,7 +30,7 @@ pub use ground::PressGround;
 use glam::{Mat4, Quat, Vec3};
 
 use crate::replicate::tile::{CatchUp, ShareClock, SharedTile};
-use crate::replicate::world::WorldSettings;
+use crate::replicate::world::{WorldIdentity, WorldSettings};
 
 use sweep::BoxPose;
 use wheel::{Tread, WheelPose};
@@ -396,7 +396,7 @@ impl PressFrame {
     /// codes, as the GPU stores them) and packs what it lost up to the
     /// final density, as `update.wgsl` does where nothing displaces, no
     /// footprint presses and no snowfall lies.
-    fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: PressGround) {
+    fn press(&self, tile: &mut SharedTile, casts: &FrameCasts, world: &WorldSettings, ground: &PressGround) {
         tile.catch_up(&self.clock, CatchUp { max_fallen_m: world.max_fallen_m });
         let Some((rows, cols)) = self.span(tile.key, tile.side) else { return };
         let side = i64::from(tile.side);
@@ -444,7 +444,7 @@ pub(crate) fn press_tile(
     casts: &FrameCasts,
     key: crate::TileKey,
     side: u32,
-    (world, ground): (&WorldSettings, PressGround),
+    (world, ground): (&WorldSettings, &PressGround),
     tile: Option<SharedTile>,
 ) -> Option<SharedTile> {
     let (rows, cols) = frame.span(key, side)?;
@@ -464,7 +464,7 @@ pub(crate) fn press_tile(
 /// `ground` (`casts[k]` is `frames[k].casts(world.texel_m)`): what a
 /// machine that receives the frames merges.
 #[must_use]
-pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: PressGround, side: u32) -> Vec<SharedTile> {
+pub fn press_tiles(frames: &[PressFrame], casts: &[FrameCasts], world: &WorldSettings, ground: &PressGround, side: u32) -> Vec<SharedTile> {
     press_tiles_where(frames, casts, (world, ground, side), |_| true)
 }
 
@@ -493,7 +493,7 @@ pub(crate) fn costed_casts(frames: &[PressFrame], texel_m: f32, side: u32) -> Op
 pub(crate) fn press_tiles_where(
     frames: &[PressFrame],
     casts: &[FrameCasts],
-    (world, ground, side): (&WorldSettings, PressGround, u32),
+    (world, ground, side): (&WorldSettings, &PressGround, u32),
     keep: impl Fn(crate::TileKey) -> bool,
 ) -> Vec<SharedTile> {
     let mut tiles: std::collections::BTreeMap<crate::TileKey, SharedTile> = std::collections::BTreeMap::new();
@@ -507,21 +507,23 @@ pub(crate) fn press_tiles_where(
     tiles.into_values().collect()
 }
 
-/// Whether presses can travel in `world`: terrain its identity says whole
-/// (flat or value noise: [`PressGround::of_world`]; a machine without the
-/// terrain then knows its height) and no lying snow (a press's rest height
-/// would depend on the snowfall and berms under it, which only the window
-/// knows: those worlds send tiles).
+/// Whether presses can travel in `world` on its settings alone: terrain
+/// its identity says whole (flat or value noise: [`PressGround::of_world`];
+/// a machine without the terrain then knows its height) and no lying snow
+/// (a press's rest height would depend on the snowfall and berms under it,
+/// which only the window knows: those worlds send tiles). Over a heightmap
+/// they travel between machines that hold it ([`PressGround::of_identity`]):
+/// the relay says in its `Welcome` whether it does.
 #[must_use]
 pub fn presses_travel(world: &WorldSettings) -> bool {
-    press_ground(world).is_some()
+    PressGround::of_world(world).is_some() && !world.has_snowfall
 }
 
-/// The terrain presses are pressed over in `world`, when they travel
-/// there ([`presses_travel`]).
+/// The terrain presses are pressed over in `world` on this machine: its
+/// identity's, or the heightmap it holds; none with lying snow.
 #[must_use]
-pub(crate) fn press_ground(world: &WorldSettings) -> Option<PressGround> {
-    PressGround::of_world(world).filter(|_| !world.has_snowfall)
+pub(crate) fn press_ground(world: &WorldIdentity) -> Option<PressGround> {
+    PressGround::of_identity(world).filter(|_| !world.settings.has_snowfall)
 }
 
 /// Quaternion rotation normalised as the sender's box poses are (checked on
@@ -572,7 +574,7 @@ mod tests {
         w.has_snowfall = false;
         w.terrain = "noise seed 7 base -0.5 m amplitude 1.25 m wavelength 9 m".to_owned();
         let noise = PressGround::Noise { seed: 7, base_m: -0.5, amplitude_m: 1.25, wavelength_m: 9.0 };
-        assert_eq!(PressGround::of_world(&w), Some(noise));
+        assert_eq!(PressGround::of_world(&w), Some(noise.clone()));
         assert!(presses_travel(&w));
         // The height under a texel is the window's noise at its centre.
         let h = noise.at_texel([37, -12], 0.25);
@@ -589,5 +591,53 @@ mod tests {
             w.terrain = bad.to_owned();
             assert_eq!(PressGround::of_world(&w), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn a_heightmap_is_pressed_over_only_where_this_machine_holds_it() {
+        use crate::replicate::world::{WorldIdentity, WorldIdentityExt, WorldSnow, WorldTerrain};
+        use std::sync::Arc;
+        let heights: Vec<f32> = (0..7 * 5).map(|k| ((k * 37) % 11) as f32 * 0.125 - 0.5).collect();
+        let grid = Arc::new(ground::HeightGrid::new(7, 5, heights, [1.5, -2.0], [6.0, 4.5]).expect("a grid"));
+        let snow = WorldSnow { texel_m: 0.125, depth_m: 0.5, refill_m_per_s: 0.0, snowfall: None, displace: false };
+        let world = WorldIdentity::new(&snow, &WorldTerrain::heightmap(Arc::clone(&grid)), 16);
+        assert_eq!(world.settings().terrain, format!("heightmap {:016x}", grid.digest()));
+        // The settings alone (a relay's store, the wire) name it, not hold it.
+        assert!(!presses_travel(world.settings()));
+        assert_eq!(PressGround::of_identity(&WorldIdentity::from_settings(world.settings().clone())), None);
+        let held = PressGround::of_identity(&world).expect("the identity holds the grid");
+        assert_eq!(press_ground(&world), Some(held.clone()));
+        // The height under a texel is the grid's at its centre, the edges clamped.
+        for g in [[0_i64, 0], [13, -17], [-40, 9], [60, 60], [-60, -60]] {
+            let (x, z) = ((g[0] as f32 + 0.5) * 0.125, (g[1] as f32 + 0.5) * 0.125);
+            assert_eq!(held.at_texel(g, 0.125).to_bits(), grid.height_at(x, z).to_bits(), "{g:?}");
+        }
+        let (lo, hi) = grid.height_range();
+        assert!((-0.5..=0.75).contains(&lo) && hi <= 0.75 && lo < hi);
+        assert_eq!(grid.height_at(-100.0, -100.0), grid.heights_m()[0]);
+        assert_eq!(grid.height_at(100.0, 100.0), grid.heights_m()[7 * 5 - 1]);
+        // Bilinear between sample centres: the middle of four samples is their mean.
+        // (sample coordinates 0.5, 0.5: the covered area's corner plus a sample)
+        let (cx, cz) = (1.5 - 3.0 + 6.0 / 7.0, -2.0 - 2.25 + 4.5 / 5.0);
+        let mean = (grid.heights_m()[0] + grid.heights_m()[1] + grid.heights_m()[7] + grid.heights_m()[8]) / 4.0;
+        assert!((grid.height_at(cx, cz) - mean).abs() < 1e-5, "{} against {mean}", grid.height_at(cx, cz));
+        // Lying snow keeps tiles over a heightmap too.
+        let fall = WorldSnow { displace: true, ..snow };
+        assert_eq!(press_ground(&WorldIdentity::new(&fall, &WorldTerrain::heightmap(grid), 16)), None);
+    }
+
+    #[test]
+    fn a_height_grid_names_what_is_wrong() {
+        use ground::HeightGrid;
+        let field = |r: Result<HeightGrid, ground::HeightGridError>| r.expect_err("refused").field;
+        assert_eq!(field(HeightGrid::new(0, 3, vec![], [0.0; 2], [1.0; 2])), "heightmap");
+        assert_eq!(field(HeightGrid::new(2, 2, vec![0.0; 3], [0.0; 2], [1.0; 2])), "heightmap");
+        assert_eq!(field(HeightGrid::new(2, 1, vec![0.0, f32::NAN], [0.0; 2], [1.0; 2])), "heightmap");
+        assert_eq!(field(HeightGrid::new(1, 1, vec![0.0], [0.0; 2], [1.0, 0.0])), "heightmap size_m");
+        assert_eq!(field(HeightGrid::new(1, 1, vec![0.0], [0.0; 2], [1.0, 1e-39])), "heightmap size_m");
+        assert_eq!(field(HeightGrid::new(1, 1, vec![0.0], [f32::INFINITY, 0.0], [1.0; 2])), "heightmap center_m");
+        let a = HeightGrid::new(1, 2, vec![0.0, 1.0], [0.0; 2], [1.0; 2]).expect("a grid");
+        let b = HeightGrid::new(1, 2, vec![0.0, 1.5], [0.0; 2], [1.0; 2]).expect("a grid");
+        assert_ne!(a.digest(), b.digest());
     }
 }

@@ -232,8 +232,8 @@ impl SnowRelay {
                 return;
             }
         };
-        if let Message::Hello { world, .. } = message {
-            self.hello(peer, &world, now);
+        if let Message::Hello { world, presses, .. } = message {
+            self.hello(peer, &world, presses, now);
             return;
         }
         // Queries too: only a peer of this world may read it.
@@ -444,7 +444,7 @@ impl SnowRelay {
         }
     }
 
-    fn hello(&mut self, peer: PeerId, theirs: &WorldIdentity, now: f64) {
+    fn hello(&mut self, peer: PeerId, theirs: &WorldIdentity, presses: bool, now: f64) {
         if self.world.is_none() {
             let store_side = self.store.get_mut().as_ref().map(TileStore::side);
             let mut problems = world_problems(theirs);
@@ -472,13 +472,15 @@ impl SnowRelay {
             return;
         }
         let clock = world.clock_at(now);
+        let relay_presses = crate::replicate::press::press_ground(world).is_some();
         if let Some(p) = self.peers.get_mut(&peer) {
             if p.standing != Standing::Welcomed {
                 p.welcomed_s = now;
             }
             p.standing = Standing::Welcomed;
+            p.presses = presses;
             let number = p.number;
-            self.enqueue(peer, encode(&Message::Welcome { peer: number, clock }));
+            self.enqueue(peer, encode(&Message::Welcome { peer: number, clock, presses: relay_presses }));
         }
     }
 
@@ -618,7 +620,8 @@ impl SnowRelay {
     /// Sends `frames` on to `watchers` when the relay accepted every tile
     /// they `pressed` and one of them changed its copy: each watcher
     /// presses them as the relay did, paid from its byte budget. A watcher
-    /// whose budget cannot pay for them now is sent the tiles instead,
+    /// that does not hold the world's ground (its `Hello` said so), or
+    /// whose budget cannot pay for them now, is sent the tiles instead,
     /// paced with its other tiles (so many senders cannot flood one
     /// watcher's queue); and when a tile was refused (far from the
     /// sender's deformers, say) the frames would press it at the watchers
@@ -641,7 +644,7 @@ impl SnowRelay {
             let interest = p.interest;
             let message = coded.as_ref().map(|c| super::message::presses_message(p.seq_out, (frames.len(), c), &[]));
             match message {
-                Some(message) if p.out_bytes.take(now, rate, burst, message.len() as f64) => {
+                Some(message) if p.presses && p.out_bytes.take(now, rate, burst, message.len() as f64) => {
                     p.seq_out = p.seq_out.wrapping_add(1);
                     p.passed_on.retain(|_, at| now - *at < PASSED_ON_S);
                     p.passed_on.extend(pressed.iter().map(|t| t.key).filter(|k| interest.is_some_and(|r| r.contains(*k))).map(|k| (k, now)));
@@ -661,7 +664,7 @@ impl SnowRelay {
         let Some(world) = self.world.clone() else {
             return Vec::new();
         };
-        let Some(ground) = crate::replicate::press::press_ground(&world.settings) else {
+        let Some(ground) = crate::replicate::press::press_ground(&world) else {
             self.stats.rejected.unpressable += 1;
             return Vec::new();
         };
@@ -681,7 +684,7 @@ impl SnowRelay {
         }
         self.stats.press_frames += frames.len() as u64;
         self.stats.press_casts += work;
-        crate::replicate::press::press_tiles(frames, &casts, &world.settings, ground, side)
+        crate::replicate::press::press_tiles(frames, &casts, &world.settings, &ground, side)
     }
 
     /// Whether tile `key` may be merged: one the relay keeps (in memory or

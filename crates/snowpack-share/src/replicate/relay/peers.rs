@@ -41,6 +41,9 @@ pub(super) struct PeerState {
     pub(super) authoritative_until: f64,
     /// When (relay time) the peer was last welcomed.
     pub(super) welcomed_s: f64,
+    /// Its `Hello` said it presses the frames passed on to it (it holds
+    /// the world's ground); otherwise it is sent their tiles.
+    pub(super) presses: bool,
     pub(super) in_bytes: Bucket,
     pub(super) in_tiles: Bucket,
     pub(super) out_bytes: Bucket,
@@ -70,6 +73,7 @@ impl PeerState {
             history: MotionHistory::default(),
             authoritative_until: f64::NEG_INFINITY,
             welcomed_s: f64::NEG_INFINITY,
+            presses: false,
             in_bytes: Bucket::full(f64::from(c.burst_bytes), now),
             in_tiles: Bucket::full(f64::from(c.burst_tiles), now),
             out_bytes: Bucket::full(f64::from(c.send_burst_bytes), now),

@@ -74,7 +74,7 @@ fn a_pinned_world_is_never_a_peers() {
     relay.pin_world(w.clone()).expect("pinned");
     relay.connect(1);
     let other = WorldIdentity::from_settings(WorldSettings { depth_m: 0.8, ..w.settings.clone() });
-    relay.receive(1, &encode(&Message::Hello { world: other, name: "first".to_owned() }), 0.0);
+    relay.receive(1, &encode(&Message::Hello { world: other, name: "first".to_owned(), presses: true }), 0.0);
     let (_, answer) = relay.poll_transmit().expect("an answer");
     match decode(&answer) {
         Ok(Message::Refused { differences }) => assert_eq!(differences, ["snow depth (m): 0.8 here, 0.5 there"]),
