@@ -293,6 +293,20 @@ fn world_epoch(store: &TileStore) -> anyhow::Result<f64> {
     Ok(now)
 }
 
+/// How the server's peers send their analytic presses in `world`, for its
+/// first line: as frames where it can press them, or as tiles, and why.
+fn presses_phrase(world: &WorldIdentity) -> String {
+    let settings = world.settings();
+    match snowpack_share::replicate::press::press_ground(world) {
+        Some(_) => ", presses travel as frames".to_owned(),
+        None if settings.has_snowfall => ", presses go as tiles (lying snow)".to_owned(),
+        None if settings.terrain.starts_with("heightmap") => {
+            ", presses go as tiles (this server lacks the heightmap the world names: start it with --scene)".to_owned()
+        }
+        None => ", presses go as tiles (a mesh terrain)".to_owned(),
+    }
+}
+
 /// Runs `snowpack server` until killed (or `exit_after_s`). Creates no GPU
 /// device and loads no graphics library: it merges integers on the CPU.
 /// Everything it acknowledges is on disk first, so killing it at any moment
@@ -310,14 +324,15 @@ pub fn serve(opts: &ServerOptions) -> anyhow::Result<()> {
     let (mut transport, local) = listen(opts.listen, key)?;
     let mut server = RenetServer::new(connection_config());
     say!(
-        "snowpack server listening on {local} ({}), tiles in {}, world {}",
+        "snowpack server listening on {local} ({}), tiles in {}, world {}{}",
         if key.is_some() { "connect tokens required" } else { "no key: loopback only" },
         opts.store.display(),
         match (&opts.scene, relay.world().is_some()) {
             (Some(scene), _) => format!("of {}", scene.display()),
             (None, true) => "kept in the store".to_owned(),
             (None, false) => "from the first peer".to_owned(),
-        }
+        },
+        relay.world().map_or(String::new(), presses_phrase)
     );
     let started = Instant::now();
     let mut last = started;

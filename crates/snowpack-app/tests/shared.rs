@@ -268,14 +268,42 @@ fn two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow() {
         return;
     }
     let dir = Temp::new("shared-cars");
-    let server = Server::start(&dir.0.join("world"), PROCESS_LIMIT);
-    // 8 m of 0.3 m snow at 3.125 cm; a car crosses the window in 2 s at z.
+    two_cars_at_once(&dir.0, "[terrain]\nkind = \"flat\"\n", (256, false));
+}
+
+/// The same over a heightmap (a 16-bit PNG of bumps up to 12 cm), which a
+/// world's identity names by its digest alone: the server, started with
+/// the scene (`--scene`), holds the heightmap, says so in its `Welcome`,
+/// and presses the cars' frames over it as their windows did.
+#[test]
+fn over_a_heightmap_the_cars_frames_travel_when_the_server_has_the_scene() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = Temp::new("shared-cars-heightmap");
+    let side = 48u32;
+    let map = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(side, side, |x, y| {
+        let (u, v) = (x as f32 * 0.45, y as f32 * 0.6);
+        image::Luma([((0.5 + 0.25 * u.sin() + 0.25 * v.cos()) * 65535.0) as u16])
+    });
+    map.save(dir.0.join("bumps.png")).expect("write the heightmap");
+    let terrain = "[terrain]\nkind = \"heightmap\"\npath = \"bumps.png\"\nheight_scale_m = 0.12\nsize_m = [12.0, 12.0]\n";
+    // At 6.25 cm texels: a quarter of the flat road's frame time.
+    two_cars_at_once(&dir.0, terrain, (128, true));
+}
+
+/// [`two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow`]
+/// over `terrain` (a scene's `[terrain]` table), in windows of
+/// `resolution`², the server started with the first car's scene when
+/// `server_scene`.
+fn two_cars_at_once(dir: &Path, terrain: &str, (resolution, server_scene): (usize, bool)) {
+    // 8 m of 0.3 m snow (3.125 cm texels at 256²); a car crosses the window in 2 s at z.
     let car = |name: &str, z: f32| {
-        let path = dir.0.join(format!("{name}.toml"));
+        let path = dir.join(format!("{name}.toml"));
         std::fs::write(
             &path,
             format!(
-                "[snow]\nextent_m = 8.0\nresolution = 256\ndepth_m = 0.3\nrefill_m_per_s = 0.0\n\n[terrain]\nkind = \"flat\"\n\n[window]\ncenter = [0.0, 0.0]\n\n\
+                "[snow]\nextent_m = 8.0\nresolution = {resolution}\ndepth_m = 0.3\nrefill_m_per_s = 0.0\n\n{terrain}\n[window]\ncenter = [0.0, 0.0]\n\n\
                  [[vehicle]]\nwheelbase_m = 2.6\ntrack_m = 1.55\nwheel_radius_m = 0.33\nwheel_width_m = 0.28\nmass_kg = 1800.0\ntread = \"blocks\"\n\
                  path = [[-3.0, {z}, 0.0], [3.0, {z}, 2.0]]\n\n[sim]\nframes = 300\ndt_s = 0.033333333\n"
             ),
@@ -284,10 +312,12 @@ fn two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow() {
         path
     };
     let scenes = [("a", car("a", -1.5)), ("b", car("b", 1.5))];
+    let scene_option = [std::ffi::OsStr::new("--scene"), scenes[0].1.as_os_str()];
+    let server = Server::start_with(&dir.join("world"), PROCESS_LIMIT, if server_scene { &scene_option } else { &[] });
     let runs: Vec<std::thread::JoinHandle<std::process::Output>> = scenes
         .iter()
         .map(|(name, path)| {
-            let (path, out, addr) = (path.clone(), dir.0.join(name), server.addr);
+            let (path, out, addr) = (path.clone(), dir.join(name), server.addr);
             std::thread::spawn(move || run_connected(&path, &out, addr))
         })
         .collect();
@@ -295,7 +325,7 @@ fn two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow() {
         assert_ok(&format!("car {name}"), &run.join().expect("the run's thread"));
     }
     let share = |name: &str| -> serde_json::Value {
-        let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.0.join(name).join("meta.json")).expect("meta.json")).expect("valid JSON");
+        let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join(name).join("meta.json")).expect("meta.json")).expect("valid JSON");
         meta["share"].clone()
     };
     let (a, b) = (share("a"), share("b"));
@@ -306,11 +336,16 @@ fn two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow() {
         assert!(count("tiles_as_presses") > 0 && count("tiles_sent") == 0, "its frames explain its tiles: {s}");
         assert!(count("press_frames_received") >= 30, "each presses the other's frames, passed on by the server: {s}");
     }
-    let (sa, sb) = (load_npy(&dir.0.join("a/snow.npy")), load_npy(&dir.0.join("b/snow.npy")));
+    let (sa, sb) = (load_npy(&dir.join("a/snow.npy")), load_npy(&dir.join("b/snow.npy")));
     let differ = sa.iter().zip(&sb).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-    // Both cars' ruts, in rows either side of the middle (row 128 is z = 0).
-    let rutted = |rows: std::ops::Range<usize>| rows.flat_map(|i| (0..256).map(move |j| i * 256 + j)).filter(|&k| sa[k] < 0.29).count();
-    let (first, second) = (rutted(0..128), rutted(128..256));
-    assert!(first > 500 && second > 500, "the cars left {first} and {second} texels below 0.29 m");
+    let terrain_m = load_npy(&dir.join("a/terrain.npy"));
+    // Both cars' ruts, in rows either side of the middle (z = 0): texels 1
+    // cm or more below the rest surface; at least about a seventh of two
+    // tyres' widths over 6 m (500 texels at 256²).
+    let (n, half) = (resolution, resolution / 2);
+    let rutted = |rows: std::ops::Range<usize>| rows.flat_map(|i| (0..n).map(move |j| i * n + j)).filter(|&k| sa[k] - terrain_m[k] < 0.29).count();
+    let (first, second) = (rutted(0..half), rutted(half..n));
+    let least = 500 * n * n / (256 * 256);
+    assert!(first > least && second > least, "the cars left {first} and {second} texels more than 1 cm below the rest surface");
     assert_eq!(differ, 0, "{differ} of {} texels differ between the two cars' windows", sa.len());
 }

@@ -520,9 +520,11 @@ pub fn presses_travel(world: &WorldSettings) -> bool {
 }
 
 /// The terrain presses are pressed over in `world` on this machine: its
-/// identity's, or the heightmap it holds; none with lying snow.
+/// identity's, or the heightmap it holds; none with lying snow (then
+/// presses go as tiles). A relay presses its peers' frames, and a peer
+/// sends and presses frames, only where this is some.
 #[must_use]
-pub(crate) fn press_ground(world: &WorldIdentity) -> Option<PressGround> {
+pub fn press_ground(world: &WorldIdentity) -> Option<PressGround> {
     PressGround::of_identity(world).filter(|_| !world.settings.has_snowfall)
 }
 
