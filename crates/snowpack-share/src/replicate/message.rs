@@ -294,12 +294,7 @@ fn write_body(w: &mut Writer, message: &Message) {
             w.i64(window[0]);
             w.i64(window[1]);
             w.u32(*resolution);
-            let n = deformers.len().min(MAX_DEFORMERS);
-            w.u16(n as u16);
-            for d in &deformers[..n] {
-                w.f64(d[0]);
-                w.f64(d[1]);
-            }
+            write_points(w, deformers);
         }
         Message::Tiles { seq, tiles } => {
             // Beyond MAX_TILES the count byte would lie; the reader refuses it.
@@ -335,12 +330,7 @@ fn write_body(w: &mut Writer, message: &Message) {
         Message::Clock { clock } | Message::InSync { clock } => write_clock(w, clock),
         Message::Query { id, points } => {
             w.u32(*id);
-            let n = points.len().min(MAX_DEFORMERS);
-            w.u16(n as u16);
-            for p in &points[..n] {
-                w.f64(p[0]);
-                w.f64(p[1]);
-            }
+            write_points(w, points);
         }
         Message::Depths { id, depths, packed } => {
             w.u32(*id);
@@ -351,6 +341,17 @@ fn write_body(w: &mut Writer, message: &Message) {
                 w.f32(packed.get(k).copied().unwrap_or(0.0));
             }
         }
+    }
+}
+
+/// World points (x, z) as `Presence` and `Query` carry them: a u16 count
+/// (at most [`MAX_DEFORMERS`]), then two f64 each.
+fn write_points(w: &mut Writer, points: &[[f64; 2]]) {
+    let n = points.len().min(MAX_DEFORMERS);
+    w.u16(n as u16);
+    for p in &points[..n] {
+        w.f64(p[0]);
+        w.f64(p[1]);
     }
 }
 
