@@ -56,7 +56,8 @@ pub enum TerrainSource {
 }
 
 /// Largest side of a heightmap (pixels): 8192 is the default texture limit
-/// of wgpu's adapters.
+/// of wgpu's adapters (the heightmap's own check is the shared grid's).
+#[cfg_attr(not(feature = "low_level"), allow(dead_code, reason = "for the scene loader and the tools (`low_level`)"))]
 pub const HEIGHTMAP_MAX_SIDE: u32 = snowpack_share::replicate::press::ground::HEIGHT_GRID_MAX_SIDE;
 
 /// Largest side of the grid a terrain mesh is drawn into (texels). 2048 is
