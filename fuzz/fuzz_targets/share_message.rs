@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
     }
     let mut relay = SnowRelay::new(RelayConfig::default());
     relay.connect(1);
-    relay.receive(1, &encode(&Message::Hello { world: world(), name: "fuzz".to_owned() }), 0.0);
+    relay.receive(1, &encode(&Message::Hello { world: world(), name: "fuzz".to_owned(), presses: true }), 0.0);
     relay.receive(1, &encode(&Message::Presence { window: [-64, -64], resolution: 128, deformers: vec![[0.0, 0.0]] }), 0.0);
     relay.receive(1, data, 1.0);
     relay.update(1.5);
