@@ -175,7 +175,8 @@ pub fn scene_world(path: &Path) -> anyhow::Result<WorldIdentity> {
 pub fn scene_snow(path: &Path) -> anyhow::Result<(WorldIdentity, snowpack_share::mechanics::SnowMechanics)> {
     Err(BadInput(format!(
         "--scene {}: this snowpack is the server-only build (no GPU stack, no scene loader); \
-         pin the world into the store once with the full build (`snowpack server --scene FILE --store DIR`), \
+         pin the world into the store once with the full build (`snowpack server --scene FILE --store DIR`; \
+         a heightmap world's heightmap is kept with it, so presses travel as frames), \
          then serve that store with this build: a store's world is never redefined by a peer",
         path.display()
     ))

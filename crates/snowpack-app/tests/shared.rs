@@ -290,6 +290,11 @@ fn over_a_heightmap_the_cars_frames_travel_when_the_server_has_the_scene() {
     let terrain = "[terrain]\nkind = \"heightmap\"\npath = \"bumps.png\"\nheight_scale_m = 0.12\nsize_m = [12.0, 12.0]\n";
     // At 6.25 cm texels: a quarter of the flat road's frame time.
     two_cars_at_once(&dir.0, terrain, (128, true));
+    // The store keeps the heightmap with the world: a server started on it
+    // without the scene (as the server-only build, which loads no PNG,
+    // must be) presses there too.
+    let again = Server::start(&dir.0.join("world"), PROCESS_LIMIT);
+    assert!(again.first_line.contains("presses travel as frames"), "{}", again.first_line);
 }
 
 /// [`two_cars_at_once_press_each_others_frames_and_end_with_the_same_snow`]

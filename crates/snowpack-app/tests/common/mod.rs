@@ -31,6 +31,8 @@ pub struct Server {
     child: Child,
     /// Where it listens.
     pub addr: SocketAddr,
+    /// Its first line: where it listens, its store, its world, how presses travel.
+    pub first_line: String,
     /// Its output after the first line, as it comes.
     output: std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 }
@@ -71,7 +73,7 @@ impl Server {
                 sink.lock().expect("the output lock").push(line);
             }
         });
-        Self { child, addr, output }
+        Self { child, addr, first_line: first, output }
     }
 
     /// Waits (at most `limit`, then kills it) for it to stop by itself; its output after the first line.

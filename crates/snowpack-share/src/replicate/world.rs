@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use crate::SNOW_QUANTUM_M;
 
-use super::press::ground::HeightGrid;
+use super::press::height_grid::HeightGrid;
 use super::tile::ShareClock;
 
 /// The settings that make a world: tiles from machines that agree on all of

@@ -19,9 +19,11 @@
 //! | `sweep.rs` | sub-steps of swept boxes (and meshes, in snowpack) |
 //! | `cast.rs` | the ray casts: capsule, tyre, box |
 //! | `ground.rs` | the terrain they are pressed over: flat, the window's value noise, or a heightmap both ends hold |
+//! | `height_grid.rs` | a heightmap as every machine samples it, and as bytes |
 
 pub mod cast;
 pub mod ground;
+pub mod height_grid;
 pub mod sweep;
 pub mod wheel;
 
@@ -641,5 +643,17 @@ mod tests {
         let a = HeightGrid::new(1, 2, vec![0.0, 1.0], [0.0; 2], [1.0; 2]).expect("a grid");
         let b = HeightGrid::new(1, 2, vec![0.0, 1.5], [0.0; 2], [1.0; 2]).expect("a grid");
         assert_ne!(a.digest(), b.digest());
+        // As bytes: back the same; anything else refused, saying why.
+        assert_eq!(HeightGrid::from_bytes(&a.to_bytes()), Ok(a.clone()));
+        let bytes = a.to_bytes();
+        assert_eq!(field(HeightGrid::from_bytes(&bytes[..bytes.len() - 1])), "heightmap bytes");
+        assert_eq!(field(HeightGrid::from_bytes(b"SNWP")), "heightmap bytes");
+        let mut format = bytes.clone();
+        format[4] = 2;
+        assert_eq!(field(HeightGrid::from_bytes(&format)), "heightmap bytes");
+        let mut nan = bytes;
+        let last = nan.len() - 4;
+        nan[last..].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert_eq!(field(HeightGrid::from_bytes(&nan)), "heightmap");
     }
 }

@@ -53,7 +53,7 @@ pub use config::RelayConfig;
 pub use interest::MAX_INTEREST_TILES;
 pub use peers::PeerId;
 pub use stats::{RelayRejections, RelayStats};
-pub use stored::{EPOCH_STATE, WORLD_STATE, tile_from_data, tile_to_data};
+pub use stored::{EPOCH_STATE, GROUND_STATE, WORLD_STATE, tile_from_data, tile_to_data};
 
 /// The relay: see the module documentation.
 #[derive(Debug)]
@@ -103,8 +103,9 @@ impl SnowRelay {
     }
 
     /// A relay that keeps its tiles in `store`, resuming the world saved
-    /// there (if any; tiles are read back when they are needed). The
-    /// store's tile files hold deficits (see `tile_to_data`), not the
+    /// there (if any; tiles are read back when they are needed), and the
+    /// heightmap saved with it ([`GROUND_STATE`]), over which it presses.
+    /// The store's tile files hold deficits (see `tile_to_data`), not the
     /// heights snowpack's `TileStreamer` keeps: give a relay
     /// a directory of its own.
     pub fn with_store(store: TileStore, config: RelayConfig) -> Result<Self, crate::ShareError> {
@@ -119,7 +120,13 @@ impl SnowRelay {
                     ))
                     .into());
                 }
-                Some(world)
+                Some(match store.read_state(GROUND_STATE)? {
+                    Some(bytes) => {
+                        let grid = stored::saved_ground(&bytes, &world)?;
+                        world.holding(grid)
+                    }
+                    None => world,
+                })
             }
             None => None,
         };
@@ -133,7 +140,9 @@ impl SnowRelay {
     /// another world is refused, the first one included, and no peer ever
     /// redefines it. A relay whose store holds another world refuses it
     /// ([`ShareError::StoreWorld`], naming each difference, "here" being the
-    /// store's and "there" `world`); otherwise the world is saved there.
+    /// store's and "there" `world`); otherwise the world is saved there,
+    /// with the heightmap it holds ([`GROUND_STATE`]: a relay opened on
+    /// the store later presses over it without the scene's file).
     pub fn pin_world(&mut self, world: WorldIdentity) -> Result<(), crate::ShareError> {
         let mut problems = world_problems(&world);
         if let Some(side) = self.store.get_mut().as_ref().map(TileStore::side).filter(|&s| s != world.settings.tile_side) {
@@ -147,6 +156,9 @@ impl SnowRelay {
         }
         if let Some(store) = self.store.get_mut().as_ref() {
             store.write_state(WORLD_STATE, &encode_world(&world)).map_err(ShareError::Store)?;
+            if let Some(grid) = &world.grid {
+                store.write_state(GROUND_STATE, &grid.to_bytes()).map_err(ShareError::Store)?;
+            }
         }
         self.world = Some(world);
         Ok(())

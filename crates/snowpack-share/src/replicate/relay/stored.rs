@@ -1,11 +1,22 @@
 //! How the relay keeps its world and tiles in a [`TileStore`](crate::persist::TileStore): the state
 //! names, a tile as the store holds it and back, and the store's "full".
 
+use std::sync::Arc;
+
+use crate::error::ShareError;
 use crate::persist::{SnowClock, StoreError, TileData};
+use crate::replicate::press::ground::HeightGrid;
 use crate::replicate::tile::{NO_STAMP, ShareClock, SharedTile};
+use crate::replicate::world::WorldIdentity;
 
 /// The state name the relay's world is saved under in its store.
 pub const WORLD_STATE: &str = "world";
+
+/// The state name the world's heightmap is saved under, when its terrain
+/// is one and the world was pinned holding it
+/// ([`HeightGrid::to_bytes`](crate::replicate::press::ground::HeightGrid::to_bytes)):
+/// a relay opened on the store then presses over it.
+pub const GROUND_STATE: &str = "ground";
 
 /// The state name the world's epoch (f64 Unix seconds, little-endian) is saved under ([`SnowRelay::world_epoch`](super::SnowRelay::world_epoch)).
 pub const EPOCH_STATE: &str = "epoch";
@@ -15,6 +26,20 @@ pub const EPOCH_STATE: &str = "epoch";
 /// format always has a footprint plane, so this keeps "none" apart from
 /// "all empty", which digest differently.
 const NO_STAMP_PLANE: u32 = 1 << 16;
+
+/// The heightmap a store keeps beside `world` ([`GROUND_STATE`]): it must
+/// decode and be the terrain the world names.
+pub(super) fn saved_ground(bytes: &[u8], world: &WorldIdentity) -> Result<Arc<HeightGrid>, ShareError> {
+    let grid = HeightGrid::from_bytes(bytes).map_err(|e| ShareError::StoreWorld(format!("the saved heightmap does not decode: {e}")))?;
+    if grid.terrain_identity() != world.settings.terrain {
+        return Err(ShareError::StoreWorld(format!(
+            "the saved heightmap is \"{}\", the saved world's terrain \"{}\"",
+            grid.terrain_identity(),
+            world.settings.terrain
+        )));
+    }
+    Ok(Arc::new(grid))
+}
 
 /// Whether a store refused a write because its disk budget is spent.
 pub(super) fn is_full(e: &StoreError) -> bool {

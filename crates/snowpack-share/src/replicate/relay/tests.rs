@@ -119,3 +119,42 @@ fn the_world_epoch_is_kept_in_the_store() {
     assert_eq!(open().world_epoch(250.0).expect("epoch"), 100.0, "the epoch was not kept");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A world pinned holding its heightmap keeps it in the store: a relay
+/// opened on the store (a server without the scene's file) presses there,
+/// and says so in its `Welcome`; a damaged or foreign saved heightmap is
+/// an error naming it.
+#[test]
+fn a_pinned_heightmap_is_kept_in_the_store_and_pressed_over_after_a_restart() {
+    use crate::replicate::press::ground::HeightGrid;
+    use crate::replicate::world::{WorldSnow, WorldTerrain};
+    use std::sync::Arc;
+    let dir = std::env::temp_dir().join(format!("snowpack-relay-ground-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let heights: Vec<f32> = (0..12).map(|k| k as f32 * 0.01).collect();
+    let grid = Arc::new(HeightGrid::new(4, 3, heights, [0.5, -1.0], [8.0, 6.0]).expect("a grid"));
+    assert_eq!(HeightGrid::from_bytes(&grid.to_bytes()).as_ref(), Ok(&*grid));
+    let snow = WorldSnow { texel_m: 0.0625, depth_m: 0.5, refill_m_per_s: 0.0, snowfall: None, displace: false };
+    let w = WorldIdentity::new(&snow, &WorldTerrain::heightmap(Arc::clone(&grid)), 32);
+    let open = || TileStore::open(&dir, 32, crate::persist::StoreConfig::default()).expect("store");
+    SnowRelay::with_store(open(), RelayConfig::default()).expect("relay").pin_world(w.clone()).expect("a fresh store takes the world");
+    let mut relay = SnowRelay::with_store(open(), RelayConfig::default()).expect("the store's world and heightmap");
+    assert!(crate::replicate::press::press_ground(relay.world().expect("the saved world")).is_some(), "the relay holds the heightmap");
+    relay.connect(1);
+    relay.receive(1, &encode(&Message::Hello { world: WorldIdentity::from_settings(w.settings.clone()), name: "p".to_owned(), presses: false }), 0.0);
+    let (_, answer) = relay.poll_transmit().expect("an answer");
+    assert!(matches!(decode(&answer), Ok(Message::Welcome { presses: true, .. })), "{:?}", decode(&answer));
+    drop(relay);
+    // Damaged, or another heightmap than the world's.
+    let mut cut = grid.to_bytes();
+    cut.pop();
+    let other = HeightGrid::new(1, 1, vec![0.0], [0.0; 2], [1.0; 2]).expect("a grid");
+    for (bytes, says) in [(cut, "does not decode"), (other.to_bytes(), "the saved world's terrain")] {
+        open().write_state(GROUND_STATE, &bytes).expect("write");
+        match SnowRelay::with_store(open(), RelayConfig::default()).map_err(crate::error::ShareError::from) {
+            Err(ShareError::StoreWorld(why)) => assert!(why.contains(says), "{why}"),
+            other => panic!("not refused: {:?}", other.map(|r| r.world().cloned())),
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
