@@ -42,10 +42,26 @@ pub fn gpu() -> Option<&'static GpuContext> {
         }
     });
     if let Some(ctx) = ctx {
-        WAIT_AT_TEST_END.with(|armed| armed.0.set(Some(ctx)));
+        WAIT_AT_TEST_END.with(|armed| {
+            armed.ctx.set(Some(ctx));
+            if ctx.summary.backend == "gl" {
+                armed.take_gl_turn();
+            }
+        });
     }
     ctx.as_ref()
 }
+
+/// One test at a time on the GL backend (held from a test's first
+/// [`gpu`] to its end). wgpu's GL backend panics when a thread waits more
+/// than 6 s for the one GL context, and llvmpipe compiles a shader while
+/// holding it: with Mesa's shader cache cold (a fresh machine, or a
+/// changed shader every pass includes) a compile takes longer than that
+/// beside a second test's, and tests that would pass fail. GL calls take
+/// turns on the context anyway: the suite took 18.6 s on two threads and
+/// 20.5 s on one (`query`, cache warm).
+#[cfg(not(target_arch = "wasm32"))]
+static GL_TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Waits for the shared context's GPU work when the test's thread ends.
 ///
@@ -55,13 +71,31 @@ pub fn gpu() -> Option<&'static GpuContext> {
 /// with LLVM while the exit handlers tear LLVM down, and the process
 /// crashes after every test passed. libtest runs each test on a thread of
 /// its own, so this thread-local's destructor runs before the process exits.
+///
+/// On GL it also holds the test's turn ([`GL_TURN`]), given back after
+/// that wait.
 #[cfg(not(target_arch = "wasm32"))]
-struct WaitForGpu(std::cell::Cell<Option<&'static GpuContext>>);
+struct WaitForGpu {
+    ctx: std::cell::Cell<Option<&'static GpuContext>>,
+    gl_turn: std::cell::RefCell<Option<std::sync::MutexGuard<'static, ()>>>,
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+impl WaitForGpu {
+    /// Waits for this thread's turn on GL, unless it has it.
+    fn take_gl_turn(&self) {
+        if self.gl_turn.borrow().is_none() {
+            // A test that panicked with its turn leaves nothing unfinished to guard.
+            let turn = GL_TURN.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            *self.gl_turn.borrow_mut() = Some(turn);
+        }
+    }
+}
 
 #[cfg(not(target_arch = "wasm32"))]
 impl Drop for WaitForGpu {
     fn drop(&mut self) {
-        if let Some(ctx) = self.0.take() {
+        if let Some(ctx) = self.ctx.take() {
             // On a thread of its own: wgpu keeps thread-locals of its own,
             // which this thread may already have destroyed. A lost device
             // has nothing left to wait for.
@@ -70,12 +104,14 @@ impl Drop for WaitForGpu {
             });
             let _ = waiter.join();
         }
+        // The next test's turn, once this one's work is done.
+        drop(self.gl_turn.take());
     }
 }
 
 #[cfg(not(target_arch = "wasm32"))]
 thread_local! {
-    static WAIT_AT_TEST_END: WaitForGpu = const { WaitForGpu(std::cell::Cell::new(None)) };
+    static WAIT_AT_TEST_END: WaitForGpu = const { WaitForGpu { ctx: std::cell::Cell::new(None), gl_turn: std::cell::RefCell::new(None) } };
 }
 
 /// Whether `SNOWPACK_REQUIRE_GPU` asks for GPU tests to fail rather than skip.
