@@ -22,7 +22,9 @@ use super::tile::ShareClock;
 #[derive(Clone, Debug)]
 pub struct WorldIdentity {
     pub(crate) settings: WorldSettings,
-    /// The heightmap `settings.terrain` names, where this machine holds it.
+    /// The heightmap `settings.terrain` names, where this machine holds it
+    /// (set only where the digest is checked or the name made from it:
+    /// `holding`, `WorldTerrain::heightmap`).
     pub(crate) grid: Option<Arc<HeightGrid>>,
 }
 

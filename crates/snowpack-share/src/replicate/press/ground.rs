@@ -134,10 +134,9 @@ impl PressGround {
     /// one decoded from the wire or a store holds none).
     #[must_use]
     pub fn of_identity(world: &WorldIdentity) -> Option<Self> {
-        Self::of_world(&world.settings).or_else(|| {
-            let grid = world.grid.as_ref()?;
-            (world.settings.terrain == grid.terrain_identity()).then(|| Self::Heightmap(Arc::clone(grid)))
-        })
+        // An identity holds only the grid its terrain names (`holding`,
+        // `WorldTerrain::heightmap`).
+        Self::of_world(&world.settings).or_else(|| world.grid.as_ref().map(|grid| Self::Heightmap(Arc::clone(grid))))
     }
 
     /// Terrain height (m) at the centre of global texel `g` (column, row)
@@ -145,18 +144,13 @@ impl PressGround {
     /// finds it (the window's texels are i32 there).
     #[must_use]
     pub fn at_texel(&self, g: [i64; 2], texel_m: f32) -> f32 {
+        // The texel's centre, as `texel_ground` finds it.
+        let x = (g[0] as i32 as f32 + 0.5) * texel_m;
+        let z = (g[1] as i32 as f32 + 0.5) * texel_m;
         match *self {
             Self::Flat(h) => h,
-            Self::Noise { seed, base_m, amplitude_m, wavelength_m } => {
-                let x = (g[0] as i32 as f32 + 0.5) * texel_m;
-                let z = (g[1] as i32 as f32 + 0.5) * texel_m;
-                noise_height(x, z, (seed, base_m, amplitude_m, wavelength_m))
-            }
-            Self::Heightmap(ref grid) => {
-                let x = (g[0] as i32 as f32 + 0.5) * texel_m;
-                let z = (g[1] as i32 as f32 + 0.5) * texel_m;
-                grid.height_at(x, z)
-            }
+            Self::Noise { seed, base_m, amplitude_m, wavelength_m } => noise_height(x, z, (seed, base_m, amplitude_m, wavelength_m)),
+            Self::Heightmap(ref grid) => grid.height_at(x, z),
         }
     }
 }
